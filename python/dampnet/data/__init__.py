@@ -1,0 +1,22 @@
+"""Dyno data: the dataset format, readers for real measurements, preprocessing, the virtual rig.
+
+  types.py       DynoTest, Dataset, DataError, channel names and SI units
+  units.py       unit-bearing column names -> channel and SI conversion
+  table.py       numeric text tables with cell-level error messages
+  validate.py    checks on a loaded test (time, NaN, samples)
+  fileformat.py  the dataset directory (manifest.csv + one CSV per test): read, write
+  readers.py     load_dataset: directories, single CSV/text files, .mat files
+  real.py        the two real MR-damper data sets in ../shared/data
+  preprocess.py  acceleration, decimation, hold-out and by-test splits
+  rig/           the virtual shock dyno (generate, EFFECTS, truth_force, TruthDamper)
+"""
+
+from dampnet.data.fileformat import write_dataset
+from dampnet.data.preprocess import (DEFAULT_WINDOW_S, add_acceleration, decimate, holdout_split,
+                                     split_by_tests)
+from dampnet.data.readers import load_dataset, read_mat, read_text
+from dampnet.data.types import DataError, Dataset, DynoTest
+
+__all__ = ["DataError", "Dataset", "DynoTest", "load_dataset", "read_mat", "read_text",
+           "write_dataset", "add_acceleration", "decimate", "holdout_split", "split_by_tests",
+           "DEFAULT_WINDOW_S"]

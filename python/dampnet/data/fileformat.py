@@ -1,0 +1,238 @@
+"""The dampnet dataset directory: manifest.csv plus one CSV per test (read and write).
+
+  manifest.csv: test_id,file,frequency_hz,amplitude_m,voltage_v   (or current_a)
+  <file>.csv:   time_s,displacement_m,velocity_m_s,force_n,voltage_v[,temperature_c,...]
+
+SI units; displacement and velocity positive in extension, force positive when
+the damper resists extension. frequency_hz/amplitude_m may be 0 or empty for
+tests that are not sines. Any further test columns are kept as channels named
+as in the file (known SI columns such as temperature_c map to their channel).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from dampnet.data.table import read_table, safe_name
+from dampnet.data.types import (COLUMN_CHANNELS, CONTROL_NAMES, FILE_COLUMNS, DataError, Dataset,
+                                DynoTest)
+from dampnet.data.validate import check_test
+
+MANIFEST = "manifest.csv"
+META_FILE = "meta.json"
+MANIFEST_COLUMNS = ("test_id", "file", "frequency_hz", "amplitude_m")
+
+#: printf formats per known column: resolution of the written file
+#: (time 0.1 us, displacement 0.1 um, velocity 1 um/s, force 1 mN, control 0.1 mV / 0.1 uA, 1 mdegC).
+COLUMN_FORMATS = {
+    "time_s": "%.7f", "displacement_m": "%.7f", "velocity_m_s": "%.6f", "force_n": "%.3f",
+    "voltage_v": "%.4f", "current_a": "%.7f", "temperature_c": "%.3f", "acceleration_m_s2": "%.5f",
+}
+DEFAULT_FORMAT = "%.10g"
+
+
+def is_dataset_dir(path: Path) -> bool:
+    return Path(path).is_dir() and (Path(path) / MANIFEST).is_file()
+
+
+def _opt_float(cell: str, where: str, col: str) -> float | None:
+    cell = cell.strip()
+    if cell == "":
+        return None
+    try:
+        v = float(cell)
+    except ValueError:
+        raise DataError(f"{where}, column {col!r}: expected a number or empty, got {cell!r}") from None
+    if not np.isfinite(v):
+        raise DataError(f"{where}, column {col!r}: expected a finite number, got {cell!r}")
+    return v
+
+
+def read_manifest(root: Path) -> list[dict]:
+    """Rows of manifest.csv as dicts; DataError naming the line of the first bad row."""
+    mpath = root / MANIFEST
+    with open(mpath, newline="") as f:
+        rows = list(csv.reader(f))
+    if not rows:
+        raise DataError(f"{mpath}: empty: expected a header {','.join(MANIFEST_COLUMNS)},voltage_v")
+    header = [h.strip() for h in rows[0]]
+    missing = [c for c in MANIFEST_COLUMNS if c not in header]
+    if missing:
+        raise DataError(f"{mpath}: line 1: missing column(s) {', '.join(missing)}: expected "
+                        f"{','.join(MANIFEST_COLUMNS)},voltage_v (or current_a)")
+    controls = [c for c in ("voltage_v", "current_a") if c in header]
+    if len(controls) != 1:
+        raise DataError(f"{mpath}: line 1: expected exactly one of the columns voltage_v or current_a, "
+                        f"got {controls or 'neither'}")
+    ccol = controls[0]
+    out, seen = [], set()
+    for i, row in enumerate(rows[1:], start=2):
+        if not any(c.strip() for c in row):
+            continue
+        where = f"{mpath}: line {i}"
+        if len(row) != len(header):
+            raise DataError(f"{where}: expected {len(header)} columns, got {len(row)}")
+        r = dict(zip(header, (c.strip() for c in row)))
+        if not r["test_id"]:
+            raise DataError(f"{where}, column 'test_id': expected a test id, got an empty cell")
+        if r["test_id"] in seen:
+            raise DataError(f"{where}, column 'test_id': duplicated test id {r['test_id']!r}")
+        seen.add(r["test_id"])
+        fpath = root / r["file"]
+        if not r["file"] or not fpath.is_file():
+            raise DataError(f"{where}, column 'file': file {r['file']!r} not found in {root}")
+        out.append({
+            "test_id": r["test_id"], "file": fpath,
+            "frequency_hz": _opt_float(r["frequency_hz"], where, "frequency_hz"),
+            "amplitude_m": _opt_float(r["amplitude_m"], where, "amplitude_m"),
+            "control_name": "voltage" if ccol == "voltage_v" else "current",
+            "control_nominal": _opt_float(r[ccol], where, ccol),
+            "extra": {k: v for k, v in r.items() if k not in (*MANIFEST_COLUMNS, ccol)},
+        })
+    if not out:
+        raise DataError(f"{mpath}: no tests: expected one row per test after the header")
+    return out
+
+
+def read_test_file(path: Path, test_id: str, control_name: str) -> DynoTest:
+    """One test CSV in the dataset format (SI columns named as in FILE_COLUMNS)."""
+    names, data, nbefore = read_table(path)
+    if names[0] != "time_s" and "time_s" not in names:
+        raise DataError(f"{path}: line 1: missing column 'time_s': expected columns "
+                        f"time_s,displacement_m,velocity_m_s,force_n,{FILE_COLUMNS[control_name]}")
+    if len(set(names)) != len(names):
+        dup = [n for n in names if names.count(n) > 1][0]
+        raise DataError(f"{path}: line 1: duplicated column {dup!r}")
+    need = ["displacement_m", "velocity_m_s", "force_n", FILE_COLUMNS[control_name]]
+    missing = [c for c in need if c not in names]
+    if missing:
+        raise DataError(f"{path}: line 1: missing column(s) {', '.join(missing)}: expected "
+                        f"time_s,{','.join(need)}")
+    other_control = FILE_COLUMNS["current" if control_name == "voltage" else "voltage"]
+    channels, colnames = {}, {}
+    for j, n in enumerate(names):
+        if n == "time_s":
+            continue
+        if n == other_control:
+            raise DataError(f"{path}: line 1, column {n!r}: the manifest says the control is "
+                            f"{FILE_COLUMNS[control_name]}, expected that column instead")
+        ch = COLUMN_CHANNELS.get(n, n)
+        if not safe_name(n):
+            raise DataError(f"{path}: line 1, column {n!r}: expected a column name of letters, digits, '_', '.', '-'")
+        channels[ch] = data[:, j].copy()
+        colnames[ch] = n
+    colnames["time"] = "time_s"
+    test = DynoTest(test_id=test_id, time=data[:, names.index("time_s")].copy(), channels=channels,
+                    control_name=control_name)
+    return check_test(test, str(path), header_lines=nbefore, column_names=colnames)
+
+
+def read_dataset_dir(root: str | os.PathLike) -> Dataset:
+    """Load a dataset directory (manifest.csv + test CSVs); DataError on any problem."""
+    root = Path(root)
+    tests = []
+    for r in read_manifest(root):
+        t = read_test_file(r["file"], r["test_id"], r["control_name"])
+        t.frequency_hz = r["frequency_hz"]
+        t.amplitude_m = r["amplitude_m"]
+        t.control_nominal = r["control_nominal"]
+        t.meta.update(r["extra"])
+        tests.append(t)
+    meta = {}
+    mfile = root / META_FILE
+    if mfile.is_file():
+        try:
+            meta = json.loads(mfile.read_text())
+        except json.JSONDecodeError as e:
+            raise DataError(f"{mfile}: line {e.lineno}: expected JSON ({e.msg})") from None
+    return Dataset(tests=tests, source=str(root), meta=meta)
+
+
+def _column_for(channel: str) -> str:
+    return FILE_COLUMNS.get(channel, channel)
+
+
+def format_test(test: DynoTest) -> str:
+    """The CSV text of one test in the dataset format."""
+    order = ["displacement", "velocity", "force", test.control_name]
+    order += [c for c in test.channels if c not in order]
+    cols = ["time_s"] + [_column_for(c) for c in order]
+    data = np.column_stack([test.time] + [test.channels[c] for c in order])
+    buf = io.StringIO()
+    buf.write(",".join(cols) + "\n")
+    np.savetxt(buf, data, fmt=[COLUMN_FORMATS.get(c, DEFAULT_FORMAT) for c in cols], delimiter=",")
+    return buf.getvalue()
+
+
+def _num(v: float | None) -> str:
+    return "" if v is None else repr(float(v))
+
+
+def write_dataset(ds: Dataset, out_dir: str | os.PathLike, overwrite: bool = False,
+                  progress: bool = False) -> Path:
+    """Write `ds` as a dataset directory, atomically; refuse to replace an existing one.
+
+    The directory is built under a temporary name beside `out_dir` and renamed
+    into place, so a reader never sees a half-written dataset. Values are
+    written at the resolutions of COLUMN_FORMATS. `meta` goes to meta.json.
+    """
+    out = Path(out_dir)
+    if out.exists() and not overwrite:
+        raise FileExistsError(f"{out}: exists; refusing to overwrite (use --force)")
+    if not ds.tests:
+        raise DataError("write_dataset: the dataset has no tests: expected at least one")
+    controls = {t.control_name for t in ds.tests}
+    if len(controls) != 1 or not controls <= set(CONTROL_NAMES):
+        raise DataError(f"write_dataset: expected one control kind (voltage or current) for all tests, got {sorted(controls)}")
+    ccol = FILE_COLUMNS[controls.pop()]
+    ids = [t.test_id for t in ds.tests]
+    for tid in ids:
+        if not safe_name(tid):
+            raise DataError(f"write_dataset: test id {tid!r}: expected letters, digits, '_', '.', '-'")
+    if len(set(ids)) != len(ids):
+        raise DataError("write_dataset: duplicated test ids")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
+    try:
+        rows = [",".join(("test_id", "file", "frequency_hz", "amplitude_m", ccol))]
+        it = ds.tests
+        if progress:
+            from tqdm import tqdm
+            it = tqdm(it, desc="write", unit="test")
+        for t in it:
+            check_test(t, f"test {t.test_id}")
+            fname = f"{t.test_id}.csv"
+            (tmp / fname).write_text(format_test(t))
+            rows.append(",".join((t.test_id, fname, _num(t.frequency_hz), _num(t.amplitude_m),
+                                  _num(t.control_nominal))))
+        (tmp / MANIFEST).write_text("\n".join(rows) + "\n")
+        (tmp / META_FILE).write_text(json.dumps(ds.meta, indent=1, default=_jsonable) + "\n")
+        old = None
+        if out.exists():
+            old = out.parent / f".{out.name}.old-{os.getpid()}"
+            os.replace(out, old)
+        os.replace(tmp, out)
+        if old is not None:
+            shutil.rmtree(old) if old.is_dir() else old.unlink()
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return out
+
+
+def _jsonable(o):
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, (np.floating, np.integer)):
+        return o.item()
+    if isinstance(o, Path):
+        return str(o)
+    return str(o)

@@ -1,0 +1,198 @@
+"""Readers: a dataset directory, a single text file with unit-bearing columns, a MATLAB .mat file.
+
+`load_dataset(path, **options)` picks the reader from what `path` is:
+
+  directory with manifest.csv     the dataset format (`dampnet.data.fileformat`)
+  *.mat                           `read_mat`, needs `mapping` (variable -> channel)
+  any other file                  `read_text`: CSV (',', ';', tab) or whitespace text
+                                  whose header names carry units (force_lbf, mm/s, kN, ...)
+
+Options common to single files (all SI after conversion):
+  voltage=V or current=A    a constant control when the file has no control column
+  dt=s                      the sample interval when the file has no time column
+  motion_positive='extension'|'compression'  the rig's displacement/velocity sign
+  force_positive='extension'|'compression'   'extension' = positive when resisting extension
+  frequency_hz, amplitude_m, test_id         describe the test
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from dampnet.data.fileformat import is_dataset_dir, read_dataset_dir
+from dampnet.data.table import read_table
+from dampnet.data.types import CONTROL_NAMES, DataError, Dataset, DynoTest
+from dampnet.data.units import parse_column
+from dampnet.data.validate import check_test
+
+_SIGNED_MOTION = ("displacement", "velocity", "acceleration")
+_CONVENTIONS = ("extension", "compression")
+
+
+def _sign(value: str, what: str) -> float:
+    if value not in _CONVENTIONS:
+        raise DataError(f"{what}={value!r}: expected 'extension' or 'compression'")
+    return 1.0 if value == "extension" else -1.0
+
+
+def apply_convention(channels: dict[str, np.ndarray], motion_positive: str = "extension",
+                     force_positive: str = "extension") -> dict[str, np.ndarray]:
+    """Flip signs so motion is positive in extension and force positive resisting extension."""
+    sm = _sign(motion_positive, "motion_positive")
+    sf = _sign(force_positive, "force_positive")
+    for k in list(channels):
+        if k in _SIGNED_MOTION and sm < 0:
+            channels[k] = -channels[k]
+        if k == "force" and sf < 0:
+            channels[k] = -channels[k]
+    return channels
+
+
+def build_test(where: str, columns: dict[str, np.ndarray], colnames: dict[str, str], *,
+               header_lines: int = 1, test_id: str | None = None, voltage: float | None = None,
+               current: float | None = None, dt: float | None = None, t0: float = 0.0,
+               motion_positive: str = "extension", force_positive: str = "extension",
+               frequency_hz: float | None = None, amplitude_m: float | None = None,
+               derive_velocity: bool = False, meta: dict | None = None) -> DynoTest:
+    """A checked DynoTest from SI channel arrays (one of them may be 'time')."""
+    columns = dict(columns)
+    n = len(next(iter(columns.values())))
+    if "time" in columns:
+        time = columns.pop("time")
+    elif dt is not None:
+        if not dt > 0:
+            raise DataError(f"{where}: dt={dt!r}: expected a positive sample interval [s]")
+        time = t0 + dt * np.arange(n)
+    else:
+        raise DataError(f"{where}: missing a time column (time_s, time_ms, ...): expected one, "
+                        "or pass dt= the sample interval [s]")
+    if derive_velocity and "velocity" not in columns and "displacement" in columns and n > 2:
+        columns["velocity"] = np.gradient(columns["displacement"], time)
+        colnames["velocity"] = "(derived from displacement)"
+    present = [c for c in CONTROL_NAMES if c in columns]
+    if voltage is not None and current is not None:
+        raise DataError(f"{where}: both voltage= and current= given: expected one control")
+    if len(present) == 2:
+        raise DataError(f"{where}: both voltage and current columns: expected one control column")
+    if present:
+        control_name = present[0]
+        nominal = float(np.median(columns[control_name]))
+    elif voltage is not None or current is not None:
+        control_name = "voltage" if voltage is not None else "current"
+        nominal = float(voltage if voltage is not None else current)
+        columns[control_name] = np.full(n, nominal)
+    else:
+        raise DataError(f"{where}: missing control column: expected voltage_v or current_a "
+                        "(any unit), or pass voltage= or current= for a constant control")
+    columns = apply_convention(columns, motion_positive, force_positive)
+    test = DynoTest(test_id=test_id or Path(where).stem, time=np.asarray(time, np.float64),
+                    channels={k: np.asarray(v, np.float64) for k, v in columns.items()},
+                    frequency_hz=frequency_hz, amplitude_m=amplitude_m, control_nominal=nominal,
+                    control_name=control_name, meta=dict(meta or {}))
+    return check_test(test, where, header_lines=header_lines, column_names=colnames)
+
+
+def read_text(path: str | os.PathLike, *, skip_lines: int = 0, columns: list[str] | None = None,
+              **options) -> DynoTest:
+    """One test from a CSV or whitespace-separated text file with unit-bearing column names.
+
+    `columns` names the columns (with units) of a file without a header row,
+    e.g. ['time_s', 'x_mm', 'dx_mm_s', 'force_n']. See the module doc for options.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise DataError(f"{path}: file not found")
+    names, data, nbefore = read_table(path, skip_lines=skip_lines, has_header=columns is None)
+    if columns is not None:
+        if len(columns) != data.shape[1]:
+            raise DataError(f"{path}: columns= names {len(columns)} columns, the file has {data.shape[1]}")
+        names = list(columns)
+    chans, colnames = {}, {}
+    for j, name in enumerate(names):
+        ch, scale, offset = parse_column(name, where=f"{path}: line {nbefore if columns is None else 0}")
+        if ch in chans:
+            raise DataError(f"{path}: column {name!r}: a second {ch} column (after {colnames[ch]!r}): expected one")
+        chans[ch] = data[:, j] * scale + offset
+        colnames[ch] = name
+    return build_test(str(path), chans, colnames, header_lines=nbefore, **options)
+
+
+def _mat_variable(m: dict, ref: str, where: str) -> np.ndarray:
+    """`name` or `name:col` (0-based column) of a loadmat dict, as a 1-D float array."""
+    name, _, col = ref.partition(":")
+    if name not in m:
+        have = ", ".join(k for k in m if not k.startswith("__"))
+        raise DataError(f"{where}: variable {name!r} not found: expected one of {have}")
+    a = np.asarray(m[name])
+    if not np.issubdtype(a.dtype, np.number):
+        raise DataError(f"{where}: variable {name!r}: expected numbers, got {a.dtype}")
+    a = a.astype(np.float64)
+    if col:
+        if a.ndim != 2 or not col.isdigit() or int(col) >= a.shape[1]:
+            raise DataError(f"{where}: {ref!r}: expected a column index below {a.shape[1] if a.ndim == 2 else 1} "
+                            f"of the {a.shape} variable {name!r}")
+        return a[:, int(col)]
+    if a.ndim == 2 and 1 in a.shape:
+        return a.ravel()
+    if a.ndim != 1:
+        raise DataError(f"{where}: variable {name!r} has shape {a.shape}: expected a vector, or name:col")
+    return a
+
+
+def read_mat(path: str | os.PathLike, mapping: dict[str, str] | None = None, **options) -> DynoTest:
+    """One test from a MATLAB .mat file, `mapping` = {column name with unit: variable ref}.
+
+    Example for the Labcontrol files: {'displacement_mm': 'x_F:0',
+    'velocity_mm_s': 'x_F:1', 'force_n': 'x_F:2'}, with dt='Ts' (a variable
+    name or a number [s]). Variable refs are 'name' or 'name:column' (0-based).
+    """
+    from scipy.io import loadmat
+
+    path = Path(path)
+    if not path.is_file():
+        raise DataError(f"{path}: file not found")
+    try:
+        m = loadmat(str(path))
+    except Exception as e:  # scipy raises several types for a bad file
+        raise DataError(f"{path}: not a readable MATLAB v4-v7.2 .mat file: {e}") from None
+    if not mapping:
+        raise DataError(f"{path}: expected mapping= from channel columns (e.g. 'force_n') to variables "
+                        f"(e.g. 'x_F:2'); variables: {', '.join(k for k in m if not k.startswith('__'))}")
+    chans, colnames = {}, {}
+    for name, ref in mapping.items():
+        ch, scale, offset = parse_column(name, where=f"{path}: mapping")
+        chans[ch] = _mat_variable(m, ref, str(path)) * scale + offset
+        colnames[ch] = f"{ref} ({name})"
+    lens = {k: len(v) for k, v in chans.items()}
+    if len(set(lens.values())) != 1:
+        raise DataError(f"{path}: mapped variables differ in length {lens}: expected equal lengths")
+    dt = options.pop("dt", None)
+    if isinstance(dt, str):
+        dt = float(_mat_variable(m, dt, str(path))[0])
+    return build_test(str(path), chans, colnames, header_lines=0, dt=dt, **options)
+
+
+def load_dataset(path: str | os.PathLike, **options) -> Dataset:
+    """A Dataset from a dataset directory or a single file (format detected).
+
+    Directories need manifest.csv; `.mat` files need `mapping=`; other files
+    are text tables. A single file gives a one-test dataset.
+    """
+    p = Path(path)
+    if p.is_dir():
+        if not is_dataset_dir(p):
+            raise DataError(f"{p}: a directory without manifest.csv: expected a dataset directory "
+                            "(manifest.csv + one CSV per test)")
+        if options:
+            raise DataError(f"{p}: options {sorted(options)} apply to single files, not dataset directories")
+        return read_dataset_dir(p)
+    if not p.exists():
+        raise DataError(f"{p}: not found: expected a dataset directory or a data file")
+    if p.suffix.lower() == ".mat":
+        test = read_mat(p, **options)
+    else:
+        test = read_text(p, **options)
+    return Dataset(tests=[test], source=str(p), meta={"reader": "mat" if p.suffix.lower() == ".mat" else "text"})
