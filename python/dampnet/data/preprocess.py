@@ -5,16 +5,23 @@ Acceleration (as the thesis did): differentiate velocity (central differences,
 velocity), then smooth with a centred moving average of `window` samples.
 
 The default window, DEFAULT_WINDOW_S = 0.020 s (101 samples at the dyno's
-5 kHz, odd so the average is centred), was chosen by measurement
-(`choose_window`) on the virtual rig's quick plan, whose true acceleration is
-known: see docs in `dampnet.data.rig` and the test `test_data_acceleration.py`.
-On the default rig (velocity noise 1 mm/s, 5 kHz) the error of the derived
-acceleration is, pooled over all tests, ACCEL_NRMSE_DOC = 1.2 % of the true
-acceleration's RMS (the measured value at the time of writing was below 1 %;
-windows of 5 ms let velocity noise through, windows of 100 ms smear the 3 Hz
-peaks). Low-frequency tests have tiny accelerations (0.06 m/s^2 peak at
-0.25 Hz), so their own relative error is larger; the absolute RMS error is
-about 0.02 m/s^2 for every test.
+5 kHz; odd so the average is centred), was chosen by measurement with
+`choose_window` on virtual-rig data, whose true acceleration is known
+(`generate(..., truth_channels=True)`, default sensors: velocity noise 1 mm/s).
+Pooled NRMSE = RMS(a_est - a_true) / RMS(a_true) over all tests:
+
+  window [ms]       5      10     15     20     25     30     50     100
+  thesis plan     0.074  0.037  0.026  0.023  0.025  0.029  0.058  0.155
+  quick plan      0.123  0.061  0.045  0.042  0.045  0.053  0.102  0.233
+
+(seeds 3 and 4 agree to 1e-3). Shorter windows let velocity noise through
+(noise ~ sigma_v / window); longer ones flatten the 3 Hz peaks (bias ~
+(pi f window)^2 / 6). The documented error is ACCEL_NRMSE_DOC = 5 % on the
+quick plan (2.3 % on the full thesis plan, where long tests dilute the ends);
+the absolute RMS error per test is 0.03-0.3 m/s^2 (median about 0.04), so
+at 0.25 Hz, whose true RMS acceleration is only 0.044 m/s^2, the derived
+acceleration is mostly noise - as it was in the thesis's data.
+Near the ends of a test the window is shifted inward rather than shrunk.
 """
 
 from __future__ import annotations
@@ -25,12 +32,13 @@ from dampnet.data.types import Dataset, DataError, DynoTest
 
 #: Default moving-average window [s]; see the module doc for how it was chosen.
 DEFAULT_WINDOW_S = 0.020
-#: Documented bound on the pooled acceleration NRMSE (RMS error / RMS true) on default rig data.
-ACCEL_NRMSE_DOC = 0.012
+#: Documented bound on the pooled acceleration NRMSE (RMS error / RMS true) on the default quick-plan rig data.
+ACCEL_NRMSE_DOC = 0.05
 
 
 def moving_average(x: np.ndarray, window: int) -> np.ndarray:
-    """Centred moving average of odd length `window`; the window shrinks symmetrically at the ends."""
+    """Moving average of odd length `window`, centred; within half a window of either end the
+    full-length window is shifted inward (not shrunk), so the ends are as smooth as the middle."""
     x = np.asarray(x, dtype=np.float64)
     w = int(window)
     if w < 1:
@@ -38,11 +46,10 @@ def moving_average(x: np.ndarray, window: int) -> np.ndarray:
     if w % 2 == 0:
         w += 1
     n = x.shape[0]
-    h = min(w // 2, max((n - 1) // 2, 0))
+    w = min(w, n)
     c = np.concatenate(([0.0], np.cumsum(x)))
-    k = np.arange(n)
-    half = np.minimum(np.minimum(k, n - 1 - k), h)
-    return (c[k + half + 1] - c[k - half]) / (2 * half + 1)
+    lo = np.clip(np.arange(n) - w // 2, 0, n - w)
+    return (c[lo + w] - c[lo]) / w
 
 
 def window_samples(test: DynoTest, window: int | float | None) -> int:
