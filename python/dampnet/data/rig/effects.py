@@ -194,18 +194,19 @@ class Friction(Effect):
 
     dz/dt = v - sigma0 |v| z / g(v),  g(v) = F_c + (F_s - F_c) exp(-(v/v_s)^2),
     F = sigma0 z + sigma1 dz/dt. Breakaway F_s = 110 N, sliding F_c = 40 N (the
-    base model's level), Stribeck velocity v_s = 10 mm/s, bristle stiffness
-    sigma0 = 2e5 N/m (0.5 mm pre-sliding), damping sigma1 = 50 N s/m: rod seals
+    base model's level), Stribeck velocity v_s = 20 mm/s, bristle stiffness
+    sigma0 = 1e6 N/m (0.1 mm pre-sliding), damping sigma1 = 50 N s/m: rod seals
     stick at reversals and break away with a force peak, and the force
     depends on displacement history, not only on velocity. Integrated exactly
-    for v held over each sample.
+    for v held over each sample. On 1-inch sines the breakaway peak is about
+    108 N at 0.25 Hz and 56 N at 3 Hz (faster reversals leave less time to stick).
     """
 
     name = "friction"
     static_n: float = 110.0
     coulomb_n: float = 40.0
-    stribeck_m_s: float = 0.010
-    sigma0_n_m: float = 2e5
+    stribeck_m_s: float = 0.020
+    sigma0_n_m: float = 1e6
     sigma1_n_s_m: float = 50.0
 
     def _g(self, v):
@@ -220,6 +221,10 @@ class Friction(Effect):
         dz = (z_new - z) / dt
         return z_new, self.sigma0_n_m * z_new + self.sigma1_n_s_m * dz
 
+    def _z0(self, v0):
+        """Steady sliding state at the first sample's velocity (0 at rest)."""
+        return np.sign(v0) * self._g(v0) / self.sigma0_n_m
+
     def _base(self, ctx):
         p = ctx.params
         return p.seal_friction_n * np.tanh(ctx.v / p.seal_friction_v_eps_m_s)
@@ -227,15 +232,15 @@ class Friction(Effect):
     def force(self, ctx):
         v = np.atleast_2d(ctx.v)
         n = v.shape[-1]
-        z = np.zeros(v.shape[:-1])
+        z = self._z0(v[..., 0])
         out = np.empty_like(v)
         for k in range(n):
             z, out[..., k] = self._lugre(v[..., k], ctx.dt, z)
         return out.reshape(ctx.v.shape) - self._base(ctx)
 
     def force_step(self, ctx, state):
-        z = 0.0 if state is None else state
-        z, f = self._lugre(ctx.v, ctx.dt, np.array([z]))
+        z = self._z0(ctx.v) if state is None else np.array([state])
+        z, f = self._lugre(ctx.v, ctx.dt, z)
         return f - self._base(ctx), float(z[0])
 
 
