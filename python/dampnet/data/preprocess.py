@@ -68,9 +68,9 @@ def acceleration_of(test: DynoTest, window: int | float | None = None) -> np.nda
     """Acceleration [m/s^2] of one test: d(velocity)/dt (or d2(displacement)/dt2), moving-averaged."""
     t = test.time
     if "velocity" in test.channels:
-        a = np.gradient(test.channels["velocity"], t)
+        a = np.gradient(test.channels["velocity"], t, edge_order=2)
     elif "displacement" in test.channels:
-        a = np.gradient(np.gradient(test.channels["displacement"], t), t)
+        a = np.gradient(np.gradient(test.channels["displacement"], t, edge_order=2), t, edge_order=2)
     else:
         raise DataError(f"test {test.test_id}: no velocity or displacement channel to differentiate")
     return moving_average(a, window_samples(test, window))

@@ -1,0 +1,77 @@
+"""Acceleration derivation (error on rig data within the documented figure), decimation, splits."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dampnet.data import DEFAULT_WINDOW_S, add_acceleration, decimate, holdout_split, split_by_tests
+from dampnet.data.preprocess import ACCEL_NRMSE_DOC, acceleration_error, choose_window, moving_average
+from dampnet.data.rig import generate
+
+
+@pytest.fixture(scope="module")
+def quick_truth():
+    return generate("quick", seed=21, truth_channels=True)
+
+
+def test_moving_average_against_a_direct_sum():
+    x = np.random.default_rng(0).normal(size=200)
+    y = moving_average(x, 7)
+    for k in (3, 50, 196):
+        lo = min(max(k - 3, 0), 200 - 7)
+        assert y[k] == pytest.approx(np.mean(x[lo:lo + 7]), rel=1e-12)
+
+
+def test_acceleration_of_a_parabola_is_exact():
+    from dampnet.data import DynoTest
+
+    t = np.linspace(0, 1, 501)
+    test = DynoTest("p", t, {"displacement": 1.5 * t ** 2, "velocity": 3.0 * t, "force": t, "voltage": 0 * t})
+    add_acceleration(test, window=11)
+    np.testing.assert_allclose(test.channels["acceleration"], 3.0, rtol=1e-9)
+    del test.channels["velocity"]                      # from displacement alone: second differences
+    add_acceleration(test, window=11)
+    np.testing.assert_allclose(test.channels["acceleration"], 3.0, rtol=1e-6)
+
+
+def test_acceleration_error_on_rig_data_is_within_the_documented_figure(quick_truth):
+    truth = [t.channels["true_acceleration"] for t in quick_truth.tests]
+    err = acceleration_error(quick_truth.tests, truth, DEFAULT_WINDOW_S)
+    assert err <= ACCEL_NRMSE_DOC
+    best, errs = choose_window(quick_truth.tests, truth)
+    assert errs[DEFAULT_WINDOW_S] <= 1.1 * errs[best]          # the default is still (near) the best
+    assert errs[0.002] > 2 * err and errs[0.100] > 2 * err     # too short: noise; too long: bias
+    ds = add_acceleration(quick_truth.subset([t.copy() for t in quick_truth.tests]))
+    assert ds.tests[0].meta["acceleration_window_samples"] == 101
+
+
+def test_decimate_keeps_every_nth_sample(quick_truth):
+    d = decimate(quick_truth, 10)
+    for a, b in zip(quick_truth.tests, d.tests):
+        assert len(b) == (len(a) + 9) // 10
+        np.testing.assert_array_equal(b.channels["force"], a.channels["force"][::10])
+        np.testing.assert_array_equal(b.time, a.time[::10])
+    assert len(quick_truth.tests[0]) > len(d.tests[0])       # the original is untouched
+    with pytest.raises(ValueError):
+        decimate(quick_truth, 0)
+
+
+def test_holdout_split_is_the_thesis_split(quick_truth):
+    train, hold = holdout_split(quick_truth)
+    assert {t.control_nominal for t in hold.tests} == {2.25}
+    assert 2.25 not in {t.control_nominal for t in train.tests}
+    assert len(train) + len(hold) == len(quick_truth)
+    assert hold.meta["seed"] == 21
+    train2, hold2 = holdout_split(quick_truth, voltage=None, test_ids=["T001", "T009"])
+    assert hold2.test_ids == ["T001", "T009"] and len(train2) == len(quick_truth) - 2
+    with pytest.raises(ValueError, match="nothing to hold out"):
+        holdout_split(quick_truth, voltage=1.7)
+    with pytest.raises(ValueError, match="unknown test ids"):
+        holdout_split(quick_truth, test_ids=["nope"])
+
+
+def test_split_by_tests_is_disjoint_and_seeded(quick_truth):
+    a, b = split_by_tests(quick_truth, 0.3, seed=1)
+    assert set(a.test_ids).isdisjoint(b.test_ids) and len(a) + len(b) == len(quick_truth)
+    assert split_by_tests(quick_truth, 0.3, seed=1)[1].test_ids == b.test_ids
