@@ -144,3 +144,30 @@ def test_velocity_and_displacement_noise_are_as_recorded():
     w = 2 * np.pi * t.frequency_hz
     v_true = t.amplitude_m * w * np.cos(w * t.time)
     assert np.std(t.channels["velocity"] - v_true) == pytest.approx(ds.meta["noise"]["velocity_m_s"], rel=0.05)
+
+
+def test_a_plan_file_with_steps_and_random_excitation(tmp_path):
+    import json
+
+    sine = tmp_path / "steps.json"
+    sine.write_text(json.dumps({"frequencies_hz": [2.0], "amplitudes_m": [0.01, 0.02], "voltages_v": [1.0, 4.0],
+                                "samples": 2000, "control": {"waveform": "steps", "period_s": 0.1}}))
+    ds = generate(str(sine), seed=0)
+    assert ds.meta["plan"]["name"] == "steps" and len(ds.tests) == 4
+    t = ds.tests[0]
+    assert len(t) == 5001                                             # two cycles at 2 Hz = 1 s at 5 kHz, + 1
+    assert np.ptp(t.channels["displacement"]) == pytest.approx(0.02, rel=0.01)
+    u = np.round(t.channels["voltage"])
+    assert set(np.unique(u)) == {1.0, 4.0} and u[0] == 1.0
+    rnd = tmp_path / "road.json"
+    rnd.write_text(json.dumps({"frequencies_hz": [], "amplitudes_m": [0.005], "voltages_v": [2.0],
+                               "excitation": "random", "band_hz": [0.5, 8.0], "duration_s": 3.0}))
+    road = generate(str(rnd), seed=1, truth_channels=True)
+    r = road.tests[0]
+    assert r.frequency_hz is None and len(r) == 15000
+    assert np.std(r.channels["displacement"]) == pytest.approx(0.005, rel=0.02)
+    # the rig's velocity is the derivative of its displacement (smoothed: 25 um noise differentiated)
+    from dampnet.data.preprocess import moving_average
+
+    d = moving_average(np.gradient(r.channels["displacement"], r.time), 51)
+    assert np.corrcoef(d, r.channels["velocity"])[0, 1] > 0.99

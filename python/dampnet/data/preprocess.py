@@ -11,8 +11,8 @@ The default window, DEFAULT_WINDOW_S = 0.020 s (101 samples at the dyno's
 Pooled NRMSE = RMS(a_est - a_true) / RMS(a_true) over all tests:
 
   window [ms]       5      10     15     20     25     30     50     100
-  thesis plan     0.074  0.037  0.026  0.023  0.025  0.029  0.058  0.155
-  quick plan      0.123  0.061  0.045  0.042  0.045  0.053  0.102  0.233
+  thesis plan     0.075  0.037  0.027  0.023  0.025  0.029  0.058  0.155
+  quick plan      0.124  0.062  0.045  0.042  0.045  0.054  0.102  0.233
 
 (seeds 3 and 4 agree to 1e-3). Shorter windows let velocity noise through
 (noise ~ sigma_v / window); longer ones flatten the 3 Hz peaks (bias ~
