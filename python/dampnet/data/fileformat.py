@@ -203,16 +203,11 @@ def write_dataset(ds: Dataset, out_dir: str | os.PathLike, overwrite: bool = Fal
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
     try:
         rows = [",".join(("test_id", "file", "frequency_hz", "amplitude_m", ccol))]
-        it = ds.tests
-        if progress:
-            from tqdm import tqdm
-            it = tqdm(it, desc="write", unit="test")
-        for t in it:
+        for t in ds.tests:
             check_test(t, f"test {t.test_id}")
-            fname = f"{t.test_id}.csv"
-            (tmp / fname).write_text(format_test(t))
-            rows.append(",".join((t.test_id, fname, _num(t.frequency_hz), _num(t.amplitude_m),
+            rows.append(",".join((t.test_id, f"{t.test_id}.csv", _num(t.frequency_hz), _num(t.amplitude_m),
                                   _num(t.control_nominal))))
+        _write_tests(ds.tests, tmp, progress)
         (tmp / MANIFEST).write_text("\n".join(rows) + "\n")
         (tmp / META_FILE).write_text(json.dumps(ds.meta, indent=1, default=_jsonable) + "\n")
         old = None
@@ -226,6 +221,21 @@ def write_dataset(ds: Dataset, out_dir: str | os.PathLike, overwrite: bool = Fal
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return out
+
+
+def _write_one(args) -> None:
+    test, path = args
+    Path(path).write_text(format_test(test))
+
+
+def _write_tests(tests, tmp: Path, progress: bool) -> None:
+    """Format and write the test files (with a progress bar if asked)."""
+    it = tests
+    if progress:
+        from tqdm import tqdm
+        it = tqdm(it, desc="write", unit="test")
+    for t in it:
+        _write_one((t, tmp / f"{t.test_id}.csv"))
 
 
 def _jsonable(o):
