@@ -1,0 +1,53 @@
+"""Adam (Kingma & Ba 2015) via torch.optim.Adam, for comparison with the second-order methods.
+
+One epoch is one pass over the training set in mini-batches of `batch_size`
+samples (None: the whole set, i.e. one full-batch step per epoch). The
+learning rate decays by `lr_decay` per epoch (1.0: constant).
+"""
+
+from __future__ import annotations
+
+import torch
+
+DEFAULTS = {"lr": 1e-3, "betas": (0.9, 0.999), "eps": 1e-8, "batch_size": None, "lr_decay": 1.0}
+
+
+class Adam:
+    """Adam on the training MSE; `generator` seeds the mini-batch shuffling."""
+
+    name = "adam"
+
+    def __init__(self, problem, x0: torch.Tensor, generator: torch.Generator | None = None,
+                 **settings):
+        unknown = set(settings) - set(DEFAULTS)
+        if unknown:
+            raise ValueError(f"adam: unknown settings {sorted(unknown)} (known: {sorted(DEFAULTS)})")
+        self.settings = {**DEFAULTS, **settings}
+        self.problem = problem
+        self.generator = generator or torch.Generator().manual_seed(0)
+        self._w = x0.detach().clone().requires_grad_(True)
+        s = self.settings
+        self.opt = torch.optim.Adam([self._w], lr=s["lr"], betas=tuple(s["betas"]), eps=s["eps"])
+        self.sched = torch.optim.lr_scheduler.ExponentialLR(self.opt, gamma=s["lr_decay"])
+
+    @property
+    def x(self) -> torch.Tensor:
+        return self._w.detach()
+
+    def step(self) -> dict:
+        p, bs = self.problem, self.settings["batch_size"]
+        n = p.n_train
+        if bs is None or bs >= n:
+            batches = [None]
+        else:
+            perm = torch.randperm(n, generator=self.generator)
+            batches = [perm[i:i + bs] for i in range(0, n, bs)]
+        for idx in batches:
+            xs, t = (p.xs, p.t) if idx is None else (p.xs[idx], p.t[idx])
+            self.opt.zero_grad(set_to_none=True)
+            r = p.layout.forward(self._w, xs) - t
+            loss = (r @ r) / len(r)
+            loss.backward()
+            self.opt.step()
+        self.sched.step()
+        return {"train": p.loss(self.x), "lr": self.opt.param_groups[0]["lr"]}

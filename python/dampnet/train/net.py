@@ -1,0 +1,135 @@
+"""The MLP as a flat parameter vector: forward pass, analytic Jacobian, initialisation.
+
+Training works on one float64 vector `x` holding every weight, in the order
+w1 [h1, n_in] (row-major), b1 [h1], (w2 [h2, h1], b2 [h2]), w_out [n_last], b_out [1]
+— PyTorch's [out][in] layout, so unpacking gives `MlpModel` fields directly.
+Inputs and output are in mapminmax-scaled units ([-1, 1] over the training range).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import torch
+
+DTYPE = torch.float64
+
+
+def act(z: torch.Tensor, kind: str) -> torch.Tensor:
+    """Hidden activation: 'tanh' (MATLAB tansig) or 'sigmoid' (logsig)."""
+    return torch.tanh(z) if kind == "tanh" else torch.sigmoid(z)
+
+
+def act_deriv(a: torch.Tensor, kind: str) -> torch.Tensor:
+    """Derivative of the activation written in terms of its output a = act(z)."""
+    return 1.0 - a * a if kind == "tanh" else a * (1.0 - a)
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Sizes of an n_in-h1(-h2)-1 MLP and where each tensor sits in the flat vector."""
+
+    n_in: int
+    hidden: tuple[int, ...]
+    activation: str = "tanh"
+
+    def __post_init__(self) -> None:
+        if len(self.hidden) not in (1, 2) or min(self.hidden) < 1:
+            raise ValueError(f"hidden: one or two layers of >= 1 neurons expected, got {self.hidden}")
+        if self.activation not in ("tanh", "sigmoid"):
+            raise ValueError(f"activation: 'tanh' or 'sigmoid' expected, got {self.activation!r}")
+
+    @property
+    def shapes(self) -> list[tuple[str, tuple[int, ...]]]:
+        h1 = self.hidden[0]
+        s = [("w1", (h1, self.n_in)), ("b1", (h1,))]
+        if len(self.hidden) == 2:
+            s += [("w2", (self.hidden[1], h1)), ("b2", (self.hidden[1],))]
+        return s + [("w_out", (self.hidden[-1],)), ("b_out", (1,))]
+
+    @property
+    def n_params(self) -> int:
+        return sum(math.prod(shape) for _, shape in self.shapes)
+
+    def unpack(self, x: torch.Tensor) -> dict[str, torch.Tensor]:
+        """Views of x as the named weight tensors (no copies)."""
+        out, i = {}, 0
+        for name, shape in self.shapes:
+            n = math.prod(shape)
+            out[name] = x[i:i + n].view(shape)
+            i += n
+        return out
+
+    def pack(self, p: dict[str, torch.Tensor]) -> torch.Tensor:
+        return torch.cat([torch.as_tensor(p[name], dtype=DTYPE).reshape(-1) for name, _ in self.shapes])
+
+    # -- evaluation ------------------------------------------------------------
+    def forward(self, x: torch.Tensor, xs: torch.Tensor) -> torch.Tensor:
+        """Scaled output [N] for scaled inputs xs [N, n_in]; differentiable in x."""
+        p = self.unpack(x)
+        a = act(torch.addmm(p["b1"], xs, p["w1"].T), self.activation)
+        if "w2" in p:
+            a = act(torch.addmm(p["b2"], a, p["w2"].T), self.activation)
+        return a @ p["w_out"] + p["b_out"]
+
+    def jacobian(self, x: torch.Tensor, xs: torch.Tensor,
+                 out: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        """Output y [N] and its Jacobian dy/dx [N, n_params], by hand-written backprop.
+
+        Each column block is one batched product (no per-sample loop); `out`
+        may be a preallocated [N, n_params] buffer reused across epochs.
+        """
+        p = self.unpack(x)
+        n = xs.shape[0]
+        J = torch.empty(n, self.n_params, dtype=DTYPE) if out is None else out
+        cols = {}
+        i = 0
+        for name, shape in self.shapes:  # column views in the flat order
+            k = math.prod(shape)
+            cols[name] = J[:, i:i + k]
+            i += k
+        a1 = act(torch.addmm(p["b1"], xs, p["w1"].T), self.activation)
+        h1 = a1.shape[1]
+        if "w2" in p:
+            a2 = act(torch.addmm(p["b2"], a1, p["w2"].T), self.activation)
+            y = a2 @ p["w_out"] + p["b_out"]
+            cols["w_out"].copy_(a2)
+            d2 = act_deriv(a2, self.activation) * p["w_out"]  # dy/dz2 [N, h2]
+            cols["b2"].copy_(d2)
+            torch.mul(d2.unsqueeze(2), a1.unsqueeze(1), out=cols["w2"].view(n, -1, h1))
+            d1 = (d2 @ p["w2"]) * act_deriv(a1, self.activation)  # dy/dz1 [N, h1]
+        else:
+            y = a1 @ p["w_out"] + p["b_out"]
+            cols["w_out"].copy_(a1)
+            d1 = act_deriv(a1, self.activation) * p["w_out"]
+        cols["b_out"].fill_(1.0)
+        cols["b1"].copy_(d1)
+        torch.mul(d1.unsqueeze(2), xs.unsqueeze(1), out=cols["w1"].view(n, h1, self.n_in))
+        return y, J
+
+    # -- initialisation -------------------------------------------------------
+    def init(self, generator: torch.Generator) -> torch.Tensor:
+        """Nguyen-Widrow initial weights (as MATLAB initnw), reproducible from the generator.
+
+        Hidden layers: random unit-direction rows scaled to 0.7 * h^(1/n) and
+        biases spread over [-mag, mag], then stretched to the activation's
+        active input range ([-2, 2] tanh, [-4, 4] sigmoid) for inputs in [-1, 1].
+        Output layer: uniform in [-1, 1] / sqrt(fan-in), so the initial output
+        is of the order of the scaled target (MATLAB uses [-1, 1]).
+        """
+        stretch = 2.0 if self.activation == "tanh" else 4.0
+        p: dict[str, torch.Tensor] = {}
+        fan_in = self.n_in
+        for li, h in enumerate(self.hidden, start=1):
+            mag = 0.7 * h ** (1.0 / fan_in)
+            w = torch.randn(h, fan_in, dtype=DTYPE, generator=generator)
+            w = mag * w / w.norm(dim=1, keepdim=True)
+            b = mag * torch.linspace(-1.0, 1.0, h, dtype=DTYPE) * torch.sign(w[:, 0]) if h > 1 \
+                else torch.zeros(1, dtype=DTYPE)
+            p[f"w{li}"], p[f"b{li}"] = w * stretch, b * stretch
+            fan_in = h
+        last = self.hidden[-1]
+        p["w_out"] = (2 * torch.rand(last, dtype=DTYPE, generator=generator) - 1) / math.sqrt(last)
+        p["b_out"] = 2 * torch.rand(1, dtype=DTYPE, generator=generator) - 1
+        return self.pack(p)
