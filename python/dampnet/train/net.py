@@ -77,36 +77,39 @@ class Layout:
                  out: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
         """Output y [N] and its Jacobian dy/dx [N, n_params], by hand-written backprop.
 
-        Each column block is one batched product (no per-sample loop); `out`
-        may be a preallocated [N, n_params] buffer reused across epochs.
+        The Jacobian is computed into a [n_params, N] row-major buffer (`out`,
+        reusable across epochs) and returned as its transposed view: every
+        column block is then one contiguous batched write, about twice as
+        fast as filling an [N, n_params] array, and J.T @ J is still one BLAS call.
         """
         p = self.unpack(x)
         n = xs.shape[0]
-        J = torch.empty(n, self.n_params, dtype=DTYPE) if out is None else out
-        cols = {}
-        i = 0
-        for name, shape in self.shapes:  # column views in the flat order
+        Jt = torch.empty(self.n_params, n, dtype=DTYPE) if out is None else out
+        rows, i = {}, 0
+        for name, shape in self.shapes:  # row blocks in the flat order
             k = math.prod(shape)
-            cols[name] = J[:, i:i + k]
+            rows[name] = Jt[i:i + k]
             i += k
-        a1 = act(torch.addmm(p["b1"], xs, p["w1"].T), self.activation)
-        h1 = a1.shape[1]
+        xt = xs.T.contiguous()  # [n_in, N]
+        h1 = self.hidden[0]
+        a1 = act(torch.addmm(p["b1"].unsqueeze(1), p["w1"], xt), self.activation)  # [h1, N]
         if "w2" in p:
-            a2 = act(torch.addmm(p["b2"], a1, p["w2"].T), self.activation)
-            y = a2 @ p["w_out"] + p["b_out"]
-            cols["w_out"].copy_(a2)
-            d2 = act_deriv(a2, self.activation) * p["w_out"]  # dy/dz2 [N, h2]
-            cols["b2"].copy_(d2)
-            torch.mul(d2.unsqueeze(2), a1.unsqueeze(1), out=cols["w2"].view(n, -1, h1))
-            d1 = (d2 @ p["w2"]) * act_deriv(a1, self.activation)  # dy/dz1 [N, h1]
+            h2 = self.hidden[1]
+            a2 = act(torch.addmm(p["b2"].unsqueeze(1), p["w2"], a1), self.activation)  # [h2, N]
+            y = p["w_out"] @ a2 + p["b_out"]
+            rows["w_out"].copy_(a2)
+            d2 = act_deriv(a2, self.activation).mul_(p["w_out"].unsqueeze(1))  # dy/dz2
+            rows["b2"].copy_(d2)
+            torch.mul(d2.unsqueeze(1), a1.unsqueeze(0), out=rows["w2"].view(h2, h1, n))
+            d1 = (p["w2"].T @ d2).mul_(act_deriv(a1, self.activation))  # dy/dz1 [h1, N]
         else:
-            y = a1 @ p["w_out"] + p["b_out"]
-            cols["w_out"].copy_(a1)
-            d1 = act_deriv(a1, self.activation) * p["w_out"]
-        cols["b_out"].fill_(1.0)
-        cols["b1"].copy_(d1)
-        torch.mul(d1.unsqueeze(2), xs.unsqueeze(1), out=cols["w1"].view(n, h1, self.n_in))
-        return y, J
+            y = p["w_out"] @ a1 + p["b_out"]
+            rows["w_out"].copy_(a1)
+            d1 = act_deriv(a1, self.activation).mul_(p["w_out"].unsqueeze(1))
+        rows["b_out"].fill_(1.0)
+        rows["b1"].copy_(d1)
+        torch.mul(d1.unsqueeze(1), xt.unsqueeze(0), out=rows["w1"].view(h1, self.n_in, n))
+        return y, Jt.T
 
     # -- initialisation -------------------------------------------------------
     def init(self, generator: torch.Generator) -> torch.Tensor:

@@ -28,7 +28,7 @@ class MlpProblem:
         self.tv = None if self.xv is None else t_val.to(DTYPE)
         self.n_params = layout.n_params
         self.n_train = int(self.xs.shape[0])
-        self._jbuf: torch.Tensor | None = None  # reused [N, P] Jacobian storage
+        self._jbuf: torch.Tensor | None = None  # reused [P, N] Jacobian storage (see Layout.jacobian)
 
     def residual(self, x: torch.Tensor) -> torch.Tensor:
         with torch.no_grad():
@@ -36,7 +36,7 @@ class MlpProblem:
 
     def residual_jacobian(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         if self._jbuf is None:
-            self._jbuf = torch.empty(self.n_train, self.n_params, dtype=DTYPE)
+            self._jbuf = torch.empty(self.n_params, self.n_train, dtype=DTYPE)
         with torch.no_grad():
             y, J = self.layout.jacobian(x, self.xs, out=self._jbuf)
         return y - self.t, J

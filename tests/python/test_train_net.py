@@ -1,0 +1,67 @@
+"""The flat-weight MLP: analytic Jacobian against torch.autograd, packing, initialisation."""
+
+import pytest
+import torch
+
+from dampnet.train.net import DTYPE, Layout
+
+
+@pytest.fixture(autouse=True)
+def _one_thread():
+    old = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(old)
+
+
+@pytest.mark.parametrize("hidden", [(5,), (4, 3)])
+@pytest.mark.parametrize("activation", ["tanh", "sigmoid"])
+def test_analytic_jacobian_matches_autograd(hidden, activation):
+    g = torch.Generator().manual_seed(3)
+    lay = Layout(3, hidden, activation)
+    x = torch.randn(lay.n_params, dtype=DTYPE, generator=g)
+    xs = 2 * torch.rand(17, 3, dtype=DTYPE, generator=g) - 1
+    y, J = lay.jacobian(x, xs)
+    J_ref = torch.autograd.functional.jacobian(lambda w: lay.forward(w, xs), x)
+    assert J.shape == (17, lay.n_params)
+    # Same float64 arithmetic in a different order: agreement to rounding error.
+    torch.testing.assert_close(y, lay.forward(x, xs), rtol=1e-13, atol=1e-13)
+    torch.testing.assert_close(J, J_ref, rtol=1e-12, atol=1e-12)
+
+
+def test_jacobian_reuses_buffer():
+    lay = Layout(2, (3,))
+    g = torch.Generator().manual_seed(0)
+    xs = torch.rand(8, 2, dtype=DTYPE, generator=g)
+    buf = torch.full((lay.n_params, 8), float("nan"), dtype=DTYPE)
+    x = lay.init(g)
+    _, J = lay.jacobian(x, xs, out=buf)
+    assert J.data_ptr() == buf.data_ptr() and torch.isfinite(J).all()
+
+
+def test_pack_unpack_roundtrip_and_layout():
+    lay = Layout(3, (4, 2))
+    assert lay.n_params == 4 * 3 + 4 + 2 * 4 + 2 + 2 + 1
+    x = torch.arange(lay.n_params, dtype=DTYPE)
+    p = lay.unpack(x)
+    assert p["w1"].shape == (4, 3) and p["w2"].shape == (2, 4) and p["w_out"].shape == (2,)
+    assert p["w1"][1, 0] == 3  # row-major [out][in]
+    assert torch.equal(lay.pack(p), x)
+
+
+def test_init_is_seeded_and_nguyen_widrow_scaled():
+    lay = Layout(3, (30,))
+    a = lay.init(torch.Generator().manual_seed(5))
+    b = lay.init(torch.Generator().manual_seed(5))
+    c = lay.init(torch.Generator().manual_seed(6))
+    assert torch.equal(a, b) and not torch.equal(a, c)
+    w1 = lay.unpack(a)["w1"]
+    # Every row has the Nguyen-Widrow norm 0.7 * h^(1/n), stretched by 2 for tanh.
+    torch.testing.assert_close(w1.norm(dim=1), torch.full((30,), 2 * 0.7 * 30 ** (1 / 3), dtype=DTYPE))
+
+
+def test_layout_rejects_bad_shapes():
+    with pytest.raises(ValueError, match="hidden"):
+        Layout(3, (3, 3, 3))
+    with pytest.raises(ValueError, match="activation"):
+        Layout(3, (3,), "relu")
