@@ -13,7 +13,7 @@ DEFAULTS = {"lr": 1e-3, "betas": (0.9, 0.999), "eps": 1e-8, "batch_size": None, 
 
 
 class Adam:
-    """Adam on the training MSE; `generator` seeds the mini-batch shuffling."""
+    """Adam on `problem.loss_grad(x, idx)` (MSE of a batch); `generator` seeds the shuffling."""
 
     name = "adam"
 
@@ -43,11 +43,8 @@ class Adam:
             perm = torch.randperm(n, generator=self.generator)
             batches = [perm[i:i + bs] for i in range(0, n, bs)]
         for idx in batches:
-            xs, t = (p.xs, p.t) if idx is None else (p.xs[idx], p.t[idx])
-            self.opt.zero_grad(set_to_none=True)
-            r = p.layout.forward(self._w, xs) - t
-            loss = (r @ r) / len(r)
-            loss.backward()
+            _, g = p.loss_grad(self._w.detach(), idx)
+            self._w.grad = g
             self.opt.step()
         self.sched.step()
         return {"train": p.loss(self.x), "lr": self.opt.param_groups[0]["lr"]}

@@ -6,7 +6,7 @@ linear least squares and quadratics with known answers, see tests):
   n_params, n_train
   residual(x)            -> r [n_train] (= output - target, scaled units)
   residual_jacobian(x)   -> (r, J) with J = dr/dx [n_train, n_params]
-  loss_grad(x)           -> (mean squared error, its gradient)   (SCG, Adam)
+  loss_grad(x, idx=None) -> (mean squared error, its gradient)   (SCG; Adam on batches idx)
   val_mse(x)             -> validation MSE, or None without a validation set
 """
 
@@ -45,10 +45,12 @@ class MlpProblem:
         r = self.residual(x)
         return float(r @ r) / self.n_train
 
-    def loss_grad(self, x: torch.Tensor) -> tuple[float, torch.Tensor]:
+    def loss_grad(self, x: torch.Tensor, idx: torch.Tensor | None = None) -> tuple[float, torch.Tensor]:
+        """MSE and its gradient (autograd), over the training set or the samples idx."""
+        xs, t = (self.xs, self.t) if idx is None else (self.xs[idx], self.t[idx])
         xg = x.detach().clone().requires_grad_(True)
-        r = self.layout.forward(xg, self.xs) - self.t
-        e = (r @ r) / self.n_train
+        r = self.layout.forward(xg, xs) - t
+        e = (r @ r) / len(t)
         (g,) = torch.autograd.grad(e, xg)
         return float(e.detach()), g
 
