@@ -33,6 +33,7 @@ from __future__ import annotations
 import contextlib
 import datetime as _dt
 import math
+import os
 import platform
 from dataclasses import dataclass, field
 from typing import Any, Callable, Sequence
@@ -101,6 +102,21 @@ def _torch_threads(n: int | None):
             torch.set_num_threads(old)
 
 
+def _auto_threads(jacobian_entries: int) -> int:
+    """1 thread for small problems; else the cores not already busy (1-min load average).
+
+    On a shared machine extra torch threads contend with other processes and
+    run several times slower than one thread (measured: bench/bench_train.py).
+    """
+    if jacobian_entries < _SMALL_PROBLEM:
+        return 1
+    try:
+        free = (os.cpu_count() or 1) - os.getloadavg()[0]
+    except OSError:
+        free = 1
+    return max(1, min(torch.get_num_threads(), int(free + 0.5)))
+
+
 def split_indices(n: int, split: Sequence[float], rng: np.random.Generator):
     """Random disjoint train/val/test index arrays with fractions `split` (summing to 1)."""
     if len(split) != 3 or min(split) < 0 or not math.isclose(sum(split), 1.0, abs_tol=1e-9):
@@ -139,7 +155,7 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
     {"lr": 1e-2, "batch_size": 1024} for adam). `progress(record)` is called
     after every epoch with the history record; returning True stops training.
     `threads`: torch threads during training (None: 1 for small problems, else
-    torch's current setting). `data` is stored in model.meta as provenance.
+    the idle cores, see _auto_threads). `data` is stored in model.meta as provenance.
     The same inputs and seed give bit-identical weights on the same machine.
     """
     X = np.asarray(X, dtype=np.float64)
@@ -180,8 +196,8 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
     x0 = layout.init(gen)
     cls = ALGORITHMS[algorithm]
     kwargs = {"generator": gen} if cls is Adam else {}
-    if threads is None and problem.n_train * layout.n_params < _SMALL_PROBLEM:
-        threads = 1
+    if threads is None:
+        threads = _auto_threads(problem.n_train * layout.n_params)
     with _torch_threads(threads) as n_threads:
         algo = cls(problem, x0, **kwargs, **(settings or {}))
         res = run(algo, problem, max_epochs=max_epochs,
