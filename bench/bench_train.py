@@ -8,6 +8,12 @@ MSE), and test-set NRMSE (thesis Table 3 definition; the noise floor is
 
   python bench/bench_train.py [--algorithm lm] [--tests 180] [--samples 500]
                               [--threads N] [--max-epochs 1000] [--seed 0]
+
+Measured (2-core shared VM, torch 2.13.0 CPU, --threads 1 --max-epochs 400):
+99 ms/epoch; validation MSE within 1 % of its final value at epoch 249,
+25.5 s; test NRMSE 0.0101 (noise floor 0.0100). With 2 threads on the same
+busy machine an epoch took ~600 ms (thread contention), hence fit()'s
+idle-core thread choice.
 """
 
 from __future__ import annotations
