@@ -1,0 +1,252 @@
+// The MLP inference kernel: one forward pass, two ways to hold a model.
+//
+//   Mlp<T>                       sizes chosen at run time (from Python or the C ABI),
+//                                storage of fixed maximum capacity, no heap.
+//   StaticMlp<T, In, H1, H2>     sizes as compile-time constants (from a generated
+//                                header), storage of exactly the needed size.
+//
+// Both are filled from a dn_mlp_desc by load() and evaluated by the same
+// detail::forward template, so the same weights give the same result on both
+// paths. Internally the weights are stored transposed ([in][out]) so that the
+// inner loop runs over neurons, contiguous and vectorisable.
+#pragma once
+
+#include <array>
+#include <cmath>
+#include <cstdint>
+
+#include "dampnet/activation.hpp"
+#include "dampnet/dampnet.h"
+
+#ifdef DAMPNET_USE_EIGEN
+#include <Eigen/Core>
+#endif
+
+#if defined(__clang__) && defined(DN_REALTIME_SANITIZE)
+#define DN_REALTIME [[clang::nonblocking]]
+#else
+#define DN_REALTIME
+#endif
+
+namespace dampnet {
+
+constexpr int kDynamic = -1;
+
+namespace detail {
+
+template <typename T>
+inline bool all_finite(const double* p, int n) noexcept {
+  for (int i = 0; i < n; ++i)
+    if (!std::isfinite(p[i])) return false;
+  return true;
+}
+
+// y = W^T x for the transposed storage wt[n_in][n_out] (+ bias), n_out outputs.
+template <typename T, int kIn, int kOut>
+inline void dense_t(const T* wt, const T* b, const T* x, T* y, int n_in, int n_out) noexcept {
+  const int ni = kIn > 0 ? kIn : n_in;
+  const int no = kOut > 0 ? kOut : n_out;
+#ifdef DAMPNET_USE_EIGEN
+  using Mat = Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  using Vec = Eigen::Matrix<T, Eigen::Dynamic, 1>;
+  Eigen::Map<const Mat> W(wt, ni, no);
+  Eigen::Map<const Vec> xv(x, ni), bv(b, no);
+  Eigen::Map<Vec> yv(y, no);
+  yv.noalias() = bv;
+  yv.noalias() += W.transpose() * xv;
+#else
+  for (int j = 0; j < no; ++j) y[j] = b[j];
+  for (int i = 0; i < ni; ++i) {
+    const T xi = x[i];
+    const T* row = wt + i * no;
+    for (int j = 0; j < no; ++j) y[j] += row[j] * xi;
+  }
+#endif
+}
+
+template <typename T, int kN>
+inline void activate_all(Activation act, T* h, int n) noexcept {
+  const int nn = kN > 0 ? kN : n;
+  if (act == Activation::sigmoid) {
+    for (int j = 0; j < nn; ++j) h[j] = T(0.5) + T(0.5) * fast_tanh(T(0.5) * h[j]);
+  } else {
+    for (int j = 0; j < nn; ++j) h[j] = fast_tanh(h[j]);
+  }
+}
+
+// Saturate and scale the inputs; returns the warning bits, sets the mask.
+template <typename T, int kIn, class P>
+inline int prepare_inputs(const P& p, const T* x, T* xs, uint32_t& mask) noexcept {
+  const int ni = kIn > 0 ? kIn : p.n_in;
+  int status = DN_OK;
+  for (int i = 0; i < ni; ++i) {
+    T v = x[i];
+    const T lo = p.sat_lo[i], hi = p.sat_hi[i];
+    if (v != v) {  // NaN: the centre of the training range is the least surprising value
+      v = T(0.5) * (lo + hi);
+      status |= DN_W_NONFINITE_INPUT;
+      mask |= (1u << i);
+    } else if (v < lo) {  // also -Inf
+      v = lo;
+      status |= DN_W_SATURATED;
+      mask |= (1u << i);
+    } else if (v > hi) {  // also +Inf
+      v = hi;
+      status |= DN_W_SATURATED;
+      mask |= (1u << i);
+    }
+    xs[i] = (v - p.in_offset[i]) * p.in_gain[i] + p.in_ymin;
+  }
+  return status;
+}
+
+// The forward pass shared by Mlp and StaticMlp. kH2 == 0: one hidden layer.
+template <typename T, int kIn, int kH1, int kH2, class P>
+DN_REALTIME inline int forward(const P& p, const T* x, T* y, uint32_t* clamped_mask) noexcept {
+  constexpr int cap_in = kIn > 0 ? kIn : DN_MAX_INPUTS;
+  constexpr int cap_h1 = kH1 > 0 ? kH1 : DN_MAX_HIDDEN;
+  constexpr int cap_h2 = kH2 > 0 ? kH2 : DN_MAX_HIDDEN;
+  const int h1 = kH1 > 0 ? kH1 : p.n_h1;
+  const int h2 = kH2 >= 0 ? kH2 : p.n_h2;
+
+  uint32_t mask = 0;
+  alignas(32) T xs[cap_in];
+  int status = prepare_inputs<T, kIn>(p, x, xs, mask);
+
+  alignas(32) T a1[cap_h1];
+  dense_t<T, kIn, kH1>(p.w1t.data(), p.b1.data(), xs, a1, p.n_in, h1);
+  activate_all<T, kH1>(p.act, a1, h1);
+
+  const T* last = a1;
+  int n_last = h1;
+  alignas(32) T a2[cap_h2 > 0 ? cap_h2 : 1];
+  if (kH2 != 0 && h2 > 0) {
+    dense_t<T, kH1, (kH2 > 0 ? kH2 : kDynamic)>(p.w2t.data(), p.b2.data(), a1, a2, h1, h2);
+    activate_all<T, (kH2 > 0 ? kH2 : kDynamic)>(p.act, a2, h2);
+    last = a2;
+    n_last = h2;
+  }
+
+  T ys = p.b_out;
+  for (int j = 0; j < n_last; ++j) ys += p.w_out[j] * last[j];
+  T out = (ys - p.out_ymin) / p.out_gain + p.out_offset;
+  if (!std::isfinite(out)) {
+    out = p.out_offset;
+    status = DN_E_NONFINITE_OUTPUT;
+  }
+  *y = out;
+  if (clamped_mask) *clamped_mask = mask;
+  return status;
+}
+
+// Validate a description against fixed sizes (kDynamic = any) and copy it in.
+template <typename T, int kIn, int kH1, int kH2, class P>
+inline int load(P& p, const dn_mlp_desc* d) noexcept {
+  if (!d || !d->w1 || !d->b1 || !d->w_out || !d->b_out || !d->in_offset || !d->in_gain ||
+      !d->sat_lo || !d->sat_hi)
+    return DN_E_NULL;
+  if (d->n_inputs < 1 || d->n_inputs > DN_MAX_INPUTS || d->n_hidden1 < 1 ||
+      d->n_hidden1 > DN_MAX_HIDDEN || d->n_hidden2 < 0 || d->n_hidden2 > DN_MAX_HIDDEN)
+    return DN_E_SIZE;
+  if ((kIn > 0 && d->n_inputs != kIn) || (kH1 > 0 && d->n_hidden1 != kH1) ||
+      (kH2 >= 0 && d->n_hidden2 != kH2))
+    return DN_E_MISMATCH;
+  if (d->n_hidden2 > 0 && (!d->w2 || !d->b2)) return DN_E_NULL;
+  if (d->activation != DN_ACT_TANH && d->activation != DN_ACT_SIGMOID) return DN_E_ACTIVATION;
+  const int ni = d->n_inputs, h1 = d->n_hidden1, h2 = d->n_hidden2;
+  const int n_last = h2 > 0 ? h2 : h1;
+  if (!all_finite<T>(d->w1, h1 * ni) || !all_finite<T>(d->b1, h1) ||
+      !all_finite<T>(d->w_out, n_last) || !all_finite<T>(d->b_out, 1) ||
+      !all_finite<T>(d->in_offset, ni) || !all_finite<T>(d->in_gain, ni) ||
+      !all_finite<T>(d->sat_lo, ni) || !all_finite<T>(d->sat_hi, ni) ||
+      !std::isfinite(d->in_ymin) || !std::isfinite(d->out_offset) ||
+      !std::isfinite(d->out_gain) || !std::isfinite(d->out_ymin))
+    return DN_E_NONFINITE_PARAM;
+  if (h2 > 0 && (!all_finite<T>(d->w2, h2 * h1) || !all_finite<T>(d->b2, h2)))
+    return DN_E_NONFINITE_PARAM;
+  if (d->out_gain == 0.0) return DN_E_PARAM;
+  for (int i = 0; i < ni; ++i)
+    if (!(d->sat_lo[i] <= d->sat_hi[i])) return DN_E_PARAM;
+
+  p.n_in = ni;
+  p.n_h1 = h1;
+  p.n_h2 = h2;
+  p.act = static_cast<Activation>(d->activation);
+  for (int j = 0; j < h1; ++j)
+    for (int i = 0; i < ni; ++i) p.w1t[i * h1 + j] = static_cast<T>(d->w1[j * ni + i]);
+  for (int j = 0; j < h1; ++j) p.b1[j] = static_cast<T>(d->b1[j]);
+  for (int j = 0; j < h2; ++j)
+    for (int k = 0; k < h1; ++k) p.w2t[k * h2 + j] = static_cast<T>(d->w2[j * h1 + k]);
+  for (int j = 0; j < h2; ++j) p.b2[j] = static_cast<T>(d->b2[j]);
+  for (int j = 0; j < n_last; ++j) p.w_out[j] = static_cast<T>(d->w_out[j]);
+  p.b_out = static_cast<T>(d->b_out[0]);
+  for (int i = 0; i < ni; ++i) {
+    p.in_offset[i] = static_cast<T>(d->in_offset[i]);
+    p.in_gain[i] = static_cast<T>(d->in_gain[i]);
+    p.sat_lo[i] = static_cast<T>(d->sat_lo[i]);
+    p.sat_hi[i] = static_cast<T>(d->sat_hi[i]);
+  }
+  p.in_ymin = static_cast<T>(d->in_ymin);
+  p.out_offset = static_cast<T>(d->out_offset);
+  p.out_gain = static_cast<T>(d->out_gain);
+  p.out_ymin = static_cast<T>(d->out_ymin);
+  return DN_OK;
+}
+
+}  // namespace detail
+
+// Parameters of an MLP with capacities In x H1 x H2 (storage only; see load()).
+template <typename T, int In, int H1, int H2>
+struct MlpParams {
+  static_assert(In >= 1 && In <= DN_MAX_INPUTS, "1..8 inputs");
+  static_assert(H1 >= 1 && H1 <= DN_MAX_HIDDEN, "1..64 neurons in hidden layer 1");
+  static_assert(H2 >= 0 && H2 <= DN_MAX_HIDDEN, "0..64 neurons in hidden layer 2");
+  int n_in = 0, n_h1 = 0, n_h2 = 0;
+  Activation act = Activation::tanh;
+  alignas(32) std::array<T, In * H1> w1t{};  // [in][h1]
+  alignas(32) std::array<T, H1> b1{};
+  alignas(32) std::array<T, H1 * H2> w2t{};  // [h1][h2]
+  alignas(32) std::array<T, H2> b2{};
+  alignas(32) std::array<T, (H2 > 0 ? H2 : H1)> w_out{};
+  T b_out{};
+  std::array<T, In> in_offset{}, in_gain{}, sat_lo{}, sat_hi{};
+  T in_ymin{-1}, out_offset{}, out_gain{1}, out_ymin{-1};
+};
+
+// A model whose sizes are chosen at run time (up to the DN_MAX_* capacities).
+template <typename T>
+class Mlp {
+ public:
+  // Validate and copy a description; returns DN_OK or a DN_E_* error.
+  int load(const dn_mlp_desc* d) noexcept {
+    return detail::load<T, kDynamic, kDynamic, kDynamic>(p_, d);
+  }
+  // [RT] One sample; see dn_mlp_forward for the input policy.
+  DN_REALTIME int forward(const T* x, T* y, uint32_t* clamped_mask = nullptr) const noexcept {
+    return detail::forward<T, kDynamic, kDynamic, kDynamic>(p_, x, y, clamped_mask);
+  }
+  int n_inputs() const noexcept { return p_.n_in; }
+  const T* sat_lo() const noexcept { return p_.sat_lo.data(); }
+  const T* sat_hi() const noexcept { return p_.sat_hi.data(); }
+
+ private:
+  MlpParams<T, DN_MAX_INPUTS, DN_MAX_HIDDEN, DN_MAX_HIDDEN> p_;
+};
+
+// A model whose sizes are compile-time constants (H2 = 0: one hidden layer).
+template <typename T, int In, int H1, int H2 = 0>
+class StaticMlp {
+ public:
+  static constexpr int kInputs = In;
+  // Validate and copy a description of exactly these sizes (else DN_E_MISMATCH).
+  int load(const dn_mlp_desc* d) noexcept { return detail::load<T, In, H1, H2>(p_, d); }
+  // [RT] One sample; see dn_mlp_forward for the input policy.
+  DN_REALTIME int forward(const T* x, T* y, uint32_t* clamped_mask = nullptr) const noexcept {
+    return detail::forward<T, In, H1, H2>(p_, x, y, clamped_mask);
+  }
+
+ private:
+  MlpParams<T, In, H1, H2> p_;
+};
+
+}  // namespace dampnet

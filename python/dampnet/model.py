@@ -1,0 +1,248 @@
+"""The MLP damper model as data: weights, scaling, limits, features, provenance.
+
+A `MlpModel` is what training produces, what `model.json` stores, what the
+header writer (`dampnet.export`) turns into C, and what the C++ kernel runs.
+Layouts follow PyTorch: a weight matrix is [out][in]. Scaling is MATLAB's
+mapminmax to [-1, 1]; saturation limits are the training range, in the
+feature's own unit (see `cpp/include/dampnet/dampnet.h`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+FORMAT_NAME = "dampnet-model"
+FORMAT_VERSION = 1
+ACTIVATIONS = ("tanh", "sigmoid")
+
+
+class ModelError(ValueError):
+    """A model file or a model's contents are not what dampnet expects."""
+
+
+def mapminmax_settings(x: np.ndarray, ymin: float = -1.0, ymax: float = 1.0):
+    """MATLAB mapminmax settings (xoffset, gain) of each column of `x` [n, k].
+
+    A constant column gets gain 1 (as MATLAB does) so it maps to ymin + (x - xmin).
+    """
+    x = np.asarray(x, dtype=np.float64)
+    if x.ndim == 1:
+        x = x[:, None]
+    xmin = x.min(axis=0)
+    xmax = x.max(axis=0)
+    span = xmax - xmin
+    gain = np.where(span > 0, (ymax - ymin) / np.where(span > 0, span, 1.0), 1.0)
+    return xmin, gain
+
+
+@dataclass
+class MlpModel:
+    """An MLP with 1-8 inputs, one or two hidden layers, and a linear output.
+
+    Attributes are numpy float64 arrays; `features` names the inputs in order
+    and `units` gives their SI units. `meta` carries provenance (algorithm,
+    settings, data, training time); `terms` carries physics terms added to
+    the network output (hybrid models), as plain dictionaries.
+    """
+
+    w1: np.ndarray  # [h1, n_in]
+    b1: np.ndarray  # [h1]
+    w_out: np.ndarray  # [n_last]
+    b_out: float
+    in_offset: np.ndarray  # [n_in] mapminmax xoffset, feature units
+    in_gain: np.ndarray  # [n_in] mapminmax gain, 1/feature unit
+    out_offset: float  # [N]
+    out_gain: float  # [1/N]
+    sat_lo: np.ndarray  # [n_in] feature units
+    sat_hi: np.ndarray  # [n_in] feature units
+    features: list[str]
+    units: list[str]
+    activation: str = "tanh"
+    w2: np.ndarray | None = None  # [h2, h1]
+    b2: np.ndarray | None = None  # [h2]
+    in_ymin: float = -1.0
+    out_ymin: float = -1.0
+    output: str = "force"
+    output_unit: str = "N"
+    terms: list[dict[str, Any]] = field(default_factory=list)
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        for name in ("w1", "b1", "w_out", "in_offset", "in_gain", "sat_lo", "sat_hi"):
+            setattr(self, name, np.asarray(getattr(self, name), dtype=np.float64))
+        if self.w2 is not None:
+            self.w2 = np.asarray(self.w2, dtype=np.float64)
+            self.b2 = np.asarray(self.b2, dtype=np.float64)
+        self.b_out = float(self.b_out)
+        self.out_offset = float(self.out_offset)
+        self.out_gain = float(self.out_gain)
+        self.features = list(self.features)
+        self.units = list(self.units)
+        self.validate()
+
+    # -- shape -----------------------------------------------------------
+    @property
+    def n_inputs(self) -> int:
+        return int(self.w1.shape[1])
+
+    @property
+    def hidden(self) -> tuple[int, ...]:
+        h = (int(self.w1.shape[0]),)
+        return h + ((int(self.w2.shape[0]),) if self.w2 is not None else ())
+
+    def validate(self) -> None:
+        """Raise ModelError naming the first field that is inconsistent."""
+        if self.w1.ndim != 2:
+            raise ModelError(f"w1: expected a 2-D [hidden, inputs] matrix, got shape {self.w1.shape}")
+        h1, n_in = self.w1.shape
+        if not 1 <= n_in <= 8:
+            raise ModelError(f"w1: 1..8 inputs supported, got {n_in}")
+        if not 1 <= h1 <= 64:
+            raise ModelError(f"w1: 1..64 neurons per hidden layer supported, got {h1}")
+        if self.activation not in ACTIVATIONS:
+            raise ModelError(f"activation: expected one of {ACTIVATIONS}, got {self.activation!r}")
+        n_last = h1
+        if self.w2 is not None:
+            if self.w2.ndim != 2 or self.w2.shape[1] != h1 or not 1 <= self.w2.shape[0] <= 64:
+                raise ModelError(f"w2: expected [1..64, {h1}], got {self.w2.shape}")
+            n_last = self.w2.shape[0]
+            if self.b2 is None or self.b2.shape != (n_last,):
+                raise ModelError(f"b2: expected {n_last} values")
+        expect = {"b1": h1, "w_out": n_last, "in_offset": n_in, "in_gain": n_in,
+                  "sat_lo": n_in, "sat_hi": n_in}
+        for name, n in expect.items():
+            a = getattr(self, name)
+            if a.shape != (n,):
+                raise ModelError(f"{name}: expected {n} values, got shape {a.shape}")
+        if len(self.features) != n_in or len(self.units) != n_in:
+            raise ModelError(f"features/units: expected {n_in} names, got {self.features} / {self.units}")
+        arrays = [self.w1, self.b1, self.w_out, self.in_offset, self.in_gain, self.sat_lo, self.sat_hi]
+        if self.w2 is not None:
+            arrays += [self.w2, self.b2]
+        scalars = [self.b_out, self.out_offset, self.out_gain, self.in_ymin, self.out_ymin]
+        if not all(np.all(np.isfinite(a)) for a in arrays) or not np.all(np.isfinite(scalars)):
+            raise ModelError("model parameters must all be finite (found NaN or Inf)")
+        if self.out_gain == 0:
+            raise ModelError("out_gain: must be non-zero")
+        if np.any(self.sat_lo > self.sat_hi):
+            bad = [self.features[i] for i in np.nonzero(self.sat_lo > self.sat_hi)[0]]
+            raise ModelError(f"sat_lo > sat_hi for {bad}")
+
+    # -- evaluation --------------------------------------------------------
+    def core(self):
+        """The C++ kernel's model (dampnet._core.Mlp) built from these weights."""
+        from dampnet import _core
+
+        return _core.Mlp(self.w1, self.b1, self.w2, self.b2, self.w_out, np.array([self.b_out]),
+                         self.in_offset, self.in_gain, self.in_ymin, self.out_offset,
+                         self.out_gain, self.out_ymin, self.sat_lo, self.sat_hi, self.activation)
+
+    def predict(self, x: np.ndarray, single: bool = False) -> np.ndarray:
+        """Force [N] for samples x [n, n_inputs] (feature units), in the C++ kernel."""
+        x = np.ascontiguousarray(np.atleast_2d(np.asarray(x, dtype=np.float64)))
+        if x.shape[1] != self.n_inputs:
+            raise ModelError(f"x: expected {self.n_inputs} columns ({', '.join(self.features)}), "
+                             f"got {x.shape[1]}")
+        y, _status, _mask = self.core().predict(x, single)
+        return y
+
+    # -- identity and files --------------------------------------------------
+    def model_id(self) -> str:
+        """A short hash of everything that changes the model's output."""
+        payload = json.dumps(self._numbers(), sort_keys=True).encode()
+        return hashlib.sha256(payload).hexdigest()[:16]
+
+    def _numbers(self) -> dict[str, Any]:
+        d = {
+            "activation": self.activation,
+            "features": self.features,
+            "units": self.units,
+            "w1": self.w1.tolist(), "b1": self.b1.tolist(),
+            "w2": None if self.w2 is None else self.w2.tolist(),
+            "b2": None if self.b2 is None else self.b2.tolist(),
+            "w_out": self.w_out.tolist(), "b_out": self.b_out,
+            "in_offset": self.in_offset.tolist(), "in_gain": self.in_gain.tolist(),
+            "in_ymin": self.in_ymin, "out_offset": self.out_offset,
+            "out_gain": self.out_gain, "out_ymin": self.out_ymin,
+            "sat_lo": self.sat_lo.tolist(), "sat_hi": self.sat_hi.tolist(),
+            "terms": self.terms,
+        }
+        return d
+
+    def to_dict(self) -> dict[str, Any]:
+        d = {"format": FORMAT_NAME, "format_version": FORMAT_VERSION, "id": self.model_id(),
+             "output": {"name": self.output, "unit": self.output_unit}}
+        d.update(self._numbers())
+        d["meta"] = self.meta
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any], source: str = "model") -> MlpModel:
+        if d.get("format") != FORMAT_NAME:
+            raise ModelError(f"{source}: not a dampnet model (format field is {d.get('format')!r})")
+        if d.get("format_version") != FORMAT_VERSION:
+            raise ModelError(f"{source}: format_version {d.get('format_version')} is not supported "
+                             f"(this dampnet reads {FORMAT_VERSION})")
+        try:
+            out = d.get("output", {})
+            return cls(w1=np.array(d["w1"]), b1=np.array(d["b1"]), w_out=np.array(d["w_out"]),
+                       b_out=d["b_out"], in_offset=np.array(d["in_offset"]),
+                       in_gain=np.array(d["in_gain"]), out_offset=d["out_offset"],
+                       out_gain=d["out_gain"], sat_lo=np.array(d["sat_lo"]),
+                       sat_hi=np.array(d["sat_hi"]), features=d["features"], units=d["units"],
+                       activation=d["activation"],
+                       w2=None if d.get("w2") is None else np.array(d["w2"]),
+                       b2=None if d.get("b2") is None else np.array(d["b2"]),
+                       in_ymin=d.get("in_ymin", -1.0), out_ymin=d.get("out_ymin", -1.0),
+                       output=out.get("name", "force"), output_unit=out.get("unit", "N"),
+                       terms=d.get("terms", []), meta=d.get("meta", {}))
+        except KeyError as e:
+            raise ModelError(f"{source}: missing field {e.args[0]!r}") from None
+        except ModelError as e:
+            raise ModelError(f"{source}: {e}") from None
+
+    def save(self, path: str | os.PathLike, overwrite: bool = False) -> Path:
+        """Write model.json atomically; refuses to replace a file unless overwrite."""
+        return atomic_write_text(path, json.dumps(self.to_dict(), indent=1), overwrite)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> MlpModel:
+        p = Path(path)
+        if p.is_dir():
+            p = p / "model.json"
+        try:
+            d = json.loads(p.read_text())
+        except FileNotFoundError:
+            raise ModelError(f"{p}: no such model file") from None
+        except json.JSONDecodeError as e:
+            raise ModelError(f"{p}: line {e.lineno}: not valid JSON ({e.msg})") from None
+        return cls.from_dict(d, str(p))
+
+
+def atomic_write_text(path: str | os.PathLike, text: str, overwrite: bool = False) -> Path:
+    """Write text to path via a temporary file and rename, never half-written.
+
+    Refuses (FileExistsError) to replace an existing file unless overwrite.
+    """
+    p = Path(path)
+    if p.exists() and not overwrite:
+        raise FileExistsError(f"{p}: exists; refusing to overwrite (use --force)")
+    p.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", dir=p.parent)
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+        os.replace(tmp, p)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return p

@@ -1,0 +1,34 @@
+"""Where the installed C library and headers are, for compiling C programs against dampnet."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+_PKG = Path(__file__).resolve().parent
+_SRC_ROOT = _PKG.parent.parent  # the source tree, in an editable install
+
+
+def include_dirs() -> list[Path]:
+    """Directories holding dampnet/dampnet.h (installed copy first, then the source tree)."""
+    dirs = [d for d in (_installed_root() / "include", _SRC_ROOT / "cpp" / "include")
+            if (d / "dampnet" / "dampnet.h").is_file()]
+    if not dirs:
+        raise FileNotFoundError("dampnet/dampnet.h not found: is dampnet installed with its C++ core?")
+    return dirs[:1]
+
+
+def shared_library() -> Path:
+    """The shared C library (libdampnet.so) installed with the Python package."""
+    for d in (_installed_root() / "lib",):
+        for name in ("libdampnet.so", "libdampnet.dylib", "dampnet.dll"):
+            if (d / name).is_file():
+                return d / name
+    raise FileNotFoundError("libdampnet shared library not found next to dampnet._core; "
+                            "reinstall dampnet (python/setup-env.sh)")
+
+
+def _installed_root() -> Path:
+    """The directory the compiled extension was installed into (site-packages/dampnet)."""
+    from dampnet import _core
+
+    return Path(_core.__file__).resolve().parent

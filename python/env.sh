@@ -1,0 +1,52 @@
+#!/usr/bin/env bash
+# Usage: bash python/env.sh COMMAND [ARGS...]   e.g. `bash python/env.sh dampnet demo`
+# Sets up everything dampnet needs on a fresh machine, idempotently, then runs
+# COMMAND inside the environment:
+# Debian packages (Eigen, a C compiler is assumed), a virtual environment in
+# .venv, the Python dependencies (torch pinned to the local CPU build), and
+# the C++ core built into the package (editable install, incremental rebuild).
+set -euo pipefail
+DN_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$DN_ROOT"
+
+dn_log() { printf '[dampnet setup] %s\n' "$*" >&2; }
+
+# Debian packages: Eigen (optional dense kernel) and Chromium (report check).
+need_apt=()
+[ -f /usr/include/eigen3/Eigen/Core ] || need_apt+=(libeigen3-dev)
+command -v chromium >/dev/null 2>&1 || need_apt+=(chromium)
+if ((${#need_apt[@]})); then
+  if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+    dn_log "installing Debian packages: ${need_apt[*]}"
+    apt-get update -qq >/dev/null 2>&1 || true
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${need_apt[@]}" >/dev/null 2>&1 \
+      || dn_log "warning: could not install ${need_apt[*]}; features that need them are skipped with a reason"
+  else
+    dn_log "warning: missing ${need_apt[*]} and not root; features that need them are skipped with a reason"
+  fi
+fi
+
+PY="${PYTHON:-python3}"
+if [ ! -x .venv/bin/python ]; then
+  dn_log "creating virtual environment in .venv"
+  "$PY" -m venv .venv
+fi
+# shellcheck disable=SC1091
+source .venv/bin/activate
+
+# Build tools first (the editable install builds without isolation so that
+# CMake's build/ directory is reused), then dampnet with its extras; torch is
+# pinned in pyproject.toml to the local CPU build.
+stamp=.venv/.dampnet-build-tools
+if [ ! -f "$stamp" ]; then
+  dn_log "installing build tools into .venv"
+  python -m pip install -q --upgrade pip >/dev/null
+  python -m pip install -q scikit-build-core pybind11 cmake ninja
+  touch "$stamp"
+fi
+dn_log "building the C++ core and installing dampnet with its dependencies (first run: a few minutes)"
+python -m pip install -q --no-build-isolation -e ".[train,test,bench]"
+
+if (($#)); then
+  exec "$@"
+fi

@@ -1,0 +1,158 @@
+// The MLP kernel: run-time vs compile-time paths, float vs double, validation,
+// and the documented policy for non-finite and out-of-range inputs.
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <random>
+#include <vector>
+
+#include "check.hpp"
+#include "dampnet/mlp.hpp"
+#include "random_model.hpp"
+
+using dampnet::Mlp;
+using dampnet::StaticMlp;
+
+template <int In, int H1, int H2>
+void static_equals_dynamic(int act, unsigned seed) {
+  RandomModel rm(In, H1, H2, act, seed);
+  Mlp<double> md;
+  Mlp<float> mf;
+  StaticMlp<double, In, H1, H2> sd;
+  StaticMlp<float, In, H1, H2> sf;
+  CHECK(md.load(&rm.desc) == DN_OK);
+  CHECK(mf.load(&rm.desc) == DN_OK);
+  CHECK(sd.load(&rm.desc) == DN_OK);
+  CHECK(sf.load(&rm.desc) == DN_OK);
+  std::mt19937 rng(seed + 1);
+  for (int k = 0; k < 200; ++k) {
+    std::vector<double> x = rm.sample(rng);
+    std::vector<float> xf(x.begin(), x.end());
+    double yd = 0, ysd = 0;
+    float yf = 0, ysf = 0;
+    CHECK(md.forward(x.data(), &yd) == DN_OK);
+    CHECK(sd.forward(x.data(), &ysd) == DN_OK);
+    CHECK(mf.forward(xf.data(), &yf) == DN_OK);
+    CHECK(sf.forward(xf.data(), &ysf) == DN_OK);
+    CHECK(yd == ysd);   // same kernel, same arithmetic: bit-identical
+    CHECK(yf == ysf);
+    CHECK_NEAR(yf, yd, 1e-5 * 4000.0);  // float within 1e-5 of the force range
+  }
+}
+
+void validation_errors() {
+  RandomModel rm(3, 30, 0, DN_ACT_TANH, 7);
+  Mlp<double> m;
+  CHECK(m.load(nullptr) == DN_E_NULL);
+  dn_mlp_desc d = rm.desc;
+  d.n_inputs = 9;
+  CHECK(m.load(&d) == DN_E_SIZE);
+  d = rm.desc;
+  d.n_hidden1 = 65;
+  CHECK(m.load(&d) == DN_E_SIZE);
+  d = rm.desc;
+  d.activation = 7;
+  CHECK(m.load(&d) == DN_E_ACTIVATION);
+  d = rm.desc;
+  d.out_gain = 0.0;
+  CHECK(m.load(&d) == DN_E_PARAM);
+  std::vector<double> bad = rm.w1;
+  bad[5] = std::numeric_limits<double>::quiet_NaN();
+  d = rm.desc;
+  d.w1 = bad.data();
+  CHECK(m.load(&d) == DN_E_NONFINITE_PARAM);
+  std::vector<double> lo = rm.sat_lo;
+  lo[1] = rm.sat_hi[1] + 1.0;
+  d = rm.desc;
+  d.sat_lo = lo.data();
+  CHECK(m.load(&d) == DN_E_PARAM);
+  d = rm.desc;
+  d.n_hidden2 = 4;  // second layer declared but no weights
+  CHECK(m.load(&d) == DN_E_NULL);
+  StaticMlp<double, 3, 20, 0> wrong;
+  CHECK(wrong.load(&rm.desc) == DN_E_MISMATCH);
+}
+
+template <typename T>
+void input_policy() {
+  RandomModel rm(3, 30, 0, DN_ACT_SIGMOID, 11);
+  Mlp<T> m;
+  CHECK(m.load(&rm.desc) == DN_OK);
+  const T nan = std::numeric_limits<T>::quiet_NaN(), inf = std::numeric_limits<T>::infinity();
+  T mid[3], lo[3], hi[3];
+  for (int i = 0; i < 3; ++i) {
+    lo[i] = T(rm.sat_lo[i]);
+    hi[i] = T(rm.sat_hi[i]);
+    mid[i] = T(0.5) * (lo[i] + hi[i]);
+  }
+  T y_ref, y;
+  uint32_t mask = 99;
+  CHECK(m.forward(mid, &y_ref, &mask) == DN_OK);
+  CHECK(mask == 0u);
+
+  // NaN -> the centre of the range, flagged.
+  T x[3] = {mid[0], nan, mid[2]};
+  CHECK(m.forward(x, &y, &mask) == DN_W_NONFINITE_INPUT);
+  CHECK(mask == 2u);
+  CHECK(y == y_ref);
+
+  // +Inf and far out of range -> the upper limit, flagged as saturated.
+  T x_hi[3] = {inf, hi[1] * T(1e6) + T(1e6), mid[2]};
+  T at_hi[3] = {hi[0], hi[1], mid[2]};
+  T y_at_hi;
+  CHECK(m.forward(at_hi, &y_at_hi) == DN_OK);
+  CHECK(m.forward(x_hi, &y, &mask) == DN_W_SATURATED);
+  CHECK(mask == 3u);
+  CHECK(y == y_at_hi);
+
+  // -Inf -> the lower limit; NaN and saturation together report both bits.
+  T x_mix[3] = {-inf, nan, lo[2]};
+  const int st = m.forward(x_mix, &y, &mask);
+  CHECK(st == (DN_W_SATURATED | DN_W_NONFINITE_INPUT));
+  CHECK(mask == 3u);  // input 2 is exactly at its limit: not clamped
+  CHECK(std::isfinite(y));
+
+  // Anything at all gives a finite output.
+  std::mt19937 rng(5);
+  std::uniform_int_distribution<uint64_t> bits;
+  for (int k = 0; k < 100000; ++k) {
+    T xr[3];
+    for (auto& v : xr) {
+      uint64_t b = bits(rng);
+      if (sizeof(T) == 4) {
+        uint32_t b32 = uint32_t(b);
+        std::memcpy(&v, &b32, 4);
+      } else {
+        std::memcpy(&v, &b, 8);
+      }
+    }
+    CHECK(m.forward(xr, &y) >= 0);
+    CHECK(std::isfinite(y));
+  }
+}
+
+void output_overflow_is_caught() {
+  RandomModel rm(2, 4, 0, DN_ACT_TANH, 3);
+  for (auto& w : rm.w_out) w = 1e308;  // finite, but the sum overflows
+  Mlp<double> m;
+  CHECK(m.load(&rm.desc) == DN_OK);
+  double x[2] = {rm.sat_lo[0], rm.sat_hi[1]}, y = 0;
+  const int st = m.forward(x, &y);
+  CHECK(st == DN_E_NONFINITE_OUTPUT || std::isfinite(y));
+  CHECK(std::isfinite(y));
+}
+
+int main() {
+  static_equals_dynamic<1, 1, 0>(DN_ACT_TANH, 1);
+  static_equals_dynamic<3, 30, 0>(DN_ACT_SIGMOID, 2);
+  static_equals_dynamic<3, 30, 0>(DN_ACT_TANH, 3);
+  static_equals_dynamic<8, 64, 0>(DN_ACT_TANH, 4);
+  static_equals_dynamic<5, 16, 8>(DN_ACT_SIGMOID, 5);
+  static_equals_dynamic<8, 64, 64>(DN_ACT_TANH, 6);
+  static_equals_dynamic<2, 7, 1>(DN_ACT_SIGMOID, 7);
+  validation_errors();
+  input_policy<double>();
+  input_policy<float>();
+  output_overflow_is_caught();
+  TEST_MAIN_RETURN();
+}
