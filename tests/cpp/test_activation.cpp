@@ -20,7 +20,7 @@ int main() {
     }
     uint32_t b;
     std::memcpy(&b, &x, 4);
-    b = x < 0.0f ? (b >= 0x80000080u ? b - 128u : 0u) : b + 128u;  // 128 ulps towards +10
+    b = (b & 0x80000000u) ? (b > 0x80000080u ? b - 128u : 0u) : b + 128u;  // 128 ulps towards +10
     std::memcpy(&x, &b, 4);
   }
   std::printf("float fast_tanh: worst |error| vs std::tanh on [-10, 10] (every 128th float) = %.3g at x = %.9g\n",

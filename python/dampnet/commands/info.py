@@ -1,0 +1,18 @@
+"""`dampnet info`: the installed runtime's version and where its C library and headers are."""
+
+from __future__ import annotations
+
+
+def add_parser(subparsers):
+    p = subparsers.add_parser("info", help="print versions and the C library/header locations")
+    p.set_defaults(handler=run)
+    return p
+
+
+def run(args) -> int:
+    from dampnet import __version__, _core, paths
+
+    print(f"dampnet {__version__} (C++ core {_core.__version__})")
+    print(f"headers:        {paths.include_dirs()[0]}")
+    print(f"shared library: {paths.shared_library()}")
+    return 0
