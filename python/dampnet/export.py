@@ -135,6 +135,7 @@ def header_text(model: MlpModel, prefix: str = "dn_model") -> str:
     out.append(_array(f"{p}_sat_hi", model.sat_hi, f"{n_in}",
                       "upper saturation limit (training range), feature units"))
     out.append(_terms_block(p, P, model))
+    out.append(_feature_params_block(P, model))
     w2 = f"{p}_w2" if h2 else "(const double*)0"
     b2 = f"{p}_b2" if h2 else "(const double*)0"
     out += [
@@ -166,6 +167,16 @@ def _terms_block(p: str, P: str, model: MlpModel) -> str:
         lines.append(_array(f"{p}_term_params", rows, f"{len(terms)} * {width}",
                             f"term parameters, [{len(terms)}][{width}] row-major; meaning per kind "
                             "in dampnet's hybrid-term table"))
+    return "\n".join(lines) + "\n"
+
+
+def _feature_params_block(P: str, model: MlpModel) -> str:
+    """Constants of derived features (e.g. the control lag's time constant), as macros."""
+    lines = ["/* Constants of derived input features (unit in the name's suffix). */"]
+    for key, value in sorted(model.feature_params.items()):
+        if not _IDENT.match(key):
+            raise ValueError(f"feature parameter {key!r}: expected an identifier")
+        lines.append(f"#define {P}_{key.upper()} ({_num(value)})")
     return "\n".join(lines) + "\n"
 
 

@@ -50,7 +50,10 @@ class MlpModel:
     Attributes are numpy float64 arrays; `features` names the inputs in order
     and `units` gives their SI units. `meta` carries provenance (algorithm,
     settings, data, training time); `terms` carries physics terms added to
-    the network output (hybrid models), as plain dictionaries.
+    the network output (hybrid models), as plain dictionaries
+    `{"kind": str, "params": [float, ...]}` (kinds and parameter meanings:
+    `dampnet.terms`). `feature_params` holds the constants derived features
+    need, e.g. `{"control_lag_tau_s": 0.04}` for the lagged control feature.
     """
 
     w1: np.ndarray  # [h1, n_in]
@@ -73,6 +76,7 @@ class MlpModel:
     output: str = "force"
     output_unit: str = "N"
     terms: list[dict[str, Any]] = field(default_factory=list)
+    feature_params: dict[str, float] = field(default_factory=dict)
     meta: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -174,6 +178,7 @@ class MlpModel:
             "out_gain": self.out_gain, "out_ymin": self.out_ymin,
             "sat_lo": self.sat_lo.tolist(), "sat_hi": self.sat_hi.tolist(),
             "terms": self.terms,
+            "feature_params": self.feature_params,
         }
         return d
 
@@ -203,7 +208,8 @@ class MlpModel:
                        b2=None if d.get("b2") is None else np.array(d["b2"]),
                        in_ymin=d.get("in_ymin", -1.0), out_ymin=d.get("out_ymin", -1.0),
                        output=out.get("name", "force"), output_unit=out.get("unit", "N"),
-                       terms=d.get("terms", []), meta=d.get("meta", {}))
+                       terms=d.get("terms", []), feature_params=d.get("feature_params", {}),
+                       meta=d.get("meta", {}))
         except KeyError as e:
             raise ModelError(f"{source}: missing field {e.args[0]!r}") from None
         except ModelError as e:
