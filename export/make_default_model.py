@@ -1,4 +1,4 @@
-"""Regenerate export/dn_model_default.h, the header the C++ library builds its
+"""Regenerate export/dn_model_default.h (and its model.json twin), the header the C++ library builds its
 examples and tests with when no trained model is at hand.
 
 The model is a 3-30-1 tanh MLP (velocity [m/s], acceleration [m/s^2],
@@ -57,9 +57,11 @@ def main() -> None:
                            "data": "thesis eq. 1-3 parametric damper, 20000 random samples",
                            "exported_at": "2026-11-21T00:00:00Z"})
     rms = float(np.sqrt(np.mean((design @ coef - ys) ** 2)) / out_gain)
-    out = Path(__file__).resolve().parent / "dn_model_default.h"
-    write_header(model, out, prefix="dn_model_default", overwrite=args.force)
-    print(f"wrote {out} (fit RMS error {rms:.1f} N over a {2 / out_gain:.0f} N range)")
+    here = Path(__file__).resolve().parent
+    write_header(model, here / "dn_model_default.h", prefix="dn_model_default", overwrite=args.force)
+    model.save(here / "dn_model_default.json", overwrite=args.force)
+    print(f"wrote {here}/dn_model_default.{{h,json}} (fit RMS error {rms:.1f} N over a "
+          f"{2 / out_gain:.0f} N range)")
 
 
 if __name__ == "__main__":

@@ -1,0 +1,48 @@
+"""Helpers for tests that build and run C/C++ code: CMake builds of the standalone
+project (cached under build/tests-*), and one-off compiles of small programs."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+BUILD = ROOT / "build"
+
+
+def run(cmd: list[str], cwd: Path | None = None, timeout: float = 900) -> subprocess.CompletedProcess:
+    """Run a command; on failure raise with its output so the test log shows why."""
+    proc = subprocess.run([str(c) for c in cmd], cwd=cwd, capture_output=True, text=True,
+                          timeout=timeout)
+    if proc.returncode != 0:
+        raise AssertionError(f"command failed ({proc.returncode}): {' '.join(map(str, cmd))}\n"
+                             f"--- stdout\n{proc.stdout[-6000:]}\n--- stderr\n{proc.stderr[-6000:]}")
+    return proc
+
+
+def cmake_build(name: str, *defines: str, install: bool = False) -> Path:
+    """Configure and build the standalone project into build/tests-NAME; returns the build dir."""
+    bdir = BUILD / f"tests-{name}"
+    gen = ["-G", "Ninja"] if shutil.which("ninja") else []
+    run(["cmake", "-S", ROOT, "-B", bdir, *gen, f"-DCMAKE_INSTALL_PREFIX={bdir / 'prefix'}",
+         *[f"-D{d}" for d in defines]])
+    run(["cmake", "--build", bdir, "--parallel", str(os.cpu_count() or 2)])
+    if install:
+        run(["cmake", "--install", bdir])
+    return bdir
+
+
+def compile_program(sources: list[Path], out: Path, *, cxx: bool, include_dirs: list[Path],
+                    libs: list[Path] = (), std: str | None = None, extra: list[str] = ()) -> Path:
+    """Compile a small program with warnings as errors; returns the executable path."""
+    compiler = os.environ.get("CXX", "g++") if cxx else os.environ.get("CC", "gcc")
+    std = std or ("c++17" if cxx else "c99")
+    cmd = [compiler, f"-std={std}", "-O2", "-Wall", "-Wextra", "-Werror", *extra,
+           *[f"-I{d}" for d in include_dirs], *sources, "-o", out]
+    for lib in libs:
+        cmd += [lib, f"-Wl,-rpath,{Path(lib).parent}"]
+    cmd += ["-lm"]
+    run(cmd)
+    return out

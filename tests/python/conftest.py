@@ -1,0 +1,46 @@
+"""Shared fixtures: the repository root, and the C/C++ builds that several tests use."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from cbuild import ROOT, cmake_build  # noqa: E402
+
+
+@pytest.fixture(scope="session")
+def repo_root() -> Path:
+    return ROOT
+
+
+@pytest.fixture(scope="session")
+def asan_build() -> Path:
+    """The standalone project with its C/C++ tests, under AddressSanitizer + UBSan."""
+    return cmake_build("asan", "DAMPNET_BUILD_TESTS=ON", "DAMPNET_SANITIZE=ON",
+                       "CMAKE_BUILD_TYPE=RelWithDebInfo")
+
+
+@pytest.fixture(scope="session")
+def installed_prefix() -> Path:
+    """The standalone project built (Release, no tests) and installed into a prefix."""
+    return cmake_build("install", "DAMPNET_BUILD_TESTS=OFF", "CMAKE_BUILD_TYPE=Release",
+                       install=True) / "prefix"
+
+
+@pytest.fixture(scope="session")
+def plain_build() -> Path:
+    """The standalone project with tests, plain kernel (for comparison with Eigen)."""
+    return cmake_build("plain", "DAMPNET_BUILD_TESTS=ON", "CMAKE_BUILD_TYPE=Release")
+
+
+@pytest.fixture(scope="session")
+def eigen_build() -> Path:
+    """The standalone project with tests, dense layers through Eigen (libeigen3-dev)."""
+    if not Path("/usr/include/eigen3/Eigen/Core").is_file():
+        pytest.skip("Eigen headers not installed (Debian libeigen3-dev); python/env.sh installs them")
+    return cmake_build("eigen", "DAMPNET_BUILD_TESTS=ON", "DAMPNET_USE_EIGEN=ON",
+                       "CMAKE_BUILD_TYPE=Release")

@@ -1,0 +1,125 @@
+"""The generated header's format, the exporter's checks, and model.json round trips."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import numpy as np
+import pytest
+
+from dampnet.export import check_prefix, header_text, write_header
+from dampnet.model import MlpModel, ModelError
+from kernel_cases import random_model
+
+
+def _array_values(text: str, name: str) -> np.ndarray:
+    m = re.search(rf"static const double {name}\[[^\]]*\] = \{{(.*?)\}};", text, re.S)
+    assert m, f"{name} not in header"
+    return np.array([float(v) for v in m.group(1).replace("\n", " ").split(",") if v.strip()])
+
+
+def test_header_has_banner_guard_sizes_layout_and_features():
+    model = random_model(3, (30,), "sigmoid", seed=1)
+    model.meta = {"algorithm": "lm", "data": "rig quick plan"}
+    text = header_text(model, "my_damper")
+    assert "DO NOT EDIT" in text.splitlines()[1]
+    assert f"model id: {model.model_id()}" in text
+    assert "algorithm: lm" in text
+    assert "#ifndef MY_DAMPER_H_" in text and "#endif /* MY_DAMPER_H_ */" in text
+    assert "#define MY_DAMPER_N_INPUTS 3" in text and "#define MY_DAMPER_N_HIDDEN1 30" in text
+    assert "#define MY_DAMPER_ACTIVATION 1 /* DN_ACT_SIGMOID */" in text
+    assert "row-major" in text
+    assert 'my_damper_feature_names[3] = {"x0", "x1", "x2"}' in text
+    assert "MY_DAMPER_DESC_INIT" in text
+
+
+def test_header_values_round_trip_exactly():
+    """17 significant digits (at least the 9 a float needs): every weight parses back exactly."""
+    model = random_model(4, (9, 5), "tanh", seed=2)
+    text = header_text(model, "m")
+    np.testing.assert_array_equal(_array_values(text, "m_w1"), model.w1.ravel())
+    np.testing.assert_array_equal(_array_values(text, "m_w2"), model.w2.ravel())
+    np.testing.assert_array_equal(_array_values(text, "m_w_out"), model.w_out)
+    np.testing.assert_array_equal(_array_values(text, "m_sat_hi"), model.sat_hi)
+
+
+
+@pytest.mark.parametrize("bad", ["", "1abc", "my-model", "int", "class", "dn", "a b"])
+def test_invalid_prefix_is_refused(bad):
+    with pytest.raises(ValueError, match="prefix"):
+        check_prefix(bad)
+
+
+def test_write_header_refuses_to_overwrite_and_writes_atomically(tmp_path):
+    model = random_model(2, (3,), "tanh", seed=3)
+    path = tmp_path / "model.h"
+    path.write_text("user's own file\n")
+    with pytest.raises(FileExistsError):
+        write_header(model, path, "m")
+    assert path.read_text() == "user's own file\n"
+    write_header(model, path, "m", overwrite=True)
+    assert "DO NOT EDIT" in path.read_text()
+    assert [p.name for p in tmp_path.iterdir()] == ["model.h"]  # no temporary left behind
+
+
+def test_terms_and_feature_params_are_exported():
+    model = random_model(4, (5,), "tanh", seed=4)
+    model.terms = [{"kind": "position_poly", "params": [250.0, 3000.0, 0.0, 1e5]}]
+    model.feature_params = {"control_lag_tau_s": 0.04}
+    text = header_text(model, "h")
+    assert "#define H_N_TERMS 1" in text
+    assert 'h_term_kinds[1] = {"position_poly"}' in text
+    np.testing.assert_array_equal(_array_values(text, "h_term_params"), [250.0, 3000.0, 0.0, 1e5])
+    assert "#define H_CONTROL_LAG_TAU_S (0.040000000000000001)" in text
+
+
+def test_model_json_round_trip(tmp_path):
+    model = random_model(5, (8, 4), "sigmoid", seed=5)
+    model.meta = {"algorithm": "br", "gamma": 42.5}
+    model.save(tmp_path / "model.json")
+    back = MlpModel.load(tmp_path)
+    assert back.model_id() == model.model_id()
+    assert back.meta == model.meta and back.features == model.features
+    x = np.random.default_rng(0).uniform(-1, 1, (50, 5))
+    np.testing.assert_array_equal(back.predict(x), model.predict(x))
+    with pytest.raises(FileExistsError):
+        model.save(tmp_path / "model.json")
+
+
+def test_bad_model_files_name_the_problem(tmp_path):
+    p = tmp_path / "model.json"
+    p.write_text("{not json")
+    with pytest.raises(ModelError, match=r"model.json: line 1"):
+        MlpModel.load(p)
+    d = random_model(2, (3,), "tanh", seed=6).to_dict()
+    del d["w_out"]
+    p.write_text(json.dumps(d))
+    with pytest.raises(ModelError, match="missing field 'w_out'"):
+        MlpModel.load(p)
+    d = random_model(2, (3,), "tanh", seed=6).to_dict()
+    d["b1"] = [1.0]
+    p.write_text(json.dumps(d))
+    with pytest.raises(ModelError, match="b1: expected 3 values"):
+        MlpModel.load(p)
+    d["b1"] = [float("nan")] * 3
+    p.write_text(json.dumps(d))
+    with pytest.raises(ModelError, match="finite"):
+        MlpModel.load(p)
+
+
+def test_model_refuses_inputs_of_the_wrong_width():
+    model = random_model(3, (4,), "tanh", seed=7)
+    with pytest.raises(ModelError, match="expected 3 columns"):
+        model.predict(np.zeros((4, 2)))
+
+
+def test_status_codes_reach_python():
+    model = random_model(2, (3,), "tanh", seed=8)
+    core = model.core()
+    y, st, mask = core.forward(np.array([np.nan, model.sat_hi[1] + 10]))
+    from dampnet import _core
+
+    assert st == (_core.DN_W_SATURATED | _core.DN_W_NONFINITE_INPUT) and mask == 3
+    assert np.isfinite(y)
+    assert "NaN" in _core.status_str(_core.DN_W_NONFINITE_INPUT)

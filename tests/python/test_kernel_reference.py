@@ -1,0 +1,180 @@
+"""The C++ MLP kernel equals a torch float64 reference on every path:
+pybind11 (double and float), the C ABI through cffi, and the generated header
+compiled into C++ (compile-time sizes) and C (run-time model from P_DESC_INIT)."""
+
+from __future__ import annotations
+
+import subprocess
+
+import numpy as np
+import pytest
+
+from cbuild import compile_program
+from dampnet import paths
+from dampnet.export import write_header
+from kernel_cases import (DOUBLE_TOL, FLOAT_TOL, SHAPES, random_inputs, random_model,
+                          torch_reference)
+
+
+@pytest.mark.parametrize("n_in,hidden,act", SHAPES)
+def test_pybind_double_and_float_match_torch(n_in, hidden, act):
+    model = random_model(n_in, hidden, act, seed=n_in * 100 + hidden[0])
+    x = random_inputs(model, 2000, seed=1)
+    ref = torch_reference(model, x)
+    assert np.max(np.abs(model.predict(x) - ref)) <= DOUBLE_TOL
+    assert np.max(np.abs(model.predict(x, single=True) - ref)) <= FLOAT_TOL
+
+
+def test_random_shapes_sweep_matches_torch():
+    """Many shapes drawn at random across the whole supported range."""
+    rng = np.random.default_rng(42)
+    for k in range(60):
+        n_in = int(rng.integers(1, 9))
+        hidden = (int(rng.integers(1, 65)),) + ((int(rng.integers(1, 65)),) if k % 2 else ())
+        act = "tanh" if k % 3 else "sigmoid"
+        model = random_model(n_in, hidden, act, seed=k)
+        x = random_inputs(model, 200, seed=k)
+        ref = torch_reference(model, x)
+        assert np.max(np.abs(model.predict(x) - ref)) <= DOUBLE_TOL, (n_in, hidden, act)
+        assert np.max(np.abs(model.predict(x, single=True) - ref)) <= FLOAT_TOL, (n_in, hidden, act)
+
+
+CDEF = """
+typedef struct dn_mlp_desc {
+  int n_inputs; int n_hidden1; int n_hidden2; int activation;
+  const double* w1; const double* b1; const double* w2; const double* b2;
+  const double* w_out; const double* b_out; const double* in_offset; const double* in_gain;
+  double in_ymin; double out_offset; double out_gain; double out_ymin;
+  const double* sat_lo; const double* sat_hi;
+} dn_mlp_desc;
+typedef struct dn_mlp dn_mlp;
+int dn_version(void);
+const char* dn_status_str(int status);
+int dn_mlp_create(const dn_mlp_desc* desc, dn_mlp** out);
+void dn_mlp_destroy(dn_mlp* m);
+int dn_mlp_forward(const dn_mlp* m, const double* x, double* y, uint32_t* clamped_mask);
+int dn_mlp_forward_f(const dn_mlp* m, const float* x, float* y, uint32_t* clamped_mask);
+"""
+
+
+@pytest.fixture(scope="module")
+def cffi_lib():
+    cffi = pytest.importorskip("cffi")
+    ffi = cffi.FFI()
+    ffi.cdef(CDEF)
+    return ffi, ffi.dlopen(str(paths.shared_library()))
+
+
+def _desc(ffi, model, keep):
+    def arr(a):
+        a = np.ascontiguousarray(a, dtype=np.float64)
+        keep.append(a)
+        return ffi.cast("const double*", a.ctypes.data)
+
+    d = ffi.new("dn_mlp_desc*")
+    d.n_inputs, d.n_hidden1 = model.n_inputs, model.hidden[0]
+    d.n_hidden2 = model.hidden[1] if len(model.hidden) > 1 else 0
+    d.activation = 0 if model.activation == "tanh" else 1
+    d.w1, d.b1, d.w_out, d.b_out = arr(model.w1), arr(model.b1), arr(model.w_out), arr([model.b_out])
+    if model.w2 is not None:
+        d.w2, d.b2 = arr(model.w2), arr(model.b2)
+    d.in_offset, d.in_gain = arr(model.in_offset), arr(model.in_gain)
+    d.sat_lo, d.sat_hi = arr(model.sat_lo), arr(model.sat_hi)
+    d.in_ymin, d.out_offset, d.out_gain, d.out_ymin = (model.in_ymin, model.out_offset,
+                                                       model.out_gain, model.out_ymin)
+    return d
+
+
+@pytest.mark.parametrize("n_in,hidden,act", SHAPES[::2])
+def test_c_abi_through_cffi_matches_torch_and_pybind(cffi_lib, n_in, hidden, act):
+    ffi, lib = cffi_lib
+    model = random_model(n_in, hidden, act, seed=7 + n_in)
+    keep: list = []
+    handle = ffi.new("dn_mlp**")
+    assert lib.dn_mlp_create(_desc(ffi, model, keep), handle) == 0
+    x = random_inputs(model, 300, seed=3)
+    ref = torch_reference(model, x)
+    y = ffi.new("double*")
+    yf = ffi.new("float*")
+    got, got_f = np.empty(len(x)), np.empty(len(x))
+    for i, row in enumerate(x):
+        assert lib.dn_mlp_forward(handle[0], ffi.new("double[]", list(row)), y, ffi.NULL) >= 0
+        assert lib.dn_mlp_forward_f(handle[0], ffi.new("float[]", list(row)), yf, ffi.NULL) >= 0
+        got[i], got_f[i] = y[0], yf[0]
+    lib.dn_mlp_destroy(handle[0])
+    assert np.max(np.abs(got - ref)) <= DOUBLE_TOL
+    assert np.max(np.abs(got_f - ref)) <= FLOAT_TOL
+    assert np.array_equal(got, model.predict(x))  # same kernel behind both front doors
+
+
+def test_c_abi_refuses_bad_models_with_named_status(cffi_lib):
+    ffi, lib = cffi_lib
+    model = random_model(3, (4,), "tanh", seed=1)
+    keep: list = []
+    d = _desc(ffi, model, keep)
+    d.n_inputs = 9
+    handle = ffi.new("dn_mlp**")
+    st = lib.dn_mlp_create(d, handle)
+    assert st < 0 and handle[0] == ffi.NULL
+    assert b"DN_E_SIZE" in ffi.string(lib.dn_status_str(st))
+
+
+def _write_header_program(models, tmp_path, cxx: bool):
+    """One program including every model's header; it prints outputs for inputs on stdin."""
+    lines = ["#include <stdio.h>", '#include "dampnet/dampnet.h"']
+    if cxx:
+        lines.append('#include "dampnet/mlp.hpp"')
+    for k, m in enumerate(models):
+        write_header(m, tmp_path / f"m{k}.h", prefix=f"m{k}")
+        lines.append(f'#include "m{k}.h"')
+    body = ["int main(void) {", "  int k, n, i; double x[8];",
+            "  while (scanf(\"%d %d\", &k, &n) == 2) {",
+            "    for (i = 0; i < n; ++i) if (scanf(\"%lf\", &x[i]) != 1) return 2;"]
+    for k, m in enumerate(models):
+        P = f"M{k}"
+        if cxx:
+            body += [f"    if (k == {k}) {{",
+                     f"      static dampnet::StaticMlp<double, {P}_N_INPUTS, {P}_N_HIDDEN1, {P}_N_HIDDEN2> md;",
+                     f"      static dampnet::StaticMlp<float, {P}_N_INPUTS, {P}_N_HIDDEN1, {P}_N_HIDDEN2> mf;",
+                     f"      const dn_mlp_desc d = {P}_DESC_INIT;",
+                     "      if (md.load(&d) != DN_OK || mf.load(&d) != DN_OK) return 3;",
+                     "      float xf[8]; double y; float yf;",
+                     "      for (i = 0; i < n; ++i) xf[i] = (float)x[i];",
+                     "      md.forward(x, &y); mf.forward(xf, &yf);",
+                     "      printf(\"%.17g %.9g\\n\", y, (double)yf);",
+                     "    }"]
+        else:
+            body += [f"    if (k == {k}) {{",
+                     f"      dn_mlp_desc d = {P}_DESC_INIT; dn_mlp* m = NULL; double y; float yf, xf[8];",
+                     "      if (dn_mlp_create(&d, &m) != DN_OK) return 3;",
+                     "      for (i = 0; i < n; ++i) xf[i] = (float)x[i];",
+                     "      dn_mlp_forward(m, x, &y, NULL); dn_mlp_forward_f(m, xf, &yf, NULL);",
+                     "      printf(\"%.17g %.9g\\n\", y, (double)yf);",
+                     "      dn_mlp_destroy(m);",
+                     "    }"]
+    body += ["  }", "  return 0;", "}"]
+    src = tmp_path / ("prog.cpp" if cxx else "prog.c")
+    src.write_text("\n".join(lines + body) + "\n")
+    return src
+
+
+@pytest.mark.parametrize("language", ["c++17", "c99"])
+def test_generated_headers_compile_and_match_torch(tmp_path, language):
+    cxx = language == "c++17"
+    models = [random_model(n, h, a, seed=500 + k) for k, (n, h, a) in enumerate(SHAPES)]
+    src = _write_header_program(models, tmp_path, cxx)
+    exe = compile_program([src], tmp_path / "prog", cxx=cxx, include_dirs=[tmp_path, *paths.include_dirs()],
+                          libs=[] if cxx else [paths.shared_library()], std=language)
+    inputs, refs = [], []
+    for k, m in enumerate(models):
+        x = random_inputs(m, 100, seed=k)
+        refs.append(torch_reference(m, x))
+        inputs += [f"{k} {m.n_inputs} " + " ".join(f"{v:.17g}" for v in row) for row in x]
+    proc = subprocess.run([str(exe)], input="\n".join(inputs) + "\n", capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    got = np.array(proc.stdout.split(), dtype=float).reshape(-1, 2)
+    ref = np.concatenate(refs)
+    assert got.shape[0] == ref.shape[0]
+    assert np.max(np.abs(got[:, 0] - ref)) <= DOUBLE_TOL
+    assert np.max(np.abs(got[:, 1] - ref)) <= FLOAT_TOL
