@@ -40,12 +40,13 @@ source .venv/bin/activate
 stamp=.venv/.dampnet-build-tools
 if [ ! -f "$stamp" ]; then
   dn_log "installing build tools into .venv"
-  python -m pip install -q --upgrade pip >/dev/null
-  python -m pip install -q scikit-build-core pybind11 cmake ninja
+  python -m pip install -q --upgrade pip >/dev/null 2>&1
+  python -m pip install -q scikit-build-core pybind11 cmake ninja 2> >(grep -v "^WARNING: Location" >&2)
   touch "$stamp"
 fi
 dn_log "building the C++ core and installing dampnet with its dependencies (first run: a few minutes)"
-python -m pip install -q --no-build-isolation -e ".[train,test,bench]"
+# pip's "Location ... is ignored" lines are about this machine's optional local mirrors: noise.
+python -m pip install -q --no-build-isolation -e ".[train,test,bench]" 2> >(grep -v "^WARNING: Location" >&2)
 
 if (($#)); then
   exec "$@"
