@@ -58,12 +58,12 @@ int main() {
   CHECK(md->load(&rm.desc) == DN_OK);
   CHECK(sf->load(&rm2.desc) == DN_OK);
 
-  // Sanity: the counter sees an allocation.
+  // Sanity: the counter sees an allocation (new also reaches malloc when malloc is interposed).
   g_counting = true;
-  void* probe = std::malloc(16);
+  char* probe = new char[16];
   g_counting = false;
-  std::free(probe);
-  CHECK(g_allocs == 1);
+  delete[] probe;
+  CHECK(g_allocs >= 1);
   g_allocs = 0;
 
   double x[3] = {0.1, -0.2, 0.3}, y = 0, acc = 0;
