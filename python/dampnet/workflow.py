@@ -398,7 +398,13 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
 # -- metrics and files ----------------------------------------------------------------
 
 def model_metrics(model: MlpModel, info, split: Split, lookup: bool = True) -> dict[str, Any]:
-    """metrics.json: training summary, hold-out tables of the model and of the lookup-table baseline."""
+    """metrics.json: training summary, hold-out tables of the model and of the lookup-table baseline.
+
+    Keys: model_id, training {algorithm, time_s, epochs, best_epoch, stop_reason, nrmse {train,
+    val, test, all}, samples, history}, holdout_tests, holdout and holdout_lookup (tables of
+    dampnet.evaluate.metrics), lookup_table (the baseline fitted on the training tests,
+    LookupTable.to_dict), noise_floor {nrmse_range, nrmse_std, rmse_n} for rig data.
+    """
     from dampnet.evaluate.metrics import evaluate_model
 
     out: dict[str, Any] = {
@@ -420,6 +426,7 @@ def model_metrics(model: MlpModel, info, split: Split, lookup: bool = True) -> d
                 from dampnet.evaluate.lookup import fit_lookup
 
                 table = fit_lookup(split.train)
+                out["lookup_table"] = table.to_dict()
                 out["holdout_lookup"] = evaluate_model(table.predict_test, split.holdout.tests)
             except (DataError, ValueError) as e:
                 out["holdout_lookup"] = {"error": str(e)}
