@@ -13,11 +13,12 @@ each frequency over voltages, both signs, and 0) by linear interpolation along
 each voltage's own points (constant beyond its outermost points). Rebound and compression are therefore separate
 halves of the table: negative velocities are compression, positive rebound.
 
-Data (`LookupTable`), the same as the C++ lookup-table damper reads:
+Data (`LookupTable`), the same as the C++ lookup-table damper reads
+(`dn_damper_create_table(velocities, n_v, controls, n_u, forces, ...)`):
 
-  velocities  [n_vel] m/s, strictly increasing
-  voltages    [n_volt] V (or A for current-controlled data), strictly increasing
-  forces      [n_vel][n_volt] N: forces[i][j] is the force at velocities[i], voltages[j]
+  velocities  [n_v] m/s, strictly increasing (2..64 points in the C runtime)
+  voltages    [n_u] V (or A for current-controlled data), strictly increasing (1..16)
+  forces      [n_u][n_v] N, row-major: forces[j][i] is the force at voltages[j], velocities[i]
 
 Evaluation (`LookupTable.force`): bilinear interpolation - linear in velocity,
 then linear in voltage - with the query clamped to the grid (constant
@@ -43,18 +44,18 @@ PEAK_PERCENTILE = 99.5
 class LookupTable:
     """Peak force against peak velocity per control value; see the module docstring."""
 
-    velocities: np.ndarray  # [n_vel] m/s, increasing
-    voltages: np.ndarray  # [n_volt] V, increasing
-    forces: np.ndarray  # [n_vel, n_volt] N
+    velocities: np.ndarray  # [n_v] m/s, increasing
+    voltages: np.ndarray  # [n_u] V, increasing
+    forces: np.ndarray  # [n_u, n_v] N (one row per voltage)
     control_name: str = "voltage"
 
     def __post_init__(self) -> None:
         self.velocities = np.asarray(self.velocities, dtype=np.float64).ravel()
         self.voltages = np.asarray(self.voltages, dtype=np.float64).ravel()
         self.forces = np.asarray(self.forces, dtype=np.float64)
-        if self.forces.shape != (self.velocities.size, self.voltages.size):
-            raise ValueError(f"forces: expected shape [{self.velocities.size}][{self.voltages.size}] "
-                             f"(velocities x voltages), got {list(self.forces.shape)}")
+        if self.forces.shape != (self.voltages.size, self.velocities.size):
+            raise ValueError(f"forces: expected shape [{self.voltages.size}][{self.velocities.size}] "
+                             f"(voltages x velocities), got {list(self.forces.shape)}")
         for name in ("velocities", "voltages"):
             a = getattr(self, name)
             if a.size == 0 or np.any(np.diff(a) <= 0):
@@ -82,9 +83,9 @@ class LookupTable:
         i1 = np.minimum(i + 1, self.velocities.size - 1)
         j1 = np.minimum(j + 1, self.voltages.size - 1)
         F = self.forces
-        lo = F[i, j] + a * (F[i1, j] - F[i, j])  # linear in velocity at voltages[j]
-        hi = F[i, j1] + a * (F[i1, j1] - F[i, j1])  # ... and at voltages[j + 1]
-        return lo + b * (hi - lo)
+        lo = F[j, i] + a * (F[j, i1] - F[j, i])  # linear in velocity at voltages[j]
+        hi = F[j1, i] + a * (F[j1, i1] - F[j1, i])  # ... and at voltages[j + 1]
+        return lo + b * (hi - lo)  # then linear in voltage
 
     def predict_test(self, test: DynoTest) -> np.ndarray:
         """Force [N] of the table along a test's velocity and control channels."""
@@ -104,7 +105,7 @@ class LookupTable:
                 "forces": self.forces.tolist(),
                 "units": {"velocities": "m/s", "voltages": "A" if self.control_name == "current" else "V",
                           "forces": "N"},
-                "layout": "forces[i][j]: velocities[i], voltages[j]; bilinear, clamped outside the grid"}
+                "layout": "forces[j][i]: voltages[j], velocities[i]; bilinear, clamped outside the grid"}
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "LookupTable":
@@ -158,11 +159,11 @@ def fit_lookup(data: Dataset | Sequence[DynoTest]) -> LookupTable:
     # the velocity grid: peaks merged over voltages (they differ by noise only), plus 0
     grid = _merge_grid([v for pts in per_control.values() for v, _ in pts] + [0.0])
     grid = np.array(sorted(set(grid) | {0.0}))
-    forces = np.empty((grid.size, len(voltages)))
+    forces = np.empty((len(voltages), grid.size))
     for j, u in enumerate(voltages):
         pts = sorted(per_control[u])
         pv = np.array([p[0] for p in pts])
         pf = np.array([p[1] for p in pts])
         pv, keep = np.unique(pv, return_index=True)
-        forces[:, j] = np.interp(grid, pv, pf[keep])
+        forces[j] = np.interp(grid, pv, pf[keep])
     return LookupTable(grid, np.array(voltages), forces, tests[0].control_name)
