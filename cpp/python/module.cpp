@@ -4,12 +4,17 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <cmath>
 #include <cstring>
+#include <map>
+#include <type_traits>
+#include <vector>
 #include <memory>
 #include <stdexcept>
 #include <string>
 
 #include "dampnet/dampnet.h"
+#include "dampnet/loop.hpp"
 
 namespace py = pybind11;
 
@@ -131,6 +136,430 @@ class PyMlp {
   int n_in_ = 0;
 };
 
+// ---- Dampers, controllers and the quarter-car loop ----
+
+template <class T>
+T field_default_cast(const py::handle& h) {
+  return h.cast<T>();
+}
+
+// Enum-like fields accept an int or a name.
+int enum_value(const py::handle& h, const char* field) {
+  static const std::pair<const char*, int> names[] = {
+      {"passive", DN_CTRL_PASSIVE},
+      {"skyhook_onoff", DN_CTRL_SKYHOOK_ONOFF},
+      {"skyhook_continuous", DN_CTRL_SKYHOOK_CONTINUOUS},
+      {"groundhook_onoff", DN_CTRL_GROUNDHOOK_ONOFF},
+      {"groundhook_continuous", DN_CTRL_GROUNDHOOK_CONTINUOUS},
+      {"external", DN_CTRL_EXTERNAL},
+      {"rk4", DN_INT_RK4},
+      {"semi_euler", DN_INT_SEMI_EULER},
+      {"per_stage", DN_EVAL_PER_STAGE},
+      {"per_step", DN_EVAL_PER_STEP},
+  };
+  if (py::isinstance<py::str>(h)) {
+    const std::string v = h.cast<std::string>();
+    for (const auto& kv : names)
+      if (v == kv.first) return kv.second;
+    throw py::value_error(std::string(field) + ": unknown name '" + v + "'");
+  }
+  return h.cast<int>();
+}
+
+template <class S>
+void set_fields_from_dict(S& s, const py::dict& d, const char* what);
+
+template <>
+void set_fields_from_dict(dn_vehicle& s, const py::dict& d, const char* what) {
+  for (auto kv : d) {
+    const std::string k = kv.first.cast<std::string>();
+    bool found = false;
+#define DN_SET_(type, name, def, doc)                                             \
+  if (k == #name) {                                                               \
+    if (std::is_same<type, int>::value) s.name = (type)enum_value(kv.second, #name); \
+    else s.name = (type)kv.second.cast<double>();                                 \
+    found = true;                                                                 \
+  }
+    DN_VEHICLE_FIELDS(DN_SET_)
+    if (!found) throw py::value_error(std::string(what) + ": unknown parameter '" + k + "'");
+  }
+}
+
+template <>
+void set_fields_from_dict(dn_controller& s, const py::dict& d, const char* what) {
+  for (auto kv : d) {
+    const std::string k = kv.first.cast<std::string>();
+    bool found = false;
+    DN_CONTROLLER_FIELDS(DN_SET_)
+#undef DN_SET_
+    if (!found) throw py::value_error(std::string(what) + ": unknown parameter '" + k + "'");
+  }
+}
+
+py::dict vehicle_dict(const dn_vehicle& s) {
+  py::dict d;
+#define DN_GET_(type, name, def, doc) d[#name] = s.name;
+  DN_VEHICLE_FIELDS(DN_GET_)
+  return d;
+}
+
+py::dict controller_dict(const dn_controller& s) {
+  py::dict d;
+  DN_CONTROLLER_FIELDS(DN_GET_)
+#undef DN_GET_
+  return d;
+}
+
+py::dict field_docs_vehicle() {
+  py::dict d;
+#define DN_DOC_(type, name, def, doc) d[#name] = py::make_tuple(static_cast<type>(def), doc);
+  DN_VEHICLE_FIELDS(DN_DOC_)
+  return d;
+}
+
+py::dict field_docs_controller() {
+  py::dict d;
+  DN_CONTROLLER_FIELDS(DN_DOC_)
+#undef DN_DOC_
+  return d;
+}
+
+// A damper owned by Python. A callback damper keeps its Python function here.
+class PyDamper {
+ public:
+  struct Deleter {
+    void operator()(dn_damper* d) const { dn_damper_destroy(d); }
+  };
+  std::unique_ptr<dn_damper, Deleter> d;
+  py::object callback;        // the Python function of a callback damper
+  py::object error;           // the exception a callback raised during a C++ run
+  std::vector<std::string> features;
+
+  static std::shared_ptr<PyDamper> wrap(dn_damper* raw) {
+    auto p = std::make_shared<PyDamper>();
+    p->d.reset(raw);
+    return p;
+  }
+
+  static std::shared_ptr<PyDamper> linear(double c) {
+    dn_damper* r = nullptr;
+    check(dn_damper_create_linear(c, &r), "Damper.linear");
+    return wrap(r);
+  }
+  static std::shared_ptr<PyDamper> parametric(double c_min, double c_max, double gamma, double f0,
+                                              double v_max, double v_smooth) {
+    dn_parametric_params p{c_min, c_max, gamma, f0, v_max, v_smooth};
+    dn_damper* r = nullptr;
+    check(dn_damper_create_parametric(&p, &r), "Damper.parametric");
+    return wrap(r);
+  }
+  static std::shared_ptr<PyDamper> table(DArray v, DArray u, DArray f) {
+    if (v.ndim() != 1 || u.ndim() != 1)
+      throw py::value_error("Damper.table: velocities and controls must be 1-D");
+    if (f.ndim() != 2 || f.shape(0) != u.shape(0) || f.shape(1) != v.shape(0))
+      throw py::value_error("Damper.table: forces must be 2-D [n_controls, n_velocities]");
+    dn_damper* r = nullptr;
+    check(dn_damper_create_table(v.data(), (int)v.shape(0), u.data(), (int)u.shape(0), f.data(),
+                                 &r),
+          "Damper.table");
+    return wrap(r);
+  }
+  static std::shared_ptr<PyDamper> neural(const PyMlp& mlp, const std::vector<std::string>& feats,
+                                          const std::map<std::string, double>& fparams,
+                                          bool single) {
+    std::vector<const char*> names, pnames;
+    std::vector<double> pvals;
+    for (const auto& f : feats) names.push_back(f.c_str());
+    for (const auto& kv : fparams) {
+      pnames.push_back(kv.first.c_str());
+      pvals.push_back(kv.second);
+    }
+    dn_damper* r = nullptr;
+    const int st = dn_damper_create_neural(mlp.handle(), names.data(), (int)names.size(),
+                                           pnames.data(), pvals.data(), (int)pvals.size(),
+                                           single ? DN_PRECISION_FLOAT : DN_PRECISION_DOUBLE, &r);
+    if (st == DN_E_UNKNOWN_NAME) {
+      std::string msg = "Damper.neural: unknown feature or feature parameter name in [";
+      for (const auto& f : feats) msg += f + " ";
+      msg += "] / feature_params; known features:";
+#define DN_FNAME_(id, name, field) msg += std::string(" ") + name;
+      DN_FEATURE_LIST(DN_FNAME_)
+#undef DN_FNAME_
+      throw py::value_error(msg + " (" + dn_status_str(st) + ")");
+    }
+    check(st, "Damper.neural");
+    auto p = wrap(r);
+    p->features = feats;
+    return p;
+  }
+
+  static double trampoline(void* user, const dn_damper_input* in) {
+    auto* self = static_cast<PyDamper*>(user);
+    py::gil_scoped_acquire gil;
+    if (self->error && !self->error.is_none()) return std::nan("");
+    try {
+      return self->callback(*in).cast<double>();
+    } catch (py::error_already_set& e) {
+      self->error = e.value();
+      return std::nan("");
+    } catch (std::exception& e) {
+      self->error = py::str(e.what());
+      return std::nan("");
+    }
+  }
+
+  static std::shared_ptr<PyDamper> callback_damper(py::function fn) {
+    auto p = std::make_shared<PyDamper>();
+    dn_damper* r = nullptr;
+    check(dn_damper_create_callback(&PyDamper::trampoline, p.get(), &r), "Damper.callback");
+    p->d.reset(r);
+    p->callback = fn;
+    p->error = py::none();
+    return p;
+  }
+
+  void add_term(const std::string& kind, DArray params) {
+    const int st = dn_damper_add_term(d.get(), kind.c_str(), params.data(), (int)params.size());
+    if (st == DN_E_UNKNOWN_NAME) {
+      std::string msg = "add_term: unknown kind '" + kind + "'; known:";
+#define DN_TNAME_(id, value, name, n, text) msg += std::string(" ") + name;
+      DN_TERM_LIST(DN_TNAME_)
+#undef DN_TNAME_
+      throw py::value_error(msg);
+    }
+    check(st, "add_term('" + kind + "')");
+  }
+
+  void raise_pending() {
+    if (error && !error.is_none()) {
+      py::object e = error;
+      error = py::none();
+      if (py::isinstance<py::str>(e)) throw std::runtime_error(e.cast<std::string>());
+      PyErr_SetObject(reinterpret_cast<PyObject*>(Py_TYPE(e.ptr())), e.ptr());
+      throw py::error_already_set();
+    }
+  }
+
+  // Vectorised force of the model plus terms; arrays broadcast to one length.
+  py::tuple forces(DArray x, DArray v, DArray a, DArray u, DArray u_lag, DArray temp) {
+    const DArray* arrs[] = {&x, &v, &a, &u, &u_lag, &temp};
+    py::ssize_t n = 1;
+    for (auto* p : arrs)
+      if (p->size() != 1) {
+        if (n != 1 && p->size() != n) throw py::value_error("forces: arrays differ in length");
+        n = p->size();
+      }
+    py::array_t<double> f(n);
+    py::array_t<int32_t> st(n);
+    py::array_t<uint32_t> mask(n);
+    auto at = [&](const DArray& arr, py::ssize_t i) { return arr.size() == 1 ? arr.data()[0] : arr.data()[i]; };
+    double* fp = f.mutable_data();
+    int32_t* sp = st.mutable_data();
+    uint32_t* mp = mask.mutable_data();
+    {
+      std::unique_ptr<py::gil_scoped_release> rel;
+      if (!callback) rel.reset(new py::gil_scoped_release);
+      for (py::ssize_t i = 0; i < n; ++i) {
+        dn_damper_input in{};
+        in.x = at(x, i);
+        in.v = at(v, i);
+        in.a = at(a, i);
+        in.u = at(u, i);
+        in.u_lag = at(u_lag, i);
+        in.temperature = at(temp, i);
+        sp[i] = dn_damper_force(d.get(), &in, &fp[i], &mp[i]);
+      }
+    }
+    raise_pending();
+    return py::make_tuple(f, st, mask);
+  }
+};
+
+class PyLoopModel {
+ public:
+  struct Deleter {
+    void operator()(dn_loop_model* m) const { dn_loop_model_destroy(m); }
+  };
+  std::unique_ptr<dn_loop_model, Deleter> m;
+  std::shared_ptr<PyDamper> damper;
+  dn_vehicle veh{};
+  dn_controller ctrl{};
+
+  PyLoopModel(std::shared_ptr<PyDamper> d, py::dict vehicle, py::dict controller) : damper(d) {
+    dn_vehicle_default(&veh);
+    int kind = DN_CTRL_PASSIVE;
+    if (controller.contains("kind")) kind = enum_value(controller["kind"], "kind");
+    dn_controller_default(&ctrl, kind);
+    set_fields_from_dict(veh, vehicle, "vehicle");
+    set_fields_from_dict(ctrl, controller, "controller");
+    dn_loop_model* r = nullptr;
+    check(dn_loop_model_create(&veh, damper->d.get(), &ctrl, &r), "LoopModel");
+    m.reset(r);
+  }
+
+  // Vectorised control law (the controller alone), for tests.
+  py::array_t<double> control(DArray v_s, DArray v_us, DArray u_ext) const {
+    if (v_s.size() != v_us.size() || (u_ext.size() != 1 && u_ext.size() != v_s.size()))
+      throw py::value_error("control: arrays differ in length");
+    py::array_t<double> u(v_s.size());
+    for (py::ssize_t i = 0; i < v_s.size(); ++i)
+      u.mutable_data()[i] = dampnet::control_law(ctrl, v_s.data()[i], v_us.data()[i],
+                                                 u_ext.data()[u_ext.size() == 1 ? 0 : i]);
+    return u;
+  }
+};
+
+py::dict out_dict(const dn_loop_out& o, int status) {
+  py::dict r;
+  r["force"] = o.force;
+  r["u"] = o.u;
+  r["x"] = o.x;
+  r["v"] = o.v;
+  r["a"] = o.a;
+  r["acc_s"] = o.acc_s;
+  r["acc_us"] = o.acc_us;
+  py::array_t<double> f(o.n_features);
+  for (int i = 0; i < o.n_features; ++i) f.mutable_data()[i] = o.features[i];
+  r["features"] = f;
+  r["clamped_mask"] = o.clamped_mask;
+  r["status"] = status;
+  return r;
+}
+
+class PyLoop {
+ public:
+  struct Deleter {
+    void operator()(dn_loop_data* d) const { dn_loop_data_destroy(d); }
+  };
+  std::shared_ptr<PyLoopModel> model;
+  std::unique_ptr<dn_loop_data, Deleter> d;
+
+  explicit PyLoop(std::shared_ptr<PyLoopModel> m) : model(m) {
+    dn_loop_data* r = nullptr;
+    check(dn_loop_data_create(model->m.get(), &r), "Loop");
+    d.reset(r);
+  }
+
+  void reset() { check(dn_loop_reset(model->m.get(), d.get()), "reset"); }
+
+  py::array_t<double> get_state() const {
+    py::array_t<double> s(DN_LOOP_STATE_SIZE);
+    dn_loop_get_state(d.get(), s.mutable_data());
+    return s;
+  }
+  void set_state(DArray s) {
+    if (s.size() != DN_LOOP_STATE_SIZE)
+      throw py::value_error("state: expected " + std::to_string(DN_LOOP_STATE_SIZE) + " values");
+    check(dn_loop_set_state(d.get(), s.data()), "state");
+  }
+
+  py::dict step(double z_r, double v_r, double u) {
+    dn_loop_input in{z_r, v_r, u};
+    dn_loop_out o{};
+    const int st = dn_loop_step(model->m.get(), d.get(), &in, &o);
+    model->damper->raise_pending();
+    check(st, "step");
+    return out_dict(o, st);
+  }
+
+  py::dict forward(double u) const {
+    dn_loop_input in{0.0, 0.0, u};
+    dn_loop_out o{};
+    const int st = dn_loop_forward(model->m.get(), d.get(), &in, &o);
+    model->damper->raise_pending();
+    check(st, "forward");
+    return out_dict(o, st);
+  }
+
+  // A whole road in C++ with the GIL released (see loop.py for the contract).
+  py::dict simulate(DArray road, DArray road_rate, py::object u_obj, bool reset_first) {
+    if (road.ndim() != 1 || road_rate.ndim() != 1 || road.size() != road_rate.size() ||
+        road.size() < 1)
+      throw py::value_error("simulate: road and road_rate must be 1-D of the same length >= 1");
+    const py::ssize_t n = road.size();
+    DArray u;
+    if (!u_obj.is_none()) {
+      u = DArray::ensure(u_obj);
+      if (!u || u.ndim() != 1 || u.size() != n)
+        throw py::value_error("simulate: u must be 1-D with one value per road sample");
+    }
+    const int nf = [&] {
+      dn_loop_out o{};
+      dn_loop_input in{0, 0, 0};
+      dn_loop_forward(model->m.get(), d.get(), &in, &o);
+      return o.n_features;
+    }();
+    py::array_t<double> states({n, (py::ssize_t)DN_LOOP_STATE_SIZE});
+    py::array_t<double> force(n), control(n), xs(n), vs(n), as(n), acc_s(n), acc_us(n);
+    py::array_t<double> feats({n, (py::ssize_t)nf});
+    py::array_t<int32_t> status(n);
+    double* S = states.mutable_data();
+    double *F = force.mutable_data(), *U = control.mutable_data(), *X = xs.mutable_data(),
+           *V = vs.mutable_data(), *A = as.mutable_data(), *AS = acc_s.mutable_data(),
+           *AU = acc_us.mutable_data(), *FE = feats.mutable_data();
+    int32_t* ST = status.mutable_data();
+    const double *R = road.data(), *RR = road_rate.data(), *UU = u ? u.data() : nullptr;
+    const dn_loop_model* m = model->m.get();
+    dn_loop_data* dd = d.get();
+    py::ssize_t fail_at = -1;
+    int fail_status = 0;
+    {
+      py::gil_scoped_release release;
+      if (reset_first) dn_loop_reset(m, dd);
+      double s[DN_LOOP_STATE_SIZE];
+      dn_loop_get_state(dd, s);
+      s[dampnet::S_z_r] = R[0];
+      s[dampnet::S_v_r] = RR[0];
+      fail_status = dn_loop_set_state(dd, s);
+      if (fail_status < 0) fail_at = 0;
+      for (py::ssize_t k = 0; k < n && fail_at < 0; ++k) {
+        dn_loop_get_state(dd, S + k * DN_LOOP_STATE_SIZE);
+        dn_loop_out o{};
+        int st;
+        if (k + 1 < n) {
+          dn_loop_input in{R[k + 1], RR[k + 1], UU ? UU[k] : 0.0};
+          st = dn_loop_step(m, dd, &in, &o);
+        } else {
+          dn_loop_input in{0.0, 0.0, UU ? UU[k] : 0.0};
+          st = dn_loop_forward(m, dd, &in, &o);
+        }
+        ST[k] = st;
+        if (st < 0) {
+          fail_at = k;
+          fail_status = st;
+          break;
+        }
+        F[k] = o.force;
+        U[k] = o.u;
+        X[k] = o.x;
+        V[k] = o.v;
+        A[k] = o.a;
+        AS[k] = o.acc_s;
+        AU[k] = o.acc_us;
+        for (int i = 0; i < nf; ++i) FE[k * nf + i] = o.features[i];
+      }
+    }
+    model->damper->raise_pending();
+    if (fail_at >= 0)
+      throw py::value_error("simulate: sample " + std::to_string(fail_at) + ": " +
+                            dn_status_str(fail_status));
+    py::dict r;
+    r["state"] = states;
+    r["force"] = force;
+    r["control"] = control;
+    r["x"] = xs;
+    r["v"] = vs;
+    r["a"] = as;
+    r["acc_s"] = acc_s;
+    r["acc_us"] = acc_us;
+    r["features"] = feats;
+    r["status"] = status;
+    return r;
+  }
+
+  int64_t damper_evals() const { return dn_loop_damper_evals(d.get()); }
+};
+
 }  // namespace
 
 PYBIND11_MODULE(_core, mod) {
@@ -156,4 +585,80 @@ PYBIND11_MODULE(_core, mod) {
            "One sample -> (output, status, clamped_mask).")
       .def("predict", &PyMlp::predict, py::arg("x"), py::arg("single") = false,
            "Samples [n, n_inputs] -> (outputs[n], status[n], clamped_mask[n]); GIL released.");
+
+  // ---- the quarter-car loop ----
+  {
+    py::list names;
+#define DN_SNAME_(i, name, doc) names.append(#name);
+    DN_LOOP_STATE_LIST(DN_SNAME_)
+#undef DN_SNAME_
+    mod.attr("STATE_NAMES") = py::tuple(names);
+    py::list feats;
+#define DN_FNAME_(id, name, field) feats.append(name);
+    DN_FEATURE_LIST(DN_FNAME_)
+#undef DN_FNAME_
+    mod.attr("FEATURE_NAMES") = py::tuple(feats);
+    py::dict terms;
+#define DN_TINFO_(id, value, name, n, text) terms[name] = py::make_tuple(n, text);
+    DN_TERM_LIST(DN_TINFO_)
+#undef DN_TINFO_
+    mod.attr("TERM_KINDS") = terms;
+    mod.attr("VEHICLE_FIELDS") = field_docs_vehicle();
+    mod.attr("CONTROLLER_FIELDS") = field_docs_controller();
+  }
+
+  py::class_<dn_damper_input>(mod, "DamperInput", "What a damper is evaluated on (dn_damper_input).")
+      .def(py::init<>())
+      .def_readwrite("x", &dn_damper_input::x)
+      .def_readwrite("v", &dn_damper_input::v)
+      .def_readwrite("a", &dn_damper_input::a)
+      .def_readwrite("u", &dn_damper_input::u)
+      .def_readwrite("u_lag", &dn_damper_input::u_lag)
+      .def_readwrite("temperature", &dn_damper_input::temperature)
+      .def_readwrite("t", &dn_damper_input::t)
+      .def_readwrite("dt", &dn_damper_input::dt)
+      .def_readwrite("stage", &dn_damper_input::stage);
+
+  py::class_<PyDamper, std::shared_ptr<PyDamper>>(mod, "Damper", "A damper model (dn_damper).")
+      .def_static("linear", &PyDamper::linear, py::arg("c"), "F = c v.")
+      .def_static("parametric", &PyDamper::parametric, py::arg("c_min"), py::arg("c_max"),
+                  py::arg("gamma"), py::arg("f0"), py::arg("v_max"), py::arg("v_smooth") = 0.0,
+                  "The thesis's eq. 1-3 (see dn_parametric_params).")
+      .def_static("table", &PyDamper::table, py::arg("velocities"), py::arg("controls"),
+                  py::arg("forces"), "Bilinear lookup table, clamped outside the grid.")
+      .def_static("neural", &PyDamper::neural, py::arg("mlp"), py::arg("features"),
+                  py::arg("feature_params") = std::map<std::string, double>{},
+                  py::arg("single") = false, "The MLP on named features.")
+      .def_static("callback", &PyDamper::callback_damper, py::arg("fn"),
+                  "A Python function fn(DamperInput) -> force [N] (slow path, holds the GIL).")
+      .def("add_term", &PyDamper::add_term, py::arg("kind"), py::arg("params"),
+           "Add a physics term (TERM_KINDS).")
+      .def_property_readonly("kind", [](const PyDamper& p) { return dn_damper_kind_of(p.d.get()); })
+      .def("forces", &PyDamper::forces, py::arg("x"), py::arg("v"), py::arg("a"), py::arg("u"),
+           py::arg("u_lag"), py::arg("temperature"),
+           "Vectorised force -> (force[n], status[n], clamped_mask[n]).");
+
+  py::class_<PyLoopModel, std::shared_ptr<PyLoopModel>>(mod, "LoopModel",
+                                                        "Vehicle, damper and controller (constant).")
+      .def(py::init<std::shared_ptr<PyDamper>, py::dict, py::dict>(), py::arg("damper"),
+           py::arg("vehicle") = py::dict(), py::arg("controller") = py::dict())
+      .def_property_readonly("vehicle", [](const PyLoopModel& m) { return vehicle_dict(m.veh); })
+      .def_property_readonly("controller",
+                             [](const PyLoopModel& m) { return controller_dict(m.ctrl); })
+      .def("control", &PyLoopModel::control, py::arg("v_s"), py::arg("v_us"),
+           py::arg("u_ext") = DArray(py::array_t<double>(1)),
+           "The control law alone on arrays of velocities.");
+
+  py::class_<PyLoop>(mod, "Loop", "A loop's state (mutable) for a LoopModel.")
+      .def(py::init<std::shared_ptr<PyLoopModel>>(), py::arg("model"))
+      .def("reset", &PyLoop::reset)
+      .def_property("state", &PyLoop::get_state, &PyLoop::set_state, "Flat state (STATE_NAMES).")
+      .def("step", &PyLoop::step, py::arg("z_r"), py::arg("v_r"), py::arg("u") = 0.0,
+           "One step; road at the end of the step. Returns the report at the step start.")
+      .def("forward", &PyLoop::forward, py::arg("u") = 0.0, "The report without advancing.")
+      .def("simulate", &PyLoop::simulate, py::arg("road"), py::arg("road_rate"),
+           py::arg("u") = py::none(), py::arg("reset") = true,
+           "Run a road in C++ (GIL released) -> dict of arrays.")
+      .def_property_readonly("model", [](const PyLoop& l) { return l.model; })
+      .def_property_readonly("damper_evals", &PyLoop::damper_evals);
 }

@@ -3,11 +3,7 @@
 
 #include "dampnet/dampnet.h"
 #include "dampnet/mlp.hpp"
-
-struct dn_mlp {
-  dampnet::Mlp<double> md;
-  dampnet::Mlp<float> mf;
-};
+#include "internal.hpp"
 
 extern "C" {
 

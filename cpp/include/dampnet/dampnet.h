@@ -66,7 +66,12 @@ DN_API const char* dn_version_string(void);
   X(DN_E_ALLOC, -6, "out of memory while creating an object")                                \
   X(DN_E_NONFINITE_OUTPUT, -7,                                                               \
     "the output overflowed to a non-finite value; it was replaced by the output offset")     \
-  X(DN_E_MISMATCH, -8, "the model does not match the sizes or features it is used with")
+  X(DN_E_MISMATCH, -8, "the model does not match the sizes or features it is used with")    \
+  X(DN_E_UNKNOWN_NAME, -9, "unknown feature, term, parameter or kind name")                  \
+  X(DN_E_NONFINITE_INPUT, -10,                                                               \
+    "a step or evaluation input is NaN or infinite; nothing was computed or advanced")       \
+  X(DN_E_DIVERGED, -11,                                                                      \
+    "the step produced a non-finite state (unstable: step too large?); state not advanced")
 
 #define DN_STATUS_ENUM_(name, value, text) name = value,
 typedef enum dn_status { DN_STATUS_LIST(DN_STATUS_ENUM_) } dn_status;
@@ -138,6 +143,308 @@ DN_API int dn_mlp_forward(const dn_mlp* m, const double* x, double* y, uint32_t*
 
 /* [RT] Evaluate the float kernel on one sample; as dn_mlp_forward. */
 DN_API int dn_mlp_forward_f(const dn_mlp* m, const float* x, float* y, uint32_t* clamped_mask);
+
+/*---- Damper models ----*/
+
+/* Sign convention (the dyno's): displacement x and velocity v are the damper's
+ * relative extension and extension rate (positive in rebound, when sprung and
+ * unsprung move apart); the force F is positive when it resists extension
+ * (tension). In the quarter car: x = z_s - z_us + x_static, v = dz_s - dz_us. */
+
+/* What a damper model is evaluated on: the loop's state at one evaluation.
+ * The X-macro lists the neural features, one per line:
+ * X(id, "name" (MlpModel.features), field of dn_damper_input it reads). To add a
+ * feature add one line here (and, for a new quantity, one field below that the
+ * loop fills in dampnet::detail::damper_input). */
+typedef struct dn_damper_input {
+  double x;           /* relative displacement, extension positive, from the mid position [m] */
+  double v;           /* relative velocity, extension positive [m/s] */
+  double a;           /* relative acceleration, extension positive [m/s^2] (see the loop) */
+  double u;           /* control (voltage [V] or current [A]), held over the step */
+  double u_lag;       /* control after a first-order lag of the model's control_lag_tau_s */
+  double temperature; /* damper temperature [degC] */
+  double t;           /* time of this evaluation [s] (callback dampers) */
+  double dt;          /* step size of the loop [s] (callback dampers); 0 outside a loop */
+  int stage;          /* integrator stage of this evaluation, 0..3 (callback dampers) */
+} dn_damper_input;
+
+#define DN_FEATURE_LIST(X)                             \
+  X(DN_FEAT_VELOCITY, "velocity", v)                   \
+  X(DN_FEAT_ACCELERATION, "acceleration", a)           \
+  X(DN_FEAT_DISPLACEMENT, "displacement", x)           \
+  X(DN_FEAT_VOLTAGE, "voltage", u)                     \
+  X(DN_FEAT_CURRENT, "current", u)                     \
+  X(DN_FEAT_VOLTAGE_LAG, "voltage_lag", u_lag)         \
+  X(DN_FEAT_CURRENT_LAG, "current_lag", u_lag)         \
+  X(DN_FEAT_TEMPERATURE, "temperature", temperature)
+
+#define DN_FEATURE_ENUM_(id, name, field) id,
+typedef enum dn_feature { DN_FEATURE_LIST(DN_FEATURE_ENUM_) DN_N_FEATURES } dn_feature;
+#undef DN_FEATURE_ENUM_
+
+/* Constants of derived features (MlpModel.feature_params), by name:
+ * X(id, "name", meaning). Unknown names are refused (DN_E_UNKNOWN_NAME). */
+#define DN_FEATURE_PARAM_LIST(X) \
+  X(DN_FPARAM_CONTROL_LAG_TAU_S, "control_lag_tau_s", "time constant of the *_lag features [s], > 0")
+
+#define DN_FPARAM_ENUM_(id, name, text) id,
+typedef enum dn_feature_param { DN_FEATURE_PARAM_LIST(DN_FPARAM_ENUM_) DN_N_FEATURE_PARAMS } dn_feature_param;
+#undef DN_FPARAM_ENUM_
+
+/* Physics terms added to any damper model's force (hybrid = neural + terms):
+ * X(id, value, "kind" (MlpModel.terms[i]["kind"]), number of params, formula).
+ * Each term's force is positive when it resists extension, like the damper's.
+ * The same formulas in numpy: python/dampnet/terms.py. To add a kind add one
+ * line here and its force/validation in cpp/include/dampnet/terms.hpp. */
+#define DN_TERM_LIST(X)                                                                  \
+  X(DN_TERM_POSITION_POLY, 0, "position_poly", 4,                                        \
+    "F = p0 + p1 x + p2 x^2 + p3 x^3 (p in N, N/m, N/m^2, N/m^3); gas charge: p0 < 0")   \
+  X(DN_TERM_BUMP_STOP, 1, "bump_stop", 3,                                                \
+    "F = sgn(x) k (|x| - x_free)^n for |x| > x_free, else 0 (params x_free [m] >= 0, "   \
+    "k [N/m^n] >= 0, n > 0)")
+
+#define DN_TERM_ENUM_(id, value, name, n_params, text) id = value,
+typedef enum dn_term_kind { DN_TERM_LIST(DN_TERM_ENUM_) DN_N_TERM_KINDS } dn_term_kind;
+#undef DN_TERM_ENUM_
+
+#define DN_MAX_TERMS 8        /* physics terms per damper */
+#define DN_MAX_TERM_PARAMS 8  /* parameters per term */
+#define DN_MAX_TABLE_V 64     /* velocity points of a lookup table */
+#define DN_MAX_TABLE_U 16     /* control points of a lookup table */
+
+/* Damper model kinds. */
+typedef enum dn_damper_kind {
+  DN_DAMPER_LINEAR = 0,     /* F = c v */
+  DN_DAMPER_PARAMETRIC = 1, /* the thesis's eq. 1-3 (dn_parametric_params) */
+  DN_DAMPER_TABLE = 2,      /* force against velocity for a set of controls, bilinear */
+  DN_DAMPER_NEURAL = 3,     /* the MLP on named features */
+  DN_DAMPER_CALLBACK = 4    /* a user function (slow path; e.g. a truth model or a real damper) */
+} dn_damper_kind;
+
+/* Precision of a neural damper's MLP evaluation (the loop's state is always double). */
+typedef enum dn_precision { DN_PRECISION_DOUBLE = 0, DN_PRECISION_FLOAT = 1 } dn_precision;
+
+/* The thesis's parametric semi-active damper (eq. 1-3):
+ * F = c(V) v + F0 sgn(v), c = gamma / V + c_min for V > 0, c_max for V = 0,
+ * clamped to [c_min, c_max]; V is the control clamped to [0, v_max] first.
+ * sgn is exact with sgn(0) = 0 when v_smooth = 0, else tanh(v / v_smooth). */
+typedef struct dn_parametric_params {
+  double c_min;    /* minimum damping [N s/m], >= 0 */
+  double c_max;    /* maximum damping [N s/m], >= c_min */
+  double gamma;    /* gain [N s V/m] (c = gamma / V + c_min), >= 0 */
+  double f0;       /* breakaway (friction) force [N], >= 0 */
+  double v_max;    /* largest control [V], > 0 */
+  double v_smooth; /* sgn smoothing velocity [m/s], >= 0 (0: exact sgn) */
+} dn_parametric_params;
+
+/* A user damper: returns the force [N] for one evaluation. It runs inside the
+ * step, so it must follow the real-time rules if the loop does. A stateful
+ * callback should be used with DN_EVAL_PER_STEP (then called once per step,
+ * stage 0). Nullable: user. */
+typedef double (*dn_damper_fn)(void* user, const dn_damper_input* in);
+
+/* A damper model: immutable once handed to a loop model (which copies it). Opaque. */
+typedef struct dn_damper dn_damper;
+
+/* Create F = c v; c [N s/m] finite. Allocates. */
+DN_API int dn_damper_create_linear(double c, dn_damper** out);
+
+/* Create the parametric model; params validated (DN_E_PARAM, DN_E_NONFINITE_PARAM). Allocates. */
+DN_API int dn_damper_create_parametric(const dn_parametric_params* p, dn_damper** out);
+
+/* Create a lookup table: velocities [n_v] (m/s, strictly increasing, 2..DN_MAX_TABLE_V),
+ * controls [n_u] (V or A, strictly increasing, 1..DN_MAX_TABLE_U), forces [n_u][n_v] [N]
+ * row-major. Evaluation is bilinear in (v, u); outside the grid v and u are clamped
+ * to its edges (the force saturates; DN_W_SATURATED). Allocates. */
+DN_API int dn_damper_create_table(const double* velocities, int n_v, const double* controls,
+                                  int n_u, const double* forces, dn_damper** out);
+
+/* Create a neural damper from an MLP (copied) and the names of its inputs in order
+ * (DN_FEATURE_LIST); param_names/param_values give MlpModel.feature_params
+ * (DN_FEATURE_PARAM_LIST). precision: dn_precision of the MLP evaluation.
+ * Unknown feature or parameter name: DN_E_UNKNOWN_NAME; n_features != inputs of
+ * the MLP: DN_E_MISMATCH; a *_lag feature without control_lag_tau_s > 0: DN_E_PARAM.
+ * Nullable: param_names and param_values when n_params == 0. Allocates. */
+DN_API int dn_damper_create_neural(const dn_mlp* mlp, const char* const* features, int n_features,
+                                   const char* const* param_names, const double* param_values,
+                                   int n_params, int precision, dn_damper** out);
+
+/* Create a damper that calls fn (see dn_damper_fn). Nullable: user. Allocates. */
+DN_API int dn_damper_create_callback(dn_damper_fn fn, void* user, dn_damper** out);
+
+/* Add a physics term (DN_TERM_LIST kind name) to a damper; set-up only.
+ * Unknown kind: DN_E_UNKNOWN_NAME; wrong parameter count: DN_E_SIZE; more than
+ * DN_MAX_TERMS: DN_E_SIZE; invalid values: DN_E_PARAM / DN_E_NONFINITE_PARAM. */
+DN_API int dn_damper_add_term(dn_damper* d, const char* kind, const double* params, int n_params);
+
+/* Destroy a damper. Nullable: d. */
+DN_API void dn_damper_destroy(dn_damper* d);
+
+/* The dn_damper_kind of a damper, or DN_E_NULL. */
+DN_API int dn_damper_kind_of(const dn_damper* d);
+
+/* [RT] (except callback dampers) The force [N] of a damper (model plus terms) for one input.
+ * A non-finite field of *in that the model uses: DN_E_NONFINITE_INPUT, *force = 0.
+ * Warnings (OR-ed): DN_W_SATURATED (MLP input or table clamped),
+ * DN_W_NONFINITE_INPUT. Nullable: clamped_mask (neural: bit i = input i clamped). */
+DN_API int dn_damper_force(const dn_damper* d, const dn_damper_input* in, double* force,
+                           uint32_t* clamped_mask);
+
+/*---- Controllers ----*/
+
+/* Control laws. v = dz_s - dz_us (extension rate), v_s, v_us the absolute
+ * velocities. A "damping demand" d in [0, 1] maps to u = u_soft + d (u_hard - u_soft),
+ * u_soft/u_hard being the controls of the least/most damping (for the thesis's
+ * damper V = 0 is the hardest). The result is clamped to [u_min, u_max].
+ *   PASSIVE:             u = u_passive
+ *   SKYHOOK_ONOFF:       d = 1 if v_s v > 0 else 0
+ *   SKYHOOK_CONTINUOUS:  if v_s v > 0: d = clamp((c_sky v_s / v - c_min) / (c_max - c_min), 0, 1)
+ *                        else d = 0
+ *   GROUNDHOOK_ONOFF:    d = 1 if -v_us v > 0 else 0
+ *   GROUNDHOOK_CONTINUOUS: if -v_us v > 0: d = clamp((-c_gnd v_us / v - c_min) / (c_max - c_min), 0, 1)
+ *                        else d = 0
+ *   EXTERNAL:            u = dn_loop_input.u (the caller's controller) */
+typedef enum dn_controller_kind {
+  DN_CTRL_PASSIVE = 0,
+  DN_CTRL_SKYHOOK_ONOFF = 1,
+  DN_CTRL_SKYHOOK_CONTINUOUS = 2,
+  DN_CTRL_GROUNDHOOK_ONOFF = 3,
+  DN_CTRL_GROUNDHOOK_CONTINUOUS = 4,
+  DN_CTRL_EXTERNAL = 5
+} dn_controller_kind;
+
+/* Controller parameters: X(type, name, default, doc). */
+#define DN_CONTROLLER_FIELDS(X)                                                     \
+  X(int, kind, DN_CTRL_PASSIVE, "dn_controller_kind")                               \
+  X(double, u_passive, 0.0, "control of the passive law [V]")                       \
+  X(double, u_soft, 5.0, "control giving the least damping [V]")                    \
+  X(double, u_hard, 0.0, "control giving the most damping [V]")                     \
+  X(double, u_min, 0.0, "lower control limit [V]")                                  \
+  X(double, u_max, 5.0, "upper control limit [V]")                                  \
+  X(double, c_sky, 2500.0, "skyhook damping [N s/m], >= 0")                         \
+  X(double, c_gnd, 2500.0, "groundhook damping [N s/m], >= 0")                      \
+  X(double, c_min, 500.0, "damping at u_soft [N s/m] (continuous laws)")            \
+  X(double, c_max, 4000.0, "damping at u_hard [N s/m] (continuous laws), > c_min")
+
+#define DN_FIELD_DECL_(type, name, def, doc) type name;
+typedef struct dn_controller { DN_CONTROLLER_FIELDS(DN_FIELD_DECL_) } dn_controller;
+
+/*---- The quarter-car loop ----*/
+
+/* Integrators. */
+typedef enum dn_integrator {
+  DN_INT_RK4 = 0,           /* classical 4th-order Runge-Kutta */
+  DN_INT_SEMI_EULER = 1     /* semi-implicit (symplectic) Euler: v first, then z with the new v */
+} dn_integrator;
+
+/* When the damper is evaluated within an RK4 step. */
+typedef enum dn_damper_eval {
+  DN_EVAL_PER_STAGE = 0, /* at each of the 4 stages (4th order; 4 evaluations per step) */
+  DN_EVAL_PER_STEP = 1   /* once at the step start, force held over the step (1 evaluation; 1st order) */
+} dn_damper_eval;
+
+/* Vehicle and loop parameters (thesis Table 5 defaults): X(type, name, default, doc).
+ * Equations (z from static equilibrium, up positive; F_a = F - f_static):
+ *   m_s  z_s''  = -k_s (z_s - z_us) - F_a
+ *   m_us z_us'' =  k_s (z_s - z_us) + F_a - k_t (z_us - z_r) - c_t (z_us' - z_r') */
+#define DN_VEHICLE_FIELDS(X)                                                               \
+  X(double, m_s, 700.0, "sprung mass [kg], > 0")                                           \
+  X(double, m_us, 40.0, "unsprung mass [kg], > 0")                                         \
+  X(double, k_s, 15000.0, "suspension spring stiffness [N/m], >= 0")                       \
+  X(double, k_t, 200000.0, "tyre stiffness [N/m], > 0")                                    \
+  X(double, c_t, 0.0, "tyre damping [N s/m], >= 0")                                        \
+  X(double, dt, 0.001, "step [s], 0 < dt <= 0.1")                                          \
+  X(int, integrator, DN_INT_RK4, "dn_integrator")                                          \
+  X(int, damper_eval, DN_EVAL_PER_STAGE, "dn_damper_eval (RK4 only)")                      \
+  X(double, x_static, 0.0, "damper displacement at static equilibrium, from mid [m]")      \
+  X(double, f_static, 0.0, "damper force carried at static equilibrium [N] (e.g. gas)")    \
+  X(double, temperature, 20.0, "damper temperature at reset [degC]")
+
+typedef struct dn_vehicle { DN_VEHICLE_FIELDS(DN_FIELD_DECL_) } dn_vehicle;
+#undef DN_FIELD_DECL_
+
+/* Fill with the defaults above. Nullable: nothing. */
+DN_API void dn_vehicle_default(dn_vehicle* v);
+/* Fill with the defaults above for a law (kind). */
+DN_API void dn_controller_default(dn_controller* c, int kind);
+
+/* The loop's state, a flat array of doubles: X(index, name, doc). */
+#define DN_LOOP_STATE_LIST(X)                                                         \
+  X(0, t, "time [s]")                                                                 \
+  X(1, z_s, "sprung-mass displacement from static equilibrium [m]")                   \
+  X(2, v_s, "sprung-mass velocity [m/s]")                                             \
+  X(3, z_us, "unsprung-mass displacement from static equilibrium [m]")                \
+  X(4, v_us, "unsprung-mass velocity [m/s]")                                          \
+  X(5, z_r, "road displacement at t [m]")                                             \
+  X(6, v_r, "road rate at t [m/s]")                                                   \
+  X(7, u_lag, "control after the first-order lag [V]")                                \
+  X(8, f_last, "force of the most recent damper evaluation [N] (acceleration feature)") \
+  X(9, temperature, "damper temperature [degC]")
+#define DN_LOOP_STATE_SIZE 10
+
+/* Per step input: the road at the END of the step (t + dt) and an external control. */
+typedef struct dn_loop_input {
+  double z_r; /* road displacement at t + dt [m] */
+  double v_r; /* road rate at t + dt [m/s] */
+  double u;   /* control for DN_CTRL_EXTERNAL [V]; ignored by the other laws */
+} dn_loop_input;
+
+/* What a step reports, all at the step's START time t (before advancing). */
+typedef struct dn_loop_out {
+  double force;      /* damper force of the first evaluation [N] (model plus terms) */
+  double u;          /* control applied over the step (after limits) [V] */
+  double x;          /* damper displacement [m] */
+  double v;          /* damper velocity [m/s] */
+  double a;          /* relative acceleration fed to the damper (the acceleration feature) [m/s^2] */
+  double acc_s;      /* sprung-mass acceleration with this force [m/s^2] */
+  double acc_us;     /* unsprung-mass acceleration with this force [m/s^2] */
+  double features[DN_MAX_INPUTS]; /* a neural damper's inputs (before saturation) */
+  int n_features;    /* number of valid features (0 unless neural) */
+  uint32_t clamped_mask; /* neural: bit i = input i clamped */
+} dn_loop_out;
+
+/* A validated, immutable loop model (vehicle, damper copy, controller). Opaque. */
+typedef struct dn_loop_model dn_loop_model;
+/* A loop's mutable state. One model may drive many data. Opaque. */
+typedef struct dn_loop_data dn_loop_data;
+
+/* Validate and create a loop model (copies the damper). Nonsensical values:
+ * DN_E_NONFINITE_PARAM (NaN/Inf), DN_E_PARAM (mass <= 0, dt <= 0 or > 0.1, ...).
+ * Nullable: ctrl (passive at u = 0). Allocates. */
+DN_API int dn_loop_model_create(const dn_vehicle* veh, const dn_damper* damper,
+                                const dn_controller* ctrl, dn_loop_model** out);
+/* Destroy a loop model (after its data). Nullable: m. */
+DN_API void dn_loop_model_destroy(dn_loop_model* m);
+
+/* Create data for a model, reset to rest. Allocates. */
+DN_API int dn_loop_data_create(const dn_loop_model* m, dn_loop_data** out);
+/* Destroy data. Nullable: d. */
+DN_API void dn_loop_data_destroy(dn_loop_data* d);
+
+/* [RT] Reset to rest: zero displacements, velocities, road and time; u_lag = the
+ * control the controller gives at rest (external: 0); f_last = f_static;
+ * temperature from the vehicle. */
+DN_API int dn_loop_reset(const dn_loop_model* m, dn_loop_data* d);
+
+/* Number of doubles in the flat state (DN_LOOP_STATE_SIZE). */
+DN_API int dn_loop_state_size(void);
+/* [RT] Copy the state out (DN_LOOP_STATE_SIZE doubles, DN_LOOP_STATE_LIST order). */
+DN_API int dn_loop_get_state(const dn_loop_data* d, double* state);
+/* [RT] Set the state; a non-finite value: DN_E_NONFINITE_INPUT, state unchanged. */
+DN_API int dn_loop_set_state(dn_loop_data* d, const double* state);
+/* Damper evaluations since creation (for tests of the evaluation count). */
+DN_API int64_t dn_loop_damper_evals(const dn_loop_data* d);
+
+/* [RT] One step of dt: controller, damper, integrator. Reports at the step start
+ * into *out. Non-finite input: DN_E_NONFINITE_INPUT; non-finite result:
+ * DN_E_DIVERGED or DN_E_NONFINITE_OUTPUT; in both cases the state is unchanged.
+ * Warnings from the damper (DN_W_*) are OR-ed. Nullable: out. */
+DN_API int dn_loop_step(const dn_loop_model* m, dn_loop_data* d, const dn_loop_input* in,
+                        dn_loop_out* out);
+
+/* [RT] What the next step would report at the current state, without advancing. */
+DN_API int dn_loop_forward(const dn_loop_model* m, const dn_loop_data* d, const dn_loop_input* in,
+                           dn_loop_out* out);
 
 #ifdef __cplusplus
 }

@@ -1,0 +1,308 @@
+// Damper models behind one interface: Damper::force(input) -> force [N].
+//
+// Kinds (dn_damper_kind): linear, parametric (thesis eq. 1-3), lookup table,
+// neural (the MLP on named features, DN_FEATURE_LIST), callback; any kind may
+// carry physics terms (DN_TERM_LIST) added to its force, which makes a neural
+// damper with terms the hybrid model. A Damper is a plain value of fixed size
+// (no heap): the loop model holds a copy.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+
+#include "dampnet/dampnet.h"
+#include "dampnet/mlp.hpp"
+#include "dampnet/terms.hpp"
+
+namespace dampnet {
+
+namespace features {
+
+struct Info {
+  const char* name;
+  double dn_damper_input::*field;
+};
+
+// Indexed by dn_feature.
+inline const Info* table() noexcept {
+  static const Info t[] = {
+#define DN_FEATURE_ROW_(id, name, field) {name, &dn_damper_input::field},
+      DN_FEATURE_LIST(DN_FEATURE_ROW_)
+#undef DN_FEATURE_ROW_
+  };
+  return t;
+}
+
+inline int id_of(const char* name) noexcept {
+  if (!name) return -1;
+  for (int k = 0; k < DN_N_FEATURES; ++k)
+    if (std::strcmp(table()[k].name, name) == 0) return k;
+  return -1;
+}
+
+inline bool is_lag(int id) noexcept {
+  return table()[id].field == &dn_damper_input::u_lag;
+}
+
+inline int param_id_of(const char* name) noexcept {
+  static const char* const names[] = {
+#define DN_FPARAM_ROW_(id, name, text) name,
+      DN_FEATURE_PARAM_LIST(DN_FPARAM_ROW_)
+#undef DN_FPARAM_ROW_
+  };
+  if (!name) return -1;
+  for (int k = 0; k < DN_N_FEATURE_PARAMS; ++k)
+    if (std::strcmp(names[k], name) == 0) return k;
+  return -1;
+}
+
+}  // namespace features
+
+struct LinearParams {
+  double c = 0.0;  // [N s/m]
+};
+
+struct TableParams {
+  int n_v = 0, n_u = 0;
+  double v[DN_MAX_TABLE_V] = {};
+  double u[DN_MAX_TABLE_U] = {};
+  double f[DN_MAX_TABLE_U * DN_MAX_TABLE_V] = {};  // [n_u][n_v]
+};
+
+class Damper {
+ public:
+  int kind = DN_DAMPER_LINEAR;
+  LinearParams lin;
+  dn_parametric_params par{};
+  TableParams tab;
+  // neural
+  Mlp<double> md;
+  Mlp<float> mf;
+  int precision = DN_PRECISION_DOUBLE;
+  int n_feat = 0;
+  int feat[DN_MAX_INPUTS] = {};
+  bool uses_lag = false;
+  double fparams[DN_N_FEATURE_PARAMS > 0 ? DN_N_FEATURE_PARAMS : 1] = {};
+  bool fparam_set[DN_N_FEATURE_PARAMS > 0 ? DN_N_FEATURE_PARAMS : 1] = {};
+  // callback
+  dn_damper_fn fn = nullptr;
+  void* user = nullptr;
+  // terms
+  int n_terms = 0;
+  Term terms[DN_MAX_TERMS];
+
+  // The control-lag time constant [s] (0: no lag feature, u_lag follows u).
+  double lag_tau() const noexcept {
+    return fparam_set[DN_FPARAM_CONTROL_LAG_TAU_S] ? fparams[DN_FPARAM_CONTROL_LAG_TAU_S] : 0.0;
+  }
+
+  // ---- set-up ----
+  int set_linear(double c) noexcept {
+    if (!std::isfinite(c)) return DN_E_NONFINITE_PARAM;
+    kind = DN_DAMPER_LINEAR;
+    lin.c = c;
+    return DN_OK;
+  }
+
+  int set_parametric(const dn_parametric_params* p) noexcept {
+    if (!p) return DN_E_NULL;
+    const double v[] = {p->c_min, p->c_max, p->gamma, p->f0, p->v_max, p->v_smooth};
+    for (double x : v)
+      if (!std::isfinite(x)) return DN_E_NONFINITE_PARAM;
+    if (p->c_min < 0 || p->c_max < p->c_min || p->gamma < 0 || p->f0 < 0 || !(p->v_max > 0) ||
+        p->v_smooth < 0)
+      return DN_E_PARAM;
+    kind = DN_DAMPER_PARAMETRIC;
+    par = *p;
+    return DN_OK;
+  }
+
+  int set_table(const double* vs, int n_v, const double* us, int n_u, const double* fs) noexcept {
+    if (!vs || !us || !fs) return DN_E_NULL;
+    if (n_v < 2 || n_v > DN_MAX_TABLE_V || n_u < 1 || n_u > DN_MAX_TABLE_U) return DN_E_SIZE;
+    for (int i = 0; i < n_v; ++i)
+      if (!std::isfinite(vs[i])) return DN_E_NONFINITE_PARAM;
+    for (int j = 0; j < n_u; ++j)
+      if (!std::isfinite(us[j])) return DN_E_NONFINITE_PARAM;
+    for (int k = 0; k < n_u * n_v; ++k)
+      if (!std::isfinite(fs[k])) return DN_E_NONFINITE_PARAM;
+    for (int i = 1; i < n_v; ++i)
+      if (!(vs[i] > vs[i - 1])) return DN_E_PARAM;
+    for (int j = 1; j < n_u; ++j)
+      if (!(us[j] > us[j - 1])) return DN_E_PARAM;
+    kind = DN_DAMPER_TABLE;
+    tab.n_v = n_v;
+    tab.n_u = n_u;
+    for (int i = 0; i < n_v; ++i) tab.v[i] = vs[i];
+    for (int j = 0; j < n_u; ++j) tab.u[j] = us[j];
+    for (int k = 0; k < n_u * n_v; ++k) tab.f[k] = fs[k];
+    return DN_OK;
+  }
+
+  // The MLP itself is loaded by the caller into md and mf before this.
+  int set_neural_features(const char* const* names, int n, const char* const* pnames,
+                          const double* pvalues, int n_params, int prec) noexcept {
+    if (n > 0 && !names) return DN_E_NULL;
+    if (n_params > 0 && (!pnames || !pvalues)) return DN_E_NULL;
+    if (n < 1 || n > DN_MAX_INPUTS || n_params < 0) return DN_E_SIZE;
+    if (n != md.n_inputs()) return DN_E_MISMATCH;
+    if (prec != DN_PRECISION_DOUBLE && prec != DN_PRECISION_FLOAT) return DN_E_PARAM;
+    bool lag = false;
+    for (int i = 0; i < n; ++i) {
+      const int id = features::id_of(names[i]);
+      if (id < 0) return DN_E_UNKNOWN_NAME;
+      feat[i] = id;
+      lag = lag || features::is_lag(id);
+    }
+    for (int k = 0; k < DN_N_FEATURE_PARAMS; ++k) fparam_set[k] = false;
+    for (int i = 0; i < n_params; ++i) {
+      const int id = features::param_id_of(pnames[i]);
+      if (id < 0) return DN_E_UNKNOWN_NAME;
+      if (!std::isfinite(pvalues[i])) return DN_E_NONFINITE_PARAM;
+      fparams[id] = pvalues[i];
+      fparam_set[id] = true;
+    }
+    if (fparam_set[DN_FPARAM_CONTROL_LAG_TAU_S] && !(fparams[DN_FPARAM_CONTROL_LAG_TAU_S] > 0))
+      return DN_E_PARAM;
+    if (lag && !fparam_set[DN_FPARAM_CONTROL_LAG_TAU_S]) return DN_E_PARAM;
+    kind = DN_DAMPER_NEURAL;
+    n_feat = n;
+    uses_lag = lag;
+    precision = prec;
+    return DN_OK;
+  }
+
+  int set_callback(dn_damper_fn f, void* u) noexcept {
+    if (!f) return DN_E_NULL;
+    kind = DN_DAMPER_CALLBACK;
+    fn = f;
+    user = u;
+    return DN_OK;
+  }
+
+  int add_term(const char* kind_name, const double* params, int n_params) noexcept {
+    if (n_terms >= DN_MAX_TERMS) return DN_E_SIZE;
+    Term t;
+    const int st = terms::make(t, kind_name, params, n_params);
+    if (st != DN_OK) return st;
+    terms[n_terms++] = t;
+    return DN_OK;
+  }
+
+  // ---- evaluation ----
+
+  // [RT] The neural inputs for an evaluation (unsaturated), into x[n_feat].
+  void feature_values(const dn_damper_input& in, double* x) const noexcept {
+    const features::Info* t = features::table();
+    for (int i = 0; i < n_feat; ++i) x[i] = in.*(t[feat[i]].field);
+  }
+
+  // [RT] Force [N] of the model plus its terms. feat_out (nullable) receives the
+  // neural inputs. Returns DN_OK, warnings, or DN_E_NONFINITE_INPUT /
+  // DN_E_NONFINITE_OUTPUT (force set to 0).
+  DN_REALTIME int force(const dn_damper_input& in, double* f, double* feat_out = nullptr,
+                        uint32_t* clamped_mask = nullptr) const noexcept {
+    int st = DN_OK;
+    double y = 0.0;
+    if (clamped_mask) *clamped_mask = 0;
+    switch (kind) {
+      case DN_DAMPER_LINEAR:
+        if (!std::isfinite(in.v)) return fail(f, DN_E_NONFINITE_INPUT);
+        y = lin.c * in.v;
+        break;
+      case DN_DAMPER_PARAMETRIC:
+        if (!std::isfinite(in.v) || !std::isfinite(in.u)) return fail(f, DN_E_NONFINITE_INPUT);
+        y = parametric(in.v, in.u);
+        break;
+      case DN_DAMPER_TABLE:
+        if (!std::isfinite(in.v) || !std::isfinite(in.u)) return fail(f, DN_E_NONFINITE_INPUT);
+        y = table(in.v, in.u, &st);
+        break;
+      case DN_DAMPER_NEURAL: {
+        double x[DN_MAX_INPUTS];
+        feature_values(in, x);
+        for (int i = 0; i < n_feat; ++i)
+          if (!std::isfinite(x[i])) return fail(f, DN_E_NONFINITE_INPUT);
+        if (feat_out)
+          for (int i = 0; i < n_feat; ++i) feat_out[i] = x[i];
+        if (precision == DN_PRECISION_FLOAT) {
+          float xf[DN_MAX_INPUTS], yf = 0.0f;
+          for (int i = 0; i < n_feat; ++i) xf[i] = static_cast<float>(x[i]);
+          st = mf.forward(xf, &yf, clamped_mask);
+          y = yf;
+        } else {
+          st = md.forward(x, &y, clamped_mask);
+        }
+        if (st < 0) return fail(f, st);
+        break;
+      }
+      case DN_DAMPER_CALLBACK:
+        y = fn(user, &in);
+        break;
+      default:
+        return fail(f, DN_E_PARAM);
+    }
+    if (n_terms > 0) {
+      if (!std::isfinite(in.x)) return fail(f, DN_E_NONFINITE_INPUT);
+      y += terms::sum(terms, n_terms, in);
+    }
+    if (!std::isfinite(y)) return fail(f, DN_E_NONFINITE_OUTPUT);
+    *f = y;
+    return st;
+  }
+
+  // Thesis eq. 1-3.
+  double parametric(double v, double u) const noexcept {
+    const double V = u < 0.0 ? 0.0 : (u > par.v_max ? par.v_max : u);
+    double c = V > 0.0 ? par.gamma / V + par.c_min : par.c_max;
+    if (c > par.c_max) c = par.c_max;  // also +Inf from a denormal V
+    if (c < par.c_min) c = par.c_min;
+    double s;
+    if (par.v_smooth > 0.0) s = std::tanh(v / par.v_smooth);
+    else s = v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0);
+    return c * v + par.f0 * s;
+  }
+
+  // Bilinear in (v, u), clamped to the grid.
+  double table(double v, double u, int* st) const noexcept {
+    const int nv = tab.n_v, nu = tab.n_u;
+    if (v < tab.v[0] || v > tab.v[nv - 1]) {
+      v = v < tab.v[0] ? tab.v[0] : tab.v[nv - 1];
+      *st |= DN_W_SATURATED;
+    }
+    const int i = segment(tab.v, nv, v);
+    const double wv = (v - tab.v[i]) / (tab.v[i + 1] - tab.v[i]);
+    auto row = [&](int j) {
+      const double* fr = tab.f + j * nv;
+      return fr[i] + wv * (fr[i + 1] - fr[i]);
+    };
+    if (nu == 1) return row(0);
+    if (u < tab.u[0] || u > tab.u[nu - 1]) {
+      u = u < tab.u[0] ? tab.u[0] : tab.u[nu - 1];
+      *st |= DN_W_SATURATED;
+    }
+    const int j = segment(tab.u, nu, u);
+    const double wu = (u - tab.u[j]) / (tab.u[j + 1] - tab.u[j]);
+    const double f0 = row(j), f1 = row(j + 1);
+    return f0 + wu * (f1 - f0);
+  }
+
+ private:
+  static int fail(double* f, int st) noexcept {
+    *f = 0.0;
+    return st;
+  }
+  // Index i of the grid segment [g[i], g[i+1]] holding x (g[0] <= x <= g[n-1], n >= 2).
+  static int segment(const double* g, int n, double x) noexcept {
+    int lo = 0, hi = n - 1;  // invariant: g[lo] <= x, and x <= g[hi]
+    while (hi - lo > 1) {    // at most log2(64) = 6 iterations
+      const int mid = (lo + hi) / 2;
+      if (g[mid] <= x) lo = mid;
+      else hi = mid;
+    }
+    return lo;
+  }
+};
+
+}  // namespace dampnet

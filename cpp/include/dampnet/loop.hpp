@@ -1,0 +1,314 @@
+// The quarter-car loop: a 2-DOF point-contact quarter car (thesis eq. 13-14)
+// driven by a road, with a damper model and a controller, stepped at a fixed dt.
+//
+//   LoopModel   constant: vehicle parameters, a copy of the damper, controller.
+//   LoopData    mutable: the flat state (DN_LOOP_STATE_LIST) and a counter.
+//   step(m, d, in, out)   one step; forward(m, d, in, out) reports without advancing.
+//
+// Signs: z up, from static equilibrium; damper x = z_s - z_us + x_static and
+// v = v_s - v_us are positive in extension; the damper force F (positive when
+// resisting extension) pulls the sprung mass down and the unsprung mass up:
+//   m_s  a_s  = -k_s (z_s - z_us) - (F - f_static)
+//   m_us a_us =  k_s (z_s - z_us) + (F - f_static) - k_t (z_us - z_r) - c_t (v_us - v_r)
+//
+// Within a step the control u is held (computed by the controller from the
+// state at the step start); the road is the cubic Hermite interpolant of
+// (z_r, v_r) at the step's start (in the state) and end (the step input); the
+// lagged control follows its exact first-order response to the held u.
+//
+// The acceleration feature: the relative acceleration a = a_s - a_us depends on
+// the damper force being computed. The loop breaks this algebraic loop
+// explicitly: a = a_rel(state, road, F = f_last), the equations of motion
+// evaluated with the force of the most recent damper evaluation (f_last, in
+// the state). Per RK4 stage, that is the previous stage's force (stage 1: the
+// previous step's stage 4, evaluated at this step's start time); with one
+// evaluation per step (DN_EVAL_PER_STEP or semi-implicit Euler) it is the
+// previous step's force, a lag of one dt in the force part of a only. The
+// explicit scheme is stable while |dF/da| (1/m_s + 1/m_us) < 1, i.e. while the
+// damper's apparent mass is below the reduced mass of the two bodies.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+
+#include "dampnet/damper.hpp"
+#include "dampnet/dampnet.h"
+
+namespace dampnet {
+
+enum StateIndex {
+#define DN_STATE_ENUM_(i, name, doc) S_##name = i,
+  DN_LOOP_STATE_LIST(DN_STATE_ENUM_)
+#undef DN_STATE_ENUM_
+};
+
+inline dn_vehicle default_vehicle() noexcept {
+  dn_vehicle v;
+#define DN_FIELD_DEF_(type, name, def, doc) v.name = def;
+  DN_VEHICLE_FIELDS(DN_FIELD_DEF_)
+#undef DN_FIELD_DEF_
+  return v;
+}
+
+inline dn_controller default_controller(int kind = DN_CTRL_PASSIVE) noexcept {
+  dn_controller c;
+#define DN_FIELD_DEF_(type, name, def, doc) c.name = def;
+  DN_CONTROLLER_FIELDS(DN_FIELD_DEF_)
+#undef DN_FIELD_DEF_
+  c.kind = kind;
+  return c;
+}
+
+namespace detail {
+inline double clamp(double x, double lo, double hi) noexcept {
+  return x < lo ? lo : (x > hi ? hi : x);
+}
+}  // namespace detail
+
+// [RT] The control law (see DN_CONTROLLER_FIELDS / dn_controller_kind in dampnet.h).
+// v_s, v_us absolute velocities, v = v_s - v_us; u_ext for DN_CTRL_EXTERNAL.
+inline double control_law(const dn_controller& c, double v_s, double v_us, double u_ext) noexcept {
+  const double v = v_s - v_us;
+  double d = 0.0, u;
+  switch (c.kind) {
+    case DN_CTRL_PASSIVE:
+      return detail::clamp(c.u_passive, c.u_min, c.u_max);
+    case DN_CTRL_EXTERNAL:
+      return detail::clamp(u_ext, c.u_min, c.u_max);
+    case DN_CTRL_SKYHOOK_ONOFF:
+      d = v_s * v > 0.0 ? 1.0 : 0.0;
+      break;
+    case DN_CTRL_GROUNDHOOK_ONOFF:
+      d = -v_us * v > 0.0 ? 1.0 : 0.0;
+      break;
+    case DN_CTRL_SKYHOOK_CONTINUOUS:
+      if (v_s * v > 0.0) d = detail::clamp((c.c_sky * v_s / v - c.c_min) / (c.c_max - c.c_min), 0, 1);
+      break;
+    case DN_CTRL_GROUNDHOOK_CONTINUOUS:
+      if (-v_us * v > 0.0)
+        d = detail::clamp((-c.c_gnd * v_us / v - c.c_min) / (c.c_max - c.c_min), 0, 1);
+      break;
+    default:
+      break;
+  }
+  if (d != d) d = 1.0;  // only from an infinite ratio of infinities; state is finite
+  u = c.u_soft + d * (c.u_hard - c.u_soft);
+  return detail::clamp(u, c.u_min, c.u_max);
+}
+
+struct LoopModel {
+  dn_vehicle veh = default_vehicle();
+  dn_controller ctrl = default_controller();
+  Damper damper;
+  // derived
+  double inv_ms = 0, inv_mus = 0;
+  double lag_half = 0, lag_full = 0;  // exp(-dt/2/tau), exp(-dt/tau); 0 without a lag
+
+  // Validate and derive; DN_OK or a DN_E_* error.
+  int init(const dn_vehicle& v, const Damper& d, const dn_controller& c) noexcept {
+    const double vals[] = {v.m_s, v.m_us, v.k_s, v.k_t, v.c_t, v.dt, v.x_static, v.f_static,
+                           v.temperature};
+    for (double x : vals)
+      if (!std::isfinite(x)) return DN_E_NONFINITE_PARAM;
+    if (!(v.m_s > 0) || !(v.m_us > 0) || v.k_s < 0 || !(v.k_t > 0) || v.c_t < 0 || !(v.dt > 0) ||
+        v.dt > 0.1)
+      return DN_E_PARAM;
+    if (v.integrator != DN_INT_RK4 && v.integrator != DN_INT_SEMI_EULER) return DN_E_PARAM;
+    if (v.damper_eval != DN_EVAL_PER_STAGE && v.damper_eval != DN_EVAL_PER_STEP) return DN_E_PARAM;
+    const double cv[] = {c.u_passive, c.u_soft, c.u_hard, c.u_min, c.u_max,
+                         c.c_sky,     c.c_gnd,  c.c_min,  c.c_max};
+    for (double x : cv)
+      if (!std::isfinite(x)) return DN_E_NONFINITE_PARAM;
+    if (c.kind < DN_CTRL_PASSIVE || c.kind > DN_CTRL_EXTERNAL) return DN_E_PARAM;
+    if (!(c.u_min <= c.u_max) || c.c_sky < 0 || c.c_gnd < 0) return DN_E_PARAM;
+    if ((c.kind == DN_CTRL_SKYHOOK_CONTINUOUS || c.kind == DN_CTRL_GROUNDHOOK_CONTINUOUS) &&
+        !(c.c_max > c.c_min))
+      return DN_E_PARAM;
+    veh = v;
+    ctrl = c;
+    damper = d;
+    inv_ms = 1.0 / v.m_s;
+    inv_mus = 1.0 / v.m_us;
+    const double tau = d.lag_tau();
+    lag_half = tau > 0 ? std::exp(-0.5 * v.dt / tau) : 0.0;
+    lag_full = tau > 0 ? std::exp(-v.dt / tau) : 0.0;
+    return DN_OK;
+  }
+};
+
+struct LoopData {
+  double s[DN_LOOP_STATE_SIZE] = {};
+  int64_t n_evals = 0;
+};
+
+namespace detail {
+
+struct Body {
+  double zs, vs, zus, vus;
+};
+struct Accel {
+  double as, aus;
+};
+
+// Accelerations for a given applied damper force F (model force, before f_static).
+inline Accel accel(const LoopModel& m, const Body& b, double zr, double vr, double F) noexcept {
+  const dn_vehicle& p = m.veh;
+  const double fs = p.k_s * (b.zs - b.zus);
+  const double fa = F - p.f_static;
+  return {(-fs - fa) * m.inv_ms,
+          (fs + fa - p.k_t * (b.zus - zr) - p.c_t * (b.vus - vr)) * m.inv_mus};
+}
+
+// The damper's input at one evaluation (the acceleration feature from f_last).
+inline dn_damper_input damper_input(const LoopModel& m, const Body& b, double zr, double vr,
+                                    double u, double u_lag, double f_last, double temperature,
+                                    double t, int stage) noexcept {
+  const Accel a = accel(m, b, zr, vr, f_last);
+  dn_damper_input in;
+  in.x = b.zs - b.zus + m.veh.x_static;
+  in.v = b.vs - b.vus;
+  in.a = a.as - a.aus;
+  in.u = u;
+  in.u_lag = u_lag;
+  in.temperature = temperature;
+  in.t = t;
+  in.dt = m.veh.dt;
+  in.stage = stage;
+  return in;
+}
+
+inline bool finite_all(const double* x, int n) noexcept {
+  for (int i = 0; i < n; ++i)
+    if (!std::isfinite(x[i])) return false;
+  return true;
+}
+
+// Everything at the step start: control, first damper evaluation, report.
+struct Start {
+  double u;
+  double force;
+  dn_damper_input in;
+  int status;
+};
+
+inline Start start(const LoopModel& m, const double* s, double u_ext, dn_loop_out* out,
+                   uint32_t* mask) noexcept {
+  Start r;
+  r.u = control_law(m.ctrl, s[S_v_s], s[S_v_us], u_ext);
+  const Body b{s[S_z_s], s[S_v_s], s[S_z_us], s[S_v_us]};
+  r.in = damper_input(m, b, s[S_z_r], s[S_v_r], r.u, s[S_u_lag], s[S_f_last], s[S_temperature],
+                      s[S_t], 0);
+  double* feat = out ? out->features : nullptr;
+  r.status = m.damper.force(r.in, &r.force, feat, mask);
+  if (out) {
+    const Accel a = accel(m, b, s[S_z_r], s[S_v_r], r.force);
+    out->force = r.force;
+    out->u = r.u;
+    out->x = r.in.x;
+    out->v = r.in.v;
+    out->a = r.in.a;
+    out->acc_s = a.as;
+    out->acc_us = a.aus;
+    out->n_features = m.damper.kind == DN_DAMPER_NEURAL ? m.damper.n_feat : 0;
+    for (int i = out->n_features; i < DN_MAX_INPUTS; ++i) out->features[i] = 0.0;
+    out->clamped_mask = mask ? *mask : 0u;
+  }
+  return r;
+}
+
+}  // namespace detail
+
+// [RT] Reset to rest (see dn_loop_reset).
+inline void reset(const LoopModel& m, LoopData& d) noexcept {
+  for (double& x : d.s) x = 0.0;
+  d.s[S_u_lag] = m.ctrl.kind == DN_CTRL_EXTERNAL ? 0.0 : control_law(m.ctrl, 0.0, 0.0, 0.0);
+  d.s[S_f_last] = m.veh.f_static;
+  d.s[S_temperature] = m.veh.temperature;
+}
+
+// [RT] What step() would report, without advancing.
+DN_REALTIME inline int forward(const LoopModel& m, const LoopData& d, const dn_loop_input& in,
+                               dn_loop_out* out) noexcept {
+  if (!std::isfinite(in.u) && m.ctrl.kind == DN_CTRL_EXTERNAL) return DN_E_NONFINITE_INPUT;
+  uint32_t mask = 0;
+  const detail::Start r = detail::start(m, d.s, in.u, out, &mask);
+  return r.status;
+}
+
+// [RT] One step (see the file comment and dn_loop_step).
+DN_REALTIME inline int step(const LoopModel& m, LoopData& d, const dn_loop_input& in,
+                            dn_loop_out* out) noexcept {
+  using detail::Accel;
+  using detail::Body;
+  if (!std::isfinite(in.z_r) || !std::isfinite(in.v_r)) return DN_E_NONFINITE_INPUT;
+  if (m.ctrl.kind == DN_CTRL_EXTERNAL && !std::isfinite(in.u)) return DN_E_NONFINITE_INPUT;
+  const double* s = d.s;
+  const double h = m.veh.dt;
+  uint32_t mask = 0;
+  const detail::Start r = detail::start(m, s, in.u, out, &mask);
+  d.n_evals += 1;
+  int status = r.status;
+  if (status < 0) return status;
+
+  const double u = r.u, ul0 = s[S_u_lag], t0 = s[S_t];
+  const double temp = s[S_temperature];
+  const bool has_lag = m.lag_full > 0.0;
+  const double ul_mid = has_lag ? u + (ul0 - u) * m.lag_half : u;
+  const double ul_end = has_lag ? u + (ul0 - u) * m.lag_full : u;
+  const double zr0 = s[S_z_r], vr0 = s[S_v_r], zr1 = in.z_r, vr1 = in.v_r;
+  const Body b0{s[S_z_s], s[S_v_s], s[S_z_us], s[S_v_us]};
+  double ns[DN_LOOP_STATE_SIZE];
+  for (int i = 0; i < DN_LOOP_STATE_SIZE; ++i) ns[i] = s[i];
+  double f_last = r.force;
+
+  if (m.veh.integrator == DN_INT_SEMI_EULER) {
+    const Accel a = detail::accel(m, b0, zr0, vr0, r.force);
+    ns[S_v_s] = b0.vs + h * a.as;
+    ns[S_v_us] = b0.vus + h * a.aus;
+    ns[S_z_s] = b0.zs + h * ns[S_v_s];
+    ns[S_z_us] = b0.zus + h * ns[S_v_us];
+  } else {
+    // road at mid-step: cubic Hermite of (zr0, vr0) -> (zr1, vr1)
+    const double zrm = 0.5 * (zr0 + zr1) + 0.125 * h * (vr0 - vr1);
+    const double vrm = 1.5 * (zr1 - zr0) / h - 0.25 * (vr0 + vr1);
+    const bool per_stage = m.veh.damper_eval == DN_EVAL_PER_STAGE;
+    auto force_at = [&](const Body& b, double zr, double vr, double ul, double t,
+                        int stage) noexcept -> double {
+      if (!per_stage) return r.force;
+      const dn_damper_input di =
+          detail::damper_input(m, b, zr, vr, u, ul, f_last, temp, t, stage);
+      double f = 0.0;
+      const int st = m.damper.force(di, &f, nullptr, nullptr);
+      d.n_evals += 1;
+      if (st < 0) status = st;
+      else status |= st;
+      f_last = f;
+      return f;
+    };
+    const Accel k1 = detail::accel(m, b0, zr0, vr0, r.force);
+    const Body b1{b0.zs + 0.5 * h * b0.vs, b0.vs + 0.5 * h * k1.as, b0.zus + 0.5 * h * b0.vus,
+                  b0.vus + 0.5 * h * k1.aus};
+    const Accel k2 = detail::accel(m, b1, zrm, vrm, force_at(b1, zrm, vrm, ul_mid, t0 + 0.5 * h, 1));
+    const Body b2{b0.zs + 0.5 * h * b1.vs, b0.vs + 0.5 * h * k2.as, b0.zus + 0.5 * h * b1.vus,
+                  b0.vus + 0.5 * h * k2.aus};
+    const Accel k3 = detail::accel(m, b2, zrm, vrm, force_at(b2, zrm, vrm, ul_mid, t0 + 0.5 * h, 2));
+    const Body b3{b0.zs + h * b2.vs, b0.vs + h * k3.as, b0.zus + h * b2.vus, b0.vus + h * k3.aus};
+    const Accel k4 = detail::accel(m, b3, zr1, vr1, force_at(b3, zr1, vr1, ul_end, t0 + h, 3));
+    if (status < 0) return status;
+    const double h6 = h / 6.0;
+    ns[S_z_s] = b0.zs + h6 * (b0.vs + 2 * b1.vs + 2 * b2.vs + b3.vs);
+    ns[S_v_s] = b0.vs + h6 * (k1.as + 2 * k2.as + 2 * k3.as + k4.as);
+    ns[S_z_us] = b0.zus + h6 * (b0.vus + 2 * b1.vus + 2 * b2.vus + b3.vus);
+    ns[S_v_us] = b0.vus + h6 * (k1.aus + 2 * k2.aus + 2 * k3.aus + k4.aus);
+  }
+  ns[S_t] = t0 + h;
+  ns[S_z_r] = zr1;
+  ns[S_v_r] = vr1;
+  ns[S_u_lag] = ul_end;
+  ns[S_f_last] = f_last;
+  if (!detail::finite_all(ns, DN_LOOP_STATE_SIZE)) return DN_E_DIVERGED;
+  for (int i = 0; i < DN_LOOP_STATE_SIZE; ++i) d.s[i] = ns[i];
+  return status;
+}
+
+}  // namespace dampnet
