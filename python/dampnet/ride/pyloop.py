@@ -1,0 +1,287 @@
+"""A reference quarter-car loop in Python, for dampers that only exist in Python (the rig's truth damper).
+
+It integrates exactly the runtime's equations (cpp/include/dampnet/loop.hpp,
+thesis eq. 13-14) with the runtime's scheme for one damper evaluation per
+step (DN_INT_RK4 with DN_EVAL_PER_STEP):
+
+    m_s  a_s  = -k_s (z_s - z_us) - (F - f_static)
+    m_us a_us =  k_s (z_s - z_us) + (F - f_static) - k_t (z_us - z_r) - c_t (v_us - v_r)
+
+* the control u is computed by the controller from the state at the step
+  start and held over the step (passive, skyhook/groundhook on-off and
+  continuous: the same laws as `control_law` in loop.hpp);
+* the damper is evaluated once, at the step start, with x = z_s - z_us +
+  x_static, v = v_s - v_us and the relative acceleration a = a_s - a_us
+  computed from the equations of motion with the force of the previous
+  evaluation (f_last; the runtime's explicit break of the algebraic loop);
+  its force F is held over the step - a stateful damper (the truth damper's
+  compressibility lag, LuGre friction) is therefore stepped exactly once per
+  dt, as its `step(dt, ...)` requires;
+* classical RK4 on (z_s, v_s, z_us, v_us) with the road at mid-step the cubic
+  Hermite interpolant of (z_r, v_r) at the step's ends;
+* every reported quantity is at the step's start time (like dn_loop_out).
+
+So for the same damper this loop and the runtime's loop in per-step mode
+produce the same trajectories to rounding (checked in
+tests/python/test_simulate.py when the runtime's loop is built). A damper here
+is any object with `force(x, v, a, u, dt) -> F [N]` and `reset()`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+CONTROL_LAWS = ("passive", "skyhook", "skyhook_continuous", "groundhook", "groundhook_continuous")
+
+
+class LoopError(ValueError):
+    """Nonsensical vehicle, controller or run settings."""
+
+
+@dataclass
+class Vehicle:
+    """Quarter car (thesis Table 5) and the loop's step; SI units."""
+
+    m_s: float = 700.0
+    m_us: float = 40.0
+    k_s: float = 15000.0
+    k_t: float = 200000.0
+    c_t: float = 0.0
+    dt: float = 0.001
+    x_static: float = 0.0
+    f_static: float | None = None     # None: the damper's force at rest with the initial control
+
+    def validate(self) -> None:
+        for name in ("m_s", "m_us", "k_s", "k_t", "c_t", "dt", "x_static"):
+            v = getattr(self, name)
+            if not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise LoopError(f"vehicle {name} must be a finite number, got {v!r}")
+        if self.f_static is not None and not math.isfinite(self.f_static):
+            raise LoopError(f"vehicle f_static must be finite, got {self.f_static!r}")
+        for name in ("m_s", "m_us", "k_t"):
+            if getattr(self, name) <= 0:
+                raise LoopError(f"vehicle {name} must be > 0, got {getattr(self, name)!r}")
+        for name in ("k_s", "c_t"):
+            if getattr(self, name) < 0:
+                raise LoopError(f"vehicle {name} must be >= 0, got {getattr(self, name)!r}")
+        if not (0 < self.dt <= 0.1):
+            raise LoopError(f"time step dt must be in (0, 0.1] s, got {self.dt!r}")
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass
+class Controller:
+    """Control law and its settings (the runtime's dn_controller; u in volts)."""
+
+    kind: str = "passive"
+    u_passive: float = 0.0
+    u_soft: float = 5.0
+    u_hard: float = 0.0
+    u_min: float = 0.0
+    u_max: float = 5.0
+    c_sky: float = 2500.0
+    c_gnd: float = 2500.0
+    c_min: float = 500.0
+    c_max: float = 4000.0
+
+    def validate(self) -> None:
+        if self.kind not in CONTROL_LAWS:
+            raise LoopError(f"unknown control law {self.kind!r}; known: {', '.join(CONTROL_LAWS)}")
+        for k, v in asdict(self).items():
+            if k != "kind" and not math.isfinite(v):
+                raise LoopError(f"controller {k} must be finite, got {v!r}")
+        if not self.u_min <= self.u_max:
+            raise LoopError("controller u_min must not exceed u_max")
+        if self.kind.endswith("continuous") and not self.c_max > self.c_min:
+            raise LoopError("continuous laws need c_max > c_min")
+
+    def law(self, v_s: float, v_us: float) -> float:
+        v = v_s - v_us
+        k = self.kind
+        if k == "passive":
+            return min(max(self.u_passive, self.u_min), self.u_max)
+        d = 0.0
+        if k == "skyhook":
+            d = 1.0 if v_s * v > 0 else 0.0
+        elif k == "groundhook":
+            d = 1.0 if -v_us * v > 0 else 0.0
+        elif k == "skyhook_continuous":
+            if v_s * v > 0:
+                d = min(max((self.c_sky * v_s / v - self.c_min) / (self.c_max - self.c_min), 0.0), 1.0)
+        elif k == "groundhook_continuous":
+            if -v_us * v > 0:
+                d = min(max((-self.c_gnd * v_us / v - self.c_min) / (self.c_max - self.c_min), 0.0), 1.0)
+        u = self.u_soft + d * (self.u_hard - self.u_soft)
+        return min(max(u, self.u_min), self.u_max)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+# ---- dampers (Python side) ---------------------------------------------------------------------
+
+class LinearDamper:
+    def __init__(self, c: float):
+        self.c = float(c)
+
+    def reset(self) -> None:
+        pass
+
+    def force(self, x, v, a, u, dt) -> float:
+        return self.c * v
+
+
+class TruthLoopDamper:
+    """The rig's truth damper (dampnet.data.rig.truth.TruthDamper), stepped once per loop step."""
+
+    def __init__(self, params=None, effects=(), temperature: float | None = None):
+        from dampnet.data.rig.truth import TruthDamper
+
+        self.damper = TruthDamper(params, effects)
+        self.temperature = temperature
+
+    def reset(self) -> None:
+        self.damper.reset()
+
+    def force(self, x, v, a, u, dt) -> float:
+        return self.damper.step(dt, x, v, u, self.temperature)
+
+    def force_at_rest(self, u: float, dt: float) -> float:
+        from dampnet.data.rig.truth import TruthDamper
+
+        return TruthDamper(self.damper.params, [e.name for e in self.damper.effects]).step(dt, 0.0, 0.0, u)
+
+
+class TableLoopDamper:
+    """A lookup table (dampnet.evaluate.lookup.LookupTable): force(v, u), bilinear, clamped."""
+
+    def __init__(self, table):
+        self.table = table
+
+    def reset(self) -> None:
+        pass
+
+    def force(self, x, v, a, u, dt) -> float:
+        return float(self.table.force(v, u))
+
+
+class NeuralLoopDamper:
+    """An MlpModel on the loop's kinematics (features velocity, acceleration, displacement, voltage/current).
+
+    Evaluated in numpy, the kernel's arithmetic: inputs clamped to the
+    saturation range, mapminmax, tanh/logistic layers, linear output
+    (agrees with dampnet.train.reference.torch_forward to rounding).
+    """
+
+    KNOWN = ("velocity", "acceleration", "displacement", "voltage", "current")
+
+    def __init__(self, model):
+        bad = [f for f in model.features if f not in self.KNOWN]
+        if bad:
+            raise LoopError(f"the Python loop cannot feed features {bad}; use the runtime's loop")
+        if model.terms:
+            raise LoopError("the Python loop does not evaluate physics terms; use the runtime's loop")
+        self.model = model
+        self._idx = [self.KNOWN.index(f) for f in model.features]
+        m = model
+        self._lo, self._hi = m.sat_lo, m.sat_hi
+        self._off, self._gain, self._ymin = m.in_offset, m.in_gain, m.in_ymin
+        self._act = np.tanh if m.activation == "tanh" else (lambda z: 1.0 / (1.0 + np.exp(-z)))
+
+    def reset(self) -> None:
+        pass
+
+    def forward(self, x: np.ndarray) -> np.ndarray:
+        """Force [N] for inputs x [..., n_inputs] in feature units."""
+        m = self.model
+        x = np.where(np.isnan(x), 0.5 * (self._lo + self._hi), x)
+        a = (np.clip(x, self._lo, self._hi) - self._off) * self._gain + self._ymin
+        a = self._act(a @ m.w1.T + m.b1)
+        if m.w2 is not None:
+            a = self._act(a @ m.w2.T + m.b2)
+        ys = a @ m.w_out + m.b_out
+        return (ys - m.out_ymin) / m.out_gain + m.out_offset
+
+    def force(self, x, v, a, u, dt) -> float:
+        vals = (v, a, x, u, u)
+        return float(self.forward(np.array([vals[i] for i in self._idx])))
+
+
+# ---- the loop ----------------------------------------------------------------------------------
+
+def run(damper, z_r, v_r, vehicle: Vehicle | None = None, controller: Controller | None = None) -> dict:
+    """Run the loop over road samples z_r [m], v_r [m/s] at t = k dt; arrays at each step's start.
+
+    Returns t, z_s, v_s, z_us, v_us, z_r, acc_s, acc_us, force, u, x, v, a (n = len(z_r) - 1
+    steps; the last road sample is the end of the last step).
+    """
+    veh = vehicle or Vehicle()
+    ctrl = controller or Controller()
+    veh.validate()
+    ctrl.validate()
+    z_r = np.asarray(z_r, dtype=np.float64)
+    v_r = np.asarray(v_r, dtype=np.float64)
+    if z_r.ndim != 1 or z_r.shape != v_r.shape:
+        raise LoopError("road displacement and rate must be 1-D arrays of equal length")
+    if z_r.size < 2:
+        raise LoopError("the road must cover at least one time step (2 samples)")
+    bad = np.flatnonzero(~(np.isfinite(z_r) & np.isfinite(v_r)))
+    if bad.size:
+        raise LoopError(f"road sample {bad[0]} is not finite")
+    h = veh.dt
+    ms, mus, ks, kt, ct = veh.m_s, veh.m_us, veh.k_s, veh.k_t, veh.c_t
+    damper.reset()
+    u0 = ctrl.law(0.0, 0.0)
+    if veh.f_static is None:
+        rest = getattr(damper, "force_at_rest", None)
+        f_static = float(rest(u0, h)) if rest else float(damper.force(veh.x_static, 0.0, 0.0, u0, h))
+        damper.reset()
+    else:
+        f_static = float(veh.f_static)
+    n = z_r.size - 1
+    out = {k: np.empty(n) for k in ("t", "z_s", "v_s", "z_us", "v_us", "z_r", "acc_s", "acc_us",
+                                     "force", "u", "x", "v", "a")}
+    zs = vs = zus = vus = 0.0
+    f_last = f_static
+    inv_ms, inv_mus = 1.0 / ms, 1.0 / mus
+
+    def accel(zs, vs, zus, vus, zr, vr, f):
+        fs = ks * (zs - zus)
+        fa = f - f_static
+        return (-fs - fa) * inv_ms, (fs + fa - kt * (zus - zr) - ct * (vus - vr)) * inv_mus
+
+    for k in range(n):
+        zr0, vr0, zr1, vr1 = z_r[k], v_r[k], z_r[k + 1], v_r[k + 1]
+        u = ctrl.law(vs, vus)
+        as_l, aus_l = accel(zs, vs, zus, vus, zr0, vr0, f_last)
+        x, v, a = zs - zus + veh.x_static, vs - vus, as_l - aus_l
+        f = float(damper.force(x, v, a, u, h))
+        if not math.isfinite(f):
+            raise LoopError(f"damper force is not finite at t = {k * h:.6g} s (x={x:.4g}, v={v:.4g}, u={u:.4g})")
+        k1s, k1u = accel(zs, vs, zus, vus, zr0, vr0, f)
+        zrm = 0.5 * (zr0 + zr1) + 0.125 * h * (vr0 - vr1)
+        vrm = 1.5 * (zr1 - zr0) / h - 0.25 * (vr0 + vr1)
+        b1 = (zs + 0.5 * h * vs, vs + 0.5 * h * k1s, zus + 0.5 * h * vus, vus + 0.5 * h * k1u)
+        k2s, k2u = accel(*b1, zrm, vrm, f)
+        b2 = (zs + 0.5 * h * b1[1], vs + 0.5 * h * k2s, zus + 0.5 * h * b1[3], vus + 0.5 * h * k2u)
+        k3s, k3u = accel(*b2, zrm, vrm, f)
+        b3 = (zs + h * b2[1], vs + h * k3s, zus + h * b2[3], vus + h * k3u)
+        k4s, k4u = accel(*b3, zr1, vr1, f)
+        row = (k * h, zs, vs, zus, vus, zr0, k1s, k1u, f, u, x, v, a)
+        for key, val in zip(out, row):
+            out[key][k] = val
+        h6 = h / 6.0
+        zs, vs, zus, vus = (zs + h6 * (vs + 2 * b1[1] + 2 * b2[1] + b3[1]),
+                            vs + h6 * (k1s + 2 * k2s + 2 * k3s + k4s),
+                            zus + h6 * (vus + 2 * b1[3] + 2 * b2[3] + b3[3]),
+                            vus + h6 * (k1u + 2 * k2u + 2 * k3u + k4u))
+        f_last = f
+        if not (math.isfinite(zs) and math.isfinite(vs) and math.isfinite(zus) and math.isfinite(vus)):
+            raise LoopError(f"the loop diverged at t = {(k + 1) * h:.6g} s (reduce dt?)")
+    out["f_static"] = f_static
+    return out

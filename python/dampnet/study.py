@@ -1,0 +1,331 @@
+"""Quarter-car runs and the thesis's chapter 5 study (Tables 6 and 7, skyhook), as dicts with stable keys.
+
+A *damper spec* (`DamperSpec`) names a damper model and how to build it for a
+loop: 'truth' (the rig's physical damper, `dampnet.data.rig.truth`),
+'neural' / 'hybrid' (an `MlpModel`), 'lookup' (a `LookupTable`), 'linear'.
+
+Backends. Runs go through the runtime's C++ loop (`dampnet.loop`) when it is
+built and offers `simulate`; the rig's truth damper exists only in Python, and
+runs through `dampnet.ride.pyloop`, the same equations and scheme as the
+runtime's loop with one damper evaluation per step (see its docstring). For a
+like-for-like comparison every model in a study is run with one damper
+evaluation per step (RK4, force held over the step) at the same dt; the
+backend of each run is recorded under `settings.backends`.
+
+Damping levels: "low" and "high" damping are the controls giving the least
+and the most damping. They are found, not assumed: the damper's force at
+0.5 m/s (rebound) and -0.5 m/s is evaluated at the ends of the control range
+and the end with the larger summed |force| is "high". For the rig's damper
+that is 0 V (valve closed) = high, 5 V = low.
+
+Study (`run_study`): for each model (and the truth damper, when known)
+  impulse      - raised-cosine pulse (50 mm, 50 ms), passive at low and high damping
+  sine_sweep   - bounce sine sweep 0.5-20 Hz (5 mm, 0.1 octave/s), low and high, with transmissibility
+  rough_road   - thesis rough road (RMS 16 mm, 184 m) at 10 and 20 m/s, low and high
+  skyhook      - on the rough road at 10 and 20 m/s: on-off skyhook (u_soft = low, u_hard = high)
+                 against passive at the same damper's low and high settings
+and `errors`: per model and case, (model - truth) / truth of every metric.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from dampnet.ride.metrics import ride_metrics, transmissibility
+from dampnet.ride.pyloop import (Controller, LinearDamper, LoopError, NeuralLoopDamper, TableLoopDamper,
+                                 TruthLoopDamper, Vehicle, run as py_run)
+from dampnet.roads import Road, impulse, sine_sweep, thesis_rough_road
+
+SCHEMA = "dampnet.study/1"
+SPEEDS = (10.0, 20.0)
+# Metrics compared with the truth (relative error) in `errors`.
+ERROR_METRICS = ("acc_rms_m_s2", "acc_wk_rms_m_s2", "disp_peak_to_rms", "travel_rms_m", "tyre_load_rms_n")
+
+
+@dataclass
+class DamperSpec:
+    """A damper model for the loop: kind in truth/neural/hybrid/lookup/linear; obj the model."""
+
+    name: str
+    kind: str
+    obj: Any = None
+    u_range: tuple = (0.0, 5.0)
+    meta: dict = field(default_factory=dict)
+
+    def python_damper(self):
+        if self.kind == "truth":
+            return TruthLoopDamper(effects=self.obj or ())
+        if self.kind in ("neural", "hybrid"):
+            return NeuralLoopDamper(self.obj)
+        if self.kind == "lookup":
+            return TableLoopDamper(self.obj)
+        if self.kind == "linear":
+            return LinearDamper(self.obj)
+        raise LoopError(f"no Python form of a {self.kind!r} damper")
+
+
+def neural_spec(model, name: str = "neural") -> DamperSpec:
+    u_range = (0.0, 5.0)
+    for key in ("voltage", "current"):
+        if key in model.features:
+            i = model.features.index(key)
+            u_range = (float(model.sat_lo[i]), float(model.sat_hi[i]))
+    kind = "hybrid" if model.terms else "neural"
+    return DamperSpec(name, kind, model, u_range, meta=dict(model_id=model.model_id()))
+
+
+def lookup_spec(table, name: str = "lookup") -> DamperSpec:
+    return DamperSpec(name, "lookup", table, (float(table.voltages[0]), float(table.voltages[-1])))
+
+
+def truth_spec(effects=(), name: str = "truth") -> DamperSpec:
+    return DamperSpec(name, "truth", list(effects), (0.0, 5.0), meta=dict(effects=list(effects)))
+
+
+def damping_levels(spec: DamperSpec, dt: float = 1e-3) -> dict:
+    """{'low': u, 'high': u}: the ends of the control range giving the least / most damping."""
+    lo, hi = spec.u_range
+    score = {}
+    for u in (lo, hi):
+        tot = 0.0
+        for v in (0.5, -0.5):
+            d = spec.python_damper()
+            d.reset()
+            f = 0.0
+            for _ in range(50):                    # past the truth damper's 2 ms lag
+                f = d.force(0.0, v, 0.0, u, dt)
+            tot += abs(f)
+        score[u] = tot
+    high = lo if score[lo] >= score[hi] else hi
+    low = hi if high == lo else lo
+    return dict(low=float(low), high=float(high))
+
+
+def core_loop_available() -> bool:
+    try:
+        from dampnet import loop  # noqa: F401
+    except ImportError:
+        return False
+    return hasattr(loop, "simulate")
+
+
+def _core_run(spec, z_r, v_r, vehicle, controller):   # pragma: no cover - needs the runtime's loop
+    raise NotImplementedError("the runtime's loop binding (dampnet.loop.simulate) is not available")
+
+
+def simulate(spec: DamperSpec, road: Road, speed: float | None = None, controller: Controller | None = None,
+             vehicle: Vehicle | None = None, backend: str = "auto", transfer: bool | None = None) -> dict:
+    """One run: {'arrays': {...}, 'metrics': {...}, 'transmissibility': {...} (sweeps), 'backend': str}."""
+    veh = vehicle or Vehicle()
+    ctrl = controller or Controller()
+    veh.validate()
+    ctrl.validate()
+    s = road.sample(veh.dt, speed)
+    use_core = backend == "core" or (backend == "auto" and spec.kind != "truth" and core_loop_available())
+    if use_core:
+        arr = _core_run(spec, s.z, s.zdot, veh, ctrl)
+        used = "core"
+    else:
+        arr = py_run(spec.python_damper(), s.z, s.zdot, veh, ctrl)
+        used = "python"
+    f_static = arr.pop("f_static", None)
+    metrics = ride_metrics(arr["t"], arr["z_s"], arr["z_us"], arr["z_r"], arr["acc_s"], veh.k_t,
+                           veh.m_s, veh.m_us)
+    out = dict(arrays=arr, metrics=metrics, backend=used, f_static_n=f_static, road=road.meta,
+               speed_m_s=speed, controller=ctrl.to_dict(), vehicle=veh.to_dict(), damper=spec.name)
+    if transfer or (transfer is None and road.meta.get("input") == "sine_sweep"):
+        f1 = road.meta.get("f1_hz", 20.0)
+        tr = transmissibility(arr["z_r"], arr["z_s"], 1.0 / veh.dt, fmin=road.meta.get("f0_hz", 0.5),
+                              fmax=f1)
+        out["transmissibility"] = tr
+        metrics["transmissibility_peak"] = float(np.max(tr["magnitude"]))
+        metrics["transmissibility_peak_hz"] = float(tr["f_hz"][np.argmax(tr["magnitude"])])
+    return out
+
+
+def _rel(a: float, b: float) -> float:
+    return float((a - b) / b) if b != 0 and math.isfinite(a) and math.isfinite(b) else float("nan")
+
+
+def run_study(specs: list[DamperSpec], truth: DamperSpec | None = None, dt: float = 1e-3,
+              speeds=SPEEDS, seed: int = 0, sweep: Road | None = None, pulse: Road | None = None,
+              rough: Road | None = None, keep_runs: bool = False, progress=None) -> dict:
+    """The chapter 5 study; see the module docstring. Returns a JSON-ready dict (arrays only if keep_runs)."""
+    all_specs = list(specs) + ([truth] if truth is not None else [])
+    names = [s.name for s in all_specs]
+    if len(set(names)) != len(names):
+        raise ValueError(f"damper names must be unique, got {names}")
+    veh = Vehicle(dt=dt)
+    roads = dict(impulse=pulse or impulse(), sine_sweep=sweep or sine_sweep(),
+                 rough_road=rough or thesis_rough_road(seed=seed))
+    levels = {s.name: damping_levels(s, dt) for s in all_specs}
+    res: dict[str, Any] = dict(schema=SCHEMA, models=names, truth=truth.name if truth else None,
+                               settings=dict(dt_s=dt, vehicle=veh.to_dict(), speeds_m_s=list(speeds),
+                                             damping_levels=levels,
+                                             roads={k: r.meta for k, r in roads.items()},
+                                             backends={}),
+                               impulse={}, sine_sweep={}, rough_road={}, skyhook={}, errors={})
+    runs: dict[str, Any] = {}
+
+    def go(section, case, spec, road, speed, ctrl):
+        if progress:
+            progress(f"{section} {case} {spec.name}")
+        r = simulate(spec, road, speed, ctrl, veh)
+        res[section].setdefault(case, {})[spec.name] = r["metrics"]
+        res["settings"]["backends"][spec.name] = r["backend"]
+        if keep_runs:
+            runs.setdefault(section, {}).setdefault(case, {})[spec.name] = r
+        return r
+
+    for spec in all_specs:
+        lv = levels[spec.name]
+        for level in ("low", "high"):
+            passive = Controller(kind="passive", u_passive=lv[level])
+            go("impulse", level, spec, roads["impulse"], None, passive)
+            go("sine_sweep", level, spec, roads["sine_sweep"], None, passive)
+            for v in speeds:
+                go("rough_road", f"{v:g}_{level}", spec, roads["rough_road"], v, passive)
+        for v in speeds:
+            sky = Controller(kind="skyhook", u_soft=lv["low"], u_hard=lv["high"],
+                             u_min=min(lv.values()), u_max=max(lv.values()))
+            go("skyhook", f"{v:g}_skyhook", spec, roads["rough_road"], v, sky)
+            res["skyhook"].setdefault(f"{v:g}_passive_low", {})[spec.name] = \
+                res["rough_road"][f"{v:g}_low"][spec.name]
+            res["skyhook"].setdefault(f"{v:g}_passive_high", {})[spec.name] = \
+                res["rough_road"][f"{v:g}_high"][spec.name]
+    if truth is not None:
+        for section in ("impulse", "sine_sweep", "rough_road", "skyhook"):
+            for case, by_model in res[section].items():
+                ref = by_model[truth.name]
+                for spec in specs:
+                    res["errors"].setdefault(section, {}).setdefault(case, {})[spec.name] = {
+                        k: _rel(by_model[spec.name][k], ref[k]) for k in ERROR_METRICS}
+    if keep_runs:
+        res["_runs"] = runs
+    return res
+
+
+def text_tables(res: dict) -> str:
+    """Short text tables: Table 6 (sweep/impulse), Table 7 (rough road), skyhook, errors vs truth."""
+    models = res["models"]
+    lines = []
+
+    def table(title, section, cases, metric, fmt="{:10.4f}"):
+        lines.append(title)
+        lines.append("  " + f"{'case':<16}" + "".join(f"{m:>12}" for m in models))
+        for c in cases:
+            row = res[section].get(c, {})
+            lines.append("  " + f"{c:<16}" + "".join(
+                f"{fmt.format(row[m][metric]) if m in row else '':>12}" for m in models))
+
+    table("Table 6 - sine sweep: sprung acceleration RMS [m/s^2]", "sine_sweep", ("low", "high"), "acc_rms_m_s2")
+    table("Table 6 - sine sweep: sprung displacement peak-to-RMS", "sine_sweep", ("low", "high"), "disp_peak_to_rms")
+    table("Impulse: sprung acceleration RMS [m/s^2]", "impulse", ("low", "high"), "acc_rms_m_s2")
+    table("Impulse: sprung displacement peak-to-RMS", "impulse", ("low", "high"), "disp_peak_to_rms")
+    table("Table 7 - rough road: sprung acceleration RMS [m/s^2]", "rough_road", list(res["rough_road"]),
+          "acc_rms_m_s2")
+    table("Skyhook vs passive, rough road: sprung acceleration RMS [m/s^2]", "skyhook", list(res["skyhook"]),
+          "acc_rms_m_s2")
+    table("Skyhook vs passive, rough road: sprung displacement RMS [m]", "skyhook", list(res["skyhook"]),
+          "disp_rms_m", fmt="{:10.5f}")
+    if res.get("errors"):
+        lines.append(f"Error of sprung acceleration RMS against the truth ({res['truth']}), %")
+        others = [m for m in models if m != res["truth"]]
+        lines.append("  " + f"{'case':<28}" + "".join(f"{m:>12}" for m in others))
+        for section, cases in res["errors"].items():
+            for c, by in cases.items():
+                lines.append("  " + f"{section + ' ' + c:<28}" + "".join(
+                    f"{100 * by[m]['acc_rms_m_s2']:>11.2f}%" for m in others))
+    return "\n".join(lines)
+
+
+def plot_run(run: dict, path, title: str = "") -> None:
+    """Time histories of one run (road, sprung displacement, sprung acceleration, travel) as PNG."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    a = run["arrays"]
+    fig, ax = plt.subplots(4, 1, figsize=(9, 8), sharex=True)
+    ax[0].plot(a["t"], a["z_r"] * 1e3, lw=0.7)
+    ax[0].set_ylabel("road [mm]")
+    ax[1].plot(a["t"], a["z_s"] * 1e3, lw=0.7)
+    ax[1].set_ylabel("sprung disp. [mm]")
+    ax[2].plot(a["t"], a["acc_s"], lw=0.7)
+    ax[2].set_ylabel("sprung acc. [m/s²]")
+    ax[3].plot(a["t"], (a["z_s"] - a["z_us"]) * 1e3, lw=0.7)
+    ax[3].set_ylabel("travel [mm]")
+    ax[3].set_xlabel("time [s]")
+    fig.suptitle(title or run.get("damper", ""))
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_overlay(runs: dict, path, title: str, key: str = "acc_s", ylabel: str = "sprung acc. [m/s²]") -> None:
+    """One channel of several runs (name -> run) on one axis, as PNG."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(9, 3.5))
+    for name, r in runs.items():
+        ax.plot(r["arrays"]["t"], r["arrays"][key], lw=0.7, label=name)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_transmissibility(runs: dict, path, title: str = "Transmissibility z_s / z_r") -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for name, r in runs.items():
+        tr = r["transmissibility"]
+        ax.loglog(tr["f_hz"], tr["magnitude"], lw=0.8, label=name)
+    ax.set_xlabel("frequency [Hz]")
+    ax.set_ylabel("|z_s / z_r|")
+    ax.set_title(title)
+    ax.grid(True, which="both", lw=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def write_plots(res: dict, out_dir) -> list:
+    """Plots of a study run with keep_runs=True: overlays per case and transmissibility."""
+    from pathlib import Path
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    runs = res.get("_runs", {})
+    for section, cases in runs.items():
+        for case, by_model in cases.items():
+            p = out / f"{section}_{case}.png"
+            plot_overlay(by_model, p, f"{section} {case}")
+            written.append(p)
+            if section == "sine_sweep":
+                p = out / f"transmissibility_{case}.png"
+                plot_transmissibility(by_model, p, f"Transmissibility, {case} damping")
+                written.append(p)
+    return written
+
+
+def jsonable(res: dict) -> dict:
+    """The study dict without arrays (for JSON)."""
+    return {k: v for k, v in res.items() if not k.startswith("_")}
