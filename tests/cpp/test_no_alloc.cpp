@@ -31,6 +31,11 @@ extern "C" void* realloc(void* p, size_t n) {
 }
 #endif
 
+// The replacements below pair new with malloc and delete with free on purpose.
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
+#endif
+
 void* operator new(std::size_t n) {
   if (g_counting) ++g_allocs;
   void* p = std::malloc(n ? n : 1);

@@ -20,9 +20,8 @@ namespace dampnet {
 
 enum class Activation : int { tanh = DN_ACT_TANH, sigmoid = DN_ACT_SIGMOID };
 
-inline float fast_tanh(float a) noexcept {
-  // Outside [-9, 9] tanh rounds to +-1 in float; clamping also maps +-Inf.
-  const float x = a < -9.f ? -9.f : (a > 9.f ? 9.f : a);
+// The rational interpolant itself, valid for |x| <= 9 (callers clamp first).
+inline float tanh_rational(float x) noexcept {
   const float x2 = x * x;
   float p = -2.76076847742355e-16f;
   p = p * x2 + 2.00018790482477e-13f;
@@ -39,7 +38,17 @@ inline float fast_tanh(float a) noexcept {
   return p / q;
 }
 
+// Outside [-9, 9] tanh rounds to +-1 in float; clamping also maps +-Inf.
+inline float clamp_tanh_arg(float a) noexcept {
+  const float x = a > 9.f ? 9.f : a;
+  return x < -9.f ? -9.f : x;
+}
+
+inline float fast_tanh(float a) noexcept { return tanh_rational(clamp_tanh_arg(a)); }
+
 inline double fast_tanh(double a) noexcept { return std::tanh(a); }
+inline double clamp_tanh_arg(double a) noexcept { return a; }
+inline double tanh_rational(double a) noexcept { return std::tanh(a); }
 
 // Activation applied to one pre-activation value.
 template <typename T>

@@ -47,11 +47,15 @@ inline void dense_t(const T* wt, const T* b, const T* x, T* y, int n_in, int n_o
   const int ni = kIn > 0 ? kIn : n_in;
   const int no = kOut > 0 ? kOut : n_out;
 #ifdef DAMPNET_USE_EIGEN
-  using Mat = Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-  using Vec = Eigen::Matrix<T, Eigen::Dynamic, 1>;
+  // Compile-time dimensions where known, so Eigen picks exact-size code paths.
+  constexpr int R = kIn > 0 ? kIn : Eigen::Dynamic, C = kOut > 0 ? kOut : Eigen::Dynamic;
+  using Mat = Eigen::Matrix<T, R, C, (C == 1 ? Eigen::ColMajor : Eigen::RowMajor)>;
+  using VecIn = Eigen::Matrix<T, R, 1>;
+  using VecOut = Eigen::Matrix<T, C, 1>;
   Eigen::Map<const Mat> W(wt, ni, no);
-  Eigen::Map<const Vec> xv(x, ni), bv(b, no);
-  Eigen::Map<Vec> yv(y, no);
+  Eigen::Map<const VecIn> xv(x, ni);
+  Eigen::Map<const VecOut> bv(b, no);
+  Eigen::Map<VecOut> yv(y, no);
   yv.noalias() = bv;
   yv.noalias() += W.transpose() * xv;
 #else
@@ -64,14 +68,16 @@ inline void dense_t(const T* wt, const T* b, const T* x, T* y, int n_in, int n_o
 #endif
 }
 
+// Hidden activations in two passes, clamp then rational: with IEEE trapping
+// semantics GCC will not vectorise a loop that both branches and divides.
 template <typename T, int kN>
 inline void activate_all(Activation act, T* h, int n) noexcept {
   const int nn = kN > 0 ? kN : n;
-  if (act == Activation::sigmoid) {
-    for (int j = 0; j < nn; ++j) h[j] = T(0.5) + T(0.5) * fast_tanh(T(0.5) * h[j]);
-  } else {
-    for (int j = 0; j < nn; ++j) h[j] = fast_tanh(h[j]);
-  }
+  const T pre = act == Activation::sigmoid ? T(0.5) : T(1);
+  for (int j = 0; j < nn; ++j) h[j] = clamp_tanh_arg(pre * h[j]);
+  for (int j = 0; j < nn; ++j) h[j] = tanh_rational(h[j]);
+  if (act == Activation::sigmoid)
+    for (int j = 0; j < nn; ++j) h[j] = T(0.5) + T(0.5) * h[j];
 }
 
 // Saturate and scale the inputs; returns the warning bits, sets the mask.
@@ -120,15 +126,21 @@ DN_REALTIME inline int forward(const P& p, const T* x, T* y, uint32_t* clamped_m
   const T* last = a1;
   int n_last = h1;
   alignas(32) T a2[cap_h2 > 0 ? cap_h2 : 1];
-  if (kH2 != 0 && h2 > 0) {
-    dense_t<T, kH1, (kH2 > 0 ? kH2 : kDynamic)>(p.w2t.data(), p.b2.data(), a1, a2, h1, h2);
-    activate_all<T, (kH2 > 0 ? kH2 : kDynamic)>(p.act, a2, h2);
-    last = a2;
-    n_last = h2;
+  if constexpr (kH2 != 0) {  // compiled out for one hidden layer
+    if (h2 > 0) {
+      dense_t<T, kH1, (kH2 > 0 ? kH2 : kDynamic)>(p.w2t.data(), p.b2.data(), a1, a2, h1, h2);
+      activate_all<T, (kH2 > 0 ? kH2 : kDynamic)>(p.act, a2, h2);
+      last = a2;
+      n_last = h2;
+    }
   }
 
-  T ys = p.b_out;
-  for (int j = 0; j < n_last; ++j) ys += p.w_out[j] * last[j];
+  // Output: eight interleaved partial sums, so the adds pipeline instead of
+  // forming one 30-long dependency chain (the order is fixed, so results are
+  // identical on every path).
+  T part[8] = {};
+  for (int j = 0; j < n_last; ++j) part[j & 7] += p.w_out[j] * last[j];
+  T ys = p.b_out + (((part[0] + part[4]) + (part[1] + part[5])) + ((part[2] + part[6]) + (part[3] + part[7])));
   T out = (ys - p.out_ymin) / p.out_gain + p.out_offset;
   if (!std::isfinite(out)) {
     out = p.out_offset;
