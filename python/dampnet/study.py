@@ -4,12 +4,14 @@ A *damper spec* (`DamperSpec`) names a damper model and how to build it for a
 loop: 'truth' (the rig's physical damper, `dampnet.data.rig.truth`),
 'neural' / 'hybrid' (an `MlpModel`), 'lookup' (a `LookupTable`), 'linear'.
 
-Backends. Runs go through the runtime's C++ loop (`dampnet.loop`) when it is
-built and offers `simulate`; the rig's truth damper exists only in Python, and
-runs through `dampnet.ride.pyloop`, the same equations and scheme as the
-runtime's loop with one damper evaluation per step (see its docstring). For a
-like-for-like comparison every model in a study is run with one damper
-evaluation per step (RK4, force held over the step) at the same dt; the
+Backends. Runs go through the runtime's C++ loop (`dampnet._core.Loop`,
+RK4 with one damper evaluation per step, `damper_eval="per_step"`) when it is
+built; the rig's truth damper exists only in Python and enters that loop as a
+callback damper (`_core.Damper.callback`), stepped once per loop step as its
+`step(dt, ...)` requires. Without the runtime, `dampnet.ride.pyloop` runs the
+same equations with the same scheme (checked against the runtime in
+tests/python/test_simulate.py). Every model in a study runs with one damper
+evaluation per step at the same dt, so they are compared like for like; the
 backend of each run is recorded under `settings.backends`.
 
 Damping levels: "low" and "high" damping are the controls giving the least
@@ -106,15 +108,77 @@ def damping_levels(spec: DamperSpec, dt: float = 1e-3) -> dict:
 
 
 def core_loop_available() -> bool:
+    """True when the runtime's C++ loop (dampnet._core.Loop) is built."""
     try:
-        from dampnet import loop  # noqa: F401
+        from dampnet import _core
     except ImportError:
         return False
-    return hasattr(loop, "simulate")
+    return all(hasattr(_core, n) for n in ("Loop", "LoopModel", "Damper"))
 
 
-def _core_run(spec, z_r, v_r, vehicle, controller):   # pragma: no cover - needs the runtime's loop
-    raise NotImplementedError("the runtime's loop binding (dampnet.loop.simulate) is not available")
+_CORE_LAWS = {"passive": "passive", "skyhook": "skyhook_onoff", "skyhook_continuous": "skyhook_continuous",
+              "groundhook": "groundhook_onoff", "groundhook_continuous": "groundhook_continuous"}
+
+
+def core_damper(spec: DamperSpec):
+    """The runtime's damper (dampnet._core.Damper) for a spec; for the truth, (callback damper, its TruthLoopDamper)."""
+    from dampnet import _core
+
+    if spec.kind == "linear":
+        return _core.Damper.linear(float(spec.obj))
+    if spec.kind == "lookup":
+        t = spec.obj
+        return _core.Damper.table(t.velocities, t.voltages, np.ascontiguousarray(t.forces))
+    if spec.kind in ("neural", "hybrid"):
+        m = spec.obj
+        d = _core.Damper.neural(m.core(), list(m.features), dict(m.feature_params))
+        for term in m.terms:
+            d.add_term(term["kind"], np.asarray(term["params"], dtype=np.float64))
+        return d
+    if spec.kind == "truth":
+        truth = spec.python_damper()
+
+        def fn(inp):   # called once per step (damper_eval per_step)
+            return truth.force(inp.x, inp.v, inp.a, inp.u, inp.dt)
+
+        return _core.Damper.callback(fn), truth
+    raise LoopError(f"no runtime form of a {spec.kind!r} damper")
+
+
+def _core_run(spec: DamperSpec, z_r, v_r, vehicle: Vehicle, controller: Controller) -> dict:
+    """Run in the runtime's C++ loop (RK4, one damper evaluation per step); arrays as pyloop.run."""
+    from dampnet import _core
+
+    damper = core_damper(spec)
+    truth = None
+    if spec.kind == "truth":
+        damper, truth = damper
+    u0 = controller.law(0.0, 0.0)
+    if vehicle.f_static is None:
+        f_static = float(spec.python_damper().force_at_rest(u0, vehicle.dt)) if spec.kind == "truth" else \
+            float(damper.forces(np.array([vehicle.x_static]), np.zeros(1), np.zeros(1), np.array([u0]),
+                                np.array([u0]), np.array([20.0]))[0][0])
+    else:
+        f_static = float(vehicle.f_static)
+    veh = dict(m_s=vehicle.m_s, m_us=vehicle.m_us, k_s=vehicle.k_s, k_t=vehicle.k_t, c_t=vehicle.c_t,
+               dt=vehicle.dt, x_static=vehicle.x_static, f_static=f_static, integrator="rk4",
+               damper_eval="per_step")
+    ctrl = {k: v for k, v in controller.to_dict().items() if k != "kind"}
+    ctrl["kind"] = _CORE_LAWS[controller.kind]
+    loop = _core.Loop(_core.LoopModel(damper, veh, ctrl))
+    if truth is not None:
+        truth.reset()
+    r = loop.simulate(np.ascontiguousarray(z_r, dtype=np.float64), np.ascontiguousarray(v_r, dtype=np.float64))
+    st = r["state"]
+    names = list(_core.STATE_NAMES)
+    n = st.shape[0] - 1          # the last report is at the road's end (no step): drop, as pyloop
+    out = dict(t=st[:n, names.index("t")], z_s=st[:n, names.index("z_s")], v_s=st[:n, names.index("v_s")],
+               z_us=st[:n, names.index("z_us")], v_us=st[:n, names.index("v_us")],
+               z_r=st[:n, names.index("z_r")], acc_s=r["acc_s"][:n], acc_us=r["acc_us"][:n],
+               force=r["force"][:n], u=r["control"][:n], x=r["x"][:n], v=r["v"][:n], a=r["a"][:n])
+    out = {k: np.array(v) for k, v in out.items()}
+    out["f_static"] = f_static
+    return out
 
 
 def simulate(spec: DamperSpec, road: Road, speed: float | None = None, controller: Controller | None = None,
@@ -125,7 +189,9 @@ def simulate(spec: DamperSpec, road: Road, speed: float | None = None, controlle
     veh.validate()
     ctrl.validate()
     s = road.sample(veh.dt, speed)
-    use_core = backend == "core" or (backend == "auto" and spec.kind != "truth" and core_loop_available())
+    if backend not in ("auto", "core", "python"):
+        raise ValueError(f"backend must be auto, core or python, got {backend!r}")
+    use_core = backend == "core" or (backend == "auto" and core_loop_available())
     if use_core:
         arr = _core_run(spec, s.z, s.zdot, veh, ctrl)
         used = "core"
