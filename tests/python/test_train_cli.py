@@ -1,0 +1,203 @@
+"""`dampnet train` and dampnet.workflow: model directory, hold-out, errors, reproducibility,
+feature checks, hybrid terms; the thesis-plan accuracy floor and the noise floor."""
+
+import json
+
+import numpy as np
+import pytest
+
+from dampnet.cli import main
+from dampnet.data import DataError, write_dataset
+from dampnet.data.rig import generate
+from dampnet.model import MlpModel
+from dampnet.train import nrmse
+from dampnet.workflow import (feature_matrix, noise_floors, predict_force, save_model_dir,
+                              terms_force, train_dataset)
+
+# Small but voltage-rich: the MLP has to interpolate to the held-out 2.25 V.
+SMALL_PLAN = {"name": "small", "frequencies_hz": [0.5, 1.5, 3.0], "amplitudes_m": [0.0254],
+              "voltages_v": [0.0, 1.0, 2.25, 3.0, 4.0, 5.0], "samples": 2500}
+
+
+@pytest.fixture(scope="module")
+def small_dir(tmp_path_factory):
+    d = tmp_path_factory.mktemp("data") / "small"
+    write_dataset(generate(SMALL_PLAN, seed=5), d)
+    return d
+
+
+@pytest.fixture(scope="module")
+def trained(small_dir, tmp_path_factory):
+    out = tmp_path_factory.mktemp("models") / "m"
+    rc = main(["train", str(small_dir), "--out", str(out), "--decimate", "10", "--quiet", "--seed", "1"])
+    assert rc == 0
+    return out
+
+
+def test_model_dir_holds_model_metrics_and_header(trained):
+    assert sorted(p.name for p in trained.iterdir()) == ["metrics.json", "model.h", "model.json"]
+    model = MlpModel.load(trained)
+    assert model.features == ["velocity", "acceleration", "voltage"]
+    assert model.hidden == (30,) and model.activation == "tanh"
+    meta = model.meta
+    for key in ("algorithm", "settings", "training_time_s", "seed", "data", "metrics"):
+        assert key in meta
+    assert meta["algorithm"] == "lm" and meta["data"]["decimate"] == 10
+    assert len(meta["data"]["holdout_tests"]) == 3 and meta["data"]["holdout_voltage"] == 2.25
+    assert set(meta["data"]["holdout_tests"]).isdisjoint(meta["data"]["train_tests"])
+    header = (trained / "model.h").read_text()
+    assert "DN_MODEL_DESC_INIT" in header and model.model_id() in header
+    metrics = json.loads((trained / "metrics.json").read_text())
+    for key in ("nrmse", "rmse_n", "max_abs_error_n", "mean_pct_error"):
+        assert key in metrics["holdout"]["overall"] and key in metrics["holdout_lookup"]["overall"]
+    assert [r["frequency_hz"] for r in metrics["holdout"]["per_frequency"]] == [0.5, 1.5, 3.0]
+    assert metrics["noise_floor"]["nrmse_range"] < metrics["noise_floor"]["nrmse_std"]
+
+
+def test_model_json_round_trips(trained):
+    d = json.loads((trained / "model.json").read_text())
+    model = MlpModel.from_dict(d)
+    assert json.loads(json.dumps(model.to_dict())) == d
+    again = MlpModel.from_dict(json.loads(json.dumps(model.to_dict())))
+    x = np.array([[0.1, 2.0, 1.5], [-0.3, -5.0, 4.0]])
+    np.testing.assert_array_equal(again.predict(x), model.predict(x))
+
+
+def test_holdout_prediction_generalises_and_beats_constant(trained, small_dir):
+    """The 2.25 V tests were never seen; the MLP still predicts them far better than a constant."""
+    metrics = json.loads((trained / "metrics.json").read_text())
+    ho = metrics["holdout"]["overall"]
+    assert ho["nrmse"] < 0.05
+    assert metrics["training"]["nrmse"]["test"] < 0.02
+
+
+def test_refuses_existing_dir_unless_force(trained, small_dir, capsys):
+    before = (trained / "model.json").read_text()
+    rc = main(["train", str(small_dir), "--out", str(trained), "--quiet", "--decimate", "50"])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.startswith("dampnet: error:") and "--force" in err and err.count("\n") == 1
+    assert (trained / "model.json").read_text() == before
+
+
+def test_force_replaces_atomically(tmp_path):
+    X = np.random.default_rng(0).normal(size=(50, 3))
+    from dampnet.train import fit
+
+    m1, _ = fit(X, X[:, 0], features=["velocity", "acceleration", "voltage"], hidden=(3,), max_epochs=2)
+    out = tmp_path / "m"
+    save_model_dir(m1, {"a": 1}, out)
+    with pytest.raises(FileExistsError):
+        save_model_dir(m1, {"a": 2}, out)
+    save_model_dir(m1, {"a": float("nan")}, out, force=True)
+    assert json.loads((out / "metrics.json").read_text()) == {"a": None}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m"]  # no temporary leftovers
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--holdout-voltage", "1.1"], "nothing to hold out"),
+    (["--terms", "[{oops"], "--terms: not valid JSON"),
+    (["--features", "velocity,colour"], "unknown feature"),
+    (["--features", "velocity,temperature"], "'temperature'"),
+    (["--hidden", "3x"], "--hidden"),
+    (["--add", "no_such_effect"], "no_such_effect"),
+    (["--holdout-tests", "T999"], "T999"),
+])
+def test_bad_input_is_one_line_and_exit_2(small_dir, tmp_path, capsys, argv, message):
+    rc = main(["train", str(small_dir), "--out", str(tmp_path / "m"), "--quiet", *argv])
+    err = capsys.readouterr().err
+    assert rc == 2, err
+    assert err.startswith("dampnet: error:") and message in err and err.count("\n") == 1
+    assert not (tmp_path / "m").exists()
+
+
+def test_missing_data_file_is_a_clean_error(tmp_path, capsys):
+    rc = main(["train", str(tmp_path / "nope"), "--out", str(tmp_path / "m"), "--quiet"])
+    assert rc == 2 and capsys.readouterr().err.startswith("dampnet: error:")
+
+
+def test_same_seed_same_model_other_seed_differs():
+    ds = generate(SMALL_PLAN, seed=2)
+    kw = dict(decimate=50, hidden=(8,), max_epochs=20)
+    a, _, _ = train_dataset(ds, seed=3, **kw)
+    b, _, _ = train_dataset(generate(SMALL_PLAN, seed=2), seed=3, **kw)
+    c, _, _ = train_dataset(ds, seed=4, **kw)
+    assert a.model_id() == b.model_id()
+    np.testing.assert_array_equal(a.w1, b.w1)
+    assert a.model_id() != c.model_id()
+
+
+def test_model_refuses_data_without_its_feature(tmp_path, capsys):
+    thermal = generate("quick", effects=["thermal"], seed=0)
+    model, _, _ = train_dataset(thermal, features=["velocity", "acceleration", "voltage", "temperature"],
+                                decimate=50, hidden=(6,), max_epochs=10)
+    assert model.features[-1] == "temperature" and model.units[-1] == "degC"
+    plain = generate("quick", seed=0)
+    with pytest.raises(DataError, match="'temperature'"):
+        predict_force(model, plain.tests[0])
+    # and through the CLI: one line, exit 2, naming the feature
+    save_model_dir(model, {}, tmp_path / "m")
+    write_dataset(plain, tmp_path / "plain")
+    rc = main(["evaluate", str(tmp_path / "m"), str(tmp_path / "plain")])
+    err = capsys.readouterr().err
+    assert rc == 2 and "temperature" in err and err.count("\n") == 1
+
+
+def test_zero_points_can_be_switched_off():
+    ds = generate("quick", seed=0)
+    on, info_on, _ = train_dataset(ds, decimate=50, hidden=(4,), max_epochs=2)
+    off, info_off, _ = train_dataset(ds, decimate=50, hidden=(4,), max_epochs=2, zero_points=False)
+    assert info_on.n_zero_points > 0 and info_off.n_zero_points == 0
+    assert on.meta["zero_points"] is True and off.meta["zero_points"] is False
+
+
+def test_hybrid_position_poly_is_fitted_and_added_to_predictions(tmp_path):
+    """Gas-spring data: the position polynomial takes the position-dependent force; the model's
+    prediction is MLP + terms, and the terms survive model.json."""
+    ds = generate(SMALL_PLAN, effects=["gas_spring"], seed=3)
+    model, info, split = train_dataset(ds, terms=[{"kind": "position_poly"}], decimate=25,
+                                       hidden=(10,), max_epochs=60)
+    (term,) = model.terms
+    assert term["kind"] == "position_poly" and len(term["params"]) == 4
+    # the gas pushes the rod out (negative force), harder the further it is compressed (x < 0):
+    # the force rises with x
+    assert term["params"][1] > 0
+    t = split.holdout.tests[0]
+    X = feature_matrix([t], model.features)
+    x = t.channels["displacement"]
+    np.testing.assert_allclose(predict_force(model, t), model.predict(X) + terms_force(model.terms, x))
+    assert nrmse(predict_force(model, t), t.channels["force"]) < 0.06
+    back = MlpModel.load(model.save(tmp_path / "model.json"))
+    assert back.terms == json.loads(json.dumps(model.terms))
+    np.testing.assert_allclose(predict_force(back, t), predict_force(model, t), rtol=1e-12)
+
+
+def test_given_term_params_are_kept():
+    ds = generate("quick", seed=0)
+    terms = [{"kind": "position_poly", "params": [10.0, 0.0, 0.0, 0.0]}]
+    model, _, _ = train_dataset(ds, terms=terms, decimate=50, hidden=(4,), max_epochs=3)
+    assert model.terms[0]["params"] == [10.0, 0.0, 0.0, 0.0]
+
+
+@pytest.mark.parametrize("algorithm", ["lm", "br", "scg", "adam"])
+def test_each_algorithm_beats_a_constant_by_far(algorithm):
+    ds = generate(SMALL_PLAN, seed=4)
+    model, info, split = train_dataset(ds, algorithm=algorithm, decimate=25, max_epochs=150, seed=0)
+    f = split.train_used.concat("force")
+    const = nrmse(np.full_like(f, f.mean()), f)  # about 0.23 on sine tests
+    assert info.metrics["test"] < 0.2 * const, (algorithm, info.metrics, const)
+
+
+def test_thesis_plan_lm_beats_the_thesis_and_approaches_the_noise_floor(record_property):
+    """Default rig data (thesis plan, no effects), 2.25 V held out: LM's hold-out NRMSE must be
+    at least as good as the thesis's 0.0339. The goal is the noise floor in the same
+    (range) definition; both figures are recorded in the test report."""
+    ds = generate("thesis", seed=0)
+    model, info, split = train_dataset(ds, algorithm="lm", decimate=25, seed=0)
+    preds = np.concatenate([predict_force(model, t) for t in split.holdout.tests])
+    ho = nrmse(preds, split.holdout.concat("force"))
+    floor = noise_floors(split.holdout)["nrmse_range"]
+    record_property("holdout_nrmse", ho)
+    record_property("noise_floor_nrmse_range", floor)
+    print(f"thesis plan: LM hold-out NRMSE {ho:.5f}, noise floor {floor:.5f}, time {info.time_s:.1f} s")
+    assert ho <= 0.0339
+    assert floor < ho < 10 * floor
