@@ -275,7 +275,7 @@ class Damper {
     const double wv = (v - tab.v[i]) / (tab.v[i + 1] - tab.v[i]);
     auto row = [&](int j) {
       const double* fr = tab.f + j * nv;
-      return fr[i] + wv * (fr[i + 1] - fr[i]);
+      return (1.0 - wv) * fr[i] + wv * fr[i + 1];  // exact at grid points
     };
     if (nu == 1) return row(0);
     if (u < tab.u[0] || u > tab.u[nu - 1]) {
@@ -285,7 +285,7 @@ class Damper {
     const int j = segment(tab.u, nu, u);
     const double wu = (u - tab.u[j]) / (tab.u[j + 1] - tab.u[j]);
     const double f0 = row(j), f1 = row(j + 1);
-    return f0 + wu * (f1 - f0);
+    return (1.0 - wu) * f0 + wu * f1;
   }
 
  private:

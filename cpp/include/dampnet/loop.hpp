@@ -183,6 +183,13 @@ inline bool finite_all(const double* x, int n) noexcept {
   return true;
 }
 
+// A model force overflowing on finite inputs means the state has run away
+// (a callback's non-finite force is the callback's error and stays one).
+inline int diverged_if_overflow(const LoopModel& m, int st) noexcept {
+  return (st == DN_E_NONFINITE_OUTPUT && m.damper.kind != DN_DAMPER_CALLBACK) ? int(DN_E_DIVERGED)
+                                                                               : st;
+}
+
 // Everything at the step start: control, first damper evaluation, report.
 struct Start {
   double u;
@@ -199,7 +206,7 @@ inline Start start(const LoopModel& m, const double* s, double u_ext, dn_loop_ou
   r.in = damper_input(m, b, s[S_z_r], s[S_v_r], r.u, s[S_u_lag], s[S_f_last], s[S_temperature],
                       s[S_t], 0);
   double* feat = out ? out->features : nullptr;
-  r.status = m.damper.force(r.in, &r.force, feat, mask);
+  r.status = diverged_if_overflow(m, m.damper.force(r.in, &r.force, feat, mask));
   if (out) {
     const Accel a = accel(m, b, s[S_z_r], s[S_v_r], r.force);
     out->force = r.force;
@@ -278,7 +285,7 @@ DN_REALTIME inline int step(const LoopModel& m, LoopData& d, const dn_loop_input
       const dn_damper_input di =
           detail::damper_input(m, b, zr, vr, u, ul, f_last, temp, t, stage);
       double f = 0.0;
-      const int st = m.damper.force(di, &f, nullptr, nullptr);
+      const int st = detail::diverged_if_overflow(m, m.damper.force(di, &f, nullptr, nullptr));
       d.n_evals += 1;
       if (st < 0) status = st;
       else status |= st;

@@ -1,0 +1,42 @@
+"""Shared pieces of the loop tests: random MLP models and a numpy forward pass."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dampnet.model import MlpModel
+
+# training ranges per feature (input units), wide enough for the loop tests
+RANGES = {
+    "velocity": (-2.0, 2.0), "acceleration": (-200.0, 200.0), "displacement": (-0.1, 0.1),
+    "voltage": (0.0, 5.0), "current": (0.0, 1.2), "voltage_lag": (0.0, 5.0),
+    "current_lag": (0.0, 1.2), "temperature": (-20.0, 120.0),
+}
+UNITS = {"velocity": "m/s", "acceleration": "m/s^2", "displacement": "m", "voltage": "V",
+         "current": "A", "voltage_lag": "V", "current_lag": "A", "temperature": "degC"}
+
+
+def random_model(features, hidden=12, seed=0, terms=(), feature_params=None, force_range=4000.0,
+                 activation="tanh"):
+    rng = np.random.default_rng(seed)
+    n = len(features)
+    lo = np.array([RANGES[f][0] for f in features])
+    hi = np.array([RANGES[f][1] for f in features])
+    return MlpModel(w1=rng.normal(0, 1.0, (hidden, n)), b1=rng.normal(0, 0.5, hidden),
+                    w_out=rng.normal(0, 1.0, hidden) / np.sqrt(hidden), b_out=0.05,
+                    in_offset=lo, in_gain=2.0 / (hi - lo), out_offset=-force_range / 2,
+                    out_gain=2.0 / force_range, sat_lo=lo, sat_hi=hi, features=list(features),
+                    units=[UNITS[f] for f in features], activation=activation, terms=list(terms),
+                    feature_params=dict(feature_params or {}))
+
+
+def numpy_forward(model: MlpModel, x: np.ndarray) -> np.ndarray:
+    """The MLP in numpy, float64: saturate, mapminmax, hidden layers, linear output."""
+    x = np.clip(np.atleast_2d(x), model.sat_lo, model.sat_hi)
+    xs = (x - model.in_offset) * model.in_gain + model.in_ymin
+    act = np.tanh if model.activation == "tanh" else (lambda z: 1.0 / (1.0 + np.exp(-z)))
+    h = act(xs @ model.w1.T + model.b1)
+    if model.w2 is not None:
+        h = act(h @ model.w2.T + model.b2)
+    y = h @ model.w_out + model.b_out
+    return (y - model.out_ymin) / model.out_gain + model.out_offset
