@@ -1,8 +1,11 @@
 // Latency of single-sample MLP forward calls (what a HIL step does), for the
-// default 3-30-1 model compiled in from its generated header.
+// default 3-30-1 model compiled in from its generated header, and of the
+// quarter-car RK4 step with that model as a float neural damper and on-off
+// skyhook (the HIL budget's case), through the C ABI.
 // Usage: dn_bench_mlp [N]   (N timed calls per candidate, default 1e6)
 // Output: one JSON line per candidate (ns), a machine-facts line first.
 #include <cmath>
+#include <algorithm>
 #include <cstdlib>
 #include <fstream>
 #include <random>
@@ -118,7 +121,49 @@ int main(int argc, char** argv) {
     float y; dn_mlp_forward_f(cm, &xf[(i & 1023) * kIn], &y, nullptr); sink = y; }, none, n, warm));
   dn_bench::print_json("naive_cpp_std_tanh", dn_bench::measure([&](long i) {
     sink = naive.forward(&xd[(i & 1023) * kIn]); }, none, n, warm));
+
+  // The quarter-car RK4 step (damper per stage, 4 MLP evaluations) with skyhook.
+  const char* const features[3] = {"velocity", "acceleration", "voltage"};
+  dn_damper* damper = nullptr;
+  dn_vehicle veh;
+  dn_vehicle_default(&veh);
+  dn_controller ctrl;
+  dn_controller_default(&ctrl, DN_CTRL_SKYHOOK_ONOFF);
+  dn_loop_model* lm = nullptr;
+  dn_loop_data* ld = nullptr;
+  if (dn_damper_create_neural(cm, features, 3, nullptr, nullptr, 0, DN_PRECISION_FLOAT, &damper) ||
+      dn_loop_model_create(&veh, damper, &ctrl, &lm) || dn_loop_data_create(lm, &ld))
+    return 1;
+  // A road: 20 mm of mixed 1.3 Hz and 11 Hz content, sampled at the loop's step.
+  std::vector<dn_loop_input> road(4096);
+  for (size_t k = 0; k < road.size(); ++k) {
+    const double t = double(k + 1) * veh.dt, w1 = 2 * M_PI * 1.3, w2 = 2 * M_PI * 11.0;
+    road[k] = {0.015 * std::sin(w1 * t) + 0.005 * std::sin(w2 * t),
+               0.015 * w1 * std::cos(w1 * t) + 0.005 * w2 * std::cos(w2 * t), 0.0};
+  }
+  double saved[DN_LOOP_STATE_SIZE];
+  dn_loop_reset(lm, ld);
+  for (int k = 0; k < 2000; ++k) dn_loop_step(lm, ld, &road[k & 4095], nullptr);  // settle
+  dn_loop_get_state(ld, saved);
+  long batch_start = 0;
+  dn_bench::print_json("loop_step_rk4_neural_float_skyhook", dn_bench::measure(
+      [&](long i) { dn_loop_step(lm, ld, &road[(i - batch_start) & 4095], nullptr); },
+      [&] { dn_loop_set_state(ld, saved); }, n, warm, 1000));
+  veh.damper_eval = DN_EVAL_PER_STEP;
+  dn_loop_model* lm1 = nullptr;
+  if (dn_loop_model_create(&veh, damper, &ctrl, &lm1)) return 1;
+  dn_loop_reset(lm1, ld);
+  for (int k = 0; k < 2000; ++k) dn_loop_step(lm1, ld, &road[k & 4095], nullptr);
+  dn_loop_get_state(ld, saved);
+  dn_bench::print_json("loop_step_rk4_per_step_eval_neural_float_skyhook", dn_bench::measure(
+      [&](long i) { dn_loop_step(lm1, ld, &road[i & 4095], nullptr); },
+      [&] { dn_loop_set_state(ld, saved); }, n, warm, 1000));
+  dn_loop_data_destroy(ld);
+  dn_loop_model_destroy(lm);
+  dn_loop_model_destroy(lm1);
+  dn_damper_destroy(damper);
   dn_mlp_destroy(cm);
   (void)sink;
+  (void)batch_start;
   return 0;
 }

@@ -163,6 +163,8 @@ def _terms_block(p: str, P: str, model: MlpModel) -> str:
         rows = np.zeros((len(terms), width))
         for i, t in enumerate(terms):
             rows[i, :len(t.get("params", []))] = t.get("params", [])
+        lines.append(f"static const int {p}_term_n_params[{len(terms)}] = {{"
+                     + ", ".join(str(len(t.get("params", []))) for t in terms) + "};")
         lines.append(f"#define {P}_TERM_PARAMS {width}")
         lines.append(_array(f"{p}_term_params", rows, f"{len(terms)} * {width}",
                             f"term parameters, [{len(terms)}][{width}] row-major; meaning per kind "

@@ -1,0 +1,93 @@
+"""The C++ latency harness (bench/bench_mlp.cpp) compiled against the installed runtime and
+run: per-call latency distributions of the MLP forward and the quarter-car step, against
+the HIL budget.
+
+Budget: a HIL rig stepping the quarter car at STEP_RATE_HZ has 1/STEP_RATE_HZ per step;
+dampnet may use SHARE of it, so the RK4 step with the 3-30-1 neural damper and skyhook
+must finish within SHARE / STEP_RATE_HZ (1 us by default) at the 99.9th percentile.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+from dampnet import paths
+
+STEP_RATE_HZ = 10_000.0
+SHARE = 0.01
+BUDGET_CASE = "loop_step_rk4_neural_float_skyhook"
+TARGETS_NS = {"dampnet_static_float": ("p50_ns", 40.0),
+              "loop_step_rk4_neural_float_skyhook": ("p50_ns", 250.0)}
+
+
+def _harness_sources() -> tuple[Path, Path]:
+    """bench/bench_mlp.cpp and the default model header, installed or in the source tree."""
+    root = Path(paths.include_dirs()[0]).parent
+    src_tree = Path(__file__).resolve().parents[2]
+    for base in (root / "bench", src_tree / "bench"):
+        if (base / "bench_mlp.cpp").is_file():
+            header_dir = root / "include" if (root / "include" / "dn_model_default.h").is_file() \
+                else src_tree / "export"
+            return base / "bench_mlp.cpp", header_dir
+    raise FileNotFoundError("bench/bench_mlp.cpp not found with the installed dampnet")
+
+
+def build_harness(out_dir: Path) -> Path:
+    cxx = os.environ.get("CXX") or shutil.which("c++") or shutil.which("g++")
+    if not cxx:
+        raise RuntimeError("no C++ compiler found (c++/g++)")
+    src, header_dir = _harness_sources()
+    out_dir.mkdir(parents=True, exist_ok=True)
+    exe = out_dir / "dn_bench_mlp"
+    lib = paths.shared_library()
+    flags = "-O3 -DNDEBUG"
+    cmd = [cxx, "-std=c++17", *flags.split(), f'-DDN_BENCH_FLAGS="{flags}"',
+           *[f"-I{d}" for d in paths.include_dirs()], f"-I{header_dir}", f"-I{src.parent}", str(src),
+           "-o", str(exe), str(lib), f"-Wl,-rpath,{lib.parent}"]
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise RuntimeError(f"building the latency harness failed:\n{' '.join(cmd)}\n{proc.stderr[-3000:]}")
+    return exe
+
+
+def run_harness(exe: Path, n_calls: int) -> dict:
+    proc = subprocess.run([str(exe), str(int(n_calls))], capture_output=True, text=True, timeout=1800)
+    if proc.returncode != 0:
+        raise RuntimeError(f"latency harness failed: {proc.stderr.strip()}")
+    machine, results = {}, {}
+    for line in proc.stdout.splitlines():
+        rec = json.loads(line)
+        if "machine" in rec:
+            machine = rec["machine"]
+        else:
+            results[rec.pop("name")] = rec
+    return {"machine": machine, "results": results}
+
+
+def quick_latency(out_dir: str | Path, n_calls: int = 200_000) -> dict:
+    """Build and run the harness; the budget, the headroom and a one-line headline."""
+    out = Path(out_dir)
+    res = run_harness(build_harness(out), n_calls)
+    budget_ns = SHARE / STEP_RATE_HZ * 1e9
+    step = res["results"].get(BUDGET_CASE, {})
+    p999 = step.get("p999_ns")
+    res["budget"] = {"step_rate_hz": STEP_RATE_HZ, "share": SHARE, "p999_budget_ns": budget_ns,
+                     "case": BUDGET_CASE}
+    res["headroom"] = {"p999_ns": p999, "within_budget": bool(p999 is not None and p999 <= budget_ns),
+                       "headroom_factor": (budget_ns / p999) if p999 else None,
+                       "share_of_hil_step_pct": (100 * p999 * 1e-9 * STEP_RATE_HZ) if p999 else None}
+    res["targets"] = {k: {"metric": m, "target_ns": t, "measured_ns": res["results"].get(k, {}).get(m)}
+                      for k, (m, t) in TARGETS_NS.items()}
+    fw = res["results"].get("dampnet_static_float", {})
+    res["headline"] = (f"RK4 step with neural damper + skyhook: p50 {step.get('p50_ns', float('nan')):.0f} ns, "
+                       f"p99.9 {p999 or float('nan'):.0f} ns against a {budget_ns:.0f} ns budget "
+                       f"({res['headroom']['share_of_hil_step_pct'] or float('nan'):.2f} % of a "
+                       f"{1e6 / STEP_RATE_HZ:.0f} us HIL step); MLP forward float p50 "
+                       f"{fw.get('p50_ns', float('nan')):.0f} ns (timings include the clock's "
+                       f"{res['results'].get('clock_overhead', {}).get('p50_ns', float('nan')):.0f} ns)")
+    (out / "latency.json").write_text(json.dumps(res, indent=1))
+    return res

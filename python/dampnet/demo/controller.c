@@ -1,0 +1,50 @@
+/* A small C controller-side program: the exported model (generated header) run
+ * through the dampnet C library as a damper, one force per input line.
+ * stdin: lines "x v a u u_lag temperature" (m, m/s, m/s^2, V, V, degC);
+ * stdout: the force [N] per line. Built by `dampnet demo` with
+ *   cc -std=c99 -I<dampnet include> -I<model dir> controller.c -ldampnet */
+#include <stdio.h>
+
+#include "dampnet/dampnet.h"
+#include "model.h"
+
+int main(void) {
+  dn_mlp_desc desc = DN_MODEL_DESC_INIT;
+  dn_mlp* mlp = NULL;
+  dn_damper* damper = NULL;
+  dn_damper_input in = {0};
+  double force = 0.0;
+  int st = dn_mlp_create(&desc, &mlp);
+#ifdef DN_MODEL_CONTROL_LAG_TAU_S
+  const char* pnames[1] = {"control_lag_tau_s"};
+  const double pvalues[1] = {DN_MODEL_CONTROL_LAG_TAU_S};
+  const int n_params = 1;
+#else
+  const char* const* pnames = NULL;
+  const double* pvalues = NULL;
+  const int n_params = 0;
+#endif
+  if (st == DN_OK)
+    st = dn_damper_create_neural(mlp, dn_model_feature_names, DN_MODEL_N_INPUTS, pnames, pvalues,
+                                 n_params, DN_PRECISION_DOUBLE, &damper);
+#if DN_MODEL_N_TERMS > 0
+  for (int k = 0; st == DN_OK && k < DN_MODEL_N_TERMS; ++k)
+    st = dn_damper_add_term(damper, dn_model_term_kinds[k], &dn_model_term_params[k * DN_MODEL_TERM_PARAMS],
+                            dn_model_term_n_params[k]);
+#endif
+  if (st != DN_OK) {
+    fprintf(stderr, "controller: %s\n", dn_status_str(st));
+    return 1;
+  }
+  while (scanf("%lf %lf %lf %lf %lf %lf", &in.x, &in.v, &in.a, &in.u, &in.u_lag, &in.temperature) == 6) {
+    st = dn_damper_force(damper, &in, &force, NULL);
+    if (st < 0) {
+      fprintf(stderr, "controller: %s\n", dn_status_str(st));
+      return 1;
+    }
+    printf("%.17g\n", force);
+  }
+  dn_damper_destroy(damper);
+  dn_mlp_destroy(mlp);
+  return 0;
+}

@@ -1,0 +1,220 @@
+"""The demo's stages, in order; see dampnet.demo for the story they tell."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import tempfile
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+THESIS = {"lm_nrmse": 0.0339, "br_nrmse": 0.0422, "scg_nrmse": 0.112, "lm_minutes": 106,
+          "table4_max_error_lbf": {"0.25": 9.79, "1": 11.48, "2": 12.43, "3": 22.97},
+          "table4_avg_pct_error": {"0.25": 18.9, "1": 6.03, "2": 0.95, "3": 5.3}}
+HIDDEN_EFFECT = "gas_spring"
+# --quick: 4 frequencies x 8 voltages spanning the thesis's ranges, with neighbours on both
+# sides of the held-out 2.25 V (the rig's own 'quick' plan has only 0, 2.25 and 5 V).
+QUICK_PLAN = {"name": "demo-quick", "frequencies_hz": [0.25, 1.0, 2.0, 3.0], "amplitudes_m": [0.0254],
+              "voltages_v": [0.0, 1.0, 1.5, 2.0, 2.25, 2.5, 3.0, 5.0], "samples": 2500}
+
+
+class DemoError(RuntimeError):
+    """A demo stage could not run (the message says which and why)."""
+
+
+class Stages:
+    """Runs named stages with a progress line each and records their wall time [s]."""
+
+    def __init__(self, log: Callable[[str], None], total: int):
+        self.log, self.total, self.times, self.n = log, total, {}, 0
+
+    def __call__(self, name: str, title: str):
+        stages = self
+
+        class _Stage:
+            def __enter__(self):
+                stages.n += 1
+                stages.log(f"[{stages.n}/{stages.total}] {title} ...")
+                self.t0 = time.perf_counter()
+                return self
+
+            def __exit__(self, exc_type, exc, tb):
+                dt = time.perf_counter() - self.t0
+                stages.times[name] = round(dt, 2)
+                if exc is None:
+                    stages.log(f"      done in {dt:.1f} s")
+                return False
+
+        return _Stage()
+
+
+def _train_progress(log):
+    state = {"last": 0.0}
+
+    def cb(info: dict) -> None:
+        now = time.perf_counter()
+        if now - state["last"] > 2.0:
+            state["last"] = now
+            ep = info.get("epoch")
+            err = info.get("val") if info.get("val") is not None else info.get("train")
+            log(f"      epoch {ep}: validation MSE {err:.3g} (scaled units)" if err is not None
+                else f"      epoch {ep}")
+    return cb
+
+
+def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: bool = False,
+             seed: int = 0, log: Callable[[str], None] = print) -> dict[str, Any]:
+    """Run every stage, write out_dir/{report.html, summary.json, ...}; returns the summary."""
+    from dampnet.data import write_dataset
+    from dampnet.data.rig import generate, noise_floor_nrmse
+    from dampnet.demo import cprogram, report
+    from dampnet.diagnose.catalogue import additions
+    from dampnet.diagnose.run import diagnose
+    from dampnet.evaluate.lookup import LookupTable
+    from dampnet.evaluate.report import write_plots
+    from dampnet.workflow import model_metrics, save_model_dir, train_dataset
+
+    out = Path(out_dir)
+    if out.exists() and not force:
+        raise FileExistsError(f"{out}: exists; refusing to overwrite (use --force)")
+    work = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent if out.parent.exists() else None))
+    figs = work / "figures"
+    figs.mkdir()
+    t_start = time.perf_counter()
+    stage = Stages(log, 7)
+    summary: dict[str, Any] = {"schema": "dampnet.demo/1", "quick": quick, "seed": seed,
+                               "thesis": THESIS}
+    try:
+        plan = QUICK_PLAN if quick else "thesis"
+        with stage("rig", "virtual dyno: the thesis's test campaign, one hidden effect"):
+            ds = generate(plan, effects=[HIDDEN_EFFECT], seed=seed, progress=False)
+            write_dataset(ds, work / "data")
+            n_samples = int(sum(len(t) for t in ds.tests))
+            summary["data"] = {"path": "data", "plan": ds.meta.get("plan", {}).get("name", str(plan)), "tests": len(ds.tests), "samples": n_samples,
+                               "noise_floor_nrmse_std": noise_floor_nrmse(ds)}
+            log(f"      {len(ds.tests)} tests, {n_samples} samples at 5 kHz")
+
+        settings = {"max_epochs": 150 if quick else 400}
+        with stage("train", "training the thesis's 3-30-1 MLP (velocity, acceleration, voltage) with LM"):
+            model0, info0, split0 = train_dataset(ds, algorithm="lm", seed=seed, progress=_train_progress(log),
+                                                  **settings)
+            metrics0 = model_metrics(model0, info0, split0)
+            save_model_dir(model0, metrics0, work / "model_original")
+            lookup = LookupTable.from_dict(metrics0["lookup_table"])
+            write_plots(model0, split0.holdout.tests, metrics0["holdout"], figs / "original", lookup=lookup)
+            log(f"      held-out (2.25 V) NRMSE {metrics0['holdout']['overall']['nrmse']:.4f} "
+                f"(lookup table {metrics0['holdout_lookup']['overall']['nrmse']:.4f}, thesis {THESIS['lm_nrmse']})")
+
+        with stage("diagnose", "diagnosing the model: where it fails, which effect is missing"):
+            diag0 = diagnose(model0, ds, seed=seed, dataset_label="DATA")
+            verdict = diag0.get("verdict")
+            log(f"      verdict: {verdict or 'no significant missing effect'}")
+            if verdict is None:
+                raise DemoError("the diagnosis found no significant missing effect, so there is nothing to add")
+
+        with stage("improve", f"adding '{verdict}', retraining, diagnosing again"):
+            top = next(c for c in diag0["candidates"] if c["effect"] == verdict)
+            adds = additions(verdict, params=top.get("parameters") or None, dataset=ds)
+            model1, info1, split1 = train_dataset(
+                ds, features=adds["features"], terms=adds["terms"], feature_params=adds["feature_params"],
+                algorithm="lm", seed=seed, progress=_train_progress(log), **settings)
+            metrics1 = model_metrics(model1, info1, split1)
+            save_model_dir(model1, metrics1, work / "model_improved")
+            write_plots(model1, split1.holdout.tests, metrics1["holdout"], figs / "improved", lookup=lookup)
+            diag1 = diagnose(model1, ds, seed=seed, dataset_label="DATA")
+            n0 = metrics0["holdout"]["overall"]["nrmse"]
+            n1 = metrics1["holdout"]["overall"]["nrmse"]
+            log(f"      held-out NRMSE {n0:.4f} -> {n1:.4f} ({100 * (1 - n1 / n0):.0f} % lower); "
+                f"diagnosis now: {diag1.get('verdict') or 'nothing significant'}")
+
+        with stage("export", "exporting the improved model to C and checking a C program against Python"):
+            cres = cprogram.check_against_python(model1, work / "model_improved", split1.holdout.tests[:3],
+                                                 work / "c_program")
+            cres["source"], cres["executable"] = "c_program/controller.c", "c_program/controller"
+            log(f"      C program vs Python: max |difference| {cres['max_abs_diff_n']:.3g} N over "
+                f"{cres['samples']} samples ({'match' if cres['match'] else 'MISMATCH'})")
+
+        with stage("study", "quarter-car study (thesis Tables 6, 7, skyhook) against the truth damper"):
+            study_res = _study(model0, model1, lookup, figs / "study", quick)
+            log("      " + study_res["headline"])
+
+        with stage("latency", "quick latency benchmark and HIL headroom"):
+            from dampnet.benchmark import quick_latency
+
+            bench = quick_latency(work / "bench", n_calls=200_000 if quick else 1_000_000)
+            log("      " + bench["headline"])
+
+        summary.update(_headline(metrics0, metrics1, diag0, diag1, verdict, adds, cres, study_res, bench))
+        summary["stage_times_s"] = stage.times
+        summary["total_time_s"] = round(time.perf_counter() - t_start, 1)
+        report.write(work, summary, metrics0, metrics1, diag0, diag1, study_res, bench)
+        summary["report_rendered"] = report.check_rendering(work / "report.html")
+        (work / "summary.json").write_text(json.dumps(summary, indent=1, default=_json_default))
+        if out.exists():
+            shutil.rmtree(out)
+        work.rename(out)
+    except BaseException:
+        shutil.rmtree(work, ignore_errors=True)
+        raise
+    log(f"report: {out / 'report.html'}   summary: {out / 'summary.json'}   "
+        f"({summary['total_time_s']:.0f} s in all)")
+    return summary
+
+
+def _json_default(o):
+    if isinstance(o, (np.floating, np.integer)):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, Path):
+        return str(o)
+    raise TypeError(f"not JSON-serialisable: {type(o)}")
+
+
+def _study(model0, model1, lookup, fig_dir: Path, quick: bool) -> dict:
+    from dampnet import study
+    from dampnet.roads import thesis_rough_road
+
+    specs = [study.neural_spec(model1, "improved"), study.neural_spec(model0, "original"),
+             study.lookup_spec(lookup, "lookup")]
+    rough = thesis_rough_road(seed=0)
+    res = study.run_study(specs, truth=study.truth_spec([HIDDEN_EFFECT]), rough=rough, keep_runs=True)
+    study.write_plots(res, fig_dir)
+    res_json = study.jsonable(res)
+    res_json["text"] = study.text_tables(res)
+    errs = res_json.get("errors", {})
+    worst = {}
+    for name in ("improved", "original", "lookup"):
+        vals = [abs(v) for case in errs.get(name, {}).values() for k, v in case.items()
+                if k == "acc_rms_m_s2" and v is not None]
+        worst[name] = max(vals) if vals else None
+    res_json["worst_acc_rms_error_vs_truth"] = worst
+    res_json["headline"] = ("largest sprung-acceleration RMS error against the truth damper: " +
+                            ", ".join(f"{k} {100 * v:.1f} %" for k, v in worst.items() if v is not None))
+    return res_json
+
+
+def _headline(metrics0, metrics1, diag0, diag1, verdict, adds, cres, study_res, bench) -> dict:
+    o0, o1 = metrics0["holdout"]["overall"], metrics1["holdout"]["overall"]
+    lk = metrics0.get("holdout_lookup", {}).get("overall", {})
+    still = [c["effect"] for c in diag1["candidates"] if c.get("significant")]
+    return {
+        "holdout_nrmse": {"original": o0["nrmse"], "improved": o1["nrmse"], "lookup_table": lk.get("nrmse"),
+                          "thesis_lm": THESIS["lm_nrmse"],
+                          "noise_floor": metrics0.get("noise_floor", {}).get("nrmse_range")},
+        "error_fell": bool(o1["nrmse"] < o0["nrmse"]),
+        "error_fall_pct": 100.0 * (1.0 - o1["nrmse"] / o0["nrmse"]),
+        "diagnosis": {"verdict": verdict, "hidden_effect": HIDDEN_EFFECT,
+                      "named_hidden_effect": verdict == HIDDEN_EFFECT,
+                      "ranking": [c["effect"] for c in diag0["candidates"]],
+                      "added_as": adds.get("how"), "why": adds.get("why"),
+                      "significant_after": still, "verdict_after": diag1.get("verdict")},
+        "c_program": cres,
+        "study": {"worst_acc_rms_error_vs_truth": study_res["worst_acc_rms_error_vs_truth"]},
+        "latency": {k: bench[k] for k in ("results", "budget", "headroom") if k in bench},
+        "training_time_s": {"original": metrics0["training"]["time_s"],
+                            "improved": metrics1["training"]["time_s"]},
+    }
