@@ -148,11 +148,11 @@ def _terms_module():
         if e.name != "dampnet.terms":
             raise
         return None
-    return mod if hasattr(mod, "evaluate") else None
+    return mod if hasattr(mod, "terms_force") else None
 
 
 def _term_force_fallback(term: dict[str, Any], x: np.ndarray) -> np.ndarray:
-    """The term formulas of the C++ runtime (used until dampnet.terms exists).
+    """The term formulas of the C++ runtime (used only if dampnet.terms is absent).
 
     position_poly [p0, p1, p2, p3]:  p0 + p1 x + p2 x^2 + p3 x^3      (x displacement [m], N)
     bump_stop [x_free, k, n]:        sign(x) k (|x| - x_free)^n beyond |x| > x_free, else 0
@@ -176,7 +176,10 @@ def terms_force(terms: Sequence[dict[str, Any]], displacement: np.ndarray) -> np
         return np.zeros_like(x)
     mod = _terms_module()
     if mod is not None:
-        return np.asarray(mod.evaluate(list(terms), x), dtype=np.float64)
+        try:
+            return np.asarray(mod.terms_force(list(terms), x), dtype=np.float64)
+        except ValueError as e:
+            raise ModelError(f"physics terms: {e}") from None
     return sum(_term_force_fallback(t, x) for t in terms)
 
 
@@ -242,7 +245,8 @@ def fit_terms(terms: Sequence[dict[str, Any]], x: np.ndarray, v: np.ndarray, u: 
         pos += w
         kind = terms[i]["kind"]
         if kind == "bump_stop":
-            terms[i]["params"] = [float(s[0]), float(c[0]), float(s[1])]
+            # k < 0 would pull towards the stop: not a bump stop, so the term is switched off
+            terms[i]["params"] = [float(s[0]), max(float(c[0]), 0.0), float(s[1])]
         else:
             terms[i]["params"] = [float(a) for a in c]
         terms[i]["fitted"] = "least squares with a velocity model (dampnet.workflow.fit_terms)"

@@ -90,7 +90,7 @@ def training_kwargs(args, ds) -> dict:
             raise ValueError(f"--terms: each term must be an object with a 'kind', got {t!r}")
     feature_params: dict = {}
     for effect in args.add:
-        add = effect_additions(effect)
+        add = effect_additions(effect, ds)
         features = features or default_features(ds)
         features += [f for f in add.get("features", []) if f not in features]
         terms += [t for t in add.get("terms", []) if t not in terms]
@@ -119,15 +119,23 @@ def training_kwargs(args, ds) -> dict:
                 settings=_json_arg(args.settings, "settings", dict))
 
 
-def effect_additions(effect: str) -> dict:
-    """{"features", "terms", "feature_params"} for an effect, from the diagnosis catalogue."""
+def effect_additions(effect: str, ds=None) -> dict:
+    """{"features", "terms", "feature_params"} for an effect, from the diagnosis catalogue
+    (given the dataset, the catalogue estimates the effect's parameters from it)."""
     try:
         from dampnet.diagnose import catalogue
     except ImportError:
         raise ValueError(f"--add {effect}: effect catalogue (dampnet.diagnose.catalogue) is not "
                          "available in this dampnet") from None
     try:
-        add = catalogue.additions(effect)
+        add = None
+        if ds is not None and ds.tests:
+            try:
+                add = catalogue.additions(effect, control=ds.tests[0].control_name, dataset=ds)
+            except ImportError:  # parameter estimation not available: the catalogue's defaults
+                add = None
+        if add is None:
+            add = catalogue.additions(effect)
     except KeyError as e:
         known = ""
         for attr in ("EFFECTS", "CATALOGUE", "effects"):
