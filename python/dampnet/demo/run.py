@@ -118,8 +118,9 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
         with stage("improve", f"adding '{verdict}', retraining, diagnosing again"):
             top = next(c for c in diag0["candidates"] if c["effect"] == verdict)
             adds = additions(verdict, params=top.get("parameters") or None, dataset=ds)
+            features1 = list(model0.features) + [f for f in adds["features"] if f not in model0.features]
             model1, info1, split1 = train_dataset(
-                ds, features=adds["features"], terms=adds["terms"], feature_params=adds["feature_params"],
+                ds, features=features1, terms=adds["terms"], feature_params=adds["feature_params"],
                 algorithm="lm", seed=seed, progress=_train_progress(log), **settings)
             metrics1 = model_metrics(model1, info1, split1)
             save_model_dir(model1, metrics1, work / "model_improved")
@@ -180,16 +181,25 @@ def _study(model0, model1, lookup, fig_dir: Path, quick: bool) -> dict:
 
     specs = [study.neural_spec(model1, "improved"), study.neural_spec(model0, "original"),
              study.lookup_spec(lookup, "lookup")]
-    rough = thesis_rough_road(seed=0)
-    res = study.run_study(specs, truth=study.truth_spec([HIDDEN_EFFECT]), rough=rough, keep_runs=True)
+    from dampnet.roads import sine_sweep
+
+    if quick:  # shortened roads: a 5x faster sweep and half the rough road's length
+        sweep, rough = sine_sweep(rate_oct_s=0.5), thesis_rough_road(seed=0, base_length_m=46.0)
+    else:
+        sweep, rough = None, thesis_rough_road(seed=0)
+    res = study.run_study(specs, truth=study.truth_spec([HIDDEN_EFFECT]), rough=rough, sweep=sweep,
+                          keep_runs=True)
+    res["settings"]["quick_roads"] = bool(quick)
     study.write_plots(res, fig_dir)
     res_json = study.jsonable(res)
     res_json["text"] = study.text_tables(res)
+    # errors[section][case][model][metric] = (model - truth) / truth
     errs = res_json.get("errors", {})
     worst = {}
     for name in ("improved", "original", "lookup"):
-        vals = [abs(v) for case in errs.get(name, {}).values() for k, v in case.items()
-                if k == "acc_rms_m_s2" and v is not None]
+        vals = [abs(by_model[name]["acc_rms_m_s2"]) for section in errs.values()
+                for by_model in section.values()
+                if by_model.get(name, {}).get("acc_rms_m_s2") is not None]
         worst[name] = max(vals) if vals else None
     res_json["worst_acc_rms_error_vs_truth"] = worst
     res_json["headline"] = ("largest sprung-acceleration RMS error against the truth damper: " +

@@ -1,0 +1,56 @@
+"""`dampnet demo --quick` end to end: the diagnosis names the hidden effect, the held-out
+error falls, the C program matches Python, and the report renders in a real browser."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+
+import pytest
+
+
+@pytest.fixture(scope="module")
+def demo_out(tmp_path_factory):
+    out = tmp_path_factory.mktemp("demo") / "run"
+    proc = subprocess.run([sys.executable, "-m", "dampnet.cli", "demo", "--quick", "--out", str(out)],
+                          capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-4000:]
+    return out, proc.stdout
+
+
+def test_demo_tells_the_whole_story(demo_out):
+    out, stdout = demo_out
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["diagnosis"]["named_hidden_effect"], summary["diagnosis"]
+    assert summary["diagnosis"]["hidden_effect"] not in summary["diagnosis"]["significant_after"]
+    assert summary["error_fell"] and summary["holdout_nrmse"]["improved"] < summary["holdout_nrmse"]["original"]
+    assert summary["c_program"]["match"] and summary["c_program"]["samples"] > 1000
+    for stage in ("rig", "train", "diagnose", "improve", "export", "study", "latency"):
+        assert stage in summary["stage_times_s"] and f"[{list(summary['stage_times_s']).index(stage) + 1}/7]" in stdout
+    for name in ("report.html", "summary.json", "model_original/model.json", "model_improved/model.h",
+                 "data/manifest.csv", "c_program/controller.c"):
+        assert (out / name).is_file(), name
+
+
+def test_demo_report_renders_in_chromium(demo_out):
+    out, _ = demo_out
+    summary = json.loads((out / "summary.json").read_text())
+    if not shutil.which("chromium"):
+        pytest.skip("Chromium not installed (Debian package chromium; python/env.sh installs it)")
+    check = summary["report_rendered"]
+    assert check["checked"] and check["ok"], check
+    assert check["images"] >= 8 and check["broken_images"] == 0 and check["empty_tables"] == 0
+    text = (out / "report.html").read_text()
+    order = [text.index(h) for h in ("1. The test campaign", "2. The thesis", "3. Diagnosis", "4. The effect added",
+                                     "5. Export to C", "6. Quarter-car study", "7. Real-time latency")]
+    assert order == sorted(order)
+
+
+def test_demo_refuses_to_overwrite(demo_out):
+    out, _ = demo_out
+    proc = subprocess.run([sys.executable, "-m", "dampnet.cli", "demo", "--quick", "--out", str(out)],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2 and "refusing to overwrite" in proc.stderr
+    assert (out / "summary.json").is_file()
