@@ -442,7 +442,8 @@ DN_API int64_t dn_loop_damper_evals(const dn_loop_data* d);
 DN_API int dn_loop_step(const dn_loop_model* m, dn_loop_data* d, const dn_loop_input* in,
                         dn_loop_out* out);
 
-/* [RT] What the next step would report at the current state, without advancing. */
+/* [RT] What the next step would report at the current state, without advancing.
+ * It evaluates the damper once (a stateful callback damper sees that call). */
 DN_API int dn_loop_forward(const dn_loop_model* m, const dn_loop_data* d, const dn_loop_input* in,
                            dn_loop_out* out);
 
