@@ -22,13 +22,14 @@ def run(cmd: list[str], cwd: Path | None = None, timeout: float = 900) -> subpro
     return proc
 
 
-def cmake_build(name: str, *defines: str, install: bool = False) -> Path:
-    """Configure and build the standalone project into build/tests-NAME; returns the build dir."""
+def cmake_build(name: str, *defines: str, install: bool = False, target: str | None = None) -> Path:
+    """Configure and build the standalone project (or one target) into build/tests-NAME."""
     bdir = BUILD / f"tests-{name}"
     gen = ["-G", "Ninja"] if shutil.which("ninja") else []
     run(["cmake", "-S", ROOT, "-B", bdir, *gen, f"-DCMAKE_INSTALL_PREFIX={bdir / 'prefix'}",
          *[f"-D{d}" for d in defines]])
-    run(["cmake", "--build", bdir, "--parallel", str(os.cpu_count() or 2)])
+    run(["cmake", "--build", bdir, "--parallel", str(os.cpu_count() or 2),
+         *(["--target", target] if target else [])])
     if install:
         run(["cmake", "--install", bdir])
     return bdir

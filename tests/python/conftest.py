@@ -34,7 +34,8 @@ def installed_prefix() -> Path:
 @pytest.fixture(scope="session")
 def plain_build() -> Path:
     """The standalone project with tests, plain kernel (for comparison with Eigen)."""
-    return cmake_build("plain", "DAMPNET_BUILD_TESTS=ON", "CMAKE_BUILD_TYPE=Release")
+    return cmake_build("plain", "DAMPNET_BUILD_TESTS=ON", "CMAKE_BUILD_TYPE=Release",
+                       target="dn_print_outputs")
 
 
 @pytest.fixture(scope="session")
@@ -43,4 +44,4 @@ def eigen_build() -> Path:
     if not Path("/usr/include/eigen3/Eigen/Core").is_file():
         pytest.skip("Eigen headers not installed (Debian libeigen3-dev); python/env.sh installs them")
     return cmake_build("eigen", "DAMPNET_BUILD_TESTS=ON", "DAMPNET_USE_EIGEN=ON",
-                       "CMAKE_BUILD_TYPE=Release")
+                       "CMAKE_BUILD_TYPE=Release", target="dn_print_outputs")
