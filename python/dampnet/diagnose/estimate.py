@@ -1,0 +1,51 @@
+"""Parameters of an effect from data alone (for `dampnet train --add EFFECT` without a diagnosis).
+
+A lag's time constant is the one at which a smooth function of (velocity, acceleration,
+lagged input) fits the measured force best (the baseline basis of dampnet.diagnose.basis).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dampnet.diagnose.basis import baseline_basis
+from dampnet.diagnose.features import first_order_lag
+
+GRID_S = tuple(np.exp(np.linspace(np.log(0.001), np.log(1.0), 25)))
+
+
+def _best_tau(ds, channel: str, rows_per_test: int = 400) -> float:
+    from dampnet.data.preprocess import acceleration_of
+
+    best = None
+    for tau in GRID_S:
+        Z, F = [], []
+        for t in ds.tests:
+            n = len(t)
+            rows = np.arange(0, n, max(1, n // rows_per_test))
+            v = t.channels["velocity"]
+            a = t.channels["acceleration"] if "acceleration" in t.channels else acceleration_of(t)
+            lagged = first_order_lag(t.channels[channel], t.dt, tau)
+            cols = [v, a, lagged] if channel != "velocity" else [lagged, a, t.control]
+            Z.append(np.stack([c[rows] for c in cols], axis=1))
+            F.append(t.channels["force"][rows])
+        Z = np.vstack(Z)
+        lo, hi = Z.min(0), Z.max(0)
+        z = 2 * (Z - lo) / np.where(hi > lo, hi - lo, 1) - 1
+        names = ["velocity", "acceleration", "control"]
+        X = baseline_basis(z, names)
+        y = np.concatenate(F)
+        beta, *_ = np.linalg.lstsq(X, y, rcond=None)
+        sse = float(np.sum((y - X @ beta) ** 2))
+        if best is None or sse < best[0]:
+            best = (sse, tau)
+    return float(best[1])
+
+
+def estimate_parameters(effect_id: str, ds) -> dict:
+    """{"tau_s": ...} for valve_lag and compressibility; {} for effects that need none."""
+    if effect_id == "valve_lag":
+        return {"tau_s": _best_tau(ds, ds.tests[0].control_name)}
+    if effect_id == "compressibility":
+        return {"tau_s": _best_tau(ds, "velocity")}
+    return {}

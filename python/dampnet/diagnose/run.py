@@ -1,0 +1,111 @@
+"""diagnose(model, dataset) -> the diagnosis as a JSON-ready dict (see dampnet.diagnose)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dampnet.diagnose import score as S
+from dampnet.diagnose.catalogue import CANDIDATES
+from dampnet.diagnose.context import ROWS_PER_TEST, build_context
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {k: _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, (np.floating, float)):
+        return None if not np.isfinite(x) else float(x)
+    if isinstance(x, np.integer):
+        return int(x)
+    if isinstance(x, np.ndarray):
+        return _jsonable(x.tolist())
+    return x
+
+
+def _jackknife(values: list[float]) -> float | None:
+    v = np.asarray([x for x in values if x is not None and np.isfinite(x)], dtype=np.float64)
+    if len(v) < 2:
+        return None
+    k = len(v)
+    return float(np.sqrt((k - 1) / k * np.sum((v - v.mean()) ** 2)))
+
+
+def _parameters(ctx, cand, res, folds):
+    if cand.parameters is None:
+        return {}, {}
+    fit = {"beta": res["beta"], "effect_rows": res["effect_rows"]}
+    est = cand.parameters(ctx, res["theta"], fit)
+    fold_est = []
+    for th, b in zip(res["fold_thetas"], res["fold_betas"]):
+        rows = [c @ b for c in res["columns"]]
+        fold_est.append(cand.parameters(ctx, th, {"beta": b, "effect_rows": rows}))
+    unc = {}
+    for k, v in est.items():
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            unc[k] = _jackknife([fe.get(k) for fe in fold_est])
+    return est, unc
+
+
+def diagnose(model, ds, *, candidates=None, n_surrogates: int = S.N_SURROGATES, seed: int = 0,
+             rows_per_test: int = ROWS_PER_TEST, ctx=None, dataset_label: str = "DATA") -> dict:
+    """Compare, localise and test every candidate effect; returns the JSON-ready diagnosis."""
+    from dampnet.diagnose.localise import localise, overall_metrics
+
+    ctx = ctx or build_context(model, ds, rows_per_test=rows_per_test)
+    metrics = overall_metrics(ctx)
+    loc = localise(ctx)
+    resid = S.reference_residual(ctx)
+    sur = S.surrogates(resid, n_surrogates, seed)
+    Y = [np.column_stack([r, s]) for r, s in zip(resid, sur)]
+    folds = S.folds_of(ctx)
+    base_cv = S.baseline_cv(ctx, Y, folds)
+    ss_tot = sum(float(np.sum(r * r)) for r in resid)
+    baseline_share = float((ss_tot - base_cv[0][:, 0].sum()) / ss_tot) if ss_tot > 0 else 0.0
+    out = []
+    for cid in (candidates or list(CANDIDATES)):
+        cand = CANDIDATES[cid]
+        res = S.score_candidate(ctx, cand, Y, folds, base_cv)
+        entry = {"effect": cid, "title": cand.title, "needs": cand.needs, "physics": cand.physics,
+                 "signature": cand.signature, "add_command": f"dampnet train {dataset_label} --add {cid}"}
+        if not res["testable"]:
+            entry.update({"testable": False, "score": None, "significant": False, "p_value": None,
+                          "z": None, "parameters": {}, "uncertainty": {},
+                          "evidence": f"cannot be tested: {res['note']}", "note": res["note"]})
+        else:
+            est, unc = _parameters(ctx, cand, res, folds)
+            gains = res["per_test_gain"]
+            improved = int(np.sum(gains > 0))
+            top = [ctx.tests[i].test.test_id for i in np.argsort(-gains)[:3] if gains[i] > 0]
+            ev = cand.evidence(est, loc) if cand.evidence else cand.signature
+            ev += (f". Held out, it explains {100 * res['score']:.1f} % of the residual variance "
+                   f"(null {100 * res['null_mean']:.2f} +- {100 * res['null_sd']:.2f} %), improving "
+                   f"{improved} of {ctx.n_tests} tests" + (f", most {', '.join(top)}" if top else ""))
+            entry.update({"testable": True, "score": res["score"], "significant": res["significant"],
+                          "p_value": res["p_value"], "z": res["z"],
+                          "null": {"mean": res["null_mean"], "sd": res["null_sd"], "max": res["null_max"],
+                                   "n_surrogates": n_surrogates},
+                          "parameters": est, "uncertainty": unc, "evidence": ev, "note": res["note"],
+                          "tests_improved": improved})
+        out.append(entry)
+    out.sort(key=lambda e: (not e["testable"], -(e["score"] if e["score"] is not None else -1e9)))
+    sig = [e for e in out if e["significant"]]
+    verdict = sig[0]["effect"] if sig else None
+    return _jsonable({
+        "model": {"id": model.model_id(), "features": model.features, "terms": [t.get("kind") for t in model.terms],
+                  "feature_params": model.feature_params},
+        "data": {"source": ds.source, "n_tests": len(ds.tests)},
+        "overall": metrics["overall"],
+        "per_test": metrics["per_test"],
+        "per_frequency": metrics.get("per_frequency"),
+        "worst_tests": metrics["worst_tests"],
+        "localisation": loc,
+        "method": {"folds": len(folds), "fold_unit": "test", "rows_per_test": int(np.median([len(t.rows) for t in ctx.tests])),
+                   "baseline_share": baseline_share, "n_surrogates": n_surrogates,
+                   "min_score": S.MIN_SCORE, "z_min": S.Z_MIN,
+                   "score": "held-out share of residual variance explained beyond a flexible function "
+                            "of the model's own inputs (cross-validation over tests)",
+                   "null": "phase-randomised residuals per test (same spectrum), same cross-validation"},
+        "candidates": out,
+        "verdict": verdict,
+    })
