@@ -73,6 +73,7 @@ def diagnose(model, ds, *, candidates=None, n_surrogates: int = S.N_SURROGATES, 
                           "z": None, "parameters": {}, "uncertainty": {},
                           "evidence": f"cannot be tested: {res['note']}", "note": res["note"]})
         else:
+            ctx.notes.setdefault("candidate_effects", {})[cid] = res["effect_rows"]
             est, unc = _parameters(ctx, cand, res, folds)
             gains = res["per_test_gain"]
             improved = int(np.sum(gains > 0))

@@ -1,0 +1,146 @@
+"""The diagnosis as pictures and an HTML page (matplotlib, no other dependency)."""
+
+from __future__ import annotations
+
+import html
+import json
+from pathlib import Path
+
+import numpy as np
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig, path):
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    _plt().close(fig)
+    return Path(path).name
+
+
+def figures(ctx, diag: dict, out: Path, tag: str = "") -> list[tuple[str, str]]:
+    """Write the pictures into `out`; returns [(file name, caption)]."""
+    plt = _plt()
+    out.mkdir(parents=True, exist_ok=True)
+    figs = []
+    # heat map: RMS residual per test, frequency x control
+    rows = diag["localisation"]["per_test_rms_n"]
+    fr = sorted({r["frequency_hz"] for r in rows if r["frequency_hz"] is not None})
+    cl = sorted({r["control"] for r in rows if r["control"] is not None})
+    if fr and cl:
+        grid = np.full((len(cl), len(fr)), np.nan)
+        for r in rows:
+            if r["frequency_hz"] is not None and r["control"] is not None:
+                grid[cl.index(r["control"]), fr.index(r["frequency_hz"])] = r["rms_n"]
+        fig, ax = plt.subplots(figsize=(6, 4))
+        im = ax.imshow(grid, origin="lower", aspect="auto", cmap="viridis")
+        ax.set_xticks(range(len(fr)), [f"{f:g}" for f in fr])
+        ax.set_yticks(range(len(cl)), [f"{c:g}" for c in cl])
+        ax.set_xlabel("frequency [Hz]")
+        ax.set_ylabel(ctx.control_name)
+        fig.colorbar(im, ax=ax, label="RMS residual [N]")
+        figs.append((_save(fig, out / f"{tag}heatmap.png"), "RMS residual per test (frequency x control)"))
+    # loops of the worst tests
+    worst = [w["test_id"] for w in diag["worst_tests"][:3]]
+    for td in ctx.tests:
+        if td.test.test_id not in worst:
+            continue
+        t = td.test
+        fig, axs = plt.subplots(1, 2, figsize=(9, 3.5))
+        axs[0].plot(t.channels["velocity"], t.channels["force"], ".", ms=1, label="measured")
+        axs[0].plot(t.channels["velocity"], td.pred, ".", ms=1, label="predicted")
+        axs[0].set_xlabel("velocity [m/s]")
+        axs[0].set_ylabel("force [N]")
+        axs[0].legend(markerscale=8)
+        if "displacement" in t.channels:
+            axs[1].plot(t.channels["displacement"], t.channels["force"], ".", ms=1)
+            axs[1].plot(t.channels["displacement"], td.pred, ".", ms=1)
+            axs[1].set_xlabel("displacement [m]")
+        fig.suptitle(f"test {t.test_id}: f = {t.frequency_hz} Hz, {t.control_name} = {t.control_nominal}")
+        figs.append((_save(fig, out / f"{tag}loops_{t.test_id}.png"),
+                     f"measured and predicted force-velocity and force-displacement loops, test {t.test_id}"))
+    # residual surface over displacement x velocity
+    xs = ctx.at_rows("displacement")
+    r = np.concatenate(ctx.resid_rows())
+    v = np.concatenate(ctx.at_rows("velocity"))
+    if all(x is not None for x in xs):
+        x = np.concatenate(xs)
+        fig, ax = plt.subplots(figsize=(6, 4.5))
+        hb = ax.hexbin(x, v, C=r, gridsize=30, reduce_C_function=np.mean, cmap="coolwarm")
+        ax.set_xlabel("displacement [m]")
+        ax.set_ylabel("velocity [m/s]")
+        fig.colorbar(hb, ax=ax, label="mean residual [N]")
+        figs.append((_save(fig, out / f"{tag}residual_surface.png"),
+                     "restoring-force surface of the residual: horizontal bands = position-dependent force, "
+                     "a split across v = 0 = friction or lag"))
+    # residual against each channel
+    by = diag["localisation"]["by_channel"]
+    n = len(by)
+    fig, axs = plt.subplots(1, n, figsize=(3 * n, 3), squeeze=False)
+    for ax, (name, b) in zip(axs[0], by.items()):
+        ax.errorbar(b["centres"], b["mean_n"], yerr=b["rms_n"], fmt="o-", ms=3)
+        ax.axhline(0, color="k", lw=0.5)
+        ax.set_xlabel(name)
+    axs[0][0].set_ylabel("residual [N] (mean, RMS bar)")
+    figs.append((_save(fig, out / f"{tag}residual_vs_channels.png"),
+                 "residual against displacement, velocity, acceleration, control, temperature and time in the test"))
+    # residual against each candidate's fitted effect
+    cands = [c for c in diag["candidates"] if c.get("testable")]
+    fits = ctx.notes.get("candidate_effects", {})
+    if fits:
+        fig, axs = plt.subplots(1, len(fits), figsize=(3 * len(fits), 3), squeeze=False)
+        for ax, (cid, e) in zip(axs[0], fits.items()):
+            e = np.concatenate(e)
+            k = np.random.default_rng(0).choice(len(e), size=min(4000, len(e)), replace=False)
+            ax.plot(e[k], r[k], ".", ms=1)
+            ax.set_xlabel(f"{cid} fitted [N]")
+        axs[0][0].set_ylabel("residual [N]")
+        figs.append((_save(fig, out / f"{tag}residual_vs_candidates.png"),
+                     "residual against each candidate effect's cross-validated fit (a diagonal = the effect is there)"))
+    return figs
+
+
+def _pct(x):
+    return "" if x is None else f"{100 * x:.2f} %"
+
+
+def write_report(ctx, diag: dict, out_dir, title: str = "dampnet diagnose") -> Path:
+    out = Path(out_dir)
+    figs = figures(ctx, diag, out)
+    rows = "".join(
+        f"<tr><td>{i + 1}</td><td><b>{html.escape(c['effect'])}</b></td>"
+        f"<td>{_pct(c['score'])}</td>"
+        f"<td>{'yes' if c['significant'] else 'no'}</td>"
+        f"<td>{html.escape(json.dumps(c['parameters']))}</td><td>{html.escape(c['evidence'])}</td>"
+        f"<td><code>{html.escape(c['add_command'])}</code></td></tr>"
+        for i, c in enumerate(diag["candidates"]))
+    ov = diag["overall"]
+    worst = ", ".join(f"{w['test_id']} ({w['nrmse']:.4f})" for w in diag["worst_tests"])
+    regions = "".join(f"<tr><td>{k}</td><td>{v['rms_n']:.2f}</td><td>{v['ratio']:.2f}</td></tr>"
+                      for k, v in diag["localisation"]["regions"].items() if v["rms_n"] is not None)
+    imgs = "".join(f"<figure><img src='{f}'><figcaption>{html.escape(c)}</figcaption></figure>" for f, c in figs)
+    page = f"""<!doctype html><html><head><meta charset="utf-8"><title>{html.escape(title)}</title>
+<style>body{{font-family:sans-serif;max-width:1100px;margin:auto}}td,th{{border:1px solid #ccc;padding:3px}}
+table{{border-collapse:collapse}}img{{max-width:100%}}</style></head><body>
+<h1>{html.escape(title)}</h1>
+<p>Model features {diag['model']['features']}; data {html.escape(str(diag['data']['source']))}
+({diag['data']['n_tests']} tests).</p>
+<h2>Compare</h2><p>Overall NRMSE {ov['nrmse']:.5f}, RMSE {ov['rmse_n']:.2f} N, max |error| {ov['max_abs_error_n']:.1f} N.
+Worst tests: {worst}.</p>
+<h2>Which physical effect is missing</h2>
+<p>Verdict: <b>{diag['verdict'] or 'no candidate is significant'}</b>. Score = held-out share of residual variance
+the effect explains beyond a flexible function of the model's inputs (cross-validation over tests);
+significant = above every phase-randomised surrogate, z &ge; {diag['method']['z_min']}, score &ge; {diag['method']['min_score']}.</p>
+<table><tr><th>#</th><th>effect</th><th>score</th><th>significant</th><th>parameters</th><th>evidence</th><th>add</th></tr>{rows}</table>
+<h2>Where it fails</h2><table><tr><th>region</th><th>RMS residual [N]</th><th>ratio to overall</th></tr>{regions}</table>
+{imgs}</body></html>"""
+    (out / "index.html").write_text(page)
+    (out / "diagnosis.json").write_text(json.dumps(diag, indent=1))
+    return out / "index.html"
