@@ -1,5 +1,8 @@
 """`dampnet bench`: per-call latency of the MLP forward and the quarter-car step against the
-HIL budget; a go/no-go check (exit 1 when the budget is missed)."""
+HIL budget (the C++ harness; exit 1 when the budget is missed), and beside them, in the same
+run, Python-level figures: dampnet's pybind11 forward, numpy, torch eager, TorchScript and
+onnxruntime on the same model and inputs (as ratios to the C++ kernel's median), the pybind11
+`Loop.step` latency and `Loop.simulate` throughput against their targets."""
 
 from __future__ import annotations
 
@@ -11,29 +14,60 @@ from pathlib import Path
 
 def add_parser(subparsers):
     p = subparsers.add_parser("bench", help="latency check against the HIL budget (exit 1 if missed)")
-    p.add_argument("--quick", action="store_true", help="2e5 timed calls per case instead of 1e6")
-    p.add_argument("--calls", type=int, default=None, help="timed calls per case (overrides --quick)")
+    p.add_argument("--quick", action="store_true",
+                   help="2e5 timed C++ calls per case instead of 1e6, 2e4 Python calls instead of 1e5, "
+                        "2e5-step roads instead of 1e6 (under a minute)")
+    p.add_argument("--calls", type=int, default=None, help="timed C++ calls per case (overrides --quick)")
+    p.add_argument("--py-calls", type=int, default=None,
+                   help="timed Python-level calls per case (default: a tenth of the C++ calls)")
+    p.add_argument("--sim-steps", type=int, default=None,
+                   help="road length of the simulate throughput runs (default: the C++ calls)")
+    p.add_argument("--cpp-only", action="store_true", help="only the C++ harness (no Python-level rows)")
     p.add_argument("--json", default=None, help="also write the results to this JSON file")
     p.set_defaults(handler=run)
     return p
 
 
 def run(args) -> int:
+    from dampnet import bench_python
     from dampnet.benchmark import quick_latency
 
     n = args.calls or (200_000 if args.quick else 1_000_000)
+    n_py = args.py_calls or max(1000, n // 10)  # Python calls are ~10-400x slower than C++ ones
+    n_sim = args.sim_steps or n
     try:
         with tempfile.TemporaryDirectory() as tmp:
             res = quick_latency(Path(tmp), n_calls=n)
+        if not args.cpp_only:
+            res["python"] = bench_python.python_benchmarks(n_py, n_sim, repeats=3 if args.quick else 5)
+            kernel = res["results"].get(bench_python.KERNEL_CASE, {}).get("p50_ns")
+            bench_python.ratios(res["python"], kernel)
+            res["python"]["kernel_case"] = bench_python.KERNEL_CASE
+            res["python"]["header_model_id"] = bench_python.header_model_id()
     except (RuntimeError, FileNotFoundError) as e:
         print(f"dampnet: error: {e}", file=sys.stderr)
         return 2
+    res["table"] = bench_python.table(res)
     m = res["machine"]
     print(f"machine: {m.get('cpu')} ({m.get('simd')}), gcc {m.get('compiler')}, flags '{m.get('flags')}', "
           f"load {m.get('loadavg')}")
-    print(f"{'case':52s} {'p50':>8s} {'p99':>8s} {'p99.9':>8s} {'max':>10s}  [ns]")
-    for name, r in res["results"].items():
-        print(f"{name:52s} {r['p50_ns']:8.0f} {r['p99_ns']:8.0f} {r['p999_ns']:8.0f} {r['max_ns']:10.0f}")
+    py = res.get("python")
+    if py:
+        print(f"Python: load {py['loadavg']['start']} at start, {py['loadavg']['end']} at end; "
+              + ", ".join(f"{k} {v}" for k, v in py["versions"].items() if v) + "; 1 thread each")
+        same = py["header_model_id"] == py["model_id"]
+        print(f"model {py['model_id']} (C++ harness header: {py['header_model_id']}"
+              f"{'' if same else ' -- DIFFERENT MODEL, ratios are not like for like'}); "
+              f"C++ rows: {n} calls each (steady_clock); Python rows: {n_py} calls each (perf_counter_ns), "
+              "the same 1024 inputs cycled")
+        print("references checked against MlpModel.predict before timing (max error / output range): "
+              + ", ".join(f"{k} {c['max_err_of_range']:.1e}" for k, c in py["checks"].items()))
+        for k, why in py.get("skipped", {}).items():
+            print(f"skipped {k}: {why}")
+    print(bench_python.format_table(res["table"]))
+    print("All latencies include the clock reads around each call (C++: clock_overhead row; Python: "
+          "python_clock_overhead row, an empty call). 'x kernel p50' = median / the C++ kernel's "
+          f"median ({bench_python.KERNEL_CASE}); Python-level calls include the interpreter's call overhead.")
     b, h = res["budget"], res["headroom"]
     print(f"HIL budget: {b['case']} p99.9 <= {b['p999_budget_ns']:.0f} ns ({100 * b['share']:.0f} % of a "
           f"{1e6 / b['step_rate_hz']:.0f} us step): measured {h['p999_ns']:.0f} ns, headroom x{h['headroom_factor']:.2f}"
