@@ -14,6 +14,11 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <type_traits>
+
+#if defined(__SSE__)
+#include <immintrin.h>
+#endif
 
 #include "dampnet/activation.hpp"
 #include "dampnet/dampnet.h"
@@ -31,6 +36,12 @@
 namespace dampnet {
 
 constexpr int kDynamic = -1;
+
+// Hidden layers are stored padded to a multiple of 8 neurons with zero weights,
+// so every loop runs over whole SIMD vectors (no scalar tails). A padded neuron
+// has pre-activation 0 and a zero output weight: it adds exactly +0 to the sum.
+constexpr int kPad = 8;
+constexpr int pad(int n) { return n <= 0 ? 0 : (n + kPad - 1) / kPad * kPad; }
 
 namespace detail {
 
@@ -68,16 +79,73 @@ inline void dense_t(const T* wt, const T* b, const T* x, T* y, int n_in, int n_o
 #endif
 }
 
-// Hidden activations in two passes, clamp then rational: with IEEE trapping
-// semantics GCC will not vectorise a loop that both branches and divides.
+// Clamp n (a multiple of 8) floats to [-9, 9]. GCC will not turn the portable
+// compare-and-select into minps/maxps (it must keep NaN and -0 semantics), so
+// SSE/AVX use the instructions directly; the values are finite here.
+inline void clamp_tanh_args(float* h, int n) noexcept {
+#if defined(__AVX__)
+  const __m256 lo = _mm256_set1_ps(-9.f), hi = _mm256_set1_ps(9.f);
+  for (int j = 0; j < n; j += 8)
+    _mm256_store_ps(h + j, _mm256_max_ps(_mm256_min_ps(_mm256_load_ps(h + j), hi), lo));
+#elif defined(__SSE__)
+  const __m128 lo = _mm_set1_ps(-9.f), hi = _mm_set1_ps(9.f);
+  for (int j = 0; j < n; j += 4)
+    _mm_store_ps(h + j, _mm_max_ps(_mm_min_ps(_mm_load_ps(h + j), hi), lo));
+#else
+  for (int j = 0; j < n; ++j) h[j] = clamp_tanh_arg(h[j]);
+#endif
+}
+inline void clamp_tanh_args(double*, int) noexcept {}  // std::tanh needs no clamp
+
+// Hidden activations in passes (scale, clamp, rational, shift): with IEEE
+// trapping semantics GCC will not vectorise a loop that both branches and divides.
+// h is 32-byte aligned and n a multiple of 8 (padded layers).
 template <typename T, int kN>
 inline void activate_all(Activation act, T* h, int n) noexcept {
   const int nn = kN > 0 ? kN : n;
-  const T pre = act == Activation::sigmoid ? T(0.5) : T(1);
-  for (int j = 0; j < nn; ++j) h[j] = clamp_tanh_arg(pre * h[j]);
+  if (act == Activation::sigmoid)
+    for (int j = 0; j < nn; ++j) h[j] *= T(0.5);
+  clamp_tanh_args(h, nn);
   for (int j = 0; j < nn; ++j) h[j] = tanh_rational(h[j]);
   if (act == Activation::sigmoid)
     for (int j = 0; j < nn; ++j) h[j] = T(0.5) + T(0.5) * h[j];
+}
+
+// sum_j w[j] a[j] over n (a multiple of 8) in eight interleaved partial sums,
+// part[l] = sum_k w[8k+l] a[8k+l], combined as ((p0+p4)+(p1+p5))+((p2+p6)+(p3+p7)):
+// the adds pipeline instead of forming one long chain. The SIMD versions keep
+// exactly this order, so every path gives the same bits.
+template <typename T, int kN>
+inline T dot_padded(const T* __restrict w, const T* __restrict a, int n) noexcept {
+  const int nn = kN > 0 ? kN : n;
+  alignas(32) T part[kPad] = {};
+  for (int j = 0; j < nn; j += kPad)
+    for (int l = 0; l < kPad; ++l) part[l] += w[j + l] * a[j + l];
+  return ((part[0] + part[4]) + (part[1] + part[5])) + ((part[2] + part[6]) + (part[3] + part[7]));
+}
+
+#if defined(__SSE__)
+template <>
+inline float dot_padded<float, kDynamic>(const float* __restrict w, const float* __restrict a,
+                                         int n) noexcept {
+  __m128 lo = _mm_setzero_ps(), hi = _mm_setzero_ps();  // part[0..3], part[4..7]
+  for (int j = 0; j < n; j += kPad) {
+    lo = _mm_add_ps(lo, _mm_mul_ps(_mm_load_ps(w + j), _mm_load_ps(a + j)));
+    hi = _mm_add_ps(hi, _mm_mul_ps(_mm_load_ps(w + j + 4), _mm_load_ps(a + j + 4)));
+  }
+  alignas(16) float s[4];
+  _mm_store_ps(s, _mm_add_ps(lo, hi));  // p0+p4, p1+p5, p2+p6, p3+p7
+  return (s[0] + s[1]) + (s[2] + s[3]);
+}
+#endif
+
+// The compile-time-size entry forwards to the same code (one implementation per type).
+template <typename T, int kN>
+inline T dot_out(const T* w, const T* a, int n) noexcept {
+#if defined(__SSE__)
+  if constexpr (std::is_same<T, float>::value) return dot_padded<float, kDynamic>(w, a, kN > 0 ? kN : n);
+#endif
+  return dot_padded<T, kN>(w, a, n);
 }
 
 // Saturate and scale the inputs; returns the warning bits, sets the mask.
@@ -107,40 +175,39 @@ inline int prepare_inputs(const P& p, const T* x, T* xs, uint32_t& mask) noexcep
 }
 
 // The forward pass shared by Mlp and StaticMlp. kH2 == 0: one hidden layer.
+// Sizes used here are the padded ones (pad()).
 template <typename T, int kIn, int kH1, int kH2, class P>
 DN_REALTIME inline int forward(const P& p, const T* x, T* y, uint32_t* clamped_mask) noexcept {
+  constexpr int kP1 = kH1 > 0 ? pad(kH1) : kDynamic;
+  constexpr int kP2 = kH2 > 0 ? pad(kH2) : (kH2 == 0 ? 0 : kDynamic);
   constexpr int cap_in = kIn > 0 ? kIn : DN_MAX_INPUTS;
-  constexpr int cap_h1 = kH1 > 0 ? kH1 : DN_MAX_HIDDEN;
-  constexpr int cap_h2 = kH2 > 0 ? kH2 : DN_MAX_HIDDEN;
-  const int h1 = kH1 > 0 ? kH1 : p.n_h1;
-  const int h2 = kH2 >= 0 ? kH2 : p.n_h2;
+  constexpr int cap_h1 = kH1 > 0 ? kP1 : DN_MAX_HIDDEN;
+  constexpr int cap_h2 = kH2 > 0 ? kP2 : DN_MAX_HIDDEN;
+  const int h1 = kP1 > 0 ? kP1 : p.n_h1p;
+  const int h2 = kP2 >= 0 ? kP2 : p.n_h2p;
 
   uint32_t mask = 0;
   alignas(32) T xs[cap_in];
   int status = prepare_inputs<T, kIn>(p, x, xs, mask);
 
   alignas(32) T a1[cap_h1];
-  dense_t<T, kIn, kH1>(p.w1t.data(), p.b1.data(), xs, a1, p.n_in, h1);
-  activate_all<T, kH1>(p.act, a1, h1);
+  dense_t<T, kIn, kP1>(p.w1t.data(), p.b1.data(), xs, a1, p.n_in, h1);
+  activate_all<T, kP1>(p.act, a1, h1);
 
-  const T* last = a1;
   int n_last = h1;
-  alignas(32) T a2[cap_h2 > 0 ? cap_h2 : 1];
+  bool n_last_is_a2 = false;
+  alignas(32) T a2[cap_h2 > 0 ? cap_h2 : kPad];
   if constexpr (kH2 != 0) {  // compiled out for one hidden layer
     if (h2 > 0) {
-      dense_t<T, kH1, (kH2 > 0 ? kH2 : kDynamic)>(p.w2t.data(), p.b2.data(), a1, a2, h1, h2);
-      activate_all<T, (kH2 > 0 ? kH2 : kDynamic)>(p.act, a2, h2);
-      last = a2;
+      dense_t<T, kP1, kP2>(p.w2t.data(), p.b2.data(), a1, a2, h1, h2);
+      activate_all<T, kP2>(p.act, a2, h2);
       n_last = h2;
+      n_last_is_a2 = true;
     }
   }
 
-  // Output: eight interleaved partial sums, so the adds pipeline instead of
-  // forming one 30-long dependency chain (the order is fixed, so results are
-  // identical on every path).
-  T part[8] = {};
-  for (int j = 0; j < n_last; ++j) part[j & 7] += p.w_out[j] * last[j];
-  T ys = p.b_out + (((part[0] + part[4]) + (part[1] + part[5])) + ((part[2] + part[6]) + (part[3] + part[7])));
+  const T ys = p.b_out + (n_last_is_a2 ? dot_out<T, kP2>(p.w_out.data(), a2, n_last)
+                                        : dot_out<T, kP1>(p.w_out.data(), a1, n_last));
   T out = (ys - p.out_ymin) / p.out_gain + p.out_offset;
   if (!std::isfinite(out)) {
     out = p.out_offset;
@@ -180,17 +247,27 @@ inline int load(P& p, const dn_mlp_desc* d) noexcept {
   for (int i = 0; i < ni; ++i)
     if (!(d->sat_lo[i] <= d->sat_hi[i])) return DN_E_PARAM;
 
+  const int h1p = pad(h1), h2p = pad(h2), n_lastp = h2 > 0 ? h2p : h1p;
   p.n_in = ni;
   p.n_h1 = h1;
   p.n_h2 = h2;
+  p.n_h1p = h1p;
+  p.n_h2p = h2p;
   p.act = static_cast<Activation>(d->activation);
+  // Zero everything first: the padding must hold zeros even when a model is reloaded.
+  p.w1t.fill(T(0));
+  p.b1.fill(T(0));
+  p.w2t.fill(T(0));
+  p.b2.fill(T(0));
+  p.w_out.fill(T(0));
   for (int j = 0; j < h1; ++j)
-    for (int i = 0; i < ni; ++i) p.w1t[i * h1 + j] = static_cast<T>(d->w1[j * ni + i]);
+    for (int i = 0; i < ni; ++i) p.w1t[i * h1p + j] = static_cast<T>(d->w1[j * ni + i]);
   for (int j = 0; j < h1; ++j) p.b1[j] = static_cast<T>(d->b1[j]);
   for (int j = 0; j < h2; ++j)
-    for (int k = 0; k < h1; ++k) p.w2t[k * h2 + j] = static_cast<T>(d->w2[j * h1 + k]);
+    for (int k = 0; k < h1; ++k) p.w2t[k * h2p + j] = static_cast<T>(d->w2[j * h1 + k]);
   for (int j = 0; j < h2; ++j) p.b2[j] = static_cast<T>(d->b2[j]);
   for (int j = 0; j < n_last; ++j) p.w_out[j] = static_cast<T>(d->w_out[j]);
+  (void)n_lastp;
   p.b_out = static_cast<T>(d->b_out[0]);
   for (int i = 0; i < ni; ++i) {
     p.in_offset[i] = static_cast<T>(d->in_offset[i]);
@@ -213,13 +290,15 @@ struct MlpParams {
   static_assert(In >= 1 && In <= DN_MAX_INPUTS, "1..8 inputs");
   static_assert(H1 >= 1 && H1 <= DN_MAX_HIDDEN, "1..64 neurons in hidden layer 1");
   static_assert(H2 >= 0 && H2 <= DN_MAX_HIDDEN, "0..64 neurons in hidden layer 2");
-  int n_in = 0, n_h1 = 0, n_h2 = 0;
+  static constexpr int P1 = pad(H1), P2 = pad(H2);
+  int n_in = 0, n_h1 = 0, n_h2 = 0;  // real sizes
+  int n_h1p = 0, n_h2p = 0;          // padded sizes the loops run over
   Activation act = Activation::tanh;
-  alignas(32) std::array<T, In * H1> w1t{};  // [in][h1]
-  alignas(32) std::array<T, H1> b1{};
-  alignas(32) std::array<T, H1 * H2> w2t{};  // [h1][h2]
-  alignas(32) std::array<T, H2> b2{};
-  alignas(32) std::array<T, (H2 > 0 ? H2 : H1)> w_out{};
+  alignas(32) std::array<T, In * P1> w1t{};  // [in][h1 padded]
+  alignas(32) std::array<T, P1> b1{};
+  alignas(32) std::array<T, (H2 > 0 ? P1 * P2 : 0)> w2t{};  // [h1 padded][h2 padded]
+  alignas(32) std::array<T, P2> b2{};
+  alignas(32) std::array<T, (H2 > 0 ? P2 : P1)> w_out{};
   T b_out{};
   std::array<T, In> in_offset{}, in_gain{}, sat_lo{}, sat_hi{};
   T in_ymin{-1}, out_offset{}, out_gain{1}, out_ymin{-1};
