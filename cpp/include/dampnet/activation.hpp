@@ -5,8 +5,8 @@
 // float: a 13/6-degree odd/even rational interpolant of tanh on [-9, 9]
 // (the same form Eigen uses), branch-free so the compiler vectorises the
 // hidden layer. Its worst absolute error against std::tanh, measured over
-// [-10, 10] by tests/cpp/test_activation.cpp, is 3.9e-7 (bound checked: 5e-7;
-// about 6 float ulps, near |tanh| = 1); the sigmoid's is 2.3e-7 (bound 3e-7).
+// [-10, 10] by tests/cpp/test_activation.cpp, is 3.2e-7 (bound checked: 5e-7;
+// about 5 float ulps, near |tanh| = 1); the sigmoid's is 1.7e-7 (bound 3e-7).
 // The logistic sigmoid is evaluated through the identity
 // sigmoid(x) = 0.5 + 0.5 * tanh(x / 2), so both activations share one
 // approximation and one error bound (halved for the sigmoid).
