@@ -54,6 +54,24 @@ def diagnose(model, ds, *, candidates=None, n_surrogates: int = S.N_SURROGATES, 
 
     ctx = ctx or build_context(model, ds, rows_per_test=rows_per_test)
     metrics = overall_metrics(ctx)
+    # Effects whose inputs the model already has are part of the baseline, not candidates:
+    # their regressors, at the model's own time constant where it has one, join the baseline.
+    included = {}
+    for cid in (candidates or list(CANDIDATES)):
+        cand = CANDIDATES[cid]
+        if cand.add is None:
+            continue
+        rec = cand.add({}, ctx.control_name)
+        if rec["features"] and all(f in model.features for f in rec["features"]):
+            key = next(iter(rec["feature_params"]), None)
+            theta = model.feature_params.get(key) if key else None
+            if theta is None and cand.theta_name is not None:
+                theta = list(cand.grid(ctx))[len(list(cand.grid(ctx))) // 2]
+            ok, _ = cand.testable(ctx)
+            if ok:
+                included[cid] = theta
+    ctx.notes["included"] = [(CANDIDATES[c], th) for c, th in included.items()]
+    ctx.notes.pop("baseline", None)
     loc = localise(ctx)
     resid = S.reference_residual(ctx)
     sur = S.surrogates(resid, n_surrogates, seed)
@@ -65,7 +83,11 @@ def diagnose(model, ds, *, candidates=None, n_surrogates: int = S.N_SURROGATES, 
     out = []
     for cid in (candidates or list(CANDIDATES)):
         cand = CANDIDATES[cid]
-        res = S.score_candidate(ctx, cand, Y, folds, base_cv)
+        if cid in included:
+            res = {"testable": False, "note": f"already in the model: its inputs {cand.add({}, ctx.control_name)['features']} "
+                                              "are model features (the effect's regressors are part of the baseline)"}
+        else:
+            res = S.score_candidate(ctx, cand, Y, folds, base_cv)
         entry = {"effect": cid, "title": cand.title, "needs": cand.needs, "physics": cand.physics,
                  "signature": cand.signature, "add_command": f"dampnet train {dataset_label} --add {cid}"}
         if not res["testable"]:

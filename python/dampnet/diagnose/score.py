@@ -73,9 +73,14 @@ def surrogates(resid_rows: list[np.ndarray], n: int, seed: int = 0) -> list[np.n
 
 
 def baseline_rows(ctx) -> list[np.ndarray]:
+    """Baseline basis per test, plus the regressors of effects the model already has as inputs."""
     if "baseline" not in ctx.notes:
-        ctx.notes["baseline"] = [baseline_basis(ctx.normalised_inputs(i), ctx.model.features)
-                                 for i in range(ctx.n_tests)]
+        B = [baseline_basis(ctx.normalised_inputs(i), ctx.model.features) for i in range(ctx.n_tests)]
+        for cand, theta in ctx.notes.get("included", []):
+            C = cand.columns(ctx, theta)
+            if C is not None:
+                B = [np.hstack([b, c]) for b, c in zip(B, C)]
+        ctx.notes["baseline"] = B
     return ctx.notes["baseline"]
 
 
