@@ -288,12 +288,29 @@ def check_references(model: MlpModel, cands: dict[str, dict[str, Any]], X: np.nd
     return out
 
 
+class _torch_threads_restored:
+    """Restores torch's thread count (build_candidates sets it to 1) on exit."""
+
+    def __enter__(self):
+        try:
+            import torch
+            self.n = torch.get_num_threads()
+        except ImportError:
+            self.n = None
+        return self
+
+    def __exit__(self, *exc):
+        if self.n is not None:
+            import torch
+            torch.set_num_threads(self.n)
+
+
 def forward_comparison(n_calls: int, model: MlpModel | None = None) -> dict[str, Any]:
     """Check, then time every candidate's single-sample call; plus the perf_counter_ns pair."""
     model = model or default_model()
     X = harness_inputs(model)
     warm = max(1000, n_calls // 10)
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() as tmp, _torch_threads_restored():
         cands = build_candidates(model, X, Path(tmp))
         checks = check_references(model, cands, X)
         results = {"python_clock_overhead": time_calls(lambda i: None, n_calls, warm)}

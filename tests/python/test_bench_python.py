@@ -57,7 +57,8 @@ def test_references_compute_the_kernels_function(model, tmp_path):
     span = model.sat_hi - model.sat_lo
     outside = model.sat_lo - 0.5 * span + 2.0 * span * rng.random((200, model.n_inputs))
     X = np.vstack([bp.harness_inputs(model), outside])
-    cands = bp.build_candidates(model, X, tmp_path)
+    with bp._torch_threads_restored():
+        cands = bp.build_candidates(model, X, tmp_path)
     assert {"dampnet_pybind_forward", "dampnet_pybind_forward_float", "numpy_forward", "torch_eager",
             "torch_script", "onnxruntime"} <= set(cands)
     checks = bp.check_references(model, cands, X)  # raises beyond the tolerance
