@@ -156,6 +156,8 @@ int enum_value(const py::handle& h, const char* field) {
       {"semi_euler", DN_INT_SEMI_EULER},
       {"per_stage", DN_EVAL_PER_STAGE},
       {"per_step", DN_EVAL_PER_STEP},
+      {"implicit", DN_ACCEL_IMPLICIT},
+      {"explicit", DN_ACCEL_EXPLICIT},
   };
   if (py::isinstance<py::str>(h)) {
     const std::string v = h.cast<std::string>();
@@ -569,6 +571,7 @@ PYBIND11_MODULE(_core, mod) {
   mod.def("status_str", &dn_status_str, "Explain a dampnet status code.");
   mod.attr("MAX_INPUTS") = DN_MAX_INPUTS;
   mod.attr("MAX_HIDDEN") = DN_MAX_HIDDEN;
+  mod.attr("DN_ACCEL_MAX_EVALS") = DN_ACCEL_MAX_EVALS;
 #define DN_STATUS_ATTR_(name, value, text) mod.attr(#name) = static_cast<int>(value);
   DN_STATUS_LIST(DN_STATUS_ATTR_)
 #undef DN_STATUS_ATTR_

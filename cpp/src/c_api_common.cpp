@@ -22,6 +22,15 @@ const char* dn_status_str(int status) {
     case DN_W_SATURATED | DN_W_NONFINITE_INPUT:
       return "DN_W_SATURATED|DN_W_NONFINITE_INPUT: an input was clamped to its saturation "
              "limits and a NaN input was replaced by the centre of its range";
+    case DN_W_SATURATED | DN_W_ACCEL_UNCONVERGED:
+      return "DN_W_SATURATED|DN_W_ACCEL_UNCONVERGED: an input was clamped to its saturation "
+             "limits and the implicit acceleration feature did not converge";
+    case DN_W_NONFINITE_INPUT | DN_W_ACCEL_UNCONVERGED:
+      return "DN_W_NONFINITE_INPUT|DN_W_ACCEL_UNCONVERGED: a NaN input was replaced by the "
+             "centre of its range and the implicit acceleration feature did not converge";
+    case DN_W_SATURATED | DN_W_NONFINITE_INPUT | DN_W_ACCEL_UNCONVERGED:
+      return "DN_W_SATURATED|DN_W_NONFINITE_INPUT|DN_W_ACCEL_UNCONVERGED: an input was clamped, "
+             "a NaN input was replaced, and the implicit acceleration feature did not converge";
     default:
       return "unknown dampnet status code";
   }

@@ -162,7 +162,7 @@ def _core_run(spec: DamperSpec, z_r, v_r, vehicle: Vehicle, controller: Controll
         f_static = float(vehicle.f_static)
     veh = dict(m_s=vehicle.m_s, m_us=vehicle.m_us, k_s=vehicle.k_s, k_t=vehicle.k_t, c_t=vehicle.c_t,
                dt=vehicle.dt, x_static=vehicle.x_static, f_static=f_static, integrator="rk4",
-               damper_eval="per_step")
+               damper_eval="per_step", accel_feature=vehicle.accel_feature)
     ctrl = {k: v for k, v in controller.to_dict().items() if k != "kind"}
     ctrl["kind"] = _CORE_LAWS[controller.kind]
     loop = _core.Loop(_core.LoopModel(damper, veh, ctrl))

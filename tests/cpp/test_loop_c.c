@@ -139,7 +139,13 @@ int main(int argc, char** argv) {
     EXPECT(max_zs < 0.1);
     printf("%s: t = %.3f s, z_s = %.6f m, z_us = %.6f m, damper evaluations %lld\n", kinds[i],
            s1[0], s1[1], s1[3], (long long)dn_loop_damper_evals(d1));
-    EXPECT(dn_loop_damper_evals(d1) == 4 * 5000);
+    /* 4 per step; the neural models read the acceleration and solve it implicitly by
+     * default (dn_accel_feature): between 1 and DN_ACCEL_MAX_EVALS per stage */
+    if (i < 2)
+      EXPECT(dn_loop_damper_evals(d1) >= 4 * 5000 &&
+             dn_loop_damper_evals(d1) <= 4 * 5000 * DN_ACCEL_MAX_EVALS);
+    else
+      EXPECT(dn_loop_damper_evals(d1) == 4 * 5000);
     /* reset, refusals */
     EXPECT(dn_loop_reset(m, d1) == DN_OK);
     EXPECT(dn_loop_get_state(d1, s1) == DN_OK && s1[0] == 0.0 && s1[1] == 0.0);

@@ -33,6 +33,7 @@ typedef struct dn_loop_data dn_loop_data;
 typedef struct dn_vehicle {
   double m_s; double m_us; double k_s; double k_t; double c_t; double dt;
   int integrator; int damper_eval; double x_static; double f_static; double temperature;
+  int accel_feature;
 } dn_vehicle;
 typedef struct dn_controller {
   int kind; double u_passive; double u_soft; double u_hard; double u_min; double u_max;

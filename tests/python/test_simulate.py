@@ -47,15 +47,28 @@ def test_python_loop_is_the_runtime_loop_for_linear_and_lookup(control):
             np.testing.assert_allclose(a[k], b[k], rtol=0, atol=1e-9 * max(1.0, np.max(np.abs(b[k]))))
 
 
+# A rig plan that covers what the rough road asks of the damper: band-limited random
+# displacement (0.5-15 Hz, 5 and 12 mm RMS) at 0, 2.25 and 5 V, 8 s each. The quick plan's
+# sines (0.25-3 Hz, 1 inch) reach only |a| < 9 m/s^2 with a = -w^2 x tied to the position;
+# the road drives |a| above that 44-62 % of the time at low damping, and a model trained
+# there extrapolates (its dF/da along the road: median 0-25 kg, up to 400 kg, and below
+# -1/k in 1.6-9.6 % of the samples, so that the coupled a = a_free - k F(a) has several
+# roots): 6-19 % off with either acceleration scheme (explicit +18.5/+8.1/+14.9/+6.2 %,
+# implicit +18.6/+9.7/+12.9/+6.4 % at 10 low/high, 20 low/high).
+ROAD_PLAN = dict(name="road", frequencies_hz=[1.0], amplitudes_m=[0.005, 0.012],
+                 voltages_v=[0.0, 2.25, 5.0], excitation="random", band_hz=[0.5, 15.0],
+                 duration_s=8.0, samples=10)
+
+
 @pytest.fixture(scope="module")
 def rig_models():
-    from dampnet.data.rig import generate
+    from dampnet.data.rig import Plan, generate
     from dampnet.evaluate.lookup import fit_lookup
     from dampnet.workflow import train_dataset
 
-    ds = generate("quick", seed=0)
+    ds = generate(Plan(**ROAD_PLAN), seed=0)
     model, _, _ = train_dataset(ds, algorithm="lm", max_epochs=200, seed=0)
-    return neural_spec(model), lookup_spec(fit_lookup(ds)), truth_spec()
+    return neural_spec(model), lookup_spec(fit_lookup(generate("quick", seed=0))), truth_spec()
 
 
 @pytest.fixture(scope="module")
@@ -98,13 +111,12 @@ def test_neural_tracks_truth_on_the_rough_road(rough_runs, capsys):
             n = rough_runs[("neural", speed, level)]
             errs[f"{speed:g}_{level}"] = (n - t) / t
     print("neural vs truth acc RMS error:", json.dumps({k: round(100 * v, 2) for k, v in errs.items()}))
-    # Recorded (quick-plan model, LM 200 epochs, runtime loop): +18.5 % / +8.2 % at 10 m/s
-    # low/high, +14.9 % / +6.3 % at 20 m/s. The 3 % target is not met: see test below.
+    # Recorded (ROAD_PLAN model, LM 200 epochs, runtime loop, implicit acceleration feature):
+    # +0.99 % / -1.20 % at 10 m/s low/high, +0.77 % / -0.16 % at 20 m/s (explicit feature:
+    # +1.09 / -1.12 / +0.90 / +0.43 %).
     assert all(abs(e) < 0.3 for e in errs.values())
 
 
-@pytest.mark.xfail(strict=False, reason="measured 6-19 %: the model's dF/da exceeds the explicit "
-                                        "acceleration-loop stability limit (m_s m_us/(m_s+m_us) = 38 kg)")
 def test_neural_tracks_truth_within_3_percent(rough_runs):
     for speed in (10.0, 20.0):
         for level in ("low", "high"):

@@ -58,6 +58,9 @@ DN_API const char* dn_version_string(void);
   X(DN_W_SATURATED, 1, "an input was outside its saturation limits and was clamped to them") \
   X(DN_W_NONFINITE_INPUT, 2,                                                                 \
     "an input was NaN and was replaced by the centre of its saturation range")               \
+  X(DN_W_ACCEL_UNCONVERGED, 4,                                                               \
+    "the implicit acceleration feature did not converge within DN_ACCEL_MAX_EVALS damper "   \
+    "evaluations; the iterate with the smallest residual was used")                          \
   X(DN_E_NULL, -1, "a required pointer argument was NULL")                                   \
   X(DN_E_SIZE, -2, "a size is out of range (inputs 1..8, hidden 1..64, layers 1..2)")        \
   X(DN_E_NONFINITE_PARAM, -3, "a model parameter is NaN or infinite")                        \
@@ -343,6 +346,30 @@ typedef enum dn_damper_eval {
   DN_EVAL_PER_STEP = 1   /* once at the step start, force held over the step (1 evaluation; 1st order) */
 } dn_damper_eval;
 
+/* How the loop computes the acceleration feature a (the relative acceleration
+ * z_s'' - z_us'') of a neural damper that uses "acceleration". a and the force
+ * are coupled: a = a_free - k (F(a) - f_static), k = 1/m_s + 1/m_us, a_free the
+ * relative acceleration with the damper carrying f_static.
+ * IMPLICIT solves g(a) = a - a_free + k (F(a) - f_static) = 0 at every damper
+ * evaluation (each RK4 stage, or the step start): safeguarded Newton/secant
+ * starting from the explicit value, first slope by a finite difference (or the
+ * previous stage's secant slope, or 1 where a is outside the MLP's saturation
+ * range), bisection once a sign change is bracketed and a step leaves it, at
+ * most DN_ACCEL_MAX_EVALS damper evaluations; converged when
+ * |g| <= 1e-7 (1 + |a_free|) + k eps (1 + |F|) [m/s^2] (eps = 1e-12 for a
+ * double MLP, 1e-5 float). Not converged: the iterate with the smallest |g|
+ * (never worse than the explicit value, which is the first iterate) and
+ * DN_W_ACCEL_UNCONVERGED. Stable for any dF/da >= 0.
+ * EXPLICIT uses the force of the most recent evaluation (f_last): one
+ * evaluation, no iteration, stable only while |dF/da| k < 1.
+ * Dampers whose force does not read a (all but neural-with-acceleration) and
+ * callback dampers (possibly stateful: never re-evaluated) always use EXPLICIT. */
+typedef enum dn_accel_feature {
+  DN_ACCEL_IMPLICIT = 0, /* solve the coupling per evaluation (default) */
+  DN_ACCEL_EXPLICIT = 1  /* a from f_last: one evaluation, no iteration */
+} dn_accel_feature;
+#define DN_ACCEL_MAX_EVALS 6 /* damper evaluations per implicit solve, at most */
+
 /* Vehicle and loop parameters (thesis Table 5 defaults): X(type, name, default, doc).
  * Equations (z from static equilibrium, up positive; F_a = F - f_static):
  *   m_s  z_s''  = -k_s (z_s - z_us) - F_a
@@ -358,7 +385,8 @@ typedef enum dn_damper_eval {
   X(int, damper_eval, DN_EVAL_PER_STAGE, "dn_damper_eval (RK4 only)")                      \
   X(double, x_static, 0.0, "damper displacement at static equilibrium, from mid [m]")      \
   X(double, f_static, 0.0, "damper force carried at static equilibrium [N] (e.g. gas)")    \
-  X(double, temperature, 20.0, "damper temperature at reset [degC]")
+  X(double, temperature, 20.0, "damper temperature at reset [degC]")                       \
+  X(int, accel_feature, DN_ACCEL_IMPLICIT, "dn_accel_feature (neural dampers reading a)")
 
 typedef struct dn_vehicle { DN_VEHICLE_FIELDS(DN_FIELD_DECL_) } dn_vehicle;
 #undef DN_FIELD_DECL_
@@ -378,7 +406,7 @@ DN_API void dn_controller_default(dn_controller* c, int kind);
   X(5, z_r, "road displacement at t [m]")                                             \
   X(6, v_r, "road rate at t [m/s]")                                                   \
   X(7, u_lag, "control after the first-order lag [V]")                                \
-  X(8, f_last, "force of the most recent damper evaluation [N] (acceleration feature)") \
+  X(8, f_last, "force of the most recent damper evaluation [N] (acceleration start value)") \
   X(9, temperature, "damper temperature [degC]")
 #define DN_LOOP_STATE_SIZE 10
 

@@ -17,19 +17,28 @@
 // lagged control follows its exact first-order response to the held u.
 //
 // The acceleration feature: the relative acceleration a = a_s - a_us depends on
-// the damper force being computed. The loop breaks this algebraic loop
-// explicitly: a = a_rel(state, road, F = f_last), the equations of motion
-// evaluated with the force of the most recent damper evaluation (f_last, in
-// the state). Per RK4 stage, that is the previous stage's force (stage 1: the
-// previous step's stage 4, evaluated at this step's start time); with one
-// evaluation per step (DN_EVAL_PER_STEP or semi-implicit Euler) it is the
-// previous step's force, a lag of one dt in the force part of a only. The
-// explicit scheme is stable while |dF/da| (1/m_s + 1/m_us) < 1, i.e. while the
-// damper's apparent mass is below the reduced mass of the two bodies.
+// the damper force being computed: a = a_free - k (F(a) - f_static), with
+// k = 1/m_s + 1/m_us and a_free the relative acceleration with the damper
+// carrying f_static. For a neural damper that reads a, the loop solves this
+// coupling at every damper evaluation by default (vehicle accel_feature =
+// DN_ACCEL_IMPLICIT, see dn_accel_feature in dampnet.h): g(a) = a - a_free +
+// k (F(a) - f_static) = 0 by a safeguarded Newton/secant iteration of at most
+// DN_ACCEL_MAX_EVALS evaluations, starting from the explicit value; the force
+// of the converged evaluation is the stage's force. With DN_ACCEL_EXPLICIT (and
+// for every other damper, including callbacks, which are never re-evaluated)
+// a = a_rel(state, road, F = f_last), the equations of motion evaluated with
+// the force of the most recent damper evaluation (f_last, in the state): per
+// RK4 stage the previous stage's force (stage 1: the previous step's stage 4,
+// at this step's start time); with one evaluation per step (DN_EVAL_PER_STEP
+// or semi-implicit Euler) the previous step's force, a lag of one dt in the
+// force part of a only. The explicit scheme is stable only while
+// |dF/da| k < 1 (the damper's apparent mass below the reduced mass); the
+// implicit one for any dF/da >= 0.
 #pragma once
 
 #include <cmath>
 #include <cstdint>
+#include <utility>
 
 #include "dampnet/damper.hpp"
 #include "dampnet/dampnet.h"
@@ -103,6 +112,11 @@ struct LoopModel {
   // derived
   double inv_ms = 0, inv_mus = 0;
   double lag_half = 0, lag_full = 0;  // exp(-dt/2/tau), exp(-dt/tau); 0 without a lag
+  double k_rel = 0;                   // 1/m_s + 1/m_us: da/dF of the relative acceleration
+  bool implicit_a = false;            // solve the acceleration coupling (see dn_accel_feature)
+  double a_span = 1.0;                // width of the acceleration input's saturation range
+  uint32_t a_bit = 0;                 // clamped-mask bit of the acceleration input
+  double f_eps = 1e-12;               // relative force rounding of the MLP (convergence test)
 
   // Validate and derive; DN_OK or a DN_E_* error.
   int init(const dn_vehicle& v, const Damper& d, const dn_controller& c) noexcept {
@@ -115,6 +129,8 @@ struct LoopModel {
       return DN_E_PARAM;
     if (v.integrator != DN_INT_RK4 && v.integrator != DN_INT_SEMI_EULER) return DN_E_PARAM;
     if (v.damper_eval != DN_EVAL_PER_STAGE && v.damper_eval != DN_EVAL_PER_STEP) return DN_E_PARAM;
+    if (v.accel_feature != DN_ACCEL_IMPLICIT && v.accel_feature != DN_ACCEL_EXPLICIT)
+      return DN_E_PARAM;
     const double cv[] = {c.u_passive, c.u_soft, c.u_hard, c.u_min, c.u_max,
                          c.c_sky,     c.c_gnd,  c.c_min,  c.c_max};
     for (double x : cv)
@@ -132,6 +148,20 @@ struct LoopModel {
     const double tau = d.lag_tau();
     lag_half = tau > 0 ? std::exp(-0.5 * v.dt / tau) : 0.0;
     lag_full = tau > 0 ? std::exp(-v.dt / tau) : 0.0;
+    k_rel = inv_ms + inv_mus;
+    implicit_a = false;
+    a_span = 1.0;
+    a_bit = 0;
+    if (v.accel_feature == DN_ACCEL_IMPLICIT && d.kind == DN_DAMPER_NEURAL) {
+      for (int i = 0; i < d.n_feat; ++i) {
+        if (d.feat[i] != DN_FEAT_ACCELERATION) continue;
+        implicit_a = true;
+        a_bit = 1u << i;
+        const double span = d.md.sat_hi()[i] - d.md.sat_lo()[i];
+        if (std::isfinite(span) && span > 0) a_span = span;
+      }
+    }
+    f_eps = d.precision == DN_PRECISION_FLOAT ? 1e-5 : 1e-12;
     return DN_OK;
   }
 };
@@ -190,6 +220,103 @@ inline int diverged_if_overflow(const LoopModel& m, int st) noexcept {
                                                                                : st;
 }
 
+// [RT] One damper evaluation of the loop. in.a holds the explicit acceleration
+// feature (from f_last) on entry and the feature actually used on return. With
+// m.implicit_a the coupling g(a) = a - a_free + k (F(a) - f_static) = 0 is
+// solved (see dn_accel_feature): Newton from the explicit value with a
+// finite-difference slope (or *slope, the secant slope of the previous solve in
+// this step, when positive), then secant steps, bisection whenever a sign change
+// is bracketed and the step would leave the bracket; at most DN_ACCEL_MAX_EVALS
+// evaluations. *slope (nullable) receives the last secant slope. Adds the
+// evaluations made to *n_evals. Returns the damper's status of the chosen
+// evaluation, | DN_W_ACCEL_UNCONVERGED when the iteration did not converge.
+inline int evaluate(const LoopModel& m, dn_damper_input& in, double f_last, double* f,
+                    double* feat_out, uint32_t* mask, int64_t* n_evals,
+                    double* slope = nullptr) noexcept {
+  if (!m.implicit_a) {
+    *n_evals += 1;
+    return diverged_if_overflow(m, m.damper.force(in, f, feat_out, mask));
+  }
+  struct It {
+    double a, f, g;
+    int st;
+    uint32_t mask;
+  };
+  const double k = m.k_rel, fs = m.veh.f_static;
+  const double a_free = in.a + k * (f_last - fs);
+  int evals = 0;
+  auto eval = [&](double a, It& r) noexcept -> bool {
+    in.a = a;
+    r.a = a;
+    r.mask = 0;
+    r.st = diverged_if_overflow(m, m.damper.force(in, &r.f, nullptr, &r.mask));
+    ++evals;
+    r.g = a - a_free + k * (r.f - fs);
+    return r.st >= 0 && std::isfinite(r.g);
+  };
+  auto converged = [&](const It& r) noexcept {
+    const double tol = 1e-7 * (1.0 + std::fabs(a_free)) + k * m.f_eps * (1.0 + std::fabs(r.f));
+    return std::fabs(r.g) <= tol;
+  };
+  It cur{}, prev{}, best{}, lo{}, hi{};  // lo: a point with g < 0, hi: g > 0
+  bool has_lo = false, has_hi = false, done = false;
+  auto note = [&](const It& r) noexcept {
+    if (r.g < 0) lo = r, has_lo = true;
+    else if (r.g > 0) hi = r, has_hi = true;
+    if (std::fabs(r.g) < std::fabs(best.g)) best = r;
+  };
+  if (!eval(in.a, cur)) {  // an error (non-finite input/output): as the explicit scheme
+    *n_evals += evals;
+    *f = cur.f;
+    if (mask) *mask = cur.mask;
+    return cur.st;
+  }
+  best = cur;
+  note(cur);
+  done = converged(cur);
+  double s = (slope && *slope > 0 && std::isfinite(*slope)) ? *slope : 0.0;
+  if (cur.mask & m.a_bit) s = 1.0;  // a saturated: F does not depend on it here, g' = 1
+  if (!done && !(s > 0)) {  // first slope by a forward difference toward the root
+    const double h = 1e-4 * m.a_span;
+    prev = cur;
+    if (!eval(cur.a - (cur.g > 0 ? h : -h), cur)) cur = prev;
+    else {
+      s = (cur.g - prev.g) / (cur.a - prev.a);
+      note(cur);
+      done = converged(cur);
+      if (std::fabs(prev.g) < std::fabs(cur.g)) std::swap(prev, cur);  // step from the better one
+    }
+  } else {
+    prev = cur;
+  }
+  while (!done && evals < DN_ACCEL_MAX_EVALS) {
+    double a_new;
+    if (s > 1e-3 && std::isfinite(s)) a_new = cur.a - cur.g / s;
+    else a_new = cur.a - cur.g;  // no usable slope: the fixed-point step (slope of g beyond saturation)
+    if (has_lo && has_hi) {
+      const double b0 = std::fmin(lo.a, hi.a), b1 = std::fmax(lo.a, hi.a);
+      if (!(a_new > b0 && a_new < b1)) a_new = 0.5 * (lo.a + hi.a);
+    }
+    if (!std::isfinite(a_new) || a_new == cur.a) break;
+    It nxt;
+    if (!eval(a_new, nxt)) break;
+    if (nxt.a != cur.a) s = (nxt.g - cur.g) / (nxt.a - cur.a);
+    prev = cur;
+    cur = nxt;
+    note(cur);
+    done = converged(cur);
+  }
+  (void)prev;
+  *n_evals += evals;
+  const It& r = done ? cur : best;
+  in.a = r.a;
+  *f = r.f;
+  if (mask) *mask = r.mask;
+  if (feat_out) m.damper.feature_values(in, feat_out);
+  if (slope) *slope = s;
+  return done ? r.st : (r.st | DN_W_ACCEL_UNCONVERGED);
+}
+
 // Everything at the step start: control, first damper evaluation, report.
 struct Start {
   double u;
@@ -199,14 +326,14 @@ struct Start {
 };
 
 inline Start start(const LoopModel& m, const double* s, double u_ext, dn_loop_out* out,
-                   uint32_t* mask) noexcept {
+                   uint32_t* mask, int64_t* n_evals, double* slope = nullptr) noexcept {
   Start r;
   r.u = control_law(m.ctrl, s[S_v_s], s[S_v_us], u_ext);
   const Body b{s[S_z_s], s[S_v_s], s[S_z_us], s[S_v_us]};
   r.in = damper_input(m, b, s[S_z_r], s[S_v_r], r.u, s[S_u_lag], s[S_f_last], s[S_temperature],
                       s[S_t], 0);
   double* feat = out ? out->features : nullptr;
-  r.status = diverged_if_overflow(m, m.damper.force(r.in, &r.force, feat, mask));
+  r.status = evaluate(m, r.in, s[S_f_last], &r.force, feat, mask, n_evals, slope);
   if (out) {
     const Accel a = accel(m, b, s[S_z_r], s[S_v_r], r.force);
     out->force = r.force;
@@ -238,7 +365,8 @@ DN_REALTIME inline int forward(const LoopModel& m, const LoopData& d, const dn_l
                                dn_loop_out* out) noexcept {
   if (!std::isfinite(in.u) && m.ctrl.kind == DN_CTRL_EXTERNAL) return DN_E_NONFINITE_INPUT;
   uint32_t mask = 0;
-  const detail::Start r = detail::start(m, d.s, in.u, out, &mask);
+  int64_t n_evals = 0;
+  const detail::Start r = detail::start(m, d.s, in.u, out, &mask, &n_evals);
   return r.status;
 }
 
@@ -252,8 +380,8 @@ DN_REALTIME inline int step(const LoopModel& m, LoopData& d, const dn_loop_input
   const double* s = d.s;
   const double h = m.veh.dt;
   uint32_t mask = 0;
-  const detail::Start r = detail::start(m, s, in.u, out, &mask);
-  d.n_evals += 1;
+  double slope = 0.0;  // the implicit acceleration solve's secant slope, carried over the stages
+  const detail::Start r = detail::start(m, s, in.u, out, &mask, &d.n_evals, &slope);
   int status = r.status;
   if (status < 0) return status;
 
@@ -282,11 +410,9 @@ DN_REALTIME inline int step(const LoopModel& m, LoopData& d, const dn_loop_input
     auto force_at = [&](const Body& b, double zr, double vr, double ul, double t,
                         int stage) noexcept -> double {
       if (!per_stage) return r.force;
-      const dn_damper_input di =
-          detail::damper_input(m, b, zr, vr, u, ul, f_last, temp, t, stage);
+      dn_damper_input di = detail::damper_input(m, b, zr, vr, u, ul, f_last, temp, t, stage);
       double f = 0.0;
-      const int st = detail::diverged_if_overflow(m, m.damper.force(di, &f, nullptr, nullptr));
-      d.n_evals += 1;
+      const int st = detail::evaluate(m, di, f_last, &f, nullptr, nullptr, &d.n_evals, &slope);
       if (st < 0) status = st;
       else status |= st;
       f_last = f;

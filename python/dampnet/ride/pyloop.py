@@ -10,11 +10,17 @@ step (DN_INT_RK4 with DN_EVAL_PER_STEP):
 * the control u is computed by the controller from the state at the step
   start and held over the step (passive, skyhook/groundhook on-off and
   continuous: the same laws as `control_law` in loop.hpp);
-* the damper is evaluated once, at the step start, with x = z_s - z_us +
-  x_static, v = v_s - v_us and the relative acceleration a = a_s - a_us
-  computed from the equations of motion with the force of the previous
-  evaluation (f_last; the runtime's explicit break of the algebraic loop);
-  its force F is held over the step - a stateful damper (the truth damper's
+* the damper is evaluated at the step start, with x = z_s - z_us +
+  x_static, v = v_s - v_us and the relative acceleration a = a_s - a_us.
+  a and F are coupled (a = a_free - k (F(a) - f_static), k = 1/m_s + 1/m_us).
+  For a neural damper that reads "acceleration", with
+  Vehicle.accel_feature = "implicit" (default), the coupling is solved by
+  `solve_acceleration`, the runtime's algorithm (dn_accel_feature in
+  dampnet.h: Newton/secant from the explicit value, bisection in a bracket, at
+  most ACCEL_MAX_EVALS evaluations, same tolerance); otherwise, and for every
+  other damper, a comes from the equations of motion with the force of the
+  previous evaluation (f_last; the explicit scheme). Its force F is held over
+  the step - a stateful damper (the truth damper's
   compressibility lag, LuGre friction) is therefore stepped exactly once per
   dt, as its `step(dt, ...)` requires;
 * classical RK4 on (z_s, v_s, z_us, v_us) with the road at mid-step the cubic
@@ -37,6 +43,10 @@ import numpy as np
 CONTROL_LAWS = ("passive", "skyhook", "skyhook_continuous", "groundhook", "groundhook_continuous")
 
 
+ACCEL_MAX_EVALS = 6          # DN_ACCEL_MAX_EVALS
+ACCEL_MODES = ("implicit", "explicit")
+
+
 class LoopError(ValueError):
     """Nonsensical vehicle, controller or run settings."""
 
@@ -53,6 +63,7 @@ class Vehicle:
     dt: float = 0.001
     x_static: float = 0.0
     f_static: float | None = None     # None: the damper's force at rest with the initial control
+    accel_feature: str = "implicit"   # "implicit" | "explicit": see solve_acceleration / dn_accel_feature
 
     def validate(self) -> None:
         for name in ("m_s", "m_us", "k_s", "k_t", "c_t", "dt", "x_static"):
@@ -69,6 +80,8 @@ class Vehicle:
                 raise LoopError(f"vehicle {name} must be >= 0, got {getattr(self, name)!r}")
         if not (0 < self.dt <= 0.1):
             raise LoopError(f"time step dt must be in (0, 0.1] s, got {self.dt!r}")
+        if self.accel_feature not in ACCEL_MODES:
+            raise LoopError(f"vehicle accel_feature must be one of {ACCEL_MODES}, got {self.accel_feature!r}")
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -211,6 +224,83 @@ class NeuralLoopDamper:
         vals = (v, a, x, u, u)
         return float(self.forward(np.array([vals[i] for i in self._idx])))
 
+    @property
+    def acceleration_input(self) -> int | None:
+        """Index of the "acceleration" input, or None."""
+        f = self.model.features
+        return f.index("acceleration") if "acceleration" in f else None
+
+
+def solve_acceleration(force_of_a, a_explicit: float, f_last: float, k: float, f_static: float,
+                       a_lo: float, a_hi: float, f_eps: float = 1e-12, slope: float = 0.0):
+    """Solve g(a) = a - a_free + k (F(a) - f_static) = 0: the runtime's implicit acceleration feature.
+
+    The same algorithm as dampnet::detail::evaluate (loop.hpp): start at the
+    explicit value a_explicit (from f_last); slope 1 where a is outside
+    [a_lo, a_hi] (the MLP clamps it), else the given slope when positive, else
+    a forward difference of 1e-4 (a_hi - a_lo) toward the root; then Newton
+    with the latest secant slope (the fixed-point step a - g when the slope is
+    below 1e-3), bisection when a step leaves a bracket [g < 0, g > 0]; at most
+    ACCEL_MAX_EVALS evaluations; converged when |g| <= 1e-7 (1 + |a_free|) +
+    k f_eps (1 + |F|). Returns (a, F, converged, evaluations, slope); not
+    converged: the evaluated point with the smallest |g|.
+    """
+    a_free = a_explicit + k * (f_last - f_static)
+    evals = 0
+
+    def ev(a):
+        nonlocal evals
+        evals += 1
+        f = float(force_of_a(a))
+        return (a, f, a - a_free + k * (f - f_static))
+
+    def conv(r):
+        return abs(r[2]) <= 1e-7 * (1.0 + abs(a_free)) + k * f_eps * (1.0 + abs(r[1]))
+
+    lo = hi = None
+    cur = best = ev(a_explicit)
+
+    def note(r):
+        nonlocal lo, hi, best
+        if r[2] < 0:
+            lo = r
+        elif r[2] > 0:
+            hi = r
+        if abs(r[2]) < abs(best[2]):
+            best = r
+
+    note(cur)
+    done = conv(cur)
+    s = slope if (slope > 0 and math.isfinite(slope)) else 0.0
+    if not (a_lo <= cur[0] <= a_hi):
+        s = 1.0
+    if not done and not s > 0:
+        h = 1e-4 * (a_hi - a_lo if a_hi > a_lo else 1.0)
+        prev = cur
+        cur = ev(cur[0] - (h if cur[2] > 0 else -h))
+        s = (cur[2] - prev[2]) / (cur[0] - prev[0])
+        note(cur)
+        done = conv(cur)
+        if abs(prev[2]) < abs(cur[2]):
+            prev, cur = cur, prev
+    while not done and evals < ACCEL_MAX_EVALS:
+        an = cur[0] - cur[2] / s if (s > 1e-3 and math.isfinite(s)) else cur[0] - cur[2]
+        if lo is not None and hi is not None:
+            b0, b1 = min(lo[0], hi[0]), max(lo[0], hi[0])
+            if not (b0 < an < b1):
+                an = 0.5 * (lo[0] + hi[0])
+        if not math.isfinite(an) or an == cur[0]:
+            break
+        nxt = ev(an)
+        if not math.isfinite(nxt[2]):
+            break
+        s = (nxt[2] - cur[2]) / (nxt[0] - cur[0])
+        cur = nxt
+        note(cur)
+        done = conv(cur)
+    r = cur if done else best
+    return r[0], r[1], done, evals, s
+
 
 # ---- the loop ----------------------------------------------------------------------------------
 
@@ -218,7 +308,8 @@ def run(damper, z_r, v_r, vehicle: Vehicle | None = None, controller: Controller
     """Run the loop over road samples z_r [m], v_r [m/s] at t = k dt; arrays at each step's start.
 
     Returns t, z_s, v_s, z_us, v_us, z_r, acc_s, acc_us, force, u, x, v, a (n = len(z_r) - 1
-    steps; the last road sample is the end of the last step).
+    steps; the last road sample is the end of the last step); with the implicit acceleration
+    feature also accel_evals and accel_converged per step.
     """
     veh = vehicle or Vehicle()
     ctrl = controller or Controller()
@@ -249,6 +340,11 @@ def run(damper, z_r, v_r, vehicle: Vehicle | None = None, controller: Controller
     zs = vs = zus = vus = 0.0
     f_last = f_static
     inv_ms, inv_mus = 1.0 / ms, 1.0 / mus
+    ia = getattr(damper, "acceleration_input", None) if veh.accel_feature == "implicit" else None
+    if ia is not None:
+        a_lo, a_hi = float(damper.model.sat_lo[ia]), float(damper.model.sat_hi[ia])
+        out["accel_evals"] = np.ones(n, dtype=np.int64)
+        out["accel_converged"] = np.ones(n, dtype=bool)
 
     def accel(zs, vs, zus, vus, zr, vr, f):
         fs = ks * (zs - zus)
@@ -260,7 +356,13 @@ def run(damper, z_r, v_r, vehicle: Vehicle | None = None, controller: Controller
         u = ctrl.law(vs, vus)
         as_l, aus_l = accel(zs, vs, zus, vus, zr0, vr0, f_last)
         x, v, a = zs - zus + veh.x_static, vs - vus, as_l - aus_l
-        f = float(damper.force(x, v, a, u, h))
+        if ia is not None:
+            a, f, ok, ne, _ = solve_acceleration(lambda aa: damper.force(x, v, aa, u, h), a, f_last,
+                                                 inv_ms + inv_mus, f_static, a_lo, a_hi)
+            out["accel_evals"][k] = ne
+            out["accel_converged"][k] = ok
+        else:
+            f = float(damper.force(x, v, a, u, h))
         if not math.isfinite(f):
             raise LoopError(f"damper force is not finite at t = {k * h:.6g} s (x={x:.4g}, v={v:.4g}, u={u:.4g})")
         k1s, k1u = accel(zs, vs, zus, vus, zr0, vr0, f)
