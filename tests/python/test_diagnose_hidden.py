@@ -6,7 +6,12 @@ model (velocity, acceleration, voltage) trained with LM on every 4th sample, at 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
+import numpy as np
 import pytest
+
+from dampnet.data.rig.effects import Effect
 
 from dampnet.data.rig import generate
 from dampnet.diagnose.catalogue import additions
@@ -84,3 +89,21 @@ def test_two_effects_top_two():
     r = _run(["gas_spring", "valve_lag"], None)
     top2 = {c["effect"] for c in r["d"]["candidates"][:2]}
     assert top2 == {"gas_spring", "valve_lag"}
+
+
+@dataclass
+class _PlainCoulomb(Effect):
+    """Plain Coulomb seal friction, F = F_c tanh(v / v_s): a function of velocity alone."""
+
+    name = "plain_coulomb_test"
+    force_n: float = 150.0
+    v_smooth_m_s: float = 0.003
+
+    def force(self, ctx):
+        return self.force_n * np.tanh(ctx.v / self.v_smooth_m_s)
+
+
+def test_effect_the_inputs_already_explain_is_not_flagged():
+    r = _run([_PlainCoulomb()], None)
+    assert r["d"]["verdict"] is None, [(c["effect"], c["score"]) for c in r["d"]["candidates"][:3]]
+    assert not any(c["significant"] for c in r["d"]["candidates"])

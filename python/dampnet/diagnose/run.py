@@ -9,6 +9,9 @@ from dampnet.diagnose.catalogue import CANDIDATES
 from dampnet.diagnose.context import ROWS_PER_TEST, build_context
 
 
+MAX_ACCEPTED = 3  # forward selection stops after this many effects
+
+
 def _jsonable(x):
     if isinstance(x, dict):
         return {k: _jsonable(v) for k, v in x.items()}
@@ -70,24 +73,55 @@ def diagnose(model, ds, *, candidates=None, n_surrogates: int = S.N_SURROGATES, 
             ok, _ = cand.testable(ctx)
             if ok:
                 included[cid] = theta
-    ctx.notes["included"] = [(CANDIDATES[c], th) for c, th in included.items()]
-    ctx.notes.pop("baseline", None)
-    loc = localise(ctx)
-    resid = S.reference_residual(ctx)
-    sur = S.surrogates(resid, n_surrogates, seed)
-    Y = [np.column_stack([r, s]) for r, s in zip(resid, sur)]
-    folds = S.folds_of(ctx)
-    base_cv = S.baseline_cv(ctx, Y, folds)
-    ss_tot = sum(float(np.sum(r * r)) for r in resid)
-    baseline_share = float((ss_tot - base_cv[0][:, 0].sum()) / ss_tot) if ss_tot > 0 else 0.0
+    loc = None
+    cids = list(candidates or list(CANDIDATES))
+
+    def score_pass(accepted: dict) -> tuple[dict, dict, float, list]:
+        """Score every candidate not in the baseline; `accepted` effects join the baseline."""
+        nonlocal loc
+        ctx.notes["included"] = [(CANDIDATES[c], th) for c, th in {**included, **accepted}.items()]
+        ctx.notes.pop("baseline", None)
+        ctx.notes.pop("baseline_products", None)
+        if loc is None:
+            loc = localise(ctx)
+        resid = S.reference_residual(ctx)
+        sur = S.surrogates(resid, n_surrogates, seed)
+        Y = [np.column_stack([r, s]) for r, s in zip(resid, sur)]
+        folds = S.folds_of(ctx)
+        base_cv = S.baseline_cv(ctx, Y, folds)
+        ss_tot = sum(float(np.sum(r * r)) for r in resid)
+        share = float((ss_tot - base_cv[0][:, 0].sum()) / ss_tot) if ss_tot > 0 else 0.0
+        results = {cid: S.score_candidate(ctx, CANDIDATES[cid], Y, folds, base_cv)
+                   for cid in cids if cid not in included and cid not in accepted}
+        return results, {}, share, folds
+
+    # Forward selection: the most likely effect is accepted into the baseline and the
+    # others are scored again given it, so that an effect which only partly mimics the
+    # accepted one (e.g. compressibility's lagged force next to a valve lag) is judged
+    # on what it adds. Each accepted effect keeps the score it had when it was accepted.
+    accepted: dict = {}
+    accepted_results: dict = {}
+    results, _, baseline_share, folds = score_pass(accepted)
+    while len(accepted) < MAX_ACCEPTED:
+        testable = {c: r for c, r in results.items() if r["testable"]}
+        if not testable:
+            break
+        best = max(testable, key=lambda c: testable[c]["score"])
+        if not testable[best]["significant"]:
+            break
+        accepted[best] = testable[best]["theta"]
+        accepted_results[best] = testable[best]
+        results, _, _, folds = score_pass(accepted)
+    results = {**results, **accepted_results}
+
     out = []
-    for cid in (candidates or list(CANDIDATES)):
+    for cid in cids:
         cand = CANDIDATES[cid]
         if cid in included:
             res = {"testable": False, "note": f"already in the model: its inputs {cand.add({}, ctx.control_name)['features']} "
                                               "are model features (the effect's regressors are part of the baseline)"}
         else:
-            res = S.score_candidate(ctx, cand, Y, folds, base_cv)
+            res = results[cid]
         entry = {"effect": cid, "title": cand.title, "needs": cand.needs, "physics": cand.physics,
                  "signature": cand.signature, "add_command": f"dampnet train {dataset_label} --add {cid}"}
         if not res["testable"]:
@@ -101,17 +135,24 @@ def diagnose(model, ds, *, candidates=None, n_surrogates: int = S.N_SURROGATES, 
             improved = int(np.sum(gains > 0))
             top = [ctx.tests[i].test.test_id for i in np.argsort(-gains)[:3] if gains[i] > 0]
             ev = cand.evidence(est, loc) if cand.evidence else cand.signature
-            ev += (f". Held out, it explains {100 * res['score']:.1f} % of the residual variance "
-                   f"(null {100 * res['null_mean']:.2f} +- {100 * res['null_sd']:.2f} %), improving "
+            acc = list(accepted)
+            given = acc[:acc.index(cid)] if cid in accepted else acc  # scored given these effects
+            ev += (f". Held out, it explains {100 * res['score']:.1f} % of the residual variance"
+                   + (f" left after {', '.join(given)}" if given else "")
+                   + f" (null {100 * res['null_mean']:.2f} +- {100 * res['null_sd']:.2f} %), improving "
                    f"{improved} of {ctx.n_tests} tests" + (f", most {', '.join(top)}" if top else ""))
             entry.update({"testable": True, "score": res["score"], "significant": res["significant"],
                           "p_value": res["p_value"], "z": res["z"],
                           "null": {"mean": res["null_mean"], "sd": res["null_sd"], "max": res["null_max"],
                                    "n_surrogates": n_surrogates},
                           "parameters": est, "uncertainty": unc, "evidence": ev, "note": res["note"],
-                          "tests_improved": improved})
+                          "tests_improved": improved, "given": given})
         out.append(entry)
-    out.sort(key=lambda e: (not e["testable"], -(e["score"] if e["score"] is not None else -1e9)))
+    # Accepted effects first, in the order they were accepted; then the rest by score.
+    order = {c: i for i, c in enumerate(accepted)}
+    out.sort(key=lambda e: (e["effect"] not in order, order.get(e["effect"], 0), not e["testable"],
+                            -(e["score"] if e["score"] is not None else -1e9)))
+
     sig = [e for e in out if e["significant"]]
     verdict = sig[0]["effect"] if sig else None
     return _jsonable({
@@ -128,7 +169,10 @@ def diagnose(model, ds, *, candidates=None, n_surrogates: int = S.N_SURROGATES, 
                    "min_score": S.MIN_SCORE, "z_min": S.Z_MIN,
                    "score": "held-out share of residual variance explained beyond a flexible function "
                             "of the model's own inputs (cross-validation over tests)",
-                   "null": "phase-randomised residuals per test (same spectrum), same cross-validation"},
+                   "null": "phase-randomised residuals per test (same spectrum), same cross-validation",
+                   "selection": "forward: the best significant effect joins the baseline and the rest are "
+                                "scored again, up to %d effects" % MAX_ACCEPTED,
+                   "accepted": list(accepted)},
         "candidates": out,
         "verdict": verdict,
     })
