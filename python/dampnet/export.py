@@ -50,6 +50,21 @@ def check_prefix(prefix: str) -> str:
     return prefix
 
 
+def _banner_value(v, width: int = 160) -> str:
+    """A short one-line rendering of a metadata value (long lists summarised, cut at width)."""
+    if isinstance(v, dict):
+        parts = []
+        for k, x in v.items():
+            if isinstance(x, (list, tuple)) and len(x) > 4:
+                x = f"[{len(x)} items]"
+            elif isinstance(x, dict):
+                continue
+            parts.append(f"{k}={x}")
+        v = ", ".join(parts)
+    text = " ".join(str(v).split())
+    return text if len(text) <= width else text[: width - 3] + "..."
+
+
 def _num(v: float) -> str:
     """A double literal that round-trips (17 significant digits)."""
     s = f"{float(v):.17g}"
@@ -91,7 +106,7 @@ def header_text(model: MlpModel, prefix: str = "dn_model") -> str:
     ]
     for key in ("algorithm", "trained_at", "training_time_s", "data", "torch_version", "metrics"):
         if key in meta:
-            banner_lines.append(f"{key}: {meta[key]}")
+            banner_lines.append(f"{key}: {_banner_value(meta[key])}")
     banner = "/*\n" + "\n".join(" * " + line.replace("*/", "* /") for line in banner_lines) + "\n */\n"
 
     guard = f"{P}_H_"
