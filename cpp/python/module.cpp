@@ -158,6 +158,7 @@ int enum_value(const py::handle& h, const char* field) {
       {"per_step", DN_EVAL_PER_STEP},
       {"implicit", DN_ACCEL_IMPLICIT},
       {"explicit", DN_ACCEL_EXPLICIT},
+      {"linear", DN_ACCEL_LINEAR},
   };
   if (py::isinstance<py::str>(h)) {
     const std::string v = h.cast<std::string>();

@@ -203,13 +203,26 @@ def test_implicit_acceleration_feature_matches_the_exact_added_mass_solution(m_a
     loop is the RK4 solution of the exact implicit system: relative RMS error < 1e-6 at 1 kHz
     for any added mass (200 and 2000 kg: 5 and 53 times the explicit limit), converged at
     every evaluation, at most DN_ACCEL_MAX_EVALS evaluations per stage (F is linear in a:
-    explicit start, finite-difference slope, one Newton step, 2-3 per stage)."""
+    explicit start with the analytic slope, one Newton step, about 2 per stage)."""
     res = added_mass_run(m_a, "implicit")
     for (err, evals, status), dt in zip(res, (1e-3, 5e-4)):
         print(f"implicit m_a={m_a}, dt={dt}: worst relative RMS vs exact {err:.1e}, "
               f"{evals:.2f} evaluations per step")
         assert err < 1e-6
         assert 4.0 <= evals <= 4 * _core.DN_ACCEL_MAX_EVALS
+        assert not np.any(status & _core.DN_W_ACCEL_UNCONVERGED)
+
+
+@pytest.mark.parametrize("m_a", [25.0, 200.0, 2000.0])
+def test_linear_acceleration_feature_is_exact_for_a_force_linear_in_a(m_a):
+    """accel_feature = linear (one evaluation with the MLP's analytic slope, one linearised
+    Newton step): for F linear in a the Newton step is exact, so the loop follows the exact
+    implicit solution like the iterated solve, far beyond the explicit limit, with exactly
+    one evaluation per RK4 stage."""
+    for (err, evals, status), dt in zip(added_mass_run(m_a, "linear"), (1e-3, 5e-4)):
+        print(f"linear m_a={m_a}, dt={dt}: worst relative RMS vs exact {err:.1e}, {evals:.2f} evaluations/step")
+        assert err < 1e-6
+        assert evals == 4.0
         assert not np.any(status & _core.DN_W_ACCEL_UNCONVERGED)
 
 

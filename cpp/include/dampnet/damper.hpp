@@ -81,6 +81,7 @@ class Damper {
   Mlp<float> mf;
   int precision = DN_PRECISION_DOUBLE;
   int n_feat = 0;
+  int accel_input = -1;  // neural: index of the "acceleration" input, or -1
   int feat[DN_MAX_INPUTS] = {};
   bool uses_lag = false;
   double fparams[DN_N_FEATURE_PARAMS > 0 ? DN_N_FEATURE_PARAMS : 1] = {};
@@ -169,6 +170,9 @@ class Damper {
     kind = DN_DAMPER_NEURAL;
     n_feat = n;
     uses_lag = lag;
+    accel_input = -1;
+    for (int i = 0; i < n; ++i)
+      if (feat[i] == DN_FEAT_ACCELERATION) accel_input = i;
     precision = prec;
     return DN_OK;
   }
@@ -243,6 +247,38 @@ class Damper {
       default:
         return fail(f, DN_E_PARAM);
     }
+    if (n_terms > 0) {
+      if (!std::isfinite(in.x)) return fail(f, DN_E_NONFINITE_INPUT);
+      y += terms::sum(terms, n_terms, in);
+    }
+    if (!std::isfinite(y)) return fail(f, DN_E_NONFINITE_OUTPUT);
+    *f = y;
+    return st;
+  }
+
+  // [RT] As force(), plus dF/da [N s^2/m] of the model (terms do not depend on a):
+  // analytic for a neural damper that reads the acceleration, 0 for the others.
+  DN_REALTIME int force_da(const dn_damper_input& in, double* f, double* df_da,
+                           uint32_t* clamped_mask = nullptr) const noexcept {
+    *df_da = 0.0;
+    if (kind != DN_DAMPER_NEURAL || accel_input < 0) return force(in, f, nullptr, clamped_mask);
+    if (clamped_mask) *clamped_mask = 0;
+    double x[DN_MAX_INPUTS];
+    feature_values(in, x);
+    for (int i = 0; i < n_feat; ++i)
+      if (!std::isfinite(x[i])) return fail(f, DN_E_NONFINITE_INPUT);
+    double y = 0.0;
+    int st;
+    if (precision == DN_PRECISION_FLOAT) {
+      float xf[DN_MAX_INPUTS], yf = 0.0f, gf = 0.0f;
+      for (int i = 0; i < n_feat; ++i) xf[i] = static_cast<float>(x[i]);
+      st = mf.forward_grad(xf, &yf, accel_input, &gf, clamped_mask);
+      y = yf;
+      *df_da = gf;
+    } else {
+      st = md.forward_grad(x, &y, accel_input, df_da, clamped_mask);
+    }
+    if (st < 0) return fail(f, st);
     if (n_terms > 0) {
       if (!std::isfinite(in.x)) return fail(f, DN_E_NONFINITE_INPUT);
       y += terms::sum(terms, n_terms, in);

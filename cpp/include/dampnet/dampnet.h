@@ -351,22 +351,29 @@ typedef enum dn_damper_eval {
  * are coupled: a = a_free - k (F(a) - f_static), k = 1/m_s + 1/m_us, a_free the
  * relative acceleration with the damper carrying f_static.
  * IMPLICIT solves g(a) = a - a_free + k (F(a) - f_static) = 0 at every damper
- * evaluation (each RK4 stage, or the step start): safeguarded Newton/secant
- * starting from the explicit value, first slope by a finite difference (or the
- * previous stage's secant slope, or 1 where a is outside the MLP's saturation
- * range), bisection once a sign change is bracketed and a step leaves it, at
+ * evaluation (each RK4 stage, or the step start): safeguarded Newton starting
+ * from the explicit value with the MLP's analytic slope dF/da (forward-mode;
+ * 0 where a is outside the MLP's saturation range), bisection once a sign
+ * change is bracketed and a step leaves it, at
  * most DN_ACCEL_MAX_EVALS damper evaluations; converged when
  * |g| <= 1e-7 (1 + |a_free|) + k eps (1 + |F|) [m/s^2] (eps = 1e-12 for a
  * double MLP, 1e-5 float). Not converged: the iterate with the smallest |g|
  * (never worse than the explicit value, which is the first iterate) and
  * DN_W_ACCEL_UNCONVERGED. Stable for any dF/da >= 0.
+ * LINEAR (linearly implicit, as in Rosenbrock methods): one evaluation with the
+ * slope, one Newton step a1 = a0 - g(a0) / g'(a0) from the explicit value a0,
+ * and the force linearised there, F0 + dF/da (a1 - a0); no second evaluation.
+ * Exact for a force linear in a; otherwise its error is second order in the
+ * Newton step. Stable for any dF/da >= 0, at the cost of one evaluation: the
+ * real-time choice.
  * EXPLICIT uses the force of the most recent evaluation (f_last): one
  * evaluation, no iteration, stable only while |dF/da| k < 1.
  * Dampers whose force does not read a (all but neural-with-acceleration) and
  * callback dampers (possibly stateful: never re-evaluated) always use EXPLICIT. */
 typedef enum dn_accel_feature {
   DN_ACCEL_IMPLICIT = 0, /* solve the coupling per evaluation (default) */
-  DN_ACCEL_EXPLICIT = 1  /* a from f_last: one evaluation, no iteration */
+  DN_ACCEL_EXPLICIT = 1, /* a from f_last: one evaluation, no iteration */
+  DN_ACCEL_LINEAR = 2    /* one evaluation with its slope, one linearised Newton step */
 } dn_accel_feature;
 #define DN_ACCEL_MAX_EVALS 6 /* damper evaluations per implicit solve, at most */
 

@@ -22,9 +22,10 @@
 // carrying f_static. For a neural damper that reads a, the loop solves this
 // coupling at every damper evaluation by default (vehicle accel_feature =
 // DN_ACCEL_IMPLICIT, see dn_accel_feature in dampnet.h): g(a) = a - a_free +
-// k (F(a) - f_static) = 0 by a safeguarded Newton/secant iteration of at most
-// DN_ACCEL_MAX_EVALS evaluations, starting from the explicit value; the force
-// of the converged evaluation is the stage's force. With DN_ACCEL_EXPLICIT (and
+// k (F(a) - f_static) = 0 by a safeguarded Newton iteration (the MLP's analytic
+// slope) of at most DN_ACCEL_MAX_EVALS evaluations, starting from the explicit
+// value; the force of the converged evaluation is the stage's force.
+// DN_ACCEL_LINEAR takes one linearised Newton step (one evaluation). With DN_ACCEL_EXPLICIT (and
 // for every other damper, including callbacks, which are never re-evaluated)
 // a = a_rel(state, road, F = f_last), the equations of motion evaluated with
 // the force of the most recent damper evaluation (f_last, in the state): per
@@ -114,6 +115,7 @@ struct LoopModel {
   double lag_half = 0, lag_full = 0;  // exp(-dt/2/tau), exp(-dt/tau); 0 without a lag
   double k_rel = 0;                   // 1/m_s + 1/m_us: da/dF of the relative acceleration
   bool implicit_a = false;            // solve the acceleration coupling (see dn_accel_feature)
+  bool linear_a = false;              // ... by one linearised Newton step (DN_ACCEL_LINEAR)
   double a_span = 1.0;                // width of the acceleration input's saturation range
   uint32_t a_bit = 0;                 // clamped-mask bit of the acceleration input
   double f_eps = 1e-12;               // relative force rounding of the MLP (convergence test)
@@ -129,7 +131,8 @@ struct LoopModel {
       return DN_E_PARAM;
     if (v.integrator != DN_INT_RK4 && v.integrator != DN_INT_SEMI_EULER) return DN_E_PARAM;
     if (v.damper_eval != DN_EVAL_PER_STAGE && v.damper_eval != DN_EVAL_PER_STEP) return DN_E_PARAM;
-    if (v.accel_feature != DN_ACCEL_IMPLICIT && v.accel_feature != DN_ACCEL_EXPLICIT)
+    if (v.accel_feature != DN_ACCEL_IMPLICIT && v.accel_feature != DN_ACCEL_EXPLICIT &&
+        v.accel_feature != DN_ACCEL_LINEAR)
       return DN_E_PARAM;
     const double cv[] = {c.u_passive, c.u_soft, c.u_hard, c.u_min, c.u_max,
                          c.c_sky,     c.c_gnd,  c.c_min,  c.c_max};
@@ -152,7 +155,8 @@ struct LoopModel {
     implicit_a = false;
     a_span = 1.0;
     a_bit = 0;
-    if (v.accel_feature == DN_ACCEL_IMPLICIT && d.kind == DN_DAMPER_NEURAL) {
+    linear_a = v.accel_feature == DN_ACCEL_LINEAR;
+    if (v.accel_feature != DN_ACCEL_EXPLICIT && d.kind == DN_DAMPER_NEURAL) {
       for (int i = 0; i < d.n_feat; ++i) {
         if (d.feat[i] != DN_FEAT_ACCELERATION) continue;
         implicit_a = true;
@@ -223,11 +227,10 @@ inline int diverged_if_overflow(const LoopModel& m, int st) noexcept {
 // [RT] One damper evaluation of the loop. in.a holds the explicit acceleration
 // feature (from f_last) on entry and the feature actually used on return. With
 // m.implicit_a the coupling g(a) = a - a_free + k (F(a) - f_static) = 0 is
-// solved (see dn_accel_feature): Newton from the explicit value with a
-// finite-difference slope (or *slope, the secant slope of the previous solve in
-// this step, when positive), then secant steps, bisection whenever a sign change
-// is bracketed and the step would leave the bracket; at most DN_ACCEL_MAX_EVALS
-// evaluations. *slope (nullable) receives the last secant slope. Adds the
+// solved (see dn_accel_feature): Newton from the explicit value with the
+// damper's analytic slope dF/da (forward-mode through the MLP), bisection
+// whenever a sign change is bracketed and the step would leave the bracket; at
+// most DN_ACCEL_MAX_EVALS evaluations. *slope (nullable) receives the last g'. Adds the
 // evaluations made to *n_evals. Returns the damper's status of the chosen
 // evaluation, | DN_W_ACCEL_UNCONVERGED when the iteration did not converge.
 inline int evaluate(const LoopModel& m, dn_damper_input& in, double f_last, double* f,
@@ -238,7 +241,7 @@ inline int evaluate(const LoopModel& m, dn_damper_input& in, double f_last, doub
     return diverged_if_overflow(m, m.damper.force(in, f, feat_out, mask));
   }
   struct It {
-    double a, f, g;
+    double a, f, g, gp;  // acceleration, force, g(a), g'(a) = 1 + k dF/da
     int st;
     uint32_t mask;
   };
@@ -249,10 +252,12 @@ inline int evaluate(const LoopModel& m, dn_damper_input& in, double f_last, doub
     in.a = a;
     r.a = a;
     r.mask = 0;
-    r.st = diverged_if_overflow(m, m.damper.force(in, &r.f, nullptr, &r.mask));
+    double dfda = 0.0;
+    r.st = diverged_if_overflow(m, m.damper.force_da(in, &r.f, &dfda, &r.mask));
     ++evals;
     r.g = a - a_free + k * (r.f - fs);
-    return r.st >= 0 && std::isfinite(r.g);
+    r.gp = 1.0 + k * dfda;
+    return r.st >= 0 && std::isfinite(r.g) && std::isfinite(r.gp);
   };
   auto converged = [&](const It& r) noexcept {
     const double tol = 1e-7 * (1.0 + std::fabs(a_free)) + k * m.f_eps * (1.0 + std::fabs(r.f));
@@ -271,28 +276,28 @@ inline int evaluate(const LoopModel& m, dn_damper_input& in, double f_last, doub
     if (mask) *mask = cur.mask;
     return cur.st;
   }
+  if (m.linear_a) {  // one Newton step with the slope, force linearised (DN_ACCEL_LINEAR)
+    const double a1 = cur.a - cur.g / cur.gp;  // gp >= 1 for dF/da >= 0
+    const double dfda = (cur.gp - 1.0) / k;
+    const bool ok = cur.gp > 1e-3 && std::isfinite(a1);
+    *n_evals += evals;
+    in.a = ok ? a1 : cur.a;
+    *f = ok ? cur.f + dfda * (a1 - cur.a) : cur.f;
+    if (mask) *mask = cur.mask;
+    if (feat_out) m.damper.feature_values(in, feat_out);
+    if (slope) *slope = cur.gp;
+    return ok ? cur.st : (cur.st | DN_W_ACCEL_UNCONVERGED);
+  }
   best = cur;
   note(cur);
   done = converged(cur);
-  double s = (slope && *slope > 0 && std::isfinite(*slope)) ? *slope : 0.0;
-  if (cur.mask & m.a_bit) s = 1.0;  // a saturated: F does not depend on it here, g' = 1
-  if (!done && !(s > 0)) {  // first slope by a forward difference toward the root
-    const double h = 1e-4 * m.a_span;
-    prev = cur;
-    if (!eval(cur.a - (cur.g > 0 ? h : -h), cur)) cur = prev;
-    else {
-      s = (cur.g - prev.g) / (cur.a - prev.a);
-      note(cur);
-      done = converged(cur);
-      if (std::fabs(prev.g) < std::fabs(cur.g)) std::swap(prev, cur);  // step from the better one
-    }
-  } else {
-    prev = cur;
-  }
+  // Newton with the network's analytic slope; where g' is too small (dF/da near -1/k,
+  // the coupling is nearly singular) the fixed-point step; bisection whenever a root
+  // is bracketed and the step would leave the bracket.
   while (!done && evals < DN_ACCEL_MAX_EVALS) {
     double a_new;
-    if (s > 1e-3 && std::isfinite(s)) a_new = cur.a - cur.g / s;
-    else a_new = cur.a - cur.g;  // no usable slope: the fixed-point step (slope of g beyond saturation)
+    if (cur.gp > 1e-3) a_new = cur.a - cur.g / cur.gp;
+    else a_new = cur.a - cur.g;
     if (has_lo && has_hi) {
       const double b0 = std::fmin(lo.a, hi.a), b1 = std::fmax(lo.a, hi.a);
       if (!(a_new > b0 && a_new < b1)) a_new = 0.5 * (lo.a + hi.a);
@@ -300,12 +305,12 @@ inline int evaluate(const LoopModel& m, dn_damper_input& in, double f_last, doub
     if (!std::isfinite(a_new) || a_new == cur.a) break;
     It nxt;
     if (!eval(a_new, nxt)) break;
-    if (nxt.a != cur.a) s = (nxt.g - cur.g) / (nxt.a - cur.a);
     prev = cur;
     cur = nxt;
     note(cur);
     done = converged(cur);
   }
+  const double s = cur.gp;
   (void)prev;
   *n_evals += evals;
   const It& r = done ? cur : best;

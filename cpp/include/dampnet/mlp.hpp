@@ -174,10 +174,22 @@ inline int prepare_inputs(const P& p, const T* x, T* xs, uint32_t& mask) noexcep
   return status;
 }
 
+// Derivative of the activation from its output h: tanh' = 1 - h^2, sigmoid' = h (1 - h).
+template <typename T>
+inline void activation_slopes(Activation act, const T* h, T* d, int n) noexcept {
+  if (act == Activation::sigmoid)
+    for (int j = 0; j < n; ++j) d[j] = h[j] * (T(1) - h[j]);
+  else
+    for (int j = 0; j < n; ++j) d[j] = T(1) - h[j] * h[j];
+}
+
 // The forward pass shared by Mlp and StaticMlp. kH2 == 0: one hidden layer.
-// Sizes used here are the padded ones (pad()).
-template <typename T, int kIn, int kH1, int kH2, class P>
-DN_REALTIME inline int forward(const P& p, const T* x, T* y, uint32_t* clamped_mask) noexcept {
+// Sizes used here are the padded ones (pad()). With kGrad, *dy_dxi also receives
+// dy/dx[grad_input] (output units per input unit) by forward-mode differentiation;
+// it is 0 when that input was clamped (the saturated model does not depend on it).
+template <typename T, int kIn, int kH1, int kH2, class P, bool kGrad = false>
+DN_REALTIME inline int forward(const P& p, const T* x, T* y, uint32_t* clamped_mask,
+                               int grad_input = 0, T* dy_dxi = nullptr) noexcept {
   constexpr int kP1 = kH1 > 0 ? pad(kH1) : kDynamic;
   constexpr int kP2 = kH2 > 0 ? pad(kH2) : (kH2 == 0 ? 0 : kDynamic);
   constexpr int cap_in = kIn > 0 ? kIn : DN_MAX_INPUTS;
@@ -194,16 +206,39 @@ DN_REALTIME inline int forward(const P& p, const T* x, T* y, uint32_t* clamped_m
   dense_t<T, kIn, kP1>(p.w1t.data(), p.b1.data(), xs, a1, p.n_in, h1);
   activate_all<T, kP1>(p.act, a1, h1);
 
+  // Forward mode: t1 = d(a1)/dx_i = act'(z1) * W1[:, i] * gain_i.
+  alignas(32) T t1[kGrad ? cap_h1 : kPad] = {};
+  if constexpr (kGrad) {
+    activation_slopes(p.act, a1, t1, h1);
+    const bool clamped = (mask >> grad_input) & 1u;
+    const T g = clamped ? T(0) : p.in_gain[grad_input];
+    const T* col = p.w1t.data() + grad_input * h1;
+    for (int j = 0; j < h1; ++j) t1[j] *= col[j] * g;
+  }
+
   int n_last = h1;
   bool n_last_is_a2 = false;
   alignas(32) T a2[cap_h2 > 0 ? cap_h2 : kPad];
+  alignas(32) T t2[kGrad && cap_h2 > 0 ? cap_h2 : kPad];
   if constexpr (kH2 != 0) {  // compiled out for one hidden layer
     if (h2 > 0) {
       dense_t<T, kP1, kP2>(p.w2t.data(), p.b2.data(), a1, a2, h1, h2);
       activate_all<T, kP2>(p.act, a2, h2);
+      if constexpr (kGrad) {
+        alignas(32) T zero[cap_h2 > 0 ? cap_h2 : kPad] = {};
+        alignas(32) T lin[cap_h2 > 0 ? cap_h2 : kPad];
+        dense_t<T, kP1, kP2>(p.w2t.data(), zero, t1, lin, h1, h2);  // W2 t1
+        activation_slopes(p.act, a2, t2, h2);
+        for (int j = 0; j < h2; ++j) t2[j] *= lin[j];
+      }
       n_last = h2;
       n_last_is_a2 = true;
     }
+  }
+  if constexpr (kGrad) {
+    const T dys = n_last_is_a2 ? dot_out<T, kP2>(p.w_out.data(), t2, n_last)
+                               : dot_out<T, kP1>(p.w_out.data(), t1, n_last);
+    *dy_dxi = dys / p.out_gain;
   }
 
   const T ys = p.b_out + (n_last_is_a2 ? dot_out<T, kP2>(p.w_out.data(), a2, n_last)
@@ -316,6 +351,17 @@ class Mlp {
   DN_REALTIME int forward(const T* x, T* y, uint32_t* clamped_mask = nullptr) const noexcept {
     return detail::forward<T, kDynamic, kDynamic, kDynamic>(p_, x, y, clamped_mask);
   }
+  // [RT] As forward, plus dy/dx[i] (see detail::forward) in *dy_dxi.
+  // An input index out of range gives dy/dx = 0.
+  DN_REALTIME int forward_grad(const T* x, T* y, int i, T* dy_dxi,
+                               uint32_t* clamped_mask = nullptr) const noexcept {
+    if (i < 0 || i >= p_.n_in) {
+      *dy_dxi = T(0);
+      return forward(x, y, clamped_mask);
+    }
+    return detail::forward<T, kDynamic, kDynamic, kDynamic, decltype(p_), true>(p_, x, y, clamped_mask,
+                                                                               i, dy_dxi);
+  }
   int n_inputs() const noexcept { return p_.n_in; }
   const T* sat_lo() const noexcept { return p_.sat_lo.data(); }
   const T* sat_hi() const noexcept { return p_.sat_hi.data(); }
@@ -334,6 +380,15 @@ class StaticMlp {
   // [RT] One sample; see dn_mlp_forward for the input policy.
   DN_REALTIME int forward(const T* x, T* y, uint32_t* clamped_mask = nullptr) const noexcept {
     return detail::forward<T, In, H1, H2>(p_, x, y, clamped_mask);
+  }
+  // [RT] As forward, plus dy/dx[i]; an input index out of range gives 0.
+  DN_REALTIME int forward_grad(const T* x, T* y, int i, T* dy_dxi,
+                               uint32_t* clamped_mask = nullptr) const noexcept {
+    if (i < 0 || i >= In) {
+      *dy_dxi = T(0);
+      return forward(x, y, clamped_mask);
+    }
+    return detail::forward<T, In, H1, H2, decltype(p_), true>(p_, x, y, clamped_mask, i, dy_dxi);
   }
 
  private:

@@ -235,7 +235,10 @@ def solve_acceleration(force_of_a, a_explicit: float, f_last: float, k: float, f
                        a_lo: float, a_hi: float, f_eps: float = 1e-12, slope: float = 0.0):
     """Solve g(a) = a - a_free + k (F(a) - f_static) = 0: the runtime's implicit acceleration feature.
 
-    The same algorithm as dampnet::detail::evaluate (loop.hpp): start at the
+    The same equation, start, safeguards and tolerance as dampnet::detail::evaluate
+    (loop.hpp), which takes its slope analytically from the MLP; this Python
+    reference estimates it (below), so the two converge to the same root within the
+    tolerance through different iterates. Start at the
     explicit value a_explicit (from f_last); slope 1 where a is outside
     [a_lo, a_hi] (the MLP clamps it), else the given slope when positive, else
     a forward difference of 1e-4 (a_hi - a_lo) toward the root; then Newton
