@@ -158,32 +158,32 @@ int main(int argc, char** argv) {
   dn_bench::print_json("loop_step_rk4_per_step_eval_neural_float_skyhook", dn_bench::measure(
       [&](long i) { dn_loop_step(lm1, ld, &road[i & 4095], nullptr); },
       [&] { dn_loop_set_state(ld, saved); }, n, warm, 1000));
-  // The same two with the explicit acceleration feature (the default model reads the
-  // acceleration, so the cases above solve it implicitly: dn_accel_feature).
-  veh.accel_feature = DN_ACCEL_EXPLICIT;
-  dn_loop_model* lm1e = nullptr;
-  dn_loop_model* lm4e = nullptr;
-  veh.damper_eval = DN_EVAL_PER_STAGE;
-  if (dn_loop_model_create(&veh, damper, &ctrl, &lm4e)) return 1;
-  veh.damper_eval = DN_EVAL_PER_STEP;
-  if (dn_loop_model_create(&veh, damper, &ctrl, &lm1e)) return 1;
-  dn_loop_model* explicit_models[2] = {lm4e, lm1e};
-  const char* explicit_names[2] = {"loop_step_rk4_neural_float_skyhook_explicit_accel",
-                                   "loop_step_rk4_per_step_eval_neural_float_skyhook_explicit_accel"};
-  for (int j = 0; j < 2; ++j) {
-    dn_loop_model* me = explicit_models[j];
+  // The same two with the linearised (one evaluation with its slope) and the explicit
+  // acceleration feature (the cases above iterate the implicit solve: dn_accel_feature).
+  dn_loop_model* variants[4] = {nullptr, nullptr, nullptr, nullptr};
+  const int accel_modes[2] = {DN_ACCEL_LINEAR, DN_ACCEL_EXPLICIT};
+  for (int j = 0; j < 4; ++j) {
+    veh.accel_feature = accel_modes[j / 2];
+    veh.damper_eval = (j % 2) ? DN_EVAL_PER_STEP : DN_EVAL_PER_STAGE;
+    if (dn_loop_model_create(&veh, damper, &ctrl, &variants[j])) return 1;
+  }
+  const char* variant_names[4] = {"loop_step_rk4_neural_float_skyhook_linear_accel",
+                                  "loop_step_rk4_per_step_eval_neural_float_skyhook_linear_accel",
+                                  "loop_step_rk4_neural_float_skyhook_explicit_accel",
+                                  "loop_step_rk4_per_step_eval_neural_float_skyhook_explicit_accel"};
+  for (int j = 0; j < 4; ++j) {
+    dn_loop_model* me = variants[j];
     dn_loop_reset(me, ld);
     for (int k = 0; k < 2000; ++k) dn_loop_step(me, ld, &road[k & 4095], nullptr);
     dn_loop_get_state(ld, saved);
-    dn_bench::print_json(explicit_names[j], dn_bench::measure(
+    dn_bench::print_json(variant_names[j], dn_bench::measure(
         [&](long i) { dn_loop_step(me, ld, &road[i & 4095], nullptr); },
         [&] { dn_loop_set_state(ld, saved); }, n, warm, 1000));
   }
   dn_loop_data_destroy(ld);
   dn_loop_model_destroy(lm);
   dn_loop_model_destroy(lm1);
-  dn_loop_model_destroy(lm1e);
-  dn_loop_model_destroy(lm4e);
+  for (dn_loop_model* me : variants) dn_loop_model_destroy(me);
   dn_damper_destroy(damper);
   dn_mlp_destroy(cm);
   (void)sink;
