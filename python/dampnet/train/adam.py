@@ -2,14 +2,20 @@
 
 One epoch is one pass over the training set in mini-batches of `batch_size`
 samples (None: the whole set, i.e. one full-batch step per epoch). The
-learning rate decays by `lr_decay` per epoch (1.0: constant).
+learning rate decays by `lr_decay` per epoch (1.0: constant). Alternatively
+`cosine_epochs=N` anneals it from `lr` to `lr_min` along a half cosine over
+N epochs (then holds `lr_min`); it cannot be combined with `lr_decay`.
+Both schedules are off by default, so the defaults are plain Adam.
 """
 
 from __future__ import annotations
 
+import math
+
 import torch
 
-DEFAULTS = {"lr": 1e-3, "betas": (0.9, 0.999), "eps": 1e-8, "batch_size": None, "lr_decay": 1.0}
+DEFAULTS = {"lr": 1e-3, "betas": (0.9, 0.999), "eps": 1e-8, "batch_size": None, "lr_decay": 1.0,
+            "cosine_epochs": None, "lr_min": 0.0}
 
 
 class Adam:
@@ -28,7 +34,18 @@ class Adam:
         self._w = x0.detach().clone().requires_grad_(True)
         s = self.settings
         self.opt = torch.optim.Adam([self._w], lr=s["lr"], betas=tuple(s["betas"]), eps=s["eps"])
-        self.sched = torch.optim.lr_scheduler.ExponentialLR(self.opt, gamma=s["lr_decay"])
+        if s["cosine_epochs"] is None:
+            self.sched = torch.optim.lr_scheduler.ExponentialLR(self.opt, gamma=s["lr_decay"])
+        else:
+            n, lr0, lr_min = int(s["cosine_epochs"]), s["lr"], s["lr_min"]
+            if n < 1 or s["lr_decay"] != 1.0:
+                raise ValueError("adam: cosine_epochs must be >= 1 and excludes lr_decay")
+
+            def factor(epoch):
+                f = min(epoch, n) / n
+                return (lr_min + 0.5 * (lr0 - lr_min) * (1 + math.cos(math.pi * f))) / lr0
+
+            self.sched = torch.optim.lr_scheduler.LambdaLR(self.opt, factor)
 
     @property
     def x(self) -> torch.Tensor:
