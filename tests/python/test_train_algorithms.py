@@ -92,7 +92,7 @@ def test_adam_recovers_teacher_network():
     # chosen for this problem: full batch, float64, the 2-3-1 teacher shape,
     # betas (0.9, 0.99), lr 0.05 cosine-annealed to 0 over 4000 epochs. At
     # this budget only a minority of seeds get below 1e-4 (1 of seeds 0-11:
-    # seed 2, ~2e-5; the others end at 2e-4 to 2.5e-3), so this checks that
+    # seed 2, ~2e-5; the others end at 3e-4 to 2.4e-3), so this checks that
     # Adam can reach the answer, not that it does so reliably.
     epochs = 4000
     settings = {"lr": 0.05, "betas": (0.9, 0.99), "cosine_epochs": epochs}
