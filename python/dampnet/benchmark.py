@@ -78,7 +78,11 @@ def quick_latency(out_dir: str | Path, n_calls: int = 200_000) -> dict:
     out = Path(out_dir)
     res = run_harness(build_harness(out), n_calls)
     budget_ns = SHARE / STEP_RATE_HZ * 1e9
-    step = res["results"].get(BUDGET_CASE, {})
+    if BUDGET_CASE not in res["results"]:
+        raise RuntimeError(f"the latency harness did not report the budget case {BUDGET_CASE!r} "
+                           f"(it reported {', '.join(res['results'])}); is the installed harness "
+                           "older than this dampnet? Reinstall (python/env.sh)")
+    step = res["results"][BUDGET_CASE]
     p999 = step.get("p999_ns")
     res["budget"] = {"step_rate_hz": STEP_RATE_HZ, "share": SHARE, "p999_budget_ns": budget_ns,
                      "case": BUDGET_CASE}
