@@ -123,3 +123,14 @@ def test_status_codes_reach_python():
     assert st == (_core.DN_W_SATURATED | _core.DN_W_NONFINITE_INPUT) and mask == 3
     assert np.isfinite(y)
     assert "NaN" in _core.status_str(_core.DN_W_NONFINITE_INPUT)
+
+
+def test_cdefs_match_the_header(repo_root):
+    """The tests' cffi declaration of dn_mlp_desc has the header's fields in the header's order."""
+    from cdefs import MLP_CDEF
+
+    header = (repo_root / "cpp" / "include" / "dampnet" / "dampnet.h").read_text()
+    body = re.search(r"typedef struct dn_mlp_desc \{(.*?)\} dn_mlp_desc;", header, re.S).group(1)
+    fields = re.findall(r"(\w+);", re.sub(r"/\*.*?\*/", "", body, flags=re.S))
+    cdef_body = re.search(r"typedef struct dn_mlp_desc \{(.*?)\} dn_mlp_desc;", MLP_CDEF, re.S).group(1)
+    assert re.findall(r"(\w+);", cdef_body.replace(",", ";")) == fields

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from cbuild import compile_program
+from cdefs import MLP_CDEF
 from dampnet import paths
 from dampnet.export import write_header
 from kernel_cases import (DOUBLE_TOL, FLOAT_TOL, SHAPES, random_inputs, random_model,
@@ -39,15 +40,7 @@ def test_random_shapes_sweep_matches_torch():
         assert np.max(np.abs(model.predict(x, single=True) - ref)) <= FLOAT_TOL, (n_in, hidden, act)
 
 
-CDEF = """
-typedef struct dn_mlp_desc {
-  int n_inputs; int n_hidden1; int n_hidden2; int activation;
-  const double* w1; const double* b1; const double* w2; const double* b2;
-  const double* w_out; const double* b_out; const double* in_offset; const double* in_gain;
-  double in_ymin; double out_offset; double out_gain; double out_ymin;
-  const double* sat_lo; const double* sat_hi;
-} dn_mlp_desc;
-typedef struct dn_mlp dn_mlp;
+CDEF = MLP_CDEF + """
 int dn_version(void);
 const char* dn_status_str(int status);
 int dn_mlp_create(const dn_mlp_desc* desc, dn_mlp** out);

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from cbuild import ROOT, compile_program
+from cdefs import MLP_CDEF
 from dampnet import paths
 from dampnet.loop import S, QuarterCar, add_terms, damper_from_model
 from dampnet.model import MlpModel
@@ -18,15 +19,7 @@ from test_loop_quarter_car import random_road
 GAS = [{"kind": "position_poly", "params": [-150.0, 3000.0, 0.0, 0.0]}]
 N = 3000
 
-CDEF = """
-typedef struct dn_mlp_desc {
-  int n_inputs; int n_hidden1; int n_hidden2; int activation;
-  const double* w1; const double* b1; const double* w2; const double* b2;
-  const double* w_out; const double* b_out; const double* in_offset; const double* in_gain;
-  double in_ymin; double out_offset; double out_gain; double out_ymin;
-  const double* sat_lo; const double* sat_hi;
-} dn_mlp_desc;
-typedef struct dn_mlp dn_mlp;
+CDEF = MLP_CDEF + """
 typedef struct dn_damper dn_damper;
 typedef struct dn_loop_model dn_loop_model;
 typedef struct dn_loop_data dn_loop_data;
