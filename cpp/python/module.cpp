@@ -465,6 +465,17 @@ class PyLoop {
     return out_dict(o, st);
   }
 
+  // The same step with the smallest Python cost: only the damper force [N] comes back
+  // (no report dict), for Python code that steps the loop at a real-time rate.
+  double step_force(double z_r, double v_r, double u) {
+    dn_loop_input in{z_r, v_r, u};
+    dn_loop_out o;
+    const int st = dn_loop_step(model->m.get(), d.get(), &in, &o);
+    model->damper->raise_pending();
+    check(st, "step");
+    return o.force;
+  }
+
   py::dict forward(double u) const {
     dn_loop_input in{0.0, 0.0, u};
     dn_loop_out o{};
@@ -659,6 +670,8 @@ PYBIND11_MODULE(_core, mod) {
       .def_property("state", &PyLoop::get_state, &PyLoop::set_state, "Flat state (STATE_NAMES).")
       .def("step", &PyLoop::step, py::arg("z_r"), py::arg("v_r"), py::arg("u") = 0.0,
            "One step; road at the end of the step. Returns the report at the step start.")
+      .def("step_force", &PyLoop::step_force, py::arg("z_r"), py::arg("v_r"), py::arg("u") = 0.0,
+           "One step, as step(), returning only the damper force [N] of its report (cheapest call).")
       .def("forward", &PyLoop::forward, py::arg("u") = 0.0, "The report without advancing.")
       .def("simulate", &PyLoop::simulate, py::arg("road"), py::arg("road_rate"),
            py::arg("u") = py::none(), py::arg("reset") = true,

@@ -347,14 +347,19 @@ def _loops(model: MlpModel):
     from dampnet.loop import damper_from_model
 
     ctrl = {"kind": "skyhook_onoff"}
+    # the HIL configuration of dampnet.benchmark.BUDGET_CASE: damper once per step, linearised a
+    hil = {"damper_eval": "per_step", "accel_feature": "linear"}
     return {"linear": _core.LoopModel(_core.Damper.linear(1500.0), {}, ctrl),
             "neural_float": _core.LoopModel(damper_from_model(model, single=True), {}, ctrl),
-            "neural_double": _core.LoopModel(damper_from_model(model, single=False), {}, ctrl)}
+            "neural_double": _core.LoopModel(damper_from_model(model, single=False), {}, ctrl),
+            "neural_float_hil": _core.LoopModel(damper_from_model(model, single=True), hil, ctrl)}
 
 
-def loop_step_latency(n_calls: int, model: MlpModel | None = None, damper: str = "neural_float") -> dict:
-    """pybind11 `Loop.step(z_r, v_r, u)` per call (returns a dict), RK4, skyhook on-off; the
-    state is restored every 1000 calls outside the timed region, as in the C++ harness."""
+def loop_step_latency(n_calls: int, model: MlpModel | None = None, damper: str = "neural_float",
+                      method: str = "step") -> dict:
+    """pybind11 `Loop.step(z_r, v_r, u)` (returns a dict) or `Loop.step_force` (returns the
+    force only) per call, RK4, skyhook on-off; the state is restored every 1000 calls outside
+    the timed region, as in the C++ harness."""
     from dampnet import _core
 
     model = model or default_model()
@@ -365,7 +370,7 @@ def loop_step_latency(n_calls: int, model: MlpModel | None = None, damper: str =
     for k in range(2000):
         loop.step(zl[k], vl[k], 0.0)
     saved = loop.state
-    step = loop.step
+    step = getattr(loop, method)
 
     warm = max(1000, n_calls // 10)
     for i in range(warm):
@@ -389,7 +394,8 @@ def loop_step_latency(n_calls: int, model: MlpModel | None = None, damper: str =
         if gc_was:
             gc.enable()
     r = summarise(ns)
-    r.update(what=f"_core.Loop.step(z_r, v_r, u) -> dict, RK4, {damper} damper, skyhook on-off",
+    r.update(what=f"_core.Loop.{method}(z_r, v_r, u) -> {'dict' if method == 'step' else 'float'}, RK4, "
+                  f"{damper} damper, skyhook on-off",
              target_ns=STEP_TARGET_NS, metric="p50_ns")
     return r
 
@@ -428,6 +434,8 @@ def python_benchmarks(n_calls: int, n_sim_steps: int, repeats: int = 5) -> dict[
     load0 = _loadavg()
     res = forward_comparison(n_calls, model)
     res["loop_step"] = {d: loop_step_latency(n_calls, model, d) for d in ("neural_float", "linear")}
+    res["loop_step"]["neural_float_hil_step_force"] = loop_step_latency(n_calls, model, "neural_float_hil",
+                                                                        method="step_force")
     res["simulate"] = simulate_throughput(n_sim_steps, repeats, model)
     res["loadavg"] = {"start": load0, "end": _loadavg()}
     return res
