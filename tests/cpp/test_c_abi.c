@@ -8,14 +8,7 @@
 #include "dampnet/dampnet.h"
 #include "dn_model_default.h"
 
-static int failures = 0;
-#define EXPECT(c)                                                          \
-  do {                                                                     \
-    if (!(c)) {                                                            \
-      fprintf(stderr, "%s:%d: expected %s\n", __FILE__, __LINE__, #c);     \
-      ++failures;                                                          \
-    }                                                                      \
-  } while (0)
+#include "expect.h"
 
 int main(void) {
   dn_mlp_desc desc = DN_MODEL_DEFAULT_DESC_INIT;

@@ -12,14 +12,7 @@
 #include "dampnet/dampnet.h"
 #include "dn_model_default.h"
 
-static int failures = 0;
-#define EXPECT(c)                                                      \
-  do {                                                                 \
-    if (!(c)) {                                                        \
-      fprintf(stderr, "%s:%d: expected %s\n", __FILE__, __LINE__, #c); \
-      ++failures;                                                      \
-    }                                                                  \
-  } while (0)
+#include "expect.h"
 
 #define k_features dn_model_default_feature_names
 

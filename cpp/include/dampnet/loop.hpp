@@ -230,12 +230,11 @@ inline int diverged_if_overflow(const LoopModel& m, int st) noexcept {
 // solved (see dn_accel_feature): Newton from the explicit value with the
 // damper's analytic slope dF/da (forward-mode through the MLP), bisection
 // whenever a sign change is bracketed and the step would leave the bracket; at
-// most DN_ACCEL_MAX_EVALS evaluations. *slope (nullable) receives the last g'. Adds the
+// most DN_ACCEL_MAX_EVALS evaluations. Adds the
 // evaluations made to *n_evals. Returns the damper's status of the chosen
 // evaluation, | DN_W_ACCEL_UNCONVERGED when the iteration did not converge.
 inline int evaluate(const LoopModel& m, dn_damper_input& in, double f_last, double* f,
-                    double* feat_out, uint32_t* mask, int64_t* n_evals,
-                    double* slope = nullptr) noexcept {
+                    double* feat_out, uint32_t* mask, int64_t* n_evals) noexcept {
   if (!m.implicit_a) {
     *n_evals += 1;
     return diverged_if_overflow(m, m.damper.force(in, f, feat_out, mask));
@@ -263,7 +262,7 @@ inline int evaluate(const LoopModel& m, dn_damper_input& in, double f_last, doub
     const double tol = 1e-7 * (1.0 + std::fabs(a_free)) + k * m.f_eps * (1.0 + std::fabs(r.f));
     return std::fabs(r.g) <= tol;
   };
-  It cur{}, prev{}, best{}, lo{}, hi{};  // lo: a point with g < 0, hi: g > 0
+  It cur{}, best{}, lo{}, hi{};  // lo: a point with g < 0, hi: g > 0
   bool has_lo = false, has_hi = false, done = false;
   auto note = [&](const It& r) noexcept {
     if (r.g < 0) lo = r, has_lo = true;
@@ -285,7 +284,6 @@ inline int evaluate(const LoopModel& m, dn_damper_input& in, double f_last, doub
     *f = ok ? cur.f + dfda * (a1 - cur.a) : cur.f;
     if (mask) *mask = cur.mask;
     if (feat_out) m.damper.feature_values(in, feat_out);
-    if (slope) *slope = cur.gp;
     return ok ? cur.st : (cur.st | DN_W_ACCEL_UNCONVERGED);
   }
   best = cur;
@@ -305,20 +303,16 @@ inline int evaluate(const LoopModel& m, dn_damper_input& in, double f_last, doub
     if (!std::isfinite(a_new) || a_new == cur.a) break;
     It nxt;
     if (!eval(a_new, nxt)) break;
-    prev = cur;
     cur = nxt;
     note(cur);
     done = converged(cur);
   }
-  const double s = cur.gp;
-  (void)prev;
   *n_evals += evals;
   const It& r = done ? cur : best;
   in.a = r.a;
   *f = r.f;
   if (mask) *mask = r.mask;
   if (feat_out) m.damper.feature_values(in, feat_out);
-  if (slope) *slope = s;
   return done ? r.st : (r.st | DN_W_ACCEL_UNCONVERGED);
 }
 
@@ -331,14 +325,14 @@ struct Start {
 };
 
 inline Start start(const LoopModel& m, const double* s, double u_ext, dn_loop_out* out,
-                   uint32_t* mask, int64_t* n_evals, double* slope = nullptr) noexcept {
+                   uint32_t* mask, int64_t* n_evals) noexcept {
   Start r;
   r.u = control_law(m.ctrl, s[S_v_s], s[S_v_us], u_ext);
   const Body b{s[S_z_s], s[S_v_s], s[S_z_us], s[S_v_us]};
   r.in = damper_input(m, b, s[S_z_r], s[S_v_r], r.u, s[S_u_lag], s[S_f_last], s[S_temperature],
                       s[S_t], 0);
   double* feat = out ? out->features : nullptr;
-  r.status = evaluate(m, r.in, s[S_f_last], &r.force, feat, mask, n_evals, slope);
+  r.status = evaluate(m, r.in, s[S_f_last], &r.force, feat, mask, n_evals);
   if (out) {
     const Accel a = accel(m, b, s[S_z_r], s[S_v_r], r.force);
     out->force = r.force;
@@ -385,8 +379,7 @@ DN_REALTIME inline int step(const LoopModel& m, LoopData& d, const dn_loop_input
   const double* s = d.s;
   const double h = m.veh.dt;
   uint32_t mask = 0;
-  double slope = 0.0;  // the implicit acceleration solve's secant slope, carried over the stages
-  const detail::Start r = detail::start(m, s, in.u, out, &mask, &d.n_evals, &slope);
+  const detail::Start r = detail::start(m, s, in.u, out, &mask, &d.n_evals);
   int status = r.status;
   if (status < 0) return status;
 
@@ -417,7 +410,7 @@ DN_REALTIME inline int step(const LoopModel& m, LoopData& d, const dn_loop_input
       if (!per_stage) return r.force;
       dn_damper_input di = detail::damper_input(m, b, zr, vr, u, ul, f_last, temp, t, stage);
       double f = 0.0;
-      const int st = detail::evaluate(m, di, f_last, &f, nullptr, nullptr, &d.n_evals, &slope);
+      const int st = detail::evaluate(m, di, f_last, &f, nullptr, nullptr, &d.n_evals);
       if (st < 0) status = st;
       else status |= st;
       f_last = f;

@@ -45,7 +45,6 @@ constexpr int pad(int n) { return n <= 0 ? 0 : (n + kPad - 1) / kPad * kPad; }
 
 namespace detail {
 
-template <typename T>
 inline bool all_finite(const double* p, int n) noexcept {
   for (int i = 0; i < n; ++i)
     if (!std::isfinite(p[i])) return false;
@@ -118,34 +117,22 @@ inline void activate_all(Activation act, T* h, int n) noexcept {
 template <typename T, int kN>
 inline T dot_padded(const T* __restrict w, const T* __restrict a, int n) noexcept {
   const int nn = kN > 0 ? kN : n;
+#if defined(__SSE__)
+  if constexpr (std::is_same<T, float>::value) {
+    __m128 lo = _mm_setzero_ps(), hi = _mm_setzero_ps();  // part[0..3], part[4..7]
+    for (int j = 0; j < nn; j += kPad) {
+      lo = _mm_add_ps(lo, _mm_mul_ps(_mm_load_ps(w + j), _mm_load_ps(a + j)));
+      hi = _mm_add_ps(hi, _mm_mul_ps(_mm_load_ps(w + j + 4), _mm_load_ps(a + j + 4)));
+    }
+    alignas(16) float s[4];
+    _mm_store_ps(s, _mm_add_ps(lo, hi));  // p0+p4, p1+p5, p2+p6, p3+p7
+    return (s[0] + s[1]) + (s[2] + s[3]);
+  }
+#endif
   alignas(32) T part[kPad] = {};
   for (int j = 0; j < nn; j += kPad)
     for (int l = 0; l < kPad; ++l) part[l] += w[j + l] * a[j + l];
   return ((part[0] + part[4]) + (part[1] + part[5])) + ((part[2] + part[6]) + (part[3] + part[7]));
-}
-
-#if defined(__SSE__)
-template <>
-inline float dot_padded<float, kDynamic>(const float* __restrict w, const float* __restrict a,
-                                         int n) noexcept {
-  __m128 lo = _mm_setzero_ps(), hi = _mm_setzero_ps();  // part[0..3], part[4..7]
-  for (int j = 0; j < n; j += kPad) {
-    lo = _mm_add_ps(lo, _mm_mul_ps(_mm_load_ps(w + j), _mm_load_ps(a + j)));
-    hi = _mm_add_ps(hi, _mm_mul_ps(_mm_load_ps(w + j + 4), _mm_load_ps(a + j + 4)));
-  }
-  alignas(16) float s[4];
-  _mm_store_ps(s, _mm_add_ps(lo, hi));  // p0+p4, p1+p5, p2+p6, p3+p7
-  return (s[0] + s[1]) + (s[2] + s[3]);
-}
-#endif
-
-// The compile-time-size entry forwards to the same code (one implementation per type).
-template <typename T, int kN>
-inline T dot_out(const T* w, const T* a, int n) noexcept {
-#if defined(__SSE__)
-  if constexpr (std::is_same<T, float>::value) return dot_padded<float, kDynamic>(w, a, kN > 0 ? kN : n);
-#endif
-  return dot_padded<T, kN>(w, a, n);
 }
 
 // Saturate and scale the inputs; returns the warning bits, sets the mask.
@@ -236,13 +223,13 @@ DN_REALTIME inline int forward(const P& p, const T* x, T* y, uint32_t* clamped_m
     }
   }
   if constexpr (kGrad) {
-    const T dys = n_last_is_a2 ? dot_out<T, kP2>(p.w_out.data(), t2, n_last)
-                               : dot_out<T, kP1>(p.w_out.data(), t1, n_last);
+    const T dys = n_last_is_a2 ? dot_padded<T, kP2>(p.w_out.data(), t2, n_last)
+                               : dot_padded<T, kP1>(p.w_out.data(), t1, n_last);
     *dy_dxi = dys / p.out_gain;
   }
 
-  const T ys = p.b_out + (n_last_is_a2 ? dot_out<T, kP2>(p.w_out.data(), a2, n_last)
-                                        : dot_out<T, kP1>(p.w_out.data(), a1, n_last));
+  const T ys = p.b_out + (n_last_is_a2 ? dot_padded<T, kP2>(p.w_out.data(), a2, n_last)
+                                        : dot_padded<T, kP1>(p.w_out.data(), a1, n_last));
   T out = (ys - p.out_ymin) / p.out_gain + p.out_offset;
   if (!std::isfinite(out)) {
     out = p.out_offset;
@@ -269,20 +256,20 @@ inline int load(P& p, const dn_mlp_desc* d) noexcept {
   if (d->activation != DN_ACT_TANH && d->activation != DN_ACT_SIGMOID) return DN_E_ACTIVATION;
   const int ni = d->n_inputs, h1 = d->n_hidden1, h2 = d->n_hidden2;
   const int n_last = h2 > 0 ? h2 : h1;
-  if (!all_finite<T>(d->w1, h1 * ni) || !all_finite<T>(d->b1, h1) ||
-      !all_finite<T>(d->w_out, n_last) || !all_finite<T>(d->b_out, 1) ||
-      !all_finite<T>(d->in_offset, ni) || !all_finite<T>(d->in_gain, ni) ||
-      !all_finite<T>(d->sat_lo, ni) || !all_finite<T>(d->sat_hi, ni) ||
+  if (!all_finite(d->w1, h1 * ni) || !all_finite(d->b1, h1) ||
+      !all_finite(d->w_out, n_last) || !all_finite(d->b_out, 1) ||
+      !all_finite(d->in_offset, ni) || !all_finite(d->in_gain, ni) ||
+      !all_finite(d->sat_lo, ni) || !all_finite(d->sat_hi, ni) ||
       !std::isfinite(d->in_ymin) || !std::isfinite(d->out_offset) ||
       !std::isfinite(d->out_gain) || !std::isfinite(d->out_ymin))
     return DN_E_NONFINITE_PARAM;
-  if (h2 > 0 && (!all_finite<T>(d->w2, h2 * h1) || !all_finite<T>(d->b2, h2)))
+  if (h2 > 0 && (!all_finite(d->w2, h2 * h1) || !all_finite(d->b2, h2)))
     return DN_E_NONFINITE_PARAM;
   if (d->out_gain == 0.0) return DN_E_PARAM;
   for (int i = 0; i < ni; ++i)
     if (!(d->sat_lo[i] <= d->sat_hi[i])) return DN_E_PARAM;
 
-  const int h1p = pad(h1), h2p = pad(h2), n_lastp = h2 > 0 ? h2p : h1p;
+  const int h1p = pad(h1), h2p = pad(h2);
   p.n_in = ni;
   p.n_h1 = h1;
   p.n_h2 = h2;
@@ -302,7 +289,6 @@ inline int load(P& p, const dn_mlp_desc* d) noexcept {
     for (int k = 0; k < h1; ++k) p.w2t[k * h2p + j] = static_cast<T>(d->w2[j * h1 + k]);
   for (int j = 0; j < h2; ++j) p.b2[j] = static_cast<T>(d->b2[j]);
   for (int j = 0; j < n_last; ++j) p.w_out[j] = static_cast<T>(d->w_out[j]);
-  (void)n_lastp;
   p.b_out = static_cast<T>(d->b_out[0]);
   for (int i = 0; i < ni; ++i) {
     p.in_offset[i] = static_cast<T>(d->in_offset[i]);
