@@ -169,7 +169,7 @@ def header_text(model: MlpModel, prefix: str = "dn_model") -> str:
 def _terms_block(p: str, P: str, model: MlpModel) -> str:
     """Physics terms of a hybrid model: kind ids and parameters, one row per term."""
     terms = model.terms
-    lines = [f"/* Physics terms added to the network output (hybrid model); 0 for a pure MLP. */",
+    lines = ["/* Physics terms added to the network output (hybrid model); 0 for a pure MLP. */",
              f"#define {P}_N_TERMS {len(terms)}"]
     if terms:
         lines.append(f"static const char* const {p}_term_kinds[{len(terms)}] = {{"

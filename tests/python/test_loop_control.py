@@ -233,7 +233,6 @@ def reference_neural_loop(model, vehicle, road, road_rate, u_ext, tau):
     fs = vehicle["f_static"]
     xs = vehicle["x_static"]
     temp = 20.0
-    idx = {f: i for i, f in enumerate(model.features)}
 
     def accel(b, zr, vr, F):
         x = b[0] - b[2]

@@ -10,9 +10,8 @@ from scipy.signal import lsim
 
 from dampnet.ride.pyloop import Controller, LinearDamper, LoopError, Vehicle, run
 from dampnet.roads import RoadError, Road, iso8608, thesis_rough_road
-from dampnet.study import (DamperSpec, core_loop_available, lookup_spec, neural_spec, simulate, truth_spec)
+from dampnet.study import (DamperSpec, lookup_spec, neural_spec, simulate, truth_spec)
 
-needs_core = pytest.mark.skipif(not core_loop_available(), reason="runtime loop (dampnet._core.Loop) not built")
 
 
 def lsim_quarter_car(z, t, c, ms=700.0, mu=40.0, ks=15e3, kt=200e3):
@@ -31,7 +30,6 @@ def test_python_loop_matches_scipy_for_a_linear_damper():
     assert np.max(np.abs(r["z_us"] - y[:-1, 2])) < 0.01 * np.max(np.abs(y[:, 2]))
 
 
-@needs_core
 @pytest.mark.parametrize("control", ["passive", "skyhook"])
 def test_python_loop_is_the_runtime_loop_for_linear_and_lookup(control):
     from dampnet.evaluate.lookup import LookupTable

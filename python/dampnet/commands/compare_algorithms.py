@@ -8,7 +8,6 @@ Table 3) and on the held-out tests, with the lookup-table baseline's hold-out NR
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 
 

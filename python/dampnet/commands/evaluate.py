@@ -9,7 +9,6 @@ Definitions: dampnet.evaluate.metrics.
 from __future__ import annotations
 
 import argparse
-import sys
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:

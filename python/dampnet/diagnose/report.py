@@ -92,7 +92,6 @@ def figures(ctx, diag: dict, out: Path, tag: str = "") -> list[tuple[str, str]]:
     figs.append((_save(fig, out / f"{tag}residual_vs_channels.png"),
                  "residual against displacement, velocity, acceleration, control, temperature and time in the test"))
     # residual against each candidate's fitted effect
-    cands = [c for c in diag["candidates"] if c.get("testable")]
     fits = ctx.notes.get("candidate_effects", {})
     if fits:
         fig, axs = plt.subplots(1, len(fits), figsize=(3 * len(fits), 3), squeeze=False)

@@ -27,7 +27,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy.signal import lfilter
 
-from dampnet.data.rig.truth import INCH, Context, first_order_lag
+from dampnet.data.rig.truth import Context, first_order_lag
 
 
 class Effect:
