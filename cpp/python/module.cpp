@@ -344,8 +344,9 @@ class PyDamper {
   }
 
   // Vectorised force of the model plus terms; arrays broadcast to one length.
-  py::tuple forces(DArray x, DArray v, DArray a, DArray u, DArray u_lag, DArray temp) {
-    const DArray* arrs[] = {&x, &v, &a, &u, &u_lag, &temp};
+  py::tuple forces(DArray x, DArray v, DArray a, DArray u, DArray u_lag, DArray temp,
+                   DArray v_lag, DArray z_fric) {
+    const DArray* arrs[] = {&x, &v, &a, &u, &u_lag, &temp, &v_lag, &z_fric};
     py::ssize_t n = 1;
     for (auto* p : arrs)
       if (p->size() != 1) {
@@ -370,6 +371,8 @@ class PyDamper {
         in.u = at(u, i);
         in.u_lag = at(u_lag, i);
         in.temperature = at(temp, i);
+        in.v_lag = at(v_lag, i);
+        in.z_fric = at(z_fric, i);
         sp[i] = dn_damper_force(d.get(), &in, &fp[i], &mp[i]);
       }
     }
@@ -629,6 +632,8 @@ PYBIND11_MODULE(_core, mod) {
       .def_readwrite("a", &dn_damper_input::a)
       .def_readwrite("u", &dn_damper_input::u)
       .def_readwrite("u_lag", &dn_damper_input::u_lag)
+      .def_readwrite("v_lag", &dn_damper_input::v_lag)
+      .def_readwrite("z_fric", &dn_damper_input::z_fric)
       .def_readwrite("temperature", &dn_damper_input::temperature)
       .def_readwrite("t", &dn_damper_input::t)
       .def_readwrite("dt", &dn_damper_input::dt)
@@ -650,7 +655,8 @@ PYBIND11_MODULE(_core, mod) {
            "Add a physics term (TERM_KINDS).")
       .def_property_readonly("kind", [](const PyDamper& p) { return dn_damper_kind_of(p.d.get()); })
       .def("forces", &PyDamper::forces, py::arg("x"), py::arg("v"), py::arg("a"), py::arg("u"),
-           py::arg("u_lag"), py::arg("temperature"),
+           py::arg("u_lag"), py::arg("temperature"), py::arg("v_lag") = 0.0,
+           py::arg("z_fric") = 0.0,
            "Vectorised force -> (force[n], status[n], clamped_mask[n]).");
 
   py::class_<PyLoopModel, std::shared_ptr<PyLoopModel>>(mod, "LoopModel",

@@ -10,6 +10,8 @@ include from several translation units). It holds, for a prefix `p`:
   p_in_offset[], p_in_gain[], p_sat_lo[], p_sat_hi[]        input scaling and limits
   P_DESC_INIT                                               a dn_mlp_desc initializer
   P_N_TERMS and p_terms_*                                   physics terms (hybrid models)
+  P_N_FEATURE_PARAMS, P_<PARAM>, p_feature_param_names[],   constants of derived features
+  p_feature_param_values[] (arrays only when there are any)  (e.g. P_VELOCITY_LAG_TAU_S)
 
 C:   dn_mlp_desc d = P_DESC_INIT; dn_mlp_create(&d, &m);
 C++: dampnet::StaticMlp<float, P_N_INPUTS, P_N_HIDDEN1, P_N_HIDDEN2> m; m.load(&d);
@@ -150,7 +152,7 @@ def header_text(model: MlpModel, prefix: str = "dn_model") -> str:
     out.append(_array(f"{p}_sat_hi", model.sat_hi, f"{n_in}",
                       "upper saturation limit (training range), feature units"))
     out.append(_terms_block(p, P, model))
-    out.append(_feature_params_block(P, model))
+    out.append(_feature_params_block(p, P, model))
     w2 = f"{p}_w2" if h2 else "(const double*)0"
     b2 = f"{p}_b2" if h2 else "(const double*)0"
     out += [
@@ -187,13 +189,21 @@ def _terms_block(p: str, P: str, model: MlpModel) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _feature_params_block(P: str, model: MlpModel) -> str:
-    """Constants of derived features (e.g. the control lag's time constant), as macros."""
-    lines = ["/* Constants of derived input features (unit in the name's suffix). */"]
-    for key, value in sorted(model.feature_params.items()):
+def _feature_params_block(p: str, P: str, model: MlpModel) -> str:
+    """Constants of derived features (e.g. the control lag's time constant): one macro each,
+    and, when there are any, name/value arrays to pass to dn_damper_create_neural as they are."""
+    items = sorted(model.feature_params.items())
+    lines = ["/* Constants of derived input features (unit in the name's suffix). */",
+             f"#define {P}_N_FEATURE_PARAMS {len(items)}"]
+    for key, value in items:
         if not _IDENT.match(key):
             raise ValueError(f"feature parameter {key!r}: expected an identifier")
         lines.append(f"#define {P}_{key.upper()} ({_num(value)})")
+    if items:
+        names = ", ".join(_cstr(k) for k, _ in items)
+        values = ", ".join(_num(v) for _, v in items)
+        lines.append(f"static const char* const {p}_feature_param_names[{len(items)}] = {{{names}}};")
+        lines.append(f"static const double {p}_feature_param_values[{len(items)}] = {{{values}}};")
     return "\n".join(lines) + "\n"
 
 

@@ -18,19 +18,21 @@
 int main() {
   using namespace dampnet;
   // the default (trained) model on velocity, acceleration, voltage; and a random
-  // one on the lagged control, displacement and temperature (a random network
+  // one on the lagged control, displacement, temperature and the motion-derived
+  // velocity_lag and friction_state (a random network
   // is not dissipative, so it does not get the acceleration input here)
   dn_mlp_desc desc = DN_MODEL_DEFAULT_DESC_INIT;
   dn_mlp* mlp_default = nullptr;
   CHECK(dn_mlp_create(&desc, &mlp_default) == DN_OK);
-  RandomModel rm(4, 30, 0, DN_ACT_TANH, 3);
+  RandomModel rm(6, 30, 0, DN_ACT_TANH, 3);
   rm.desc.out_offset = -200.0;
   rm.desc.out_gain = 2.0 / 400.0;
   dn_mlp* mlp = nullptr;
   CHECK(dn_mlp_create(&rm.desc, &mlp) == DN_OK);
-  const char* feats[] = {"velocity", "voltage_lag", "displacement", "temperature"};
-  const char* pn[] = {"control_lag_tau_s"};
-  const double pv[] = {0.03};
+  const char* feats[] = {"velocity",    "voltage_lag",  "displacement",
+                         "temperature", "velocity_lag", "friction_state"};
+  const char* pn[] = {"control_lag_tau_s", "velocity_lag_tau_s", "friction_presliding_m"};
+  const double pv[] = {0.03, 0.004, 5e-4};
   const double gas[] = {-150.0, 3000.0, 1e4, 0.0}, bump[] = {0.05, 2e6, 1.5};
   dn_parametric_params par{400, 3500, 1800, 40, 5, 0.01};
   const double tv[] = {-1, -0.2, 0, 0.2, 1}, tu[] = {0, 5};
@@ -39,7 +41,7 @@ int main() {
   std::vector<dn_damper*> dampers(6, nullptr);
   CHECK(dn_damper_create_neural(mlp_default, dn_model_default_feature_names, 3, nullptr, nullptr,
                                 0, DN_PRECISION_FLOAT, &dampers[0]) == DN_OK);
-  CHECK(dn_damper_create_neural(mlp, feats, 4, pn, pv, 1, DN_PRECISION_DOUBLE, &dampers[1]) == DN_OK);
+  CHECK(dn_damper_create_neural(mlp, feats, 6, pn, pv, 3, DN_PRECISION_DOUBLE, &dampers[1]) == DN_OK);
   CHECK(dn_damper_create_neural(mlp_default, dn_model_default_feature_names, 3, nullptr, nullptr,
                                 0, DN_PRECISION_DOUBLE, &dampers[5]) == DN_OK);
   CHECK(dn_damper_create_parametric(&par, &dampers[2]) == DN_OK);

@@ -10,10 +10,12 @@ from dampnet.model import MlpModel
 RANGES = {
     "velocity": (-2.0, 2.0), "acceleration": (-200.0, 200.0), "displacement": (-0.1, 0.1),
     "voltage": (0.0, 5.0), "current": (0.0, 1.2), "voltage_lag": (0.0, 5.0),
-    "current_lag": (0.0, 1.2), "temperature": (-20.0, 120.0),
+    "current_lag": (0.0, 1.2), "temperature": (-20.0, 120.0), "velocity_lag": (-2.0, 2.0),
+    "friction_state": (-1.0, 1.0),
 }
 UNITS = {"velocity": "m/s", "acceleration": "m/s^2", "displacement": "m", "voltage": "V",
-         "current": "A", "voltage_lag": "V", "current_lag": "A", "temperature": "degC"}
+         "current": "A", "voltage_lag": "V", "current_lag": "A", "temperature": "degC",
+         "velocity_lag": "m/s", "friction_state": "1"}
 
 
 def random_model(features, hidden=12, seed=0, terms=(), feature_params=None, force_range=4000.0,

@@ -41,8 +41,19 @@ inline int id_of(const char* name) noexcept {
   return -1;
 }
 
-inline bool is_lag(int id) noexcept {
-  return table()[id].field == &dn_damper_input::u_lag;
+// The feature parameter (dn_feature_param) a derived feature needs, or -1.
+inline int required_param(int id) noexcept {
+  switch (id) {
+    case DN_FEAT_VOLTAGE_LAG:
+    case DN_FEAT_CURRENT_LAG:
+      return DN_FPARAM_CONTROL_LAG_TAU_S;
+    case DN_FEAT_VELOCITY_LAG:
+      return DN_FPARAM_VELOCITY_LAG_TAU_S;
+    case DN_FEAT_FRICTION_STATE:
+      return DN_FPARAM_FRICTION_PRESLIDING_M;
+    default:
+      return -1;
+  }
 }
 
 inline int param_id_of(const char* name) noexcept {
@@ -83,7 +94,6 @@ class Damper {
   int n_feat = 0;
   int accel_input = -1;  // neural: index of the "acceleration" input, or -1
   int feat[DN_MAX_INPUTS] = {};
-  bool uses_lag = false;
   double fparams[DN_N_FEATURE_PARAMS > 0 ? DN_N_FEATURE_PARAMS : 1] = {};
   bool fparam_set[DN_N_FEATURE_PARAMS > 0 ? DN_N_FEATURE_PARAMS : 1] = {};
   // callback
@@ -93,10 +103,14 @@ class Damper {
   int n_terms = 0;
   Term terms[DN_MAX_TERMS];
 
+  // A feature parameter's value, 0 when not set (every parameter is > 0 when set).
+  double fparam(int id) const noexcept { return fparam_set[id] ? fparams[id] : 0.0; }
   // The control-lag time constant [s] (0: no lag feature, u_lag follows u).
-  double lag_tau() const noexcept {
-    return fparam_set[DN_FPARAM_CONTROL_LAG_TAU_S] ? fparams[DN_FPARAM_CONTROL_LAG_TAU_S] : 0.0;
-  }
+  double lag_tau() const noexcept { return fparam(DN_FPARAM_CONTROL_LAG_TAU_S); }
+  // The velocity-lag time constant [s] (0: v_lag follows v).
+  double velocity_lag_tau() const noexcept { return fparam(DN_FPARAM_VELOCITY_LAG_TAU_S); }
+  // The Dahl pre-sliding travel [m] (0: no friction_state; z_fric stays 0).
+  double presliding() const noexcept { return fparam(DN_FPARAM_FRICTION_PRESLIDING_M); }
 
   // ---- set-up ----
   int set_linear(double c) noexcept {
@@ -149,27 +163,33 @@ class Damper {
     if (n < 1 || n > DN_MAX_INPUTS || n_params < 0) return DN_E_SIZE;
     if (n != md.n_inputs()) return DN_E_MISMATCH;
     if (prec != DN_PRECISION_DOUBLE && prec != DN_PRECISION_FLOAT) return DN_E_PARAM;
-    bool lag = false;
+    int ids[DN_MAX_INPUTS];
     for (int i = 0; i < n; ++i) {
-      const int id = features::id_of(names[i]);
-      if (id < 0) return DN_E_UNKNOWN_NAME;
-      feat[i] = id;
-      lag = lag || features::is_lag(id);
+      ids[i] = features::id_of(names[i]);
+      if (ids[i] < 0) return DN_E_UNKNOWN_NAME;
     }
-    for (int k = 0; k < DN_N_FEATURE_PARAMS; ++k) fparam_set[k] = false;
+    bool set[DN_N_FEATURE_PARAMS] = {};
+    double vals[DN_N_FEATURE_PARAMS] = {};
     for (int i = 0; i < n_params; ++i) {
       const int id = features::param_id_of(pnames[i]);
       if (id < 0) return DN_E_UNKNOWN_NAME;
       if (!std::isfinite(pvalues[i])) return DN_E_NONFINITE_PARAM;
-      fparams[id] = pvalues[i];
-      fparam_set[id] = true;
+      if (!(pvalues[i] > 0)) return DN_E_PARAM;  // time constants and lengths
+      vals[id] = pvalues[i];
+      set[id] = true;
     }
-    if (fparam_set[DN_FPARAM_CONTROL_LAG_TAU_S] && !(fparams[DN_FPARAM_CONTROL_LAG_TAU_S] > 0))
-      return DN_E_PARAM;
-    if (lag && !fparam_set[DN_FPARAM_CONTROL_LAG_TAU_S]) return DN_E_PARAM;
+    for (int i = 0; i < n; ++i) {
+      const int need = features::required_param(ids[i]);
+      if (need >= 0 && !set[need]) return DN_E_PARAM;
+    }
+    // Valid: only now change the damper.
+    for (int i = 0; i < n; ++i) feat[i] = ids[i];
+    for (int k = 0; k < DN_N_FEATURE_PARAMS; ++k) {
+      fparams[k] = vals[k];
+      fparam_set[k] = set[k];
+    }
     kind = DN_DAMPER_NEURAL;
     n_feat = n;
-    uses_lag = lag;
     accel_input = -1;
     for (int i = 0; i < n; ++i)
       if (feat[i] == DN_FEAT_ACCELERATION) accel_input = i;

@@ -165,6 +165,9 @@ typedef struct dn_damper_input {
   double a;           /* relative acceleration, extension positive [m/s^2] (see the loop) */
   double u;           /* control (voltage [V] or current [A]), held over the step */
   double u_lag;       /* control after a first-order lag of the model's control_lag_tau_s */
+  double v_lag;       /* velocity after a first-order lag of the model's velocity_lag_tau_s [m/s] */
+  double z_fric;      /* Dahl friction state in [-1, 1]: follows sgn(v) over a travel of a few
+                         friction_presliding_m after each reversal (dimensionless) */
   double temperature; /* damper temperature [degC] */
   double t;           /* time of this evaluation [s] (callback dampers) */
   double dt;          /* step size of the loop [s] (callback dampers); 0 outside a loop */
@@ -179,7 +182,9 @@ typedef struct dn_damper_input {
   X(DN_FEAT_CURRENT, "current", u)                     \
   X(DN_FEAT_VOLTAGE_LAG, "voltage_lag", u_lag)         \
   X(DN_FEAT_CURRENT_LAG, "current_lag", u_lag)         \
-  X(DN_FEAT_TEMPERATURE, "temperature", temperature)
+  X(DN_FEAT_TEMPERATURE, "temperature", temperature)  \
+  X(DN_FEAT_VELOCITY_LAG, "velocity_lag", v_lag)       \
+  X(DN_FEAT_FRICTION_STATE, "friction_state", z_fric)
 
 #define DN_FEATURE_ENUM_(id, name, field) id,
 typedef enum dn_feature { DN_FEATURE_LIST(DN_FEATURE_ENUM_) DN_N_FEATURES } dn_feature;
@@ -187,8 +192,12 @@ typedef enum dn_feature { DN_FEATURE_LIST(DN_FEATURE_ENUM_) DN_N_FEATURES } dn_f
 
 /* Constants of derived features (MlpModel.feature_params), by name:
  * X(id, "name", meaning). Unknown names are refused (DN_E_UNKNOWN_NAME). */
-#define DN_FEATURE_PARAM_LIST(X) \
-  X(DN_FPARAM_CONTROL_LAG_TAU_S, "control_lag_tau_s", "time constant of the *_lag features [s], > 0")
+#define DN_FEATURE_PARAM_LIST(X)                                                                   \
+  X(DN_FPARAM_CONTROL_LAG_TAU_S, "control_lag_tau_s",                                               \
+    "time constant of voltage_lag / current_lag [s], > 0")                                         \
+  X(DN_FPARAM_VELOCITY_LAG_TAU_S, "velocity_lag_tau_s", "time constant of velocity_lag [s], > 0") \
+  X(DN_FPARAM_FRICTION_PRESLIDING_M, "friction_presliding_m",                                       \
+    "pre-sliding travel of friction_state [m], > 0")
 
 #define DN_FPARAM_ENUM_(id, name, text) id,
 typedef enum dn_feature_param { DN_FEATURE_PARAM_LIST(DN_FPARAM_ENUM_) DN_N_FEATURE_PARAMS } dn_feature_param;
@@ -266,7 +275,9 @@ DN_API int dn_damper_create_table(const double* velocities, int n_v, const doubl
  * (DN_FEATURE_LIST); param_names/param_values give MlpModel.feature_params
  * (DN_FEATURE_PARAM_LIST). precision: dn_precision of the MLP evaluation.
  * Unknown feature or parameter name: DN_E_UNKNOWN_NAME; n_features != inputs of
- * the MLP: DN_E_MISMATCH; a *_lag feature without control_lag_tau_s > 0: DN_E_PARAM.
+ * the MLP: DN_E_MISMATCH; a derived feature without its parameter (voltage_lag /
+ * current_lag: control_lag_tau_s, velocity_lag: velocity_lag_tau_s, friction_state:
+ * friction_presliding_m), or any parameter <= 0: DN_E_PARAM.
  * Nullable: param_names and param_values when n_params == 0. Allocates. */
 DN_API int dn_damper_create_neural(const dn_mlp* mlp, const char* const* features, int n_features,
                                    const char* const* param_names, const double* param_values,
@@ -414,8 +425,10 @@ DN_API void dn_controller_default(dn_controller* c, int kind);
   X(6, v_r, "road rate at t [m/s]")                                                   \
   X(7, u_lag, "control after the first-order lag [V]")                                \
   X(8, f_last, "force of the most recent damper evaluation [N] (acceleration start value)") \
-  X(9, temperature, "damper temperature [degC]")
-#define DN_LOOP_STATE_SIZE 10
+  X(9, temperature, "damper temperature [degC]")                                      \
+  X(10, v_lag, "relative velocity after the velocity_lag feature's lag [m/s]")        \
+  X(11, z_fric, "Dahl friction state of the friction_state feature [-]")
+#define DN_LOOP_STATE_SIZE 12
 
 /* Per step input: the road at the END of the step (t + dt) and an external control. */
 typedef struct dn_loop_input {
@@ -458,7 +471,8 @@ DN_API void dn_loop_data_destroy(dn_loop_data* d);
 
 /* [RT] Reset to rest: zero displacements, velocities, road and time; u_lag = the
  * control the controller gives at rest (external: 0); f_last = f_static;
- * temperature from the vehicle. */
+ * temperature from the vehicle; v_lag = 0 and z_fric = 0 (at rest, no friction
+ * direction). */
 DN_API int dn_loop_reset(const dn_loop_model* m, dn_loop_data* d);
 
 /* Number of doubles in the flat state (DN_LOOP_STATE_SIZE). */

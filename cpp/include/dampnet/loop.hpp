@@ -16,6 +16,19 @@
 // (z_r, v_r) at the step's start (in the state) and end (the step input); the
 // lagged control follows its exact first-order response to the held u.
 //
+// Derived features of the damper's motion, each with one state:
+//   v_lag   velocity_lag: dv_lag/dt = (v - v_lag) / tau. Within a step, v is
+//           taken as the ramp from the step-start v to the evaluation's v, for
+//           which the first-order-hold update is exact:
+//             v_lag(T) = A v_lag0 + (1 - A) v0 + (v_T - v0) (1 - tau (1 - A) / T),
+//           A = exp(-T/tau), T the time since the step start.
+//   z_fric  friction_state (Dahl): dz/ds = (sgn(v) - z) / x_c along the travel s,
+//           so over a displacement change dx of one sign
+//             z = sgn(dx) + (z0 - sgn(dx)) exp(-|dx| / x_c),
+//           with dx from the step start (a reversal inside one step counts only
+//           its net travel). Both match the training features of
+//           python/dampnet/diagnose/features.py as the sample time goes to 0.
+//
 // The acceleration feature: the relative acceleration a = a_s - a_us depends on
 // the damper force being computed: a = a_free - k (F(a) - f_static), with
 // k = 1/m_s + 1/m_us and a_free the relative acceleration with the damper
@@ -113,6 +126,10 @@ struct LoopModel {
   // derived
   double inv_ms = 0, inv_mus = 0;
   double lag_half = 0, lag_full = 0;  // exp(-dt/2/tau), exp(-dt/tau); 0 without a lag
+  // velocity_lag over T = dt/2 and dt: A = exp(-T/tau), ramp gain 1 - tau (1 - A) / T
+  double vlag_a_half = 1, vlag_g_half = 0, vlag_a_full = 1, vlag_g_full = 0;
+  bool has_vlag = false;
+  double inv_presliding = 0;  // 1 / friction_presliding_m; 0 without friction_state
   double k_rel = 0;                   // 1/m_s + 1/m_us: da/dF of the relative acceleration
   bool implicit_a = false;            // solve the acceleration coupling (see dn_accel_feature)
   bool linear_a = false;              // ... by one linearised Newton step (DN_ACCEL_LINEAR)
@@ -151,6 +168,15 @@ struct LoopModel {
     const double tau = d.lag_tau();
     lag_half = tau > 0 ? std::exp(-0.5 * v.dt / tau) : 0.0;
     lag_full = tau > 0 ? std::exp(-v.dt / tau) : 0.0;
+    const double tv = d.velocity_lag_tau();
+    has_vlag = tv > 0;
+    if (has_vlag) {
+      vlag_a_half = std::exp(-0.5 * v.dt / tv);
+      vlag_g_half = 1.0 - tv * (1.0 - vlag_a_half) / (0.5 * v.dt);
+      vlag_a_full = std::exp(-v.dt / tv);
+      vlag_g_full = 1.0 - tv * (1.0 - vlag_a_full) / v.dt;
+    }
+    inv_presliding = d.presliding() > 0 ? 1.0 / d.presliding() : 0.0;
     k_rel = inv_ms + inv_mus;
     implicit_a = false;
     a_span = 1.0;
@@ -193,10 +219,32 @@ inline Accel accel(const LoopModel& m, const Body& b, double zr, double vr, doub
           (fs + fa - p.k_t * (b.zus - zr) - p.c_t * (b.vus - vr)) * m.inv_mus};
 }
 
+// The motion-derived feature states at one evaluation (see the file comment).
+struct MotionLag {
+  double v_lag, z_fric;
+};
+
+// [RT] The derived states at relative velocity v and displacement x, from the
+// step-start values (v0, x0, lag0); a_lag/g_lag: the velocity-lag coefficients
+// of the time since the step start (A = 1, g = 0 at the start itself).
+inline MotionLag motion_lag(const LoopModel& m, const MotionLag& lag0, double v0, double x0,
+                            double v, double x, double a_lag, double g_lag) noexcept {
+  MotionLag r = lag0;
+  r.v_lag = m.has_vlag ? a_lag * lag0.v_lag + (1.0 - a_lag) * v0 + (v - v0) * g_lag : v;
+  if (m.inv_presliding > 0) {
+    const double dx = x - x0;
+    if (dx != 0.0) {
+      const double sg = dx > 0.0 ? 1.0 : -1.0;
+      r.z_fric = sg + (lag0.z_fric - sg) * std::exp(-std::fabs(dx) * m.inv_presliding);
+    }
+  }
+  return r;
+}
+
 // The damper's input at one evaluation (the acceleration feature from f_last).
 inline dn_damper_input damper_input(const LoopModel& m, const Body& b, double zr, double vr,
-                                    double u, double u_lag, double f_last, double temperature,
-                                    double t, int stage) noexcept {
+                                    double u, double u_lag, const MotionLag& lag, double f_last,
+                                    double temperature, double t, int stage) noexcept {
   const Accel a = accel(m, b, zr, vr, f_last);
   dn_damper_input in;
   in.x = b.zs - b.zus + m.veh.x_static;
@@ -204,6 +252,8 @@ inline dn_damper_input damper_input(const LoopModel& m, const Body& b, double zr
   in.a = a.as - a.aus;
   in.u = u;
   in.u_lag = u_lag;
+  in.v_lag = lag.v_lag;
+  in.z_fric = lag.z_fric;
   in.temperature = temperature;
   in.t = t;
   in.dt = m.veh.dt;
@@ -329,8 +379,8 @@ inline Start start(const LoopModel& m, const double* s, double u_ext, dn_loop_ou
   Start r;
   r.u = control_law(m.ctrl, s[S_v_s], s[S_v_us], u_ext);
   const Body b{s[S_z_s], s[S_v_s], s[S_z_us], s[S_v_us]};
-  r.in = damper_input(m, b, s[S_z_r], s[S_v_r], r.u, s[S_u_lag], s[S_f_last], s[S_temperature],
-                      s[S_t], 0);
+  r.in = damper_input(m, b, s[S_z_r], s[S_v_r], r.u, s[S_u_lag], {s[S_v_lag], s[S_z_fric]},
+                      s[S_f_last], s[S_temperature], s[S_t], 0);
   double* feat = out ? out->features : nullptr;
   r.status = evaluate(m, r.in, s[S_f_last], &r.force, feat, mask, n_evals);
   if (out) {
@@ -390,6 +440,8 @@ DN_REALTIME inline int step(const LoopModel& m, LoopData& d, const dn_loop_input
   const double ul_end = has_lag ? u + (ul0 - u) * m.lag_full : u;
   const double zr0 = s[S_z_r], vr0 = s[S_v_r], zr1 = in.z_r, vr1 = in.v_r;
   const Body b0{s[S_z_s], s[S_v_s], s[S_z_us], s[S_v_us]};
+  const detail::MotionLag lag0{s[S_v_lag], s[S_z_fric]};
+  const double vrel0 = b0.vs - b0.vus, xrel0 = b0.zs - b0.zus;
   double ns[DN_LOOP_STATE_SIZE];
   for (int i = 0; i < DN_LOOP_STATE_SIZE; ++i) ns[i] = s[i];
   double f_last = r.force;
@@ -408,7 +460,12 @@ DN_REALTIME inline int step(const LoopModel& m, LoopData& d, const dn_loop_input
     auto force_at = [&](const Body& b, double zr, double vr, double ul, double t,
                         int stage) noexcept -> double {
       if (!per_stage) return r.force;
-      dn_damper_input di = detail::damper_input(m, b, zr, vr, u, ul, f_last, temp, t, stage);
+      const bool half = stage < 3;
+      const detail::MotionLag lag = detail::motion_lag(
+          m, lag0, vrel0, xrel0, b.vs - b.vus, b.zs - b.zus, half ? m.vlag_a_half : m.vlag_a_full,
+          half ? m.vlag_g_half : m.vlag_g_full);
+      dn_damper_input di =
+          detail::damper_input(m, b, zr, vr, u, ul, lag, f_last, temp, t, stage);
       double f = 0.0;
       const int st = detail::evaluate(m, di, f_last, &f, nullptr, nullptr, &d.n_evals);
       if (st < 0) status = st;
@@ -437,6 +494,11 @@ DN_REALTIME inline int step(const LoopModel& m, LoopData& d, const dn_loop_input
   ns[S_v_r] = vr1;
   ns[S_u_lag] = ul_end;
   ns[S_f_last] = f_last;
+  const detail::MotionLag lag1 =
+      detail::motion_lag(m, lag0, vrel0, xrel0, ns[S_v_s] - ns[S_v_us], ns[S_z_s] - ns[S_z_us],
+                         m.vlag_a_full, m.vlag_g_full);
+  ns[S_v_lag] = lag1.v_lag;
+  ns[S_z_fric] = lag1.z_fric;
   if (!detail::finite_all(ns, DN_LOOP_STATE_SIZE)) return DN_E_DIVERGED;
   for (int i = 0; i < DN_LOOP_STATE_SIZE; ++i) d.s[i] = ns[i];
   return status;

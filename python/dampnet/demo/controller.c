@@ -1,6 +1,7 @@
 /* A small C controller-side program: the exported model (generated header) run
  * through the dampnet C library as a damper, one force per input line.
- * stdin: lines "x v a u u_lag temperature" (m, m/s, m/s^2, V, V, degC);
+ * stdin: lines "x v a u u_lag temperature v_lag z_fric" (m, m/s, m/s^2, V, V, degC,
+ * m/s, -), the fields of dn_damper_input;
  * stdout: the force [N] per line. Built by `dampnet demo` with
  *   cc -std=c99 -I<dampnet include> -I<model dir> controller.c -ldampnet */
 #include <stdio.h>
@@ -15,10 +16,10 @@ int main(void) {
   dn_damper_input in = {0};
   double force = 0.0;
   int st = dn_mlp_create(&desc, &mlp);
-#ifdef DN_MODEL_CONTROL_LAG_TAU_S
-  const char* pnames[1] = {"control_lag_tau_s"};
-  const double pvalues[1] = {DN_MODEL_CONTROL_LAG_TAU_S};
-  const int n_params = 1;
+#if DN_MODEL_N_FEATURE_PARAMS > 0
+  const char* const* pnames = dn_model_feature_param_names;
+  const double* pvalues = dn_model_feature_param_values;
+  const int n_params = DN_MODEL_N_FEATURE_PARAMS;
 #else
   const char* const* pnames = NULL;
   const double* pvalues = NULL;
@@ -36,7 +37,8 @@ int main(void) {
     fprintf(stderr, "controller: %s\n", dn_status_str(st));
     return 1;
   }
-  while (scanf("%lf %lf %lf %lf %lf %lf", &in.x, &in.v, &in.a, &in.u, &in.u_lag, &in.temperature) == 6) {
+  while (scanf("%lf %lf %lf %lf %lf %lf %lf %lf", &in.x, &in.v, &in.a, &in.u, &in.u_lag,
+               &in.temperature, &in.v_lag, &in.z_fric) == 8) {
     st = dn_damper_force(damper, &in, &force, NULL);
     if (st < 0) {
       fprintf(stderr, "controller: %s\n", dn_status_str(st));

@@ -36,7 +36,8 @@ def compile_controller(model_dir: Path, out_dir: Path) -> Path:
 
 
 def controller_inputs(model, test: DynoTest, n: int) -> np.ndarray:
-    """Rows x v a u u_lag T for the first n samples of a test, as the loop would feed them."""
+    """Rows x v a u u_lag T v_lag z_fric (dn_damper_input's fields) for the first n samples of a
+    test, as the loop would feed them; derived features the model does not use repeat their source."""
     from dampnet.workflow import feature_matrix
 
     ch = test.channels
@@ -49,6 +50,11 @@ def controller_inputs(model, test: DynoTest, n: int) -> np.ndarray:
     else:
         cols.append(cols[3])
     cols.append(ch["temperature"] if "temperature" in ch else np.full(len(test), 20.0))
+    for derived, source in (("velocity_lag", cols[1]), ("friction_state", np.sign(cols[1]))):
+        if derived in model.features:
+            cols.append(feature_matrix([test], [derived], model.feature_params)[:, 0])
+        else:
+            cols.append(source)
     return np.column_stack(cols)[:n]
 
 
