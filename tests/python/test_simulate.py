@@ -46,33 +46,49 @@ def test_python_loop_is_the_runtime_loop_for_linear_and_lookup(control):
 
 
 # A rig plan that covers what the rough road asks of the damper: band-limited random
-# displacement (0.5-15 Hz, 5 and 12 mm RMS) at 0, 2.25 and 5 V, 8 s each. The quick plan's
+# displacement (0.5-15 Hz), 8 s per test. The quick plan's
 # sines (0.25-3 Hz, 1 inch) reach only |a| < 9 m/s^2 with a = -w^2 x tied to the position;
 # the road drives |a| above that 44-62 % of the time at low damping, and a model trained
 # there extrapolates (its dF/da along the road: median 0-25 kg, up to 400 kg, and below
 # -1/k in 1.6-9.6 % of the samples, so that the coupled a = a_free - k F(a) has several
 # roots): 6-19 % off with either acceleration scheme (explicit +18.5/+8.1/+14.9/+6.2 %,
 # implicit +18.6/+9.7/+12.9/+6.4 % at 10 low/high, 20 low/high).
-ROAD_PLAN = dict(name="road", frequencies_hz=[1.0], amplitudes_m=[0.005, 0.012],
-                 voltages_v=[0.0, 2.25, 5.0], excitation="random", band_hz=[0.5, 15.0],
-                 duration_s=8.0, samples=10)
+# Voltages: skyhook drives every voltage between the ends, so the model trains on eight of
+# them, on Table 2's breakpoints (denser below 2.25 V, where the damping at low speed changes
+# fastest with the voltage), nothing held out. A model trained on 0 and 5 V only (the earlier
+# plan, 2.25 V held out) tracks passive runs within 1.2 % but is 150-250 % off under continuous
+# skyhook. Amplitudes 2, 5 and 12 mm RMS: the road's damper velocity RMS is 0.09-0.14 m/s at
+# 0 V and 0.19-0.26 m/s at 5 V; the 5 and 12 mm tests give 0.28 and 0.66 m/s, so 2 mm
+# (about 0.11 m/s) covers the stiff setting's slow strokes. 24 tests, LM training about 12 s.
+ROAD_PLAN = dict(name="road", frequencies_hz=[1.0], amplitudes_m=[0.002, 0.005, 0.012],
+                 voltages_v=[0.0, 0.5, 1.0, 1.5, 2.25, 3.0, 4.0, 5.0], excitation="random",
+                 band_hz=[0.5, 15.0], duration_s=8.0, samples=10)
 
 
 @pytest.fixture(scope="module")
 def rig_models():
+    import time
+
     from dampnet.data.rig import Plan, generate
     from dampnet.evaluate.lookup import fit_lookup
     from dampnet.workflow import train_dataset
 
     ds = generate(Plan(**ROAD_PLAN), seed=0)
-    model, _, _ = train_dataset(ds, algorithm="lm", max_epochs=200, seed=0)
+    t0 = time.perf_counter()
+    model, _, _ = train_dataset(ds, algorithm="lm", max_epochs=200, seed=0, holdout_voltage=None)
+    print(f"fixture training: {time.perf_counter() - t0:.1f} s")
     return neural_spec(model), lookup_spec(fit_lookup(generate("quick", seed=0))), truth_spec()
 
 
 @pytest.fixture(scope="module")
 def rough_runs(rig_models):
+    from dampnet.study import continuous_skyhook, damping_levels
+
     neural, _, truth = rig_models
     road = thesis_rough_road()
+    # One controller for both dampers, calibrated on the truth (dampnet.study.continuous_skyhook:
+    # c_sky = 2 sqrt(k_s m_s) / sqrt(2), c_min / c_max = the truth's equivalent damping at 5 / 0 V).
+    cont = continuous_skyhook(truth, damping_levels(truth))
     out = {}
     for spec in (neural, truth):
         lv = {"high": 0.0, "low": 5.0}
@@ -82,6 +98,9 @@ def rough_runs(rig_models):
                 out[(spec.name, speed, level)] = r["metrics"]["acc_rms_m_s2"]
             r = simulate(spec, road, speed, Controller(kind="skyhook", u_soft=5.0, u_hard=0.0))
             out[(spec.name, speed, "skyhook")] = r["metrics"]["acc_rms_m_s2"]
+            r = simulate(spec, road, speed, cont)
+            out[(spec.name, speed, "skyhook_continuous")] = r["metrics"]["acc_rms_m_s2"]
+    print("rough road acc RMS:", json.dumps({f"{n}_{v:g}_{k}": round(a, 4) for (n, v, k), a in out.items()}))
     return out
 
 
@@ -92,13 +111,39 @@ def test_rig_damper_levels(rig_models):
     assert damping_levels(rig_models[1]) == {"low": 5.0, "high": 0.0}
 
 
+@pytest.mark.parametrize("law", ["skyhook", "skyhook_continuous"])
 @pytest.mark.parametrize("name", ["truth", "neural"])
 @pytest.mark.parametrize("speed", [10.0, 20.0])
-def test_skyhook_lowers_acceleration_against_passive_high(rough_runs, name, speed):
-    # On-off skyhook between the damper's own settings against passive at its high-damping
-    # setting (the same damper). Against passive *low* damping the on-off law does not lower the
-    # acceleration RMS here (truth 10 m/s: 0.64 skyhook vs 0.49 soft); it lowers displacement.
-    assert rough_runs[(name, speed, "skyhook")] < rough_runs[(name, speed, "high")]
+def test_skyhook_lowers_acceleration_against_passive_high(rough_runs, name, speed, law):
+    # Skyhook between the damper's own settings against passive at its high-damping setting
+    # (the same damper), by a margin far above the neural model's error. Recorded (truth / neural,
+    # m/s^2): passive high 0.942 / 0.931 at 10 m/s, 1.201 / 1.203 at 20 m/s; on-off skyhook
+    # 0.639 / 0.644 and 0.882 / 0.895; continuous 0.487 / 0.500 and 0.704 / 0.731.
+    assert rough_runs[(name, speed, law)] < 0.85 * rough_runs[(name, speed, "high")]
+
+
+@pytest.mark.parametrize("speed", [10.0, 20.0])
+def test_continuous_skyhook_lowers_acceleration_against_passive_low_for_the_truth(rough_runs, speed):
+    # Against passive *low* damping (5 V) only the continuous law helps, and only a little
+    # (see dampnet.study's docstring: the soft setting is already above the best passive damping
+    # for acceleration RMS and a semi-active law can only add damping; even an ideal force-tracking
+    # skyhook gets 1.6-2.2 %). Recorded, truth: 0.4870 vs 0.4909 (-0.8 %) at 10 m/s, 0.7042 vs
+    # 0.7108 (-0.9 %) at 20 m/s; on-off skyhook is above passive low (0.639, 0.882).
+    # Asserted for the truth damper only: the neural model's error under continuous skyhook
+    # (recorded +2.7 % / +3.8 %, neural 0.500 / 0.731 vs its passive low 0.493 / 0.716) is larger
+    # than the gain, so its sign is not a property of the model.
+    assert rough_runs[("truth", speed, "skyhook_continuous")] < rough_runs[("truth", speed, "low")]
+    assert rough_runs[("truth", speed, "skyhook")] > rough_runs[("truth", speed, "low")]
+
+
+def test_neural_tracks_truth_under_skyhook(rough_runs):
+    # The model must cover the voltages between the ends: recorded +0.8 / +1.5 % (on-off) and
+    # +2.7 / +3.8 % (continuous) at 10 / 20 m/s; trained on 0 and 5 V only it was +150 / +250 %
+    # under continuous skyhook.
+    for law in ("skyhook", "skyhook_continuous"):
+        for speed in (10.0, 20.0):
+            t = rough_runs[("truth", speed, law)]
+            assert rough_runs[("neural", speed, law)] == pytest.approx(t, rel=0.06), (law, speed)
 
 
 def test_neural_tracks_truth_on_the_rough_road(rough_runs, capsys):
@@ -110,8 +155,8 @@ def test_neural_tracks_truth_on_the_rough_road(rough_runs, capsys):
             errs[f"{speed:g}_{level}"] = (n - t) / t
     print("neural vs truth acc RMS error:", json.dumps({k: round(100 * v, 2) for k, v in errs.items()}))
     # Recorded (ROAD_PLAN model, LM 200 epochs, runtime loop, implicit acceleration feature):
-    # +0.99 % / -1.20 % at 10 m/s low/high, +0.77 % / -0.16 % at 20 m/s (explicit feature:
-    # +1.09 / -1.12 / +0.90 / +0.43 %).
+    # +0.50 % / -1.21 % at 10 m/s low/high, +0.70 % / +0.14 % at 20 m/s. (The earlier plan,
+    # 0 and 5 V only: +0.99 / -1.20 / +0.77 / -0.16 %.)
     assert all(abs(e) < 0.3 for e in errs.values())
 
 

@@ -22,7 +22,13 @@ def test_study_structure_and_tables(tmp_path):
     assert set(d) == KEYS
     assert set(d["sine_sweep"]) == {"low", "high"}
     assert set(d["rough_road"]) == {"10_low", "10_high", "20_low", "20_high"}
-    assert set(d["skyhook"]) == {f"{v}_{c}" for v in (10, 20) for c in ("skyhook", "passive_low", "passive_high")}
+    assert set(d["skyhook"]) == {f"{v}_{c}" for v in (10, 20)
+                                 for c in ("skyhook", "skyhook_continuous", "passive_low", "passive_high")}
+    # continuous skyhook's settings: c_sky from the vehicle (zeta 1/sqrt(2)); a linear damper's damping does
+    # not change with the control, so c_min / c_max stay the controller's defaults
+    cont = d["settings"]["skyhook"]["continuous"]
+    assert cont["c_sky"] == pytest.approx(2 ** 0.5 * (15000.0 * 700.0) ** 0.5)
+    assert cont["calibrated_on"] == "soft" and cont["c_max"] > cont["c_min"]
     for model in ("soft", "stiff"):
         assert d["sine_sweep"]["low"][model]["transmissibility_peak"] > 1.0
     # A linear damper ignores the control: both levels give the same numbers; stiffer damping lowers
@@ -33,5 +39,23 @@ def test_study_structure_and_tables(tmp_path):
         d["sine_sweep"]["low"]["soft"]["transmissibility_peak"]
     txt = text_tables(res)
     assert "Table 6" in txt and "Table 7" in txt and "Skyhook" in txt
+    assert "20_skyhook_continuous vs passive_low" in txt
     pngs = write_plots(res, tmp_path)
     assert any("transmissibility" in p.name for p in pngs) and all(p.stat().st_size > 1000 for p in pngs)
+
+
+def test_continuous_skyhook_is_calibrated_on_the_dampers_damping():
+    from dampnet.study import continuous_skyhook, equivalent_damping, truth_spec
+
+    truth = truth_spec()
+    # A linear damper's equivalent damping is its coefficient.
+    assert equivalent_damping(DamperSpec("lin", "linear", 1500.0), 0.0) == pytest.approx(1500.0, rel=1e-9)
+    c = continuous_skyhook(truth)
+    # 0 V (valve closed) is the rig damper's stiff end, 5 V the soft end (recorded: 1662 / 5534 N s/m at
+    # 0.2 m/s RMS); the law maps c_min -> u_soft, c_max -> u_hard.
+    assert (c.u_soft, c.u_hard) == (5.0, 0.0)
+    assert 1000.0 < c.c_min < 2500.0 < 4000.0 < c.c_max < 8000.0
+    # the equivalent damping is close to linear in the voltage between the ends (so is the law's map):
+    # at 2.5 V within 15 % of the midpoint (recorded 3709 vs 3598 N s/m)
+    mid = equivalent_damping(truth, 2.5)
+    assert mid == pytest.approx(0.5 * (c.c_min + c.c_max), rel=0.15)
