@@ -90,16 +90,18 @@ def get_effect(e) -> Effect:
 class GasSpring(Effect):
     """Polytropic gas spring: F = -(p(x) - p0) A_rod, p(x) = p0 (V0 / (V0 + A_rod x))^n.
 
-    The charge (p0 = 200 psi at mid-stroke) sits in a V0 = 40 cm^3 chamber
+    The charge (p0 = 200 psi at mid-stroke) sits in a V0 = 20 cm^3 chamber
     behind the floating piston (a 2-inch body with a short gas section);
     compression (x < 0) pushes the rod in and shrinks the gas volume by
     A_rod |x|. n = 1.4: at dyno frequencies the gas has no time to exchange
-    heat (adiabatic nitrogen). Rate at mid-stroke n p0 A_rod^2 / V0 = 1.9 N/mm,
-    +-50 N over a +-1 inch stroke, stiffening in compression.
+    heat (adiabatic nitrogen). Rate at mid-stroke n p0 A_rod^2 / V0 = 3.8 N/mm
+    (the diagnosis measured 4.5 +- 1.1 N/mm on the real UTFSM damper), +74 N at
+    full extension and -136 N at full compression of a +-1 inch stroke:
+    progressive in compression, as the gas volume shrinks by a quarter.
     """
 
     name = "gas_spring"
-    gas_volume_m3: float = 40e-6
+    gas_volume_m3: float = 20e-6
     polytropic_n: float = 1.4
 
     def force(self, ctx):
