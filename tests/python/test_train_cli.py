@@ -203,3 +203,31 @@ def test_thesis_plan_lm_beats_the_thesis_and_approaches_the_noise_floor(record_p
     print(f"thesis plan: LM hold-out NRMSE {ho:.5f}, noise floor {floor:.5f}, time {info.time_s:.1f} s")
     assert ho <= 0.0339
     assert floor < ho < 10 * floor
+
+
+def test_model_improved_for_friction_and_compressibility_runs_in_the_runtime_loop(tmp_path):
+    """`train --add friction --add compressibility` gives a model on friction_state and
+    velocity_lag; its header carries their constants and `simulate` runs it in the C++ loop."""
+    data = tmp_path / "fric"
+    write_dataset(generate(SMALL_PLAN, effects=["friction"], seed=6), data)
+    out = tmp_path / "m"
+    rc = main(["train", str(data), "--out", str(out), "--add", "friction", "--add", "compressibility",
+               "--decimate", "20", "--max-epochs", "40", "--quiet"])
+    assert rc == 0
+    model = MlpModel.load(out)
+    assert {"friction_state", "velocity_lag"} <= set(model.features)
+    assert model.feature_params["friction_presliding_m"] > 0 and model.feature_params["velocity_lag_tau_s"] > 0
+    header = (out / "model.h").read_text()
+    assert '"friction_presliding_m"' in header and '"velocity_lag_tau_s"' in header
+    sim = tmp_path / "sim"
+    assert main(["simulate", str(out), "--road", "bump", "--backend", "core", "--out", str(sim)]) == 0
+    run = np.load(sim / "run.npz")
+    core = json.loads((sim / "metrics.json").read_text())["metrics"]
+    assert np.all(np.isfinite(run["force"])) and np.ptp(run["force"]) > 100.0
+    # the Python reference loop (per-step damper, training-side feature updates) agrees
+    assert main(["simulate", str(out), "--road", "bump", "--backend", "python",
+                 "--out", str(tmp_path / "sim_py")]) == 0
+    py = json.loads((tmp_path / "sim_py" / "metrics.json").read_text())["metrics"]
+    # measured: acc RMS 0.5855 vs 0.5860 m/s^2, travel max 54.35 vs 54.51 mm
+    assert py["acc_rms_m_s2"] == pytest.approx(core["acc_rms_m_s2"], rel=0.02)
+    assert py["travel_max_m"] == pytest.approx(core["travel_max_m"], rel=0.02)

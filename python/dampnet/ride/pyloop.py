@@ -30,7 +30,8 @@ step (DN_INT_RK4 with DN_EVAL_PER_STEP):
 So for the same damper this loop and the runtime's loop in per-step mode
 produce the same trajectories to rounding (checked in
 tests/python/test_simulate.py when the runtime's loop is built). A damper here
-is any object with `force(x, v, a, u, dt) -> F [N]` and `reset()`.
+is any object with `force(x, v, a, u, dt) -> F [N]` and `reset()` (and, with
+derived-feature states, `advance(v, u, dt)`, called once at each step start).
 """
 
 from __future__ import annotations
@@ -184,33 +185,45 @@ class TableLoopDamper:
 
 
 class NeuralLoopDamper:
-    """An MlpModel on the loop's kinematics (features velocity, acceleration, displacement, voltage/current).
+    """An MlpModel (with its physics terms) on the loop's kinematics.
 
-    Evaluated in numpy, the kernel's arithmetic: inputs clamped to the
-    saturation range, mapminmax, tanh/logistic layers, linear output
-    (agrees with dampnet.train.reference.torch_forward to rounding).
+    Features: velocity, acceleration, displacement, voltage/current, and the
+    derived voltage_lag/current_lag, velocity_lag and friction_state. Their
+    states advance by `advance(v, u, dt)`, which the loop calls once per step,
+    with the training side's discretisation (dampnet.diagnose.features: the
+    input held over the sample; the first step in steady state); `force` may be
+    called any number of times in between (the implicit acceleration solve)
+    and, before any `advance`, sees the steady state of its own inputs. Evaluated in numpy, the kernel's arithmetic: inputs
+    clamped to the saturation range, mapminmax, tanh/logistic layers, linear
+    output (agrees with dampnet.train.reference.torch_forward to rounding).
     """
 
-    KNOWN = ("velocity", "acceleration", "displacement", "voltage", "current")
+    KNOWN = ("velocity", "acceleration", "displacement", "voltage", "current", "voltage_lag",
+             "current_lag", "velocity_lag", "friction_state")
+    _PARAM = {"voltage_lag": "control_lag_tau_s", "current_lag": "control_lag_tau_s",
+              "velocity_lag": "velocity_lag_tau_s", "friction_state": "friction_presliding_m"}
 
     def __init__(self, model):
         bad = [f for f in model.features if f not in self.KNOWN]
         if bad:
             raise LoopError(f"the Python loop cannot feed features {bad}; use the runtime's loop")
-        if model.terms:
-            raise LoopError("the Python loop does not evaluate physics terms; use the runtime's loop")
+        for f in model.features:
+            key = self._PARAM.get(f)
+            if key and not float(model.feature_params.get(key, 0.0)) > 0:
+                raise LoopError(f"feature {f!r} needs feature_params[{key!r}] > 0")
         self.model = model
         self._idx = [self.KNOWN.index(f) for f in model.features]
         m = model
         self._lo, self._hi = m.sat_lo, m.sat_hi
         self._off, self._gain, self._ymin = m.in_offset, m.in_gain, m.in_ymin
         self._act = np.tanh if m.activation == "tanh" else (lambda z: 1.0 / (1.0 + np.exp(-z)))
+        self.reset()
 
     def reset(self) -> None:
-        pass
+        self._state = None  # (u_lag, v_lag, z_fric) after the last advance()
 
     def forward(self, x: np.ndarray) -> np.ndarray:
-        """Force [N] for inputs x [..., n_inputs] in feature units."""
+        """MLP force [N] for inputs x [..., n_inputs] in feature units (no terms)."""
         m = self.model
         x = np.where(np.isnan(x), 0.5 * (self._lo + self._hi), x)
         a = (np.clip(x, self._lo, self._hi) - self._off) * self._gain + self._ymin
@@ -220,9 +233,36 @@ class NeuralLoopDamper:
         ys = a @ m.w_out + m.b_out
         return (ys - m.out_ymin) / m.out_gain + m.out_offset
 
+    def advance(self, v: float, u: float, dt: float) -> None:
+        """Step the derived features' states to this step's velocity v [m/s] and control u."""
+        p = self.model.feature_params
+        sgn = math.copysign(1.0, v) if v != 0 else 0.0
+        if self._state is None:
+            self._state = (u, v, sgn)
+            return
+        ul, vl, z = self._state
+
+        def lag(y, x, key):
+            tau = float(p.get(key, 0.0))
+            return x + (y - x) * math.exp(-dt / tau) if tau > 0 else x
+
+        xc = float(p.get("friction_presliding_m", 0.0))
+        z = sgn + (z - sgn) * math.exp(-abs(v) * dt / xc) if xc > 0 else sgn
+        self._state = (lag(ul, u, "control_lag_tau_s"), lag(vl, v, "velocity_lag_tau_s"), z)
+
     def force(self, x, v, a, u, dt) -> float:
-        vals = (v, a, x, u, u)
-        return float(self.forward(np.array([vals[i] for i in self._idx])))
+        """Force [N] (MLP plus terms) at the derived features' current states."""
+        if self._state is None:
+            ul, vl, z = u, v, (math.copysign(1.0, v) if v != 0 else 0.0)
+        else:
+            ul, vl, z = self._state
+        vals = (v, a, x, u, u, ul, ul, vl, z)
+        f = float(self.forward(np.array([vals[i] for i in self._idx])))
+        if self.model.terms:
+            from dampnet.terms import terms_force
+
+            f += float(terms_force(self.model.terms, np.array(x)))
+        return f
 
     @property
     def acceleration_input(self) -> int | None:
@@ -344,6 +384,7 @@ def run(damper, z_r, v_r, vehicle: Vehicle | None = None, controller: Controller
     f_last = f_static
     inv_ms, inv_mus = 1.0 / ms, 1.0 / mus
     ia = getattr(damper, "acceleration_input", None) if veh.accel_feature == "implicit" else None
+    advance = getattr(damper, "advance", None)  # derived-feature states, once per step
     if ia is not None:
         a_lo, a_hi = float(damper.model.sat_lo[ia]), float(damper.model.sat_hi[ia])
         out["accel_evals"] = np.ones(n, dtype=np.int64)
@@ -359,6 +400,8 @@ def run(damper, z_r, v_r, vehicle: Vehicle | None = None, controller: Controller
         u = ctrl.law(vs, vus)
         as_l, aus_l = accel(zs, vs, zus, vus, zr0, vr0, f_last)
         x, v, a = zs - zus + veh.x_static, vs - vus, as_l - aus_l
+        if advance is not None:
+            advance(v, u, h)
         if ia is not None:
             a, f, ok, ne, _ = solve_acceleration(lambda aa: damper.force(x, v, aa, u, h), a, f_last,
                                                  inv_ms + inv_mus, f_static, a_lo, a_hi)
