@@ -48,7 +48,7 @@ void machine_facts() {
   for (const char* f : {" sse4_2", " avx ", " avx2", " fma", " avx512f"})
     if (flags.find(f) != std::string::npos) simd += std::string(f).substr(1, std::string(f).find_last_not_of(' '));
   std::printf("{\"machine\": {\"cpu\": \"%s\", \"simd\": \"%s\", \"compiler\": \"%s\", "
-              "\"flags\": \"%s\", \"kernel\": \"%s\", \"loadavg\": \"%s\"}}\n",
+              "\"flags\": \"%s\", \"kernel\": \"%s\", \"isa\": \"%s\", \"loadavg\": \"%s\"}}\n",
               json_escape(cpu.substr(cpu.find(':') + 2)).c_str(), json_escape(simd).c_str(),
               json_escape(__VERSION__).c_str(), json_escape(DN_BENCH_FLAGS).c_str(),
 #ifdef DAMPNET_USE_EIGEN
@@ -56,6 +56,7 @@ void machine_facts() {
 #else
               "plain",
 #endif
+              dampnet::kernel_isa(),
               json_escape(read_first("/proc/loadavg", nullptr)).c_str());
 }
 
@@ -115,6 +116,12 @@ int main(int argc, char** argv) {
     float y; sf.forward(&xf[(i & 1023) * kIn], &y); sink = y; }, none, n, warm));
   dn_bench::print_json("dampnet_static_double", dn_bench::measure([&](long i) {
     double y; sd.forward(&xd[(i & 1023) * kIn], &y); sink = y; }, none, n, warm));
+  // The same calls back to back, each input chosen by the previous output (latency, no
+  // clock read per call): see dn_bench::measure_chained.
+  dn_bench::print_json("dampnet_static_float_chained", dn_bench::measure_chained([&](long i, long dep) {
+    float y; sf.forward(&xf[((i + dep) & 1023) * kIn], &y); return dn_bench::zero_dep(y); }, n, warm));
+  dn_bench::print_json("dampnet_static_double_chained", dn_bench::measure_chained([&](long i, long dep) {
+    double y; sd.forward(&xd[((i + dep) & 1023) * kIn], &y); return dn_bench::zero_dep(y); }, n, warm));
   dn_bench::print_json("dampnet_runtime_float", dn_bench::measure([&](long i) {
     float y; rf.forward(&xf[(i & 1023) * kIn], &y); sink = y; }, none, n, warm));
   dn_bench::print_json("dampnet_c_abi_float", dn_bench::measure([&](long i) {

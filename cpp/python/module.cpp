@@ -432,6 +432,37 @@ py::dict out_dict(const dn_loop_out& o, int status) {
   return r;
 }
 
+// What Loop.step returns: the step's report as read-only attributes, and also as a
+// read-only mapping with the keys of out_dict() (r["force"], r.keys(), dict(r)), so
+// code written for the former dict keeps working. Cheaper than a dict: one object
+// holding the C struct; `features` becomes a numpy array only when asked for.
+struct StepReport {
+  dn_loop_out o;
+  int status;
+};
+
+const char* const kStepKeys[] = {"force", "u", "x", "v", "a", "acc_s", "acc_us",
+                                 "features", "clamped_mask", "status"};
+
+py::object step_report_get(const StepReport& r, const std::string& key) {
+  const dn_loop_out& o = r.o;
+  if (key == "force") return py::float_(o.force);
+  if (key == "u") return py::float_(o.u);
+  if (key == "x") return py::float_(o.x);
+  if (key == "v") return py::float_(o.v);
+  if (key == "a") return py::float_(o.a);
+  if (key == "acc_s") return py::float_(o.acc_s);
+  if (key == "acc_us") return py::float_(o.acc_us);
+  if (key == "features") {
+    py::array_t<double> f(o.n_features);
+    for (int i = 0; i < o.n_features; ++i) f.mutable_data()[i] = o.features[i];
+    return std::move(f);
+  }
+  if (key == "clamped_mask") return py::int_(o.clamped_mask);
+  if (key == "status") return py::int_(r.status);
+  throw py::key_error(key);
+}
+
 class PyLoop {
  public:
   struct Deleter {
@@ -459,13 +490,13 @@ class PyLoop {
     check(dn_loop_set_state(d.get(), s.data()), "state");
   }
 
-  py::dict step(double z_r, double v_r, double u) {
+  StepReport step(double z_r, double v_r, double u) {
     dn_loop_input in{z_r, v_r, u};
-    dn_loop_out o{};
-    const int st = dn_loop_step(model->m.get(), d.get(), &in, &o);
+    StepReport r{};
+    r.status = dn_loop_step(model->m.get(), d.get(), &in, &r.o);
     model->damper->raise_pending();
-    check(st, "step");
-    return out_dict(o, st);
+    check(r.status, "step");
+    return r;
   }
 
   // The same step with the smallest Python cost: only the damper force [N] comes back
@@ -584,6 +615,33 @@ PYBIND11_MODULE(_core, mod) {
   mod.attr("__version__") = dn_version_string();
   mod.def("version", &dn_version, "Library version as major*10000 + minor*100 + patch.");
   mod.def("status_str", &dn_status_str, "Explain a dampnet status code.");
+  {
+    py::dict info;
+    info["kernel_isa"] = dampnet::kernel_isa();  // the SIMD path of the kernel in this build
+#ifdef DN_BUILD_FLAGS
+    info["flags"] = DN_BUILD_FLAGS;
+#else
+    info["flags"] = "";
+#endif
+#ifdef DN_ISA_FLAGS
+    info["isa_flags"] = DN_ISA_FLAGS;
+#else
+    info["isa_flags"] = "";
+#endif
+#ifdef DAMPNET_USE_EIGEN
+    info["eigen"] = true;
+#else
+    info["eigen"] = false;
+#endif
+#if defined(__clang__)
+    info["compiler"] = "clang " __clang_version__;
+#elif defined(__GNUC__)
+    info["compiler"] = "gcc " __VERSION__;
+#else
+    info["compiler"] = "unknown";
+#endif
+    mod.attr("BUILD_INFO") = info;
+  }
   mod.attr("MAX_INPUTS") = DN_MAX_INPUTS;
   mod.attr("MAX_HIDDEN") = DN_MAX_HIDDEN;
   mod.attr("DN_ACCEL_MAX_EVALS") = DN_ACCEL_MAX_EVALS;
@@ -670,12 +728,68 @@ PYBIND11_MODULE(_core, mod) {
            py::arg("u_ext") = DArray(py::array_t<double>(1)),
            "The control law alone on arrays of velocities.");
 
+  {
+    auto keys = [] {
+      py::list k;
+      for (const char* name : kStepKeys) k.append(name);
+      return k;
+    };
+    py::class_<StepReport> sr(mod, "StepReport",
+                              "A step's report (Loop.step): read-only attributes, and a read-only "
+                              "mapping with the same keys (r['force'], r.keys(), dict(r)).");
+    sr.def_property_readonly("force", [](const StepReport& r) { return r.o.force; })
+        .def_property_readonly("u", [](const StepReport& r) { return r.o.u; })
+        .def_property_readonly("x", [](const StepReport& r) { return r.o.x; })
+        .def_property_readonly("v", [](const StepReport& r) { return r.o.v; })
+        .def_property_readonly("a", [](const StepReport& r) { return r.o.a; })
+        .def_property_readonly("acc_s", [](const StepReport& r) { return r.o.acc_s; })
+        .def_property_readonly("acc_us", [](const StepReport& r) { return r.o.acc_us; })
+        .def_property_readonly("features",
+                               [](const StepReport& r) { return step_report_get(r, "features"); })
+        .def_property_readonly("clamped_mask", [](const StepReport& r) { return r.o.clamped_mask; })
+        .def_property_readonly("status", [](const StepReport& r) { return r.status; })
+        .def("__getitem__", &step_report_get)
+        .def("get", [](const StepReport& r, const std::string& key, py::object dflt) -> py::object {
+               for (const char* name : kStepKeys)
+                 if (key == name) return step_report_get(r, key);
+               return dflt;
+             }, py::arg("key"), py::arg("default") = py::none())
+        .def("__contains__", [](const StepReport&, py::object key) {
+               if (!py::isinstance<py::str>(key)) return false;
+               const std::string k = key.cast<std::string>();
+               for (const char* name : kStepKeys)
+                 if (k == name) return true;
+               return false;
+             })
+        .def("__len__", [](const StepReport&) { return std::size(kStepKeys); })
+        .def("__iter__", [keys](const StepReport&) { return keys().attr("__iter__")(); })
+        .def("keys", [keys](const StepReport&) { return keys(); })
+        .def("values", [](const StepReport& r) {
+               py::list v;
+               for (const char* name : kStepKeys) v.append(step_report_get(r, name));
+               return v;
+             })
+        .def("items", [](const StepReport& r) {
+               py::list v;
+               for (const char* name : kStepKeys) v.append(py::make_tuple(name, step_report_get(r, name)));
+               return v;
+             })
+        .def("to_dict", [](const StepReport& r) { return out_dict(r.o, r.status); },
+             "The report as a plain dict.")
+        .def("__repr__", [](const StepReport& r) {
+               return py::str("StepReport(force={!r}, u={!r}, x={!r}, v={!r}, a={!r}, status={})")
+                   .format(r.o.force, r.o.u, r.o.x, r.o.v, r.o.a, r.status);
+             });
+    py::module_::import("collections.abc").attr("Mapping").attr("register")(sr);
+  }
+
   py::class_<PyLoop>(mod, "Loop", "A loop's state (mutable) for a LoopModel.")
       .def(py::init<std::shared_ptr<PyLoopModel>>(), py::arg("model"))
       .def("reset", &PyLoop::reset)
       .def_property("state", &PyLoop::get_state, &PyLoop::set_state, "Flat state (STATE_NAMES).")
       .def("step", &PyLoop::step, py::arg("z_r"), py::arg("v_r"), py::arg("u") = 0.0,
-           "One step; road at the end of the step. Returns the report at the step start.")
+           "One step; road at the end of the step. Returns the report at the step start "
+           "(a StepReport: attributes, or keys as in a dict).")
       .def("step_force", &PyLoop::step_force, py::arg("z_r"), py::arg("v_r"), py::arg("u") = 0.0,
            "One step, as step(), returning only the damper force [N] of its report (cheapest call).")
       .def("forward", &PyLoop::forward, py::arg("u") = 0.0, "The report without advancing.")

@@ -357,7 +357,7 @@ def _loops(model: MlpModel):
 
 def loop_step_latency(n_calls: int, model: MlpModel | None = None, damper: str = "neural_float",
                       method: str = "step") -> dict:
-    """pybind11 `Loop.step(z_r, v_r, u)` (returns a dict) or `Loop.step_force` (returns the
+    """pybind11 `Loop.step(z_r, v_r, u)` (returns a StepReport) or `Loop.step_force` (returns the
     force only) per call, RK4, skyhook on-off; the state is restored every 1000 calls outside
     the timed region, as in the C++ harness."""
     from dampnet import _core
@@ -394,7 +394,7 @@ def loop_step_latency(n_calls: int, model: MlpModel | None = None, damper: str =
         if gc_was:
             gc.enable()
     r = summarise(ns)
-    r.update(what=f"_core.Loop.{method}(z_r, v_r, u) -> {'dict' if method == 'step' else 'float'}, RK4, "
+    r.update(what=f"_core.Loop.{method}(z_r, v_r, u) -> {'StepReport' if method == 'step' else 'float'}, RK4, "
                   f"{damper} damper, skyhook on-off",
              target_ns=STEP_TARGET_NS, metric="p50_ns")
     return r
@@ -486,7 +486,8 @@ def table(res: dict[str, Any]) -> list[dict[str, Any]]:
 
     def lat_row(scope, name, r, target=None, budget=None):
         forward = not name.startswith(("clock", "python_clock", "loop_", "pybind_"))
-        row = {"scope": scope, "name": name, "p50_ns": r.get("p50_ns"), "p99_ns": r.get("p99_ns"),
+        row = {"scope": scope, "name": name, "p50_ns": r.get("p50_ns"), "p50_net_ns": r.get("p50_net_ns"),
+               "p99_ns": r.get("p99_ns"),
                "p999_ns": r.get("p999_ns"), "max_ns": r.get("max_ns"), "target": None, "headroom": None,
                "ratio_to_kernel_p50": (r["p50_ns"] / kernel) if forward and kernel and r.get("p50_ns") else None}
         if budget is not None:
@@ -527,18 +528,19 @@ def format_table(rows: list[dict[str, Any]]) -> str:
     def f(v, fmt="{:.0f}"):
         return "-" if v is None else fmt.format(v)
 
-    out = [f"{'scope':6s} {'figure':52s} {'p50':>9s} {'p99':>9s} {'p99.9':>9s} {'max':>10s}  "
+    out = [f"{'scope':6s} {'figure':52s} {'p50':>9s} {'net p50':>8s} {'p99':>9s} {'p99.9':>9s} {'max':>10s}  "
            f"{'x kernel p50':>12s}  {'budget / target':30s} headroom",
-           f"{'':6s} {'':52s} {'[ns]':>9s} {'[ns]':>9s} {'[ns]':>9s} {'[ns]':>10s}"]
+           f"{'':6s} {'':52s} {'[ns]':>9s} {'[ns]':>8s} {'[ns]':>9s} {'[ns]':>9s} {'[ns]':>10s}"]
     for r in rows:
         if "steps_per_s" in r:
             body = (f"{f(r['steps_per_s'], '{:.3g}'):>9s} steps/s median (best {r['steps_per_s_best']:.3g}, "
                     f"{r['ns_per_step']:.0f} ns/step)")
-            out.append(f"{r['scope']:6s} {r['name']:52s} {body:67s}  {r['target']:30s} "
+            out.append(f"{r['scope']:6s} {r['name']:52s} {body:76s}  {r['target']:30s} "
                        f"x{r['headroom']:.2f}{'' if r['headroom'] >= 1 else ' (not met)'}")
             continue
         hr = "-" if r["headroom"] is None else f"x{r['headroom']:.2f}" + ("" if r["headroom"] >= 1 else " (not met)")
-        out.append(f"{r['scope']:6s} {r['name']:52s} {f(r['p50_ns']):>9s} {f(r['p99_ns']):>9s} "
+        p50 = f(r["p50_ns"], "{:.1f}") if r["name"].endswith("_chained") else f(r["p50_ns"])
+        out.append(f"{r['scope']:6s} {r['name']:52s} {p50:>9s} {f(r.get('p50_net_ns')):>8s} {f(r['p99_ns']):>9s} "
                    f"{f(r['p999_ns']):>9s} {f(r['max_ns']):>10s}  {f(r['ratio_to_kernel_p50'], '{:.1f}'):>12s}  "
                    f"{r['target'] or '-':30s} {hr}")
     return "\n".join(out)

@@ -25,8 +25,26 @@ SHARE = 0.01
 # fixed, and stable for any dF/da >= 0). The offline-accuracy configurations (damper
 # at every RK4 stage; the iterated implicit solve) are measured and reported beside it.
 BUDGET_CASE = "loop_step_rk4_per_step_eval_neural_float_skyhook_linear_accel"
-TARGETS_NS = {"dampnet_static_float": ("p50_ns", 40.0),
+# The MLP forward's target is judged on the chained loop of single-sample calls (each
+# call's input chosen by the previous call's output, as in a HIL step, so calls cannot
+# overlap; 100 calls per clock pair, so the clock adds ~0.3 ns a call). The individually
+# timed row beside it includes a clock pair per call; it is also reported net of the
+# clock's median (p50_net_ns = p50 - clock_overhead p50).
+KERNEL_TARGET_CASE = "dampnet_static_float_chained"
+TARGETS_NS = {KERNEL_TARGET_CASE: ("p50_ns", 40.0),
               BUDGET_CASE: ("p50_ns", 250.0)}
+
+
+def kernel_flags() -> tuple[str, str]:
+    """(compile flags, SIMD path) of the installed runtime, from _core.BUILD_INFO: the harness
+    is compiled with the same SIMD flags, so its inlined kernel is the library's."""
+    try:
+        from dampnet import _core
+
+        info = getattr(_core, "BUILD_INFO", {})
+    except ImportError:
+        info = {}
+    return str(info.get("isa_flags", "")), str(info.get("kernel_isa", "unknown"))
 
 
 def _harness_sources() -> tuple[Path, Path]:
@@ -49,7 +67,8 @@ def build_harness(out_dir: Path) -> Path:
     out_dir.mkdir(parents=True, exist_ok=True)
     exe = out_dir / "dn_bench_mlp"
     lib = paths.shared_library()
-    flags = "-O3 -DNDEBUG"
+    isa_flags, _ = kernel_flags()
+    flags = " ".join(["-O3 -DNDEBUG", isa_flags]).strip()
     cmd = [cxx, "-std=c++17", *flags.split(), f'-DDN_BENCH_FLAGS="{flags}"',
            *[f"-I{d}" for d in paths.include_dirs()], f"-I{header_dir}", f"-I{src.parent}", str(src),
            "-o", str(exe), str(lib), f"-Wl,-rpath,{lib.parent}"]
@@ -82,6 +101,11 @@ def quick_latency(out_dir: str | Path, n_calls: int = 200_000) -> dict:
         raise RuntimeError(f"the latency harness did not report the budget case {BUDGET_CASE!r} "
                            f"(it reported {', '.join(res['results'])}); is the installed harness "
                            "older than this dampnet? Reinstall (python/env.sh)")
+    clock = res["results"].get("clock_overhead", {}).get("p50_ns")
+    for name, r in res["results"].items():
+        if name != "clock_overhead" and not name.endswith("_chained") and clock is not None:
+            r["p50_net_ns"] = r["p50_ns"] - clock  # net of the clock's median
+    res["runtime"] = dict(zip(("isa_flags", "kernel_isa"), kernel_flags()))
     step = res["results"][BUDGET_CASE]
     p999 = step.get("p999_ns")
     res["budget"] = {"step_rate_hz": STEP_RATE_HZ, "share": SHARE, "p999_budget_ns": budget_ns,
@@ -92,11 +116,14 @@ def quick_latency(out_dir: str | Path, n_calls: int = 200_000) -> dict:
     res["targets"] = {k: {"metric": m, "target_ns": t, "measured_ns": res["results"].get(k, {}).get(m)}
                       for k, (m, t) in TARGETS_NS.items()}
     fw = res["results"].get("dampnet_static_float", {})
+    fc = res["results"].get(KERNEL_TARGET_CASE, {})
     res["headline"] = (f"RK4 step with neural damper (once per step, linearised a) + skyhook: p50 {step.get('p50_ns', float('nan')):.0f} ns, "
                        f"p99.9 {p999 or float('nan'):.0f} ns against a {budget_ns:.0f} ns budget "
                        f"({res['headroom']['share_of_hil_step_pct'] or float('nan'):.2f} % of a "
-                       f"{1e6 / STEP_RATE_HZ:.0f} us HIL step); MLP forward float p50 "
-                       f"{fw.get('p50_ns', float('nan')):.0f} ns (timings include the clock's "
-                       f"{res['results'].get('clock_overhead', {}).get('p50_ns', float('nan')):.0f} ns)")
+                       f"{1e6 / STEP_RATE_HZ:.0f} us HIL step); MLP forward float "
+                       f"{fc.get('p50_ns', float('nan')):.1f} ns per call in a chained loop, "
+                       f"{fw.get('p50_ns', float('nan')):.0f} ns p50 timed one by one (the clock's "
+                       f"{clock if clock is not None else float('nan'):.0f} ns included; "
+                       f"{fw.get('p50_net_ns', float('nan')):.0f} ns net)")
     (out / "latency.json").write_text(json.dumps(res, indent=1))
     return res

@@ -14,6 +14,11 @@
 
 #include <cmath>
 
+#if defined(__AVX2__) && defined(__FMA__)
+#include <immintrin.h>
+#define DN_TANH8_AVX2 1
+#endif
+
 #include "dampnet/dampnet.h"
 
 namespace dampnet {
@@ -43,6 +48,32 @@ inline float clamp_tanh_arg(float a) noexcept {
 }
 
 inline float fast_tanh(float a) noexcept { return tanh_rational(clamp_tanh_arg(a)); }
+
+#ifdef DN_TANH8_AVX2
+// The same rational on 8 floats with FMA (the AVX2 kernel's activation), arranged
+// for the shortest dependency chain: y = min(z^2, 81) equals x^2 for the clamped x
+// one operation sooner (NaN: z^2 is NaN and minps returns its second operand, 81;
+// x = 9), both polynomials by Estrin in y, and x / q computed while the numerator
+// polynomial finishes. Worst absolute error against std::tanh over [-10, 10]:
+// 2.7e-7 (tests/cpp/test_activation.cpp checks < 5e-7); +-Inf and NaN give +-1
+// and +1. (The reciprocal estimate plus a Newton step instead of the division
+// measured no faster here, and less accurate, 3.3e-7.)
+inline __m256 fast_tanh8(__m256 z) noexcept {
+  const __m256 x = _mm256_max_ps(_mm256_min_ps(z, _mm256_set1_ps(9.f)), _mm256_set1_ps(-9.f));
+  const __m256 y = _mm256_min_ps(_mm256_mul_ps(z, z), _mm256_set1_ps(81.f));
+  const __m256 y2 = _mm256_mul_ps(y, y), y4 = _mm256_mul_ps(y2, y2);
+  const __m256 e01 = _mm256_fmadd_ps(_mm256_set1_ps(6.37261928875436e-04f), y, _mm256_set1_ps(4.89352455891786e-03f));
+  const __m256 e23 = _mm256_fmadd_ps(_mm256_set1_ps(5.12229709037114e-08f), y, _mm256_set1_ps(1.48572235717979e-05f));
+  const __m256 e45 = _mm256_fmadd_ps(_mm256_set1_ps(2.00018790482477e-13f), y, _mm256_set1_ps(-8.60467152213735e-11f));
+  const __m256 lo = _mm256_fmadd_ps(e23, y2, e01);
+  const __m256 hi = _mm256_fmadd_ps(_mm256_set1_ps(-2.76076847742355e-16f), y2, e45);
+  const __m256 p = _mm256_fmadd_ps(hi, y4, lo);
+  const __m256 q01 = _mm256_fmadd_ps(_mm256_set1_ps(2.26843463243900e-03f), y, _mm256_set1_ps(4.89352518554385e-03f));
+  const __m256 q23 = _mm256_fmadd_ps(_mm256_set1_ps(1.19825839466702e-06f), y, _mm256_set1_ps(1.18534705686654e-04f));
+  const __m256 q = _mm256_fmadd_ps(q23, y2, q01);
+  return _mm256_mul_ps(_mm256_div_ps(x, q), p);
+}
+#endif
 
 inline double fast_tanh(double a) noexcept { return std::tanh(a); }
 inline double clamp_tanh_arg(double a) noexcept { return a; }

@@ -9,6 +9,18 @@
 // detail::forward template, so the same weights give the same result on both
 // paths. Internally the weights are stored transposed ([in][out]) so that the
 // inner loop runs over neurons, contiguous and vectorisable.
+//
+// load() folds the affine maps into the weights (in double, then rounded to T):
+// the input scaling ((x - offset) * gain + ymin) into layer 1, the sigmoid as
+// 0.5 + 0.5 tanh(z / 2) into the layers around it, and the output unscaling
+// ((y - ymin) / gain + offset) into the output weights, so that forward() is
+// x - offset, then dense + tanh per layer, then one dot product plus a constant:
+// the shortest dependency chain, which is what bounds a single call's latency.
+//
+// SIMD path, chosen at compile time (kernel_isa() says which one a translation
+// unit got): AVX2+FMA when compiled with -mavx2 -mfma (CMake: DAMPNET_AVX2), a
+// fused per-8-neuron pipeline in __m256 registers; otherwise SSE (x86-64
+// baseline) or plain C++ loops. The results of the paths differ by rounding only.
 #pragma once
 
 #include <array>
@@ -33,7 +45,26 @@
 #define DN_REALTIME
 #endif
 
+// The kernel's SIMD path in this translation unit.
+#if defined(DN_TANH8_AVX2) && !defined(DAMPNET_USE_EIGEN)
+#define DN_KERNEL_AVX2 1
+#define DN_KERNEL_ISA "avx2+fma"
+#define DN_KERNEL_NS isa_avx2_fma
+#elif defined(__AVX__)
+#define DN_KERNEL_ISA "avx"
+#define DN_KERNEL_NS isa_avx
+#elif defined(__SSE__)
+#define DN_KERNEL_ISA "sse"
+#define DN_KERNEL_NS isa_sse
+#else
+#define DN_KERNEL_ISA "scalar"
+#define DN_KERNEL_NS isa_scalar
+#endif
+
 namespace dampnet {
+// Everything here carries the kernel's SIMD path in its mangled names, so that
+// translation units compiled with different flags never share a function by accident.
+inline namespace DN_KERNEL_NS {
 
 constexpr int kDynamic = -1;
 
@@ -42,6 +73,10 @@ constexpr int kDynamic = -1;
 // has pre-activation 0 and a zero output weight: it adds exactly +0 to the sum.
 constexpr int kPad = 8;
 constexpr int pad(int n) { return n <= 0 ? 0 : (n + kPad - 1) / kPad * kPad; }
+
+// The SIMD path of the kernel compiled into this translation unit:
+// "avx2+fma", "avx", "sse" or "scalar" (Eigen, when enabled, does the dense layers).
+constexpr const char* kernel_isa() noexcept { return DN_KERNEL_ISA; }
 
 namespace detail {
 
@@ -80,7 +115,8 @@ inline void dense_t(const T* wt, const T* b, const T* x, T* y, int n_in, int n_o
 
 // Clamp n (a multiple of 8) floats to [-9, 9]. GCC will not turn the portable
 // compare-and-select into minps/maxps (it must keep NaN and -0 semantics), so
-// SSE/AVX use the instructions directly; the values are finite here.
+// SSE/AVX use the instructions directly (a NaN becomes +9: minps returns its
+// second operand when either is NaN).
 inline void clamp_tanh_args(float* h, int n) noexcept {
 #if defined(__AVX__)
   const __m256 lo = _mm256_set1_ps(-9.f), hi = _mm256_set1_ps(9.f);
@@ -94,26 +130,24 @@ inline void clamp_tanh_args(float* h, int n) noexcept {
   for (int j = 0; j < n; ++j) h[j] = clamp_tanh_arg(h[j]);
 #endif
 }
-inline void clamp_tanh_args(double*, int) noexcept {}  // std::tanh needs no clamp
+inline void clamp_tanh_args(double* h, int n) noexcept {
+  for (int j = 0; j < n; ++j) h[j] = clamp_tanh_arg(h[j]);
+}
 
-// Hidden activations in passes (scale, clamp, rational, shift): with IEEE
+// tanh of the hidden pre-activations in two passes (clamp, rational): with IEEE
 // trapping semantics GCC will not vectorise a loop that both branches and divides.
 // h is 32-byte aligned and n a multiple of 8 (padded layers).
 template <typename T, int kN>
-inline void activate_all(Activation act, T* h, int n) noexcept {
+inline void tanh_all(T* h, int n) noexcept {
   const int nn = kN > 0 ? kN : n;
-  if (act == Activation::sigmoid)
-    for (int j = 0; j < nn; ++j) h[j] *= T(0.5);
   clamp_tanh_args(h, nn);
   for (int j = 0; j < nn; ++j) h[j] = tanh_rational(h[j]);
-  if (act == Activation::sigmoid)
-    for (int j = 0; j < nn; ++j) h[j] = T(0.5) + T(0.5) * h[j];
 }
 
 // sum_j w[j] a[j] over n (a multiple of 8) in eight interleaved partial sums,
 // part[l] = sum_k w[8k+l] a[8k+l], combined as ((p0+p4)+(p1+p5))+((p2+p6)+(p3+p7)):
-// the adds pipeline instead of forming one long chain. The SIMD versions keep
-// exactly this order, so every path gives the same bits.
+// the adds pipeline instead of forming one long chain. The SSE version keeps
+// exactly this order (and its horizontal sum in registers), so both give the same bits.
 template <typename T, int kN>
 inline T dot_padded(const T* __restrict w, const T* __restrict a, int n) noexcept {
   const int nn = kN > 0 ? kN : n;
@@ -124,9 +158,9 @@ inline T dot_padded(const T* __restrict w, const T* __restrict a, int n) noexcep
       lo = _mm_add_ps(lo, _mm_mul_ps(_mm_load_ps(w + j), _mm_load_ps(a + j)));
       hi = _mm_add_ps(hi, _mm_mul_ps(_mm_load_ps(w + j + 4), _mm_load_ps(a + j + 4)));
     }
-    alignas(16) float s[4];
-    _mm_store_ps(s, _mm_add_ps(lo, hi));  // p0+p4, p1+p5, p2+p6, p3+p7
-    return (s[0] + s[1]) + (s[2] + s[3]);
+    const __m128 q = _mm_add_ps(lo, hi);  // q_l = p_l + p_{l+4}
+    const __m128 t = _mm_add_ps(q, _mm_shuffle_ps(q, q, _MM_SHUFFLE(2, 3, 0, 1)));  // q0+q1, ., q2+q3, .
+    return _mm_cvtss_f32(_mm_add_ss(t, _mm_movehl_ps(t, t)));
   }
 #endif
   alignas(32) T part[kPad] = {};
@@ -135,7 +169,14 @@ inline T dot_padded(const T* __restrict w, const T* __restrict a, int n) noexcep
   return ((part[0] + part[4]) + (part[1] + part[5])) + ((part[2] + part[6]) + (part[3] + part[7]));
 }
 
-// Saturate and scale the inputs; returns the warning bits, sets the mask.
+// Saturate the inputs and subtract their offsets (the rest of the input scaling
+// is folded into layer 1); returns the warning bits, sets the mask.
+// (GCC, inlining a run-time-sized model's forward into a caller whose input array
+// is exactly n_in long, cannot see that i < n_in and warns of a read beyond it.)
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
 template <typename T, int kIn, class P>
 inline int prepare_inputs(const P& p, const T* x, T* xs, uint32_t& mask) noexcept {
   const int ni = kIn > 0 ? kIn : p.n_in;
@@ -144,7 +185,7 @@ inline int prepare_inputs(const P& p, const T* x, T* xs, uint32_t& mask) noexcep
     T v = x[i];
     const T lo = p.sat_lo[i], hi = p.sat_hi[i];
     if (v != v) {  // NaN: the centre of the training range is the least surprising value
-      v = T(0.5) * (lo + hi);
+      v = p.in_mid[i];
       status |= DN_W_NONFINITE_INPUT;
       mask |= (1u << i);
     } else if (v < lo) {  // also -Inf
@@ -156,19 +197,104 @@ inline int prepare_inputs(const P& p, const T* x, T* xs, uint32_t& mask) noexcep
       status |= DN_W_SATURATED;
       mask |= (1u << i);
     }
-    xs[i] = (v - p.in_offset[i]) * p.in_gain[i] + p.in_ymin;
+    xs[i] = v - p.in_offset[i];
   }
   return status;
 }
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
 
-// Derivative of the activation from its output h: tanh' = 1 - h^2, sigmoid' = h (1 - h).
-template <typename T>
-inline void activation_slopes(Activation act, const T* h, T* d, int n) noexcept {
-  if (act == Activation::sigmoid)
-    for (int j = 0; j < n; ++j) d[j] = h[j] * (T(1) - h[j]);
-  else
-    for (int j = 0; j < n; ++j) d[j] = T(1) - h[j] * h[j];
+#if DN_KERNEL_AVX2
+// One block of 8 outputs of a dense layer: init + sum_i x[i] * wt[i * stride + 0..7].
+// Up to 4 inputs in one FMA chain; more in four interleaved chains (latency n/4 FMAs).
+template <int kN>
+inline __m256 dense8(__m256 init, const float* wt, const float* x, int n_dyn, int stride) noexcept {
+  const int n = kN > 0 ? kN : n_dyn;
+  if (n <= 4) {
+    for (int i = 0; i < n; ++i)
+      init = _mm256_fmadd_ps(_mm256_load_ps(wt + i * stride), _mm256_set1_ps(x[i]), init);
+    return init;
+  }
+  __m256 c1 = _mm256_setzero_ps(), c2 = c1, c3 = c1;
+  const int n4 = n - n % 4;
+  for (int i = 0; i < n4; i += 4) {
+    init = _mm256_fmadd_ps(_mm256_load_ps(wt + i * stride), _mm256_set1_ps(x[i]), init);
+    c1 = _mm256_fmadd_ps(_mm256_load_ps(wt + (i + 1) * stride), _mm256_set1_ps(x[i + 1]), c1);
+    c2 = _mm256_fmadd_ps(_mm256_load_ps(wt + (i + 2) * stride), _mm256_set1_ps(x[i + 2]), c2);
+    c3 = _mm256_fmadd_ps(_mm256_load_ps(wt + (i + 3) * stride), _mm256_set1_ps(x[i + 3]), c3);
+  }
+  for (int i = n4; i < n; ++i)
+    init = _mm256_fmadd_ps(_mm256_load_ps(wt + i * stride), _mm256_set1_ps(x[i]), init);
+  return _mm256_add_ps(_mm256_add_ps(init, c1), _mm256_add_ps(c2, c3));
 }
+
+// The 8 partial sums of a __m256 combined in dot_padded's order.
+inline float hsum8(__m256 v) noexcept {
+  const __m128 q = _mm_add_ps(_mm256_castps256_ps128(v), _mm256_extractf128_ps(v, 1));
+  const __m128 t = _mm_add_ps(q, _mm_shuffle_ps(q, q, _MM_SHUFFLE(2, 3, 0, 1)));
+  return _mm_cvtss_f32(_mm_add_ss(t, _mm_movehl_ps(t, t)));
+}
+
+// The float forward pass after the inputs: per block of 8 neurons, dense (FMA),
+// tanh (fast_tanh8) and the output FMA in registers, blocks independent so they
+// overlap in the pipeline. Returns b_out + sum_j w_out[j] t_j (b_out enters the
+// first accumulator's lane 0, off the end of the chain); with kGrad also (in *dys)
+// the forward-mode derivative for the input whose layer-1 column is `col`
+// (nullptr: that input was clamped, derivative 0).
+template <int kIn, int kH1, int kH2, bool kGrad, class P>
+inline float forward_avx2(const P& p, const float* xs, const float* col, float* dys) noexcept {
+  constexpr int kP1 = kH1 > 0 ? pad(kH1) : kDynamic;
+  constexpr int kP2 = kH2 > 0 ? pad(kH2) : (kH2 == 0 ? 0 : kDynamic);
+  constexpr int cap_h1 = kH1 > 0 ? kP1 : DN_MAX_HIDDEN;
+  const int ni = kIn > 0 ? kIn : p.n_in;
+  const int h1 = kP1 > 0 ? kP1 : p.n_h1p;
+  const int h2 = kP2 >= 0 ? kP2 : p.n_h2p;
+  const __m256 one = _mm256_set1_ps(1.f);
+  __m256 acc1 = _mm256_setzero_ps(), dacc = acc1;
+  __m256 acc0 = _mm256_setr_ps(p.b_out, 0.f, 0.f, 0.f, 0.f, 0.f, 0.f, 0.f);
+  if (kH2 == 0 || h2 == 0) {
+    for (int j = 0; j < h1; j += 8) {
+      const __m256 t = fast_tanh8(dense8<kIn>(_mm256_load_ps(p.b1.data() + j), p.w1t.data() + j, xs, ni, h1));
+      const __m256 w = _mm256_load_ps(p.w_out.data() + j);
+      if ((j >> 3) & 1)
+        acc1 = _mm256_fmadd_ps(w, t, acc1);
+      else
+        acc0 = _mm256_fmadd_ps(w, t, acc0);
+      if constexpr (kGrad) {
+        if (col) {
+          const __m256 d = _mm256_mul_ps(_mm256_fnmadd_ps(t, t, one), _mm256_load_ps(col + j));
+          dacc = _mm256_fmadd_ps(w, d, dacc);
+        }
+      }
+    }
+  } else {
+    alignas(32) float a1[cap_h1];
+    alignas(32) float t1[kGrad ? cap_h1 : kPad];
+    for (int j = 0; j < h1; j += 8) {
+      const __m256 t = fast_tanh8(dense8<kIn>(_mm256_load_ps(p.b1.data() + j), p.w1t.data() + j, xs, ni, h1));
+      _mm256_store_ps(a1 + j, t);
+      if constexpr (kGrad)
+        _mm256_store_ps(t1 + j, col ? _mm256_mul_ps(_mm256_fnmadd_ps(t, t, one), _mm256_load_ps(col + j))
+                                    : _mm256_setzero_ps());
+    }
+    for (int j = 0; j < h2; j += 8) {
+      const __m256 t = fast_tanh8(dense8<kP1>(_mm256_load_ps(p.b2.data() + j), p.w2t.data() + j, a1, h1, h2));
+      const __m256 w = _mm256_load_ps(p.w_out.data() + j);
+      if ((j >> 3) & 1)
+        acc1 = _mm256_fmadd_ps(w, t, acc1);
+      else
+        acc0 = _mm256_fmadd_ps(w, t, acc0);
+      if constexpr (kGrad) {
+        const __m256 lin = dense8<kP1>(_mm256_setzero_ps(), p.w2t.data() + j, t1, h1, h2);
+        dacc = _mm256_fmadd_ps(w, _mm256_mul_ps(_mm256_fnmadd_ps(t, t, one), lin), dacc);
+      }
+    }
+  }
+  if constexpr (kGrad) *dys = hsum8(dacc);
+  return hsum8(_mm256_add_ps(acc0, acc1));
+}
+#endif
 
 // The forward pass shared by Mlp and StaticMlp. kH2 == 0: one hidden layer.
 // Sizes used here are the padded ones (pad()). With kGrad, *dy_dxi also receives
@@ -188,49 +314,55 @@ DN_REALTIME inline int forward(const P& p, const T* x, T* y, uint32_t* clamped_m
   uint32_t mask = 0;
   alignas(32) T xs[cap_in];
   int status = prepare_inputs<T, kIn>(p, x, xs, mask);
+  // Layer 1's column for the differentiated input (its gain folded in); none if clamped.
+  const T* col = (kGrad && !((mask >> grad_input) & 1u)) ? p.w1t.data() + grad_input * h1 : nullptr;
 
-  alignas(32) T a1[cap_h1];
-  dense_t<T, kIn, kP1>(p.w1t.data(), p.b1.data(), xs, a1, p.n_in, h1);
-  activate_all<T, kP1>(p.act, a1, h1);
+  T sum, dys = T(0);
+#if DN_KERNEL_AVX2
+  if constexpr (std::is_same<T, float>::value) {
+    sum = forward_avx2<kIn, kH1, kH2, kGrad>(p, xs, col, &dys);  // b_out included
+  } else
+#endif
+  {
+    alignas(32) T a1[cap_h1];
+    dense_t<T, kIn, kP1>(p.w1t.data(), p.b1.data(), xs, a1, p.n_in, h1);
+    tanh_all<T, kP1>(a1, h1);
 
-  // Forward mode: t1 = d(a1)/dx_i = act'(z1) * W1[:, i] * gain_i.
-  alignas(32) T t1[kGrad ? cap_h1 : kPad] = {};
-  if constexpr (kGrad) {
-    activation_slopes(p.act, a1, t1, h1);
-    const bool clamped = (mask >> grad_input) & 1u;
-    const T g = clamped ? T(0) : p.in_gain[grad_input];
-    const T* col = p.w1t.data() + grad_input * h1;
-    for (int j = 0; j < h1; ++j) t1[j] *= col[j] * g;
-  }
-
-  int n_last = h1;
-  bool n_last_is_a2 = false;
-  alignas(32) T a2[cap_h2 > 0 ? cap_h2 : kPad];
-  alignas(32) T t2[kGrad && cap_h2 > 0 ? cap_h2 : kPad];
-  if constexpr (kH2 != 0) {  // compiled out for one hidden layer
-    if (h2 > 0) {
-      dense_t<T, kP1, kP2>(p.w2t.data(), p.b2.data(), a1, a2, h1, h2);
-      activate_all<T, kP2>(p.act, a2, h2);
-      if constexpr (kGrad) {
-        alignas(32) T zero[cap_h2 > 0 ? cap_h2 : kPad] = {};
-        alignas(32) T lin[cap_h2 > 0 ? cap_h2 : kPad];
-        dense_t<T, kP1, kP2>(p.w2t.data(), zero, t1, lin, h1, h2);  // W2 t1
-        activation_slopes(p.act, a2, t2, h2);
-        for (int j = 0; j < h2; ++j) t2[j] *= lin[j];
-      }
-      n_last = h2;
-      n_last_is_a2 = true;
+    // Forward mode: t1 = d(a1)/dx_i = (1 - a1^2) * W1[:, i] (gain and sigmoid scale folded in).
+    alignas(32) T t1[kGrad ? cap_h1 : kPad] = {};
+    if constexpr (kGrad) {
+      if (col)
+        for (int j = 0; j < h1; ++j) t1[j] = (T(1) - a1[j] * a1[j]) * col[j];
     }
-  }
-  if constexpr (kGrad) {
-    const T dys = n_last_is_a2 ? dot_padded<T, kP2>(p.w_out.data(), t2, n_last)
-                               : dot_padded<T, kP1>(p.w_out.data(), t1, n_last);
-    *dy_dxi = dys / p.out_gain;
-  }
 
-  const T ys = p.b_out + (n_last_is_a2 ? dot_padded<T, kP2>(p.w_out.data(), a2, n_last)
-                                        : dot_padded<T, kP1>(p.w_out.data(), a1, n_last));
-  T out = (ys - p.out_ymin) / p.out_gain + p.out_offset;
+    int n_last = h1;
+    bool n_last_is_a2 = false;
+    alignas(32) T a2[cap_h2 > 0 ? cap_h2 : kPad];
+    alignas(32) T t2[kGrad && cap_h2 > 0 ? cap_h2 : kPad];
+    if constexpr (kH2 != 0) {  // compiled out for one hidden layer
+      if (h2 > 0) {
+        dense_t<T, kP1, kP2>(p.w2t.data(), p.b2.data(), a1, a2, h1, h2);
+        tanh_all<T, kP2>(a2, h2);
+        if constexpr (kGrad) {
+          alignas(32) T zero[cap_h2 > 0 ? cap_h2 : kPad] = {};
+          alignas(32) T lin[cap_h2 > 0 ? cap_h2 : kPad];
+          dense_t<T, kP1, kP2>(p.w2t.data(), zero, t1, lin, h1, h2);  // W2 t1
+          for (int j = 0; j < h2; ++j) t2[j] = (T(1) - a2[j] * a2[j]) * lin[j];
+        }
+        n_last = h2;
+        n_last_is_a2 = true;
+      }
+    }
+    if constexpr (kGrad) {
+      dys = n_last_is_a2 ? dot_padded<T, kP2>(p.w_out.data(), t2, n_last)
+                         : dot_padded<T, kP1>(p.w_out.data(), t1, n_last);
+    }
+    sum = p.b_out + (n_last_is_a2 ? dot_padded<T, kP2>(p.w_out.data(), a2, n_last)
+                                  : dot_padded<T, kP1>(p.w_out.data(), a1, n_last));
+  }
+  if constexpr (kGrad) *dy_dxi = dys;
+
+  T out = sum;  // the output unscaling is folded into w_out and b_out
   if (!std::isfinite(out)) {
     out = p.out_offset;
     status = DN_E_NONFINITE_OUTPUT;
@@ -240,7 +372,8 @@ DN_REALTIME inline int forward(const P& p, const T* x, T* y, uint32_t* clamped_m
   return status;
 }
 
-// Validate a description against fixed sizes (kDynamic = any) and copy it in.
+// Validate a description against fixed sizes (kDynamic = any) and copy it in,
+// folding the scalings into the weights (see the top of this file).
 template <typename T, int kIn, int kH1, int kH2, class P>
 inline int load(P& p, const dn_mlp_desc* d) noexcept {
   if (!d || !d->w1 || !d->b1 || !d->w_out || !d->b_out || !d->in_offset || !d->in_gain ||
@@ -282,30 +415,49 @@ inline int load(P& p, const dn_mlp_desc* d) noexcept {
   p.w2t.fill(T(0));
   p.b2.fill(T(0));
   p.w_out.fill(T(0));
-  for (int j = 0; j < h1; ++j)
-    for (int i = 0; i < ni; ++i) p.w1t[i * h1p + j] = static_cast<T>(d->w1[j * ni + i]);
-  for (int j = 0; j < h1; ++j) p.b1[j] = static_cast<T>(d->b1[j]);
-  for (int j = 0; j < h2; ++j)
-    for (int k = 0; k < h1; ++k) p.w2t[k * h2p + j] = static_cast<T>(d->w2[j * h1 + k]);
-  for (int j = 0; j < h2; ++j) p.b2[j] = static_cast<T>(d->b2[j]);
-  for (int j = 0; j < n_last; ++j) p.w_out[j] = static_cast<T>(d->w_out[j]);
-  p.b_out = static_cast<T>(d->b_out[0]);
+  // Every hidden unit is evaluated as t = tanh(z'); its value is a = beta + alpha t:
+  // tanh: z' = z, a = t; sigmoid: z' = z / 2, a = 1/2 + t / 2 (sigmoid(z) = 0.5 + 0.5 tanh(z/2)).
+  const bool sig = p.act == Activation::sigmoid;
+  const double zs = sig ? 0.5 : 1.0, alpha = sig ? 0.5 : 1.0, beta = sig ? 0.5 : 0.0;
+  // Layer 1 on x - offset: z'_j = zs (sum_i W1[j,i] gain_i (x_i - off_i) + b1_j + ymin sum_i W1[j,i]).
+  for (int j = 0; j < h1; ++j) {
+    double b = d->b1[j];
+    for (int i = 0; i < ni; ++i) {
+      p.w1t[i * h1p + j] = static_cast<T>(zs * d->w1[j * ni + i] * d->in_gain[i]);
+      b += d->in_ymin * d->w1[j * ni + i];
+    }
+    p.b1[j] = static_cast<T>(zs * b);
+  }
+  // Layer 2 on layer 1's t: z'_k = zs (sum_j alpha W2[k,j] t_j + b2_k + beta sum_j W2[k,j]).
+  for (int k = 0; k < h2; ++k) {
+    double b = d->b2[k];
+    for (int j = 0; j < h1; ++j) {
+      p.w2t[j * h2p + k] = static_cast<T>(zs * alpha * d->w2[k * h1 + j]);
+      b += beta * d->w2[k * h1 + j];
+    }
+    p.b2[k] = static_cast<T>(zs * b);
+  }
+  // Output: ((sum_j w_j a_j + b_out) - ymin) / gain + offset = sum_j w'_j t_j + b'.
+  double c = d->b_out[0];
+  for (int j = 0; j < n_last; ++j) {
+    p.w_out[j] = static_cast<T>(alpha * d->w_out[j] / d->out_gain);
+    c += beta * d->w_out[j];
+  }
+  p.b_out = static_cast<T>((c - d->out_ymin) / d->out_gain + d->out_offset);
   for (int i = 0; i < ni; ++i) {
     p.in_offset[i] = static_cast<T>(d->in_offset[i]);
-    p.in_gain[i] = static_cast<T>(d->in_gain[i]);
     p.sat_lo[i] = static_cast<T>(d->sat_lo[i]);
     p.sat_hi[i] = static_cast<T>(d->sat_hi[i]);
+    p.in_mid[i] = static_cast<T>(0.5 * (d->sat_lo[i] + d->sat_hi[i]));
   }
-  p.in_ymin = static_cast<T>(d->in_ymin);
   p.out_offset = static_cast<T>(d->out_offset);
-  p.out_gain = static_cast<T>(d->out_gain);
-  p.out_ymin = static_cast<T>(d->out_ymin);
   return DN_OK;
 }
 
 }  // namespace detail
 
-// Parameters of an MLP with capacities In x H1 x H2 (storage only; see load()).
+// Parameters of an MLP with capacities In x H1 x H2 (storage only; see load(),
+// which folds the input/output scalings and the sigmoid into the weights).
 template <typename T, int In, int H1, int H2>
 struct MlpParams {
   static_assert(In >= 1 && In <= DN_MAX_INPUTS, "1..8 inputs");
@@ -315,14 +467,14 @@ struct MlpParams {
   int n_in = 0, n_h1 = 0, n_h2 = 0;  // real sizes
   int n_h1p = 0, n_h2p = 0;          // padded sizes the loops run over
   Activation act = Activation::tanh;
-  alignas(32) std::array<T, In * P1> w1t{};  // [in][h1 padded]
+  alignas(32) std::array<T, In * P1> w1t{};  // [in][h1 padded], input gain folded in
   alignas(32) std::array<T, P1> b1{};
   alignas(32) std::array<T, (H2 > 0 ? P1 * P2 : 0)> w2t{};  // [h1 padded][h2 padded]
   alignas(32) std::array<T, P2> b2{};
-  alignas(32) std::array<T, (H2 > 0 ? P2 : P1)> w_out{};
-  T b_out{};
-  std::array<T, In> in_offset{}, in_gain{}, sat_lo{}, sat_hi{};
-  T in_ymin{-1}, out_offset{}, out_gain{1}, out_ymin{-1};
+  alignas(32) std::array<T, (H2 > 0 ? P2 : P1)> w_out{};  // output unscaling folded in
+  T b_out{};  // the output for all-zero hidden units, in output units
+  std::array<T, In> in_offset{}, in_mid{}, sat_lo{}, sat_hi{};
+  T out_offset{};  // what a non-finite output is replaced by
 };
 
 // A model whose sizes are chosen at run time (up to the DN_MAX_* capacities).
@@ -381,4 +533,5 @@ class StaticMlp {
   MlpParams<T, In, H1, H2> p_;
 };
 
+}  // namespace DN_KERNEL_NS
 }  // namespace dampnet

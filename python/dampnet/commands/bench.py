@@ -51,6 +51,9 @@ def run(args) -> int:
     m = res["machine"]
     print(f"machine: {m.get('cpu')} ({m.get('simd')}), gcc {m.get('compiler')}, flags '{m.get('flags')}', "
           f"load {m.get('loadavg')}")
+    rt = res.get("runtime", {})
+    print(f"kernel SIMD path: harness {m.get('isa', '?')}, installed runtime {rt.get('kernel_isa', '?')} "
+          f"(runtime SIMD flags '{rt.get('isa_flags', '')}'; CMake option DAMPNET_AVX2=AUTO|ON|OFF)")
     py = res.get("python")
     if py:
         print(f"Python: load {py['loadavg']['start']} at start, {py['loadavg']['end']} at end; "
@@ -66,14 +69,17 @@ def run(args) -> int:
             print(f"skipped {k}: {why}")
     print(bench_python.format_table(res["table"]))
     print("All latencies include the clock reads around each call (C++: clock_overhead row; Python: "
-          "python_clock_overhead row, an empty call). 'x kernel p50' = median / the C++ kernel's "
+          "python_clock_overhead row, an empty call); 'net p50' = p50 minus the C++ clock's median. "
+          "'*_chained' rows: loops of single-sample calls, each input chosen by the previous output "
+          "(latency, not throughput), 100 calls per clock pair, percentiles over the batches' per-call means. "
+          "'x kernel p50' = median / the C++ kernel's "
           f"median ({bench_python.KERNEL_CASE}); Python-level calls include the interpreter's call overhead.")
     b, h = res["budget"], res["headroom"]
     print(f"HIL budget: {b['case']} p99.9 <= {b['p999_budget_ns']:.0f} ns ({100 * b['share']:.0f} % of a "
           f"{1e6 / b['step_rate_hz']:.0f} us step): measured {h['p999_ns']:.0f} ns, headroom x{h['headroom_factor']:.2f}"
           f" -> {'GO' if h['within_budget'] else 'NO-GO'}")
     for name, t in res["targets"].items():
-        print(f"target {name} {t['metric']} <= {t['target_ns']:.0f} ns: measured {t['measured_ns']:.0f} ns")
+        print(f"target {name} {t['metric']} <= {t['target_ns']:.0f} ns: measured {t['measured_ns'] if t['measured_ns'] is not None else float('nan'):.1f} ns")
     if args.json:
         Path(args.json).write_text(json.dumps(res, indent=1))
     return 0 if h["within_budget"] else 1

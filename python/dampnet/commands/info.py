@@ -15,4 +15,8 @@ def run(args) -> int:
     print(f"dampnet {__version__} (C++ core {_core.__version__})")
     print(f"headers:        {paths.include_dirs()[0]}")
     print(f"shared library: {paths.shared_library()}")
+    info = getattr(_core, "BUILD_INFO", None)
+    if info:
+        print(f"MLP kernel:     {info['kernel_isa']} SIMD path{' (Eigen dense layers)' if info.get('eigen') else ''}; "
+              f"built with {info['compiler']}, flags '{info['flags']}'")
     return 0
