@@ -169,15 +169,16 @@ inline T dot_padded(const T* __restrict w, const T* __restrict a, int n) noexcep
   return ((part[0] + part[4]) + (part[1] + part[5])) + ((part[2] + part[6]) + (part[3] + part[7]));
 }
 
-// Saturate the inputs and subtract their offsets (the rest of the input scaling
-// is folded into layer 1); returns the warning bits, sets the mask.
+// Saturate the inputs and, with kSub, subtract their offsets (the rest of the
+// input scaling is folded into layer 1, and the offsets too when load() found that
+// safe: see in_offset_folded); returns the warning bits, sets the mask.
 // (GCC, inlining a run-time-sized model's forward into a caller whose input array
 // is exactly n_in long, cannot see that i < n_in and warns of a read beyond it.)
 #if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #endif
-template <typename T, int kIn, class P>
+template <typename T, int kIn, bool kSub, class P>
 inline int prepare_inputs(const P& p, const T* x, T* xs, uint32_t& mask) noexcept {
   const int ni = kIn > 0 ? kIn : p.n_in;
   int status = DN_OK;
@@ -197,7 +198,7 @@ inline int prepare_inputs(const P& p, const T* x, T* xs, uint32_t& mask) noexcep
       status |= DN_W_SATURATED;
       mask |= (1u << i);
     }
-    xs[i] = v - p.in_offset[i];
+    xs[i] = kSub ? v - p.in_offset[i] : v;
   }
   return status;
 }
@@ -255,14 +256,16 @@ inline float forward_avx2(const P& p, const float* xs, const float* col, float* 
   __m256 acc0 = _mm256_setr_ps(p.b_out, 0.f, 0.f, 0.f, 0.f, 0.f, 0.f, 0.f);
   if (kH2 == 0 || h2 == 0) {
     for (int j = 0; j < h1; j += 8) {
-      const __m256 t = fast_tanh8(dense8<kIn>(_mm256_load_ps(p.b1.data() + j), p.w1t.data() + j, xs, ni, h1));
+      __m256 r, q;  // t = r q; the output takes r (q w), q w formed while r is divided
+      fast_tanh8_factors(dense8<kIn>(_mm256_load_ps(p.b1.data() + j), p.w1t.data() + j, xs, ni, h1), r, q);
       const __m256 w = _mm256_load_ps(p.w_out.data() + j);
       if ((j >> 3) & 1)
-        acc1 = _mm256_fmadd_ps(w, t, acc1);
+        acc1 = _mm256_fmadd_ps(r, _mm256_mul_ps(q, w), acc1);
       else
-        acc0 = _mm256_fmadd_ps(w, t, acc0);
+        acc0 = _mm256_fmadd_ps(r, _mm256_mul_ps(q, w), acc0);
       if constexpr (kGrad) {
         if (col) {
+          const __m256 t = _mm256_mul_ps(r, q);
           const __m256 d = _mm256_mul_ps(_mm256_fnmadd_ps(t, t, one), _mm256_load_ps(col + j));
           dacc = _mm256_fmadd_ps(w, d, dacc);
         }
@@ -279,13 +282,15 @@ inline float forward_avx2(const P& p, const float* xs, const float* col, float* 
                                     : _mm256_setzero_ps());
     }
     for (int j = 0; j < h2; j += 8) {
-      const __m256 t = fast_tanh8(dense8<kP1>(_mm256_load_ps(p.b2.data() + j), p.w2t.data() + j, a1, h1, h2));
+      __m256 r, q;
+      fast_tanh8_factors(dense8<kP1>(_mm256_load_ps(p.b2.data() + j), p.w2t.data() + j, a1, h1, h2), r, q);
       const __m256 w = _mm256_load_ps(p.w_out.data() + j);
       if ((j >> 3) & 1)
-        acc1 = _mm256_fmadd_ps(w, t, acc1);
+        acc1 = _mm256_fmadd_ps(r, _mm256_mul_ps(q, w), acc1);
       else
-        acc0 = _mm256_fmadd_ps(w, t, acc0);
+        acc0 = _mm256_fmadd_ps(r, _mm256_mul_ps(q, w), acc0);
       if constexpr (kGrad) {
+        const __m256 t = _mm256_mul_ps(r, q);
         const __m256 lin = dense8<kP1>(_mm256_setzero_ps(), p.w2t.data() + j, t1, h1, h2);
         dacc = _mm256_fmadd_ps(w, _mm256_mul_ps(_mm256_fnmadd_ps(t, t, one), lin), dacc);
       }
@@ -312,8 +317,9 @@ DN_REALTIME inline int forward(const P& p, const T* x, T* y, uint32_t* clamped_m
   const int h2 = kP2 >= 0 ? kP2 : p.n_h2p;
 
   uint32_t mask = 0;
-  alignas(32) T xs[cap_in];
-  int status = prepare_inputs<T, kIn>(p, x, xs, mask);
+  alignas(32) T xs[cap_in] = {};  // zeroed: GCC cannot see that prepare_inputs writes all it reads
+  int status = p.in_offset_folded ? prepare_inputs<T, kIn, false>(p, x, xs, mask)
+                                   : prepare_inputs<T, kIn, true>(p, x, xs, mask);
   // Layer 1's column for the differentiated input (its gain folded in); none if clamped.
   const T* col = (kGrad && !((mask >> grad_input) & 1u)) ? p.w1t.data() + grad_input * h1 : nullptr;
 
@@ -420,11 +426,21 @@ inline int load(P& p, const dn_mlp_desc* d) noexcept {
   const bool sig = p.act == Activation::sigmoid;
   const double zs = sig ? 0.5 : 1.0, alpha = sig ? 0.5 : 1.0, beta = sig ? 0.5 : 0.0;
   // Layer 1 on x - offset: z'_j = zs (sum_i W1[j,i] gain_i (x_i - off_i) + b1_j + ymin sum_i W1[j,i]).
+  // The offsets go into the bias as well (layer 1 on x itself, one subtraction less on
+  // the call's dependency chain) when no input's offset exceeds its saturation range:
+  // then |x_i| <= 2 x range_i and W1 x loses at most a bit to cancellation; an input
+  // far from zero (a temperature in kelvin, say) keeps the exact subtraction.
+  bool fold_off = true;
+  for (int i = 0; i < ni; ++i)
+    if (!(std::fabs(d->in_offset[i]) <= d->sat_hi[i] - d->sat_lo[i])) fold_off = false;
+  p.in_offset_folded = fold_off;
   for (int j = 0; j < h1; ++j) {
     double b = d->b1[j];
     for (int i = 0; i < ni; ++i) {
-      p.w1t[i * h1p + j] = static_cast<T>(zs * d->w1[j * ni + i] * d->in_gain[i]);
+      const double w = d->w1[j * ni + i] * d->in_gain[i];
+      p.w1t[i * h1p + j] = static_cast<T>(zs * w);
       b += d->in_ymin * d->w1[j * ni + i];
+      if (fold_off) b -= w * d->in_offset[i];
     }
     p.b1[j] = static_cast<T>(zs * b);
   }
@@ -474,6 +490,7 @@ struct MlpParams {
   alignas(32) std::array<T, (H2 > 0 ? P2 : P1)> w_out{};  // output unscaling folded in
   T b_out{};  // the output for all-zero hidden units, in output units
   std::array<T, In> in_offset{}, in_mid{}, sat_lo{}, sat_hi{};
+  bool in_offset_folded = false;  // layer 1's bias holds -W1 offset (forward skips x - offset)
   T out_offset{};  // what a non-finite output is replaced by
 };
 
