@@ -1,7 +1,7 @@
 // Hidden-layer activations for the MLP kernel.
 //
-// double: std::tanh (correctly rounded to ~1 ulp) so the double kernel meets
-// its 1e-12 relative contract against a float64 reference.
+// double: tanh_d below (exp-based, within a few ulps of std::tanh, vectorisable),
+// so the double kernel meets its 1e-12 relative contract against a float64 reference.
 // float: a 13/6-degree odd/even rational interpolant of tanh on [-9, 9]
 // (the same form Eigen uses), branch-free so the compiler vectorises the
 // hidden layer. Its worst absolute error against std::tanh, measured over
@@ -13,6 +13,8 @@
 #pragma once
 
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 
 #if defined(__AVX2__) && defined(__FMA__)
 #include <immintrin.h>
@@ -83,9 +85,50 @@ inline __m256 fast_tanh8(__m256 z) noexcept {
 }
 #endif
 
-inline double fast_tanh(double a) noexcept { return std::tanh(a); }
-inline double clamp_tanh_arg(double a) noexcept { return a; }
-inline double tanh_rational(double a) noexcept { return std::tanh(a); }
+// double: tanh(z) = sign(z) e / (e + 2) with e = expm1(2 |z|), for |z| <= 20 (the
+// caller clamps: clamp_tanh_arg; tanh(20) rounds to 1). expm1(t) = 2^k (p(r) + 1) - 1
+// with t = k ln2 + r, |r| <= ln2/2, p(r) = expm1(r) by its Taylor polynomial to r^13
+// (truncation < 2e-17 relative); the scaling by 2^k and 2^k - 1 are exact, so e is
+// accurate to a few ulps relative for every z (no cancellation near 0). Branch-free and
+// call-free, so the hidden layer's loop vectorises (SSE2: 2 lanes, AVX2: 4; the clamp
+// is a separate pass, as GCC will not if-convert a select in a loop that divides).
+// Worst relative error against std::tanh over [-25, 25], measured by
+// tests/cpp/test_activation.cpp: 5.9e-16, 2.6 ulps (bound checked: 4 ulps); NaN gives +1.
+inline double tanh_d_core(double z) noexcept {
+  const double a = std::fabs(z);
+  const double t = 2.0 * a;
+  const double shifter = 6755399441055744.0;  // 1.5 * 2^52: adding it rounds to an integer
+  const double kd = t * 1.4426950408889634 + shifter;
+  const double k = kd - shifter;  // round(t / ln2), 0..58
+  const double r = (t - k * 6.93147180369123816490e-01) - k * 1.90821492927058770002e-10;
+  // expm1(r) = r (1 + r/2 + r^2/6 + ... + r^12/13!), the bracket by Estrin.
+  const double r2 = r * r, r4 = r2 * r2, r8 = r4 * r4;
+  const double c01 = 1.0 + r * (1.0 / 2);
+  const double c23 = 1.0 / 6 + r * (1.0 / 24);
+  const double c45 = 1.0 / 120 + r * (1.0 / 720);
+  const double c67 = 1.0 / 5040 + r * (1.0 / 40320);
+  const double c89 = 1.0 / 362880 + r * (1.0 / 3628800);
+  const double cab = 1.0 / 39916800 + r * (1.0 / 479001600);
+  const double cc = 1.0 / 6227020800.0;
+  const double lo = (c01 + c23 * r2) + (c45 + c67 * r2) * r4;
+  const double hi = (c89 + cab * r2) + cc * r4;
+  const double pm1 = r * (lo + hi * r8);
+  // 2^k from its bits: the low bits of kd hold k (kd = 1.5 * 2^52 + k exactly).
+  int64_t kbits;
+  std::memcpy(&kbits, &kd, sizeof kbits);
+  const int64_t sbits = (kbits - int64_t(0x4338000000000000) + 1023) * (int64_t(1) << 52);
+  double s2k;
+  std::memcpy(&s2k, &sbits, sizeof s2k);
+  const double e = pm1 * s2k + (s2k - 1.0);  // expm1(2 |z|)
+  return std::copysign(e / (e + 2.0), z);
+}
+
+// Outside [-20, 20] tanh rounds to +-1 in double; NaN -> 20 (+1), as the float clamp.
+inline double clamp_tanh_arg(double a) noexcept { return !(a <= 20.0) ? 20.0 : (a < -20.0 ? -20.0 : a); }
+inline double tanh_d(double z) noexcept { return tanh_d_core(clamp_tanh_arg(z)); }
+
+inline double fast_tanh(double a) noexcept { return tanh_d(a); }
+inline double tanh_rational(double a) noexcept { return tanh_d_core(a); }  // after clamp_tanh_arg
 
 // Activation applied to one pre-activation value.
 template <typename T>
