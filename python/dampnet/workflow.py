@@ -20,6 +20,9 @@ What train_dataset does, in order (the thesis's chapter 4 data handling):
     thesis plan (bench/bench_train_thesis.py, RESULTS.md): factor 25 trains LM in
     ~6 s to a hold-out NRMSE of 0.0037; factor 50 gives 0.0042 (fewer samples per
     weight make early stopping stop sooner); factor 1 would be 25x the work.
+    Features are computed at the full rate and then decimated: derived features
+    with a state (velocity_lag, voltage_lag, friction_state) are only the
+    quantities the runtime's loop computes when sampled finely.
  4. Physics terms (hybrid model), if any: their parameters are fitted first
     (fit_terms) and the network learns the residual force minus the terms.
  5. `dampnet.train.fit`: mapminmax scaling, random 70/15/15 split with early
@@ -366,7 +369,10 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
         raise DataError("every test is held out: nothing left to train on")
     factor = _auto_decimate(train) if decimate is None else int(decimate)
     used = _decimate(train, factor) if factor > 1 else train
-    X = feature_matrix(used.tests, features, feature_params, window)
+    # Features at the full sample rate, then decimated: a derived feature with a state (a lag of a
+    # few ms, the friction state) computed on decimated samples would be a different quantity.
+    X = np.concatenate([feature_matrix([t], features, feature_params, window)[::factor]
+                        for t in train.tests])
     y = np.concatenate([t.channels["force"] for t in used.tests])
     terms = list(terms or [])
     if terms:

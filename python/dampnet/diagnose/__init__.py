@@ -8,7 +8,7 @@
   localise.py   where the model fails (by test, within the cycle)
   run.py        diagnose(model, dataset) -> JSON-ready dict
   report.py     the HTML report with pictures
-  features.py   derived features (voltage_lag/current_lag, velocity_lag, friction_state)
+  features.py   re-exports the derived features of dampnet.train.derived
 """
 
 from dampnet.diagnose.catalogue import CANDIDATES, Candidate, additions, register_candidate

@@ -26,7 +26,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from dampnet.diagnose.features import dahl_state, first_order_lag
+from dampnet.train.derived import dahl_state, first_order_lag
 
 
 @dataclass
@@ -377,6 +377,19 @@ def _comp_columns(ctx, theta):
     return out
 
 
+def _comp_parameters(ctx, theta, fit):
+    """tau_s: the physical time constant, the lag of the velocity at which a smooth function of
+    (lagged velocity, acceleration, control) fits the measured force best (estimate.lag_with_spread,
+    cached: the same for every fold); residual_lag_s: the extra lag the residual test found beyond
+    the model's own acceleration input (small when the acceleration already carries most of it)."""
+    from dampnet.diagnose.estimate import lag_with_spread
+
+    if "compressibility_tau" not in ctx.notes:
+        ctx.notes["compressibility_tau"] = lag_with_spread([td.test for td in ctx.tests], "velocity")
+    tau, spread = ctx.notes["compressibility_tau"]
+    return {"tau_s": tau, "residual_lag_s": float(theta), "_uncertainty": {"tau_s": spread}}
+
+
 register_candidate(Candidate(
     id="compressibility", title="force lagging velocity (oil compressibility, gas entrainment)",
     needs="velocity history",
@@ -388,14 +401,14 @@ register_candidate(Candidate(
     columns=_comp_columns, grid=_comp_grid, theta_name="tau_s",
     testable=lambda ctx: (("velocity" in ctx.model.features),
                           "" if "velocity" in ctx.model.features else "the model has no velocity input"),
-    parameters=lambda ctx, theta, fit: {"tau_s": float(theta)},
+    parameters=_comp_parameters,
     add=lambda p, control: {"features": ["velocity_lag"], "terms": [],
                             "feature_params": {"velocity_lag_tau_s": float(p.get("tau_s", 0.002))},
                             "how": "feature",
                             "why": "the velocity after a first-order lag as an extra MLP input: the network "
                                    "learns how much of the force follows the lagged flow"},
-    evidence=lambda p, loc: (f"the force follows the velocity with a lag of about {1000 * p['tau_s']:.3g} ms "
-                             "beyond what the acceleration input explains: the measured force-velocity "
+    evidence=lambda p, loc: (f"the force follows a velocity lagged by about {1000 * p['tau_s']:.3g} ms, "
+                             "more than the acceleration input explains: the measured force-velocity "
                              "loops are wider than the predicted ones, most at high frequency")))
 
 

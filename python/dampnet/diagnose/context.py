@@ -15,7 +15,7 @@ from dampnet.data import Dataset, DynoTest
 from dampnet.data.preprocess import acceleration_of
 from dampnet.model import MlpModel
 
-import dampnet.diagnose.features  # noqa: F401  (registers the derived features)
+import dampnet.train.derived  # noqa: F401  (registers the derived features)
 
 #: Default number of rows per test at which residuals are regressed.
 ROWS_PER_TEST = 600

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from dampnet.diagnose.basis import baseline_basis
-from dampnet.diagnose.features import first_order_lag
+from dampnet.train.derived import first_order_lag
 
 GRID_S = tuple(np.exp(np.linspace(np.log(0.001), np.log(1.0), 25)))
 
@@ -40,6 +40,23 @@ def _best_tau(ds, channel: str, rows_per_test: int = 400) -> float:
         if best is None or sse < best[0]:
             best = (sse, tau)
     return float(best[1])
+
+
+def lag_with_spread(tests, channel: str, groups: int = 5) -> tuple[float, float | None]:
+    """(tau [s], its spread [s]: the jackknife over `groups` groups of tests, at least half the
+    grid's step; None with < 2 groups)."""
+    from types import SimpleNamespace
+
+    tests = list(tests)
+    tau = _best_tau(SimpleNamespace(tests=tests), channel)
+    g = min(groups, len(tests))
+    if g < 2:
+        return tau, None
+    loo = np.log([_best_tau(SimpleNamespace(tests=[t for i, t in enumerate(tests) if i % g != k]), channel)
+                  for k in range(g)])
+    spread_log = float(np.sqrt((g - 1) / g * np.sum((loo - loo.mean()) ** 2)))
+    half_step = 0.5 * float(np.log(GRID_S[1] / GRID_S[0]))  # the grid's own resolution
+    return tau, float(tau * max(spread_log, half_step))  # relative, on the log grid
 
 
 def estimate_parameters(effect_id: str, ds) -> dict:

@@ -38,7 +38,8 @@ def _parameters(ctx, cand, res, folds):
     if cand.parameters is None:
         return {}, {}
     fit = {"beta": res["beta"], "effect_rows": res["effect_rows"]}
-    est = cand.parameters(ctx, res["theta"], fit)
+    est = dict(cand.parameters(ctx, res["theta"], fit))
+    own = est.pop("_uncertainty", {})  # a candidate may estimate a parameter's spread itself
     fold_est = []
     for th, b in zip(res["fold_thetas"], res["fold_betas"]):
         rows = [c @ b for c in res["columns"]]
@@ -46,7 +47,7 @@ def _parameters(ctx, cand, res, folds):
     unc = {}
     for k, v in est.items():
         if isinstance(v, (int, float)) and not isinstance(v, bool):
-            unc[k] = _jackknife([fe.get(k) for fe in fold_est])
+            unc[k] = own[k] if k in own else _jackknife([fe.get(k) for fe in fold_est])
     return est, unc
 
 

@@ -190,7 +190,7 @@ class NeuralLoopDamper:
     Features: velocity, acceleration, displacement, voltage/current, and the
     derived voltage_lag/current_lag, velocity_lag and friction_state. Their
     states advance by `advance(v, u, dt)`, which the loop calls once per step,
-    with the training side's discretisation (dampnet.diagnose.features: the
+    with the training side's discretisation (dampnet.train.derived: the
     input held over the sample; the first step in steady state); `force` may be
     called any number of times in between (the implicit acceleration solve)
     and, before any `advance`, sees the steady state of its own inputs. Evaluated in numpy, the kernel's arithmetic: inputs

@@ -102,3 +102,7 @@ def target_vector(tests: Sequence[Any], channel: str = "force") -> np.ndarray:
         except KeyError:
             raise KeyError(f"{_test_name(test, i)} has no channel {channel!r}") from None
     return np.concatenate(out) if out else np.empty(0)
+
+
+# Derived features (lagged control and velocity, Dahl friction state) register themselves.
+from dampnet.train import derived as _derived  # noqa: E402,F401  (import for its registration)
