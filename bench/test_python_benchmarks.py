@@ -35,7 +35,7 @@ def loop_models(model):
 
 @pytest.mark.parametrize("damper", ["neural_float", "linear"])
 def test_loop_step_pybind(benchmark, loop_models, damper):
-    """One `Loop.step(z_r, v_r, u)` (returns a dict). The road sample is fixed (the car rides a
+    """One `Loop.step(z_r, v_r, u)` (returns a StepReport). The road sample is fixed (the car rides a
     slope at constant rate): the kernel's cost does not depend on the input values."""
     loop = _core.Loop(loop_models[damper])
     for k in range(2000):
