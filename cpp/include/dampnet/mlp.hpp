@@ -11,11 +11,12 @@
 // inner loop runs over neurons, contiguous and vectorisable.
 //
 // load() folds the affine maps into the weights (in double, then rounded to T):
-// the input scaling ((x - offset) * gain + ymin) into layer 1, the sigmoid as
-// 0.5 + 0.5 tanh(z / 2) into the layers around it, and the output unscaling
-// ((y - ymin) / gain + offset) into the output weights, so that forward() is
-// x - offset, then dense + tanh per layer, then one dot product plus a constant:
-// the shortest dependency chain, which is what bounds a single call's latency.
+// the input scaling ((x - offset) * gain + ymin) into layer 1 (the offsets too,
+// unless an input's offset exceeds its range), the sigmoid as 0.5 + 0.5 tanh(z / 2)
+// into the layers around it, and the output unscaling ((y - ymin) / gain + offset)
+// into the output weights, so that forward() is the input saturation, dense + tanh
+// per layer, then one dot product plus a constant: the shortest dependency chain,
+// which is what bounds a single call's latency.
 //
 // SIMD path, chosen at compile time (kernel_isa() says which one a translation
 // unit got): AVX2+FMA when compiled with -mavx2 -mfma (CMake: DAMPNET_AVX2), a
