@@ -5,7 +5,9 @@
 #include <pybind11/stl.h>
 
 #include <cmath>
+#include <cstdint>
 #include <cstring>
+#include <iterator>
 #include <map>
 #include <type_traits>
 #include <vector>
@@ -463,6 +465,40 @@ py::object step_report_get(const StepReport& r, const std::string& key) {
   throw py::key_error(key);
 }
 
+// The Python type of a StepReport: a plain CPython object holding the struct (no
+// pybind11 instance registry, pymalloc): creating one costs a few tens of ns where a
+// pybind11 class instance cost ~150. Attributes are native getters; the mapping
+// methods are pybind11 functions set on the type (see make_step_report_type).
+struct StepReportObject {
+  PyObject_HEAD
+  StepReport r;
+};
+PyTypeObject* g_step_report_type = nullptr;
+
+const StepReport& report_of(py::handle h) {
+  if (!g_step_report_type || !PyObject_TypeCheck(h.ptr(), g_step_report_type))
+    throw py::type_error("expected a StepReport");
+  return reinterpret_cast<StepReportObject*>(h.ptr())->r;
+}
+
+PyObject* step_report_attr(PyObject* self, void* closure) {
+  try {
+    const auto i = reinterpret_cast<std::intptr_t>(closure);
+    return step_report_get(reinterpret_cast<StepReportObject*>(self)->r, kStepKeys[i]).release().ptr();
+  } catch (py::error_already_set& e) {
+    e.restore();
+  } catch (const std::exception& e) {
+    PyErr_SetString(PyExc_RuntimeError, e.what());
+  }
+  return nullptr;
+}
+
+void step_report_dealloc(PyObject* self) {
+  PyTypeObject* tp = Py_TYPE(self);
+  PyObject_Free(self);
+  Py_DECREF(tp);  // heap type: every instance holds a reference to it
+}
+
 class PyLoop {
  public:
   struct Deleter {
@@ -490,13 +526,17 @@ class PyLoop {
     check(dn_loop_set_state(d.get(), s.data()), "state");
   }
 
-  StepReport step(double z_r, double v_r, double u) {
+  py::object step(double z_r, double v_r, double u) {
     dn_loop_input in{z_r, v_r, u};
-    StepReport r{};
+    auto* obj = PyObject_New(StepReportObject, g_step_report_type);
+    if (!obj) throw py::error_already_set();
+    py::object owner = py::reinterpret_steal<py::object>(reinterpret_cast<PyObject*>(obj));
+    StepReport& r = obj->r;
+    r.o = dn_loop_out{};
     r.status = dn_loop_step(model->m.get(), d.get(), &in, &r.o);
     model->damper->raise_pending();
     check(r.status, "step");
-    return r;
+    return owner;
   }
 
   // The same step with the smallest Python cost: only the damper force [N] comes back
@@ -729,58 +769,84 @@ PYBIND11_MODULE(_core, mod) {
            "The control law alone on arrays of velocities.");
 
   {
+    static PyGetSetDef getset[std::size(kStepKeys) + 1] = {};
+    for (std::size_t i = 0; i < std::size(kStepKeys); ++i)
+      getset[i] = {kStepKeys[i], &step_report_attr, nullptr, nullptr,
+                   reinterpret_cast<void*>(static_cast<std::intptr_t>(i))};
+    static const char* doc =
+        "A step's report (Loop.step): read-only attributes, and a read-only mapping with the "
+        "same keys (r['force'], r.keys(), dict(r)); to_dict() gives a plain dict.";
+    static PyType_Slot slots[] = {{Py_tp_dealloc, reinterpret_cast<void*>(&step_report_dealloc)},
+                                  {Py_tp_getset, getset},
+                                  {Py_tp_doc, const_cast<char*>(doc)},
+                                  {0, nullptr}};
+    unsigned flags = Py_TPFLAGS_DEFAULT;
+#ifdef Py_TPFLAGS_DISALLOW_INSTANTIATION
+    flags |= Py_TPFLAGS_DISALLOW_INSTANTIATION;
+#endif
+    static PyType_Spec spec = {"dampnet._core.StepReport", int(sizeof(StepReportObject)), 0, flags,
+                               slots};
+    py::object tp = py::reinterpret_steal<py::object>(PyType_FromSpec(&spec));
+    if (!tp) throw py::error_already_set();
+    g_step_report_type = reinterpret_cast<PyTypeObject*>(tp.ptr());
     auto keys = [] {
       py::list k;
       for (const char* name : kStepKeys) k.append(name);
       return k;
     };
-    py::class_<StepReport> sr(mod, "StepReport",
-                              "A step's report (Loop.step): read-only attributes, and a read-only "
-                              "mapping with the same keys (r['force'], r.keys(), dict(r)).");
-    sr.def_property_readonly("force", [](const StepReport& r) { return r.o.force; })
-        .def_property_readonly("u", [](const StepReport& r) { return r.o.u; })
-        .def_property_readonly("x", [](const StepReport& r) { return r.o.x; })
-        .def_property_readonly("v", [](const StepReport& r) { return r.o.v; })
-        .def_property_readonly("a", [](const StepReport& r) { return r.o.a; })
-        .def_property_readonly("acc_s", [](const StepReport& r) { return r.o.acc_s; })
-        .def_property_readonly("acc_us", [](const StepReport& r) { return r.o.acc_us; })
-        .def_property_readonly("features",
-                               [](const StepReport& r) { return step_report_get(r, "features"); })
-        .def_property_readonly("clamped_mask", [](const StepReport& r) { return r.o.clamped_mask; })
-        .def_property_readonly("status", [](const StepReport& r) { return r.status; })
-        .def("__getitem__", &step_report_get)
-        .def("get", [](const StepReport& r, const std::string& key, py::object dflt) -> py::object {
-               for (const char* name : kStepKeys)
-                 if (key == name) return step_report_get(r, key);
-               return dflt;
-             }, py::arg("key"), py::arg("default") = py::none())
-        .def("__contains__", [](const StepReport&, py::object key) {
-               if (!py::isinstance<py::str>(key)) return false;
+    auto key_str = [](py::handle key) -> std::string {
+      if (!py::isinstance<py::str>(key)) throw py::key_error(py::repr(key).cast<std::string>());
+      return key.cast<std::string>();
+    };
+    auto method = [&](const char* name, py::cpp_function f) {  // bound like a method
+      py::object m = py::reinterpret_steal<py::object>(PyInstanceMethod_New(f.ptr()));
+      if (!m) throw py::error_already_set();
+      tp.attr(name) = m;
+    };
+    method("__getitem__", py::cpp_function([key_str](py::handle self, py::handle key) {
+             return step_report_get(report_of(self), key_str(key));
+           }));
+    method("get", py::cpp_function([](py::handle self, py::handle key, py::object dflt) -> py::object {
+             if (py::isinstance<py::str>(key)) {
                const std::string k = key.cast<std::string>();
                for (const char* name : kStepKeys)
-                 if (k == name) return true;
-               return false;
-             })
-        .def("__len__", [](const StepReport&) { return std::size(kStepKeys); })
-        .def("__iter__", [keys](const StepReport&) { return keys().attr("__iter__")(); })
-        .def("keys", [keys](const StepReport&) { return keys(); })
-        .def("values", [](const StepReport& r) {
-               py::list v;
-               for (const char* name : kStepKeys) v.append(step_report_get(r, name));
-               return v;
-             })
-        .def("items", [](const StepReport& r) {
-               py::list v;
-               for (const char* name : kStepKeys) v.append(py::make_tuple(name, step_report_get(r, name)));
-               return v;
-             })
-        .def("to_dict", [](const StepReport& r) { return out_dict(r.o, r.status); },
-             "The report as a plain dict.")
-        .def("__repr__", [](const StepReport& r) {
-               return py::str("StepReport(force={!r}, u={!r}, x={!r}, v={!r}, a={!r}, status={})")
-                   .format(r.o.force, r.o.u, r.o.x, r.o.v, r.o.a, r.status);
-             });
-    py::module_::import("collections.abc").attr("Mapping").attr("register")(sr);
+                 if (k == name) return step_report_get(report_of(self), k);
+             }
+             return dflt;
+           }, py::arg("self"), py::arg("key"), py::arg("default") = py::none()));
+    method("__contains__", py::cpp_function([](py::handle, py::handle key) {
+             if (!py::isinstance<py::str>(key)) return false;
+             const std::string k = key.cast<std::string>();
+             for (const char* name : kStepKeys)
+               if (k == name) return true;
+             return false;
+           }));
+    method("__len__", py::cpp_function([](py::handle) { return std::size(kStepKeys); }));
+    method("__iter__", py::cpp_function([keys](py::handle) { return keys().attr("__iter__")(); }));
+    method("keys", py::cpp_function([keys](py::handle) { return keys(); }));
+    method("values", py::cpp_function([](py::handle self) {
+             py::list v;
+             for (const char* name : kStepKeys) v.append(step_report_get(report_of(self), name));
+             return v;
+           }));
+    method("items", py::cpp_function([](py::handle self) {
+             py::list v;
+             for (const char* name : kStepKeys)
+               v.append(py::make_tuple(name, step_report_get(report_of(self), name)));
+             return v;
+           }));
+    method("to_dict", py::cpp_function([](py::handle self) {
+             const StepReport& r = report_of(self);
+             return out_dict(r.o, r.status);
+           }));
+    method("__repr__", py::cpp_function([](py::handle self) {
+             const StepReport& r = report_of(self);
+             return py::str("StepReport(force={!r}, u={!r}, x={!r}, v={!r}, a={!r}, status={})")
+                 .format(r.o.force, r.o.u, r.o.x, r.o.v, r.o.a, r.status);
+           }));
+    mod.attr("StepReport") = tp;
+    py::module_::import("collections.abc").attr("Mapping").attr("register")(tp);
+    tp.release();  // the module keeps the type alive for g_step_report_type
   }
 
   py::class_<PyLoop>(mod, "Loop", "A loop's state (mutable) for a LoopModel.")

@@ -47,6 +47,11 @@ def test_step_report_is_the_former_dict(repo_root):
     assert r.get("nope") is None and r.get("nope", 7) == 7
     with pytest.raises(KeyError):
         r["nope"]
+    with pytest.raises(KeyError):
+        r[3]
+    assert type(r) is _core.StepReport
+    with pytest.raises(TypeError):
+        _core.StepReport()  # only Loop.step makes them
     with pytest.raises(AttributeError):
         r.force = 1.0  # read-only
     assert np.ptp([q.force for q in reports]) > 10.0  # the road did excite the damper
@@ -55,11 +60,13 @@ def test_step_report_is_the_former_dict(repo_root):
 
 def test_step_report_values_equal_a_fresh_loops_forward(repo_root):
     """The report is the step's: replaying the road on another loop gives the same values,
-    and the force is step_force's."""
+    and the force is step_force's. Reports outlive their loop and stay independent."""
     lm, reports, z, v = _stepped(repo_root, 50)
     other = _core.Loop(lm)
     for r, zk, vk in zip(reports, z, v):
         assert other.step_force(zk, vk) == r.force
+    del other, lm
+    assert len({r.force for r in reports}) > 10 and all(np.isfinite(r.force) for r in reports)
 
 
 def _cpu_flags() -> set[str]:
