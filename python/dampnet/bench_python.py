@@ -218,7 +218,7 @@ def build_candidates(model: MlpModel, X: np.ndarray, tmp: Path) -> dict[str, dic
         "eval": lambda x: core.forward(np.ascontiguousarray(x, dtype=np.float64), True)[0],
         "call": lambda i: core.forward(xs64[i % n], True)}
     cands["dampnet_pybind_forward"] = {
-        "what": "dampnet _core.Mlp.forward(x, single=False): double kernel (std::tanh) via pybind11",
+        "what": "dampnet _core.Mlp.forward(x, single=False): double kernel (tanh_d) via pybind11",
         "dtype": "float64",
         "eval": lambda x: core.forward(np.ascontiguousarray(x, dtype=np.float64), False)[0],
         "call": lambda i: core.forward(xs64[i % n], False)}
