@@ -99,8 +99,10 @@ class QuarterCar:
     def state(self, s) -> None:
         self.loop.state = np.asarray(s, dtype=np.float64)
 
-    def step(self, z_r: float, v_r: float, u: float = 0.0) -> dict:
-        """One step; (z_r, v_r) is the road at the END of the step. Report at its start."""
+    def step(self, z_r: float, v_r: float, u: float = 0.0) -> "_core.StepReport":
+        """One step; (z_r, v_r) is the road at the END of the step. Report at its start: a
+        read-only StepReport (attributes, and a Mapping with the same keys); `step_force` of
+        `self.loop` returns the force alone, faster."""
         return self.loop.step(z_r, v_r, u)
 
     def simulate(self, road, road_rate=None, u=None, reset: bool = True) -> dict:
