@@ -261,12 +261,6 @@ inline dn_damper_input damper_input(const LoopModel& m, const Body& b, double zr
   return in;
 }
 
-inline bool finite_all(const double* x, int n) noexcept {
-  for (int i = 0; i < n; ++i)
-    if (!std::isfinite(x[i])) return false;
-  return true;
-}
-
 // A model force overflowing on finite inputs means the state has run away
 // (a callback's non-finite force is the callback's error and stays one).
 inline int diverged_if_overflow(const LoopModel& m, int st) noexcept {
@@ -289,13 +283,31 @@ inline int evaluate(const LoopModel& m, dn_damper_input& in, double f_last, doub
     *n_evals += 1;
     return diverged_if_overflow(m, m.damper.force(in, f, feat_out, mask));
   }
+  const double k = m.k_rel, fs = m.veh.f_static;
+  const double a_free = in.a + k * (f_last - fs);
+  if (m.linear_a) {  // one Newton step with the slope, force linearised (DN_ACCEL_LINEAR)
+    double f0 = 0.0, dfda = 0.0;
+    uint32_t mk = 0;
+    const int st = diverged_if_overflow(m, m.damper.force_da(in, &f0, &dfda, &mk));
+    *n_evals += 1;
+    if (mask) *mask = mk;
+    const double g = in.a - a_free + k * (f0 - fs), gp = 1.0 + k * dfda;
+    if (st < 0 || !std::isfinite(g) || !std::isfinite(gp)) {  // as the explicit scheme
+      *f = f0;
+      return st;
+    }
+    const double a1 = in.a - g / gp;  // gp >= 1 for dF/da >= 0
+    const bool ok = gp > 1e-3 && std::isfinite(a1);
+    *f = ok ? f0 + dfda * (a1 - in.a) : f0;
+    if (ok) in.a = a1;
+    if (feat_out) m.damper.feature_values(in, feat_out);
+    return ok ? st : (st | DN_W_ACCEL_UNCONVERGED);
+  }
   struct It {
     double a, f, g, gp;  // acceleration, force, g(a), g'(a) = 1 + k dF/da
     int st;
     uint32_t mask;
   };
-  const double k = m.k_rel, fs = m.veh.f_static;
-  const double a_free = in.a + k * (f_last - fs);
   int evals = 0;
   auto eval = [&](double a, It& r) noexcept -> bool {
     in.a = a;
@@ -324,17 +336,6 @@ inline int evaluate(const LoopModel& m, dn_damper_input& in, double f_last, doub
     *f = cur.f;
     if (mask) *mask = cur.mask;
     return cur.st;
-  }
-  if (m.linear_a) {  // one Newton step with the slope, force linearised (DN_ACCEL_LINEAR)
-    const double a1 = cur.a - cur.g / cur.gp;  // gp >= 1 for dF/da >= 0
-    const double dfda = (cur.gp - 1.0) / k;
-    const bool ok = cur.gp > 1e-3 && std::isfinite(a1);
-    *n_evals += evals;
-    in.a = ok ? a1 : cur.a;
-    *f = ok ? cur.f + dfda * (a1 - cur.a) : cur.f;
-    if (mask) *mask = cur.mask;
-    if (feat_out) m.damper.feature_values(in, feat_out);
-    return ok ? cur.st : (cur.st | DN_W_ACCEL_UNCONVERGED);
   }
   best = cur;
   note(cur);
@@ -381,7 +382,11 @@ inline Start start(const LoopModel& m, const double* s, double u_ext, dn_loop_ou
   const Body b{s[S_z_s], s[S_v_s], s[S_z_us], s[S_v_us]};
   r.in = damper_input(m, b, s[S_z_r], s[S_v_r], r.u, s[S_u_lag], {s[S_v_lag], s[S_z_fric]},
                       s[S_f_last], s[S_temperature], s[S_t], 0);
-  double* feat = out ? out->features : nullptr;
+  double* feat = nullptr;
+  if (out) {
+    feat = out->features;
+    for (int i = 0; i < DN_MAX_INPUTS; ++i) feat[i] = 0.0;  // fixed length: two vector stores
+  }
   r.status = evaluate(m, r.in, s[S_f_last], &r.force, feat, mask, n_evals);
   if (out) {
     const Accel a = accel(m, b, s[S_z_r], s[S_v_r], r.force);
@@ -393,7 +398,6 @@ inline Start start(const LoopModel& m, const double* s, double u_ext, dn_loop_ou
     out->acc_s = a.as;
     out->acc_us = a.aus;
     out->n_features = m.damper.kind == DN_DAMPER_NEURAL ? m.damper.n_feat : 0;
-    for (int i = out->n_features; i < DN_MAX_INPUTS; ++i) out->features[i] = 0.0;
     out->clamped_mask = mask ? *mask : 0u;
   }
   return r;
@@ -494,12 +498,19 @@ DN_REALTIME inline int step(const LoopModel& m, LoopData& d, const dn_loop_input
   ns[S_v_r] = vr1;
   ns[S_u_lag] = ul_end;
   ns[S_f_last] = f_last;
-  const detail::MotionLag lag1 =
-      detail::motion_lag(m, lag0, vrel0, xrel0, ns[S_v_s] - ns[S_v_us], ns[S_z_s] - ns[S_z_us],
-                         m.vlag_a_full, m.vlag_g_full);
-  ns[S_v_lag] = lag1.v_lag;
-  ns[S_z_fric] = lag1.z_fric;
-  if (!detail::finite_all(ns, DN_LOOP_STATE_SIZE)) return DN_E_DIVERGED;
+  if (m.has_vlag || m.inv_presliding > 0) {
+    const detail::MotionLag lag1 =
+        detail::motion_lag(m, lag0, vrel0, xrel0, ns[S_v_s] - ns[S_v_us], ns[S_z_s] - ns[S_z_us],
+                           m.vlag_a_full, m.vlag_g_full);
+    ns[S_v_lag] = lag1.v_lag;
+    ns[S_z_fric] = lag1.z_fric;
+  } else {
+    ns[S_v_lag] = ns[S_v_s] - ns[S_v_us];  // no lag: follows v (motion_lag's convention)
+  }
+  // Only the integrated states can run away (time, road, control and force are finite
+  // here); a sum is non-finite when any term is (or when it overflows: diverged too).
+  if (!std::isfinite(ns[S_z_s] + ns[S_v_s] + ns[S_z_us] + ns[S_v_us] + ns[S_v_lag] + ns[S_z_fric]))
+    return DN_E_DIVERGED;
   for (int i = 0; i < DN_LOOP_STATE_SIZE; ++i) d.s[i] = ns[i];
   return status;
 }
