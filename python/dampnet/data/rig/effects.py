@@ -95,7 +95,8 @@ class GasSpring(Effect):
     compression (x < 0) pushes the rod in and shrinks the gas volume by
     A_rod |x|. n = 1.4: at dyno frequencies the gas has no time to exchange
     heat (adiabatic nitrogen). Rate at mid-stroke n p0 A_rod^2 / V0 = 3.8 N/mm
-    (monotube gas springs run from about 1 to 10 N/mm), +74 N at full extension
+    (with 1-2.5 MPa, 12-22 mm rods and 20-200 cm^3 of gas, monotubes span a
+    fraction of a N/mm to over 10 N/mm), +74 N at full extension
     and -136 N at full compression of a +-1 inch stroke: progressive in
     compression, as the gas volume shrinks by a quarter. (Until 2026-11-21 the
     chamber was 40 cm^3, 1.9 N/mm: a spring that small is about the size of the
