@@ -87,6 +87,66 @@ int main() {
   std::printf("AVX2 fast_tanh8: not compiled in this build (no -mavx2 -mfma)\n");
 #endif
 
+#ifdef DN_TANH16_AVX512
+  // The AVX-512 kernel's 16-wide tanh (unclamped square, write masks, vrcp14ps with a
+  // Newton step) over the same floats, and its special values.
+  {
+    double worst16 = 0.0, worst16_at = 0.0;
+    alignas(64) float in[16], out[16];
+    int k = 0;
+    float z = -10.0f;
+    auto flush = [&](int n) {
+      _mm512_store_ps(out, dampnet::fast_tanh16(_mm512_load_ps(in)));
+      for (int l = 0; l < n; ++l) {
+        const double err = std::fabs(double(out[l]) - std::tanh(double(in[l])));
+        if (err > worst16) {
+          worst16 = err;
+          worst16_at = in[l];
+        }
+      }
+    };
+    while (z <= 10.0f) {
+      in[k++] = z;
+      if (k == 16) {
+        flush(16);
+        k = 0;
+      }
+      uint32_t b;
+      std::memcpy(&b, &z, 4);
+      b = (b & 0x80000000u) ? (b > 0x80000080u ? b - 128u : 0u) : b + 128u;
+      std::memcpy(&z, &b, 4);
+    }
+    if (k) flush(k);
+    // Every float in [8.9, 9.1] and [-9.1, -8.9], where the masks switch.
+    for (float a : {8.9f, -9.1f}) {
+      k = 0;
+      for (float v = a; v <= a + 0.2f; v = std::nextafter(v, 100.f)) {
+        in[k++] = v;
+        if (k == 16) {
+          flush(16);
+          k = 0;
+        }
+      }
+      if (k) flush(k);
+    }
+    std::printf("AVX-512 fast_tanh16: worst |error| vs std::tanh on [-10, 10] (every 128th float, every float near +-9) = %.3g at x = %.9g\n",
+                worst16, worst16_at);
+    CHECK(worst16 < 5e-7);
+    const float special[16] = {INFINITY, -INFINITY, NAN, 1e30f, -1e30f, 9.0f, -9.0f, 0.0f,
+                               -0.0f, 1e-30f, 3e38f, -3e38f, 9.000001f, -9.000001f, 1e-45f, 20.f};
+    for (int l = 0; l < 16; ++l) in[l] = special[l];
+    _mm512_store_ps(out, dampnet::fast_tanh16(_mm512_load_ps(in)));
+    for (int l = 0; l < 16; ++l) CHECK(std::isfinite(out[l]) && std::fabs(out[l]) <= 1.0f);
+    CHECK(out[0] == 1.0f && out[1] == -1.0f && out[2] == 1.0f);
+    CHECK(out[3] == 1.0f && out[4] == -1.0f && out[10] == 1.0f && out[11] == -1.0f);
+    CHECK(std::fabs(out[5] - std::tanh(9.0)) < 5e-7 && std::fabs(out[6] + std::tanh(9.0)) < 5e-7);
+    CHECK(out[7] == 0.0f && out[8] == 0.0f && std::fabs(out[9]) <= 1e-30f);
+    CHECK(out[12] == 1.0f && out[13] == -1.0f && out[15] == 1.0f);
+  }
+#else
+  std::printf("AVX-512 fast_tanh16: not compiled in this build (no -mavx512f -mavx512vl -mavx512dq)\n");
+#endif
+
   // double: tanh_d against std::tanh, relative error (a few ulps), over [-25, 25] in
   // steps of 1e-4, plus tiny, huge and non-finite arguments.
   double worst_rel = 0.0, worst_rel_at = 0.0;

@@ -81,11 +81,13 @@ def _cpu_flags() -> set[str]:
 
 def test_build_info_states_the_kernel_simd_path():
     info = _core.BUILD_INFO
-    assert info["kernel_isa"] in ("avx2+fma", "avx", "sse", "scalar")
-    assert info["kernel_isa"] == "avx2+fma" or "-mavx2" not in info["isa_flags"]
-    if info["kernel_isa"] == "avx2+fma":
+    assert info["kernel_isa"] in ("avx512", "avx2+fma", "avx", "sse", "scalar")
+    assert info["kernel_isa"] in ("avx512", "avx2+fma") or "-mavx2" not in info["isa_flags"]
+    assert (info["kernel_isa"] == "avx512") == ("-mavx512f" in info["isa_flags"]) or not info["isa_flags"]
+    if info["kernel_isa"] in ("avx512", "avx2+fma"):
         assert "-mavx2" in info["flags"] and "-mfma" in info["flags"]
     # DAMPNET_AVX2=AUTO (the default) enables the AVX2 path on a machine that runs it
-    # (unless the build asked for -march=native or OFF: then isa_flags is empty).
+    # (unless the build asked for -march=native or OFF: then isa_flags is empty), and the
+    # AVX-512 path only when DAMPNET_AVX512 asked for it (OFF by default).
     if {"avx2", "fma"} <= _cpu_flags() and info["isa_flags"]:
-        assert info["kernel_isa"] == "avx2+fma"
+        assert info["kernel_isa"] in ("avx2+fma", "avx512")

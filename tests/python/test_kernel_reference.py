@@ -171,3 +171,77 @@ def test_generated_headers_compile_and_match_torch(tmp_path, language):
     assert got.shape[0] == ref.shape[0]
     assert np.max(np.abs(got[:, 0] - ref)) <= DOUBLE_TOL
     assert np.max(np.abs(got[:, 1] - ref)) <= FLOAT_TOL
+
+
+def _cpu_flags() -> set[str]:
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("flags"):
+                    return set(line.split(":", 1)[1].split())
+    except OSError:
+        pass
+    return set()
+
+
+# Every SIMD path of the header-only kernel, compiled here with its flags (whatever the
+# installed runtime was built with): the CMake options DAMPNET_AVX512, DAMPNET_AVX2 and OFF.
+SIMD_PATHS = {
+    "avx512": (["-mavx2", "-mfma", "-mavx512f", "-mavx512vl", "-mavx512dq", "-ffp-contract=off"],
+               {"avx2", "fma", "avx512f", "avx512vl", "avx512dq"}),
+    "avx2+fma": (["-mavx2", "-mfma", "-ffp-contract=off"], {"avx2", "fma"}),
+    "sse": ([], set()),
+}
+
+
+@pytest.mark.parametrize("isa", list(SIMD_PATHS))
+def test_every_simd_path_matches_torch(tmp_path, isa):
+    """Each SIMD path's float kernel (compile-time and run-time sizes, and forward_grad's
+    value) within FLOAT_TOL (1e-5 of the force range) of the torch float64 reference, the
+    double kernel within DOUBLE_TOL (1e-12), over the shapes of SHAPES with 20 % of the
+    inputs beyond the saturation range."""
+    flags, needs = SIMD_PATHS[isa]
+    if not needs <= _cpu_flags():
+        pytest.skip(f"this CPU does not run {isa}")
+    models = [random_model(n, h, a, seed=700 + k) for k, (n, h, a) in enumerate(SHAPES)]
+    lines = ["#include <stdio.h>", '#include "dampnet/mlp.hpp"']
+    body = ["int main(void) {", '  printf("%s\\n", dampnet::kernel_isa());',
+            "  int k, n, i; double x[8];", "  while (scanf(\"%d %d\", &k, &n) == 2) {",
+            "    for (i = 0; i < n; ++i) if (scanf(\"%lf\", &x[i]) != 1) return 2;",
+            "    float xf[8]; double y; float yf, yr, yg, g;",
+            "    for (i = 0; i < n; ++i) xf[i] = (float)x[i];"]
+    for k, m in enumerate(models):
+        write_header(m, tmp_path / f"m{k}.h", prefix=f"m{k}")
+        lines.append(f'#include "m{k}.h"')
+        P = f"M{k}"
+        body += [f"    if (k == {k}) {{",
+                 f"      static dampnet::StaticMlp<double, {P}_N_INPUTS, {P}_N_HIDDEN1, {P}_N_HIDDEN2> md;",
+                 f"      static dampnet::StaticMlp<float, {P}_N_INPUTS, {P}_N_HIDDEN1, {P}_N_HIDDEN2> mf;",
+                 "      static dampnet::Mlp<float> mr;",
+                 f"      const dn_mlp_desc d = {P}_DESC_INIT;",
+                 "      if (md.load(&d) != DN_OK || mf.load(&d) != DN_OK || mr.load(&d) != DN_OK) return 3;",
+                 "      md.forward(x, &y); mf.forward(xf, &yf); mr.forward(xf, &yr);",
+                 "      mr.forward_grad(xf, &yg, 0, &g);",
+                 "      printf(\"%.17g %.9g %.9g %.9g\\n\", y, (double)yf, (double)yr, (double)yg);",
+                 "    }"]
+    body += ["  }", "  return 0;", "}"]
+    src = tmp_path / "prog.cpp"
+    src.write_text("\n".join(lines + body) + "\n")
+    exe = compile_program([src], tmp_path / "prog", cxx=True, include_dirs=[tmp_path, *paths.include_dirs()],
+                          extra=flags)
+    inputs, refs = [], []
+    for k, m in enumerate(models):
+        x = random_inputs(m, 200, seed=k)
+        refs.append(torch_reference(m, x))
+        inputs += [f"{k} {m.n_inputs} " + " ".join(f"{v:.17g}" for v in row) for row in x]
+    proc = subprocess.run([str(exe)], input="\n".join(inputs) + "\n", capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    out = proc.stdout.split("\n", 1)
+    assert out[0] == isa  # the path these flags select
+    got = np.array(out[1].split(), dtype=float).reshape(-1, 4)
+    ref = np.concatenate(refs)
+    assert got.shape[0] == ref.shape[0]
+    assert np.max(np.abs(got[:, 0] - ref)) <= DOUBLE_TOL
+    for col in (1, 2, 3):
+        assert np.max(np.abs(got[:, col] - ref)) <= FLOAT_TOL, (isa, col)

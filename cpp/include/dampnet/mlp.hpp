@@ -19,9 +19,13 @@
 // which is what bounds a single call's latency.
 //
 // SIMD path, chosen at compile time (kernel_isa() says which one a translation
-// unit got): AVX2+FMA when compiled with -mavx2 -mfma (CMake: DAMPNET_AVX2), a
-// fused per-8-neuron pipeline in __m256 registers; otherwise SSE (x86-64
-// baseline) or plain C++ loops. The results of the paths differ by rounding only.
+// unit got): AVX-512 (F, VL, DQ) when compiled with -mavx512f -mavx512vl -mavx512dq
+// on top of -mavx2 -mfma (CMake: DAMPNET_AVX512, off by default), the same pipeline
+// per 16 neurons in __m512 registers (layers padded to 16, 64-byte aligned); AVX2+FMA
+// when compiled with -mavx2 -mfma (CMake: DAMPNET_AVX2), a fused per-8-neuron pipeline
+// in __m256 registers; otherwise SSE (x86-64 baseline) or plain C++ loops. The results
+// of the paths differ by rounding only. Inputs inside their saturation range are read
+// in place (no copy, no min/max on the chain) when the offsets are folded.
 #pragma once
 
 #include <array>
@@ -47,7 +51,12 @@
 #endif
 
 // The kernel's SIMD path in this translation unit.
-#if defined(DN_TANH8_AVX2) && !defined(DAMPNET_USE_EIGEN)
+#if defined(DN_TANH16_AVX512) && !defined(DAMPNET_USE_EIGEN)
+#define DN_KERNEL_AVX512 1
+#define DN_KERNEL_ISA "avx512"
+#define DN_KERNEL_NS isa_avx512
+#define DN_KERNEL_ALIGN 64
+#elif defined(DN_TANH8_AVX2) && !defined(DAMPNET_USE_EIGEN)
 #define DN_KERNEL_AVX2 1
 #define DN_KERNEL_ISA "avx2+fma"
 #define DN_KERNEL_NS isa_avx2_fma
@@ -61,6 +70,9 @@
 #define DN_KERNEL_ISA "scalar"
 #define DN_KERNEL_NS isa_scalar
 #endif
+#ifndef DN_KERNEL_ALIGN
+#define DN_KERNEL_ALIGN 32
+#endif
 
 namespace dampnet {
 // Everything here carries the kernel's SIMD path in its mangled names, so that
@@ -69,14 +81,19 @@ inline namespace DN_KERNEL_NS {
 
 constexpr int kDynamic = -1;
 
-// Hidden layers are stored padded to a multiple of 8 neurons with zero weights,
-// so every loop runs over whole SIMD vectors (no scalar tails). A padded neuron
-// has pre-activation 0 and a zero output weight: it adds exactly +0 to the sum.
+// Hidden layers are stored padded to a multiple of 8 neurons (16 on the AVX-512
+// path) with zero weights, so every loop runs over whole SIMD vectors (no scalar
+// tails). A padded neuron has pre-activation 0 and a zero output weight: it adds
+// exactly +0 to the sum.
+#if DN_KERNEL_AVX512
+constexpr int kPad = 16;
+#else
 constexpr int kPad = 8;
+#endif
 constexpr int pad(int n) { return n <= 0 ? 0 : (n + kPad - 1) / kPad * kPad; }
 
 // The SIMD path of the kernel compiled into this translation unit:
-// "avx2+fma", "avx", "sse" or "scalar" (Eigen, when enabled, does the dense layers).
+// "avx512", "avx2+fma", "avx", "sse" or "scalar" (Eigen, when enabled, does the dense layers).
 constexpr const char* kernel_isa() noexcept { return DN_KERNEL_ISA; }
 
 namespace detail {
@@ -155,7 +172,7 @@ inline T dot_padded(const T* __restrict w, const T* __restrict a, int n) noexcep
 #if defined(__SSE__)
   if constexpr (std::is_same<T, float>::value) {
     __m128 lo = _mm_setzero_ps(), hi = _mm_setzero_ps();  // part[0..3], part[4..7]
-    for (int j = 0; j < nn; j += kPad) {
+    for (int j = 0; j < nn; j += 8) {
       lo = _mm_add_ps(lo, _mm_mul_ps(_mm_load_ps(w + j), _mm_load_ps(a + j)));
       hi = _mm_add_ps(hi, _mm_mul_ps(_mm_load_ps(w + j + 4), _mm_load_ps(a + j + 4)));
     }
@@ -164,9 +181,9 @@ inline T dot_padded(const T* __restrict w, const T* __restrict a, int n) noexcep
     return _mm_cvtss_f32(_mm_add_ss(t, _mm_movehl_ps(t, t)));
   }
 #endif
-  alignas(32) T part[kPad] = {};
-  for (int j = 0; j < nn; j += kPad)
-    for (int l = 0; l < kPad; ++l) part[l] += w[j + l] * a[j + l];
+  alignas(DN_KERNEL_ALIGN) T part[8] = {};
+  for (int j = 0; j < nn; j += 8)
+    for (int l = 0; l < 8; ++l) part[l] += w[j + l] * a[j + l];
   return ((part[0] + part[4]) + (part[1] + part[5])) + ((part[2] + part[6]) + (part[3] + part[7]));
 }
 
@@ -202,6 +219,18 @@ inline int prepare_inputs(const P& p, const T* x, T* xs, uint32_t& mask) noexcep
     xs[i] = kSub ? v - p.in_offset[i] : v;
   }
   return status;
+}
+
+// True when every input lies within its saturation range (false for NaN): then,
+// with the offsets folded, the kernel reads the caller's inputs directly and the
+// values reach layer 1 without passing through the saturation's min/max (compares
+// and one predicted branch beside the data chain, not on it).
+template <typename T, int kIn, class P>
+inline bool inputs_in_range(const P& p, const T* x) noexcept {
+  const int ni = kIn > 0 ? kIn : p.n_in;
+  bool ok = true;
+  for (int i = 0; i < ni; ++i) ok &= (x[i] >= p.sat_lo[i]) & (x[i] <= p.sat_hi[i]);
+  return ok;
 }
 #if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic pop
@@ -302,6 +331,106 @@ inline float forward_avx2(const P& p, const float* xs, const float* col, float* 
 }
 #endif
 
+#if DN_KERNEL_AVX512
+// GCC 12's AVX-512 intrinsics (_mm512_min_ps, _mm512_rcp14_ps, _mm512_castps512_ps256,
+// ...) pass a self-initialised "undefined" vector that -Wuninitialized reports.
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wuninitialized"
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+// One block of 16 outputs of a dense layer (dense8 on __m512).
+template <int kN>
+inline __m512 dense16(__m512 init, const float* wt, const float* x, int n_dyn, int stride) noexcept {
+  const int n = kN > 0 ? kN : n_dyn;
+  if (n <= 4) {
+    for (int i = 0; i < n; ++i)
+      init = _mm512_fmadd_ps(_mm512_load_ps(wt + i * stride), _mm512_set1_ps(x[i]), init);
+    return init;
+  }
+  __m512 c1 = _mm512_setzero_ps(), c2 = c1, c3 = c1;
+  const int n4 = n - n % 4;
+  for (int i = 0; i < n4; i += 4) {
+    init = _mm512_fmadd_ps(_mm512_load_ps(wt + i * stride), _mm512_set1_ps(x[i]), init);
+    c1 = _mm512_fmadd_ps(_mm512_load_ps(wt + (i + 1) * stride), _mm512_set1_ps(x[i + 1]), c1);
+    c2 = _mm512_fmadd_ps(_mm512_load_ps(wt + (i + 2) * stride), _mm512_set1_ps(x[i + 2]), c2);
+    c3 = _mm512_fmadd_ps(_mm512_load_ps(wt + (i + 3) * stride), _mm512_set1_ps(x[i + 3]), c3);
+  }
+  for (int i = n4; i < n; ++i)
+    init = _mm512_fmadd_ps(_mm512_load_ps(wt + i * stride), _mm512_set1_ps(x[i]), init);
+  return _mm512_add_ps(_mm512_add_ps(init, c1), _mm512_add_ps(c2, c3));
+}
+
+// The 16 partial sums of a __m512: halves added, then the 8 as dot_padded combines them.
+inline float hsum16(__m512 v) noexcept {
+  const __m256 h = _mm256_add_ps(_mm512_castps512_ps256(v), _mm512_extractf32x8_ps(v, 1));
+  const __m128 q = _mm_add_ps(_mm256_castps256_ps128(h), _mm256_extractf128_ps(h, 1));
+  const __m128 t = _mm_add_ps(q, _mm_shuffle_ps(q, q, _MM_SHUFFLE(2, 3, 0, 1)));
+  return _mm_cvtss_f32(_mm_add_ss(t, _mm_movehl_ps(t, t)));
+}
+
+// forward_avx2 with blocks of 16 neurons in __m512 registers (fast_tanh16).
+template <int kIn, int kH1, int kH2, bool kGrad, class P>
+inline float forward_avx512(const P& p, const float* xs, const float* col, float* dys) noexcept {
+  constexpr int kP1 = kH1 > 0 ? pad(kH1) : kDynamic;
+  constexpr int kP2 = kH2 > 0 ? pad(kH2) : (kH2 == 0 ? 0 : kDynamic);
+  constexpr int cap_h1 = kH1 > 0 ? kP1 : DN_MAX_HIDDEN;
+  const int ni = kIn > 0 ? kIn : p.n_in;
+  const int h1 = kP1 > 0 ? kP1 : p.n_h1p;
+  const int h2 = kP2 >= 0 ? kP2 : p.n_h2p;
+  const __m512 one = _mm512_set1_ps(1.f);
+  __m512 acc1 = _mm512_setzero_ps(), dacc = acc1;
+  __m512 acc0 = _mm512_maskz_mov_ps(1, _mm512_set1_ps(p.b_out));  // b_out in lane 0
+  if (kH2 == 0 || h2 == 0) {
+    for (int j = 0; j < h1; j += 16) {
+      __m512 r, q;  // t = r q; the output takes r (q w), q w formed while r is computed
+      fast_tanh16_factors(dense16<kIn>(_mm512_load_ps(p.b1.data() + j), p.w1t.data() + j, xs, ni, h1), r, q);
+      const __m512 w = _mm512_load_ps(p.w_out.data() + j);
+      if ((j >> 4) & 1)
+        acc1 = _mm512_fmadd_ps(r, _mm512_mul_ps(q, w), acc1);
+      else
+        acc0 = _mm512_fmadd_ps(r, _mm512_mul_ps(q, w), acc0);
+      if constexpr (kGrad) {
+        if (col) {
+          const __m512 t = _mm512_mul_ps(r, q);
+          const __m512 d = _mm512_mul_ps(_mm512_fnmadd_ps(t, t, one), _mm512_load_ps(col + j));
+          dacc = _mm512_fmadd_ps(w, d, dacc);
+        }
+      }
+    }
+  } else {
+    alignas(64) float a1[cap_h1];
+    alignas(64) float t1[kGrad ? cap_h1 : kPad];
+    for (int j = 0; j < h1; j += 16) {
+      const __m512 t = fast_tanh16(dense16<kIn>(_mm512_load_ps(p.b1.data() + j), p.w1t.data() + j, xs, ni, h1));
+      _mm512_store_ps(a1 + j, t);
+      if constexpr (kGrad)
+        _mm512_store_ps(t1 + j, col ? _mm512_mul_ps(_mm512_fnmadd_ps(t, t, one), _mm512_load_ps(col + j))
+                                    : _mm512_setzero_ps());
+    }
+    for (int j = 0; j < h2; j += 16) {
+      __m512 r, q;
+      fast_tanh16_factors(dense16<kP1>(_mm512_load_ps(p.b2.data() + j), p.w2t.data() + j, a1, h1, h2), r, q);
+      const __m512 w = _mm512_load_ps(p.w_out.data() + j);
+      if ((j >> 4) & 1)
+        acc1 = _mm512_fmadd_ps(r, _mm512_mul_ps(q, w), acc1);
+      else
+        acc0 = _mm512_fmadd_ps(r, _mm512_mul_ps(q, w), acc0);
+      if constexpr (kGrad) {
+        const __m512 t = _mm512_mul_ps(r, q);
+        const __m512 lin = dense16<kP1>(_mm512_setzero_ps(), p.w2t.data() + j, t1, h1, h2);
+        dacc = _mm512_fmadd_ps(w, _mm512_mul_ps(_mm512_fnmadd_ps(t, t, one), lin), dacc);
+      }
+    }
+  }
+  if constexpr (kGrad) *dys = hsum16(dacc);
+  return hsum16(_mm512_add_ps(acc0, acc1));
+}
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
+#endif
+
 // The forward pass shared by Mlp and StaticMlp. kH2 == 0: one hidden layer.
 // Sizes used here are the padded ones (pad()). With kGrad, *dy_dxi also receives
 // dy/dx[grad_input] (output units per input unit) by forward-mode differentiation;
@@ -318,25 +447,38 @@ DN_REALTIME inline int forward(const P& p, const T* x, T* y, uint32_t* clamped_m
   const int h2 = kP2 >= 0 ? kP2 : p.n_h2p;
 
   uint32_t mask = 0;
-  alignas(32) T xs[cap_in] = {};  // zeroed: GCC cannot see that prepare_inputs writes all it reads
-  int status = p.in_offset_folded ? prepare_inputs<T, kIn, false>(p, x, xs, mask)
-                                   : prepare_inputs<T, kIn, true>(p, x, xs, mask);
+  alignas(DN_KERNEL_ALIGN) T xs_buf[cap_in] = {};  // zeroed: GCC cannot see that prepare_inputs writes all it reads
+  // Layer 1's input: the caller's x itself when no input needs saturating and the
+  // offsets are folded (the common case; the same values prepare_inputs would copy).
+  const T* xs = x;
+  int status = DN_OK;
+  if (!p.in_offset_folded) {
+    status = prepare_inputs<T, kIn, true>(p, x, xs_buf, mask);
+    xs = xs_buf;
+  } else if (!inputs_in_range<T, kIn>(p, x)) {
+    status = prepare_inputs<T, kIn, false>(p, x, xs_buf, mask);
+    xs = xs_buf;
+  }
   // Layer 1's column for the differentiated input (its gain folded in); none if clamped.
   const T* col = (kGrad && !((mask >> grad_input) & 1u)) ? p.w1t.data() + grad_input * h1 : nullptr;
 
   T sum, dys = T(0);
-#if DN_KERNEL_AVX2
+#if DN_KERNEL_AVX512
+  if constexpr (std::is_same<T, float>::value) {
+    sum = forward_avx512<kIn, kH1, kH2, kGrad>(p, xs, col, &dys);  // b_out included
+  } else
+#elif DN_KERNEL_AVX2
   if constexpr (std::is_same<T, float>::value) {
     sum = forward_avx2<kIn, kH1, kH2, kGrad>(p, xs, col, &dys);  // b_out included
   } else
 #endif
   {
-    alignas(32) T a1[cap_h1];
+    alignas(DN_KERNEL_ALIGN) T a1[cap_h1];
     dense_t<T, kIn, kP1>(p.w1t.data(), p.b1.data(), xs, a1, p.n_in, h1);
     tanh_all<T, kP1>(a1, h1);
 
     // Forward mode: t1 = d(a1)/dx_i = (1 - a1^2) * W1[:, i] (gain and sigmoid scale folded in).
-    alignas(32) T t1[kGrad ? cap_h1 : kPad] = {};
+    alignas(DN_KERNEL_ALIGN) T t1[kGrad ? cap_h1 : kPad] = {};
     if constexpr (kGrad) {
       if (col)
         for (int j = 0; j < h1; ++j) t1[j] = (T(1) - a1[j] * a1[j]) * col[j];
@@ -344,15 +486,15 @@ DN_REALTIME inline int forward(const P& p, const T* x, T* y, uint32_t* clamped_m
 
     int n_last = h1;
     bool n_last_is_a2 = false;
-    alignas(32) T a2[cap_h2 > 0 ? cap_h2 : kPad];
-    alignas(32) T t2[kGrad && cap_h2 > 0 ? cap_h2 : kPad];
+    alignas(DN_KERNEL_ALIGN) T a2[cap_h2 > 0 ? cap_h2 : kPad];
+    alignas(DN_KERNEL_ALIGN) T t2[kGrad && cap_h2 > 0 ? cap_h2 : kPad];
     if constexpr (kH2 != 0) {  // compiled out for one hidden layer
       if (h2 > 0) {
         dense_t<T, kP1, kP2>(p.w2t.data(), p.b2.data(), a1, a2, h1, h2);
         tanh_all<T, kP2>(a2, h2);
         if constexpr (kGrad) {
-          alignas(32) T zero[cap_h2 > 0 ? cap_h2 : kPad] = {};
-          alignas(32) T lin[cap_h2 > 0 ? cap_h2 : kPad];
+          alignas(DN_KERNEL_ALIGN) T zero[cap_h2 > 0 ? cap_h2 : kPad] = {};
+          alignas(DN_KERNEL_ALIGN) T lin[cap_h2 > 0 ? cap_h2 : kPad];
           dense_t<T, kP1, kP2>(p.w2t.data(), zero, t1, lin, h1, h2);  // W2 t1
           for (int j = 0; j < h2; ++j) t2[j] = (T(1) - a2[j] * a2[j]) * lin[j];
         }
@@ -484,11 +626,11 @@ struct MlpParams {
   int n_in = 0, n_h1 = 0, n_h2 = 0;  // real sizes
   int n_h1p = 0, n_h2p = 0;          // padded sizes the loops run over
   Activation act = Activation::tanh;
-  alignas(32) std::array<T, In * P1> w1t{};  // [in][h1 padded], input gain folded in
-  alignas(32) std::array<T, P1> b1{};
-  alignas(32) std::array<T, (H2 > 0 ? P1 * P2 : 0)> w2t{};  // [h1 padded][h2 padded]
-  alignas(32) std::array<T, P2> b2{};
-  alignas(32) std::array<T, (H2 > 0 ? P2 : P1)> w_out{};  // output unscaling folded in
+  alignas(DN_KERNEL_ALIGN) std::array<T, In * P1> w1t{};  // [in][h1 padded], input gain folded in
+  alignas(DN_KERNEL_ALIGN) std::array<T, P1> b1{};
+  alignas(DN_KERNEL_ALIGN) std::array<T, (H2 > 0 ? P1 * P2 : 0)> w2t{};  // [h1 padded][h2 padded]
+  alignas(DN_KERNEL_ALIGN) std::array<T, P2> b2{};
+  alignas(DN_KERNEL_ALIGN) std::array<T, (H2 > 0 ? P2 : P1)> w_out{};  // output unscaling folded in
   T b_out{};  // the output for all-zero hidden units, in output units
   std::array<T, In> in_offset{}, in_mid{}, sat_lo{}, sat_hi{};
   bool in_offset_folded = false;  // layer 1's bias holds -W1 offset (forward skips x - offset)

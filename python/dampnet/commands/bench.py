@@ -53,7 +53,7 @@ def run(args) -> int:
           f"load {m.get('loadavg')}")
     rt = res.get("runtime", {})
     print(f"kernel SIMD path: harness {m.get('isa', '?')}, installed runtime {rt.get('kernel_isa', '?')} "
-          f"(runtime SIMD flags '{rt.get('isa_flags', '')}'; CMake option DAMPNET_AVX2=AUTO|ON|OFF)")
+          f"(runtime SIMD flags '{rt.get('isa_flags', '')}'; CMake options DAMPNET_AVX2=AUTO|ON|OFF, DAMPNET_AVX512=OFF|AUTO|ON)")
     py = res.get("python")
     if py:
         print(f"Python: load {py['loadavg']['start']} at start, {py['loadavg']['end']} at end; "

@@ -19,4 +19,5 @@ def run(args) -> int:
     if info:
         print(f"MLP kernel:     {info['kernel_isa']} SIMD path{' (Eigen dense layers)' if info.get('eigen') else ''}; "
               f"built with {info['compiler']}, flags '{info['flags']}'")
+        print("                (CMake options DAMPNET_AVX2=AUTO|ON|OFF, DAMPNET_AVX512=OFF|AUTO|ON select it)")
     return 0
