@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <cstring>
 #include <iterator>
+#include <limits>
 #include <map>
 #include <type_traits>
 #include <vector>
@@ -435,8 +436,9 @@ py::dict out_dict(const dn_loop_out& o, int status) {
 }
 
 // What Loop.step returns: the step's report as read-only attributes, and also as a
-// read-only mapping with the keys of out_dict() (r["force"], r.keys(), dict(r)), so
-// code written for the former dict keeps working. Cheaper than a dict: one object
+// read-only mapping with the keys of out_dict() (r["force"], r.get, r.keys(), dict(r)), so
+// code that reads the former dict keeps working; it is not a dict (==, json, pickle, copy
+// need dict(r)). Cheaper than a dict: one object
 // holding the C struct; `features` becomes a numpy array only when asked for.
 struct StepReport {
   dn_loop_out o;
@@ -753,9 +755,10 @@ PYBIND11_MODULE(_core, mod) {
            "Add a physics term (TERM_KINDS).")
       .def_property_readonly("kind", [](const PyDamper& p) { return dn_damper_kind_of(p.d.get()); })
       .def("forces", &PyDamper::forces, py::arg("x"), py::arg("v"), py::arg("a"), py::arg("u"),
-           py::arg("u_lag"), py::arg("temperature"), py::arg("v_lag") = 0.0,
-           py::arg("z_fric") = 0.0,
-           "Vectorised force -> (force[n], status[n], clamped_mask[n]).");
+           py::arg("u_lag"), py::arg("temperature"),
+           py::arg("v_lag") = std::numeric_limits<double>::quiet_NaN(),
+           py::arg("z_fric") = std::numeric_limits<double>::quiet_NaN(),
+           "Vectorised force (v_lag, z_fric default NaN: a model that reads them must be given them) -> (force[n], status[n], clamped_mask[n]).");
 
   py::class_<PyLoopModel, std::shared_ptr<PyLoopModel>>(mod, "LoopModel",
                                                         "Vehicle, damper and controller (constant).")

@@ -1,8 +1,20 @@
 // Dampers, controllers and the quarter-car loop behind the C ABI.
+#include <cstddef>
 #include <new>
 
 #include "dampnet/dampnet.h"
 #include "internal.hpp"
+
+// The ABI: fields of 0.1 keep their offsets (0.2 appended v_lag, z_fric); the state
+// size is the length of its list.
+static_assert(offsetof(dn_damper_input, u_lag) == 4 * sizeof(double), "dn_damper_input 0.1 layout");
+static_assert(offsetof(dn_damper_input, temperature) == 5 * sizeof(double), "dn_damper_input 0.1 layout");
+static_assert(offsetof(dn_damper_input, dt) == 7 * sizeof(double), "dn_damper_input 0.1 layout");
+static_assert(offsetof(dn_damper_input, stage) == 8 * sizeof(double), "dn_damper_input 0.1 layout");
+static_assert(offsetof(dn_damper_input, v_lag) > offsetof(dn_damper_input, stage), "0.2 fields appended");
+#define DN_STATE_COUNT_(i, name, doc) +1
+static_assert(DN_LOOP_STATE_SIZE == 0 DN_LOOP_STATE_LIST(DN_STATE_COUNT_), "DN_LOOP_STATE_SIZE");
+#undef DN_STATE_COUNT_
 
 namespace {
 template <class T>

@@ -32,8 +32,9 @@ S = {name: i for i, name in enumerate(STATE_NAMES)}  # state index by name
 def damper_from_model(model, single: bool = False) -> _core.Damper:
     """A neural damper (hybrid when the model has terms) from an MlpModel.
 
-    Unknown feature names, unknown feature_params, or a lagged feature without
-    control_lag_tau_s raise ValueError here, at creation.
+    Unknown feature names or feature_params, a derived feature without its parameter
+    (voltage_lag/current_lag: control_lag_tau_s, velocity_lag: velocity_lag_tau_s,
+    friction_state: friction_presliding_m) or a parameter <= 0 raise ValueError here.
     """
     d = _core.Damper.neural(model.core(), list(model.features),
                             {k: float(v) for k, v in model.feature_params.items()}, single)

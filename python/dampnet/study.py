@@ -119,20 +119,21 @@ def truth_spec(effects=(), name: str = "truth") -> DamperSpec:
     return DamperSpec(name, "truth", list(effects), (0.0, 5.0), meta=dict(effects=list(effects)))
 
 
+def steady_force(spec: DamperSpec, v: float, u: float, dt: float = 1e-3) -> float:
+    """The damper's force [N] after 50 steps of dt at constant velocity v [m/s] and control u
+    (past the truth damper's 2 ms lag), at x = 0, a = 0."""
+    d = spec.python_damper()
+    d.reset()
+    f = 0.0
+    for _ in range(50):
+        f = d.force(0.0, float(v), 0.0, float(u), dt)
+    return float(f)
+
+
 def damping_levels(spec: DamperSpec, dt: float = 1e-3) -> dict:
     """{'low': u, 'high': u}: the ends of the control range giving the least / most damping."""
     lo, hi = spec.u_range
-    score = {}
-    for u in (lo, hi):
-        tot = 0.0
-        for v in (0.5, -0.5):
-            d = spec.python_damper()
-            d.reset()
-            f = 0.0
-            for _ in range(50):                    # past the truth damper's 2 ms lag
-                f = d.force(0.0, v, 0.0, u, dt)
-            tot += abs(f)
-        score[u] = tot
+    score = {u: sum(abs(steady_force(spec, v, u, dt)) for v in (0.5, -0.5)) for u in (lo, hi)}
     high = lo if score[lo] >= score[hi] else hi
     low = hi if high == lo else lo
     return dict(low=float(low), high=float(high))
@@ -152,12 +153,7 @@ def equivalent_damping(spec: DamperSpec, u: float, v_rms: float = SKYHOOK_V_RMS_
     x, w = np.polynomial.hermite_e.hermegauss(nodes)
     w = w / w.sum()
     v = v_rms * x
-    f = np.empty(nodes)
-    for i, vi in enumerate(v):
-        d = spec.python_damper()
-        d.reset()
-        for _ in range(50):
-            f[i] = d.force(0.0, float(vi), 0.0, float(u), dt)
+    f = np.array([steady_force(spec, vi, u, dt) for vi in v])
     f = f - np.sum(w * f)
     return float(np.sum(w * f * v) / np.sum(w * v * v))
 
@@ -231,7 +227,8 @@ def _core_run(spec: DamperSpec, z_r, v_r, vehicle: Vehicle, controller: Controll
     if vehicle.f_static is None:
         f_static = float(spec.python_damper().force_at_rest(u0, vehicle.dt)) if spec.kind == "truth" else \
             float(damper.forces(np.array([vehicle.x_static]), np.zeros(1), np.zeros(1), np.array([u0]),
-                                np.array([u0]), np.array([20.0]))[0][0])
+                                np.array([u0]), np.array([20.0]), v_lag=np.zeros(1),
+                                z_fric=np.zeros(1))[0][0])  # at rest, as the loop's reset
     else:
         f_static = float(vehicle.f_static)
     veh = dict(m_s=vehicle.m_s, m_us=vehicle.m_us, k_s=vehicle.k_s, k_t=vehicle.k_t, c_t=vehicle.c_t,

@@ -38,7 +38,7 @@ extern "C" {
 /*---- Version ----*/
 
 #define DN_VERSION_MAJOR 0
-#define DN_VERSION_MINOR 1
+#define DN_VERSION_MINOR 2 /* 0.2: dn_damper_input.v_lag/z_fric, 12 loop states */
 #define DN_VERSION_PATCH 0
 /* Version of this header as major*10000 + minor*100 + patch. */
 #define DN_VERSION_HEADER (DN_VERSION_MAJOR * 10000 + DN_VERSION_MINOR * 100 + DN_VERSION_PATCH)
@@ -165,13 +165,14 @@ typedef struct dn_damper_input {
   double a;           /* relative acceleration, extension positive [m/s^2] (see the loop) */
   double u;           /* control (voltage [V] or current [A]), held over the step */
   double u_lag;       /* control after a first-order lag of the model's control_lag_tau_s */
-  double v_lag;       /* velocity after a first-order lag of the model's velocity_lag_tau_s [m/s] */
-  double z_fric;      /* Dahl friction state in [-1, 1]: follows sgn(v) over a travel of a few
-                         friction_presliding_m after each reversal (dimensionless) */
   double temperature; /* damper temperature [degC] */
   double t;           /* time of this evaluation [s] (callback dampers) */
   double dt;          /* step size of the loop [s] (callback dampers); 0 outside a loop */
   int stage;          /* integrator stage of this evaluation, 0..3 (callback dampers) */
+  /* since 0.2 (appended: the fields above keep their 0.1 offsets) */
+  double v_lag;       /* velocity after a first-order lag of the model's velocity_lag_tau_s [m/s] */
+  double z_fric;      /* Dahl friction state in [-1, 1]: follows sgn(v) over a travel of a few
+                         friction_presliding_m after each reversal (dimensionless) */
 } dn_damper_input;
 
 #define DN_FEATURE_LIST(X)                             \

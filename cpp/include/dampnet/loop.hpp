@@ -171,10 +171,11 @@ struct LoopModel {
     const double tv = d.velocity_lag_tau();
     has_vlag = tv > 0;
     if (has_vlag) {
-      vlag_a_half = std::exp(-0.5 * v.dt / tv);
-      vlag_g_half = 1.0 - tv * (1.0 - vlag_a_half) / (0.5 * v.dt);
-      vlag_a_full = std::exp(-v.dt / tv);
-      vlag_g_full = 1.0 - tv * (1.0 - vlag_a_full) / v.dt;
+      const double c_half = -std::expm1(-0.5 * v.dt / tv), c_full = -std::expm1(-v.dt / tv);
+      vlag_a_half = 1.0 - c_half;  // 1 - A from expm1: exact also for tau >> dt
+      vlag_g_half = 1.0 - tv * c_half / (0.5 * v.dt);
+      vlag_a_full = 1.0 - c_full;
+      vlag_g_full = 1.0 - tv * c_full / v.dt;
     }
     inv_presliding = d.presliding() > 0 ? 1.0 / d.presliding() : 0.0;
     k_rel = inv_ms + inv_mus;

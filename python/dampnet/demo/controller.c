@@ -16,6 +16,9 @@ int main(void) {
   dn_damper_input in = {0};
   double force = 0.0;
   int st = dn_mlp_create(&desc, &mlp);
+#ifndef DN_MODEL_N_FEATURE_PARAMS
+#error "model.h predates dampnet 0.2 (no DN_MODEL_N_FEATURE_PARAMS): export the model again"
+#endif
 #if DN_MODEL_N_FEATURE_PARAMS > 0
   const char* const* pnames = dn_model_feature_param_names;
   const double* pvalues = dn_model_feature_param_values;

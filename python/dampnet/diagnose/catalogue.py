@@ -398,7 +398,7 @@ register_candidate(Candidate(
             "an acceleration input explains a small, linear lag, not a large or nonlinear one.",
     signature="force-velocity loops open into hysteresis that grows with frequency; residual "
               "proportional to the model's force evaluated on a lagged velocity minus its force now",
-    columns=_comp_columns, grid=_comp_grid, theta_name="tau_s",
+    columns=_comp_columns, grid=_comp_grid, theta_name="residual_lag_s",
     testable=lambda ctx: (("velocity" in ctx.model.features),
                           "" if "velocity" in ctx.model.features else "the model has no velocity input"),
     parameters=_comp_parameters,

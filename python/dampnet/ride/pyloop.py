@@ -31,7 +31,7 @@ So for the same damper this loop and the runtime's loop in per-step mode
 produce the same trajectories to rounding (checked in
 tests/python/test_simulate.py when the runtime's loop is built). A damper here
 is any object with `force(x, v, a, u, dt) -> F [N]` and `reset()` (and, with
-derived-feature states, `advance(v, u, dt)`, called once at each step start).
+derived-feature states, `advance(x, v, u, dt)`, called once at each step start).
 """
 
 from __future__ import annotations
@@ -187,40 +187,51 @@ class TableLoopDamper:
 class NeuralLoopDamper:
     """An MlpModel (with its physics terms) on the loop's kinematics.
 
-    Features: velocity, acceleration, displacement, voltage/current, and the
-    derived voltage_lag/current_lag, velocity_lag and friction_state. Their
-    states advance by `advance(v, u, dt)`, which the loop calls once per step,
-    with the training side's discretisation (dampnet.train.derived: the
-    input held over the sample; the first step in steady state); `force` may be
-    called any number of times in between (the implicit acceleration solve)
-    and, before any `advance`, sees the steady state of its own inputs. Evaluated in numpy, the kernel's arithmetic: inputs
-    clamped to the saturation range, mapminmax, tanh/logistic layers, linear
-    output (agrees with dampnet.train.reference.torch_forward to rounding).
+    Features: velocity, acceleration, displacement, voltage/current, temperature
+    (constant, `temperature_c`, the runtime's default vehicle temperature), and
+    the derived voltage_lag/current_lag, velocity_lag and friction_state. Their
+    states advance by `advance(x, v, u, dt)`, which the loop calls once at each
+    step start, with the runtime's updates (loop.hpp `motion_lag`, the control
+    lag over the previous step's held control), so that this loop and the
+    runtime's per-step loop give the same trajectories; `force` may be called
+    any number of times in between (the implicit acceleration solve) and,
+    before any `advance`, sees the steady state of its own inputs. Evaluated in
+    numpy, the kernel's arithmetic: inputs clamped to the saturation range,
+    mapminmax, tanh/logistic layers, linear output (agrees with
+    dampnet.train.reference.torch_forward to rounding).
     """
 
     KNOWN = ("velocity", "acceleration", "displacement", "voltage", "current", "voltage_lag",
-             "current_lag", "velocity_lag", "friction_state")
-    _PARAM = {"voltage_lag": "control_lag_tau_s", "current_lag": "control_lag_tau_s",
-              "velocity_lag": "velocity_lag_tau_s", "friction_state": "friction_presliding_m"}
+             "current_lag", "velocity_lag", "friction_state", "temperature")
 
-    def __init__(self, model):
+    def __init__(self, model, temperature_c: float = 20.0):
+        from dampnet.train.derived import LAG_FEATURES, PRESLIDING_KEY
+
         bad = [f for f in model.features if f not in self.KNOWN]
         if bad:
             raise LoopError(f"the Python loop cannot feed features {bad}; use the runtime's loop")
+        need = {name: key for name, (_, key, _) in LAG_FEATURES.items()}
+        need["friction_state"] = PRESLIDING_KEY
         for f in model.features:
-            key = self._PARAM.get(f)
+            key = need.get(f)
             if key and not float(model.feature_params.get(key, 0.0)) > 0:
                 raise LoopError(f"feature {f!r} needs feature_params[{key!r}] > 0")
         self.model = model
+        self.temperature_c = float(temperature_c)
         self._idx = [self.KNOWN.index(f) for f in model.features]
         m = model
         self._lo, self._hi = m.sat_lo, m.sat_hi
         self._off, self._gain, self._ymin = m.in_offset, m.in_gain, m.in_ymin
         self._act = np.tanh if m.activation == "tanh" else (lambda z: 1.0 / (1.0 + np.exp(-z)))
+        p = m.feature_params
+        self._tau_u = float(p.get("control_lag_tau_s", 0.0))
+        self._tau_v = float(p.get("velocity_lag_tau_s", 0.0))
+        self._x_c = float(p.get(PRESLIDING_KEY, 0.0))
         self.reset()
 
     def reset(self) -> None:
         self._state = None  # (u_lag, v_lag, z_fric) after the last advance()
+        self._prev = None   # (x, v, u) of the previous step start
 
     def forward(self, x: np.ndarray) -> np.ndarray:
         """MLP force [N] for inputs x [..., n_inputs] in feature units (no terms)."""
@@ -233,22 +244,32 @@ class NeuralLoopDamper:
         ys = a @ m.w_out + m.b_out
         return (ys - m.out_ymin) / m.out_gain + m.out_offset
 
-    def advance(self, v: float, u: float, dt: float) -> None:
-        """Step the derived features' states to this step's velocity v [m/s] and control u."""
-        p = self.model.feature_params
-        sgn = math.copysign(1.0, v) if v != 0 else 0.0
+    def advance(self, x: float, v: float, u: float, dt: float) -> None:
+        """The derived states at this step start (displacement x [m], velocity v [m/s], control u).
+
+        As the runtime (loop.hpp): the first step is the state at rest (u_lag = u, v_lag = v,
+        z = 0); then u_lag follows the previous step's held control exactly, v_lag the
+        velocity ramp over the step exactly, and z the step's net travel (Dahl).
+        """
         if self._state is None:
-            self._state = (u, v, sgn)
+            self._state, self._prev = (u, v, 0.0), (x, v, u)
             return
         ul, vl, z = self._state
-
-        def lag(y, x, key):
-            tau = float(p.get(key, 0.0))
-            return x + (y - x) * math.exp(-dt / tau) if tau > 0 else x
-
-        xc = float(p.get("friction_presliding_m", 0.0))
-        z = sgn + (z - sgn) * math.exp(-abs(v) * dt / xc) if xc > 0 else sgn
-        self._state = (lag(ul, u, "control_lag_tau_s"), lag(vl, v, "velocity_lag_tau_s"), z)
+        xp, vp, up = self._prev
+        if self._tau_u > 0:
+            ul = up + (ul - up) * math.exp(-dt / self._tau_u)
+        else:
+            ul = up
+        if self._tau_v > 0:
+            one_minus_a = -math.expm1(-dt / self._tau_v)
+            vl = (1.0 - one_minus_a) * vl + one_minus_a * vp + (v - vp) * (1.0 - self._tau_v * one_minus_a / dt)
+        else:
+            vl = v
+        dx = x - xp
+        if self._x_c > 0 and dx != 0.0:
+            sg = 1.0 if dx > 0 else -1.0
+            z = sg + (z - sg) * math.exp(-abs(dx) / self._x_c)
+        self._state, self._prev = (ul, vl, z), (x, v, u)
 
     def force(self, x, v, a, u, dt) -> float:
         """Force [N] (MLP plus terms) at the derived features' current states."""
@@ -256,7 +277,7 @@ class NeuralLoopDamper:
             ul, vl, z = u, v, (math.copysign(1.0, v) if v != 0 else 0.0)
         else:
             ul, vl, z = self._state
-        vals = (v, a, x, u, u, ul, ul, vl, z)
+        vals = (v, a, x, u, u, ul, ul, vl, z, self.temperature_c)
         f = float(self.forward(np.array([vals[i] for i in self._idx])))
         if self.model.terms:
             from dampnet.terms import terms_force
@@ -401,7 +422,7 @@ def run(damper, z_r, v_r, vehicle: Vehicle | None = None, controller: Controller
         as_l, aus_l = accel(zs, vs, zus, vus, zr0, vr0, f_last)
         x, v, a = zs - zus + veh.x_static, vs - vus, as_l - aus_l
         if advance is not None:
-            advance(v, u, h)
+            advance(x, v, u, h)
         if ia is not None:
             a, f, ok, ne, _ = solve_acceleration(lambda aa: damper.force(x, v, aa, u, h), a, f_last,
                                                  inv_ms + inv_mus, f_static, a_lo, a_hi)

@@ -10,10 +10,13 @@ when dampnet.train.features is imported.
 
 Each lag is the exact discretisation for an input held over a sample:
 y[k] = a y[k-1] + (1 - a) u[k], a = exp(-dt/tau), y[0] = u[0] (steady state at
-the first sample), so the C++ loop computes it one sample at a time with one
-state per feature (cpp/include/dampnet/loop.hpp; the Python reference loop:
-dampnet.ride.pyloop.NeuralLoopDamper). Registered only if the name is not
-already in the registry (another module may own it).
+the first sample); the Dahl state advances by each sample's travel |v| dt.
+They are computed on the dyno's full sample rate, where they are the
+continuous quantities the loops carry as states with their own exact updates
+(cpp/include/dampnet/loop.hpp `motion_lag`, mirrored by
+dampnet.ride.pyloop.NeuralLoopDamper): they agree as the sample time goes to 0
+(tests/python/test_loop_derived_features.py). Registered only if the name is
+not already in the registry (another module may own it).
 """
 
 from __future__ import annotations
@@ -22,6 +25,9 @@ import numpy as np
 from scipy.signal import lfilter
 
 from dampnet.train.features import FEATURES, register_feature
+
+#: the Dahl friction state's feature_params key (pre-sliding travel [m])
+PRESLIDING_KEY = "friction_presliding_m"
 
 #: feature name -> (source channel, feature_params key, unit)
 LAG_FEATURES = {
@@ -84,9 +90,9 @@ def dahl_state(v: np.ndarray, dt: float, presliding_m: float) -> np.ndarray:
 
 def _dahl_getter(test, params=None):
     params = params or {}
-    if "friction_presliding_m" not in params:
-        raise KeyError("feature_params['friction_presliding_m']")
-    return dahl_state(test.channels["velocity"], test.dt, float(params["friction_presliding_m"]))
+    if PRESLIDING_KEY not in params:
+        raise KeyError(f"feature_params[{PRESLIDING_KEY!r}]")
+    return dahl_state(test.channels["velocity"], test.dt, float(params[PRESLIDING_KEY]))
 
 
 _dahl_getter.channel = "velocity"
