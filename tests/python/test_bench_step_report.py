@@ -58,7 +58,7 @@ def test_step_report_is_the_former_dict(repo_root):
     assert "StepReport(force=" in repr(r)
 
 
-def test_step_report_values_equal_a_fresh_loops_forward(repo_root):
+def test_step_report_force_equals_step_force_on_a_fresh_loop(repo_root):
     """The report is the step's: replaying the road on another loop gives the same values,
     and the force is step_force's. Reports outlive their loop and stay independent."""
     lm, reports, z, v = _stepped(repo_root, 50)
