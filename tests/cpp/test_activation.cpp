@@ -9,21 +9,47 @@
 #include "check.hpp"
 #include "dampnet/activation.hpp"
 
+namespace {
+
+// The walk of these tests over the float bit patterns: 128 ulps towards +10.
+float next_128_ulps(float x) {
+  uint32_t b;
+  std::memcpy(&b, &x, 4);
+  b = (b & 0x80000000u) ? (b > 0x80000080u ? b - 128u : 0u) : b + 128u;
+  std::memcpy(&x, &b, 4);
+  return x;
+}
+
+// Raise *worst to the largest |approx - std::tanh| over the floats from lo to hi (stepping
+// by next), the approximation evaluated W at a time by eval(in, out); *at: where.
+template <int W, class Eval, class Next>
+void walk_tanh_error(Eval eval, float lo, float hi, Next next, double* worst, double* at) {
+  alignas(64) float in[W] = {}, out[W] = {};
+  int k = 0;
+  auto flush = [&] {
+    eval(in, out);
+    for (int l = 0; l < k; ++l) {
+      const double err = std::fabs(double(out[l]) - std::tanh(double(in[l])));
+      if (err > *worst) {
+        *worst = err;
+        *at = in[l];
+      }
+    }
+    k = 0;
+  };
+  for (float z = lo; z <= hi; z = next(z)) {
+    in[k++] = z;
+    if (k == W) flush();
+  }
+  if (k) flush();
+}
+
+}  // namespace
+
 int main() {
   double worst_tanh = 0.0, worst_at = 0.0;
-  // Walk the float bit patterns from -10 to 10 (positive and negative halves).
-  float x = -10.0f;
-  while (x <= 10.0f) {
-    const double err = std::fabs(double(dampnet::fast_tanh(x)) - std::tanh(double(x)));
-    if (err > worst_tanh) {
-      worst_tanh = err;
-      worst_at = x;
-    }
-    uint32_t b;
-    std::memcpy(&b, &x, 4);
-    b = (b & 0x80000000u) ? (b > 0x80000080u ? b - 128u : 0u) : b + 128u;  // 128 ulps towards +10
-    std::memcpy(&x, &b, 4);
-  }
+  walk_tanh_error<1>([](const float* in, float* out) { out[0] = dampnet::fast_tanh(in[0]); }, -10.0f,
+                     10.0f, next_128_ulps, &worst_tanh, &worst_at);
   std::printf("float fast_tanh: worst |error| vs std::tanh on [-10, 10] (every 128th float) = %.3g at x = %.9g\n",
               worst_tanh, worst_at);
   CHECK(worst_tanh < 5e-7);  // the bound stated in activation.hpp and the docs
@@ -46,31 +72,10 @@ int main() {
   // The AVX2 kernel's 8-wide tanh (FMA, another evaluation order) over the same floats.
   {
     double worst8 = 0.0, worst8_at = 0.0;
+    walk_tanh_error<8>(
+        [](const float* in, float* out) { _mm256_store_ps(out, dampnet::fast_tanh8(_mm256_load_ps(in))); },
+        -10.0f, 10.0f, next_128_ulps, &worst8, &worst8_at);
     alignas(32) float in[8], out[8];
-    int k = 0;
-    float z = -10.0f;
-    auto flush = [&](int n) {
-      _mm256_store_ps(out, dampnet::fast_tanh8(_mm256_load_ps(in)));
-      for (int l = 0; l < n; ++l) {
-        const double err = std::fabs(double(out[l]) - std::tanh(double(in[l])));
-        if (err > worst8) {
-          worst8 = err;
-          worst8_at = in[l];
-        }
-      }
-    };
-    while (z <= 10.0f) {
-      in[k++] = z;
-      if (k == 8) {
-        flush(8);
-        k = 0;
-      }
-      uint32_t b;
-      std::memcpy(&b, &z, 4);
-      b = (b & 0x80000000u) ? (b > 0x80000080u ? b - 128u : 0u) : b + 128u;
-      std::memcpy(&z, &b, 4);
-    }
-    if (k) flush(k);
     std::printf("AVX2 fast_tanh8: worst |error| vs std::tanh on [-10, 10] (every 128th float) = %.3g at x = %.9g\n",
                 worst8, worst8_at);
     CHECK(worst8 < 5e-7);
@@ -92,43 +97,15 @@ int main() {
   // Newton step) over the same floats, and its special values.
   {
     double worst16 = 0.0, worst16_at = 0.0;
-    alignas(64) float in[16], out[16];
-    int k = 0;
-    float z = -10.0f;
-    auto flush = [&](int n) {
+    auto tanh16 = [](const float* in, float* out) {
       _mm512_store_ps(out, dampnet::fast_tanh16(_mm512_load_ps(in)));
-      for (int l = 0; l < n; ++l) {
-        const double err = std::fabs(double(out[l]) - std::tanh(double(in[l])));
-        if (err > worst16) {
-          worst16 = err;
-          worst16_at = in[l];
-        }
-      }
     };
-    while (z <= 10.0f) {
-      in[k++] = z;
-      if (k == 16) {
-        flush(16);
-        k = 0;
-      }
-      uint32_t b;
-      std::memcpy(&b, &z, 4);
-      b = (b & 0x80000000u) ? (b > 0x80000080u ? b - 128u : 0u) : b + 128u;
-      std::memcpy(&z, &b, 4);
-    }
-    if (k) flush(k);
+    walk_tanh_error<16>(tanh16, -10.0f, 10.0f, next_128_ulps, &worst16, &worst16_at);
     // Every float in [8.9, 9.1] and [-9.1, -8.9], where the masks switch.
-    for (float a : {8.9f, -9.1f}) {
-      k = 0;
-      for (float v = a; v <= a + 0.2f; v = std::nextafter(v, 100.f)) {
-        in[k++] = v;
-        if (k == 16) {
-          flush(16);
-          k = 0;
-        }
-      }
-      if (k) flush(k);
-    }
+    for (float a : {8.9f, -9.1f})
+      walk_tanh_error<16>(tanh16, a, a + 0.2f, [](float v) { return std::nextafter(v, 100.f); },
+                          &worst16, &worst16_at);
+    alignas(64) float in[16], out[16];
     std::printf("AVX-512 fast_tanh16: worst |error| vs std::tanh on [-10, 10] (every 128th float, every float near +-9) = %.3g at x = %.9g\n",
                 worst16, worst16_at);
     CHECK(worst16 < 5e-7);
