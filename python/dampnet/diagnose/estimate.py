@@ -14,27 +14,36 @@ from dampnet.train.derived import first_order_lag
 GRID_S = tuple(np.exp(np.linspace(np.log(0.001), np.log(1.0), 25)))
 
 
-def _best_tau(ds, channel: str, rows_per_test: int = 400) -> float:
+def _tau_rows(tests, channel: str, rows_per_test: int = 400) -> list[list[tuple[np.ndarray, np.ndarray]]]:
+    """Per grid tau, per test: (Z rows [velocity-or-lagged, acceleration, control-or-lagged], force)."""
     from dampnet.data.preprocess import acceleration_of
 
-    best = None
+    fixed = []
+    for t in tests:
+        n = len(t)
+        rows = np.arange(0, n, max(1, n // rows_per_test))
+        a = t.channels["acceleration"] if "acceleration" in t.channels else acceleration_of(t)
+        fixed.append((rows, a))
+    out = []
     for tau in GRID_S:
-        Z, F = [], []
-        for t in ds.tests:
-            n = len(t)
-            rows = np.arange(0, n, max(1, n // rows_per_test))
-            v = t.channels["velocity"]
-            a = t.channels["acceleration"] if "acceleration" in t.channels else acceleration_of(t)
+        per_test = []
+        for t, (rows, a) in zip(tests, fixed):
             lagged = first_order_lag(t.channels[channel], t.dt, tau)
-            cols = [v, a, lagged] if channel != "velocity" else [lagged, a, t.control]
-            Z.append(np.stack([c[rows] for c in cols], axis=1))
-            F.append(t.channels["force"][rows])
-        Z = np.vstack(Z)
+            cols = [t.channels["velocity"], a, lagged] if channel != "velocity" else [lagged, a, t.control]
+            per_test.append((np.stack([c[rows] for c in cols], axis=1), t.channels["force"][rows]))
+        out.append(per_test)
+    return out
+
+
+def _best_tau_of(rows_by_tau, keep) -> float:
+    """The grid tau at which the baseline basis of the kept tests' rows fits the force best."""
+    best = None
+    for tau, per_test in zip(GRID_S, rows_by_tau):
+        Z = np.vstack([per_test[i][0] for i in keep])
+        y = np.concatenate([per_test[i][1] for i in keep])
         lo, hi = Z.min(0), Z.max(0)
         z = 2 * (Z - lo) / np.where(hi > lo, hi - lo, 1) - 1
-        names = ["velocity", "acceleration", "control"]
-        X = baseline_basis(z, names)
-        y = np.concatenate(F)
+        X = baseline_basis(z, ["velocity", "acceleration", "control"])
         beta, *_ = np.linalg.lstsq(X, y, rcond=None)
         sse = float(np.sum((y - X @ beta) ** 2))
         if best is None or sse < best[0]:
@@ -42,18 +51,20 @@ def _best_tau(ds, channel: str, rows_per_test: int = 400) -> float:
     return float(best[1])
 
 
+def _best_tau(ds, channel: str, rows_per_test: int = 400) -> float:
+    return _best_tau_of(_tau_rows(ds.tests, channel, rows_per_test), range(len(ds.tests)))
+
+
 def lag_with_spread(tests, channel: str, groups: int = 5) -> tuple[float, float | None]:
     """(tau [s], its spread [s]: the jackknife over `groups` groups of tests, at least half the
     grid's step; None with < 2 groups)."""
-    from types import SimpleNamespace
-
     tests = list(tests)
-    tau = _best_tau(SimpleNamespace(tests=tests), channel)
+    rows = _tau_rows(tests, channel)  # the lagged channels once, shared by every fit below
+    tau = _best_tau_of(rows, range(len(tests)))
     g = min(groups, len(tests))
     if g < 2:
         return tau, None
-    loo = np.log([_best_tau(SimpleNamespace(tests=[t for i, t in enumerate(tests) if i % g != k]), channel)
-                  for k in range(g)])
+    loo = np.log([_best_tau_of(rows, [i for i in range(len(tests)) if i % g != k]) for k in range(g)])
     spread_log = float(np.sqrt((g - 1) / g * np.sum((loo - loo.mean()) ** 2)))
     half_step = 0.5 * float(np.log(GRID_S[1] / GRID_S[0]))  # the grid's own resolution
     return tau, float(tau * max(spread_log, half_step))  # relative, on the log grid
