@@ -528,16 +528,22 @@ class PyLoop {
     check(dn_loop_set_state(d.get(), s.data()), "state");
   }
 
-  py::object step(double z_r, double v_r, double u) {
+  py::object step(double z_r, double v_r, double u) { return report(z_r, v_r, u, true); }
+
+  // What step() would report, without advancing (a StepReport too).
+  py::object forward(double u) { return report(0.0, 0.0, u, false); }
+
+  py::object report(double z_r, double v_r, double u, bool advance) {
     dn_loop_input in{z_r, v_r, u};
     auto* obj = PyObject_New(StepReportObject, g_step_report_type);
     if (!obj) throw py::error_already_set();
     py::object owner = py::reinterpret_steal<py::object>(reinterpret_cast<PyObject*>(obj));
     StepReport& r = obj->r;
     r.o = dn_loop_out{};
-    r.status = dn_loop_step(model->m.get(), d.get(), &in, &r.o);
+    r.status = advance ? dn_loop_step(model->m.get(), d.get(), &in, &r.o)
+                       : dn_loop_forward(model->m.get(), d.get(), &in, &r.o);
     model->damper->raise_pending();
-    check(r.status, "step");
+    check(r.status, advance ? "step" : "forward");
     return owner;
   }
 
@@ -550,15 +556,6 @@ class PyLoop {
     model->damper->raise_pending();
     check(st, "step");
     return o.force;
-  }
-
-  py::dict forward(double u) const {
-    dn_loop_input in{0.0, 0.0, u};
-    dn_loop_out o{};
-    const int st = dn_loop_forward(model->m.get(), d.get(), &in, &o);
-    model->damper->raise_pending();
-    check(st, "forward");
-    return out_dict(o, st);
   }
 
   // A whole road in C++ with the GIL released (see loop.py for the contract).

@@ -157,3 +157,20 @@ def test_cffi_equals_pybind(model, road, via_pybind):
     ref_states, ref_forces = via_pybind
     np.testing.assert_allclose(np.array(states), ref_states, rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(np.array(forces), ref_forces, rtol=1e-12, atol=1e-9)
+
+
+def test_forward_reports_what_the_next_step_reports_without_advancing(model, road):
+    """Loop.forward: the report of the step that would start now (a StepReport, like step's);
+    the state is unchanged, and the step then taken reports the same values."""
+    car = QuarterCar(damper_from_model(model), controller={"kind": "skyhook_onoff"})
+    z, v = road
+    for k in range(1, 200):
+        car.step(z[k], v[k])
+    before = car.state.copy()
+    f = car.loop.forward(0.0)
+    np.testing.assert_array_equal(car.state, before)
+    s = car.step(z[200], v[200])
+    assert type(f) is type(s)
+    for key in ("force", "u", "x", "v", "a", "acc_s", "acc_us", "status"):
+        assert f[key] == s[key], key
+    np.testing.assert_array_equal(f["features"], s["features"])
