@@ -45,3 +45,14 @@ def eigen_build() -> Path:
         pytest.skip("Eigen headers not installed (Debian libeigen3-dev); python/env.sh installs them")
     return cmake_build("eigen", "DAMPNET_BUILD_TESTS=ON", "DAMPNET_USE_EIGEN=ON",
                        "CMAKE_BUILD_TYPE=Release", target="dn_print_outputs")
+
+
+@pytest.fixture
+def one_torch_thread():
+    """torch on one thread for the test (timings and reductions independent of the machine)."""
+    import torch
+
+    old = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(old)

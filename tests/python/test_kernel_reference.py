@@ -151,6 +151,20 @@ def _write_header_program(models, tmp_path, cxx: bool):
     return src
 
 
+def _run_on_random_inputs(exe, models, n: int) -> tuple[str, np.ndarray]:
+    """Run a test program on n random inputs per model (stdin lines "k n_in x..."); returns its
+    stdout and the torch float64 reference outputs in the same order."""
+    inputs, refs = [], []
+    for k, m in enumerate(models):
+        x = random_inputs(m, n, seed=k)
+        refs.append(torch_reference(m, x))
+        inputs += [f"{k} {m.n_inputs} " + " ".join(f"{v:.17g}" for v in row) for row in x]
+    proc = subprocess.run([str(exe)], input="\n".join(inputs) + "\n", capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    return proc.stdout, np.concatenate(refs)
+
+
 @pytest.mark.parametrize("language", ["c++17", "c99"])
 def test_generated_headers_compile_and_match_torch(tmp_path, language):
     cxx = language == "c++17"
@@ -158,16 +172,8 @@ def test_generated_headers_compile_and_match_torch(tmp_path, language):
     src = _write_header_program(models, tmp_path, cxx)
     exe = compile_program([src], tmp_path / "prog", cxx=cxx, include_dirs=[tmp_path, *paths.include_dirs()],
                           libs=[] if cxx else [paths.shared_library()], std=language)
-    inputs, refs = [], []
-    for k, m in enumerate(models):
-        x = random_inputs(m, 100, seed=k)
-        refs.append(torch_reference(m, x))
-        inputs += [f"{k} {m.n_inputs} " + " ".join(f"{v:.17g}" for v in row) for row in x]
-    proc = subprocess.run([str(exe)], input="\n".join(inputs) + "\n", capture_output=True, text=True,
-                          timeout=120)
-    assert proc.returncode == 0, proc.stderr
-    got = np.array(proc.stdout.split(), dtype=float).reshape(-1, 2)
-    ref = np.concatenate(refs)
+    stdout, ref = _run_on_random_inputs(exe, models, 100)
+    got = np.array(stdout.split(), dtype=float).reshape(-1, 2)
     assert got.shape[0] == ref.shape[0]
     assert np.max(np.abs(got[:, 0] - ref)) <= DOUBLE_TOL
     assert np.max(np.abs(got[:, 1] - ref)) <= FLOAT_TOL
@@ -229,18 +235,10 @@ def test_every_simd_path_matches_torch(tmp_path, isa):
     src.write_text("\n".join(lines + body) + "\n")
     exe = compile_program([src], tmp_path / "prog", cxx=True, include_dirs=[tmp_path, *paths.include_dirs()],
                           extra=flags)
-    inputs, refs = [], []
-    for k, m in enumerate(models):
-        x = random_inputs(m, 200, seed=k)
-        refs.append(torch_reference(m, x))
-        inputs += [f"{k} {m.n_inputs} " + " ".join(f"{v:.17g}" for v in row) for row in x]
-    proc = subprocess.run([str(exe)], input="\n".join(inputs) + "\n", capture_output=True, text=True,
-                          timeout=120)
-    assert proc.returncode == 0, proc.stderr
-    out = proc.stdout.split("\n", 1)
+    stdout, ref = _run_on_random_inputs(exe, models, 200)
+    out = stdout.split("\n", 1)
     assert out[0] == isa  # the path these flags select
     got = np.array(out[1].split(), dtype=float).reshape(-1, 4)
-    ref = np.concatenate(refs)
     assert got.shape[0] == ref.shape[0]
     assert np.max(np.abs(got[:, 0] - ref)) <= DOUBLE_TOL
     for col in (1, 2, 3):

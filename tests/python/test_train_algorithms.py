@@ -25,12 +25,7 @@ from dampnet.train.problem import MlpProblem
 from dampnet.train.scg import ScaledConjugateGradient
 
 
-@pytest.fixture(autouse=True)
-def _one_thread():
-    old = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(old)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 # A hand-picked 2-3-1 tanh teacher: distinct hidden directions, O(1) output weights.

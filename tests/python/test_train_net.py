@@ -6,12 +6,7 @@ import torch
 from dampnet.train.net import DTYPE, Layout
 
 
-@pytest.fixture(autouse=True)
-def _one_thread():
-    old = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(old)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 @pytest.mark.parametrize("hidden", [(5,), (4, 3)])
