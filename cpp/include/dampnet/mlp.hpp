@@ -23,8 +23,8 @@
 // on top of -mavx2 -mfma (CMake: DAMPNET_AVX512, off by default), the same pipeline
 // per 16 neurons in __m512 registers (layers padded to 16, 64-byte aligned); AVX2+FMA
 // when compiled with -mavx2 -mfma (CMake: DAMPNET_AVX2), a fused per-8-neuron pipeline
-// in __m256 registers; otherwise SSE (x86-64 baseline) or plain C++ loops. The results
-// of the paths differ by rounding only. Inputs inside their saturation range are read
+// in __m256 registers (both: forward_simd over Simd16 / Simd8); otherwise SSE (x86-64
+// baseline) or plain C++ loops. The results of the paths differ by rounding only. Inputs inside their saturation range are read
 // in place (no copy, no min/max on the chain) when the offsets are folded.
 #pragma once
 
@@ -236,197 +236,148 @@ inline bool inputs_in_range(const P& p, const T* x) noexcept {
 #pragma GCC diagnostic pop
 #endif
 
-#if DN_KERNEL_AVX2
-// One block of 8 outputs of a dense layer: init + sum_i x[i] * wt[i * stride + 0..7].
-// Up to 4 inputs in one FMA chain; more in four interleaved chains (latency n/4 FMAs).
-template <int kN>
-inline __m256 dense8(__m256 init, const float* wt, const float* x, int n_dyn, int stride) noexcept {
-  const int n = kN > 0 ? kN : n_dyn;
-  if (n <= 4) {
-    for (int i = 0; i < n; ++i)
-      init = _mm256_fmadd_ps(_mm256_load_ps(wt + i * stride), _mm256_set1_ps(x[i]), init);
-    return init;
-  }
-  __m256 c1 = _mm256_setzero_ps(), c2 = c1, c3 = c1;
-  const int n4 = n - n % 4;
-  for (int i = 0; i < n4; i += 4) {
-    init = _mm256_fmadd_ps(_mm256_load_ps(wt + i * stride), _mm256_set1_ps(x[i]), init);
-    c1 = _mm256_fmadd_ps(_mm256_load_ps(wt + (i + 1) * stride), _mm256_set1_ps(x[i + 1]), c1);
-    c2 = _mm256_fmadd_ps(_mm256_load_ps(wt + (i + 2) * stride), _mm256_set1_ps(x[i + 2]), c2);
-    c3 = _mm256_fmadd_ps(_mm256_load_ps(wt + (i + 3) * stride), _mm256_set1_ps(x[i + 3]), c3);
-  }
-  for (int i = n4; i < n; ++i)
-    init = _mm256_fmadd_ps(_mm256_load_ps(wt + i * stride), _mm256_set1_ps(x[i]), init);
-  return _mm256_add_ps(_mm256_add_ps(init, c1), _mm256_add_ps(c2, c3));
-}
-
-// The 8 partial sums of a __m256 combined in dot_padded's order.
-inline float hsum8(__m256 v) noexcept {
-  const __m128 q = _mm_add_ps(_mm256_castps256_ps128(v), _mm256_extractf128_ps(v, 1));
-  const __m128 t = _mm_add_ps(q, _mm_shuffle_ps(q, q, _MM_SHUFFLE(2, 3, 0, 1)));
-  return _mm_cvtss_f32(_mm_add_ss(t, _mm_movehl_ps(t, t)));
-}
-
-// The float forward pass after the inputs: per block of 8 neurons, dense (FMA),
-// tanh (fast_tanh8) and the output FMA in registers, blocks independent so they
-// overlap in the pipeline. Returns b_out + sum_j w_out[j] t_j (b_out enters the
-// first accumulator's lane 0, off the end of the chain); with kGrad also (in *dys)
-// the forward-mode derivative for the input whose layer-1 column is `col`
-// (nullptr: that input was clamped, derivative 0).
-template <int kIn, int kH1, int kH2, bool kGrad, class P>
-inline float forward_avx2(const P& p, const float* xs, const float* col, float* dys) noexcept {
-  constexpr int kP1 = kH1 > 0 ? pad(kH1) : kDynamic;
-  constexpr int kP2 = kH2 > 0 ? pad(kH2) : (kH2 == 0 ? 0 : kDynamic);
-  constexpr int cap_h1 = kH1 > 0 ? kP1 : DN_MAX_HIDDEN;
-  const int ni = kIn > 0 ? kIn : p.n_in;
-  const int h1 = kP1 > 0 ? kP1 : p.n_h1p;
-  const int h2 = kP2 >= 0 ? kP2 : p.n_h2p;
-  const __m256 one = _mm256_set1_ps(1.f);
-  __m256 acc1 = _mm256_setzero_ps(), dacc = acc1;
-  __m256 acc0 = _mm256_setr_ps(p.b_out, 0.f, 0.f, 0.f, 0.f, 0.f, 0.f, 0.f);
-  if (kH2 == 0 || h2 == 0) {
-    for (int j = 0; j < h1; j += 8) {
-      __m256 r, q;  // t = r q; the output takes r (q w), q w formed while r is divided
-      fast_tanh8_factors(dense8<kIn>(_mm256_load_ps(p.b1.data() + j), p.w1t.data() + j, xs, ni, h1), r, q);
-      const __m256 w = _mm256_load_ps(p.w_out.data() + j);
-      if ((j >> 3) & 1)
-        acc1 = _mm256_fmadd_ps(r, _mm256_mul_ps(q, w), acc1);
-      else
-        acc0 = _mm256_fmadd_ps(r, _mm256_mul_ps(q, w), acc0);
-      if constexpr (kGrad) {
-        if (col) {
-          const __m256 t = _mm256_mul_ps(r, q);
-          const __m256 d = _mm256_mul_ps(_mm256_fnmadd_ps(t, t, one), _mm256_load_ps(col + j));
-          dacc = _mm256_fmadd_ps(w, d, dacc);
-        }
-      }
-    }
-  } else {
-    alignas(32) float a1[cap_h1];
-    alignas(32) float t1[kGrad ? cap_h1 : kPad];
-    for (int j = 0; j < h1; j += 8) {
-      const __m256 t = fast_tanh8(dense8<kIn>(_mm256_load_ps(p.b1.data() + j), p.w1t.data() + j, xs, ni, h1));
-      _mm256_store_ps(a1 + j, t);
-      if constexpr (kGrad)
-        _mm256_store_ps(t1 + j, col ? _mm256_mul_ps(_mm256_fnmadd_ps(t, t, one), _mm256_load_ps(col + j))
-                                    : _mm256_setzero_ps());
-    }
-    for (int j = 0; j < h2; j += 8) {
-      __m256 r, q;
-      fast_tanh8_factors(dense8<kP1>(_mm256_load_ps(p.b2.data() + j), p.w2t.data() + j, a1, h1, h2), r, q);
-      const __m256 w = _mm256_load_ps(p.w_out.data() + j);
-      if ((j >> 3) & 1)
-        acc1 = _mm256_fmadd_ps(r, _mm256_mul_ps(q, w), acc1);
-      else
-        acc0 = _mm256_fmadd_ps(r, _mm256_mul_ps(q, w), acc0);
-      if constexpr (kGrad) {
-        const __m256 t = _mm256_mul_ps(r, q);
-        const __m256 lin = dense8<kP1>(_mm256_setzero_ps(), p.w2t.data() + j, t1, h1, h2);
-        dacc = _mm256_fmadd_ps(w, _mm256_mul_ps(_mm256_fnmadd_ps(t, t, one), lin), dacc);
-      }
-    }
-  }
-  if constexpr (kGrad) *dys = hsum8(dacc);
-  return hsum8(_mm256_add_ps(acc0, acc1));
-}
-#endif
-
-#if DN_KERNEL_AVX512
+#if DN_KERNEL_AVX2 || DN_KERNEL_AVX512
+#if DN_KERNEL_AVX512 && defined(__GNUC__) && !defined(__clang__)
 // GCC 12's AVX-512 intrinsics (_mm512_min_ps, _mm512_rcp14_ps, _mm512_castps512_ps256,
 // ...) pass a self-initialised "undefined" vector that -Wuninitialized reports.
-#if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wuninitialized"
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #endif
-// One block of 16 outputs of a dense layer (dense8 on __m512).
-template <int kN>
-inline __m512 dense16(__m512 init, const float* wt, const float* x, int n_dyn, int stride) noexcept {
+// The vector operations of one SIMD width, for the pipeline below written once:
+// Simd8 (AVX2+FMA, __m256) and, in AVX-512 builds, Simd16 (__m512).
+struct Simd8 {
+  using V = __m256;
+  static constexpr int kW = 8;
+  static V load(const float* p) noexcept { return _mm256_load_ps(p); }
+  static void store(float* p, V v) noexcept { _mm256_store_ps(p, v); }
+  static V set1(float x) noexcept { return _mm256_set1_ps(x); }
+  static V zero() noexcept { return _mm256_setzero_ps(); }
+  static V lane0(float x) noexcept { return _mm256_setr_ps(x, 0.f, 0.f, 0.f, 0.f, 0.f, 0.f, 0.f); }
+  static V add(V a, V b) noexcept { return _mm256_add_ps(a, b); }
+  static V mul(V a, V b) noexcept { return _mm256_mul_ps(a, b); }
+  static V fmadd(V a, V b, V c) noexcept { return _mm256_fmadd_ps(a, b, c); }
+  static V fnmadd(V a, V b, V c) noexcept { return _mm256_fnmadd_ps(a, b, c); }
+  static V tanh(V z) noexcept { return fast_tanh8(z); }
+  static void tanh_factors(V z, V& r, V& q) noexcept { fast_tanh8_factors(z, r, q); }
+  // The 8 partial sums combined in dot_padded's order.
+  static float hsum(V v) noexcept {
+    const __m128 q = _mm_add_ps(_mm256_castps256_ps128(v), _mm256_extractf128_ps(v, 1));
+    const __m128 t = _mm_add_ps(q, _mm_shuffle_ps(q, q, _MM_SHUFFLE(2, 3, 0, 1)));
+    return _mm_cvtss_f32(_mm_add_ss(t, _mm_movehl_ps(t, t)));
+  }
+};
+
+#if DN_KERNEL_AVX512
+struct Simd16 {
+  using V = __m512;
+  static constexpr int kW = 16;
+  static V load(const float* p) noexcept { return _mm512_load_ps(p); }
+  static void store(float* p, V v) noexcept { _mm512_store_ps(p, v); }
+  static V set1(float x) noexcept { return _mm512_set1_ps(x); }
+  static V zero() noexcept { return _mm512_setzero_ps(); }
+  static V lane0(float x) noexcept { return _mm512_maskz_mov_ps(1, _mm512_set1_ps(x)); }
+  static V add(V a, V b) noexcept { return _mm512_add_ps(a, b); }
+  static V mul(V a, V b) noexcept { return _mm512_mul_ps(a, b); }
+  static V fmadd(V a, V b, V c) noexcept { return _mm512_fmadd_ps(a, b, c); }
+  static V fnmadd(V a, V b, V c) noexcept { return _mm512_fnmadd_ps(a, b, c); }
+  static V tanh(V z) noexcept { return fast_tanh16(z); }
+  static void tanh_factors(V z, V& r, V& q) noexcept { fast_tanh16_factors(z, r, q); }
+  // Halves added, then the 8 as Simd8::hsum combines them.
+  static float hsum(V v) noexcept {
+    return Simd8::hsum(_mm256_add_ps(_mm512_castps512_ps256(v), _mm512_extractf32x8_ps(v, 1)));
+  }
+};
+using SimdKernel = Simd16;
+#else
+using SimdKernel = Simd8;
+#endif
+
+// One block of S::kW outputs of a dense layer: init + sum_i x[i] * wt[i * stride + 0..kW-1].
+// Up to 4 inputs in one FMA chain; more in four interleaved chains (latency n/4 FMAs).
+template <class S, int kN>
+inline typename S::V dense_block(typename S::V init, const float* wt, const float* x, int n_dyn,
+                                 int stride) noexcept {
   const int n = kN > 0 ? kN : n_dyn;
   if (n <= 4) {
-    for (int i = 0; i < n; ++i)
-      init = _mm512_fmadd_ps(_mm512_load_ps(wt + i * stride), _mm512_set1_ps(x[i]), init);
+    for (int i = 0; i < n; ++i) init = S::fmadd(S::load(wt + i * stride), S::set1(x[i]), init);
     return init;
   }
-  __m512 c1 = _mm512_setzero_ps(), c2 = c1, c3 = c1;
+  typename S::V c1 = S::zero(), c2 = c1, c3 = c1;
   const int n4 = n - n % 4;
   for (int i = 0; i < n4; i += 4) {
-    init = _mm512_fmadd_ps(_mm512_load_ps(wt + i * stride), _mm512_set1_ps(x[i]), init);
-    c1 = _mm512_fmadd_ps(_mm512_load_ps(wt + (i + 1) * stride), _mm512_set1_ps(x[i + 1]), c1);
-    c2 = _mm512_fmadd_ps(_mm512_load_ps(wt + (i + 2) * stride), _mm512_set1_ps(x[i + 2]), c2);
-    c3 = _mm512_fmadd_ps(_mm512_load_ps(wt + (i + 3) * stride), _mm512_set1_ps(x[i + 3]), c3);
+    init = S::fmadd(S::load(wt + i * stride), S::set1(x[i]), init);
+    c1 = S::fmadd(S::load(wt + (i + 1) * stride), S::set1(x[i + 1]), c1);
+    c2 = S::fmadd(S::load(wt + (i + 2) * stride), S::set1(x[i + 2]), c2);
+    c3 = S::fmadd(S::load(wt + (i + 3) * stride), S::set1(x[i + 3]), c3);
   }
-  for (int i = n4; i < n; ++i)
-    init = _mm512_fmadd_ps(_mm512_load_ps(wt + i * stride), _mm512_set1_ps(x[i]), init);
-  return _mm512_add_ps(_mm512_add_ps(init, c1), _mm512_add_ps(c2, c3));
+  for (int i = n4; i < n; ++i) init = S::fmadd(S::load(wt + i * stride), S::set1(x[i]), init);
+  return S::add(S::add(init, c1), S::add(c2, c3));
 }
 
-// The 16 partial sums of a __m512: halves added, then the 8 as dot_padded combines them.
-inline float hsum16(__m512 v) noexcept {
-  const __m256 h = _mm256_add_ps(_mm512_castps512_ps256(v), _mm512_extractf32x8_ps(v, 1));
-  const __m128 q = _mm_add_ps(_mm256_castps256_ps128(h), _mm256_extractf128_ps(h, 1));
-  const __m128 t = _mm_add_ps(q, _mm_shuffle_ps(q, q, _MM_SHUFFLE(2, 3, 0, 1)));
-  return _mm_cvtss_f32(_mm_add_ss(t, _mm_movehl_ps(t, t)));
-}
-
-// forward_avx2 with blocks of 16 neurons in __m512 registers (fast_tanh16).
-template <int kIn, int kH1, int kH2, bool kGrad, class P>
-inline float forward_avx512(const P& p, const float* xs, const float* col, float* dys) noexcept {
+// The float forward pass after the inputs: per block of S::kW neurons, dense (FMA),
+// tanh and the output FMA in registers, blocks independent so they overlap in the
+// pipeline (alternate blocks into two accumulators). Returns b_out + sum_j w_out[j] t_j
+// (b_out enters the first accumulator's lane 0, off the end of the chain); with kGrad
+// also (in *dys) the forward-mode derivative for the input whose layer-1 column is
+// `col` (nullptr: that input was clamped, derivative 0).
+template <class S, int kIn, int kH1, int kH2, bool kGrad, class P>
+inline float forward_simd(const P& p, const float* xs, const float* col, float* dys) noexcept {
+  using V = typename S::V;
+  constexpr int kW = S::kW;
   constexpr int kP1 = kH1 > 0 ? pad(kH1) : kDynamic;
   constexpr int kP2 = kH2 > 0 ? pad(kH2) : (kH2 == 0 ? 0 : kDynamic);
   constexpr int cap_h1 = kH1 > 0 ? kP1 : DN_MAX_HIDDEN;
   const int ni = kIn > 0 ? kIn : p.n_in;
   const int h1 = kP1 > 0 ? kP1 : p.n_h1p;
   const int h2 = kP2 >= 0 ? kP2 : p.n_h2p;
-  const __m512 one = _mm512_set1_ps(1.f);
-  __m512 acc1 = _mm512_setzero_ps(), dacc = acc1;
-  __m512 acc0 = _mm512_maskz_mov_ps(1, _mm512_set1_ps(p.b_out));  // b_out in lane 0
+  const V one = S::set1(1.f);
+  V acc1 = S::zero(), dacc = acc1;
+  V acc0 = S::lane0(p.b_out);
   if (kH2 == 0 || h2 == 0) {
-    for (int j = 0; j < h1; j += 16) {
-      __m512 r, q;  // t = r q; the output takes r (q w), q w formed while r is computed
-      fast_tanh16_factors(dense16<kIn>(_mm512_load_ps(p.b1.data() + j), p.w1t.data() + j, xs, ni, h1), r, q);
-      const __m512 w = _mm512_load_ps(p.w_out.data() + j);
-      if ((j >> 4) & 1)
-        acc1 = _mm512_fmadd_ps(r, _mm512_mul_ps(q, w), acc1);
+    for (int j = 0; j < h1; j += kW) {
+      V r, q;  // t = r q; the output takes r (q w), q w formed while r is divided
+      S::tanh_factors(dense_block<S, kIn>(S::load(p.b1.data() + j), p.w1t.data() + j, xs, ni, h1), r, q);
+      const V w = S::load(p.w_out.data() + j);
+      if ((j / kW) & 1)
+        acc1 = S::fmadd(r, S::mul(q, w), acc1);
       else
-        acc0 = _mm512_fmadd_ps(r, _mm512_mul_ps(q, w), acc0);
+        acc0 = S::fmadd(r, S::mul(q, w), acc0);
       if constexpr (kGrad) {
         if (col) {
-          const __m512 t = _mm512_mul_ps(r, q);
-          const __m512 d = _mm512_mul_ps(_mm512_fnmadd_ps(t, t, one), _mm512_load_ps(col + j));
-          dacc = _mm512_fmadd_ps(w, d, dacc);
+          const V t = S::mul(r, q);
+          dacc = S::fmadd(w, S::mul(S::fnmadd(t, t, one), S::load(col + j)), dacc);
         }
       }
     }
   } else {
-    alignas(64) float a1[cap_h1];
-    alignas(64) float t1[kGrad ? cap_h1 : kPad];
-    for (int j = 0; j < h1; j += 16) {
-      const __m512 t = fast_tanh16(dense16<kIn>(_mm512_load_ps(p.b1.data() + j), p.w1t.data() + j, xs, ni, h1));
-      _mm512_store_ps(a1 + j, t);
+    alignas(4 * kW) float a1[cap_h1];
+    alignas(4 * kW) float t1[kGrad ? cap_h1 : kPad];
+    for (int j = 0; j < h1; j += kW) {
+      const V t = S::tanh(dense_block<S, kIn>(S::load(p.b1.data() + j), p.w1t.data() + j, xs, ni, h1));
+      S::store(a1 + j, t);
       if constexpr (kGrad)
-        _mm512_store_ps(t1 + j, col ? _mm512_mul_ps(_mm512_fnmadd_ps(t, t, one), _mm512_load_ps(col + j))
-                                    : _mm512_setzero_ps());
+        S::store(t1 + j, col ? S::mul(S::fnmadd(t, t, one), S::load(col + j)) : S::zero());
     }
-    for (int j = 0; j < h2; j += 16) {
-      __m512 r, q;
-      fast_tanh16_factors(dense16<kP1>(_mm512_load_ps(p.b2.data() + j), p.w2t.data() + j, a1, h1, h2), r, q);
-      const __m512 w = _mm512_load_ps(p.w_out.data() + j);
-      if ((j >> 4) & 1)
-        acc1 = _mm512_fmadd_ps(r, _mm512_mul_ps(q, w), acc1);
+    for (int j = 0; j < h2; j += kW) {
+      V r, q;
+      S::tanh_factors(dense_block<S, kP1>(S::load(p.b2.data() + j), p.w2t.data() + j, a1, h1, h2), r, q);
+      const V w = S::load(p.w_out.data() + j);
+      if ((j / kW) & 1)
+        acc1 = S::fmadd(r, S::mul(q, w), acc1);
       else
-        acc0 = _mm512_fmadd_ps(r, _mm512_mul_ps(q, w), acc0);
+        acc0 = S::fmadd(r, S::mul(q, w), acc0);
       if constexpr (kGrad) {
-        const __m512 t = _mm512_mul_ps(r, q);
-        const __m512 lin = dense16<kP1>(_mm512_setzero_ps(), p.w2t.data() + j, t1, h1, h2);
-        dacc = _mm512_fmadd_ps(w, _mm512_mul_ps(_mm512_fnmadd_ps(t, t, one), lin), dacc);
+        const V t = S::mul(r, q);
+        const V lin = dense_block<S, kP1>(S::zero(), p.w2t.data() + j, t1, h1, h2);
+        dacc = S::fmadd(w, S::mul(S::fnmadd(t, t, one), lin), dacc);
       }
     }
   }
-  if constexpr (kGrad) *dys = hsum16(dacc);
-  return hsum16(_mm512_add_ps(acc0, acc1));
+  if constexpr (kGrad) *dys = S::hsum(dacc);
+  return S::hsum(S::add(acc0, acc1));
 }
-#if defined(__GNUC__) && !defined(__clang__)
+#if DN_KERNEL_AVX512 && defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic pop
 #endif
 #endif
@@ -463,13 +414,9 @@ DN_REALTIME inline int forward(const P& p, const T* x, T* y, uint32_t* clamped_m
   const T* col = (kGrad && !((mask >> grad_input) & 1u)) ? p.w1t.data() + grad_input * h1 : nullptr;
 
   T sum, dys = T(0);
-#if DN_KERNEL_AVX512
+#if DN_KERNEL_AVX2 || DN_KERNEL_AVX512
   if constexpr (std::is_same<T, float>::value) {
-    sum = forward_avx512<kIn, kH1, kH2, kGrad>(p, xs, col, &dys);  // b_out included
-  } else
-#elif DN_KERNEL_AVX2
-  if constexpr (std::is_same<T, float>::value) {
-    sum = forward_avx2<kIn, kH1, kH2, kGrad>(p, xs, col, &dys);  // b_out included
+    sum = forward_simd<SimdKernel, kIn, kH1, kH2, kGrad>(p, xs, col, &dys);  // b_out included
   } else
 #endif
   {
