@@ -372,6 +372,7 @@ inline int evaluate(const LoopModel& m, dn_damper_input& in, double f_last, doub
 struct Start {
   double u;
   double force;
+  Accel acc;  // the accelerations with this force: the report's, and RK4's first stage
   dn_damper_input in;
   int status;
 };
@@ -389,15 +390,15 @@ inline Start start(const LoopModel& m, const double* s, double u_ext, dn_loop_ou
     for (int i = 0; i < DN_MAX_INPUTS; ++i) feat[i] = 0.0;  // fixed length: two vector stores
   }
   r.status = evaluate(m, r.in, s[S_f_last], &r.force, feat, mask, n_evals);
+  r.acc = accel(m, b, s[S_z_r], s[S_v_r], r.force);
   if (out) {
-    const Accel a = accel(m, b, s[S_z_r], s[S_v_r], r.force);
     out->force = r.force;
     out->u = r.u;
     out->x = r.in.x;
     out->v = r.in.v;
     out->a = r.in.a;
-    out->acc_s = a.as;
-    out->acc_us = a.aus;
+    out->acc_s = r.acc.as;
+    out->acc_us = r.acc.aus;
     out->n_features = m.damper.kind == DN_DAMPER_NEURAL ? m.damper.n_feat : 0;
     out->clamped_mask = mask ? *mask : 0u;
   }
@@ -452,9 +453,8 @@ DN_REALTIME inline int step(const LoopModel& m, LoopData& d, const dn_loop_input
   double f_last = r.force;
 
   if (m.veh.integrator == DN_INT_SEMI_EULER) {
-    const Accel a = detail::accel(m, b0, zr0, vr0, r.force);
-    ns[S_v_s] = b0.vs + h * a.as;
-    ns[S_v_us] = b0.vus + h * a.aus;
+    ns[S_v_s] = b0.vs + h * r.acc.as;
+    ns[S_v_us] = b0.vus + h * r.acc.aus;
     ns[S_z_s] = b0.zs + h * ns[S_v_s];
     ns[S_z_us] = b0.zus + h * ns[S_v_us];
   } else {
@@ -478,7 +478,7 @@ DN_REALTIME inline int step(const LoopModel& m, LoopData& d, const dn_loop_input
       f_last = f;
       return f;
     };
-    const Accel k1 = detail::accel(m, b0, zr0, vr0, r.force);
+    const Accel& k1 = r.acc;
     const Body b1{b0.zs + 0.5 * h * b0.vs, b0.vs + 0.5 * h * k1.as, b0.zus + 0.5 * h * b0.vus,
                   b0.vus + 0.5 * h * k1.aus};
     const Accel k2 = detail::accel(m, b1, zrm, vrm, force_at(b1, zrm, vrm, ul_mid, t0 + 0.5 * h, 1));
