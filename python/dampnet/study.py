@@ -141,6 +141,9 @@ def damping_levels(spec: DamperSpec, dt: float = 1e-3) -> dict:
 
 SKYHOOK_ZETA = 1.0 / math.sqrt(2.0)
 SKYHOOK_V_RMS_M_S = 0.2
+# Command filter of the study's semi-active laws [s] (the runtime's u_tau_s; see the module
+# docstring): a 32 Hz corner, 20 degrees of lag at the 11.7 Hz wheel hop, five 1 ms steps.
+SKYHOOK_COMMAND_TAU_S = 0.005
 
 
 def equivalent_damping(spec: DamperSpec, u: float, v_rms: float = SKYHOOK_V_RMS_M_S, dt: float = 1e-3,
@@ -159,12 +162,14 @@ def equivalent_damping(spec: DamperSpec, u: float, v_rms: float = SKYHOOK_V_RMS_
 
 
 def continuous_skyhook(spec: DamperSpec, levels: dict | None = None, vehicle: Vehicle | None = None,
-                       zeta_sky: float = SKYHOOK_ZETA, v_rms: float = SKYHOOK_V_RMS_M_S) -> Controller:
+                       zeta_sky: float = SKYHOOK_ZETA, v_rms: float = SKYHOOK_V_RMS_M_S,
+                       u_tau_s: float = SKYHOOK_COMMAND_TAU_S) -> Controller:
     """The continuous skyhook controller calibrated on a damper (see the module docstring).
 
     c_sky = zeta_sky 2 sqrt(k_s m_s); c_min / c_max = equivalent_damping at the low / high
-    damping levels. A damper whose damping does not rise from low to high (a linear damper)
-    keeps the Controller's default c_min / c_max: the control does nothing to it anyway.
+    damping levels; u_tau_s the command filter's time constant [s] (0: none). A damper whose
+    damping does not rise from low to high (a linear damper) keeps the Controller's default
+    c_min / c_max: the control does nothing to it anyway.
     """
     veh = vehicle or Vehicle()
     lv = levels or damping_levels(spec, veh.dt)
@@ -174,7 +179,14 @@ def continuous_skyhook(spec: DamperSpec, levels: dict | None = None, vehicle: Ve
         c_min, c_max = Controller.c_min, Controller.c_max
     return Controller(kind="skyhook_continuous", u_soft=lv["low"], u_hard=lv["high"],
                       u_min=min(lv.values()), u_max=max(lv.values()),
-                      c_sky=zeta_sky * 2.0 * math.sqrt(veh.k_s * veh.m_s), c_min=c_min, c_max=c_max)
+                      c_sky=zeta_sky * 2.0 * math.sqrt(veh.k_s * veh.m_s), c_min=c_min, c_max=c_max,
+                      u_tau_s=u_tau_s)
+
+
+def onoff_skyhook(levels: dict, u_tau_s: float = SKYHOOK_COMMAND_TAU_S) -> Controller:
+    """On-off skyhook between a damper's own low and high damping settings, with the command filter."""
+    return Controller(kind="skyhook", u_soft=levels["low"], u_hard=levels["high"], u_min=min(levels.values()),
+                      u_max=max(levels.values()), u_tau_s=u_tau_s)
 
 
 def core_loop_available() -> bool:
@@ -310,7 +322,8 @@ def run_study(specs: list[DamperSpec], truth: DamperSpec | None = None, dt: floa
     ref = truth or all_specs[0]
     sky_c = continuous_skyhook(ref, levels[ref.name], veh)
     res["settings"]["skyhook"] = dict(
-        onoff={s.name: dict(u_soft=levels[s.name]["low"], u_hard=levels[s.name]["high"]) for s in all_specs},
+        onoff={s.name: dict(u_soft=levels[s.name]["low"], u_hard=levels[s.name]["high"],
+                            u_tau_s=sky_c.u_tau_s) for s in all_specs},
         continuous=dict(sky_c.to_dict(), calibrated_on=ref.name, zeta_sky=SKYHOOK_ZETA,
                         v_rms_m_s=SKYHOOK_V_RMS_M_S))
 
@@ -333,8 +346,7 @@ def run_study(specs: list[DamperSpec], truth: DamperSpec | None = None, dt: floa
             for v in speeds:
                 go("rough_road", f"{v:g}_{level}", spec, roads["rough_road"], v, passive)
         for v in speeds:
-            sky = Controller(kind="skyhook", u_soft=lv["low"], u_hard=lv["high"],
-                             u_min=min(lv.values()), u_max=max(lv.values()))
+            sky = onoff_skyhook(lv, sky_c.u_tau_s)
             go("skyhook", f"{v:g}_skyhook", spec, roads["rough_road"], v, sky)
             cont = Controller(**{**sky_c.to_dict(), "u_soft": lv["low"], "u_hard": lv["high"],
                                  "u_min": min(lv.values()), "u_max": max(lv.values())})

@@ -38,7 +38,7 @@ extern "C" {
 /*---- Version ----*/
 
 #define DN_VERSION_MAJOR 0
-#define DN_VERSION_MINOR 2 /* 0.2: dn_damper_input.v_lag/z_fric, 12 loop states */
+#define DN_VERSION_MINOR 3 /* 0.3: dn_controller.u_tau_s, 13 loop states (0.2: dn_damper_input.v_lag/z_fric) */
 #define DN_VERSION_PATCH 0
 /* Version of this header as major*10000 + minor*100 + patch. */
 #define DN_VERSION_HEADER (DN_VERSION_MAJOR * 10000 + DN_VERSION_MINOR * 100 + DN_VERSION_PATCH)
@@ -318,7 +318,12 @@ DN_API int dn_damper_force(const dn_damper* d, const dn_damper_input* in, double
  *   GROUNDHOOK_ONOFF:    d = 1 if -v_us v > 0 else 0
  *   GROUNDHOOK_CONTINUOUS: if -v_us v > 0: d = clamp((-c_gnd v_us / v - c_min) / (c_max - c_min), 0, 1)
  *                        else d = 0
- *   EXTERNAL:            u = dn_loop_input.u (the caller's controller) */
+ *   EXTERNAL:            u = dn_loop_input.u (the caller's controller)
+ * Command filter (every law but EXTERNAL): with u_tau_s > 0 the law's control passes a
+ * first-order low-pass before it reaches the damper, sampled at the step start and held
+ * over the step: u_k = u_law + (u_{k-1} - u_law) exp(-dt / u_tau_s), u_{k-1} being the
+ * state u_cmd. It stands for the command smoothing of a real semi-active controller (a
+ * switching law's jumps in damper force jolt the body: "jerk"); 0 = unfiltered. */
 typedef enum dn_controller_kind {
   DN_CTRL_PASSIVE = 0,
   DN_CTRL_SKYHOOK_ONOFF = 1,
@@ -339,7 +344,8 @@ typedef enum dn_controller_kind {
   X(double, c_sky, 2500.0, "skyhook damping [N s/m], >= 0")                         \
   X(double, c_gnd, 2500.0, "groundhook damping [N s/m], >= 0")                      \
   X(double, c_min, 500.0, "damping at u_soft [N s/m] (continuous laws)")            \
-  X(double, c_max, 4000.0, "damping at u_hard [N s/m] (continuous laws), > c_min")
+  X(double, c_max, 4000.0, "damping at u_hard [N s/m] (continuous laws), > c_min")           \
+  X(double, u_tau_s, 0.0, "command filter time constant [s], >= 0; 0 = none (not EXTERNAL)")
 
 #define DN_FIELD_DECL_(type, name, def, doc) type name;
 typedef struct dn_controller { DN_CONTROLLER_FIELDS(DN_FIELD_DECL_) } dn_controller;
@@ -428,8 +434,9 @@ DN_API void dn_controller_default(dn_controller* c, int kind);
   X(8, f_last, "force of the most recent damper evaluation [N] (acceleration start value)") \
   X(9, temperature, "damper temperature [degC]")                                      \
   X(10, v_lag, "relative velocity after the velocity_lag feature's lag [m/s]")        \
-  X(11, z_fric, "Dahl friction state of the friction_state feature [-]")
-#define DN_LOOP_STATE_SIZE 12
+  X(11, z_fric, "Dahl friction state of the friction_state feature [-]")                \
+  X(12, u_cmd, "control applied over the last step, after the command filter [V]")
+#define DN_LOOP_STATE_SIZE 13
 
 /* Per step input: the road at the END of the step (t + dt) and an external control. */
 typedef struct dn_loop_input {

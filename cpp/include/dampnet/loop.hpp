@@ -12,7 +12,8 @@
 //   m_us a_us =  k_s (z_s - z_us) + (F - f_static) - k_t (z_us - z_r) - c_t (v_us - v_r)
 //
 // Within a step the control u is held (computed by the controller from the
-// state at the step start); the road is the cubic Hermite interpolant of
+// state at the step start, then through the command filter when u_tau_s > 0,
+// whose state u_cmd is the control of the last step); the road is the cubic Hermite interpolant of
 // (z_r, v_r) at the step's start (in the state) and end (the step input); the
 // lagged control follows its exact first-order response to the held u.
 //
@@ -130,6 +131,7 @@ struct LoopModel {
   double vlag_a_half = 1, vlag_g_half = 0, vlag_a_full = 1, vlag_g_full = 0;
   bool has_vlag = false;
   double inv_presliding = 0;  // 1 / friction_presliding_m; 0 without friction_state
+  double cmd_keep = 0;        // exp(-dt / u_tau_s): the command filter; 0 = unfiltered
   double k_rel = 0;                   // 1/m_s + 1/m_us: da/dF of the relative acceleration
   bool implicit_a = false;            // solve the acceleration coupling (see dn_accel_feature)
   bool linear_a = false;              // ... by one linearised Newton step (DN_ACCEL_LINEAR)
@@ -152,11 +154,11 @@ struct LoopModel {
         v.accel_feature != DN_ACCEL_LINEAR)
       return DN_E_PARAM;
     const double cv[] = {c.u_passive, c.u_soft, c.u_hard, c.u_min, c.u_max,
-                         c.c_sky,     c.c_gnd,  c.c_min,  c.c_max};
+                         c.c_sky,     c.c_gnd,  c.c_min,  c.c_max, c.u_tau_s};
     for (double x : cv)
       if (!std::isfinite(x)) return DN_E_NONFINITE_PARAM;
     if (c.kind < DN_CTRL_PASSIVE || c.kind > DN_CTRL_EXTERNAL) return DN_E_PARAM;
-    if (!(c.u_min <= c.u_max) || c.c_sky < 0 || c.c_gnd < 0) return DN_E_PARAM;
+    if (!(c.u_min <= c.u_max) || c.c_sky < 0 || c.c_gnd < 0 || c.u_tau_s < 0) return DN_E_PARAM;
     if ((c.kind == DN_CTRL_SKYHOOK_CONTINUOUS || c.kind == DN_CTRL_GROUNDHOOK_CONTINUOUS) &&
         !(c.c_max > c.c_min))
       return DN_E_PARAM;
@@ -178,6 +180,7 @@ struct LoopModel {
       vlag_g_full = 1.0 - tv * c_full / v.dt;
     }
     inv_presliding = d.presliding() > 0 ? 1.0 / d.presliding() : 0.0;
+    cmd_keep = c.u_tau_s > 0 && c.kind != DN_CTRL_EXTERNAL ? std::exp(-v.dt / c.u_tau_s) : 0.0;
     k_rel = inv_ms + inv_mus;
     implicit_a = false;
     a_span = 1.0;
@@ -381,6 +384,8 @@ inline Start start(const LoopModel& m, const double* s, double u_ext, dn_loop_ou
                    uint32_t* mask, int64_t* n_evals) noexcept {
   Start r;
   r.u = control_law(m.ctrl, s[S_v_s], s[S_v_us], u_ext);
+  // Command filter: between the last control and the law's, both in [u_min, u_max].
+  if (m.cmd_keep > 0.0) r.u += (s[S_u_cmd] - r.u) * m.cmd_keep;
   const Body b{s[S_z_s], s[S_v_s], s[S_z_us], s[S_v_us]};
   r.in = damper_input(m, b, s[S_z_r], s[S_v_r], r.u, s[S_u_lag], {s[S_v_lag], s[S_z_fric]},
                       s[S_f_last], s[S_temperature], s[S_t], 0);
@@ -411,6 +416,7 @@ inline Start start(const LoopModel& m, const double* s, double u_ext, dn_loop_ou
 inline void reset(const LoopModel& m, LoopData& d) noexcept {
   for (double& x : d.s) x = 0.0;
   d.s[S_u_lag] = m.ctrl.kind == DN_CTRL_EXTERNAL ? 0.0 : control_law(m.ctrl, 0.0, 0.0, 0.0);
+  d.s[S_u_cmd] = d.s[S_u_lag];  // the control at rest: a filtered law starts settled
   d.s[S_f_last] = m.veh.f_static;
   d.s[S_temperature] = m.veh.temperature;
 }
@@ -498,6 +504,7 @@ DN_REALTIME inline int step(const LoopModel& m, LoopData& d, const dn_loop_input
   ns[S_z_r] = zr1;
   ns[S_v_r] = vr1;
   ns[S_u_lag] = ul_end;
+  ns[S_u_cmd] = u;
   ns[S_f_last] = f_last;
   if (m.has_vlag || m.inv_presliding > 0) {
     const detail::MotionLag lag1 =

@@ -102,6 +102,7 @@ class Controller:
     c_gnd: float = 2500.0
     c_min: float = 500.0
     c_max: float = 4000.0
+    u_tau_s: float = 0.0  # command filter time constant [s]; 0 = none (see run())
 
     def validate(self) -> None:
         if self.kind not in CONTROL_LAWS:
@@ -111,6 +112,8 @@ class Controller:
                 raise LoopError(f"controller {k} must be finite, got {v!r}")
         if not self.u_min <= self.u_max:
             raise LoopError("controller u_min must not exceed u_max")
+        if self.u_tau_s < 0:
+            raise LoopError(f"controller u_tau_s (command filter time constant, s) must be >= 0, got {self.u_tau_s!r}")
         if self.kind.endswith("continuous") and not self.c_max > self.c_min:
             raise LoopError("continuous laws need c_max > c_min")
 
@@ -392,6 +395,10 @@ def run(damper, z_r, v_r, vehicle: Vehicle | None = None, controller: Controller
     ms, mus, ks, kt, ct = veh.m_s, veh.m_us, veh.k_s, veh.k_t, veh.c_t
     damper.reset()
     u0 = ctrl.law(0.0, 0.0)
+    # Command filter (the runtime's u_tau_s): the law's control through a first-order
+    # low-pass, sampled at the step start and held; it starts settled at the control at rest.
+    cmd_keep = math.exp(-veh.dt / ctrl.u_tau_s) if ctrl.u_tau_s > 0 else 0.0
+    u_cmd = u0
     if veh.f_static is None:
         rest = getattr(damper, "force_at_rest", None)
         f_static = float(rest(u0, h)) if rest else float(damper.force(veh.x_static, 0.0, 0.0, u0, h))
@@ -419,6 +426,9 @@ def run(damper, z_r, v_r, vehicle: Vehicle | None = None, controller: Controller
     for k in range(n):
         zr0, vr0, zr1, vr1 = z_r[k], v_r[k], z_r[k + 1], v_r[k + 1]
         u = ctrl.law(vs, vus)
+        if cmd_keep > 0.0:
+            u += (u_cmd - u) * cmd_keep
+        u_cmd = u
         as_l, aus_l = accel(zs, vs, zus, vus, zr0, vr0, f_last)
         x, v, a = zs - zus + veh.x_static, vs - vus, as_l - aus_l
         if advance is not None:
