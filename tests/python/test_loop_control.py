@@ -55,6 +55,40 @@ def test_control_laws_match_documented_formulas(kind):
     assert np.all(np.isfinite(u)) and np.all((u >= 0) & (u <= 5))
 
 
+@pytest.mark.parametrize("kind", ["skyhook_onoff", "skyhook_continuous", "groundhook_onoff"])
+def test_command_filter_is_the_documented_first_order_lowpass(kind):
+    """u_tau_s: the law's control through u_k = u_law + (u_{k-1} - u_law) exp(-dt/tau), starting settled
+    at the control at rest; checked against scipy's lfilter of the law on the loop's own states."""
+    from scipy.signal import lfilter
+
+    z, zd = random_road(seed=3, rms=0.012)
+    tau = 0.004
+    car = QuarterCar(_core.Damper.parametric(**PAR), {}, dict(CTRL, kind=kind, u_tau_s=tau))
+    t = np.arange(3000) * car.dt
+    out = car.simulate(z(t), zd(t))
+    vs, vus = out["state"][:, S["v_s"]], out["state"][:, S["v_us"]]
+    law = law_reference(kind, vs, vus)
+    keep = np.exp(-car.dt / tau)
+    u_rest = law_reference(kind, np.zeros(1), np.zeros(1))[0]
+    ref, _ = lfilter([1.0 - keep], [1.0, -keep], law, zi=[keep * u_rest])
+    np.testing.assert_allclose(out["control"], ref, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(out["state"][1:, S["u_cmd"]], out["control"][:-1])  # the state is the last u
+    assert np.max(np.abs(out["control"] - law)) > 1.0   # it does filter: on-off jumps by 5 V
+
+
+def test_command_filter_leaves_passive_and_external_alone_and_rejects_bad_values():
+    z, zd = random_road(seed=3, rms=0.012)
+    t = np.arange(500) * 1e-3
+    for kind, extra in (("passive", {}), ("external", {})):
+        a = QuarterCar(_core.Damper.parametric(**PAR), {}, dict(CTRL, kind=kind, **extra))
+        b = QuarterCar(_core.Damper.parametric(**PAR), {}, dict(CTRL, kind=kind, u_tau_s=0.05, **extra))
+        u = 1.0 + np.sin(t * 40)
+        np.testing.assert_array_equal(a.simulate(z(t), zd(t), u=u)["control"], b.simulate(z(t), zd(t), u=u)["control"])
+    for bad, code in ((-1e-3, "DN_E_PARAM"), (float("nan"), "NONFINITE_PARAM"), (float("inf"), "NONFINITE_PARAM")):
+        with pytest.raises(ValueError, match=code):
+            _core.LoopModel(_core.Damper.linear(1.0), {}, dict(CTRL, kind="skyhook_onoff", u_tau_s=bad))
+
+
 def test_external_control_is_clamped_to_limits():
     car = QuarterCar(_core.Damper.parametric(**PAR), {}, dict(CTRL, kind="external", u_max=4.0))
     u = np.array([-1.0, 2.0, 9.0, 3.0])

@@ -30,7 +30,7 @@ typedef struct dn_vehicle {
 } dn_vehicle;
 typedef struct dn_controller {
   int kind; double u_passive; double u_soft; double u_hard; double u_min; double u_max;
-  double c_sky; double c_gnd; double c_min; double c_max;
+  double c_sky; double c_gnd; double c_min; double c_max; double u_tau_s;
 } dn_controller;
 typedef struct dn_loop_input { double z_r; double v_r; double u; } dn_loop_input;
 typedef struct dn_loop_out {
@@ -94,7 +94,8 @@ def test_c_program_equals_pybind(tmp_path, road, via_pybind):
     np.testing.assert_allclose(forces, ref_forces, rtol=1e-12, atol=1e-9)
 
 
-def test_cffi_equals_pybind(model, road, via_pybind):
+def run_cffi(model, road, u_tau_s=0.0):
+    """The skyhook run of via_pybind through the C ABI from Python (cffi): (states, forces)."""
     cffi = pytest.importorskip("cffi")
     ffi = cffi.FFI()
     ffi.cdef(CDEF)
@@ -130,6 +131,7 @@ def test_cffi_equals_pybind(model, road, via_pybind):
     lib.dn_vehicle_default(veh)
     ctrl = ffi.new("dn_controller*")
     lib.dn_controller_default(ctrl, 1)
+    ctrl.u_tau_s = u_tau_s
     m = ffi.new("dn_loop_model**")
     ok(lib.dn_loop_model_create(veh, damper[0], ctrl, m))
     d = ffi.new("dn_loop_data**")
@@ -154,9 +156,25 @@ def test_cffi_equals_pybind(model, road, via_pybind):
     lib.dn_loop_model_destroy(m[0])
     lib.dn_damper_destroy(damper[0])
     lib.dn_mlp_destroy(mlp[0])
+    return np.array(states), np.array(forces)
+
+
+def test_cffi_equals_pybind(model, road, via_pybind):
+    states, forces = run_cffi(model, road)
     ref_states, ref_forces = via_pybind
-    np.testing.assert_allclose(np.array(states), ref_states, rtol=1e-12, atol=1e-15)
-    np.testing.assert_allclose(np.array(forces), ref_forces, rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(states, ref_states, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(forces, ref_forces, rtol=1e-12, atol=1e-9)
+
+
+def test_command_filter_through_cffi_equals_pybind(model, road, via_pybind):
+    """dn_controller.u_tau_s (ABI 0.3) set from C reaches the loop as from pybind, and changes the run."""
+    states, forces = run_cffi(model, road, u_tau_s=0.004)
+    car = QuarterCar(add_terms(damper_from_model(model), GAS), {}, {"kind": "skyhook_onoff", "u_tau_s": 0.004})
+    out = car.simulate(*road)
+    np.testing.assert_allclose(states, out["state"][:, [S["t"], S["z_s"], S["v_s"], S["z_us"], S["v_us"]]],
+                               rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(forces, out["force"][:-1], rtol=1e-12, atol=1e-9)
+    assert np.max(np.abs(forces - via_pybind[1])) > 10.0   # the filter changes the forces [N]
 
 
 def test_forward_reports_what_the_next_step_reports_without_advancing(model, road):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -30,15 +31,16 @@ def test_python_loop_matches_scipy_for_a_linear_damper():
     assert np.max(np.abs(r["z_us"] - y[:-1, 2])) < 0.01 * np.max(np.abs(y[:, 2]))
 
 
-@pytest.mark.parametrize("control", ["passive", "skyhook"])
-def test_python_loop_is_the_runtime_loop_for_linear_and_lookup(control):
+@pytest.mark.parametrize("control,u_tau_s", [("passive", 0.0), ("skyhook", 0.0), ("skyhook", 0.005),
+                                             ("skyhook_continuous", 0.005)])
+def test_python_loop_is_the_runtime_loop_for_linear_and_lookup(control, u_tau_s):
     from dampnet.evaluate.lookup import LookupTable
 
     table = LookupTable(velocities=[-1.0, -0.1, 0.0, 0.1, 1.0], voltages=[0.0, 5.0],
                         forces=[[-1500, -400, 0, 700, 3000], [-600, -150, 0, 200, 900]])
     road = thesis_rough_road()
     for spec in (DamperSpec("lin", "linear", 1500.0), lookup_spec(table)):
-        ctrl = Controller(kind=control)
+        ctrl = Controller(kind=control, u_tau_s=u_tau_s)
         a = simulate(spec, road, 20.0, ctrl, backend="core")["arrays"]
         b = simulate(spec, road, 20.0, ctrl, backend="python")["arrays"]
         for k in ("z_s", "z_us", "acc_s", "force", "u"):
@@ -103,13 +105,16 @@ def rig_models():
 
 @pytest.fixture(scope="module")
 def rough_runs(rig_models):
-    from dampnet.study import continuous_skyhook, damping_levels
+    from dampnet.study import continuous_skyhook, damping_levels, onoff_skyhook
 
     neural, _, truth = rig_models
     road = thesis_rough_road()
     # One controller for both dampers, calibrated on the truth (dampnet.study.continuous_skyhook:
-    # c_sky = 2 sqrt(k_s m_s) / sqrt(2), c_min / c_max = the truth's equivalent damping at 5 / 0 V).
+    # c_sky = 2 sqrt(k_s m_s) / sqrt(2), c_min / c_max = the truth's equivalent damping at 5 / 0 V),
+    # both laws with the study's 5 ms command filter.
     cont = continuous_skyhook(truth, damping_levels(truth))
+    onoff = onoff_skyhook(damping_levels(truth))
+    assert cont.u_tau_s == onoff.u_tau_s == 0.005
     out = {}
     for spec in (neural, truth):
         lv = {"high": 0.0, "low": 5.0}
@@ -117,10 +122,12 @@ def rough_runs(rig_models):
             for level, u in lv.items():
                 r = simulate(spec, road, speed, Controller(kind="passive", u_passive=u))
                 out[(spec.name, speed, level)] = r["metrics"]["acc_rms_m_s2"]
-            r = simulate(spec, road, speed, Controller(kind="skyhook", u_soft=5.0, u_hard=0.0))
+            r = simulate(spec, road, speed, onoff)
             out[(spec.name, speed, "skyhook")] = r["metrics"]["acc_rms_m_s2"]
             r = simulate(spec, road, speed, cont)
             out[(spec.name, speed, "skyhook_continuous")] = r["metrics"]["acc_rms_m_s2"]
+            r = simulate(spec, road, speed, replace(cont, u_tau_s=0.0))
+            out[(spec.name, speed, "skyhook_continuous_unfiltered")] = r["metrics"]["acc_rms_m_s2"]
     print("rough road acc RMS:", json.dumps({f"{n}_{v:g}_{k}": round(a, 4) for (n, v, k), a in out.items()}))
     return out
 
@@ -139,38 +146,43 @@ def test_skyhook_lowers_acceleration_against_passive_high(rough_runs, name, spee
     # Skyhook between the damper's own settings against passive at its high-damping setting
     # (the same damper), by a margin far above the neural model's error. Recorded (truth / neural,
     # m/s^2): passive high 0.942 / 0.931 at 10 m/s, 1.201 / 1.203 at 20 m/s; on-off skyhook
-    # 0.639 / 0.644 and 0.882 / 0.895; continuous 0.487 / 0.500 and 0.704 / 0.731.
+    # 0.658 / 0.651 and 0.899 / 0.899; continuous 0.485 / 0.484 and 0.699 / 0.704.
     assert rough_runs[(name, speed, law)] < 0.85 * rough_runs[(name, speed, "high")]
 
 
+@pytest.mark.parametrize("name", ["truth", "neural"])
 @pytest.mark.parametrize("speed", [10.0, 20.0])
-def test_continuous_skyhook_lowers_acceleration_against_passive_low_for_the_truth(rough_runs, speed):
-    # Against passive *low* damping (5 V) only the continuous law helps, and only a little
-    # (see dampnet.study's docstring: the soft setting is already above the best passive damping
-    # for acceleration RMS and a semi-active law can only add damping; even an ideal force-tracking
-    # skyhook gets 1.6-2.2 %). Recorded, truth: 0.4870 vs 0.4909 (-0.8 %) at 10 m/s, 0.7042 vs
-    # 0.7108 (-0.9 %) at 20 m/s; on-off skyhook is above passive low (0.639, 0.882).
-    # Asserted for the truth damper only: the neural model's error under continuous skyhook
-    # (recorded +2.7 % / +3.8 %, neural 0.500 / 0.731 vs its passive low 0.493 / 0.716) is larger
-    # than the gain, so its sign is not a property of the model.
-    assert rough_runs[("truth", speed, "skyhook_continuous")] < rough_runs[("truth", speed, "low")]
-    assert rough_runs[("truth", speed, "skyhook")] > rough_runs[("truth", speed, "low")]
+def test_continuous_skyhook_lowers_acceleration_against_passive_low(rough_runs, name, speed):
+    """Against passive *low* damping (5 V) the continuous law helps, a little (dampnet.study's
+    docstring: the soft setting is already above the best passive damping for acceleration RMS
+    and a semi-active law can only add damping). On-off skyhook is above passive low.
+
+    The command filter makes this a property of the model too: unfiltered, the law's jumps of
+    control jolt the body, the truth gains only 0.8 / 0.9 % (10 / 20 m/s), and the neural
+    model, whose force answers the acceleration spikes of those jumps, is +1.4 / +2.2 % above
+    its passive low.
+    Recorded (filtered, 5 ms): truth 0.4848 vs 0.4909 (-1.2 %) at 10 m/s,
+    0.6994 vs 0.7108 (-1.6 %) at 20 m/s; neural 0.4839 vs 0.4933 (-1.9 %) and 0.7038 vs 0.7158
+    (-1.7 %); with training seeds 1 and 2 the neural model gains 1.7-2.5 %. On-off: +26 to +34 %."""
+    assert rough_runs[(name, speed, "skyhook_continuous")] < 0.995 * rough_runs[(name, speed, "low")]
+    assert rough_runs[(name, speed, "skyhook")] > rough_runs[(name, speed, "low")]
 
 
 def test_neural_tracks_truth_under_skyhook(rough_runs):
-    # The model must cover the voltages between the ends: recorded +0.8 / +1.5 % (on-off) and
-    # +2.7 / +3.8 % (continuous) at 10 / 20 m/s; trained on 0 and 5 V only it was +150 / +250 %
-    # under continuous skyhook.
+    # The model must cover the voltages between the ends: recorded -1.1 / +0.0 % (on-off) and
+    # -0.2 / +0.6 % (continuous) at 10 / 20 m/s, +2.7 / +3.8 % under unfiltered continuous skyhook;
+    # trained on 0 and 5 V only it was +150 / +250 % under continuous skyhook.
     for law in ("skyhook", "skyhook_continuous"):
         for speed in (10.0, 20.0):
             t = rough_runs[("truth", speed, law)]
-            assert rough_runs[("neural", speed, law)] == pytest.approx(t, rel=0.06), (law, speed)
+            assert rough_runs[("neural", speed, law)] == pytest.approx(t, rel=0.03), (law, speed)
 
 
 def test_diagnosed_compressibility_makes_the_model_track_the_truth_under_skyhook(rig_models, rough_runs):
     """Diagnose the road model, add what the diagnosis names, and the model follows the truth
-    under continuous skyhook 2-3x more closely (the rig's oil compressibility lags the hydraulic
-    force by 2 ms; the acceleration input carries only its first-order part)."""
+    under continuous skyhook without a command filter (the hardest case: jumps of control)
+    2-3x more closely (the rig's oil compressibility lags the hydraulic force by 2 ms; the
+    acceleration input carries only its first-order part)."""
     from dampnet.data.rig import Plan, generate
     from dampnet.diagnose.catalogue import additions
     from dampnet.diagnose.run import diagnose
@@ -188,16 +200,17 @@ def test_diagnosed_compressibility_makes_the_model_track_the_truth_under_skyhook
                                 feature_params=add["feature_params"], algorithm="lm", max_epochs=200,
                                 seed=0, holdout_voltage=None)
     improved = neural_spec(model, "improved")
-    cont = continuous_skyhook(truth, damping_levels(truth))
+    cont = continuous_skyhook(truth, damping_levels(truth), u_tau_s=0.0)
     errs = {}
     for speed in (10.0, 20.0):
-        t = rough_runs[("truth", speed, "skyhook_continuous")]
+        t = rough_runs[("truth", speed, "skyhook_continuous_unfiltered")]
         errs[speed] = (simulate(improved, thesis_rough_road(), speed, cont)["metrics"]["acc_rms_m_s2"] - t) / t
-        before = (rough_runs[("neural", speed, "skyhook_continuous")] - t) / t
+        before = (rough_runs[("neural", speed, "skyhook_continuous_unfiltered")] - t) / t
         # recorded: +2.7 / +3.8 % before, +0.7 / +1.7 % after (10 / 20 m/s)
         assert abs(errs[speed]) < 0.6 * abs(before), (speed, before, errs[speed])
         assert abs(errs[speed]) < 0.02
-    print("improved model vs truth under continuous skyhook:", {k: round(100 * v, 2) for k, v in errs.items()})
+    print("improved model vs truth under unfiltered continuous skyhook:",
+          {k: round(100 * v, 2) for k, v in errs.items()})
 
 
 def test_neural_tracks_truth_on_the_rough_road(rough_runs, capsys):
@@ -211,14 +224,7 @@ def test_neural_tracks_truth_on_the_rough_road(rough_runs, capsys):
     # Recorded (ROAD_PLAN model, LM 200 epochs, runtime loop, implicit acceleration feature):
     # +0.50 % / -1.21 % at 10 m/s low/high, +0.70 % / +0.14 % at 20 m/s. (The earlier plan,
     # 0 and 5 V only: +0.99 / -1.20 / +0.77 / -0.16 %.)
-    assert all(abs(e) < 0.3 for e in errs.values())
-
-
-def test_neural_tracks_truth_within_3_percent(rough_runs):
-    for speed in (10.0, 20.0):
-        for level in ("low", "high"):
-            t = rough_runs[("truth", speed, level)]
-            assert rough_runs[("neural", speed, level)] == pytest.approx(t, rel=0.03)
+    assert all(abs(e) < 0.03 for e in errs.values())
 
 
 def test_nonsensical_inputs_get_clear_errors():
