@@ -406,7 +406,10 @@ def text_tables(res: dict) -> str:
              for law in ("skyhook", "skyhook_continuous") if c.endswith("_" + law)
              for p in ("passive_low", "passive_high") if c[:-len(law)] + p in sky]
     if gains:
-        lines.append("Skyhook against passive: change of sprung acceleration RMS, %")
+        c = res["settings"]["skyhook"]["continuous"]
+        lines.append(f"Skyhook against passive: change of sprung acceleration RMS, % (continuous: c_sky "
+                     f"{c['c_sky']:.0f}, c_min {c['c_min']:.0f}, c_max {c['c_max']:.0f} N s/m; both laws: "
+                     f"command filter {1e3 * c['u_tau_s']:g} ms)")
         lines.append("  " + f"{'case':<40}" + "".join(f"{m:>12}" for m in models))
         for label, c, p in gains:
             lines.append("  " + f"{label:<40}" + "".join(

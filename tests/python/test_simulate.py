@@ -244,7 +244,7 @@ def test_nonsensical_inputs_get_clear_errors():
         simulate(spec, road, 10.0, Controller(kind="magic"))
 
 
-def test_simulate_command_writes_arrays_metrics_and_plots(tmp_path):
+def test_simulate_command_writes_arrays_metrics_and_plots(tmp_path, capsys):
     from dampnet.cli import main
 
     out = tmp_path / "run"
@@ -255,4 +255,30 @@ def test_simulate_command_writes_arrays_metrics_and_plots(tmp_path):
     assert {"acc_rms_m_s2", "acc_wk_rms_m_s2", "disp_peak_to_rms", "travel_rms_m", "travel_max_m",
             "tyre_load_rms_n"} <= set(m)
     assert (out / "time_history.png").stat().st_size > 1000
-    assert main(["simulate", "linear:1500", "--road", "rough", "--dt", "0", "--out", str(out)]) == 2
+    assert main(["simulate", "linear:1500", "--road", "rough", "--dt", "0", "--out", str(tmp_path / "dt0")]) == 2
+    assert "dt" in capsys.readouterr().err
+
+
+def test_simulate_command_keeps_runs_and_filters_the_switching_laws(tmp_path, capsys):
+    from dampnet.cli import main
+    from dampnet.commands.simulate import COMMAND_TAU_S
+    from dampnet.study import SKYHOOK_COMMAND_TAU_S
+
+    assert COMMAND_TAU_S == SKYHOOK_COMMAND_TAU_S
+    out = tmp_path / "run"
+    args = ["simulate", "truth", "--road", "bump", "--control", "skyhook_continuous", "--out", str(out)]
+    assert main(args) == 0
+    meta = json.loads((out / "metrics.json").read_text())
+    ctrl = meta["controller"]
+    # calibrated on the damper as in the study (the rig damper's soft / stiff ends, not the defaults)
+    assert ctrl["u_tau_s"] == COMMAND_TAU_S and 1000 < ctrl["c_min"] < 2500 and ctrl["c_max"] > 4000
+    assert "command filter 5 ms" in capsys.readouterr().out
+    before = (out / "run.npz").read_bytes()
+    assert main(args + ["--command-tau", "0"]) == 2               # an existing run is kept ...
+    assert "refusing to overwrite" in capsys.readouterr().err
+    assert (out / "run.npz").read_bytes() == before
+    assert main(args + ["--command-tau", "0", "--force"]) == 0    # ... unless asked
+    assert json.loads((out / "metrics.json").read_text())["controller"]["u_tau_s"] == 0.0
+    assert not list(out.glob(".*"))                                  # no temporary files left
+    assert main(args[:-2] + ["--command-tau", "-1", "--out", str(tmp_path / "bad")]) == 2
+    assert "u_tau_s" in capsys.readouterr().err

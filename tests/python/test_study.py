@@ -31,6 +31,10 @@ def test_study_structure_and_tables(tmp_path):
     from dampnet.ride.pyloop import Controller
     assert cont["calibrated_on"] == "soft"
     assert (cont["c_min"], cont["c_max"]) == (Controller.c_min, Controller.c_max)
+    # both laws with the command filter, recorded
+    assert cont["u_tau_s"] == 0.005
+    assert all(o["u_tau_s"] == 0.005 for o in d["settings"]["skyhook"]["onoff"].values())
+    assert "command filter 5 ms" in text_tables(d)
     for model in ("soft", "stiff"):
         assert d["sine_sweep"]["low"][model]["transmissibility_peak"] > 1.0
     # A linear damper ignores the control: both levels give the same numbers; stiffer damping lowers

@@ -6,6 +6,9 @@ import argparse
 import json
 import sys
 
+CONTROLS = ("passive", "skyhook", "skyhook_continuous", "groundhook", "groundhook_continuous")
+COMMAND_TAU_S = 0.005  # = dampnet.study.SKYHOOK_COMMAND_TAU_S (not imported: keeps --help fast)
+
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
@@ -17,8 +20,11 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--road", default="rough",
                    help="impulse, bump, sweep, rough (thesis), iso:A..iso:H, or a CSV distance_m,elevation_m")
     p.add_argument("--speed", type=float, default=10.0, help="speed [m/s] for distance profiles")
-    p.add_argument("--control", default="passive",
-                   help="passive, skyhook, skyhook_continuous, groundhook, groundhook_continuous")
+    p.add_argument("--control", default="passive", choices=CONTROLS,
+                   help="control law; skyhook_continuous is calibrated on the damper as in `dampnet study`")
+    p.add_argument("--command-tau", type=float, default=None, metavar="S",
+                   help="command filter time constant of the switching laws [s] (default: the study's "
+                        f"{1e3 * COMMAND_TAU_S:g} ms; 0 = unfiltered)")
     p.add_argument("--damping", choices=("low", "high"), default="high",
                    help="passive control level (found from the model's control range)")
     p.add_argument("--u", type=float, default=None, help="passive control [V] (overrides --damping)")
@@ -26,6 +32,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="seed of random roads")
     p.add_argument("--backend", choices=("auto", "core", "python"), default="auto")
     p.add_argument("--out", default="simulate_out", help="output directory")
+    p.add_argument("--force", action="store_true", help="replace an existing run in --out")
     p.set_defaults(handler=run)
     return p
 
@@ -54,14 +61,22 @@ def load_spec(text: str):
 
 
 def run(args) -> int:
+    import os
     from pathlib import Path
 
     import numpy as np
 
     from dampnet.ride.pyloop import Controller, LoopError, Vehicle
     from dampnet.roads import RoadError, make_road
-    from dampnet.study import damping_levels, plot_run, plot_transmissibility, simulate
+    from dampnet.model import atomic_write_text
+    from dampnet.study import continuous_skyhook, damping_levels, plot_run, plot_transmissibility, simulate
 
+    out = Path(args.out)
+    existing = [out / f for f in ("run.npz", "metrics.json") if (out / f).exists()]
+    if existing and not args.force:
+        print(f"dampnet: error: {existing[0]}: exists; refusing to overwrite (use --force)", file=sys.stderr)
+        return 2
+    tau = COMMAND_TAU_S if args.command_tau is None else args.command_tau
     try:
         spec = load_spec(args.model)
         road = make_road(args.road, seed=args.seed)
@@ -70,29 +85,33 @@ def run(args) -> int:
         lv = damping_levels(spec, args.dt)
         if args.control == "passive":
             ctrl = Controller(kind="passive", u_passive=lv[args.damping] if args.u is None else args.u)
+        elif args.control == "skyhook_continuous":
+            ctrl = continuous_skyhook(spec, lv, veh, u_tau_s=tau)
         else:
             ctrl = Controller(kind=args.control, u_soft=lv["low"], u_hard=lv["high"],
-                              u_min=min(lv.values()), u_max=max(lv.values()))
+                              u_min=min(lv.values()), u_max=max(lv.values()), u_tau_s=tau)
         res = simulate(spec, road, args.speed if road.kind == "spatial" else None, ctrl, veh,
                        backend=args.backend)
     except (RoadError, LoopError, ValueError, OSError, KeyError) as e:
         print(f"dampnet: error: {e}", file=sys.stderr)
         return 2
-    out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     arrays = dict(res["arrays"])
     if "transmissibility" in res:
         for k in ("f_hz", "magnitude", "phase_rad"):
             arrays[f"transmissibility_{k}"] = res["transmissibility"][k]
-    np.savez_compressed(out / "run.npz", **arrays)
+    tmp = out / ".run.npz.partial.npz"
+    np.savez_compressed(tmp, **arrays)
+    os.replace(tmp, out / "run.npz")
     meta = {k: v for k, v in res.items() if k not in ("arrays", "transmissibility")}
-    (out / "metrics.json").write_text(json.dumps(meta, indent=2, default=float) + "\n")
+    atomic_write_text(out / "metrics.json", json.dumps(meta, indent=2, default=float) + "\n", overwrite=True)
     plot_run(res, out / "time_history.png", f"{spec.name} on {road.name}, {ctrl.kind}")
     if "transmissibility" in res:
         plot_transmissibility({spec.name: res}, out / "transmissibility.png")
     m = res["metrics"]
     print(f"{spec.name} on {road.name}" + (f" at {args.speed:g} m/s" if road.kind == "spatial" else "")
-          + f", {ctrl.kind} ({res['backend']} loop, dt {args.dt:g} s): acc RMS {m['acc_rms_m_s2']:.4f} m/s^2, "
+          + f", {ctrl.kind}" + (f" (command filter {1e3 * ctrl.u_tau_s:g} ms)" if ctrl.kind != "passive" and ctrl.u_tau_s > 0 else "")
+          + f" ({res['backend']} loop, dt {args.dt:g} s): acc RMS {m['acc_rms_m_s2']:.4f} m/s^2, "
           f"Wk RMS {m['acc_wk_rms_m_s2']:.4f} m/s^2, disp peak/RMS {m['disp_peak_to_rms']:.3f}, travel RMS "
           f"{1e3 * m['travel_rms_m']:.2f} mm (max {1e3 * m['travel_max_m']:.2f}), tyre load RMS "
           f"{m['tyre_load_rms_n']:.1f} N -> {out}")
