@@ -1,6 +1,7 @@
 // The MLP kernel: run-time vs compile-time paths, float vs double, validation,
 // and the documented policy for non-finite and out-of-range inputs.
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <limits>
 #include <random>
@@ -183,7 +184,46 @@ void gradient_matches_difference(int act, unsigned seed) {
   CHECK(md.forward_grad(x.data(), &y, In, &g) >= 0 && g == 0.0);  // index out of range
 }
 
+// The float kernel's own tanh (on the AVX2 / AVX-512 paths the 15/4 rational with the
+// output weight folded into its numerator, see mlp.hpp tanh_folded) through a 1-1-1 model
+// whose scalings are the identity: y = w tanh(x), dy/dx = w (1 - tanh^2 x), every 1024th
+// float of [-10, 10], both sizes; the float tanh bound (5e-7, activation.hpp) scaled by |w|.
+template <class M>
+void kernel_tanh_accuracy(double w) {
+  const double w1 = 1.0, b1 = 0.0, b_out = 0.0, off = 0.0, gain = 1.0, lo = -20.0, hi = 20.0;
+  const dn_mlp_desc d{1, 1, 0, DN_ACT_TANH, &w1, &b1, nullptr, nullptr, &w, &b_out, &off, &gain,
+                      0.0, 0.0, 1.0, 0.0, &lo, &hi};
+  M m;
+  CHECK(m.load(&d) == DN_OK);
+  double worst = 0.0, worst_g = 0.0, at = 0.0;
+  for (float x = -10.0f; x <= 10.0f;) {
+    float y, g;
+    CHECK(m.forward_grad(&x, &y, 0, &g) == DN_OK);
+    const double t = std::tanh(double(x)), e = std::fabs(y - w * t);
+    if (e > worst) {
+      worst = e;
+      at = x;
+    }
+    worst_g = std::fmax(worst_g, std::fabs(g - w * (1.0 - t * t)));
+    float y0;
+    m.forward(&x, &y0);
+    CHECK(y0 == y);  // the value is the plain forward's
+    uint32_t b;
+    std::memcpy(&b, &x, 4);
+    b = (b & 0x80000000u) ? (b > 0x80000400u ? b - 1024u : 0u) : b + 1024u;
+    std::memcpy(&x, &b, 4);
+  }
+  std::printf("float kernel (%s) w tanh(x), w = %g: worst |error| %.3g (x = %.9g), of dy/dx %.3g\n",
+              dampnet::kernel_isa(), w, worst, at, worst_g);
+  CHECK(worst < 5e-7 * std::fabs(w) + 1e-12);
+  CHECK(worst_g < 2e-6 * std::fabs(w));
+}
+
 int main() {
+  kernel_tanh_accuracy<Mlp<float>>(1.0);
+  kernel_tanh_accuracy<StaticMlp<float, 1, 1, 0>>(1.0);
+  kernel_tanh_accuracy<Mlp<float>>(-0.37);
+  kernel_tanh_accuracy<StaticMlp<float, 1, 1, 0>>(2345.6);
   gradient_matches_difference<3, 30, 0>(DN_ACT_TANH, 21);
   gradient_matches_difference<3, 30, 0>(DN_ACT_SIGMOID, 22);
   gradient_matches_difference<4, 17, 9>(DN_ACT_TANH, 23);

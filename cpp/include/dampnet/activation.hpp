@@ -2,9 +2,9 @@
 //
 // double: tanh_d below (exp-based, within a few ulps of std::tanh, vectorisable),
 // so the double kernel meets its 1e-12 relative contract against a float64 reference.
-// float: a 13/6-degree odd/even rational interpolant of tanh on [-9, 9]
-// (the same form Eigen uses), branch-free so the compiler vectorises the
-// hidden layer. Its worst absolute error against std::tanh, measured over
+// float (scalar and SSE paths): a 13/6-degree odd/even rational interpolant of tanh
+// on [-9, 9] (the same form Eigen uses), branch-free so the compiler vectorises the
+// hidden layer; the AVX2 and AVX-512 kernels use a 15/4 rational (below, fast_tanh8). Its worst absolute error against std::tanh, measured over
 // [-10, 10] by tests/cpp/test_activation.cpp, is 3.2e-7 (bound checked: 5e-7;
 // about 5 float ulps, near |tanh| = 1); the sigmoid's is 1.7e-7 (bound 3e-7).
 // The logistic sigmoid is evaluated through the identity
@@ -54,37 +54,41 @@ inline float clamp_tanh_arg(float a) noexcept {
 
 inline float fast_tanh(float a) noexcept { return tanh_rational(clamp_tanh_arg(a)); }
 
+// The AVX2 (and AVX-512) kernels' float tanh: a 15/4-degree odd/even rational,
+// tanh(x) ~ x P(y) / Q(y), y = x^2, x clamped to +-kTanhClamp (tanh(8.125) = 1 - 1.8e-7),
+// P of degree 7 and Q(y) = y^2 + q1 y + q0 = y (y + q1) + q0, evaluated as one add and
+// one FMA: a shorter chain to the division than the 13/6 form's three FMAs. Fitted by
+// bench/fit_tanh_rational.py (linearised minimax over [0, kTanhClamp] with an allowance
+// for float rounding; 2.1e-7 from tanh in exact arithmetic, clamp included). Used with
+// each neuron's output weight folded into P's coefficients by the MLP kernel (mlp.hpp,
+// tanh_folded). Measured worst error of the float evaluation: 3.1e-7 over every float in
+// [-10, 10] (fast_tanh8; 2.9e-7 every 128th float, the test's walk).
+constexpr int kTanhPTerms = 8;
+constexpr double kTanhP[kTanhPTerms] = {
+    56.013727922621555,      6.4971212826648399,      0.078959531331288441,
+    -0.00045613713383282266, 4.2261502248783843e-06,  -3.4723963391927464e-08,
+    1.9402772002528185e-10,  -5.1804715822882512e-13};
+constexpr double kTanhQ0 = 56.013765804633906, kTanhQ1 = 25.168260707120925;
+constexpr float kTanhClamp = 8.125f, kTanhClampSq = 66.015625f;  // both exact
+
 #ifdef DN_TANH8_AVX2
-// The same rational on 8 floats with FMA (the AVX2 kernel's activation), arranged
-// for the shortest dependency chain: y = min(z^2, 81) equals x^2 for the clamped x
-// one operation sooner (NaN: z^2 is NaN and minps returns its second operand, 81;
-// x = 9), both polynomials by Estrin in y, and x / q computed while the numerator
-// polynomial finishes. Worst absolute error against std::tanh over [-10, 10]:
-// 2.7e-7 (tests/cpp/test_activation.cpp checks < 5e-7); +-Inf and NaN give +-1
-// and +1. (The reciprocal estimate plus a Newton step instead of the division
-// measured no faster here, and less accurate, 3.3e-7.)
-// tanh(z) = r * p, as two factors, so that a caller that only needs w * tanh(z)
-// can form fma(r, p * w, acc): p * w is ready while the division runs (the MLP's
-// output layer, one multiplication less on the chain).
-inline void fast_tanh8_factors(__m256 z, __m256& r, __m256& p) noexcept {
-  const __m256 x = _mm256_max_ps(_mm256_min_ps(z, _mm256_set1_ps(9.f)), _mm256_set1_ps(-9.f));
-  const __m256 y = _mm256_min_ps(_mm256_mul_ps(z, z), _mm256_set1_ps(81.f));
-  const __m256 y2 = _mm256_mul_ps(y, y), y4 = _mm256_mul_ps(y2, y2);
-  const __m256 e01 = _mm256_fmadd_ps(_mm256_set1_ps(6.37261928875436e-04f), y, _mm256_set1_ps(4.89352455891786e-03f));
-  const __m256 e23 = _mm256_fmadd_ps(_mm256_set1_ps(5.12229709037114e-08f), y, _mm256_set1_ps(1.48572235717979e-05f));
-  const __m256 e45 = _mm256_fmadd_ps(_mm256_set1_ps(2.00018790482477e-13f), y, _mm256_set1_ps(-8.60467152213735e-11f));
-  const __m256 lo = _mm256_fmadd_ps(e23, y2, e01);
-  const __m256 hi = _mm256_fmadd_ps(_mm256_set1_ps(-2.76076847742355e-16f), y2, e45);
-  p = _mm256_fmadd_ps(hi, y4, lo);
-  const __m256 q01 = _mm256_fmadd_ps(_mm256_set1_ps(2.26843463243900e-03f), y, _mm256_set1_ps(4.89352518554385e-03f));
-  const __m256 q23 = _mm256_fmadd_ps(_mm256_set1_ps(1.19825839466702e-06f), y, _mm256_set1_ps(1.18534705686654e-04f));
-  const __m256 q = _mm256_fmadd_ps(q23, y2, q01);
-  r = _mm256_div_ps(x, q);
-}
+// The 15/4 rational on 8 floats with FMA, in the MLP kernel's order of operations:
+// y = min(z^2, kTanhClampSq) equals x^2 for the clamped x one operation sooner (NaN: z^2
+// is NaN and minps returns its second operand; x = kTanhClamp), P by Estrin in y, and
+// t = (x / q) P. Worst absolute error against std::tanh over [-10, 10]: 3.1e-7
+// (tests/cpp/test_activation.cpp checks < 5e-7); +-Inf and NaN give +-(1 - 1.2e-7) and
+// +(1 - 1.2e-7), the rational's value at the clamp.
 inline __m256 fast_tanh8(__m256 z) noexcept {
-  __m256 r, p;
-  fast_tanh8_factors(z, r, p);
-  return _mm256_mul_ps(r, p);
+  const __m256 x = _mm256_max_ps(_mm256_min_ps(z, _mm256_set1_ps(kTanhClamp)), _mm256_set1_ps(-kTanhClamp));
+  const __m256 y = _mm256_min_ps(_mm256_mul_ps(z, z), _mm256_set1_ps(kTanhClampSq));
+  const __m256 y2 = _mm256_mul_ps(y, y), y4 = _mm256_mul_ps(y2, y2);
+  auto c = [](int k) { return _mm256_set1_ps(static_cast<float>(kTanhP[k])); };
+  const __m256 c01 = _mm256_fmadd_ps(c(1), y, c(0)), c23 = _mm256_fmadd_ps(c(3), y, c(2));
+  const __m256 c45 = _mm256_fmadd_ps(c(5), y, c(4)), c67 = _mm256_fmadd_ps(c(7), y, c(6));
+  const __m256 p = _mm256_fmadd_ps(_mm256_fmadd_ps(c67, y2, c45), y4, _mm256_fmadd_ps(c23, y2, c01));
+  const __m256 q = _mm256_fmadd_ps(y, _mm256_add_ps(y, _mm256_set1_ps(static_cast<float>(kTanhQ1))),
+                                   _mm256_set1_ps(static_cast<float>(kTanhQ0)));
+  return _mm256_mul_ps(_mm256_div_ps(x, q), p);
 }
 #endif
 

@@ -24,8 +24,12 @@
 // per 16 neurons in __m512 registers (layers padded to 16, 64-byte aligned); AVX2+FMA
 // when compiled with -mavx2 -mfma (CMake: DAMPNET_AVX2), a fused per-8-neuron pipeline
 // in __m256 registers (both: forward_simd over Simd16 / Simd8); otherwise SSE (x86-64
-// baseline) or plain C++ loops. The results of the paths differ by rounding only. Inputs inside their saturation range are read
-// in place (no copy, no min/max on the chain) when the offsets are folded.
+// baseline) or plain C++ loops. The SIMD paths' last hidden layer uses the 15/4 rational
+// tanh with each output weight folded into its numerator (activation.hpp, tanh_folded
+// below), the other paths and layers 13/6 rationals (AVX2: 15/4 as well); every path's
+// tanh is within 5e-7 of std::tanh, so the paths' results differ by rounding and by
+// that. Inputs inside their saturation range are read in place (no copy, no min/max on
+// the chain) when the offsets are folded.
 #pragma once
 
 #include <array>
@@ -195,6 +199,9 @@ inline T dot_padded(const T* __restrict w, const T* __restrict a, int n) noexcep
 #if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+// (Likewise, in Mlp's fully run-time branch, taken for n_in > 4, it reports reads beyond
+// a shorter input array of the caller's that that branch never receives.)
+#pragma GCC diagnostic ignored "-Warray-bounds"
 #endif
 template <typename T, int kIn, bool kSub, class P>
 inline int prepare_inputs(const P& p, const T* x, T* xs, uint32_t& mask) noexcept {
@@ -225,8 +232,28 @@ inline int prepare_inputs(const P& p, const T* x, T* xs, uint32_t& mask) noexcep
 // with the offsets folded, the kernel reads the caller's inputs directly and the
 // values reach layer 1 without passing through the saturation's min/max (compares
 // and one predicted branch beside the data chain, not on it).
+// float SIMD kernels: one vector compare against the stored ranges (lanes beyond the
+// inputs compare against -inf / +inf), fewer operations beside the chain than 2 n_in
+// scalar compares. Up to 4 compile-time inputs are gathered by scalar loads; otherwise a
+// masked load reads x[0..n_in-1] (AVX vmaskmovps: masked lanes are not read and cannot
+// fault, though one lying on an unmapped page costs a microcode assist).
 template <typename T, int kIn, class P>
 inline bool inputs_in_range(const P& p, const T* x) noexcept {
+#if DN_KERNEL_AVX2 || DN_KERNEL_AVX512
+  if constexpr (std::is_same<T, float>::value) {
+    if constexpr (kIn > 0 && kIn <= 4) {
+      const __m128 v = _mm_setr_ps(x[0], kIn > 1 ? x[1] : 0.f, kIn > 2 ? x[2] : 0.f, kIn > 3 ? x[3] : 0.f);
+      const __m128 ok = _mm_and_ps(_mm_cmp_ps(v, _mm_load_ps(p.sat_lo8.data()), _CMP_GE_OQ),
+                                   _mm_cmp_ps(v, _mm_load_ps(p.sat_hi8.data()), _CMP_LE_OQ));
+      return _mm_movemask_ps(ok) == 0xf;
+    } else {
+      const __m256 v = _mm256_maskload_ps(x, _mm256_load_si256(reinterpret_cast<const __m256i*>(p.in_mask8.data())));
+      const __m256 ok = _mm256_and_ps(_mm256_cmp_ps(v, _mm256_load_ps(p.sat_lo8.data()), _CMP_GE_OQ),
+                                      _mm256_cmp_ps(v, _mm256_load_ps(p.sat_hi8.data()), _CMP_LE_OQ));
+      return _mm256_movemask_ps(ok) == 0xff;
+    }
+  }
+#endif
   const int ni = kIn > 0 ? kIn : p.n_in;
   bool ok = true;
   for (int i = 0; i < ni; ++i) ok &= (x[i] >= p.sat_lo[i]) & (x[i] <= p.sat_hi[i]);
@@ -258,8 +285,10 @@ struct Simd8 {
   static V mul(V a, V b) noexcept { return _mm256_mul_ps(a, b); }
   static V fmadd(V a, V b, V c) noexcept { return _mm256_fmadd_ps(a, b, c); }
   static V fnmadd(V a, V b, V c) noexcept { return _mm256_fnmadd_ps(a, b, c); }
+  static V min(V a, V b) noexcept { return _mm256_min_ps(a, b); }  // NaN in a: b
+  static V max(V a, V b) noexcept { return _mm256_max_ps(a, b); }
+  static V div(V a, V b) noexcept { return _mm256_div_ps(a, b); }
   static V tanh(V z) noexcept { return fast_tanh8(z); }
-  static void tanh_factors(V z, V& r, V& q) noexcept { fast_tanh8_factors(z, r, q); }
   // The 8 partial sums combined in dot_padded's order.
   static float hsum(V v) noexcept {
     const __m128 q = _mm_add_ps(_mm256_castps256_ps128(v), _mm256_extractf128_ps(v, 1));
@@ -281,8 +310,10 @@ struct Simd16 {
   static V mul(V a, V b) noexcept { return _mm512_mul_ps(a, b); }
   static V fmadd(V a, V b, V c) noexcept { return _mm512_fmadd_ps(a, b, c); }
   static V fnmadd(V a, V b, V c) noexcept { return _mm512_fnmadd_ps(a, b, c); }
+  static V min(V a, V b) noexcept { return _mm512_min_ps(a, b); }  // NaN in a: b
+  static V max(V a, V b) noexcept { return _mm512_max_ps(a, b); }
+  static V div(V a, V b) noexcept { return _mm512_div_ps(a, b); }
   static V tanh(V z) noexcept { return fast_tanh16(z); }
-  static void tanh_factors(V z, V& r, V& q) noexcept { fast_tanh16_factors(z, r, q); }
   // Halves added, then the 8 as Simd8::hsum combines them.
   static float hsum(V v) noexcept {
     return Simd8::hsum(_mm256_add_ps(_mm512_castps512_ps256(v), _mm512_extractf32x8_ps(v, 1)));
@@ -315,12 +346,35 @@ inline typename S::V dense_block(typename S::V init, const float* wt, const floa
   return S::add(S::add(init, c1), S::add(c2, c3));
 }
 
+// w_j tanh(z_j) for one block of the last hidden layer as r * pw: the 15/4 rational of
+// activation.hpp (fast_tanh8's operations) with the neuron's output weight folded into
+// the numerator's coefficients (tw[k * stride + j] = P_k w_j, made by load()), so that
+// the output is one FMA per block, acc + r pw, and the numerator with its weight is off
+// the chain (ready before the division is). r = x / q.
+template <class S>
+inline void tanh_folded(typename S::V z, const float* tw, int stride, typename S::V& r,
+                        typename S::V& pw) noexcept {
+  using V = typename S::V;
+  const V x = S::max(S::min(z, S::set1(kTanhClamp)), S::set1(-kTanhClamp));  // NaN: +clamp
+  const V y = S::min(S::mul(z, z), S::set1(kTanhClampSq));
+  const V y2 = S::mul(y, y), y4 = S::mul(y2, y2);
+  const V c01 = S::fmadd(S::load(tw + stride), y, S::load(tw));
+  const V c23 = S::fmadd(S::load(tw + 3 * stride), y, S::load(tw + 2 * stride));
+  const V c45 = S::fmadd(S::load(tw + 5 * stride), y, S::load(tw + 4 * stride));
+  const V c67 = S::fmadd(S::load(tw + 7 * stride), y, S::load(tw + 6 * stride));
+  pw = S::fmadd(S::fmadd(c67, y2, c45), y4, S::fmadd(c23, y2, c01));
+  const V q = S::fmadd(y, S::add(y, S::set1(static_cast<float>(kTanhQ1))), S::set1(static_cast<float>(kTanhQ0)));
+  r = S::div(x, q);
+}
+
 // The float forward pass after the inputs: per block of S::kW neurons, dense (FMA),
-// tanh and the output FMA in registers, blocks independent so they overlap in the
-// pipeline (alternate blocks into two accumulators). Returns b_out + sum_j w_out[j] t_j
-// (b_out enters the first accumulator's lane 0, off the end of the chain); with kGrad
-// also (in *dys) the forward-mode derivative for the input whose layer-1 column is
-// `col` (nullptr: that input was clamped, derivative 0).
+// tanh and the output FMA in registers, the blocks' outputs accumulated in one FMA chain
+// in block order (the blocks finish one after another, limited by the FMA ports, so a
+// serial chain waits least for the last one), b_out in lane 0 of the accumulator. Returns
+// b_out + sum_j w_out[j] t_j; with kGrad also (in *dys) the forward-mode derivative for
+// the input whose layer-1 column is `col` (nullptr: that input was clamped, derivative 0):
+// sum_j (w_j - (w_j t_j) t_j) col_j, with t_j = (w_j t_j) / w_j by the stored 1/w_j, so
+// that the value is computed exactly as without kGrad.
 template <class S, int kIn, int kH1, int kH2, bool kGrad, class P>
 inline float forward_simd(const P& p, const float* xs, const float* col, float* dys) noexcept {
   using V = typename S::V;
@@ -328,29 +382,30 @@ inline float forward_simd(const P& p, const float* xs, const float* col, float* 
   constexpr int kP1 = kH1 > 0 ? pad(kH1) : kDynamic;
   constexpr int kP2 = kH2 > 0 ? pad(kH2) : (kH2 == 0 ? 0 : kDynamic);
   constexpr int cap_h1 = kH1 > 0 ? kP1 : DN_MAX_HIDDEN;
+  constexpr int stride = P::kTw;
   const int ni = kIn > 0 ? kIn : p.n_in;
   const int h1 = kP1 > 0 ? kP1 : p.n_h1p;
   const int h2 = kP2 >= 0 ? kP2 : p.n_h2p;
-  const V one = S::set1(1.f);
-  V acc1 = S::zero(), dacc = acc1;
-  V acc0 = S::lane0(p.b_out);
-  if (kH2 == 0 || h2 == 0) {
-    for (int j = 0; j < h1; j += kW) {
-      V r, q;  // t = r q; the output takes r (q w), q w formed while r is divided
-      S::tanh_factors(dense_block<S, kIn>(S::load(p.b1.data() + j), p.w1t.data() + j, xs, ni, h1), r, q);
-      const V w = S::load(p.w_out.data() + j);
-      if ((j / kW) & 1)
-        acc1 = S::fmadd(r, S::mul(q, w), acc1);
-      else
-        acc0 = S::fmadd(r, S::mul(q, w), acc0);
-      if constexpr (kGrad) {
-        if (col) {
-          const V t = S::mul(r, q);
-          dacc = S::fmadd(w, S::mul(S::fnmadd(t, t, one), S::load(col + j)), dacc);
-        }
+  V acc = S::lane0(p.b_out), dacc = S::zero();
+  // The last layer's contribution of one block: acc += w t; with kGrad, dacc += w (1 - t^2) d.
+  auto last = [&](V z, int j, const float* dz) {
+    (void)dz;
+    V r, pw;
+    tanh_folded<S>(z, p.tw.data() + j, stride, r, pw);
+    acc = S::fmadd(r, pw, acc);
+    if constexpr (kGrad) {
+      if (dz) {
+        const V wt = S::mul(r, pw), t = S::mul(wt, S::load(p.inv_w.data() + j));
+        dacc = S::fmadd(S::fnmadd(wt, t, S::load(p.w_out.data() + j)), S::load(dz), dacc);
       }
     }
+  };
+  if (kH2 == 0 || h2 == 0) {
+    for (int j = 0; j < h1; j += kW)
+      last(dense_block<S, kIn>(S::load(p.b1.data() + j), p.w1t.data() + j, xs, ni, h1), j,
+           col ? col + j : nullptr);
   } else {
+    const V one = S::set1(1.f);
     alignas(4 * kW) float a1[cap_h1];
     alignas(4 * kW) float t1[kGrad ? cap_h1 : kPad];
     for (int j = 0; j < h1; j += kW) {
@@ -359,23 +414,15 @@ inline float forward_simd(const P& p, const float* xs, const float* col, float* 
       if constexpr (kGrad)
         S::store(t1 + j, col ? S::mul(S::fnmadd(t, t, one), S::load(col + j)) : S::zero());
     }
+    alignas(4 * kW) float lin[kGrad ? kW : 1];
     for (int j = 0; j < h2; j += kW) {
-      V r, q;
-      S::tanh_factors(dense_block<S, kP1>(S::load(p.b2.data() + j), p.w2t.data() + j, a1, h1, h2), r, q);
-      const V w = S::load(p.w_out.data() + j);
-      if ((j / kW) & 1)
-        acc1 = S::fmadd(r, S::mul(q, w), acc1);
-      else
-        acc0 = S::fmadd(r, S::mul(q, w), acc0);
-      if constexpr (kGrad) {
-        const V t = S::mul(r, q);
-        const V lin = dense_block<S, kP1>(S::zero(), p.w2t.data() + j, t1, h1, h2);
-        dacc = S::fmadd(w, S::mul(S::fnmadd(t, t, one), lin), dacc);
-      }
+      if constexpr (kGrad) S::store(lin, dense_block<S, kP1>(S::zero(), p.w2t.data() + j, t1, h1, h2));
+      last(dense_block<S, kP1>(S::load(p.b2.data() + j), p.w2t.data() + j, a1, h1, h2), j,
+           kGrad ? lin : nullptr);
     }
   }
   if constexpr (kGrad) *dys = S::hsum(dacc);
-  return S::hsum(S::add(acc0, acc1));
+  return S::hsum(acc);
 }
 #if DN_KERNEL_AVX512 && defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic pop
@@ -550,6 +597,16 @@ inline int load(P& p, const dn_mlp_desc* d) noexcept {
     c += beta * d->w_out[j];
   }
   p.b_out = static_cast<T>((c - d->out_ymin) / d->out_gain + d->out_offset);
+  if constexpr (P::kTw > 0) {
+    p.tw.fill(T(0));
+    p.inv_w.fill(T(0));
+    for (int j = 0; j < n_last; ++j) {
+      const double w = alpha * d->w_out[j] / d->out_gain;
+      for (int k = 0; k < kTanhPTerms; ++k) p.tw[k * P::kTw + j] = static_cast<T>(kTanhP[k] * w);
+      const double iw = 1.0 / w;
+      if (std::fabs(iw) < 1e30) p.inv_w[j] = static_cast<T>(iw);
+    }
+  }
   for (int i = 0; i < ni; ++i) {
     p.in_offset[i] = static_cast<T>(d->in_offset[i]);
     p.sat_lo[i] = static_cast<T>(d->sat_lo[i]);
@@ -557,6 +614,13 @@ inline int load(P& p, const dn_mlp_desc* d) noexcept {
     p.in_mid[i] = static_cast<T>(0.5 * (d->sat_lo[i] + d->sat_hi[i]));
   }
   p.out_offset = static_cast<T>(d->out_offset);
+  if constexpr (P::kR8 > 0) {
+    for (int i = 0; i < P::kR8; ++i) {
+      p.sat_lo8[i] = i < ni ? p.sat_lo[i] : -HUGE_VALF;
+      p.sat_hi8[i] = i < ni ? p.sat_hi[i] : HUGE_VALF;
+      p.in_mask8[i] = i < ni ? -1 : 0;
+    }
+  }
   return DN_OK;
 }
 
@@ -578,8 +642,19 @@ struct MlpParams {
   alignas(DN_KERNEL_ALIGN) std::array<T, (H2 > 0 ? P1 * P2 : 0)> w2t{};  // [h1 padded][h2 padded]
   alignas(DN_KERNEL_ALIGN) std::array<T, P2> b2{};
   alignas(DN_KERNEL_ALIGN) std::array<T, (H2 > 0 ? P2 : P1)> w_out{};  // output unscaling folded in
+  // float only: the last hidden layer's tanh numerator with the output weight folded in,
+  // tw[k * kTw + j] = kTanhP[k] w_out[j] (activation.hpp), and 1 / w_out[j] (0 where
+  // w_out[j] is 0 or its reciprocal would not be finite), for the SIMD kernels.
+  static constexpr int kTw = std::is_same<T, float>::value ? (H2 > 0 ? P2 : P1) : 0;
+  alignas(DN_KERNEL_ALIGN) std::array<T, kTanhPTerms * kTw> tw{};
+  alignas(DN_KERNEL_ALIGN) std::array<T, kTw> inv_w{};
   T b_out{};  // the output for all-zero hidden units, in output units
   std::array<T, In> in_offset{}, in_mid{}, sat_lo{}, sat_hi{};
+  // float only: sat_lo / sat_hi padded to 8 with -inf / +inf, and -1 for each input (0
+  // beyond), for the SIMD kernels' range check (inputs_in_range).
+  static constexpr int kR8 = std::is_same<T, float>::value ? 8 : 0;
+  alignas(32) std::array<T, kR8> sat_lo8{}, sat_hi8{};
+  alignas(32) std::array<int32_t, kR8> in_mask8{};
   bool in_offset_folded = false;  // layer 1's bias holds -W1 offset (forward skips x - offset)
   T out_offset{};  // what a non-finite output is replaced by
 };
@@ -594,7 +669,7 @@ class Mlp {
   }
   // [RT] One sample; see dn_mlp_forward for the input policy.
   DN_REALTIME int forward(const T* x, T* y, uint32_t* clamped_mask = nullptr) const noexcept {
-    return detail::forward<T, kDynamic, kDynamic, kDynamic>(p_, x, y, clamped_mask);
+    return dispatch<false>(x, y, clamped_mask, 0, nullptr);
   }
   // [RT] As forward, plus dy/dx[i] (see detail::forward) in *dy_dxi.
   // An input index out of range gives dy/dx = 0.
@@ -604,14 +679,30 @@ class Mlp {
       *dy_dxi = T(0);
       return forward(x, y, clamped_mask);
     }
-    return detail::forward<T, kDynamic, kDynamic, kDynamic, decltype(p_), true>(p_, x, y, clamped_mask,
-                                                                               i, dy_dxi);
+    return dispatch<true>(x, y, clamped_mask, i, dy_dxi);
   }
   int n_inputs() const noexcept { return p_.n_in; }
   const T* sat_lo() const noexcept { return p_.sat_lo.data(); }
   const T* sat_hi() const noexcept { return p_.sat_hi.data(); }
 
  private:
+  // The common shapes (one hidden layer, 1-4 inputs) go to the kernel compiled for their
+  // input count and layer count (the dense layer unrolled, no loop over inputs, no second
+  // layer's code); the others to the fully run-time one. Same arithmetic, same results.
+  template <bool kGrad>
+  int dispatch(const T* x, T* y, uint32_t* m, int i, T* g) const noexcept {
+    using P = decltype(p_);
+    if (p_.n_h2 == 0) {
+      switch (p_.n_in) {
+        case 1: return detail::forward<T, 1, kDynamic, 0, P, kGrad>(p_, x, y, m, i, g);
+        case 2: return detail::forward<T, 2, kDynamic, 0, P, kGrad>(p_, x, y, m, i, g);
+        case 3: return detail::forward<T, 3, kDynamic, 0, P, kGrad>(p_, x, y, m, i, g);
+        case 4: return detail::forward<T, 4, kDynamic, 0, P, kGrad>(p_, x, y, m, i, g);
+        default: break;
+      }
+    }
+    return detail::forward<T, kDynamic, kDynamic, kDynamic, P, kGrad>(p_, x, y, m, i, g);
+  }
   MlpParams<T, DN_MAX_INPUTS, DN_MAX_HIDDEN, DN_MAX_HIDDEN> p_;
 };
 
