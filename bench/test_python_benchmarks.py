@@ -30,7 +30,7 @@ def model():
 
 @pytest.fixture(scope="module")
 def loop_models(model):
-    return bp._loops(model)  # linear (c = 1500 N s/m), neural_float, neural_double; RK4, skyhook on-off
+    return bp._loops(model)  # linear (c = 1500 N s/m), neural_float, neural_double, neural_float_hil; RK4, skyhook
 
 
 @pytest.mark.parametrize("damper", ["neural_float", "linear"])
@@ -47,15 +47,18 @@ def test_loop_step_pybind(benchmark, loop_models, damper):
     benchmark.extra_info.update(median_ns=median_ns, meets_target=median_ns <= bp.STEP_TARGET_NS)
 
 
-@pytest.mark.parametrize("damper", ["linear", "neural_float", "neural_double"])
+@pytest.mark.parametrize("damper", ["linear", "neural_float", "neural_double", "neural_float_hil",
+                                    "neural_float_hil_out"])
 def test_simulate_throughput(benchmark, loop_models, damper):
     """`Loop.simulate` over the C++ harness's road (1.3 Hz + 11 Hz, 20 mm), SIM_STEPS steps,
-    the whole call including its output arrays."""
-    lm = loop_models[damper]
+    the whole call including its output arrays (bp.SIMULATE_RECORDS): fresh ones, or, for
+    "_out", the previous run's arrays passed as out=."""
+    lm = loop_models[damper.removesuffix("_out")]
     loop = _core.Loop(lm)
     z, v = bp.harness_road(float(lm.vehicle["dt"]), SIM_STEPS)
+    out = loop.simulate(z, v, None, True) if damper.endswith("_out") else None
     benchmark.group = "pybind Loop.simulate (target: >= 5e6 steps/s)"
-    benchmark.pedantic(loop.simulate, args=(z, v, None, True), rounds=5, iterations=1, warmup_rounds=1)
+    benchmark.pedantic(loop.simulate, args=(z, v, None, True, out), rounds=5, iterations=1, warmup_rounds=1)
     sps = SIM_STEPS / benchmark.stats.stats.median
     benchmark.extra_info.update(damper=damper, n_steps=SIM_STEPS, steps_per_s_median=sps,
                                 target_steps_per_s=bp.SIMULATE_TARGET_STEPS_PER_S,

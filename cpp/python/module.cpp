@@ -11,6 +11,11 @@
 #include <limits>
 #include <map>
 #include <type_traits>
+#include <utility>
+
+#ifdef __linux__
+#include <sys/mman.h>
+#endif
 #include <vector>
 #include <memory>
 #include <stdexcept>
@@ -384,6 +389,43 @@ class PyDamper {
   }
 };
 
+// A fresh C-contiguous [rows] or [rows, cols] array for simulate's results. From 4 MiB up
+// (Linux) its memory is an anonymous mapping of whole, 2 MiB-aligned huge pages with
+// MADV_HUGEPAGE (THP is "madvise" on many systems), owned by the array (a capsule unmaps
+// it): first touch then takes one page fault per 2 MiB instead of one per 4 KiB, which on
+// a VM costs more than the kernel's zeroing of the page. (numpy's own allocator advises
+// huge pages for large arrays too, but its malloc'd blocks are not 2 MiB-aligned, so each
+// array's first and last partial huge pages fault per 4 KiB.) Same contents, fresh memory;
+// smaller arrays, and any failure to map, take numpy's allocator.
+template <class T>
+py::array_t<T> fresh_array(py::ssize_t rows, py::ssize_t cols = -1) {
+  const std::vector<py::ssize_t> shape = cols < 0 ? std::vector<py::ssize_t>{rows}
+                                                  : std::vector<py::ssize_t>{rows, cols};
+  const size_t bytes = size_t(rows) * size_t(cols < 0 ? 1 : cols) * sizeof(T);
+#ifdef __linux__
+  constexpr size_t kHuge = size_t(2) << 20;
+  if (bytes >= 2 * kHuge) {
+    const size_t len = (bytes + kHuge - 1) / kHuge * kHuge;
+    void* raw = mmap(nullptr, len + kHuge, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    if (raw != MAP_FAILED) {
+      char* base = static_cast<char*>(raw);
+      char* p = reinterpret_cast<char*>((reinterpret_cast<uintptr_t>(base) + kHuge - 1) & ~(kHuge - 1));
+      if (p > base) munmap(base, size_t(p - base));                       // the slack before
+      if (base + len + kHuge > p + len) munmap(p + len, size_t(base + len + kHuge - (p + len)));  // after
+      madvise(p, len, MADV_HUGEPAGE);
+      struct Mapping { void* p; size_t len; };
+      py::capsule owner(new Mapping{p, len}, [](void* m) {
+        auto* mp = static_cast<Mapping*>(m);
+        munmap(mp->p, mp->len);
+        delete mp;
+      });
+      return py::array_t<T>(shape, reinterpret_cast<T*>(p), owner);
+    }
+  }
+#endif
+  return py::array_t<T>(shape);
+}
+
 class PyLoopModel {
  public:
   struct Deleter {
@@ -558,8 +600,11 @@ class PyLoop {
     return o.force;
   }
 
-  // A whole road in C++ with the GIL released (see loop.py for the contract).
-  py::dict simulate(DArray road, DArray road_rate, py::object u_obj, bool reset_first) {
+  // A whole road in C++ with the GIL released (see loop.py for the contract). out: None
+  // (fresh arrays) or a dict with the result's keys (a previous result of the same length)
+  // whose arrays are written in place and returned.
+  py::dict simulate(DArray road, DArray road_rate, py::object u_obj, bool reset_first,
+                    py::object out_obj) {
     if (road.ndim() != 1 || road_rate.ndim() != 1 || road.size() != road_rate.size() ||
         road.size() < 1)
       throw py::value_error("simulate: road and road_rate must be 1-D of the same length >= 1");
@@ -576,10 +621,62 @@ class PyLoop {
       dn_loop_forward(model->m.get(), d.get(), &in, &o);
       return o.n_features;
     }();
-    py::array_t<double> states({n, (py::ssize_t)DN_LOOP_STATE_SIZE});
-    py::array_t<double> force(n), control(n), xs(n), vs(n), as(n), acc_s(n), acc_us(n);
-    py::array_t<double> feats({n, (py::ssize_t)nf});
-    py::array_t<int32_t> status(n);
+    py::array_t<double> states, force, control, xs, vs, as, acc_s, acc_us, feats;
+    py::array_t<int32_t> status;
+    if (out_obj.is_none()) {
+      states = fresh_array<double>(n, DN_LOOP_STATE_SIZE);
+      force = fresh_array<double>(n), control = fresh_array<double>(n), xs = fresh_array<double>(n);
+      vs = fresh_array<double>(n), as = fresh_array<double>(n), acc_s = fresh_array<double>(n);
+      acc_us = fresh_array<double>(n);
+      feats = fresh_array<double>(n, nf);
+      status = fresh_array<int32_t>(n);
+    } else {
+      if (!py::isinstance<py::dict>(out_obj))
+        throw py::type_error("simulate: out must be None or a dict of arrays (a previous result)");
+      const py::dict out = out_obj.cast<py::dict>();
+      // The array under `key`, exactly of this dtype and shape, C-contiguous and writeable.
+      auto take = [&](const char* key, auto proto, std::initializer_list<py::ssize_t> shape) {
+        using A = decltype(proto);
+        if (!out.contains(key)) throw py::value_error(std::string("simulate: out has no '") + key + "'");
+        py::object o = out[key];
+        if (!py::isinstance<A>(o)) throw py::value_error(std::string("simulate: out['") + key + "'] has the wrong dtype");
+        A a = o.cast<A>();
+        bool ok = a.ndim() == (py::ssize_t)shape.size() && a.writeable() &&
+                  (a.flags() & py::array::c_style);
+        int k = 0;
+        for (py::ssize_t e : shape) ok = ok && a.shape(k++) == e;
+        if (!ok)
+          throw py::value_error(std::string("simulate: out['") + key +
+                                "'] must be a writeable C-contiguous array of the result's shape");
+        return a;
+      };
+      using AD = py::array_t<double>;
+      states = take("state", AD(), {n, (py::ssize_t)DN_LOOP_STATE_SIZE});
+      force = take("force", AD(), {n});
+      control = take("control", AD(), {n});
+      xs = take("x", AD(), {n});
+      vs = take("v", AD(), {n});
+      as = take("a", AD(), {n});
+      acc_s = take("acc_s", AD(), {n});
+      acc_us = take("acc_us", AD(), {n});
+      feats = take("features", AD(), {n, (py::ssize_t)nf});
+      status = take("status", py::array_t<int32_t>(), {n});
+      // The outputs are written while the inputs are read: they must not share memory.
+      auto span = [](const py::array& a) {
+        const char* p = static_cast<const char*>(a.data());
+        return std::make_pair(p, p + a.nbytes());
+      };
+      const std::pair<const char*, const char*> ins[3] = {
+          span(road), span(road_rate), u ? span(u) : std::make_pair(nullptr, nullptr)};
+      for (const py::array& a : {py::array(states), py::array(force), py::array(control), py::array(xs),
+                                 py::array(vs), py::array(as), py::array(acc_s), py::array(acc_us),
+                                 py::array(feats), py::array(status)}) {
+        const auto o = span(a);
+        for (const auto& i : ins)
+          if (i.first && o.first < i.second && i.first < o.second)
+            throw py::value_error("simulate: out's arrays must not share memory with road, road_rate or u");
+      }
+    }
     double* S = states.mutable_data();
     double *F = force.mutable_data(), *U = control.mutable_data(), *X = xs.mutable_data(),
            *V = vs.mutable_data(), *A = as.mutable_data(), *AS = acc_s.mutable_data(),
@@ -860,8 +957,8 @@ PYBIND11_MODULE(_core, mod) {
            "One step, as step(), returning only the damper force [N] of its report (cheapest call).")
       .def("forward", &PyLoop::forward, py::arg("u") = 0.0, "The report without advancing.")
       .def("simulate", &PyLoop::simulate, py::arg("road"), py::arg("road_rate"),
-           py::arg("u") = py::none(), py::arg("reset") = true,
-           "Run a road in C++ (GIL released) -> dict of arrays.")
+           py::arg("u") = py::none(), py::arg("reset") = true, py::arg("out") = py::none(),
+           "Run a road in C++ (GIL released) -> dict of arrays (fresh, or out's written in place).")
       .def_property_readonly("model", [](const PyLoop& l) { return l.model; })
       .def_property_readonly("damper_evals", &PyLoop::damper_evals);
 }

@@ -112,14 +112,18 @@ def test_dampnet_bench_quick_configuration_has_every_row(tmp_path):
         assert r["ratio_to_kernel_p50"] > 0
     for d in ("neural_float", "linear"):
         assert py["loop_step"][d]["n"] == 1000 and py["loop_step"][d]["target_ns"] == 1000.0
-    for d in ("linear", "neural_float", "neural_double"):
+    for d in ("linear", "neural_float", "neural_double", "neural_float_hil", "neural_float_hil_out"):
         s = py["simulate"][d]
         assert s["n_steps"] == 20000 and s["steps_per_s_median"] > 0 and s["target_steps_per_s"] == 5e6
+        assert "recording the state" in s["what"]
+    assert "fresh arrays" in py["simulate"]["neural_float_hil"]["what"]
+    assert "out=" in py["simulate"]["neural_float_hil_out"]["what"]
     names = {r["name"] for r in res["table"]}
     expected = set(forward) | {"dampnet_static_float", "naive_cpp_std_tanh",
                                "loop_step_rk4_neural_float_skyhook", "pybind_loop_step_neural_float",
                                "pybind_loop_step_linear", "pybind_simulate_linear",
-                               "pybind_simulate_neural_float"}
+                               "pybind_simulate_neural_float", "pybind_simulate_neural_float_hil",
+                               "pybind_simulate_neural_float_hil_out"}
     assert expected <= names, expected - names
     for name in expected:
         assert name in proc.stdout
