@@ -242,7 +242,14 @@ inline bool inputs_in_range(const P& p, const T* x) noexcept {
 #if DN_KERNEL_AVX2 || DN_KERNEL_AVX512
   if constexpr (std::is_same<T, float>::value) {
     if constexpr (kIn > 0 && kIn <= 4) {
-      const __m128 v = _mm_setr_ps(x[0], kIn > 1 ? x[1] : 0.f, kIn > 2 ? x[2] : 0.f, kIn > 3 ? x[3] : 0.f);
+      // (Read through a pointer the compiler cannot see equals x: else GCC reuses these
+      // scalar loads for layer 1 and broadcasts from registers, a longer chain than
+      // vbroadcastss from memory.)
+      const float* xc = x;
+#if defined(__GNUC__)
+      __asm__("" : "+r"(xc));
+#endif
+      const __m128 v = _mm_setr_ps(xc[0], kIn > 1 ? xc[1] : 0.f, kIn > 2 ? xc[2] : 0.f, kIn > 3 ? xc[3] : 0.f);
       const __m128 ok = _mm_and_ps(_mm_cmp_ps(v, _mm_load_ps(p.sat_lo8.data()), _CMP_GE_OQ),
                                    _mm_cmp_ps(v, _mm_load_ps(p.sat_hi8.data()), _CMP_LE_OQ));
       return _mm_movemask_ps(ok) == 0xf;
