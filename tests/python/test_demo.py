@@ -29,6 +29,11 @@ def test_demo_tells_the_whole_story(demo_out):
     assert summary["c_program"]["match"] and summary["c_program"]["samples"] > 1000
     for stage in ("rig", "train", "diagnose", "improve", "export", "study", "latency"):
         assert stage in summary["stage_times_s"] and f"[{list(summary['stage_times_s']).index(stage) + 1}/7]" in stdout
+    # the study's worst case against the truth is named, and the rough road's error is at most the worst
+    st = summary["study"]
+    for name, worst in st["worst_acc_rms_error_vs_truth"].items():
+        assert st["worst_case_vs_truth"][name].split()[0] in ("impulse", "sine", "rough", "skyhook"), st
+        assert 0 <= st["worst_rough_road_error_vs_truth"][name] <= worst
     for name in ("report.html", "summary.json", "model_original/model.json", "model_improved/model.h",
                  "data/manifest.csv", "c_program/controller.c"):
         assert (out / name).is_file(), name

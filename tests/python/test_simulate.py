@@ -227,6 +227,18 @@ def test_neural_tracks_truth_on_the_rough_road(rough_runs, capsys):
     assert all(abs(e) < 0.03 for e in errs.values())
 
 
+def test_neural_tracks_truth_on_the_impulse(rig_models):
+    # the study's 50 mm, 50 ms raised-cosine bump, passive: recorded +0.8 / -0.2 % (low / high);
+    # a model trained on the thesis's 1-inch sines is 25-40 % off here (the demo's study)
+    from dampnet.roads import impulse
+
+    neural, _, truth = rig_models
+    for u in (5.0, 0.0):
+        ctrl = Controller(kind="passive", u_passive=u)
+        t = simulate(truth, impulse(), None, ctrl)["metrics"]["acc_rms_m_s2"]
+        assert simulate(neural, impulse(), None, ctrl)["metrics"]["acc_rms_m_s2"] == pytest.approx(t, rel=0.03), u
+
+
 def test_nonsensical_inputs_get_clear_errors():
     road = iso8608("C", length_m=50.0)
     spec = DamperSpec("lin", "linear", 1500.0)
