@@ -12,6 +12,8 @@ static_assert(offsetof(dn_damper_input, temperature) == 5 * sizeof(double), "dn_
 static_assert(offsetof(dn_damper_input, dt) == 7 * sizeof(double), "dn_damper_input 0.1 layout");
 static_assert(offsetof(dn_damper_input, stage) == 8 * sizeof(double), "dn_damper_input 0.1 layout");
 static_assert(offsetof(dn_damper_input, v_lag) > offsetof(dn_damper_input, stage), "0.2 fields appended");
+static_assert(offsetof(dn_controller, c_max) == 9 * sizeof(double), "dn_controller 0.2 layout");
+static_assert(offsetof(dn_controller, u_tau_s) == 10 * sizeof(double), "0.3 field appended");
 #define DN_STATE_COUNT_(i, name, doc) +1
 static_assert(DN_LOOP_STATE_SIZE == 0 DN_LOOP_STATE_LIST(DN_STATE_COUNT_), "DN_LOOP_STATE_SIZE");
 #undef DN_STATE_COUNT_

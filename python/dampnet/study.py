@@ -67,7 +67,7 @@ damping, so against passive *low* the gain is small: filtered continuous skyhook
 for the truth at 10 / 20 m/s (road seed 0; 0.8 / 0.9 % unfiltered), 1.7-2.5 % for the road
 model (3 training seeds); an ideal force-tracking skyhook that inverts the truth damper's map
 gets 1.6-2.2 %; acceleration-driven damping (ADD) and mixed SH-ADD on-off are worse than
-passive low. Against passive *high* (0 V) continuous skyhook is 41-48 % lower; on-off skyhook
+passive low. Against passive *high* (0 V) continuous skyhook is 41-49 % lower; on-off skyhook
 between the damper's own ends is 34 % / 26 % above passive low at 10 / 20 m/s.
 """
 

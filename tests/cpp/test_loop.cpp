@@ -89,7 +89,9 @@ int main(int argc, char** argv) {
     v.integrator = c % 2;
     v.damper_eval = (c / 2) % 2;
     LoopModel m;
-    CHECK(m.init(v, neural, default_controller(c % 6)) == DN_OK);
+    dn_controller ctrl = default_controller(c % 6);
+    ctrl.u_tau_s = c % 3 == 0 ? 0.0 : 0.02 * u01(rng);  // with and without the command filter
+    CHECK(m.init(v, neural, ctrl) == DN_OK);
     LoopData ld;
     reset(m, ld);
     for (int k = 0; k < 200; ++k) {
@@ -108,6 +110,7 @@ int main(int argc, char** argv) {
         ++ok;
         for (double x : ld.s) CHECK(std::isfinite(x));
         CHECK(std::isfinite(out.force) && std::isfinite(out.u) && std::isfinite(out.a));
+        CHECK(out.u >= ctrl.u_min && out.u <= ctrl.u_max);
       }
     }
   }

@@ -75,6 +75,7 @@ int main() {
         veh.damper_eval = ig[1];
         dn_controller ctrl;
         dn_controller_default(&ctrl, kind);
+        ctrl.u_tau_s = ig[1] == DN_EVAL_PER_STEP ? 0.005 : 0.0;  // the command filter's path too
         dn_loop_model* m = nullptr;
         dn_loop_data* d = nullptr;
         CHECK(dn_loop_model_create(&veh, dp, &ctrl, &m) == DN_OK);

@@ -84,6 +84,12 @@ def test_command_filter_leaves_passive_and_external_alone_and_rejects_bad_values
         b = QuarterCar(_core.Damper.parametric(**PAR), {}, dict(CTRL, kind=kind, u_tau_s=0.05, **extra))
         u = 1.0 + np.sin(t * 40)
         np.testing.assert_array_equal(a.simulate(z(t), zd(t), u=u)["control"], b.simulate(z(t), zd(t), u=u)["control"])
+    # a state set from outside with the filter's state out of range: the control stays in the limits
+    car = QuarterCar(_core.Damper.parametric(**PAR), {}, dict(CTRL, kind="skyhook_onoff", u_tau_s=0.05))
+    s = car.state.copy()
+    s[S["u_cmd"]] = 99.0
+    car.state = s
+    assert car.step(z(t[1]), zd(t[1]))["u"] <= CTRL["u_max"]
     for bad, code in ((-1e-3, "DN_E_PARAM"), (float("nan"), "NONFINITE_PARAM"), (float("inf"), "NONFINITE_PARAM")):
         with pytest.raises(ValueError, match=code):
             _core.LoopModel(_core.Damper.linear(1.0), {}, dict(CTRL, kind="skyhook_onoff", u_tau_s=bad))

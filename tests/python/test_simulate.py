@@ -292,5 +292,8 @@ def test_simulate_command_keeps_runs_and_filters_the_switching_laws(tmp_path, ca
     assert main(args + ["--command-tau", "0", "--force"]) == 0    # ... unless asked
     assert json.loads((out / "metrics.json").read_text())["controller"]["u_tau_s"] == 0.0
     assert not list(out.glob(".*"))                                  # no temporary files left
+    sweep = ["simulate", "linear:1500", "--road", "sweep", "--out", str(out), "--force"]
+    assert main(sweep) == 0 and (out / "transmissibility.png").is_file()
+    assert main(args + ["--force"]) == 0 and not (out / "transmissibility.png").exists()  # not this run's
     assert main(args[:-2] + ["--command-tau", "-1", "--out", str(tmp_path / "bad")]) == 2
     assert "u_tau_s" in capsys.readouterr().err

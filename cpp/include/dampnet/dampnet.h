@@ -477,8 +477,8 @@ DN_API int dn_loop_data_create(const dn_loop_model* m, dn_loop_data** out);
 /* Destroy data. Nullable: d. */
 DN_API void dn_loop_data_destroy(dn_loop_data* d);
 
-/* [RT] Reset to rest: zero displacements, velocities, road and time; u_lag = the
- * control the controller gives at rest (external: 0); f_last = f_static;
+/* [RT] Reset to rest: zero displacements, velocities, road and time; u_lag and
+ * u_cmd = the control the controller gives at rest (external: 0); f_last = f_static;
  * temperature from the vehicle; v_lag = 0 and z_fric = 0 (at rest, no friction
  * direction). */
 DN_API int dn_loop_reset(const dn_loop_model* m, dn_loop_data* d);
@@ -487,7 +487,8 @@ DN_API int dn_loop_reset(const dn_loop_model* m, dn_loop_data* d);
 DN_API int dn_loop_state_size(void);
 /* [RT] Copy the state out (DN_LOOP_STATE_SIZE doubles, DN_LOOP_STATE_LIST order). */
 DN_API int dn_loop_get_state(const dn_loop_data* d, double* state);
-/* [RT] Set the state; a non-finite value: DN_E_NONFINITE_INPUT, state unchanged. */
+/* [RT] Set the state; a non-finite value: DN_E_NONFINITE_INPUT, state unchanged.
+ * (An u_cmd outside [u_min, u_max] is clamped when the filter next uses it.) */
 DN_API int dn_loop_set_state(dn_loop_data* d, const double* state);
 /* Damper evaluations since creation (for tests of the evaluation count). */
 DN_API int64_t dn_loop_damper_evals(const dn_loop_data* d);

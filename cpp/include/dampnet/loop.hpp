@@ -384,8 +384,9 @@ inline Start start(const LoopModel& m, const double* s, double u_ext, dn_loop_ou
                    uint32_t* mask, int64_t* n_evals) noexcept {
   Start r;
   r.u = control_law(m.ctrl, s[S_v_s], s[S_v_us], u_ext);
-  // Command filter: between the last control and the law's, both in [u_min, u_max].
-  if (m.cmd_keep > 0.0) r.u += (s[S_u_cmd] - r.u) * m.cmd_keep;
+  // Command filter; clamped again because a caller's set_state may put u_cmd out of range.
+  if (m.cmd_keep > 0.0)
+    r.u = detail::clamp(r.u + (s[S_u_cmd] - r.u) * m.cmd_keep, m.ctrl.u_min, m.ctrl.u_max);
   const Body b{s[S_z_s], s[S_v_s], s[S_z_us], s[S_v_us]};
   r.in = damper_input(m, b, s[S_z_r], s[S_v_r], r.u, s[S_u_lag], {s[S_v_lag], s[S_z_fric]},
                       s[S_f_last], s[S_temperature], s[S_t], 0);

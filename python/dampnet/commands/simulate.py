@@ -61,14 +61,12 @@ def load_spec(text: str):
 
 
 def run(args) -> int:
-    import os
     from pathlib import Path
 
     import numpy as np
 
     from dampnet.ride.pyloop import Controller, LoopError, Vehicle
     from dampnet.roads import RoadError, make_road
-    from dampnet.model import atomic_write_text
     from dampnet.study import continuous_skyhook, damping_levels, plot_run, plot_transmissibility, simulate
 
     out = Path(args.out)
@@ -100,14 +98,15 @@ def run(args) -> int:
     if "transmissibility" in res:
         for k in ("f_hz", "magnitude", "phase_rad"):
             arrays[f"transmissibility_{k}"] = res["transmissibility"][k]
-    tmp = out / ".run.npz.partial.npz"
-    np.savez_compressed(tmp, **arrays)
-    os.replace(tmp, out / "run.npz")
     meta = {k: v for k, v in res.items() if k not in ("arrays", "transmissibility")}
-    atomic_write_text(out / "metrics.json", json.dumps(meta, indent=2, default=float) + "\n", overwrite=True)
-    plot_run(res, out / "time_history.png", f"{spec.name} on {road.name}, {ctrl.kind}")
+    writers = {"run.npz": lambda f: np.savez_compressed(f, **arrays),
+               "time_history.png": lambda f: plot_run(res, f, f"{spec.name} on {road.name}, {ctrl.kind}"),
+               "metrics.json": lambda f: Path(f).write_text(json.dumps(meta, indent=2, default=float) + "\n")}
     if "transmissibility" in res:
-        plot_transmissibility({spec.name: res}, out / "transmissibility.png")
+        writers["transmissibility.png"] = lambda f: plot_transmissibility({spec.name: res}, f)
+    elif (out / "transmissibility.png").exists():   # --force over a sweep run: not this run's
+        (out / "transmissibility.png").unlink()
+    _publish(out, writers)
     m = res["metrics"]
     print(f"{spec.name} on {road.name}" + (f" at {args.speed:g} m/s" if road.kind == "spatial" else "")
           + f", {ctrl.kind}" + (f" (command filter {1e3 * ctrl.u_tau_s:g} ms)" if ctrl.kind != "passive" and ctrl.u_tau_s > 0 else "")
@@ -116,3 +115,24 @@ def run(args) -> int:
           f"{1e3 * m['travel_rms_m']:.2f} mm (max {1e3 * m['travel_max_m']:.2f}), tyre load RMS "
           f"{m['tyre_load_rms_n']:.1f} N -> {out}")
     return 0
+
+
+def _publish(out, writers: dict) -> None:
+    """Write every file to a temporary name in out first, then rename them all (metrics.json
+    last): a failure leaves the previous run's files as they were and no temporary behind."""
+    import os
+    import tempfile
+
+    tmps = {}
+    try:
+        for name, write in writers.items():
+            fd, tmp = tempfile.mkstemp(prefix=f".{name}.", suffix=os.path.splitext(name)[1], dir=out)
+            os.close(fd)
+            tmps[name] = tmp
+            write(tmp)
+        for name in sorted(tmps, key=lambda n: n == "metrics.json"):
+            os.replace(tmps.pop(name), out / name)
+    finally:
+        for tmp in tmps.values():
+            if os.path.exists(tmp):
+                os.unlink(tmp)
