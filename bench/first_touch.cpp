@@ -1,6 +1,6 @@
 // The cost of simulate's result memory on first touch (bench/RESULTS.md, python-comparison
 // section): ten fresh anonymous mappings shaped like simulate's results for 1e6 steps (state
-// 12 doubles, 7 doubles, 3 features, an int32 status: 180 bytes per step), written step by
+// 12 doubles as before u_cmd, 7 doubles, 3 features, an int32 status: 180 bytes per step), written step by
 // step as simulate does, 5 repetitions, ns per step. Not built by CMake; a scratch experiment:
 //   g++ -O2 -mavx2 bench/first_touch.cpp -o first_touch && ./first_touch MODE
 // MODE 0: 4 KiB pages; 1: MADV_HUGEPAGE; 2: MAP_POPULATE (4 KiB) before the timed writes;

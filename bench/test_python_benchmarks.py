@@ -51,7 +51,7 @@ def test_loop_step_pybind(benchmark, loop_models, damper):
                                     "neural_float_hil_out"])
 def test_simulate_throughput(benchmark, loop_models, damper):
     """`Loop.simulate` over the C++ harness's road (1.3 Hz + 11 Hz, 20 mm), SIM_STEPS steps,
-    the whole call including its output arrays (bp.SIMULATE_RECORDS): fresh ones, or, for
+    the whole call including its output arrays (bp.simulate_records): fresh ones, or, for
     "_out", the previous run's arrays passed as out=."""
     lm = loop_models[damper.removesuffix("_out")]
     loop = _core.Loop(lm)

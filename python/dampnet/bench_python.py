@@ -400,8 +400,14 @@ def loop_step_latency(n_calls: int, model: MlpModel | None = None, damper: str =
     return r
 
 
-SIMULATE_RECORDS = ("the state (12 columns) before each step and the step's force, control, x, v, "
-                    "a, acc_s, acc_us, features and status: 180 bytes per step with 3 features")
+def simulate_records(n_features: int) -> str:
+    """What `Loop.simulate` records per step (the benchmark states it with its figure)."""
+    from dampnet import _core
+
+    n_state = len(_core.STATE_NAMES)
+    return (f"the state ({n_state} columns, STATE_NAMES) before each step and the step's force, control, "
+            f"x, v, a, acc_s, acc_us, {n_features} features and status: "
+            f"{8 * (n_state + 7 + n_features) + 4} bytes per step")
 
 
 def simulate_throughput(n_steps: int, repeats: int = 5, model: MlpModel | None = None) -> dict:
@@ -420,6 +426,7 @@ def simulate_throughput(n_steps: int, repeats: int = 5, model: MlpModel | None =
         z, v = harness_road(float(lm.vehicle["dt"]), n_steps)
         loop.simulate(z[: min(n_steps, 10_000)], v[: min(n_steps, 10_000)], None, True)  # warm
         reuse = loop.simulate(z, v, None, True) if name == "neural_float_hil" else None
+        records = simulate_records(int(loop.simulate(z[:2], v[:2], None, True)["features"].shape[1]))
         secs, secs_out = [], []
         for _ in range(repeats):
             t0 = time.perf_counter()
@@ -441,7 +448,7 @@ def simulate_throughput(n_steps: int, repeats: int = 5, model: MlpModel | None =
                         "ns_per_step_median": float(np.median(ss) / n_steps * 1e9),
                         "target_steps_per_s": SIMULATE_TARGET_STEPS_PER_S,
                         "what": f"_core.Loop.simulate over a {n_steps}-sample road, RK4, {name} damper, "
-                                f"skyhook on-off, GIL released, recording {SIMULATE_RECORDS}, {how}"}
+                                f"skyhook on-off, GIL released, recording {records}, {how}"}
             out[key]["meets_target"] = out[key]["steps_per_s_median"] >= SIMULATE_TARGET_STEPS_PER_S
     return out
 
