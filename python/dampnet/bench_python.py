@@ -35,7 +35,9 @@ from dampnet.model import MlpModel
 
 N_INPUT_SETS = 1024  # inputs cycled, as in the C++ harness
 STEP_TARGET_NS = 1000.0  # pybind11 Loop.step median target
-SIMULATE_TARGET_STEPS_PER_S = 5e6  # Loop.simulate throughput target
+SIMULATE_TARGET_STEPS_PER_S = 5e6  # Loop.simulate throughput target ...
+# ... for the real-time configurations; the per-stage (offline accuracy) and double runs are reported
+SIMULATE_TARGET_RUNS = ("linear", "neural_float_hil", "neural_float_hil_out")
 # Agreement with MlpModel.predict (the float64 kernel), as a fraction of the model's output
 # range (2 / out_gain): float32 implementations and float64 ones.
 TOL_FLOAT32 = 1e-5
@@ -446,10 +448,11 @@ def simulate_throughput(n_steps: int, repeats: int = 5, model: MlpModel | None =
                         "steps_per_s_median": float(n_steps / np.median(ss)),
                         "steps_per_s_best": float(n_steps / ss.min()),
                         "ns_per_step_median": float(np.median(ss) / n_steps * 1e9),
-                        "target_steps_per_s": SIMULATE_TARGET_STEPS_PER_S,
+                        "target_steps_per_s": SIMULATE_TARGET_STEPS_PER_S if key in SIMULATE_TARGET_RUNS else None,
                         "what": f"_core.Loop.simulate over a {n_steps}-sample road, RK4, {name} damper, "
                                 f"skyhook on-off, GIL released, recording {records}, {how}"}
-            out[key]["meets_target"] = out[key]["steps_per_s_median"] >= SIMULATE_TARGET_STEPS_PER_S
+            if key in SIMULATE_TARGET_RUNS:
+                out[key]["meets_target"] = out[key]["steps_per_s_median"] >= SIMULATE_TARGET_STEPS_PER_S
     return out
 
 
@@ -543,8 +546,9 @@ def table(res: dict[str, Any]) -> list[dict[str, Any]]:
             rows.append({"scope": "Python", "name": f"pybind_simulate_{damper}",
                          "steps_per_s": r["steps_per_s_median"], "steps_per_s_best": r["steps_per_s_best"],
                          "ns_per_step": r["ns_per_step_median"],
-                         "target": f">= {r['target_steps_per_s']:.3g} steps/s",
-                         "headroom": r["steps_per_s_median"] / r["target_steps_per_s"],
+                         "target": f">= {r['target_steps_per_s']:.3g} steps/s" if r["target_steps_per_s"] else "-",
+                         "headroom": (r["steps_per_s_median"] / r["target_steps_per_s"]
+                                      if r["target_steps_per_s"] else None),
                          "ratio_to_kernel_p50": None})
     return rows
 
@@ -557,13 +561,12 @@ def format_table(rows: list[dict[str, Any]]) -> str:
            f"{'x kernel p50':>12s}  {'budget / target':30s} headroom",
            f"{'':6s} {'':52s} {'[ns]':>9s} {'[ns]':>8s} {'[ns]':>9s} {'[ns]':>9s} {'[ns]':>10s}"]
     for r in rows:
+        hr = "-" if r["headroom"] is None else f"x{r['headroom']:.2f}" + ("" if r["headroom"] >= 1 else " (not met)")
         if "steps_per_s" in r:
             body = (f"{f(r['steps_per_s'], '{:.3g}'):>9s} steps/s median (best {r['steps_per_s_best']:.3g}, "
                     f"{r['ns_per_step']:.0f} ns/step)")
-            out.append(f"{r['scope']:6s} {r['name']:52s} {body:76s}  {r['target']:30s} "
-                       f"x{r['headroom']:.2f}{'' if r['headroom'] >= 1 else ' (not met)'}")
+            out.append(f"{r['scope']:6s} {r['name']:52s} {body:76s}  {r['target']:30s} {hr}")
             continue
-        hr = "-" if r["headroom"] is None else f"x{r['headroom']:.2f}" + ("" if r["headroom"] >= 1 else " (not met)")
         p50 = f(r["p50_ns"], "{:.1f}") if r["name"].endswith("_chained") else f(r["p50_ns"])
         out.append(f"{r['scope']:6s} {r['name']:52s} {p50:>9s} {f(r.get('p50_net_ns')):>8s} {f(r['p99_ns']):>9s} "
                    f"{f(r['p999_ns']):>9s} {f(r['max_ns']):>10s}  {f(r['ratio_to_kernel_p50'], '{:.1f}'):>12s}  "

@@ -114,7 +114,10 @@ def test_dampnet_bench_quick_configuration_has_every_row(tmp_path):
         assert py["loop_step"][d]["n"] == 1000 and py["loop_step"][d]["target_ns"] == 1000.0
     for d in ("linear", "neural_float", "neural_double", "neural_float_hil", "neural_float_hil_out"):
         s = py["simulate"][d]
-        assert s["n_steps"] == 20000 and s["steps_per_s_median"] > 0 and s["target_steps_per_s"] == 5e6
+        assert s["n_steps"] == 20000 and s["steps_per_s_median"] > 0
+        # the target is for the real-time configurations; the offline ones are reported
+        assert s["target_steps_per_s"] == (5e6 if d in ("linear", "neural_float_hil", "neural_float_hil_out")
+                                           else None), d
         assert "recording the state" in s["what"]
     assert "fresh arrays" in py["simulate"]["neural_float_hil"]["what"]
     assert "out=" in py["simulate"]["neural_float_hil_out"]["what"]
