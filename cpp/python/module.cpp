@@ -609,8 +609,10 @@ class PyLoop {
         road.size() < 1)
       throw py::value_error("simulate: road and road_rate must be 1-D of the same length >= 1");
     const py::ssize_t n = road.size();
+    // A default DArray is an empty array, not a null handle: whether u was given is has_u.
+    const bool has_u = !u_obj.is_none();
     DArray u;
-    if (!u_obj.is_none()) {
+    if (has_u) {
       u = DArray::ensure(u_obj);
       if (!u || u.ndim() != 1 || u.size() != n)
         throw py::value_error("simulate: u must be 1-D with one value per road sample");
@@ -642,12 +644,12 @@ class PyLoop {
         if (!py::isinstance<A>(o)) throw py::value_error(std::string("simulate: out['") + key + "'] has the wrong dtype");
         A a = o.cast<A>();
         bool ok = a.ndim() == (py::ssize_t)shape.size() && a.writeable() &&
-                  (a.flags() & py::array::c_style);
+                  (a.flags() & py::array::c_style) && (a.flags() & py::detail::npy_api::NPY_ARRAY_ALIGNED_);
         int k = 0;
         for (py::ssize_t e : shape) ok = ok && a.shape(k++) == e;
         if (!ok)
           throw py::value_error(std::string("simulate: out['") + key +
-                                "'] must be a writeable C-contiguous array of the result's shape");
+                                "'] must be a writeable, aligned, C-contiguous array of the result's shape");
         return a;
       };
       using AD = py::array_t<double>;
@@ -667,14 +669,19 @@ class PyLoop {
         return std::make_pair(p, p + a.nbytes());
       };
       const std::pair<const char*, const char*> ins[3] = {
-          span(road), span(road_rate), u ? span(u) : std::make_pair(nullptr, nullptr)};
-      for (const py::array& a : {py::array(states), py::array(force), py::array(control), py::array(xs),
-                                 py::array(vs), py::array(as), py::array(acc_s), py::array(acc_us),
-                                 py::array(feats), py::array(status)}) {
+          span(road), span(road_rate), has_u ? span(u) : std::make_pair(nullptr, nullptr)};
+      const py::array outs[] = {states, force, control, xs, vs, as, acc_s, acc_us, feats, status};
+      auto overlap = [](std::pair<const char*, const char*> a, std::pair<const char*, const char*> b) {
+        return a.first && b.first && a.first < b.second && b.first < a.second;
+      };
+      for (const py::array& a : outs) {
         const auto o = span(a);
         for (const auto& i : ins)
-          if (i.first && o.first < i.second && i.first < o.second)
+          if (overlap(o, i))
             throw py::value_error("simulate: out's arrays must not share memory with road, road_rate or u");
+        for (const py::array& b : outs)
+          if (&a != &b && a.nbytes() > 0 && overlap(o, span(b)))
+            throw py::value_error("simulate: out's arrays must not share memory with each other");
       }
     }
     double* S = states.mutable_data();
@@ -682,7 +689,7 @@ class PyLoop {
            *V = vs.mutable_data(), *A = as.mutable_data(), *AS = acc_s.mutable_data(),
            *AU = acc_us.mutable_data(), *FE = feats.mutable_data();
     int32_t* ST = status.mutable_data();
-    const double *R = road.data(), *RR = road_rate.data(), *UU = u ? u.data() : nullptr;
+    const double *R = road.data(), *RR = road_rate.data(), *UU = has_u ? u.data() : nullptr;
     const dn_loop_model* m = model->m.get();
     dn_loop_data* dd = d.get();
     py::ssize_t fail_at = -1;

@@ -119,10 +119,12 @@ class QuarterCar:
         state's road is replaced by road[0]).
 
         out: a previous result for a road of the same length (a dict with these keys,
-        arrays of the same dtypes and shapes, C-contiguous, writeable, not sharing memory
-        with the inputs): the run writes into its arrays instead of allocating new ones
-        (no page faults on fresh memory; the fastest way to run many roads) and returns
-        them; None (default): fresh arrays.
+        arrays of the same dtypes and shapes, C-contiguous, aligned, writeable, sharing
+        memory neither with the inputs nor with each other): the run writes into its
+        arrays instead of allocating new ones (no page faults on fresh memory; the fastest
+        way to run many roads) and returns a dict of plain ndarray views of that memory;
+        after an error their contents are unspecified. None (default): fresh arrays.
+        Without u, the external law's control is 0 (then clamped to its limits).
         """
         road = np.ascontiguousarray(road, dtype=np.float64)
         if road_rate is None:

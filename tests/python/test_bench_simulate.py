@@ -52,7 +52,12 @@ def test_out_misuse_is_refused():
     with pytest.raises(ValueError, match=r"out\['force'\] must be"):
         car.simulate(z, v, out=bad(force=np.empty(49)))
     with pytest.raises(ValueError, match=r"out\['state'\] must be"):
-        car.simulate(z, v, out=bad(state=np.empty((12, 50)).T))  # not C-contiguous
+        car.simulate(z, v, out=bad(state=np.empty((50, 26))[:, ::2]))  # the right shape, not C-contiguous
+    unaligned = np.frombuffer(bytearray(50 * 8 + 1), dtype=np.float64, offset=1, count=50)
+    with pytest.raises(ValueError, match=r"out\['a'\] must be"):
+        car.simulate(z, v, out=bad(a=unaligned))                          # not aligned
+    with pytest.raises(ValueError, match="share memory with each other"):
+        car.simulate(z, v, out=bad(v=good["x"]))
     ro = np.empty(50)
     ro.flags.writeable = False
     with pytest.raises(ValueError, match=r"out\['x'\] must be"):
@@ -61,6 +66,19 @@ def test_out_misuse_is_refused():
         car.simulate(good["v"], v, out=good)
     with pytest.raises(TypeError):
         car.simulate(z, v, out=[1, 2])
+
+
+def test_no_u_means_zero_control_for_the_external_law():
+    """simulate without u: the external law's control is 0 (clamped to its limits) for every
+    step; before, an empty array stood in for u and was read past its end (garbage or a crash)."""
+    from dampnet.loop import QuarterCar
+
+    car = QuarterCar(_core.Damper.linear(1500.0), {}, {"kind": "external", "u_min": -1.0})
+    z, v = _road(200_000)
+    r = car.simulate(z, v)
+    assert np.all(r["status"] >= 0) and np.all(r["control"] == 0.0)
+    r2 = car.simulate(z, v, u=np.zeros_like(z))
+    np.testing.assert_array_equal(r["state"], r2["state"])
 
 
 def test_large_results_are_ordinary_arrays():
