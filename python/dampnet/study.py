@@ -188,16 +188,15 @@ def continuous_skyhook(spec: DamperSpec, levels: dict | None = None, vehicle: Ve
     c_max = equivalent_damping(spec, lv["high"], v_rms, veh.dt)
     if not (math.isfinite(c_min) and math.isfinite(c_max) and c_max > c_min):
         c_min, c_max = Controller.c_min, Controller.c_max
-    return Controller(kind="skyhook_continuous", u_soft=lv["low"], u_hard=lv["high"],
-                      u_min=min(lv.values()), u_max=max(lv.values()),
-                      c_sky=zeta_sky * 2.0 * math.sqrt(veh.k_s * veh.m_s), c_min=c_min, c_max=c_max,
-                      u_tau_s=u_tau_s)
+    return semi_active("skyhook_continuous", lv, u_tau_s, c_sky=zeta_sky * 2.0 * math.sqrt(veh.k_s * veh.m_s),
+                       c_min=c_min, c_max=c_max)
 
 
-def onoff_skyhook(levels: dict, u_tau_s: float = SKYHOOK_COMMAND_TAU_S) -> Controller:
-    """On-off skyhook between a damper's own low and high damping settings, with the command filter."""
-    return Controller(kind="skyhook", u_soft=levels["low"], u_hard=levels["high"], u_min=min(levels.values()),
-                      u_max=max(levels.values()), u_tau_s=u_tau_s)
+def semi_active(kind: str, levels: dict, u_tau_s: float = SKYHOOK_COMMAND_TAU_S, **law) -> Controller:
+    """A control law between a damper's own low and high damping settings (`damping_levels`),
+    limited to them, with the command filter; `law`: its other settings (c_sky, c_min, ...)."""
+    return Controller(kind=kind, u_soft=levels["low"], u_hard=levels["high"], u_min=min(levels.values()),
+                      u_max=max(levels.values()), u_tau_s=u_tau_s, **law)
 
 
 def core_loop_available() -> bool:
@@ -357,10 +356,10 @@ def run_study(specs: list[DamperSpec], truth: DamperSpec | None = None, dt: floa
             for v in speeds:
                 go("rough_road", f"{v:g}_{level}", spec, roads["rough_road"], v, passive)
         for v in speeds:
-            sky = onoff_skyhook(lv, sky_c.u_tau_s)
+            sky = semi_active("skyhook", lv, sky_c.u_tau_s)
             go("skyhook", f"{v:g}_skyhook", spec, roads["rough_road"], v, sky)
-            cont = Controller(**{**sky_c.to_dict(), "u_soft": lv["low"], "u_hard": lv["high"],
-                                 "u_min": min(lv.values()), "u_max": max(lv.values())})
+            cont = semi_active("skyhook_continuous", lv, sky_c.u_tau_s, c_sky=sky_c.c_sky, c_min=sky_c.c_min,
+                               c_max=sky_c.c_max)
             go("skyhook", f"{v:g}_skyhook_continuous", spec, roads["rough_road"], v, cont)
             res["skyhook"].setdefault(f"{v:g}_passive_low", {})[spec.name] = \
                 res["rough_road"][f"{v:g}_low"][spec.name]

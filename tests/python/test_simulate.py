@@ -105,7 +105,7 @@ def rig_models():
 
 @pytest.fixture(scope="module")
 def rough_runs(rig_models):
-    from dampnet.study import continuous_skyhook, damping_levels, onoff_skyhook
+    from dampnet.study import continuous_skyhook, damping_levels, semi_active
 
     neural, _, truth = rig_models
     road = thesis_rough_road()
@@ -113,7 +113,7 @@ def rough_runs(rig_models):
     # c_sky = 2 sqrt(k_s m_s) / sqrt(2), c_min / c_max = the truth's equivalent damping at 5 / 0 V),
     # both laws with the study's 5 ms command filter.
     cont = continuous_skyhook(truth, damping_levels(truth))
-    onoff = onoff_skyhook(damping_levels(truth))
+    onoff = semi_active("skyhook", damping_levels(truth))
     assert cont.u_tau_s == onoff.u_tau_s == 0.005
     out = {}
     for spec in (neural, truth):

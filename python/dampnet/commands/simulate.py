@@ -67,7 +67,8 @@ def run(args) -> int:
 
     from dampnet.ride.pyloop import Controller, LoopError, Vehicle
     from dampnet.roads import RoadError, make_road
-    from dampnet.study import continuous_skyhook, damping_levels, plot_run, plot_transmissibility, simulate
+    from dampnet.study import (continuous_skyhook, damping_levels, plot_run, plot_transmissibility, semi_active,
+                               simulate)
 
     out = Path(args.out)
     existing = [out / f for f in ("run.npz", "metrics.json") if (out / f).exists()]
@@ -86,8 +87,7 @@ def run(args) -> int:
         elif args.control == "skyhook_continuous":
             ctrl = continuous_skyhook(spec, lv, veh, u_tau_s=tau)
         else:
-            ctrl = Controller(kind=args.control, u_soft=lv["low"], u_hard=lv["high"],
-                              u_min=min(lv.values()), u_max=max(lv.values()), u_tau_s=tau)
+            ctrl = semi_active(args.control, lv, tau)
         res = simulate(spec, road, args.speed if road.kind == "spatial" else None, ctrl, veh,
                        backend=args.backend)
     except (RoadError, LoopError, ValueError, OSError, KeyError) as e:
