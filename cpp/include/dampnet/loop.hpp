@@ -300,12 +300,19 @@ inline int evaluate(const LoopModel& m, dn_damper_input& in, double f_last, doub
       *f = f0;
       return st;
     }
-    const double a1 = in.a - g / gp;  // gp >= 1 for dF/da >= 0
-    const bool ok = gp > 1e-3 && std::isfinite(a1);
+    // The step's force correction is dF = -dF/da g / g'. Since |k dF/da| = |g' - 1|,
+    // |dF| = |g' - 1| / g' |g| / k <= |g| / k = |F0 - f_last| exactly when g' >= 1/2: the
+    // correction never exceeds the force change since the last evaluation. Below that
+    // (a negative apparent mass dF/da < -m_red / 2, m_red = 1/k) it grows as 1/g' without
+    // bound (the 116 kN spikes of issue 14 at g' ~ 0.02), so the step is refused and the
+    // explicit value is kept: one evaluation still, and its force is a model evaluation,
+    // bounded by the model's output range.
+    const double a1 = in.a - g / gp;
+    const bool ok = gp >= DN_ACCEL_LINEAR_MIN_SLOPE && std::isfinite(a1);
     *f = ok ? f0 + dfda * (a1 - in.a) : f0;
     if (ok) in.a = a1;
     if (feat_out) m.damper.feature_values(in, feat_out);
-    return ok ? st : (st | DN_W_ACCEL_UNCONVERGED);
+    return ok ? st : (st | DN_W_ACCEL_FALLBACK);
   }
   struct It {
     double a, f, g, gp;  // acceleration, force, g(a), g'(a) = 1 + k dF/da
