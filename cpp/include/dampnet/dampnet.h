@@ -92,7 +92,9 @@ DN_API const char* dn_version_string(void);
   X(DN_E_NONFINITE_INPUT, -10,                                                               \
     "a step or evaluation input is NaN or infinite; nothing was computed or advanced")       \
   X(DN_E_DIVERGED, -11,                                                                      \
-    "the step produced a non-finite state (unstable: step too large?); state not advanced")
+    "the step would produce a non-finite value (state, acceleration or damper force) from "  \
+    "finite inputs (unstable: step too large? a runaway or overflowing road?); state not "   \
+    "advanced")
 
 #define DN_STATUS_ENUM_(name, value, text) name = value,
 typedef enum dn_status { DN_STATUS_LIST(DN_STATUS_ENUM_) } dn_status;
@@ -144,6 +146,9 @@ typedef struct dn_mlp_desc {
 typedef struct dn_mlp dn_mlp;
 
 /* Validate a description and create a model. Allocates; set-up only.
+ * The model holds a float and a double copy with the scalings folded into the
+ * weights: a description whose folded parameters overflow float (|x| > 3.4e38,
+ * e.g. out_offset = 1e39 or out_gain = 1e-40) is refused with DN_E_PARAM.
  * return DN_OK and *out set, or a DN_E_* error with *out = NULL. */
 DN_API int dn_mlp_create(const dn_mlp_desc* desc, dn_mlp** out);
 
@@ -434,7 +439,7 @@ typedef enum dn_accel_feature {
   X(double, k_s, 15000.0, "suspension spring stiffness [N/m], >= 0")                       \
   X(double, k_t, 200000.0, "tyre stiffness [N/m], > 0")                                    \
   X(double, c_t, 0.0, "tyre damping [N s/m], >= 0")                                        \
-  X(double, dt, 0.001, "step [s], 0 < dt <= 0.1")                                          \
+  X(double, dt, 0.001, "step [s], 1e-9 <= dt <= 0.1")                                          \
   X(int, integrator, DN_INT_RK4, "dn_integrator")                                          \
   X(int, damper_eval, DN_EVAL_PER_STAGE, "dn_damper_eval (RK4 only)")                      \
   X(double, x_static, 0.0, "damper displacement at static equilibrium, from mid [m]")      \
@@ -494,7 +499,7 @@ typedef struct dn_loop_model dn_loop_model;
 typedef struct dn_loop_data dn_loop_data;
 
 /* Validate and create a loop model (copies the damper). Nonsensical values:
- * DN_E_NONFINITE_PARAM (NaN/Inf), DN_E_PARAM (mass <= 0, dt <= 0 or > 0.1, ...).
+ * DN_E_NONFINITE_PARAM (NaN/Inf), DN_E_PARAM (mass <= 0, dt < 1e-9 or > 0.1, ...).
  * Nullable: ctrl (passive at u = 0). Allocates. */
 DN_API int dn_loop_model_create(const dn_vehicle* veh, const dn_damper* damper,
                                 const dn_controller* ctrl, dn_loop_model** out);
@@ -523,8 +528,11 @@ DN_API int dn_loop_set_state(dn_loop_data* d, const double* state);
 DN_API int64_t dn_loop_damper_evals(const dn_loop_data* d);
 
 /* [RT] One step of dt: controller, damper, integrator. Reports at the step start
- * into *out. Non-finite input: DN_E_NONFINITE_INPUT; non-finite result:
- * DN_E_DIVERGED or DN_E_NONFINITE_OUTPUT; in both cases the state is unchanged.
+ * into *out. A NaN or infinite step input (road, external control):
+ * DN_E_NONFINITE_INPUT. Finite inputs whose step would produce a non-finite value
+ * anywhere (state, accelerations, a damper input or force: a road of 1e308, an
+ * unstable step, a runaway): DN_E_DIVERGED (a callback damper's own non-finite
+ * force: DN_E_NONFINITE_OUTPUT). In every error case the state is unchanged.
  * Warnings from the damper (DN_W_*) are OR-ed. Nullable: out. */
 DN_API int dn_loop_step(const dn_loop_model* m, dn_loop_data* d, const dn_loop_input* in,
                         dn_loop_out* out);

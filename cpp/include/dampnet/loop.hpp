@@ -120,6 +120,11 @@ inline double control_law(const dn_controller& c, double v_s, double v_us, doubl
   return detail::clamp(u, c.u_min, c.u_max);
 }
 
+// The smallest step accepted [s]: 1 ns, far below any real loop (a 1 MHz loop is 1 us);
+// below it the Hermite road's rate (dz_r / dt) and the lag coefficients lose their
+// meaning, and a subnormal dt (1e-320) overflows every difference quotient.
+constexpr double kMinDt = 1e-9;
+
 struct LoopModel {
   dn_vehicle veh = default_vehicle();
   dn_controller ctrl = default_controller();
@@ -145,8 +150,8 @@ struct LoopModel {
                            v.temperature};
     for (double x : vals)
       if (!std::isfinite(x)) return DN_E_NONFINITE_PARAM;
-    if (!(v.m_s > 0) || !(v.m_us > 0) || v.k_s < 0 || !(v.k_t > 0) || v.c_t < 0 || !(v.dt > 0) ||
-        v.dt > 0.1)
+    if (!(v.m_s > 0) || !(v.m_us > 0) || v.k_s < 0 || !(v.k_t > 0) || v.c_t < 0 ||
+        !(v.dt >= kMinDt) || v.dt > 0.1)
       return DN_E_PARAM;
     if (v.integrator != DN_INT_RK4 && v.integrator != DN_INT_SEMI_EULER) return DN_E_PARAM;
     if (v.damper_eval != DN_EVAL_PER_STAGE && v.damper_eval != DN_EVAL_PER_STEP) return DN_E_PARAM;
@@ -265,9 +270,14 @@ inline dn_damper_input damper_input(const LoopModel& m, const Body& b, double zr
   return in;
 }
 
-// A model force overflowing on finite inputs means the state has run away
-// (a callback's non-finite force is the callback's error and stays one).
+// Inside the loop every damper input is computed from a finite state and a finite
+// step input (both checked), so a non-finite damper input means the computation
+// overflowed: the state is running away (a road of 1e308, a dt so small that the
+// road's rate overflows, an unstable stiff step). So is a model force overflowing on
+// finite inputs. Both are DN_E_DIVERGED, not an input error of the caller's (a
+// callback's non-finite force is the callback's error and stays one).
 inline int diverged_if_overflow(const LoopModel& m, int st) noexcept {
+  if (st == DN_E_NONFINITE_INPUT) return DN_E_DIVERGED;
   return (st == DN_E_NONFINITE_OUTPUT && m.damper.kind != DN_DAMPER_CALLBACK) ? int(DN_E_DIVERGED)
                                                                                : st;
 }
@@ -404,6 +414,11 @@ inline Start start(const LoopModel& m, const double* s, double u_ext, dn_loop_ou
   }
   r.status = evaluate(m, r.in, s[S_f_last], &r.force, feat, mask, n_evals);
   r.acc = accel(m, b, s[S_z_r], s[S_v_r], r.force);
+  // A finite but huge state (e.g. from set_state) can overflow the accelerations or the
+  // relative motion: a runaway, and no report may be non-finite with a success status
+  // (a sum is non-finite when any term is, or when it overflows).
+  if (r.status >= 0 && !std::isfinite(r.acc.as + r.acc.aus + r.in.a + r.in.x + r.in.v))
+    r.status = DN_E_DIVERGED;
   if (out) {
     out->force = r.force;
     out->u = r.u;
