@@ -153,6 +153,8 @@ struct LoopModel {
     if (!(v.m_s > 0) || !(v.m_us > 0) || v.k_s < 0 || !(v.k_t > 0) || v.c_t < 0 ||
         !(v.dt >= kMinDt) || v.dt > 0.1)
       return DN_E_PARAM;
+    // a subnormal mass (1e-320 kg) is > 0 but its reciprocal overflows
+    if (!std::isfinite(1.0 / v.m_s) || !std::isfinite(1.0 / v.m_us)) return DN_E_PARAM;
     if (v.integrator != DN_INT_RK4 && v.integrator != DN_INT_SEMI_EULER) return DN_E_PARAM;
     if (v.damper_eval != DN_EVAL_PER_STAGE && v.damper_eval != DN_EVAL_PER_STEP) return DN_E_PARAM;
     if (v.accel_feature != DN_ACCEL_IMPLICIT && v.accel_feature != DN_ACCEL_EXPLICIT &&
