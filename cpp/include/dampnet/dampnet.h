@@ -92,9 +92,8 @@ DN_API const char* dn_version_string(void);
   X(DN_E_NONFINITE_INPUT, -10,                                                               \
     "a step or evaluation input is NaN or infinite; nothing was computed or advanced")       \
   X(DN_E_DIVERGED, -11,                                                                      \
-    "the step would produce a non-finite value (state, acceleration or damper force) from "  \
-    "finite inputs (unstable: step too large? a runaway or overflowing road?); state not "   \
-    "advanced")
+    "the step would produce a non-finite state, acceleration or damper force from finite "   \
+    "inputs (unstable: step too large? a runaway or overflowing road?); state not advanced")
 
 #define DN_STATUS_ENUM_(name, value, text) name = value,
 typedef enum dn_status { DN_STATUS_LIST(DN_STATUS_ENUM_) } dn_status;
