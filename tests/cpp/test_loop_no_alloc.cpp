@@ -64,6 +64,7 @@ int main() {
                                  {DN_INT_SEMI_EULER, DN_EVAL_PER_STAGE}};
   // every accel_feature mode for the dampers that read the acceleration (the default
   // model's): the implicit solve, the linearised HIL scheme and the explicit one
+  const int kSteps = 12000;  // per case: 180 cases, 2.16e6 steps
   const int accel_modes[3] = {DN_ACCEL_IMPLICIT, DN_ACCEL_LINEAR, DN_ACCEL_EXPLICIT};
   long accel_steps[3] = {0, 0, 0};
   for (dn_damper*& dp : dampers) {
@@ -76,7 +77,7 @@ int main() {
         veh.integrator = ig[0];
         veh.damper_eval = ig[1];
         veh.accel_feature = accel_modes[am];
-        if (reads_a) accel_steps[am] += 20000;
+        if (reads_a) accel_steps[am] += kSteps;
         dn_controller ctrl;
         dn_controller_default(&ctrl, kind);
         ctrl.u_tau_s = ig[1] == DN_EVAL_PER_STEP ? 0.005 : 0.0;  // the command filter's path too
@@ -85,7 +86,7 @@ int main() {
         CHECK(dn_loop_model_create(&veh, dp, &ctrl, &m) == DN_OK);
         CHECK(dn_loop_data_create(m, &d) == DN_OK);
         g_counting = true;
-        for (int k = 1; k <= 20000; ++k) {
+        for (int k = 1; k <= kSteps; ++k) {
           const double t = k * 1e-3;
           dn_loop_input in{0.03 * std::sin(9.0 * t) + 0.005 * std::sin(70.0 * t),
                            0.27 * std::cos(9.0 * t) + 0.35 * std::cos(70.0 * t),

@@ -30,7 +30,7 @@ def test_no_allocation_in_a_plain_build(plain_build):
     for exe in ("test_no_alloc", "test_loop_no_alloc"):
         out = run([plain_build / "tests" / "cpp" / exe]).stdout
         assert "NOT counted" not in out and "all checks passed" in out, out
-    assert "steps per accel_feature mode (implicit, linear, explicit): 720000 720000 720000" in out
+    assert "steps per accel_feature mode (implicit, linear, explicit): 432000 432000 432000" in out
 
 
 def test_find_package_consumer_links_and_runs(installed_prefix, tmp_path):
