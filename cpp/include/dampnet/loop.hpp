@@ -48,7 +48,9 @@
 // or semi-implicit Euler) the previous step's force, a lag of one dt in the
 // force part of a only. The explicit scheme is stable only while
 // |dF/da| k < 1 (the damper's apparent mass below the reduced mass); the
-// implicit one for any dF/da >= 0.
+// implicit one for any dF/da >= 0; the linearised one takes its step only where
+// 1 + k dF/da >= DN_ACCEL_LINEAR_MIN_SLOPE and otherwise keeps the explicit value
+// (DN_W_ACCEL_FALLBACK; see evaluate()).
 #pragma once
 
 #include <cmath>
@@ -316,7 +318,7 @@ inline int evaluate(const LoopModel& m, dn_damper_input& in, double f_last, doub
     // |dF| = |g' - 1| / g' |g| / k <= |g| / k = |F0 - f_last| exactly when g' >= 1/2: the
     // correction never exceeds the force change since the last evaluation. Below that
     // (a negative apparent mass dF/da < -m_red / 2, m_red = 1/k) it grows as 1/g' without
-    // bound (the 116 kN spikes of issue 14 at g' ~ 0.02), so the step is refused and the
+    // bound (issue 14's 30-400 kN spikes at g' ~ 0.02), so the step is refused and the
     // explicit value is kept: one evaluation still, and its force is a model evaluation,
     // bounded by the model's output range.
     const double a1 = in.a - g / gp;
