@@ -1,8 +1,56 @@
 // Version and status strings of the C ABI.
+#include <cstring>
+
 #include "dampnet/dampnet.h"
 
 #define DN_STR2_(x) #x
 #define DN_STR_(x) DN_STR2_(x)
+
+namespace {
+
+// The warnings, in bit order: name and text of each DN_W_* flag.
+struct Warning {
+  int bit;
+  const char* name;
+  const char* text;
+};
+#define DN_WARNING_ROW_(name, value, text) {value, #name, text},
+constexpr Warning kStatuses[] = {DN_STATUS_LIST(DN_WARNING_ROW_)};
+#undef DN_WARNING_ROW_
+
+constexpr int warning_bits() {
+  int all = 0;
+  for (const Warning& w : kStatuses)
+    if (w.bit > 0) all |= w.bit;
+  return all;
+}
+constexpr int kAllWarnings = warning_bits();
+static_assert((kAllWarnings & (kAllWarnings + 1)) == 0, "warnings are the low bits 1, 2, 4, ...");
+
+// An OR of several warnings: "NAME1|NAME2: text1; text2", one static buffer per combination,
+// filled once (a function-local static: thread-safe initialisation, no heap afterwards).
+constexpr int kCombinedLen = 1024;
+struct Combined {
+  char text[kAllWarnings + 1][kCombinedLen];
+  Combined() {
+    for (int s = 0; s <= kAllWarnings; ++s) {
+      char* out = text[s];
+      out[0] = '\0';
+      auto append = [&](const char* part) {
+        std::strncat(out, part, kCombinedLen - 1 - std::strlen(out));
+      };
+      bool first = true;
+      for (const Warning& w : kStatuses)
+        if (w.bit > 0 && (s & w.bit)) append(first ? "" : "|"), append(w.name), first = false;
+      append(": ");
+      first = true;
+      for (const Warning& w : kStatuses)
+        if (w.bit > 0 && (s & w.bit)) append(first ? "" : "; "), append(w.text), first = false;
+    }
+  }
+};
+
+}  // namespace
 
 extern "C" {
 
@@ -19,21 +67,14 @@ const char* dn_status_str(int status) {
     return #name ": " text;
     DN_STATUS_LIST(DN_STATUS_CASE_)
 #undef DN_STATUS_CASE_
-    case DN_W_SATURATED | DN_W_NONFINITE_INPUT:
-      return "DN_W_SATURATED|DN_W_NONFINITE_INPUT: an input was clamped to its saturation "
-             "limits and a NaN input was replaced by the centre of its range";
-    case DN_W_SATURATED | DN_W_ACCEL_UNCONVERGED:
-      return "DN_W_SATURATED|DN_W_ACCEL_UNCONVERGED: an input was clamped to its saturation "
-             "limits and the implicit acceleration feature did not converge";
-    case DN_W_NONFINITE_INPUT | DN_W_ACCEL_UNCONVERGED:
-      return "DN_W_NONFINITE_INPUT|DN_W_ACCEL_UNCONVERGED: a NaN input was replaced by the "
-             "centre of its range and the implicit acceleration feature did not converge";
-    case DN_W_SATURATED | DN_W_NONFINITE_INPUT | DN_W_ACCEL_UNCONVERGED:
-      return "DN_W_SATURATED|DN_W_NONFINITE_INPUT|DN_W_ACCEL_UNCONVERGED: an input was clamped, "
-             "a NaN input was replaced, and the implicit acceleration feature did not converge";
     default:
-      return "unknown dampnet status code";
+      break;
   }
+  if (status > 0 && (status & ~kAllWarnings) == 0) {
+    static const Combined combined;
+    return combined.text[status];
+  }
+  return "unknown dampnet status code";
 }
 
 }  // extern "C"

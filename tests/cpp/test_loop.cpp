@@ -105,7 +105,10 @@ int main(int argc, char** argv) {
       if (st < 0) {
         ++errors;
         CHECK(std::memcmp(before, ld.s, sizeof before) == 0);
-        CHECK(st == DN_E_NONFINITE_INPUT || st == DN_E_DIVERGED);
+        // the caller's NaN/Inf is an input error; finite inputs that overflow (1e308) diverge
+        const bool bad_input = !std::isfinite(in.z_r) || !std::isfinite(in.v_r) ||
+                               (ctrl.kind == DN_CTRL_EXTERNAL && !std::isfinite(in.u));
+        CHECK(st == (bad_input ? DN_E_NONFINITE_INPUT : DN_E_DIVERGED));
       } else {
         ++ok;
         for (double x : ld.s) CHECK(std::isfinite(x));
@@ -130,6 +133,12 @@ int main(int argc, char** argv) {
     v = default_vehicle();
     v.dt = -1e-3;
     CHECK(m.init(v, d, default_controller()) == DN_E_PARAM);
+    for (double tiny : {1e-320, 4.9e-324, 1e-12}) {  // absurd steps: refused, not run
+      v.dt = tiny;
+      CHECK(m.init(v, d, default_controller()) == DN_E_PARAM);
+    }
+    v.dt = 1e-9;
+    CHECK(m.init(v, d, default_controller()) == DN_OK);
     dn_controller c = default_controller(DN_CTRL_SKYHOOK_CONTINUOUS);
     c.c_max = c.c_min;
     CHECK(m.init(default_vehicle(), d, c) == DN_E_PARAM);

@@ -1,7 +1,8 @@
 // No heap allocation in the loop's step: every allocation entry point is counted
-// while many steps run with every damper kind and controller (neural float and
-// double with terms, parametric, table, linear; RK4 per stage/per step and
-// semi-implicit Euler), through the C++ API and the C ABI.
+// (alloc_counter.hpp) while many steps run with every damper kind and controller
+// (neural float and double with terms, parametric, table, linear; RK4 per stage/per
+// step and semi-implicit Euler; for the dampers reading the acceleration every
+// accel_feature mode), through the C ABI. pytest runs it plain and under ASan.
 #include <cmath>
 #include <cstdlib>
 #include <new>
@@ -52,13 +53,8 @@ int main() {
   // a step (DN_EVAL_PER_STEP) a stiff position force is explicit and can pump energy
   for (int i : {0, 5}) CHECK(dn_damper_add_term(dampers[i], "bump_stop", bump, 3) == DN_OK);
 
-  // Sanity: the counter sees an allocation.
-  g_counting = true;
-  void* probe = ::operator new(16);  // counted with and without ASan
-  g_counting = false;
-  ::operator delete(probe);
-  CHECK(g_allocs >= 1);
-  g_allocs = 0;
+  // The counter sees every allocation entry point (else this test could not fail).
+  CHECK(dn_alloc_counter_self_test(true) == 0);
 
   long steps = 0;
   int first_fail[4] = {0, 0, 0, 0};
@@ -66,13 +62,22 @@ int main() {
   const int integrators[3][2] = {{DN_INT_RK4, DN_EVAL_PER_STAGE},
                                  {DN_INT_RK4, DN_EVAL_PER_STEP},
                                  {DN_INT_SEMI_EULER, DN_EVAL_PER_STAGE}};
+  // every accel_feature mode for the dampers that read the acceleration (the default
+  // model's): the implicit solve, the linearised HIL scheme and the explicit one
+  const int kSteps = 12000;  // per case: 180 cases, 2.16e6 steps
+  const int accel_modes[3] = {DN_ACCEL_IMPLICIT, DN_ACCEL_LINEAR, DN_ACCEL_EXPLICIT};
+  long accel_steps[3] = {0, 0, 0};
   for (dn_damper*& dp : dampers) {
+    const bool reads_a = dp == dampers[0] || dp == dampers[5];
+    for (int am = 0; am < (reads_a ? 3 : 1); ++am)
     for (auto& ig : integrators) {
       for (int kind = DN_CTRL_PASSIVE; kind <= DN_CTRL_EXTERNAL; ++kind) {
         dn_vehicle veh;
         dn_vehicle_default(&veh);
         veh.integrator = ig[0];
         veh.damper_eval = ig[1];
+        veh.accel_feature = accel_modes[am];
+        if (reads_a) accel_steps[am] += kSteps;
         dn_controller ctrl;
         dn_controller_default(&ctrl, kind);
         ctrl.u_tau_s = ig[1] == DN_EVAL_PER_STEP ? 0.005 : 0.0;  // the command filter's path too
@@ -81,7 +86,7 @@ int main() {
         CHECK(dn_loop_model_create(&veh, dp, &ctrl, &m) == DN_OK);
         CHECK(dn_loop_data_create(m, &d) == DN_OK);
         g_counting = true;
-        for (int k = 1; k <= 20000; ++k) {
+        for (int k = 1; k <= kSteps; ++k) {
           const double t = k * 1e-3;
           dn_loop_input in{0.03 * std::sin(9.0 * t) + 0.005 * std::sin(70.0 * t),
                            0.27 * std::cos(9.0 * t) + 0.35 * std::cos(70.0 * t),
@@ -112,7 +117,10 @@ int main() {
   if (first_fail[0])
     std::printf("first error: case %d (kind*1000 + damper*100 + integrator*20 + eval*10 + law), "
                 "step %d, status %d\n", first_fail[1], first_fail[2], first_fail[3]);
+  std::printf("steps per accel_feature mode (implicit, linear, explicit): %ld %ld %ld\n",
+              accel_steps[0], accel_steps[1], accel_steps[2]);
   CHECK(g_allocs == 0);
+  CHECK(accel_steps[0] > 0 && accel_steps[1] == accel_steps[0] && accel_steps[2] == accel_steps[0]);
   CHECK(std::isfinite(checksum));
   for (dn_damper* dp : dampers) dn_damper_destroy(dp);
   dn_mlp_destroy(mlp);

@@ -132,15 +132,52 @@ void input_policy() {
   }
 }
 
-void output_overflow_is_caught() {
-  RandomModel rm(2, 4, 0, DN_ACT_TANH, 3);
-  for (auto& w : rm.w_out) w = 1e308;  // finite, but the sum overflows
-  Mlp<double> m;
+// Finite parameters whose sum overflows: every hidden unit saturates at tanh(5) ~ +1
+// and h output weights of w each add up past the type's range (float: w below
+// 3.4e38 / 56, the largest tanh numerator coefficient folded into w_out). The status must be
+// DN_E_NONFINITE_OUTPUT and the output exactly the (finite) out_offset.
+template <typename T>
+void output_overflow_is_caught(int h, double w) {
+  RandomModel rm(2, h, 0, DN_ACT_TANH, 3);
+  for (auto& x : rm.w1) x = 0.0;
+  for (auto& x : rm.b1) x = 5.0;
+  for (auto& x : rm.w_out) x = w;
+  rm.b_out[0] = 0.0;
+  rm.desc.out_gain = 1.0;
+  rm.desc.out_ymin = 0.0;
+  rm.desc.out_offset = -123.0;
+  Mlp<T> m;
   CHECK(m.load(&rm.desc) == DN_OK);
-  double x[2] = {rm.sat_lo[0], rm.sat_hi[1]}, y = 0;
-  const int st = m.forward(x, &y);
-  CHECK(st == DN_E_NONFINITE_OUTPUT || std::isfinite(y));
-  CHECK(std::isfinite(y));
+  T x[2] = {T(rm.sat_lo[0]), T(rm.sat_hi[1])}, y = 0;
+  CHECK(m.forward(x, &y) == DN_E_NONFINITE_OUTPUT);
+  CHECK(y == T(-123.0));
+}
+
+// A scaling that overflows the kernel's type once folded (float: out_offset 1e39, an
+// out_gain of 1e-40, a saturation limit of 1e39) is refused at creation: before, the
+// float forward returned +-inf with DN_E_NONFINITE_OUTPUT, its fallback being inf too.
+void float_overflowing_scaling_is_refused() {
+  for (int c = 0; c < 4; ++c) {
+    RandomModel rm(2, 4, 0, DN_ACT_TANH, 5);
+    if (c == 0) rm.desc.out_offset = 1e39;
+    if (c == 1) rm.desc.out_offset = -1e39;
+    if (c == 2) rm.desc.out_gain = 1e-40;
+    if (c == 3) rm.sat_hi[1] = 1e39;
+    Mlp<float> mf;
+    Mlp<double> md;
+    CHECK(mf.load(&rm.desc) == DN_E_PARAM);
+    CHECK(md.load(&rm.desc) == DN_OK);  // double holds it, but a dn_mlp holds both copies
+    dn_mlp* h = reinterpret_cast<dn_mlp*>(&md);  // poison: must be overwritten with NULL
+    CHECK(dn_mlp_create(&rm.desc, &h) == DN_E_PARAM);
+    CHECK(h == nullptr);
+  }
+  RandomModel ok(2, 4, 0, DN_ACT_TANH, 5);
+  ok.desc.out_offset = 1e30;  // large, but float holds it
+  dn_mlp* h = nullptr;
+  CHECK(dn_mlp_create(&ok.desc, &h) == DN_OK);
+  float xf[2] = {0.f, 0.f}, yf = 0.f;
+  CHECK(dn_mlp_forward_f(h, xf, &yf, nullptr) >= 0 && std::isfinite(yf));
+  dn_mlp_destroy(h);
 }
 
 // forward_grad's dy/dx_i against a central difference of the double kernel, for every
@@ -238,6 +275,8 @@ int main() {
   validation_errors();
   input_policy<double>();
   input_policy<float>();
-  output_overflow_is_caught();
+  output_overflow_is_caught<double>(4, 1e308);
+  output_overflow_is_caught<float>(64, 5.9e36);
+  float_overflowing_scaling_is_refused();
   TEST_MAIN_RETURN();
 }

@@ -4,6 +4,7 @@ quick mode as a smoke test (no times asserted: the machines are shared and noisy
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 
@@ -49,3 +50,59 @@ def test_dampnet_bench_quick_runs_and_reports_the_budget(tmp_path):
         assert r["n"] == 20000 and 0 < r["p50_ns"] <= r["p99_ns"] <= r["p999_ns"] <= r["max_ns"]
     assert res["budget"]["p999_budget_ns"] == 1000.0
     assert (proc.returncode == 0) == res["headroom"]["within_budget"]
+
+
+def _bench(*args, harness_dir, timeout=600):
+    env = dict(os.environ, DAMPNET_BENCH_HARNESS_DIR=str(harness_dir))  # one build for the runs
+    return subprocess.run([sys.executable, "-m", "dampnet.cli", "bench", "--quick", "--calls", "2000",
+                           "--cpp-only", *args], capture_output=True, text=True, timeout=timeout, env=env)
+
+
+def test_dampnet_bench_exit_code_is_the_go_no_go_verdict(tmp_path):
+    """Exit 1 when the budget is missed (a budget of 0.001 ns cannot be met), exit 1 when
+    the hard-input check fails (a margin of -90 % puts the bounds inside the model's normal
+    forces), exit 0 when both pass (a budget of 1 s); each NO-GO line says why."""
+    missed = _bench("--budget-ns", "0.001", harness_dir=tmp_path)
+    assert missed.returncode == 1, missed.stdout[-3000:] + missed.stderr[-2000:]
+    assert "NO-GO: the HIL step's p99.9" in missed.stdout
+    assert "hard-input check failed" not in missed.stdout
+
+    hard = _bench("--budget-ns", "1e9", "--hil-margin", "-0.9", harness_dir=tmp_path)
+    assert hard.returncode == 1, hard.stdout[-3000:] + hard.stderr[-2000:]
+    assert "NO-GO: the hard-input check failed: issue14_road:" in hard.stdout
+    assert "NO-GO: the HIL step's p99.9" not in hard.stdout
+
+    go = _bench("--budget-ns", "1e9", harness_dir=tmp_path)
+    assert go.returncode == 0, go.stdout[-3000:] + go.stderr[-2000:]
+    assert "NO-GO" not in go.stdout and "-> GO" in go.stdout
+    for name in ("issue14_road", "impulse_5cm_50ms", "thesis_rough_20ms", "saturated_12hz_and_step"):
+        assert f"  {name}: ok; force" in go.stdout
+
+    bad = _bench("--budget-ns", "-5", harness_dir=tmp_path)
+    assert bad.returncode == 2 and bad.stderr.startswith("dampnet: error: --budget-ns")
+
+
+def test_hard_input_check_catches_force_spikes_and_divergence():
+    """The check itself on the two failures it exists for, with the budget case's
+    configuration: an MLP whose output reaches 40 kN on saturated inputs (range 4.2 kN)
+    is caught as out of range, a step that fails (dt = 0.1 s on a stiff tyre diverges)
+    as a step error; the shipped model passes with its peak within 2.7 kN."""
+    import dampnet.benchmark as bm
+    from dampnet.bench_python import default_model
+
+    ok = bm.hil_hard_input_check()
+    assert ok["passed"] and max(r["f_max"] for r in ok["inputs"].values()) < 2700.0
+
+    spiky = default_model()
+    spiky.w_out = spiky.w_out * 12.0  # same range, 12x the swing on saturated inputs
+    res = bm.hil_hard_input_check(spiky)
+    assert not res["passed"] and any("outside" in f for f in res["failures"])
+
+    old = dict(bm.HIL_VEHICLE)
+    try:
+        bm.HIL_VEHICLE.update(k_t=2e7)
+        res = bm.hil_hard_input_check(dt=0.02)
+    finally:
+        bm.HIL_VEHICLE.clear()
+        bm.HIL_VEHICLE.update(old)
+    assert not res["passed"] and any("DN_E_DIVERGED" in f for f in res["failures"])

@@ -20,6 +20,19 @@ def test_ctest_clean_under_address_and_undefined_sanitizers(asan_build):
     assert "runtime error" not in proc.stdout and "AddressSanitizer" not in proc.stdout
 
 
+def test_no_allocation_in_a_plain_build(plain_build):
+    """The no-allocation tests again without sanitizers: there malloc, calloc, realloc and
+    the aligned allocators are interposed directly (under ASan the sanitizer's allocation
+    hook counts them: the ctest run above). Each program first checks that its counter
+    sees every entry point, then counts through the forward calls and loop steps (every
+    damper, integrator, law and accel_feature mode)."""
+    run(["cmake", "--build", plain_build, "--target", "test_no_alloc", "test_loop_no_alloc"])
+    for exe in ("test_no_alloc", "test_loop_no_alloc"):
+        out = run([plain_build / "tests" / "cpp" / exe]).stdout
+        assert "NOT counted" not in out and "all checks passed" in out, out
+    assert "steps per accel_feature mode (implicit, linear, explicit): 432000 432000 432000" in out
+
+
 def test_find_package_consumer_links_and_runs(installed_prefix, tmp_path):
     bdir = tmp_path / "consumer"
     run(["cmake", "-S", ROOT / "tests" / "consumer", "-B", bdir, f"-DCMAKE_PREFIX_PATH={installed_prefix}"])

@@ -232,9 +232,25 @@ def test_explicit_acceleration_feature_added_mass_below_the_limit(m_a):
 
 
 def test_explicit_acceleration_feature_fails_above_the_limit():
-    """m_a = 200 kg: loop gain 5.3 > 1. The explicit scheme oscillates and diverges."""
-    (e1, _, _), = added_mass_run(200.0, "explicit", dts=(1e-3,))
-    assert not e1 < 1.0
+    """m_a = 200 kg: loop gain 5.3 > 1. The explicit fixed point a <- a_free - k m_a a
+    amplifies its error 5.3 times per evaluation; it does not run off to infinity (no
+    DN_E_DIVERGED: the MLP clamps its acceleration input at +-400 m/s^2, so the force
+    stays bounded) but the feature is then wrong by more than the acceleration itself, the
+    input is clamped in every step and the motion is wrong at order one. (25 kg, below
+    the limit: the feature within 0.19 of the exact acceleration's RMS, never clamped.)"""
+    (e1, _, status), = added_mass_run(200.0, "explicit", dts=(1e-3,))
+    assert np.isfinite(e1) and e1 > 1.0
+    assert np.all(status & _core.DN_W_SATURATED)
+    for m_a, lo, hi in ((200.0, 1.5, np.inf), (25.0, 0.0, 0.3)):
+        car = QuarterCar(damper_from_model(linear_mlp(1500.0, m_a, eps=1e-9)),
+                         {"dt": 1e-3, "accel_feature": "explicit"})
+        z, zd = random_road(seed=8)
+        t = np.arange(3001) * 1e-3
+        out = car.simulate(z(t), zd(t))
+        exact = out["acc_s"] - out["acc_us"]  # the acceleration with the step's force
+        rel = np.sqrt(np.mean((out["a"] - exact) ** 2)) / np.sqrt(np.mean(exact ** 2))
+        print(f"explicit m_a={m_a}: feature vs exact acceleration, relative RMS {rel:.2f}")
+        assert lo < rel < hi
 
 
 @pytest.mark.parametrize("m_a", [5.0, 25.0, 200.0, 2000.0])

@@ -196,14 +196,23 @@ def test_unknown_parameter_names_are_refused():
 
 
 def test_nonfinite_road_is_refused_and_state_kept():
+    """A refused step leaves the state exactly as it was (compared without a reset: the
+    car is moving, so any advance or partial write would show)."""
     car = QuarterCar(_core.Damper.linear(C))
+    for k in range(20):
+        car.step(0.01 * np.sin(0.3 * k), 0.0)
     before = car.state.copy()
-    with pytest.raises(ValueError, match="NONFINITE_INPUT"):
-        car.step(float("nan"), 0.0)
-    with pytest.raises(ValueError, match="NONFINITE_INPUT"):
-        car.simulate(np.array([0.0, np.inf, 0.0]), np.zeros(3))
-    car.reset()
-    np.testing.assert_array_equal(car.state, before)
+    assert before[S["t"]] > 0 and before[S["v_s"]] != 0.0
+    for bad in ((float("nan"), 0.0), (np.inf, 0.0), (0.0, -np.inf), (0.0, float("nan"))):
+        with pytest.raises(ValueError, match="NONFINITE_INPUT"):
+            car.step(*bad)
+        np.testing.assert_array_equal(car.state, before)
+    with pytest.raises(ValueError, match="sample 0: DN_E_NONFINITE_INPUT"):
+        car.simulate(np.array([0.002, np.inf, 0.0]), np.full(3, 0.1), reset=False)
+    # simulate put road[0] into the state, then its first step was refused: nothing else moved
+    expected = before.copy()
+    expected[S["z_r"]], expected[S["v_r"]] = 0.002, 0.1
+    np.testing.assert_array_equal(car.state, expected)
 
 
 def test_unstable_step_reports_divergence_not_a_silent_result():

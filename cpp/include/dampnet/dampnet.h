@@ -12,6 +12,19 @@
  *
  * Units: every physical quantity is SI (m, m/s, m/s^2, N, V, A, s, degC for
  * temperature) unless a comment states otherwise.
+ *
+ * Threading contract:
+ *  - Models (dn_mlp, dn_damper once handed to a loop model, dn_loop_model) are
+ *    immutable after creation (dn_damper_add_term is set-up, before any use) and
+ *    may be shared by any number of threads calling the const functions on them
+ *    (dn_mlp_forward[_f], dn_damper_force, dn_loop_step/forward with distinct data).
+ *  - Anything with state is single-thread: one dn_loop_data per thread (or guarded
+ *    by the caller). Two threads stepping the same dn_loop_data race and give
+ *    wrong results without an error; the C ABI does not detect it.
+ *  - A callback damper is as thread-safe as its user function (dn_damper_fn and
+ *    its user pointer): with a stateful callback, one loop model per thread.
+ *  - Create/destroy functions allocate and free: never destroy an object while
+ *    another thread uses it.
  */
 #ifndef DAMPNET_H
 #define DAMPNET_H
@@ -61,6 +74,11 @@ DN_API const char* dn_version_string(void);
   X(DN_W_ACCEL_UNCONVERGED, 4,                                                               \
     "the implicit acceleration feature did not converge within DN_ACCEL_MAX_EVALS damper "   \
     "evaluations; the iterate with the smallest residual was used")                          \
+  X(DN_W_ACCEL_FALLBACK, 8,                                                                  \
+    "the linearised acceleration step was ill-conditioned (1 + k dF/da < "                   \
+    "DN_ACCEL_LINEAR_MIN_SLOPE: the damper's negative apparent mass -dF/da exceeds half the " \
+    "reduced mass m_s m_us / (m_s + m_us)); the explicit value (the force evaluated at the " \
+    "explicit acceleration) was used")                                                       \
   X(DN_E_NULL, -1, "a required pointer argument was NULL")                                   \
   X(DN_E_SIZE, -2, "a size is out of range (inputs 1..8, hidden 1..64, layers 1..2)")        \
   X(DN_E_NONFINITE_PARAM, -3, "a model parameter is NaN or infinite")                        \
@@ -74,7 +92,8 @@ DN_API const char* dn_version_string(void);
   X(DN_E_NONFINITE_INPUT, -10,                                                               \
     "a step or evaluation input is NaN or infinite; nothing was computed or advanced")       \
   X(DN_E_DIVERGED, -11,                                                                      \
-    "the step produced a non-finite state (unstable: step too large?); state not advanced")
+    "the step would produce a non-finite state, acceleration or damper force from finite "   \
+    "inputs (unstable: step too large? a runaway or overflowing road?); state not advanced")
 
 #define DN_STATUS_ENUM_(name, value, text) name = value,
 typedef enum dn_status { DN_STATUS_LIST(DN_STATUS_ENUM_) } dn_status;
@@ -126,6 +145,9 @@ typedef struct dn_mlp_desc {
 typedef struct dn_mlp dn_mlp;
 
 /* Validate a description and create a model. Allocates; set-up only.
+ * The model holds a float and a double copy with the scalings folded into the
+ * weights: a description whose folded parameters overflow float (|x| > 3.4e38,
+ * e.g. out_offset = 1e39 or out_gain = 1e-40) is refused with DN_E_PARAM.
  * return DN_OK and *out set, or a DN_E_* error with *out = NULL. */
 DN_API int dn_mlp_create(const dn_mlp_desc* desc, dn_mlp** out);
 
@@ -382,7 +404,16 @@ typedef enum dn_damper_eval {
  * slope, one Newton step a1 = a0 - g(a0) / g'(a0) from the explicit value a0,
  * and the force linearised there, F0 + dF/da (a1 - a0); no second evaluation.
  * Exact for a force linear in a; otherwise its error is second order in the
- * Newton step. Stable for any dF/da >= 0, at the cost of one evaluation: the
+ * Newton step. The step changes the force by -dF/da g(a0) / g'(a0), and
+ * |g(a0)| / k = |F0 - f_last|: with g' = 1 + k dF/da >= DN_ACCEL_LINEAR_MIN_SLOPE
+ * (1/2) that change is at most |F0 - f_last| (the force change since the last
+ * evaluation). Stability region: dF/da >= -1 / (2 k), i.e. a negative apparent
+ * mass at most half the reduced mass 1/k = m_s m_us / (m_s + m_us), including
+ * every dF/da >= 0. Outside it (g' < 1/2, or g' <= 0 where the coupling has no
+ * unique solution) the correction grows as 1/g' without bound, so the step is
+ * not taken: the evaluation's own force F0 at the explicit acceleration a0 is
+ * used (the explicit scheme for that evaluation, bounded by the model's output
+ * range) and DN_W_ACCEL_FALLBACK is reported. One evaluation either way: the
  * real-time choice.
  * EXPLICIT uses the force of the most recent evaluation (f_last): one
  * evaluation, no iteration, stable only while |dF/da| k < 1.
@@ -394,6 +425,8 @@ typedef enum dn_accel_feature {
   DN_ACCEL_LINEAR = 2    /* one evaluation with its slope, one linearised Newton step */
 } dn_accel_feature;
 #define DN_ACCEL_MAX_EVALS 6 /* damper evaluations per implicit solve, at most */
+/* Smallest g' = 1 + k dF/da at which DN_ACCEL_LINEAR takes its Newton step (see above). */
+#define DN_ACCEL_LINEAR_MIN_SLOPE 0.5
 
 /* Vehicle and loop parameters (thesis Table 5 defaults): X(type, name, default, doc).
  * Equations (z from static equilibrium, up positive; F_a = F - f_static):
@@ -405,7 +438,7 @@ typedef enum dn_accel_feature {
   X(double, k_s, 15000.0, "suspension spring stiffness [N/m], >= 0")                       \
   X(double, k_t, 200000.0, "tyre stiffness [N/m], > 0")                                    \
   X(double, c_t, 0.0, "tyre damping [N s/m], >= 0")                                        \
-  X(double, dt, 0.001, "step [s], 0 < dt <= 0.1")                                          \
+  X(double, dt, 0.001, "step [s], 1e-9 <= dt <= 0.1")                                          \
   X(int, integrator, DN_INT_RK4, "dn_integrator")                                          \
   X(int, damper_eval, DN_EVAL_PER_STAGE, "dn_damper_eval (RK4 only)")                      \
   X(double, x_static, 0.0, "damper displacement at static equilibrium, from mid [m]")      \
@@ -465,7 +498,7 @@ typedef struct dn_loop_model dn_loop_model;
 typedef struct dn_loop_data dn_loop_data;
 
 /* Validate and create a loop model (copies the damper). Nonsensical values:
- * DN_E_NONFINITE_PARAM (NaN/Inf), DN_E_PARAM (mass <= 0, dt <= 0 or > 0.1, ...).
+ * DN_E_NONFINITE_PARAM (NaN/Inf), DN_E_PARAM (mass <= 0, dt < 1e-9 or > 0.1, ...).
  * Nullable: ctrl (passive at u = 0). Allocates. */
 DN_API int dn_loop_model_create(const dn_vehicle* veh, const dn_damper* damper,
                                 const dn_controller* ctrl, dn_loop_model** out);
@@ -494,8 +527,11 @@ DN_API int dn_loop_set_state(dn_loop_data* d, const double* state);
 DN_API int64_t dn_loop_damper_evals(const dn_loop_data* d);
 
 /* [RT] One step of dt: controller, damper, integrator. Reports at the step start
- * into *out. Non-finite input: DN_E_NONFINITE_INPUT; non-finite result:
- * DN_E_DIVERGED or DN_E_NONFINITE_OUTPUT; in both cases the state is unchanged.
+ * into *out. A NaN or infinite step input (road, external control):
+ * DN_E_NONFINITE_INPUT. Finite inputs whose step would produce a non-finite value
+ * anywhere (state, accelerations, a damper input or force: a road of 1e308, an
+ * unstable step, a runaway): DN_E_DIVERGED (a callback damper's own non-finite
+ * force: DN_E_NONFINITE_OUTPUT). In every error case the state is unchanged.
  * Warnings from the damper (DN_W_*) are OR-ed. Nullable: out. */
 DN_API int dn_loop_step(const dn_loop_model* m, dn_loop_data* d, const dn_loop_input* in,
                         dn_loop_out* out);

@@ -48,7 +48,9 @@
 // or semi-implicit Euler) the previous step's force, a lag of one dt in the
 // force part of a only. The explicit scheme is stable only while
 // |dF/da| k < 1 (the damper's apparent mass below the reduced mass); the
-// implicit one for any dF/da >= 0.
+// implicit one for any dF/da >= 0; the linearised one takes its step only where
+// 1 + k dF/da >= DN_ACCEL_LINEAR_MIN_SLOPE and otherwise keeps the explicit value
+// (DN_W_ACCEL_FALLBACK; see evaluate()).
 #pragma once
 
 #include <cmath>
@@ -120,6 +122,11 @@ inline double control_law(const dn_controller& c, double v_s, double v_us, doubl
   return detail::clamp(u, c.u_min, c.u_max);
 }
 
+// The smallest step accepted [s]: 1 ns, far below any real loop (a 1 MHz loop is 1 us);
+// below it the Hermite road's rate (dz_r / dt) and the lag coefficients lose their
+// meaning, and a subnormal dt (1e-320) overflows every difference quotient.
+constexpr double kMinDt = 1e-9;
+
 struct LoopModel {
   dn_vehicle veh = default_vehicle();
   dn_controller ctrl = default_controller();
@@ -145,9 +152,11 @@ struct LoopModel {
                            v.temperature};
     for (double x : vals)
       if (!std::isfinite(x)) return DN_E_NONFINITE_PARAM;
-    if (!(v.m_s > 0) || !(v.m_us > 0) || v.k_s < 0 || !(v.k_t > 0) || v.c_t < 0 || !(v.dt > 0) ||
-        v.dt > 0.1)
+    if (!(v.m_s > 0) || !(v.m_us > 0) || v.k_s < 0 || !(v.k_t > 0) || v.c_t < 0 ||
+        !(v.dt >= kMinDt) || v.dt > 0.1)
       return DN_E_PARAM;
+    // a subnormal mass (1e-320 kg) is > 0 but its reciprocal overflows
+    if (!std::isfinite(1.0 / v.m_s) || !std::isfinite(1.0 / v.m_us)) return DN_E_PARAM;
     if (v.integrator != DN_INT_RK4 && v.integrator != DN_INT_SEMI_EULER) return DN_E_PARAM;
     if (v.damper_eval != DN_EVAL_PER_STAGE && v.damper_eval != DN_EVAL_PER_STEP) return DN_E_PARAM;
     if (v.accel_feature != DN_ACCEL_IMPLICIT && v.accel_feature != DN_ACCEL_EXPLICIT &&
@@ -265,9 +274,14 @@ inline dn_damper_input damper_input(const LoopModel& m, const Body& b, double zr
   return in;
 }
 
-// A model force overflowing on finite inputs means the state has run away
-// (a callback's non-finite force is the callback's error and stays one).
+// Inside the loop every damper input is computed from a finite state and a finite
+// step input (both checked), so a non-finite damper input means the computation
+// overflowed: the state is running away (a road of 1e308, a dt so small that the
+// road's rate overflows, an unstable stiff step). So is a model force overflowing on
+// finite inputs. Both are DN_E_DIVERGED, not an input error of the caller's (a
+// callback's non-finite force is the callback's error and stays one).
 inline int diverged_if_overflow(const LoopModel& m, int st) noexcept {
+  if (st == DN_E_NONFINITE_INPUT) return DN_E_DIVERGED;
   return (st == DN_E_NONFINITE_OUTPUT && m.damper.kind != DN_DAMPER_CALLBACK) ? int(DN_E_DIVERGED)
                                                                                : st;
 }
@@ -300,12 +314,19 @@ inline int evaluate(const LoopModel& m, dn_damper_input& in, double f_last, doub
       *f = f0;
       return st;
     }
-    const double a1 = in.a - g / gp;  // gp >= 1 for dF/da >= 0
-    const bool ok = gp > 1e-3 && std::isfinite(a1);
+    // The step's force correction is dF = -dF/da g / g'. Since |k dF/da| = |g' - 1|,
+    // |dF| = |g' - 1| / g' |g| / k <= |g| / k = |F0 - f_last| exactly when g' >= 1/2: the
+    // correction never exceeds the force change since the last evaluation. Below that
+    // (a negative apparent mass dF/da < -m_red / 2, m_red = 1/k) it grows as 1/g' without
+    // bound (issue 14's 30-400 kN spikes at g' ~ 0.02), so the step is refused and the
+    // explicit value is kept: one evaluation still, and its force is a model evaluation,
+    // bounded by the model's output range.
+    const double a1 = in.a - g / gp;
+    const bool ok = gp >= DN_ACCEL_LINEAR_MIN_SLOPE && std::isfinite(a1);
     *f = ok ? f0 + dfda * (a1 - in.a) : f0;
     if (ok) in.a = a1;
     if (feat_out) m.damper.feature_values(in, feat_out);
-    return ok ? st : (st | DN_W_ACCEL_UNCONVERGED);
+    return ok ? st : (st | DN_W_ACCEL_FALLBACK);
   }
   struct It {
     double a, f, g, gp;  // acceleration, force, g(a), g'(a) = 1 + k dF/da
@@ -397,6 +418,11 @@ inline Start start(const LoopModel& m, const double* s, double u_ext, dn_loop_ou
   }
   r.status = evaluate(m, r.in, s[S_f_last], &r.force, feat, mask, n_evals);
   r.acc = accel(m, b, s[S_z_r], s[S_v_r], r.force);
+  // A finite but huge state (e.g. from set_state) can overflow the accelerations or the
+  // relative motion: a runaway, and no report may be non-finite with a success status
+  // (a sum is non-finite when any term is, or when it overflows).
+  if (r.status >= 0 && !std::isfinite(r.acc.as + r.acc.aus + r.in.a + r.in.x + r.in.v))
+    r.status = DN_E_DIVERGED;
   if (out) {
     out->force = r.force;
     out->u = r.u;

@@ -628,6 +628,22 @@ inline int load(P& p, const dn_mlp_desc* d) noexcept {
       p.in_mask8[i] = i < ni ? -1 : 0;
     }
   }
+  // The folded parameters in T: a scaling that overflows T (float: |x| > 3.4e38, e.g. an
+  // out_offset of 1e39 or an out_gain of 1e-40) would make every output non-finite and
+  // its replacement, out_offset, too. Refused here instead of failing at every call.
+  auto finite_all = [](const auto& a) noexcept {
+    for (const auto& x : a)
+      if (!std::isfinite(x)) return false;
+    return true;
+  };
+  if (!finite_all(p.w1t) || !finite_all(p.b1) || !finite_all(p.w2t) || !finite_all(p.b2) ||
+      !finite_all(p.w_out) || !std::isfinite(p.b_out) || !std::isfinite(p.out_offset) ||
+      !finite_all(p.in_offset) || !finite_all(p.sat_lo) || !finite_all(p.sat_hi) ||
+      !finite_all(p.in_mid))
+    return DN_E_PARAM;
+  if constexpr (P::kTw > 0) {
+    if (!finite_all(p.tw)) return DN_E_PARAM;
+  }
   return DN_OK;
 }
 

@@ -1,5 +1,7 @@
 """`dampnet bench`: per-call latency of the MLP forward and the quarter-car step against the
-HIL budget (the C++ harness; exit 1 when the budget is missed), and beside them, in the same
+HIL budget (the C++ harness; exit 1 when the budget is missed), the HIL configuration on a
+recorded set of hard inputs (exit 1 when a force leaves the model's range by more than a margin
+or a step fails), and beside them, in the same
 run, Python-level figures: dampnet's pybind11 forward, numpy, torch eager, TorchScript and
 onnxruntime on the same model and inputs (as ratios to the C++ kernel's median), the pybind11
 `Loop.step` latency and `Loop.simulate` throughput against their targets."""
@@ -23,6 +25,11 @@ def add_parser(subparsers):
     p.add_argument("--sim-steps", type=int, default=None,
                    help="road length of the simulate throughput runs (default: the C++ calls)")
     p.add_argument("--cpp-only", action="store_true", help="only the C++ harness (no Python-level rows)")
+    p.add_argument("--budget-ns", type=float, default=None,
+                   help="p99.9 budget of the HIL step [ns] (default: 1 %% of a 10 kHz step, 1000 ns)")
+    p.add_argument("--hil-margin", type=float, default=None,
+                   help="hard-input check: how far [fraction of the model's force range] a force may "
+                        "leave that range (default 0.25)")
     p.add_argument("--json", default=None, help="also write the results to this JSON file")
     p.set_defaults(handler=run)
     return p
@@ -30,14 +37,24 @@ def add_parser(subparsers):
 
 def run(args) -> int:
     from dampnet import bench_python
-    from dampnet.benchmark import quick_latency
+    from dampnet.benchmark import HIL_FORCE_MARGIN, hil_hard_input_check, quick_latency
 
     n = args.calls or (200_000 if args.quick else 1_000_000)
     n_py = args.py_calls or max(1000, n // 10)  # Python calls are ~10-400x slower than C++ ones
     n_sim = args.sim_steps or n
+    if args.budget_ns is not None and not args.budget_ns > 0:
+        print(f"dampnet: error: --budget-ns: expected a positive number of ns, got {args.budget_ns}",
+              file=sys.stderr)
+        return 2
+    margin = HIL_FORCE_MARGIN if args.hil_margin is None else args.hil_margin
+    if not -1.0 < margin < 100.0:
+        print(f"dampnet: error: --hil-margin: expected a fraction in (-1, 100), got {margin}", file=sys.stderr)
+        return 2
     try:
+        hard = hil_hard_input_check(margin=margin)
         with tempfile.TemporaryDirectory() as tmp:
-            res = quick_latency(Path(tmp), n_calls=n)
+            res = quick_latency(Path(tmp), n_calls=n, budget_ns=args.budget_ns)
+        res["hard_inputs"] = hard
         if not args.cpp_only:
             res["python"] = bench_python.python_benchmarks(n_py, n_sim, repeats=3 if args.quick else 5)
             kernel = res["results"].get(bench_python.KERNEL_CASE, {}).get("p50_ns")
@@ -75,11 +92,26 @@ def run(args) -> int:
           "'x kernel p50' = median / the C++ kernel's "
           f"median ({bench_python.KERNEL_CASE}); Python-level calls include the interpreter's call overhead.")
     b, h = res["budget"], res["headroom"]
-    print(f"HIL budget: {b['case']} p99.9 <= {b['p999_budget_ns']:.0f} ns ({100 * b['share']:.0f} % of a "
-          f"{1e6 / b['step_rate_hz']:.0f} us step): measured {h['p999_ns']:.0f} ns, headroom x{h['headroom_factor']:.2f}"
+    source = ("set by --budget-ns" if args.budget_ns is not None
+              else f"{100 * b['share']:.0f} % of a {1e6 / b['step_rate_hz']:.0f} us step")
+    print(f"HIL budget: {b['case']} p99.9 <= {b['p999_budget_ns']:.0f} ns ({source}): measured {h['p999_ns']:.0f} ns, headroom x{h['headroom_factor']:.2f}"
           f" -> {'GO' if h['within_budget'] else 'NO-GO'}")
     for name, t in res["targets"].items():
         print(f"target {name} {t['metric']} <= {t['target_ns']:.0f} ns: measured {t['measured_ns'] if t['measured_ns'] is not None else float('nan'):.1f} ns")
+    lo, hi = hard["bounds_n"]
+    print(f"hard inputs through the HIL configuration ({', '.join(f'{k} {v}' for k, v in hard['vehicle'].items())}, "
+          f"{hard['controller']['kind']}): forces must stay within the model's range "
+          f"[{hard['force_range_n'][0]:.0f}, {hard['force_range_n'][1]:.0f}] N +- {100 * hard['margin']:.0f} % "
+          f"of its width = [{lo:.0f}, {hi:.0f}] N, no step error")
+    for name, r in hard["inputs"].items():
+        detail = (f"force {r['f_min']:.0f}..{r['f_max']:.0f} N, linearised step fell back in "
+                  f"{r['fallback_steps']} of {r['steps']} steps" if "f_min" in r else "")
+        print(f"  {name}: {'ok' if r['ok'] else 'FAILED: ' + r['why']}{'; ' + detail if detail and r['ok'] else ''}")
     if args.json:
         Path(args.json).write_text(json.dumps(res, indent=1))
-    return 0 if h["within_budget"] else 1
+    go = h["within_budget"] and hard["passed"]
+    if not h["within_budget"]:
+        print(f"NO-GO: the HIL step's p99.9 {h['p999_ns']:.0f} ns exceeds the budget {b['p999_budget_ns']:.0f} ns")
+    if not hard["passed"]:
+        print("NO-GO: the hard-input check failed: " + "; ".join(hard["failures"]))
+    return 0 if go else 1
