@@ -4,6 +4,8 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <array>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -24,9 +26,16 @@
 #include "dampnet/dampnet.h"
 #include "dampnet/loop.hpp"
 
+#include "busy.hpp"
+#include "callback_run.hpp"
+#include "fields.hpp"
+
 namespace py = pybind11;
 
 namespace {
+
+using dnpy::BusyGuard;
+using dnpy::CallbackRun;
 
 using DArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
 
@@ -41,6 +50,10 @@ class PyMlp {
         DArray in_offset, DArray in_gain, double in_ymin, double out_offset, double out_gain,
         double out_ymin, DArray sat_lo, DArray sat_hi, const std::string& activation) {
     if (w1.ndim() != 2) throw py::value_error("w1 must be 2-D [n_hidden1, n_inputs]");
+    if (w1.shape(0) > DN_MAX_HIDDEN || w1.shape(1) > DN_MAX_INPUTS)  // before the int casts
+      throw py::value_error("Mlp: w1 is [n_hidden1, n_inputs]: at most " +
+                            std::to_string(DN_MAX_HIDDEN) + " x " + std::to_string(DN_MAX_INPUTS) + " (" +
+                            dn_status_str(DN_E_SIZE) + ")");
     dn_mlp_desc d{};
     d.n_hidden1 = static_cast<int>(w1.shape(0));
     d.n_inputs = static_cast<int>(w1.shape(1));
@@ -48,8 +61,10 @@ class PyMlp {
     if (!w2.is_none()) {
       w2a = DArray::ensure(w2);
       b2a = DArray::ensure(b2);
-      if (!w2a || w2a.ndim() != 2 || w2a.shape(1) != d.n_hidden1)
-        throw py::value_error("w2 must be 2-D [n_hidden2, n_hidden1]");
+      if (!w2a || w2a.ndim() != 2 || w2a.shape(1) != d.n_hidden1 || w2a.shape(0) > DN_MAX_HIDDEN)
+        throw py::value_error("w2 must be 2-D [n_hidden2, n_hidden1] with n_hidden2 <= " +
+                              std::to_string(DN_MAX_HIDDEN) + " (" + dn_status_str(DN_E_SIZE) + ")");
+      if (!b2a) throw py::value_error("b2 must be an array of n_hidden2 numbers when w2 is given");
       d.n_hidden2 = static_cast<int>(w2a.shape(0));
       expect(b2a, d.n_hidden2, "b2");
       d.w2 = w2a.data();
@@ -146,67 +161,6 @@ class PyMlp {
 
 // ---- Dampers, controllers and the quarter-car loop ----
 
-template <class T>
-T field_default_cast(const py::handle& h) {
-  return h.cast<T>();
-}
-
-// Enum-like fields accept an int or a name.
-int enum_value(const py::handle& h, const char* field) {
-  static const std::pair<const char*, int> names[] = {
-      {"passive", DN_CTRL_PASSIVE},
-      {"skyhook_onoff", DN_CTRL_SKYHOOK_ONOFF},
-      {"skyhook_continuous", DN_CTRL_SKYHOOK_CONTINUOUS},
-      {"groundhook_onoff", DN_CTRL_GROUNDHOOK_ONOFF},
-      {"groundhook_continuous", DN_CTRL_GROUNDHOOK_CONTINUOUS},
-      {"external", DN_CTRL_EXTERNAL},
-      {"rk4", DN_INT_RK4},
-      {"semi_euler", DN_INT_SEMI_EULER},
-      {"per_stage", DN_EVAL_PER_STAGE},
-      {"per_step", DN_EVAL_PER_STEP},
-      {"implicit", DN_ACCEL_IMPLICIT},
-      {"explicit", DN_ACCEL_EXPLICIT},
-      {"linear", DN_ACCEL_LINEAR},
-  };
-  if (py::isinstance<py::str>(h)) {
-    const std::string v = h.cast<std::string>();
-    for (const auto& kv : names)
-      if (v == kv.first) return kv.second;
-    throw py::value_error(std::string(field) + ": unknown name '" + v + "'");
-  }
-  return h.cast<int>();
-}
-
-template <class S>
-void set_fields_from_dict(S& s, const py::dict& d, const char* what);
-
-template <>
-void set_fields_from_dict(dn_vehicle& s, const py::dict& d, const char* what) {
-  for (auto kv : d) {
-    const std::string k = kv.first.cast<std::string>();
-    bool found = false;
-#define DN_SET_(type, name, def, doc)                                             \
-  if (k == #name) {                                                               \
-    if (std::is_same<type, int>::value) s.name = (type)enum_value(kv.second, #name); \
-    else s.name = (type)kv.second.cast<double>();                                 \
-    found = true;                                                                 \
-  }
-    DN_VEHICLE_FIELDS(DN_SET_)
-    if (!found) throw py::value_error(std::string(what) + ": unknown parameter '" + k + "'");
-  }
-}
-
-template <>
-void set_fields_from_dict(dn_controller& s, const py::dict& d, const char* what) {
-  for (auto kv : d) {
-    const std::string k = kv.first.cast<std::string>();
-    bool found = false;
-    DN_CONTROLLER_FIELDS(DN_SET_)
-#undef DN_SET_
-    if (!found) throw py::value_error(std::string(what) + ": unknown parameter '" + k + "'");
-  }
-}
-
 py::dict vehicle_dict(const dn_vehicle& s) {
   py::dict d;
 #define DN_GET_(type, name, def, doc) d[#name] = s.name;
@@ -243,8 +197,10 @@ class PyDamper {
   };
   std::unique_ptr<dn_damper, Deleter> d;
   py::object callback;        // the Python function of a callback damper
-  py::object error;           // the exception a callback raised during a C++ run
-  std::vector<std::string> features;
+  std::vector<std::string> features;  // a neural damper's inputs (empty for the others)
+  // Calls of forces() under way. Counted with the GIL held, read by add_term (GIL held): a
+  // damper is immutable while evaluated (forces releases the GIL; a callback may re-enter).
+  std::atomic<int> evaluating{0};
 
   static std::shared_ptr<PyDamper> wrap(dn_damper* raw) {
     auto p = std::make_shared<PyDamper>();
@@ -267,6 +223,10 @@ class PyDamper {
   static std::shared_ptr<PyDamper> table(DArray v, DArray u, DArray f) {
     if (v.ndim() != 1 || u.ndim() != 1)
       throw py::value_error("Damper.table: velocities and controls must be 1-D");
+    if (v.shape(0) > DN_MAX_TABLE_V || u.shape(0) > DN_MAX_TABLE_U)  // before the int casts
+      throw py::value_error("Damper.table: at most " + std::to_string(DN_MAX_TABLE_V) +
+                            " velocities and " + std::to_string(DN_MAX_TABLE_U) + " controls (" +
+                            dn_status_str(DN_E_SIZE) + ")");
     if (f.ndim() != 2 || f.shape(0) != u.shape(0) || f.shape(1) != v.shape(0))
       throw py::value_error("Damper.table: forces must be 2-D [n_controls, n_velocities]");
     dn_damper* r = nullptr;
@@ -275,9 +235,13 @@ class PyDamper {
           "Damper.table");
     return wrap(r);
   }
-  static std::shared_ptr<PyDamper> neural(const PyMlp& mlp, const std::vector<std::string>& feats,
+  static std::shared_ptr<PyDamper> neural(const PyMlp* mlp, const std::vector<std::string>& feats,
                                           const std::map<std::string, double>& fparams,
                                           bool single) {
+    if (!mlp) throw py::type_error("Damper.neural: mlp must be an Mlp, not None");
+    if (feats.size() > DN_MAX_INPUTS || fparams.size() > 64)  // before the int casts
+      throw py::value_error("Damper.neural: at most " + std::to_string(DN_MAX_INPUTS) + " features (" +
+                            dn_status_str(DN_E_SIZE) + ")");
     std::vector<const char*> names, pnames;
     std::vector<double> pvals;
     for (const auto& f : feats) names.push_back(f.c_str());
@@ -286,7 +250,7 @@ class PyDamper {
       pvals.push_back(kv.second);
     }
     dn_damper* r = nullptr;
-    const int st = dn_damper_create_neural(mlp.handle(), names.data(), (int)names.size(),
+    const int st = dn_damper_create_neural(mlp->handle(), names.data(), (int)names.size(),
                                            pnames.data(), pvals.data(), (int)pvals.size(),
                                            single ? DN_PRECISION_FLOAT : DN_PRECISION_DOUBLE, &r);
     if (st == DN_E_UNKNOWN_NAME) {
@@ -304,19 +268,33 @@ class PyDamper {
     return p;
   }
 
-  static double trampoline(void* user, const dn_damper_input* in) {
+  // The C function of a callback damper: calls the Python function with the GIL. Its
+  // exception (or a result that is no number) goes to the run on this thread
+  // (CallbackRun), which raises it; the runtime sees NaN and stops the run.
+  static double trampoline(void* user, const dn_damper_input* in) noexcept {
     auto* self = static_cast<PyDamper*>(user);
     py::gil_scoped_acquire gil;
-    if (self->error && !self->error.is_none()) return std::nan("");
+    CallbackRun* run = CallbackRun::current();
+    if (run && run->failed()) return std::nan("");
     try {
-      return self->callback(*in).cast<double>();
+      py::object r = self->callback(*in);
+      const double f = PyFloat_AsDouble(r.ptr());
+      if (f == -1.0 && PyErr_Occurred()) {
+        PyErr_Clear();
+        throw py::type_error("Damper.callback: the function returned " + dnpy::describe(r) +
+                             ", expected the force [N] as a number");
+      }
+      return f;
     } catch (py::error_already_set& e) {
-      self->error = e.value();
-      return std::nan("");
-    } catch (std::exception& e) {
-      self->error = py::str(e.what());
-      return std::nan("");
+      e.restore();
+    } catch (const py::builtin_exception& e) {
+      e.set_error();
+    } catch (const std::exception& e) {
+      PyErr_SetString(PyExc_RuntimeError, e.what());
     }
+    if (run) run->record_current_error();
+    else PyErr_WriteUnraisable(self->callback.ptr());  // no run to raise it in (not expected)
+    return std::nan("");
   }
 
   static std::shared_ptr<PyDamper> callback_damper(py::function fn) {
@@ -325,11 +303,17 @@ class PyDamper {
     check(dn_damper_create_callback(&PyDamper::trampoline, p.get(), &r), "Damper.callback");
     p->d.reset(r);
     p->callback = fn;
-    p->error = py::none();
     return p;
   }
 
   void add_term(const std::string& kind, DArray params) {
+    if (evaluating.load() > 0)
+      throw std::runtime_error("Damper.add_term: the damper is being evaluated (forces in another "
+                               "thread, or its callback re-entering it); add terms before use");
+    if (params.size() > DN_MAX_TERM_PARAMS)  // before the int cast
+      throw py::value_error("add_term('" + kind + "'): at most " +
+                            std::to_string(DN_MAX_TERM_PARAMS) + " parameters (" +
+                            dn_status_str(DN_E_SIZE) + ")");
     const int st = dn_damper_add_term(d.get(), kind.c_str(), params.data(), (int)params.size());
     if (st == DN_E_UNKNOWN_NAME) {
       std::string msg = "add_term: unknown kind '" + kind + "'; known:";
@@ -339,16 +323,6 @@ class PyDamper {
       throw py::value_error(msg);
     }
     check(st, "add_term('" + kind + "')");
-  }
-
-  void raise_pending() {
-    if (error && !error.is_none()) {
-      py::object e = error;
-      error = py::none();
-      if (py::isinstance<py::str>(e)) throw std::runtime_error(e.cast<std::string>());
-      PyErr_SetObject(reinterpret_cast<PyObject*>(Py_TYPE(e.ptr())), e.ptr());
-      throw py::error_already_set();
-    }
   }
 
   // Vectorised force of the model plus terms; arrays broadcast to one length.
@@ -368,6 +342,12 @@ class PyDamper {
     double* fp = f.mutable_data();
     int32_t* sp = st.mutable_data();
     uint32_t* mp = mask.mutable_data();
+    struct Evaluating {  // counted for add_term; decremented on every exit
+      std::atomic<int>& n;
+      explicit Evaluating(std::atomic<int>& c) : n(c) { ++n; }
+      ~Evaluating() { --n; }
+    } evaluating_now(evaluating);
+    CallbackRun run;
     {
       std::unique_ptr<py::gil_scoped_release> rel;
       if (!callback) rel.reset(new py::gil_scoped_release);
@@ -384,7 +364,7 @@ class PyDamper {
         sp[i] = dn_damper_force(d.get(), &in, &fp[i], &mp[i]);
       }
     }
-    raise_pending();
+    run.raise_pending();
     return py::make_tuple(f, st, mask);
   }
 };
@@ -437,12 +417,13 @@ class PyLoopModel {
   dn_controller ctrl{};
 
   PyLoopModel(std::shared_ptr<PyDamper> d, py::dict vehicle, py::dict controller) : damper(d) {
+    if (!damper) throw py::type_error("LoopModel: damper must be a Damper, not None");
     dn_vehicle_default(&veh);
     int kind = DN_CTRL_PASSIVE;
-    if (controller.contains("kind")) kind = enum_value(controller["kind"], "kind");
-    dn_controller_default(&ctrl, kind);
-    set_fields_from_dict(veh, vehicle, "vehicle");
-    set_fields_from_dict(ctrl, controller, "controller");
+    if (controller.contains("kind")) kind = dnpy::parse_enum(controller["kind"], "controller", "kind");
+    dn_controller_default(&ctrl, kind);  // the law's defaults, then the given fields
+    dnpy::set_vehicle_fields(veh, vehicle, "vehicle");
+    dnpy::set_controller_fields(ctrl, controller, "controller");
     dn_loop_model* r = nullptr;
     check(dn_loop_model_create(&veh, damper->d.get(), &ctrl, &r), "LoopModel");
     m.reset(r);
@@ -550,23 +531,31 @@ class PyLoop {
   };
   std::shared_ptr<PyLoopModel> model;
   std::unique_ptr<dn_loop_data, Deleter> d;
+  // Set while a call uses the state (BusyGuard): a Loop refuses concurrent use.
+  mutable std::atomic<bool> busy{false};
 
   explicit PyLoop(std::shared_ptr<PyLoopModel> m) : model(m) {
+    if (!model) throw py::type_error("Loop: model must be a LoopModel, not None");
     dn_loop_data* r = nullptr;
     check(dn_loop_data_create(model->m.get(), &r), "Loop");
     d.reset(r);
   }
 
-  void reset() { check(dn_loop_reset(model->m.get(), d.get()), "reset"); }
+  void reset() {
+    BusyGuard guard(busy, "Loop.reset", dnpy::kLoopContract);
+    check(dn_loop_reset(model->m.get(), d.get()), "reset");
+  }
 
   py::array_t<double> get_state() const {
     py::array_t<double> s(DN_LOOP_STATE_SIZE);
+    BusyGuard guard(busy, "Loop.state", dnpy::kLoopContract);
     dn_loop_get_state(d.get(), s.mutable_data());
     return s;
   }
   void set_state(DArray s) {
     if (s.size() != DN_LOOP_STATE_SIZE)
       throw py::value_error("state: expected " + std::to_string(DN_LOOP_STATE_SIZE) + " values");
+    BusyGuard guard(busy, "Loop.state", dnpy::kLoopContract);
     check(dn_loop_set_state(d.get(), s.data()), "state");
   }
 
@@ -582,9 +571,13 @@ class PyLoop {
     py::object owner = py::reinterpret_steal<py::object>(reinterpret_cast<PyObject*>(obj));
     StepReport& r = obj->r;
     r.o = dn_loop_out{};
-    r.status = advance ? dn_loop_step(model->m.get(), d.get(), &in, &r.o)
-                       : dn_loop_forward(model->m.get(), d.get(), &in, &r.o);
-    model->damper->raise_pending();
+    {
+      BusyGuard guard(busy, advance ? "Loop.step" : "Loop.forward", dnpy::kLoopContract);
+      CallbackRun run;
+      r.status = advance ? dn_loop_step(model->m.get(), d.get(), &in, &r.o)
+                         : dn_loop_forward(model->m.get(), d.get(), &in, &r.o);
+      run.raise_pending();
+    }
     check(r.status, advance ? "step" : "forward");
     return owner;
   }
@@ -594,8 +587,13 @@ class PyLoop {
   double step_force(double z_r, double v_r, double u) {
     dn_loop_input in{z_r, v_r, u};
     dn_loop_out o;
-    const int st = dn_loop_step(model->m.get(), d.get(), &in, &o);
-    model->damper->raise_pending();
+    int st;
+    {
+      BusyGuard guard(busy, "Loop.step_force", dnpy::kLoopContract);
+      CallbackRun run;
+      st = dn_loop_step(model->m.get(), d.get(), &in, &o);
+      run.raise_pending();
+    }
     check(st, "step");
     return o.force;
   }
@@ -617,12 +615,9 @@ class PyLoop {
       if (!u || u.ndim() != 1 || u.size() != n)
         throw py::value_error("simulate: u must be 1-D with one value per road sample");
     }
-    const int nf = [&] {
-      dn_loop_out o{};
-      dn_loop_input in{0, 0, 0};
-      dn_loop_forward(model->m.get(), d.get(), &in, &o);
-      return o.n_features;
-    }();
+    // A neural damper reports its inputs (dn_loop_out.n_features); the others none. (Not
+    // probed with a forward call: a stateful callback damper would see an extra call.)
+    const int nf = static_cast<int>(model->damper->features.size());
     py::array_t<double> states, force, control, xs, vs, as, acc_s, acc_us, feats;
     py::array_t<int32_t> status;
     if (out_obj.is_none()) {
@@ -694,6 +689,8 @@ class PyLoop {
     dn_loop_data* dd = d.get();
     py::ssize_t fail_at = -1;
     int fail_status = 0;
+    BusyGuard guard(busy, "Loop.simulate", dnpy::kLoopContract);
+    CallbackRun run;
     {
       py::gil_scoped_release release;
       if (reset_first) dn_loop_reset(m, dd);
@@ -730,7 +727,7 @@ class PyLoop {
         for (int i = 0; i < nf; ++i) FE[k * nf + i] = o.features[i];
       }
     }
-    model->damper->raise_pending();
+    run.raise_pending();
     if (fail_at >= 0)
       throw py::value_error("simulate: sample " + std::to_string(fail_at) + ": " +
                             dn_status_str(fail_status));
@@ -748,7 +745,10 @@ class PyLoop {
     return r;
   }
 
-  int64_t damper_evals() const { return dn_loop_damper_evals(d.get()); }
+  int64_t damper_evals() const {
+    BusyGuard guard(busy, "Loop.damper_evals", dnpy::kLoopContract);
+    return dn_loop_damper_evals(d.get());
+  }
 };
 
 }  // namespace
@@ -869,7 +869,7 @@ PYBIND11_MODULE(_core, mod) {
       .def_property_readonly("controller",
                              [](const PyLoopModel& m) { return controller_dict(m.ctrl); })
       .def("control", &PyLoopModel::control, py::arg("v_s"), py::arg("v_us"),
-           py::arg("u_ext") = DArray(py::array_t<double>(1)),
+           py::arg("u_ext") = DArray(py::array_t<double>(py::ssize_t(1), std::array<double, 1>{0.0}.data())),
            "The control law alone on arrays of velocities.");
 
   {
