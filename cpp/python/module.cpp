@@ -751,6 +751,18 @@ class PyLoop {
   }
 };
 
+// A member function bound as a method taking self by reference. pybind11 binds a member
+// pointer as a function of `C*`, and a pointer argument accepts None: `Loop.reset(None)`
+// (the unbound method) called it on a null `this`. A reference refuses None (TypeError).
+template <class C, class R, class... A>
+auto by_ref(R (C::*f)(A...)) {
+  return [f](C& self, A... a) -> R { return (self.*f)(std::forward<A>(a)...); };
+}
+template <class C, class R, class... A>
+auto by_ref(R (C::*f)(A...) const) {
+  return [f](const C& self, A... a) -> R { return (self.*f)(std::forward<A>(a)...); };
+}
+
 }  // namespace
 
 PYBIND11_MODULE(_core, mod) {
@@ -799,10 +811,10 @@ PYBIND11_MODULE(_core, mod) {
            py::arg("b_out"), py::arg("in_offset"), py::arg("in_gain"), py::arg("in_ymin"),
            py::arg("out_offset"), py::arg("out_gain"), py::arg("out_ymin"), py::arg("sat_lo"),
            py::arg("sat_hi"), py::arg("activation"))
-      .def_property_readonly("n_inputs", &PyMlp::n_inputs)
-      .def("forward", &PyMlp::forward, py::arg("x"), py::arg("single") = false,
+      .def_property_readonly("n_inputs", by_ref(&PyMlp::n_inputs))
+      .def("forward", by_ref(&PyMlp::forward), py::arg("x"), py::arg("single") = false,
            "One sample -> (output, status, clamped_mask).")
-      .def("predict", &PyMlp::predict, py::arg("x"), py::arg("single") = false,
+      .def("predict", by_ref(&PyMlp::predict), py::arg("x"), py::arg("single") = false,
            "Samples [n, n_inputs] -> (outputs[n], status[n], clamped_mask[n]); GIL released.");
 
   // ---- the quarter-car loop ----
@@ -852,10 +864,10 @@ PYBIND11_MODULE(_core, mod) {
                   py::arg("single") = false, "The MLP on named features.")
       .def_static("callback", &PyDamper::callback_damper, py::arg("fn"),
                   "A Python function fn(DamperInput) -> force [N] (slow path, holds the GIL).")
-      .def("add_term", &PyDamper::add_term, py::arg("kind"), py::arg("params"),
+      .def("add_term", by_ref(&PyDamper::add_term), py::arg("kind"), py::arg("params"),
            "Add a physics term (TERM_KINDS).")
       .def_property_readonly("kind", [](const PyDamper& p) { return dn_damper_kind_of(p.d.get()); })
-      .def("forces", &PyDamper::forces, py::arg("x"), py::arg("v"), py::arg("a"), py::arg("u"),
+      .def("forces", by_ref(&PyDamper::forces), py::arg("x"), py::arg("v"), py::arg("a"), py::arg("u"),
            py::arg("u_lag"), py::arg("temperature"),
            py::arg("v_lag") = std::numeric_limits<double>::quiet_NaN(),
            py::arg("z_fric") = std::numeric_limits<double>::quiet_NaN(),
@@ -868,7 +880,7 @@ PYBIND11_MODULE(_core, mod) {
       .def_property_readonly("vehicle", [](const PyLoopModel& m) { return vehicle_dict(m.veh); })
       .def_property_readonly("controller",
                              [](const PyLoopModel& m) { return controller_dict(m.ctrl); })
-      .def("control", &PyLoopModel::control, py::arg("v_s"), py::arg("v_us"),
+      .def("control", by_ref(&PyLoopModel::control), py::arg("v_s"), py::arg("v_us"),
            py::arg("u_ext") = DArray(py::array_t<double>(py::ssize_t(1), std::array<double, 1>{0.0}.data())),
            "The control law alone on arrays of velocities.");
 
@@ -955,17 +967,17 @@ PYBIND11_MODULE(_core, mod) {
 
   py::class_<PyLoop>(mod, "Loop", "A loop's state (mutable) for a LoopModel.")
       .def(py::init<std::shared_ptr<PyLoopModel>>(), py::arg("model"))
-      .def("reset", &PyLoop::reset)
-      .def_property("state", &PyLoop::get_state, &PyLoop::set_state, "Flat state (STATE_NAMES).")
-      .def("step", &PyLoop::step, py::arg("z_r"), py::arg("v_r"), py::arg("u") = 0.0,
+      .def("reset", by_ref(&PyLoop::reset))
+      .def_property("state", by_ref(&PyLoop::get_state), by_ref(&PyLoop::set_state), "Flat state (STATE_NAMES).")
+      .def("step", by_ref(&PyLoop::step), py::arg("z_r"), py::arg("v_r"), py::arg("u") = 0.0,
            "One step; road at the end of the step. Returns the report at the step start "
            "(a StepReport: attributes, or keys as in a dict).")
-      .def("step_force", &PyLoop::step_force, py::arg("z_r"), py::arg("v_r"), py::arg("u") = 0.0,
+      .def("step_force", by_ref(&PyLoop::step_force), py::arg("z_r"), py::arg("v_r"), py::arg("u") = 0.0,
            "One step, as step(), returning only the damper force [N] of its report (cheapest call).")
-      .def("forward", &PyLoop::forward, py::arg("u") = 0.0, "The report without advancing.")
-      .def("simulate", &PyLoop::simulate, py::arg("road"), py::arg("road_rate"),
+      .def("forward", by_ref(&PyLoop::forward), py::arg("u") = 0.0, "The report without advancing.")
+      .def("simulate", by_ref(&PyLoop::simulate), py::arg("road"), py::arg("road_rate"),
            py::arg("u") = py::none(), py::arg("reset") = true, py::arg("out") = py::none(),
            "Run a road in C++ (GIL released) -> dict of arrays (fresh, or out's written in place).")
       .def_property_readonly("model", [](const PyLoop& l) { return l.model; })
-      .def_property_readonly("damper_evals", &PyLoop::damper_evals);
+      .def_property_readonly("damper_evals", by_ref(&PyLoop::damper_evals));
 }

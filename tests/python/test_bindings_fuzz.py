@@ -1,0 +1,68 @@
+"""No Python call into dampnet._core crashes the interpreter (issue 14, item 2).
+
+Each check runs in a subprocess: a segmentation fault there is a failed test with the
+call that caused it, not a dead pytest.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+
+
+def run_python(code_or_args, timeout=300):
+    args = code_or_args if isinstance(code_or_args, list) else ["-c", textwrap.dedent(code_or_args)]
+    env = dict(os.environ, PYTHONFAULTHANDLER="1")
+    return subprocess.run([sys.executable, *args], capture_output=True, text=True,
+                          timeout=timeout, cwd=HERE, env=env)
+
+
+def crash_report(proc) -> str:
+    calls = [ln for ln in proc.stderr.splitlines() if ln.startswith("CALL ")]
+    others = [ln for ln in proc.stderr.splitlines() if not ln.startswith("CALL ")]
+    return (f"exit status {proc.returncode} (negative: killed by that signal)\n"
+            f"last call: {calls[-1] if calls else '-'}\n" + "\n".join(others[-25:]))
+
+
+def test_none_for_a_model_or_damper_raises_instead_of_crashing():
+    # The calls of the issue, and the unbound methods with None for self (found by the fuzz
+    # test below: pybind11 passed None to a member function as a null `this`).
+    proc = run_python("""
+        import numpy as np
+        from dampnet import _core
+        from dampnet.loop import QuarterCar
+        calls = {
+            "QuarterCar(None)": lambda: QuarterCar(None),
+            "Loop(None)": lambda: _core.Loop(None),
+            "LoopModel(None, {}, {})": lambda: _core.LoopModel(None, {}, {}),
+            "Damper.neural(None, ...)": lambda: _core.Damper.neural(None, ["velocity"]),
+            "Loop.reset(None)": lambda: _core.Loop.reset(None),
+            "Loop.state.fget(None)": lambda: _core.Loop.state.fget(None),
+            "Loop.damper_evals.fget(None)": lambda: _core.Loop.damper_evals.fget(None),
+            "Mlp.n_inputs.fget(None)": lambda: _core.Mlp.n_inputs.fget(None),
+        }
+        for name, fn in calls.items():
+            try:
+                fn()
+                print(name, "returned")
+            except Exception as e:
+                print(name, type(e).__name__)
+        """)
+    assert proc.returncode == 0, crash_report(proc)
+    lines = proc.stdout.splitlines()
+    assert len(lines) == 8, proc.stdout
+    for line in lines:
+        assert line.endswith("TypeError"), line
+
+
+def test_every_core_callable_with_arbitrary_arguments():
+    # bindings_fuzz_driver.py: every public callable of _core found by introspection, 12
+    # derandomized hypothesis examples each (~1000 calls, a few seconds).
+    proc = run_python([str(HERE / "bindings_fuzz_driver.py"), "12"])
+    assert proc.returncode == 0, crash_report(proc)
+    assert "no crash" in proc.stdout
