@@ -43,6 +43,28 @@ void check(int status, const std::string& what) {
   if (status < 0) throw py::value_error(what + ": " + dn_status_str(status));
 }
 
+// h as a constructed C++ object of class C (self, or an argument): not None, of the
+// class, and built by its __init__ (see method()).
+template <class C>
+C& constructed(py::handle h) {
+  const py::detail::type_info* ti = py::detail::get_type_info(typeid(C));
+  const std::string name = ti ? ti->type->tp_name : "object";
+  if (!h || !py::isinstance<C>(h))
+    throw py::type_error("expected a " + name + ", got " + dnpy::describe(h));
+  auto vh = reinterpret_cast<py::detail::instance*>(h.ptr())->get_value_and_holder(ti, false);
+  if (!vh || !vh.holder_constructed() || !vh.value_ptr())
+    throw py::type_error("this " + name + " was never initialised (made by __new__ without __init__)");
+  return *vh.value_ptr<C>();
+}
+
+// The shared_ptr holder of h, a constructed C (None or an uninitialised instance: TypeError).
+template <class C>
+std::shared_ptr<C> shared(py::handle h, const char* what) {
+  if (h.is_none()) throw py::type_error(std::string(what) + ", not None");
+  constructed<C>(h);
+  return h.cast<std::shared_ptr<C>>();
+}
+
 // A dn_mlp owned by Python, with the description's arrays validated by shape.
 class PyMlp {
  public:
@@ -235,10 +257,11 @@ class PyDamper {
           "Damper.table");
     return wrap(r);
   }
-  static std::shared_ptr<PyDamper> neural(const PyMlp* mlp, const std::vector<std::string>& feats,
+  static std::shared_ptr<PyDamper> neural(py::handle mlp_obj, const std::vector<std::string>& feats,
                                           const std::map<std::string, double>& fparams,
                                           bool single) {
-    if (!mlp) throw py::type_error("Damper.neural: mlp must be an Mlp, not None");
+    if (mlp_obj.is_none()) throw py::type_error("Damper.neural: mlp must be an Mlp, not None");
+    const PyMlp* mlp = &constructed<PyMlp>(mlp_obj);
     if (feats.size() > DN_MAX_INPUTS || fparams.size() > 64)  // before the int casts
       throw py::value_error("Damper.neural: at most " + std::to_string(DN_MAX_INPUTS) + " features (" +
                             dn_status_str(DN_E_SIZE) + ")");
@@ -751,22 +774,28 @@ class PyLoop {
   }
 };
 
-// A member function bound as a method taking self by reference. pybind11 binds a member
-// pointer as a function of `C*`, and a pointer argument accepts None: `Loop.reset(None)`
-// (the unbound method) called it on a null `this`. A reference refuses None (TypeError).
+// Methods get self through constructed<C>(): pybind11 binds a member pointer as a function
+// of `C*` (a pointer accepts None: `Loop.reset(None)` ran on a null `this`), and hands an
+// instance made by `Loop.__new__(Loop)` without __init__ to any method as freshly allocated,
+// unconstructed memory. Both are refused with TypeError here.
 template <class C, class R, class... A>
-auto by_ref(R (C::*f)(A...)) {
-  return [f](C& self, A... a) -> R { return (self.*f)(std::forward<A>(a)...); };
+auto method(R (C::*f)(A...)) {
+  return [f](py::handle self, A... a) -> R { return (constructed<C>(self).*f)(std::forward<A>(a)...); };
 }
 template <class C, class R, class... A>
-auto by_ref(R (C::*f)(A...) const) {
-  return [f](const C& self, A... a) -> R { return (self.*f)(std::forward<A>(a)...); };
+auto method(R (C::*f)(A...) const) {
+  return [f](py::handle self, A... a) -> R { return (constructed<C>(self).*f)(std::forward<A>(a)...); };
 }
 
 }  // namespace
 
 PYBIND11_MODULE(_core, mod) {
-  mod.doc() = "dampnet C++ runtime (MLP kernel, quarter-car loop)";
+  mod.doc() =
+      "dampnet C++ runtime (MLP kernel, quarter-car loop).\n\n"
+      "Threading: Mlp, Damper and LoopModel are immutable once built and may be shared by "
+      "threads; a Loop is one mutable loop state: one call at a time (a second call while one "
+      "is under way raises RuntimeError), so give each thread its own Loop on a shared model. "
+      "Loop.simulate, Mlp.predict and Damper.forces release the GIL (callback dampers hold it).";
   mod.attr("__version__") = dn_version_string();
   mod.def("version", &dn_version, "Library version as major*10000 + minor*100 + patch.");
   mod.def("status_str", &dn_status_str, "Explain a dampnet status code.");
@@ -804,17 +833,18 @@ PYBIND11_MODULE(_core, mod) {
   DN_STATUS_LIST(DN_STATUS_ATTR_)
 #undef DN_STATUS_ATTR_
 
-  py::class_<PyMlp>(mod, "Mlp", "An immutable MLP model evaluated by the C++ kernel.")
+  py::class_<PyMlp>(mod, "Mlp", "An immutable MLP model evaluated by the C++ kernel; may be shared by threads "
+                          "(predict releases the GIL).")
       .def(py::init<DArray, DArray, py::object, py::object, DArray, DArray, DArray, DArray, double,
                     double, double, double, DArray, DArray, const std::string&>(),
            py::arg("w1"), py::arg("b1"), py::arg("w2"), py::arg("b2"), py::arg("w_out"),
            py::arg("b_out"), py::arg("in_offset"), py::arg("in_gain"), py::arg("in_ymin"),
            py::arg("out_offset"), py::arg("out_gain"), py::arg("out_ymin"), py::arg("sat_lo"),
            py::arg("sat_hi"), py::arg("activation"))
-      .def_property_readonly("n_inputs", by_ref(&PyMlp::n_inputs))
-      .def("forward", by_ref(&PyMlp::forward), py::arg("x"), py::arg("single") = false,
+      .def_property_readonly("n_inputs", method(&PyMlp::n_inputs))
+      .def("forward", method(&PyMlp::forward), py::arg("x"), py::arg("single") = false,
            "One sample -> (output, status, clamped_mask).")
-      .def("predict", by_ref(&PyMlp::predict), py::arg("x"), py::arg("single") = false,
+      .def("predict", method(&PyMlp::predict), py::arg("x"), py::arg("single") = false,
            "Samples [n, n_inputs] -> (outputs[n], status[n], clamped_mask[n]); GIL released.");
 
   // ---- the quarter-car loop ----
@@ -852,7 +882,10 @@ PYBIND11_MODULE(_core, mod) {
       .def_readwrite("dt", &dn_damper_input::dt)
       .def_readwrite("stage", &dn_damper_input::stage);
 
-  py::class_<PyDamper, std::shared_ptr<PyDamper>>(mod, "Damper", "A damper model (dn_damper).")
+  py::class_<PyDamper, std::shared_ptr<PyDamper>>(mod, "Damper", "A damper model (dn_damper); loop models copy it. Immutable once set up (add_term "
+      "is set-up, refused while the damper is evaluated): may be shared by threads. A callback "
+      "damper calls its function with the GIL held; state kept by that function (a truth "
+      "damper) is the caller's to protect: use a stateful callback damper in one loop at a time.")
       .def_static("linear", &PyDamper::linear, py::arg("c"), "F = c v.")
       .def_static("parametric", &PyDamper::parametric, py::arg("c_min"), py::arg("c_max"),
                   py::arg("gamma"), py::arg("f0"), py::arg("v_max"), py::arg("v_smooth") = 0.0,
@@ -864,23 +897,27 @@ PYBIND11_MODULE(_core, mod) {
                   py::arg("single") = false, "The MLP on named features.")
       .def_static("callback", &PyDamper::callback_damper, py::arg("fn"),
                   "A Python function fn(DamperInput) -> force [N] (slow path, holds the GIL).")
-      .def("add_term", by_ref(&PyDamper::add_term), py::arg("kind"), py::arg("params"),
-           "Add a physics term (TERM_KINDS).")
-      .def_property_readonly("kind", [](const PyDamper& p) { return dn_damper_kind_of(p.d.get()); })
-      .def("forces", by_ref(&PyDamper::forces), py::arg("x"), py::arg("v"), py::arg("a"), py::arg("u"),
+      .def("add_term", method(&PyDamper::add_term), py::arg("kind"), py::arg("params"),
+           "Add a physics term (TERM_KINDS); set-up, before the damper is used.")
+      .def_property_readonly("kind", [](py::handle p) { return dn_damper_kind_of(constructed<PyDamper>(p).d.get()); })
+      .def("forces", method(&PyDamper::forces), py::arg("x"), py::arg("v"), py::arg("a"), py::arg("u"),
            py::arg("u_lag"), py::arg("temperature"),
            py::arg("v_lag") = std::numeric_limits<double>::quiet_NaN(),
            py::arg("z_fric") = std::numeric_limits<double>::quiet_NaN(),
-           "Vectorised force (v_lag, z_fric default NaN: a model that reads them must be given them) -> (force[n], status[n], clamped_mask[n]).");
+           "Vectorised force (v_lag, z_fric default NaN: a model that reads them must be given them) -> (force[n], status[n], clamped_mask[n]); GIL released except for callback dampers.");
 
   py::class_<PyLoopModel, std::shared_ptr<PyLoopModel>>(mod, "LoopModel",
-                                                        "Vehicle, damper and controller (constant).")
-      .def(py::init<std::shared_ptr<PyDamper>, py::dict, py::dict>(), py::arg("damper"),
+                                                        "Vehicle, damper and controller (constant): immutable, may drive Loops in many threads at once.")
+      .def(py::init([](py::handle damper, py::dict vehicle, py::dict controller) {
+             return std::make_shared<PyLoopModel>(
+                 shared<PyDamper>(damper, "LoopModel: damper must be a Damper"), vehicle, controller);
+           }),
+           py::arg("damper"),
            py::arg("vehicle") = py::dict(), py::arg("controller") = py::dict())
-      .def_property_readonly("vehicle", [](const PyLoopModel& m) { return vehicle_dict(m.veh); })
+      .def_property_readonly("vehicle", [](py::handle m) { return vehicle_dict(constructed<PyLoopModel>(m).veh); })
       .def_property_readonly("controller",
-                             [](const PyLoopModel& m) { return controller_dict(m.ctrl); })
-      .def("control", by_ref(&PyLoopModel::control), py::arg("v_s"), py::arg("v_us"),
+                             [](py::handle m) { return controller_dict(constructed<PyLoopModel>(m).ctrl); })
+      .def("control", method(&PyLoopModel::control), py::arg("v_s"), py::arg("v_us"),
            py::arg("u_ext") = DArray(py::array_t<double>(py::ssize_t(1), std::array<double, 1>{0.0}.data())),
            "The control law alone on arrays of velocities.");
 
@@ -965,19 +1002,27 @@ PYBIND11_MODULE(_core, mod) {
     tp.release();  // the module keeps the type alive for g_step_report_type
   }
 
-  py::class_<PyLoop>(mod, "Loop", "A loop's state (mutable) for a LoopModel.")
-      .def(py::init<std::shared_ptr<PyLoopModel>>(), py::arg("model"))
-      .def("reset", by_ref(&PyLoop::reset))
-      .def_property("state", by_ref(&PyLoop::get_state), by_ref(&PyLoop::set_state), "Flat state (STATE_NAMES).")
-      .def("step", by_ref(&PyLoop::step), py::arg("z_r"), py::arg("v_r"), py::arg("u") = 0.0,
+  py::class_<PyLoop>(mod, "Loop", "A loop's state (mutable) for a LoopModel. Not shareable: one call at a time; a second call "
+      "while one is under way (from another thread, simulate releasing the GIL, or re-entered "
+      "from a callback damper) raises RuntimeError and leaves the first undisturbed. Give each "
+      "thread its own Loop(model) on a shared LoopModel.")
+      .def(py::init([](py::handle model) {
+             return std::make_unique<PyLoop>(shared<PyLoopModel>(model, "Loop: model must be a LoopModel"));
+           }),
+           py::arg("model"))
+      .def("reset", method(&PyLoop::reset))
+      .def_property("state", method(&PyLoop::get_state), method(&PyLoop::set_state), "Flat state (STATE_NAMES).")
+      .def("step", method(&PyLoop::step), py::arg("z_r"), py::arg("v_r"), py::arg("u") = 0.0,
            "One step; road at the end of the step. Returns the report at the step start "
            "(a StepReport: attributes, or keys as in a dict).")
-      .def("step_force", by_ref(&PyLoop::step_force), py::arg("z_r"), py::arg("v_r"), py::arg("u") = 0.0,
+      .def("step_force", method(&PyLoop::step_force), py::arg("z_r"), py::arg("v_r"), py::arg("u") = 0.0,
            "One step, as step(), returning only the damper force [N] of its report (cheapest call).")
-      .def("forward", by_ref(&PyLoop::forward), py::arg("u") = 0.0, "The report without advancing.")
-      .def("simulate", by_ref(&PyLoop::simulate), py::arg("road"), py::arg("road_rate"),
+      .def("forward", method(&PyLoop::forward), py::arg("u") = 0.0, "The report without advancing.")
+      .def("simulate", method(&PyLoop::simulate), py::arg("road"), py::arg("road_rate"),
            py::arg("u") = py::none(), py::arg("reset") = true, py::arg("out") = py::none(),
-           "Run a road in C++ (GIL released) -> dict of arrays (fresh, or out's written in place).")
-      .def_property_readonly("model", [](const PyLoop& l) { return l.model; })
-      .def_property_readonly("damper_evals", by_ref(&PyLoop::damper_evals));
+           "Run a road in C++ (GIL released) -> dict of arrays (fresh, or out's written in place). "
+           "RuntimeError if the Loop is in use by another call; out's arrays must not be read or "
+           "written by another thread during the run.")
+      .def_property_readonly("model", [](py::handle l) { return constructed<PyLoop>(l).model; })
+      .def_property_readonly("damper_evals", method(&PyLoop::damper_evals));
 }

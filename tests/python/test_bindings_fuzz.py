@@ -45,6 +45,16 @@ def test_none_for_a_model_or_damper_raises_instead_of_crashing():
             "Loop.state.fget(None)": lambda: _core.Loop.state.fget(None),
             "Loop.damper_evals.fget(None)": lambda: _core.Loop.damper_evals.fget(None),
             "Mlp.n_inputs.fget(None)": lambda: _core.Mlp.n_inputs.fget(None),
+            # instances made by __new__ without __init__ reached methods as raw memory
+            "uninitialised Loop.simulate": lambda: _core.Loop.__new__(_core.Loop).simulate(
+                np.zeros(3), np.zeros(3)),
+            "uninitialised Loop.state": lambda: _core.Loop.__new__(_core.Loop).state,
+            "uninitialised Damper.forces": lambda: _core.Damper.__new__(_core.Damper).forces(
+                0.0, 0.0, 0.0, 0.0, 0.0, 20.0),
+            "uninitialised LoopModel.vehicle": lambda: _core.LoopModel.__new__(_core.LoopModel).vehicle,
+            "Damper.neural(uninitialised Mlp)": lambda: _core.Damper.neural(
+                _core.Mlp.__new__(_core.Mlp), ["velocity"]),
+            "Loop(uninitialised LoopModel)": lambda: _core.Loop(_core.LoopModel.__new__(_core.LoopModel)),
         }
         for name, fn in calls.items():
             try:
@@ -55,7 +65,7 @@ def test_none_for_a_model_or_damper_raises_instead_of_crashing():
         """)
     assert proc.returncode == 0, crash_report(proc)
     lines = proc.stdout.splitlines()
-    assert len(lines) == 8, proc.stdout
+    assert len(lines) == 14, proc.stdout
     for line in lines:
         assert line.endswith("TypeError"), line
 
