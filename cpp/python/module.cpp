@@ -448,8 +448,47 @@ class PyLoopModel {
     dnpy::set_vehicle_fields(veh, vehicle, "vehicle");
     dnpy::set_controller_fields(ctrl, controller, "controller");
     dn_loop_model* r = nullptr;
-    check(dn_loop_model_create(&veh, damper->d.get(), &ctrl, &r), "LoopModel");
+    const int st = dn_loop_model_create(&veh, damper->d.get(), &ctrl, &r);
+    if (st == DN_E_PARAM || st == DN_E_NONFINITE_PARAM)
+      throw py::value_error("LoopModel: " + culprit(vehicle, controller) + dn_status_str(st));
+    check(st, "LoopModel");
     m.reset(r);
+  }
+
+  // The runtime says only that some parameter is out of range: name the first given field
+  // that, put back to its default, makes the model valid ("" if none alone does).
+  std::string culprit(const py::dict& vehicle, const py::dict& controller) const {
+    dn_vehicle vdef;
+    dn_vehicle_default(&vdef);
+    dn_controller cdef;
+    dn_controller_default(&cdef, ctrl.kind);
+    auto valid = [&](const dn_vehicle& v, const dn_controller& c) {
+      dn_loop_model* t = nullptr;
+      const int s = dn_loop_model_create(&v, damper->d.get(), &c, &t);
+      dn_loop_model_destroy(t);
+      return s >= 0;
+    };
+    auto named = [](const char* what, const char* name, double value, const char* doc) {
+      return std::string(what) + " '" + name + "' = " + py::str(py::float_(value)).cast<std::string>() +
+             " (" + doc + "): ";
+    };
+#define DN_TRY_VEHICLE_(type, name, def, doc)                              \
+  if (vehicle.contains(#name)) {                                           \
+    dn_vehicle trial = veh;                                                \
+    trial.name = vdef.name;                                                \
+    if (valid(trial, ctrl)) return named("vehicle", #name, veh.name, doc); \
+  }
+#define DN_TRY_CONTROLLER_(type, name, def, doc)                                                \
+  if (controller.contains(#name) && std::string(#name) != "kind") { /* kind sets the defaults */ \
+    dn_controller trial = ctrl;                                                                 \
+    trial.name = cdef.name;                                                                     \
+    if (valid(veh, trial)) return named("controller", #name, ctrl.name, doc);                   \
+  }
+    DN_VEHICLE_FIELDS(DN_TRY_VEHICLE_)
+    DN_CONTROLLER_FIELDS(DN_TRY_CONTROLLER_)
+#undef DN_TRY_VEHICLE_
+#undef DN_TRY_CONTROLLER_
+    return "";
   }
 
   // Vectorised control law (the controller alone), for tests.

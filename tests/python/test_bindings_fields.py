@@ -122,3 +122,17 @@ def test_unknown_and_non_string_keys_are_refused(where):
         model(**{where: {"Kind": "passive"}})
     with pytest.raises(TypeError, match=f"{where}: parameter names are strings, got int"):
         model(**{where: {3: 1.0}})
+
+
+@pytest.mark.parametrize("vehicle, controller, named", [
+    ({"dt": 1.0}, {}, "vehicle 'dt' = 1.0 (step [s], 0 < dt <= 0.1): DN_E_PARAM"),
+    ({"m_s": -700.0, "dt": 1e-3}, {}, "vehicle 'm_s' = -700.0 (sprung mass [kg], > 0): DN_E_PARAM"),
+    ({"k_t": math.nan}, {}, "vehicle 'k_t' = nan (tyre stiffness [N/m], > 0): DN_E_NONFINITE_PARAM"),
+    ({}, {"kind": "skyhook_onoff", "c_sky": -1.0}, "controller 'c_sky' = -1.0 (skyhook damping"),
+    ({}, {"u_min": 5.0, "u_max": 0.0}, "controller 'u_min' = 5.0 (lower control limit [V])"),
+])
+def test_an_out_of_range_value_names_its_field(vehicle, controller, named):
+    # the runtime's status alone ("a parameter is out of its valid range") named no field
+    with pytest.raises(ValueError) as e:
+        model(vehicle, controller)
+    assert named in str(e.value)
