@@ -24,8 +24,14 @@ class CallbackRun {
   bool failed() const { return static_cast<bool>(error_); }
   // Record the Python error now set (the first one wins); clears it. GIL held.
   void record_current_error() {
-    py::error_already_set e;
-    if (!error_) error_ = e.value();
+    PyObject *type, *value, *trace;
+    PyErr_Fetch(&type, &value, &trace);
+    PyErr_NormalizeException(&type, &value, &trace);
+    if (value && trace) PyException_SetTraceback(value, trace);  // keep where it was raised
+    py::object exc = py::reinterpret_steal<py::object>(value);
+    Py_XDECREF(type);
+    Py_XDECREF(trace);
+    if (!error_ && exc) error_ = std::move(exc);
   }
   // Raise what a callback raised during this run, if anything. GIL held.
   void raise_pending() {

@@ -3,7 +3,9 @@
 Run as a script (tests/python/test_bindings_fuzz.py starts it in a subprocess, so that a
 crash of the interpreter is a failing test, not a dead pytest):
 
-    python tests/python/bindings_fuzz_driver.py [EXAMPLES_PER_TARGET]
+    python tests/python/bindings_fuzz_driver.py [EXAMPLES_PER_TARGET [SEED]]
+
+(SEED: a long run exploring other calls than the test's derandomized ones.)
 
 The targets are found by introspection (every class, its constructor, static methods,
 methods, properties and attributes; the module's functions), so a new binding is fuzzed
@@ -31,7 +33,7 @@ import math
 import sys
 
 import numpy as np
-from hypothesis import HealthCheck, Phase, given, settings
+from hypothesis import HealthCheck, Phase, given, seed, settings
 from hypothesis import strategies as st
 
 from dampnet import _core
@@ -335,15 +337,17 @@ def make_out(pool: Pool, key, how, value):
     return out
 
 
-def run(examples: int) -> int:
+def run(examples: int, seed_value: int | None = None) -> int:
     tg = targets()
-    cfg = settings(max_examples=examples, derandomize=True, database=None, deadline=None,
+    cfg = settings(max_examples=examples, derandomize=seed_value is None, database=None, deadline=None,
                    suppress_health_check=list(HealthCheck), phases=[Phase.explicit, Phase.generate],
                    report_multiple_bugs=False)
+    maybe_seed = seed(seed_value) if seed_value is not None else (lambda f: f)
     calls = 0
     for name, kind, cls, attr in tg:
         arg_lists = st.lists(live_or_value, max_size=5 if kind != "property" else 1)
 
+        @maybe_seed
         @cfg
         @given(args=arg_lists, pick=st.integers(0, 100), live_self=st.booleans(),
                out=st.one_of(st.none(), out_dicts()))
@@ -377,4 +381,5 @@ def run(examples: int) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(run(int(sys.argv[1]) if len(sys.argv) > 1 else 25))
+    sys.exit(run(int(sys.argv[1]) if len(sys.argv) > 1 else 25,
+                 int(sys.argv[2]) if len(sys.argv) > 2 else None))
