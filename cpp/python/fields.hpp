@@ -78,6 +78,19 @@ inline std::string describe(py::handle h) {
   return std::string(Py_TYPE(h.ptr())->tp_name) + " " + r;
 }
 
+// A str as UTF-8, at most 60 characters of it for a message (a lone surrogate, which
+// has no UTF-8: ValueError).
+inline std::string text_of(py::handle h, const std::string& where, bool shorten) {
+  Py_ssize_t n = 0;
+  const char* u = PyUnicode_AsUTF8AndSize(h.ptr(), &n);
+  if (!u) {
+    PyErr_Clear();
+    throw py::value_error(where + ": not valid text (unpaired surrogate)");
+  }
+  std::string t(u, static_cast<std::size_t>(n));
+  return shorten && t.size() > 60 ? t.substr(0, 57) + "..." : t;
+}
+
 // The text of the Python error now set (and clear it), for a message's tail.
 inline std::string take_error_text() {
   py::error_already_set e;  // fetches and clears the current Python error
@@ -95,11 +108,11 @@ inline int parse_enum(py::handle h, const char* what, const char* field) {
   const EnumField& f = enum_field(field);
   const std::string where = std::string(what) + " '" + field + "'";
   if (PyUnicode_Check(h.ptr())) {
-    const std::string v = h.cast<std::string>();
+    const std::string v = text_of(h, where, false);
     for (std::size_t i = 0; i < f.n; ++i)
       if (v == f.names[i].name) return f.names[i].value;
-    throw py::value_error(where + ": unknown name '" + v + "' for a " + f.type + "; valid: " +
-                          valid_names(f));
+    throw py::value_error(where + ": unknown name '" + text_of(h, where, true) + "' for a " +
+                          f.type + "; valid: " + valid_names(f));
   }
   if (!PyBool_Check(h.ptr()) && PyIndex_Check(h.ptr())) {
     py::object i = py::reinterpret_steal<py::object>(PyNumber_Index(h.ptr()));
@@ -108,8 +121,8 @@ inline int parse_enum(py::handle h, const char* what, const char* field) {
     if (!i || (v == -1 && PyErr_Occurred())) throw py::type_error(where + ": " + take_error_text());
     for (std::size_t k = 0; k < f.n && !overflow; ++k)
       if (v == f.names[k].value) return f.names[k].value;
-    throw py::value_error(where + " = " + py::str(h).cast<std::string>() + " is not a " + f.type +
-                          " (DN_E_PARAM); valid: " + valid_names(f));
+    throw py::value_error(where + " = " + (overflow ? describe(h) : std::to_string(v)) + " is not a " +
+                          f.type + " (DN_E_PARAM); valid: " + valid_names(f));
   }
   throw py::type_error(where + ": expected a name (" + valid_names(f) + "), got " + describe(h));
 }
@@ -134,7 +147,7 @@ inline double parse_number(py::handle h, const char* what, const char* field, co
 inline std::string key_of(py::handle k, const char* what) {
   if (!PyUnicode_Check(k.ptr()))
     throw py::type_error(std::string(what) + ": parameter names are strings, got " + describe(k));
-  return k.cast<std::string>();
+  return text_of(k, what, true);  // a longer name is unknown anyway: echoed shortened
 }
 
 // A shallow copy to iterate over: a value's __float__ may change the caller's dict.

@@ -136,3 +136,15 @@ def test_an_out_of_range_value_names_its_field(vehicle, controller, named):
     with pytest.raises(ValueError) as e:
         model(vehicle, controller)
     assert named in str(e.value)
+
+
+def test_messages_echo_at_most_a_short_part_of_a_long_or_invalid_name():
+    for where, field in [("controller", "kind"), ("vehicle", "integrator")]:
+        with pytest.raises(ValueError) as e:
+            model(**{where: {field: "x" * 100_000}})
+        assert len(str(e.value)) < 400 and "xxx..." in str(e.value)
+        with pytest.raises(ValueError, match="not valid text"):
+            model(**{where: {field: "rk4\ud800"}})
+    with pytest.raises(ValueError) as e:
+        model(vehicle={"y" * 100_000: 1.0})
+    assert len(str(e.value)) < 400
