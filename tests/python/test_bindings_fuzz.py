@@ -15,11 +15,12 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 
 
-def run_python(code_or_args, timeout=300):
+def run_python(code_or_args, cwd, timeout=300):
+    """Python in a subprocess, in cwd (hypothesis may keep a .hypothesis cache there)."""
     args = code_or_args if isinstance(code_or_args, list) else ["-c", textwrap.dedent(code_or_args)]
     env = dict(os.environ, PYTHONFAULTHANDLER="1")
     return subprocess.run([sys.executable, *args], capture_output=True, text=True,
-                          timeout=timeout, cwd=HERE, env=env)
+                          timeout=timeout, cwd=cwd, env=env)
 
 
 def crash_report(proc) -> str:
@@ -29,7 +30,7 @@ def crash_report(proc) -> str:
             f"last call: {calls[-1] if calls else '-'}\n" + "\n".join(others[-25:]))
 
 
-def test_none_for_a_model_or_damper_raises_instead_of_crashing():
+def test_none_for_a_model_or_damper_raises_instead_of_crashing(tmp_path):
     # The calls of the issue, and the unbound methods with None for self (found by the fuzz
     # test below: pybind11 passed None to a member function as a null `this`).
     proc = run_python("""
@@ -62,7 +63,7 @@ def test_none_for_a_model_or_damper_raises_instead_of_crashing():
                 print(name, "returned")
             except Exception as e:
                 print(name, type(e).__name__)
-        """)
+        """, tmp_path)
     assert proc.returncode == 0, crash_report(proc)
     lines = proc.stdout.splitlines()
     assert len(lines) == 14, proc.stdout
@@ -70,9 +71,9 @@ def test_none_for_a_model_or_damper_raises_instead_of_crashing():
         assert line.endswith("TypeError"), line
 
 
-def test_every_core_callable_with_arbitrary_arguments():
+def test_every_core_callable_with_arbitrary_arguments(tmp_path):
     # bindings_fuzz_driver.py: every public callable of _core found by introspection, 10
     # derandomized hypothesis examples each (~900 calls, ~4 s of CPU).
-    proc = run_python([str(HERE / "bindings_fuzz_driver.py"), "10"])
+    proc = run_python([str(HERE / "bindings_fuzz_driver.py"), "10"], tmp_path)
     assert proc.returncode == 0, crash_report(proc)
     assert "no crash" in proc.stdout
