@@ -23,6 +23,14 @@ returned an error without setting one); after it, every loop state of the exampl
 finite (the runtime refuses non-finite input and keeps the state). Hypothesis runs
 derandomized (fixed seed), without a database, so every run makes the same calls.
 Each call is written to stderr first: after a crash the last line names it.
+
+Long runs (on commit d327938's module; each: the line run, its result):
+    python tests/python/bindings_fuzz_driver.py 150      13200 calls, no crash (27f0a72)
+    python tests/python/bindings_fuzz_driver.py 100 1     8800 calls, no crash
+    python tests/python/bindings_fuzz_driver.py 100 2     8800 calls, no crash
+    python tests/python/bindings_fuzz_driver.py 300 3    26400 calls, no crash
+Before the fixes a 40-per-target run crashed in its first minute (Loop.reset(None)), and
+then on Loop.__new__(Loop).simulate(...).
 """
 
 from __future__ import annotations
