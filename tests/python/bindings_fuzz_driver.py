@@ -24,7 +24,7 @@ finite (the runtime refuses non-finite input and keeps the state). Hypothesis ru
 derandomized (fixed seed), without a database, so every run makes the same calls.
 Each call is written to stderr first: after a crash the last line names it.
 
-Long runs (on commit d327938's module; each: the line run, its result):
+Long runs (the module of commit d327938 unless noted; each: the command, its result):
     python tests/python/bindings_fuzz_driver.py 150      13200 calls, no crash (27f0a72)
     python tests/python/bindings_fuzz_driver.py 100 1     8800 calls, no crash
     python tests/python/bindings_fuzz_driver.py 100 2     8800 calls, no crash
