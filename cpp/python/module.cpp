@@ -4,6 +4,8 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <array>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -24,14 +26,45 @@
 #include "dampnet/dampnet.h"
 #include "dampnet/loop.hpp"
 
+#include "busy.hpp"
+#include "callback_run.hpp"
+#include "fields.hpp"
+
 namespace py = pybind11;
 
 namespace {
+
+using dnpy::BusyGuard;
+using dnpy::CallbackRun;
 
 using DArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
 
 void check(int status, const std::string& what) {
   if (status < 0) throw py::value_error(what + ": " + dn_status_str(status));
+}
+
+// h as a constructed C++ object of class C (self, or an argument): not None, of the
+// class, and built by its __init__ (see method()). On every method call: no allocation,
+// one cached type lookup.
+template <class C>
+C& constructed(py::handle h) {
+  static const py::detail::type_info* const ti = py::detail::get_type_info(typeid(C));
+  if (!ti) throw py::type_error("dampnet._core: class not registered");
+  if (!h || !PyObject_TypeCheck(h.ptr(), ti->type))
+    throw py::type_error(std::string("expected a ") + ti->type->tp_name + ", got " + dnpy::describe(h));
+  auto vh = reinterpret_cast<py::detail::instance*>(h.ptr())->get_value_and_holder(ti, false);
+  if (!vh || !vh.holder_constructed() || !vh.value_ptr())
+    throw py::type_error(std::string("this ") + ti->type->tp_name +
+                         " was never initialised (made by __new__ without __init__)");
+  return *vh.value_ptr<C>();
+}
+
+// The shared_ptr holder of h, a constructed C (None or an uninitialised instance: TypeError).
+template <class C>
+std::shared_ptr<C> shared(py::handle h, const char* what) {
+  if (h.is_none()) throw py::type_error(std::string(what) + ", not None");
+  constructed<C>(h);
+  return h.cast<std::shared_ptr<C>>();
 }
 
 // A dn_mlp owned by Python, with the description's arrays validated by shape.
@@ -41,6 +74,10 @@ class PyMlp {
         DArray in_offset, DArray in_gain, double in_ymin, double out_offset, double out_gain,
         double out_ymin, DArray sat_lo, DArray sat_hi, const std::string& activation) {
     if (w1.ndim() != 2) throw py::value_error("w1 must be 2-D [n_hidden1, n_inputs]");
+    if (w1.shape(0) > DN_MAX_HIDDEN || w1.shape(1) > DN_MAX_INPUTS)  // before the int casts
+      throw py::value_error("Mlp: w1 is [n_hidden1, n_inputs]: at most " +
+                            std::to_string(DN_MAX_HIDDEN) + " x " + std::to_string(DN_MAX_INPUTS) + " (" +
+                            dn_status_str(DN_E_SIZE) + ")");
     dn_mlp_desc d{};
     d.n_hidden1 = static_cast<int>(w1.shape(0));
     d.n_inputs = static_cast<int>(w1.shape(1));
@@ -48,8 +85,10 @@ class PyMlp {
     if (!w2.is_none()) {
       w2a = DArray::ensure(w2);
       b2a = DArray::ensure(b2);
-      if (!w2a || w2a.ndim() != 2 || w2a.shape(1) != d.n_hidden1)
-        throw py::value_error("w2 must be 2-D [n_hidden2, n_hidden1]");
+      if (!w2a || w2a.ndim() != 2 || w2a.shape(1) != d.n_hidden1 || w2a.shape(0) > DN_MAX_HIDDEN)
+        throw py::value_error("w2 must be 2-D [n_hidden2, n_hidden1] with n_hidden2 <= " +
+                              std::to_string(DN_MAX_HIDDEN) + " (" + dn_status_str(DN_E_SIZE) + ")");
+      if (!b2a) throw py::value_error("b2 must be an array of n_hidden2 numbers when w2 is given");
       d.n_hidden2 = static_cast<int>(w2a.shape(0));
       expect(b2a, d.n_hidden2, "b2");
       d.w2 = w2a.data();
@@ -146,67 +185,6 @@ class PyMlp {
 
 // ---- Dampers, controllers and the quarter-car loop ----
 
-template <class T>
-T field_default_cast(const py::handle& h) {
-  return h.cast<T>();
-}
-
-// Enum-like fields accept an int or a name.
-int enum_value(const py::handle& h, const char* field) {
-  static const std::pair<const char*, int> names[] = {
-      {"passive", DN_CTRL_PASSIVE},
-      {"skyhook_onoff", DN_CTRL_SKYHOOK_ONOFF},
-      {"skyhook_continuous", DN_CTRL_SKYHOOK_CONTINUOUS},
-      {"groundhook_onoff", DN_CTRL_GROUNDHOOK_ONOFF},
-      {"groundhook_continuous", DN_CTRL_GROUNDHOOK_CONTINUOUS},
-      {"external", DN_CTRL_EXTERNAL},
-      {"rk4", DN_INT_RK4},
-      {"semi_euler", DN_INT_SEMI_EULER},
-      {"per_stage", DN_EVAL_PER_STAGE},
-      {"per_step", DN_EVAL_PER_STEP},
-      {"implicit", DN_ACCEL_IMPLICIT},
-      {"explicit", DN_ACCEL_EXPLICIT},
-      {"linear", DN_ACCEL_LINEAR},
-  };
-  if (py::isinstance<py::str>(h)) {
-    const std::string v = h.cast<std::string>();
-    for (const auto& kv : names)
-      if (v == kv.first) return kv.second;
-    throw py::value_error(std::string(field) + ": unknown name '" + v + "'");
-  }
-  return h.cast<int>();
-}
-
-template <class S>
-void set_fields_from_dict(S& s, const py::dict& d, const char* what);
-
-template <>
-void set_fields_from_dict(dn_vehicle& s, const py::dict& d, const char* what) {
-  for (auto kv : d) {
-    const std::string k = kv.first.cast<std::string>();
-    bool found = false;
-#define DN_SET_(type, name, def, doc)                                             \
-  if (k == #name) {                                                               \
-    if (std::is_same<type, int>::value) s.name = (type)enum_value(kv.second, #name); \
-    else s.name = (type)kv.second.cast<double>();                                 \
-    found = true;                                                                 \
-  }
-    DN_VEHICLE_FIELDS(DN_SET_)
-    if (!found) throw py::value_error(std::string(what) + ": unknown parameter '" + k + "'");
-  }
-}
-
-template <>
-void set_fields_from_dict(dn_controller& s, const py::dict& d, const char* what) {
-  for (auto kv : d) {
-    const std::string k = kv.first.cast<std::string>();
-    bool found = false;
-    DN_CONTROLLER_FIELDS(DN_SET_)
-#undef DN_SET_
-    if (!found) throw py::value_error(std::string(what) + ": unknown parameter '" + k + "'");
-  }
-}
-
 py::dict vehicle_dict(const dn_vehicle& s) {
   py::dict d;
 #define DN_GET_(type, name, def, doc) d[#name] = s.name;
@@ -243,8 +221,10 @@ class PyDamper {
   };
   std::unique_ptr<dn_damper, Deleter> d;
   py::object callback;        // the Python function of a callback damper
-  py::object error;           // the exception a callback raised during a C++ run
-  std::vector<std::string> features;
+  std::vector<std::string> features;  // a neural damper's inputs (empty for the others)
+  // Calls of forces() under way. Counted with the GIL held, read by add_term (GIL held): a
+  // damper is immutable while evaluated (forces releases the GIL; a callback may re-enter).
+  std::atomic<int> evaluating{0};
 
   static std::shared_ptr<PyDamper> wrap(dn_damper* raw) {
     auto p = std::make_shared<PyDamper>();
@@ -267,6 +247,10 @@ class PyDamper {
   static std::shared_ptr<PyDamper> table(DArray v, DArray u, DArray f) {
     if (v.ndim() != 1 || u.ndim() != 1)
       throw py::value_error("Damper.table: velocities and controls must be 1-D");
+    if (v.shape(0) > DN_MAX_TABLE_V || u.shape(0) > DN_MAX_TABLE_U)  // before the int casts
+      throw py::value_error("Damper.table: at most " + std::to_string(DN_MAX_TABLE_V) +
+                            " velocities and " + std::to_string(DN_MAX_TABLE_U) + " controls (" +
+                            dn_status_str(DN_E_SIZE) + ")");
     if (f.ndim() != 2 || f.shape(0) != u.shape(0) || f.shape(1) != v.shape(0))
       throw py::value_error("Damper.table: forces must be 2-D [n_controls, n_velocities]");
     dn_damper* r = nullptr;
@@ -275,9 +259,14 @@ class PyDamper {
           "Damper.table");
     return wrap(r);
   }
-  static std::shared_ptr<PyDamper> neural(const PyMlp& mlp, const std::vector<std::string>& feats,
+  static std::shared_ptr<PyDamper> neural(py::handle mlp_obj, const std::vector<std::string>& feats,
                                           const std::map<std::string, double>& fparams,
                                           bool single) {
+    if (mlp_obj.is_none()) throw py::type_error("Damper.neural: mlp must be an Mlp, not None");
+    const PyMlp* mlp = &constructed<PyMlp>(mlp_obj);
+    if (feats.size() > DN_MAX_INPUTS || fparams.size() > 64)  // before the int casts
+      throw py::value_error("Damper.neural: at most " + std::to_string(DN_MAX_INPUTS) + " features (" +
+                            dn_status_str(DN_E_SIZE) + ")");
     std::vector<const char*> names, pnames;
     std::vector<double> pvals;
     for (const auto& f : feats) names.push_back(f.c_str());
@@ -286,7 +275,7 @@ class PyDamper {
       pvals.push_back(kv.second);
     }
     dn_damper* r = nullptr;
-    const int st = dn_damper_create_neural(mlp.handle(), names.data(), (int)names.size(),
+    const int st = dn_damper_create_neural(mlp->handle(), names.data(), (int)names.size(),
                                            pnames.data(), pvals.data(), (int)pvals.size(),
                                            single ? DN_PRECISION_FLOAT : DN_PRECISION_DOUBLE, &r);
     if (st == DN_E_UNKNOWN_NAME) {
@@ -304,19 +293,33 @@ class PyDamper {
     return p;
   }
 
-  static double trampoline(void* user, const dn_damper_input* in) {
+  // The C function of a callback damper: calls the Python function with the GIL. Its
+  // exception (or a result that is no number) goes to the run on this thread
+  // (CallbackRun), which raises it; the runtime sees NaN and stops the run.
+  static double trampoline(void* user, const dn_damper_input* in) noexcept {
     auto* self = static_cast<PyDamper*>(user);
     py::gil_scoped_acquire gil;
-    if (self->error && !self->error.is_none()) return std::nan("");
+    CallbackRun* run = CallbackRun::current();
+    if (run && run->failed()) return std::nan("");
     try {
-      return self->callback(*in).cast<double>();
+      py::object r = self->callback(*in);
+      const double f = PyFloat_AsDouble(r.ptr());
+      if (f == -1.0 && PyErr_Occurred()) {
+        PyErr_Clear();
+        throw py::type_error("Damper.callback: the function returned " + dnpy::describe(r) +
+                             ", expected the force [N] as a number");
+      }
+      return f;
     } catch (py::error_already_set& e) {
-      self->error = e.value();
-      return std::nan("");
-    } catch (std::exception& e) {
-      self->error = py::str(e.what());
-      return std::nan("");
+      e.restore();
+    } catch (const py::builtin_exception& e) {
+      e.set_error();
+    } catch (const std::exception& e) {
+      PyErr_SetString(PyExc_RuntimeError, e.what());
     }
+    if (run) run->record_current_error();
+    else PyErr_WriteUnraisable(self->callback.ptr());  // no run to raise it in (not expected)
+    return std::nan("");
   }
 
   static std::shared_ptr<PyDamper> callback_damper(py::function fn) {
@@ -325,11 +328,17 @@ class PyDamper {
     check(dn_damper_create_callback(&PyDamper::trampoline, p.get(), &r), "Damper.callback");
     p->d.reset(r);
     p->callback = fn;
-    p->error = py::none();
     return p;
   }
 
   void add_term(const std::string& kind, DArray params) {
+    if (evaluating.load() > 0)
+      throw std::runtime_error("Damper.add_term: the damper is being evaluated (forces in another "
+                               "thread, or its callback re-entering it); add terms before use");
+    if (params.size() > DN_MAX_TERM_PARAMS)  // before the int cast
+      throw py::value_error("add_term('" + kind + "'): at most " +
+                            std::to_string(DN_MAX_TERM_PARAMS) + " parameters (" +
+                            dn_status_str(DN_E_SIZE) + ")");
     const int st = dn_damper_add_term(d.get(), kind.c_str(), params.data(), (int)params.size());
     if (st == DN_E_UNKNOWN_NAME) {
       std::string msg = "add_term: unknown kind '" + kind + "'; known:";
@@ -339,16 +348,6 @@ class PyDamper {
       throw py::value_error(msg);
     }
     check(st, "add_term('" + kind + "')");
-  }
-
-  void raise_pending() {
-    if (error && !error.is_none()) {
-      py::object e = error;
-      error = py::none();
-      if (py::isinstance<py::str>(e)) throw std::runtime_error(e.cast<std::string>());
-      PyErr_SetObject(reinterpret_cast<PyObject*>(Py_TYPE(e.ptr())), e.ptr());
-      throw py::error_already_set();
-    }
   }
 
   // Vectorised force of the model plus terms; arrays broadcast to one length.
@@ -368,6 +367,12 @@ class PyDamper {
     double* fp = f.mutable_data();
     int32_t* sp = st.mutable_data();
     uint32_t* mp = mask.mutable_data();
+    struct Evaluating {  // counted for add_term; decremented on every exit
+      std::atomic<int>& n;
+      explicit Evaluating(std::atomic<int>& c) : n(c) { ++n; }
+      ~Evaluating() { --n; }
+    } evaluating_now(evaluating);
+    CallbackRun run;
     {
       std::unique_ptr<py::gil_scoped_release> rel;
       if (!callback) rel.reset(new py::gil_scoped_release);
@@ -384,7 +389,7 @@ class PyDamper {
         sp[i] = dn_damper_force(d.get(), &in, &fp[i], &mp[i]);
       }
     }
-    raise_pending();
+    run.raise_pending();
     return py::make_tuple(f, st, mask);
   }
 };
@@ -437,15 +442,55 @@ class PyLoopModel {
   dn_controller ctrl{};
 
   PyLoopModel(std::shared_ptr<PyDamper> d, py::dict vehicle, py::dict controller) : damper(d) {
+    if (!damper) throw py::type_error("LoopModel: damper must be a Damper, not None");
     dn_vehicle_default(&veh);
     int kind = DN_CTRL_PASSIVE;
-    if (controller.contains("kind")) kind = enum_value(controller["kind"], "kind");
-    dn_controller_default(&ctrl, kind);
-    set_fields_from_dict(veh, vehicle, "vehicle");
-    set_fields_from_dict(ctrl, controller, "controller");
+    if (controller.contains("kind")) kind = dnpy::parse_enum(controller["kind"], "controller", "kind");
+    dn_controller_default(&ctrl, kind);  // the law's defaults, then the given fields
+    dnpy::set_vehicle_fields(veh, vehicle, "vehicle");
+    dnpy::set_controller_fields(ctrl, controller, "controller");
     dn_loop_model* r = nullptr;
-    check(dn_loop_model_create(&veh, damper->d.get(), &ctrl, &r), "LoopModel");
+    const int st = dn_loop_model_create(&veh, damper->d.get(), &ctrl, &r);
+    if (st == DN_E_PARAM || st == DN_E_NONFINITE_PARAM)
+      throw py::value_error("LoopModel: " + culprit(vehicle, controller) + dn_status_str(st));
+    check(st, "LoopModel");
     m.reset(r);
+  }
+
+  // The runtime says only that some parameter is out of range: name the first given field
+  // that, put back to its default, makes the model valid ("" if none alone does).
+  std::string culprit(const py::dict& vehicle, const py::dict& controller) const {
+    dn_vehicle vdef;
+    dn_vehicle_default(&vdef);
+    dn_controller cdef;
+    dn_controller_default(&cdef, ctrl.kind);
+    auto valid = [&](const dn_vehicle& v, const dn_controller& c) {
+      dn_loop_model* t = nullptr;
+      const int s = dn_loop_model_create(&v, damper->d.get(), &c, &t);
+      dn_loop_model_destroy(t);
+      return s >= 0;
+    };
+    auto named = [](const char* what, const char* name, double value, const char* doc) {
+      return std::string(what) + " '" + name + "' = " + py::str(py::float_(value)).cast<std::string>() +
+             " (" + doc + "): ";
+    };
+#define DN_TRY_VEHICLE_(type, name, def, doc)                              \
+  if (vehicle.contains(#name)) {                                           \
+    dn_vehicle trial = veh;                                                \
+    trial.name = vdef.name;                                                \
+    if (valid(trial, ctrl)) return named("vehicle", #name, veh.name, doc); \
+  }
+#define DN_TRY_CONTROLLER_(type, name, def, doc)                                                \
+  if (controller.contains(#name) && std::string(#name) != "kind") { /* kind sets the defaults */ \
+    dn_controller trial = ctrl;                                                                 \
+    trial.name = cdef.name;                                                                     \
+    if (valid(veh, trial)) return named("controller", #name, ctrl.name, doc);                   \
+  }
+    DN_VEHICLE_FIELDS(DN_TRY_VEHICLE_)
+    DN_CONTROLLER_FIELDS(DN_TRY_CONTROLLER_)
+#undef DN_TRY_VEHICLE_
+#undef DN_TRY_CONTROLLER_
+    return "";
   }
 
   // Vectorised control law (the controller alone), for tests.
@@ -550,23 +595,31 @@ class PyLoop {
   };
   std::shared_ptr<PyLoopModel> model;
   std::unique_ptr<dn_loop_data, Deleter> d;
+  // Set while a call uses the state (BusyGuard): a Loop refuses concurrent use.
+  mutable std::atomic<bool> busy{false};
 
   explicit PyLoop(std::shared_ptr<PyLoopModel> m) : model(m) {
+    if (!model) throw py::type_error("Loop: model must be a LoopModel, not None");
     dn_loop_data* r = nullptr;
     check(dn_loop_data_create(model->m.get(), &r), "Loop");
     d.reset(r);
   }
 
-  void reset() { check(dn_loop_reset(model->m.get(), d.get()), "reset"); }
+  void reset() {
+    BusyGuard guard(busy, "Loop.reset", dnpy::kLoopContract);
+    check(dn_loop_reset(model->m.get(), d.get()), "reset");
+  }
 
   py::array_t<double> get_state() const {
     py::array_t<double> s(DN_LOOP_STATE_SIZE);
+    BusyGuard guard(busy, "Loop.state", dnpy::kLoopContract);
     dn_loop_get_state(d.get(), s.mutable_data());
     return s;
   }
   void set_state(DArray s) {
     if (s.size() != DN_LOOP_STATE_SIZE)
       throw py::value_error("state: expected " + std::to_string(DN_LOOP_STATE_SIZE) + " values");
+    BusyGuard guard(busy, "Loop.state", dnpy::kLoopContract);
     check(dn_loop_set_state(d.get(), s.data()), "state");
   }
 
@@ -582,9 +635,13 @@ class PyLoop {
     py::object owner = py::reinterpret_steal<py::object>(reinterpret_cast<PyObject*>(obj));
     StepReport& r = obj->r;
     r.o = dn_loop_out{};
-    r.status = advance ? dn_loop_step(model->m.get(), d.get(), &in, &r.o)
-                       : dn_loop_forward(model->m.get(), d.get(), &in, &r.o);
-    model->damper->raise_pending();
+    {
+      BusyGuard guard(busy, advance ? "Loop.step" : "Loop.forward", dnpy::kLoopContract);
+      CallbackRun run;
+      r.status = advance ? dn_loop_step(model->m.get(), d.get(), &in, &r.o)
+                         : dn_loop_forward(model->m.get(), d.get(), &in, &r.o);
+      run.raise_pending();
+    }
     check(r.status, advance ? "step" : "forward");
     return owner;
   }
@@ -594,8 +651,13 @@ class PyLoop {
   double step_force(double z_r, double v_r, double u) {
     dn_loop_input in{z_r, v_r, u};
     dn_loop_out o;
-    const int st = dn_loop_step(model->m.get(), d.get(), &in, &o);
-    model->damper->raise_pending();
+    int st;
+    {
+      BusyGuard guard(busy, "Loop.step_force", dnpy::kLoopContract);
+      CallbackRun run;
+      st = dn_loop_step(model->m.get(), d.get(), &in, &o);
+      run.raise_pending();
+    }
     check(st, "step");
     return o.force;
   }
@@ -617,12 +679,9 @@ class PyLoop {
       if (!u || u.ndim() != 1 || u.size() != n)
         throw py::value_error("simulate: u must be 1-D with one value per road sample");
     }
-    const int nf = [&] {
-      dn_loop_out o{};
-      dn_loop_input in{0, 0, 0};
-      dn_loop_forward(model->m.get(), d.get(), &in, &o);
-      return o.n_features;
-    }();
+    // A neural damper reports its inputs (dn_loop_out.n_features); the others none. (Not
+    // probed with a forward call: a stateful callback damper would see an extra call.)
+    const int nf = static_cast<int>(model->damper->features.size());
     py::array_t<double> states, force, control, xs, vs, as, acc_s, acc_us, feats;
     py::array_t<int32_t> status;
     if (out_obj.is_none()) {
@@ -694,6 +753,8 @@ class PyLoop {
     dn_loop_data* dd = d.get();
     py::ssize_t fail_at = -1;
     int fail_status = 0;
+    BusyGuard guard(busy, "Loop.simulate", dnpy::kLoopContract);
+    CallbackRun run;
     {
       py::gil_scoped_release release;
       if (reset_first) dn_loop_reset(m, dd);
@@ -730,7 +791,7 @@ class PyLoop {
         for (int i = 0; i < nf; ++i) FE[k * nf + i] = o.features[i];
       }
     }
-    model->damper->raise_pending();
+    run.raise_pending();
     if (fail_at >= 0)
       throw py::value_error("simulate: sample " + std::to_string(fail_at) + ": " +
                             dn_status_str(fail_status));
@@ -748,13 +809,34 @@ class PyLoop {
     return r;
   }
 
-  int64_t damper_evals() const { return dn_loop_damper_evals(d.get()); }
+  int64_t damper_evals() const {
+    BusyGuard guard(busy, "Loop.damper_evals", dnpy::kLoopContract);
+    return dn_loop_damper_evals(d.get());
+  }
 };
+
+// Methods get self through constructed<C>(): pybind11 binds a member pointer as a function
+// of `C*` (a pointer accepts None: `Loop.reset(None)` ran on a null `this`), and hands an
+// instance made by `Loop.__new__(Loop)` without __init__ to any method as freshly allocated,
+// unconstructed memory. Both are refused with TypeError here.
+template <class C, class R, class... A>
+auto method(R (C::*f)(A...)) {
+  return [f](py::handle self, A... a) -> R { return (constructed<C>(self).*f)(std::forward<A>(a)...); };
+}
+template <class C, class R, class... A>
+auto method(R (C::*f)(A...) const) {
+  return [f](py::handle self, A... a) -> R { return (constructed<C>(self).*f)(std::forward<A>(a)...); };
+}
 
 }  // namespace
 
 PYBIND11_MODULE(_core, mod) {
-  mod.doc() = "dampnet C++ runtime (MLP kernel, quarter-car loop)";
+  mod.doc() =
+      "dampnet C++ runtime (MLP kernel, quarter-car loop).\n\n"
+      "Threading: Mlp, Damper and LoopModel are immutable once built and may be shared by "
+      "threads; a Loop is one mutable loop state: one call at a time (a second call while one "
+      "is under way raises RuntimeError), so give each thread its own Loop on a shared model. "
+      "Loop.simulate, Mlp.predict and Damper.forces release the GIL (callback dampers hold it).";
   mod.attr("__version__") = dn_version_string();
   mod.def("version", &dn_version, "Library version as major*10000 + minor*100 + patch.");
   mod.def("status_str", &dn_status_str, "Explain a dampnet status code.");
@@ -792,17 +874,18 @@ PYBIND11_MODULE(_core, mod) {
   DN_STATUS_LIST(DN_STATUS_ATTR_)
 #undef DN_STATUS_ATTR_
 
-  py::class_<PyMlp>(mod, "Mlp", "An immutable MLP model evaluated by the C++ kernel.")
+  py::class_<PyMlp>(mod, "Mlp", "An immutable MLP model evaluated by the C++ kernel; may be shared by threads "
+                          "(predict releases the GIL).")
       .def(py::init<DArray, DArray, py::object, py::object, DArray, DArray, DArray, DArray, double,
                     double, double, double, DArray, DArray, const std::string&>(),
            py::arg("w1"), py::arg("b1"), py::arg("w2"), py::arg("b2"), py::arg("w_out"),
            py::arg("b_out"), py::arg("in_offset"), py::arg("in_gain"), py::arg("in_ymin"),
            py::arg("out_offset"), py::arg("out_gain"), py::arg("out_ymin"), py::arg("sat_lo"),
            py::arg("sat_hi"), py::arg("activation"))
-      .def_property_readonly("n_inputs", &PyMlp::n_inputs)
-      .def("forward", &PyMlp::forward, py::arg("x"), py::arg("single") = false,
+      .def_property_readonly("n_inputs", method(&PyMlp::n_inputs))
+      .def("forward", method(&PyMlp::forward), py::arg("x"), py::arg("single") = false,
            "One sample -> (output, status, clamped_mask).")
-      .def("predict", &PyMlp::predict, py::arg("x"), py::arg("single") = false,
+      .def("predict", method(&PyMlp::predict), py::arg("x"), py::arg("single") = false,
            "Samples [n, n_inputs] -> (outputs[n], status[n], clamped_mask[n]); GIL released.");
 
   // ---- the quarter-car loop ----
@@ -840,7 +923,10 @@ PYBIND11_MODULE(_core, mod) {
       .def_readwrite("dt", &dn_damper_input::dt)
       .def_readwrite("stage", &dn_damper_input::stage);
 
-  py::class_<PyDamper, std::shared_ptr<PyDamper>>(mod, "Damper", "A damper model (dn_damper).")
+  py::class_<PyDamper, std::shared_ptr<PyDamper>>(mod, "Damper", "A damper model (dn_damper); loop models copy it. Immutable once set up (add_term "
+      "is set-up, refused while the damper is evaluated): may be shared by threads. A callback "
+      "damper calls its function with the GIL held; state kept by that function (a truth "
+      "damper) is the caller's to protect: use a stateful callback damper in one loop at a time.")
       .def_static("linear", &PyDamper::linear, py::arg("c"), "F = c v.")
       .def_static("parametric", &PyDamper::parametric, py::arg("c_min"), py::arg("c_max"),
                   py::arg("gamma"), py::arg("f0"), py::arg("v_max"), py::arg("v_smooth") = 0.0,
@@ -852,24 +938,28 @@ PYBIND11_MODULE(_core, mod) {
                   py::arg("single") = false, "The MLP on named features.")
       .def_static("callback", &PyDamper::callback_damper, py::arg("fn"),
                   "A Python function fn(DamperInput) -> force [N] (slow path, holds the GIL).")
-      .def("add_term", &PyDamper::add_term, py::arg("kind"), py::arg("params"),
-           "Add a physics term (TERM_KINDS).")
-      .def_property_readonly("kind", [](const PyDamper& p) { return dn_damper_kind_of(p.d.get()); })
-      .def("forces", &PyDamper::forces, py::arg("x"), py::arg("v"), py::arg("a"), py::arg("u"),
+      .def("add_term", method(&PyDamper::add_term), py::arg("kind"), py::arg("params"),
+           "Add a physics term (TERM_KINDS); set-up, before the damper is used.")
+      .def_property_readonly("kind", [](py::handle p) { return dn_damper_kind_of(constructed<PyDamper>(p).d.get()); })
+      .def("forces", method(&PyDamper::forces), py::arg("x"), py::arg("v"), py::arg("a"), py::arg("u"),
            py::arg("u_lag"), py::arg("temperature"),
            py::arg("v_lag") = std::numeric_limits<double>::quiet_NaN(),
            py::arg("z_fric") = std::numeric_limits<double>::quiet_NaN(),
-           "Vectorised force (v_lag, z_fric default NaN: a model that reads them must be given them) -> (force[n], status[n], clamped_mask[n]).");
+           "Vectorised force (v_lag, z_fric default NaN: a model that reads them must be given them) -> (force[n], status[n], clamped_mask[n]); GIL released except for callback dampers.");
 
   py::class_<PyLoopModel, std::shared_ptr<PyLoopModel>>(mod, "LoopModel",
-                                                        "Vehicle, damper and controller (constant).")
-      .def(py::init<std::shared_ptr<PyDamper>, py::dict, py::dict>(), py::arg("damper"),
+                                                        "Vehicle, damper and controller (constant): immutable, may drive Loops in many threads at once.")
+      .def(py::init([](py::handle damper, py::dict vehicle, py::dict controller) {
+             return std::make_shared<PyLoopModel>(
+                 shared<PyDamper>(damper, "LoopModel: damper must be a Damper"), vehicle, controller);
+           }),
+           py::arg("damper"),
            py::arg("vehicle") = py::dict(), py::arg("controller") = py::dict())
-      .def_property_readonly("vehicle", [](const PyLoopModel& m) { return vehicle_dict(m.veh); })
+      .def_property_readonly("vehicle", [](py::handle m) { return vehicle_dict(constructed<PyLoopModel>(m).veh); })
       .def_property_readonly("controller",
-                             [](const PyLoopModel& m) { return controller_dict(m.ctrl); })
-      .def("control", &PyLoopModel::control, py::arg("v_s"), py::arg("v_us"),
-           py::arg("u_ext") = DArray(py::array_t<double>(1)),
+                             [](py::handle m) { return controller_dict(constructed<PyLoopModel>(m).ctrl); })
+      .def("control", method(&PyLoopModel::control), py::arg("v_s"), py::arg("v_us"),
+           py::arg("u_ext") = DArray(py::array_t<double>(py::ssize_t(1), std::array<double, 1>{0.0}.data())),
            "The control law alone on arrays of velocities.");
 
   {
@@ -953,19 +1043,27 @@ PYBIND11_MODULE(_core, mod) {
     tp.release();  // the module keeps the type alive for g_step_report_type
   }
 
-  py::class_<PyLoop>(mod, "Loop", "A loop's state (mutable) for a LoopModel.")
-      .def(py::init<std::shared_ptr<PyLoopModel>>(), py::arg("model"))
-      .def("reset", &PyLoop::reset)
-      .def_property("state", &PyLoop::get_state, &PyLoop::set_state, "Flat state (STATE_NAMES).")
-      .def("step", &PyLoop::step, py::arg("z_r"), py::arg("v_r"), py::arg("u") = 0.0,
+  py::class_<PyLoop>(mod, "Loop", "A loop's state (mutable) for a LoopModel. Not shareable: one call at a time; a second call "
+      "while one is under way (from another thread, simulate releasing the GIL, or re-entered "
+      "from a callback damper) raises RuntimeError and leaves the first undisturbed. Give each "
+      "thread its own Loop(model) on a shared LoopModel.")
+      .def(py::init([](py::handle model) {
+             return std::make_unique<PyLoop>(shared<PyLoopModel>(model, "Loop: model must be a LoopModel"));
+           }),
+           py::arg("model"))
+      .def("reset", method(&PyLoop::reset))
+      .def_property("state", method(&PyLoop::get_state), method(&PyLoop::set_state), "Flat state (STATE_NAMES).")
+      .def("step", method(&PyLoop::step), py::arg("z_r"), py::arg("v_r"), py::arg("u") = 0.0,
            "One step; road at the end of the step. Returns the report at the step start "
            "(a StepReport: attributes, or keys as in a dict).")
-      .def("step_force", &PyLoop::step_force, py::arg("z_r"), py::arg("v_r"), py::arg("u") = 0.0,
+      .def("step_force", method(&PyLoop::step_force), py::arg("z_r"), py::arg("v_r"), py::arg("u") = 0.0,
            "One step, as step(), returning only the damper force [N] of its report (cheapest call).")
-      .def("forward", &PyLoop::forward, py::arg("u") = 0.0, "The report without advancing.")
-      .def("simulate", &PyLoop::simulate, py::arg("road"), py::arg("road_rate"),
+      .def("forward", method(&PyLoop::forward), py::arg("u") = 0.0, "The report without advancing.")
+      .def("simulate", method(&PyLoop::simulate), py::arg("road"), py::arg("road_rate"),
            py::arg("u") = py::none(), py::arg("reset") = true, py::arg("out") = py::none(),
-           "Run a road in C++ (GIL released) -> dict of arrays (fresh, or out's written in place).")
-      .def_property_readonly("model", [](const PyLoop& l) { return l.model; })
-      .def_property_readonly("damper_evals", &PyLoop::damper_evals);
+           "Run a road in C++ (GIL released) -> dict of arrays (fresh, or out's written in place). "
+           "RuntimeError if the Loop is in use by another call; out's arrays must not be read or "
+           "written by another thread during the run.")
+      .def_property_readonly("model", [](py::handle l) { return constructed<PyLoop>(l).model; })
+      .def_property_readonly("damper_evals", method(&PyLoop::damper_evals));
 }

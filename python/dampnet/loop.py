@@ -12,6 +12,11 @@ Dampers: `_core.Damper.linear(c)`, `.parametric(...)`, `.table(v, u, F)`,
 hybrid), and `truth_damper(TruthDamper)` (the rig's truth model as a Python
 callback: the slow path, for studies; it holds the GIL per call and runs with
 one damper evaluation per step, because the truth damper is stateful).
+
+Threading: the model side (`_core.Mlp`, `_core.Damper`, `_core.LoopModel`) is immutable
+and may be shared by threads; a loop state (`_core.Loop`, and so a `QuarterCar`) is not: one
+call at a time, a second concurrent call raises RuntimeError. One `spawn()` per thread.
+A truth (callback) damper holds its own state: one loop at a time.
 """
 
 from __future__ import annotations
@@ -73,7 +78,13 @@ class QuarterCar:
     "rk4"|"semi_euler", damper_eval "per_stage"|"per_step", x_static, f_static,
     temperature); controller: DN_CONTROLLER_FIELDS (kind "passive",
     "skyhook_onoff", "skyhook_continuous", "groundhook_onoff",
-    "groundhook_continuous", "external", and the gains/limits).
+    "groundhook_continuous", "external", and the gains/limits). Each enum field takes
+    its own names only (or their integer values); a wrong name, a wrong type or an
+    unknown key raises ValueError/TypeError naming the field.
+
+    Threading: `model` (a LoopModel) may be shared by threads; `loop` (the state) may
+    not: a call while another is under way (e.g. `simulate` in another thread) raises
+    RuntimeError. Give each thread its own `spawn()`.
     """
 
     def __init__(self, damper: _core.Damper, vehicle: Mapping[str, Any] | None = None,
@@ -86,7 +97,7 @@ class QuarterCar:
         return float(self.model.vehicle["dt"])
 
     def spawn(self) -> "QuarterCar":
-        """Another loop state on the same (shared, constant) model."""
+        """Another loop state on the same (shared, constant) model: one per thread."""
         return QuarterCar(None, model=self.model)
 
     def reset(self) -> None:
@@ -125,6 +136,8 @@ class QuarterCar:
         way to run many roads) and returns a dict of plain ndarray views of that memory;
         after an error their contents are unspecified. None (default): fresh arrays.
         Without u, the external law's control is 0 (then clamped to its limits).
+        The GIL is released during the run; another call on this car meanwhile (another
+        thread) raises RuntimeError: use `spawn()` per thread.
         """
         road = np.ascontiguousarray(road, dtype=np.float64)
         if road_rate is None:
