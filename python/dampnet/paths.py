@@ -13,7 +13,8 @@ def include_dirs() -> list[Path]:
     dirs = [d for d in (_installed_root() / "include", _SRC_ROOT / "cpp" / "include")
             if (d / "dampnet" / "dampnet.h").is_file()]
     if not dirs:
-        raise FileNotFoundError("dampnet/dampnet.h not found: is dampnet installed with its C++ core?")
+        raise FileNotFoundError(f"dampnet/dampnet.h not found in {_installed_root() / 'include'}: "
+                                "reinstall dampnet (pip install, or bash python/env.sh in a source tree)")
     return dirs[:1]
 
 
@@ -23,8 +24,8 @@ def shared_library() -> Path:
         for name in ("libdampnet.so", "libdampnet.dylib", "dampnet.dll"):
             if (d / name).is_file():
                 return d / name
-    raise FileNotFoundError("libdampnet shared library not found next to dampnet._core; "
-                            "reinstall dampnet (python/setup-env.sh)")
+    raise FileNotFoundError(f"libdampnet shared library not found in {_installed_root() / 'lib'}: "
+                            "reinstall dampnet (pip install, or bash python/env.sh in a source tree)")
 
 
 def _installed_root() -> Path:

@@ -1,23 +1,31 @@
 """`dampnet demo --quick` end to end: the diagnosis names the hidden effect, the held-out
-error falls, the C program matches Python, and the report renders in a real browser."""
+error falls, the C program matches Python, and the report renders in a real browser.
+
+The demo runs once, from the wheel installed into a fresh venv (wheel_env.py, shared with
+test_wheel_install.py): this is also the installed package's check of `demo`, and the C
+program is compiled against the installed headers and library."""
 
 from __future__ import annotations
 
 import json
 import shutil
-import subprocess
-import sys
 
 import pytest
 
+from wheel_env import wheel_env
+
 
 @pytest.fixture(scope="module")
-def demo_out(tmp_path_factory):
-    out = tmp_path_factory.mktemp("demo") / "run"
-    proc = subprocess.run([sys.executable, "-m", "dampnet.cli", "demo", "--quick", "--out", str(out)],
-                          capture_output=True, text=True, timeout=900)
+def wheel(tmp_path_factory):
+    return wheel_env(tmp_path_factory)
+
+
+@pytest.fixture(scope="module")
+def demo_out(wheel, tmp_path_factory):
+    cwd = tmp_path_factory.mktemp("demo")
+    proc = wheel.dampnet("demo", "--quick", "--out", "run", cwd=cwd, timeout=900)
     assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-4000:]
-    return out, proc.stdout
+    return cwd / "run", proc.stdout
 
 
 def test_demo_tells_the_whole_story(demo_out):
@@ -53,9 +61,14 @@ def test_demo_report_renders_in_chromium(demo_out):
     assert order == sorted(order)
 
 
-def test_demo_refuses_to_overwrite(demo_out):
+def test_demo_refuses_to_overwrite(wheel, demo_out):
     out, _ = demo_out
-    proc = subprocess.run([sys.executable, "-m", "dampnet.cli", "demo", "--quick", "--out", str(out)],
-                          capture_output=True, text=True, timeout=60)
+    proc = wheel.dampnet("demo", "--quick", "--out", out, cwd=out.parent, timeout=120)
     assert proc.returncode == 2 and "refusing to overwrite" in proc.stderr
     assert (out / "summary.json").is_file()
+
+
+def test_demo_compiled_its_c_program_against_the_installed_package(wheel, demo_out):
+    out, _ = demo_out
+    cmd = (out / "c_program" / "build_command.txt").read_text()
+    assert f"-I{wheel.site}/dampnet/include" in cmd and f"{wheel.site}/dampnet/lib/libdampnet.so" in cmd

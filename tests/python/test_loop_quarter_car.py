@@ -15,6 +15,13 @@ from dampnet.loop import S, QuarterCar
 
 MS, MUS, KS, KT = 700.0, 40.0, 15000.0, 200000.0
 C = 1500.0
+# The README's figures for this loop (linear damper C, RK4 at 1 kHz), asserted as stated:
+# transmissibility within 2.2e-6 relative of the analytic transfer function (measured 2.17e-6;
+# bound 2.5x, room for rounding on other SIMD paths, still a thousandth of the old 5e-3), and
+# impulse and random-road responses equal to solve_ivp's to < 1e-6 relative RMS (measured at
+# most 6.8e-7 and 4.3e-7).
+TRANSMISSIBILITY_README = 2.2e-6
+SOLVE_IVP_README = 1e-6
 
 
 def analytic_h(f, c=C, ms=MS, mus=MUS, ks=KS, kt=KT, ct=0.0):
@@ -55,7 +62,7 @@ def test_transmissibility_matches_analytic_transfer_function():
             h_sim = (a + 1j * b) / amp
             err = abs(h_sim - h_an) / abs(h_an)
             worst = max(worst, err)
-            assert err < 5e-3, (f, col, h_sim, h_an, err)
+            assert err < 2.5 * TRANSMISSIBILITY_README, (f, col, h_sim, h_an, err)
     print(f"transmissibility worst relative error 0.5-20 Hz: {worst:.2e}")
 
 
@@ -87,7 +94,7 @@ def test_impulse_response_matches_solve_ivp():
     got = out["state"][:, [S["z_s"], S["v_s"], S["z_us"], S["v_us"]]]
     errs = [_rel_rms(got[:, i], ref[:, i]) for i in range(4)]
     print("impulse relative RMS errors (z_s, v_s, z_us, v_us):", ["%.1e" % e for e in errs])
-    assert max(errs) < 1e-4
+    assert max(errs) < SOLVE_IVP_README
 
 
 def random_road(seed=1, n_sines=40, f_lo=0.5, f_hi=20.0, rms=0.01):
@@ -116,7 +123,7 @@ def test_random_road_matches_solve_ivp_with_tyre_damping():
     got = out["state"][:, [S["z_s"], S["v_s"], S["z_us"], S["v_us"]]]
     errs = [_rel_rms(got[:, i], ref[:, i]) for i in range(4)]
     print("random road relative RMS errors (z_s, v_s, z_us, v_us):", ["%.1e" % e for e in errs])
-    assert max(errs) < 1e-4
+    assert max(errs) < SOLVE_IVP_README
 
 
 def test_semi_implicit_euler_is_first_order_and_close():

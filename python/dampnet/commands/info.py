@@ -10,11 +10,18 @@ def add_parser(subparsers):
 
 
 def run(args) -> int:
+    import sys
+
     from dampnet import __version__, _core, paths
 
+    try:  # an install that lost its C side: one line, not a traceback
+        headers, library = paths.include_dirs()[0], paths.shared_library()
+    except FileNotFoundError as e:
+        print(f"dampnet: error: {e}", file=sys.stderr)
+        return 2
     print(f"dampnet {__version__} (C++ core {_core.__version__})")
-    print(f"headers:        {paths.include_dirs()[0]}")
-    print(f"shared library: {paths.shared_library()}")
+    print(f"headers:        {headers}")
+    print(f"shared library: {library}")
     info = getattr(_core, "BUILD_INFO", None)
     if info:
         print(f"MLP kernel:     {info['kernel_isa']} SIMD path{' (Eigen dense layers)' if info.get('eigen') else ''}; "

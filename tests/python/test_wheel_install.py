@@ -1,0 +1,154 @@
+"""The installed package is complete: the wheel built from this tree (a regular, non-editable
+`pip install`, see wheel_env.py) carries every file a command reads at run time, and every
+command's quick path runs from it with no source tree on the path. The rest of the suite runs
+the editable install, which finds missing files in the source tree and so cannot see this.
+`dampnet demo --quick` runs from this same wheel install in test_demo.py (not twice)."""
+
+from __future__ import annotations
+
+import json
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from cbuild import ROOT
+from wheel_env import wheel_env
+
+# Tiny rig campaign (6 tests x 800 samples): enough for every command, cheap to train on.
+TINY_PLAN = {"name": "tiny", "frequencies_hz": [0.5, 2.0], "amplitudes_m": [0.0254],
+             "voltages_v": [0.0, 2.25, 5.0], "samples": 800}
+
+
+@pytest.fixture(scope="module")
+def wheel(tmp_path_factory):
+    return wheel_env(tmp_path_factory)
+
+
+@pytest.fixture(scope="module")
+def work(tmp_path_factory) -> Path:
+    """The commands' working directory: outside the source tree."""
+    return tmp_path_factory.mktemp("wheel_cwd")
+
+
+def ok(proc) -> str:
+    """The stdout of a command that must have succeeded (else its output, for the log)."""
+    assert proc.returncode == 0, f"exit {proc.returncode}\n--- stdout\n{proc.stdout[-3000:]}\n" \
+                                 f"--- stderr\n{proc.stderr[-3000:]}"
+    assert "Traceback" not in proc.stderr, proc.stderr[-3000:]
+    return proc.stdout
+
+
+@pytest.fixture(scope="module")
+def dataset(wheel, work) -> Path:
+    (work / "tiny.json").write_text(json.dumps(TINY_PLAN))
+    ok(wheel.dampnet("rig", "data", "--plan", "tiny.json", "--no-progress", cwd=work))
+    return work / "data"
+
+
+@pytest.fixture(scope="module")
+def model(wheel, work, dataset) -> Path:
+    ok(wheel.dampnet("train", dataset, "--out", "model", "--quiet", "--max-epochs", "15",
+                     "--decimate", "4", cwd=work))
+    return work / "model"
+
+
+def test_the_wheel_carries_the_package_and_every_runtime_file(wheel):
+    names = set(zipfile.ZipFile(wheel.wheel).namelist())
+    # every file of the Python package (modules and package data such as demo/controller.c)
+    src = ROOT / "python" / "dampnet"
+    package = {f"dampnet/{p.relative_to(src).as_posix()}" for p in src.rglob("*")
+               if p.is_file() and "__pycache__" not in p.parts and p.suffix not in (".pyc", ".so")}
+    assert package - names == set()
+    # what CMake installs for the C side: `dampnet info`'s headers and library, `dampnet bench`'s
+    # harness sources and the default model (header and model.json), the demo's C program
+    for f in ("include/dampnet/dampnet.h", "include/dampnet/mlp.hpp", "include/dampnet/loop.hpp",
+              "include/dn_model_default.h", "include/dn_model_default.json", "lib/libdampnet.so",
+              "bench/bench_mlp.cpp", "bench/latency.hpp", "demo/controller.c"):
+        assert f"dampnet/{f}" in names, f
+    assert any(n.startswith("dampnet/_core.") and n.endswith(".so") for n in names)
+    assert (ROOT / "export" / "dn_model_default.json").read_bytes() == \
+        zipfile.ZipFile(wheel.wheel).read("dampnet/include/dn_model_default.json")
+
+
+def test_dampnet_comes_only_from_the_wheel(wheel, work):
+    """Every dampnet module the CLI loads, the extension, the headers and the C library are the
+    installed copies in the fresh venv; no sys.path entry is the source tree."""
+    out = ok(wheel.python_code(
+        "import json, sys, dampnet, dampnet._core, dampnet.cli\n"
+        "from dampnet import paths\n"
+        "dampnet.cli.build_parser()\n"
+        "print(json.dumps({'modules': {n: getattr(m, '__file__', None) for n, m in sys.modules.items()\n"
+        "                              if n == 'dampnet' or n.startswith('dampnet.')},\n"
+        "                  'path': sys.path, 'include': str(paths.include_dirs()[0]),\n"
+        "                  'lib': str(paths.shared_library())}))", cwd=work))
+    res = json.loads(out)
+    site = str(wheel.site) + "/"
+    assert len(res["modules"]) > 20 and {"dampnet._core", "dampnet.commands.bench"} <= set(res["modules"])
+    assert all(f is not None and f.startswith(site + "dampnet/") for f in res["modules"].values()), res
+    assert res["include"].startswith(site) and res["lib"].startswith(site)
+    src_dirs = {str(ROOT), str(ROOT / "python"), str(ROOT / "tests" / "python")}
+    assert src_dirs.isdisjoint(res["path"])  # ('' is `python -c`'s cwd: the empty work directory)
+
+
+def test_info_and_version(wheel, work):
+    out = ok(wheel.dampnet("info", cwd=work))
+    assert f"headers:        {wheel.site}/dampnet/include" in out
+    assert f"shared library: {wheel.site}/dampnet/lib/libdampnet.so" in out
+    assert ok(wheel.dampnet("--version", cwd=work)).startswith("dampnet ")
+
+
+def test_rig_and_train(dataset, model):
+    assert (dataset / "manifest.csv").is_file() and len(list(dataset.glob("*.csv"))) == 7
+    assert sorted(p.name for p in model.iterdir()) == ["metrics.json", "model.h", "model.json"]
+
+
+def test_evaluate(wheel, work, model, dataset):
+    ok(wheel.dampnet("evaluate", model, dataset, "--json", "evaluate.json", "--plots", "evaluate_plots",
+                     cwd=work))
+    rep = json.loads((work / "evaluate.json").read_text())
+    assert 0 < rep["overall"]["nrmse"] < 1
+    assert len(list((work / "evaluate_plots").glob("*.png"))) >= 3
+
+
+def test_diagnose(wheel, work, model, dataset):
+    ok(wheel.dampnet("diagnose", model, dataset, "--surrogates", "4", "--json", "diagnose.json",
+                     "--report", "diagnose_report", cwd=work))
+    assert json.loads((work / "diagnose.json").read_text())["candidates"]
+    assert (work / "diagnose_report" / "index.html").is_file()
+
+
+def test_compare(wheel, work, model, dataset):
+    out = ok(wheel.dampnet("compare", model, model, dataset, "--json", "compare.json", cwd=work))
+    assert "NRMSE change: +0.0 %" in out
+    assert json.loads((work / "compare.json").read_text())["overall"]["nrmse_change_pct"] == 0
+
+
+def test_simulate(wheel, work, model):
+    ok(wheel.dampnet("simulate", model, "--road", "impulse", "--out", "simulate_out", cwd=work))
+    assert json.loads((work / "simulate_out" / "metrics.json").read_text())["metrics"]["acc_rms_m_s2"] > 0
+    assert (work / "simulate_out" / "run.npz").is_file()
+
+
+def test_study(wheel, work, model):
+    ok(wheel.dampnet("study", model, "--quick", "--no-plots", "--out", "study_out", cwd=work))
+    assert json.loads((work / "study_out" / "study.json").read_text())["skyhook"]
+
+
+def test_iri(wheel, work):
+    rows = ["distance_m,elevation_m"] + [f"{0.25 * i:g},{0.005 * (i % 8 == 0):g}" for i in range(801)]
+    (work / "profile.csv").write_text("\n".join(rows) + "\n")
+    out = ok(wheel.dampnet("iri", "profile.csv", cwd=work))
+    assert "IRI" in out and "m/km" in out
+
+
+def test_bench_quick(wheel, work):
+    """The default model (model.json, for the Python rows, and the header the C++ harness is
+    compiled with) and the harness sources come from the wheel: this run stopped with
+    'dn_model_default.json not found' before CMake installed the JSON."""
+    proc = wheel.dampnet("bench", "--quick", "--calls", "5000", "--py-calls", "1000", "--sim-steps", "5000",
+                         "--json", "bench.json", cwd=work)
+    assert proc.returncode in (0, 1), proc.stderr[-3000:]  # 1: the budget missed on a busy machine
+    assert "HIL budget" in proc.stdout and "DIFFERENT MODEL" not in proc.stdout
+    res = json.loads((work / "bench.json").read_text())
+    assert res["python"]["header_model_id"] == res["python"]["model_id"]
