@@ -38,8 +38,6 @@ from __future__ import annotations
 import inspect
 import json
 import os
-import shutil
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Sequence
@@ -487,34 +485,22 @@ def write_json(path: str | os.PathLike, obj: Any, overwrite: bool = False) -> Pa
 
 
 def save_model_dir(model: MlpModel, metrics: dict[str, Any] | None, out_dir: str | os.PathLike,
-                   force: bool = False, prefix: str = HEADER_PREFIX) -> Path:
+                   force: bool = False, prefix: str = HEADER_PREFIX,
+                   inputs: Sequence[str | os.PathLike] = ()) -> Path:
     """Write MODEL_DIR/{model.json, metrics.json, model.h} as one atomic step.
 
-    The files go to a temporary directory next to out_dir, which is then renamed
-    into place: a reader never sees a half-written model directory. An existing
-    out_dir is refused (FileExistsError) unless `force`, in which case it is replaced.
+    The files go to a staging directory next to out_dir that is then swapped into
+    place (`dampnet.outputs`): a reader never sees a half-written model directory,
+    and a kill at any point leaves the old or the new one. An existing out_dir is
+    refused (OutputError, a FileExistsError) unless `force`, and even then unless it
+    is a model directory (model.json) that is not one of `inputs`, `.` or a parent.
     """
     from dampnet.export import write_header
+    from dampnet.outputs import check_output_dir, staged_dir
 
-    out = Path(out_dir)
-    if out.exists() and not force:
-        raise FileExistsError(f"{out}: exists; refusing to overwrite (use --force)")
-    if out.exists() and not out.is_dir():
-        raise FileExistsError(f"{out}: exists and is not a directory")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
+    out = check_output_dir(out_dir, "model", inputs, force)
+    with staged_dir(out) as tmp:
         model.save(tmp / "model.json", overwrite=True)
         write_json(tmp / "metrics.json", metrics or {}, overwrite=True)
         write_header(model, tmp / HEADER_NAME, prefix=prefix, overwrite=True)
-        if out.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old.", dir=out.parent))
-            os.replace(out, old / out.name)
-            os.replace(tmp, out)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(tmp, out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return out
