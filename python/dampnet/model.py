@@ -265,7 +265,7 @@ class MlpModel:
                        terms=terms,
                        feature_params=schema.expect_number_map(d.get("feature_params", {}),
                                                                at("feature_params"), E),
-                       meta=schema.expect_object(d.get("meta", {}), at("meta"), E))
+                       meta=_check_meta(d.get("meta", {}), at("meta")))
         except ModelError as e:
             msg = str(e)
             raise ModelError(msg if msg.startswith(source) else f"{source}: {msg}") from None
@@ -282,6 +282,23 @@ class MlpModel:
         if not p.exists():
             raise ModelError(f"{p}: no such model file")
         return cls.from_dict(schema.load_json(p, ModelError), str(p))
+
+
+def _check_meta(meta: Any, where: str) -> dict:
+    """model.json's `meta`: an object; the fields commands read (data.holdout_tests,
+    data.acceleration_window_s) of the right kind."""
+    meta = schema.expect_object(meta, where, ModelError)
+    if "data" in meta:
+        data = schema.expect_object(meta["data"], f"{where}.data", ModelError)
+        if "holdout_tests" in data:
+            schema.expect_strings(data["holdout_tests"], f"{where}.data.holdout_tests", ModelError)
+        if data.get("acceleration_window_s") is not None:
+            w = schema.expect_number(data["acceleration_window_s"], f"{where}.data.acceleration_window_s",
+                                     ModelError)
+            if not w > 0:
+                raise ModelError(f"{where}.data.acceleration_window_s: expected a positive window [s], "
+                                 f"got {schema.show(w)}")
+    return meta
 
 
 def atomic_write_text(path: str | os.PathLike, text: str, overwrite: bool = False) -> Path:

@@ -113,6 +113,56 @@ def check_output_dir(out: str | os.PathLike, kind: str, inputs: Iterable[str | o
     return out
 
 
+def check_output_file(path: str | os.PathLike, inputs: Iterable[str | os.PathLike] = ()) -> Path:
+    """`path` as a Path unless writing it would overwrite an input of the command (OutputError).
+
+    Refused: the input itself, or an existing file inside an input directory (e.g.
+    `--json MODEL/model.json`), or a directory.
+    """
+    p = Path(path)
+    real = p.resolve()
+    for inp in inputs:
+        if inp is None:
+            continue
+        ip = Path(inp).resolve()
+        if real == ip or (ip.is_dir() and real.is_relative_to(ip) and os.path.lexists(p)):
+            raise OutputError(f"{path}: is an input of this command ({inp}) or a file of one: refusing "
+                              "to overwrite it")
+    if p.is_dir():
+        raise OutputError(f"{path}: is a directory: expected a file name")
+    return p
+
+
+def check_run_dir(out: str | os.PathLike, files: Iterable[str], marker: str, schema: str,
+                  inputs: Iterable[str | os.PathLike] = (), force: bool = False) -> Path:
+    """For commands that write named `files` into a directory that may hold other things
+    (simulate, study): OutputError unless that is allowed.
+
+    `out` must not be an input directory (nor the directory of an input file); a
+    file of this run that exists needs `force`, and `force` replaces only a previous
+    run of the same command, recognised by `marker` (a JSON file of `files`) whose
+    "schema" starts with `schema`.
+    """
+    out = Path(out)
+    real = out.resolve()
+    for inp in inputs:
+        if inp is None:
+            continue
+        ip = Path(inp).resolve()
+        if real == ip or (ip.is_file() and real == ip.parent):
+            raise OutputError(f"{out}: holds an input of this command ({inp}): refusing to write this "
+                              "run's files there (name another --out)")
+    existing = [out / f for f in files if os.path.lexists(out / f)]
+    if not existing:
+        return out
+    if not force:
+        raise OutputError(f"{existing[0]}: exists; refusing to overwrite (use --force)")
+    if not str(_json_object(out / marker).get("schema", "")).startswith(schema):
+        raise OutputError(f"{out}: holds {existing[0].name} but not a previous run of this command "
+                          f"({marker} with schema {schema}...): refusing to overwrite it even with --force")
+    return out
+
+
 # -- staging and the swap ---------------------------------------------------------
 
 def _checkpoint(step: str) -> None:
@@ -138,6 +188,32 @@ def staged_dir(out: str | os.PathLike) -> Iterator[Path]:
         _checkpoint("staged")
         publish(new, out, container)
         _checkpoint("published")
+    finally:
+        shutil.rmtree(container, ignore_errors=True)
+
+
+@contextmanager
+def staged_files(out: str | os.PathLike) -> Iterator[Path]:
+    """A staging directory inside `out` for files that then replace their namesakes in `out`
+    one by one (os.replace each: every file is the old or the new one, never half-written).
+
+    Files are moved in sorted order with "metrics.json" and "*.json" last, so a run's
+    marker appears only when its data are in place. A killed run's staging directory
+    is removed by the next run (`clean_stale`).
+    """
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    clean_stale(out)
+    container = Path(tempfile.mkdtemp(prefix=f".files.dampnet-tmp-{os.getpid()}-", dir=out))
+    try:
+        (container / STAGING_MARKER).write_text(json.dumps(
+            {"pid": os.getpid(), "host": socket.gethostname(), "out": ""}))
+        new = container / "new"
+        new.mkdir()
+        yield new
+        for f in sorted(os.listdir(new), key=lambda n: (n.endswith(".json"), n)):
+            os.replace(new / f, out / f)
+            _checkpoint(f"moved {f}")
     finally:
         shutil.rmtree(container, ignore_errors=True)
 

@@ -382,6 +382,7 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
         u = np.concatenate([t.control for t in used.tests])
         terms = fit_terms(terms, xd, v, u, y)
         y = y - terms_force(terms, xd)
+    _check_magnitudes(X, y, features)
     split = Split(train=train, holdout=hold, holdout_voltage=holdout_voltage,
                   holdout_tests=list(holdout_tests or []), decimate=factor, train_used=used)
     try:
@@ -407,7 +408,28 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
                 info.metrics[name] = nrmse(pred[idx], y_all[idx])
         info.metrics["all"] = nrmse(pred, y_all)
         model.meta["metrics"] = {k: round(v, 6) for k, v in info.metrics.items()}
+    bad = {k: v for k, v in info.metrics.items() if v is None or not np.isfinite(v)}
+    if bad:  # never a model with null metrics and exit 0
+        raise ModelError(f"training gave non-finite NRMSE ({', '.join(sorted(bad))}): the fit diverged; "
+                         "check the data's scale and units, or try another --algorithm or --seed")
+    model.validate()  # feature_params (time constants > 0) and the rest, as model.json is checked
     return model, info, split
+
+
+#: largest |value| accepted in a training feature or force, in its SI unit. The runtime runs in
+#: single precision (largest float 3.4e38): the model's offsets and gains must stay well inside it,
+#: and squared errors must stay finite in double. Real dyno data are below 1e6 in SI units.
+MAX_TRAINING_MAGNITUDE = 1e15
+
+
+def _check_magnitudes(X: np.ndarray, y: np.ndarray, features: Sequence[str]) -> None:
+    """DataError naming the first feature (or the force) whose values are beyond MAX_TRAINING_MAGNITUDE."""
+    for name, col in [*zip(features, np.asarray(X).T), ("force", y)]:
+        peak = float(np.max(np.abs(col))) if np.size(col) else 0.0
+        if not peak <= MAX_TRAINING_MAGNITUDE:
+            raise DataError(f"training data: {name} reaches {peak:.3g} in its SI unit: expected values below "
+                            f"{MAX_TRAINING_MAGNITUDE:.0e} (are the units right? the runtime computes in single "
+                            "precision)")
 
 
 # -- metrics and files ----------------------------------------------------------------

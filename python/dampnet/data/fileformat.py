@@ -60,12 +60,13 @@ def _manifest_rows(mpath: Path) -> list[tuple[int, list[str]]]:
     """(line number, cells) of each row of manifest.csv; DataError for text that is not CSV."""
     text = read_text(mpath, DataError, "UTF-8 CSV")
     reader = csv.reader(io.StringIO(text, newline=""))
-    rows = []
+    rows, start = [], 1  # the line a row starts on (a quoted cell may span lines)
     try:
         for row in reader:
-            rows.append((reader.line_num, row))
+            rows.append((start, row))
+            start = reader.line_num + 1
     except csv.Error as e:  # e.g. a field longer than csv.field_size_limit(), a NUL byte
-        raise DataError(f"{mpath}: line {reader.line_num + 1}: not readable as CSV ({show(str(e))})") from None
+        raise DataError(f"{mpath}: line {start}: not readable as CSV ({show(str(e))})") from None
     return rows
 
 
@@ -153,7 +154,7 @@ def read_meta(path: Path) -> dict:
     for key in ("noise", "resolution"):
         if key in meta:
             expect_number_map(meta[key], f"{path}: field {key!r}", DataError)
-    if "noise" in meta and meta.get("generator") == "dampnet.data.rig" and "force_n" not in meta["noise"]:
+    if meta.get("generator") == "dampnet.data.rig" and "force_n" not in meta.get("noise", {}):
         raise DataError(f"{path}: field 'noise': expected the rig's force_n [N]")
     if "effects" in meta and not isinstance(meta["effects"], (dict, list)):
         raise DataError(f"{path}: field 'effects': expected an object or a list of effect names, "
