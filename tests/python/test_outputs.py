@@ -272,3 +272,11 @@ def test_the_next_train_cleans_a_killed_runs_debris(tmp_path, capsys):
     assert main(["train", str(data), "--out", str(tmp_path / "m"), "--quiet", "--max-epochs", "2",
                  "--holdout-voltage", "none", "--hidden", "2", "--decimate", "1"]) == 0
     assert not stale.exists() and (tmp_path / "m" / "model.json").is_file()
+
+
+def test_iri_json_onto_its_profile_is_refused(tmp_path, capsys):
+    p = tmp_path / "road.csv"
+    p.write_text("distance_m,elevation_m\n" + "".join(f"{0.25 * k},{0.001 * np.sin(k)}\n" for k in range(2000)))
+    before = p.read_text()
+    err = _err(capsys, ["iri", str(p), "--json", str(p)])
+    assert "is an input of this command" in err and p.read_text() == before
