@@ -231,7 +231,11 @@ def publish(new: Path, out: Path, container: Path) -> None:
         pass
     os.rename(out, container / "old")
     _checkpoint("old moved")
-    os.rename(new, out)
+    try:
+        os.rename(new, out)
+    except BaseException:
+        os.rename(container / "old", out)  # a failure (not a kill) puts the old output back at once
+        raise
 
 
 _RENAME_EXCHANGE = 2

@@ -233,6 +233,28 @@ def test_a_failed_write_keeps_the_old_model_and_leaves_no_debris(tmp_path, monke
     assert _tag(out) == "old" and sorted(p.name for p in tmp_path.iterdir()) == ["m"]
 
 
+def test_a_failed_second_rename_without_exchange_puts_the_old_model_back(tmp_path, monkeypatch):
+    from dampnet.model import MlpModel
+    from dampnet.workflow import save_model_dir
+
+    out = _model_dir(tmp_path / "m", "old")
+    real_rename = os.rename
+
+    def no_exchange(a, b):
+        raise OSError("no RENAME_EXCHANGE here")
+
+    def rename(a, b):
+        if Path(a).name == "new":
+            raise OSError(5, "Input/output error")
+        real_rename(a, b)
+
+    monkeypatch.setattr(outputs, "exchange", no_exchange)
+    monkeypatch.setattr(outputs.os, "rename", rename)
+    with pytest.raises(OSError, match="Input/output error"):
+        save_model_dir(MlpModel.load(DEFAULT_MODEL), {}, out, force=True)
+    assert _tag(out) == "old" and sorted(p.name for p in tmp_path.iterdir()) == ["m"]
+
+
 # -- stale temporaries ----------------------------------------------------------------------
 
 def _dead_pid() -> int:
