@@ -288,3 +288,16 @@ def test_mat_with_a_byte_order_scipy_cannot_read_is_refused(tmp_path):
     with pytest.raises(DataError, match=r"r\.mat: not a readable MATLAB"):
         load_dataset(p, mapping={"force_n": "x:2", "displacement_m": "x:0", "velocity_m_s": "x:1"},
                      voltage=1.0, dt=1e-3)
+
+
+@pytest.mark.parametrize("metrics", [b"5", b"[1]", b'{"lookup_table": 3}', b'{"lookup_table": {"a": 1}}', b"\xff"])
+def test_a_damaged_metrics_json_falls_back_to_fitting_the_lookup_table(tmp_path, metrics):
+    from dampnet.evaluate.report import lookup_for
+
+    m = tmp_path / "m"
+    m.mkdir()
+    (m / "model.json").write_text((REPO / "export" / "dn_model_default.json").read_text())
+    (m / "metrics.json").write_bytes(metrics)
+    ds = load_dataset(_dataset(tmp_path))
+    table, source = lookup_for(m, ds, [])
+    assert source == "fitted on the evaluated data's non-hold-out tests" and table is not None
