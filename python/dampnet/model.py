@@ -119,7 +119,7 @@ class MlpModel:
         if not 1 <= h1 <= 64:
             raise ModelError(f"w1: 1..64 neurons per hidden layer supported, got {h1}")
         if self.activation not in ACTIVATIONS:
-            raise ModelError(f"activation: expected one of {ACTIVATIONS}, got {self.activation!r}")
+            raise ModelError(f"activation: expected one of {', '.join(ACTIVATIONS)}, got {schema.show(self.activation)}")
         n_last = h1
         if self.w2 is not None:
             if self.w2.ndim != 2 or self.w2.shape[1] != h1 or not 1 <= self.w2.shape[0] <= 64:

@@ -48,6 +48,7 @@ from dampnet.data import DataError, Dataset, DynoTest, add_acceleration, decimat
 from dampnet.data import holdout_split
 from dampnet.data.preprocess import DEFAULT_WINDOW_S, acceleration_of
 from dampnet.model import MlpModel, ModelError, atomic_write_text
+from dampnet.schema import show
 
 #: Default input features (the thesis's); the control is swapped for "current" on current data.
 DEFAULT_FEATURES = ("velocity", "acceleration", "voltage")
@@ -293,10 +294,10 @@ def check_features(model: MlpModel, ds: Dataset) -> None:
             getter = FEATURES.get(f)
             channel = getattr(getattr(getter, "get", None), "channel", None)
             if getter is None:
-                raise DataError(f"the model needs feature {f!r}, which this dampnet does not know")
+                raise DataError(f"the model needs feature {show(f)}, which this dampnet does not know")
             if channel is not None and channel not in t.channels:
                 raise DataError(f"test {t.test_id}: the model was trained on features "
-                                f"{model.features}, but the data have no {channel!r} channel "
+                                f"{show(', '.join(model.features))}, but the data have no {channel!r} channel "
                                 f"(channels: {', '.join(sorted(t.channels))})")
 
 

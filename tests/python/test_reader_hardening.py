@@ -119,6 +119,8 @@ MODEL_CASES = {
     "meta_data_number": (_set("meta", {"data": 5}), "field 'meta'.data: expected a JSON object"),
     "meta_holdout_number": (_set("meta", {"data": {"holdout_tests": 3}}), "holdout_tests: expected a list of strings"),
     "activation_number": (_set("activation", 1), "field 'activation': expected a string"),
+    "activation_long": (_set("activation", "relu" * 2000), r"activation: expected one of tanh, sigmoid, got 'relurelu"),
+    "feature_long": (_set("features", ["velocity", "acceleration", "v" * 5000]), None),
     "output_string": (_set("output", "force"), "field 'output': expected a JSON object"),
     "huge_int": (_set("b_out", 10 ** 400), "field 'b_out': expected a finite number"),
     "missing_w1": (lambda d: {k: v for k, v in d.items() if k != "w1"}, "missing field 'w1'"),
@@ -130,6 +132,11 @@ def test_malformed_model_json_is_a_model_error_naming_file_and_field(tmp_path, c
     edit, pattern = MODEL_CASES[case]
     p = tmp_path / "model.json"
     p.write_text(json.dumps(edit(copy.deepcopy(_default_model_dict()))))
+    if pattern is None:  # loads: the shape is right; the commands refuse the unknown name in one line
+        MlpModel.load(p)
+        err = _one_line_cli_error(capsys, ["evaluate", str(p), str(_dataset(tmp_path))])
+        assert len(err) < 600, err
+        return
     with pytest.raises(ModelError, match=pattern) as e:
         MlpModel.load(p)
     msg = str(e.value)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import io
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -35,9 +36,11 @@ SINGLE = b"time_ms;disp (mm);mm/s;force_lbf\n" + b"".join(
     b"%d;%g;%g;%g\n" % (k, np.sin(k / 3), np.cos(k / 3), 20 * np.cos(k / 3)) for k in range(15))
 MAPPING = {"displacement_mm": "x:0", "velocity_mm_s": "x:1", "force_n": "x:2"}
 
-# bounded: the whole file runs in a few seconds; no deadline flakiness on a loaded machine,
-# but a hang is caught by the per-example timeout below (pytest's own run would stall)
-FAST = settings(max_examples=150, deadline=None, derandomize=True,
+# bounded: the whole file runs in seconds; no deadline (timing flakiness on a loaded machine):
+# a hang would stall the run, and the atheris CI run (-timeout=10) reports one per input
+#: examples per property; DN_HYPOTHESIS_EXAMPLES=5000 for a longer local sweep
+EXAMPLES = int(os.environ.get("DN_HYPOTHESIS_EXAMPLES", "150"))
+FAST = settings(max_examples=EXAMPLES, deadline=None, derandomize=True,
                 suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 
 
@@ -137,7 +140,7 @@ def test_any_single_text_file(work, data):
     check_test(ds.tests[0], "t")
 
 
-@settings(FAST, max_examples=100)
+@settings(FAST, max_examples=max(EXAMPLES * 2 // 3, 1))
 @given(data=any_or_mutated(_mat_bytes()))
 def test_any_mat_file(work, data):
     p = work.parent / "x.mat"
@@ -195,7 +198,7 @@ def test_any_unit_column_name(name):
     assert ch in CHANNEL_UNITS and np.isfinite(scale) and scale != 0 and np.isfinite(offset)
 
 
-@settings(FAST, max_examples=40)
+@settings(FAST, max_examples=max(EXAMPLES // 4, 1))
 @given(data=any_or_mutated(TEST_CSV))
 def test_cli_evaluate_on_any_test_csv_exits_0_or_2_with_one_line(work, data, capsys):
     d = work.parent / "cli"
