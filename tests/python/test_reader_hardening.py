@@ -308,3 +308,35 @@ def test_a_damaged_metrics_json_falls_back_to_fitting_the_lookup_table(tmp_path,
     ds = load_dataset(_dataset(tmp_path))
     table, source = lookup_for(m, ds, [])
     assert source == "fitted on the evaluated data's non-hold-out tests" and table is not None
+
+
+def test_a_mat_file_that_crashes_scipy_is_a_data_error_not_a_crash(tmp_path):
+    """A 531-byte mutated v5 file makes scipy 1.17's loadmat segfault (found by the property
+    tests); read_mat runs scipy in a child process, so dampnet survives and says so."""
+    import subprocess
+    import sys
+
+    p = tmp_path / "bad.mat"
+    p.write_bytes((REPO / "fuzz" / "python" / "corpus" / "mat_scipy_segfault").read_bytes()[1:])
+    code = ("import sys; from dampnet.data import DataError, read_mat\n"
+            "try:\n    read_mat(sys.argv[1], mapping={'force_n': 'x:2'}, voltage=1.0, dt=1e-3)\n"
+            "except DataError as e:\n    print(e)\n")
+    proc = subprocess.run([sys.executable, "-c", code, str(p)], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "bad.mat: not a readable MATLAB v4-v7.2 .mat file" in proc.stdout, proc.stdout
+
+
+def test_mat_variables_come_back_from_the_child_intact(tmp_path):
+    import scipy.io
+
+    k = np.arange(15)
+    x = np.column_stack([np.sin(k / 3), np.cos(k / 3), 20 * np.cos(k / 3)])
+    p = tmp_path / "ok.mat"
+    scipy.io.savemat(p, {"x": x, "label": "run 3", "dt": 1e-3})
+    t = load_dataset(p, mapping={"displacement_m": "x:0", "velocity_m_s": "x:1", "force_n": "x:2"},
+                     voltage=1.5, dt="dt")
+    np.testing.assert_array_equal(t.tests[0].channels["force"], x[:, 2])
+    assert t.tests[0].dt == pytest.approx(1e-3)
+    with pytest.raises(DataError, match=r"variable 'label': expected real numbers, got <U5"):
+        load_dataset(p, mapping={"force_n": "label", "displacement_m": "x:0", "velocity_m_s": "x:1"},
+                     voltage=1.5, dt=1e-3)

@@ -18,12 +18,12 @@ Options common to single files (all SI after conversion):
 from __future__ import annotations
 
 import os
-import warnings
 from pathlib import Path
 
 import numpy as np
 
 from dampnet.data.fileformat import is_dataset_dir, read_dataset_dir
+from dampnet.data.matfile import NonNumeric
 from dampnet.data.table import read_table
 from dampnet.data.types import CONTROL_NAMES, DataError, Dataset, DynoTest
 from dampnet.data.units import parse_column
@@ -140,8 +140,8 @@ def _mat_variable(m: dict, ref: str, where: str) -> np.ndarray:
     if name not in m:
         have = ", ".join(k for k in m if not k.startswith("__"))
         raise DataError(f"{where}: variable {show(name)} not found: expected one of {show(have)}")
-    a = np.asarray(m[name])
-    if not np.issubdtype(a.dtype, np.number) or np.iscomplexobj(a):
+    a = m[name]
+    if isinstance(a, NonNumeric) or not np.issubdtype(a.dtype, np.number) or np.iscomplexobj(a):
         raise DataError(f"{where}: variable {show(name)}: expected real numbers, got {a.dtype}")
     a = a.astype(np.float64)
     if col:
@@ -164,18 +164,12 @@ def read_mat(path: str | os.PathLike, mapping: dict[str, str] | None = None, **o
     'velocity_mm_s': 'x_F:1', 'force_n': 'x_F:2'}, with dt='Ts' (a variable
     name or a number [s]). Variable refs are 'name' or 'name:column' (0-based).
     """
-    from scipy.io import loadmat
+    from dampnet.data.matfile import load_variables
 
     path = Path(path)
     if not path.is_file():
         raise DataError(f"{path}: file not found")
-    try:
-        with warnings.catch_warnings():
-            # "returned data may be corrupt" (VAX/Cray byte orders) and the like: refused, not loaded
-            warnings.simplefilter("error")
-            m = loadmat(str(path))
-    except Exception as e:  # scipy raises several types for a bad file
-        raise DataError(f"{path}: not a readable MATLAB v4-v7.2 .mat file: {show(str(e))}") from None
+    m = load_variables(path)  # in a child process: scipy's reader can crash on a malformed file
     if not mapping:
         raise DataError(f"{path}: expected mapping= from channel columns (e.g. 'force_n') to variables "
                         f"(e.g. 'x_F:2'); variables: {show(', '.join(k for k in m if not k.startswith('__')))}")
