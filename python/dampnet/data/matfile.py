@@ -71,13 +71,26 @@ def load_variables(path: Path) -> dict[str, np.ndarray | NonNumeric]:
     return out
 
 
+def _quiet_crash() -> None:
+    """In the child: a fatal signal just ends it (no faulthandler dump, no inherited handler
+    such as a fuzzer's reporting the child's crash as its own); the parent reports it."""
+    import faulthandler
+
+    faulthandler.disable()
+    for sig in (signal.SIGSEGV, signal.SIGBUS, signal.SIGFPE, signal.SIGILL, signal.SIGABRT):
+        signal.signal(sig, signal.SIG_DFL)
+
+
 def _load_in_child(path: Path, where: str) -> tuple[dict[str, np.ndarray], dict[str, str]]:
+    import scipy.io  # noqa: F401  (imported once here, not in every child)
+
     with tempfile.TemporaryDirectory(prefix="dampnet-mat-") as tmp:
         arrays, info = Path(tmp) / "vars.npz", Path(tmp) / "info.json"
         pid = os.fork()
         if pid == 0:  # the child: read, write, and leave without running the parent's exit handlers
             code = 1
             try:
+                _quiet_crash()
                 try:
                     numeric, other = _split(_loadmat(str(path)))
                     np.savez(arrays, **{f"v{i}": a for i, a in enumerate(numeric.values())})
