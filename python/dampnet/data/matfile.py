@@ -3,17 +3,18 @@
 scipy's reader is partly C (Cython) and some malformed files crash it with a
 segmentation fault (scipy 1.17: a 531-byte mutated v5 file, kept as a test). A
 reader of user files must not take the interpreter down, so `load_variables`
-runs `scipy.io.loadmat` in a forked child and receives the variables through an
-.npz file (no pickle): a crash, a hang (MAX_SECONDS) or an exception in the child
-is a DataError in the parent. Without fork (Windows) it runs in process.
+runs `scipy.io.loadmat` in a forked child and receives the variables as an .npz
+through a pipe (no pickle): a crash, a hang (MAX_SECONDS) or an exception in the
+child is a DataError in the parent. Without fork (Windows) it runs in process.
 """
 
 from __future__ import annotations
 
+import io
 import json
 import os
+import select
 import signal
-import tempfile
 import time
 import warnings
 from pathlib import Path
@@ -84,49 +85,58 @@ def _quiet_crash() -> None:
 def _load_in_child(path: Path, where: str) -> tuple[dict[str, np.ndarray], dict[str, str]]:
     import scipy.io  # noqa: F401  (imported once here, not in every child)
 
-    with tempfile.TemporaryDirectory(prefix="dampnet-mat-") as tmp:
-        arrays, info = Path(tmp) / "vars.npz", Path(tmp) / "info.json"
-        pid = os.fork()
-        if pid == 0:  # the child: read, write, and leave without running the parent's exit handlers
-            code = 1
-            try:
-                _quiet_crash()
-                try:
-                    numeric, other = _split(_loadmat(str(path)))
-                    np.savez(arrays, **{f"v{i}": a for i, a in enumerate(numeric.values())})
-                    info.write_text(json.dumps({"names": list(numeric), "other": other}))
-                    code = 0
-                except Exception as e:
-                    info.write_text(json.dumps({"error": show(str(e))}))
-                    code = 3
-            finally:
-                os._exit(code)
-        status = _wait(pid)
-        if os.WIFSIGNALED(status):
-            raise DataError(f"{where}: the MATLAB reader (scipy) crashed on it "
-                            f"(signal {os.WTERMSIG(status)})")
+    r, w = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the child: read, send, and leave without running the parent's exit handlers
+        code = 1
         try:
-            d = json.loads(info.read_text())
-        except (OSError, ValueError):
-            raise DataError(f"{where}: the MATLAB reader (scipy) stopped on it "
-                            f"(exit status {os.WEXITSTATUS(status)})") from None
-        if "error" in d:
-            raise DataError(f"{where}: {d['error']}")
-        with np.load(arrays, allow_pickle=False) as z:
-            numeric = {name: z[f"v{i}"] for i, name in enumerate(d["names"])}
-        return numeric, d["other"]
+            os.close(r)
+            _quiet_crash()
+            arrays = io.BytesIO()
+            try:
+                numeric, other = _split(_loadmat(str(path)))
+                np.savez(arrays, **{f"v{i}": a for i, a in enumerate(numeric.values())})
+                head = {"names": list(numeric), "other": other}
+            except Exception as e:
+                head = {"error": show(str(e))}
+            h = json.dumps(head).encode()
+            with os.fdopen(w, "wb") as f:
+                f.write(len(h).to_bytes(8, "little") + h + arrays.getvalue())
+            code = 0
+        finally:
+            os._exit(code)
+    os.close(w)
+    payload, timed_out = _read_all(r, pid)
+    status = os.waitpid(pid, 0)[1]
+    if timed_out:
+        raise DataError(f"{where}: the MATLAB reader (scipy) took longer than {MAX_SECONDS:g} s on it")
+    if os.WIFSIGNALED(status):
+        raise DataError(f"{where}: the MATLAB reader (scipy) crashed on it (signal {os.WTERMSIG(status)})")
+    try:
+        n = int.from_bytes(payload[:8], "little")
+        head = json.loads(payload[8:8 + n])
+    except ValueError:
+        raise DataError(f"{where}: the MATLAB reader (scipy) stopped on it "
+                        f"(exit status {os.WEXITSTATUS(status)})") from None
+    if "error" in head:
+        raise DataError(f"{where}: {head['error']}")
+    with np.load(io.BytesIO(payload[8 + n:]), allow_pickle=False) as z:
+        numeric = {name: z[f"v{i}"] for i, name in enumerate(head["names"])}
+    return numeric, head["other"]
 
 
-def _wait(pid: int) -> int:
-    """The child's wait status; killed (SIGKILL) after MAX_SECONDS."""
-    deadline = time.monotonic() + MAX_SECONDS
-    delay = 1e-4
-    while True:
-        done, status = os.waitpid(pid, os.WNOHANG)
-        if done:
-            return status
-        if time.monotonic() > deadline:
-            os.kill(pid, signal.SIGKILL)
-            return os.waitpid(pid, 0)[1]
-        time.sleep(delay)
-        delay = min(delay * 2, 0.01)
+def _read_all(fd: int, pid: int) -> tuple[bytes, bool]:
+    """Everything the child writes to `fd` until it exits; (data, True) after killing it at MAX_SECONDS."""
+    chunks, deadline = [], time.monotonic() + MAX_SECONDS
+    try:
+        while True:
+            left = deadline - time.monotonic()
+            if left <= 0 or not select.select([fd], [], [], left)[0]:
+                os.kill(pid, signal.SIGKILL)
+                return b"", True
+            chunk = os.read(fd, 1 << 20)
+            if not chunk:
+                return b"".join(chunks), False
+            chunks.append(chunk)
+    finally:
+        os.close(fd)
