@@ -101,6 +101,7 @@ def check_output_dir(out: str | os.PathLike, kind: str, inputs: Iterable[str | o
     """
     out = Path(out)
     check_not_input(out, inputs, f"{kind} directory")
+    clean_stale(out.parent)  # first: a killed two-rename swap puts the old output back here
     if not os.path.lexists(out):
         return out
     if not force:

@@ -287,6 +287,13 @@ def test_only_provably_stale_staging_directories_are_cleaned(tmp_path):
     assert alive.is_dir() and other_host.is_dir() and no_marker.is_dir() and users.is_dir()
 
 
+def test_a_refused_next_run_cleans_the_debris_too(tmp_path, capsys):
+    stale = _staging(tmp_path, "m", _dead_pid())
+    _model_dir(tmp_path / "m", "old")
+    err = _err(capsys, ["train", "no-such-data", "--out", str(tmp_path / "m"), "--quiet"])
+    assert "exists; refusing to overwrite" in err and not stale.exists()
+
+
 def test_the_next_train_cleans_a_killed_runs_debris(tmp_path, capsys):
     data = tmp_path / "data"
     write_dataset(_tiny_dataset(), data)
