@@ -139,18 +139,21 @@ def check_run_dir(out: str | os.PathLike, files: Iterable[str], marker: str, sch
     """For commands that write named `files` into a directory that may hold other things
     (simulate, study): OutputError unless that is allowed.
 
-    `out` must not be an input directory (nor the directory of an input file); a
-    file of this run that exists needs `force`, and `force` replaces only a previous
-    run of the same command, recognised by `marker` (a JSON file of `files`) whose
-    "schema" starts with `schema`.
+    `out` must not be an input directory, nor a model directory given as its
+    model.json, and no file of the run may be an input file; a file of this run that
+    exists needs `force`, and `force` replaces only a previous run of the same
+    command, recognised by `marker` (a JSON file of `files`) whose "schema" starts
+    with `schema`.
     """
     out = Path(out)
     real = out.resolve()
+    files = list(files)
     for inp in inputs:
         if inp is None:
             continue
         ip = Path(inp).resolve()
-        if real == ip or (ip.is_file() and real == ip.parent):
+        model_dir = ip.is_file() and ip.name == "model.json" and real == ip.parent
+        if real == ip or model_dir or any((real / f) == ip for f in files):
             raise OutputError(f"{out}: holds an input of this command ({inp}): refusing to write this "
                               "run's files there (name another --out)")
     existing = [out / f for f in files if os.path.lexists(out / f)]

@@ -145,9 +145,19 @@ def test_simulate_refuses_to_write_into_its_model_or_over_a_foreign_metrics_file
     err = _err(capsys, ["simulate", "linear:1500", "--road", "impulse", "--out", str(other), "--force"])
     assert "not a previous run of this command" in err
     assert json.loads((other / "metrics.json").read_text()) == {"mine": True}
+    err = _err(capsys, ["simulate", str(model / "model.json"), "--road", "impulse", "--out", str(model)])
+    assert "holds an input of this command" in err
     assert main(["simulate", "linear:1500", "--road", "impulse", "--out", str(tmp_path / "r")]) == 0
     assert main(["simulate", "linear:1500", "--road", "impulse", "--out", str(tmp_path / "r"), "--force"]) == 0
     assert not [p for p in (tmp_path / "r").iterdir() if p.name.startswith(".")]
+
+
+def test_simulate_may_write_beside_its_road_csv(tmp_path, monkeypatch):
+    road = tmp_path / "road.csv"
+    road.write_text("distance_m,elevation_m\n" + "".join(f"{0.1 * k},{0.001 * np.sin(k / 5)}\n" for k in range(400)))
+    monkeypatch.chdir(tmp_path)
+    assert main(["simulate", "linear:1500", "--road", "road.csv", "--speed", "10", "--out", "."]) == 0
+    assert (tmp_path / "metrics.json").is_file() and road.is_file()
 
 
 @pytest.mark.parametrize("command", ["evaluate", "diagnose"])
