@@ -19,9 +19,16 @@ from typing import Any
 
 import numpy as np
 
+from dampnet import schema
+
 FORMAT_NAME = "dampnet-model"
 FORMAT_VERSION = 1
 ACTIVATIONS = ("tanh", "sigmoid")
+_REQUIRED_FIELDS = ("w1", "b1", "w_out", "b_out", "in_offset", "in_gain", "out_offset", "out_gain",
+                    "sat_lo", "sat_hi", "features", "units", "activation")
+#: feature_params that must be positive: time constants [s] (a lag with tau <= 0 is no lag, which
+#: the loop refuses) and the Dahl pre-sliding travel [m]
+_POSITIVE_PARAM_SUFFIXES = ("_tau_s", "_presliding_m")
 
 
 class ModelError(ValueError):
@@ -112,7 +119,7 @@ class MlpModel:
         if not 1 <= h1 <= 64:
             raise ModelError(f"w1: 1..64 neurons per hidden layer supported, got {h1}")
         if self.activation not in ACTIVATIONS:
-            raise ModelError(f"activation: expected one of {ACTIVATIONS}, got {self.activation!r}")
+            raise ModelError(f"activation: expected one of {', '.join(ACTIVATIONS)}, got {schema.show(self.activation)}")
         n_last = h1
         if self.w2 is not None:
             if self.w2.ndim != 2 or self.w2.shape[1] != h1 or not 1 <= self.w2.shape[0] <= 64:
@@ -127,7 +134,8 @@ class MlpModel:
             if a.shape != (n,):
                 raise ModelError(f"{name}: expected {n} values, got shape {a.shape}")
         if len(self.features) != n_in or len(self.units) != n_in:
-            raise ModelError(f"features/units: expected {n_in} names, got {self.features} / {self.units}")
+            raise ModelError(f"features/units: expected {n_in} names, got {len(self.features)} / "
+                             f"{len(self.units)}: {schema.show(', '.join(map(str, self.features)))}")
         arrays = [self.w1, self.b1, self.w_out, self.in_offset, self.in_gain, self.sat_lo, self.sat_hi]
         if self.w2 is not None:
             arrays += [self.w2, self.b2]
@@ -138,7 +146,19 @@ class MlpModel:
             raise ModelError("out_gain: must be non-zero")
         if np.any(self.sat_lo > self.sat_hi):
             bad = [self.features[i] for i in np.nonzero(self.sat_lo > self.sat_hi)[0]]
-            raise ModelError(f"sat_lo > sat_hi for {bad}")
+            raise ModelError(f"sat_lo > sat_hi for {schema.show(', '.join(map(str, bad)))}")
+        self._validate_feature_params()
+
+    def _validate_feature_params(self) -> None:
+        """feature_params: finite numbers; time constants and travels positive. The one place
+        this is checked, so every command (evaluate, simulate, study, export) refuses the same."""
+        if not isinstance(self.feature_params, dict):
+            raise ModelError(f"feature_params: expected an object of numbers, got {schema.show(self.feature_params)}")
+        for key, value in self.feature_params.items():
+            v = schema.expect_number(value, f"feature_params[{schema.show(key)}]", ModelError)
+            if str(key).endswith(_POSITIVE_PARAM_SUFFIXES) and not v > 0:
+                raise ModelError(f"feature_params[{schema.show(key)}]: expected a positive value "
+                                 f"(a time constant [s] or travel [m]), got {schema.show(v)}")
 
     # -- evaluation --------------------------------------------------------
     def core(self):
@@ -190,30 +210,63 @@ class MlpModel:
         return d
 
     @classmethod
-    def from_dict(cls, d: dict[str, Any], source: str = "model") -> MlpModel:
+    def from_dict(cls, d: Any, source: str = "model") -> MlpModel:
+        """A model from the parsed JSON of model.json; ModelError naming `source` and the field."""
+        from dampnet import terms as term_kinds
+
+        E = ModelError
+        d = schema.expect_object(d, source, E)
         if d.get("format") != FORMAT_NAME:
-            raise ModelError(f"{source}: not a dampnet model (format field is {d.get('format')!r})")
+            raise E(f"{source}: not a dampnet model (format field is {schema.show(d.get('format'))})")
         if d.get("format_version") != FORMAT_VERSION:
-            raise ModelError(f"{source}: format_version {d.get('format_version')} is not supported "
-                             f"(this dampnet reads {FORMAT_VERSION})")
+            raise E(f"{source}: format_version {schema.show(d.get('format_version'))} is not supported "
+                    f"(this dampnet reads {FORMAT_VERSION})")
+        missing = [k for k in _REQUIRED_FIELDS if k not in d]
+        if missing:
+            raise E(f"{source}: missing field {missing[0]!r}")
+
+        def at(key: str) -> str:
+            return f"{source}: field {key!r}"
+
+        def arr(key: str, ndim: int = 1):
+            return schema.expect_array(d.get(key), ndim, at(key), E)
+
+        def num(key: str, default: float | None = None) -> float:
+            return schema.expect_number(d.get(key, default), at(key), E)
+
+        two_layers = d.get("w2") is not None or d.get("b2") is not None
+        out = schema.expect_object(d.get("output", {}), at("output"), E)
+        terms = d.get("terms", [])
+        if not isinstance(terms, list):
+            raise E(f"{at('terms')}: expected a list of objects {{\"kind\": ..., \"params\": [...]}}, "
+                    f"got {schema.show(terms)}")
+        for i, t in enumerate(terms):
+            t = schema.expect_object(t, f"{at('terms')}[{i}]", E)
+            # the shape only: which kinds exist is checked where terms are used (dampnet.terms,
+            # the runtime), so a model from a newer dampnet still loads for inspection
+            kind = schema.expect_string(t.get("kind"), f"{at('terms')}[{i}].kind", E)
+            if not 0 < len(kind) <= 100:
+                raise E(f"{at('terms')}[{i}].kind: expected a term kind name (1-100 characters, e.g. "
+                        f"{', '.join(sorted(term_kinds.KINDS))}), got {schema.show(kind)}")
+            schema.expect_array(t.get("params", []), 1, f"{at('terms')}[{i}].params", E)
         try:
-            out = d.get("output", {})
-            return cls(w1=np.array(d["w1"]), b1=np.array(d["b1"]), w_out=np.array(d["w_out"]),
-                       b_out=d["b_out"], in_offset=np.array(d["in_offset"]),
-                       in_gain=np.array(d["in_gain"]), out_offset=d["out_offset"],
-                       out_gain=d["out_gain"], sat_lo=np.array(d["sat_lo"]),
-                       sat_hi=np.array(d["sat_hi"]), features=d["features"], units=d["units"],
-                       activation=d["activation"],
-                       w2=None if d.get("w2") is None else np.array(d["w2"]),
-                       b2=None if d.get("b2") is None else np.array(d["b2"]),
-                       in_ymin=d.get("in_ymin", -1.0), out_ymin=d.get("out_ymin", -1.0),
-                       output=out.get("name", "force"), output_unit=out.get("unit", "N"),
-                       terms=d.get("terms", []), feature_params=d.get("feature_params", {}),
-                       meta=d.get("meta", {}))
-        except KeyError as e:
-            raise ModelError(f"{source}: missing field {e.args[0]!r}") from None
+            return cls(w1=arr("w1", 2), b1=arr("b1"), w_out=arr("w_out"), b_out=num("b_out"),
+                       in_offset=arr("in_offset"), in_gain=arr("in_gain"), out_offset=num("out_offset"),
+                       out_gain=num("out_gain"), sat_lo=arr("sat_lo"), sat_hi=arr("sat_hi"),
+                       features=schema.expect_strings(d["features"], at("features"), E),
+                       units=schema.expect_strings(d["units"], at("units"), E),
+                       activation=schema.expect_string(d["activation"], at("activation"), E),
+                       w2=arr("w2", 2) if two_layers else None, b2=arr("b2") if two_layers else None,
+                       in_ymin=num("in_ymin", -1.0), out_ymin=num("out_ymin", -1.0),
+                       output=schema.expect_string(out.get("name", "force"), at("output.name"), E),
+                       output_unit=schema.expect_string(out.get("unit", "N"), at("output.unit"), E),
+                       terms=terms,
+                       feature_params=schema.expect_number_map(d.get("feature_params", {}),
+                                                               at("feature_params"), E),
+                       meta=_check_meta(d.get("meta", {}), at("meta")))
         except ModelError as e:
-            raise ModelError(f"{source}: {e}") from None
+            msg = str(e)
+            raise ModelError(msg if msg.startswith(source) else f"{source}: {msg}") from None
 
     def save(self, path: str | os.PathLike, overwrite: bool = False) -> Path:
         """Write model.json atomically; refuses to replace a file unless overwrite."""
@@ -224,13 +277,26 @@ class MlpModel:
         p = Path(path)
         if p.is_dir():
             p = p / "model.json"
-        try:
-            d = json.loads(p.read_text())
-        except FileNotFoundError:
-            raise ModelError(f"{p}: no such model file") from None
-        except json.JSONDecodeError as e:
-            raise ModelError(f"{p}: line {e.lineno}: not valid JSON ({e.msg})") from None
-        return cls.from_dict(d, str(p))
+        if not p.exists():
+            raise ModelError(f"{p}: no such model file")
+        return cls.from_dict(schema.load_json(p, ModelError), str(p))
+
+
+def _check_meta(meta: Any, where: str) -> dict:
+    """model.json's `meta`: an object; the fields commands read (data.holdout_tests,
+    data.acceleration_window_s) of the right kind."""
+    meta = schema.expect_object(meta, where, ModelError)
+    if "data" in meta:
+        data = schema.expect_object(meta["data"], f"{where}.data", ModelError)
+        if "holdout_tests" in data:
+            schema.expect_strings(data["holdout_tests"], f"{where}.data.holdout_tests", ModelError)
+        if data.get("acceleration_window_s") is not None:
+            w = schema.expect_number(data["acceleration_window_s"], f"{where}.data.acceleration_window_s",
+                                     ModelError)
+            if not w > 0:
+                raise ModelError(f"{where}.data.acceleration_window_s: expected a positive window [s], "
+                                 f"got {schema.show(w)}")
+    return meta
 
 
 def atomic_write_text(path: str | os.PathLike, text: str, overwrite: bool = False) -> Path:

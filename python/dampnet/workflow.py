@@ -38,8 +38,6 @@ from __future__ import annotations
 import inspect
 import json
 import os
-import shutil
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Sequence
@@ -50,6 +48,7 @@ from dampnet.data import DataError, Dataset, DynoTest, add_acceleration, decimat
 from dampnet.data import holdout_split
 from dampnet.data.preprocess import DEFAULT_WINDOW_S, acceleration_of
 from dampnet.model import MlpModel, ModelError, atomic_write_text
+from dampnet.schema import show
 
 #: Default input features (the thesis's); the control is swapped for "current" on current data.
 DEFAULT_FEATURES = ("velocity", "acceleration", "voltage")
@@ -295,10 +294,10 @@ def check_features(model: MlpModel, ds: Dataset) -> None:
             getter = FEATURES.get(f)
             channel = getattr(getattr(getter, "get", None), "channel", None)
             if getter is None:
-                raise DataError(f"the model needs feature {f!r}, which this dampnet does not know")
+                raise DataError(f"the model needs feature {show(f)}, which this dampnet does not know")
             if channel is not None and channel not in t.channels:
                 raise DataError(f"test {t.test_id}: the model was trained on features "
-                                f"{model.features}, but the data have no {channel!r} channel "
+                                f"{show(', '.join(model.features))}, but the data have no {channel!r} channel "
                                 f"(channels: {', '.join(sorted(t.channels))})")
 
 
@@ -384,6 +383,7 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
         u = np.concatenate([t.control for t in used.tests])
         terms = fit_terms(terms, xd, v, u, y)
         y = y - terms_force(terms, xd)
+    _check_magnitudes(X, y, features)
     split = Split(train=train, holdout=hold, holdout_voltage=holdout_voltage,
                   holdout_tests=list(holdout_tests or []), decimate=factor, train_used=used)
     try:
@@ -409,7 +409,28 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
                 info.metrics[name] = nrmse(pred[idx], y_all[idx])
         info.metrics["all"] = nrmse(pred, y_all)
         model.meta["metrics"] = {k: round(v, 6) for k, v in info.metrics.items()}
+    bad = {k: v for k, v in info.metrics.items() if v is None or not np.isfinite(v)}
+    if bad:  # never a model with null metrics and exit 0
+        raise ModelError(f"training gave non-finite NRMSE ({', '.join(sorted(bad))}): the fit diverged; "
+                         "check the data's scale and units, or try another --algorithm or --seed")
+    model.validate()  # feature_params (time constants > 0) and the rest, as model.json is checked
     return model, info, split
+
+
+#: largest |value| accepted in a training feature or force, in its SI unit. The runtime runs in
+#: single precision (largest float 3.4e38): the model's offsets and gains must stay well inside it,
+#: and squared errors must stay finite in double. Real dyno data are below 1e6 in SI units.
+MAX_TRAINING_MAGNITUDE = 1e15
+
+
+def _check_magnitudes(X: np.ndarray, y: np.ndarray, features: Sequence[str]) -> None:
+    """DataError naming the first feature (or the force) whose values are beyond MAX_TRAINING_MAGNITUDE."""
+    for name, col in [*zip(features, np.asarray(X).T), ("force", y)]:
+        peak = float(np.max(np.abs(col))) if np.size(col) else 0.0
+        if not peak <= MAX_TRAINING_MAGNITUDE:
+            raise DataError(f"training data: {name} reaches {peak:.3g} in its SI unit: expected values below "
+                            f"{MAX_TRAINING_MAGNITUDE:.0e} (are the units right? the runtime computes in single "
+                            "precision)")
 
 
 # -- metrics and files ----------------------------------------------------------------
@@ -487,34 +508,22 @@ def write_json(path: str | os.PathLike, obj: Any, overwrite: bool = False) -> Pa
 
 
 def save_model_dir(model: MlpModel, metrics: dict[str, Any] | None, out_dir: str | os.PathLike,
-                   force: bool = False, prefix: str = HEADER_PREFIX) -> Path:
+                   force: bool = False, prefix: str = HEADER_PREFIX,
+                   inputs: Sequence[str | os.PathLike] = ()) -> Path:
     """Write MODEL_DIR/{model.json, metrics.json, model.h} as one atomic step.
 
-    The files go to a temporary directory next to out_dir, which is then renamed
-    into place: a reader never sees a half-written model directory. An existing
-    out_dir is refused (FileExistsError) unless `force`, in which case it is replaced.
+    The files go to a staging directory next to out_dir that is then swapped into
+    place (`dampnet.outputs`): a reader never sees a half-written model directory,
+    and a kill at any point leaves the old or the new one. An existing out_dir is
+    refused (OutputError, a FileExistsError) unless `force`, and even then unless it
+    is a model directory (model.json) that is not one of `inputs`, `.` or a parent.
     """
     from dampnet.export import write_header
+    from dampnet.outputs import check_output_dir, staged_dir
 
-    out = Path(out_dir)
-    if out.exists() and not force:
-        raise FileExistsError(f"{out}: exists; refusing to overwrite (use --force)")
-    if out.exists() and not out.is_dir():
-        raise FileExistsError(f"{out}: exists and is not a directory")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
+    out = check_output_dir(out_dir, "model", inputs, force)
+    with staged_dir(out) as tmp:
         model.save(tmp / "model.json", overwrite=True)
         write_json(tmp / "metrics.json", metrics or {}, overwrite=True)
         write_header(model, tmp / HEADER_NAME, prefix=prefix, overwrite=True)
-        if out.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old.", dir=out.parent))
-            os.replace(out, old / out.name)
-            os.replace(tmp, out)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(tmp, out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return out

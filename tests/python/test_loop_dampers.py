@@ -144,7 +144,8 @@ def test_neural_unknown_feature_or_param_fails_at_creation():
     m = random_model(["velocity", "voltage_lag"])  # a lag without its time constant
     with pytest.raises(ValueError, match="DN_E_PARAM"):
         damper_from_model(m)
-    m = random_model(["velocity", "voltage_lag"], feature_params={"control_lag_tau_s": 0.0})
+    m = random_model(["velocity", "voltage_lag"])
+    m.feature_params = {"control_lag_tau_s": 0.0}  # after construction: MlpModel.validate refuses it too
     with pytest.raises(ValueError, match="DN_E_PARAM"):
         damper_from_model(m)
 

@@ -50,7 +50,11 @@ def run(args) -> int:
     from dampnet.data import DataError
     from dampnet.model import MlpModel, ModelError
 
+    from dampnet.outputs import check_output_file
+
     try:
+        if args.json:
+            check_output_file(args.json, [args.model_a, args.model_b, args.data])
         a, b = MlpModel.load(args.model_a), MlpModel.load(args.model_b)
         ds = load_data(args.data)
         if args.holdout:
@@ -74,9 +78,13 @@ def run(args) -> int:
     worse = [r for r in c["per_test"] if r["change_pct"] is not None and r["change_pct"] > 0]
     print(f"tests improved: {len(c['per_test']) - len(worse)} of {len(c['per_test'])}")
     if args.json:
-        from pathlib import Path
+        from dampnet.model import atomic_write_text
 
-        Path(args.json).write_text(json.dumps(c, indent=1))
+        try:
+            atomic_write_text(args.json, json.dumps(c, indent=1) + "\n", overwrite=True)
+        except OSError as e:
+            print(f"dampnet: error: {args.json}: cannot write ({e.strerror or e})", file=sys.stderr)
+            return 2
     if args.report:
         from pathlib import Path
 

@@ -68,7 +68,11 @@ def run(args) -> int:
     bad = [a for a in algos if a not in ALGORITHMS]
     if bad or not algos:
         return error(f"--algorithms: unknown {bad}; expected some of {', '.join(sorted(ALGORITHMS))}")
+    from dampnet.outputs import check_output_file
+
     try:
+        if args.json:
+            check_output_file(args.json, [args.data])
         ds = load_dataset(args.data)
         kw = training_kwargs(args, ds)
         res = compare_algorithms(ds, algos, lambda a: Progress(kw["max_epochs"], f"train {a}", not args.quiet),

@@ -62,7 +62,11 @@ def run(args) -> int:
     from dampnet.diagnose.run import diagnose
     from dampnet.model import MlpModel, ModelError
 
+    from dampnet.outputs import check_output_file
+
     try:
+        if args.json and args.json != "-":
+            check_output_file(args.json, [args.model, args.data])
         model = MlpModel.load(args.model)
         ds = load_data(args.data)
         ctx = build_context(model, ds)
@@ -76,9 +80,13 @@ def run(args) -> int:
         if args.json == "-":
             print(text)
         else:
-            from pathlib import Path
+            from dampnet.model import atomic_write_text
 
-            Path(args.json).write_text(text)
+            try:
+                atomic_write_text(args.json, text + "\n", overwrite=True)
+            except OSError as e:
+                print(f"dampnet: error: {args.json}: cannot write ({e.strerror or e})", file=sys.stderr)
+                return 2
     if args.report:
         from dampnet.diagnose.report import write_report
 

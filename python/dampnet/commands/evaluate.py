@@ -40,7 +40,11 @@ def run(args) -> int:
     from dampnet.model import MlpModel, ModelError
     from dampnet.workflow import check_features, noise_floors, write_json
 
+    from dampnet.outputs import check_output_file
+
     try:
+        if args.json and args.json != "-":
+            check_output_file(args.json, [args.model, args.data])
         model = MlpModel.load(args.model)
         ds = load_dataset(args.data)
         held = model.meta.get("data", {}).get("holdout_tests", [])

@@ -25,10 +25,14 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 def run(args) -> int:
     from dampnet.roads import RoadError, iri, read_profile_csv
 
+    from dampnet.outputs import OutputError, check_output_file
+
     try:
+        if args.json:
+            check_output_file(args.json, [args.profile])
         road = read_profile_csv(args.profile)
         res = iri(road, segment_m=args.segment)
-    except RoadError as e:
+    except (RoadError, OutputError) as e:
         print(f"dampnet: error: {e}", file=sys.stderr)
         return 2
     print(f"{args.profile}: {res.length_m:.2f} m at {res.dx_m * 1000:.1f} mm spacing"
@@ -36,10 +40,10 @@ def run(args) -> int:
     for a, b, v in res.segments:
         print(f"  {a:10.2f} - {b:10.2f} m  {v:8.3f} m/km")
     if args.json:
+        from dampnet.model import atomic_write_text
+
         try:
-            with open(args.json, "w") as f:
-                json.dump(res.to_dict(), f, indent=2)
-                f.write("\n")
+            atomic_write_text(args.json, json.dumps(res.to_dict(), indent=2) + "\n", overwrite=True)
         except OSError as e:
             print(f"dampnet: error: cannot write {args.json}: {e.strerror or e}", file=sys.stderr)
             return 2

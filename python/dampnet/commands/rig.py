@@ -34,14 +34,18 @@ def run(args) -> int:
     from dampnet.data import DataError, write_dataset
     from dampnet.data.rig import generate, noise_floor_nrmse
 
+    from dampnet.outputs import check_output_dir
+
     effects = [e.strip() for e in args.effects.split(",") if e.strip()]
     progress = not args.no_progress and sys.stderr.isatty()
+    inputs = [] if args.plan in ("thesis", "quick") else [args.plan]
     try:
+        check_output_dir(args.out, "dataset", inputs, args.force)  # before the work, again when writing
         t0 = time.perf_counter()
         ds = generate(args.plan, effects=effects, seed=args.seed, progress=not args.no_progress,
                       truth_channels=args.truth_channels)
         t1 = time.perf_counter()
-        out = write_dataset(ds, args.out, overwrite=args.force, progress=progress)
+        out = write_dataset(ds, args.out, overwrite=args.force, progress=progress, inputs=inputs)
         t2 = time.perf_counter()
     except (DataError, ValueError, FileExistsError, OSError) as e:
         print(f"dampnet: error: {e}", file=sys.stderr)

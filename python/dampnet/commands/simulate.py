@@ -7,6 +7,9 @@ import json
 import sys
 
 CONTROLS = ("passive", "skyhook", "skyhook_continuous", "groundhook", "groundhook_continuous")
+RUN_SCHEMA = "dampnet.simulate/1"
+#: the files of a run (metrics.json is its marker: a JSON object with "schema": RUN_SCHEMA)
+RUN_FILES = ("run.npz", "metrics.json", "time_history.png", "transmissibility.png")
 COMMAND_TAU_S = 0.005  # = dampnet.study.SKYHOOK_COMMAND_TAU_S (not imported: keeps --help fast)
 
 
@@ -48,16 +51,21 @@ def load_spec(text: str):
         return truth_spec(eff)
     if text.startswith("linear:"):
         return DamperSpec("linear", "linear", float(text.split(":", 1)[1]))
+    from dampnet import schema
+    from dampnet.model import MlpModel, ModelError
+
     path = os.path.join(text, "model.json") if os.path.isdir(text) else text
-    with open(path) as f:
-        d = json.load(f)
-    if "velocities" in d and "forces" in d:
+    if not os.path.exists(path):
+        raise ModelError(f"{path}: no such model file")
+    d = schema.load_json(path, ModelError)
+    if isinstance(d, dict) and "velocities" in d and "forces" in d:
         from dampnet.evaluate.lookup import LookupTable
 
-        return lookup_spec(LookupTable.from_dict(d))
-    from dampnet.model import MlpModel
-
-    return neural_spec(MlpModel.load(path))
+        try:
+            return lookup_spec(LookupTable.from_dict(d))
+        except (KeyError, TypeError, ValueError) as e:
+            raise ModelError(f"{path}: not a valid lookup table ({schema.show(str(e))})") from None
+    return neural_spec(MlpModel.from_dict(d, path))
 
 
 def run(args) -> int:
@@ -70,13 +78,13 @@ def run(args) -> int:
     from dampnet.study import (continuous_skyhook, damping_levels, plot_run, plot_transmissibility, semi_active,
                                simulate)
 
+    from dampnet.outputs import check_run_dir
+
     out = Path(args.out)
-    existing = [out / f for f in ("run.npz", "metrics.json") if (out / f).exists()]
-    if existing and not args.force:
-        print(f"dampnet: error: {existing[0]}: exists; refusing to overwrite (use --force)", file=sys.stderr)
-        return 2
     tau = COMMAND_TAU_S if args.command_tau is None else args.command_tau
     try:
+        check_run_dir(out, RUN_FILES, "metrics.json", RUN_SCHEMA, _model_inputs(args.model, args.road),
+                      args.force)
         spec = load_spec(args.model)
         road = make_road(args.road, seed=args.seed)
         veh = Vehicle(dt=args.dt)
@@ -93,12 +101,11 @@ def run(args) -> int:
     except (RoadError, LoopError, ValueError, OSError, KeyError) as e:
         print(f"dampnet: error: {e}", file=sys.stderr)
         return 2
-    out.mkdir(parents=True, exist_ok=True)
     arrays = dict(res["arrays"])
     if "transmissibility" in res:
         for k in ("f_hz", "magnitude", "phase_rad"):
             arrays[f"transmissibility_{k}"] = res["transmissibility"][k]
-    meta = {k: v for k, v in res.items() if k not in ("arrays", "transmissibility")}
+    meta = {"schema": RUN_SCHEMA, **{k: v for k, v in res.items() if k not in ("arrays", "transmissibility")}}
     writers = {"run.npz": lambda f: np.savez_compressed(f, **arrays),
                "time_history.png": lambda f: plot_run(res, f, f"{spec.name} on {road.name}, {ctrl.kind}"),
                "metrics.json": lambda f: Path(f).write_text(json.dumps(meta, indent=2, default=float) + "\n")}
@@ -106,7 +113,11 @@ def run(args) -> int:
         writers["transmissibility.png"] = lambda f: plot_transmissibility({spec.name: res}, f)
     elif (out / "transmissibility.png").exists():   # --force over a sweep run: not this run's
         (out / "transmissibility.png").unlink()
-    _publish(out, writers)
+    try:
+        _publish(out, writers)
+    except OSError as e:
+        print(f"dampnet: error: {out}: cannot write the run ({e.strerror or e})", file=sys.stderr)
+        return 2
     m = res["metrics"]
     print(f"{spec.name} on {road.name}" + (f" at {args.speed:g} m/s" if road.kind == "spatial" else "")
           + f", {ctrl.kind}" + (f" (command filter {1e3 * ctrl.u_tau_s:g} ms)" if ctrl.kind != "passive" and ctrl.u_tau_s > 0 else "")
@@ -117,22 +128,19 @@ def run(args) -> int:
     return 0
 
 
-def _publish(out, writers: dict) -> None:
-    """Write every file to a temporary name in out first, then rename them all (metrics.json
-    last): a failure leaves the previous run's files as they were and no temporary behind."""
+def _model_inputs(model: str, road: str) -> list[str]:
+    """The files this run reads (a model directory or file, a road CSV), for check_run_dir."""
     import os
-    import tempfile
 
-    tmps = {}
-    try:
+    return [p for p in (model, road) if os.path.exists(p)]
+
+
+def _publish(out, writers: dict) -> None:
+    """Write every file into a staging directory in out first, then move them into place
+    (metrics.json, the run's marker, last): a failure leaves the previous run's files as they
+    were, and a killed run's staging directory is removed by the next one."""
+    from dampnet.outputs import staged_files
+
+    with staged_files(out) as tmp:
         for name, write in writers.items():
-            fd, tmp = tempfile.mkstemp(prefix=f".{name}.", suffix=os.path.splitext(name)[1], dir=out)
-            os.close(fd)
-            tmps[name] = tmp
-            write(tmp)
-        for name in sorted(tmps, key=lambda n: n == "metrics.json"):
-            os.replace(tmps.pop(name), out / name)
-    finally:
-        for tmp in tmps.values():
-            if os.path.exists(tmp):
-                os.unlink(tmp)
+            write(str(tmp / name))

@@ -32,12 +32,12 @@ def run(args) -> int:
     from dampnet.commands.simulate import load_spec
     from dampnet.study import jsonable, lookup_spec, run_study, text_tables, truth_spec, write_plots
 
+    from dampnet.outputs import check_run_dir
+
     out = Path(args.out)
-    if (out / "study.json").exists() and not args.force:
-        print(f"dampnet: error: {out / 'study.json'}: exists; refusing to overwrite (use --force)",
-              file=sys.stderr)
-        return 2
     try:
+        check_run_dir(out, ("study.json", "study.txt"), "study.json", "dampnet.study/",
+                      [p for p in (args.model, args.data) if p and Path(p).exists()], args.force)
         from dampnet.roads import sine_sweep, thesis_rough_road
 
         roads = ({"sweep": sine_sweep(rate_oct_s=0.5), "rough": thesis_rough_road(seed=args.seed, base_length_m=46.0)}
@@ -57,12 +57,18 @@ def run(args) -> int:
     except (ValueError, OSError) as e:
         print(f"dampnet: error: {e}", file=sys.stderr)
         return 2
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "study.json").write_text(json.dumps(jsonable(res), indent=2, default=float) + "\n")
+    from dampnet.outputs import staged_files
+
     table = text_tables(res)
-    (out / "study.txt").write_text(table + "\n")
-    if not args.no_plots:
-        write_plots(res, out)
+    try:
+        with staged_files(out) as tmp:  # study.json (the marker) moved into place last
+            (tmp / "study.json").write_text(json.dumps(jsonable(res), indent=2, default=float) + "\n")
+            (tmp / "study.txt").write_text(table + "\n")
+            if not args.no_plots:
+                write_plots(res, tmp)
+    except OSError as e:
+        print(f"dampnet: error: {out}: cannot write the study ({e.strerror or e})", file=sys.stderr)
+        return 2
     print(table)
     print(f"-> {out}/study.json, study.txt" + ("" if args.no_plots else ", PNG plots"))
     return 0

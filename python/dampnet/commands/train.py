@@ -183,11 +183,12 @@ def run(args) -> int:
     from dampnet.model import ModelError
     from dampnet.workflow import model_metrics, save_model_dir
 
+    from dampnet.outputs import check_output_dir
+
     out = Path(args.out)
-    if out.exists() and not args.force:
-        return error(f"{out}: exists; refusing to overwrite (use --force)")
     bar = None
     try:
+        check_output_dir(out, "model", [args.data], args.force)  # before the work, again when writing
         ds = load_dataset(args.data)
         kw = training_kwargs(args, ds)
         bar = Progress(kw["max_epochs"], f"train {args.algorithm}", not args.quiet)
@@ -198,7 +199,7 @@ def run(args) -> int:
         bar.close()
         t_train = time.perf_counter() - t0
         metrics = model_metrics(model, info, split)
-        save_model_dir(model, metrics, out, force=args.force, prefix=args.prefix)
+        save_model_dir(model, metrics, out, force=args.force, prefix=args.prefix, inputs=[args.data])
     except (DataError, ModelError, FileExistsError, ValueError, OSError) as e:
         if bar is not None:
             bar.close()

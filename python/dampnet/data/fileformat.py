@@ -15,13 +15,13 @@ import csv
 import io
 import json
 import os
-import shutil
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from dampnet.data.table import read_table, safe_name
+from dampnet.schema import (expect_number_map, expect_object, expect_string, expect_strings, load_json,
+                            read_text, show)
 from dampnet.data.types import (COLUMN_CHANNELS, CONTROL_NAMES, FILE_COLUMNS, DataError, Dataset,
                                 DynoTest)
 from dampnet.data.validate import check_test
@@ -50,31 +50,77 @@ def _opt_float(cell: str, where: str, col: str) -> float | None:
     try:
         v = float(cell)
     except ValueError:
-        raise DataError(f"{where}, column {col!r}: expected a number or empty, got {cell!r}") from None
+        raise DataError(f"{where}, column {col!r}: expected a number or empty, got {show(cell)}") from None
     if not np.isfinite(v):
-        raise DataError(f"{where}, column {col!r}: expected a finite number, got {cell!r}")
+        raise DataError(f"{where}, column {col!r}: expected a finite number, got {show(cell)}")
     return v
+
+
+def _manifest_rows(mpath: Path) -> list[tuple[int, list[str]]]:
+    """(line number, cells) of each row of manifest.csv; DataError for text that is not CSV."""
+    text = read_text(mpath, DataError, "UTF-8 CSV")
+    reader = csv.reader(io.StringIO(text, newline=""))
+    rows, start = [], 1  # the line a row starts on (a quoted cell may span lines)
+    try:
+        for row in reader:
+            rows.append((start, row))
+            start = reader.line_num + 1
+    except csv.Error as e:  # e.g. a field longer than csv.field_size_limit(), a NUL byte
+        raise DataError(f"{mpath}: line {start}: not readable as CSV ({show(str(e))})") from None
+    return rows
+
+
+def test_file_path(root: Path, name: str, where: str) -> Path:
+    """The test file `name` of the manifest, resolved inside the dataset directory `root`.
+
+    Absolute names, names that leave `root` ('../x') and symlinks pointing out of it are
+    refused: a manifest must not make dampnet read (and echo) files elsewhere. The file
+    itself is not opened here, so no message can carry its contents.
+    """
+    if not name:
+        raise DataError(f"{where}, column 'file': expected a file name, got an empty cell")
+    if "\x00" in name:
+        raise DataError(f"{where}, column 'file': expected a file name, got one with a NUL byte")
+    if Path(name).is_absolute():
+        raise DataError(f"{where}, column 'file': absolute path {show(name)} refused: expected a file "
+                        f"name relative to the dataset directory {root}")
+    try:
+        base = root.resolve()
+        target = (root / name).resolve()
+        inside = target.is_relative_to(base) and target != base
+        exists = inside and target.is_file()
+    except (OSError, RuntimeError, ValueError):  # a symlink loop, a name too long
+        raise DataError(f"{where}, column 'file': {show(name)} cannot be resolved: expected a file "
+                        f"in {root}") from None
+    if not inside:
+        raise DataError(f"{where}, column 'file': {show(name)} resolves outside the dataset directory "
+                        f"{root}: refused, expected a file inside it")
+    if not exists:
+        raise DataError(f"{where}, column 'file': file {show(name)} not found in {root}")
+    return target
 
 
 def read_manifest(root: Path) -> list[dict]:
     """Rows of manifest.csv as dicts; DataError naming the line of the first bad row."""
     mpath = root / MANIFEST
-    with open(mpath, newline="") as f:
-        rows = list(csv.reader(f))
+    rows = _manifest_rows(mpath)
     if not rows:
         raise DataError(f"{mpath}: empty: expected a header {','.join(MANIFEST_COLUMNS)},voltage_v")
-    header = [h.strip() for h in rows[0]]
+    header = [h.strip() for h in rows[0][1]]
     missing = [c for c in MANIFEST_COLUMNS if c not in header]
     if missing:
         raise DataError(f"{mpath}: line 1: missing column(s) {', '.join(missing)}: expected "
                         f"{','.join(MANIFEST_COLUMNS)},voltage_v (or current_a)")
+    if len(set(header)) != len(header):
+        dup = next(h for h in header if header.count(h) > 1)
+        raise DataError(f"{mpath}: line 1: duplicated column {show(dup)}")
     controls = [c for c in ("voltage_v", "current_a") if c in header]
     if len(controls) != 1:
         raise DataError(f"{mpath}: line 1: expected exactly one of the columns voltage_v or current_a, "
-                        f"got {controls or 'neither'}")
+                        f"got {' and '.join(controls) or 'neither'}")
     ccol = controls[0]
     out, seen = [], set()
-    for i, row in enumerate(rows[1:], start=2):
+    for i, row in rows[1:]:
         if not any(c.strip() for c in row):
             continue
         where = f"{mpath}: line {i}"
@@ -84,11 +130,9 @@ def read_manifest(root: Path) -> list[dict]:
         if not r["test_id"]:
             raise DataError(f"{where}, column 'test_id': expected a test id, got an empty cell")
         if r["test_id"] in seen:
-            raise DataError(f"{where}, column 'test_id': duplicated test id {r['test_id']!r}")
+            raise DataError(f"{where}, column 'test_id': duplicated test id {show(r['test_id'])}")
         seen.add(r["test_id"])
-        fpath = root / r["file"]
-        if not r["file"] or not fpath.is_file():
-            raise DataError(f"{where}, column 'file': file {r['file']!r} not found in {root}")
+        fpath = test_file_path(root, r["file"], where)
         out.append({
             "test_id": r["test_id"], "file": fpath,
             "frequency_hz": _opt_float(r["frequency_hz"], where, "frequency_hz"),
@@ -102,15 +146,37 @@ def read_manifest(root: Path) -> list[dict]:
     return out
 
 
+def read_meta(path: Path) -> dict:
+    """meta.json of a dataset: a JSON object; the fields dampnet uses checked for shape."""
+    meta = expect_object(load_json(path, DataError), str(path), DataError)
+    if "generator" in meta:
+        expect_string(meta["generator"], f"{path}: field 'generator'", DataError)
+    for key in ("noise", "resolution"):
+        if key in meta:
+            expect_number_map(meta[key], f"{path}: field {key!r}", DataError)
+    if meta.get("generator") == "dampnet.data.rig" and "force_n" not in meta.get("noise", {}):
+        raise DataError(f"{path}: field 'noise': expected the rig's force_n [N]")
+    if "effects" in meta and not isinstance(meta["effects"], (dict, list)):
+        raise DataError(f"{path}: field 'effects': expected an object or a list of effect names, "
+                        f"got {show(meta['effects'])}")
+    if "effects" in meta:
+        expect_strings(list(meta["effects"]), f"{path}: field 'effects'", DataError)
+    if "plan" in meta:
+        plan = expect_object(meta["plan"], f"{path}: field 'plan'", DataError)
+        if "name" in plan:
+            expect_string(plan["name"], f"{path}: field 'plan.name'", DataError)
+    return meta
+
+
 def read_test_file(path: Path, test_id: str, control_name: str) -> DynoTest:
     """One test CSV in the dataset format (SI columns named as in FILE_COLUMNS)."""
-    names, data, nbefore = read_table(path)
-    if names[0] != "time_s" and "time_s" not in names:
+    names, data, lines = read_table(path)
+    if "time_s" not in names:
         raise DataError(f"{path}: line 1: missing column 'time_s': expected columns "
                         f"time_s,displacement_m,velocity_m_s,force_n,{FILE_COLUMNS[control_name]}")
     if len(set(names)) != len(names):
         dup = [n for n in names if names.count(n) > 1][0]
-        raise DataError(f"{path}: line 1: duplicated column {dup!r}")
+        raise DataError(f"{path}: line 1: duplicated column {show(dup)}")
     need = ["displacement_m", "velocity_m_s", "force_n", FILE_COLUMNS[control_name]]
     missing = [c for c in need if c not in names]
     if missing:
@@ -126,13 +192,14 @@ def read_test_file(path: Path, test_id: str, control_name: str) -> DynoTest:
                             f"{FILE_COLUMNS[control_name]}, expected that column instead")
         ch = COLUMN_CHANNELS.get(n, n)
         if not safe_name(n):
-            raise DataError(f"{path}: line 1, column {n!r}: expected a column name of letters, digits, '_', '.', '-'")
+            raise DataError(f"{path}: line 1, column {show(n)}: expected a column name of letters, digits, "
+                            "'_', '.', '-'")
         channels[ch] = data[:, j].copy()
         colnames[ch] = n
     colnames["time"] = "time_s"
     test = DynoTest(test_id=test_id, time=data[:, names.index("time_s")].copy(), channels=channels,
                     control_name=control_name)
-    return check_test(test, str(path), header_lines=nbefore, column_names=colnames)
+    return check_test(test, str(path), lines=lines, column_names=colnames)
 
 
 def read_dataset_dir(root: str | os.PathLike) -> Dataset:
@@ -146,13 +213,8 @@ def read_dataset_dir(root: str | os.PathLike) -> Dataset:
         t.control_nominal = r["control_nominal"]
         t.meta.update(r["extra"])
         tests.append(t)
-    meta = {}
     mfile = root / META_FILE
-    if mfile.is_file():
-        try:
-            meta = json.loads(mfile.read_text())
-        except json.JSONDecodeError as e:
-            raise DataError(f"{mfile}: line {e.lineno}: expected JSON ({e.msg})") from None
+    meta = read_meta(mfile) if mfile.exists() else {}
     return Dataset(tests=tests, source=str(root), meta=meta)
 
 
@@ -177,16 +239,19 @@ def _num(v: float | None) -> str:
 
 
 def write_dataset(ds: Dataset, out_dir: str | os.PathLike, overwrite: bool = False,
-                  progress: bool = False) -> Path:
+                  progress: bool = False, inputs=()) -> Path:
     """Write `ds` as a dataset directory, atomically; refuse to replace an existing one.
 
-    The directory is built under a temporary name beside `out_dir` and renamed
-    into place, so a reader never sees a half-written dataset. Values are
-    written at the resolutions of COLUMN_FORMATS. `meta` goes to meta.json.
+    The directory is built in a staging directory beside `out_dir` and swapped into
+    place (`dampnet.outputs`), so a reader never sees a half-written dataset and a
+    kill leaves the old or the new one. With `overwrite`, only a dataset dampnet wrote
+    (manifest.csv + meta.json naming a dampnet generator) that is not one of `inputs`,
+    `.` or a parent is replaced. Values are written at the resolutions of
+    COLUMN_FORMATS. `meta` goes to meta.json.
     """
-    out = Path(out_dir)
-    if out.exists() and not overwrite:
-        raise FileExistsError(f"{out}: exists; refusing to overwrite (use --force)")
+    from dampnet.outputs import check_output_dir, staged_dir
+
+    out = check_output_dir(out_dir, "dataset", inputs, overwrite)
     if not ds.tests:
         raise DataError("write_dataset: the dataset has no tests: expected at least one")
     controls = {t.control_name for t in ds.tests}
@@ -196,30 +261,18 @@ def write_dataset(ds: Dataset, out_dir: str | os.PathLike, overwrite: bool = Fal
     ids = [t.test_id for t in ds.tests]
     for tid in ids:
         if not safe_name(tid):
-            raise DataError(f"write_dataset: test id {tid!r}: expected letters, digits, '_', '.', '-'")
+            raise DataError(f"write_dataset: test id {show(tid)}: expected letters, digits, '_', '.', '-'")
     if len(set(ids)) != len(ids):
         raise DataError("write_dataset: duplicated test ids")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
-    try:
-        rows = [",".join(("test_id", "file", "frequency_hz", "amplitude_m", ccol))]
-        for t in ds.tests:
-            check_test(t, f"test {t.test_id}")
-            rows.append(",".join((t.test_id, f"{t.test_id}.csv", _num(t.frequency_hz), _num(t.amplitude_m),
-                                  _num(t.control_nominal))))
+    rows = [",".join(("test_id", "file", "frequency_hz", "amplitude_m", ccol))]
+    for t in ds.tests:
+        check_test(t, f"test {t.test_id}")
+        rows.append(",".join((t.test_id, f"{t.test_id}.csv", _num(t.frequency_hz), _num(t.amplitude_m),
+                              _num(t.control_nominal))))
+    with staged_dir(out) as tmp:
         _write_tests(ds.tests, tmp, progress)
         (tmp / MANIFEST).write_text("\n".join(rows) + "\n")
         (tmp / META_FILE).write_text(json.dumps(ds.meta, indent=1, default=_jsonable) + "\n")
-        old = None
-        if out.exists():
-            old = out.parent / f".{out.name}.old-{os.getpid()}"
-            os.replace(out, old)
-        os.replace(tmp, out)
-        if old is not None:
-            shutil.rmtree(old) if old.is_dir() else old.unlink()
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return out
 
 

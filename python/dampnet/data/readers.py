@@ -23,10 +23,12 @@ from pathlib import Path
 import numpy as np
 
 from dampnet.data.fileformat import is_dataset_dir, read_dataset_dir
+from dampnet.data.matfile import NonNumeric
 from dampnet.data.table import read_table
 from dampnet.data.types import CONTROL_NAMES, DataError, Dataset, DynoTest
 from dampnet.data.units import parse_column
 from dampnet.data.validate import check_test
+from dampnet.schema import read_text as read_text_file, show
 
 _SIGNED_MOTION = ("displacement", "velocity", "acceleration")
 _CONVENTIONS = ("extension", "compression")
@@ -34,7 +36,7 @@ _CONVENTIONS = ("extension", "compression")
 
 def _sign(value: str, what: str) -> float:
     if value not in _CONVENTIONS:
-        raise DataError(f"{what}={value!r}: expected 'extension' or 'compression'")
+        raise DataError(f"{what}={show(value)}: expected 'extension' or 'compression'")
     return 1.0 if value == "extension" else -1.0
 
 
@@ -52,7 +54,7 @@ def apply_convention(channels: dict[str, np.ndarray], motion_positive: str = "ex
 
 
 def build_test(where: str, columns: dict[str, np.ndarray], colnames: dict[str, str], *,
-               header_lines: int = 1, test_id: str | None = None, voltage: float | None = None,
+               header_lines: int = 1, lines: np.ndarray | None = None, test_id: str | None = None, voltage: float | None = None,
                current: float | None = None, dt: float | None = None, t0: float = 0.0,
                motion_positive: str = "extension", force_positive: str = "extension",
                frequency_hz: float | None = None, amplitude_m: float | None = None,
@@ -64,7 +66,7 @@ def build_test(where: str, columns: dict[str, np.ndarray], colnames: dict[str, s
         time = columns.pop("time")
     elif dt is not None:
         if not dt > 0:
-            raise DataError(f"{where}: dt={dt!r}: expected a positive sample interval [s]")
+            raise DataError(f"{where}: dt={show(dt)}: expected a positive sample interval [s]")
         time = t0 + dt * np.arange(n)
     else:
         raise DataError(f"{where}: missing a time column (time_s, time_ms, ...): expected one, "
@@ -92,7 +94,7 @@ def build_test(where: str, columns: dict[str, np.ndarray], colnames: dict[str, s
                     channels={k: np.asarray(v, np.float64) for k, v in columns.items()},
                     frequency_hz=frequency_hz, amplitude_m=amplitude_m, control_nominal=nominal,
                     control_name=control_name, meta=dict(meta or {}))
-    return check_test(test, where, header_lines=header_lines, column_names=colnames)
+    return check_test(test, where, header_lines=header_lines, column_names=colnames, lines=lines)
 
 
 def read_text(path: str | os.PathLike, *, skip_lines: int = 0, columns: list[str] | None = None,
@@ -105,19 +107,31 @@ def read_text(path: str | os.PathLike, *, skip_lines: int = 0, columns: list[str
     path = Path(path)
     if not path.is_file():
         raise DataError(f"{path}: file not found")
-    names, data, nbefore = read_table(path, skip_lines=skip_lines, has_header=columns is None)
+    names, data, lines = read_table(path, skip_lines=skip_lines, has_header=columns is None)
     if columns is not None:
         if len(columns) != data.shape[1]:
             raise DataError(f"{path}: columns= names {len(columns)} columns, the file has {data.shape[1]}")
         names = list(columns)
+    header_where = f"{path}: line {_header_line(path, skip_lines)}" if columns is None else f"{path}: columns="
     chans, colnames = {}, {}
     for j, name in enumerate(names):
-        ch, scale, offset = parse_column(name, where=f"{path}: line {nbefore if columns is None else 0}")
+        ch, scale, offset = parse_column(name, where=header_where)
         if ch in chans:
-            raise DataError(f"{path}: column {name!r}: a second {ch} column (after {colnames[ch]!r}): expected one")
-        chans[ch] = data[:, j] * scale + offset
+            raise DataError(f"{path}: column {show(name)}: a second {ch} column (after "
+                            f"{show(colnames[ch])}): expected one")
+        with np.errstate(all="ignore"):  # an overflow becomes inf, which check_test refuses by line
+            chans[ch] = data[:, j] * scale + offset
         colnames[ch] = name
-    return build_test(str(path), chans, colnames, header_lines=nbefore, **options)
+    return build_test(str(path), chans, colnames, lines=lines, **options)
+
+
+def _header_line(path: Path, skip_lines: int) -> int:
+    """The file line of the header row (after skip_lines, blank and '#' lines)."""
+    text = read_text_file(path, DataError)
+    for i, line in enumerate(text.splitlines()[skip_lines:], start=skip_lines + 1):
+        if line.strip() and not line.lstrip().startswith("#"):
+            return i
+    return skip_lines + 1
 
 
 def _mat_variable(m: dict, ref: str, where: str) -> np.ndarray:
@@ -125,20 +139,21 @@ def _mat_variable(m: dict, ref: str, where: str) -> np.ndarray:
     name, _, col = ref.partition(":")
     if name not in m:
         have = ", ".join(k for k in m if not k.startswith("__"))
-        raise DataError(f"{where}: variable {name!r} not found: expected one of {have}")
-    a = np.asarray(m[name])
-    if not np.issubdtype(a.dtype, np.number):
-        raise DataError(f"{where}: variable {name!r}: expected numbers, got {a.dtype}")
+        raise DataError(f"{where}: variable {show(name)} not found: expected one of {show(have)}")
+    a = m[name]
+    if isinstance(a, NonNumeric) or not np.issubdtype(a.dtype, np.number) or np.iscomplexobj(a):
+        raise DataError(f"{where}: variable {show(name)}: expected real numbers, got {a.dtype}")
     a = a.astype(np.float64)
     if col:
-        if a.ndim != 2 or not col.isdigit() or int(col) >= a.shape[1]:
-            raise DataError(f"{where}: {ref!r}: expected a column index below {a.shape[1] if a.ndim == 2 else 1} "
-                            f"of the {a.shape} variable {name!r}")
+        ok = col.isascii() and col.isdigit() and len(col) < 10
+        if a.ndim != 2 or not ok or int(col) >= a.shape[1]:
+            raise DataError(f"{where}: {show(ref)}: expected a column index below {a.shape[1] if a.ndim == 2 else 1} "
+                            f"of the {a.shape} variable {show(name)}")
         return a[:, int(col)]
     if a.ndim == 2 and 1 in a.shape:
         return a.ravel()
     if a.ndim != 1:
-        raise DataError(f"{where}: variable {name!r} has shape {a.shape}: expected a vector, or name:col")
+        raise DataError(f"{where}: variable {show(name)} has shape {a.shape}: expected a vector, or name:col")
     return a
 
 
@@ -149,29 +164,30 @@ def read_mat(path: str | os.PathLike, mapping: dict[str, str] | None = None, **o
     'velocity_mm_s': 'x_F:1', 'force_n': 'x_F:2'}, with dt='Ts' (a variable
     name or a number [s]). Variable refs are 'name' or 'name:column' (0-based).
     """
-    from scipy.io import loadmat
+    from dampnet.data.matfile import load_variables
 
     path = Path(path)
     if not path.is_file():
         raise DataError(f"{path}: file not found")
-    try:
-        m = loadmat(str(path))
-    except Exception as e:  # scipy raises several types for a bad file
-        raise DataError(f"{path}: not a readable MATLAB v4-v7.2 .mat file: {e}") from None
+    m = load_variables(path)  # in a child process: scipy's reader can crash on a malformed file
     if not mapping:
         raise DataError(f"{path}: expected mapping= from channel columns (e.g. 'force_n') to variables "
-                        f"(e.g. 'x_F:2'); variables: {', '.join(k for k in m if not k.startswith('__'))}")
+                        f"(e.g. 'x_F:2'); variables: {show(', '.join(k for k in m if not k.startswith('__')))}")
     chans, colnames = {}, {}
     for name, ref in mapping.items():
         ch, scale, offset = parse_column(name, where=f"{path}: mapping")
-        chans[ch] = _mat_variable(m, ref, str(path)) * scale + offset
+        with np.errstate(all="ignore"):  # an overflow becomes inf, which check_test refuses by line
+            chans[ch] = _mat_variable(m, ref, str(path)) * scale + offset
         colnames[ch] = f"{ref} ({name})"
     lens = {k: len(v) for k, v in chans.items()}
     if len(set(lens.values())) != 1:
         raise DataError(f"{path}: mapped variables differ in length {lens}: expected equal lengths")
     dt = options.pop("dt", None)
     if isinstance(dt, str):
-        dt = float(_mat_variable(m, dt, str(path))[0])
+        v = _mat_variable(m, dt, str(path))
+        if v.size < 1:
+            raise DataError(f"{path}: dt variable {show(dt)} is empty: expected the sample interval [s]")
+        dt = float(v[0])
     return build_test(str(path), chans, colnames, header_lines=0, dt=dt, **options)
 
 

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from dampnet.data.types import DataError
+from dampnet.schema import read_text, show
 
 
 def sniff_delimiter(header: str) -> str | None:
@@ -26,49 +27,48 @@ def split_header(header: str, delimiter: str | None) -> list[str]:
 
 
 def read_table(path: Path, skip_lines: int = 0, has_header: bool = True
-               ) -> tuple[list[str], np.ndarray, int]:
-    """(column names, data [n, k] float64, number of lines before the data) of a text table.
+               ) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """(column names, data [n, k] float64, file line number of each data row) of a text table.
 
-    Blank lines are not allowed inside data. Raises DataError naming file, line
-    and column of the first cell that is not a number or a row of wrong length.
+    The file is UTF-8 (a leading BOM, as spreadsheet programs write, is dropped).
+    Blank lines and lines starting with '#' are skipped; the line numbers count
+    them, so messages name the line an editor shows. Raises DataError naming
+    file, line and column of the first cell that is not a number or a row of
+    wrong length (echoing at most MAX_ECHO characters of it).
     """
     path = Path(path)
-    try:
-        text = path.read_text()
-    except UnicodeDecodeError as e:
-        raise DataError(f"{path}: not a text file ({e.reason}): expected CSV or whitespace-separated text")
-    lines = text.splitlines()
-    while lines and not lines[-1].strip():
-        lines.pop()
-    if len(lines) <= skip_lines:
+    text = read_text(path, DataError, "a text file: expected CSV or whitespace-separated text")
+    numbered = [(i, line) for i, line in enumerate(text.splitlines()[skip_lines:], start=skip_lines + 1)
+                if line.strip() and not line.lstrip().startswith("#")]
+    if not numbered:
         raise DataError(f"{path}: empty: expected a header row and data rows")
-    first = lines[skip_lines]
-    delimiter = sniff_delimiter(first) if has_header else (sniff_delimiter(first) if "," in first or ";" in first or "\t" in first else None)
+    first_line, first = numbered[0]
+    delimiter = sniff_delimiter(first)
     if has_header:
         names = split_header(first, delimiter)
         if any(not n for n in names):
-            raise DataError(f"{path}: line {skip_lines + 1}: empty column name in header: expected a name for every column")
-        n_before = skip_lines + 1
+            raise DataError(f"{path}: line {first_line}: empty column name in header: expected a name for every column")
+        body = numbered[1:]
     else:
         names = []
-        n_before = skip_lines
-    body = lines[n_before:]
+        body = numbered
     if not body:
-        raise DataError(f"{path}: no data rows after line {n_before}: expected numeric rows")
-    ncol = len(names) if names else len(split_header(body[0], delimiter))
+        raise DataError(f"{path}: no data rows after line {first_line}: expected numeric rows")
+    ncol = len(names) if names else len(split_header(body[0][1], delimiter))
+    lines = np.array([i for i, _ in body], dtype=np.int64)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("error")
-            data = np.loadtxt(io.StringIO("\n".join(body)), delimiter=delimiter, ndmin=2, dtype=np.float64)
-        if data.shape[1] != ncol:
+            data = np.loadtxt(io.StringIO("\n".join(line for _, line in body)), delimiter=delimiter,
+                              ndmin=2, dtype=np.float64, comments=None)
+        if data.shape != (len(body), ncol):
             raise ValueError
-        return (names or [f"col{k}" for k in range(ncol)]), data, n_before
+        return (names or [f"col{k}" for k in range(ncol)]), data, lines
     except (ValueError, UserWarning):
         pass
     # slow path: locate the problem
-    for i, line in enumerate(body):
+    for lineno, line in body:
         cells = split_header(line, delimiter)
-        lineno = n_before + i + 1
         if len(cells) != ncol:
             raise DataError(f"{path}: line {lineno}: expected {ncol} columns, got {len(cells)}")
         for j, c in enumerate(cells):
@@ -76,7 +76,8 @@ def read_table(path: Path, skip_lines: int = 0, has_header: bool = True
                 float(c)
             except ValueError:
                 col = names[j] if names else f"{j + 1}"
-                raise DataError(f"{path}: line {lineno}, column {col!r}: expected a number, got {c!r}") from None
+                raise DataError(f"{path}: line {lineno}, column {show(col)}: expected a number, "
+                                f"got {show(c)}") from None
     raise DataError(f"{path}: could not be read as a numeric table")  # pragma: no cover
 
 

@@ -11,6 +11,10 @@ from __future__ import annotations
 import re
 
 from dampnet.data.types import DataError
+from dampnet.schema import show
+
+#: longest column name parsed (a header cell is a quantity and a unit, never an essay)
+MAX_COLUMN_NAME = 100
 
 _IN = 0.0254
 _LBF = 4.4482216152605
@@ -105,7 +109,11 @@ def parse_column(name: str, where: str = "") -> tuple[str, float, float]:
     ('displacement', 1e-3, 0); 'mm/s' -> ('velocity', 1e-3, 0);
     'temperature_f' -> ('temperature', 5/9, -17.78).
     """
+    prefix = f"{where}: " if where else ""
     raw = name.strip()
+    if len(raw) > MAX_COLUMN_NAME:  # also bounds the candidate search below, O(len^2)
+        raise DataError(f"{prefix}column {show(name)}: expected a column name of at most "
+                        f"{MAX_COLUMN_NAME} characters")
     low = raw.lower()
     # form 1: 'quantity (unit)' or 'quantity [unit]'
     m = re.match(r"^([a-z_ ]+?)\s*[\(\[]\s*(.+?)\s*[\)\]]$", low)
@@ -132,7 +140,6 @@ def parse_column(name: str, where: str = "") -> tuple[str, float, float]:
         elif CHANNEL_DIMENSION[chan] != dim:
             continue
         return chan, scale, offset
-    prefix = f"{where}: " if where else ""
-    raise DataError(f"{prefix}column {name!r}: expected a quantity with a known unit, such as "
+    raise DataError(f"{prefix}column {show(name)}: expected a quantity with a known unit, such as "
                     "'force_n', 'force_lbf', 'displacement_mm', 'velocity_in_s', 'time_s', "
                     "'voltage_v', 'current_a', 'temperature_c', or a bare unit such as 'mm/s' or 'kN'")

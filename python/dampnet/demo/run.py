@@ -3,8 +3,7 @@
 from __future__ import annotations
 
 import json
-import shutil
-import tempfile
+import sys
 import time
 from pathlib import Path
 from typing import Any, Callable
@@ -77,10 +76,11 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
     from dampnet.evaluate.report import write_plots
     from dampnet.workflow import model_metrics, save_model_dir, train_dataset
 
-    out = Path(out_dir)
-    if out.exists() and not force:
-        raise FileExistsError(f"{out}: exists; refusing to overwrite (use --force)")
-    work = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent if out.parent.exists() else None))
+    from dampnet.outputs import check_output_dir, staged_dir
+
+    out = check_output_dir(out_dir, "demo", (), force)  # OutputError: a FileExistsError
+    staging = staged_dir(out)  # built in work, swapped into place crash-safely at the end
+    work = staging.__enter__()
     figs = work / "figures"
     figs.mkdir()
     t_start = time.perf_counter()
@@ -154,12 +154,10 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
         report.write(work, summary, metrics0, metrics1, diag0, diag1, study_res, bench)
         summary["report_rendered"] = report.check_rendering(work / "report.html")
         (work / "summary.json").write_text(json.dumps(summary, indent=1, default=_json_default))
-        if out.exists():
-            shutil.rmtree(out)
-        work.rename(out)
     except BaseException:
-        shutil.rmtree(work, ignore_errors=True)
-        raise
+        if not staging.__exit__(*sys.exc_info()):
+            raise
+    staging.__exit__(None, None, None)
     log(f"report: {out / 'report.html'}   summary: {out / 'summary.json'}   "
         f"({summary['total_time_s']:.0f} s in all)")
     return summary

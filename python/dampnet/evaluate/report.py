@@ -8,7 +8,6 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -42,12 +41,15 @@ def lookup_for(model_path: str | Path, ds: Dataset, holdout_ids: Sequence[str]):
     """
     p = Path(model_path)
     mfile = (p if p.is_dir() else p.parent) / "metrics.json"
-    if mfile.is_file():
+    if mfile.is_file():  # optional: a damaged metrics.json falls back to fitting a table
+        from dampnet.data import DataError
+        from dampnet.schema import load_json
+
         try:
-            d = json.loads(mfile.read_text())
-            if "lookup_table" in d:
+            d = load_json(mfile, DataError)
+            if isinstance(d, dict) and isinstance(d.get("lookup_table"), dict):
                 return LookupTable.from_dict(d["lookup_table"]), "fitted on the model's training tests"
-        except (json.JSONDecodeError, ValueError):
+        except (KeyError, TypeError, ValueError):
             pass
     held = set(holdout_ids)
     rest = [t for t in ds.tests if t.test_id not in held]

@@ -1,0 +1,318 @@
+"""Output directories: what `--force` may replace, crash-safe replacement, stale temporaries.
+
+Every command that writes a directory (train: a model, rig: a dataset, demo: a run)
+builds it in a hidden staging directory next to the output and swaps it in:
+
+  check_output_dir(out, kind, inputs, force)   refuse (OutputError, one line) unless allowed
+  with staged_dir(out) as tmp: ...write tmp...  then publish: `out` becomes tmp's contents
+
+Rules (issue 14, item 5): `--force` replaces only an output of the same kind,
+recognised by its marker (KIND_MARKERS); never an input of the same command,
+nor `.`, nor a parent of the working directory or of an input.
+
+Crash safety: the swap is one renameat2(RENAME_EXCHANGE) on Linux, so a kill at
+any moment leaves the old or the new output at `out`. Where the exchange is not
+available, the old output is moved into the staging directory and the new one
+renamed into place; a kill between those two renames is repaired by the next run
+(`clean_stale` moves the old output back). Staging directories are named
+`.<out>.dampnet-tmp-<pid>-<random>` and hold a marker naming their process; the
+next run removes those whose process is gone (same host only: provably stale).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import json
+import os
+import re
+import shutil
+import socket
+import tempfile
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Iterable, Iterator
+
+#: the marker file inside every staging directory (pid, host, output name)
+STAGING_MARKER = "dampnet-staging.json"
+_STAGING_NAME = re.compile(r"^\..+\.dampnet-tmp-(\d+)-[A-Za-z0-9_]+$")
+
+#: what an output directory of each kind holds, in words (for messages)
+KIND_MARKERS = {
+    "model": "model.json",
+    "dataset": "manifest.csv and a meta.json written by dampnet",
+    "demo": "summary.json of a dampnet demo",
+}
+
+
+class OutputError(FileExistsError, ValueError):
+    """An output path that dampnet must not write or replace (one-line message).
+
+    A FileExistsError for the callers that catch the plain "exists" refusal, and a
+    ValueError like the project's other bad-input errors."""
+
+
+# -- what may be replaced ---------------------------------------------------------
+
+def is_kind(path: Path, kind: str) -> bool:
+    """True if the directory `path` holds a dampnet output of `kind` (by its marker file)."""
+    path = Path(path)
+    if kind == "model":
+        return (path / "model.json").is_file()
+    if kind == "dataset":
+        meta = _json_object(path / "meta.json")
+        return (path / "manifest.csv").is_file() and str(meta.get("generator", "")).startswith("dampnet")
+    if kind == "demo":
+        return str(_json_object(path / "summary.json").get("schema", "")).startswith("dampnet.demo/")
+    raise ValueError(f"unknown output kind {kind!r}")
+
+
+def _json_object(path: Path) -> dict:
+    try:
+        d = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError, RecursionError):
+        return {}
+    return d if isinstance(d, dict) else {}
+
+
+def check_not_input(out: Path, inputs: Iterable[str | os.PathLike], what: str = "output") -> None:
+    """OutputError if `out` is an input, contains one, or is `.` or a parent of the working directory."""
+    real = Path(out).resolve()
+    cwd = Path.cwd().resolve()
+    if real == cwd or cwd.is_relative_to(real):
+        raise OutputError(f"{out}: is the current directory or one of its parents: refusing to use it as "
+                          f"the {what} (name a new directory)")
+    for inp in inputs:
+        if inp is None:
+            continue
+        ip = Path(inp).resolve()
+        if ip == real or ip.is_relative_to(real):
+            raise OutputError(f"{out}: is an input of this command ({inp}) or contains it: refusing to "
+                              f"write the {what} there")
+
+
+def check_output_dir(out: str | os.PathLike, kind: str, inputs: Iterable[str | os.PathLike] = (),
+                     force: bool = False) -> Path:
+    """`out` as a Path if a `kind` output may be written there; OutputError (one line) otherwise.
+
+    A missing `out` is fine. An existing one needs `force`, must be a real directory
+    (not a symlink) holding an output of the same kind, and must not be an input,
+    `.` or a parent of the working directory or of an input.
+    """
+    out = Path(out)
+    check_not_input(out, inputs, f"{kind} directory")
+    clean_stale(out.parent)  # first: a killed two-rename swap puts the old output back here
+    if not os.path.lexists(out):
+        return out
+    if not force:
+        raise OutputError(f"{out}: exists; refusing to overwrite (use --force)")
+    if out.is_symlink() or not out.is_dir():
+        raise OutputError(f"{out}: exists and is not a directory: refusing to replace it even with --force")
+    if not is_kind(out, kind):
+        raise OutputError(f"{out}: exists and is not a dampnet {kind} directory (no {KIND_MARKERS[kind]}): "
+                          "refusing to replace it even with --force")
+    return out
+
+
+def check_output_file(path: str | os.PathLike, inputs: Iterable[str | os.PathLike] = ()) -> Path:
+    """`path` as a Path unless writing it would overwrite an input of the command (OutputError).
+
+    Refused: the input itself, or an existing file inside an input directory (e.g.
+    `--json MODEL/model.json`), or a directory.
+    """
+    p = Path(path)
+    real = p.resolve()
+    for inp in inputs:
+        if inp is None:
+            continue
+        ip = Path(inp).resolve()
+        if real == ip or (ip.is_dir() and real.is_relative_to(ip) and os.path.lexists(p)):
+            raise OutputError(f"{path}: is an input of this command ({inp}) or a file of one: refusing "
+                              "to overwrite it")
+    if p.is_dir():
+        raise OutputError(f"{path}: is a directory: expected a file name")
+    return p
+
+
+def check_run_dir(out: str | os.PathLike, files: Iterable[str], marker: str, schema: str,
+                  inputs: Iterable[str | os.PathLike] = (), force: bool = False) -> Path:
+    """For commands that write named `files` into a directory that may hold other things
+    (simulate, study): OutputError unless that is allowed.
+
+    `out` must not be an input directory, nor a model directory given as its
+    model.json, and no file of the run may be an input file; a file of this run that
+    exists needs `force`, and `force` replaces only a previous run of the same
+    command, recognised by `marker` (a JSON file of `files`) whose "schema" starts
+    with `schema`.
+    """
+    out = Path(out)
+    real = out.resolve()
+    files = list(files)
+    for inp in inputs:
+        if inp is None:
+            continue
+        ip = Path(inp).resolve()
+        model_dir = ip.is_file() and ip.name == "model.json" and real == ip.parent
+        if real == ip or model_dir or any((real / f) == ip for f in files):
+            raise OutputError(f"{out}: holds an input of this command ({inp}): refusing to write this "
+                              "run's files there (name another --out)")
+    existing = [out / f for f in files if os.path.lexists(out / f)]
+    if not existing:
+        return out
+    if not force:
+        raise OutputError(f"{existing[0]}: exists; refusing to overwrite (use --force)")
+    if not str(_json_object(out / marker).get("schema", "")).startswith(schema):
+        raise OutputError(f"{out}: holds {existing[0].name} but not a previous run of this command "
+                          f"({marker} with schema {schema}...): refusing to overwrite it even with --force")
+    return out
+
+
+# -- staging and the swap ---------------------------------------------------------
+
+def _checkpoint(step: str) -> None:
+    """Called between the steps of a replacement; the crash-safety tests make it kill the process."""
+
+
+@contextmanager
+def staged_dir(out: str | os.PathLike) -> Iterator[Path]:
+    """A fresh directory to build `out` in; on a clean exit it replaces `out` (crash-safe).
+
+    On an exception nothing at `out` changes and the staging directory is removed.
+    """
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    clean_stale(out.parent)
+    container = Path(tempfile.mkdtemp(prefix=f".{out.name}.dampnet-tmp-{os.getpid()}-", dir=out.parent))
+    try:
+        (container / STAGING_MARKER).write_text(json.dumps(
+            {"pid": os.getpid(), "host": socket.gethostname(), "out": out.name}))
+        new = container / "new"
+        new.mkdir()
+        yield new
+        _checkpoint("staged")
+        publish(new, out, container)
+        _checkpoint("published")
+    finally:
+        shutil.rmtree(container, ignore_errors=True)
+
+
+@contextmanager
+def staged_files(out: str | os.PathLike) -> Iterator[Path]:
+    """A staging directory inside `out` for files that then replace their namesakes in `out`
+    one by one (os.replace each: every file is the old or the new one, never half-written).
+
+    Files are moved in sorted order with "metrics.json" and "*.json" last, so a run's
+    marker appears only when its data are in place. A killed run's staging directory
+    is removed by the next run (`clean_stale`).
+    """
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    clean_stale(out)
+    container = Path(tempfile.mkdtemp(prefix=f".files.dampnet-tmp-{os.getpid()}-", dir=out))
+    try:
+        (container / STAGING_MARKER).write_text(json.dumps(
+            {"pid": os.getpid(), "host": socket.gethostname(), "out": ""}))
+        new = container / "new"
+        new.mkdir()
+        yield new
+        for f in sorted(os.listdir(new), key=lambda n: (n.endswith(".json"), n)):
+            os.replace(new / f, out / f)
+            _checkpoint(f"moved {f}")
+    finally:
+        shutil.rmtree(container, ignore_errors=True)
+
+
+def publish(new: Path, out: Path, container: Path) -> None:
+    """Make `out` the directory `new` (the old `out`, if any, ends up inside `container`)."""
+    if not os.path.lexists(out):
+        os.rename(new, out)
+        return
+    try:
+        exchange(new, out)
+        _checkpoint("exchanged")
+        return
+    except OSError:  # no renameat2 or no RENAME_EXCHANGE on this filesystem
+        pass
+    os.rename(out, container / "old")
+    _checkpoint("old moved")
+    try:
+        os.rename(new, out)
+    except BaseException:
+        os.rename(container / "old", out)  # a failure (not a kill) puts the old output back at once
+        raise
+
+
+_RENAME_EXCHANGE = 2
+_AT_FDCWD = -100
+
+
+def exchange(a: Path, b: Path) -> None:
+    """Swap the directory entries `a` and `b` atomically (Linux renameat2); OSError if unavailable."""
+    fn = _renameat2()
+    if fn is None:
+        raise OSError("renameat2 is not available")
+    if fn(_AT_FDCWD, os.fsencode(a), _AT_FDCWD, os.fsencode(b), _RENAME_EXCHANGE) != 0:
+        err = ctypes.get_errno()
+        raise OSError(err, os.strerror(err), str(b))
+
+
+_libc_renameat2 = False
+
+
+def _renameat2():
+    global _libc_renameat2
+    if _libc_renameat2 is False:
+        _libc_renameat2 = None
+        try:
+            libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+            fn = libc.renameat2
+            fn.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]
+            fn.restype = ctypes.c_int
+            _libc_renameat2 = fn
+        except (OSError, AttributeError):
+            pass
+    return _libc_renameat2
+
+
+# -- stale temporaries ------------------------------------------------------------
+
+def clean_stale(parent: str | os.PathLike) -> list[Path]:
+    """Remove staging directories in `parent` left by killed dampnet runs; returns them.
+
+    Only directories named like ours, holding our marker with the pid in their name,
+    written on this host by a process that no longer exists. If such a run was killed
+    between its two renames (no exchange available), its output is missing and the
+    old one is inside: that one is moved back first.
+    """
+    removed = []
+    try:
+        entries = list(os.scandir(parent))
+    except OSError:
+        return removed
+    host = socket.gethostname()
+    for e in entries:
+        m = _STAGING_NAME.match(e.name)
+        if not m or not e.is_dir(follow_symlinks=False):
+            continue
+        info = _json_object(Path(e.path) / STAGING_MARKER)
+        if info.get("pid") != int(m.group(1)) or info.get("host") != host or _alive(info["pid"]):
+            continue
+        out = Path(parent) / str(info.get("out", ""))
+        old = Path(e.path) / "old"
+        if info.get("out") and "/" not in str(info["out"]) and old.is_dir() and not os.path.lexists(out):
+            os.rename(old, out)
+        shutil.rmtree(e.path, ignore_errors=True)
+        removed.append(Path(e.path))
+    return removed
+
+
+def _alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
