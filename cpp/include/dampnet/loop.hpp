@@ -397,6 +397,11 @@ inline Start start(const LoopModel& m, const double* s, double u_ext, dn_loop_ou
   }
   r.status = evaluate(m, r.in, s[S_f_last], &r.force, feat, mask, n_evals);
   r.acc = accel(m, b, s[S_z_r], s[S_v_r], r.force);
+  // A finite but huge state (e.g. from set_state) can overflow the accelerations or
+  // the relative motion: the state has run away, and no report is non-finite with a
+  // success status (a sum is non-finite when any term is, or when it overflows).
+  if (r.status >= 0 && !std::isfinite(r.acc.as + r.acc.aus + r.in.a + r.in.x + r.in.v))
+    r.status = DN_E_DIVERGED;
   if (out) {
     out->force = r.force;
     out->u = r.u;
