@@ -11,19 +11,47 @@ cd "$DN_ROOT"
 
 dn_log() { printf '[dampnet setup] %s\n' "$*" >&2; }
 
-# Debian packages: Eigen (optional dense kernel) and Chromium (report check).
+# Debian packages: Eigen (optional dense kernel), Chromium (report check), clang and
+# its libFuzzer runtime (the fuzz harnesses of fuzz/, run by tests/python/test_fuzz_smoke.py).
+dn_apt_install() {  # dn_apt_install PKG... : install quietly when root; 1 when it could not
+  if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+    dn_log "installing Debian packages: $*"
+    if [ -z "${dn_apt_updated:-}" ]; then
+      apt-get update -qq >/dev/null 2>&1 || true
+      dn_apt_updated=1
+    fi
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "$@" >/dev/null 2>&1 && return 0
+    dn_log "warning: could not install $*; features that need them are skipped with a reason"
+  else
+    dn_log "warning: missing $* and not root; features that need them are skipped with a reason"
+  fi
+  return 1
+}
+# The libFuzzer runtime of the installed clang (the Debian package libclang-rt-N-dev).
+dn_libfuzzer() {
+  command -v clang++ >/dev/null 2>&1 || return 1
+  [ -f "$(clang++ -print-resource-dir 2>/dev/null)/lib/linux/libclang_rt.fuzzer-x86_64.a" ] \
+    || [ -f "$(clang++ -print-file-name=libclang_rt.fuzzer-x86_64.a 2>/dev/null)" ]
+}
 need_apt=()
 [ -f /usr/include/eigen3/Eigen/Core ] || need_apt+=(libeigen3-dev)
 command -v chromium >/dev/null 2>&1 || need_apt+=(chromium)
+command -v clang++ >/dev/null 2>&1 || need_apt+=(clang)
 if ((${#need_apt[@]})); then
-  if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
-    dn_log "installing Debian packages: ${need_apt[*]}"
-    apt-get update -qq >/dev/null 2>&1 || true
-    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${need_apt[@]}" >/dev/null 2>&1 \
-      || dn_log "warning: could not install ${need_apt[*]}; features that need them are skipped with a reason"
-  else
-    dn_log "warning: missing ${need_apt[*]} and not root; features that need them are skipped with a reason"
-  fi
+  dn_apt_install "${need_apt[@]}" || true
+fi
+# The test of the fuzz harnesses fails without libFuzzer unless this marker says why
+# it could not be installed here (removed again once it is).
+dn_fuzz_marker=build/libfuzzer-unavailable.txt
+if ! dn_libfuzzer && command -v clang++ >/dev/null 2>&1; then
+  clang_major="$(clang++ -dumpversion 2>/dev/null | cut -d. -f1)"
+  dn_apt_install "libclang-rt-${clang_major}-dev" || true
+fi
+if dn_libfuzzer; then
+  rm -f "$dn_fuzz_marker"
+else
+  mkdir -p build
+  echo "python/env.sh could not install clang and its libFuzzer runtime (libclang-rt-N-dev): not root, no apt-get, or the install failed" >"$dn_fuzz_marker"
 fi
 
 PY="${PYTHON:-python3}"
