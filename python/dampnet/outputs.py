@@ -134,6 +134,21 @@ def check_output_file(path: str | os.PathLike, inputs: Iterable[str | os.PathLik
     return p
 
 
+def check_report_dir(out: str | os.PathLike, inputs: Iterable[str | os.PathLike] = ()) -> Path:
+    """`out` as a Path if a report (index.html, pictures, JSON) may be written into it.
+
+    Checked before the work that fills it, so a bad --report fails at once: refused if it
+    exists and is not a directory, is an input or contains one, or is `.` or a parent of
+    the working directory. Existing files of the same names in it are replaced (each one
+    atomically, via `staged_files`); other files in it are left alone.
+    """
+    out = Path(out)
+    if os.path.lexists(out) and (out.is_symlink() or not out.is_dir()):
+        raise OutputError(f"{out}: exists and is not a directory: expected a directory for the report")
+    check_not_input(out, inputs, "report directory")
+    return out
+
+
 def check_run_dir(out: str | os.PathLike, files: Iterable[str], marker: str, schema: str,
                   inputs: Iterable[str | os.PathLike] = (), force: bool = False) -> Path:
     """For commands that write named `files` into a directory that may hold other things

@@ -162,8 +162,6 @@ def test_evaluate_json_that_runs_out_of_space_keeps_the_previous_report(tiny, ol
                         "--json", str(old / "report.json"), "--force"], old, ["report.json"])
 
 
-@pytest.mark.xfail(strict=True, reason="diagnose --json writes with Path.write_text (truncates the "
-                   "previous file, then fails half-way); h14-files makes it atomic: remove when merged")
 def test_diagnose_json_that_runs_out_of_space_keeps_the_previous_diagnosis(tiny, old):
     _, _, _, src = tiny
     (old / "diagnosis.json").write_text(json.dumps({"previous": True}) + "\n")

@@ -87,24 +87,22 @@ def test_diagnose_bad_input_is_one_line(files, capsys, model, data, fragment):
     one_line_error(capsys, ["diagnose", str(files / model), str(files / data), *SUR], fragment)
 
 
-@pytest.mark.xfail(strict=True, reason="diagnose --surrogates -1 / 0: numpy's 'negative dimensions "
-                   "are not allowed' / 'zero-size array ...' reach the user, naming no option")
-def test_diagnose_negative_surrogates_is_one_line_naming_the_option(files, capsys):
-    one_line_error(capsys, ["diagnose", str(files / "model_a"), str(files / "data"), "--surrogates", "-1"],
-                   "surrogates")
+@pytest.mark.parametrize("count", ["-1", "0"])
+def test_diagnose_nonpositive_surrogates_is_one_line_naming_the_option(files, capsys, count):
+    # numpy's 'negative dimensions are not allowed' reached the user, naming no option
+    one_line_error(capsys, ["diagnose", str(files / "model_a"), str(files / "data"), "--surrogates", count],
+                   "--surrogates", count)
 
 
-@pytest.mark.xfail(strict=True, reason="diagnose --json writes with Path.write_text outside the "
-                   "command's error handling (FileNotFoundError traceback); h14-files makes it an "
-                   "atomic write with a one-line error: remove this mark when merged")
-def test_diagnose_json_into_a_missing_directory_is_one_line(files, capsys):
-    one_line_error(capsys, ["diagnose", str(files / "model_a"), str(files / "data"), *SUR,
-                            "--json", str(files / "no_such_dir" / "d.json")], "no_such_dir")
+def test_diagnose_json_into_a_missing_directory_creates_it(files, capsys):
+    # was a FileNotFoundError traceback after the whole diagnosis had run
+    out = files / "no_such_dir_d" / "d.json"
+    assert main(["diagnose", str(files / "model_a"), str(files / "data"), *SUR, "--json", str(out)]) == 0
+    assert json.loads(out.read_text())["candidates"]
 
 
-@pytest.mark.xfail(strict=True, reason="diagnose --report onto an existing file: FileExistsError "
-                   "traceback from write_report's mkdir (commands' output handling)")
 def test_diagnose_report_onto_a_file_is_one_line(files, capsys):
+    # was a FileExistsError traceback from the report's mkdir, after the whole diagnosis
     one_line_error(capsys, ["diagnose", str(files / "model_a"), str(files / "data"), *SUR,
                             "--report", str(files / "a_file")], "a_file")
     assert (files / "a_file").read_text() == "not a directory\n"
@@ -140,12 +138,25 @@ def test_compare_bad_input_is_one_line(files, capsys, a, b, data, fragment):
     one_line_error(capsys, ["compare", str(files / a), str(files / b), str(files / data)], fragment)
 
 
-@pytest.mark.xfail(strict=True, reason="compare --json writes with Path.write_text outside the "
-                   "command's error handling (FileNotFoundError traceback); h14-files makes it an "
-                   "atomic write with a one-line error: remove this mark when merged")
-def test_compare_json_into_a_missing_directory_is_one_line(files, capsys):
+def test_compare_json_into_a_missing_directory_creates_it(files, capsys):
+    out = files / "no_such_dir_c" / "c.json"
+    assert main(["compare", str(files / "model_a"), str(files / "model_b"), str(files / "data"),
+                 "--json", str(out)]) == 0
+    assert json.loads(out.read_text())["overall"]["nrmse_change_pct"] is not None
+
+
+def test_compare_report_onto_a_file_is_one_line(files, capsys):
     one_line_error(capsys, ["compare", str(files / "model_a"), str(files / "model_b"), str(files / "data"),
-                            "--json", str(files / "no_such_dir" / "c.json")], "no_such_dir")
+                            "--report", str(files / "a_file")], "a_file", "not a directory")
+    assert (files / "a_file").read_text() == "not a directory\n"
+
+
+@pytest.mark.parametrize("command", ["diagnose", "compare"])
+def test_report_into_an_input_is_refused(files, capsys, command):
+    models = [str(files / "model_a")] + ([str(files / "model_b")] if command == "compare" else [])
+    one_line_error(capsys, [command, *models, str(files / "data"), *(SUR if command == "diagnose" else []),
+                            "--report", str(files / "model_a")], "model_a", "input")
+    assert not (files / "model_a" / "index.html").exists()
 
 
 # -- info -------------------------------------------------------------------------------

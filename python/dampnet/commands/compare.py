@@ -50,11 +50,13 @@ def run(args) -> int:
     from dampnet.data import DataError
     from dampnet.model import MlpModel, ModelError
 
-    from dampnet.outputs import check_output_file
+    from dampnet.outputs import check_output_file, check_report_dir
 
     try:
         if args.json:
             check_output_file(args.json, [args.model_a, args.model_b, args.data])
+        if args.report:
+            check_report_dir(args.report, [args.model_a, args.model_b, args.data])
         a, b = MlpModel.load(args.model_a), MlpModel.load(args.model_b)
         ds = load_data(args.data)
         if args.holdout:
@@ -88,25 +90,38 @@ def run(args) -> int:
     if args.report:
         from pathlib import Path
 
-        from dampnet.diagnose.context import build_context
-        from dampnet.diagnose.report import figures
-        from dampnet.diagnose.run import diagnose
+        from dampnet.outputs import staged_files
 
-        out = Path(args.report)
-        parts = []
-        for tag, m in (("a_", a), ("b_", b)):
-            ctx = build_context(m, ds)
-            d = diagnose(m, ds, ctx=ctx, n_surrogates=19)
-            figs = figures(ctx, d, out, tag)
-            parts.append((tag, d, figs))
-        rows = "".join(f"<tr><td>{r['frequency_hz']}</td><td>{r['nrmse_a']:.5f}</td><td>{r['nrmse_b']:.5f}</td></tr>"
-                       for r in c["per_frequency"])
-        cols = "".join(f"<td valign=top><h3>{'before (A)' if t == 'a_' else 'after (B)'}: verdict "
-                       f"{d['verdict']}</h3>" + "".join(f"<img src='{f}' width=480><p>{cap}</p>" for f, cap in figs)
-                       + "</td>" for t, d, figs in parts)
-        (out / "index.html").write_text(
-            f"<!doctype html><html><body><h1>dampnet compare</h1><p>NRMSE A {o['a']['nrmse']:.5f}, "
-            f"B {o['b']['nrmse']:.5f} ({o['nrmse_change_pct']:+.1f} %)</p><table border=1><tr><th>f [Hz]</th>"
-            f"<th>NRMSE A</th><th>NRMSE B</th></tr>{rows}</table><table><tr>{cols}</tr></table></body></html>")
-        print(f"report: {out / 'index.html'}")
+        try:
+            with staged_files(args.report) as tmp:
+                write_report(a, b, ds, c, tmp)
+        except OSError as e:
+            print(f"dampnet: error: {args.report}: cannot write the report ({e.strerror or e})", file=sys.stderr)
+            return 2
+        print(f"report: {Path(args.report) / 'index.html'}")
     return 0
+
+
+def write_report(a, b, ds, c: dict, out) -> None:
+    """index.html with the per-frequency table and both models' diagnosis pictures, into `out`."""
+    from dampnet.diagnose.context import build_context
+    from dampnet.diagnose.report import figures
+    from dampnet.diagnose.run import diagnose
+
+    o = c["overall"]
+    parts = []
+    for tag, m in (("a_", a), ("b_", b)):
+        ctx = build_context(m, ds)
+        d = diagnose(m, ds, ctx=ctx, n_surrogates=19)
+        figs = figures(ctx, d, out, tag)
+        parts.append((tag, d, figs))
+    rows = "".join(f"<tr><td>{r['frequency_hz']}</td><td>{r['nrmse_a']:.5f}</td><td>{r['nrmse_b']:.5f}</td></tr>"
+                   for r in c["per_frequency"])
+    cols = "".join(f"<td valign=top><h3>{'before (A)' if t == 'a_' else 'after (B)'}: verdict "
+                   f"{d['verdict']}</h3>" + "".join(f"<img src='{f}' width=480><p>{cap}</p>" for f, cap in figs)
+                   + "</td>" for t, d, figs in parts)
+    (out / "index.html").write_text(
+        f"<!doctype html><html><body><h1>dampnet compare</h1><p>NRMSE A {o['a']['nrmse']:.5f}, "
+        f"B {o['b']['nrmse']:.5f} ({o['nrmse_change_pct']:+.1f} %)</p><table border=1><tr><th>f [Hz]</th>"
+        f"<th>NRMSE A</th><th>NRMSE B</th></tr>{rows}</table><table><tr>{cols}</tr></table></body></html>")
+

@@ -62,11 +62,15 @@ def run(args) -> int:
     from dampnet.diagnose.run import diagnose
     from dampnet.model import MlpModel, ModelError
 
-    from dampnet.outputs import check_output_file
+    from dampnet.outputs import check_output_file, check_report_dir
 
     try:
+        if args.surrogates < 1:
+            raise ValueError(f"--surrogates: expected a positive count of null surrogates, got {args.surrogates}")
         if args.json and args.json != "-":
             check_output_file(args.json, [args.model, args.data])
+        if args.report:
+            check_report_dir(args.report, [args.model, args.data])
         model = MlpModel.load(args.model)
         ds = load_data(args.data)
         ctx = build_context(model, ds)
@@ -88,7 +92,16 @@ def run(args) -> int:
                 print(f"dampnet: error: {args.json}: cannot write ({e.strerror or e})", file=sys.stderr)
                 return 2
     if args.report:
-        from dampnet.diagnose.report import write_report
+        from pathlib import Path
 
-        print(f"report: {write_report(ctx, d, args.report)}")
+        from dampnet.diagnose.report import write_report
+        from dampnet.outputs import staged_files
+
+        try:
+            with staged_files(args.report) as tmp:
+                write_report(ctx, d, tmp)
+        except OSError as e:
+            print(f"dampnet: error: {args.report}: cannot write the report ({e.strerror or e})", file=sys.stderr)
+            return 2
+        print(f"report: {Path(args.report) / 'index.html'}")
     return 0
