@@ -348,9 +348,10 @@ def _loops(model: MlpModel):
     from dampnet import _core
     from dampnet.loop import damper_from_model
 
-    ctrl = {"kind": "skyhook_onoff"}
-    # the HIL configuration of dampnet.benchmark.BUDGET_CASE: damper once per step, linearised a
-    hil = {"damper_eval": "per_step", "accel_feature": "linear"}
+    from dampnet.benchmark import HIL_CONTROLLER, HIL_VEHICLE
+
+    ctrl = HIL_CONTROLLER
+    hil = HIL_VEHICLE  # the configuration of dampnet.benchmark.BUDGET_CASE
     return {"linear": _core.LoopModel(_core.Damper.linear(1500.0), {}, ctrl),
             "neural_float": _core.LoopModel(damper_from_model(model, single=True), {}, ctrl),
             "neural_double": _core.LoopModel(damper_from_model(model, single=False), {}, ctrl),

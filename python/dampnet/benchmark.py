@@ -159,6 +159,11 @@ def quick_latency(out_dir: str | Path, n_calls: int = 200_000, budget_ns: float 
 HIL_FORCE_MARGIN = 0.25
 HIL_VEHICLE = {"damper_eval": "per_step", "accel_feature": "linear", "integrator": "rk4"}
 HIL_CONTROLLER = {"kind": "skyhook_onoff"}
+#: every loop configuration the C++ harness times (bench/bench_mlp.cpp: RK4, neural float
+#: damper, on-off skyhook), each checked on the hard inputs too: a timed configuration
+#: must also be shown to give plausible forces
+TIMED_LOOP_CONFIGS = {f"{acc}_{ev}": {"damper_eval": ev, "accel_feature": acc, "integrator": "rk4"}
+                      for acc in ("implicit", "linear", "explicit") for ev in ("per_stage", "per_step")}
 
 
 def hard_inputs(dt: float = 1e-3) -> dict:
@@ -183,20 +188,23 @@ def hard_inputs(dt: float = 1e-3) -> dict:
     return out
 
 
-def hil_hard_input_check(model=None, margin: float = HIL_FORCE_MARGIN, dt: float = 1e-3) -> dict:
-    """Run the HIL configuration on hard_inputs(); per input the peak force, the steps that
-    fell back from the linearised acceleration (DN_W_ACCEL_FALLBACK) and the verdict."""
+def hil_hard_input_check(model=None, margin: float = HIL_FORCE_MARGIN, dt: float = 1e-3,
+                         vehicle: dict | None = None) -> dict:
+    """Run the HIL configuration (or `vehicle`'s) on hard_inputs(); per input the peak force,
+    the steps that fell back from the linearised acceleration (DN_W_ACCEL_FALLBACK) and the
+    verdict."""
     from dampnet import _core
     from dampnet.bench_python import default_model
     from dampnet.loop import QuarterCar, damper_from_model
 
     model = model or default_model()
+    vehicle = HIL_VEHICLE if vehicle is None else vehicle
     lo = model.out_offset
     hi = model.out_offset + (1.0 - model.out_ymin) / model.out_gain
     tol = margin * (hi - lo)
     rows, failures = {}, []
     for name, (z, zd) in hard_inputs(dt).items():
-        car = QuarterCar(damper_from_model(model, single=True), dict(HIL_VEHICLE, dt=dt),
+        car = QuarterCar(damper_from_model(model, single=True), dict(vehicle, dt=dt),
                          HIL_CONTROLLER)
         row = {"steps": int(z.size)}
         try:
@@ -217,5 +225,13 @@ def hil_hard_input_check(model=None, margin: float = HIL_FORCE_MARGIN, dt: float
         if not row["ok"]:
             failures.append(f"{name}: {row['why']}")
     return {"force_range_n": [lo, hi], "margin": margin, "bounds_n": [lo - tol, hi + tol],
-            "vehicle": dict(HIL_VEHICLE, dt=dt), "controller": HIL_CONTROLLER, "inputs": rows,
+            "vehicle": dict(vehicle, dt=dt), "controller": HIL_CONTROLLER, "inputs": rows,
             "passed": not failures, "failures": failures}
+
+
+def timed_configs_hard_input_check(model=None, margin: float = HIL_FORCE_MARGIN, dt: float = 1e-3) -> dict:
+    """hil_hard_input_check for each of TIMED_LOOP_CONFIGS: name -> its result."""
+    from dampnet.bench_python import default_model
+
+    model = model or default_model()
+    return {name: hil_hard_input_check(model, margin, dt, vehicle=cfg) for name, cfg in TIMED_LOOP_CONFIGS.items()}

@@ -98,11 +98,20 @@ def test_hard_input_check_catches_force_spikes_and_divergence():
     res = bm.hil_hard_input_check(spiky)
     assert not res["passed"] and any("outside" in f for f in res["failures"])
 
-    old = dict(bm.HIL_VEHICLE)
-    try:
-        bm.HIL_VEHICLE.update(k_t=2e7)
-        res = bm.hil_hard_input_check(dt=0.02)
-    finally:
-        bm.HIL_VEHICLE.clear()
-        bm.HIL_VEHICLE.update(old)
+    res = bm.hil_hard_input_check(dt=0.02, vehicle=dict(bm.HIL_VEHICLE, k_t=2e7))
     assert not res["passed"] and any("DN_E_DIVERGED" in f for f in res["failures"])
+
+
+def test_every_timed_loop_configuration_is_checked_on_the_hard_inputs():
+    """Each configuration the latency harness times (implicit, linear, explicit acceleration;
+    damper per stage or per step) runs the hard inputs: the shipped model passes in all six,
+    and the 12x-swing model is caught in all six."""
+    import dampnet.benchmark as bm
+    from dampnet.bench_python import default_model
+
+    timed = bm.timed_configs_hard_input_check()
+    assert len(timed) == 6 and all(r["passed"] for r in timed.values()), timed
+    assert {r["vehicle"]["accel_feature"] for r in timed.values()} == {"implicit", "linear", "explicit"}
+    spiky = default_model()
+    spiky.w_out = spiky.w_out * 12.0
+    assert not any(r["passed"] for r in bm.timed_configs_hard_input_check(spiky).values())

@@ -35,7 +35,6 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
-#include <limits>
 #include <type_traits>
 
 #if defined(__SSE__)
@@ -550,8 +549,6 @@ inline int load(P& p, const dn_mlp_desc* d) noexcept {
   if (h2 > 0 && (!all_finite(d->w2, h2 * h1) || !all_finite(d->b2, h2)))
     return DN_E_NONFINITE_PARAM;
   if (d->out_gain == 0.0) return DN_E_PARAM;
-  // The output offset is what a non-finite output is replaced by: it must be finite in T.
-  if (!(std::fabs(d->out_offset) <= double(std::numeric_limits<T>::max()))) return DN_E_PARAM;
   for (int i = 0; i < ni; ++i)
     if (!(d->sat_lo[i] <= d->sat_hi[i])) return DN_E_PARAM;
 

@@ -37,7 +37,8 @@ def add_parser(subparsers):
 
 def run(args) -> int:
     from dampnet import bench_python
-    from dampnet.benchmark import HIL_FORCE_MARGIN, hil_hard_input_check, quick_latency
+    from dampnet.benchmark import (HIL_FORCE_MARGIN, hil_hard_input_check, quick_latency,
+                                   timed_configs_hard_input_check)
 
     n = args.calls or (200_000 if args.quick else 1_000_000)
     n_py = args.py_calls or max(1000, n // 10)  # Python calls are ~10-400x slower than C++ ones
@@ -52,9 +53,11 @@ def run(args) -> int:
         return 2
     try:
         hard = hil_hard_input_check(margin=margin)
+        timed = timed_configs_hard_input_check(margin=margin)
         with tempfile.TemporaryDirectory() as tmp:
             res = quick_latency(Path(tmp), n_calls=n, budget_ns=args.budget_ns)
         res["hard_inputs"] = hard
+        res["hard_inputs_timed_configs"] = timed
         if not args.cpp_only:
             res["python"] = bench_python.python_benchmarks(n_py, n_sim, repeats=3 if args.quick else 5)
             kernel = res["results"].get(bench_python.KERNEL_CASE, {}).get("p50_ns")
@@ -107,11 +110,16 @@ def run(args) -> int:
         detail = (f"force {r['f_min']:.0f}..{r['f_max']:.0f} N, linearised step fell back in "
                   f"{r['fallback_steps']} of {r['steps']} steps" if "f_min" in r else "")
         print(f"  {name}: {'ok' if r['ok'] else 'FAILED: ' + r['why']}{'; ' + detail if detail and r['ok'] else ''}")
+    timed_failures = [f"{cfg}: {f}" for cfg, r in timed.items() for f in r["failures"]]
+    print("the same hard inputs through every configuration the harness times (accel_feature_damper_eval): "
+          + ", ".join(f"{cfg} {'ok' if r['passed'] else 'FAILED'}" for cfg, r in timed.items()))
     if args.json:
         Path(args.json).write_text(json.dumps(res, indent=1))
-    go = h["within_budget"] and hard["passed"]
+    go = h["within_budget"] and hard["passed"] and not timed_failures
     if not h["within_budget"]:
         print(f"NO-GO: the HIL step's p99.9 {h['p999_ns']:.0f} ns exceeds the budget {b['p999_budget_ns']:.0f} ns")
     if not hard["passed"]:
         print("NO-GO: the hard-input check failed: " + "; ".join(hard["failures"]))
+    if timed_failures:
+        print("NO-GO: a timed configuration failed the hard-input check: " + "; ".join(timed_failures))
     return 0 if go else 1
