@@ -249,7 +249,7 @@ int main(int argc, char** argv) {
                "window,step_end,t_end_s,p50_ns,p99_ns,p999_ns,max_ns,mean_ns,rss_kb,energy_J,"
                "road_work_J,damper_work_J,residual_J,residual_window_J,max_abs_z_s_m,max_abs_z_us_m,"
                "max_abs_v_s_m_s,max_abs_force_N,max_abs_z_r_m,rms_z_r_m,n_errors,n_saturated,"
-               "n_unconverged,n_spikes\n");
+               "n_unconverged,n_fallback,n_spikes\n");
 
   // TSC frequency: calibrated against steady_clock over the whole run (printed), and a
   // first estimate over 200 ms for the windows' figures.
@@ -268,10 +268,10 @@ int main(int argc, char** argv) {
   Histogram hist, total_hist;
   double w_road = 0, w_damper = 0, resid_prev = 0;
   double max_res = 0;
-  long long n_err = 0, n_sat = 0, n_unconv = 0, n_spike = 0;
+  long long n_err = 0, n_sat = 0, n_unconv = 0, n_fallback = 0, n_spike = 0;
   double mx_zs = 0, mx_zus = 0, mx_vs = 0, mx_f = 0, mx_zr = 0, sum_zr2 = 0;
   double all_mx_zs = 0, all_mx_zus = 0, all_mx_vs = 0, all_mx_f = 0, all_mx_zr = 0;
-  long long all_err = 0, all_sat = 0, all_unconv = 0, all_spike = 0;
+  long long all_err = 0, all_sat = 0, all_unconv = 0, all_fallback = 0, all_spike = 0;
   long rss_max = 0, rss_first_window = 0;
   double worst_p999 = 0, best_p999 = 1e300;
   double s1[DN_LOOP_STATE_SIZE];
@@ -298,6 +298,7 @@ int main(int argc, char** argv) {
     }
     if (st & DN_W_SATURATED) ++n_sat;
     if (st & DN_W_ACCEL_UNCONVERGED) ++n_unconv;
+    if (st & DN_W_ACCEL_FALLBACK) ++n_fallback;  // the linearised step kept the explicit value
     dn_loop_get_state(ld, s1);
     // Energy flows over the step [J].
     w_road += road_work(s, s1);
@@ -333,10 +334,10 @@ int main(int argc, char** argv) {
       worst_p999 = std::max(worst_p999, p999);
       best_p999 = std::min(best_p999, p999);
       max_res = std::max(max_res, std::fabs(resid));
-      std::fprintf(csv, "%d,%lld,%.3f,%.1f,%.1f,%.1f,%.1f,%.2f,%ld,%.6e,%.6e,%.6e,%.6e,%.6e,%.6e,%.6e,%.6e,%.6e,%.6e,%.6e,%lld,%lld,%lld,%lld\n",
+      std::fprintf(csv, "%d,%lld,%.3f,%.1f,%.1f,%.1f,%.1f,%.2f,%ld,%.6e,%.6e,%.6e,%.6e,%.6e,%.6e,%.6e,%.6e,%.6e,%.6e,%.6e,%lld,%lld,%lld,%lld,%lld\n",
                    win, k, s[0], p50, p99, p999, mx, mean, rss, e, w_road, w_damper, resid,
                    resid - resid_prev, mx_zs, mx_zus, mx_vs, mx_f, mx_zr,
-                   std::sqrt(sum_zr2 / double(hist.n)), n_err, n_sat, n_unconv, n_spike);
+                   std::sqrt(sum_zr2 / double(hist.n)), n_err, n_sat, n_unconv, n_fallback, n_spike);
       std::fflush(csv);
       std::fprintf(stderr, "window %d: %lld steps, p50 %.0f p99 %.0f p99.9 %.0f max %.0f ns, RSS %ld kB, residual %.3e J\n",
                    win, k, p50, p99, p999, mx, rss, resid);
@@ -349,6 +350,7 @@ int main(int argc, char** argv) {
       all_err += n_err;
       all_sat += n_sat;
       all_unconv += n_unconv;
+      all_fallback += n_fallback;
       all_spike += n_spike;
       for (size_t b = 0; b < hist.bins.size(); ++b) total_hist.bins[b] += hist.bins[b];
       total_hist.n += hist.n;
@@ -356,7 +358,7 @@ int main(int argc, char** argv) {
       total_hist.max = std::max(total_hist.max, hist.max);
       hist.clear();
       mx_zs = mx_zus = mx_vs = mx_f = mx_zr = sum_zr2 = 0;
-      n_err = n_sat = n_unconv = n_spike = 0;
+      n_err = n_sat = n_unconv = n_fallback = n_spike = 0;
       ++win;
     }
   }
@@ -381,7 +383,7 @@ int main(int argc, char** argv) {
               "energy_start_J = %.6e\nenergy_end_J = %.6e\nroad_work_J = %.6e\ndamper_work_J = %.6e\n"
               "residual_J = %.6e\nresidual_relative_to_damper_work = %.3e\nmax_abs_residual_J = %.6e\n"
               "rss_start_kb = %ld\nrss_first_window_kb = %ld\nrss_end_kb = %ld\nrss_max_kb = %ld\n"
-              "errors = %lld\nsaturated_steps = %lld\nunconverged_steps = %lld\nforce_spikes = %lld\n"
+              "errors = %lld\nsaturated_steps = %lld\nunconverged_steps = %lld\nfallback_steps = %lld\nforce_spikes = %lld\n"
               "loadavg_start = %s\nloadavg_end = %s\n"
               "checks: errors %s, bounded state %s, no force spike %s, energy residual %s, RSS flat %s\n",
               k, win, window, s[0], wall_s, wall_s * 1e9 / double(k), ghz_run, ghz,
@@ -390,7 +392,7 @@ int main(int argc, char** argv) {
               total_hist.quantile(0.999) / ghz, double(total_hist.max) / ghz, best_p999, worst_p999,
               all_mx_zs, all_mx_zus, all_mx_vs, all_mx_f, f_lo, f_hi, e0, e_end, w_road, w_damper,
               resid, resid / w_damper, max_res, rss_start, rss_first_window, rss_end, rss_max, all_err,
-              all_sat, all_unconv, all_spike, load_start.c_str(), loadavg().c_str(), ok_err ? "ok" : "FAILED", ok_state ? "ok" : "FAILED",
+              all_sat, all_unconv, all_fallback, all_spike, load_start.c_str(), loadavg().c_str(), ok_err ? "ok" : "FAILED", ok_state ? "ok" : "FAILED",
               ok_spike ? "ok" : "FAILED", ok_energy ? "ok" : "FAILED", ok_rss ? "ok" : "FAILED");
   dn_loop_data_destroy(ld);
   dn_loop_model_destroy(lm);
