@@ -12,6 +12,7 @@
 #include <iterator>
 #include <limits>
 #include <map>
+#include <tuple>
 #include <type_traits>
 #include <utility>
 
@@ -99,9 +100,14 @@ class PyMlp {
     expect(w_out, n_last, "w_out");
     expect(b_out, 1, "b_out");
     for (auto* a : {&in_offset, &in_gain, &sat_lo, &sat_hi}) expect(*a, d.n_inputs, "scaling/limits");
-    if (activation == "tanh") d.activation = DN_ACT_TANH;
-    else if (activation == "sigmoid") d.activation = DN_ACT_SIGMOID;
-    else throw py::value_error("activation must be 'tanh' or 'sigmoid', got '" + activation + "'");
+    d.activation = -1;
+    std::string valid;
+    for (const auto& a : dnpy::kActivations) {
+      if (activation == a.name) d.activation = a.value;
+      valid += std::string(valid.empty() ? "'" : " or '") + a.name + "'";
+    }
+    if (d.activation < 0)
+      throw py::value_error("activation must be " + valid + ", got '" + activation + "'");
     d.w1 = w1.data();
     d.b1 = b1.data();
     d.w_out = w_out.data();
@@ -213,6 +219,65 @@ py::dict field_docs_controller() {
   return d;
 }
 
+// The runtime's registries (dampnet.h's X-macro lists) as module attributes, so Python
+// reads every name from here instead of retyping it.
+void add_registries(py::module_& mod) {
+  // enum lists: {name: (value, doc)} in value order
+  auto enum_dict = [](std::initializer_list<std::tuple<int, const char*, const char*>> rows) {
+    py::dict d;
+    for (const auto& [value, name, doc] : rows) d[name] = py::make_tuple(value, doc);
+    return d;
+  };
+#define DNPY_ENUM_ROW_(id, value, name, doc) {int(value), name, doc},
+  mod.attr("CONTROLLER_KINDS") = enum_dict({DN_CONTROLLER_KIND_LIST(DNPY_ENUM_ROW_)});
+  mod.attr("INTEGRATORS") = enum_dict({DN_INTEGRATOR_LIST(DNPY_ENUM_ROW_)});
+  mod.attr("DAMPER_EVALS") = enum_dict({DN_DAMPER_EVAL_LIST(DNPY_ENUM_ROW_)});
+  mod.attr("ACCEL_FEATURES") = enum_dict({DN_ACCEL_FEATURE_LIST(DNPY_ENUM_ROW_)});
+  mod.attr("ACTIVATIONS") = enum_dict({DN_ACTIVATION_LIST(DNPY_ENUM_ROW_)});
+  mod.attr("DAMPER_KINDS") = enum_dict({DN_DAMPER_KIND_LIST(DNPY_ENUM_ROW_)});
+  mod.attr("PRECISIONS") = enum_dict({DN_PRECISION_LIST(DNPY_ENUM_ROW_)});
+#undef DNPY_ENUM_ROW_
+
+  // features: the damper-input field each reads, the feature parameter each needs
+  py::dict param_docs, inputs, params;
+  std::vector<const char*> param_names;
+#define DNPY_FPARAM_(id, name, doc) param_docs[name] = doc, param_names.push_back(name);
+  DN_FEATURE_PARAM_LIST(DNPY_FPARAM_)
+#undef DNPY_FPARAM_
+#define DNPY_FEATURE_(id, name, field, param)                                      \
+  inputs[name] = #field;                                                         \
+  params[name] = (param) == DN_FPARAM_NONE ? py::object(py::none())              \
+                                           : py::object(py::str(param_names[(param)]));
+  DN_FEATURE_LIST(DNPY_FEATURE_)
+#undef DNPY_FEATURE_
+  mod.attr("FEATURE_INPUTS") = inputs;
+  mod.attr("FEATURE_PARAMS") = params;
+  mod.attr("FEATURE_PARAM_NAMES") = param_docs;
+
+  py::dict damper_input;
+#define DNPY_INPUT_(type, name, role, doc) damper_input[#name] = doc;
+  DN_DAMPER_INPUT_FIELDS(DNPY_INPUT_)
+#undef DNPY_INPUT_
+  mod.attr("DAMPER_INPUT_FIELDS") = damper_input;
+
+  // the step report's keys (Loop.step): dn_loop_out's quantities, then the rest
+  py::dict step_out;
+#define DNPY_OUT_(name, doc) step_out[#name] = doc;
+  DN_LOOP_OUT_LIST(DNPY_OUT_)
+#undef DNPY_OUT_
+  step_out["features"] = "a neural damper's inputs before saturation, in its features' order [feature units]; empty for other dampers";
+  step_out["clamped_mask"] = "neural: bit i set when input i was clamped or replaced [-]";
+  step_out["status"] = "the step's status: DN_OK, or an OR of DN_W_* warnings [-]";
+  mod.attr("STEP_OUTPUT_FIELDS") = step_out;
+
+  // every enum field of a vehicle or controller has its name table (checked at import)
+#define DNPY_ENUM_TABLE_(type, name, def, doc) \
+  if (std::is_same<type, int>::value) dnpy::enum_field(#name);
+  DN_VEHICLE_FIELDS(DNPY_ENUM_TABLE_)
+  DN_CONTROLLER_FIELDS(DNPY_ENUM_TABLE_)
+#undef DNPY_ENUM_TABLE_
+}
+
 // A damper owned by Python. A callback damper keeps its Python function here.
 class PyDamper {
  public:
@@ -282,7 +347,7 @@ class PyDamper {
       std::string msg = "Damper.neural: unknown feature or feature parameter name in [";
       for (const auto& f : feats) msg += f + " ";
       msg += "] / feature_params; known features:";
-#define DN_FNAME_(id, name, field) msg += std::string(" ") + name;
+#define DN_FNAME_(id, name, field, param) msg += std::string(" ") + name;
       DN_FEATURE_LIST(DN_FNAME_)
 #undef DN_FNAME_
       throw py::value_error(msg + " (" + dn_status_str(st) + ")");
@@ -443,54 +508,13 @@ class PyLoopModel {
 
   PyLoopModel(std::shared_ptr<PyDamper> d, py::dict vehicle, py::dict controller) : damper(d) {
     if (!damper) throw py::type_error("LoopModel: damper must be a Damper, not None");
-    dn_vehicle_default(&veh);
-    int kind = DN_CTRL_PASSIVE;
-    if (controller.contains("kind")) kind = dnpy::parse_enum(controller["kind"], "controller", "kind");
-    dn_controller_default(&ctrl, kind);  // the law's defaults, then the given fields
-    dnpy::set_vehicle_fields(veh, vehicle, "vehicle");
-    dnpy::set_controller_fields(ctrl, controller, "controller");
+    ctrl = dnpy::controller_from(controller);
+    veh = dnpy::vehicle_from(vehicle);
+    // the runtime's validation, naming the field (the same checks dn_loop_model_create makes)
+    dnpy::raise_if_invalid("LoopModel: ", vehicle, veh, controller, ctrl);
     dn_loop_model* r = nullptr;
-    const int st = dn_loop_model_create(&veh, damper->d.get(), &ctrl, &r);
-    if (st == DN_E_PARAM || st == DN_E_NONFINITE_PARAM)
-      throw py::value_error("LoopModel: " + culprit(vehicle, controller) + dn_status_str(st));
-    check(st, "LoopModel");
+    check(dn_loop_model_create(&veh, damper->d.get(), &ctrl, &r), "LoopModel");
     m.reset(r);
-  }
-
-  // The runtime says only that some parameter is out of range: name the first given field
-  // that, put back to its default, makes the model valid ("" if none alone does).
-  std::string culprit(const py::dict& vehicle, const py::dict& controller) const {
-    dn_vehicle vdef;
-    dn_vehicle_default(&vdef);
-    dn_controller cdef;
-    dn_controller_default(&cdef, ctrl.kind);
-    auto valid = [&](const dn_vehicle& v, const dn_controller& c) {
-      dn_loop_model* t = nullptr;
-      const int s = dn_loop_model_create(&v, damper->d.get(), &c, &t);
-      dn_loop_model_destroy(t);
-      return s >= 0;
-    };
-    auto named = [](const char* what, const char* name, double value, const char* doc) {
-      return std::string(what) + " '" + name + "' = " + py::str(py::float_(value)).cast<std::string>() +
-             " (" + doc + "): ";
-    };
-#define DN_TRY_VEHICLE_(type, name, def, doc)                              \
-  if (vehicle.contains(#name)) {                                           \
-    dn_vehicle trial = veh;                                                \
-    trial.name = vdef.name;                                                \
-    if (valid(trial, ctrl)) return named("vehicle", #name, veh.name, doc); \
-  }
-#define DN_TRY_CONTROLLER_(type, name, def, doc)                                                \
-  if (controller.contains(#name) && std::string(#name) != "kind") { /* kind sets the defaults */ \
-    dn_controller trial = ctrl;                                                                 \
-    trial.name = cdef.name;                                                                     \
-    if (valid(veh, trial)) return named("controller", #name, ctrl.name, doc);                   \
-  }
-    DN_VEHICLE_FIELDS(DN_TRY_VEHICLE_)
-    DN_CONTROLLER_FIELDS(DN_TRY_CONTROLLER_)
-#undef DN_TRY_VEHICLE_
-#undef DN_TRY_CONTROLLER_
-    return "";
   }
 
   // Vectorised control law (the controller alone), for tests.
@@ -896,7 +920,7 @@ PYBIND11_MODULE(_core, mod) {
 #undef DN_SNAME_
     mod.attr("STATE_NAMES") = py::tuple(names);
     py::list feats;
-#define DN_FNAME_(id, name, field) feats.append(name);
+#define DN_FNAME_(id, name, field, param) feats.append(name);
     DN_FEATURE_LIST(DN_FNAME_)
 #undef DN_FNAME_
     mod.attr("FEATURE_NAMES") = py::tuple(feats);
@@ -907,7 +931,24 @@ PYBIND11_MODULE(_core, mod) {
     mod.attr("TERM_KINDS") = terms;
     mod.attr("VEHICLE_FIELDS") = field_docs_vehicle();
     mod.attr("CONTROLLER_FIELDS") = field_docs_controller();
+    add_registries(mod);
   }
+  mod.def("check_vehicle", [](py::dict vehicle) {
+    const dn_vehicle v = dnpy::vehicle_from(vehicle);
+    dn_controller c;
+    dn_controller_default(&c, DN_CTRL_PASSIVE);
+    dnpy::raise_if_invalid("", vehicle, v, py::dict(), c);
+  }, py::arg("vehicle"),
+     "Validate a vehicle dict (VEHICLE_FIELDS) as LoopModel does: None, or ValueError / "
+     "TypeError naming the field and its valid range or names.");
+  mod.def("check_controller", [](py::dict controller) {
+    const dn_controller c = dnpy::controller_from(controller);
+    dn_vehicle v;
+    dn_vehicle_default(&v);
+    dnpy::raise_if_invalid("", py::dict(), v, controller, c);
+  }, py::arg("controller"),
+     "Validate a controller dict (CONTROLLER_FIELDS) as LoopModel does: None, or ValueError / "
+     "TypeError naming the field and its valid range or names.");
 
   py::class_<dn_damper_input>(mod, "DamperInput", "What a damper is evaluated on (dn_damper_input).")
       .def(py::init<>())
