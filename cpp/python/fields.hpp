@@ -182,6 +182,21 @@ inline void set_controller_fields(dn_controller& s, const py::dict& d, const cha
 #undef DNPY_SET_FIELD_
 #undef DNPY_FIELD_NAME_
 
+// struct -> dict (LoopModel.vehicle / .controller): every field by its X-macro name.
+inline py::dict vehicle_dict(const dn_vehicle& s) {
+  py::dict d;
+#define DNPY_GET_(type, name, def, doc) d[#name] = s.name;
+  DN_VEHICLE_FIELDS(DNPY_GET_)
+  return d;
+}
+
+inline py::dict controller_dict(const dn_controller& s) {
+  py::dict d;
+  DN_CONTROLLER_FIELDS(DNPY_GET_)
+#undef DNPY_GET_
+  return d;
+}
+
 // A vehicle / controller dict on the runtime's defaults (a controller on its kind's).
 inline dn_vehicle vehicle_from(const py::dict& d) {
   dn_vehicle v;
