@@ -102,8 +102,9 @@ def test_a_neural_damper_reads_the_listed_input_field(feature):
     field = _core.FEATURE_INPUTS[feature]
     param = _core.FEATURE_PARAMS[feature]
     d = _core.Damper.neural(tiny_mlp(1), [feature], {param: 0.01} if param else {})
-    # forces takes every quantity (QTY) field by name; give each a distinct value
-    quantities = ["x", "v", "a", "u", "u_lag", "temperature", "v_lag", "z_fric"]
+    # forces takes every quantity field by name (all but the loop's context t, dt, stage);
+    # give each a distinct value
+    quantities = [f for f in _core.DAMPER_INPUT_FIELDS if f not in ("t", "dt", "stage")]
     values = {q: 0.1 * (k + 1) for k, q in enumerate(quantities)}
     f, st, _ = d.forces(**{q: np.array([v]) for q, v in values.items()})
     assert st[0] == 0
