@@ -36,8 +36,8 @@ def main() -> None:
         print(f"rewrote {here}/dn_model_default.h from dn_model_default.json")
         return
     # the training pipeline, only when training
-    from dampnet.data.rig import generate
-    from dampnet.workflow import model_metrics, train_dataset
+    from dampnet.rig import generate
+    from dampnet.training.pipeline import model_metrics, train_dataset
 
     ds = generate("thesis", seed=0)
     model, info, split = train_dataset(ds, algorithm="lm", seed=0, decimate=25)

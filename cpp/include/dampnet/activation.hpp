@@ -60,7 +60,7 @@ inline float fast_tanh(float a) noexcept { return tanh_rational(clamp_tanh_arg(a
 // tanh(x) ~ x P(y) / Q(y), y = x^2, x clamped to +-kTanhClamp (tanh(8.125) = 1 - 1.8e-7),
 // P of degree 7 and Q(y) = y^2 + q1 y + q0 = y (y + q1) + q0, evaluated as one add and
 // one FMA: a shorter chain to the division than the 13/6 form's three FMAs. Fitted by
-// bench/fit_tanh_rational.py (linearised minimax over [0, kTanhClamp] with an allowance
+// bench/experiments/fit_tanh_rational.py (linearised minimax over [0, kTanhClamp] with an allowance
 // for float rounding; 2.1e-7 from tanh in exact arithmetic, clamp included). Used with
 // each neuron's output weight folded into P's coefficients by the MLP kernel (mlp.hpp,
 // tanh_folded). Measured worst error of the float evaluation: 3.1e-7 over every float in

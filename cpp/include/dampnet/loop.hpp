@@ -28,7 +28,7 @@
 //             z = sgn(dx) + (z0 - sgn(dx)) exp(-|dx| / x_c),
 //           with dx from the step start (a reversal inside one step counts only
 //           its net travel). Both match the training features of
-//           python/dampnet/train/derived.py as the sample time goes to 0.
+//           python/dampnet/training/derived.py as the sample time goes to 0.
 //
 // The acceleration feature: the relative acceleration a = a_s - a_us depends on
 // the damper force being computed: a = a_free - k (F(a) - f_static), with
