@@ -287,9 +287,9 @@ def lags_of(source: str) -> list[str]:
     return [f.name for f in FEATURES.values() if isinstance(f.state, Lag) and f.state.source == source]
 
 
-def derived_features(names: Sequence[str]) -> list[Feature]:
-    """The derived (stateful) features among `names`, in order."""
-    return [feature(n) for n in names if feature(n).state is not None]
+def with_state(kind: type) -> list[str]:
+    """The features whose state is of `kind` (e.g. Dahl -> friction_state), registry order."""
+    return [f.name for f in FEATURES.values() if isinstance(f.state, kind)]
 
 
 def target_vector(tests: Sequence[Any], channel: str = "force") -> np.ndarray:
