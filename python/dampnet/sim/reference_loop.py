@@ -113,7 +113,7 @@ class NeuralLoopDamper:
     STATE_SOURCES = ("x", "v", "u")
 
     def __init__(self, model, temperature_c: float = 20.0):
-        # derived states by field (voltage_lag and current_lag share the runtime's u_lag)
+        # derived states by dn_damper_input field (the control lags share the runtime's u_lag)
         self._states: dict[str, tuple[object, float]] = {}
         for name in model.features:
             try:
