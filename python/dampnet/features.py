@@ -195,12 +195,12 @@ class Feature:
     def column(self, test: DynoTest, feature_params: Mapping[str, float]) -> np.ndarray:
         """Its values [n_samples] on a test; KeyError naming the missing channel or
         DataError naming the missing parameter."""
-        if self.state is None:
+        if isinstance(self.source, str):
             return np.asarray(test.channels[self.source], dtype=np.float64).ravel()
-        if self.param not in feature_params:
+        if self.param is None or self.param not in feature_params:
             raise DataError(f"feature {self.name!r} needs feature_params[{self.param!r}] "
-                            f"({param_doc(self.param)})")
-        return np.asarray(self.state.column(test, float(feature_params[self.param])), dtype=np.float64).ravel()
+                            f"({param_doc(str(self.param))})")
+        return np.asarray(self.source.column(test, float(feature_params[self.param])), dtype=np.float64).ravel()
 
 
 #: What Python adds to each runtime feature: name -> (unit, test channel or state, value at rest).

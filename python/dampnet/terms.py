@@ -162,17 +162,18 @@ def fit_terms(terms: Sequence[dict[str, Any]], x: np.ndarray, v: np.ndarray, u: 
         return terms
     target = y - terms_force(fixed, x)
     base = _velocity_basis(v, u)
-    kinds = [KINDS[terms[i]["kind"]] if terms[i]["kind"] in KINDS else None for i in free]
-    if None in kinds:
-        bad = terms[free[kinds.index(None)]]["kind"]
-        raise ValueError(f"cannot fit physics term kind {bad!r} (fittable: {', '.join(sorted(KINDS))})")
-    best = None
+    unknown = [terms[i]["kind"] for i in free if terms[i]["kind"] not in KINDS]
+    if unknown:
+        raise ValueError(f"cannot fit physics term kind {unknown[0]!r} (fittable: {', '.join(sorted(KINDS))})")
+    kinds = [KINDS[terms[i]["kind"]] for i in free]
+    best: tuple[float, tuple, np.ndarray] | None = None
     for shapes in itertools.product(*[k.shapes(x) for k in kinds]):
         A = np.hstack([k.basis(x, s) for k, s in zip(kinds, shapes)] + [base])
         coef, *_ = np.linalg.lstsq(A, target, rcond=None)
         resid = float(np.sum((A @ coef - target) ** 2))
         if best is None or resid < best[0]:
             best = (resid, shapes, coef)
+    assert best is not None  # product() of non-empty grids yields at least once
     _, shapes, coef = best
     pos = 0
     for i, k, s in zip(free, kinds, shapes):

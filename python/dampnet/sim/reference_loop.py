@@ -114,7 +114,7 @@ class NeuralLoopDamper:
 
     def __init__(self, model, temperature_c: float = 20.0):
         # derived states by dn_damper_input field (the control lags share the runtime's u_lag)
-        self._states: dict[str, tuple[object, float]] = {}
+        self._states: dict[str, tuple[features.State, float]] = {}
         for name in model.features:
             try:
                 f = features.feature(name)
@@ -153,7 +153,7 @@ class NeuralLoopDamper:
         (dampnet.features.Lag.step, Dahl.step).
         """
         q = {"x": x, "v": v, "u": u}
-        if self._state is None:
+        if self._state is None or self._prev is None:
             self._state = {k: s.first(q) for k, (s, _) in self._states.items()}
         else:
             self._state = {k: s.step(self._state[k], self._prev, q, dt, p) for k, (s, p) in self._states.items()}
