@@ -292,6 +292,20 @@ def with_state(kind: type) -> list[str]:
     return [f.name for f in FEATURES.values() if isinstance(f.state, kind)]
 
 
+def check_runtime(names: Sequence[str], feature_params: Mapping[str, float] | None = None) -> None:
+    """ValueError naming the first feature or feature parameter the runtime does not know (one
+    registered only in Python, or unknown): the runtime reads its names from dampnet.h."""
+    for name in names:
+        if name not in _core.FEATURE_NAMES:
+            where = "is registered only in Python (dampnet.features)" if name in FEATURES else "is unknown"
+            raise ValueError(f"feature {name!r} {where}; the runtime knows {', '.join(_core.FEATURE_NAMES)} "
+                             "(a runtime feature needs its dampnet.h DN_FEATURE_LIST line)")
+    for key in feature_params or {}:
+        if key not in _core.FEATURE_PARAM_NAMES:
+            raise ValueError(f"feature_params[{key!r}]: not a runtime feature parameter; the runtime knows "
+                             f"{', '.join(_core.FEATURE_PARAM_NAMES)}")
+
+
 def target_vector(tests: Sequence[Any], channel: str = "force") -> np.ndarray:
     """Concatenate one channel (default the force [N]) of every test."""
     out = []

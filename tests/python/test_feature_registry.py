@@ -30,6 +30,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 def test_python_registry_is_the_runtimes():
     assert list(FEATURES) == list(_core.FEATURE_NAMES)
+    assert set(features._PYTHON_SIDE) == set(_core.FEATURE_NAMES)  # no stale Python-side line
     for name, f in FEATURES.items():
         assert f.field == _core.FEATURE_INPUTS[name]
         assert f.param == _core.FEATURE_PARAMS[name]
@@ -190,6 +191,11 @@ def test_the_runtime_refuses_the_new_feature_naming_it(trained):
 
     with pytest.raises(ValueError, match=rf"{NEW}.*velocity_lag"):
         damper_from_model(trained[0])
+    with pytest.raises(ValueError, match=rf"feature '{NEW}' is registered only in Python.*velocity_lag"):
+        features.check_runtime(trained[0].features)
+    with pytest.raises(ValueError, match=rf"feature_params\['{NEW_PARAM}'\]: not a runtime"):
+        features.check_runtime(["velocity"], trained[0].feature_params)
+    features.check_runtime(list(_core.FEATURE_NAMES), {p: 1.0 for p in _core.FEATURE_PARAM_NAMES})
 
 
 def test_the_reference_loop_feeds_it_as_the_runtime_feeds_velocity_lag(new_feature):
