@@ -163,3 +163,13 @@ def test_only_sim_loop_drives_the_runtime_loop_and_commands_do_not_import_each_o
         text = p.read_text()
         assert "_core.Loop(" not in text and "_core.LoopModel(" not in text, p
         assert not any(m.startswith("dampnet.commands") for m in _imports(p)), p
+
+
+def test_the_reference_loop_refuses_what_it_does_not_mirror():
+    from dampnet.sim.reference_loop import LinearDamper, run
+
+    z = np.zeros(3)
+    with pytest.raises(LoopError, match="accel_feature 'implicit' and 'explicit', not 'linear'"):
+        run(LinearDamper(1500.0), z, z, Vehicle(accel_feature="linear"))
+    with pytest.raises(LoopError, match="does not mirror the control law 'external'"):
+        run(LinearDamper(1500.0), z, z, controller=Controller(kind="external"))
