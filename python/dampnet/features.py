@@ -31,8 +31,11 @@ rest, while control and state inputs can take any value at rest (None), so
 zero points copy them from measured samples.
 
 Adding a lagged feature: dampnet.h (its parameter, its dn_damper_input field, its
-DN_FEATURE_LIST line, its state slot), the loop's state update in loop.hpp, and one
-`_PYTHON_SIDE` line here, e.g. "accel_lag": ("m/s^2", Lag("acceleration"), 0.0).
+DN_FEATURE_LIST line, its state slot: the recipe above DN_FEATURE_LIST), the loop's state
+update in loop.hpp, one `_PYTHON_SIDE` line here, e.g.
+"displacement_lag": ("m", Lag("displacement"), None), and the new DamperInput attribute in
+_core.pyi. Training, export, the runtime's Damper, the reference loop and the diagnosis
+then take it with no other edit.
 A Python-only feature (training, export, reference loop and diagnosis, but refused by
 the runtime, which does not know its name) can be added at run time with
 `register_feature`.
@@ -187,10 +190,6 @@ class Feature:
     @property
     def state(self) -> State | None:
         return None if isinstance(self.source, str) else self.source
-
-    @property
-    def in_runtime(self) -> bool:
-        return self.name in _core.FEATURE_NAMES
 
     def column(self, test: DynoTest, feature_params: Mapping[str, float]) -> np.ndarray:
         """Its values [n_samples] on a test; KeyError naming the missing channel or
