@@ -1,108 +1,62 @@
-"""Input features as data: one registry, name -> (unit, how to get it from a test, value at rest),
-the derived features, and the one feature-matrix builder (`feature_matrix`).
+"""Input features: the registry, the derived features, and the one feature-matrix builder.
+
+The runtime defines the features: their names, the dn_damper_input field each is read
+from and the feature parameter each needs are dampnet.h's DN_FEATURE_LIST and
+DN_FEATURE_PARAM_LIST, read here from `_core` (FEATURE_NAMES, FEATURE_INPUTS,
+FEATURE_PARAMS, FEATURE_PARAM_NAMES). This module adds only what Python needs on top
+(`_PYTHON_SIDE`): the unit, how the column is computed from a dyno test, and the value at
+rest. tests/python/test_feature_registry.py fails when the two lists differ.
 
 Base features are channels of a test (velocity, acceleration, displacement, voltage,
-current, temperature). Derived features (what the diagnosis adds to a model):
+current, temperature). A derived feature declares its kind of state, which is both its
+training formula (on the dyno's samples) and its update in the Python reference loop:
 
-  voltage_lag / current_lag  the control after a first-order lag, time constant
-                             feature_params["control_lag_tau_s"] [s] (valve or coil dynamics)
-  velocity_lag               the velocity after a first-order lag, time constant
-                             feature_params["velocity_lag_tau_s"] [s] (oil compressibility)
-  friction_state             the Dahl friction state z in [-1, 1] with pre-sliding length
-                             feature_params["friction_presliding_m"] [m] (seal stick-slip)
+  Lag(source, held)  a first-order lag of the base feature `source`, time constant its
+                     parameter [s] (voltage_lag / current_lag: valve or coil dynamics,
+                     velocity_lag: oil compressibility)
+  Dahl()             the Dahl friction state z in [-1, 1], pre-sliding travel its parameter
+                     [m] (friction_state: seal stick-slip)
 
-Each lag is the exact discretisation for an input held over a sample:
-y[k] = a y[k-1] + (1 - a) u[k], a = exp(-dt/tau), y[0] = u[0] (steady state at
-the first sample); the Dahl state advances by each sample's travel |v| dt.
-They are computed on the dyno's full sample rate, where they are the
-continuous quantities the loops carry as states with their own exact updates
-(cpp/include/dampnet/loop.hpp `motion_lag`, mirrored by
-dampnet.sim.reference_loop.NeuralLoopDamper): they agree as the sample time goes to 0
-(tests/python/test_loop_derived_features.py).
+On the dyno's samples a lag is the exact discretisation for an input held over a
+sample, y[k] = a y[k-1] + (1 - a) u[k], a = exp(-dt/tau), y[0] = u[0] (steady state at
+the first sample); the Dahl state advances by each sample's travel |v| dt. In a loop the
+states have the runtime's exact updates (cpp/include/dampnet/loop.hpp: the control held
+over a step, the velocity a ramp over a step, the Dahl state by the step's net travel),
+used by dampnet.sim.reference_loop.NeuralLoopDamper; the two agree as the sample time
+goes to 0 (tests/python/test_loop_derived_features.py).
 
 `at_rest` is the value the feature takes when the damper is at rest, used for
 the zero-force points (dampnet.training.fit): kinematic quantities are 0 at
 rest, while control and state inputs can take any value at rest (None), so
 zero points copy them from measured samples.
+
+Adding a lagged feature: dampnet.h (its parameter, its dn_damper_input field, its
+DN_FEATURE_LIST line, its state slot: the recipe above DN_FEATURE_LIST), the loop's state
+update in loop.hpp, one `_PYTHON_SIDE` line here, e.g.
+"displacement_lag": ("m", Lag("displacement"), None), and the new DamperInput attribute in
+_core.pyi. Training, export, the runtime's Damper, the reference loop and the diagnosis
+then take it with no other edit.
+A Python-only feature (training, export, reference loop and diagnosis, but refused by
+the runtime, which does not know its name) can be added at run time with
+`register_feature`.
 """
 
 from __future__ import annotations
 
-import inspect
+import math
 from dataclasses import dataclass
-from typing import Any, Callable, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 from scipy.signal import lfilter
 
+from dampnet import _core
 from dampnet.data import DataError, Dataset, DynoTest
 from dampnet.data.preprocess import acceleration_of
 from dampnet.schema import show
 
 
-@dataclass(frozen=True)
-class Feature:
-    unit: str  # SI unit of the feature
-    get: Callable[[Any], np.ndarray]  # test -> values [n_samples]
-    at_rest: float | None  # value when the damper is at rest, None: any value
-
-
-def _channel(name: str) -> Callable[[Any], np.ndarray]:
-    def get(test: Any) -> np.ndarray:
-        return test.channels[name]
-    get.channel = name  # type: ignore[attr-defined]  # for error messages
-    return get
-
-
-FEATURES: dict[str, Feature] = {
-    "velocity": Feature("m/s", _channel("velocity"), 0.0),
-    "acceleration": Feature("m/s^2", _channel("acceleration"), 0.0),
-    "displacement": Feature("m", _channel("displacement"), None),
-    "voltage": Feature("V", _channel("voltage"), None),
-    "current": Feature("A", _channel("current"), None),
-    "temperature": Feature("degC", _channel("temperature"), None),
-}
-
-
-def register_feature(name: str, unit: str, get: Callable[[Any], np.ndarray],
-                     at_rest: float | None = None) -> None:
-    """Add (or replace) a feature, e.g. a derived one computed from a test's channels."""
-    FEATURES[name] = Feature(unit, get, at_rest)
-
-
-def feature(name: str) -> Feature:
-    try:
-        return FEATURES[name]
-    except KeyError:
-        raise KeyError(f"unknown feature {name!r}; known: {', '.join(sorted(FEATURES))}") from None
-
-
-def units_of(features: Sequence[str]) -> list[str]:
-    return [feature(f).unit for f in features]
-
-
-def target_vector(tests: Sequence[Any], channel: str = "force") -> np.ndarray:
-    """Concatenate one channel (default the force [N]) of every test."""
-    out = []
-    for i, test in enumerate(tests):
-        try:
-            out.append(np.asarray(test.channels[channel], dtype=np.float64).ravel())
-        except KeyError:
-            raise KeyError(f"test {i} ({getattr(test, 'test_id', '?')}) has no channel {channel!r}") from None
-    return np.concatenate(out) if out else np.empty(0)
-
-
-# -- derived features ------------------------------------------------------------
-#: the Dahl friction state's feature_params key (pre-sliding travel [m])
-PRESLIDING_KEY = "friction_presliding_m"
-
-#: feature name -> (source channel, feature_params key, unit)
-LAG_FEATURES = {
-    "voltage_lag": ("voltage", "control_lag_tau_s", "V"),
-    "current_lag": ("current", "control_lag_tau_s", "A"),
-    "velocity_lag": ("velocity", "velocity_lag_tau_s", "m/s"),
-}
-
+# -- derived states: the training formula and the loop's update, together ------------------
 
 def first_order_lag(x, dt: float, tau: float) -> np.ndarray:
     """y[k] = a y[k-1] + (1 - a) x[k], a = exp(-dt/tau), y[0] = x[0], along the last axis
@@ -113,24 +67,6 @@ def first_order_lag(x, dt: float, tau: float) -> np.ndarray:
     a = float(np.exp(-dt / tau))
     y, _ = lfilter([1.0 - a], [1.0, -a], x, axis=-1, zi=a * x[..., :1])
     return y
-
-
-def _lag_getter(channel: str, key: str):
-    def get(test, params=None):
-        params = params or {}
-        if key not in params:
-            raise KeyError(f"feature_params[{key!r}]")
-        return first_order_lag(test.channels[channel], test.dt, float(params[key]))
-    get.channel = channel
-    return get
-
-
-def register() -> None:
-    for name, (channel, key, unit) in LAG_FEATURES.items():
-        if name not in FEATURES:
-            register_feature(name, unit, _lag_getter(channel, key), 0.0 if channel == "velocity" else None)
-    if "friction_state" not in FEATURES:
-        register_feature("friction_state", "1", _dahl_getter, None)
 
 
 def dahl_state(v: np.ndarray, dt: float, presliding_m: float) -> np.ndarray:
@@ -156,17 +92,228 @@ def dahl_state(v: np.ndarray, dt: float, presliding_m: float) -> np.ndarray:
     return z
 
 
-def _dahl_getter(test, params=None):
-    params = params or {}
-    if PRESLIDING_KEY not in params:
-        raise KeyError(f"feature_params[{PRESLIDING_KEY!r}]")
-    return dahl_state(test.channels["velocity"], test.dt, float(params[PRESLIDING_KEY]))
+#: The loop's quantities at a step start, by dn_damper_input field: x [m], v [m/s],
+#: u (control [V or A]) are what a derived state may follow (`LoopQuantities`).
+LoopQuantities = Mapping[str, float]
 
 
-_dahl_getter.channel = "velocity"
+@dataclass(frozen=True)
+class Lag:
+    """A first-order lag of the base feature `source`; its parameter is the time constant [s].
+
+    held: the loop holds `source` over each step (the control), so the lag's update is
+    exact for a step input; otherwise `source` ramps between step starts (a motion
+    quantity, loop.hpp `motion_lag`).
+    """
+    source: str
+    held: bool = False
+
+    @property
+    def channel(self) -> str:
+        return self.source
+
+    @property
+    def loop_input(self) -> str:
+        """The dn_damper_input field the loop follows."""
+        return _core.FEATURE_INPUTS[self.source]
+
+    def column(self, test: DynoTest, tau_s: float) -> np.ndarray:
+        return first_order_lag(test.channels[self.source], test.dt, tau_s)
+
+    def steady(self, q: LoopQuantities) -> float:
+        """The state in steady state at the loop quantities q (before any step)."""
+        return float(q[self.loop_input])
+
+    def first(self, q: LoopQuantities) -> float:
+        """The state at the loop's first step start (the runtime's reset)."""
+        return float(q[self.loop_input])
+
+    def step(self, y: float, q0: LoopQuantities, q1: LoopQuantities, dt: float, tau_s: float) -> float:
+        """The state at the next step start, from y at the previous one (quantities q0 there, q1 now)."""
+        u0, u1 = float(q0[self.loop_input]), float(q1[self.loop_input])
+        if self.held:  # u0 held over the step: exact
+            return u0 + (y - u0) * math.exp(-dt / tau_s)
+        one_minus_a = -math.expm1(-dt / tau_s)  # a ramp from u0 to u1 over the step: exact
+        return (1.0 - one_minus_a) * y + one_minus_a * u0 + (u1 - u0) * (1.0 - tau_s * one_minus_a / dt)
 
 
-register()
+@dataclass(frozen=True)
+class Dahl:
+    """The Dahl friction state z in [-1, 1]; its parameter is the pre-sliding travel x_c [m].
+
+    On the dyno it advances by each sample's travel |v| dt; in the loop by each step's
+    net travel x1 - x0 (loop.hpp `motion_lag`). The loop starts it at 0 (the runtime's reset).
+    """
+
+    channel = "velocity"
+    loop_input = "x"
+
+    def column(self, test: DynoTest, presliding_m: float) -> np.ndarray:
+        return dahl_state(test.channels["velocity"], test.dt, presliding_m)
+
+    def steady(self, q: LoopQuantities) -> float:
+        v = float(q["v"])
+        return math.copysign(1.0, v) if v != 0 else 0.0
+
+    def first(self, q: LoopQuantities) -> float:
+        return 0.0
+
+    def step(self, z: float, q0: LoopQuantities, q1: LoopQuantities, dt: float, presliding_m: float) -> float:
+        dx = float(q1["x"]) - float(q0["x"])
+        if dx == 0.0:
+            return z
+        sg = 1.0 if dx > 0 else -1.0
+        return sg + (z - sg) * math.exp(-abs(dx) / presliding_m)
+
+
+State = Lag | Dahl
+
+
+# -- the registry ------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Feature:
+    """One input feature. name, field and param come from the runtime's registry (dampnet.h)
+    for the features it knows; unit, source and at_rest are Python's."""
+    name: str
+    unit: str  # SI unit of the feature
+    source: str | State  # the test channel it is, or the derived state it is computed as
+    at_rest: float | None  # value when the damper is at rest, None: any value
+    field: str  # the dn_damper_input field the runtime keeps it in (Python-only: its name)
+    param: str | None  # the feature_params key its state needs, None for a channel
+
+    @property
+    def channel(self) -> str:
+        """The test channel it is computed from."""
+        return self.source if isinstance(self.source, str) else self.source.channel
+
+    @property
+    def state(self) -> State | None:
+        return None if isinstance(self.source, str) else self.source
+
+    def column(self, test: DynoTest, feature_params: Mapping[str, float]) -> np.ndarray:
+        """Its values [n_samples] on a test; KeyError naming the missing channel or
+        DataError naming the missing parameter."""
+        if isinstance(self.source, str):
+            return np.asarray(test.channels[self.source], dtype=np.float64).ravel()
+        if self.param is None or self.param not in feature_params:
+            raise DataError(f"feature {self.name!r} needs feature_params[{self.param!r}] "
+                            f"({param_doc(str(self.param))})")
+        return np.asarray(self.source.column(test, float(feature_params[self.param])), dtype=np.float64).ravel()
+
+
+#: What Python adds to each runtime feature: name -> (unit, test channel or state, value at rest).
+_PYTHON_SIDE: dict[str, tuple[str, str | State, float | None]] = {
+    "velocity": ("m/s", "velocity", 0.0),
+    "acceleration": ("m/s^2", "acceleration", 0.0),
+    "displacement": ("m", "displacement", None),
+    "voltage": ("V", "voltage", None),
+    "current": ("A", "current", None),
+    "voltage_lag": ("V", Lag("voltage", held=True), None),
+    "current_lag": ("A", Lag("current", held=True), None),
+    "temperature": ("degC", "temperature", None),
+    "velocity_lag": ("m/s", Lag("velocity"), 0.0),
+    "friction_state": ("1", Dahl(), None),
+}
+
+#: Feature parameters the runtime does not know, registered with Python-only features: name -> doc.
+_PYTHON_PARAMS: dict[str, str] = {}
+
+
+def _runtime_feature(name: str) -> Feature:
+    unit, source, at_rest = _PYTHON_SIDE[name]
+    return Feature(name, unit, source, at_rest, _core.FEATURE_INPUTS[name], _core.FEATURE_PARAMS[name])
+
+
+#: name -> Feature, in the runtime's order (DN_FEATURE_LIST), then Python-only ones
+FEATURES: dict[str, Feature] = {name: _runtime_feature(name) for name in _core.FEATURE_NAMES
+                                if name in _PYTHON_SIDE}
+
+
+def register_feature(name: str, unit: str, source: str | State, at_rest: float | None = None,
+                     param: str | None = None, param_doc: str | None = None) -> Feature:
+    """Add a feature only Python knows (training, export, the reference loop, diagnosis; the
+    runtime refuses its name until dampnet.h lists it). A derived one names its parameter
+    (`param`, with `param_doc`: meaning and unit) unless it reuses one the runtime knows.
+    Returns the Feature; remove it with `unregister_feature`."""
+    if name in _core.FEATURE_NAMES:
+        raise ValueError(f"feature {name!r} is the runtime's (dampnet.h DN_FEATURE_LIST); "
+                         "its Python side is features._PYTHON_SIDE")
+    if isinstance(source, str) != (param is None):
+        raise ValueError(f"feature {name!r}: a channel takes no parameter, a derived state needs one")
+    if param is not None and param not in _core.FEATURE_PARAM_NAMES:
+        _PYTHON_PARAMS[param] = param_doc or f"parameter of {name}"
+    FEATURES[name] = Feature(name, unit, source, at_rest, name, param)
+    return FEATURES[name]
+
+
+def unregister_feature(name: str) -> None:
+    """Remove a feature added by `register_feature` (and its own parameter)."""
+    if name in _core.FEATURE_NAMES:
+        raise ValueError(f"feature {name!r} is the runtime's; it cannot be removed")
+    f = FEATURES.pop(name, None)
+    if f is not None and f.param in _PYTHON_PARAMS and not any(g.param == f.param for g in FEATURES.values()):
+        del _PYTHON_PARAMS[f.param]
+
+
+def feature(name: str) -> Feature:
+    try:
+        return FEATURES[name]
+    except KeyError:
+        raise KeyError(f"unknown feature {name!r}; known: {', '.join(sorted(FEATURES))}") from None
+
+
+def units_of(features: Sequence[str]) -> list[str]:
+    return [feature(f).unit for f in features]
+
+
+def feature_param_names() -> dict[str, str]:
+    """Every feature parameter: name -> meaning with unit and range (the runtime's, then Python's)."""
+    return {**_core.FEATURE_PARAM_NAMES, **_PYTHON_PARAMS}
+
+
+def param_doc(param: str) -> str:
+    return feature_param_names().get(param, "unknown parameter")
+
+
+def param_of(name: str) -> str | None:
+    """The feature_params key feature `name` needs, or None."""
+    return feature(name).param
+
+
+def lags_of(source: str) -> list[str]:
+    """The features that are first-order lags of base feature `source` (e.g. velocity -> velocity_lag)."""
+    return [f.name for f in FEATURES.values() if isinstance(f.state, Lag) and f.state.source == source]
+
+
+def with_state(kind: type) -> list[str]:
+    """The features whose state is of `kind` (e.g. Dahl -> friction_state), registry order."""
+    return [f.name for f in FEATURES.values() if isinstance(f.state, kind)]
+
+
+def check_runtime(names: Sequence[str], feature_params: Mapping[str, float] | None = None) -> None:
+    """ValueError naming the first feature or feature parameter the runtime does not know (one
+    registered only in Python, or unknown): the runtime reads its names from dampnet.h."""
+    for name in names:
+        if name not in _core.FEATURE_NAMES:
+            where = "is registered only in Python (dampnet.features)" if name in FEATURES else "is unknown"
+            raise ValueError(f"feature {name!r} {where}; the runtime knows {', '.join(_core.FEATURE_NAMES)} "
+                             "(a runtime feature needs its dampnet.h DN_FEATURE_LIST line)")
+    for key in feature_params or {}:
+        if key not in _core.FEATURE_PARAM_NAMES:
+            raise ValueError(f"feature_params[{key!r}]: not a runtime feature parameter; the runtime knows "
+                             f"{', '.join(_core.FEATURE_PARAM_NAMES)}")
+
+
+def target_vector(tests: Sequence[Any], channel: str = "force") -> np.ndarray:
+    """Concatenate one channel (default the force [N]) of every test."""
+    out = []
+    for i, test in enumerate(tests):
+        try:
+            out.append(np.asarray(test.channels[channel], dtype=np.float64).ravel())
+        except KeyError:
+            raise KeyError(f"test {i} ({getattr(test, 'test_id', '?')}) has no channel {channel!r}") from None
+    return np.concatenate(out) if out else np.empty(0)
 
 
 # -- the feature matrix ----------------------------------------------------------
@@ -177,23 +324,15 @@ def default_features(ds: Dataset) -> list[str]:
     return ["velocity", "acceleration", control]
 
 
-def _feature_column(test: DynoTest, name: str, feature_params: dict[str, float]) -> np.ndarray:
-    get = feature(name).get
-    try:
-        n_params = len(inspect.signature(get).parameters)
-    except (TypeError, ValueError):
-        n_params = 1
-    return np.asarray(get(test, feature_params) if n_params >= 2 else get(test), dtype=np.float64).ravel()
-
-
 def feature_matrix(tests: Sequence[DynoTest], features: Sequence[str],
-                   feature_params: dict[str, float] | None = None,
+                   feature_params: Mapping[str, float] | None = None,
                    acceleration_window: float | int | None = None) -> np.ndarray:
     """X [samples, len(features)] of `tests`, via the feature registry.
 
     Derives acceleration (on a copy of the test's channels) if a test lacks it.
     Raises DataError naming the feature, the test and the channels it has when a
-    test cannot provide a feature (e.g. a model trained with temperature, data without).
+    test cannot provide a feature (e.g. a model trained with temperature, data without),
+    or naming the parameter a derived feature lacks.
     """
     unknown = [f for f in features if f not in FEATURES]
     if unknown:
@@ -211,7 +350,7 @@ def feature_matrix(tests: Sequence[DynoTest], features: Sequence[str],
                                     "displacement channel") from None
                 continue
             try:
-                cols.append(_feature_column(t, f, params))
+                cols.append(FEATURES[f].column(t, params))
             except KeyError as e:
                 have = ", ".join(sorted(t.channels))
                 raise DataError(f"test {t.test_id}: feature {f!r} needs channel {e.args[0]!r}, which "
@@ -225,15 +364,15 @@ def feature_matrix(tests: Sequence[DynoTest], features: Sequence[str],
 
 def check_features(model: Any, ds: Dataset) -> None:
     """Raise DataError if a test of `ds` cannot provide one of the model's features."""
+    for f in model.features:
+        if f not in FEATURES:
+            raise DataError(f"the model needs feature {show(f)}, which this dampnet does not know")
     for t in ds.tests:
         for f in model.features:
             if f == "acceleration" and ("velocity" in t.channels or "displacement" in t.channels):
                 continue
-            getter = FEATURES.get(f)
-            channel = getattr(getattr(getter, "get", None), "channel", None)
-            if getter is None:
-                raise DataError(f"the model needs feature {show(f)}, which this dampnet does not know")
-            if channel is not None and channel not in t.channels:
+            channel = FEATURES[f].channel
+            if channel not in t.channels:
                 raise DataError(f"test {t.test_id}: the model was trained on features "
                                 f"{show(', '.join(model.features))}, but the data have no {channel!r} channel "
                                 f"(channels: {', '.join(sorted(t.channels))})")

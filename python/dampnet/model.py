@@ -19,6 +19,8 @@ from typing import Any
 import numpy as np
 
 from dampnet import schema
+from dampnet import terms as term_kinds
+from dampnet.features import feature_param_names
 from dampnet.outputs import atomic_write_text
 
 FORMAT_NAME = "dampnet-model"
@@ -26,9 +28,6 @@ FORMAT_VERSION = 1
 ACTIVATIONS = ("tanh", "sigmoid")
 _REQUIRED_FIELDS = ("w1", "b1", "w_out", "b_out", "in_offset", "in_gain", "out_offset", "out_gain",
                     "sat_lo", "sat_hi", "features", "units", "activation")
-#: feature_params that must be positive: time constants [s] (a lag with tau <= 0 is no lag, which
-#: the loop refuses) and the Dahl pre-sliding travel [m]
-_POSITIVE_PARAM_SUFFIXES = ("_tau_s", "_presliding_m")
 
 
 class ModelError(ValueError):
@@ -60,7 +59,8 @@ class MlpModel:
     the network output (hybrid models), as plain dictionaries
     `{"kind": str, "params": [float, ...]}` (kinds and parameter meanings:
     `dampnet.terms`). `feature_params` holds the constants derived features
-    need, e.g. `{"control_lag_tau_s": 0.04}` for the lagged control feature.
+    need, by name (dampnet.features.feature_param_names(): e.g. the lagged control's time
+    constant [s]).
     """
 
     w1: np.ndarray  # [h1, n_in]
@@ -150,15 +150,18 @@ class MlpModel:
         self._validate_feature_params()
 
     def _validate_feature_params(self) -> None:
-        """feature_params: finite numbers; time constants and travels positive. The one place
-        this is checked, so every command (evaluate, simulate, study, export) refuses the same."""
+        """feature_params: finite numbers; the registry's parameters (time constants [s], travels
+        [m]: the runtime refuses <= 0) positive. The one place this is checked, so every command
+        (evaluate, simulate, study, export) refuses the same. Unknown names load (a model from
+        a newer dampnet can be inspected); the runtime refuses them."""
         if not isinstance(self.feature_params, dict):
             raise ModelError(f"feature_params: expected an object of numbers, got {schema.show(self.feature_params)}")
+        known = feature_param_names()
         for key, value in self.feature_params.items():
             v = schema.expect_number(value, f"feature_params[{schema.show(key)}]", ModelError)
-            if str(key).endswith(_POSITIVE_PARAM_SUFFIXES) and not v > 0:
+            if key in known and not v > 0:
                 raise ModelError(f"feature_params[{schema.show(key)}]: expected a positive value "
-                                 f"(a time constant [s] or travel [m]), got {schema.show(v)}")
+                                 f"({known[key]}), got {schema.show(v)}")
 
     # -- evaluation --------------------------------------------------------
     def core(self):
@@ -212,8 +215,6 @@ class MlpModel:
     @classmethod
     def from_dict(cls, d: Any, source: str = "model") -> MlpModel:
         """A model from the parsed JSON of model.json; ModelError naming `source` and the field."""
-        from dampnet import terms as term_kinds
-
         E = ModelError
         d = schema.expect_object(d, source, E)
         if d.get("format") != FORMAT_NAME:

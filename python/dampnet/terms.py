@@ -11,8 +11,9 @@ its mid position, positive in rebound; a force is positive when it resists
 extension (tension). A gas charge pushes the rod out, so its preload p0 is
 negative and its stiffness p1 positive.
 
-To add a kind: add one `Kind` to `KINDS` (its force and parameter check) and
-the same formula to the C++ table.
+To add a kind: add one `Kind` to `KINDS` (its force, parameter check, and which
+parameters are linear for fitting) and the same formula to the C++ table; its name
+and parameter count must match `_core.TERM_KINDS` (tests/python/test_terms_registry.py).
 """
 
 from __future__ import annotations
@@ -26,10 +27,33 @@ import numpy as np
 
 @dataclass(frozen=True)
 class Kind:
+    """One term kind: its formula once, and how `fit_terms` fits it.
+
+    The force is linear in the parameters at `linear` (least squares: their columns are
+    the force with that parameter 1 and the other linear ones 0); the others (the
+    "shape") are chosen on the grid `shapes(x)` gives, by least residual.
+    """
     params: tuple[str, ...]  # parameter names with units, in order
     force: Callable[[np.ndarray, dict[str, np.ndarray]], np.ndarray]  # (params, inputs) -> F [N]
     check: Callable[[np.ndarray], str | None]  # a reason the params are invalid, or None
     doc: str
+    linear: tuple[int, ...]  # indices of the parameters the force is linear in
+    shapes: Callable[[np.ndarray], list[tuple[float, ...]]] = lambda x: [()]  # x [m] -> grid of the others
+    # the fitted parameters made valid (e.g. a negative stiffness switched off)
+    settle: Callable[[np.ndarray], np.ndarray] = lambda p: p
+
+    def with_shape(self, shape: tuple[float, ...], linear_values) -> np.ndarray:
+        """The full parameter vector from a shape (the non-linear parameters) and the linear ones."""
+        p = np.empty(len(self.params))
+        nonlinear = [i for i in range(len(self.params)) if i not in self.linear]
+        p[list(self.linear)] = linear_values
+        p[nonlinear] = shape
+        return p
+
+    def basis(self, x: np.ndarray, shape: tuple[float, ...]) -> np.ndarray:
+        """Columns [n, len(linear)]: F(x) = basis(x, shape) @ (the linear parameters)."""
+        eye = np.eye(len(self.linear))
+        return np.stack([self.force(self.with_shape(shape, e), {"x": x}) for e in eye], axis=1)
 
 
 def _position_poly(p: np.ndarray, q: dict[str, np.ndarray]) -> np.ndarray:
@@ -50,12 +74,25 @@ def _bump_check(p: np.ndarray) -> str | None:
     return None
 
 
+def _bump_shapes(x: np.ndarray) -> list[tuple[float, ...]]:
+    """(x_free, n): x_free 50-95 % of the largest |x| [m], n in 1, 1.5, 2, 3."""
+    xmax = float(np.max(np.abs(x)))
+    return [(f * xmax, n) for f in (0.5, 0.6, 0.7, 0.8, 0.85, 0.9, 0.95) for n in (1.0, 1.5, 2.0, 3.0)]
+
+
+def _bump_settle(p: np.ndarray) -> np.ndarray:
+    # k < 0 would pull towards the stop: not a bump stop, so the term is switched off
+    return np.array([p[0], max(p[1], 0.0), p[2]])
+
+
 KINDS: dict[str, Kind] = {
     "position_poly": Kind(("p0 [N]", "p1 [N/m]", "p2 [N/m^2]", "p3 [N/m^3]"), _position_poly,
                           lambda p: None,
-                          "F = p0 + p1 x + p2 x^2 + p3 x^3: gas charge preload, stiffness, progression"),
+                          "F = p0 + p1 x + p2 x^2 + p3 x^3: gas charge preload, stiffness, progression",
+                          linear=(0, 1, 2, 3)),
     "bump_stop": Kind(("x_free [m]", "k [N/m^n]", "n [-]"), _bump_stop, _bump_check,
-                      "F = sgn(x) k (|x| - x_free)^n beyond x_free: elastomer stops both ways"),
+                      "F = sgn(x) k (|x| - x_free)^n beyond x_free: elastomer stops both ways",
+                      linear=(1,), shapes=_bump_shapes, settle=_bump_settle),
 }
 
 
@@ -104,22 +141,6 @@ def _velocity_basis(v: np.ndarray, u: np.ndarray) -> np.ndarray:
     return np.stack([v, v * u, s, s * u], axis=1)
 
 
-def _term_columns(kind: str, x: np.ndarray, shape: tuple[float, ...]) -> np.ndarray:
-    if kind == "position_poly":
-        return np.stack([np.ones_like(x), x, x * x, x ** 3], axis=1)
-    if kind == "bump_stop":
-        x_free, n = shape
-        return (np.sign(x) * np.maximum(np.abs(x) - x_free, 0.0) ** n)[:, None]
-    raise ValueError(f"cannot fit physics term kind {kind!r} (fittable: position_poly, bump_stop)")
-
-
-def _shape_candidates(kind: str, x: np.ndarray) -> list[tuple[float, ...]]:
-    if kind == "bump_stop":
-        xmax = float(np.max(np.abs(x)))
-        return [(f * xmax, n) for f in (0.5, 0.6, 0.7, 0.8, 0.85, 0.9, 0.95) for n in (1.0, 1.5, 2.0, 3.0)]
-    return [()]
-
-
 def fit_terms(terms: Sequence[dict[str, Any]], x: np.ndarray, v: np.ndarray, u: np.ndarray,
               y: np.ndarray) -> list[dict[str, Any]]:
     """Terms with parameters: those given keep theirs; the others are fitted by least squares.
@@ -127,9 +148,9 @@ def fit_terms(terms: Sequence[dict[str, Any]], x: np.ndarray, v: np.ndarray, u: 
     Fitted jointly (one linear least-squares problem) on the training samples:
     y - sum(fixed terms) ~ sum(fitted terms) + the simple velocity model of
     _velocity_basis, whose coefficients are then dropped (the MLP learns the
-    velocity dependence). position_poly is linear in its 4 parameters;
-    bump_stop's x_free and exponent n are chosen on a grid (x_free 50-95 % of
-    the largest |x|, n in 1, 1.5, 2, 3) by least residual, k by least squares.
+    velocity dependence). Each kind's linear parameters are least-squares
+    coefficients of its `basis`; the others are chosen on its `shapes` grid by
+    least residual (e.g. bump_stop's x_free and n; position_poly has none).
     """
     terms = [dict(t) for t in terms]
     for t in terms:
@@ -141,24 +162,23 @@ def fit_terms(terms: Sequence[dict[str, Any]], x: np.ndarray, v: np.ndarray, u: 
         return terms
     target = y - terms_force(fixed, x)
     base = _velocity_basis(v, u)
-    best = None
-    for shapes in itertools.product(*[_shape_candidates(terms[i]["kind"], x) for i in free]):
-        cols = [_term_columns(terms[i]["kind"], x, s) for i, s in zip(free, shapes)]
-        A = np.hstack(cols + [base])
+    unknown = [terms[i]["kind"] for i in free if terms[i]["kind"] not in KINDS]
+    if unknown:
+        raise ValueError(f"cannot fit physics term kind {unknown[0]!r} (fittable: {', '.join(sorted(KINDS))})")
+    kinds = [KINDS[terms[i]["kind"]] for i in free]
+    best: tuple[float, tuple, np.ndarray] | None = None
+    for shapes in itertools.product(*[k.shapes(x) for k in kinds]):
+        A = np.hstack([k.basis(x, s) for k, s in zip(kinds, shapes)] + [base])
         coef, *_ = np.linalg.lstsq(A, target, rcond=None)
         resid = float(np.sum((A @ coef - target) ** 2))
         if best is None or resid < best[0]:
-            best = (resid, shapes, coef, [c.shape[1] for c in cols])
-    _, shapes, coef, widths = best
+            best = (resid, shapes, coef)
+    assert best is not None  # product() of non-empty grids yields at least once
+    _, shapes, coef = best
     pos = 0
-    for i, s, w in zip(free, shapes, widths):
-        c = coef[pos:pos + w]
+    for i, k, s in zip(free, kinds, shapes):
+        w = len(k.linear)
+        terms[i]["params"] = [float(a) for a in k.settle(k.with_shape(s, coef[pos:pos + w]))]
         pos += w
-        kind = terms[i]["kind"]
-        if kind == "bump_stop":
-            # k < 0 would pull towards the stop: not a bump stop, so the term is switched off
-            terms[i]["params"] = [float(s[0]), max(float(c[0]), 0.0), float(s[1])]
-        else:
-            terms[i]["params"] = [float(a) for a in c]
         terms[i]["fitted"] = "least squares with a velocity model (dampnet.terms.fit_terms)"
     return terms

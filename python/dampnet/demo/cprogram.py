@@ -35,27 +35,36 @@ def compile_controller(model_dir: Path, out_dir: Path) -> Path:
     return exe
 
 
+#: the fields of dn_damper_input controller.c reads per line, in order
+ROW_FIELDS = ("x", "v", "a", "u", "u_lag", "temperature", "v_lag", "z_fric")
+
+
 def controller_inputs(model, test: DynoTest, n: int) -> np.ndarray:
     """Rows x v a u u_lag T v_lag z_fric (dn_damper_input's fields) for the first n samples of a
-    test, as the loop would feed them; derived features the model does not use repeat their source."""
-    from dampnet.features import feature_matrix
+    test, as the loop would feed them: each field from the model's feature that reads it
+    (dampnet.features' registry), else its base feature; a derived state the model does not
+    use takes its steady value (a lag its source, the Dahl state sgn(v))."""
+    from dampnet.features import FEATURES, Lag, feature_matrix
 
-    ch = test.channels
-    control = test.control_name
-    names = ["displacement", "velocity", "acceleration", control]
-    cols = [np.asarray(feature_matrix([test], [nm], model.feature_params)[:, 0]) for nm in names]
-    lag_name = f"{control}_lag"
-    if lag_name in model.features:
-        cols.append(feature_matrix([test], [lag_name], model.feature_params)[:, 0])
-    else:
-        cols.append(cols[3])
-    cols.append(ch["temperature"] if "temperature" in ch else np.full(len(test), 20.0))
-    for derived, source in (("velocity_lag", cols[1]), ("friction_state", np.sign(cols[1]))):
-        if derived in model.features:
-            cols.append(feature_matrix([test], [derived], model.feature_params)[:, 0])
-        else:
-            cols.append(source)
-    return np.column_stack(cols)[:n]
+    base = {f.field: f.name for f in FEATURES.values() if f.state is None}
+    base["u"] = test.control_name  # voltage or current
+
+    def column(name):
+        if name == "temperature" and "temperature" not in test.channels:
+            return np.full(len(test), 20.0)
+        return feature_matrix([test], [name], model.feature_params)[:, 0]
+
+    cols = {fld: column(nm) for fld, nm in base.items()}
+    for fld in ROW_FIELDS:
+        if fld in cols:
+            continue
+        used = [f for f in model.features if FEATURES[f].field == fld]
+        if used:
+            cols[fld] = column(used[0])
+        else:  # not used by the model: the state's steady value
+            state = next(f.state for f in FEATURES.values() if f.field == fld)
+            cols[fld] = cols[state.loop_input] if isinstance(state, Lag) else np.sign(cols["v"])
+    return np.column_stack([cols[fld] for fld in ROW_FIELDS])[:n]
 
 
 def run_controller(exe: Path, rows: np.ndarray) -> np.ndarray:

@@ -26,7 +26,12 @@ from typing import Any, Callable
 
 import numpy as np
 
-from dampnet.features import dahl_state, first_order_lag
+from dampnet.features import Dahl, dahl_state, first_order_lag, lags_of, param_of, with_state
+
+
+def _feature_addition(feature: str, value: float) -> dict:
+    """A derived feature (found in dampnet.features' registry) and its parameter's value."""
+    return {"features": [feature], "terms": [], "feature_params": {param_of(feature): value}, "how": "feature"}
 
 
 @dataclass
@@ -245,7 +250,7 @@ def _valve_grid(ctx):
 def _valve_columns(ctx, theta):
     name = ctx.control_name
     model_ctrl = _control_name_in_model(ctx)
-    lagged = {f: f for f in ctx.model.features if f in (name, name + "_lag")}
+    lagged = {f: f for f in ctx.model.features if f == name or f in lags_of(name)}
     zv, _ = _vel_norm(ctx)
     u_all = ctx.at_rows(name)
     c, h = _scale(u_all, 100)
@@ -295,9 +300,7 @@ register_candidate(Candidate(
               "history and velocity, invisible to a plain correlation with the control)",
     columns=_valve_columns, grid=_valve_grid, testable=_valve_testable, theta_name="tau_s",
     parameters=lambda ctx, theta, fit: {"tau_s": float(theta)},
-    add=lambda p, control: {"features": [f"{control}_lag"], "terms": [],
-                            "feature_params": {"control_lag_tau_s": float(p.get("tau_s", 0.02))},
-                            "how": "feature",
+    add=lambda p, control: {**_feature_addition(lags_of(control)[0], float(p.get("tau_s", 0.02))),
                             "why": f"the {control} after a first-order lag (estimated time constant) as an "
                                    "extra MLP input: the network maps the valve's actual state to force; "
                                    "the runtime carries one filter state"},
@@ -340,10 +343,8 @@ register_candidate(Candidate(
               "loops in force-displacement near the ends of travel",
     columns=_friction_columns, grid=_friction_grid, theta_name="presliding_m",
     parameters=_friction_parameters,
-    add=lambda p, control: {"features": ["friction_state"], "terms": [],
-                            "feature_params": {"friction_presliding_m":
-                                               float(p.get("presliding_length_mm", 0.2)) / 1000.0},
-                            "how": "feature",
+    add=lambda p, control: {**_feature_addition(with_state(Dahl)[0],
+                                                float(p.get("presliding_length_mm", 0.2)) / 1000.0),
                             "why": "the Dahl friction state as an MLP input: the network scales it and "
                                    "combines it with velocity; the runtime carries one state"},
     evidence=lambda p, loc: (f"just after velocity reversals the force builds up over about "
@@ -402,9 +403,7 @@ register_candidate(Candidate(
     testable=lambda ctx: (("velocity" in ctx.model.features),
                           "" if "velocity" in ctx.model.features else "the model has no velocity input"),
     parameters=_comp_parameters,
-    add=lambda p, control: {"features": ["velocity_lag"], "terms": [],
-                            "feature_params": {"velocity_lag_tau_s": float(p.get("tau_s", 0.002))},
-                            "how": "feature",
+    add=lambda p, control: {**_feature_addition(lags_of("velocity")[0], float(p.get("tau_s", 0.002))),
                             "why": "the velocity after a first-order lag as an extra MLP input: the network "
                                    "learns how much of the force follows the lagged flow"},
     evidence=lambda p, loc: (f"the force follows a velocity lagged by about {1000 * p['tau_s']:.3g} ms, "

@@ -13,7 +13,10 @@ import numpy as np
 
 from dampnet.data import Dataset, DynoTest
 from dampnet.data.preprocess import acceleration_of
+from dampnet.features import check_features, feature_matrix
 from dampnet.model import MlpModel
+from dampnet.reference import mlp_forward
+from dampnet.terms import terms_force
 
 
 #: Default number of rows per test at which residuals are regressed.
@@ -22,24 +25,10 @@ ROWS_PER_TEST = 600
 MAX_ROWS = 120_000
 
 
-def mlp_forward(model: MlpModel, X: np.ndarray) -> np.ndarray:
-    """The network's output [N] in numpy float64 (inputs clamped to the training range, as the kernel)."""
-    X = np.clip(np.asarray(X, dtype=np.float64), model.sat_lo, model.sat_hi)
-    h = (X - model.in_offset) * model.in_gain + model.in_ymin
-    act = np.tanh if model.activation == "tanh" else (lambda a: 1.0 / (1.0 + np.exp(-a)))
-    h = act(h @ model.w1.T + model.b1)
-    if model.w2 is not None:
-        h = act(h @ model.w2.T + model.b2)
-    y = h @ model.w_out + model.b_out
-    return (y - model.out_ymin) / model.out_gain + model.out_offset
-
-
 def model_force(model: MlpModel, X: np.ndarray, displacement: np.ndarray | None) -> np.ndarray:
-    """MLP plus the model's physics terms (dampnet.terms.terms_force)."""
+    """MLP (dampnet.reference, the kernel's function) plus the model's physics terms."""
     y = mlp_forward(model, X)
     if model.terms:
-        from dampnet.terms import terms_force
-
         y = y + terms_force(model.terms, displacement)
     return y
 
@@ -110,8 +99,6 @@ class Context:
 def build_context(model: MlpModel, ds: Dataset, rows_per_test: int = ROWS_PER_TEST,
                   max_rows: int = MAX_ROWS) -> Context:
     """Inputs, prediction and residual of `model` on every test of `ds`."""
-    from dampnet.features import check_features, feature_matrix
-
     check_features(model, ds)
     window = (model.meta.get("data") or {}).get("acceleration_window_s")
     per_test = max(50, min(rows_per_test, max_rows // max(1, len(ds.tests))))

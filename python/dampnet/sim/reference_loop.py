@@ -40,8 +40,10 @@ import math
 
 import numpy as np
 
-from dampnet import _core
+from dampnet import _core, features
+from dampnet.reference import forward_of
 from dampnet.sim.vehicle import Controller, LoopError, Vehicle
+from dampnet.terms import terms_force
 
 ACCEL_MAX_EVALS = _core.DN_ACCEL_MAX_EVALS
 
@@ -95,101 +97,79 @@ class TableLoopDamper:
 class NeuralLoopDamper:
     """An MlpModel (with its physics terms) on the loop's kinematics.
 
-    Features: velocity, acceleration, displacement, voltage/current, temperature
-    (constant, `temperature_c`, the runtime's default vehicle temperature), and
-    the derived voltage_lag/current_lag, velocity_lag and friction_state. Their
-    states advance by `advance(x, v, u, dt)`, which the loop calls once at each
-    step start, with the runtime's updates (loop.hpp `motion_lag`, the control
-    lag over the previous step's held control), so that this loop and the
-    runtime's per-step loop give the same trajectories; `force` may be called
-    any number of times in between (the implicit acceleration solve) and,
-    before any `advance`, sees the steady state of its own inputs. Evaluated in
-    numpy, the kernel's arithmetic: inputs clamped to the saturation range,
-    mapminmax, tanh/logistic layers, linear output (agrees with
-    dampnet.training.torch_reference.torch_forward to rounding).
+    Each feature is fed from the dn_damper_input field the feature registry names
+    (dampnet.features: x, v, a, u, temperature, and the derived features' states);
+    temperature is constant, `temperature_c` (the runtime's default vehicle temperature).
+    The derived features' states (dampnet.features.Lag, Dahl) advance by
+    `advance(x, v, u, dt)`, which the loop calls once at each step start, with the
+    runtime's exact updates (loop.hpp: the control lag over the previous step's held
+    control, `motion_lag`), so that this loop and the runtime's per-step loop give the
+    same trajectories; `force` may be called any number of times in between (the implicit
+    acceleration solve) and, before any `advance`, sees the steady state of its own inputs.
+    The network is dampnet.reference's numpy forward (the kernel's function).
     """
 
-    KNOWN = ("velocity", "acceleration", "displacement", "voltage", "current", "voltage_lag",
-             "current_lag", "velocity_lag", "friction_state", "temperature")
+    #: the loop quantities a feature may read directly (dn_damper_input fields)
+    LOOP_INPUTS = ("x", "v", "a", "u", "temperature")
+    #: the quantities a derived state may follow (known at the step start, before the damper)
+    STATE_SOURCES = ("x", "v", "u")
 
     def __init__(self, model, temperature_c: float = 20.0):
-        from dampnet.features import LAG_FEATURES, PRESLIDING_KEY
-
-        bad = [f for f in model.features if f not in self.KNOWN]
-        if bad:
-            raise LoopError(f"the Python loop cannot feed features {bad}; use the runtime's loop")
-        need = {name: key for name, (_, key, _) in LAG_FEATURES.items()}
-        need["friction_state"] = PRESLIDING_KEY
-        for f in model.features:
-            key = need.get(f)
-            if key and not float(model.feature_params.get(key, 0.0)) > 0:
-                raise LoopError(f"feature {f!r} needs feature_params[{key!r}] > 0")
+        # derived states by dn_damper_input field (the control lags share the runtime's u_lag)
+        self._states: dict[str, tuple[features.State, float]] = {}
+        for name in model.features:
+            try:
+                f = features.feature(name)
+            except KeyError as e:
+                raise LoopError(f"the Python loop cannot feed feature {name!r}: {e.args[0]}") from None
+            if f.state is None:
+                if f.field not in self.LOOP_INPUTS:
+                    raise LoopError(f"the Python loop cannot feed feature {name!r} (field {f.field!r})")
+                continue
+            if f.state.loop_input not in self.STATE_SOURCES:
+                raise LoopError(f"the Python loop cannot feed feature {name!r}: its state follows "
+                                f"{f.state.loop_input!r}, which is not known at the step start")
+            value = float(model.feature_params.get(f.param, 0.0))
+            if not value > 0:
+                raise LoopError(f"feature {name!r} needs feature_params[{f.param!r}] > 0")
+            self._states[f.field] = (f.state, value)
         self.model = model
         self.temperature_c = float(temperature_c)
-        self._idx = [self.KNOWN.index(f) for f in model.features]
-        m = model
-        self._lo, self._hi = m.sat_lo, m.sat_hi
-        self._off, self._gain, self._ymin = m.in_offset, m.in_gain, m.in_ymin
-        self._act = np.tanh if m.activation == "tanh" else (lambda z: 1.0 / (1.0 + np.exp(-z)))
-        p = m.feature_params
-        self._tau_u = float(p.get("control_lag_tau_s", 0.0))
-        self._tau_v = float(p.get("velocity_lag_tau_s", 0.0))
-        self._x_c = float(p.get(PRESLIDING_KEY, 0.0))
+        self._fields = [features.feature(name).field for name in model.features]
+        self._forward = forward_of(model)
         self.reset()
 
     def reset(self) -> None:
-        self._state = None  # (u_lag, v_lag, z_fric) after the last advance()
-        self._prev = None   # (x, v, u) of the previous step start
+        self._state: dict[str, float] | None = None  # derived states after the last advance()
+        self._prev: dict[str, float] | None = None   # loop quantities of the previous step start
 
     def forward(self, x: np.ndarray) -> np.ndarray:
         """MLP force [N] for inputs x [..., n_inputs] in feature units (no terms)."""
-        m = self.model
-        x = np.where(np.isnan(x), 0.5 * (self._lo + self._hi), x)
-        a = (np.clip(x, self._lo, self._hi) - self._off) * self._gain + self._ymin
-        a = self._act(a @ m.w1.T + m.b1)
-        if m.w2 is not None:
-            a = self._act(a @ m.w2.T + m.b2)
-        ys = a @ m.w_out + m.b_out
-        return (ys - m.out_ymin) / m.out_gain + m.out_offset
+        return self._forward(x)
 
     def advance(self, x: float, v: float, u: float, dt: float) -> None:
         """The derived states at this step start (displacement x [m], velocity v [m/s], control u).
 
-        As the runtime (loop.hpp): the first step is the state at rest (u_lag = u, v_lag = v,
-        z = 0); then u_lag follows the previous step's held control exactly, v_lag the
-        velocity ramp over the step exactly, and z the step's net travel (Dahl).
+        As the runtime (loop.hpp): the first step is the state at rest (lags equal their
+        input, the Dahl state 0); then each state takes its exact update over the step
+        (dampnet.features.Lag.step, Dahl.step).
         """
-        if self._state is None:
-            self._state, self._prev = (u, v, 0.0), (x, v, u)
-            return
-        ul, vl, z = self._state
-        xp, vp, up = self._prev
-        if self._tau_u > 0:
-            ul = up + (ul - up) * math.exp(-dt / self._tau_u)
+        q = {"x": x, "v": v, "u": u}
+        if self._state is None or self._prev is None:
+            self._state = {k: s.first(q) for k, (s, _) in self._states.items()}
         else:
-            ul = up
-        if self._tau_v > 0:
-            one_minus_a = -math.expm1(-dt / self._tau_v)
-            vl = (1.0 - one_minus_a) * vl + one_minus_a * vp + (v - vp) * (1.0 - self._tau_v * one_minus_a / dt)
-        else:
-            vl = v
-        dx = x - xp
-        if self._x_c > 0 and dx != 0.0:
-            sg = 1.0 if dx > 0 else -1.0
-            z = sg + (z - sg) * math.exp(-abs(dx) / self._x_c)
-        self._state, self._prev = (ul, vl, z), (x, v, u)
+            self._state = {k: s.step(self._state[k], self._prev, q, dt, p) for k, (s, p) in self._states.items()}
+        self._prev = q
 
     def force(self, x, v, a, u, dt) -> float:
         """Force [N] (MLP plus terms) at the derived features' current states."""
+        q = {"x": x, "v": v, "a": a, "u": u, "temperature": self.temperature_c}
         if self._state is None:
-            ul, vl, z = u, v, (math.copysign(1.0, v) if v != 0 else 0.0)
+            q.update({k: s.steady(q) for k, (s, _) in self._states.items()})
         else:
-            ul, vl, z = self._state
-        vals = (v, a, x, u, u, ul, ul, vl, z, self.temperature_c)
-        f = float(self.forward(np.array([vals[i] for i in self._idx])))
+            q.update(self._state)
+        f = float(self._forward(np.array([q[k] for k in self._fields], dtype=np.float64)))
         if self.model.terms:
-            from dampnet.terms import terms_force
-
             f += float(terms_force(self.model.terms, np.array(x)))
         return f
 
