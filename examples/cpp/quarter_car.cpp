@@ -4,9 +4,9 @@
 // dampnet::step from loop.hpp, and then the compile-time-sized kernel StaticMlp on the
 // last step's features: what a controller that evaluates the model itself would do.
 //
-// Build against an installed dampnet with examples/CMakeLists.txt, or by hand
-// (the C++ headers are header-only):
-//   c++ -std=c++17 -O2 -I<prefix>/include quarter_car.cpp
+// Build against an installed dampnet with examples/CMakeLists.txt, or by hand (the loop
+// and the kernel are header-only; the library provides dn_status_str):
+//   c++ -std=c++17 -O2 -I<prefix>/include quarter_car.cpp <prefix>/lib/libdampnet.a
 #include <cmath>
 #include <cstdio>
 
