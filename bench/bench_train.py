@@ -23,8 +23,8 @@ import time
 
 import torch
 
-from dampnet.train import fit
-from dampnet.train.synthetic import synthetic_dyno
+from dampnet.training import fit
+from dampnet.training.synthetic import synthetic_dyno
 
 
 def main() -> None:

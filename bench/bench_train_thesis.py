@@ -24,13 +24,13 @@ import re
 import time
 from pathlib import Path
 
-import numpy as np
 import torch
 
 from dampnet.data import add_acceleration
-from dampnet.data.rig import generate
-from dampnet.train import nrmse, torch_forward
-from dampnet.workflow import feature_matrix, noise_floors, train_dataset
+from dampnet.rig import generate
+from dampnet.training import nrmse, torch_forward
+from dampnet.features import feature_matrix
+from dampnet.training.pipeline import noise_floors, train_dataset
 
 RESULTS = Path(__file__).resolve().parent / "RESULTS.md"
 BEGIN, END = "<!-- bench_train_thesis: begin -->", "<!-- bench_train_thesis: end -->"

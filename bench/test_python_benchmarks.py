@@ -7,7 +7,7 @@ Targets (recorded in each benchmark's extra_info, never asserted: the machines a
   * `Loop.step` through pybind11: median <= 1 us;
   * `Loop.simulate` over a road: >= 5e6 steps/s, with a linear and with the neural damper;
   * training: one LM epoch of the 3-30-1 network on a fixed small problem (no target; the
-    figure to watch when changing dampnet.train).
+    figure to watch when changing dampnet.training).
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import pytest
 pytest.importorskip("pytest_benchmark")
 
 from dampnet import _core  # noqa: E402
-from dampnet import bench_python as bp  # noqa: E402
+from dampnet.latency import python_bench as bp  # noqa: E402
 
 SIM_STEPS = 200_000
 
@@ -74,10 +74,10 @@ def test_lm_epoch(benchmark, n_tests, samples):
     import torch
 
     from dampnet.model import mapminmax_settings
-    from dampnet.train.lm import LevenbergMarquardt
-    from dampnet.train.net import DTYPE, Layout
-    from dampnet.train.problem import MlpProblem
-    from dampnet.train.synthetic import synthetic_dyno
+    from dampnet.training.lm import LevenbergMarquardt
+    from dampnet.training.net import DTYPE, Layout
+    from dampnet.training.problem import MlpProblem
+    from dampnet.training.synthetic import synthetic_dyno
 
     X, y = synthetic_dyno(n_tests=n_tests, samples_per_test=samples, seed=0)
     xo, xg = mapminmax_settings(X)

@@ -13,9 +13,9 @@ the rig or the training defaults:
 import argparse
 from pathlib import Path
 
-from dampnet.data.rig import generate
+from dampnet.rig import generate
 from dampnet.export import write_header
-from dampnet.workflow import model_metrics, train_dataset
+from dampnet.training.pipeline import model_metrics, train_dataset
 
 
 def main() -> None:

@@ -84,7 +84,7 @@ inline std::string name(FuzzedDataProvider& f, const std::vector<const char*>& k
 
 inline const std::vector<const char*>& feature_names() {
   static const std::vector<const char*> v = {
-#define DN_FUZZ_FEAT_(id, nm, field) nm,
+#define DN_FUZZ_FEAT_(id, nm, field, param) nm,
       DN_FEATURE_LIST(DN_FUZZ_FEAT_)
 #undef DN_FUZZ_FEAT_
   };

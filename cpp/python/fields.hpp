@@ -31,18 +31,14 @@ struct EnumField {
   std::size_t n;
 };
 
-inline const EnumName kControllerKinds[] = {
-    {"passive", DN_CTRL_PASSIVE},
-    {"skyhook_onoff", DN_CTRL_SKYHOOK_ONOFF},
-    {"skyhook_continuous", DN_CTRL_SKYHOOK_CONTINUOUS},
-    {"groundhook_onoff", DN_CTRL_GROUNDHOOK_ONOFF},
-    {"groundhook_continuous", DN_CTRL_GROUNDHOOK_CONTINUOUS},
-    {"external", DN_CTRL_EXTERNAL}};
-inline const EnumName kIntegrators[] = {{"rk4", DN_INT_RK4}, {"semi_euler", DN_INT_SEMI_EULER}};
-inline const EnumName kDamperEvals[] = {{"per_stage", DN_EVAL_PER_STAGE},
-                                        {"per_step", DN_EVAL_PER_STEP}};
-inline const EnumName kAccelFeatures[] = {
-    {"implicit", DN_ACCEL_IMPLICIT}, {"explicit", DN_ACCEL_EXPLICIT}, {"linear", DN_ACCEL_LINEAR}};
+// The name tables, expanded from dampnet.h's lists (one spelling per value, never retyped).
+#define DNPY_ENUM_NAME_(id, value, name, doc) {name, value},
+inline const EnumName kControllerKinds[] = {DN_CONTROLLER_KIND_LIST(DNPY_ENUM_NAME_)};
+inline const EnumName kIntegrators[] = {DN_INTEGRATOR_LIST(DNPY_ENUM_NAME_)};
+inline const EnumName kDamperEvals[] = {DN_DAMPER_EVAL_LIST(DNPY_ENUM_NAME_)};
+inline const EnumName kAccelFeatures[] = {DN_ACCEL_FEATURE_LIST(DNPY_ENUM_NAME_)};
+inline const EnumName kActivations[] = {DN_ACTIVATION_LIST(DNPY_ENUM_NAME_)};
+#undef DNPY_ENUM_NAME_
 
 // The int fields of DN_VEHICLE_FIELDS / DN_CONTROLLER_FIELDS, each with its own names.
 inline const EnumField kEnumFields[] = {
@@ -185,5 +181,101 @@ inline void set_controller_fields(dn_controller& s, const py::dict& d, const cha
 }
 #undef DNPY_SET_FIELD_
 #undef DNPY_FIELD_NAME_
+
+// struct -> dict (LoopModel.vehicle / .controller): every field by its X-macro name.
+inline py::dict vehicle_dict(const dn_vehicle& s) {
+  py::dict d;
+#define DNPY_GET_(type, name, def, doc) d[#name] = s.name;
+  DN_VEHICLE_FIELDS(DNPY_GET_)
+  return d;
+}
+
+inline py::dict controller_dict(const dn_controller& s) {
+  py::dict d;
+  DN_CONTROLLER_FIELDS(DNPY_GET_)
+#undef DNPY_GET_
+  return d;
+}
+
+// A vehicle / controller dict on the runtime's defaults (a controller on its kind's).
+inline dn_vehicle vehicle_from(const py::dict& d) {
+  dn_vehicle v;
+  dn_vehicle_default(&v);
+  set_vehicle_fields(v, d, "vehicle");
+  return v;
+}
+
+inline dn_controller controller_from(const py::dict& d) {
+  int kind = DN_CTRL_PASSIVE;
+  if (d.contains("kind")) kind = parse_enum(d["kind"], "controller", "kind");
+  dn_controller c;
+  dn_controller_default(&c, kind);  // the law's defaults, then the given fields
+  set_controller_fields(c, d, "controller");
+  return c;
+}
+
+// The runtime's own validation (dn_vehicle_check / dn_controller_check, as
+// dn_loop_model_create) says only that some parameter is out of range. Name the field:
+// the first given one that, put back to its default, makes both valid; else the first
+// given one that alone, on the defaults, is invalid. "" if neither finds one.
+// "vehicle 'dt' = 1.0 (step [s], 1e-9 <= dt <= 0.1): "
+inline std::string culprit(const py::dict& vehicle, const dn_vehicle& veh, const py::dict& controller,
+                           const dn_controller& ctrl) {
+  dn_vehicle vdef;
+  dn_vehicle_default(&vdef);
+  dn_controller cdef;
+  dn_controller_default(&cdef, ctrl.kind);
+  auto valid = [](const dn_vehicle& v, const dn_controller& c) {
+    return dn_vehicle_check(&v) >= 0 && dn_controller_check(&c) >= 0;
+  };
+  auto named = [](const char* what, const char* name, double value, const char* doc) {
+    return std::string(what) + " '" + name + "' = " + py::str(py::float_(value)).cast<std::string>() +
+           " (" + doc + "): ";
+  };
+  // kind sets the controller's defaults: it is never the culprit of a range error
+#define DNPY_REVERT_VEHICLE_(type, name, def, doc)                         \
+  if (vehicle.contains(#name)) {                                         \
+    dn_vehicle trial = veh;                                              \
+    trial.name = vdef.name;                                              \
+    if (valid(trial, ctrl)) return named("vehicle", #name, veh.name, doc); \
+  }
+#define DNPY_REVERT_CONTROLLER_(type, name, def, doc)                              \
+  if (controller.contains(#name) && std::string(#name) != "kind") {              \
+    dn_controller trial = ctrl;                                                  \
+    trial.name = cdef.name;                                                      \
+    if (valid(veh, trial)) return named("controller", #name, ctrl.name, doc);    \
+  }
+#define DNPY_ALONE_VEHICLE_(type, name, def, doc)                               \
+  if (vehicle.contains(#name)) {                                                \
+    dn_vehicle trial = vdef;                                                    \
+    trial.name = veh.name;                                                      \
+    if (dn_vehicle_check(&trial) < 0) return named("vehicle", #name, veh.name, doc); \
+  }
+#define DNPY_ALONE_CONTROLLER_(type, name, def, doc)                                     \
+  if (controller.contains(#name) && std::string(#name) != "kind") {                     \
+    dn_controller trial = cdef;                                                         \
+    trial.name = ctrl.name;                                                             \
+    if (dn_controller_check(&trial) < 0) return named("controller", #name, ctrl.name, doc); \
+  }
+  DN_VEHICLE_FIELDS(DNPY_REVERT_VEHICLE_)
+  DN_CONTROLLER_FIELDS(DNPY_REVERT_CONTROLLER_)
+  DN_VEHICLE_FIELDS(DNPY_ALONE_VEHICLE_)
+  DN_CONTROLLER_FIELDS(DNPY_ALONE_CONTROLLER_)
+#undef DNPY_REVERT_VEHICLE_
+#undef DNPY_REVERT_CONTROLLER_
+#undef DNPY_ALONE_VEHICLE_
+#undef DNPY_ALONE_CONTROLLER_
+  return "";
+}
+
+// ValueError naming the field when the runtime refuses a vehicle with a controller.
+inline void raise_if_invalid(const char* what, const py::dict& vehicle, const dn_vehicle& veh,
+                             const py::dict& controller, const dn_controller& ctrl) {
+  int st = dn_vehicle_check(&veh);
+  if (st >= 0) st = dn_controller_check(&ctrl);
+  if (st < 0)
+    throw py::value_error(std::string(what) + culprit(vehicle, veh, controller, ctrl) +
+                          dn_status_str(st));
+}
 
 }  // namespace dnpy

@@ -99,6 +99,12 @@ void dn_controller_default(dn_controller* c, int kind) {
   if (c) *c = dampnet::default_controller(kind);
 }
 
+int dn_vehicle_check(const dn_vehicle* v) { return v ? dampnet::check_vehicle(*v) : int(DN_E_NULL); }
+
+int dn_controller_check(const dn_controller* c) {
+  return c ? dampnet::check_controller(*c) : int(DN_E_NULL);
+}
+
 int dn_loop_model_create(const dn_vehicle* veh, const dn_damper* damper, const dn_controller* ctrl,
                          dn_loop_model** out) {
   if (!out) return DN_E_NULL;

@@ -19,13 +19,6 @@ import numpy as np
 
 import dampnet
 from dampnet import _core
-from dampnet.data.rig import generate
-from dampnet.diagnose.run import diagnose
-from dampnet.evaluate.metrics import evaluate_model
-from dampnet.loop import QuarterCar, damper_from_model
-from dampnet.model import MlpModel
-from dampnet.roads.profiles import thesis_rough_road
-from dampnet.workflow import predict_force
 
 N_STEPS = 3000
 DT_S = 0.001
@@ -42,22 +35,22 @@ def two_tone_road(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def main(model_path: Path) -> None:
-    model = MlpModel.load(model_path)
+    model = dampnet.load_model(model_path)
     print(f"model {model.model_id()}: {'-'.join(map(str, (model.n_inputs, *model.hidden, 1)))} "
           f"on {', '.join(model.features)}")
 
     # A small dataset from the virtual dyno (9 tests), with a gas spring the model never saw.
-    data = generate("quick", effects=["gas_spring"], seed=0)
-    errors = evaluate_model(lambda test: predict_force(model, test), data.tests)
+    data = dampnet.rig.generate("quick", effects=["gas_spring"], seed=0)
+    errors = dampnet.evaluate(model, data)
     print(f"evaluate: NRMSE {errors['overall']['nrmse']:.4f} over {errors['overall']['n_tests']} "
           f"rig tests (RMSE {errors['overall']['rmse_n']:.1f} N)")
-    diagnosis = diagnose(model, data)
+    diagnosis = dampnet.diagnose(model, data)
     print(f"diagnose: missing effect {diagnosis['verdict']!r}")
 
     # The quarter-car loop in C++ (GIL released): road samples at t = 0, dt, ..., N dt give
     # N steps; row k holds the state at t_k and the report of the step from t_k.
-    car = QuarterCar(damper_from_model(model),
-                     controller={"kind": "skyhook_onoff", "u_tau_s": 0.005})
+    car = dampnet.QuarterCar(dampnet.damper_from_model(model),
+                             controller={"kind": "skyhook_onoff", "u_tau_s": 0.005})
     z, rate = two_tone_road(np.arange(N_STEPS + 1) * DT_S)
     run = car.simulate(z, rate)
     final = dict(zip(_core.STATE_NAMES, run["state"][-1]))
@@ -73,7 +66,7 @@ def main(model_path: Path) -> None:
           f"unconverged={np.count_nonzero(status & _core.DN_W_ACCEL_UNCONVERGED)}")
 
     # The same car on the thesis's rough road at 20 m/s (a fresh loop state).
-    road = thesis_rough_road(seed=0).sample(DT_S, speed=20.0)
+    road = dampnet.roads.thesis_rough_road(seed=0).sample(DT_S, speed=20.0)
     rough = car.spawn().simulate(road.z, road.zdot)
     print(f"thesis rough road at 20 m/s: sprung acceleration RMS "
           f"{np.sqrt(np.mean(rough['acc_s'] ** 2)):.3f} m/s^2 over {road.t[-1]:.1f} s")

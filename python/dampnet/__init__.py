@@ -3,11 +3,58 @@
 Train the thesis's MLP (velocity, acceleration, voltage -> force), diagnose
 what physics it misses, export it to a C header, and run it in a real-time
 C++ quarter-car loop. Units are SI throughout.
+
+    import dampnet
+    model = dampnet.load_model("export/dn_model_default.json")   # or a model directory
+    data = dampnet.rig.generate("quick", seed=1)                  # or dampnet.load_dataset(path)
+    tables = dampnet.evaluate(model, data)                        # error tables [N, NRMSE]
+    found = dampnet.diagnose(model, data)                         # the missing physical effect
+    car = dampnet.QuarterCar(dampnet.damper_from_model(model), controller={"kind": "skyhook_onoff"})
+
+The names are imported on first use, so `import dampnet` stays light (no torch, no
+compiled runtime until a name that needs it is used). The package's layers, bottom up
+(each imports only from the ones below; tests/python/test_layers.py checks it):
+
+  _core, schema, outputs, paths       the runtime's bindings and its registries; file I/O
+  data                                dyno measurements: formats, readers, preprocessing
+  features, terms                     model inputs and physics terms
+  model, reference, predict           the model file, the numpy forward, force on a test
+  export, modeldir                    C header, model directory
+  rig                                 the virtual shock dyno (a plant)
+  evaluation, training, diagnosis     error tables; the training pipeline; missing physics
+  sim                                 the quarter-car loop, dampers, roads, the study
+  latency                             the latency benchmarks
+  commands, demo, cli                 the command line
 """
 
-from dampnet.model import MlpModel, ModelError
+from __future__ import annotations
 
-__all__ = ["MlpModel", "ModelError", "__version__"]
+import importlib
+from typing import Any
+
+# public name -> (module, attribute); attribute None: the module itself
+_API: dict[str, tuple[str, str | None]] = {
+    "MlpModel": ("dampnet.model", "MlpModel"),
+    "ModelError": ("dampnet.model", "ModelError"),
+    "DataError": ("dampnet.data", "DataError"),
+    "Dataset": ("dampnet.data", "Dataset"),
+    "DynoTest": ("dampnet.data", "DynoTest"),
+    "load_model": ("dampnet.modeldir", "load_model"),
+    "save_model_dir": ("dampnet.modeldir", "save_model_dir"),
+    "load_dataset": ("dampnet.data", "load_dataset"),
+    "train": ("dampnet.training.pipeline", "train_dataset"),
+    "evaluate": ("dampnet.evaluation.report", "evaluate"),
+    "diagnose": ("dampnet.diagnosis.run", "diagnose"),
+    "predict_force": ("dampnet.predict", "predict_force"),
+    "export_header": ("dampnet.export", "write_header"),
+    "QuarterCar": ("dampnet.sim.loop", "QuarterCar"),
+    "damper_from_model": ("dampnet.sim.loop", "damper_from_model"),
+    "rig": ("dampnet.rig", None),
+    "roads": ("dampnet.sim.roads", None),
+    "sim": ("dampnet.sim", None),
+}
+
+__all__ = sorted([*_API, "__version__"])
 
 try:
     from importlib.metadata import version as _version
@@ -15,3 +62,18 @@ try:
     __version__ = _version("dampnet")
 except Exception:  # running from a source tree without installation
     __version__ = "0.0.0+local"
+
+
+def __getattr__(name: str) -> Any:
+    try:
+        module, attr = _API[name]
+    except KeyError:
+        raise AttributeError(f"module 'dampnet' has no attribute {name!r}") from None
+    mod = importlib.import_module(module)
+    value = mod if attr is None else getattr(mod, attr)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_API})

@@ -27,7 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from dampnet.model import MlpModel, atomic_write_text
+from dampnet.model import MlpModel
+from dampnet.outputs import atomic_write_text
 
 # C89/C99/C++17 keywords and names the header itself defines, which a prefix must not be.
 _RESERVED = set(

@@ -12,7 +12,6 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -20,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from dampnet import schema
+from dampnet.outputs import atomic_write_text
 
 FORMAT_NAME = "dampnet-model"
 FORMAT_VERSION = 1
@@ -297,24 +297,3 @@ def _check_meta(meta: Any, where: str) -> dict:
                 raise ModelError(f"{where}.data.acceleration_window_s: expected a positive window [s], "
                                  f"got {schema.show(w)}")
     return meta
-
-
-def atomic_write_text(path: str | os.PathLike, text: str, overwrite: bool = False) -> Path:
-    """Write text to path via a temporary file and rename, never half-written.
-
-    Refuses (FileExistsError) to replace an existing file unless overwrite.
-    """
-    p = Path(path)
-    if p.exists() and not overwrite:
-        raise FileExistsError(f"{p}: exists; refusing to overwrite (use --force)")
-    p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", dir=p.parent)
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-        os.replace(tmp, p)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return p

@@ -24,6 +24,7 @@ from __future__ import annotations
 import ctypes
 import ctypes.util
 import json
+import math
 import os
 import re
 import shutil
@@ -31,7 +32,9 @@ import socket
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterable, Iterator
+from typing import Any, Callable, Iterable, Iterator
+
+import numpy as np
 
 #: the marker file inside every staging directory (pid, host, output name)
 STAGING_MARKER = "dampnet-staging.json"
@@ -331,3 +334,60 @@ def _alive(pid: int) -> bool:
     except PermissionError:
         return True
     return True
+
+
+# -- writing files ------------------------------------------------------------------------------
+
+def atomic_write_text(path: str | os.PathLike, text: str, overwrite: bool = False) -> Path:
+    """Write text to path via a temporary file and rename, never half-written.
+
+    Refuses (FileExistsError) to replace an existing file unless overwrite.
+    """
+    p = Path(path)
+    if p.exists() and not overwrite:
+        raise FileExistsError(f"{p}: exists; refusing to overwrite (use --force)")
+    p.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", dir=p.parent)
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+        os.replace(tmp, p)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return p
+
+
+def jsonable(obj: Any, default: Callable[[Any], Any] | None = None) -> Any:
+    """obj with numpy arrays and scalars as Python lists and numbers, tuples as lists, dict keys as
+    strings, paths as strings and NaN/Inf as None (JSON has no NaN). Other objects pass through
+    (json.dumps then refuses them) unless `default` converts them."""
+    if isinstance(obj, dict):
+        return {str(k): jsonable(v, default) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [jsonable(v, default) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return jsonable(obj.tolist(), default)
+    if isinstance(obj, bool) or obj is None or isinstance(obj, str):
+        return obj
+    if isinstance(obj, (np.floating, float)):
+        v = float(obj)
+        return v if math.isfinite(v) else None
+    if isinstance(obj, (np.integer, int)):
+        return int(obj)
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    if isinstance(obj, os.PathLike):
+        return os.fspath(obj)
+    return default(obj) if default is not None else obj
+
+
+def json_text(obj: Any, default: Callable[[Any], Any] | None = None) -> str:
+    """The one JSON form of dampnet's outputs: jsonable(obj), indent 1, a final newline."""
+    return json.dumps(jsonable(obj, default), indent=1, allow_nan=False) + "\n"
+
+
+def write_json(path: str | os.PathLike, obj: Any, overwrite: bool = False) -> Path:
+    """JSON (NaN/Inf written as null) atomically; an existing file only with overwrite."""
+    return atomic_write_text(path, json_text(obj), overwrite)

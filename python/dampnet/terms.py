@@ -17,6 +17,7 @@ the same formula to the C++ table.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 from typing import Any, Callable, Mapping, Sequence
 
@@ -91,3 +92,73 @@ def terms_force(terms: Sequence[Mapping[str, Any]], x, v=None, **inputs) -> np.n
     for t in terms:
         total = total + term_force(t, x, v, **inputs)
     return total
+
+
+# -- fitting a hybrid model's terms --------------------------------------------------
+
+def _velocity_basis(v: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """A simple damper model, linear in its coefficients, fitted jointly with the terms so that
+    velocity-dependent force is not attributed to position: c1 v + c2 v u + c3 tanh(v/v0) + c4 tanh(v/v0) u."""
+    v0 = 0.05 * max(float(np.max(np.abs(v))), 1e-9)
+    s = np.tanh(v / v0)
+    return np.stack([v, v * u, s, s * u], axis=1)
+
+
+def _term_columns(kind: str, x: np.ndarray, shape: tuple[float, ...]) -> np.ndarray:
+    if kind == "position_poly":
+        return np.stack([np.ones_like(x), x, x * x, x ** 3], axis=1)
+    if kind == "bump_stop":
+        x_free, n = shape
+        return (np.sign(x) * np.maximum(np.abs(x) - x_free, 0.0) ** n)[:, None]
+    raise ValueError(f"cannot fit physics term kind {kind!r} (fittable: position_poly, bump_stop)")
+
+
+def _shape_candidates(kind: str, x: np.ndarray) -> list[tuple[float, ...]]:
+    if kind == "bump_stop":
+        xmax = float(np.max(np.abs(x)))
+        return [(f * xmax, n) for f in (0.5, 0.6, 0.7, 0.8, 0.85, 0.9, 0.95) for n in (1.0, 1.5, 2.0, 3.0)]
+    return [()]
+
+
+def fit_terms(terms: Sequence[dict[str, Any]], x: np.ndarray, v: np.ndarray, u: np.ndarray,
+              y: np.ndarray) -> list[dict[str, Any]]:
+    """Terms with parameters: those given keep theirs; the others are fitted by least squares.
+
+    Fitted jointly (one linear least-squares problem) on the training samples:
+    y - sum(fixed terms) ~ sum(fitted terms) + the simple velocity model of
+    _velocity_basis, whose coefficients are then dropped (the MLP learns the
+    velocity dependence). position_poly is linear in its 4 parameters;
+    bump_stop's x_free and exponent n are chosen on a grid (x_free 50-95 % of
+    the largest |x|, n in 1, 1.5, 2, 3) by least residual, k by least squares.
+    """
+    terms = [dict(t) for t in terms]
+    for t in terms:
+        if "kind" not in t:
+            raise ValueError(f"physics term {t}: expected a 'kind'")
+    fixed = [t for t in terms if t.get("params") is not None]
+    free = [i for i, t in enumerate(terms) if t.get("params") is None]
+    if not free:
+        return terms
+    target = y - terms_force(fixed, x)
+    base = _velocity_basis(v, u)
+    best = None
+    for shapes in itertools.product(*[_shape_candidates(terms[i]["kind"], x) for i in free]):
+        cols = [_term_columns(terms[i]["kind"], x, s) for i, s in zip(free, shapes)]
+        A = np.hstack(cols + [base])
+        coef, *_ = np.linalg.lstsq(A, target, rcond=None)
+        resid = float(np.sum((A @ coef - target) ** 2))
+        if best is None or resid < best[0]:
+            best = (resid, shapes, coef, [c.shape[1] for c in cols])
+    _, shapes, coef, widths = best
+    pos = 0
+    for i, s, w in zip(free, shapes, widths):
+        c = coef[pos:pos + w]
+        pos += w
+        kind = terms[i]["kind"]
+        if kind == "bump_stop":
+            # k < 0 would pull towards the stop: not a bump stop, so the term is switched off
+            terms[i]["params"] = [float(s[0]), max(float(c[0]), 0.0), float(s[1])]
+        else:
+            terms[i]["params"] = [float(a) for a in c]
+        terms[i]["fitted"] = "least squares with a velocity model (dampnet.terms.fit_terms)"
+    return terms

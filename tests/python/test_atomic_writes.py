@@ -23,10 +23,12 @@ from pathlib import Path
 import pytest
 
 from dampnet.data import load_dataset, write_dataset
-from dampnet.data.rig import generate
+from dampnet.rig import generate
 from dampnet.export import write_header
 from dampnet.model import MlpModel
-from dampnet.workflow import save_model_dir, train_dataset, write_json
+from dampnet.modeldir import save_model_dir
+from dampnet.training.pipeline import train_dataset
+from dampnet.outputs import write_json
 
 TINY_PLAN = {"name": "tiny", "frequencies_hz": [0.5, 2.0], "amplitudes_m": [0.0254],
              "voltages_v": [0.0, 2.25, 5.0], "samples": 800}

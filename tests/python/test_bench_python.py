@@ -1,4 +1,4 @@
-"""The Python-level benchmark (dampnet.bench_python): its reference implementations compute the
+"""The Python-level benchmark (dampnet.latency.python_bench): its reference implementations compute the
 kernel's function, its inputs are the C++ harness's, its percentiles are right, and
 `dampnet bench` in a quick configuration completes with every row. No times are asserted:
 the machines are shared and noisy."""
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from cbuild import ROOT, compile_program, run
-from dampnet import bench_python as bp
+from dampnet.latency import python_bench as bp
 
 
 @pytest.fixture(scope="module")

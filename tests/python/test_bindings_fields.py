@@ -78,6 +78,17 @@ def test_the_issue_examples_no_longer_run_another_law():
         model(controller={"kind": "per_step"})
     with pytest.raises(ValueError, match="'integrator': unknown name 'skyhook_onoff'.*'rk4'"):
         model(vehicle={"integrator": "skyhook_onoff"})
+    # {"kind": "linear"} (an accel_feature name, value 2) ran continuous skyhook
+    with pytest.raises(ValueError, match="'kind': unknown name 'linear'.*'skyhook_continuous'"):
+        model(controller={"kind": "linear"})
+
+
+def test_the_name_tables_are_the_runtime_registries():
+    # fields.hpp's tables and _core's registries both come from dampnet.h's lists
+    for field, (_, names) in ENUMS.items():
+        registry = {"kind": _core.CONTROLLER_KINDS, "integrator": _core.INTEGRATORS,
+                    "damper_eval": _core.DAMPER_EVALS, "accel_feature": _core.ACCEL_FEATURES}[field]
+        assert {n: v for n, (v, _) in registry.items()} == names
 
 
 class BadFloat:
@@ -129,7 +140,7 @@ def test_unknown_and_non_string_keys_are_refused(where):
     ({"m_s": -700.0, "dt": 1e-3}, {}, "vehicle 'm_s' = -700.0 (sprung mass [kg], > 0): DN_E_PARAM"),
     ({"k_t": math.nan}, {}, "vehicle 'k_t' = nan (tyre stiffness [N/m], > 0): DN_E_NONFINITE_PARAM"),
     ({}, {"kind": "skyhook_onoff", "c_sky": -1.0}, "controller 'c_sky' = -1.0 (skyhook damping"),
-    ({}, {"u_min": 5.0, "u_max": 0.0}, "controller 'u_min' = 5.0 (lower control limit [V])"),
+    ({}, {"u_min": 5.0, "u_max": 0.0}, "controller 'u_min' = 5.0 (lower control limit [V], <= u_max)"),
 ])
 def test_an_out_of_range_value_names_its_field(vehicle, controller, named):
     # the runtime's status alone ("a parameter is out of its valid range") named no field

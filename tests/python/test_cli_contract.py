@@ -12,8 +12,9 @@ import pytest
 
 from dampnet.cli import main
 from dampnet.data import write_dataset
-from dampnet.data.rig import generate
-from dampnet.workflow import save_model_dir, train_dataset
+from dampnet.rig import generate
+from dampnet.modeldir import save_model_dir
+from dampnet.training.pipeline import train_dataset
 
 TINY_PLAN = {"name": "tiny", "frequencies_hz": [0.5, 2.0], "amplitudes_m": [0.0254],
              "voltages_v": [0.0, 2.25, 5.0], "samples": 800}

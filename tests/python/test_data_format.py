@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from dampnet.data import DataError, load_dataset, write_dataset
-from dampnet.data.rig import generate
+from dampnet.rig import generate
 
 
 @pytest.fixture(scope="module")

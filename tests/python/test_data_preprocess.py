@@ -7,7 +7,7 @@ import pytest
 
 from dampnet.data import DEFAULT_WINDOW_S, add_acceleration, decimate, holdout_split, split_by_tests
 from dampnet.data.preprocess import ACCEL_NRMSE_DOC, acceleration_error, choose_window, moving_average
-from dampnet.data.rig import generate
+from dampnet.rig import generate
 
 
 @pytest.fixture(scope="module")

@@ -11,13 +11,14 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from dampnet.data.rig.effects import Effect
+from dampnet.rig.effects import Effect
 
-from dampnet.data.rig import generate
-from dampnet.diagnose.catalogue import additions
-from dampnet.diagnose.run import diagnose
-from dampnet.evaluate.metrics import evaluate_predictions
-from dampnet.workflow import predict_force, train_dataset
+from dampnet.rig import generate
+from dampnet.diagnosis.catalogue import additions
+from dampnet.diagnosis.run import diagnose
+from dampnet.evaluation.metrics import evaluate_predictions
+from dampnet.predict import predict_force
+from dampnet.training.pipeline import train_dataset
 
 PLAN = {"name": "diag", "frequencies_hz": [0.25, 0.5, 1.0, 2.0, 3.0], "amplitudes_m": [0.0254],
         "voltages_v": [0.0, 0.5, 1.0, 1.5, 2.25, 3.0, 4.0, 5.0], "sample_rate_hz": 1000.0,

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from dampnet.diagnose.catalogue import CANDIDATES, additions
-from dampnet.diagnose.features import dahl_state, first_order_lag
+from dampnet.diagnosis.catalogue import CANDIDATES, additions
+from dampnet.features import dahl_state, first_order_lag
 
 
 def test_catalogue_ids_fixed():

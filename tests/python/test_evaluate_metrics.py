@@ -8,10 +8,10 @@ import pytest
 
 from dampnet.cli import main
 from dampnet.data import DynoTest, write_dataset
-from dampnet.data.rig import generate
-from dampnet.evaluate import plots
-from dampnet.evaluate.lookup import fit_lookup
-from dampnet.evaluate.metrics import error_stats, evaluate_predictions, format_table
+from dampnet.rig import generate
+from dampnet.evaluation import plots
+from dampnet.evaluation.lookup import fit_lookup
+from dampnet.evaluation.metrics import error_stats, evaluate_predictions, format_table
 
 
 def sine_test(tid, f_hz, volts, force, n=200):

@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 
 from dampnet import paths
-from dampnet.data.rig import generate
+from dampnet.rig import generate
 from dampnet.export import write_header
-from dampnet.train import torch_forward
-from dampnet.workflow import feature_matrix, train_dataset
+from dampnet.training import torch_forward
+from dampnet.features import feature_matrix
+from dampnet.training.pipeline import train_dataset
 
 from cbuild import compile_program, run
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from dampnet.cli import main
-from dampnet.roads import Road, RoadError, iri, iso8608
-from dampnet.roads.iri import GOLDEN_CAR
+from dampnet.sim.roads import Road, RoadError, iri, iso8608
+from dampnet.sim.roads.iri import GOLDEN_CAR
 
 # Stated tolerance: 0.5 % of the analytic steady-state IRI for sinusoids of wavelength 1-30 m on
 # 2 km profiles (measured worst 0.24 %, at 30 m where the 11 m initialisation transient remains).
@@ -18,7 +18,7 @@ V = 80 / 3.6
 
 
 def analytic_golden_car(freq_hz):
-    """(zu - zs)/road of the Golden Car, written out independently of dampnet.roads.iri."""
+    """(zu - zs)/road of the Golden Car, written out independently of dampnet.sim.roads.iri."""
     k1, k2, mu, c = (GOLDEN_CAR[k] for k in ("k1", "k2", "mu", "c"))
     s = 2j * np.pi * freq_hz
     den = (s**2 + c * s + k2) * (mu * s**2 + c * s + k1 + k2) - (c * s + k2) ** 2

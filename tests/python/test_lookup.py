@@ -6,9 +6,9 @@ import json
 import numpy as np
 import pytest
 
-from dampnet.data.rig import generate
-from dampnet.evaluate.lookup import LookupTable, fit_lookup, peak_points
-from dampnet.evaluate.metrics import error_stats
+from dampnet.rig import generate
+from dampnet.evaluation.lookup import LookupTable, fit_lookup, peak_points
+from dampnet.evaluation.metrics import error_stats
 
 V = np.array([-0.2, 0.0, 0.1, 0.3])
 U = np.array([0.0, 1.0, 5.0])

@@ -11,7 +11,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from dampnet import _core
-from dampnet.loop import S, QuarterCar, damper_from_model, truth_damper
+from dampnet.sim.loop import S, QuarterCar, damper_from_model, truth_damper
 from dampnet.model import MlpModel
 from loop_helpers import numpy_forward, random_model
 from test_loop_quarter_car import random_road
@@ -386,7 +386,7 @@ def test_control_lag_is_exact_first_order_response():
 
 
 def test_truth_damper_runs_in_the_loop_through_the_callback_hook():
-    from dampnet.data.rig.truth import TruthDamper
+    from dampnet.rig.truth import TruthDamper
     truth = TruthDamper()
     d = truth_damper(truth)
     car = QuarterCar(d, {"damper_eval": "per_step"}, dict(CTRL, kind="skyhook_onoff"))

@@ -3,7 +3,7 @@ friction_state for seal friction) run in the quarter-car loop and through the C 
 
 The loop integrates each feature's state (see cpp/include/dampnet/loop.hpp); here it is checked
 against scipy's solve_ivp of the defining ODEs on the loop's own relative motion, against the
-training-side features of dampnet.train.derived on the same samples, and the force the loop
+training-side features of dampnet.features on the same samples, and the force the loop
 reports against a numpy forward pass on the features it reports.
 """
 
@@ -14,9 +14,9 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.interpolate import CubicSpline
 
-from dampnet.train.derived import dahl_state, first_order_lag
+from dampnet.features import dahl_state, first_order_lag
 from dampnet.export import write_header
-from dampnet.loop import QuarterCar, S, damper_from_model
+from dampnet.sim.loop import QuarterCar, S, damper_from_model
 from loop_helpers import numpy_forward, random_model
 
 FEATURES = ["velocity", "velocity_lag", "friction_state", "voltage"]

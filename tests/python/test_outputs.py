@@ -178,7 +178,7 @@ KILL_SCRIPT = textwrap.dedent("""
     from pathlib import Path
     from dampnet import outputs
     from dampnet.model import MlpModel
-    from dampnet.workflow import save_model_dir
+    from dampnet.modeldir import save_model_dir
     out, step, no_exchange = Path(sys.argv[1]), sys.argv[2], sys.argv[3] == "1"
     def checkpoint(s):
         if s == step:
@@ -230,14 +230,14 @@ def test_the_exchange_is_atomic_on_this_filesystem(tmp_path):
 
 def test_a_failed_write_keeps_the_old_model_and_leaves_no_debris(tmp_path, monkeypatch):
     from dampnet.model import MlpModel
-    from dampnet.workflow import save_model_dir
+    from dampnet.modeldir import save_model_dir
 
     out = _model_dir(tmp_path / "m", "old")
 
     def disk_full(*a, **k):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr("dampnet.export.write_header", disk_full)
+    monkeypatch.setattr("dampnet.modeldir.write_header", disk_full)
     with pytest.raises(OSError, match="No space left"):
         save_model_dir(MlpModel.load(DEFAULT_MODEL), {}, out, force=True)
     assert _tag(out) == "old" and sorted(p.name for p in tmp_path.iterdir()) == ["m"]
@@ -245,7 +245,7 @@ def test_a_failed_write_keeps_the_old_model_and_leaves_no_debris(tmp_path, monke
 
 def test_a_failed_second_rename_without_exchange_puts_the_old_model_back(tmp_path, monkeypatch):
     from dampnet.model import MlpModel
-    from dampnet.workflow import save_model_dir
+    from dampnet.modeldir import save_model_dir
 
     out = _model_dir(tmp_path / "m", "old")
     real_rename = os.rename

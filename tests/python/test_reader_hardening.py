@@ -299,7 +299,7 @@ def test_mat_with_a_byte_order_scipy_cannot_read_is_refused(tmp_path):
 
 @pytest.mark.parametrize("metrics", [b"5", b"[1]", b'{"lookup_table": 3}', b'{"lookup_table": {"a": 1}}', b"\xff"])
 def test_a_damaged_metrics_json_falls_back_to_fitting_the_lookup_table(tmp_path, metrics):
-    from dampnet.evaluate.report import lookup_for
+    from dampnet.evaluation.report import lookup_for
 
     m = tmp_path / "m"
     m.mkdir()

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from scipy.signal import lsim, sosfreqz
 
-from dampnet.ride import (WK_TABLE, peak_to_rms, ride_metrics, rms, transmissibility, wk_analog, wk_sos,
+from dampnet.sim.ride import (WK_TABLE, peak_to_rms, ride_metrics, rms, transmissibility, wk_analog, wk_sos,
                           wk_weighted)
-from dampnet.roads import sine_sweep
+from dampnet.sim.roads import sine_sweep
 
 FREQS = np.array(sorted(WK_TABLE))
 TABLE = np.array([WK_TABLE[f] for f in FREQS]) / 1000.0

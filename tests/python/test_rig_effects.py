@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dampnet.data.rig import EFFECTS, Effect, TruthParams, generate, truth_force
-from dampnet.data.rig.effects import register
+from dampnet.rig import EFFECTS, Effect, TruthParams, generate, truth_force
+from dampnet.rig.effects import register
 
 P = TruthParams()
 FS = 5000.0
@@ -50,7 +50,7 @@ def test_hot_oil_damps_less_by_the_viscosity_ratio():
     # only the laminar loss depends on temperature: dF = R_lam (mu(25)/mu_ref - mu(65)/mu_ref) A^2 v_h
     mu = lambda tc: np.exp(P.viscosity_b_k * (1 / (tc + 273.15) - 1 / (P.temperature_ref_c + 273.15)))
     a = P.annulus_area_m2
-    from dampnet.data.rig.truth import first_order_lag
+    from dampnet.features import first_order_lag
     expect = P.laminar_resistance_pa_s_m3 * (mu(25.0) - mu(65.0)) * a * a * first_order_lag(v, DT, P.compressibility_tau_s)
     np.testing.assert_allclose(cold - hot, expect, rtol=1e-9, atol=1e-9)
 

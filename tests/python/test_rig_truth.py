@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from dampnet.data.rig import (EFFECTS, TruthDamper, TruthParams, controller_current, generate,
+from dampnet.rig import (EFFECTS, TruthDamper, TruthParams, controller_current, generate,
                               noise_floor_nrmse, thesis_plan, truth_force)
-from dampnet.data.rig.truth import hydraulic_force, orifice_pressure, valve_opening
+from dampnet.rig.truth import hydraulic_force, orifice_pressure, valve_opening
 
 P = TruthParams()
 PSI = 6894.757293168          # Pa

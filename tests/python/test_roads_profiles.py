@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.signal import welch
 
-from dampnet.roads import (ISO_BAND, ISO_CLASSES, Road, RoadError, bump, impulse, iso8608,
+from dampnet.sim.roads import (ISO_BAND, ISO_CLASSES, Road, RoadError, bump, impulse, iso8608,
                            iso_band_variance, iso_class_bounds, make_road, read_profile_csv, sine_sweep,
                            sweep_frequency, thesis_rough_road)
 

@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 from scipy.signal import lsim
 
-from dampnet.ride.pyloop import Controller, LinearDamper, LoopError, Vehicle, run
-from dampnet.roads import RoadError, Road, iso8608, thesis_rough_road
-from dampnet.study import (DamperSpec, lookup_spec, neural_spec, simulate, truth_spec)
+from dampnet.sim.reference_loop import LinearDamper, run
+from dampnet.sim.vehicle import Controller, LoopError, Vehicle
+from dampnet.sim.roads import RoadError, Road, iso8608, thesis_rough_road
+from dampnet.sim.study import (DamperSpec, lookup_spec, neural_spec, simulate, truth_spec)
 
 
 
@@ -34,7 +35,7 @@ def test_python_loop_matches_scipy_for_a_linear_damper():
 @pytest.mark.parametrize("control,u_tau_s", [("passive", 0.0), ("skyhook", 0.0), ("skyhook", 0.005),
                                              ("skyhook_continuous", 0.005)])
 def test_python_loop_is_the_runtime_loop_for_linear_and_lookup(control, u_tau_s):
-    from dampnet.evaluate.lookup import LookupTable
+    from dampnet.evaluation.lookup import LookupTable
 
     table = LookupTable(velocities=[-1.0, -0.1, 0.0, 0.1, 1.0], voltages=[0.0, 5.0],
                         forces=[[-1500, -400, 0, 700, 3000], [-600, -150, 0, 200, 900]])
@@ -92,9 +93,9 @@ ROAD_PLAN = dict(name="road", frequencies_hz=[1.0], amplitudes_m=[0.002, 0.005, 
 def rig_models():
     import time
 
-    from dampnet.data.rig import Plan, generate
-    from dampnet.evaluate.lookup import fit_lookup
-    from dampnet.workflow import train_dataset
+    from dampnet.rig import Plan, generate
+    from dampnet.evaluation.lookup import fit_lookup
+    from dampnet.training.pipeline import train_dataset
 
     ds = generate(Plan(**ROAD_PLAN), seed=0)
     t0 = time.perf_counter()
@@ -105,11 +106,11 @@ def rig_models():
 
 @pytest.fixture(scope="module")
 def rough_runs(rig_models):
-    from dampnet.study import continuous_skyhook, damping_levels, semi_active
+    from dampnet.sim.study import continuous_skyhook, damping_levels, semi_active
 
     neural, _, truth = rig_models
     road = thesis_rough_road()
-    # One controller for both dampers, calibrated on the truth (dampnet.study.continuous_skyhook:
+    # One controller for both dampers, calibrated on the truth (dampnet.sim.study.continuous_skyhook:
     # c_sky = 2 sqrt(k_s m_s) / sqrt(2), c_min / c_max = the truth's equivalent damping at 5 / 0 V),
     # both laws with the study's 5 ms command filter.
     cont = continuous_skyhook(truth, damping_levels(truth))
@@ -133,7 +134,7 @@ def rough_runs(rig_models):
 
 
 def test_rig_damper_levels(rig_models):
-    from dampnet.study import damping_levels
+    from dampnet.sim.study import damping_levels
 
     assert damping_levels(rig_models[2]) == {"low": 5.0, "high": 0.0}   # 0 V = valve closed = stiff
     assert damping_levels(rig_models[1]) == {"low": 5.0, "high": 0.0}
@@ -153,7 +154,7 @@ def test_skyhook_lowers_acceleration_against_passive_high(rough_runs, name, spee
 @pytest.mark.parametrize("name", ["truth", "neural"])
 @pytest.mark.parametrize("speed", [10.0, 20.0])
 def test_continuous_skyhook_lowers_acceleration_against_passive_low(rough_runs, name, speed):
-    """Against passive *low* damping (5 V) the continuous law helps, a little (dampnet.study's
+    """Against passive *low* damping (5 V) the continuous law helps, a little (dampnet.sim.study's
     docstring: the soft setting is already above the best passive damping for acceleration RMS
     and a semi-active law can only add damping). On-off skyhook is above passive low.
 
@@ -183,11 +184,11 @@ def test_diagnosed_compressibility_makes_the_model_track_the_truth_under_skyhook
     under continuous skyhook without a command filter (the hardest case: jumps of control)
     2-3x more closely (the rig's oil compressibility lags the hydraulic force by 2 ms; the
     acceleration input carries only its first-order part)."""
-    from dampnet.data.rig import Plan, generate
-    from dampnet.diagnose.catalogue import additions
-    from dampnet.diagnose.run import diagnose
-    from dampnet.study import continuous_skyhook, damping_levels
-    from dampnet.workflow import train_dataset
+    from dampnet.rig import Plan, generate
+    from dampnet.diagnosis.catalogue import additions
+    from dampnet.diagnosis.run import diagnose
+    from dampnet.sim.study import continuous_skyhook, damping_levels
+    from dampnet.training.pipeline import train_dataset
 
     neural, _, truth = rig_models
     ds = generate(Plan(**ROAD_PLAN), seed=0)
@@ -230,7 +231,7 @@ def test_neural_tracks_truth_on_the_rough_road(rough_runs, capsys):
 def test_neural_tracks_truth_on_the_impulse(rig_models):
     # the study's 50 mm, 50 ms raised-cosine bump, passive: recorded +0.8 / -0.2 % (low / high);
     # a model trained on the thesis's 1-inch sines is 25-40 % off here (the demo's study)
-    from dampnet.roads import impulse
+    from dampnet.sim.roads import impulse
 
     neural, _, truth = rig_models
     for u in (5.0, 0.0):
@@ -274,7 +275,7 @@ def test_simulate_command_writes_arrays_metrics_and_plots(tmp_path, capsys):
 def test_simulate_command_keeps_runs_and_filters_the_switching_laws(tmp_path, capsys):
     from dampnet.cli import main
     from dampnet.commands.simulate import COMMAND_TAU_S
-    from dampnet.study import SKYHOOK_COMMAND_TAU_S
+    from dampnet.sim.study import SKYHOOK_COMMAND_TAU_S
 
     assert COMMAND_TAU_S == SKYHOOK_COMMAND_TAU_S
     out = tmp_path / "run"

@@ -6,8 +6,8 @@ import json
 
 import pytest
 
-from dampnet.roads import impulse, sine_sweep, thesis_rough_road
-from dampnet.study import DamperSpec, jsonable, run_study, text_tables, write_plots
+from dampnet.sim.roads import impulse, sine_sweep, thesis_rough_road
+from dampnet.sim.study import DamperSpec, jsonable, run_study, text_tables, write_plots
 
 KEYS = {"schema", "models", "truth", "settings", "impulse", "sine_sweep", "rough_road", "skyhook", "errors"}
 
@@ -28,7 +28,7 @@ def test_study_structure_and_tables(tmp_path):
     # not change with the control, so c_min / c_max stay the controller's defaults
     cont = d["settings"]["skyhook"]["continuous"]
     assert cont["c_sky"] == pytest.approx(2 ** 0.5 * (15000.0 * 700.0) ** 0.5)
-    from dampnet.ride.pyloop import Controller
+    from dampnet.sim.vehicle import Controller
     assert cont["calibrated_on"] == "soft"
     assert (cont["c_min"], cont["c_max"]) == (Controller.c_min, Controller.c_max)
     # both laws with the command filter, recorded
@@ -51,7 +51,7 @@ def test_study_structure_and_tables(tmp_path):
 
 
 def test_continuous_skyhook_is_calibrated_on_the_dampers_damping():
-    from dampnet.study import continuous_skyhook, equivalent_damping, truth_spec
+    from dampnet.sim.study import continuous_skyhook, equivalent_damping, truth_spec
 
     truth = truth_spec()
     # A linear damper's equivalent damping is its coefficient.

@@ -10,8 +10,9 @@ import pytest
 
 from dampnet.cli import main
 from dampnet.data import write_dataset
-from dampnet.data.rig import generate
-from dampnet.workflow import save_model_dir, train_dataset
+from dampnet.rig import generate
+from dampnet.modeldir import save_model_dir
+from dampnet.training.pipeline import train_dataset
 
 PLAN = {"name": "study-cli", "frequencies_hz": [0.5, 1.5, 3.0], "amplitudes_m": [0.0254],
         "voltages_v": [0.0, 1.0, 2.25, 3.0, 5.0], "samples": 1500}

@@ -16,13 +16,13 @@ import pytest
 import scipy.optimize
 import torch
 
-from dampnet.train.adam import Adam
-from dampnet.train.br import BayesianRegularization
-from dampnet.train.lm import LevenbergMarquardt
-from dampnet.train.loop import run
-from dampnet.train.net import DTYPE, Layout
-from dampnet.train.problem import MlpProblem
-from dampnet.train.scg import ScaledConjugateGradient
+from dampnet.training.adam import Adam
+from dampnet.training.br import BayesianRegularization
+from dampnet.training.lm import LevenbergMarquardt
+from dampnet.training.loop import run
+from dampnet.training.net import DTYPE, Layout
+from dampnet.training.problem import MlpProblem
+from dampnet.training.scg import ScaledConjugateGradient
 
 
 pytestmark = pytest.mark.usefixtures("one_torch_thread")

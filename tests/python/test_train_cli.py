@@ -1,4 +1,4 @@
-"""`dampnet train` and dampnet.workflow: model directory, hold-out, errors, reproducibility,
+"""`dampnet train` and dampnet.training.pipeline: model directory, hold-out, errors, reproducibility,
 feature checks, hybrid terms; the thesis-plan accuracy floor and the noise floor."""
 
 import json
@@ -8,11 +8,14 @@ import pytest
 
 from dampnet.cli import main
 from dampnet.data import DataError, write_dataset
-from dampnet.data.rig import generate
+from dampnet.rig import generate
 from dampnet.model import MlpModel
-from dampnet.train import nrmse
-from dampnet.workflow import (feature_matrix, noise_floors, predict_force, save_model_dir,
-                              terms_force, train_dataset)
+from dampnet.training import nrmse
+from dampnet.features import feature_matrix
+from dampnet.training.pipeline import noise_floors, train_dataset
+from dampnet.predict import predict_force
+from dampnet.modeldir import save_model_dir
+from dampnet.terms import terms_force
 
 # Small but voltage-rich: the MLP has to interpolate to the held-out 2.25 V.
 SMALL_PLAN = {"name": "small", "frequencies_hz": [0.5, 1.5, 3.0], "amplitudes_m": [0.0254],
@@ -81,7 +84,7 @@ def test_refuses_existing_dir_unless_force(trained, small_dir, capsys):
 
 def test_force_replaces_atomically(tmp_path):
     X = np.random.default_rng(0).normal(size=(50, 3))
-    from dampnet.train import fit
+    from dampnet.training import fit
 
     m1, _ = fit(X, X[:, 0], features=["velocity", "acceleration", "voltage"], hidden=(3,), max_epochs=2)
     out = tmp_path / "m"

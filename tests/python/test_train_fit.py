@@ -1,16 +1,17 @@
 """fit(): split, zero-force points, scaling and limits, reproducibility, early stopping,
-provenance; torch_forward against an independent numpy forward; features_matrix."""
+provenance; torch_forward against an independent numpy forward; feature_matrix."""
 
 import json
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
 import torch
 
 from dampnet.model import MlpModel
-from dampnet.train import features_matrix, fit, nrmse, torch_forward
-from dampnet.train.synthetic import damper_force, synthetic_dyno
+from dampnet.data import DataError, DynoTest
+from dampnet.features import feature_matrix
+from dampnet.training import fit, nrmse, torch_forward
+from dampnet.training.synthetic import damper_force, synthetic_dyno
 
 FEATS = ["velocity", "acceleration", "voltage"]
 
@@ -82,7 +83,7 @@ def test_zero_points_are_at_rest_at_measured_voltages():
     _, info = fit(X, y, features=FEATS, hidden=(3,), max_epochs=5, progress=grab)
     assert info.stop_reason == "stopped by caller" and info.epochs == 1
     assert info.n_zero_points == int(np.ceil(0.01 * info.n_train))
-    from dampnet.train.fit import zero_force_points
+    from dampnet.training.fit import zero_force_points
     Z = zero_force_points(X, FEATS, 0.01, np.random.default_rng(0))
     assert np.all(Z[:, :2] == 0)  # velocity and acceleration at rest
     assert set(Z[:, 2]) <= set(X[:, 2])  # voltage copied from measured samples
@@ -183,12 +184,13 @@ def test_torch_forward_refuses_models_with_physics_terms(small):
         torch_forward(m, np.zeros((1, 3)))
 
 
-def test_features_matrix_stacks_named_channels_and_names_what_is_missing():
-    t1 = SimpleNamespace(name="a.csv", channels={"velocity": np.arange(3.0), "voltage": np.full(3, 2.0)})
-    t2 = SimpleNamespace(name="b.csv", channels={"velocity": np.arange(2.0)})
-    X = features_matrix([t1], ["voltage", "velocity"])
+def test_feature_matrix_stacks_named_channels_and_names_what_is_missing():
+    t = np.arange(3.0) * 0.01
+    t1 = DynoTest("a", t, {"velocity": np.arange(3.0), "voltage": np.full(3, 2.0)})
+    t2 = DynoTest("b", t[:2], {"velocity": np.arange(2.0)})
+    X = feature_matrix([t1], ["voltage", "velocity"])
     np.testing.assert_array_equal(X, [[2, 0], [2, 1], [2, 2]])
-    with pytest.raises(KeyError, match=r"'voltage'.*b\.csv.*velocity"):
-        features_matrix([t1, t2], ["velocity", "voltage"])
-    with pytest.raises(KeyError, match="unknown feature"):
-        features_matrix([t1], ["speed"])
+    with pytest.raises(DataError, match=r"test b: feature 'voltage' needs channel 'voltage'.*velocity"):
+        feature_matrix([t1, t2], ["velocity", "voltage"])
+    with pytest.raises(DataError, match="unknown feature"):
+        feature_matrix([t1], ["speed"])

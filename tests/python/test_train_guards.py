@@ -8,9 +8,9 @@ import pytest
 
 from dampnet.cli import main
 from dampnet.data import DataError, write_dataset
-from dampnet.data.rig import generate
+from dampnet.rig import generate
 from dampnet.model import ModelError
-from dampnet.workflow import MAX_TRAINING_MAGNITUDE, train_dataset
+from dampnet.training.pipeline import MAX_TRAINING_MAGNITUDE, train_dataset
 
 PLAN = {"name": "tiny", "frequencies_hz": [0.5, 1.5], "amplitudes_m": [0.0254],
         "voltages_v": [0.0, 2.25, 5.0], "samples": 600}
@@ -46,16 +46,16 @@ def test_data_at_the_limit_train(tiny):
 
 
 def test_a_diverged_fit_is_a_model_error(tiny, monkeypatch):
-    import dampnet.train
+    import dampnet.training.pipeline as pipeline
 
-    real_fit = dampnet.train.fit
+    real_fit = pipeline.fit
 
     def diverging_fit(*a, **k):
         model, info = real_fit(*a, **k)
         info.metrics["test"] = float("nan")
         return model, info
 
-    monkeypatch.setattr(dampnet.train, "fit", diverging_fit)
+    monkeypatch.setattr(pipeline, "fit", diverging_fit)
     with pytest.raises(ModelError, match=r"training gave non-finite NRMSE \(test\)"):
         train_dataset(tiny, max_epochs=3)
 

@@ -3,7 +3,7 @@
 import pytest
 import torch
 
-from dampnet.train.net import DTYPE, Layout
+from dampnet.training.net import DTYPE, Layout
 
 
 pytestmark = pytest.mark.usefixtures("one_torch_thread")

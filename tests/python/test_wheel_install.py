@@ -60,6 +60,8 @@ def test_the_wheel_carries_the_package_and_every_runtime_file(wheel):
     package = {f"dampnet/{p.relative_to(src).as_posix()}" for p in src.rglob("*")
                if p.is_file() and "__pycache__" not in p.parts and p.suffix not in (".pyc", ".so")}
     assert package - names == set()
+    # the typed stub of the extension and the marker that makes mypy and editors read it
+    assert {"dampnet/_core.pyi", "dampnet/py.typed"} <= names
     # what CMake installs for the C side: `dampnet info`'s headers and library, `dampnet bench`'s
     # harness sources and the default model (header and model.json), the demo's C program
     for f in ("include/dampnet/dampnet.h", "include/dampnet/mlp.hpp", "include/dampnet/loop.hpp",

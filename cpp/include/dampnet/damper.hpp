@@ -22,12 +22,13 @@ namespace features {
 struct Info {
   const char* name;
   double dn_damper_input::*field;
+  int param;  // the dn_feature_param it needs, or DN_FPARAM_NONE
 };
 
 // Indexed by dn_feature.
 inline const Info* table() noexcept {
   static const Info t[] = {
-#define DN_FEATURE_ROW_(id, name, field) {name, &dn_damper_input::field},
+#define DN_FEATURE_ROW_(id, name, field, param) {name, &dn_damper_input::field, param},
       DN_FEATURE_LIST(DN_FEATURE_ROW_)
 #undef DN_FEATURE_ROW_
   };
@@ -41,19 +42,9 @@ inline int id_of(const char* name) noexcept {
   return -1;
 }
 
-// The feature parameter (dn_feature_param) a derived feature needs, or -1.
+// The feature parameter (dn_feature_param) a derived feature needs, or -1 (DN_FPARAM_NONE).
 inline int required_param(int id) noexcept {
-  switch (id) {
-    case DN_FEAT_VOLTAGE_LAG:
-    case DN_FEAT_CURRENT_LAG:
-      return DN_FPARAM_CONTROL_LAG_TAU_S;
-    case DN_FEAT_VELOCITY_LAG:
-      return DN_FPARAM_VELOCITY_LAG_TAU_S;
-    case DN_FEAT_FRICTION_STATE:
-      return DN_FPARAM_FRICTION_PRESLIDING_M;
-    default:
-      return -1;
-  }
+  return id >= 0 && id < DN_N_FEATURES ? table()[id].param : int(DN_FPARAM_NONE);
 }
 
 inline int param_id_of(const char* name) noexcept {

@@ -48,6 +48,13 @@
 extern "C" {
 #endif
 
+/* Registries: every name the runtime knows is defined once, in an X-macro list below, and
+ * the C enums, the C++ tables and the Python module's registries (dampnet._core:
+ * CONTROLLER_KINDS, INTEGRATORS, FEATURE_NAMES, ...) are all expanded from these lists.
+ * An enum list's rows are X(id, value, "name", doc): the value is the ABI (never renumber),
+ * "name" is the one spelling Python and model files use. DN_ENUM_ROW_ declares them. */
+#define DN_ENUM_ROW_(id, value, name, doc) id = value,
+
 /*---- Version ----*/
 
 #define DN_VERSION_MAJOR 0
@@ -108,11 +115,11 @@ DN_API const char* dn_status_str(int status);
 #define DN_MAX_HIDDEN 64       /* neurons per hidden layer */
 #define DN_MAX_HIDDEN_LAYERS 2 /* hidden layers */
 
-/* Hidden-layer activation; the output layer is always linear. */
-typedef enum dn_activation {
-  DN_ACT_TANH = 0,    /* tanh(x) (MATLAB's tansig) */
-  DN_ACT_SIGMOID = 1  /* 1 / (1 + exp(-x)) (MATLAB's logsig) */
-} dn_activation;
+/* Hidden-layer activations (MlpModel.activation); the output layer is always linear. */
+#define DN_ACTIVATION_LIST(X)                                  \
+  X(DN_ACT_TANH, 0, "tanh", "tanh(x) (MATLAB's tansig)")       \
+  X(DN_ACT_SIGMOID, 1, "sigmoid", "1 / (1 + exp(-x)) (MATLAB's logsig)")
+typedef enum dn_activation { DN_ACTIVATION_LIST(DN_ENUM_ROW_) } dn_activation;
 
 /* A model description: what a generated header or a training run provides.
  * All arrays are double and row-major with PyTorch's layout [out][in].
@@ -176,43 +183,6 @@ DN_API int dn_mlp_forward_f(const dn_mlp* m, const float* x, float* y, uint32_t*
  * unsprung move apart); the force F is positive when it resists extension
  * (tension). In the quarter car: x = z_s - z_us + x_static, v = dz_s - dz_us. */
 
-/* What a damper model is evaluated on: the loop's state at one evaluation.
- * The X-macro lists the neural features, one per line:
- * X(id, "name" (MlpModel.features), field of dn_damper_input it reads). To add a
- * feature add one line here (and, for a new quantity, one field below that the
- * loop fills in dampnet::detail::damper_input). */
-typedef struct dn_damper_input {
-  double x;           /* relative displacement, extension positive, from the mid position [m] */
-  double v;           /* relative velocity, extension positive [m/s] */
-  double a;           /* relative acceleration, extension positive [m/s^2] (see the loop) */
-  double u;           /* control (voltage [V] or current [A]), held over the step */
-  double u_lag;       /* control after a first-order lag of the model's control_lag_tau_s */
-  double temperature; /* damper temperature [degC] */
-  double t;           /* time of this evaluation [s] (callback dampers) */
-  double dt;          /* step size of the loop [s] (callback dampers); 0 outside a loop */
-  int stage;          /* integrator stage of this evaluation, 0..3 (callback dampers) */
-  /* since 0.2 (appended: the fields above keep their 0.1 offsets) */
-  double v_lag;       /* velocity after a first-order lag of the model's velocity_lag_tau_s [m/s] */
-  double z_fric;      /* Dahl friction state in [-1, 1]: follows sgn(v) over a travel of a few
-                         friction_presliding_m after each reversal (dimensionless) */
-} dn_damper_input;
-
-#define DN_FEATURE_LIST(X)                             \
-  X(DN_FEAT_VELOCITY, "velocity", v)                   \
-  X(DN_FEAT_ACCELERATION, "acceleration", a)           \
-  X(DN_FEAT_DISPLACEMENT, "displacement", x)           \
-  X(DN_FEAT_VOLTAGE, "voltage", u)                     \
-  X(DN_FEAT_CURRENT, "current", u)                     \
-  X(DN_FEAT_VOLTAGE_LAG, "voltage_lag", u_lag)         \
-  X(DN_FEAT_CURRENT_LAG, "current_lag", u_lag)         \
-  X(DN_FEAT_TEMPERATURE, "temperature", temperature)  \
-  X(DN_FEAT_VELOCITY_LAG, "velocity_lag", v_lag)       \
-  X(DN_FEAT_FRICTION_STATE, "friction_state", z_fric)
-
-#define DN_FEATURE_ENUM_(id, name, field) id,
-typedef enum dn_feature { DN_FEATURE_LIST(DN_FEATURE_ENUM_) DN_N_FEATURES } dn_feature;
-#undef DN_FEATURE_ENUM_
-
 /* Constants of derived features (MlpModel.feature_params), by name:
  * X(id, "name", meaning). Unknown names are refused (DN_E_UNKNOWN_NAME). */
 #define DN_FEATURE_PARAM_LIST(X)                                                                   \
@@ -223,8 +193,74 @@ typedef enum dn_feature { DN_FEATURE_LIST(DN_FEATURE_ENUM_) DN_N_FEATURES } dn_f
     "pre-sliding travel of friction_state [m], > 0")
 
 #define DN_FPARAM_ENUM_(id, name, text) id,
-typedef enum dn_feature_param { DN_FEATURE_PARAM_LIST(DN_FPARAM_ENUM_) DN_N_FEATURE_PARAMS } dn_feature_param;
+/* DN_FPARAM_NONE: a feature that needs no parameter (DN_FEATURE_LIST's last column). */
+typedef enum dn_feature_param {
+  DN_FPARAM_NONE = -1,
+  DN_FEATURE_PARAM_LIST(DN_FPARAM_ENUM_) DN_N_FEATURE_PARAMS
+} dn_feature_param;
 #undef DN_FPARAM_ENUM_
+
+/* What a damper model is evaluated on: the loop's state at one evaluation,
+ * X(type, name, role, doc) in struct order. role: QTY, a quantity a model may read
+ * (an argument of the Python Damper.forces); QTY_OPT, a quantity appended after 0.1
+ * (a Damper.forces argument that defaults to NaN: a model reading it must be given it);
+ * CTX, the evaluation's context for callback dampers. Fields are only ever appended
+ * (the ABI keeps every offset). */
+#define DN_DAMPER_INPUT_FIELDS(X)                                                              \
+  X(double, x, QTY, "relative displacement, extension positive, from the mid position [m]")  \
+  X(double, v, QTY, "relative velocity, extension positive [m/s]")                          \
+  X(double, a, QTY, "relative acceleration, extension positive [m/s^2] (see the loop)")     \
+  X(double, u, QTY, "control, held over the step [V or A]")             \
+  X(double, u_lag, QTY, "control after a first-order lag of the model's control_lag_tau_s [V or A]") \
+  X(double, temperature, QTY, "damper temperature [degC]")                                   \
+  X(double, t, CTX, "time of this evaluation [s] (callback dampers)")                        \
+  X(double, dt, CTX, "step size of the loop [s] (callback dampers); 0 outside a loop")      \
+  X(int, stage, CTX, "integrator stage of this evaluation, 0..3 [-] (callback dampers)")     \
+  /* since 0.2 (appended: the fields above keep their 0.1 offsets) */                         \
+  X(double, v_lag, QTY_OPT,                                                                  \
+    "velocity after a first-order lag of the model's velocity_lag_tau_s [m/s]")             \
+  X(double, z_fric, QTY_OPT,                                                                 \
+    "Dahl friction state in [-1, 1]: follows sgn(v) over a travel of a few "                \
+    "friction_presliding_m after each reversal [-]")
+
+#define DN_INPUT_DECL_(type, name, role, doc) type name;
+typedef struct dn_damper_input { DN_DAMPER_INPUT_FIELDS(DN_INPUT_DECL_) } dn_damper_input;
+#undef DN_INPUT_DECL_
+
+/* The neural features, one per line: X(id, "name" (MlpModel.features), field of
+ * dn_damper_input it reads, dn_feature_param it needs or DN_FPARAM_NONE). Values are
+ * positions in the list (ABI: append only).
+ *
+ * Recipe: adding a lagged feature (like velocity_lag) touches dampnet.h and the loop's
+ * state update only on the C/C++ side (the C ABI, damper.hpp, dampnet._core and its
+ * registries, Damper.forces's arguments are all generated from these lists):
+ *  1. DN_FEATURE_PARAM_LIST: one line for its constant, e.g.
+ *       X(DN_FPARAM_ACCEL_LAG_TAU_S, "accel_lag_tau_s", "time constant of accel_lag [s], > 0")
+ *  2. DN_DAMPER_INPUT_FIELDS: append one field (role QTY_OPT) holding its value, e.g.
+ *       X(double, a_lag, QTY_OPT, "relative acceleration after ... lag [m/s^2]")
+ *  3. DN_FEATURE_LIST: append one line,
+ *       X(DN_FEAT_ACCEL_LAG, "accel_lag", a_lag, DN_FPARAM_ACCEL_LAG_TAU_S)
+ *  4. DN_LOOP_STATE_LIST: append its state slot and raise DN_LOOP_STATE_SIZE, e.g.
+ *       X(13, a_lag, "relative acceleration after the accel_lag feature's lag [m/s^2]")
+ *  5. cpp/include/dampnet/loop.hpp: its coefficients in LoopModel::init (from
+ *     damper.fparam(DN_FPARAM_...)), its value at each evaluation in detail::damper_input
+ *     / detail::motion_lag, its end-of-step update in step(), and its rest value in reset().
+ * Then the Python side: its training formula in python/dampnet's feature registry. */
+#define DN_FEATURE_LIST(X)                                                                \
+  X(DN_FEAT_VELOCITY, "velocity", v, DN_FPARAM_NONE)                                      \
+  X(DN_FEAT_ACCELERATION, "acceleration", a, DN_FPARAM_NONE)                              \
+  X(DN_FEAT_DISPLACEMENT, "displacement", x, DN_FPARAM_NONE)                              \
+  X(DN_FEAT_VOLTAGE, "voltage", u, DN_FPARAM_NONE)                                        \
+  X(DN_FEAT_CURRENT, "current", u, DN_FPARAM_NONE)                                        \
+  X(DN_FEAT_VOLTAGE_LAG, "voltage_lag", u_lag, DN_FPARAM_CONTROL_LAG_TAU_S)               \
+  X(DN_FEAT_CURRENT_LAG, "current_lag", u_lag, DN_FPARAM_CONTROL_LAG_TAU_S)               \
+  X(DN_FEAT_TEMPERATURE, "temperature", temperature, DN_FPARAM_NONE)                      \
+  X(DN_FEAT_VELOCITY_LAG, "velocity_lag", v_lag, DN_FPARAM_VELOCITY_LAG_TAU_S)            \
+  X(DN_FEAT_FRICTION_STATE, "friction_state", z_fric, DN_FPARAM_FRICTION_PRESLIDING_M)
+
+#define DN_FEATURE_ENUM_(id, name, field, param) id,
+typedef enum dn_feature { DN_FEATURE_LIST(DN_FEATURE_ENUM_) DN_N_FEATURES } dn_feature;
+#undef DN_FEATURE_ENUM_
 
 /* Physics terms added to any damper model's force (hybrid = neural + terms):
  * X(id, value, "kind" (MlpModel.terms[i]["kind"]), number of params, formula).
@@ -248,16 +284,20 @@ typedef enum dn_term_kind { DN_TERM_LIST(DN_TERM_ENUM_) DN_N_TERM_KINDS } dn_ter
 #define DN_MAX_TABLE_U 16     /* control points of a lookup table */
 
 /* Damper model kinds. */
-typedef enum dn_damper_kind {
-  DN_DAMPER_LINEAR = 0,     /* F = c v */
-  DN_DAMPER_PARAMETRIC = 1, /* the thesis's eq. 1-3 (dn_parametric_params) */
-  DN_DAMPER_TABLE = 2,      /* force against velocity for a set of controls, bilinear */
-  DN_DAMPER_NEURAL = 3,     /* the MLP on named features */
-  DN_DAMPER_CALLBACK = 4    /* a user function (slow path; e.g. a truth model or a real damper) */
-} dn_damper_kind;
+#define DN_DAMPER_KIND_LIST(X)                                                                \
+  X(DN_DAMPER_LINEAR, 0, "linear", "F = c v")                                                 \
+  X(DN_DAMPER_PARAMETRIC, 1, "parametric", "the thesis's eq. 1-3 (dn_parametric_params)")     \
+  X(DN_DAMPER_TABLE, 2, "table", "force against velocity for a set of controls, bilinear")    \
+  X(DN_DAMPER_NEURAL, 3, "neural", "the MLP on named features")                               \
+  X(DN_DAMPER_CALLBACK, 4, "callback",                                                        \
+    "a user function (slow path; e.g. a truth model or a real damper)")
+typedef enum dn_damper_kind { DN_DAMPER_KIND_LIST(DN_ENUM_ROW_) } dn_damper_kind;
 
 /* Precision of a neural damper's MLP evaluation (the loop's state is always double). */
-typedef enum dn_precision { DN_PRECISION_DOUBLE = 0, DN_PRECISION_FLOAT = 1 } dn_precision;
+#define DN_PRECISION_LIST(X)                                          \
+  X(DN_PRECISION_DOUBLE, 0, "double", "double-precision kernel")     \
+  X(DN_PRECISION_FLOAT, 1, "float", "single-precision kernel")
+typedef enum dn_precision { DN_PRECISION_LIST(DN_ENUM_ROW_) } dn_precision;
 
 /* The thesis's parametric semi-active damper (eq. 1-3):
  * F = c(V) v + F0 sgn(v), c = gamma / V + c_min for V > 0, c_max for V = 0,
@@ -346,14 +386,18 @@ DN_API int dn_damper_force(const dn_damper* d, const dn_damper_input* in, double
  * over the step: u_k = u_law + (u_{k-1} - u_law) exp(-dt / u_tau_s), u_{k-1} being the
  * state u_cmd. It stands for the command smoothing of a real semi-active controller (a
  * switching law's jumps in damper force jolt the body: "jerk"); 0 = unfiltered. */
-typedef enum dn_controller_kind {
-  DN_CTRL_PASSIVE = 0,
-  DN_CTRL_SKYHOOK_ONOFF = 1,
-  DN_CTRL_SKYHOOK_CONTINUOUS = 2,
-  DN_CTRL_GROUNDHOOK_ONOFF = 3,
-  DN_CTRL_GROUNDHOOK_CONTINUOUS = 4,
-  DN_CTRL_EXTERNAL = 5
-} dn_controller_kind;
+#define DN_CONTROLLER_KIND_LIST(X)                                                              \
+  X(DN_CTRL_PASSIVE, 0, "passive", "u = u_passive")                                             \
+  X(DN_CTRL_SKYHOOK_ONOFF, 1, "skyhook_onoff", "on-off skyhook: d = 1 if v_s v > 0 else 0")     \
+  X(DN_CTRL_SKYHOOK_CONTINUOUS, 2, "skyhook_continuous",                                        \
+    "continuous skyhook: d = clamp((c_sky v_s / v - c_min) / (c_max - c_min), 0, 1) if v_s v > 0") \
+  X(DN_CTRL_GROUNDHOOK_ONOFF, 3, "groundhook_onoff",                                            \
+    "on-off groundhook: d = 1 if -v_us v > 0 else 0")                                           \
+  X(DN_CTRL_GROUNDHOOK_CONTINUOUS, 4, "groundhook_continuous",                                  \
+    "continuous groundhook: d = clamp((-c_gnd v_us / v - c_min) / (c_max - c_min), 0, 1) if "   \
+    "-v_us v > 0")                                                                              \
+  X(DN_CTRL_EXTERNAL, 5, "external", "u = dn_loop_input.u (the caller's controller)")
+typedef enum dn_controller_kind { DN_CONTROLLER_KIND_LIST(DN_ENUM_ROW_) } dn_controller_kind;
 
 /* Controller parameters: X(type, name, default, doc). */
 #define DN_CONTROLLER_FIELDS(X)                                                     \
@@ -361,11 +405,11 @@ typedef enum dn_controller_kind {
   X(double, u_passive, 0.0, "control of the passive law [V]")                       \
   X(double, u_soft, 5.0, "control giving the least damping [V]")                    \
   X(double, u_hard, 0.0, "control giving the most damping [V]")                     \
-  X(double, u_min, 0.0, "lower control limit [V]")                                  \
-  X(double, u_max, 5.0, "upper control limit [V]")                                  \
+  X(double, u_min, 0.0, "lower control limit [V], <= u_max")                                  \
+  X(double, u_max, 5.0, "upper control limit [V], >= u_min")                                  \
   X(double, c_sky, 2500.0, "skyhook damping [N s/m], >= 0")                         \
   X(double, c_gnd, 2500.0, "groundhook damping [N s/m], >= 0")                      \
-  X(double, c_min, 500.0, "damping at u_soft [N s/m] (continuous laws)")            \
+  X(double, c_min, 500.0, "damping at u_soft [N s/m] (continuous laws: < c_max)")            \
   X(double, c_max, 4000.0, "damping at u_hard [N s/m] (continuous laws), > c_min")           \
   X(double, u_tau_s, 0.0, "command filter time constant [s], >= 0; 0 = none (not EXTERNAL)")
 
@@ -375,16 +419,19 @@ typedef struct dn_controller { DN_CONTROLLER_FIELDS(DN_FIELD_DECL_) } dn_control
 /*---- The quarter-car loop ----*/
 
 /* Integrators. */
-typedef enum dn_integrator {
-  DN_INT_RK4 = 0,           /* classical 4th-order Runge-Kutta */
-  DN_INT_SEMI_EULER = 1     /* semi-implicit (symplectic) Euler: v first, then z with the new v */
-} dn_integrator;
+#define DN_INTEGRATOR_LIST(X)                                                     \
+  X(DN_INT_RK4, 0, "rk4", "classical 4th-order Runge-Kutta")                      \
+  X(DN_INT_SEMI_EULER, 1, "semi_euler",                                           \
+    "semi-implicit (symplectic) Euler: v first, then z with the new v")
+typedef enum dn_integrator { DN_INTEGRATOR_LIST(DN_ENUM_ROW_) } dn_integrator;
 
 /* When the damper is evaluated within an RK4 step. */
-typedef enum dn_damper_eval {
-  DN_EVAL_PER_STAGE = 0, /* at each of the 4 stages (4th order; 4 evaluations per step) */
-  DN_EVAL_PER_STEP = 1   /* once at the step start, force held over the step (1 evaluation; 1st order) */
-} dn_damper_eval;
+#define DN_DAMPER_EVAL_LIST(X)                                                          \
+  X(DN_EVAL_PER_STAGE, 0, "per_stage",                                                  \
+    "at each of the 4 stages (4th order; 4 evaluations per step)")                      \
+  X(DN_EVAL_PER_STEP, 1, "per_step",                                                    \
+    "once at the step start, force held over the step (1 evaluation; 1st order)")
+typedef enum dn_damper_eval { DN_DAMPER_EVAL_LIST(DN_ENUM_ROW_) } dn_damper_eval;
 
 /* How the loop computes the acceleration feature a (the relative acceleration
  * z_s'' - z_us'') of a neural damper that uses "acceleration". a and the force
@@ -419,11 +466,11 @@ typedef enum dn_damper_eval {
  * evaluation, no iteration, stable only while |dF/da| k < 1.
  * Dampers whose force does not read a (all but neural-with-acceleration) and
  * callback dampers (possibly stateful: never re-evaluated) always use EXPLICIT. */
-typedef enum dn_accel_feature {
-  DN_ACCEL_IMPLICIT = 0, /* solve the coupling per evaluation (default) */
-  DN_ACCEL_EXPLICIT = 1, /* a from f_last: one evaluation, no iteration */
-  DN_ACCEL_LINEAR = 2    /* one evaluation with its slope, one linearised Newton step */
-} dn_accel_feature;
+#define DN_ACCEL_FEATURE_LIST(X)                                                      \
+  X(DN_ACCEL_IMPLICIT, 0, "implicit", "solve the coupling per evaluation (default)")  \
+  X(DN_ACCEL_EXPLICIT, 1, "explicit", "a from f_last: one evaluation, no iteration")  \
+  X(DN_ACCEL_LINEAR, 2, "linear", "one evaluation with its slope, one linearised Newton step")
+typedef enum dn_accel_feature { DN_ACCEL_FEATURE_LIST(DN_ENUM_ROW_) } dn_accel_feature;
 #define DN_ACCEL_MAX_EVALS 6 /* damper evaluations per implicit solve, at most */
 /* Smallest g' = 1 + k dF/da at which DN_ACCEL_LINEAR takes its Newton step (see above). */
 #define DN_ACCEL_LINEAR_MIN_SLOPE 0.5
@@ -454,6 +501,13 @@ DN_API void dn_vehicle_default(dn_vehicle* v);
 /* Fill with the defaults above for a law (kind). */
 DN_API void dn_controller_default(dn_controller* c, int kind);
 
+/* Validate a vehicle / a controller as dn_loop_model_create does (the same checks):
+ * DN_OK, DN_E_NONFINITE_PARAM (a NaN or infinite field), DN_E_PARAM (a field out of the
+ * range its DN_VEHICLE_FIELDS / DN_CONTROLLER_FIELDS doc states, or an enum field that is
+ * no value of its list), DN_E_NULL. */
+DN_API int dn_vehicle_check(const dn_vehicle* v);
+DN_API int dn_controller_check(const dn_controller* c);
+
 /* The loop's state, a flat array of doubles: X(index, name, doc). */
 #define DN_LOOP_STATE_LIST(X)                                                         \
   X(0, t, "time [s]")                                                                 \
@@ -478,19 +532,26 @@ typedef struct dn_loop_input {
   double u;   /* control for DN_CTRL_EXTERNAL [V]; ignored by the other laws */
 } dn_loop_input;
 
-/* What a step reports, all at the step's START time t (before advancing). */
+/* What a step reports, all at the step's START time t (before advancing): its scalar
+ * quantities X(name, doc), in struct order, then the neural inputs. (Python's step report
+ * and Loop.simulate's arrays are generated from this list.) */
+#define DN_LOOP_OUT_LIST(X)                                                               \
+  X(force, "damper force of the first evaluation [N] (model plus terms)")                 \
+  X(u, "control applied over the step (after limits) [V]")                               \
+  X(x, "damper displacement [m]")                                                          \
+  X(v, "damper velocity [m/s]")                                                            \
+  X(a, "relative acceleration fed to the damper (the acceleration feature) [m/s^2]")      \
+  X(acc_s, "sprung-mass acceleration with this force [m/s^2]")                             \
+  X(acc_us, "unsprung-mass acceleration with this force [m/s^2]")
+
+#define DN_OUT_DECL_(name, doc) double name;
 typedef struct dn_loop_out {
-  double force;      /* damper force of the first evaluation [N] (model plus terms) */
-  double u;          /* control applied over the step (after limits) [V] */
-  double x;          /* damper displacement [m] */
-  double v;          /* damper velocity [m/s] */
-  double a;          /* relative acceleration fed to the damper (the acceleration feature) [m/s^2] */
-  double acc_s;      /* sprung-mass acceleration with this force [m/s^2] */
-  double acc_us;     /* unsprung-mass acceleration with this force [m/s^2] */
-  double features[DN_MAX_INPUTS]; /* a neural damper's inputs (before saturation) */
-  int n_features;    /* number of valid features (0 unless neural) */
-  uint32_t clamped_mask; /* neural: bit i = input i clamped */
+  DN_LOOP_OUT_LIST(DN_OUT_DECL_)
+  double features[DN_MAX_INPUTS]; /* a neural damper's inputs (before saturation), feature units */
+  int n_features;                 /* number of valid features (0 unless neural) */
+  uint32_t clamped_mask;          /* neural: bit i = input i clamped */
 } dn_loop_out;
+#undef DN_OUT_DECL_
 
 /* A validated, immutable loop model (vehicle, damper copy, controller). Opaque. */
 typedef struct dn_loop_model dn_loop_model;
@@ -540,6 +601,8 @@ DN_API int dn_loop_step(const dn_loop_model* m, dn_loop_data* d, const dn_loop_i
  * It evaluates the damper once (a stateful callback damper sees that call). */
 DN_API int dn_loop_forward(const dn_loop_model* m, const dn_loop_data* d, const dn_loop_input* in,
                            dn_loop_out* out);
+
+#undef DN_ENUM_ROW_
 
 #ifdef __cplusplus
 }

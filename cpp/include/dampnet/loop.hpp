@@ -28,7 +28,7 @@
 //             z = sgn(dx) + (z0 - sgn(dx)) exp(-|dx| / x_c),
 //           with dx from the step start (a reversal inside one step counts only
 //           its net travel). Both match the training features of
-//           python/dampnet/train/derived.py as the sample time goes to 0.
+//           python/dampnet/training/derived.py as the sample time goes to 0.
 //
 // The acceleration feature: the relative acceleration a = a_s - a_us depends on
 // the damper force being computed: a = a_free - k (F(a) - f_static), with
@@ -122,10 +122,67 @@ inline double control_law(const dn_controller& c, double v_s, double v_us, doubl
   return detail::clamp(u, c.u_min, c.u_max);
 }
 
+namespace detail {
+// Whether value is one of an enum list's values.
+#define DN_ENUM_VALUE_(id, value, name, doc) value,
+inline bool is_integrator(int x) noexcept {
+  for (int v : {DN_INTEGRATOR_LIST(DN_ENUM_VALUE_)}) if (x == v) return true;
+  return false;
+}
+inline bool is_damper_eval(int x) noexcept {
+  for (int v : {DN_DAMPER_EVAL_LIST(DN_ENUM_VALUE_)}) if (x == v) return true;
+  return false;
+}
+inline bool is_accel_feature(int x) noexcept {
+  for (int v : {DN_ACCEL_FEATURE_LIST(DN_ENUM_VALUE_)}) if (x == v) return true;
+  return false;
+}
+inline bool is_controller_kind(int x) noexcept {
+  for (int v : {DN_CONTROLLER_KIND_LIST(DN_ENUM_VALUE_)}) if (x == v) return true;
+  return false;
+}
+#undef DN_ENUM_VALUE_
+}  // namespace detail
+
 // The smallest step accepted [s]: 1 ns, far below any real loop (a 1 MHz loop is 1 us);
 // below it the Hermite road's rate (dz_r / dt) and the lag coefficients lose their
 // meaning, and a subnormal dt (1e-320) overflows every difference quotient.
 constexpr double kMinDt = 1e-9;
+
+namespace detail {
+inline bool finite_field(double x) noexcept { return std::isfinite(x); }
+inline bool finite_field(int) noexcept { return true; }  // enum fields: checked by value
+}  // namespace detail
+
+// Validation of a vehicle and a controller (dn_vehicle_check, dn_controller_check,
+// LoopModel::init): DN_OK or a DN_E_* error. Every real field must be finite.
+#define DN_CHECK_FINITE_(type, name, def, doc) \
+  if (!detail::finite_field(s.name)) return DN_E_NONFINITE_PARAM;
+inline int check_vehicle(const dn_vehicle& s) noexcept {
+  DN_VEHICLE_FIELDS(DN_CHECK_FINITE_)
+  const dn_vehicle& v = s;
+  if (!(v.m_s > 0) || !(v.m_us > 0) || v.k_s < 0 || !(v.k_t > 0) || v.c_t < 0 ||
+      !(v.dt >= kMinDt) || v.dt > 0.1)
+    return DN_E_PARAM;
+  // a subnormal mass (1e-320 kg) is > 0 but its reciprocal overflows
+  if (!std::isfinite(1.0 / v.m_s) || !std::isfinite(1.0 / v.m_us)) return DN_E_PARAM;
+  if (!detail::is_integrator(v.integrator) || !detail::is_damper_eval(v.damper_eval) ||
+      !detail::is_accel_feature(v.accel_feature))
+    return DN_E_PARAM;
+  return DN_OK;
+}
+
+inline int check_controller(const dn_controller& s) noexcept {
+  DN_CONTROLLER_FIELDS(DN_CHECK_FINITE_)
+  const dn_controller& c = s;
+  if (!detail::is_controller_kind(c.kind)) return DN_E_PARAM;
+  if (!(c.u_min <= c.u_max) || c.c_sky < 0 || c.c_gnd < 0 || c.u_tau_s < 0) return DN_E_PARAM;
+  if ((c.kind == DN_CTRL_SKYHOOK_CONTINUOUS || c.kind == DN_CTRL_GROUNDHOOK_CONTINUOUS) &&
+      !(c.c_max > c.c_min))
+    return DN_E_PARAM;
+  return DN_OK;
+}
+#undef DN_CHECK_FINITE_
 
 struct LoopModel {
   dn_vehicle veh = default_vehicle();
@@ -148,29 +205,10 @@ struct LoopModel {
 
   // Validate and derive; DN_OK or a DN_E_* error.
   int init(const dn_vehicle& v, const Damper& d, const dn_controller& c) noexcept {
-    const double vals[] = {v.m_s, v.m_us, v.k_s, v.k_t, v.c_t, v.dt, v.x_static, v.f_static,
-                           v.temperature};
-    for (double x : vals)
-      if (!std::isfinite(x)) return DN_E_NONFINITE_PARAM;
-    if (!(v.m_s > 0) || !(v.m_us > 0) || v.k_s < 0 || !(v.k_t > 0) || v.c_t < 0 ||
-        !(v.dt >= kMinDt) || v.dt > 0.1)
-      return DN_E_PARAM;
-    // a subnormal mass (1e-320 kg) is > 0 but its reciprocal overflows
-    if (!std::isfinite(1.0 / v.m_s) || !std::isfinite(1.0 / v.m_us)) return DN_E_PARAM;
-    if (v.integrator != DN_INT_RK4 && v.integrator != DN_INT_SEMI_EULER) return DN_E_PARAM;
-    if (v.damper_eval != DN_EVAL_PER_STAGE && v.damper_eval != DN_EVAL_PER_STEP) return DN_E_PARAM;
-    if (v.accel_feature != DN_ACCEL_IMPLICIT && v.accel_feature != DN_ACCEL_EXPLICIT &&
-        v.accel_feature != DN_ACCEL_LINEAR)
-      return DN_E_PARAM;
-    const double cv[] = {c.u_passive, c.u_soft, c.u_hard, c.u_min, c.u_max,
-                         c.c_sky,     c.c_gnd,  c.c_min,  c.c_max, c.u_tau_s};
-    for (double x : cv)
-      if (!std::isfinite(x)) return DN_E_NONFINITE_PARAM;
-    if (c.kind < DN_CTRL_PASSIVE || c.kind > DN_CTRL_EXTERNAL) return DN_E_PARAM;
-    if (!(c.u_min <= c.u_max) || c.c_sky < 0 || c.c_gnd < 0 || c.u_tau_s < 0) return DN_E_PARAM;
-    if ((c.kind == DN_CTRL_SKYHOOK_CONTINUOUS || c.kind == DN_CTRL_GROUNDHOOK_CONTINUOUS) &&
-        !(c.c_max > c.c_min))
-      return DN_E_PARAM;
+    int st = check_vehicle(v);
+    if (st != DN_OK) return st;
+    st = check_controller(c);
+    if (st != DN_OK) return st;
     veh = v;
     ctrl = c;
     damper = d;

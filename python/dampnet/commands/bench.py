@@ -36,8 +36,8 @@ def add_parser(subparsers):
 
 
 def run(args) -> int:
-    from dampnet import bench_python
-    from dampnet.benchmark import (HIL_FORCE_MARGIN, hil_hard_input_check, quick_latency,
+    from dampnet.latency import python_bench as bench_python
+    from dampnet.latency.harness import (HIL_FORCE_MARGIN, hil_hard_input_check, quick_latency,
                                    timed_configs_hard_input_check)
 
     n = args.calls or (200_000 if args.quick else 1_000_000)

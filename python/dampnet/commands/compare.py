@@ -23,8 +23,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def compare(model_a, model_b, ds) -> dict:
-    from dampnet.diagnose.context import build_context
-    from dampnet.diagnose.localise import overall_metrics
+    from dampnet.diagnosis.context import build_context
+    from dampnet.diagnosis.localise import overall_metrics
 
     ma = overall_metrics(build_context(model_a, ds))
     mb = overall_metrics(build_context(model_b, ds))
@@ -80,7 +80,7 @@ def run(args) -> int:
     worse = [r for r in c["per_test"] if r["change_pct"] is not None and r["change_pct"] > 0]
     print(f"tests improved: {len(c['per_test']) - len(worse)} of {len(c['per_test'])}")
     if args.json:
-        from dampnet.model import atomic_write_text
+        from dampnet.outputs import atomic_write_text
 
         try:
             atomic_write_text(args.json, json.dumps(c, indent=1) + "\n", overwrite=True)
@@ -104,9 +104,9 @@ def run(args) -> int:
 
 def write_report(a, b, ds, c: dict, out) -> None:
     """index.html with the per-frequency table and both models' diagnosis pictures, into `out`."""
-    from dampnet.diagnose.context import build_context
-    from dampnet.diagnose.report import figures
-    from dampnet.diagnose.run import diagnose
+    from dampnet.diagnosis.context import build_context
+    from dampnet.diagnosis.report import figures
+    from dampnet.diagnosis.run import diagnose
 
     o = c["overall"]
     parts = []

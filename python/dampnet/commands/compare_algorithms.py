@@ -30,9 +30,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 def compare_algorithms(ds, algorithms, progress_factory=None, **kw) -> dict:
     """{"rows": [{algorithm, nrmse_test, nrmse_holdout, time_s, epochs, stop_reason}], "lookup_holdout_nrmse"}."""
-    from dampnet.evaluate.lookup import fit_lookup
-    from dampnet.evaluate.metrics import evaluate_model
-    from dampnet.workflow import predict_force, train_dataset
+    from dampnet.evaluation.lookup import fit_lookup
+    from dampnet.evaluation.metrics import evaluate_model
+    from dampnet.predict import predict_force
+    from dampnet.training.pipeline import train_dataset
 
     rows, split = [], None
     for algo in algorithms:
@@ -61,8 +62,8 @@ def run(args) -> int:
     from dampnet.commands.train import Progress, error, training_kwargs
     from dampnet.data import DataError, load_dataset
     from dampnet.model import ModelError
-    from dampnet.train import ALGORITHMS
-    from dampnet.workflow import write_json
+    from dampnet.training import ALGORITHMS
+    from dampnet.outputs import write_json
 
     algos = [a.strip() for a in args.algorithms.split(",") if a.strip()]
     bad = [a for a in algos if a not in ALGORITHMS]

@@ -58,8 +58,8 @@ def summary(d: dict) -> str:
 
 def run(args) -> int:
     from dampnet.data import DataError
-    from dampnet.diagnose.context import build_context
-    from dampnet.diagnose.run import diagnose
+    from dampnet.diagnosis.context import build_context
+    from dampnet.diagnosis.run import diagnose
     from dampnet.model import MlpModel, ModelError
 
     from dampnet.outputs import check_output_file, check_report_dir
@@ -84,7 +84,7 @@ def run(args) -> int:
         if args.json == "-":
             print(text)
         else:
-            from dampnet.model import atomic_write_text
+            from dampnet.outputs import atomic_write_text
 
             try:
                 atomic_write_text(args.json, text + "\n", overwrite=True)
@@ -94,7 +94,7 @@ def run(args) -> int:
     if args.report:
         from pathlib import Path
 
-        from dampnet.diagnose.report import write_report
+        from dampnet.diagnosis.report import write_report
         from dampnet.outputs import staged_files
 
         try:

@@ -3,7 +3,7 @@
 JSON (--json FILE, stable keys): model, data, overall {nrmse, rmse_n, max_abs_error_n,
 mean_pct_error, ...}, per_frequency, per_frequency_control, per_test, lookup {the same
 tables for the lookup-table baseline, and its source}, noise_floor (rig data).
-Definitions: dampnet.evaluate.metrics.
+Definitions: dampnet.evaluation.metrics.
 """
 
 from __future__ import annotations
@@ -35,10 +35,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 def run(args) -> int:
     from dampnet.commands.train import error
     from dampnet.data import DataError, load_dataset
-    from dampnet.evaluate.metrics import format_table
-    from dampnet.evaluate.report import evaluation, lookup_for, write_plots
+    from dampnet.evaluation.metrics import format_table
+    from dampnet.evaluation.report import evaluation, lookup_for, write_plots
     from dampnet.model import MlpModel, ModelError
-    from dampnet.workflow import check_features, noise_floors, write_json
+    from dampnet.features import check_features
+    from dampnet.training.pipeline import noise_floors
+    from dampnet.outputs import write_json
 
     from dampnet.outputs import check_output_file
 
@@ -70,7 +72,7 @@ def run(args) -> int:
             if args.json == "-":
                 import json
 
-                from dampnet.workflow import _jsonable
+                from dampnet.outputs import jsonable as _jsonable
 
                 print(json.dumps(_jsonable(rep), indent=1))
             else:

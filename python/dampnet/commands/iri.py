@@ -23,7 +23,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    from dampnet.roads import RoadError, iri, read_profile_csv
+    from dampnet.sim.roads import RoadError, iri, read_profile_csv
 
     from dampnet.outputs import OutputError, check_output_file
 
@@ -40,7 +40,7 @@ def run(args) -> int:
     for a, b, v in res.segments:
         print(f"  {a:10.2f} - {b:10.2f} m  {v:8.3f} m/km")
     if args.json:
-        from dampnet.model import atomic_write_text
+        from dampnet.outputs import atomic_write_text
 
         try:
             atomic_write_text(args.json, json.dumps(res.to_dict(), indent=2) + "\n", overwrite=True)

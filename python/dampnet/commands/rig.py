@@ -9,7 +9,7 @@ import time
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     """Register the `rig` subcommand; its handler is `run`."""
-    from dampnet.data.rig.effects import EFFECTS
+    from dampnet.rig.effects import EFFECTS
 
     p = subparsers.add_parser(
         "rig", help="generate a dataset on the virtual shock dyno",
@@ -32,7 +32,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 def run(args) -> int:
     """Generate and write the dataset; 0 on success, 2 (one-line message) on bad input."""
     from dampnet.data import DataError, write_dataset
-    from dampnet.data.rig import generate, noise_floor_nrmse
+    from dampnet.rig import generate, noise_floor_nrmse
 
     from dampnet.outputs import check_output_dir
 

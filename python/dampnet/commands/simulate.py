@@ -10,7 +10,7 @@ CONTROLS = ("passive", "skyhook", "skyhook_continuous", "groundhook", "groundhoo
 RUN_SCHEMA = "dampnet.simulate/1"
 #: the files of a run (metrics.json is its marker: a JSON object with "schema": RUN_SCHEMA)
 RUN_FILES = ("run.npz", "metrics.json", "time_history.png", "transmissibility.png")
-COMMAND_TAU_S = 0.005  # = dampnet.study.SKYHOOK_COMMAND_TAU_S (not imported: keeps --help fast)
+COMMAND_TAU_S = 0.005  # = dampnet.sim.study.SKYHOOK_COMMAND_TAU_S (not imported: keeps --help fast)
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -44,7 +44,7 @@ def load_spec(text: str):
     """A DamperSpec from a command-line MODEL string."""
     import os
 
-    from dampnet.study import DamperSpec, lookup_spec, neural_spec, truth_spec
+    from dampnet.sim.study import DamperSpec, lookup_spec, neural_spec, truth_spec
 
     if text == "truth" or text.startswith("truth:"):
         eff = [e for e in text.split(":", 1)[1].split(",") if e] if ":" in text else []
@@ -59,7 +59,7 @@ def load_spec(text: str):
         raise ModelError(f"{path}: no such model file")
     d = schema.load_json(path, ModelError)
     if isinstance(d, dict) and "velocities" in d and "forces" in d:
-        from dampnet.evaluate.lookup import LookupTable
+        from dampnet.evaluation.lookup import LookupTable
 
         try:
             return lookup_spec(LookupTable.from_dict(d))
@@ -73,9 +73,9 @@ def run(args) -> int:
 
     import numpy as np
 
-    from dampnet.ride.pyloop import Controller, LoopError, Vehicle
-    from dampnet.roads import RoadError, make_road
-    from dampnet.study import (continuous_skyhook, damping_levels, plot_run, plot_transmissibility, semi_active,
+    from dampnet.sim.vehicle import Controller, LoopError, Vehicle
+    from dampnet.sim.roads import RoadError, make_road
+    from dampnet.sim.study import (continuous_skyhook, damping_levels, plot_run, plot_transmissibility, semi_active,
                                simulate)
 
     from dampnet.outputs import check_run_dir

@@ -30,15 +30,16 @@ def run(args) -> int:
     from pathlib import Path
 
     from dampnet.commands.simulate import load_spec
-    from dampnet.study import jsonable, lookup_spec, run_study, text_tables, truth_spec, write_plots
+    from dampnet.sim.study import jsonable, lookup_spec, run_study, text_tables, truth_spec, write_plots
 
+    from dampnet.data.types import RIG_GENERATOR
     from dampnet.outputs import check_run_dir
 
     out = Path(args.out)
     try:
-        check_run_dir(out, ("study.json", "study.txt"), "study.json", "dampnet.study/",
+        check_run_dir(out, ("study.json", "study.txt"), "study.json", "dampnet.sim.study/",
                       [p for p in (args.model, args.data) if p and Path(p).exists()], args.force)
-        from dampnet.roads import sine_sweep, thesis_rough_road
+        from dampnet.sim.roads import sine_sweep, thesis_rough_road
 
         roads = ({"sweep": sine_sweep(rate_oct_s=0.5), "rough": thesis_rough_road(seed=args.seed, base_length_m=46.0)}
                  if args.quick else {})
@@ -46,11 +47,11 @@ def run(args) -> int:
         truth = None
         if args.data:
             from dampnet.data import load_dataset
-            from dampnet.evaluate.lookup import fit_lookup
+            from dampnet.evaluation.lookup import fit_lookup
 
             ds = load_dataset(args.data)
             specs.append(lookup_spec(fit_lookup(ds)))
-            if ds.meta.get("generator") == "dampnet.data.rig":
+            if ds.meta.get("generator") == RIG_GENERATOR:
                 truth = truth_spec(list(ds.meta.get("effects", {})))
         res = run_study(specs, truth, dt=args.dt, seed=args.seed, keep_runs=not args.no_plots,
                         progress=lambda s: print(f"  {s}", file=sys.stderr), **roads)

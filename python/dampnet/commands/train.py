@@ -1,7 +1,7 @@
 """`dampnet train DATA --out MODEL_DIR`: train an MLP damper model (thesis chapter 4).
 
 Writes MODEL_DIR/model.json, metrics.json and model.h (the C header) atomically.
-The pipeline is `dampnet.workflow.train_dataset`; see its docstring for the steps.
+The pipeline is `dampnet.training.pipeline.train_dataset`; see its docstring for the steps.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 def add_training_options(p: argparse.ArgumentParser, algorithm: bool = True) -> None:
     """Options shared by `train` and `compare-algorithms`."""
-    from dampnet.train import ALGORITHMS
+    from dampnet.training import ALGORITHMS
 
     p.add_argument("--features", default=None,
                    help="comma-separated input features in order (default: velocity,acceleration and "
@@ -41,7 +41,7 @@ def add_training_options(p: argparse.ArgumentParser, algorithm: bool = True) -> 
                         '"params" are fitted by least squares, the MLP learns the rest')
     p.add_argument("--add", action="append", default=[], metavar="EFFECT",
                    help="add the features and terms that model a physical effect (repeatable; "
-                        "effects from dampnet.diagnose.catalogue)")
+                        "effects from dampnet.diagnosis.catalogue)")
     if algorithm:
         p.add_argument("--algorithm", default="lm", choices=sorted(ALGORITHMS),
                        help="lm (Levenberg-Marquardt, default), br (Bayesian regularisation), "
@@ -81,7 +81,7 @@ def _json_arg(text: str | None, name: str, kind: type):
 
 def training_kwargs(args, ds) -> dict:
     """train_dataset keyword arguments from the parsed options (ValueError on bad ones)."""
-    from dampnet.workflow import default_features
+    from dampnet.features import default_features
 
     features = [f.strip() for f in args.features.split(",") if f.strip()] if args.features else None
     terms = _json_arg(args.terms, "terms", list) or []
@@ -123,9 +123,9 @@ def effect_additions(effect: str, ds=None) -> dict:
     """{"features", "terms", "feature_params"} for an effect, from the diagnosis catalogue
     (given the dataset, the catalogue estimates the effect's parameters from it)."""
     try:
-        from dampnet.diagnose import catalogue
+        from dampnet.diagnosis import catalogue
     except ImportError:
-        raise ValueError(f"--add {effect}: effect catalogue (dampnet.diagnose.catalogue) is not "
+        raise ValueError(f"--add {effect}: effect catalogue (dampnet.diagnosis.catalogue) is not "
                          "available in this dampnet") from None
     try:
         add = None
@@ -181,7 +181,8 @@ def run(args) -> int:
 
     from dampnet.data import DataError, load_dataset
     from dampnet.model import ModelError
-    from dampnet.workflow import model_metrics, save_model_dir
+    from dampnet.training.pipeline import model_metrics
+    from dampnet.modeldir import save_model_dir
 
     from dampnet.outputs import check_output_dir
 
@@ -192,7 +193,7 @@ def run(args) -> int:
         ds = load_dataset(args.data)
         kw = training_kwargs(args, ds)
         bar = Progress(kw["max_epochs"], f"train {args.algorithm}", not args.quiet)
-        from dampnet.workflow import train_dataset
+        from dampnet.training.pipeline import train_dataset
 
         t0 = time.perf_counter()
         model, info, split = train_dataset(ds, algorithm=args.algorithm, progress=bar, **kw)
@@ -210,7 +211,7 @@ def run(args) -> int:
 
 
 def print_summary(model, info, split, metrics, out, t_train) -> None:
-    from dampnet.evaluate.metrics import format_table
+    from dampnet.evaluation.metrics import format_table
 
     net = f"{model.n_inputs}-{'-'.join(map(str, model.hidden))}-1"
     print(f"{out}: {net} MLP ({', '.join(model.features)}), {info.algorithm}, {info.epochs} epochs "

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import os
 from pathlib import Path
 
@@ -22,7 +21,7 @@ import numpy as np
 from dampnet.data.table import read_table, safe_name
 from dampnet.schema import (expect_number_map, expect_object, expect_string, expect_strings, load_json,
                             read_text, show)
-from dampnet.data.types import (COLUMN_CHANNELS, CONTROL_NAMES, FILE_COLUMNS, DataError, Dataset,
+from dampnet.data.types import (COLUMN_CHANNELS, CONTROL_NAMES, FILE_COLUMNS, RIG_GENERATOR, DataError, Dataset,
                                 DynoTest)
 from dampnet.data.validate import check_test
 
@@ -154,7 +153,7 @@ def read_meta(path: Path) -> dict:
     for key in ("noise", "resolution"):
         if key in meta:
             expect_number_map(meta[key], f"{path}: field {key!r}", DataError)
-    if meta.get("generator") == "dampnet.data.rig" and "force_n" not in meta.get("noise", {}):
+    if meta.get("generator") == RIG_GENERATOR and "force_n" not in meta.get("noise", {}):
         raise DataError(f"{path}: field 'noise': expected the rig's force_n [N]")
     if "effects" in meta and not isinstance(meta["effects"], (dict, list)):
         raise DataError(f"{path}: field 'effects': expected an object or a list of effect names, "
@@ -249,7 +248,7 @@ def write_dataset(ds: Dataset, out_dir: str | os.PathLike, overwrite: bool = Fal
     `.` or a parent is replaced. Values are written at the resolutions of
     COLUMN_FORMATS. `meta` goes to meta.json.
     """
-    from dampnet.outputs import check_output_dir, staged_dir
+    from dampnet.outputs import check_output_dir, json_text, staged_dir
 
     out = check_output_dir(out_dir, "dataset", inputs, overwrite)
     if not ds.tests:
@@ -272,7 +271,7 @@ def write_dataset(ds: Dataset, out_dir: str | os.PathLike, overwrite: bool = Fal
     with staged_dir(out) as tmp:
         _write_tests(ds.tests, tmp, progress)
         (tmp / MANIFEST).write_text("\n".join(rows) + "\n")
-        (tmp / META_FILE).write_text(json.dumps(ds.meta, indent=1, default=_jsonable) + "\n")
+        (tmp / META_FILE).write_text(json_text(ds.meta, default=str))
     return out
 
 
@@ -289,13 +288,3 @@ def _write_tests(tests, tmp: Path, progress: bool) -> None:
         it = tqdm(it, desc="write", unit="test")
     for t in it:
         _write_one((t, tmp / f"{t.test_id}.csv"))
-
-
-def _jsonable(o):
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, (np.floating, np.integer)):
-        return o.item()
-    if isinstance(o, Path):
-        return str(o)
-    return str(o)

@@ -17,6 +17,10 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+#: The virtual rig's id in a dataset's meta.json "generator" field. Its value is the rig's first
+#: module path; data files carry it, so it stays although the rig now lives in dampnet.rig.
+RIG_GENERATOR = "dampnet.data.rig"
+
 #: SI unit of each known channel.
 CHANNEL_UNITS = {
     "time": "s",

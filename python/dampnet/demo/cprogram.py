@@ -38,7 +38,7 @@ def compile_controller(model_dir: Path, out_dir: Path) -> Path:
 def controller_inputs(model, test: DynoTest, n: int) -> np.ndarray:
     """Rows x v a u u_lag T v_lag z_fric (dn_damper_input's fields) for the first n samples of a
     test, as the loop would feed them; derived features the model does not use repeat their source."""
-    from dampnet.workflow import feature_matrix
+    from dampnet.features import feature_matrix
 
     ch = test.channels
     control = test.control_name
@@ -69,7 +69,7 @@ def run_controller(exe: Path, rows: np.ndarray) -> np.ndarray:
 def check_against_python(model, model_dir: Path, tests: list[DynoTest], out_dir: Path,
                          n_per_test: int = 2000) -> dict:
     """Compile, run on held-out samples, and compare with predict_force; returns the figures."""
-    from dampnet.workflow import predict_force
+    from dampnet.predict import predict_force
 
     exe = compile_controller(model_dir, out_dir)
     worst, n_total, scale = 0.0, 0, 0.0

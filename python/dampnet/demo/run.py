@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 from pathlib import Path
 from typing import Any, Callable
 
-import numpy as np
 
 THESIS = {"lm_nrmse": 0.0339, "br_nrmse": 0.0422, "scg_nrmse": 0.112, "lm_minutes": 106,
           "table4_max_error_lbf": {"0.25": 9.79, "1": 11.48, "2": 12.43, "3": 22.97},
@@ -68,15 +66,16 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
              seed: int = 0, log: Callable[[str], None] = print) -> dict[str, Any]:
     """Run every stage, write out_dir/{report.html, summary.json, ...}; returns the summary."""
     from dampnet.data import write_dataset
-    from dampnet.data.rig import generate, noise_floor_nrmse
+    from dampnet.rig import generate, noise_floor_nrmse
     from dampnet.demo import cprogram, report
-    from dampnet.diagnose.catalogue import additions
-    from dampnet.diagnose.run import diagnose
-    from dampnet.evaluate.lookup import LookupTable
-    from dampnet.evaluate.report import write_plots
-    from dampnet.workflow import model_metrics, save_model_dir, train_dataset
+    from dampnet.diagnosis.catalogue import additions
+    from dampnet.diagnosis.run import diagnose
+    from dampnet.evaluation.lookup import LookupTable
+    from dampnet.evaluation.report import write_plots
+    from dampnet.training.pipeline import model_metrics, train_dataset
+    from dampnet.modeldir import save_model_dir
 
-    from dampnet.outputs import check_output_dir, staged_dir
+    from dampnet.outputs import check_output_dir, json_text, staged_dir
 
     out = check_output_dir(out_dir, "demo", (), force)  # OutputError: a FileExistsError
     staging = staged_dir(out)  # built in work, swapped into place crash-safely at the end
@@ -143,7 +142,7 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
             log("      " + study_res["headline"])
 
         with stage("latency", "quick latency benchmark and HIL headroom"):
-            from dampnet.benchmark import quick_latency
+            from dampnet.latency.harness import quick_latency
 
             bench = quick_latency(work / "bench", n_calls=200_000 if quick else 1_000_000)
             log("      " + bench["headline"])
@@ -153,7 +152,7 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
         summary["total_time_s"] = round(time.perf_counter() - t_start, 1)
         report.write(work, summary, metrics0, metrics1, diag0, diag1, study_res, bench)
         summary["report_rendered"] = report.check_rendering(work / "report.html")
-        (work / "summary.json").write_text(json.dumps(summary, indent=1, default=_json_default))
+        (work / "summary.json").write_text(json_text(summary))
     except BaseException:
         if not staging.__exit__(*sys.exc_info()):
             raise
@@ -163,23 +162,13 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
     return summary
 
 
-def _json_default(o):
-    if isinstance(o, (np.floating, np.integer)):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, Path):
-        return str(o)
-    raise TypeError(f"not JSON-serialisable: {type(o)}")
-
-
 def _study(model0, model1, lookup, fig_dir: Path, quick: bool) -> dict:
-    from dampnet import study
-    from dampnet.roads import thesis_rough_road
+    from dampnet.sim import study
+    from dampnet.sim.roads import thesis_rough_road
 
     specs = [study.neural_spec(model1, "improved"), study.neural_spec(model0, "original"),
              study.lookup_spec(lookup, "lookup")]
-    from dampnet.roads import sine_sweep
+    from dampnet.sim.roads import sine_sweep
 
     if quick:  # shortened roads: a 5x faster sweep and half the rough road's length
         sweep, rough = sine_sweep(rate_oct_s=0.5), thesis_rough_road(seed=0, base_length_m=46.0)

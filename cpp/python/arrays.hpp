@@ -1,0 +1,56 @@
+// The result arrays of Loop.simulate (arrays.cpp): "state" [n, DN_LOOP_STATE_SIZE], one [n]
+// array per dn_loop_out quantity (DN_LOOP_OUT_LIST, in its order; its "u" is named
+// "control" here, the trajectory's name for it since 0.1), "features" [n, n_features] and
+// "status" [n] int32. Fresh arrays, or the arrays of a previous result (out=) checked and
+// written in place.
+#pragma once
+
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <iterator>
+#include <utility>
+
+#include "dampnet/dampnet.h"
+
+namespace dnpy {
+
+namespace py = pybind11;
+
+#define DNPY_OUT_COUNT_(name, doc) +1
+constexpr std::size_t kNumOutQuantities = 0 DN_LOOP_OUT_LIST(DNPY_OUT_COUNT_);
+#undef DNPY_OUT_COUNT_
+
+class SimulateArrays {
+ public:
+  // n samples of a damper with nf neural inputs.
+  SimulateArrays(py::ssize_t n, int nf);  // fresh arrays
+  // out's arrays (a previous result of the same shapes), refused with ValueError/TypeError
+  // unless each is writeable, aligned, C-contiguous, of the result's dtype and shape and
+  // shares no memory with another or with the inputs.
+  SimulateArrays(const py::object& out, py::ssize_t n, int nf,
+                 std::initializer_list<std::pair<const char*, const char*>> inputs);
+
+  // Raw pointers for the loop, written with the GIL released.
+  double* state() { return state_.mutable_data(); }
+  int32_t* status() { return status_.mutable_data(); }
+  // Sample k of a step's report (not the status).
+  struct Writer {
+    double* q[kNumOutQuantities];
+    double* features;
+    int nf;
+    void operator()(py::ssize_t k, const dn_loop_out& o) const noexcept;
+  };
+  Writer writer();
+
+  py::dict to_dict() const;  // the result, keys in the order above
+
+ private:
+  int nf_;
+  py::array_t<double> state_, quantity_[kNumOutQuantities], features_;
+  py::array_t<int32_t> status_;
+};
+
+}  // namespace dnpy

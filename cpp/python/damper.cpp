@@ -1,0 +1,274 @@
+// dampnet._core.Damper and DamperInput: damper models (dn_damper_*) owned by Python. The
+// DamperInput fields and Damper.forces's arguments are expanded from DN_DAMPER_INPUT_FIELDS,
+// so a new input field needs no edit here.
+#include "damper.hpp"
+
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <atomic>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <iterator>
+#include <limits>
+#include <map>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "callback_run.hpp"
+#include "common.hpp"
+#include "dampnet/dampnet.h"
+#include "fields.hpp"
+#include "mlp.hpp"
+
+namespace dnpy {
+
+namespace {
+
+// The quantities a damper model may read (DN_DAMPER_INPUT_FIELDS with role QTY or QTY_OPT),
+// in struct order: the arrays of Damper.forces. CTX fields (t, dt, stage) are the loop's.
+#define DNPY_ROLE_QTY(...) __VA_ARGS__
+#define DNPY_ROLE_QTY_OPT(...) __VA_ARGS__
+#define DNPY_ROLE_CTX(...)
+#define DNPY_QTY_MEMBER_(type, name, role, doc) DNPY_ROLE_##role(&dn_damper_input::name, )
+double dn_damper_input::* const kQuantities[] = {DN_DAMPER_INPUT_FIELDS(DNPY_QTY_MEMBER_)};
+#undef DNPY_QTY_MEMBER_
+constexpr std::size_t kNumQuantities = std::size(kQuantities);
+
+// Damper.forces(self, x, v, ...): one DArray parameter per quantity; 0.1's fields are
+// required, later ones (QTY_OPT) default to NaN.
+#define DNPY_FORCES_PARAM_(type, name, role, doc) DNPY_ROLE_##role(, DArray name)
+#define DNPY_FORCES_ARRAY_(type, name, role, doc) DNPY_ROLE_##role(&name, )
+#define DNPY_ARG_QTY(name) , py::arg(#name)
+#define DNPY_ARG_QTY_OPT(name) , py::arg(#name) = std::numeric_limits<double>::quiet_NaN()
+#define DNPY_ARG_CTX(name)
+#define DNPY_FORCES_ARG_(type, name, role, doc) DNPY_ARG_##role(name)
+
+// A damper owned by Python. A callback damper keeps its Python function here.
+class PyDamper {
+ public:
+  struct Deleter {
+    void operator()(dn_damper* d) const { dn_damper_destroy(d); }
+  };
+  std::unique_ptr<dn_damper, Deleter> d;
+  py::object callback;        // the Python function of a callback damper
+  std::vector<std::string> features;  // a neural damper's inputs (empty for the others)
+  // Calls of forces() under way. Counted with the GIL held, read by add_term (GIL held): a
+  // damper is immutable while evaluated (forces releases the GIL; a callback may re-enter).
+  std::atomic<int> evaluating{0};
+
+  static std::shared_ptr<PyDamper> wrap(dn_damper* raw) {
+    auto p = std::make_shared<PyDamper>();
+    p->d.reset(raw);
+    return p;
+  }
+
+  static std::shared_ptr<PyDamper> linear(double c) {
+    dn_damper* r = nullptr;
+    check(dn_damper_create_linear(c, &r), "Damper.linear");
+    return wrap(r);
+  }
+  static std::shared_ptr<PyDamper> parametric(double c_min, double c_max, double gamma, double f0,
+                                              double v_max, double v_smooth) {
+    dn_parametric_params p{c_min, c_max, gamma, f0, v_max, v_smooth};
+    dn_damper* r = nullptr;
+    check(dn_damper_create_parametric(&p, &r), "Damper.parametric");
+    return wrap(r);
+  }
+  static std::shared_ptr<PyDamper> table(DArray v, DArray u, DArray f) {
+    if (v.ndim() != 1 || u.ndim() != 1)
+      throw py::value_error("Damper.table: velocities and controls must be 1-D");
+    if (v.shape(0) > DN_MAX_TABLE_V || u.shape(0) > DN_MAX_TABLE_U)  // before the int casts
+      throw py::value_error("Damper.table: at most " + std::to_string(DN_MAX_TABLE_V) +
+                            " velocities and " + std::to_string(DN_MAX_TABLE_U) + " controls (" +
+                            dn_status_str(DN_E_SIZE) + ")");
+    if (f.ndim() != 2 || f.shape(0) != u.shape(0) || f.shape(1) != v.shape(0))
+      throw py::value_error("Damper.table: forces must be 2-D [n_controls, n_velocities]");
+    dn_damper* r = nullptr;
+    check(dn_damper_create_table(v.data(), (int)v.shape(0), u.data(), (int)u.shape(0), f.data(),
+                                 &r),
+          "Damper.table");
+    return wrap(r);
+  }
+  static std::shared_ptr<PyDamper> neural(py::handle mlp_obj, const std::vector<std::string>& feats,
+                                          const std::map<std::string, double>& fparams,
+                                          bool single) {
+    if (mlp_obj.is_none()) throw py::type_error("Damper.neural: mlp must be an Mlp, not None");
+    const dn_mlp* mlp = mlp_handle(mlp_obj);
+    if (feats.size() > DN_MAX_INPUTS || fparams.size() > 64)  // before the int casts
+      throw py::value_error("Damper.neural: at most " + std::to_string(DN_MAX_INPUTS) + " features (" +
+                            dn_status_str(DN_E_SIZE) + ")");
+    std::vector<const char*> names, pnames;
+    std::vector<double> pvals;
+    for (const auto& f : feats) names.push_back(f.c_str());
+    for (const auto& kv : fparams) {
+      pnames.push_back(kv.first.c_str());
+      pvals.push_back(kv.second);
+    }
+    dn_damper* r = nullptr;
+    const int st = dn_damper_create_neural(mlp, names.data(), (int)names.size(),
+                                           pnames.data(), pvals.data(), (int)pvals.size(),
+                                           single ? DN_PRECISION_FLOAT : DN_PRECISION_DOUBLE, &r);
+    if (st == DN_E_UNKNOWN_NAME) {
+      std::string msg = "Damper.neural: unknown feature or feature parameter name in [";
+      for (const auto& f : feats) msg += f + " ";
+      msg += "] / feature_params; known features:";
+#define DN_FNAME_(id, name, field, param) msg += std::string(" ") + name;
+      DN_FEATURE_LIST(DN_FNAME_)
+#undef DN_FNAME_
+      throw py::value_error(msg + " (" + dn_status_str(st) + ")");
+    }
+    check(st, "Damper.neural");
+    auto p = wrap(r);
+    p->features = feats;
+    return p;
+  }
+
+  // The C function of a callback damper: calls the Python function with the GIL. Its
+  // exception (or a result that is no number) goes to the run on this thread
+  // (CallbackRun), which raises it; the runtime sees NaN and stops the run.
+  static double trampoline(void* user, const dn_damper_input* in) noexcept {
+    auto* self = static_cast<PyDamper*>(user);
+    py::gil_scoped_acquire gil;
+    CallbackRun* run = CallbackRun::current();
+    if (run && run->failed()) return std::nan("");
+    try {
+      py::object r = self->callback(*in);
+      const double f = PyFloat_AsDouble(r.ptr());
+      if (f == -1.0 && PyErr_Occurred()) {
+        PyErr_Clear();
+        throw py::type_error("Damper.callback: the function returned " + describe(r) +
+                             ", expected the force [N] as a number");
+      }
+      return f;
+    } catch (py::error_already_set& e) {
+      e.restore();
+    } catch (const py::builtin_exception& e) {
+      e.set_error();
+    } catch (const std::exception& e) {
+      PyErr_SetString(PyExc_RuntimeError, e.what());
+    }
+    if (run) run->record_current_error();
+    else PyErr_WriteUnraisable(self->callback.ptr());  // no run to raise it in (not expected)
+    return std::nan("");
+  }
+
+  static std::shared_ptr<PyDamper> callback_damper(py::function fn) {
+    auto p = std::make_shared<PyDamper>();
+    dn_damper* r = nullptr;
+    check(dn_damper_create_callback(&PyDamper::trampoline, p.get(), &r), "Damper.callback");
+    p->d.reset(r);
+    p->callback = fn;
+    return p;
+  }
+
+  void add_term(const std::string& kind, DArray params) {
+    if (evaluating.load() > 0)
+      throw std::runtime_error("Damper.add_term: the damper is being evaluated (forces in another "
+                               "thread, or its callback re-entering it); add terms before use");
+    if (params.size() > DN_MAX_TERM_PARAMS)  // before the int cast
+      throw py::value_error("add_term('" + kind + "'): at most " +
+                            std::to_string(DN_MAX_TERM_PARAMS) + " parameters (" +
+                            dn_status_str(DN_E_SIZE) + ")");
+    const int st = dn_damper_add_term(d.get(), kind.c_str(), params.data(), (int)params.size());
+    if (st == DN_E_UNKNOWN_NAME) {
+      std::string msg = "add_term: unknown kind '" + kind + "'; known:";
+#define DN_TNAME_(id, value, name, n, text) msg += std::string(" ") + name;
+      DN_TERM_LIST(DN_TNAME_)
+#undef DN_TNAME_
+      throw py::value_error(msg);
+    }
+    check(st, "add_term('" + kind + "')");
+  }
+
+  // Vectorised force of the model plus terms: one array per quantity field of
+  // dn_damper_input (kQuantities order); arrays broadcast to one length.
+  py::tuple forces(const DArray* const* arrs) {
+    py::ssize_t n = 1;
+    for (std::size_t q = 0; q < kNumQuantities; ++q) {
+      const DArray& p = *arrs[q];
+      if (p.size() != 1) {
+        if (n != 1 && p.size() != n) throw py::value_error("forces: arrays differ in length");
+        n = p.size();
+      }
+    }
+    py::array_t<double> f(n);
+    py::array_t<int32_t> st(n);
+    py::array_t<uint32_t> mask(n);
+    auto at = [](const DArray& arr, py::ssize_t i) { return arr.size() == 1 ? arr.data()[0] : arr.data()[i]; };
+    double* fp = f.mutable_data();
+    int32_t* sp = st.mutable_data();
+    uint32_t* mp = mask.mutable_data();
+    struct Evaluating {  // counted for add_term; decremented on every exit
+      std::atomic<int>& n;
+      explicit Evaluating(std::atomic<int>& c) : n(c) { ++n; }
+      ~Evaluating() { --n; }
+    } evaluating_now(evaluating);
+    CallbackRun run;
+    {
+      std::unique_ptr<py::gil_scoped_release> rel;
+      if (!callback) rel.reset(new py::gil_scoped_release);
+      for (py::ssize_t i = 0; i < n; ++i) {
+        dn_damper_input in{};
+        for (std::size_t q = 0; q < kNumQuantities; ++q) in.*kQuantities[q] = at(*arrs[q], i);
+        sp[i] = dn_damper_force(d.get(), &in, &fp[i], &mp[i]);
+      }
+    }
+    run.raise_pending();
+    return py::make_tuple(f, st, mask);
+  }
+};
+
+}  // namespace
+
+DamperRef damper_ref(py::handle damper, const char* what) {
+  std::shared_ptr<PyDamper> p = shared<PyDamper>(damper, what);
+  DamperRef r;
+  r.n_features = static_cast<int>(p->features.size());
+  r.d = std::shared_ptr<const dn_damper>(p, p->d.get());  // shares p's ownership
+  return r;
+}
+
+void bind_damper(py::module_& mod) {
+  py::class_<dn_damper_input>(mod, "DamperInput", "What a damper is evaluated on (dn_damper_input).")
+      .def(py::init<>())
+#define DNPY_INPUT_RW_(type, name, role, doc) .def_readwrite(#name, &dn_damper_input::name, doc)
+      DN_DAMPER_INPUT_FIELDS(DNPY_INPUT_RW_);
+#undef DNPY_INPUT_RW_
+
+
+  py::class_<PyDamper, std::shared_ptr<PyDamper>>(mod, "Damper", "A damper model (dn_damper); loop models copy it. Immutable once set up (add_term "
+      "is set-up, refused while the damper is evaluated): may be shared by threads. A callback "
+      "damper calls its function with the GIL held; state kept by that function (a truth "
+      "damper) is the caller's to protect: use a stateful callback damper in one loop at a time.")
+      .def_static("linear", &PyDamper::linear, py::arg("c"), "F = c v.")
+      .def_static("parametric", &PyDamper::parametric, py::arg("c_min"), py::arg("c_max"),
+                  py::arg("gamma"), py::arg("f0"), py::arg("v_max"), py::arg("v_smooth") = 0.0,
+                  "The thesis's eq. 1-3 (see dn_parametric_params).")
+      .def_static("table", &PyDamper::table, py::arg("velocities"), py::arg("controls"),
+                  py::arg("forces"), "Bilinear lookup table, clamped outside the grid.")
+      .def_static("neural", &PyDamper::neural, py::arg("mlp"), py::arg("features"),
+                  py::arg("feature_params") = std::map<std::string, double>{},
+                  py::arg("single") = false, "The MLP on named features.")
+      .def_static("callback", &PyDamper::callback_damper, py::arg("fn"),
+                  "A Python function fn(DamperInput) -> force [N] (slow path, holds the GIL).")
+      .def("add_term", method(&PyDamper::add_term), py::arg("kind"), py::arg("params"),
+           "Add a physics term (TERM_KINDS); set-up, before the damper is used.")
+      .def_property_readonly("kind", [](py::handle p) { return dn_damper_kind_of(constructed<PyDamper>(p).d.get()); })
+      .def("forces",
+           [](py::handle self DN_DAMPER_INPUT_FIELDS(DNPY_FORCES_PARAM_)) {
+             const DArray* arrs[] = {DN_DAMPER_INPUT_FIELDS(DNPY_FORCES_ARRAY_)};
+             static_assert(std::size(arrs) == kNumQuantities, "one array per quantity");
+             return constructed<PyDamper>(self).forces(arrs);
+           } DN_DAMPER_INPUT_FIELDS(DNPY_FORCES_ARG_),
+           "Vectorised force of the model plus terms -> (force[n] [N], status[n], "
+           "clamped_mask[n]); one array (or scalar) per quantity of DAMPER_INPUT_FIELDS, "
+           "broadcast to one length. Fields appended after 0.1 default to NaN: a model that "
+           "reads them must be given them. GIL released except for callback dampers.");
+}
+
+}  // namespace dnpy

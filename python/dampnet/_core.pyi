@@ -1,0 +1,254 @@
+"""Type stub of dampnet._core, the pybind11 module of the C++ runtime (cpp/python/).
+
+Checked against the built module by tests/python/test_core_stub.py (mypy.stubtest): a name
+the module has and this stub lacks fails the test. Units as in dampnet.h (SI; degC for
+temperature). The registries are expanded from dampnet.h's X-macro lists.
+"""
+
+from collections.abc import Callable, Iterator, Mapping
+from typing import Any, Final, final
+
+import numpy as np
+import numpy.typing as npt
+from typing_extensions import Never
+
+class _pybind11_type(type):
+    """pybind11's metaclass of the bound classes (pybind11_builtins.pybind11_type)."""
+
+__version__: Final[str]
+
+def version() -> int:
+    """Library version as major*10000 + minor*100 + patch."""
+
+def status_str(status: int, /) -> str:
+    """Explain a dampnet status code."""
+
+# ---- build and size constants ----
+
+BUILD_INFO: Final[dict[str, str | bool]]  # kernel_isa, flags, isa_flags, eigen, compiler
+MAX_INPUTS: Final[int]
+MAX_HIDDEN: Final[int]
+DN_ACCEL_MAX_EVALS: Final[int]
+
+# ---- status codes (DN_STATUS_LIST): warnings are bit flags > 0, errors < 0 ----
+
+DN_OK: Final[int]
+DN_W_SATURATED: Final[int]
+DN_W_NONFINITE_INPUT: Final[int]
+DN_W_ACCEL_UNCONVERGED: Final[int]
+DN_W_ACCEL_FALLBACK: Final[int]
+DN_E_NULL: Final[int]
+DN_E_SIZE: Final[int]
+DN_E_NONFINITE_PARAM: Final[int]
+DN_E_PARAM: Final[int]
+DN_E_ACTIVATION: Final[int]
+DN_E_ALLOC: Final[int]
+DN_E_NONFINITE_OUTPUT: Final[int]
+DN_E_MISMATCH: Final[int]
+DN_E_UNKNOWN_NAME: Final[int]
+DN_E_NONFINITE_INPUT: Final[int]
+DN_E_DIVERGED: Final[int]
+
+# ---- registries (dampnet.h's lists) ----
+
+# Enum lists: {name: (value, doc)} in value order. The name is the one spelling of each
+# value; vehicle/controller dicts take the name or the value.
+CONTROLLER_KINDS: Final[dict[str, tuple[int, str]]]  # controller "kind"
+INTEGRATORS: Final[dict[str, tuple[int, str]]]  # vehicle "integrator"
+DAMPER_EVALS: Final[dict[str, tuple[int, str]]]  # vehicle "damper_eval"
+ACCEL_FEATURES: Final[dict[str, tuple[int, str]]]  # vehicle "accel_feature"
+ACTIVATIONS: Final[dict[str, tuple[int, str]]]  # Mlp(activation=...)
+DAMPER_KINDS: Final[dict[str, tuple[int, str]]]  # Damper.kind
+PRECISIONS: Final[dict[str, tuple[int, str]]]  # Damper.neural(single=...)
+
+FEATURE_NAMES: Final[tuple[str, ...]]  # the neural features (DN_FEATURE_LIST order)
+FEATURE_INPUTS: Final[dict[str, str]]  # feature -> the DAMPER_INPUT_FIELDS field it reads
+FEATURE_PARAMS: Final[dict[str, str | None]]  # feature -> the FEATURE_PARAM_NAMES it needs
+FEATURE_PARAM_NAMES: Final[dict[str, str]]  # feature parameter -> doc with unit and range
+TERM_KINDS: Final[dict[str, tuple[int, str]]]  # term kind -> (number of params, formula)
+STATE_NAMES: Final[tuple[str, ...]]  # Loop.state's columns
+VEHICLE_FIELDS: Final[dict[str, tuple[float | int, str]]]  # field -> (default, doc)
+CONTROLLER_FIELDS: Final[dict[str, tuple[float | int, str]]]  # field -> (default, doc)
+DAMPER_INPUT_FIELDS: Final[dict[str, str]]  # DamperInput field -> doc with unit
+STEP_OUTPUT_FIELDS: Final[dict[str, str]]  # StepReport key -> doc with unit
+
+# A vehicle or controller: field name -> a number, or an enum field's name or value.
+_FieldDict = dict[str, float | int | str]
+
+def check_vehicle(vehicle: _FieldDict) -> None:
+    """Validate a vehicle dict (VEHICLE_FIELDS) as LoopModel does: None, or ValueError /
+    TypeError naming the field and its valid range or names."""
+
+def check_controller(controller: _FieldDict) -> None:
+    """Validate a controller dict (CONTROLLER_FIELDS) as LoopModel does: None, or ValueError /
+    TypeError naming the field and its valid range or names."""
+
+# ---- the MLP ----
+
+class Mlp(metaclass=_pybind11_type):
+    """An immutable MLP model evaluated by the C++ kernel; may be shared by threads."""
+
+    def __init__(
+        self,
+        w1: npt.ArrayLike,
+        b1: npt.ArrayLike,
+        w2: npt.ArrayLike | None,
+        b2: npt.ArrayLike | None,
+        w_out: npt.ArrayLike,
+        b_out: npt.ArrayLike,
+        in_offset: npt.ArrayLike,
+        in_gain: npt.ArrayLike,
+        in_ymin: float,
+        out_offset: float,
+        out_gain: float,
+        out_ymin: float,
+        sat_lo: npt.ArrayLike,
+        sat_hi: npt.ArrayLike,
+        activation: str,
+    ) -> None: ...
+    @property
+    def n_inputs(self) -> int: ...
+    def forward(self, x: npt.ArrayLike, single: bool = False) -> tuple[float, int, int]:
+        """One sample -> (output, status, clamped_mask)."""
+    def predict(
+        self, x: npt.ArrayLike, single: bool = False
+    ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.int32], npt.NDArray[np.uint32]]:
+        """Samples [n, n_inputs] -> (outputs[n], status[n], clamped_mask[n]); GIL released."""
+
+# ---- dampers ----
+
+class DamperInput(metaclass=_pybind11_type):
+    """What a damper is evaluated on (dn_damper_input; fields: DAMPER_INPUT_FIELDS)."""
+
+    x: float  # relative displacement, extension positive [m]
+    v: float  # relative velocity [m/s]
+    a: float  # relative acceleration [m/s^2]
+    u: float  # control [V or A]
+    u_lag: float  # lagged control [V or A]
+    temperature: float  # [degC]
+    t: float  # time of the evaluation [s]
+    dt: float  # loop step [s]
+    stage: int  # integrator stage 0..3
+    v_lag: float  # lagged relative velocity [m/s]
+    z_fric: float  # Dahl friction state [-]
+    def __init__(self) -> None: ...
+
+class Damper(metaclass=_pybind11_type):
+    """A damper model (dn_damper); immutable once set up, may be shared by threads."""
+
+    # no constructor (Damper() raises TypeError): build one with a static method below
+    def __init__(self, *args: Never, **kwargs: Never) -> None: ...
+
+    @staticmethod
+    def linear(c: float) -> Damper:
+        """F = c v."""
+    @staticmethod
+    def parametric(
+        c_min: float, c_max: float, gamma: float, f0: float, v_max: float, v_smooth: float = 0.0
+    ) -> Damper:
+        """The thesis's eq. 1-3 (see dn_parametric_params)."""
+    @staticmethod
+    def table(velocities: npt.ArrayLike, controls: npt.ArrayLike, forces: npt.ArrayLike) -> Damper:
+        """Bilinear lookup table, clamped outside the grid."""
+    @staticmethod
+    def neural(
+        mlp: Mlp, features: list[str], feature_params: Mapping[str, float] = ..., single: bool = False
+    ) -> Damper:
+        """The MLP on named features (FEATURE_NAMES; parameters FEATURE_PARAM_NAMES)."""
+    @staticmethod
+    def callback(fn: Callable[[DamperInput], float]) -> Damper:
+        """A Python function fn(DamperInput) -> force [N] (slow path, holds the GIL)."""
+    def add_term(self, kind: str, params: npt.ArrayLike) -> None:
+        """Add a physics term (TERM_KINDS); set-up, before the damper is used."""
+    @property
+    def kind(self) -> int:
+        """The DAMPER_KINDS value."""
+    def forces(
+        self,
+        x: npt.ArrayLike,
+        v: npt.ArrayLike,
+        a: npt.ArrayLike,
+        u: npt.ArrayLike,
+        u_lag: npt.ArrayLike,
+        temperature: npt.ArrayLike,
+        v_lag: npt.ArrayLike = ...,
+        z_fric: npt.ArrayLike = ...,
+    ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.int32], npt.NDArray[np.uint32]]:
+        """Vectorised force [N] -> (force[n], status[n], clamped_mask[n])."""
+
+# ---- the quarter-car loop ----
+
+class LoopModel(metaclass=_pybind11_type):
+    """Vehicle, damper and controller (constant): immutable, may drive Loops in many threads."""
+
+    def __init__(self, damper: Damper, vehicle: _FieldDict = ..., controller: _FieldDict = ...) -> None: ...
+    @property
+    def vehicle(self) -> dict[str, float | int]: ...
+    @property
+    def controller(self) -> dict[str, float | int]: ...
+    def control(
+        self, v_s: npt.ArrayLike, v_us: npt.ArrayLike, u_ext: npt.ArrayLike = ...
+    ) -> npt.NDArray[np.float64]:
+        """The control law alone on arrays of velocities -> control [V]."""
+
+@final
+class StepReport(Mapping[str, Any]):
+    """A step's report (Loop.step): read-only attributes, and a read-only mapping with the
+    same keys (STEP_OUTPUT_FIELDS)."""
+
+    @property
+    def force(self) -> float: ...
+    @property
+    def u(self) -> float: ...
+    @property
+    def x(self) -> float: ...
+    @property
+    def v(self) -> float: ...
+    @property
+    def a(self) -> float: ...
+    @property
+    def acc_s(self) -> float: ...
+    @property
+    def acc_us(self) -> float: ...
+    @property
+    def features(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def clamped_mask(self) -> int: ...
+    @property
+    def status(self) -> int: ...
+    def __getitem__(self, key: str, /) -> Any: ...
+    def __iter__(self) -> Iterator[str]: ...
+    def __len__(self) -> int: ...
+    def __contains__(self, key: object, /) -> bool: ...
+    def to_dict(self) -> dict[str, Any]: ...
+
+class Loop(metaclass=_pybind11_type):
+    """A loop's mutable state for a LoopModel: one call at a time (RuntimeError otherwise)."""
+
+    def __init__(self, model: LoopModel) -> None: ...
+    def reset(self) -> None: ...
+    @property
+    def state(self) -> npt.NDArray[np.float64]:
+        """Flat state (STATE_NAMES)."""
+    @state.setter
+    def state(self, value: npt.ArrayLike) -> None: ...
+    def step(self, z_r: float, v_r: float, u: float = 0.0) -> StepReport:
+        """One step; road [m], road rate [m/s] at the end of the step; external control u."""
+    def step_force(self, z_r: float, v_r: float, u: float = 0.0) -> float:
+        """One step, as step(), returning only the damper force [N]."""
+    def forward(self, u: float = 0.0) -> StepReport:
+        """The report without advancing."""
+    def simulate(
+        self,
+        road: npt.ArrayLike,
+        road_rate: npt.ArrayLike,
+        u: npt.ArrayLike | None = None,
+        reset: bool = True,
+        out: dict[str, npt.NDArray[Any]] | None = None,
+    ) -> dict[str, npt.NDArray[Any]]:
+        """Run a road in C++ (GIL released) -> state, force, control, x, v, a, acc_s, acc_us,
+        features, status arrays."""
+    @property
+    def model(self) -> LoopModel: ...
+    @property
+    def damper_evals(self) -> int: ...

@@ -1,0 +1,166 @@
+"""diagnose(model, dataset) -> the diagnosis as a JSON-ready dict (see dampnet.diagnosis)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dampnet.diagnosis import score as S
+from dampnet.outputs import jsonable
+from dampnet.diagnosis.catalogue import CANDIDATES
+from dampnet.diagnosis.context import ROWS_PER_TEST, build_context
+
+
+MAX_ACCEPTED = 3  # forward selection stops after this many effects
+
+
+def _jackknife(values: list[float]) -> float | None:
+    v = np.asarray([x for x in values if x is not None and np.isfinite(x)], dtype=np.float64)
+    if len(v) < 2:
+        return None
+    k = len(v)
+    return float(np.sqrt((k - 1) / k * np.sum((v - v.mean()) ** 2)))
+
+
+def _parameters(ctx, cand, res, folds):
+    if cand.parameters is None:
+        return {}, {}
+    fit = {"beta": res["beta"], "effect_rows": res["effect_rows"]}
+    est = dict(cand.parameters(ctx, res["theta"], fit))
+    own = est.pop("_uncertainty", {})  # a candidate may estimate a parameter's spread itself
+    fold_est = []
+    for th, b in zip(res["fold_thetas"], res["fold_betas"]):
+        rows = [c @ b for c in res["columns"]]
+        fold_est.append(cand.parameters(ctx, th, {"beta": b, "effect_rows": rows}))
+    unc = {}
+    for k, v in est.items():
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            unc[k] = own[k] if k in own else _jackknife([fe.get(k) for fe in fold_est])
+    return est, unc
+
+
+def diagnose(model, ds, *, candidates=None, n_surrogates: int = S.N_SURROGATES, seed: int = 0,
+             rows_per_test: int = ROWS_PER_TEST, ctx=None, dataset_label: str = "DATA") -> dict:
+    """Compare, localise and test every candidate effect; returns the JSON-ready diagnosis."""
+    from dampnet.diagnosis.localise import localise, overall_metrics
+
+    ctx = ctx or build_context(model, ds, rows_per_test=rows_per_test)
+    metrics = overall_metrics(ctx)
+    # Effects whose inputs the model already has are part of the baseline, not candidates:
+    # their regressors, at the model's own time constant where it has one, join the baseline.
+    included = {}
+    for cid in (candidates or list(CANDIDATES)):
+        cand = CANDIDATES[cid]
+        if cand.add is None:
+            continue
+        rec = cand.add({}, ctx.control_name)
+        if rec["features"] and all(f in model.features for f in rec["features"]):
+            key = next(iter(rec["feature_params"]), None)
+            theta = model.feature_params.get(key) if key else None
+            if theta is None and cand.theta_name is not None:
+                theta = list(cand.grid(ctx))[len(list(cand.grid(ctx))) // 2]
+            ok, _ = cand.testable(ctx)
+            if ok:
+                included[cid] = theta
+    loc = None
+    cids = list(candidates or list(CANDIDATES))
+
+    def score_pass(accepted: dict) -> tuple[dict, dict, float, list]:
+        """Score every candidate not in the baseline; `accepted` effects join the baseline."""
+        nonlocal loc
+        ctx.notes["included"] = [(CANDIDATES[c], th) for c, th in {**included, **accepted}.items()]
+        ctx.notes.pop("baseline", None)
+        ctx.notes.pop("baseline_products", None)
+        if loc is None:
+            loc = localise(ctx)
+        resid = S.reference_residual(ctx)
+        sur = S.surrogates(resid, n_surrogates, seed)
+        Y = [np.column_stack([r, s]) for r, s in zip(resid, sur)]
+        folds = S.folds_of(ctx)
+        base_cv = S.baseline_cv(ctx, Y, folds)
+        ss_tot = sum(float(np.sum(r * r)) for r in resid)
+        share = float((ss_tot - base_cv[0][:, 0].sum()) / ss_tot) if ss_tot > 0 else 0.0
+        results = {cid: S.score_candidate(ctx, CANDIDATES[cid], Y, folds, base_cv)
+                   for cid in cids if cid not in included and cid not in accepted}
+        return results, {}, share, folds
+
+    # Forward selection: the most likely effect is accepted into the baseline and the
+    # others are scored again given it, so that an effect which only partly mimics the
+    # accepted one (e.g. compressibility's lagged force next to a valve lag) is judged
+    # on what it adds. Each accepted effect keeps the score it had when it was accepted.
+    accepted: dict = {}
+    accepted_results: dict = {}
+    results, _, baseline_share, folds = score_pass(accepted)
+    while len(accepted) < MAX_ACCEPTED:
+        testable = {c: r for c, r in results.items() if r["testable"]}
+        if not testable:
+            break
+        best = max(testable, key=lambda c: testable[c]["score"])
+        if not testable[best]["significant"]:
+            break
+        accepted[best] = testable[best]["theta"]
+        accepted_results[best] = testable[best]
+        results, _, _, folds = score_pass(accepted)
+    results = {**results, **accepted_results}
+
+    out = []
+    for cid in cids:
+        cand = CANDIDATES[cid]
+        if cid in included:
+            res = {"testable": False, "note": f"already in the model: its inputs {cand.add({}, ctx.control_name)['features']} "
+                                              "are model features (the effect's regressors are part of the baseline)"}
+        else:
+            res = results[cid]
+        entry = {"effect": cid, "title": cand.title, "needs": cand.needs, "physics": cand.physics,
+                 "signature": cand.signature, "add_command": f"dampnet train {dataset_label} --add {cid}"}
+        if not res["testable"]:
+            entry.update({"testable": False, "score": None, "significant": False, "p_value": None,
+                          "z": None, "parameters": {}, "uncertainty": {},
+                          "evidence": f"cannot be tested: {res['note']}", "note": res["note"]})
+        else:
+            ctx.notes.setdefault("candidate_effects", {})[cid] = res["effect_rows"]
+            est, unc = _parameters(ctx, cand, res, folds)
+            gains = res["per_test_gain"]
+            improved = int(np.sum(gains > 0))
+            top = [ctx.tests[i].test.test_id for i in np.argsort(-gains)[:3] if gains[i] > 0]
+            ev = cand.evidence(est, loc) if cand.evidence else cand.signature
+            acc = list(accepted)
+            given = acc[:acc.index(cid)] if cid in accepted else acc  # scored given these effects
+            ev += (f". Held out, it explains {100 * res['score']:.1f} % of the residual variance"
+                   + (f" left after {', '.join(given)}" if given else "")
+                   + f" (null {100 * res['null_mean']:.2f} +- {100 * res['null_sd']:.2f} %), improving "
+                   f"{improved} of {ctx.n_tests} tests" + (f", most {', '.join(top)}" if top else ""))
+            entry.update({"testable": True, "score": res["score"], "significant": res["significant"],
+                          "p_value": res["p_value"], "z": res["z"],
+                          "null": {"mean": res["null_mean"], "sd": res["null_sd"], "max": res["null_max"],
+                                   "n_surrogates": n_surrogates},
+                          "parameters": est, "uncertainty": unc, "evidence": ev, "note": res["note"],
+                          "tests_improved": improved, "given": given})
+        out.append(entry)
+    # Accepted effects first, in the order they were accepted; then the rest by score.
+    order = {c: i for i, c in enumerate(accepted)}
+    out.sort(key=lambda e: (e["effect"] not in order, order.get(e["effect"], 0), not e["testable"],
+                            -(e["score"] if e["score"] is not None else -1e9)))
+
+    sig = [e for e in out if e["significant"]]
+    verdict = sig[0]["effect"] if sig else None
+    return jsonable({
+        "model": {"id": model.model_id(), "features": model.features, "terms": [t.get("kind") for t in model.terms],
+                  "feature_params": model.feature_params},
+        "data": {"source": ds.source, "n_tests": len(ds.tests)},
+        "overall": metrics["overall"],
+        "per_test": metrics["per_test"],
+        "per_frequency": metrics.get("per_frequency"),
+        "worst_tests": metrics["worst_tests"],
+        "localisation": loc,
+        "method": {"folds": len(folds), "fold_unit": "test", "rows_per_test": int(np.median([len(t.rows) for t in ctx.tests])),
+                   "baseline_share": baseline_share, "n_surrogates": n_surrogates,
+                   "min_score": S.MIN_SCORE, "z_min": S.Z_MIN,
+                   "score": "held-out share of residual variance explained beyond a flexible function "
+                            "of the model's own inputs (cross-validation over tests)",
+                   "null": "phase-randomised residuals per test (same spectrum), same cross-validation",
+                   "selection": "forward: the best significant effect joins the baseline and the rest are "
+                                "scored again, up to %d effects" % MAX_ACCEPTED,
+                   "accepted": list(accepted)},
+        "candidates": out,
+        "verdict": verdict,
+    })

@@ -1,0 +1,39 @@
+"""The model directory: MODEL_DIR/{model.json, metrics.json, model.h}, written as one atomic step."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any, Sequence
+
+from dampnet.export import write_header
+from dampnet.model import MlpModel
+from dampnet.outputs import check_output_dir, staged_dir, write_json
+
+HEADER_NAME = "model.h"
+HEADER_PREFIX = "dn_model"
+
+
+def load_model(path: str | os.PathLike) -> MlpModel:
+    """The model in `path`: a model.json file or a model directory holding one."""
+    p = Path(path)
+    return MlpModel.load(p / "model.json" if p.is_dir() else p)
+
+
+def save_model_dir(model: MlpModel, metrics: dict[str, Any] | None, out_dir: str | os.PathLike,
+                   force: bool = False, prefix: str = HEADER_PREFIX,
+                   inputs: Sequence[str | os.PathLike] = ()) -> Path:
+    """Write MODEL_DIR/{model.json, metrics.json, model.h} as one atomic step.
+
+    The files go to a staging directory next to out_dir that is then swapped into
+    place (`dampnet.outputs`): a reader never sees a half-written model directory,
+    and a kill at any point leaves the old or the new one. An existing out_dir is
+    refused (OutputError, a FileExistsError) unless `force`, and even then unless it
+    is a model directory (model.json) that is not one of `inputs`, `.` or a parent.
+    """
+    out = check_output_dir(out_dir, "model", inputs, force)
+    with staged_dir(out) as tmp:
+        model.save(tmp / "model.json", overwrite=True)
+        write_json(tmp / "metrics.json", metrics or {}, overwrite=True)
+        write_header(model, tmp / HEADER_NAME, prefix=prefix, overwrite=True)
+    return out

@@ -1,0 +1,19 @@
+"""The virtual shock dynamometer: a physical truth damper, switchable effects, test plans, sensors.
+
+  truth.py    the damper's physics (TruthParams, truth_force, TruthDamper)
+  effects.py  named effects (EFFECTS registry: gas_spring, thermal, valve_lag, friction, bump_stop)
+  plans.py    test plans (thesis, quick, JSON files)
+  sensors.py  noise and recording resolution
+  generate.py the rig itself (generate, noise_floor_nrmse)
+"""
+
+from dampnet.rig.effects import EFFECTS, Effect, register
+from dampnet.rig.generate import generate, noise_floor_nrmse
+from dampnet.rig.plans import Plan, load_plan, quick_plan, thesis_plan
+from dampnet.rig.sensors import RESOLUTION, SensorNoise
+from dampnet.rig.truth import (TruthDamper, TruthParams, controller_current, truth_force,
+                                    valve_opening)
+
+__all__ = ["EFFECTS", "Effect", "register", "generate", "noise_floor_nrmse", "Plan", "load_plan",
+           "quick_plan", "thesis_plan", "RESOLUTION", "SensorNoise", "TruthDamper", "TruthParams",
+           "controller_current", "truth_force", "valve_opening"]

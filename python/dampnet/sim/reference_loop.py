@@ -1,0 +1,368 @@
+"""A reference quarter-car loop in Python, for dampers that only exist in Python (the rig's truth damper).
+
+It integrates exactly the runtime's equations (cpp/include/dampnet/loop.hpp,
+thesis eq. 13-14) with the runtime's scheme for one damper evaluation per
+step (DN_INT_RK4 with DN_EVAL_PER_STEP):
+
+    m_s  a_s  = -k_s (z_s - z_us) - (F - f_static)
+    m_us a_us =  k_s (z_s - z_us) + (F - f_static) - k_t (z_us - z_r) - c_t (v_us - v_r)
+
+* the control u is computed by the controller from the state at the step
+  start and held over the step (passive, skyhook/groundhook on-off and
+  continuous: the same laws as `control_law` in loop.hpp);
+* the damper is evaluated at the step start, with x = z_s - z_us +
+  x_static, v = v_s - v_us and the relative acceleration a = a_s - a_us.
+  a and F are coupled (a = a_free - k (F(a) - f_static), k = 1/m_s + 1/m_us).
+  For a neural damper that reads "acceleration", with
+  Vehicle.accel_feature = "implicit" (default), the coupling is solved by
+  `solve_acceleration`, the runtime's algorithm (dn_accel_feature in
+  dampnet.h: Newton/secant from the explicit value, bisection in a bracket, at
+  most ACCEL_MAX_EVALS evaluations, same tolerance); otherwise, and for every
+  other damper, a comes from the equations of motion with the force of the
+  previous evaluation (f_last; the explicit scheme). Its force F is held over
+  the step - a stateful damper (the truth damper's
+  compressibility lag, LuGre friction) is therefore stepped exactly once per
+  dt, as its `step(dt, ...)` requires;
+* classical RK4 on (z_s, v_s, z_us, v_us) with the road at mid-step the cubic
+  Hermite interpolant of (z_r, v_r) at the step's ends;
+* every reported quantity is at the step's start time (like dn_loop_out).
+
+So for the same damper this loop and the runtime's loop in per-step mode
+produce the same trajectories to rounding (checked in
+tests/python/test_simulate.py when the runtime's loop is built). A damper here
+is any object with `force(x, v, a, u, dt) -> F [N]` and `reset()` (and, with
+derived-feature states, `advance(x, v, u, dt)`, called once at each step start).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from dampnet.sim.vehicle import ACCEL_MAX_EVALS, Controller, LoopError, Vehicle
+
+# ---- dampers (Python side) ---------------------------------------------------------------------
+
+class LinearDamper:
+    def __init__(self, c: float):
+        self.c = float(c)
+
+    def reset(self) -> None:
+        pass
+
+    def force(self, x, v, a, u, dt) -> float:
+        return self.c * v
+
+
+class TruthLoopDamper:
+    """The rig's truth damper (dampnet.rig.truth.TruthDamper), stepped once per loop step."""
+
+    def __init__(self, params=None, effects=(), temperature: float | None = None):
+        from dampnet.rig.truth import TruthDamper
+
+        self.damper = TruthDamper(params, effects)
+        self.temperature = temperature
+
+    def reset(self) -> None:
+        self.damper.reset()
+
+    def force(self, x, v, a, u, dt) -> float:
+        return self.damper.step(dt, x, v, u, self.temperature)
+
+    def force_at_rest(self, u: float, dt: float) -> float:
+        from dampnet.rig.truth import TruthDamper
+
+        return TruthDamper(self.damper.params, [e.name for e in self.damper.effects]).step(dt, 0.0, 0.0, u)
+
+
+class TableLoopDamper:
+    """A lookup table (dampnet.evaluation.lookup.LookupTable): force(v, u), bilinear, clamped."""
+
+    def __init__(self, table):
+        self.table = table
+
+    def reset(self) -> None:
+        pass
+
+    def force(self, x, v, a, u, dt) -> float:
+        return float(self.table.force(v, u))
+
+
+class NeuralLoopDamper:
+    """An MlpModel (with its physics terms) on the loop's kinematics.
+
+    Features: velocity, acceleration, displacement, voltage/current, temperature
+    (constant, `temperature_c`, the runtime's default vehicle temperature), and
+    the derived voltage_lag/current_lag, velocity_lag and friction_state. Their
+    states advance by `advance(x, v, u, dt)`, which the loop calls once at each
+    step start, with the runtime's updates (loop.hpp `motion_lag`, the control
+    lag over the previous step's held control), so that this loop and the
+    runtime's per-step loop give the same trajectories; `force` may be called
+    any number of times in between (the implicit acceleration solve) and,
+    before any `advance`, sees the steady state of its own inputs. Evaluated in
+    numpy, the kernel's arithmetic: inputs clamped to the saturation range,
+    mapminmax, tanh/logistic layers, linear output (agrees with
+    dampnet.training.torch_reference.torch_forward to rounding).
+    """
+
+    KNOWN = ("velocity", "acceleration", "displacement", "voltage", "current", "voltage_lag",
+             "current_lag", "velocity_lag", "friction_state", "temperature")
+
+    def __init__(self, model, temperature_c: float = 20.0):
+        from dampnet.features import LAG_FEATURES, PRESLIDING_KEY
+
+        bad = [f for f in model.features if f not in self.KNOWN]
+        if bad:
+            raise LoopError(f"the Python loop cannot feed features {bad}; use the runtime's loop")
+        need = {name: key for name, (_, key, _) in LAG_FEATURES.items()}
+        need["friction_state"] = PRESLIDING_KEY
+        for f in model.features:
+            key = need.get(f)
+            if key and not float(model.feature_params.get(key, 0.0)) > 0:
+                raise LoopError(f"feature {f!r} needs feature_params[{key!r}] > 0")
+        self.model = model
+        self.temperature_c = float(temperature_c)
+        self._idx = [self.KNOWN.index(f) for f in model.features]
+        m = model
+        self._lo, self._hi = m.sat_lo, m.sat_hi
+        self._off, self._gain, self._ymin = m.in_offset, m.in_gain, m.in_ymin
+        self._act = np.tanh if m.activation == "tanh" else (lambda z: 1.0 / (1.0 + np.exp(-z)))
+        p = m.feature_params
+        self._tau_u = float(p.get("control_lag_tau_s", 0.0))
+        self._tau_v = float(p.get("velocity_lag_tau_s", 0.0))
+        self._x_c = float(p.get(PRESLIDING_KEY, 0.0))
+        self.reset()
+
+    def reset(self) -> None:
+        self._state = None  # (u_lag, v_lag, z_fric) after the last advance()
+        self._prev = None   # (x, v, u) of the previous step start
+
+    def forward(self, x: np.ndarray) -> np.ndarray:
+        """MLP force [N] for inputs x [..., n_inputs] in feature units (no terms)."""
+        m = self.model
+        x = np.where(np.isnan(x), 0.5 * (self._lo + self._hi), x)
+        a = (np.clip(x, self._lo, self._hi) - self._off) * self._gain + self._ymin
+        a = self._act(a @ m.w1.T + m.b1)
+        if m.w2 is not None:
+            a = self._act(a @ m.w2.T + m.b2)
+        ys = a @ m.w_out + m.b_out
+        return (ys - m.out_ymin) / m.out_gain + m.out_offset
+
+    def advance(self, x: float, v: float, u: float, dt: float) -> None:
+        """The derived states at this step start (displacement x [m], velocity v [m/s], control u).
+
+        As the runtime (loop.hpp): the first step is the state at rest (u_lag = u, v_lag = v,
+        z = 0); then u_lag follows the previous step's held control exactly, v_lag the
+        velocity ramp over the step exactly, and z the step's net travel (Dahl).
+        """
+        if self._state is None:
+            self._state, self._prev = (u, v, 0.0), (x, v, u)
+            return
+        ul, vl, z = self._state
+        xp, vp, up = self._prev
+        if self._tau_u > 0:
+            ul = up + (ul - up) * math.exp(-dt / self._tau_u)
+        else:
+            ul = up
+        if self._tau_v > 0:
+            one_minus_a = -math.expm1(-dt / self._tau_v)
+            vl = (1.0 - one_minus_a) * vl + one_minus_a * vp + (v - vp) * (1.0 - self._tau_v * one_minus_a / dt)
+        else:
+            vl = v
+        dx = x - xp
+        if self._x_c > 0 and dx != 0.0:
+            sg = 1.0 if dx > 0 else -1.0
+            z = sg + (z - sg) * math.exp(-abs(dx) / self._x_c)
+        self._state, self._prev = (ul, vl, z), (x, v, u)
+
+    def force(self, x, v, a, u, dt) -> float:
+        """Force [N] (MLP plus terms) at the derived features' current states."""
+        if self._state is None:
+            ul, vl, z = u, v, (math.copysign(1.0, v) if v != 0 else 0.0)
+        else:
+            ul, vl, z = self._state
+        vals = (v, a, x, u, u, ul, ul, vl, z, self.temperature_c)
+        f = float(self.forward(np.array([vals[i] for i in self._idx])))
+        if self.model.terms:
+            from dampnet.terms import terms_force
+
+            f += float(terms_force(self.model.terms, np.array(x)))
+        return f
+
+    @property
+    def acceleration_input(self) -> int | None:
+        """Index of the "acceleration" input, or None."""
+        f = self.model.features
+        return f.index("acceleration") if "acceleration" in f else None
+
+
+def solve_acceleration(force_of_a, a_explicit: float, f_last: float, k: float, f_static: float,
+                       a_lo: float, a_hi: float, f_eps: float = 1e-12, slope: float = 0.0):
+    """Solve g(a) = a - a_free + k (F(a) - f_static) = 0: the runtime's implicit acceleration feature.
+
+    The same equation, start, safeguards and tolerance as dampnet::detail::evaluate
+    (loop.hpp), which takes its slope analytically from the MLP; this Python
+    reference estimates it (below), so the two converge to the same root within the
+    tolerance through different iterates. Start at the
+    explicit value a_explicit (from f_last); slope 1 where a is outside
+    [a_lo, a_hi] (the MLP clamps it), else the given slope when positive, else
+    a forward difference of 1e-4 (a_hi - a_lo) toward the root; then Newton
+    with the latest secant slope (the fixed-point step a - g when the slope is
+    below 1e-3), bisection when a step leaves a bracket [g < 0, g > 0]; at most
+    ACCEL_MAX_EVALS evaluations; converged when |g| <= 1e-7 (1 + |a_free|) +
+    k f_eps (1 + |F|). Returns (a, F, converged, evaluations, slope); not
+    converged: the evaluated point with the smallest |g|.
+    """
+    a_free = a_explicit + k * (f_last - f_static)
+    evals = 0
+
+    def ev(a):
+        nonlocal evals
+        evals += 1
+        f = float(force_of_a(a))
+        return (a, f, a - a_free + k * (f - f_static))
+
+    def conv(r):
+        return abs(r[2]) <= 1e-7 * (1.0 + abs(a_free)) + k * f_eps * (1.0 + abs(r[1]))
+
+    lo = hi = None
+    cur = best = ev(a_explicit)
+
+    def note(r):
+        nonlocal lo, hi, best
+        if r[2] < 0:
+            lo = r
+        elif r[2] > 0:
+            hi = r
+        if abs(r[2]) < abs(best[2]):
+            best = r
+
+    note(cur)
+    done = conv(cur)
+    s = slope if (slope > 0 and math.isfinite(slope)) else 0.0
+    if not (a_lo <= cur[0] <= a_hi):
+        s = 1.0
+    if not done and not s > 0:
+        h = 1e-4 * (a_hi - a_lo if a_hi > a_lo else 1.0)
+        prev = cur
+        cur = ev(cur[0] - (h if cur[2] > 0 else -h))
+        s = (cur[2] - prev[2]) / (cur[0] - prev[0])
+        note(cur)
+        done = conv(cur)
+        if abs(prev[2]) < abs(cur[2]):
+            prev, cur = cur, prev
+    while not done and evals < ACCEL_MAX_EVALS:
+        an = cur[0] - cur[2] / s if (s > 1e-3 and math.isfinite(s)) else cur[0] - cur[2]
+        if lo is not None and hi is not None:
+            b0, b1 = min(lo[0], hi[0]), max(lo[0], hi[0])
+            if not (b0 < an < b1):
+                an = 0.5 * (lo[0] + hi[0])
+        if not math.isfinite(an) or an == cur[0]:
+            break
+        nxt = ev(an)
+        if not math.isfinite(nxt[2]):
+            break
+        s = (nxt[2] - cur[2]) / (nxt[0] - cur[0])
+        cur = nxt
+        note(cur)
+        done = conv(cur)
+    r = cur if done else best
+    return r[0], r[1], done, evals, s
+
+
+# ---- the loop ----------------------------------------------------------------------------------
+
+def run(damper, z_r, v_r, vehicle: Vehicle | None = None, controller: Controller | None = None) -> dict:
+    """Run the loop over road samples z_r [m], v_r [m/s] at t = k dt; arrays at each step's start.
+
+    Returns t, z_s, v_s, z_us, v_us, z_r, acc_s, acc_us, force, u, x, v, a (n = len(z_r) - 1
+    steps; the last road sample is the end of the last step); with the implicit acceleration
+    feature also accel_evals and accel_converged per step.
+    """
+    veh = vehicle or Vehicle()
+    ctrl = controller or Controller()
+    veh.validate()
+    ctrl.validate()
+    z_r = np.asarray(z_r, dtype=np.float64)
+    v_r = np.asarray(v_r, dtype=np.float64)
+    if z_r.ndim != 1 or z_r.shape != v_r.shape:
+        raise LoopError("road displacement and rate must be 1-D arrays of equal length")
+    if z_r.size < 2:
+        raise LoopError("the road must cover at least one time step (2 samples)")
+    bad = np.flatnonzero(~(np.isfinite(z_r) & np.isfinite(v_r)))
+    if bad.size:
+        raise LoopError(f"road sample {bad[0]} is not finite")
+    h = veh.dt
+    ms, mus, ks, kt, ct = veh.m_s, veh.m_us, veh.k_s, veh.k_t, veh.c_t
+    damper.reset()
+    u0 = ctrl.law(0.0, 0.0)
+    # Command filter (the runtime's u_tau_s): the law's control through a first-order
+    # low-pass, sampled at the step start and held; it starts settled at the control at rest.
+    cmd_keep = math.exp(-veh.dt / ctrl.u_tau_s) if ctrl.u_tau_s > 0 else 0.0
+    u_cmd = u0
+    if veh.f_static is None:
+        rest = getattr(damper, "force_at_rest", None)
+        f_static = float(rest(u0, h)) if rest else float(damper.force(veh.x_static, 0.0, 0.0, u0, h))
+        damper.reset()
+    else:
+        f_static = float(veh.f_static)
+    n = z_r.size - 1
+    out = {k: np.empty(n) for k in ("t", "z_s", "v_s", "z_us", "v_us", "z_r", "acc_s", "acc_us",
+                                     "force", "u", "x", "v", "a")}
+    zs = vs = zus = vus = 0.0
+    f_last = f_static
+    inv_ms, inv_mus = 1.0 / ms, 1.0 / mus
+    ia = getattr(damper, "acceleration_input", None) if veh.accel_feature == "implicit" else None
+    advance = getattr(damper, "advance", None)  # derived-feature states, once per step
+    if ia is not None:
+        a_lo, a_hi = float(damper.model.sat_lo[ia]), float(damper.model.sat_hi[ia])
+        out["accel_evals"] = np.ones(n, dtype=np.int64)
+        out["accel_converged"] = np.ones(n, dtype=bool)
+
+    def accel(zs, vs, zus, vus, zr, vr, f):
+        fs = ks * (zs - zus)
+        fa = f - f_static
+        return (-fs - fa) * inv_ms, (fs + fa - kt * (zus - zr) - ct * (vus - vr)) * inv_mus
+
+    for k in range(n):
+        zr0, vr0, zr1, vr1 = z_r[k], v_r[k], z_r[k + 1], v_r[k + 1]
+        u = ctrl.law(vs, vus)
+        if cmd_keep > 0.0:
+            u += (u_cmd - u) * cmd_keep
+        u_cmd = u
+        as_l, aus_l = accel(zs, vs, zus, vus, zr0, vr0, f_last)
+        x, v, a = zs - zus + veh.x_static, vs - vus, as_l - aus_l
+        if advance is not None:
+            advance(x, v, u, h)
+        if ia is not None:
+            a, f, ok, ne, _ = solve_acceleration(lambda aa: damper.force(x, v, aa, u, h), a, f_last,
+                                                 inv_ms + inv_mus, f_static, a_lo, a_hi)
+            out["accel_evals"][k] = ne
+            out["accel_converged"][k] = ok
+        else:
+            f = float(damper.force(x, v, a, u, h))
+        if not math.isfinite(f):
+            raise LoopError(f"damper force is not finite at t = {k * h:.6g} s (x={x:.4g}, v={v:.4g}, u={u:.4g})")
+        k1s, k1u = accel(zs, vs, zus, vus, zr0, vr0, f)
+        zrm = 0.5 * (zr0 + zr1) + 0.125 * h * (vr0 - vr1)
+        vrm = 1.5 * (zr1 - zr0) / h - 0.25 * (vr0 + vr1)
+        b1 = (zs + 0.5 * h * vs, vs + 0.5 * h * k1s, zus + 0.5 * h * vus, vus + 0.5 * h * k1u)
+        k2s, k2u = accel(*b1, zrm, vrm, f)
+        b2 = (zs + 0.5 * h * b1[1], vs + 0.5 * h * k2s, zus + 0.5 * h * b1[3], vus + 0.5 * h * k2u)
+        k3s, k3u = accel(*b2, zrm, vrm, f)
+        b3 = (zs + h * b2[1], vs + h * k3s, zus + h * b2[3], vus + h * k3u)
+        k4s, k4u = accel(*b3, zr1, vr1, f)
+        row = (k * h, zs, vs, zus, vus, zr0, k1s, k1u, f, u, x, v, a)
+        for key, val in zip(out, row):
+            out[key][k] = val
+        h6 = h / 6.0
+        zs, vs, zus, vus = (zs + h6 * (vs + 2 * b1[1] + 2 * b2[1] + b3[1]),
+                            vs + h6 * (k1s + 2 * k2s + 2 * k3s + k4s),
+                            zus + h6 * (vus + 2 * b1[3] + 2 * b2[3] + b3[3]),
+                            vus + h6 * (k1u + 2 * k2u + 2 * k3u + k4u))
+        f_last = f
+        if not (math.isfinite(zs) and math.isfinite(vs) and math.isfinite(zus) and math.isfinite(vus)):
+            raise LoopError(f"the loop diverged at t = {(k + 1) * h:.6g} s (reduce dt?)")
+    out["f_static"] = f_static
+    return out

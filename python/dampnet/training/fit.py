@@ -1,0 +1,243 @@
+"""fit(): from a feature matrix and forces to a trained MlpModel, reproducibly.
+
+What fit does, in order (MATLAB's fitting-app defaults unless stated):
+ 1. Random split of the samples into train/validation/test (default 70/15/15),
+    seeded (numpy default_rng(seed)).
+ 2. Zero-force points (thesis §5, after Burnett et al.): ceil(zero_fraction *
+    n_train) extra training samples (default 1 %) at which the damper is at
+    rest, with target force 0 N. "At rest" means every kinematic feature
+    (registry `at_rest` value, 0 for velocity and acceleration) is set to that
+    value, while non-kinematic inputs (voltage, current, temperature,
+    displacement) keep the values of randomly drawn training samples: a
+    damper at rest gives zero force at *any* valid voltage, and 0 V is itself
+    a valid command, so "zero input" cannot mean all-zero features. If no
+    feature has an at-rest value (e.g. voltage only), no points are added.
+    Zero points join the training set only; validation and test stay measured.
+ 3. mapminmax scaling of inputs and force to [-1, 1] over all data given to
+    fit (plus zero points), as MATLAB's process functions do before division;
+    the same range gives the saturation limits (sat_lo/sat_hi).
+ 4. Nguyen-Widrow initialisation from torch.Generator().manual_seed(seed).
+ 5. Training with the chosen algorithm; validation early stopping after
+    max_fail (6) consecutive rises, returning the best-validation weights.
+    'br' does not stop on validation (as MATLAB's trainbr): its evidence
+    framework is the guard against overfitting; validation is still recorded.
+
+The default hidden activation is tanh: it is MATLAB's default 'tansig' which
+the thesis's toolbox network used (the thesis calls it "sigmoidal", tansig
+being a sigmoid-shaped function), and it is zero-centred, which suits inputs
+and targets scaled to [-1, 1]. 'sigmoid' (logsig) is available.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as _dt
+import math
+import os
+import platform
+from dataclasses import dataclass, field
+from typing import Any, Callable, Sequence
+
+import numpy as np
+import torch
+
+from dampnet.model import MlpModel, mapminmax_settings
+from dampnet.outputs import jsonable
+from dampnet.training.adam import Adam
+from dampnet.training.br import BayesianRegularization
+from dampnet.features import FEATURES, units_of
+from dampnet.training.lm import LevenbergMarquardt
+from dampnet.training.loop import run
+from dampnet.training.metrics import nrmse
+from dampnet.training.net import DTYPE, Layout
+from dampnet.training.problem import MlpProblem
+from dampnet.training.torch_reference import torch_forward
+from dampnet.training.scg import ScaledConjugateGradient
+
+ALGORITHMS = {
+    "lm": LevenbergMarquardt,
+    "br": BayesianRegularization,
+    "scg": ScaledConjugateGradient,
+    "adam": Adam,
+}
+# Below this many Jacobian entries (samples x parameters) one thread is much faster:
+# torch's thread start-up and spinning dominate small ops, worse on a busy machine.
+_SMALL_PROBLEM = 2_000_000
+
+
+@dataclass
+class TrainInfo:
+    """What happened in a fit. Errors in `history` are MSE of the scaled force ([-1, 1] units)."""
+
+    algorithm: str
+    settings: dict[str, Any]
+    history: list[dict[str, Any]]
+    epochs: int
+    best_epoch: int
+    stop_reason: str
+    time_s: float
+    n_train: int
+    n_val: int
+    n_test: int
+    n_zero_points: int
+    metrics: dict[str, float]  # NRMSE (thesis Table 3 definition) per subset, in force units
+    stats: dict[str, Any] = field(default_factory=dict)  # e.g. BR's gamma
+    train_idx: np.ndarray | None = None  # indices into X of each subset
+    val_idx: np.ndarray | None = None
+    test_idx: np.ndarray | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary (without the per-sample subset indices)."""
+        return {k: v for k, v in self.__dict__.items() if not k.endswith("_idx")}
+
+
+@contextlib.contextmanager
+def _torch_threads(n: int | None):
+    old = torch.get_num_threads()
+    if n is not None and n != old:
+        torch.set_num_threads(n)
+    try:
+        yield torch.get_num_threads()
+    finally:
+        if torch.get_num_threads() != old:
+            torch.set_num_threads(old)
+
+
+def _auto_threads(jacobian_entries: int) -> int:
+    """1 thread for small problems; else the cores not already busy (1-min load average).
+
+    On a shared machine extra torch threads contend with other processes and
+    run several times slower than one thread (measured: bench/bench_train.py).
+    """
+    if jacobian_entries < _SMALL_PROBLEM:
+        return 1
+    try:
+        free = (os.cpu_count() or 1) - os.getloadavg()[0]
+    except OSError:
+        free = 1
+    return max(1, min(torch.get_num_threads(), int(free + 0.5)))
+
+
+def split_indices(n: int, split: Sequence[float], rng: np.random.Generator):
+    """Random disjoint train/val/test index arrays with fractions `split` (summing to 1)."""
+    if len(split) != 3 or min(split) < 0 or not math.isclose(sum(split), 1.0, abs_tol=1e-9):
+        raise ValueError(f"split: three non-negative fractions summing to 1 expected, got {split}")
+    perm = rng.permutation(n)
+    n_tr = int(round(split[0] * n))
+    n_va = int(round(split[1] * n))
+    n_tr = max(1, min(n_tr, n))
+    n_va = min(n_va, n - n_tr)
+    return np.sort(perm[:n_tr]), np.sort(perm[n_tr:n_tr + n_va]), np.sort(perm[n_tr + n_va:])
+
+
+def zero_force_points(X_train: np.ndarray, features: Sequence[str], fraction: float,
+                      rng: np.random.Generator) -> np.ndarray:
+    """Rows at which the damper is at rest (see the module docstring); [0, k] if none apply."""
+    rest = [FEATURES[f].at_rest if f in FEATURES else None for f in features]
+    if fraction <= 0 or all(v is None for v in rest) or len(X_train) == 0:
+        return np.empty((0, len(features)))
+    n = math.ceil(fraction * len(X_train))
+    rows = X_train[rng.integers(0, len(X_train), size=n)].copy()
+    for j, v in enumerate(rest):
+        if v is not None:
+            rows[:, j] = v
+    return rows
+
+
+def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequence[str] | None = None,
+        hidden: Sequence[int] = (30,), activation: str = "tanh", algorithm: str = "lm", seed: int = 0,
+        split: Sequence[float] = (0.7, 0.15, 0.15), max_epochs: int = 1000, max_fail: int = 6,
+        zero_points: bool = True, zero_fraction: float = 0.01,
+        settings: dict[str, Any] | None = None, progress: Callable[[dict], Any] | None = None,
+        threads: int | None = None, data: Any = None) -> tuple[MlpModel, TrainInfo]:
+    """Train an MLP force model on X [n, k] (feature units) and y [n] (force [N]).
+
+    `settings` overrides the algorithm's defaults (e.g. {"mu_max": 1e8} for lm,
+    {"lr": 1e-2, "batch_size": 1024} for adam). `progress(record)` is called
+    after every epoch with the history record; returning True stops training.
+    `threads`: torch threads during training (None: 1 for small problems, else
+    the idle cores, see _auto_threads). `data` is stored in model.meta as provenance.
+    The same inputs and seed give bit-identical weights on the same machine.
+    """
+    X = np.asarray(X, dtype=np.float64)
+    y = np.asarray(y, dtype=np.float64).ravel()
+    if X.ndim == 1:
+        X = X[:, None]
+    features = list(features)
+    if X.shape[1] != len(features):
+        raise ValueError(f"X has {X.shape[1]} columns but features names {len(features)}: {features}")
+    if len(y) != len(X):
+        raise ValueError(f"X has {len(X)} rows but y has {len(y)} values")
+    if len(X) < 3:
+        raise ValueError(f"need at least 3 samples, got {len(X)}")
+    if not (np.all(np.isfinite(X)) and np.all(np.isfinite(y))):
+        raise ValueError("X and y must be finite (found NaN or Inf); clean the data first")
+    units = units_of(features) if units is None else list(units)
+    if algorithm not in ALGORITHMS:
+        raise ValueError(f"algorithm: one of {sorted(ALGORITHMS)} expected, got {algorithm!r}")
+    layout = Layout(len(features), tuple(int(h) for h in hidden), activation)
+
+    rng = np.random.default_rng(seed)
+    tr, va, te = split_indices(len(X), split, rng)
+    Z = zero_force_points(X[tr], features, zero_fraction, rng) if zero_points else np.empty((0, X.shape[1]))
+    X_all = np.vstack([X, Z])
+    y_all = np.concatenate([y, np.zeros(len(Z))])
+    in_off, in_gain = mapminmax_settings(X_all)
+    (out_off,), (out_gain,) = mapminmax_settings(y_all)
+
+    def scale_x(a):
+        return torch.as_tensor((a - in_off) * in_gain - 1.0, dtype=DTYPE)
+
+    def scale_y(a):
+        return torch.as_tensor((a - out_off) * out_gain - 1.0, dtype=DTYPE)
+
+    problem = MlpProblem(layout, scale_x(np.vstack([X[tr], Z])), scale_y(np.concatenate([y[tr], np.zeros(len(Z))])),
+                         scale_x(X[va]), scale_y(y[va]))
+    gen = torch.Generator().manual_seed(seed)
+    x0 = layout.init(gen)
+    cls = ALGORITHMS[algorithm]
+    kwargs = {"generator": gen} if cls is Adam else {}
+    if threads is None:
+        threads = _auto_threads(problem.n_train * layout.n_params)
+    with _torch_threads(threads) as n_threads:
+        algo = cls(problem, x0, **kwargs, **(settings or {}))
+        res = run(algo, problem, max_epochs=max_epochs,
+                  max_fail=None if algorithm == "br" else max_fail, progress=progress)
+    stats = algo.stats() if hasattr(algo, "stats") else {}
+
+    p = {k: v.numpy().copy() for k, v in layout.unpack(res.x).items()}
+    model = MlpModel(w1=p["w1"], b1=p["b1"], w2=p.get("w2"), b2=p.get("b2"), w_out=p["w_out"],
+                     b_out=float(p["b_out"][0]), in_offset=in_off, in_gain=in_gain,
+                     out_offset=float(out_off), out_gain=float(out_gain),
+                     sat_lo=X_all.min(axis=0), sat_hi=X_all.max(axis=0), features=features,
+                     units=units, activation=activation)
+    metrics = {name: nrmse(torch_forward(model, X[idx]), y[idx])
+               for name, idx in (("train", tr), ("val", va), ("test", te)) if len(idx)}
+    metrics["all"] = nrmse(torch_forward(model, X), y)
+    info = TrainInfo(algorithm=algorithm, settings=dict(algo.settings), history=res.history,
+                     epochs=res.epochs, best_epoch=res.best_epoch, stop_reason=res.stop_reason,
+                     time_s=res.time_s, n_train=len(tr), n_val=len(va), n_test=len(te),
+                     n_zero_points=len(Z), metrics=metrics, stats=stats,
+                     train_idx=tr, val_idx=va, test_idx=te)
+    model.meta = {
+        "algorithm": algorithm,
+        "settings": jsonable(algo.settings),
+        "training_time_s": round(res.time_s, 3),
+        "trained_at": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "torch_version": torch.__version__,
+        "threads": n_threads,
+        "python": platform.python_version(),
+        "seed": seed,
+        "hidden": list(layout.hidden),
+        "split": list(split),
+        "max_epochs": max_epochs,
+        "max_fail": None if algorithm == "br" else max_fail,
+        "epochs": res.epochs,
+        "best_epoch": res.best_epoch,
+        "stop_reason": res.stop_reason,
+        "samples": {"train": len(tr), "val": len(va), "test": len(te), "zero_points": len(Z)},
+        "metrics": {k: round(v, 6) for k, v in metrics.items()},
+        **({"stats": jsonable(stats)} if stats else {}),
+        **({"data": data} if data is not None else {}),
+    }
+    return model, info

@@ -1,0 +1,259 @@
+"""Dataset in, trained model out: the pipeline that `dampnet train`, the demo and the diagnosis share.
+
+  train_dataset(ds, features=..., algorithm=..., ...) -> (model, info, split)
+  model_metrics(model, info, split) -> the metrics.json dict
+
+What train_dataset does, in order (the thesis's chapter 4 data handling):
+ 1. Acceleration, if a feature needs it and the data lack it: derived at the full
+    sampling rate (`dampnet.data.add_acceleration`, default 20 ms window), before
+    any decimation.
+ 2. Hold-out: every test at `holdout_voltage` (default 2.25 V, as the thesis) and
+    the tests named in `holdout_tests` are set aside for independent evaluation.
+    None/None holds nothing out.
+ 3. Decimation of the training tests (every `decimate`-th sample; None = to about
+    DECIMATE_TARGET_HZ = 200 Hz, i.e. 25 at the dyno's 5 kHz). The highest test
+    frequency is 3 Hz, so 200 Hz keeps 67 samples per cycle, far more than the
+    force waveform needs; the derived acceleration is already smoothed over
+    20 ms (100 samples) so decimating it loses nothing. Measured on the full
+    thesis plan (bench/bench_train_thesis.py, RESULTS.md): factor 25 trains LM in
+    ~6 s to a hold-out NRMSE of 0.0037; factor 50 gives 0.0042 (fewer samples per
+    weight make early stopping stop sooner); factor 1 would be 25x the work.
+    Features are computed at the full rate and then decimated: derived features
+    with a state (velocity_lag, voltage_lag, friction_state) are only the
+    quantities the runtime's loop computes when sampled finely.
+ 4. Physics terms (hybrid model), if any: their parameters are fitted first
+    (fit_terms) and the network learns the residual force minus the terms.
+ 5. `dampnet.training.fit`: mapminmax scaling, random 70/15/15 split with early
+    stopping, zero-force points, saturation limits from the training range.
+
+Features and terms are data: a feature is a name in the registry
+(`dampnet.features.FEATURES`), a term a dict {"kind": ..., "params": [...]}
+(`dampnet.terms`); nothing here branches on their names.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from dampnet.data import DataError, Dataset, add_acceleration, decimate as _decimate
+from dampnet.data import holdout_split
+from dampnet.data.preprocess import DEFAULT_WINDOW_S
+from dampnet.data.types import RIG_GENERATOR
+from dampnet.evaluation.lookup import fit_lookup
+from dampnet.evaluation.metrics import evaluate_model
+from dampnet.features import default_features, feature_matrix
+from dampnet.model import MlpModel, ModelError
+from dampnet.predict import predict_force
+from dampnet.rig import noise_floor_nrmse
+from dampnet.terms import fit_terms, terms_force
+from dampnet.training.fit import fit
+from dampnet.training.metrics import nrmse
+
+#: Decimated sample rate aimed for when decimate=None [Hz] (see the module docstring).
+DECIMATE_TARGET_HZ = 200.0
+DEFAULT_HOLDOUT_VOLTAGE = 2.25
+#: Settings train_dataset uses unless `settings` overrides them. Adam's own defaults
+#: (full batch, lr 1e-3: one small step per epoch) need thousands of epochs on dyno data;
+#: mini-batches of 128 with lr 1e-2 decaying 2 %/epoch reach about 0.012 NRMSE in ~50
+#: epochs on tests/python/test_train_cli.py's small plan (full batch: 0.066 after 150).
+ALGORITHM_SETTINGS = {"adam": {"batch_size": 128, "lr": 1e-2, "lr_decay": 0.98}}
+
+
+@dataclass
+class Split:
+    """Which data trained the model and which were held out (full-rate tests, acceleration added)."""
+
+    train: Dataset
+    holdout: Dataset | None
+    holdout_voltage: float | None
+    holdout_tests: list[str]
+    decimate: int
+    train_used: Dataset | None = None  # the decimated training tests fit() saw
+    notes: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def holdout_ids(self) -> list[str]:
+        return [] if self.holdout is None else self.holdout.test_ids
+
+
+
+# -- training -----------------------------------------------------------------------
+
+def _auto_decimate(ds: Dataset) -> int:
+    if not ds.tests:
+        return 1
+    fs = 1.0 / ds.tests[0].dt
+    return max(1, int(round(fs / DECIMATE_TARGET_HZ)))
+
+
+def _data_provenance(ds: Dataset, split: Split, features, window) -> dict[str, Any]:
+    d: dict[str, Any] = {
+        "source": ds.source,
+        "n_tests": len(ds.tests),
+        "train_tests": split.train.test_ids,
+        "holdout_tests": split.holdout_ids,
+        "holdout_voltage": split.holdout_voltage,
+        "decimate": split.decimate,
+        "acceleration_window_s": window if "acceleration" in features else None,
+    }
+    rig = ds.meta
+    if rig.get("generator") == RIG_GENERATOR:
+        d["rig"] = {"plan": rig.get("plan", {}).get("name"), "effects": sorted(rig.get("effects", {})),
+                    "seed": rig.get("seed")}
+    return d
+
+
+def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm: str = "lm", *,
+                  hidden: Sequence[int] = (30,), activation: str = "tanh",
+                  holdout_voltage: float | None = DEFAULT_HOLDOUT_VOLTAGE,
+                  holdout_tests: Sequence[str] | None = None, decimate: int | None = None,
+                  terms: Sequence[dict[str, Any]] | None = None,
+                  feature_params: dict[str, float] | None = None, seed: int = 0,
+                  progress: Callable[[dict], Any] | None = None, zero_points: bool = True,
+                  max_epochs: int = 1000, max_fail: int = 6, settings: dict[str, Any] | None = None,
+                  threads: int | None = None,
+                  acceleration_window: float | None = None) -> tuple[MlpModel, Any, Split]:
+    """Train a (hybrid) MLP damper model on a dataset; see the module docstring for the steps.
+
+    Returns (model, info, split): `info` is dampnet.train.TrainInfo (its subset indices
+    refer to the decimated training samples, split.train_used), `split` says which
+    tests trained and which were held out. Raises DataError for unusable data
+    (nothing to hold out, missing feature, no training tests) and ModelError for bad terms.
+    """
+    if not ds.tests:
+        raise DataError(f"{ds.source}: no tests")
+    features = list(features) if features else default_features(ds)
+    if len(set(features)) != len(features):
+        raise DataError(f"features: each feature once, got {features}")
+    window = DEFAULT_WINDOW_S if acceleration_window is None else acceleration_window
+    if "acceleration" in features:
+        for t in ds.tests:
+            if "acceleration" not in t.channels:
+                add_acceleration(t, window)
+    if holdout_voltage is None and not holdout_tests:
+        train, hold = ds, None
+    else:
+        try:
+            train, hold = holdout_split(ds, holdout_voltage, list(holdout_tests or []))
+        except ValueError as e:
+            raise DataError(f"{e} (choose another --holdout-voltage, name --holdout-tests, or "
+                            "--holdout-voltage none)") from None
+    if not train.tests:
+        raise DataError("every test is held out: nothing left to train on")
+    factor = _auto_decimate(train) if decimate is None else int(decimate)
+    used = _decimate(train, factor) if factor > 1 else train
+    # Features at the full sample rate, then decimated: a derived feature with a state (a lag of a
+    # few ms, the friction state) computed on decimated samples would be a different quantity.
+    X = np.concatenate([feature_matrix([t], features, feature_params, window)[::factor]
+                        for t in train.tests])
+    y = np.concatenate([t.channels["force"] for t in used.tests])
+    terms = list(terms or [])
+    if terms:
+        for t in used.tests:
+            if "displacement" not in t.channels:
+                raise DataError(f"test {t.test_id}: physics terms need a displacement channel")
+        xd = np.concatenate([t.channels["displacement"] for t in used.tests])
+        v = np.concatenate([t.channels["velocity"] for t in used.tests])
+        u = np.concatenate([t.control for t in used.tests])
+        try:
+            terms = fit_terms(terms, xd, v, u, y)
+        except ValueError as e:
+            raise ModelError(str(e)) from None
+        y = y - terms_force(terms, xd)
+    _check_magnitudes(X, y, features)
+    split = Split(train=train, holdout=hold, holdout_voltage=holdout_voltage,
+                  holdout_tests=list(holdout_tests or []), decimate=factor, train_used=used)
+    try:
+        model, info = fit(X, y, features=features, hidden=hidden, activation=activation,
+                          algorithm=algorithm, seed=seed, max_epochs=max_epochs, max_fail=max_fail,
+                          zero_points=zero_points,
+                          settings={**ALGORITHM_SETTINGS.get(algorithm, {}), **(settings or {})},
+                          progress=progress,
+                          threads=threads, data=_data_provenance(ds, split, features, window))
+    except ValueError as e:
+        raise DataError(str(e)) from None
+    model.terms = terms
+    model.feature_params = dict(feature_params or {})
+    model.meta["zero_points"] = bool(zero_points)
+    if terms:
+        # fit() measured NRMSE on the residual force; report the hybrid model's.
+        y_all = y + terms_force(terms, xd)
+        pred = predict_force(model, X, xd)
+        for name, idx in (("train", info.train_idx), ("val", info.val_idx), ("test", info.test_idx)):
+            if len(idx):
+                info.metrics[name] = nrmse(pred[idx], y_all[idx])
+        info.metrics["all"] = nrmse(pred, y_all)
+        model.meta["metrics"] = {k: round(v, 6) for k, v in info.metrics.items()}
+    bad = {k: v for k, v in info.metrics.items() if v is None or not np.isfinite(v)}
+    if bad:  # never a model with null metrics and exit 0
+        raise ModelError(f"training gave non-finite NRMSE ({', '.join(sorted(bad))}): the fit diverged; "
+                         "check the data's scale and units, or try another --algorithm or --seed")
+    model.validate()  # feature_params (time constants > 0) and the rest, as model.json is checked
+    return model, info, split
+
+
+#: largest |value| accepted in a training feature or force, in its SI unit. The runtime runs in
+#: single precision (largest float 3.4e38): the model's offsets and gains must stay well inside it,
+#: and squared errors must stay finite in double. Real dyno data are below 1e6 in SI units.
+MAX_TRAINING_MAGNITUDE = 1e15
+
+
+def _check_magnitudes(X: np.ndarray, y: np.ndarray, features: Sequence[str]) -> None:
+    """DataError naming the first feature (or the force) whose values are beyond MAX_TRAINING_MAGNITUDE."""
+    for name, col in [*zip(features, np.asarray(X).T), ("force", y)]:
+        peak = float(np.max(np.abs(col))) if np.size(col) else 0.0
+        if not peak <= MAX_TRAINING_MAGNITUDE:
+            raise DataError(f"training data: {name} reaches {peak:.3g} in its SI unit: expected values below "
+                            f"{MAX_TRAINING_MAGNITUDE:.0e} (are the units right? the runtime computes in single "
+                            "precision)")
+
+
+# -- metrics and files ----------------------------------------------------------------
+
+def model_metrics(model: MlpModel, info, split: Split, lookup: bool = True) -> dict[str, Any]:
+    """metrics.json: training summary, hold-out tables of the model and of the lookup-table baseline.
+
+    Keys: model_id, training {algorithm, time_s, epochs, best_epoch, stop_reason, nrmse {train,
+    val, test, all}, samples, history}, holdout_tests, holdout and holdout_lookup (tables of
+    dampnet.evaluate.metrics), lookup_table (the baseline fitted on the training tests,
+    LookupTable.to_dict), noise_floor {nrmse_range, nrmse_std, rmse_n} for rig data.
+    """
+    out: dict[str, Any] = {
+        "model_id": model.model_id(),
+        "training": {
+            "algorithm": info.algorithm, "time_s": info.time_s, "epochs": info.epochs,
+            "best_epoch": info.best_epoch, "stop_reason": info.stop_reason,
+            "nrmse": dict(info.metrics),
+            "samples": {"train": info.n_train, "val": info.n_val, "test": info.n_test,
+                        "zero_points": info.n_zero_points},
+            "history": info.history,
+        },
+        "holdout_tests": split.holdout_ids,
+    }
+    if split.holdout is not None:
+        out["holdout"] = evaluate_model(lambda t: predict_force(model, t), split.holdout.tests)
+        if lookup:
+            try:
+                table = fit_lookup(split.train)
+                out["lookup_table"] = table.to_dict()
+                out["holdout_lookup"] = evaluate_model(table.predict_test, split.holdout.tests)
+            except (DataError, ValueError) as e:
+                out["holdout_lookup"] = {"error": str(e)}
+    nf = noise_floors(split.holdout or split.train)
+    if nf:
+        out["noise_floor"] = nf
+    return out
+
+
+def noise_floors(ds: Dataset) -> dict[str, float] | None:
+    """The rig's noise floor on `ds` in both definitions (None for data not from the rig)."""
+    if ds.meta.get("generator") != RIG_GENERATOR:
+        return None
+    sigma = float(ds.meta["noise"]["force_n"])
+    res = float(ds.meta.get("resolution", {}).get("force", 0.0))
+    f = ds.concat("force")
+    rms = float(np.sqrt(sigma ** 2 + res ** 2 / 12.0))
+    return {"nrmse_range": rms / float(np.ptp(f)), "nrmse_std": noise_floor_nrmse(ds), "rmse_n": rms}

@@ -1,0 +1,62 @@
+"""What the training algorithms minimise: the network's squared error on the training set.
+
+The algorithms see only this interface (so they can also be checked on
+linear least squares and quadratics with known answers, see tests):
+
+  n_params, n_train
+  residual(x)            -> r [n_train] (= output - target, scaled units)
+  residual_jacobian(x)   -> (r, J) with J = dr/dx [n_train, n_params]
+  loss_grad(x, idx=None) -> (mean squared error, its gradient)   (SCG; Adam on batches idx)
+  val_mse(x)             -> validation MSE, or None without a validation set
+"""
+
+from __future__ import annotations
+
+import torch
+
+from dampnet.training.net import DTYPE, Layout
+
+
+class MlpProblem:
+    """Squared error of an MLP (flat weights x) on scaled training/validation data."""
+
+    def __init__(self, layout: Layout, x_train: torch.Tensor, t_train: torch.Tensor,
+                 x_val: torch.Tensor | None = None, t_val: torch.Tensor | None = None):
+        self.layout = layout
+        self.xs, self.t = x_train.to(DTYPE), t_train.to(DTYPE)
+        self.xv = None if x_val is None or len(x_val) == 0 else x_val.to(DTYPE)
+        self.tv = None if self.xv is None else t_val.to(DTYPE)
+        self.n_params = layout.n_params
+        self.n_train = int(self.xs.shape[0])
+        self._jbuf: torch.Tensor | None = None  # reused [P, N] Jacobian storage (see Layout.jacobian)
+
+    def residual(self, x: torch.Tensor) -> torch.Tensor:
+        with torch.no_grad():
+            return self.layout.forward(x, self.xs) - self.t
+
+    def residual_jacobian(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        if self._jbuf is None:
+            self._jbuf = torch.empty(self.n_params, self.n_train, dtype=DTYPE)
+        with torch.no_grad():
+            y, J = self.layout.jacobian(x, self.xs, out=self._jbuf)
+        return y - self.t, J
+
+    def loss(self, x: torch.Tensor) -> float:
+        r = self.residual(x)
+        return float(r @ r) / self.n_train
+
+    def loss_grad(self, x: torch.Tensor, idx: torch.Tensor | None = None) -> tuple[float, torch.Tensor]:
+        """MSE and its gradient (autograd), over the training set or the samples idx."""
+        xs, t = (self.xs, self.t) if idx is None else (self.xs[idx], self.t[idx])
+        xg = x.detach().clone().requires_grad_(True)
+        r = self.layout.forward(xg, xs) - t
+        e = (r @ r) / len(t)
+        (g,) = torch.autograd.grad(e, xg)
+        return float(e.detach()), g
+
+    def val_mse(self, x: torch.Tensor) -> float | None:
+        if self.xv is None:
+            return None
+        with torch.no_grad():
+            r = self.layout.forward(x, self.xv) - self.tv
+        return float(r @ r) / len(r)
