@@ -77,3 +77,18 @@ def test_examples_agree_with_the_c_example(results, lang):
         assert other[key] == pytest.approx(c[key], rel=1e-9, abs=1e-15), (lang, key)
     for key in COUNTS:
         assert other[key] == c[key], (lang, key)
+
+
+def test_readme_python_snippet_runs_and_agrees(results):
+    """The README's Python door (its one ```python block) runs as printed, from the repository
+    root, and its loop ends where the C example's does."""
+    readme = (ROOT / "README.md").read_text()
+    blocks = re.findall(r"^```python\n(.*?)^```$", readme, re.MULTILINE | re.DOTALL)
+    assert len(blocks) == 1, "the README's Python door has one snippet"
+    proc = subprocess.run([sys.executable, "-c", blocks[0]], cwd=ROOT, capture_output=True,
+                          text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    nrmse, verdict, z_s = proc.stdout.split()
+    assert verdict == "gas_spring"
+    assert 0 < float(nrmse) < 0.1
+    assert float(z_s) == pytest.approx(results["c"]["z_s"], rel=1e-9)
