@@ -18,14 +18,15 @@ import pytest
 pytest.importorskip("pytest_benchmark")
 
 from dampnet import _core  # noqa: E402
-from dampnet.latency import python_bench as bp  # noqa: E402
+from dampnet.latency import python_bench as bp
+from dampnet.modeldir import default_model  # noqa: E402
 
 SIM_STEPS = 200_000
 
 
 @pytest.fixture(scope="module")
 def model():
-    return bp.default_model()
+    return default_model()
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,6 @@
-// dict -> dn_vehicle / dn_controller for dampnet._core: every field parsed by its own type.
+// dict <-> dn_vehicle / dn_controller for dampnet._core, and their validation with the field
+// named (raise_if_invalid: the runtime's dn_vehicle_check / dn_controller_check, used by
+// LoopModel and by check_vehicle / check_controller). Every field parsed by its own type.
 // Enum fields go through their own enum's name table (a name of another enum, e.g.
 // controller kind "per_step", is an error, not the other enum's value); numbers must be
 // real numbers (not str, bool or None); unknown and non-string keys are refused. Errors

@@ -14,6 +14,7 @@
 #include "dampnet/dampnet.h"
 #include "dampnet/mlp.hpp"
 #include "fields.hpp"
+#include "step_report.hpp"
 
 namespace dnpy {
 
@@ -74,15 +75,8 @@ void add_registries(py::module_& mod) {
 #undef DNPY_INPUT_
   mod.attr("DAMPER_INPUT_FIELDS") = damper_input;
 
-  // the step report's keys (Loop.step): dn_loop_out's quantities, then the rest
-  py::dict step_out;
-#define DNPY_OUT_(name, doc) step_out[#name] = doc;
-  DN_LOOP_OUT_LIST(DNPY_OUT_)
-#undef DNPY_OUT_
-  step_out["features"] = "a neural damper's inputs before saturation, in its features' order [feature units]; empty for other dampers";
-  step_out["clamped_mask"] = "neural: bit i set when input i was clamped or replaced [-]";
-  step_out["status"] = "the step's status: DN_OK, or an OR of DN_W_* warnings [-]";
-  mod.attr("STEP_OUTPUT_FIELDS") = step_out;
+  // the step report's keys (Loop.step) with their docs: step_report.cpp, their one home
+  mod.attr("STEP_OUTPUT_FIELDS") = step_output_fields();
 
   // every enum field of a vehicle or controller has its name table (checked at import)
 #define DNPY_ENUM_TABLE_(type, name, def, doc) \

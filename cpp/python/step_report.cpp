@@ -29,9 +29,18 @@ constexpr std::size_t kNumQuantities = std::size(kQuantities);
 #define DNPY_OUT_NAME_(name, doc) #name,
 const char* const kStepKeys[] = {DN_LOOP_OUT_LIST(DNPY_OUT_NAME_) "features", "clamped_mask", "status"};
 #undef DNPY_OUT_NAME_
+#define DNPY_OUT_DOC_(name, doc) doc,
+const char* const kStepDocs[] = {
+    DN_LOOP_OUT_LIST(DNPY_OUT_DOC_)
+    "a neural damper's inputs before saturation, in its features' order [feature units]; "
+    "empty for other dampers",
+    "neural: bit i set when input i was clamped or replaced [-]",
+    "the step's status: DN_OK, or an OR of DN_W_* warnings [-]"};
+#undef DNPY_OUT_DOC_
 constexpr std::size_t kFeatures = kNumQuantities, kClampedMask = kNumQuantities + 1,
                       kStatus = kNumQuantities + 2;
 static_assert(std::size(kStepKeys) == kNumQuantities + 3, "every key has a getter");
+static_assert(std::size(kStepDocs) == std::size(kStepKeys), "every key has a doc");
 
 py::array_t<double> features_of(const dn_loop_out& o) {
   py::array_t<double> f(o.n_features);
@@ -92,6 +101,12 @@ py::object new_step_report(StepReport** r) {
   py::object owner = py::reinterpret_steal<py::object>(reinterpret_cast<PyObject*>(obj));
   *r = &obj->r;
   return owner;
+}
+
+py::dict step_output_fields() {
+  py::dict d;
+  for (std::size_t i = 0; i < std::size(kStepKeys); ++i) d[kStepKeys[i]] = kStepDocs[i];
+  return d;
 }
 
 py::dict step_report_dict(const dn_loop_out& o, int status) {

@@ -19,6 +19,9 @@ struct StepReport {
 // A new, uninitialised StepReport object; *r points at its struct, for the loop to fill.
 pybind11::object new_step_report(StepReport** r);
 
+// {key: doc with unit} of every key, in order (_core.STEP_OUTPUT_FIELDS).
+pybind11::dict step_output_fields();
+
 // The report as a plain dict (StepReport.to_dict).
 pybind11::dict step_report_dict(const dn_loop_out& o, int status);
 

@@ -6,6 +6,7 @@ import os
 from pathlib import Path
 from typing import Any, Sequence
 
+from dampnet import paths
 from dampnet.export import write_header
 from dampnet.model import MlpModel
 from dampnet.outputs import check_output_dir, staged_dir, write_json
@@ -18,6 +19,26 @@ def load_model(path: str | os.PathLike) -> MlpModel:
     """The model in `path`: a model.json file or a model directory holding one."""
     p = Path(path)
     return MlpModel.load(p / "model.json" if p.is_dir() else p)
+
+
+def default_model_path() -> Path:
+    """export/dn_model_default.json: installed with the package, or in the source tree."""
+    here = Path(__file__).resolve()
+    candidates = [here.parents[2] / "export" / "dn_model_default.json"]
+    try:
+        candidates.insert(0, paths._installed_root() / "include" / "dn_model_default.json")
+    except Exception:  # the extension not importable: the source tree only
+        pass
+    for p in candidates:
+        if p.is_file():
+            return p
+    raise FileNotFoundError("dn_model_default.json not found (looked in: "
+                            + ", ".join(str(c) for c in candidates) + ")")
+
+
+def default_model() -> MlpModel:
+    """The default model shipped with dampnet (export/dn_model_default.json, installed beside the headers)."""
+    return MlpModel.load(default_model_path())
 
 
 def save_model_dir(model: MlpModel, metrics: dict[str, Any] | None, out_dir: str | os.PathLike,

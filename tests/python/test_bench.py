@@ -88,7 +88,7 @@ def test_hard_input_check_catches_force_spikes_and_divergence():
     is caught as out of range, a step that fails (dt = 0.1 s on a stiff tyre diverges)
     as a step error; the shipped model passes with its peak within 2.7 kN."""
     import dampnet.latency.harness as bm
-    from dampnet.latency.python_bench import default_model
+    from dampnet.modeldir import default_model
 
     ok = bm.hil_hard_input_check()
     assert ok["passed"] and max(r["f_max"] for r in ok["inputs"].values()) < 2700.0
@@ -107,7 +107,7 @@ def test_every_timed_loop_configuration_is_checked_on_the_hard_inputs():
     damper per stage or per step) runs the hard inputs: the shipped model passes in all six,
     and the 12x-swing model is caught in all six."""
     import dampnet.latency.harness as bm
-    from dampnet.latency.python_bench import default_model
+    from dampnet.modeldir import default_model
 
     timed = bm.timed_configs_hard_input_check()
     assert len(timed) == 6 and all(r["passed"] for r in timed.values()), timed

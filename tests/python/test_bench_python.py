@@ -14,11 +14,12 @@ import pytest
 
 from cbuild import ROOT, compile_program, run
 from dampnet.latency import python_bench as bp
+from dampnet.modeldir import default_model
 
 
 @pytest.fixture(scope="module")
 def model():
-    return bp.default_model()
+    return default_model()
 
 
 def test_default_model_is_the_harness_header_model(model):
@@ -67,7 +68,7 @@ def test_references_compute_the_kernels_function(model, tmp_path):
     assert bp.TOL_FLOAT32 == 1e-5 and bp.TOL_FLOAT64 == 1e-10
     # the check would catch a different function: a model with one weight changed
     wrong = dict(cands)
-    other = bp.default_model()
+    other = default_model()
     other.w1[0, 0] += 0.1
     wrong["numpy_forward"] = dict(cands["numpy_forward"], eval=bp.numpy_forward(other))
     with pytest.raises(RuntimeError, match="numpy_forward"):

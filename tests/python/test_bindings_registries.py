@@ -102,8 +102,9 @@ def test_a_neural_damper_reads_the_listed_input_field(feature):
     field = _core.FEATURE_INPUTS[feature]
     param = _core.FEATURE_PARAMS[feature]
     d = _core.Damper.neural(tiny_mlp(1), [feature], {param: 0.01} if param else {})
-    # forces takes every quantity (QTY) field by name; give each a distinct value
-    quantities = ["x", "v", "a", "u", "u_lag", "temperature", "v_lag", "z_fric"]
+    # forces takes every quantity field by name (all but the loop's context t, dt, stage);
+    # give each a distinct value
+    quantities = [f for f in _core.DAMPER_INPUT_FIELDS if f not in ("t", "dt", "stage")]
     values = {q: 0.1 * (k + 1) for k, q in enumerate(quantities)}
     f, st, _ = d.forces(**{q: np.array([v]) for q, v in values.items()})
     assert st[0] == 0
@@ -172,11 +173,12 @@ def test_check_functions_parse_names_per_field(check, where, given, match):
 
 
 def test_check_functions_agree_with_loop_model_creation():
-    # the same validation: on random vehicles and controllers, check_* raises exactly when
-    # LoopModel does, with the same message tail
+    # the same validation: on random vehicles and controllers, LoopModel is refused exactly
+    # when check_vehicle or check_controller refuses, and with the same message when one does
     rng = np.random.default_rng(7)
     vdef, cdef = model().vehicle, model().controller
     kinds = list(_core.CONTROLLER_KINDS)
+    outcomes = {"valid": 0, "one invalid": 0, "both invalid": 0}
     for _ in range(400):
         veh = {k: float(v) * rng.choice([1.0, -1.0, 0.0, 200.0]) for k, v in vdef.items()
                if k not in ENUM_FIELDS and rng.random() < 0.3}
@@ -184,17 +186,22 @@ def test_check_functions_agree_with_loop_model_creation():
                if k not in ENUM_FIELDS and rng.random() < 0.3}
         ctl["kind"] = kinds[rng.integers(len(kinds))]
         errors = []
-        for f in (lambda: _core.check_vehicle(veh), lambda: _core.check_controller(ctl)):
+        for check, d in ((_core.check_vehicle, veh), (_core.check_controller, ctl)):
             try:
-                f()
+                assert check(d) is None
             except ValueError as e:
                 errors.append(str(e))
         try:
             model(veh, ctl)
-            assert errors == []
         except ValueError as e:
-            assert errors, str(e)
-            assert str(e).endswith(errors[0].split(": ", 1)[-1].rsplit(": ", 1)[-1])
+            assert errors, f"LoopModel refused what check_* accept: {e}"
+            if len(errors) == 1:
+                assert str(e) == "LoopModel: " + errors[0]
+            outcomes["one invalid" if len(errors) == 1 else "both invalid"] += 1
+        else:
+            assert errors == [], f"check_* refused what LoopModel accepts: {errors}"
+            outcomes["valid"] += 1
+    assert min(outcomes.values()) >= 20, outcomes  # every outcome was exercised
 
 
 ENUM_FIELDS = {"kind", "integrator", "damper_eval", "accel_feature"}

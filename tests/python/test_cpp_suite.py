@@ -3,6 +3,7 @@ used by a separate consumer project, and the Eigen kernel against the plain one.
 
 from __future__ import annotations
 
+import re
 import subprocess
 
 import numpy as np
@@ -16,6 +17,10 @@ def test_ctest_clean_under_address_and_undefined_sanitizers(asan_build):
                           capture_output=True, text=True)
     assert proc.returncode == 0, proc.stdout[-8000:] + proc.stderr[-4000:]
     assert "100% tests passed" in proc.stdout
+    # both folders of tests/cpp ran (each test is labelled with its folder)
+    labels = proc.stdout.split("Label Time Summary:")[-1]
+    assert re.search(r"^functional\s.*\d+ tests?", labels, re.M), proc.stdout[-3000:]
+    assert re.search(r"^unit\s.*\d+ tests?", labels, re.M), proc.stdout[-3000:]
     # Sanitizer reports go to stderr of the failing test; none may appear.
     assert "runtime error" not in proc.stdout and "AddressSanitizer" not in proc.stdout
 
@@ -53,7 +58,7 @@ def _outputs(build):
 def test_eigen_kernel_agrees_with_plain_kernel(plain_build, eigen_build):
     plain, eigen = _outputs(plain_build), _outputs(eigen_build)
     assert plain.shape == eigen.shape and plain.shape[0] > 300
-    force_range = 4000.0  # RandomModel's output scaling (tests/cpp/random_model.hpp)
+    force_range = 4000.0  # RandomModel's output scaling (tests/cpp/support/random_model.hpp)
     # Eigen sums in another order: equal to rounding, not bit for bit.
     assert np.max(np.abs(plain[:, 2] - eigen[:, 2])) <= 1e-12 * force_range
     assert np.max(np.abs(plain[:, 3] - eigen[:, 3])) <= 1e-5 * force_range

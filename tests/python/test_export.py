@@ -134,3 +134,23 @@ def test_cdefs_match_the_header(repo_root):
     fields = re.findall(r"(\w+);", re.sub(r"/\*.*?\*/", "", body, flags=re.S))
     cdef_body = re.search(r"typedef struct dn_mlp_desc \{(.*?)\} dn_mlp_desc;", MLP_CDEF, re.S).group(1)
     assert re.findall(r"(\w+);", cdef_body.replace(",", ";")) == fields
+
+
+def test_the_default_header_is_its_json_exported_by_this_version(repo_root):
+    # export/dn_model_default.h said "dampnet 0.2.0" in a 0.3.0 tree: it was not regenerated
+    # after the version bump. It must be exactly what this package exports from its json twin.
+    import dampnet
+
+    header = (repo_root / "export" / "dn_model_default.h").read_text()
+    assert f"(dampnet {dampnet.__version__})" in header.splitlines()[1]
+    model = MlpModel.load(repo_root / "export" / "dn_model_default.json")
+    assert header == header_text(model, "dn_model_default"), \
+        "stale: python export/make_default_model.py --rewrite"
+
+
+def test_the_exported_activation_is_the_runtime_registry():
+    from dampnet import _core
+
+    for name, (value, _) in _core.ACTIVATIONS.items():
+        text = header_text(random_model(2, (3,), name, seed=0), "m")
+        assert f"#define M_ACTIVATION {value} /* DN_ACT_{name.upper()} */" in text

@@ -1,5 +1,5 @@
 """The same road through the three front doors gives the same result: pybind11
-(dampnet._core), the C ABI from a plain C program (tests/cpp/test_loop_c.c), and
+(dampnet._core), the C ABI from a plain C program (tests/cpp/functional/test_loop_c.c), and
 the C ABI from Python through cffi (the shared library of the installed package)."""
 
 from __future__ import annotations
@@ -79,8 +79,9 @@ def via_pybind(model, road):
 
 
 def test_c_program_equals_pybind(tmp_path, road, via_pybind):
-    exe = compile_program([ROOT / "tests" / "cpp" / "test_loop_c.c"], tmp_path / "loop_c", cxx=False,
-                          include_dirs=paths.include_dirs() + [ROOT / "export"],
+    exe = compile_program([ROOT / "tests" / "cpp" / "functional" / "test_loop_c.c"], tmp_path / "loop_c",
+                          cxx=False, include_dirs=paths.include_dirs() + [ROOT / "export",
+                                                                          ROOT / "tests" / "cpp" / "support"],
                           libs=[paths.shared_library()])
     assert "all checks passed" in subprocess.run([exe], capture_output=True, text=True, check=True).stdout
     road_file = tmp_path / "road.txt"

@@ -7,7 +7,7 @@
 // hidden layer; the AVX2 and AVX-512 kernels use a 15/4 rational (below, fast_tanh8)
 // in the last hidden layer (an AVX-512 two-layer model's first layer keeps the 13/6
 // form, fast_tanh16). The 13/6 form's worst absolute error against std::tanh, measured over
-// [-10, 10] by tests/cpp/test_activation.cpp, is 3.2e-7 (bound checked: 5e-7;
+// [-10, 10] by tests/cpp/unit/test_activation.cpp, is 3.2e-7 (bound checked: 5e-7;
 // about 5 float ulps, near |tanh| = 1); the sigmoid's is 1.7e-7 (bound 3e-7).
 // The logistic sigmoid is evaluated through the identity
 // sigmoid(x) = 0.5 + 0.5 * tanh(x / 2), so both activations share one
@@ -60,7 +60,7 @@ inline float fast_tanh(float a) noexcept { return tanh_rational(clamp_tanh_arg(a
 // tanh(x) ~ x P(y) / Q(y), y = x^2, x clamped to +-kTanhClamp (tanh(8.125) = 1 - 1.8e-7),
 // P of degree 7 and Q(y) = y^2 + q1 y + q0 = y (y + q1) + q0, evaluated as one add and
 // one FMA: a shorter chain to the division than the 13/6 form's three FMAs. Fitted by
-// bench/fit_tanh_rational.py (linearised minimax over [0, kTanhClamp] with an allowance
+// bench/experiments/fit_tanh_rational.py (linearised minimax over [0, kTanhClamp] with an allowance
 // for float rounding; 2.1e-7 from tanh in exact arithmetic, clamp included). Used with
 // each neuron's output weight folded into P's coefficients by the MLP kernel (mlp.hpp,
 // tanh_folded). Measured worst error of the float evaluation: 3.1e-7 over every float in
@@ -78,7 +78,7 @@ constexpr float kTanhClamp = 8.125f, kTanhClampSq = 66.015625f;  // both exact
 // y = min(z^2, kTanhClampSq) equals x^2 for the clamped x one operation sooner (NaN: z^2
 // is NaN and minps returns its second operand; x = kTanhClamp), P by Estrin in y, and
 // t = (x / q) P. Worst absolute error against std::tanh over [-10, 10]: 3.1e-7
-// (tests/cpp/test_activation.cpp checks < 5e-7); +-Inf and NaN give +-(1 - 1.2e-7) and
+// (tests/cpp/unit/test_activation.cpp checks < 5e-7); +-Inf and NaN give +-(1 - 1.2e-7) and
 // +(1 - 1.2e-7), the rational's value at the clamp.
 inline __m256 fast_tanh8(__m256 z) noexcept {
   const __m256 x = _mm256_max_ps(_mm256_min_ps(z, _mm256_set1_ps(kTanhClamp)), _mm256_set1_ps(-kTanhClamp));
@@ -107,7 +107,7 @@ inline __m256 fast_tanh8(__m256 z) noexcept {
 // or NaN, found by a compare beside it, are replaced by +-1 through write masks,
 // which cost nothing), and 1/q by vrcp14ps (relative error < 2^-14) and one
 // Newton step folded into x / q, shorter than a 512-bit division.
-// Worst absolute error against std::tanh over [-10, 10] (tests/cpp/test_activation.cpp):
+// Worst absolute error against std::tanh over [-10, 10] (tests/cpp/unit/test_activation.cpp):
 // 3.0e-7 (checked < 5e-7, the float bound); |z| > 9 and +-Inf give exactly +-1, NaN +1.
 // tanh(z) = r * p as two factors (p = 1 where saturated).
 inline void fast_tanh16_factors(__m512 z, __m512& r, __m512& p) noexcept {
@@ -155,7 +155,7 @@ inline __m512 fast_tanh16(__m512 z) noexcept {
 // call-free, so the hidden layer's loop vectorises (SSE2: 2 lanes, AVX2: 4; the clamp
 // is a separate pass, as GCC will not if-convert a select in a loop that divides).
 // Worst relative error against std::tanh over [-25, 25], measured by
-// tests/cpp/test_activation.cpp: 5.9e-16, 2.6 ulps (bound checked: 4 ulps); NaN gives +1.
+// tests/cpp/unit/test_activation.cpp: 5.9e-16, 2.6 ulps (bound checked: 4 ulps); NaN gives +1.
 inline double tanh_d_core(double z) noexcept {
   const double a = std::fabs(z);
   const double t = 2.0 * a;

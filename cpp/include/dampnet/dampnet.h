@@ -231,21 +231,29 @@ typedef struct dn_damper_input { DN_DAMPER_INPUT_FIELDS(DN_INPUT_DECL_) } dn_dam
  * dn_damper_input it reads, dn_feature_param it needs or DN_FPARAM_NONE). Values are
  * positions in the list (ABI: append only).
  *
- * Recipe: adding a lagged feature (like velocity_lag) touches dampnet.h and the loop's
- * state update only on the C/C++ side (the C ABI, damper.hpp, dampnet._core and its
- * registries, Damper.forces's arguments are all generated from these lists):
- *  1. DN_FEATURE_PARAM_LIST: one line for its constant, e.g.
+ * Recipe: adding a lagged feature (like velocity_lag) touches this header and the loop's
+ * state update only, on the C/C++ side: the C ABI, damper.hpp, the Python module
+ * dampnet._core (its registries, DamperInput, Damper.forces's arguments, Loop.state and
+ * Loop.simulate's columns) are expanded from these lists, and the C/C++ tests need no edit.
+ * Here:
+ *  1. DN_FEATURE_PARAM_LIST: its constant, e.g.
  *       X(DN_FPARAM_ACCEL_LAG_TAU_S, "accel_lag_tau_s", "time constant of accel_lag [s], > 0")
- *  2. DN_DAMPER_INPUT_FIELDS: append one field (role QTY_OPT) holding its value, e.g.
- *       X(double, a_lag, QTY_OPT, "relative acceleration after ... lag [m/s^2]")
- *  3. DN_FEATURE_LIST: append one line,
+ *  2. DN_DAMPER_INPUT_FIELDS: append the field holding its value (role QTY_OPT: appended
+ *     fields keep the ABI, and Damper.forces gets it as an argument defaulting to NaN), e.g.
+ *       X(double, a_lag, QTY_OPT, "relative acceleration after a first-order lag [m/s^2]")
+ *  3. DN_FEATURE_LIST: append its line (field and parameter from steps 1-2), e.g.
  *       X(DN_FEAT_ACCEL_LAG, "accel_lag", a_lag, DN_FPARAM_ACCEL_LAG_TAU_S)
- *  4. DN_LOOP_STATE_LIST: append its state slot and raise DN_LOOP_STATE_SIZE, e.g.
- *       X(13, a_lag, "relative acceleration after the accel_lag feature's lag [m/s^2]")
- *  5. cpp/include/dampnet/loop.hpp: its coefficients in LoopModel::init (from
- *     damper.fparam(DN_FPARAM_...)), its value at each evaluation in detail::damper_input
- *     / detail::motion_lag, its end-of-step update in step(), and its rest value in reset().
- * Then the Python side: its training formula in python/dampnet's feature registry. */
+ *  4. DN_LOOP_STATE_LIST: append its state slot and raise DN_LOOP_STATE_SIZE (a static_assert
+ *     checks the count), e.g.  X(13, a_lag, "relative acceleration after accel_lag's lag [m/s^2]")
+ *  5. cpp/include/dampnet/loop.hpp, the state update: its coefficients in LoopModel::init
+ *     (from damper.fparam(DN_FPARAM_ACCEL_LAG_TAU_S); 0 when the model does not use it), its
+ *     value at each damper evaluation (detail::damper_input, fed like v_lag through
+ *     detail::motion_lag or the step-start state), its end-of-step value ns[S_a_lag] in
+ *     step() (and in the finiteness check there), and its rest value in reset() (0 unless set).
+ * Python side: its training formula in the package's feature registry, and one attribute line
+ * for the new DamperInput field in python/dampnet/_core.pyi (tests/python/test_core_stub.py
+ * names it until it is there). Tried with such a dummy feature: the library, _core and
+ * tests/cpp built and passed with no other edit. */
 #define DN_FEATURE_LIST(X)                                                                \
   X(DN_FEAT_VELOCITY, "velocity", v, DN_FPARAM_NONE)                                      \
   X(DN_FEAT_ACCELERATION, "acceleration", a, DN_FPARAM_NONE)                              \

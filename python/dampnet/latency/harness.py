@@ -49,7 +49,7 @@ def kernel_flags() -> tuple[str, str]:
     return str(info.get("isa_flags", "")), str(info.get("kernel_isa", "unknown"))
 
 
-def _harness_sources() -> tuple[Path, Path]:
+def harness_sources() -> tuple[Path, Path]:
     """bench/bench_mlp.cpp and the default model header, installed or in the source tree."""
     root = Path(paths.include_dirs()[0]).parent
     src_tree = Path(__file__).resolve().parents[3]
@@ -68,7 +68,7 @@ def build_harness(out_dir: Path) -> Path:
     cxx = os.environ.get("CXX") or shutil.which("c++") or shutil.which("g++")
     if not cxx:
         raise RuntimeError("no C++ compiler found (c++/g++)")
-    src, header_dir = _harness_sources()
+    src, header_dir = harness_sources()
     cache = os.environ.get("DAMPNET_BENCH_HARNESS_DIR")
     out_dir = Path(cache) if cache else out_dir
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -194,7 +194,7 @@ def hil_hard_input_check(model=None, margin: float = HIL_FORCE_MARGIN, dt: float
     the steps that fell back from the linearised acceleration (DN_W_ACCEL_FALLBACK) and the
     verdict."""
     from dampnet import _core
-    from dampnet.latency.python_bench import default_model
+    from dampnet.modeldir import default_model
     from dampnet.sim.loop import QuarterCar, damper_from_model
 
     model = model or default_model()
@@ -231,7 +231,7 @@ def hil_hard_input_check(model=None, margin: float = HIL_FORCE_MARGIN, dt: float
 
 def timed_configs_hard_input_check(model=None, margin: float = HIL_FORCE_MARGIN, dt: float = 1e-3) -> dict:
     """hil_hard_input_check for each of TIMED_LOOP_CONFIGS: name -> its result."""
-    from dampnet.latency.python_bench import default_model
+    from dampnet.modeldir import default_model
 
     model = model or default_model()
     return {name: hil_hard_input_check(model, margin, dt, vehicle=cfg) for name, cfg in TIMED_LOOP_CONFIGS.items()}

@@ -32,6 +32,7 @@ from typing import Any, Callable
 import numpy as np
 
 from dampnet.model import MlpModel
+from dampnet.modeldir import default_model
 
 N_INPUT_SETS = 1024  # inputs cycled, as in the C++ harness
 STEP_TARGET_NS = 1000.0  # pybind11 Loop.step median target
@@ -46,27 +47,6 @@ QUANTILES = {"p50_ns": 0.50, "p99_ns": 0.99, "p999_ns": 0.999}
 
 
 # ---- the model and the inputs -------------------------------------------------------------
-
-def default_model_path() -> Path:
-    """export/dn_model_default.json: installed with the package, or in the source tree."""
-    from dampnet import paths
-
-    here = Path(__file__).resolve()
-    candidates = [here.parents[3] / "export" / "dn_model_default.json"]
-    try:
-        candidates.insert(0, paths._installed_root() / "include" / "dn_model_default.json")
-    except Exception:  # the extension not importable: the source tree only
-        pass
-    for p in candidates:
-        if p.is_file():
-            return p
-    raise FileNotFoundError("dn_model_default.json not found (looked in: "
-                            + ", ".join(str(c) for c in candidates) + ")")
-
-
-def default_model() -> MlpModel:
-    return MlpModel.load(default_model_path())
-
 
 def harness_inputs(model: MlpModel, n: int = N_INPUT_SETS, seed: int = 1) -> np.ndarray:
     """The C++ harness's inputs [n, n_inputs]: std::mt19937(seed) and one
@@ -490,10 +470,10 @@ def header_model_id() -> str | None:
     """DN_MODEL_DEFAULT_ID of the header the C++ harness is compiled with."""
     import re
 
-    from dampnet.latency.harness import _harness_sources
+    from dampnet.latency.harness import harness_sources
 
     try:
-        text = (_harness_sources()[1] / "dn_model_default.h").read_text()
+        text = (harness_sources()[1] / "dn_model_default.h").read_text()
     except (FileNotFoundError, OSError):
         return None
     m = re.search(r'#define DN_MODEL_DEFAULT_ID "([0-9a-f]+)"', text)

@@ -7,9 +7,9 @@ iteration's denominator), with an allowance rho(x) = KAPPA |tanh x| 2^-24 for th
 rounding of the evaluation, so the fit spends its error where the rounding is smallest.
 Fitted in s = (x / C)^2 for conditioning, then converted to y and Q made monic.
 
-Usage: python bench/fit_tanh_rational.py [M C KAPPA]   (defaults 7 8.125 3: the kernel's)
+Usage: python bench/experiments/fit_tanh_rational.py [M C KAPPA]   (defaults 7 8.125 3: the kernel's)
 Prints the coefficients for activation.hpp; the error of the float evaluation is measured by
-tests/cpp/test_activation.cpp (fast_tanh8) and tests/cpp/test_mlp.cpp (through the kernel).
+tests/cpp/unit/test_activation.cpp (fast_tanh8) and tests/cpp/unit/test_mlp.cpp (through the kernel).
 Needs numpy and scipy.
 """
 

@@ -372,6 +372,10 @@ static void run_loop(const char* what, const dn_vehicle* veh, const dn_damper* d
   dn_loop_model* m = (dn_loop_model*)&m;
   int st = dn_loop_model_create(veh, damper, ctrl, &m);
   if (!known_status(st) || st > 0) FAIL("%s: model_create status %d", what, st);
+  {  /* dn_vehicle_check / dn_controller_check give creation's verdict (vehicle first) */
+    const int vc = dn_vehicle_check(veh), cc = ctrl ? dn_controller_check(ctrl) : DN_OK;
+    if (st != (vc < 0 ? vc : cc)) FAIL("%s: create %d, vehicle_check %d, controller_check %d", what, st, vc, cc);
+  }
   check_created(what, st, m);
   if (st != DN_OK) return;
   dn_loop_data* d = NULL;
@@ -399,6 +403,8 @@ static void loop_cases(dn_damper* const* dampers, int n_dampers) {
   dn_controller ctrl;
   dn_vehicle_default(NULL);
   dn_controller_default(NULL, DN_CTRL_PASSIVE);
+  if (dn_vehicle_check(NULL) != DN_E_NULL) FAIL("vehicle_check(NULL)");
+  if (dn_controller_check(NULL) != DN_E_NULL) FAIL("controller_check(NULL)");
   dn_vehicle_default(&veh);
   dn_controller_default(&ctrl, DN_CTRL_SKYHOOK_ONOFF);
   dn_loop_model* m = (dn_loop_model*)&m;

@@ -2,7 +2,7 @@
 // section): ten fresh anonymous mappings shaped like simulate's results for 1e6 steps (state
 // 12 doubles as before u_cmd, 7 doubles, 3 features, an int32 status: 180 bytes per step), written step by
 // step as simulate does, 5 repetitions, ns per step. Not built by CMake; a scratch experiment:
-//   g++ -O2 -mavx2 bench/first_touch.cpp -o first_touch && ./first_touch MODE
+//   g++ -O2 -mavx2 bench/experiments/first_touch.cpp -o first_touch && ./first_touch MODE
 // MODE 0: 4 KiB pages; 1: MADV_HUGEPAGE; 2: MAP_POPULATE (4 KiB) before the timed writes;
 // 3: 4 KiB pages, the state by non-temporal stores; 4: huge pages, results staged 8 steps at a
 // time and copied by non-temporal stores; 5: the same by memcpy; 6: huge pages, one byte per

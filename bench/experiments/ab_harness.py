@@ -3,8 +3,8 @@ sources or flags): each round runs every binary once, in turn, so that a shared 
 and fast minutes fall on all of them alike; prints, per binary and figure, the median over
 rounds of p50, p99 and p99.9 with their ranges.
 
-Usage: python3 bench/ab_harness.py ROUNDS CALLS BIN [BIN ...]
-  e.g. python3 bench/ab_harness.py 8 200000 build/a/bench/dn_bench_mlp build/b/bench/dn_bench_mlp
+Usage: python3 bench/experiments/ab_harness.py ROUNDS CALLS BIN [BIN ...]
+  e.g. python3 bench/experiments/ab_harness.py 8 200000 build/a/bench/dn_bench_mlp build/b/bench/dn_bench_mlp
 """
 
 from __future__ import annotations

@@ -1,0 +1,66 @@
+"""The package's top level: the public API by name, imported on first use."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import dampnet
+
+EXPECTED = {
+    "load_model": "dampnet.modeldir.load_model",
+    "save_model_dir": "dampnet.modeldir.save_model_dir",
+    "load_dataset": "dampnet.data.readers.load_dataset",
+    "train": "dampnet.training.pipeline.train_dataset",
+    "evaluate": "dampnet.evaluation.report.evaluate",
+    "diagnose": "dampnet.diagnosis.run.diagnose",
+    "predict_force": "dampnet.predict.predict_force",
+    "export_header": "dampnet.export.write_header",
+    "QuarterCar": "dampnet.sim.loop.QuarterCar",
+    "damper_from_model": "dampnet.sim.loop.damper_from_model",
+    "MlpModel": "dampnet.model.MlpModel",
+    "ModelError": "dampnet.model.ModelError",
+    "DataError": "dampnet.data.types.DataError",
+    "Dataset": "dampnet.data.types.Dataset",
+    "DynoTest": "dampnet.data.types.DynoTest",
+}
+MODULES = {"rig": "dampnet.rig", "roads": "dampnet.sim.roads", "sim": "dampnet.sim"}
+
+
+@pytest.mark.parametrize("name", sorted(EXPECTED))
+def test_each_public_name_is_the_object_it_documents(name):
+    obj = getattr(dampnet, name)
+    assert f"{obj.__module__}.{obj.__qualname__}" == EXPECTED[name]
+    assert obj.__doc__, f"dampnet.{name} has no docstring"
+
+
+def test_public_modules_and_all():
+    for name, module in MODULES.items():
+        assert getattr(dampnet, name).__name__ == module
+    assert set(dampnet.__all__) == {*EXPECTED, *MODULES, "__version__"}
+    assert set(dampnet.__all__) <= set(dir(dampnet))
+    with pytest.raises(AttributeError, match="no attribute 'trian'"):
+        dampnet.trian  # noqa: B018
+
+
+def test_import_dampnet_is_light():
+    """`import dampnet` (and so `dampnet --version`) loads neither torch nor the compiled runtime."""
+    code = "import sys, dampnet; print(sorted(m for m in ('torch', 'dampnet._core', 'matplotlib', 'scipy') if m in sys.modules))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+
+
+def test_the_api_snippet_runs(tmp_path):
+    """The package docstring's snippet, on the quick plan."""
+    model = dampnet.load_model(dampnet.modeldir.default_model_path())
+    data = dampnet.rig.generate("quick", seed=1)
+    tables = dampnet.evaluate(model, data)
+    assert 0 < tables["overall"]["nrmse"] < 1
+    car = dampnet.QuarterCar(dampnet.damper_from_model(model), controller={"kind": "skyhook_onoff"})
+    road = dampnet.roads.impulse()
+    s = road.sample(car.dt)
+    out = car.simulate(s.z, s.zdot)
+    assert out["state"].shape[0] == len(s.z) and np.all(np.isfinite(out["force"]))
