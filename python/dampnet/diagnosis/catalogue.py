@@ -27,7 +27,7 @@ The built-in ids are fixed: gas_spring, thermal, valve_lag, friction, compressib
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Callable
 
 import numpy as np
 
