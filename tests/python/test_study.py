@@ -7,7 +7,10 @@ import json
 import pytest
 
 from dampnet.sim.roads import impulse, sine_sweep, thesis_rough_road
-from dampnet.sim.study import DamperSpec, jsonable, run_study, text_tables, write_plots
+from dampnet.sim.dampers import DamperSpec
+from dampnet.sim.plots import write_plots
+from dampnet.sim.report import jsonable, text_tables
+from dampnet.sim.study import run_study
 
 KEYS = {"schema", "models", "truth", "settings", "impulse", "sine_sweep", "rough_road", "skyhook", "errors"}
 
@@ -23,7 +26,7 @@ def test_study_structure_and_tables(tmp_path):
     assert set(d["sine_sweep"]) == {"low", "high"}
     assert set(d["rough_road"]) == {"10_low", "10_high", "20_low", "20_high"}
     assert set(d["skyhook"]) == {f"{v}_{c}" for v in (10, 20)
-                                 for c in ("skyhook", "skyhook_continuous", "passive_low", "passive_high")}
+                                 for c in ("skyhook_onoff", "skyhook_continuous", "passive_low", "passive_high")}
     # continuous skyhook's settings: c_sky from the vehicle (zeta 1/sqrt(2)); a linear damper's damping does
     # not change with the control, so c_min / c_max stay the controller's defaults
     cont = d["settings"]["skyhook"]["continuous"]
@@ -45,13 +48,14 @@ def test_study_structure_and_tables(tmp_path):
         d["sine_sweep"]["low"]["soft"]["transmissibility_peak"]
     txt = text_tables(res)
     assert "Table 6" in txt and "Table 7" in txt and "Skyhook" in txt
-    assert "20_skyhook_continuous vs passive_low" in txt
+    assert "20_skyhook_continuous vs passive_low" in txt and "10_skyhook_onoff vs passive_high" in txt
     pngs = write_plots(res, tmp_path)
     assert any("transmissibility" in p.name for p in pngs) and all(p.stat().st_size > 1000 for p in pngs)
 
 
 def test_continuous_skyhook_is_calibrated_on_the_dampers_damping():
-    from dampnet.sim.study import continuous_skyhook, equivalent_damping, truth_spec
+    from dampnet.sim.calibration import continuous_skyhook, equivalent_damping
+    from dampnet.sim.dampers import truth_spec
 
     truth = truth_spec()
     # A linear damper's equivalent damping is its coefficient.

@@ -47,7 +47,7 @@ def test_study_command_tables_truth_errors_and_plots(model_and_data):
     assert err == pytest.approx((case[neural]["acc_rms_m_s2"] - truth) / truth, rel=1e-9)
     assert {"10_low", "10_high", "20_low", "20_high"} <= set(res["rough_road"])
     # both skyhook laws against both passive settings; the continuous law calibrated on the truth
-    assert {f"{v}_{c}" for v in (10, 20) for c in ("skyhook", "skyhook_continuous", "passive_low",
+    assert {f"{v}_{c}" for v in (10, 20) for c in ("skyhook_onoff", "skyhook_continuous", "passive_low",
                                                      "passive_high")} <= set(res["skyhook"])
     assert res["settings"]["skyhook"]["continuous"]["calibrated_on"] == "truth"
     text = (out / "study.txt").read_text()

@@ -6,11 +6,19 @@ import argparse
 import json
 import sys
 
-CONTROLS = ("passive", "skyhook", "skyhook_continuous", "groundhook", "groundhook_continuous")
-RUN_SCHEMA = "dampnet.simulate/1"
+# /2: the runtime's law names in "controller", no "backend" (the runtime's loop is the only one)
+RUN_SCHEMA = "dampnet.simulate/2"
 #: the files of a run (metrics.json is its marker: a JSON object with "schema": RUN_SCHEMA)
 RUN_FILES = ("run.npz", "metrics.json", "time_history.png", "transmissibility.png")
-COMMAND_TAU_S = 0.005  # = dampnet.sim.study.SKYHOOK_COMMAND_TAU_S (not imported: keeps --help fast)
+COMMAND_TAU_S = 0.005  # = dampnet.sim.calibration.SKYHOOK_COMMAND_TAU_S (not imported: keeps --help fast)
+
+
+def control_laws() -> tuple[str, ...]:
+    """The laws --control takes: the runtime's (dampnet._core.CONTROLLER_KINDS) but
+    "external", whose control comes from the caller (QuarterCar.simulate(u=...))."""
+    from dampnet import _core
+
+    return tuple(k for k in _core.CONTROLLER_KINDS if k != "external")
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -23,8 +31,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--road", default="rough",
                    help="impulse, bump, sweep, rough (thesis), iso:A..iso:H, or a CSV distance_m,elevation_m")
     p.add_argument("--speed", type=float, default=10.0, help="speed [m/s] for distance profiles")
-    p.add_argument("--control", default="passive", choices=CONTROLS,
-                   help="control law; skyhook_continuous is calibrated on the damper as in `dampnet study`")
+    p.add_argument("--control", default="passive", metavar="LAW",
+                   help=f"control law: {', '.join(control_laws())} (the runtime's names); "
+                        "skyhook_continuous is calibrated on the damper as in `dampnet study`")
     p.add_argument("--command-tau", type=float, default=None, metavar="S",
                    help="command filter time constant of the switching laws [s] (default: the study's "
                         f"{1e3 * COMMAND_TAU_S:g} ms; 0 = unfiltered)")
@@ -33,39 +42,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--u", type=float, default=None, help="passive control [V] (overrides --damping)")
     p.add_argument("--dt", type=float, default=1e-3, help="loop step [s]")
     p.add_argument("--seed", type=int, default=0, help="seed of random roads")
-    p.add_argument("--backend", choices=("auto", "core", "python"), default="auto")
     p.add_argument("--out", default="simulate_out", help="output directory")
     p.add_argument("--force", action="store_true", help="replace an existing run in --out")
     p.set_defaults(handler=run)
     return p
-
-
-def load_spec(text: str):
-    """A DamperSpec from a command-line MODEL string."""
-    import os
-
-    from dampnet.sim.study import DamperSpec, lookup_spec, neural_spec, truth_spec
-
-    if text == "truth" or text.startswith("truth:"):
-        eff = [e for e in text.split(":", 1)[1].split(",") if e] if ":" in text else []
-        return truth_spec(eff)
-    if text.startswith("linear:"):
-        return DamperSpec("linear", "linear", float(text.split(":", 1)[1]))
-    from dampnet import schema
-    from dampnet.model import MlpModel, ModelError
-
-    path = os.path.join(text, "model.json") if os.path.isdir(text) else text
-    if not os.path.exists(path):
-        raise ModelError(f"{path}: no such model file")
-    d = schema.load_json(path, ModelError)
-    if isinstance(d, dict) and "velocities" in d and "forces" in d:
-        from dampnet.evaluation.lookup import LookupTable
-
-        try:
-            return lookup_spec(LookupTable.from_dict(d))
-        except (KeyError, TypeError, ValueError) as e:
-            raise ModelError(f"{path}: not a valid lookup table ({schema.show(str(e))})") from None
-    return neural_spec(MlpModel.from_dict(d, path))
 
 
 def run(args) -> int:
@@ -73,17 +53,23 @@ def run(args) -> int:
 
     import numpy as np
 
-    from dampnet.sim.vehicle import Controller, LoopError, Vehicle
-    from dampnet.sim.roads import RoadError, make_road
-    from dampnet.sim.study import (continuous_skyhook, damping_levels, plot_run, plot_transmissibility, semi_active,
-                               simulate)
-
     from dampnet.outputs import check_run_dir
+    from dampnet.sim.calibration import continuous_skyhook, damping_levels, semi_active
+    from dampnet.sim.dampers import load_spec
+    from dampnet.sim.plots import plot_run, plot_transmissibility
+    from dampnet.sim.roads import RoadError, make_road
+    from dampnet.sim.runs import simulate
+    from dampnet.sim.vehicle import Controller, LoopError, Vehicle
 
     out = Path(args.out)
     tau = COMMAND_TAU_S if args.command_tau is None else args.command_tau
     try:
-        check_run_dir(out, RUN_FILES, "metrics.json", RUN_SCHEMA, _model_inputs(args.model, args.road),
+        laws = control_laws()
+        if args.control not in laws:
+            what = ("takes its control from the caller (QuarterCar.simulate(u=...)), not from this command"
+                    if args.control == "external" else "is not a control law")
+            raise LoopError(f"--control: {args.control!r} {what}; valid: " + ", ".join(repr(k) for k in laws))
+        check_run_dir(out, RUN_FILES, "metrics.json", RUN_SCHEMA.split("/")[0] + "/", _model_inputs(args.model, args.road),
                       args.force)
         spec = load_spec(args.model)
         road = make_road(args.road, seed=args.seed)
@@ -96,8 +82,7 @@ def run(args) -> int:
             ctrl = continuous_skyhook(spec, lv, veh, u_tau_s=tau)
         else:
             ctrl = semi_active(args.control, lv, tau)
-        res = simulate(spec, road, args.speed if road.kind == "spatial" else None, ctrl, veh,
-                       backend=args.backend)
+        res = simulate(spec, road, args.speed if road.kind == "spatial" else None, ctrl, veh)
     except (RoadError, LoopError, ValueError, OSError, KeyError) as e:
         print(f"dampnet: error: {e}", file=sys.stderr)
         return 2
@@ -121,7 +106,7 @@ def run(args) -> int:
     m = res["metrics"]
     print(f"{spec.name} on {road.name}" + (f" at {args.speed:g} m/s" if road.kind == "spatial" else "")
           + f", {ctrl.kind}" + (f" (command filter {1e3 * ctrl.u_tau_s:g} ms)" if ctrl.kind != "passive" and ctrl.u_tau_s > 0 else "")
-          + f" ({res['backend']} loop, dt {args.dt:g} s): acc RMS {m['acc_rms_m_s2']:.4f} m/s^2, "
+          + f" (dt {args.dt:g} s): acc RMS {m['acc_rms_m_s2']:.4f} m/s^2, "
           f"Wk RMS {m['acc_wk_rms_m_s2']:.4f} m/s^2, disp peak/RMS {m['disp_peak_to_rms']:.3f}, travel RMS "
           f"{1e3 * m['travel_rms_m']:.2f} mm (max {1e3 * m['travel_max_m']:.2f}), tyre load RMS "
           f"{m['tyre_load_rms_n']:.1f} N -> {out}")

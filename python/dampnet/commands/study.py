@@ -29,8 +29,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 def run(args) -> int:
     from pathlib import Path
 
-    from dampnet.commands.simulate import load_spec
-    from dampnet.sim.study import jsonable, lookup_spec, run_study, text_tables, truth_spec, write_plots
+    from dampnet.sim.dampers import load_spec, lookup_spec, truth_spec
+    from dampnet.sim.plots import write_plots
+    from dampnet.sim.report import jsonable, text_tables
+    from dampnet.sim.study import run_study
 
     from dampnet.data.types import RIG_GENERATOR
     from dampnet.outputs import check_run_dir

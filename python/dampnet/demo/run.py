@@ -169,22 +169,24 @@ def improved_settings(model0, ds, diagnosis: dict, effect: str) -> tuple[dict, d
 
 def _study(model0, model1, lookup, fig_dir: Path, quick: bool) -> dict:
     from dampnet.sim import study
+    from dampnet.sim.dampers import lookup_spec, neural_spec, truth_spec
+    from dampnet.sim.plots import write_plots
+    from dampnet.sim.report import jsonable, text_tables
     from dampnet.sim.roads import thesis_rough_road
 
-    specs = [study.neural_spec(model1, "improved"), study.neural_spec(model0, "original"),
-             study.lookup_spec(lookup, "lookup")]
+    specs = [neural_spec(model1, "improved"), neural_spec(model0, "original"), lookup_spec(lookup, "lookup")]
     from dampnet.sim.roads import sine_sweep
 
     if quick:  # shortened roads: a 5x faster sweep and half the rough road's length
         sweep, rough = sine_sweep(rate_oct_s=0.5), thesis_rough_road(seed=0, base_length_m=46.0)
     else:
         sweep, rough = None, thesis_rough_road(seed=0)
-    res = study.run_study(specs, truth=study.truth_spec([HIDDEN_EFFECT]), rough=rough, sweep=sweep,
+    res = study.run_study(specs, truth=truth_spec([HIDDEN_EFFECT]), rough=rough, sweep=sweep,
                           keep_runs=True)
     res["settings"]["quick_roads"] = bool(quick)
-    study.write_plots(res, fig_dir)
-    res_json = study.jsonable(res)
-    res_json["text"] = study.text_tables(res)
+    write_plots(res, fig_dir)
+    res_json = jsonable(res)
+    res_json["text"] = text_tables(res)
     # errors[section][case][model][metric] = (model - truth) / truth
     errs = res_json.get("errors", {})
     worst, worst_case, worst_ride = {}, {}, {}

@@ -12,6 +12,9 @@ Dampers: `_core.Damper.linear(c)`, `.parametric(...)`, `.table(v, u, F)`,
 hybrid), and `truth_damper(TruthDamper)` (the rig's truth model as a Python
 callback: the slow path, for studies; it holds the GIL per call and runs with
 one damper evaluation per step, because the truth damper is stateful).
+`columns(result)` names a `simulate` result's state columns and step outputs.
+Every Python-side run (dampnet.sim.runs: the study, `dampnet simulate`) goes through
+QuarterCar: this module is the one driver of `_core.Loop`.
 
 Threading: the model side (`_core.Mlp`, `_core.Damper`, `_core.LoopModel`) is immutable
 and may be shared by threads; a loop state (`_core.Loop`, and so a `QuarterCar`) is not: one
@@ -60,15 +63,38 @@ def static_term_force(terms, x_static: float = 0.0) -> float:
     return float(terms_force(terms, np.array(x_static)))
 
 
-def truth_damper(truth) -> _core.Damper:
+def truth_damper(truth, loop_temperature: bool = True) -> _core.Damper:
     """The rig's TruthDamper (dampnet.rig.truth) as a callback damper.
 
     Use it with vehicle={"damper_eval": "per_step"} (RK4) or "semi_euler": the
     truth damper has internal state and must be called once per step.
+    loop_temperature: the truth at the loop's temperature state; False: at its own
+    reference temperature (TruthParams.temperature_ref_c), as the study runs it.
     """
-    def force(inp) -> float:
-        return truth.step(inp.dt, inp.x, inp.v, inp.u, inp.temperature)
+    if loop_temperature:
+        def force(inp) -> float:
+            return truth.step(inp.dt, inp.x, inp.v, inp.u, inp.temperature)
+    else:
+        def force(inp) -> float:
+            return truth.step(inp.dt, inp.x, inp.v, inp.u)
     return _core.Damper.callback(force)
+
+
+# Loop.simulate's key of each step output (STEP_OUTPUT_FIELDS) that it names differently:
+# the control, "u" in a StepReport, is "control" there (cpp/python/arrays.cpp).
+_SIMULATE_KEY = {"u": "control"}
+
+
+def columns(res: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """A `simulate` result as one array per name: the state's columns (STATE_NAMES: t, z_s,
+    v_s, z_us, v_us, z_r, v_r, ...) and the step outputs it holds under their
+    STEP_OUTPUT_FIELDS names (force, u, x, v, a, acc_s, acc_us, features, status); views."""
+    out = {name: res["state"][:, i] for i, name in enumerate(STATE_NAMES)}
+    for name in _core.STEP_OUTPUT_FIELDS:
+        key = _SIMULATE_KEY.get(name, name)
+        if key in res:
+            out[name] = res[key]
+    return out
 
 
 class QuarterCar:

@@ -1,15 +1,17 @@
-"""A reference quarter-car loop in Python, for dampers that only exist in Python (the rig's truth damper).
+"""The quarter-car loop in Python: the TEST ORACLE of the runtime's loop, used by tests only.
 
-It integrates exactly the runtime's equations (cpp/include/dampnet/loop.hpp,
-thesis eq. 13-14) with the runtime's scheme for one damper evaluation per
-step (DN_INT_RK4 with DN_EVAL_PER_STEP):
+Nothing in the package runs it (every run goes through `dampnet.sim.loop.QuarterCar`, the
+runtime's C++ loop); tests/python compare the runtime with it, so the two must agree to
+rounding. It integrates exactly the runtime's equations (cpp/include/dampnet/loop.hpp,
+thesis eq. 13-14) with the runtime's scheme for one damper evaluation per step
+(DN_INT_RK4 with DN_EVAL_PER_STEP, `vehicle.LOOP_SCHEME`):
 
     m_s  a_s  = -k_s (z_s - z_us) - (F - f_static)
     m_us a_us =  k_s (z_s - z_us) + (F - f_static) - k_t (z_us - z_r) - c_t (v_us - v_r)
 
-* the control u is computed by the controller from the state at the step
-  start and held over the step (passive, skyhook/groundhook on-off and
-  continuous: the same laws as `control_law` in loop.hpp);
+* the control u is computed by `control_law` (the Python mirror of `control_law` in
+  loop.hpp: passive, skyhook/groundhook on-off and continuous) from the state at the step
+  start and held over the step;
 * the damper is evaluated at the step start, with x = z_s - z_us +
   x_static, v = v_s - v_us and the relative acceleration a = a_s - a_us.
   a and F are coupled (a = a_free - k (F(a) - f_static), k = 1/m_s + 1/m_us).
@@ -17,21 +19,19 @@ step (DN_INT_RK4 with DN_EVAL_PER_STEP):
   Vehicle.accel_feature = "implicit" (default), the coupling is solved by
   `solve_acceleration`, the runtime's algorithm (dn_accel_feature in
   dampnet.h: Newton/secant from the explicit value, bisection in a bracket, at
-  most ACCEL_MAX_EVALS evaluations, same tolerance); otherwise, and for every
+  most ACCEL_MAX_EVALS evaluations, same tolerance); with "explicit", and for every
   other damper, a comes from the equations of motion with the force of the
-  previous evaluation (f_last; the explicit scheme). Its force F is held over
-  the step - a stateful damper (the truth damper's
+  previous evaluation (f_last; the explicit scheme). ("linear" is not mirrored here.)
+  Its force F is held over the step - a stateful damper (the truth damper's
   compressibility lag, LuGre friction) is therefore stepped exactly once per
   dt, as its `step(dt, ...)` requires;
 * classical RK4 on (z_s, v_s, z_us, v_us) with the road at mid-step the cubic
   Hermite interpolant of (z_r, v_r) at the step's ends;
 * every reported quantity is at the step's start time (like dn_loop_out).
 
-So for the same damper this loop and the runtime's loop in per-step mode
-produce the same trajectories to rounding (checked in
-tests/python/test_simulate.py when the runtime's loop is built). A damper here
-is any object with `force(x, v, a, u, dt) -> F [N]` and `reset()` (and, with
-derived-feature states, `advance(x, v, u, dt)`, called once at each step start).
+A damper here is any object with `force(x, v, a, u, dt) -> F [N]` and `reset()` (and, with
+derived-feature states, `advance(x, v, u, dt)`, called once at each step start);
+`reference_damper(spec)` gives the Python damper of a `dampnet.sim.dampers.DamperSpec`.
 """
 
 from __future__ import annotations
@@ -40,7 +40,10 @@ import math
 
 import numpy as np
 
-from dampnet.sim.vehicle import ACCEL_MAX_EVALS, Controller, LoopError, Vehicle
+from dampnet import _core
+from dampnet.sim.vehicle import Controller, LoopError, Vehicle
+
+ACCEL_MAX_EVALS = _core.DN_ACCEL_MAX_EVALS
 
 # ---- dampers (Python side) ---------------------------------------------------------------------
 
@@ -197,6 +200,43 @@ class NeuralLoopDamper:
         return f.index("acceleration") if "acceleration" in f else None
 
 
+def control_law(ctrl: Controller, v_s: float, v_us: float) -> float:
+    """The control [V] of a controller at sprung / unsprung velocities v_s, v_us [m/s]: the
+    Python mirror of loop.hpp's control_law (before the command filter)."""
+    v = v_s - v_us
+    k = ctrl.kind
+    if k == "passive":
+        return min(max(ctrl.u_passive, ctrl.u_min), ctrl.u_max)
+    d = 0.0
+    if k == "skyhook_onoff":
+        d = 1.0 if v_s * v > 0 else 0.0
+    elif k == "groundhook_onoff":
+        d = 1.0 if -v_us * v > 0 else 0.0
+    elif k == "skyhook_continuous":
+        if v_s * v > 0:
+            d = min(max((ctrl.c_sky * v_s / v - ctrl.c_min) / (ctrl.c_max - ctrl.c_min), 0.0), 1.0)
+    elif k == "groundhook_continuous":
+        if -v_us * v > 0:
+            d = min(max((-ctrl.c_gnd * v_us / v - ctrl.c_min) / (ctrl.c_max - ctrl.c_min), 0.0), 1.0)
+    else:
+        raise LoopError(f"the reference loop does not mirror the control law {k!r}")
+    u = ctrl.u_soft + d * (ctrl.u_hard - ctrl.u_soft)
+    return min(max(u, ctrl.u_min), ctrl.u_max)
+
+
+def reference_damper(spec):
+    """The Python damper of a DamperSpec (dampnet.sim.dampers) for this loop."""
+    if spec.kind == "truth":
+        return TruthLoopDamper(effects=spec.obj or ())
+    if spec.kind in ("neural", "hybrid"):
+        return NeuralLoopDamper(spec.obj)
+    if spec.kind == "lookup":
+        return TableLoopDamper(spec.obj)
+    if spec.kind == "linear":
+        return LinearDamper(spec.obj)
+    raise LoopError(f"no Python form of a {spec.kind!r} damper")
+
+
 def solve_acceleration(force_of_a, a_explicit: float, f_last: float, k: float, f_static: float,
                        a_lo: float, a_hi: float, f_eps: float = 1e-12, slope: float = 0.0):
     """Solve g(a) = a - a_free + k (F(a) - f_static) = 0: the runtime's implicit acceleration feature.
@@ -284,6 +324,8 @@ def run(damper, z_r, v_r, vehicle: Vehicle | None = None, controller: Controller
     ctrl = controller or Controller()
     veh.validate()
     ctrl.validate()
+    if veh.accel_feature not in ("implicit", "explicit"):
+        raise LoopError(f"the reference loop mirrors accel_feature 'implicit' and 'explicit', not {veh.accel_feature!r}")
     z_r = np.asarray(z_r, dtype=np.float64)
     v_r = np.asarray(v_r, dtype=np.float64)
     if z_r.ndim != 1 or z_r.shape != v_r.shape:
@@ -296,7 +338,7 @@ def run(damper, z_r, v_r, vehicle: Vehicle | None = None, controller: Controller
     h = veh.dt
     ms, mus, ks, kt, ct = veh.m_s, veh.m_us, veh.k_s, veh.k_t, veh.c_t
     damper.reset()
-    u0 = ctrl.law(0.0, 0.0)
+    u0 = control_law(ctrl, 0.0, 0.0)
     # Command filter (the runtime's u_tau_s): the law's control through a first-order
     # low-pass, sampled at the step start and held; it starts settled at the control at rest.
     cmd_keep = math.exp(-veh.dt / ctrl.u_tau_s) if ctrl.u_tau_s > 0 else 0.0
@@ -327,7 +369,7 @@ def run(damper, z_r, v_r, vehicle: Vehicle | None = None, controller: Controller
 
     for k in range(n):
         zr0, vr0, zr1, vr1 = z_r[k], v_r[k], z_r[k + 1], v_r[k + 1]
-        u = ctrl.law(vs, vus)
+        u = control_law(ctrl, vs, vus)
         if cmd_keep > 0.0:
             u += (u_cmd - u) * cmd_keep
         u_cmd = u

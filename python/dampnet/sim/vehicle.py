@@ -1,54 +1,83 @@
-"""The quarter car's parameters (thesis Table 5) and its controller, as the runtime's dn_vehicle and
-dn_controller (cpp/include/dampnet/dampnet.h); SI units, controls in volts."""
+"""The quarter car (thesis Table 5) and its controller for the Python side's runs: the runtime's
+dn_vehicle and dn_controller (cpp/include/dampnet/dampnet.h), SI units, controls in volts.
+
+Defaults, names and validation are the runtime's own (`dampnet._core.VEHICLE_FIELDS`,
+`CONTROLLER_FIELDS`, `CONTROLLER_KINDS`, `ACCEL_FEATURES`, `check_vehicle`,
+`check_controller`): nothing here retypes a range or a law name. What differs, and why:
+
+* `Vehicle.f_static` may be None: the damper's force at rest with the control at rest
+  (`dampnet.sim.runs` computes it; the runtime's default is 0 N).
+* `Vehicle` has no `integrator` / `damper_eval`: these runs always use RK4 with one damper
+  evaluation per step (`LOOP_SCHEME`), so that every model of a study is run like for like
+  and the rig's stateful truth damper is stepped once per step.
+* `Vehicle` has no `temperature`: neural dampers see the runtime's default (20 degC); the
+  rig's truth damper runs at its own reference temperature.
+"""
 
 from __future__ import annotations
 
-import math
 from dataclasses import asdict, dataclass
 
+from dampnet import _core
 
-CONTROL_LAWS = ("passive", "skyhook", "skyhook_continuous", "groundhook", "groundhook_continuous")
-
-
-ACCEL_MAX_EVALS = 6          # DN_ACCEL_MAX_EVALS
-ACCEL_MODES = ("implicit", "explicit")
+#: the loop scheme of every Python-side run (dn_vehicle's integrator and damper_eval)
+LOOP_SCHEME = {"integrator": "rk4", "damper_eval": "per_step"}
+#: the runtime's vehicle fields Vehicle leaves out (see the module docstring)
+VEHICLE_FIELDS_NOT_HERE = ("integrator", "damper_eval", "temperature")
 
 
 class LoopError(ValueError):
     """Nonsensical vehicle, controller or run settings."""
 
 
+def _default(fields: dict, name: str):
+    return fields[name][0]
+
+
+def _default_name(fields: dict, name: str, names: dict) -> str:
+    """An enum field's default as its name (the registry stores the value)."""
+    value = fields[name][0]
+    return next(n for n, (v, _) in names.items() if v == value)
+
+
+def _checked(check, what: dict) -> None:
+    """The runtime's validation; its ValueError / TypeError (naming the field and the valid
+    range or names) as a LoopError."""
+    try:
+        check(what)
+    except (ValueError, TypeError) as e:
+        raise LoopError(str(e)) from None
+
+
+_V = _core.VEHICLE_FIELDS
+_C = _core.CONTROLLER_FIELDS
+
+
 @dataclass
 class Vehicle:
-    """Quarter car (thesis Table 5) and the loop's step; SI units."""
+    """Quarter car (thesis Table 5) and the loop's step; SI units (see VEHICLE_FIELDS' docs)."""
 
-    m_s: float = 700.0
-    m_us: float = 40.0
-    k_s: float = 15000.0
-    k_t: float = 200000.0
-    c_t: float = 0.0
-    dt: float = 0.001
-    x_static: float = 0.0
-    f_static: float | None = None     # None: the damper's force at rest with the initial control
-    accel_feature: str = "implicit"   # "implicit" | "explicit": see solve_acceleration / dn_accel_feature
+    m_s: float = _default(_V, "m_s")
+    m_us: float = _default(_V, "m_us")
+    k_s: float = _default(_V, "k_s")
+    k_t: float = _default(_V, "k_t")
+    c_t: float = _default(_V, "c_t")
+    dt: float = _default(_V, "dt")
+    x_static: float = _default(_V, "x_static")
+    f_static: float | None = None     # None: the damper's force at rest with the control at rest
+    accel_feature: str = _default_name(_V, "accel_feature", _core.ACCEL_FEATURES)
+
+    def core_dict(self, f_static: float | None = None) -> dict:
+        """The runtime's vehicle dict (LoopModel), with LOOP_SCHEME; f_static: the value for
+        None (default 0 N, the runtime's)."""
+        d = asdict(self)
+        if d["f_static"] is None:
+            d["f_static"] = _default(_V, "f_static") if f_static is None else float(f_static)
+        return {**d, **LOOP_SCHEME}
 
     def validate(self) -> None:
-        for name in ("m_s", "m_us", "k_s", "k_t", "c_t", "dt", "x_static"):
-            v = getattr(self, name)
-            if not isinstance(v, (int, float)) or not math.isfinite(v):
-                raise LoopError(f"vehicle {name} must be a finite number, got {v!r}")
-        if self.f_static is not None and not math.isfinite(self.f_static):
-            raise LoopError(f"vehicle f_static must be finite, got {self.f_static!r}")
-        for name in ("m_s", "m_us", "k_t"):
-            if getattr(self, name) <= 0:
-                raise LoopError(f"vehicle {name} must be > 0, got {getattr(self, name)!r}")
-        for name in ("k_s", "c_t"):
-            if getattr(self, name) < 0:
-                raise LoopError(f"vehicle {name} must be >= 0, got {getattr(self, name)!r}")
-        if not (0 < self.dt <= 0.1):
-            raise LoopError(f"time step dt must be in (0, 0.1] s, got {self.dt!r}")
-        if self.accel_feature not in ACCEL_MODES:
-            raise LoopError(f"vehicle accel_feature must be one of {ACCEL_MODES}, got {self.accel_feature!r}")
+        """LoopError naming the field and its valid range (the runtime's check_vehicle)."""
+        _checked(_core.check_vehicle, self.core_dict())
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -56,51 +85,32 @@ class Vehicle:
 
 @dataclass
 class Controller:
-    """Control law and its settings (the runtime's dn_controller; u in volts)."""
+    """Control law and its settings (the runtime's dn_controller; u in volts).
 
-    kind: str = "passive"
-    u_passive: float = 0.0
-    u_soft: float = 5.0
-    u_hard: float = 0.0
-    u_min: float = 0.0
-    u_max: float = 5.0
-    c_sky: float = 2500.0
-    c_gnd: float = 2500.0
-    c_min: float = 500.0
-    c_max: float = 4000.0
-    u_tau_s: float = 0.0  # command filter time constant [s]; 0 = none (see run())
+    kind: a name of `dampnet._core.CONTROLLER_KINDS` (passive, skyhook_onoff,
+    skyhook_continuous, groundhook_onoff, groundhook_continuous, external).
+    """
+
+    kind: str = _default_name(_C, "kind", _core.CONTROLLER_KINDS)
+    u_passive: float = _default(_C, "u_passive")
+    u_soft: float = _default(_C, "u_soft")
+    u_hard: float = _default(_C, "u_hard")
+    u_min: float = _default(_C, "u_min")
+    u_max: float = _default(_C, "u_max")
+    c_sky: float = _default(_C, "c_sky")
+    c_gnd: float = _default(_C, "c_gnd")
+    c_min: float = _default(_C, "c_min")
+    c_max: float = _default(_C, "c_max")
+    u_tau_s: float = _default(_C, "u_tau_s")  # command filter time constant [s]; 0 = none
+
+    def core_dict(self) -> dict:
+        """The runtime's controller dict (LoopModel)."""
+        return asdict(self)
 
     def validate(self) -> None:
-        if self.kind not in CONTROL_LAWS:
-            raise LoopError(f"unknown control law {self.kind!r}; known: {', '.join(CONTROL_LAWS)}")
-        for k, v in asdict(self).items():
-            if k != "kind" and not math.isfinite(v):
-                raise LoopError(f"controller {k} must be finite, got {v!r}")
-        if not self.u_min <= self.u_max:
-            raise LoopError("controller u_min must not exceed u_max")
-        if self.u_tau_s < 0:
-            raise LoopError(f"controller u_tau_s (command filter time constant, s) must be >= 0, got {self.u_tau_s!r}")
-        if self.kind.endswith("continuous") and not self.c_max > self.c_min:
-            raise LoopError("continuous laws need c_max > c_min")
-
-    def law(self, v_s: float, v_us: float) -> float:
-        v = v_s - v_us
-        k = self.kind
-        if k == "passive":
-            return min(max(self.u_passive, self.u_min), self.u_max)
-        d = 0.0
-        if k == "skyhook":
-            d = 1.0 if v_s * v > 0 else 0.0
-        elif k == "groundhook":
-            d = 1.0 if -v_us * v > 0 else 0.0
-        elif k == "skyhook_continuous":
-            if v_s * v > 0:
-                d = min(max((self.c_sky * v_s / v - self.c_min) / (self.c_max - self.c_min), 0.0), 1.0)
-        elif k == "groundhook_continuous":
-            if -v_us * v > 0:
-                d = min(max((-self.c_gnd * v_us / v - self.c_min) / (self.c_max - self.c_min), 0.0), 1.0)
-        u = self.u_soft + d * (self.u_hard - self.u_soft)
-        return min(max(u, self.u_min), self.u_max)
+        """LoopError naming the field and its valid range or names (the runtime's
+        check_controller): an unknown law lists the valid ones."""
+        _checked(_core.check_controller, self.core_dict())
 
     def to_dict(self) -> dict:
         return asdict(self)
