@@ -29,6 +29,7 @@ from dataclasses import dataclass
 from typing import Any, Literal, Mapping
 
 from dampnet import _core
+from dampnet.features import Dahl, lags_of, with_state
 
 #: switchable: `dampnet rig --effects ID`; always_on: part of the rig's base physics; absent: not simulated
 RigRole = Literal["switchable", "always_on", "absent"]
@@ -50,12 +51,40 @@ class Estimate:
 
 
 @dataclass(frozen=True)
+class LagOf:
+    """The registry's first-order lag of a base feature ("{control}": the data's control channel):
+    derived features are named in dampnet.h and features.py only, found here by what they are."""
+
+    source: str
+
+    def resolve(self, control: str) -> str:
+        source = self.source.format(control=control)
+        names = lags_of(source)
+        if not names:
+            raise ValueError(f"no derived feature is a lag of {source!r} (dampnet.features)")
+        return names[0]
+
+
+@dataclass(frozen=True)
+class StateOf:
+    """The registry's derived feature carrying a state of this kind (e.g. features.Dahl)."""
+
+    kind: type
+
+    def resolve(self, control: str) -> str:
+        names = with_state(self.kind)
+        if not names:
+            raise ValueError(f"no derived feature has a {self.kind.__name__} state (dampnet.features)")
+        return names[0]
+
+
+@dataclass(frozen=True)
 class Additions:
-    """What a model needs to capture an effect. `features` may name "{control}", the data's
-    control channel (voltage or current); `estimate` sets the parameter of the one derived
+    """What a model needs to capture an effect. `features` are base feature names (which may name
+    "{control}", the data's control channel: voltage or current) or LagOf / StateOf for derived ones; `estimate` sets the parameter of the one derived
     feature among them; `terms` are physics terms (dampnet.terms) as dicts."""
 
-    features: tuple[str, ...]
+    features: tuple[str | LagOf | StateOf, ...]
     how: str
     why: str
     estimate: Estimate | None = None
@@ -107,7 +136,7 @@ def additions(effect_id: str, params: Mapping[str, Any] | None = None, control: 
     if e.adds is None:
         raise ValueError(f"effect {effect_id!r} has no recipe for adding it to a model")
     a = e.adds
-    features = [f.format(control=control) for f in a.features]
+    features = [f.format(control=control) if isinstance(f, str) else f.resolve(control) for f in a.features]
     feature_params: dict[str, float] = {}
     if a.estimate is not None:
         keys = [k for k in (_core.FEATURE_PARAMS.get(f) for f in features) if k]
@@ -158,7 +187,7 @@ register_effect(EffectInfo(
             "command with a time constant of milliseconds to tens of milliseconds, so after a step the "
             "force keeps the old damping for a while.",
     rig="switchable", diagnosed_by="valve_lag",
-    adds=Additions(features=("{control}_lag",), how="feature", estimate=Estimate("tau_s", 0.02),
+    adds=Additions(features=(LagOf("{control}"),), how="feature", estimate=Estimate("tau_s", 0.02),
                    why="the {control} after a first-order lag (estimated time constant) as an "
                        "extra MLP input: the network maps the valve's actual state to force; "
                        "the runtime carries one filter state")))
@@ -170,7 +199,7 @@ register_effect(EffectInfo(
             "may break away with a peak (Dahl, LuGre). A friction that is a function of velocity alone "
             "(Coulomb, Stribeck) is already within reach of a velocity-input model and is not credited here.",
     rig="switchable", diagnosed_by="friction",
-    adds=Additions(features=("friction_state",), how="feature",
+    adds=Additions(features=(StateOf(Dahl),), how="feature",
                    estimate=Estimate("presliding_length_mm", 0.2 / 1000.0, per_si=1000.0),
                    why="the Dahl friction state as an MLP input: the network scales it and "
                        "combines it with velocity; the runtime carries one state")))
@@ -181,6 +210,6 @@ register_effect(EffectInfo(
             "gas and tube compliance), so the force lags the velocity by a time constant V/beta * dp/dQ; "
             "an acceleration input explains a small, linear lag, not a large or nonlinear one.",
     rig="always_on", diagnosed_by="compressibility",
-    adds=Additions(features=("velocity_lag",), how="feature", estimate=Estimate("tau_s", 0.002),
+    adds=Additions(features=(LagOf("velocity"),), how="feature", estimate=Estimate("tau_s", 0.002),
                    why="the velocity after a first-order lag as an extra MLP input: the network "
                        "learns how much of the force follows the lagged flow")))

@@ -32,7 +32,7 @@ from typing import Callable
 import numpy as np
 
 from dampnet.effects import CATALOGUE, EffectInfo
-from dampnet.features import dahl_state, first_order_lag
+from dampnet.features import dahl_state, first_order_lag, lags_of
 
 
 @dataclass
