@@ -14,7 +14,7 @@ import pytest
 from dampnet.rig.effects import Effect
 
 from dampnet.rig import generate
-from dampnet.diagnosis.catalogue import additions
+from dampnet.effects import additions
 from dampnet.diagnosis.run import diagnose
 from dampnet.evaluation.metrics import evaluate_predictions
 from dampnet.predict import predict_force

@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from dampnet.diagnosis.catalogue import CANDIDATES, additions
+from dampnet.diagnosis.catalogue import CANDIDATES
+from dampnet.effects import additions
 from dampnet.features import dahl_state, first_order_lag
 
 

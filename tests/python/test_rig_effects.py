@@ -132,20 +132,28 @@ def test_bump_stop_acts_only_near_full_compression_and_grows_with_penetration_sq
 
 
 def test_effects_registry_accepts_a_user_effect():
+    from dampnet.effects import CATALOGUE, EffectInfo, register_effect
+
     class Offset(Effect):
         name = "test_offset"
 
         def force(self, ctx):
             return np.full(ctx.v.shape, 12.5)
 
-    register(Offset)
+    # the rig's physics is keyed by the effect catalogue: an id it does not know is refused
+    with pytest.raises(ValueError, match="register it in the effect catalogue first"):
+        register(Offset)
+    register_effect(EffectInfo(id="test_offset", title="a constant force", physics="12.5 N, always",
+                               rig="switchable", diagnosed_by=None, adds=None))
     try:
+        register(Offset)
         t, x, v = _sine(1.0, seconds=0.5)
         d = truth_force(x, v, np.zeros_like(x), dt=DT, effects=["test_offset"]) - truth_force(x, v, np.zeros_like(x), dt=DT)
         np.testing.assert_allclose(d, 12.5)
         ds = generate("quick", effects=["test_offset"], seed=0)
         assert "test_offset" in ds.meta["effects"]
     finally:
-        EFFECTS.pop("test_offset")
+        EFFECTS.pop("test_offset", None)
+        CATALOGUE.pop("test_offset")
     with pytest.raises(ValueError, match="unknown effect 'test_offset'"):
         truth_force(x, v, np.zeros_like(x), dt=DT, effects=["test_offset"])

@@ -195,7 +195,7 @@ def test_diagnosed_compressibility_makes_the_model_track_the_truth_under_skyhook
     2-3x more closely (the rig's oil compressibility lags the hydraulic force by 2 ms; the
     acceleration input carries only its first-order part)."""
     from dampnet.rig import Plan, generate
-    from dampnet.diagnosis.catalogue import additions
+    from dampnet.effects import additions
     from dampnet.diagnosis.run import diagnose
     from dampnet.sim.calibration import continuous_skyhook, damping_levels
     from dampnet.training.pipeline import train_dataset

@@ -9,9 +9,10 @@ onnxruntime on the same model and inputs (as ratios to the C++ kernel's median),
 from __future__ import annotations
 
 import json
-import sys
 import tempfile
 from pathlib import Path
+
+from dampnet.commands.common import error
 
 
 def add_parser(subparsers):
@@ -44,13 +45,10 @@ def run(args) -> int:
     n_py = args.py_calls or max(1000, n // 10)  # Python calls are ~10-400x slower than C++ ones
     n_sim = args.sim_steps or n
     if args.budget_ns is not None and not args.budget_ns > 0:
-        print(f"dampnet: error: --budget-ns: expected a positive number of ns, got {args.budget_ns}",
-              file=sys.stderr)
-        return 2
+        return error(f"--budget-ns: expected a positive number of ns, got {args.budget_ns}")
     margin = HIL_FORCE_MARGIN if args.hil_margin is None else args.hil_margin
     if not -1.0 < margin < 100.0:
-        print(f"dampnet: error: --hil-margin: expected a fraction in (-1, 100), got {margin}", file=sys.stderr)
-        return 2
+        return error(f"--hil-margin: expected a fraction in (-1, 100), got {margin}")
     try:
         hard = hil_hard_input_check(margin=margin)
         timed = timed_configs_hard_input_check(margin=margin)
@@ -65,8 +63,7 @@ def run(args) -> int:
             res["python"]["kernel_case"] = bench_python.KERNEL_CASE
             res["python"]["header_model_id"] = bench_python.header_model_id()
     except (RuntimeError, FileNotFoundError) as e:
-        print(f"dampnet: error: {e}", file=sys.stderr)
-        return 2
+        return error(str(e))
     res["table"] = bench_python.table(res)
     m = res["machine"]
     print(f"machine: {m.get('cpu')} ({m.get('simd')}), gcc {m.get('compiler')}, flags '{m.get('flags')}', "

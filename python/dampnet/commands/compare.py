@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
+
+from dampnet.commands.common import error, load_data
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -46,7 +47,6 @@ def compare(model_a, model_b, ds) -> dict:
 
 
 def run(args) -> int:
-    from dampnet.commands.diagnose import load_data
     from dampnet.data import DataError
     from dampnet.model import MlpModel, ModelError
 
@@ -67,8 +67,7 @@ def run(args) -> int:
             ds = ds.subset([t for t in ds.tests if t.test_id in held], note="held-out tests")
         c = compare(a, b, ds)
     except (DataError, ModelError, ValueError, OSError) as e:
-        print(f"dampnet: error: {e}", file=sys.stderr)
-        return 2
+        return error(str(e))
     o = c["overall"]
     print(f"{'':16s}{'A':>12s}{'B':>12s}")
     for k in ("nrmse", "rmse_n", "max_abs_error_n", "mean_pct_error"):
@@ -85,8 +84,7 @@ def run(args) -> int:
         try:
             atomic_write_text(args.json, json.dumps(c, indent=1) + "\n", overwrite=True)
         except OSError as e:
-            print(f"dampnet: error: {args.json}: cannot write ({e.strerror or e})", file=sys.stderr)
-            return 2
+            return error(f"{args.json}: cannot write ({e.strerror or e})")
     if args.report:
         from pathlib import Path
 
@@ -96,8 +94,7 @@ def run(args) -> int:
             with staged_files(args.report) as tmp:
                 write_report(a, b, ds, c, tmp)
         except OSError as e:
-            print(f"dampnet: error: {args.report}: cannot write the report ({e.strerror or e})", file=sys.stderr)
-            return 2
+            return error(f"{args.report}: cannot write the report ({e.strerror or e})")
         print(f"report: {Path(args.report) / 'index.html'}")
     return 0
 

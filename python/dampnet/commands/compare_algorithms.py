@@ -10,10 +10,11 @@ from __future__ import annotations
 import argparse
 import time
 
+from dampnet.commands.common import error
+from dampnet.commands.training_options import Progress, add_training_options, training_kwargs
+
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
-    from dampnet.commands.train import add_training_options
-
     p = subparsers.add_parser(
         "compare-algorithms", help="train with each algorithm on the same split (thesis Table 3)",
         description="Train the same network with lm, br, scg and adam on the same split and report "
@@ -59,7 +60,6 @@ def compare_algorithms(ds, algorithms, progress_factory=None, **kw) -> dict:
 
 
 def run(args) -> int:
-    from dampnet.commands.train import Progress, error, training_kwargs
     from dampnet.data import DataError, load_dataset
     from dampnet.model import ModelError
     from dampnet.training import ALGORITHMS
@@ -75,7 +75,7 @@ def run(args) -> int:
         if args.json:
             check_output_file(args.json, [args.data])
         ds = load_dataset(args.data)
-        kw = training_kwargs(args, ds)
+        kw, _ = training_kwargs(args, ds)
         res = compare_algorithms(ds, algos, lambda a: Progress(kw["max_epochs"], f"train {a}", not args.quiet),
                                  **kw)
         if args.json:

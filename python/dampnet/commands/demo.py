@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import sys
+from dampnet.commands.common import error
 
 
 def add_parser(subparsers):
@@ -27,8 +27,7 @@ def run(args) -> int:
         summary = run_demo(args.out, quick=args.quick, force=args.force, seed=args.seed,
                            log=lambda s: print(s, flush=True))
     except (FileExistsError, DataError, DemoError) as e:
-        print(f"dampnet: error: {e}", file=sys.stderr)
-        return 2
+        return error(str(e))
     hn = summary["holdout_nrmse"]
     print(f"summary: held-out NRMSE {hn['original']:.4f} -> {hn['improved']:.4f} after adding "
           f"'{summary['diagnosis']['verdict']}' (thesis {hn['thesis_lm']}, lookup table "

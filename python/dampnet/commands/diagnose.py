@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
+
+from dampnet.commands.common import error, load_data
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -13,7 +14,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         description="Compare a model with measured data, localise its error (by test, within the cycle), "
                     "and test a catalogue of candidate physical effects against the residual "
                     "(cross-validation over tests, a phase-randomised null). Prints a summary; "
-                    "--json writes overall, worst_tests, candidates (most likely first) and verdict.")
+                    "--json writes overall, worst_tests, candidates (most likely first) and verdict; "
+                    "`dampnet train DATA --add EFFECT --diagnosis FILE` adds an effect with the parameters "
+                    "estimated here. The effects are the catalogue's (`dampnet rig --list-effects`).")
     p.add_argument("model", help="model directory (or its model.json)")
     p.add_argument("data", help="dataset (directory, CSV/text or .mat file; 'utfsm' or 'labcontrol' for the real data)")
     p.add_argument("--json", metavar="FILE", help="write the diagnosis as JSON to FILE ('-' for stdout)")
@@ -24,16 +27,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     return p
 
 
-def load_data(path: str):
-    from dampnet.data import load_dataset
-    from dampnet.data.real import load_real
-
-    if path in ("utfsm", "labcontrol", "utfsm_mr_damper_mts", "labcontrol_mr_damper"):
-        return load_real(path)
-    return load_dataset(path)
-
-
-def summary(d: dict) -> str:
+def summary(d: dict, diagnosis_file: str | None = None) -> str:
+    """The printed summary; with the JSON file written, each 'add it' command takes its parameters from it."""
     ov = d["overall"]
     lines = [f"overall: NRMSE {ov['nrmse']:.5f}, RMSE {ov['rmse_n']:.2f} N, max |error| {ov['max_abs_error_n']:.1f} N "
              f"over {ov['n_tests']} tests",
@@ -43,15 +38,15 @@ def summary(d: dict) -> str:
              "candidates (most likely first; score = held-out share of residual variance explained):"]
     for i, c in enumerate(d["candidates"], 1):
         if not c["testable"]:
-            lines.append(f" {i}. {c['effect']}: not testable ({c['note']})")
+            lines.append(f" {i}. {c['effect']} ({c['title']}): not testable ({c['note']})")
             continue
         par = ", ".join(f"{k} {v:.4g}" + (f" +- {c['uncertainty'][k]:.2g}" if c["uncertainty"].get(k) else "")
                         for k, v in c["parameters"].items() if isinstance(v, (int, float)))
-        lines.append(f" {i}. {c['effect']}: score {100 * c['score']:.2f} %, z {c['z']:.1f}, "
+        lines.append(f" {i}. {c['effect']} ({c['title']}): score {100 * c['score']:.2f} %, z {c['z']:.1f}, "
                      f"{'SIGNIFICANT' if c['significant'] else 'not significant'}; {par}")
         if c["significant"]:
             lines.append(f"    {c['evidence']}")
-            lines.append(f"    add it: {c['add_command']}")
+            lines.append(f"    add it: {c['add_command']}" + (f" --diagnosis {diagnosis_file}" if diagnosis_file else ""))
     lines.append(f"verdict: {d['verdict'] or 'no candidate effect is significant: nothing detectable is missing'}")
     return "\n".join(lines)
 
@@ -76,9 +71,8 @@ def run(args) -> int:
         ctx = build_context(model, ds)
         d = diagnose(model, ds, ctx=ctx, n_surrogates=args.surrogates, seed=args.seed, dataset_label=args.data)
     except (DataError, ModelError, ValueError, OSError) as e:
-        print(f"dampnet: error: {e}", file=sys.stderr)
-        return 2
-    print(summary(d))
+        return error(str(e))
+    print(summary(d, args.json if args.json and args.json != "-" else None))
     if args.json:
         text = json.dumps(d, indent=1)
         if args.json == "-":
@@ -89,8 +83,7 @@ def run(args) -> int:
             try:
                 atomic_write_text(args.json, text + "\n", overwrite=True)
             except OSError as e:
-                print(f"dampnet: error: {args.json}: cannot write ({e.strerror or e})", file=sys.stderr)
-                return 2
+                return error(f"{args.json}: cannot write ({e.strerror or e})")
     if args.report:
         from pathlib import Path
 
@@ -101,7 +94,6 @@ def run(args) -> int:
             with staged_files(args.report) as tmp:
                 write_report(ctx, d, tmp)
         except OSError as e:
-            print(f"dampnet: error: {args.report}: cannot write the report ({e.strerror or e})", file=sys.stderr)
-            return 2
+            return error(f"{args.report}: cannot write the report ({e.strerror or e})")
         print(f"report: {Path(args.report) / 'index.html'}")
     return 0

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import argparse
 
+from dampnet.commands.common import error
+
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     """Register the `evaluate` subcommand; its handler is `run`."""
@@ -33,7 +35,6 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    from dampnet.commands.train import error
     from dampnet.data import DataError, load_dataset
     from dampnet.evaluation.metrics import format_table
     from dampnet.evaluation.report import evaluation, lookup_for, write_plots

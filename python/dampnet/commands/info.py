@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dampnet.commands.common import error
+
 
 def add_parser(subparsers):
     p = subparsers.add_parser("info", help="print versions and the C library/header locations")
@@ -10,15 +12,13 @@ def add_parser(subparsers):
 
 
 def run(args) -> int:
-    import sys
 
     from dampnet import __version__, _core, paths
 
     try:  # an install that lost its C side: one line, not a traceback
         headers, library = paths.include_dirs()[0], paths.shared_library()
     except FileNotFoundError as e:
-        print(f"dampnet: error: {e}", file=sys.stderr)
-        return 2
+        return error(str(e))
     print(f"dampnet {__version__} (C++ core {_core.__version__})")
     print(f"headers:        {headers}")
     print(f"shared library: {library}")

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
+
+from dampnet.commands.common import error
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -33,8 +34,7 @@ def run(args) -> int:
         road = read_profile_csv(args.profile)
         res = iri(road, segment_m=args.segment)
     except (RoadError, OutputError) as e:
-        print(f"dampnet: error: {e}", file=sys.stderr)
-        return 2
+        return error(str(e))
     print(f"{args.profile}: {res.length_m:.2f} m at {res.dx_m * 1000:.1f} mm spacing"
           f"{' (resampled to uniform spacing)' if res.resampled else ''}; IRI {res.overall:.3f} m/km")
     for a, b, v in res.segments:
@@ -45,6 +45,5 @@ def run(args) -> int:
         try:
             atomic_write_text(args.json, json.dumps(res.to_dict(), indent=2) + "\n", overwrite=True)
         except OSError as e:
-            print(f"dampnet: error: cannot write {args.json}: {e.strerror or e}", file=sys.stderr)
-            return 2
+            return error(f"cannot write {args.json}: {e.strerror or e}")
     return 0

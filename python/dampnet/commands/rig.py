@@ -6,6 +6,8 @@ import argparse
 import sys
 import time
 
+from dampnet.commands.common import error
+
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     """Register the `rig` subcommand; its handler is `run`."""
@@ -15,11 +17,15 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "rig", help="generate a dataset on the virtual shock dyno",
         description="Run a test plan on the physical truth damper and write a dataset directory "
                     "(manifest.csv + one CSV per test, SI units).")
-    p.add_argument("out", help="output dataset directory (must not exist unless --force)")
+    p.add_argument("out", nargs="?", help="output dataset directory (must not exist unless --force)")
     p.add_argument("--plan", default="thesis",
                    help="'thesis' (Table 2: 12 frequencies x 15 voltages), 'quick', or a JSON plan file")
     p.add_argument("--effects", default="",
-                   help=f"comma-separated effects to switch on: {', '.join(sorted(EFFECTS))}")
+                   help=f"comma-separated effects to switch on: {', '.join(sorted(EFFECTS))} "
+                        "(--list-effects says what each is)")
+    p.add_argument("--list-effects", action="store_true",
+                   help="list the effect catalogue (dampnet.effects): each effect, its role in the rig, the "
+                        "diagnosis candidate that detects it and what `dampnet train --add` adds; then exit")
     p.add_argument("--seed", type=int, default=0, help="random seed (noise, temperatures)")
     p.add_argument("--truth-channels", action="store_true",
                    help="also write noise-free true_force and true_acceleration columns")
@@ -36,6 +42,11 @@ def run(args) -> int:
 
     from dampnet.outputs import check_output_dir
 
+    if args.list_effects:
+        print(effect_list())
+        return 0
+    if args.out is None:
+        return error("rig: the output dataset directory OUT is required (or --list-effects)")
     effects = [e.strip() for e in args.effects.split(",") if e.strip()]
     progress = not args.no_progress and sys.stderr.isatty()
     inputs = [] if args.plan in ("thesis", "quick") else [args.plan]
@@ -48,13 +59,35 @@ def run(args) -> int:
         out = write_dataset(ds, args.out, overwrite=args.force, progress=progress, inputs=inputs)
         t2 = time.perf_counter()
     except (DataError, ValueError, FileExistsError, OSError) as e:
-        print(f"dampnet: error: {e}", file=sys.stderr)
-        return 2
+        return error(str(e))
     n = sum(len(t) for t in ds.tests)
     print(f"{out}: {len(ds.tests)} tests, {n} samples, plan {ds.meta['plan']['name']}, effects "
           f"{','.join(effects) or 'none'}, seed {args.seed}; generated in {t1 - t0:.1f} s, written in "
           f"{t2 - t1:.1f} s; noise-floor NRMSE {noise_floor_nrmse(ds):.4f}")
     return 0
+
+
+def effect_list() -> str:
+    """The effect catalogue in words: id, title, rig role, diagnosis, what --add adds."""
+    from textwrap import fill
+
+    from dampnet.effects import CATALOGUE, additions
+
+    def para(text: str) -> str:
+        return fill(text, width=100, initial_indent="    ", subsequent_indent="      ")
+
+    lines = []
+    for e in CATALOGUE.values():
+        lines.append(f"{e.id}: {e.title}")
+        lines.append(para(e.physics))
+        lines.append(f"    rig: {e.rig_words()}")
+        lines.append("    diagnosis: " + ("none detects it" if e.diagnosed_by is None else
+                                          f"the {e.diagnosed_by} candidate (dampnet diagnose)"))
+        if e.adds is not None:
+            a = additions(e.id)
+            what = ", ".join(a["features"]) + "".join(f", {k}" for k in a["feature_params"])
+            lines.append(para(f"dampnet train --add {e.id}: {what} ({a['how']}: {a['why']})"))
+    return "\n".join(lines)
 
 
 def main(argv=None) -> int:

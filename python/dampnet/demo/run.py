@@ -68,7 +68,6 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
     from dampnet.data import write_dataset
     from dampnet.rig import generate, noise_floor_nrmse
     from dampnet.demo import cprogram, report
-    from dampnet.diagnosis.catalogue import additions
     from dampnet.diagnosis.run import diagnose
     from dampnet.evaluation.lookup import LookupTable
     from dampnet.evaluation.report import write_plots
@@ -115,12 +114,9 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
                 raise DemoError("the diagnosis found no significant missing effect, so there is nothing to add")
 
         with stage("improve", f"adding '{verdict}', retraining, diagnosing again"):
-            top = next(c for c in diag0["candidates"] if c["effect"] == verdict)
-            adds = additions(verdict, params=top.get("parameters") or None, dataset=ds)
-            features1 = list(model0.features) + [f for f in adds["features"] if f not in model0.features]
-            model1, info1, split1 = train_dataset(
-                ds, features=features1, terms=adds["terms"], feature_params=adds["feature_params"],
-                algorithm="lm", seed=seed, progress=_train_progress(log), **settings)
+            settings1, adds = improved_settings(model0, ds, diag0, verdict)
+            model1, info1, split1 = train_dataset(ds, **settings1, algorithm="lm", seed=seed,
+                                                  progress=_train_progress(log), **settings)
             metrics1 = model_metrics(model1, info1, split1)
             save_model_dir(model1, metrics1, work / "model_improved")
             write_plots(model1, split1.holdout.tests, metrics1["holdout"], figs / "improved", lookup=lookup)
@@ -160,6 +156,15 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
     log(f"report: {out / 'report.html'}   summary: {out / 'summary.json'}   "
         f"({summary['total_time_s']:.0f} s in all)")
     return summary
+
+
+def improved_settings(model0, ds, diagnosis: dict, effect: str) -> tuple[dict, dict]:
+    """The improve stage's training settings: the original model's features with what captures
+    `effect` added, its parameters the diagnosis's (dampnet.training.pipeline.apply_additions,
+    as `dampnet train DATA --add EFFECT --diagnosis FILE`). Returns (settings, additions)."""
+    from dampnet.training.pipeline import apply_additions
+
+    return apply_additions({"features": list(model0.features)}, ds, effect, diagnosis=diagnosis)
 
 
 def _study(model0, model1, lookup, fig_dir: Path, quick: bool) -> dict:

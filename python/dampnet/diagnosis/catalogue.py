@@ -1,61 +1,78 @@
-"""The catalogue of candidate physical effects: the one place to add your own.
+"""The diagnosis's candidate effects: how to test each effect of the catalogue (dampnet.effects).
 
-A candidate says which inputs it needs, why it matters physically, what it
+The effect's identity (id, title, physics) and what a model needs to capture it (what
+`dampnet train --add ID` adds) are the effect catalogue's, dampnet.effects. A candidate,
+keyed by the catalogue's id, says which inputs it needs, what the effect
 looks like in the residual, and how to test it: `columns(ctx, theta)` returns,
 per test, regressors [rows, q] built from the physics (not from the residual),
 for a value `theta` of its one nonlinear parameter (a time constant, a
 pre-sliding length; None if it has none) chosen on a `grid`. The scorer
 (`dampnet.diagnosis.score`) fits them to the residual on some tests, scores them
 on the others, and compares the score with a null. `parameters(ctx, theta, fit)`
-turns the fitted effect into numbers worth knowing; `additions(params, control)`
-says what `dampnet train --add ID` adds to the model.
+turns the fitted effect into numbers worth knowing (the ones the catalogue's recipe reads,
+e.g. tau_s, set the added feature's parameter).
 
-To add your own candidate:
+To add your own candidate, register its identity in the catalogue first:
 
+    from dampnet.effects import EffectInfo, register_effect
     from dampnet.diagnosis.catalogue import Candidate, register_candidate
-    register_candidate(Candidate(id="my_effect", title=..., needs=..., physics=...,
-                                 signature=..., columns=my_columns, ...))
+    register_effect(EffectInfo(id="my_effect", title=..., physics=..., rig="absent",
+                               diagnosed_by="my_effect", adds=...))
+    register_candidate(Candidate(id="my_effect", needs=..., signature=..., columns=my_columns, ...))
 
-The built-in ids are fixed: gas_spring, thermal, valve_lag, friction, compressibility.
+The built-in ids are fixed: gas_spring, thermal, valve_lag, friction, compressibility
+(the rig's bump_stop is diagnosed as gas_spring).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Callable
 
 import numpy as np
 
-from dampnet.features import Dahl, dahl_state, first_order_lag, lags_of, param_of, with_state
-
-
-def _feature_addition(feature: str, value: float) -> dict:
-    """A derived feature (found in dampnet.features' registry) and its parameter's value."""
-    return {"features": [feature], "terms": [], "feature_params": {param_of(feature): value}, "how": "feature"}
+from dampnet.effects import CATALOGUE, EffectInfo
+from dampnet.features import dahl_state, first_order_lag, lags_of
 
 
 @dataclass
 class Candidate:
-    id: str
-    title: str
+    id: str                         # an id of the effect catalogue (dampnet.effects)
     needs: str                      # the inputs it needs, in words
-    physics: str                    # the physical explanation
     signature: str                  # what it looks like in the residual
     columns: Callable               # (ctx, theta) -> list of [rows, q] arrays, one per test
     grid: Callable = lambda ctx: [None]          # ctx -> values of the nonlinear parameter
     testable: Callable = lambda ctx: (True, "")  # ctx -> (ok, note)
     parameters: Callable | None = None           # (ctx, theta, fit) -> {name: value}
-    add: Callable | None = None                  # (params, control) -> additions dict
     evidence: Callable | None = None             # (params, loc) -> sentence
     theta_name: str | None = None                # name and unit of theta, e.g. "tau_s"
     extra: dict = field(default_factory=dict)
+
+    @property
+    def info(self) -> EffectInfo:
+        """The effect's catalogue entry: id, title, physics, what a model needs to capture it."""
+        return CATALOGUE[self.id]
+
+    @property
+    def title(self) -> str:
+        return self.info.title
+
+    @property
+    def physics(self) -> str:
+        return self.info.physics
 
 
 CANDIDATES: dict[str, Candidate] = {}
 
 
 def register_candidate(c: Candidate) -> Candidate:
-    """Add (or replace) a candidate effect in the catalogue."""
+    """Add (or replace) the candidate of an effect of the catalogue (dampnet.effects) that
+    names it as `diagnosed_by`; ValueError otherwise."""
+    info = CATALOGUE.get(c.id)
+    if info is None or info.diagnosed_by != c.id:
+        raise ValueError(f"diagnosis candidate {c.id!r}: register the effect in the catalogue first "
+                         "(dampnet.effects.register_effect with diagnosed_by=its id); catalogue ids: "
+                         f"{', '.join(sorted(CATALOGUE))}")
     CANDIDATES[c.id] = c
     return c
 
@@ -139,20 +156,12 @@ def _gas_evidence(p, loc):
 
 
 register_candidate(Candidate(
-    id="gas_spring", title="position-dependent force (gas spring, top-out, bump stops)",
+    id="gas_spring",
     needs="displacement",
-    physics="The gas charge behind the floating piston is compressed polytropically as the rod enters "
-            "(p V^n = const), so the force grows with position; elastomer bump stops and top-out "
-            "springs add steep forces near the ends of travel. None of it depends on velocity.",
     signature="residual a smooth, mostly increasing function of displacement, the same in rebound and "
               "compression; steepening near the ends of travel; horizontal bands in the "
               "displacement-velocity plane",
     columns=_gas_columns, testable=_gas_testable, parameters=_gas_parameters,
-    add=lambda p, control: {"features": ["displacement"], "terms": [], "feature_params": {},
-                            "how": "feature",
-                            "why": "displacement as an MLP input: the network learns a gas spring of any "
-                                   "polytropic shape and end-of-travel stops together; a cubic "
-                                   "position_poly term cannot follow a bump stop's sharp onset"},
     evidence=_gas_evidence))
 
 
@@ -222,18 +231,11 @@ def _thermal_testable(ctx):
 
 
 register_candidate(Candidate(
-    id="thermal", title="oil viscosity changing with temperature",
+    id="thermal",
     needs="temperature channel (else a proxy: energy dissipated within the test)",
-    physics="Damper oil loses about half its viscosity per 20 K; the laminar (viscous) part of the "
-            "pressure drop, so the damping force, falls as the oil warms, between tests and as a "
-            "test heats it.",
     signature="residual proportional to force (or velocity) times the temperature's deviation; "
               "its sign flips between hot and cold tests; drifts within a long test",
     columns=_thermal_columns, testable=_thermal_testable, parameters=_thermal_parameters,
-    add=lambda p, control: {"features": ["temperature"], "terms": [], "feature_params": {},
-                            "how": "feature",
-                            "why": "temperature as an MLP input: the viscosity law (Andrade, Walther) "
-                                   "and which part of the force it scales are learned from the data"},
     evidence=_thermal_evidence))
 
 
@@ -290,20 +292,13 @@ def _valve_evidence(p, loc):
 
 
 register_candidate(Candidate(
-    id="valve_lag", title="control dynamics: valve or coil lag",
+    id="valve_lag",
     needs="the control channel's history (control steps or sweeps within tests)",
-    physics="A solenoid valve's spool or an MR coil's field (inductance, eddy currents) follows the "
-            "command with a time constant of milliseconds to tens of milliseconds, so after a step the "
-            "force keeps the old damping for a while.",
     signature="errors concentrated just after control steps, decaying with the lag's time constant; the "
               "sign of the error flips with the direction of motion (an interaction of the control's "
               "history and velocity, invisible to a plain correlation with the control)",
     columns=_valve_columns, grid=_valve_grid, testable=_valve_testable, theta_name="tau_s",
     parameters=lambda ctx, theta, fit: {"tau_s": float(theta)},
-    add=lambda p, control: {**_feature_addition(lags_of(control)[0], float(p.get("tau_s", 0.02))),
-                            "why": f"the {control} after a first-order lag (estimated time constant) as an "
-                                   "extra MLP input: the network maps the valve's actual state to force; "
-                                   "the runtime carries one filter state"},
     evidence=_valve_evidence))
 
 
@@ -333,20 +328,12 @@ def _friction_parameters(ctx, theta, fit):
 
 
 register_candidate(Candidate(
-    id="friction", title="seal friction and stick-slip near zero velocity",
+    id="friction",
     needs="velocity history (the travel since the last reversal)",
-    physics="Rod seals, the piston band and the wiper stick at velocity reversals: the friction force "
-            "does not switch with the sign of velocity but builds up over a pre-sliding travel and "
-            "may break away with a peak (Dahl, LuGre). A friction that is a function of velocity alone "
-            "(Coulomb, Stribeck) is already within reach of a velocity-input model and is not credited here.",
     signature="errors at velocity reversals that depend on the travel since the reversal; hysteresis "
               "loops in force-displacement near the ends of travel",
     columns=_friction_columns, grid=_friction_grid, theta_name="presliding_m",
     parameters=_friction_parameters,
-    add=lambda p, control: {**_feature_addition(with_state(Dahl)[0],
-                                                float(p.get("presliding_length_mm", 0.2)) / 1000.0),
-                            "why": "the Dahl friction state as an MLP input: the network scales it and "
-                                   "combines it with velocity; the runtime carries one state"},
     evidence=lambda p, loc: (f"just after velocity reversals the force builds up over about "
                              f"{p['presliding_length_mm']:.3g} mm of travel ({p['friction_force_n']:.3g} N) "
                              "instead of switching with the sign of velocity (see 'near zero velocity')")))
@@ -392,44 +379,14 @@ def _comp_parameters(ctx, theta, fit):
 
 
 register_candidate(Candidate(
-    id="compressibility", title="force lagging velocity (oil compressibility, gas entrainment)",
+    id="compressibility",
     needs="velocity history",
-    physics="The chamber pressure builds through the oil's effective bulk modulus (lowered by entrained "
-            "gas and tube compliance), so the force lags the velocity by a time constant V/beta * dp/dQ; "
-            "an acceleration input explains a small, linear lag, not a large or nonlinear one.",
     signature="force-velocity loops open into hysteresis that grows with frequency; residual "
               "proportional to the model's force evaluated on a lagged velocity minus its force now",
     columns=_comp_columns, grid=_comp_grid, theta_name="residual_lag_s",
     testable=lambda ctx: (("velocity" in ctx.model.features),
                           "" if "velocity" in ctx.model.features else "the model has no velocity input"),
     parameters=_comp_parameters,
-    add=lambda p, control: {**_feature_addition(lags_of("velocity")[0], float(p.get("tau_s", 0.002))),
-                            "why": "the velocity after a first-order lag as an extra MLP input: the network "
-                                   "learns how much of the force follows the lagged flow"},
     evidence=lambda p, loc: (f"the force follows a velocity lagged by about {1000 * p['tau_s']:.3g} ms, "
                              "more than the acceleration input explains: the measured force-velocity "
                              "loops are wider than the predicted ones, most at high frequency")))
-
-
-# -- what --add adds ------------------------------------------------------------------------
-
-def additions(effect_id: str, params: dict[str, Any] | None = None, control: str = "voltage",
-              dataset=None) -> dict[str, Any]:
-    """What `dampnet train --add EFFECT` adds: {"features", "terms", "feature_params", "how", "why"}.
-
-    `params` are the diagnosis's estimates (e.g. {"tau_s": 0.013} for valve_lag); without them
-    and with a `dataset`, lag time constants are estimated from the data
-    (`dampnet.diagnosis.estimate.estimate_parameters`); otherwise defaults are used.
-    """
-    if effect_id not in CANDIDATES:
-        raise ValueError(f"unknown effect {effect_id!r}: expected one of {', '.join(sorted(CANDIDATES))}")
-    c = CANDIDATES[effect_id]
-    if c.add is None:
-        raise ValueError(f"effect {effect_id!r} has no recipe for adding it to a model")
-    if dataset is not None and dataset.tests:
-        control = dataset.tests[0].control_name
-        if not params:
-            from dampnet.diagnosis.estimate import estimate_parameters
-
-            params = estimate_parameters(effect_id, dataset)
-    return c.add(params or {}, control)

@@ -114,7 +114,7 @@ def write_report(ctx, diag: dict, out_dir, title: str = "dampnet diagnose") -> P
     out = Path(out_dir)
     figs = figures(ctx, diag, out)
     rows = "".join(
-        f"<tr><td>{i + 1}</td><td><b>{html.escape(c['effect'])}</b></td>"
+        f"<tr><td>{i + 1}</td><td><b>{html.escape(c['effect'])}</b><br>{html.escape(c['title'])}</td>"
         f"<td>{_pct(c['score'])}</td>"
         f"<td>{'yes' if c['significant'] else 'no'}</td>"
         f"<td>{html.escape(json.dumps(c['parameters']))}</td><td>{html.escape(c['evidence'])}</td>"

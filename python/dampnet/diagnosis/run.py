@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 
 from dampnet.diagnosis import score as S
-from dampnet.outputs import jsonable
 from dampnet.diagnosis.catalogue import CANDIDATES
 from dampnet.diagnosis.context import ROWS_PER_TEST, build_context
+from dampnet.effects import additions
+from dampnet.outputs import jsonable
 
 
 MAX_ACCEPTED = 3  # forward selection stops after this many effects
@@ -50,9 +51,9 @@ def diagnose(model, ds, *, candidates=None, n_surrogates: int = S.N_SURROGATES, 
     included = {}
     for cid in (candidates or list(CANDIDATES)):
         cand = CANDIDATES[cid]
-        if cand.add is None:
+        if cand.info.adds is None:
             continue
-        rec = cand.add({}, ctx.control_name)
+        rec = additions(cid, {}, ctx.control_name)
         if rec["features"] and all(f in model.features for f in rec["features"]):
             key = next(iter(rec["feature_params"]), None)
             theta = model.feature_params.get(key) if key else None
@@ -106,7 +107,7 @@ def diagnose(model, ds, *, candidates=None, n_surrogates: int = S.N_SURROGATES, 
     for cid in cids:
         cand = CANDIDATES[cid]
         if cid in included:
-            res = {"testable": False, "note": f"already in the model: its inputs {cand.add({}, ctx.control_name)['features']} "
+            res = {"testable": False, "note": f"already in the model: its inputs {additions(cid, {}, ctx.control_name)['features']} "
                                               "are model features (the effect's regressors are part of the baseline)"}
         else:
             res = results[cid]

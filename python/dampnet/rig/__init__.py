@@ -1,7 +1,9 @@
 """The virtual shock dynamometer: a physical truth damper, switchable effects, test plans, sensors.
 
   truth.py    the damper's physics (TruthParams, truth_force, TruthDamper)
-  effects.py  named effects (EFFECTS registry: gas_spring, thermal, valve_lag, friction, bump_stop)
+  context.py  what the force laws see per sample (Context), shared by truth.py and effects.py
+  effects.py  the switchable effects' physics (EFFECTS: gas_spring, thermal, valve_lag, friction,
+              bump_stop), keyed by the effect catalogue dampnet.effects
   plans.py    test plans (thesis, quick, JSON files)
   sensors.py  noise and recording resolution
   generate.py the rig itself (generate, noise_floor_nrmse)

@@ -1,6 +1,5 @@
-"""Named physical effects that can be switched on in the truth damper and the rig.
-
-Each effect changes what a (velocity, acceleration, voltage) model can explain:
+"""The rig's physics of the switchable effects (`dampnet rig --effects ID`), keyed by the
+effect catalogue (dampnet.effects: ids, titles, what a model needs to capture each):
 
   gas_spring  position-dependent gas force: polytropic compression of the charge
   thermal     oil temperature varies between and within tests (temperature_c); viscosity falls with it
@@ -8,8 +7,12 @@ Each effect changes what a (velocity, acceleration, voltage) model can explain:
   friction    stick-slip seal friction (LuGre), replacing the smooth Coulomb seal friction
   bump_stop   elastomer bump stop in the last 8 mm of compression travel
 
-To add an effect, subclass `Effect` and register it here: ``EFFECTS["name"] =
-MyEffect()`` (or decorate the class with ``@register``). An effect may
+(compressibility is in the catalogue too, always on in the truth damper's base physics:
+TruthParams.compressibility_tau_s.)
+
+To add an effect, add its identity to the catalogue (dampnet.effects.register_effect,
+rig="switchable"), subclass `Effect` with `name` = its id and decorate the class with
+``@register``. An effect may
 
   prepare(ctx) / prepare_step(ctx, state)   change the inputs the hydraulics see (ctx.opening, ...)
   force(ctx) / force_step(ctx, state)       add a force [N] (vectorised / one sample with state)
@@ -27,8 +30,9 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy.signal import lfilter
 
+from dampnet.effects import CATALOGUE
 from dampnet.features import first_order_lag
-from dampnet.rig.truth import Context
+from dampnet.rig.context import Context
 
 
 class Effect:
@@ -72,7 +76,13 @@ EFFECTS: dict[str, Effect] = {}
 
 
 def register(cls):
-    """Class decorator: add an instance of `cls` to EFFECTS under cls.name."""
+    """Class decorator: add an instance of `cls` to EFFECTS under cls.name, an id of the effect
+    catalogue (dampnet.effects) whose rig role is "switchable"; ValueError otherwise."""
+    info = CATALOGUE.get(cls.name)
+    if info is None or info.rig != "switchable":
+        raise ValueError(f"rig effect {cls.name!r}: register it in the effect catalogue first "
+                         "(dampnet.effects.register_effect with rig='switchable'); switchable ids: "
+                         f"{', '.join(sorted(k for k, e in CATALOGUE.items() if e.rig == 'switchable'))}")
     EFFECTS[cls.name] = cls()
     return cls
 
@@ -82,7 +92,9 @@ def get_effect(e) -> Effect:
     if isinstance(e, Effect):
         return e
     if e not in EFFECTS:
-        raise ValueError(f"unknown effect {e!r}: expected one of {', '.join(sorted(EFFECTS))}")
+        info = CATALOGUE.get(e) if isinstance(e, str) else None
+        why = f" ({e} is {info.rig_words()})" if info is not None else ""
+        raise ValueError(f"unknown effect {e!r}{why}: expected one of {', '.join(sorted(EFFECTS))}")
     return EFFECTS[e]
 
 

@@ -63,11 +63,13 @@ and reproduces it sample for sample.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
 from dampnet.features import first_order_lag
+from dampnet.rig.context import Context
+from dampnet.rig.effects import get_effect
 
 PSI = 6894.757293168
 INCH = 0.0254
@@ -185,22 +187,6 @@ def hydraulic_force(v_h, opening, temperature_c, p: TruthParams) -> np.ndarray:
     return np.sign(v_h) * (dp + dp_lam) * p.annulus_area_m2
 
 
-@dataclass
-class Context:
-    """What the force laws see, per sample (arrays along the last axis)."""
-
-    x: np.ndarray            # displacement [m]
-    v: np.ndarray            # velocity [m/s]
-    voltage: np.ndarray      # control voltage [V]
-    temperature: np.ndarray  # oil temperature [degC]
-    dt: float                # sample interval [s]
-    params: TruthParams
-    current: np.ndarray = None   # controller current [A]
-    opening: np.ndarray = None   # valve opening [0..1]
-    v_h: np.ndarray = None       # velocity seen by the hydraulics [m/s]
-    parts: dict = field(default_factory=dict)   # named force components [N]
-
-
 def _context(x, v, voltage, temperature, dt, p):
     x = np.asarray(x, dtype=np.float64)
     v = np.asarray(v, dtype=np.float64)
@@ -213,8 +199,6 @@ def _context(x, v, voltage, temperature, dt, p):
 
 
 def _resolve(effects):
-    from dampnet.rig.effects import get_effect
-
     return [get_effect(e) for e in effects]
 
 

@@ -2,6 +2,8 @@
 
   train_dataset(ds, features=..., algorithm=..., ...) -> (model, info, split)
   model_metrics(model, info, split) -> the metrics.json dict
+  apply_additions(settings, ds, effect, diagnosis=...) -> (settings, additions): the
+      diagnose -> add effect -> retrain step, used by `dampnet train --add` and the demo
 
 What train_dataset does, in order (the thesis's chapter 4 data handling):
  1. Acceleration, if a feature needs it and the data lack it: derived at the full
@@ -34,7 +36,7 @@ Features and terms are data: a feature is a name in the registry
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -42,6 +44,7 @@ from dampnet.data import DataError, Dataset, add_acceleration, decimate as _deci
 from dampnet.data import holdout_split
 from dampnet.data.preprocess import DEFAULT_WINDOW_S
 from dampnet.data.types import RIG_GENERATOR
+from dampnet.effects import additions as effect_additions, effect as catalogue_effect
 from dampnet.evaluation.lookup import fit_lookup
 from dampnet.evaluation.metrics import evaluate_model
 from dampnet.features import default_features, feature_matrix
@@ -209,6 +212,70 @@ def _check_magnitudes(X: np.ndarray, y: np.ndarray, features: Sequence[str]) -> 
             raise DataError(f"training data: {name} reaches {peak:.3g} in its SI unit: expected values below "
                             f"{MAX_TRAINING_MAGNITUDE:.0e} (are the units right? the runtime computes in single "
                             "precision)")
+
+
+# -- the diagnose -> add effect -> retrain step --------------------------------------------
+
+def diagnosed_parameters(diagnosis: Mapping[str, Any], effect_id: str) -> dict[str, Any]:
+    """The parameters the diagnosis estimated for `effect_id` (its catalogue entry's
+    `diagnosed_by` candidate, e.g. gas_spring for bump_stop), from the dict `dampnet.diagnose`
+    returns or its JSON (`dampnet diagnose --json`). ValueError naming the field when the
+    diagnosis has no such candidate or could not test it (its parameters are unknown)."""
+    cid = catalogue_effect(effect_id).diagnosed_by
+    if cid is None:
+        raise ValueError(f"effect {effect_id!r} is not diagnosed (the catalogue names no candidate for it)")
+    cands = diagnosis.get("candidates") if isinstance(diagnosis, Mapping) else None
+    if not isinstance(cands, list):
+        raise ValueError("diagnosis: no 'candidates' list (expected the JSON of dampnet diagnose --json)")
+    entry = next((c for c in cands if isinstance(c, Mapping) and c.get("effect") == cid), None)
+    if entry is None:
+        raise ValueError(f"diagnosis: candidates has no entry for effect {cid!r}; it has "
+                         f"{', '.join(str(c.get('effect')) for c in cands if isinstance(c, Mapping)) or 'none'}")
+    params = entry.get("parameters")
+    if not entry.get("testable", True) or not params:
+        raise ValueError(f"diagnosis: effect {cid!r} was not testable, so it has no estimated parameters "
+                         f"({entry.get('note') or 'no parameters'}); estimate them from the data instead")
+    if not isinstance(params, Mapping):
+        raise ValueError(f"diagnosis: candidates[{cid}].parameters: expected an object, got {params!r}")
+    return dict(params)
+
+
+def apply_additions(settings: Mapping[str, Any], ds: Dataset, effect_id: str, *,
+                    diagnosis: Mapping[str, Any] | None = None,
+                    params: Mapping[str, Any] | None = None) -> tuple[dict[str, Any], dict[str, Any]]:
+    """`settings` (train_dataset keyword arguments) with what captures `effect_id` merged in.
+
+    The effect's additions are the catalogue's (dampnet.effects): its features join
+    settings["features"] (None: the data's default features) unless already there, its
+    terms join settings["terms"], its feature parameters update settings["feature_params"].
+    Their parameters (a lag's time constant, a pre-sliding length) are taken, in order,
+    from `diagnosis` (the dict dampnet.diagnose returns, or its JSON) when it is given;
+    else from `params` (`dampnet train --add` estimates them from the data with
+    dampnet.diagnosis.estimate.estimate_parameters); else the catalogue's defaults.
+
+    Returns (new settings, the additions: {"features", "terms", "feature_params", "how",
+    "why", "parameters", "parameters_from"}). ValueError for an unknown effect, an effect
+    without a recipe, a diagnosis without the effect, or both diagnosis and params.
+    """
+    if diagnosis is not None and params is not None:
+        raise ValueError("apply_additions: give the diagnosis or params, not both")
+    catalogue_effect(effect_id)  # ValueError listing the known ids
+    if diagnosis is not None:
+        used, source = diagnosed_parameters(diagnosis, effect_id), "diagnosis"
+    elif params:
+        used, source = dict(params), "estimated from the data"
+    else:
+        used, source = {}, "catalogue defaults"
+    control = ds.tests[0].control_name if ds.tests else "voltage"
+    add = effect_additions(effect_id, used, control)
+    out = dict(settings)
+    features = list(out.get("features") or default_features(ds))
+    features += [f for f in add["features"] if f not in features]
+    terms = list(out.get("terms") or [])
+    terms += [t for t in add["terms"] if t not in terms]
+    feature_params = {**(out.get("feature_params") or {}), **add["feature_params"]}
+    out.update(features=features, terms=terms, feature_params=feature_params)
+    return out, {**add, "parameters": used, "parameters_from": source}
 
 
 # -- metrics and files ----------------------------------------------------------------

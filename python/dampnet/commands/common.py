@@ -1,0 +1,55 @@
+"""What several commands share: the one-line error, JSON options, loading a dataset by name."""
+
+from __future__ import annotations
+
+import json
+import sys
+
+#: names `load_data` resolves to the bundled real measurements (dampnet.data.real)
+REAL_DATASETS = ("utfsm", "labcontrol", "utfsm_mr_damper_mts", "labcontrol_mr_damper")
+
+
+def error(msg: str) -> int:
+    """Print the CLI's bad-input line (`dampnet: error: ...`) and return its exit status, 2."""
+    print(f"dampnet: error: {msg}", file=sys.stderr)
+    return 2
+
+
+def json_arg(text: str | None, name: str, kind: type):
+    """The JSON value of option --`name` (None if not given); ValueError unless it is a `kind`."""
+    if text is None:
+        return None
+    try:
+        v = json.loads(text)
+    except json.JSONDecodeError as e:
+        raise ValueError(f"--{name}: not valid JSON ({e.msg} at column {e.colno})") from None
+    if not isinstance(v, kind):
+        raise ValueError(f"--{name}: expected a JSON {kind.__name__}")
+    return v
+
+
+def read_json_file(path: str, what: str) -> dict:
+    """A JSON object from file `path`; ValueError naming the file, the line and what was expected."""
+    try:
+        with open(path, encoding="utf-8") as f:
+            v = json.load(f)
+    except json.JSONDecodeError as e:
+        raise ValueError(f"{path}: not valid JSON ({e.msg} at line {e.lineno}, column {e.colno}); "
+                         f"expected {what}") from None
+    except OSError as e:
+        raise ValueError(f"{path}: cannot read {what} ({e.strerror or e})") from None
+    except UnicodeDecodeError:
+        raise ValueError(f"{path}: not a UTF-8 text file; expected {what}") from None
+    if not isinstance(v, dict):
+        raise ValueError(f"{path}: expected {what} (a JSON object), got a JSON {type(v).__name__}")
+    return v
+
+
+def load_data(path: str):
+    """A dataset from a path (directory, CSV/text or .mat file) or a bundled real dataset's name."""
+    from dampnet.data import load_dataset
+    from dampnet.data.real import load_real
+
+    if path in REAL_DATASETS:
+        return load_real(path)
+    return load_dataset(path)

@@ -1,0 +1,135 @@
+"""The training options `train` and `compare-algorithms` share, their parsing, and the epoch bar."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from dampnet.commands.common import json_arg, read_json_file
+
+#: where --add EFFECT's parameters come from (stated in the help of train and compare-algorithms)
+ADD_RULE = ("its parameters (a lag's time constant, a pre-sliding length) are the diagnosis's when "
+            "--diagnosis FILE is given; else a lag's time constant is estimated from DATA alone "
+            "(dampnet.diagnosis.estimate) and the others take the catalogue's defaults")
+
+
+def add_training_options(p: argparse.ArgumentParser, algorithm: bool = True) -> None:
+    """Options shared by `train` and `compare-algorithms`."""
+    from dampnet.effects import CATALOGUE
+    from dampnet.training import ALGORITHMS
+
+    addable = ", ".join(k for k, e in CATALOGUE.items() if e.adds is not None)
+    p.add_argument("--features", default=None,
+                   help="comma-separated input features in order (default: velocity,acceleration and "
+                        "the data's control, voltage or current); e.g. velocity,acceleration,voltage,temperature")
+    p.add_argument("--terms", default=None,
+                   help='physics terms as JSON, e.g. \'[{"kind": "position_poly"}]\'; terms without '
+                        '"params" are fitted by least squares, the MLP learns the rest')
+    p.add_argument("--add", action="append", default=[], metavar="EFFECT",
+                   help=f"add the features and terms that capture a physical effect (repeatable; the effect "
+                        f"catalogue dampnet.effects: {addable}; `dampnet rig --list-effects`): {ADD_RULE}")
+    p.add_argument("--diagnosis", default=None, metavar="FILE",
+                   help="the JSON of `dampnet diagnose --json FILE`: every --add EFFECT takes the parameters "
+                        "this diagnosis estimated (the same additions as the demo's improve stage)")
+    if algorithm:
+        p.add_argument("--algorithm", default="lm", choices=sorted(ALGORITHMS),
+                       help="lm (Levenberg-Marquardt, default), br (Bayesian regularisation), "
+                            "scg (scaled conjugate gradient), adam")
+    p.add_argument("--hidden", default="30", help="hidden layer sizes, e.g. 30 or 20,10 (default 30)")
+    p.add_argument("--activation", default="tanh", choices=["tanh", "sigmoid"],
+                   help="hidden activation (default tanh, MATLAB's tansig)")
+    p.add_argument("--holdout-voltage", default="2.25",
+                   help="hold out every test at this nominal control value (default 2.25; 'none' for none)")
+    p.add_argument("--holdout-tests", default="", help="comma-separated test ids to hold out as well")
+    p.add_argument("--decimate", default="auto",
+                   help="keep every N-th training sample ('auto': about 200 Hz, 25 at 5 kHz)")
+    p.add_argument("--no-zero-points", action="store_true",
+                   help="do not add the zero-input, zero-force training points")
+    p.add_argument("--max-epochs", type=int, default=1000, help="epoch limit (default 1000)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (split, initial weights)")
+    p.add_argument("--settings", default=None,
+                   help='algorithm settings as JSON, e.g. \'{"mu_max": 1e8}\' or \'{"lr": 0.01}\'')
+
+
+def training_kwargs(args, ds) -> tuple[dict, list[dict]]:
+    """(train_dataset keyword arguments, what each --add added) from the parsed options.
+
+    --add EFFECT goes through dampnet.training.pipeline.apply_additions, as the demo's
+    improve stage does: with --diagnosis FILE the diagnosis's parameters, else parameters
+    estimated from the data (dampnet.diagnosis.estimate). ValueError on bad options.
+    """
+    from dampnet.diagnosis.estimate import estimate_parameters
+    from dampnet.effects import effect
+    from dampnet.training.pipeline import apply_additions
+
+    features = [f.strip() for f in args.features.split(",") if f.strip()] if args.features else None
+    terms = json_arg(args.terms, "terms", list) or []
+    for t in terms:
+        if not isinstance(t, dict) or "kind" not in t:
+            raise ValueError(f"--terms: each term must be an object with a 'kind', got {t!r}")
+    diagnosis = None
+    if args.diagnosis is not None:
+        if not args.add:
+            raise ValueError("--diagnosis: name the effect(s) to add with --add EFFECT (e.g. the diagnosis's verdict)")
+        diagnosis = read_json_file(args.diagnosis, "the diagnosis JSON of `dampnet diagnose --json`")
+    try:
+        hidden = tuple(int(h) for h in args.hidden.split(",") if h.strip())
+    except ValueError:
+        raise ValueError(f"--hidden: expected sizes like 30 or 20,10, got {args.hidden!r}") from None
+    hv = args.holdout_voltage.strip().lower()
+    try:
+        holdout_voltage = None if hv in ("none", "") else float(hv)
+    except ValueError:
+        raise ValueError(f"--holdout-voltage: expected a number or 'none', got {args.holdout_voltage!r}") from None
+    dec = args.decimate.strip().lower()
+    try:
+        decimate = None if dec == "auto" else int(dec)
+    except ValueError:
+        raise ValueError(f"--decimate: expected a positive integer or 'auto', got {args.decimate!r}") from None
+    if decimate is not None and decimate < 1:
+        raise ValueError(f"--decimate: expected a positive integer, got {decimate}")
+    kw = dict(features=features, hidden=hidden, activation=args.activation,
+              holdout_voltage=holdout_voltage,
+              holdout_tests=[s.strip() for s in args.holdout_tests.split(",") if s.strip()],
+              decimate=decimate, terms=terms, feature_params=None, seed=args.seed,
+              zero_points=not args.no_zero_points, max_epochs=args.max_epochs,
+              settings=json_arg(args.settings, "settings", dict))
+    added = []
+    for name in args.add:
+        try:
+            effect(name)
+            params = None if diagnosis is not None else estimate_parameters(name, ds)
+            kw, add = apply_additions(kw, ds, name, diagnosis=diagnosis, params=params)
+        except ValueError as e:
+            where = f" (from {args.diagnosis})" if diagnosis is not None else ""
+            raise ValueError(f"--add {name}{where}: {e}") from None
+        added.append({"effect": name, **add})
+    return kw, added
+
+
+class Progress:
+    """A tqdm bar over epochs showing the current training and validation NRMSE."""
+
+    def __init__(self, total: int, desc: str, enabled: bool):
+        self.bar = None
+        self.total, self.desc = total, desc
+        self.enabled = enabled and sys.stderr.isatty()
+
+    def __call__(self, rec: dict):
+        if self.enabled and self.bar is None:  # opened at the first epoch: none for failed set-ups
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=self.total, desc=self.desc, unit="epoch", file=sys.stderr, leave=False)
+        if self.bar is not None:
+            # the MSE is of the force scaled to [-1, 1], so sqrt(MSE)/2 is the NRMSE (range definition)
+            post = {"train_nrmse": f"{rec['train'] ** 0.5 / 2:.5f}"}
+            if rec.get("val") is not None:
+                post["val_nrmse"] = f"{rec['val'] ** 0.5 / 2:.5f}"
+            self.bar.set_postfix(post, refresh=False)
+            self.bar.update(1)
+        return None
+
+    def close(self):
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
