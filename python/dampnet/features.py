@@ -120,9 +120,9 @@ class Lag:
     def column(self, test: DynoTest, tau_s: float) -> np.ndarray:
         return first_order_lag(test.channels[self.source], test.dt, tau_s)
 
-    def steady(self, q: LoopQuantities) -> float:
-        """The state in steady state at the loop quantities q (before any step)."""
-        return float(q[self.loop_input])
+    def steady(self, q: LoopQuantities):
+        """The state in steady state at the loop quantities q (before any step; scalars or arrays)."""
+        return q[self.loop_input]
 
     def first(self, q: LoopQuantities) -> float:
         """The state at the loop's first step start (the runtime's reset)."""
@@ -151,9 +151,8 @@ class Dahl:
     def column(self, test: DynoTest, presliding_m: float) -> np.ndarray:
         return dahl_state(test.channels["velocity"], test.dt, presliding_m)
 
-    def steady(self, q: LoopQuantities) -> float:
-        v = float(q["v"])
-        return math.copysign(1.0, v) if v != 0 else 0.0
+    def steady(self, q: LoopQuantities):
+        return np.sign(q["v"])
 
     def first(self, q: LoopQuantities) -> float:
         return 0.0
@@ -303,6 +302,14 @@ def check_runtime(names: Sequence[str], feature_params: Mapping[str, float] | No
         if key not in _core.FEATURE_PARAM_NAMES:
             raise ValueError(f"feature_params[{key!r}]: not a runtime feature parameter; the runtime knows "
                              f"{', '.join(_core.FEATURE_PARAM_NAMES)}")
+
+
+def steady_inputs(x, v, u) -> dict[str, Any]:
+    """The runtime's derived dn_damper_input fields (u_lag, v_lag, z_fric, ...) in steady state
+    at displacement x [m], velocity v [m/s] and control u (scalars or arrays): the keyword
+    arguments of `_core.Damper.forces` for a damper held at (x, v, u), e.g. at rest."""
+    q = {"x": x, "v": v, "u": u}
+    return {f.field: f.state.steady(q) for f in FEATURES.values() if f.state is not None and f.name in _core.FEATURE_NAMES}
 
 
 def target_vector(tests: Sequence[Any], channel: str = "force") -> np.ndarray:

@@ -22,6 +22,7 @@ import pytest
 
 from dampnet import _core, features
 from dampnet.features import FEATURES, Dahl, Lag, feature_matrix, first_order_lag
+from dampnet.reference import mlp_forward
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -54,6 +55,26 @@ def test_every_runtime_feature_can_be_built_from_a_test():
     np.testing.assert_array_equal(X[:, j], first_order_lag(ch["velocity"], dt, 0.01))
     with pytest.raises(Exception, match=r"needs feature_params\['velocity_lag_tau_s'\]"):
         feature_matrix([test], ["velocity_lag"], {})
+
+
+def test_steady_inputs_are_the_derived_fields_the_runtime_damper_takes():
+    """Every derived dn_damper_input field in steady state (a lag equals its input, the Dahl
+    state sgn(v)), usable as Damper.forces's keyword arguments."""
+    from loop_helpers import random_model
+
+    from dampnet.sim.loop import damper_from_model
+
+    x, v, u = np.array([0.01, -0.02, 0.0]), np.array([0.3, -0.5, 0.0]), np.array([1.0, 2.0, 3.0])
+    got = features.steady_inputs(x, v, u)
+    derived = {_core.FEATURE_INPUTS[f] for f in _core.FEATURE_NAMES if _core.FEATURE_PARAMS[f] is not None}
+    assert set(got) == derived
+    np.testing.assert_array_equal(got["u_lag"], u)
+    np.testing.assert_array_equal(got["v_lag"], v)
+    np.testing.assert_array_equal(got["z_fric"], np.sign(v))
+    names = ["velocity", "voltage_lag", "velocity_lag", "friction_state"]
+    model = random_model(names, feature_params={p: 0.01 for p in _core.FEATURE_PARAM_NAMES})
+    f, status, _ = damper_from_model(model).forces(x=x, v=v, a=0 * x, u=u, temperature=20 + 0 * x, **got)
+    np.testing.assert_allclose(f, mlp_forward(model, np.column_stack([v, u, v, np.sign(v)])), rtol=1e-12, atol=1e-9)
 
 
 # -- (a) where the names are written ------------------------------------------------------------

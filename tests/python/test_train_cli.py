@@ -223,14 +223,22 @@ def test_model_improved_for_friction_and_compressibility_runs_in_the_runtime_loo
     header = (out / "model.h").read_text()
     assert '"friction_presliding_m"' in header and '"velocity_lag_tau_s"' in header
     sim = tmp_path / "sim"
-    assert main(["simulate", str(out), "--road", "bump", "--backend", "core", "--out", str(sim)]) == 0
+    assert main(["simulate", str(out), "--road", "bump", "--out", str(sim)]) == 0
     run = np.load(sim / "run.npz")
-    core = json.loads((sim / "metrics.json").read_text())["metrics"]
     assert np.all(np.isfinite(run["force"])) and np.ptp(run["force"]) > 100.0
-    # the Python reference loop (per-step damper, training-side feature updates) agrees
-    assert main(["simulate", str(out), "--road", "bump", "--backend", "python",
-                 "--out", str(tmp_path / "sim_py")]) == 0
-    py = json.loads((tmp_path / "sim_py" / "metrics.json").read_text())["metrics"]
-    # measured: acc RMS 0.5855 vs 0.5860 m/s^2, travel max 54.35 vs 54.51 mm
-    assert py["acc_rms_m_s2"] == pytest.approx(core["acc_rms_m_s2"], rel=0.02)
-    assert py["travel_max_m"] == pytest.approx(core["travel_max_m"], rel=0.02)
+    # the Python reference loop (the test oracle, its own feature-state updates) agrees
+    from dampnet.sim.dampers import neural_spec
+    from dampnet.sim.reference_loop import reference_damper
+    from dampnet.sim.reference_loop import run as reference_loop
+    from dampnet.sim.roads import make_road
+    from dampnet.sim.vehicle import Controller, Vehicle
+
+    road, veh = make_road("bump", seed=0), Vehicle(dt=1e-3)
+    s = road.sample(veh.dt, 10.0 if road.kind == "spatial" else None)
+    ctrl = Controller(kind="passive", u_passive=float(run["u"][0]))  # the run's passive level
+    py = reference_loop(reference_damper(neural_spec(model)), s.z, s.zdot, veh, ctrl)
+    for key in ("acc_s", "force"):
+        rms = lambda a: float(np.sqrt(np.mean(np.square(a))))  # noqa: E731
+        assert rms(py[key]) == pytest.approx(rms(run[key]), rel=1e-4), key  # runtime float32 vs oracle float64: 1.4e-6 measured
+    travel = lambda r: float(np.max(np.abs(r["z_s"] - r["z_us"])))  # noqa: E731
+    assert travel(py) == pytest.approx(travel(run), rel=1e-4)  # measured: 54.55 mm both

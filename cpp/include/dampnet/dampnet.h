@@ -237,19 +237,23 @@ typedef struct dn_damper_input { DN_DAMPER_INPUT_FIELDS(DN_INPUT_DECL_) } dn_dam
  * Loop.simulate's columns) are expanded from these lists, and the C/C++ tests need no edit.
  * Here:
  *  1. DN_FEATURE_PARAM_LIST: its constant, e.g.
- *       X(DN_FPARAM_ACCEL_LAG_TAU_S, "accel_lag_tau_s", "time constant of accel_lag [s], > 0")
+ *       X(DN_FPARAM_DISPLACEMENT_LAG_TAU_S, "displacement_lag_tau_s",
+ *         "time constant of displacement_lag [s], > 0")
  *  2. DN_DAMPER_INPUT_FIELDS: append the field holding its value (role QTY_OPT: appended
  *     fields keep the ABI, and Damper.forces gets it as an argument defaulting to NaN), e.g.
- *       X(double, a_lag, QTY_OPT, "relative acceleration after a first-order lag [m/s^2]")
+ *       X(double, x_lag, QTY_OPT, "relative displacement after a first-order lag [m]")
  *  3. DN_FEATURE_LIST: append its line (field and parameter from steps 1-2), e.g.
- *       X(DN_FEAT_ACCEL_LAG, "accel_lag", a_lag, DN_FPARAM_ACCEL_LAG_TAU_S)
+ *       X(DN_FEAT_DISPLACEMENT_LAG, "displacement_lag", x_lag, DN_FPARAM_DISPLACEMENT_LAG_TAU_S)
  *  4. DN_LOOP_STATE_LIST: append its state slot and raise DN_LOOP_STATE_SIZE (a static_assert
- *     checks the count), e.g.  X(13, a_lag, "relative acceleration after accel_lag's lag [m/s^2]")
+ *     checks the count), e.g.  X(13, x_lag, "relative displacement after displacement_lag's lag [m]")
  *  5. cpp/include/dampnet/loop.hpp, the state update: its coefficients in LoopModel::init
- *     (from damper.fparam(DN_FPARAM_ACCEL_LAG_TAU_S); 0 when the model does not use it), its
- *     value at each damper evaluation (detail::damper_input, fed like v_lag through
- *     detail::motion_lag or the step-start state), its end-of-step value ns[S_a_lag] in
- *     step() (and in the finiteness check there), and its rest value in reset() (0 unless set).
+ *     (from damper.fparam(DN_FPARAM_DISPLACEMENT_LAG_TAU_S); 0 when the model does not use it),
+ *     its value at each damper evaluation (detail::damper_input, fed like v_lag through
+ *     detail::motion_lag or the step-start state; a field left out there reaches the model as
+ *     NaN and the step fails with DN_E_DIVERGED), its end-of-step value ns[S_x_lag] in step()
+ *     (and in the finiteness check there), and its rest value in reset() (0 unless set).
+ * A lag of x, v or u (known at the step start) is also mirrored exactly by the Python reference
+ * loop from its features.py declaration; a lag of the acceleration would not be.
  * Python side: its training formula in the package's feature registry, and one attribute line
  * for the new DamperInput field in python/dampnet/_core.pyi (tests/python/test_core_stub.py
  * names it until it is there). Tried with such a dummy feature: the library, _core and

@@ -28,7 +28,7 @@
 //             z = sgn(dx) + (z0 - sgn(dx)) exp(-|dx| / x_c),
 //           with dx from the step start (a reversal inside one step counts only
 //           its net travel). Both match the training features of
-//           python/dampnet/training/derived.py as the sample time goes to 0.
+//           python/dampnet/features.py as the sample time goes to 0.
 //
 // The acceleration feature: the relative acceleration a = a_s - a_us depends on
 // the damper force being computed: a = a_free - k (F(a) - f_static), with
@@ -54,6 +54,8 @@
 #pragma once
 
 #include <cmath>
+#include <limits>
+#include <type_traits>
 #include <cstdint>
 #include <utility>
 
@@ -292,12 +294,29 @@ inline MotionLag motion_lag(const LoopModel& m, const MotionLag& lag0, double v0
   return r;
 }
 
+// A damper input with every double field NaN (ints 0) before damper_input fills its own: a
+// field appended to DN_DAMPER_INPUT_FIELDS for a new feature but not filled below reaches the
+// model as NaN, so the step fails (DN_E_DIVERGED) instead of reading stack garbage. The
+// compiler drops the stores that damper_input overwrites.
+template <class T>
+constexpr T unfilled_value() noexcept {
+  if constexpr (std::is_floating_point_v<T>) return std::numeric_limits<T>::quiet_NaN();
+  else return T{};
+}
+inline dn_damper_input unfilled_input() noexcept {
+  dn_damper_input in;
+#define DN_UNFILLED_(type, name, role, doc) in.name = unfilled_value<type>();
+  DN_DAMPER_INPUT_FIELDS(DN_UNFILLED_)
+#undef DN_UNFILLED_
+  return in;
+}
+
 // The damper's input at one evaluation (the acceleration feature from f_last).
 inline dn_damper_input damper_input(const LoopModel& m, const Body& b, double zr, double vr,
                                     double u, double u_lag, const MotionLag& lag, double f_last,
                                     double temperature, double t, int stage) noexcept {
   const Accel a = accel(m, b, zr, vr, f_last);
-  dn_damper_input in;
+  dn_damper_input in = unfilled_input();
   in.x = b.zs - b.zus + m.veh.x_static;
   in.v = b.vs - b.vus;
   in.a = a.as - a.aus;

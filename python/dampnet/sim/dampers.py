@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from dampnet import _core
+from dampnet.features import steady_inputs
 from dampnet.rig.truth import TruthDamper
 from dampnet.sim.loop import damper_from_model, truth_damper
 from dampnet.sim.vehicle import LoopError, Vehicle
@@ -129,8 +130,8 @@ def runtime_damper(spec: DamperSpec) -> RuntimeDamper:
 def steady_forces(spec: DamperSpec, v, u: float, dt: float = 1e-3, x: float = 0.0) -> np.ndarray:
     """The damper's steady force [N] at each constant velocity v [m/s] and control u, at
     displacement x [m] and a = 0: the truth after STEADY_STEPS steps of dt [s] (past its lag),
-    a model at its derived features' steady state (lagged control u, lagged velocity v,
-    friction state sign(v))."""
+    a model at its derived features' steady state (dampnet.features.steady_inputs: a lag equals
+    its input, the friction state is sign(v))."""
     v = np.atleast_1d(np.asarray(v, dtype=np.float64))
     if spec.kind == "truth":
         d = _truth(spec)
@@ -142,8 +143,9 @@ def steady_forces(spec: DamperSpec, v, u: float, dt: float = 1e-3, x: float = 0.
         return out
     n = v.size
     full = lambda value: np.full(n, float(value))  # noqa: E731
-    f, _, _ = runtime_damper(spec).damper.forces(full(x), v, full(0.0), full(u), full(u), full(TEMPERATURE_C),
-                                                 v_lag=v, z_fric=np.sign(v))
+    f, _, _ = runtime_damper(spec).damper.forces(x=full(x), v=v, a=full(0.0), u=full(u),
+                                                 temperature=full(TEMPERATURE_C),
+                                                 **steady_inputs(full(x), v, full(u)))
     return np.asarray(f, dtype=np.float64)
 
 
