@@ -115,3 +115,12 @@ def test_every_timed_loop_configuration_is_checked_on_the_hard_inputs():
     spiky = default_model()
     spiky.w_out = spiky.w_out * 12.0
     assert not any(r["passed"] for r in bm.timed_configs_hard_input_check(spiky).values())
+
+
+def test_bench_json_that_cannot_be_written_fails_before_the_timing(tmp_path):
+    """--json naming a directory: one line and exit 2 at once, not after minutes of timing."""
+    proc = subprocess.run([sys.executable, "-m", "dampnet.cli", "bench", "--json", str(tmp_path)],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == [f"dampnet: error: {tmp_path}: is a directory: expected a file name"]
+    assert "HIL budget" not in proc.stdout

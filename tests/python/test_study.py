@@ -9,7 +9,7 @@ import pytest
 from dampnet.sim.roads import impulse, sine_sweep, thesis_rough_road
 from dampnet.sim.dampers import DamperSpec
 from dampnet.sim.plots import write_plots
-from dampnet.sim.report import jsonable, text_tables
+from dampnet.sim.report import without_arrays, text_tables
 from dampnet.sim.study import run_study
 
 KEYS = {"schema", "models", "truth", "settings", "impulse", "sine_sweep", "rough_road", "skyhook", "errors"}
@@ -21,7 +21,7 @@ def test_study_structure_and_tables(tmp_path):
     res = run_study([a, b], None, dt=2e-3, sweep=sine_sweep(rate_oct_s=1.0, post_s=2.0),
                     pulse=impulse(total_s=2.0), rough=thesis_rough_road(base_length_m=30.0),
                     keep_runs=True)
-    d = json.loads(json.dumps(jsonable(res), default=float))
+    d = json.loads(json.dumps(without_arrays(res), default=float))
     assert set(d) == KEYS
     assert set(d["sine_sweep"]) == {"low", "high"}
     assert set(d["rough_road"]) == {"10_low", "10_high", "20_low", "20_high"}

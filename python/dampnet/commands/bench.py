@@ -8,11 +8,11 @@ onnxruntime on the same model and inputs (as ratios to the C++ kernel's median),
 
 from __future__ import annotations
 
-import json
 import tempfile
 from pathlib import Path
 
 from dampnet.commands.common import error
+from dampnet.outputs import check_output_file, write_json
 
 
 def add_parser(subparsers):
@@ -38,14 +38,23 @@ def add_parser(subparsers):
 
 def run(args) -> int:
     from dampnet.latency import python_bench as bench_python
-    from dampnet.latency.harness import (HIL_FORCE_MARGIN, hil_hard_input_check, quick_latency,
-                                   timed_configs_hard_input_check)
+    from dampnet.latency.harness import (
+        HIL_FORCE_MARGIN,
+        hil_hard_input_check,
+        quick_latency,
+        timed_configs_hard_input_check,
+    )
 
     n = args.calls or (200_000 if args.quick else 1_000_000)
     n_py = args.py_calls or max(1000, n // 10)  # Python calls are ~10-400x slower than C++ ones
     n_sim = args.sim_steps or n
     if args.budget_ns is not None and not args.budget_ns > 0:
         return error(f"--budget-ns: expected a positive number of ns, got {args.budget_ns}")
+    if args.json:  # before the minutes of timing, not after
+        try:
+            check_output_file(args.json)
+        except OSError as e:
+            return error(str(e))
     margin = HIL_FORCE_MARGIN if args.hil_margin is None else args.hil_margin
     if not -1.0 < margin < 100.0:
         return error(f"--hil-margin: expected a fraction in (-1, 100), got {margin}")
@@ -111,7 +120,7 @@ def run(args) -> int:
     print("the same hard inputs through every configuration the harness times (accel_feature_damper_eval): "
           + ", ".join(f"{cfg} {'ok' if r['passed'] else 'FAILED'}" for cfg, r in timed.items()))
     if args.json:
-        Path(args.json).write_text(json.dumps(res, indent=1))
+        write_json(args.json, res, overwrite=True)  # atomically
     go = h["within_budget"] and hard["passed"] and not timed_failures
     if not h["within_budget"]:
         print(f"NO-GO: the HIL step's p99.9 {h['p999_ns']:.0f} ns exceeds the budget {b['p999_budget_ns']:.0f} ns")

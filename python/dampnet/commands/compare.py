@@ -49,7 +49,6 @@ def compare(model_a, model_b, ds) -> dict:
 def run(args) -> int:
     from dampnet.data import DataError
     from dampnet.model import MlpModel, ModelError
-
     from dampnet.outputs import check_output_file, check_report_dir
 
     try:

@@ -11,7 +11,11 @@ import argparse
 import time
 
 from dampnet.commands.common import error
-from dampnet.commands.training_options import Progress, add_training_options, training_kwargs
+from dampnet.commands.training_options import (
+    Progress,
+    add_training_options,
+    training_kwargs,
+)
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -62,8 +66,8 @@ def compare_algorithms(ds, algorithms, progress_factory=None, **kw) -> dict:
 def run(args) -> int:
     from dampnet.data import DataError, load_dataset
     from dampnet.model import ModelError
-    from dampnet.training import ALGORITHMS
     from dampnet.outputs import write_json
+    from dampnet.training import ALGORITHMS
 
     algos = [a.strip() for a in args.algorithms.split(",") if a.strip()]
     bad = [a for a in algos if a not in ALGORITHMS]

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import json
 
 from dampnet.commands.common import error, load_data
+from dampnet.outputs import json_text
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -56,7 +56,6 @@ def run(args) -> int:
     from dampnet.diagnosis.context import build_context
     from dampnet.diagnosis.run import diagnose
     from dampnet.model import MlpModel, ModelError
-
     from dampnet.outputs import check_output_file, check_report_dir
 
     try:
@@ -74,7 +73,7 @@ def run(args) -> int:
         return error(str(e))
     print(summary(d, args.json if args.json and args.json != "-" else None))
     if args.json:
-        text = json.dumps(d, indent=1)
+        text = json_text(d).rstrip("\n")
         if args.json == "-":
             print(text)
         else:

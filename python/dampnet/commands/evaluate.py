@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 
 from dampnet.commands.common import error
+from dampnet.outputs import json_text
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -38,12 +39,10 @@ def run(args) -> int:
     from dampnet.data import DataError, load_dataset
     from dampnet.evaluation.metrics import format_table
     from dampnet.evaluation.report import evaluation, lookup_for, write_plots
-    from dampnet.model import MlpModel, ModelError
     from dampnet.features import check_features
+    from dampnet.model import MlpModel, ModelError
+    from dampnet.outputs import check_output_file, write_json
     from dampnet.training.pipeline import noise_floors
-    from dampnet.outputs import write_json
-
-    from dampnet.outputs import check_output_file
 
     try:
         if args.json and args.json != "-":
@@ -71,11 +70,7 @@ def run(args) -> int:
             rep["noise_floor"] = nf
         if args.json:
             if args.json == "-":
-                import json
-
-                from dampnet.outputs import jsonable as _jsonable
-
-                print(json.dumps(_jsonable(rep), indent=1))
+                print(json_text(rep), end="")
             else:
                 write_json(args.json, rep, overwrite=args.force)
         paths = []

@@ -24,9 +24,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    from dampnet.sim.roads import RoadError, iri, read_profile_csv
-
     from dampnet.outputs import OutputError, check_output_file
+    from dampnet.sim.roads import RoadError, iri, read_profile_csv
 
     try:
         if args.json:

@@ -38,9 +38,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 def run(args) -> int:
     """Generate and write the dataset; 0 on success, 2 (one-line message) on bad input."""
     from dampnet.data import DataError, write_dataset
-    from dampnet.rig import generate, noise_floor_nrmse
-
     from dampnet.outputs import check_output_dir
+    from dampnet.rig import generate, noise_floor_nrmse
 
     if args.list_effects:
         print(effect_list())

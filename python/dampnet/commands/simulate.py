@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
+
+from dampnet.outputs import json_text
 
 # /2: the runtime's law names in "controller", no "backend" (the runtime's loop is the only one)
 RUN_SCHEMA = "dampnet.simulate/2"
@@ -93,7 +94,7 @@ def run(args) -> int:
     meta = {"schema": RUN_SCHEMA, **{k: v for k, v in res.items() if k not in ("arrays", "transmissibility")}}
     writers = {"run.npz": lambda f: np.savez_compressed(f, **arrays),
                "time_history.png": lambda f: plot_run(res, f, f"{spec.name} on {road.name}, {ctrl.kind}"),
-               "metrics.json": lambda f: Path(f).write_text(json.dumps(meta, indent=2, default=float) + "\n")}
+               "metrics.json": lambda f: Path(f).write_text(json_text(meta))}
     if "transmissibility" in res:
         writers["transmissibility.png"] = lambda f: plot_transmissibility({spec.name: res}, f)
     elif (out / "transmissibility.png").exists():   # --force over a sweep run: not this run's

@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
+
+from dampnet.outputs import json_text
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -29,13 +30,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 def run(args) -> int:
     from pathlib import Path
 
-    from dampnet.sim.dampers import load_spec, lookup_spec, truth_spec
-    from dampnet.sim.plots import write_plots
-    from dampnet.sim.report import jsonable, text_tables
-    from dampnet.sim.study import run_study
-
     from dampnet.data.types import RIG_GENERATOR
     from dampnet.outputs import check_run_dir
+    from dampnet.sim.dampers import load_spec, lookup_spec, truth_spec
+    from dampnet.sim.plots import write_plots
+    from dampnet.sim.report import text_tables, without_arrays
+    from dampnet.sim.study import run_study
 
     out = Path(args.out)
     try:
@@ -65,7 +65,7 @@ def run(args) -> int:
     table = text_tables(res)
     try:
         with staged_files(out) as tmp:  # study.json (the marker) moved into place last
-            (tmp / "study.json").write_text(json.dumps(jsonable(res), indent=2, default=float) + "\n")
+            (tmp / "study.json").write_text(json_text(without_arrays(res)))
             (tmp / "study.txt").write_text(table + "\n")
             if not args.no_plots:
                 write_plots(res, tmp)

@@ -10,7 +10,12 @@ import argparse
 import time
 
 from dampnet.commands.common import error
-from dampnet.commands.training_options import ADD_RULE, Progress, add_training_options, training_kwargs
+from dampnet.commands.training_options import (
+    ADD_RULE,
+    Progress,
+    add_training_options,
+    training_kwargs,
+)
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -38,10 +43,9 @@ def run(args) -> int:
 
     from dampnet.data import DataError, load_dataset
     from dampnet.model import ModelError
-    from dampnet.training.pipeline import model_metrics
     from dampnet.modeldir import save_model_dir
-
     from dampnet.outputs import check_output_dir
+    from dampnet.training.pipeline import model_metrics
 
     out = Path(args.out)
     inputs = [args.data, *([args.diagnosis] if args.diagnosis else [])]

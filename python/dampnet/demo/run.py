@@ -171,7 +171,7 @@ def _study(model0, model1, lookup, fig_dir: Path, quick: bool) -> dict:
     from dampnet.sim import study
     from dampnet.sim.dampers import lookup_spec, neural_spec, truth_spec
     from dampnet.sim.plots import write_plots
-    from dampnet.sim.report import jsonable, text_tables
+    from dampnet.sim.report import without_arrays, text_tables
     from dampnet.sim.roads import thesis_rough_road
 
     specs = [neural_spec(model1, "improved"), neural_spec(model0, "original"), lookup_spec(lookup, "lookup")]
@@ -185,7 +185,7 @@ def _study(model0, model1, lookup, fig_dir: Path, quick: bool) -> dict:
                           keep_runs=True)
     res["settings"]["quick_roads"] = bool(quick)
     write_plots(res, fig_dir)
-    res_json = jsonable(res)
+    res_json = without_arrays(res)
     res_json["text"] = text_tables(res)
     # errors[section][case][model][metric] = (model - truth) / truth
     errs = res_json.get("errors", {})

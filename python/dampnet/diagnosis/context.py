@@ -18,7 +18,6 @@ from dampnet.model import MlpModel
 from dampnet.reference import mlp_forward
 from dampnet.terms import terms_force
 
-
 #: Default number of rows per test at which residuals are regressed.
 ROWS_PER_TEST = 600
 #: Cap on all rows together (long test lists get fewer rows per test).

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from dampnet.outputs import json_text
+
 
 def _plt():
     import matplotlib
@@ -141,5 +143,5 @@ significant = above every phase-randomised surrogate, z &ge; {diag['method']['z_
 <h2>Where it fails</h2><table><tr><th>region</th><th>RMS residual [N]</th><th>ratio to overall</th></tr>{regions}</table>
 {imgs}</body></html>"""
     (out / "index.html").write_text(page)
-    (out / "diagnosis.json").write_text(json.dumps(diag, indent=1))
+    (out / "diagnosis.json").write_text(json_text(diag))
     return out / "index.html"

@@ -10,7 +10,6 @@ from dampnet.diagnosis.context import ROWS_PER_TEST, build_context
 from dampnet.effects import additions
 from dampnet.outputs import jsonable
 
-
 MAX_ACCEPTED = 3  # forward selection stops after this many effects
 
 

@@ -18,6 +18,7 @@ from dampnet.data import Dataset, DataError
 from dampnet.evaluation.lookup import LookupTable, fit_lookup
 from dampnet.evaluation.metrics import evaluate_predictions
 from dampnet.predict import predict_force
+from dampnet.schema import load_json
 
 
 def evaluation(model, tests: Sequence[Any], lookup: LookupTable | None = None) -> dict[str, Any]:
@@ -49,9 +50,6 @@ def lookup_for(model_path: str | Path, ds: Dataset, holdout_ids: Sequence[str]):
     p = Path(model_path)
     mfile = (p if p.is_dir() else p.parent) / "metrics.json"
     if mfile.is_file():  # optional: a damaged metrics.json falls back to fitting a table
-        from dampnet.data import DataError
-        from dampnet.schema import load_json
-
         try:
             d = load_json(mfile, DataError)
             if isinstance(d, dict) and isinstance(d.get("lookup_table"), dict):
@@ -88,8 +86,7 @@ def pick_plot_tests(tests: Sequence[Any], wanted: Sequence[str] | None = None, n
 def write_plots(model, tests: Sequence[Any], report: dict[str, Any], out_dir: str | Path,
                 lookup: LookupTable | None = None, plot_tests: Sequence[str] | None = None) -> list[Path]:
     """error_histogram.png, error_heatmap_nrmse.png, test_<id>.png per chosen test, lookup_table.png."""
-    from dampnet.evaluation import plots
-    from dampnet.predict import predict_force
+    from dampnet.evaluation import plots  # matplotlib: only when drawing
 
     out = Path(out_dir)
     tests = list(tests)

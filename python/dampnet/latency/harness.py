@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from dampnet import paths
+from dampnet.outputs import json_text
 
 STEP_RATE_HZ = 10_000.0
 SHARE = 0.01
@@ -141,7 +142,7 @@ def quick_latency(out_dir: str | Path, n_calls: int = 200_000, budget_ns: float 
                        f"{fw.get('p50_ns', float('nan')):.0f} ns p50 timed one by one (the clock's "
                        f"{clock if clock is not None else float('nan'):.0f} ns included; "
                        f"{fw.get('p50_net_ns', float('nan')):.0f} ns net)")
-    (out / "latency.json").write_text(json.dumps(res, indent=1))
+    (out / "latency.json").write_text(json_text(res))
     return res
 
 

@@ -54,6 +54,7 @@ def text_tables(res: dict) -> str:
     return "\n".join(lines)
 
 
-def jsonable(res: dict) -> dict:
-    """The study dict without arrays (for JSON)."""
+def without_arrays(res: dict) -> dict:
+    """The study dict without its run arrays (the "_"-prefixed keys), for its JSON file
+    (written through dampnet.outputs.json_text)."""
     return {k: v for k, v in res.items() if not k.startswith("_")}
