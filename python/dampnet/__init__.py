@@ -13,12 +13,14 @@ C++ quarter-car loop. Units are SI throughout.
 
 The names are imported on first use, so `import dampnet` stays light (no torch, no
 compiled runtime until a name that needs it is used). The package's layers, bottom up
-(each imports only from the ones below; tests/python/test_layers.py checks it):
+(each imports only from the ones below: the import-linter contracts in pyproject.toml, run by
+tests/python/test_layers.py with a check for import cycles):
 
   _core, schema, outputs, paths       the runtime's bindings and its registries; file I/O
   data                                dyno measurements: formats, readers, preprocessing
-  features, terms                     model inputs and physics terms
-  model, reference, predict           the model file, the numpy forward, force on a test
+  features, terms                     model inputs (the runtime's registry plus their formulas), physics terms
+  effects                             the one catalogue of physical effects (rig and diagnosis share its ids)
+  model, reference, predict           the model file, the one numpy forward, force on a test
   export, modeldir                    C header, model directory
   rig                                 the virtual shock dyno (a plant)
   evaluation, training, diagnosis     error tables; the training pipeline; missing physics
