@@ -42,12 +42,14 @@ inline const EnumName kAccelFeatures[] = {DN_ACCEL_FEATURE_LIST(DNPY_ENUM_NAME_)
 inline const EnumName kActivations[] = {DN_ACTIVATION_LIST(DNPY_ENUM_NAME_)};
 #undef DNPY_ENUM_NAME_
 
-// The int fields of DN_VEHICLE_FIELDS / DN_CONTROLLER_FIELDS, each with its own names.
+// The enum fields (those of DN_VEHICLE_FIELDS / DN_CONTROLLER_FIELDS and Mlp's activation),
+// each with its own names.
 inline const EnumField kEnumFields[] = {
     {"kind", "dn_controller_kind", kControllerKinds, std::size(kControllerKinds)},
     {"integrator", "dn_integrator", kIntegrators, std::size(kIntegrators)},
     {"damper_eval", "dn_damper_eval", kDamperEvals, std::size(kDamperEvals)},
-    {"accel_feature", "dn_accel_feature", kAccelFeatures, std::size(kAccelFeatures)}};
+    {"accel_feature", "dn_accel_feature", kAccelFeatures, std::size(kAccelFeatures)},
+    {"activation", "dn_activation", kActivations, std::size(kActivations)}};
 
 inline const EnumField& enum_field(const char* field) {
   for (const auto& f : kEnumFields)

@@ -48,14 +48,7 @@ class PyMlp {
     expect(w_out, n_last, "w_out");
     expect(b_out, 1, "b_out");
     for (auto* a : {&in_offset, &in_gain, &sat_lo, &sat_hi}) expect(*a, d.n_inputs, "scaling/limits");
-    d.activation = -1;
-    std::string valid;
-    for (const auto& a : dnpy::kActivations) {
-      if (activation == a.name) d.activation = a.value;
-      valid += std::string(valid.empty() ? "'" : " or '") + a.name + "'";
-    }
-    if (d.activation < 0)
-      throw py::value_error("activation must be " + valid + ", got '" + activation + "'");
+    d.activation = dnpy::parse_enum(py::str(activation), "Mlp", "activation");
     d.w1 = w1.data();
     d.b1 = b1.data();
     d.w_out = w_out.data();
