@@ -167,6 +167,22 @@ const char* arg(int argc, char** argv, const char* key, const char* def) {
   return def;
 }
 
+// An enum setting by its dampnet.h name (the lists' one spelling); -1 for an unknown name.
+#define DN_SOAK_ROW_(id, value, name, doc) {name, value},
+struct NamedValue {
+  const char* name;
+  int value;
+};
+constexpr NamedValue kEvals[] = {DN_DAMPER_EVAL_LIST(DN_SOAK_ROW_)};
+constexpr NamedValue kAccels[] = {DN_ACCEL_FEATURE_LIST(DN_SOAK_ROW_)};
+#undef DN_SOAK_ROW_
+template <std::size_t N>
+int by_name(const NamedValue (&table)[N], const std::string& name) {
+  for (const auto& row : table)
+    if (name == row.name) return row.value;
+  return -1;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -178,6 +194,12 @@ int main(int argc, char** argv) {
   const std::string csv_path = arg(argc, argv, "--csv", "soak_windows.csv");
   const std::string eval = arg(argc, argv, "--eval", "per_step");
   const std::string accel = arg(argc, argv, "--accel", "linear");
+  const int eval_value = by_name(kEvals, eval), accel_value = by_name(kAccels, accel);
+  if (eval_value < 0 || accel_value < 0) {
+    std::fprintf(stderr, "dn_soak: error: unknown --eval '%s' or --accel '%s' (dampnet.h's "
+                 "DN_DAMPER_EVAL_LIST / DN_ACCEL_FEATURE_LIST names)\n", eval.c_str(), accel.c_str());
+    return 2;
+  }
   if (n_steps < 1 || window < 1 || !(speed > 0)) {
     std::fprintf(stderr, "dn_soak: error: --steps, --window and --speed must be positive\n");
     return 2;
@@ -192,9 +214,8 @@ int main(int argc, char** argv) {
   dn_vehicle veh;
   dn_vehicle_default(&veh);
   veh.integrator = DN_INT_RK4;
-  veh.damper_eval = eval == "per_stage" ? DN_EVAL_PER_STAGE : DN_EVAL_PER_STEP;
-  veh.accel_feature = accel == "implicit" ? DN_ACCEL_IMPLICIT
-                      : accel == "explicit" ? DN_ACCEL_EXPLICIT : DN_ACCEL_LINEAR;
+  veh.damper_eval = eval_value;
+  veh.accel_feature = accel_value;
   dn_controller ctrl;
   dn_controller_default(&ctrl, DN_CTRL_SKYHOOK_ONOFF);
   dn_loop_model* lm = nullptr;

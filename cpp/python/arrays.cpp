@@ -11,11 +11,6 @@ namespace dnpy {
 
 namespace {
 
-#define DNPY_OUT_MEMBER_(name, doc) &dn_loop_out::name,
-double dn_loop_out::* const kOutQuantities[] = {DN_LOOP_OUT_LIST(DNPY_OUT_MEMBER_)};
-#undef DNPY_OUT_MEMBER_
-static_assert(std::size(kOutQuantities) == kNumOutQuantities, "one array per quantity");
-
 // The result's key of each quantity: its dn_loop_out name, but "control" for u.
 #define DNPY_OUT_KEY_(name, doc) (std::strcmp(#name, "u") == 0 ? "control" : #name),
 const char* const kOutKeys[] = {DN_LOOP_OUT_LIST(DNPY_OUT_KEY_)};

@@ -19,9 +19,12 @@ namespace dnpy {
 
 namespace py = pybind11;
 
-#define DNPY_OUT_COUNT_(name, doc) +1
-constexpr std::size_t kNumOutQuantities = 0 DN_LOOP_OUT_LIST(DNPY_OUT_COUNT_);
-#undef DNPY_OUT_COUNT_
+// dn_loop_out's scalar quantities, in DN_LOOP_OUT_LIST order: the one table simulate's
+// arrays and the step report read them through.
+#define DNPY_OUT_MEMBER_(name, doc) &dn_loop_out::name,
+inline double dn_loop_out::* const kOutQuantities[] = {DN_LOOP_OUT_LIST(DNPY_OUT_MEMBER_)};
+#undef DNPY_OUT_MEMBER_
+constexpr std::size_t kNumOutQuantities = std::size(kOutQuantities);
 
 class SimulateArrays {
  public:

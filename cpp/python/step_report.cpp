@@ -15,6 +15,7 @@
 #include <string>
 #include <utility>
 
+#include "arrays.hpp"
 #include "common.hpp"
 
 namespace dnpy {
@@ -22,10 +23,7 @@ namespace dnpy {
 namespace {
 
 // dn_loop_out's scalar quantities, then the three other keys.
-#define DNPY_OUT_MEMBER_(name, doc) &dn_loop_out::name,
-double dn_loop_out::* const kQuantities[] = {DN_LOOP_OUT_LIST(DNPY_OUT_MEMBER_)};
-#undef DNPY_OUT_MEMBER_
-constexpr std::size_t kNumQuantities = std::size(kQuantities);
+constexpr std::size_t kNumQuantities = kNumOutQuantities;
 #define DNPY_OUT_NAME_(name, doc) #name,
 const char* const kStepKeys[] = {DN_LOOP_OUT_LIST(DNPY_OUT_NAME_) "features", "clamped_mask", "status"};
 #undef DNPY_OUT_NAME_
@@ -50,7 +48,7 @@ py::array_t<double> features_of(const dn_loop_out& o) {
 
 // The value under key number i (kStepKeys).
 py::object value_at(const StepReport& r, std::size_t i) {
-  if (i < kNumQuantities) return py::float_(r.o.*kQuantities[i]);
+  if (i < kNumQuantities) return py::float_(r.o.*kOutQuantities[i]);
   if (i == kFeatures) return features_of(r.o);
   if (i == kClampedMask) return py::int_(r.o.clamped_mask);
   return py::int_(r.status);

@@ -30,6 +30,11 @@ static_assert((kAllWarnings & (kAllWarnings + 1)) == 0, "warnings are the low bi
 // An OR of several warnings: "NAME1|NAME2: text1; text2", one static buffer per combination,
 // filled once (a function-local static: thread-safe initialisation, no heap afterwards).
 constexpr int kCombinedLen = 1024;
+// Every warning's name and text together, with separators, fit: a new DN_W_ fails the build
+// here rather than being cut off silently by strncat.
+#define DN_WARNING_LEN_(id, value, text) +((value) > 0 ? sizeof(#id) + sizeof(text) + 2 : 0)
+static_assert(3 DN_STATUS_LIST(DN_WARNING_LEN_) < kCombinedLen, "raise kCombinedLen");
+#undef DN_WARNING_LEN_
 struct Combined {
   char text[kAllWarnings + 1][kCombinedLen];
   Combined() {

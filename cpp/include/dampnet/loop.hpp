@@ -54,6 +54,7 @@
 #pragma once
 
 #include <cmath>
+#include <initializer_list>
 #include <limits>
 #include <type_traits>
 #include <cstdint>
@@ -125,23 +126,20 @@ inline double control_law(const dn_controller& c, double v_s, double v_us, doubl
 }
 
 namespace detail {
-// Whether value is one of an enum list's values.
+// Whether x is one of an enum list's values: is_one_of(x, {DN_..._LIST(DN_ENUM_VALUE_)}).
 #define DN_ENUM_VALUE_(id, value, name, doc) value,
-inline bool is_integrator(int x) noexcept {
-  for (int v : {DN_INTEGRATOR_LIST(DN_ENUM_VALUE_)}) if (x == v) return true;
+inline bool is_one_of(int x, std::initializer_list<int> values) noexcept {
+  for (int v : values)
+    if (x == v) return true;
   return false;
 }
-inline bool is_damper_eval(int x) noexcept {
-  for (int v : {DN_DAMPER_EVAL_LIST(DN_ENUM_VALUE_)}) if (x == v) return true;
-  return false;
-}
+inline bool is_integrator(int x) noexcept { return is_one_of(x, {DN_INTEGRATOR_LIST(DN_ENUM_VALUE_)}); }
+inline bool is_damper_eval(int x) noexcept { return is_one_of(x, {DN_DAMPER_EVAL_LIST(DN_ENUM_VALUE_)}); }
 inline bool is_accel_feature(int x) noexcept {
-  for (int v : {DN_ACCEL_FEATURE_LIST(DN_ENUM_VALUE_)}) if (x == v) return true;
-  return false;
+  return is_one_of(x, {DN_ACCEL_FEATURE_LIST(DN_ENUM_VALUE_)});
 }
 inline bool is_controller_kind(int x) noexcept {
-  for (int v : {DN_CONTROLLER_KIND_LIST(DN_ENUM_VALUE_)}) if (x == v) return true;
-  return false;
+  return is_one_of(x, {DN_CONTROLLER_KIND_LIST(DN_ENUM_VALUE_)});
 }
 #undef DN_ENUM_VALUE_
 }  // namespace detail
