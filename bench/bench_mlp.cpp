@@ -6,6 +6,7 @@
 // Output: one JSON line per candidate (ns), a machine-facts line first.
 #include <cmath>
 #include <algorithm>
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <random>
@@ -149,12 +150,15 @@ int main(int argc, char** argv) {
                0.015 * w1 * std::cos(w1 * t) + 0.005 * w2 * std::cos(w2 * t), 0.0};
   }
   double saved[DN_LOOP_STATE_SIZE];
+  // Timed steps that return an error (a diverged state returns early): a benchmark of those
+  // would time the early return, so any makes the harness fail instead of reporting.
+  long step_errors = 0;
   dn_loop_reset(lm, ld);
   for (int k = 0; k < 2000; ++k) dn_loop_step(lm, ld, &road[k & 4095], nullptr);  // settle
   dn_loop_get_state(ld, saved);
   long batch_start = 0;
   dn_bench::print_json("loop_step_rk4_neural_float_skyhook", dn_bench::measure(
-      [&](long i) { dn_loop_step(lm, ld, &road[(i - batch_start) & 4095], nullptr); },
+      [&](long i) { step_errors += dn_loop_step(lm, ld, &road[(i - batch_start) & 4095], nullptr) < 0; },
       [&] { dn_loop_set_state(ld, saved); }, n, warm, 1000));
   veh.damper_eval = DN_EVAL_PER_STEP;
   dn_loop_model* lm1 = nullptr;
@@ -163,7 +167,7 @@ int main(int argc, char** argv) {
   for (int k = 0; k < 2000; ++k) dn_loop_step(lm1, ld, &road[k & 4095], nullptr);
   dn_loop_get_state(ld, saved);
   dn_bench::print_json("loop_step_rk4_per_step_eval_neural_float_skyhook", dn_bench::measure(
-      [&](long i) { dn_loop_step(lm1, ld, &road[i & 4095], nullptr); },
+      [&](long i) { step_errors += dn_loop_step(lm1, ld, &road[i & 4095], nullptr) < 0; },
       [&] { dn_loop_set_state(ld, saved); }, n, warm, 1000));
   // The same two with the linearised (one evaluation with its slope) and the explicit
   // acceleration feature (the cases above iterate the implicit solve: dn_accel_feature).
@@ -184,7 +188,7 @@ int main(int argc, char** argv) {
     for (int k = 0; k < 2000; ++k) dn_loop_step(me, ld, &road[k & 4095], nullptr);
     dn_loop_get_state(ld, saved);
     dn_bench::print_json(variant_names[j], dn_bench::measure(
-        [&](long i) { dn_loop_step(me, ld, &road[i & 4095], nullptr); },
+        [&](long i) { step_errors += dn_loop_step(me, ld, &road[i & 4095], nullptr) < 0; },
         [&] { dn_loop_set_state(ld, saved); }, n, warm, 1000));
   }
   dn_loop_data_destroy(ld);
@@ -195,5 +199,9 @@ int main(int argc, char** argv) {
   dn_mlp_destroy(cm);
   (void)sink;
   (void)batch_start;
+  if (step_errors > 0) {
+    std::fprintf(stderr, "dn_bench_mlp: error: %ld timed loop steps returned an error status\n", step_errors);
+    return 1;
+  }
   return 0;
 }
