@@ -69,5 +69,6 @@ void bind_mlp(py::module_& mod);          // mlp.cpp: Mlp
 void bind_damper(py::module_& mod);       // damper.cpp: DamperInput, Damper
 void bind_step_report(py::module_& mod);  // step_report.cpp: StepReport
 void bind_loop(py::module_& mod);         // loop.cpp: LoopModel, Loop
+void bind_fullcar(py::module_& mod);      // fullcar.cpp: FullCarModel, FullCar
 
 }  // namespace dnpy

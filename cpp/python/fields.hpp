@@ -40,6 +40,8 @@ inline const EnumName kIntegrators[] = {DN_INTEGRATOR_LIST(DNPY_ENUM_NAME_)};
 inline const EnumName kDamperEvals[] = {DN_DAMPER_EVAL_LIST(DNPY_ENUM_NAME_)};
 inline const EnumName kAccelFeatures[] = {DN_ACCEL_FEATURE_LIST(DNPY_ENUM_NAME_)};
 inline const EnumName kActivations[] = {DN_ACTIVATION_LIST(DNPY_ENUM_NAME_)};
+inline const EnumName kTyreModels[] = {DN_TYRE_MODEL_LIST(DNPY_ENUM_NAME_)};
+inline const EnumName kSteerModes[] = {DN_STEER_MODE_LIST(DNPY_ENUM_NAME_)};
 #undef DNPY_ENUM_NAME_
 
 // The enum fields (those of DN_VEHICLE_FIELDS / DN_CONTROLLER_FIELDS and Mlp's activation),
@@ -49,7 +51,9 @@ inline const EnumField kEnumFields[] = {
     {"integrator", "dn_integrator", kIntegrators, std::size(kIntegrators)},
     {"damper_eval", "dn_damper_eval", kDamperEvals, std::size(kDamperEvals)},
     {"accel_feature", "dn_accel_feature", kAccelFeatures, std::size(kAccelFeatures)},
-    {"activation", "dn_activation", kActivations, std::size(kActivations)}};
+    {"activation", "dn_activation", kActivations, std::size(kActivations)},
+    {"tyre_model", "dn_tyre_model", kTyreModels, std::size(kTyreModels)},
+    {"steer_mode", "dn_steer_mode", kSteerModes, std::size(kSteerModes)}};
 
 inline const EnumField& enum_field(const char* field) {
   for (const auto& f : kEnumFields)
@@ -183,6 +187,14 @@ inline void set_controller_fields(dn_controller& s, const py::dict& d, const cha
                           "'; known:" DN_CONTROLLER_FIELDS(DNPY_FIELD_NAME_));
   }
 }
+inline void set_fullcar_fields(dn_fullcar_params& s, const py::dict& d, const char* what) {
+  for (auto kv : dict_copy(d)) {
+    const std::string k = key_of(kv.first, what);
+    DN_FULLCAR_FIELDS(DNPY_SET_FIELD_)
+    throw py::value_error(std::string(what) + ": unknown parameter '" + k +
+                          "'; known:" DN_FULLCAR_FIELDS(DNPY_FIELD_NAME_));
+  }
+}
 #undef DNPY_SET_FIELD_
 #undef DNPY_FIELD_NAME_
 
@@ -197,6 +209,12 @@ inline py::dict vehicle_dict(const dn_vehicle& s) {
 inline py::dict controller_dict(const dn_controller& s) {
   py::dict d;
   DN_CONTROLLER_FIELDS(DNPY_GET_)
+  return d;
+}
+
+inline py::dict fullcar_dict(const dn_fullcar_params& s) {
+  py::dict d;
+  DN_FULLCAR_FIELDS(DNPY_GET_)
 #undef DNPY_GET_
   return d;
 }

@@ -5,6 +5,7 @@
 //   damper.cpp       DamperInput, Damper
 //   step_report.cpp  StepReport (a hand-built CPython type)
 //   loop.cpp         LoopModel, Loop (simulate's arrays: arrays.cpp, huge_pages.cpp)
+//   fullcar.cpp      FullCarModel, FullCar (the full vehicle)
 // Shared: common.hpp (status -> exception, safe self access), fields.hpp (dict <-> struct),
 // busy.hpp (one call at a time on a Loop), callback_run.hpp (a callback's exception).
 #include <pybind11/pybind11.h>
@@ -23,4 +24,5 @@ PYBIND11_MODULE(_core, mod) {
   dnpy::bind_damper(mod);
   dnpy::bind_step_report(mod);
   dnpy::bind_loop(mod);
+  dnpy::bind_fullcar(mod);
 }

@@ -3,6 +3,7 @@
 
 #include "dampnet/damper.hpp"
 #include "dampnet/dampnet.h"
+#include "dampnet/fullcar.hpp"
 #include "dampnet/loop.hpp"
 #include "dampnet/mlp.hpp"
 
@@ -21,4 +22,12 @@ struct dn_loop_model {
 
 struct dn_loop_data {
   dampnet::LoopData d;
+};
+
+struct dn_fullcar_model {
+  dampnet::FullCarModel m;
+};
+
+struct dn_fullcar_data {
+  dampnet::FullCarData d;
 };

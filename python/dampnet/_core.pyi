@@ -5,7 +5,7 @@ the module has and this stub lacks fails the test. Units as in dampnet.h (SI; de
 temperature). The registries are expanded from dampnet.h's X-macro lists.
 """
 
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from typing import Any, Final, final
 
 import numpy as np
@@ -82,6 +82,19 @@ def check_vehicle(vehicle: _FieldDict) -> None:
 def check_controller(controller: _FieldDict) -> None:
     """Validate a controller dict (CONTROLLER_FIELDS) as LoopModel does: None, or ValueError /
     TypeError naming the field and its valid range or names."""
+
+def check_fullcar(params: _FieldDict) -> None:
+    """Validate full-car parameters (FULLCAR_FIELDS) as FullCarModel does: None, or ValueError /
+    TypeError naming the field and its valid range or names."""
+
+# ---- the full vehicle's registries (dampnet.h's DN_FULLCAR_* lists) ----
+FULLCAR_FIELDS: Final[dict[str, tuple[float | int, str]]]  # field -> (default, doc)
+FULLCAR_STATE_NAMES: Final[tuple[str, ...]]  # FullCar.state's columns
+FULLCAR_OUT_CORNER_FIELDS: Final[dict[str, str]]  # per-corner report keys ([4] / [n, 4])
+FULLCAR_OUT_FIELDS: Final[dict[str, str]]  # vehicle report keys (float / [n])
+FULLCAR_CORNERS: Final[tuple[str, ...]]  # ("fl", "fr", "rl", "rr")
+TYRE_MODELS: Final[dict[str, tuple[int, str]]]  # full-car "tyre_model"
+STEER_MODES: Final[dict[str, tuple[int, str]]]  # full-car "steer_mode"
 
 # ---- the MLP ----
 
@@ -250,5 +263,57 @@ class Loop(metaclass=_pybind11_type):
         features, status arrays."""
     @property
     def model(self) -> LoopModel: ...
+    @property
+    def damper_evals(self) -> int: ...
+
+# ---- the full vehicle ----
+class FullCarModel(metaclass=_pybind11_type):
+    """Parameters, four dampers (FL, FR, RL, RR), four controllers and the driver's path
+    (constant): immutable, may drive FullCars in many threads."""
+
+    def __init__(
+        self,
+        dampers: Sequence[Damper],
+        params: _FieldDict = ...,
+        controllers: _FieldDict | Sequence[_FieldDict] | None = None,
+        path_x: npt.ArrayLike | None = None,
+        path_y: npt.ArrayLike | None = None,
+    ) -> None: ...
+    @property
+    def params(self) -> dict[str, float | int]: ...
+    @property
+    def controllers(self) -> list[dict[str, float | int]]: ...
+    @property
+    def corner_mobility(self) -> npt.NDArray[np.float64]:
+        """K [1/kg], 4 x 4: a = a_free - K (F - f_static)."""
+
+class FullCar(metaclass=_pybind11_type):
+    """A full vehicle's mutable state for a FullCarModel: one call at a time (RuntimeError
+    otherwise)."""
+
+    def __init__(self, model: FullCarModel) -> None: ...
+    def reset(self) -> None: ...
+    @property
+    def state(self) -> npt.NDArray[np.float64]:
+        """Flat state (FULLCAR_STATE_NAMES)."""
+    @state.setter
+    def state(self, value: npt.ArrayLike) -> None: ...
+    def step(
+        self, z_r: npt.ArrayLike, v_r: npt.ArrayLike, steer: float = 0.0, u: npt.ArrayLike | None = None
+    ) -> dict[str, Any]:
+        """One step: road [m] / rate [m/s] under the 4 wheels at the step end, steer [rad]."""
+    def forward(self, steer: float = 0.0, u: npt.ArrayLike | None = None) -> dict[str, Any]:
+        """The report without advancing."""
+    def simulate(
+        self,
+        road: npt.ArrayLike,
+        road_rate: npt.ArrayLike,
+        steer: npt.ArrayLike | None = None,
+        u: npt.ArrayLike | None = None,
+        reset: bool = True,
+    ) -> dict[str, npt.NDArray[Any]]:
+        """Roads [n, 4] in C++ (GIL released) -> state, status, report arrays."""
+    @property
+    def model(self) -> FullCarModel: ...
     @property
     def damper_evals(self) -> int: ...

@@ -58,7 +58,7 @@ extern "C" {
 /*---- Version ----*/
 
 #define DN_VERSION_MAJOR 0
-#define DN_VERSION_MINOR 3 /* 0.3: dn_controller.u_tau_s, 13 loop states (0.2: dn_damper_input.v_lag/z_fric) */
+#define DN_VERSION_MINOR 4 /* 0.4: the full vehicle dn_fullcar_* (0.3: dn_controller.u_tau_s, 13 loop states; 0.2: dn_damper_input.v_lag/z_fric) */
 #define DN_VERSION_PATCH 0
 /* Version of this header as major*10000 + minor*100 + patch. */
 #define DN_VERSION_HEADER (DN_VERSION_MAJOR * 10000 + DN_VERSION_MINOR * 100 + DN_VERSION_PATCH)
@@ -613,6 +613,191 @@ DN_API int dn_loop_step(const dn_loop_model* m, dn_loop_data* d, const dn_loop_i
  * It evaluates the damper once (a stateful callback damper sees that call). */
 DN_API int dn_loop_forward(const dn_loop_model* m, const dn_loop_data* d, const dn_loop_input* in,
                            dn_loop_out* out);
+
+/*---- The full vehicle ----*/
+/* A ride-and-handling vehicle model beside the quarter car, built the same way (constant
+ * model, flat state, allocation-free [RT] step): body heave z, roll phi, pitch theta, lateral
+ * velocity vy and yaw rate r at a constant forward speed, yaw angle psi and position X, Y,
+ * four wheels' vertical motion; at each corner a spring, any dn_damper with its own
+ * dn_controller, anti-roll bars front and rear; tyres with a vertical spring (+ damping) that
+ * lifts off (load never negative) and a load-sensitive Magic-Formula lateral force; an
+ * open-loop steering input or a preview driver following a path. Equations, signs and the
+ * coupled acceleration feature: cpp/include/dampnet/fullcar.hpp. Corners 0 FL, 1 FR, 2 RL,
+ * 3 RR; frame ISO 8855 (x forward, y left, z up; roll positive lifts the left side, pitch
+ * positive pushes the nose down, yaw positive to the left). */
+#define DN_FULLCAR_CORNERS 4
+#define DN_FULLCAR_MAX_PATH 256 /* points of the driver's path */
+#define DN_TYRE_MODEL_LIST(X)                                                               \
+  X(DN_TYRE_MAGIC_FORMULA, 0, "magic_formula",                                              \
+    "Fy = D sin(C atan(B alpha - E (B alpha - atan(B alpha)))), D and B from the load")     \
+  X(DN_TYRE_LINEAR, 1, "linear", "Fy = K(N0) alpha: the static load's cornering stiffness")
+typedef enum dn_tyre_model { DN_TYRE_MODEL_LIST(DN_ENUM_ROW_) } dn_tyre_model;
+#define DN_STEER_MODE_LIST(X)                                                           \
+  X(DN_STEER_OPEN_LOOP, 0, "open_loop", "road-wheel angle from dn_fullcar_input.steer")  \
+  X(DN_STEER_DRIVER, 1, "driver", "preview driver following the model's path")
+typedef enum dn_steer_mode { DN_STEER_MODE_LIST(DN_ENUM_ROW_) } dn_steer_mode;
+/* Full-vehicle parameters: X(type, name, default, doc). Defaults: a compact-pickup-class
+ * vehicle whose front corner is the thesis's Table 5 quarter car (700 kg sprung, 40 kg
+ * unsprung, 15 kN/m, 200 kN/m); sources of the other figures in the README. */
+#define DN_FULLCAR_FIELDS(X)                                                                   \
+  X(double, m_s, 2600.0, "sprung mass [kg], > 0")                                              \
+  X(double, i_xx, 900.0, "sprung-mass roll inertia about the roll axis [kg m^2], > 0")          \
+  X(double, i_yy, 3900.0, "sprung-mass pitch inertia [kg m^2], > 0")                           \
+  X(double, i_zz, 4800.0, "vehicle yaw inertia [kg m^2], > 0")                                 \
+  X(double, a, 1.5, "CG to front axle [m], > 0")                                               \
+  X(double, b, 1.75, "CG to rear axle [m], > 0")                                               \
+  X(double, t_f, 1.6, "front track [m], > 0")                                                  \
+  X(double, t_r, 1.6, "rear track [m], > 0")                                                   \
+  X(double, h_cg, 0.75, "sprung-mass CG height above the road [m], > 0")                      \
+  X(double, h_rc_f, 0.10, "front roll-centre height [m], 0 <= h_rc_f < h_cg")                 \
+  X(double, h_rc_r, 0.35, "rear roll-centre height [m], 0 <= h_rc_r < h_cg")                  \
+  X(double, m_us_f, 40.0, "front unsprung mass per wheel [kg], > 0")                           \
+  X(double, m_us_r, 40.0, "rear unsprung mass per wheel [kg], > 0")                            \
+  X(double, k_s_f, 15000.0, "front spring rate at the wheel [N/m], >= 0")                      \
+  X(double, k_s_r, 15000.0, "rear spring rate at the wheel [N/m], >= 0")                       \
+  X(double, k_arb_f, 40000.0,                                                                  \
+    "front anti-roll bar rate at the wheel [N/m] (per metre of left-right deflection "          \
+    "difference), >= 0")                                                                       \
+  X(double, k_arb_r, 15000.0, "rear anti-roll bar rate at the wheel [N/m], >= 0")               \
+  X(double, k_t, 200000.0, "tyre vertical stiffness [N/m], > 0")                               \
+  X(double, c_t, 0.0, "tyre vertical damping [N s/m], >= 0")                                   \
+  X(int, tyre_model, DN_TYRE_MAGIC_FORMULA, "dn_tyre_model")                                   \
+  X(double, tyre_fz0, 7000.0, "tyre nominal load Fz0 [N], > 0")                                \
+  X(double, tyre_pky1, 18.0,                                                                   \
+    "cornering stiffness factor: K = pky1 Fz0 sin(2 atan(N / (pky2 Fz0))) [1/rad], > 0")      \
+  X(double, tyre_pky2, 2.0, "load of peak cornering stiffness / Fz0 [-], > 0")                 \
+  X(double, tyre_mu0, 0.95, "peak friction at Fz0 [-], > 0")                                   \
+  X(double, tyre_pdy2, -0.1,                                                                   \
+    "friction load sensitivity: mu = mu0 (1 + pdy2 (N - Fz0) / Fz0) [-], -1 < pdy2 < 1")       \
+  X(double, tyre_c, 1.3, "Magic-Formula shape factor C [-], 1 < C <= 2")                       \
+  X(double, tyre_e, -0.5, "Magic-Formula curvature factor E [-], -10 <= E <= 1")               \
+  X(double, speed, 33.333333333333336,                                                         \
+    "forward speed [m/s], 0 <= speed <= 100 (0: lateral dynamics frozen)")                     \
+  X(double, g, 9.81, "gravity [m/s^2], >= 0")                                                  \
+  X(int, steer_mode, DN_STEER_OPEN_LOOP, "dn_steer_mode")                                      \
+  X(double, steer_max, 0.5, "road-wheel angle limit [rad], > 0")                               \
+  X(double, driver_preview_s, 0.6, "driver preview time [s], > 0")                             \
+  X(double, driver_preview_min_m, 5.0, "driver shortest preview distance [m], > 0")            \
+  X(double, driver_gain, 1.0, "driver gain on the pure-pursuit angle [-], > 0")                \
+  X(double, driver_tau_s, 0.05, "steering lag time constant [s], >= 0 (0: none)")              \
+  X(double, dt, 0.001, "step [s], 1e-9 <= dt <= 0.1")                                          \
+  X(int, damper_eval, DN_EVAL_PER_STAGE, "dn_damper_eval")                                     \
+  X(int, accel_feature, DN_ACCEL_LINEAR, "dn_accel_feature (neural dampers reading a)")        \
+  X(double, x_static_f, 0.0, "front damper displacement at static equilibrium [m]")            \
+  X(double, x_static_r, 0.0, "rear damper displacement at static equilibrium [m]")             \
+  X(double, f_static_f, 0.0, "front damper force at static equilibrium [N]")                   \
+  X(double, f_static_r, 0.0, "rear damper force at static equilibrium [N]")                    \
+  X(double, temperature, 20.0, "damper temperature at reset [degC]")
+#define DN_FIELD_DECL_(type, name, def, doc) type name;
+typedef struct dn_fullcar_params { DN_FULLCAR_FIELDS(DN_FIELD_DECL_) } dn_fullcar_params;
+#undef DN_FIELD_DECL_
+/* Fill with the defaults above. */
+DN_API void dn_fullcar_default(dn_fullcar_params* p);
+/* Validate as dn_fullcar_model_create does: DN_OK, DN_E_NONFINITE_PARAM, DN_E_PARAM (a field
+ * out of its documented range, an unknown enum value), DN_E_NULL. */
+DN_API int dn_fullcar_check(const dn_fullcar_params* p);
+/* The state, a flat array of doubles: the vehicle's X(index, name, doc), then per corner
+ * i = 0..3 the corner's X(offset, name, doc) at DN_FULLCAR_CORNER_BASE + i *
+ * DN_FULLCAR_CORNER_SIZE + offset (Python names: name + "_fl" / "_fr" / "_rl" / "_rr"). */
+#define DN_FULLCAR_STATE_LIST(X)                                                    \
+  X(0, t, "time [s]")                                                               \
+  X(1, z, "body heave at the CG, from static equilibrium [m]")                      \
+  X(2, vz, "body heave velocity [m/s]")                                             \
+  X(3, phi, "body roll angle, left side up positive [rad]")                         \
+  X(4, p, "roll rate [rad/s]")                                                      \
+  X(5, theta, "body pitch angle, nose down positive [rad]")                         \
+  X(6, q, "pitch rate [rad/s]")                                                     \
+  X(7, vy, "lateral velocity of the CG, body frame, left positive [m/s]")           \
+  X(8, r, "yaw rate, left positive [rad/s]")                                        \
+  X(9, psi, "yaw angle [rad]")                                                      \
+  X(10, x_pos, "CG position X along the initial heading [m]")                             \
+  X(11, y_pos, "CG position Y, left of the initial heading [m]")                          \
+  X(12, steer, "road-wheel angle applied over the last step (after the lag) [rad]")
+#define DN_FULLCAR_CORNER_BASE 13
+#define DN_FULLCAR_CORNER_STATE_LIST(X)                                                  \
+  X(0, z_us, "wheel displacement from static equilibrium [m]")                           \
+  X(1, v_us, "wheel velocity [m/s]")                                                     \
+  X(2, z_r, "road under the wheel at t [m]")                                             \
+  X(3, v_r, "road rate under the wheel at t [m/s]")                                      \
+  X(4, u_lag, "control after the first-order lag [V]")                                   \
+  X(5, f_last, "force of the most recent damper evaluation [N]")                         \
+  X(6, v_lag, "relative velocity after the velocity_lag feature's lag [m/s]")            \
+  X(7, z_fric, "Dahl friction state of the friction_state feature [-]")                  \
+  X(8, u_cmd, "control applied over the last step, after the command filter [V]")        \
+  X(9, temperature, "damper temperature [degC]")
+#define DN_FULLCAR_CORNER_SIZE 10
+#define DN_FULLCAR_STATE_SIZE 53
+/* Per step input, at the END of the step (t + dt). */
+typedef struct dn_fullcar_input {
+  double z_r[DN_FULLCAR_CORNERS]; /* road under each wheel [m] */
+  double v_r[DN_FULLCAR_CORNERS]; /* road rate under each wheel [m/s] */
+  double steer;                   /* road-wheel angle [rad] (open_loop; ignored by the driver) */
+  double u[DN_FULLCAR_CORNERS];   /* control of a corner whose law is DN_CTRL_EXTERNAL [V] */
+} dn_fullcar_input;
+/* What a step reports, at the step's START time: per-corner quantities X(name, doc)
+ * (arrays of DN_FULLCAR_CORNERS) and vehicle quantities X(name, doc). */
+#define DN_FULLCAR_OUT_CORNER_LIST(X)                                                  \
+  X(force, "damper force of the first evaluation [N]")                                  \
+  X(u, "control applied over the step [V]")                                             \
+  X(x, "damper displacement [m]")                                                       \
+  X(v, "damper velocity [m/s]")                                                         \
+  X(a, "relative acceleration fed to the damper [m/s^2]")                               \
+  X(acc_s, "body vertical acceleration above the wheel [m/s^2]")                        \
+  X(acc_us, "wheel vertical acceleration [m/s^2]")                                      \
+  X(tyre_load, "tyre vertical load, static included, >= 0 [N]")                         \
+  X(tyre_fy, "tyre lateral force, left positive [N]")
+#define DN_FULLCAR_OUT_LIST(X)                                                          \
+  X(acc_z, "body heave acceleration at the CG [m/s^2]")                                 \
+  X(acc_phi, "roll acceleration [rad/s^2]")                                             \
+  X(acc_theta, "pitch acceleration [rad/s^2]")                                          \
+  X(a_y, "lateral acceleration of the CG, left positive [m/s^2]")                       \
+  X(steer, "road-wheel angle applied over the step [rad]")                              \
+  X(slip_f, "front axle slip angle [rad]")                                              \
+  X(slip_r, "rear axle slip angle [rad]")                                               \
+  X(beta, "side-slip angle of the CG, atan(vy / speed) [rad]")
+#define DN_OUT_CORNER_DECL_(name, doc) double name[DN_FULLCAR_CORNERS];
+#define DN_OUT_DECL_(name, doc) double name;
+typedef struct dn_fullcar_out {
+  DN_FULLCAR_OUT_CORNER_LIST(DN_OUT_CORNER_DECL_)
+  DN_FULLCAR_OUT_LIST(DN_OUT_DECL_)
+  uint32_t clamped_mask[DN_FULLCAR_CORNERS]; /* neural: bit i = input i clamped */
+} dn_fullcar_out;
+#undef DN_OUT_CORNER_DECL_
+#undef DN_OUT_DECL_
+/* A validated, immutable full-car model / its mutable state. Opaque. */
+typedef struct dn_fullcar_model dn_fullcar_model;
+typedef struct dn_fullcar_data dn_fullcar_data;
+/* Validate and create a model (copies the four dampers). dampers: 4 (FL, FR, RL, RR), none
+ * NULL; ctrls: 4 controllers or NULL (passive at u = 0 everywhere). The driver's path
+ * Y(X) (path_x strictly increasing, 2..DN_FULLCAR_MAX_PATH points, piecewise linear, ends
+ * held) is required for DN_STEER_DRIVER (n_path 0 otherwise: DN_E_PARAM with the driver).
+ * Allocates. */
+DN_API int dn_fullcar_model_create(const dn_fullcar_params* p, const dn_damper* const* dampers,
+                                   const dn_controller* ctrls, const double* path_x,
+                                   const double* path_y, int n_path, dn_fullcar_model** out);
+/* Destroy a model (after its data). Nullable: m. */
+DN_API void dn_fullcar_model_destroy(dn_fullcar_model* m);
+/* Create data for a model, reset to rest. Allocates. */
+DN_API int dn_fullcar_data_create(const dn_fullcar_model* m, dn_fullcar_data** out);
+/* Destroy data. Nullable: d. */
+DN_API void dn_fullcar_data_destroy(dn_fullcar_data* d);
+/* [RT] Reset to rest (every corner as dn_loop_reset; body, heading, position, steer 0). */
+DN_API int dn_fullcar_reset(const dn_fullcar_model* m, dn_fullcar_data* d);
+/* Number of doubles in the flat state (DN_FULLCAR_STATE_SIZE). */
+DN_API int dn_fullcar_state_size(void);
+/* [RT] Copy the state out / set it (a non-finite value: DN_E_NONFINITE_INPUT, unchanged). */
+DN_API int dn_fullcar_get_state(const dn_fullcar_data* d, double* state);
+DN_API int dn_fullcar_set_state(dn_fullcar_data* d, const double* state);
+/* Damper evaluations since creation, all corners together. */
+DN_API int64_t dn_fullcar_damper_evals(const dn_fullcar_data* d);
+/* [RT] One step of dt; statuses as dn_loop_step (a NaN/Inf road, steer or external control:
+ * DN_E_NONFINITE_INPUT; a runaway: DN_E_DIVERGED; the state is unchanged on error; damper
+ * warnings OR-ed over the corners). Nullable: out. */
+DN_API int dn_fullcar_step(const dn_fullcar_model* m, dn_fullcar_data* d,
+                           const dn_fullcar_input* in, dn_fullcar_out* out);
+/* [RT] What the next step would report at the current state, without advancing. */
+DN_API int dn_fullcar_forward(const dn_fullcar_model* m, const dn_fullcar_data* d,
+                              const dn_fullcar_input* in, dn_fullcar_out* out);
 
 #undef DN_ENUM_ROW_
 

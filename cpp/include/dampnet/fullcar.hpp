@@ -1,0 +1,861 @@
+// The full vehicle: a ride-and-handling model with four dampers (the thesis's chapter 5.2),
+// beside the quarter-car loop and built like it (loop.hpp):
+//
+//   FullCarModel   constant: parameters, per corner a LoopModel (its damper copy, controller
+//                  and derived coefficients), the corner-mobility matrix, the driver's path.
+//   FullCarData    mutable: the flat state (DN_FULLCAR_STATE_LIST + corners) and a counter.
+//   step(m, d, in, out)   one step; forward(m, d, in, out) reports without advancing.
+//
+// Frame ISO 8855: x forward, y left, z up. Corners i = 0 FL, 1 FR, 2 RL, 3 RR at
+// x_i = +a (front) / -b (rear), y_i = +t/2 (left) / -t/2 (right). Body heave z (at the CG),
+// roll phi (positive lifts the left side), pitch theta (positive pushes the nose down), all
+// from static equilibrium; small-angle kinematics for the suspension:
+//   z_b,i = z + y_i phi - x_i theta,   v_b,i = vz + y_i p - x_i q
+// Damper i as the quarter car's: x_i = z_b,i - z_us,i + x_static, v_i = v_b,i - v_us,i
+// (extension positive), force F_i positive resisting extension.
+//
+// Forces (from static equilibrium; d_i = z_b,i - z_us,i the suspension deflection):
+//   F_arb,i = k_arb (d_i - d_j)              j the other wheel of i's axle
+//   F_s,i   = -k_s d_i - (F_i - f_static) - F_arb,i          upward on the body at corner i
+//   F_tz,i  = max(-k_t (z_us,i - z_r,i) - c_t (v_us,i - v_r,i), -N0_i)   upward on wheel i
+//   N_i     = N0_i + F_tz,i >= 0   (lift-off), N0_i = g (m_s c_i + m_us,i) the static load,
+//             c_i = b / (2 L) front, a / (2 L) rear, L = a + b
+// Lateral tyre force per wheel, from the axle's slip angle (track effect on slip ignored):
+//   alpha_f = delta - atan((vy + a r) / U),   alpha_r = -atan((vy - b r) / U)
+//   magic_formula: K(N) = pky1 Fz0 sin(2 atan(N / (pky2 Fz0))), D = mu0 (1 + pdy2 dfz) N,
+//     dfz = (N - Fz0) / Fz0, B = K / (C D), Fy = D sin(C atan(B alpha - E (B alpha -
+//     atan(B alpha)))); Fy = 0 when N = 0
+//   linear: Fy = K(N0_i) alpha (0 when N = 0)
+// Lateral and yaw at the constant forward speed U (m = m_s + sum m_us):
+//   Fy_f = (Fy_0 + Fy_1) cos delta,  Fy_r = Fy_2 + Fy_3
+//   m (vy' + U r) = Fy_f + Fy_r,  a_y = vy' + U r,  i_zz r' = a Fy_f - b Fy_r
+//   psi' = r,  X' = U cos psi - vy sin psi,  Y' = U sin psi + vy cos psi
+//   With U = 0 these are frozen (Fy = 0, all their rates 0).
+// Sprung mass, roll about the roll axis (the lateral forces act at the roll centres: the
+// roll-axis model; h = h_cg - (b h_rc_f + a h_rc_r) / L the CG's height above the axis):
+//   m_s z''      = sum F_s,i
+//   i_yy theta'' = sum (-x_i) F_s,i
+//   i_xx phi''   = sum y_i F_s,i + m_s h a_y + m_s g h phi
+// Wheels, with the links' geometric load transfer Fy_axle h_rc / t per axle (a left turn,
+// Fy > 0, lifts the left wheel and pushes the right, outside, one into the road):
+//   m_us,i z_us,i'' = -F_s,i + F_tz,i + F_geo,i,  F_geo = +Fy_axle h_rc / t left, - right
+//
+// Acceleration feature (neural dampers reading "acceleration"): a_i = z_b,i'' - z_us,i''.
+// The four are coupled to the four damper forces by the constant corner mobility
+//   K_ij = G_ij + delta_ij / m_us,i,  G_ij = 1/m_s + x_i x_j / i_yy + y_i y_j / i_xx,
+//   a = a_free - K (F - f_static)
+// (a_free with every damper at f_static). accel_feature, the quarter car's in vector form:
+//   EXPLICIT  a from f_last (the most recent evaluations' forces).
+//   LINEAR    one evaluation per corner with its slope D_i = dF_i/da_i, one Newton step of
+//             (I + K D) da = -g(a0), g(a) = a - a_free + K (F(a) - f_static), forces
+//             linearised F0 + D da; taken when every 1 + K_ii D_i >= DN_ACCEL_LINEAR_MIN_SLOPE
+//             and the step is finite, else the explicit forces and DN_W_ACCEL_FALLBACK.
+//   IMPLICIT  Newton steps with fresh evaluations until every |g_i| <= 1e-7 (1 + |a_free,i|)
+//             + K_ii eps (1 + |F_i|), at most DN_ACCEL_MAX_EVALS evaluations per corner;
+//             not converged: the iterate of the smallest max |g_i|, DN_W_ACCEL_UNCONVERGED.
+//   Corners whose damper does not read a (and callbacks) keep their explicit force; their
+//   slope is 0 in the system.
+//
+// Within a step, as the quarter car: controls held (each corner's law and command filter at
+// the step start), steering held (driver or input, then its lag), road per corner the cubic
+// Hermite interpolant between the step's start and end, RK4 (damper_eval per_stage: four
+// evaluations per corner; per_step: one, forces held). Driver (steer_mode driver): preview
+// distance l = max(driver_preview_s U, driver_preview_min_m), preview point P = (X + l cos
+// psi, Y + l sin psi), e = Y_path(P_x) - P_y, delta_cmd = clamp(driver_gain 2 L e / l^2,
+// +-steer_max) (pure pursuit); the applied angle follows delta_cmd through a first-order lag
+// driver_tau_s sampled per step: delta = delta_cmd + (delta_prev - delta_cmd) exp(-dt/tau).
+//
+// Limits: small angles in the suspension kinematics; no longitudinal dynamics (constant
+// speed, no pitch from braking); the roll centres are fixed; slip per axle, not per wheel;
+// no tyre relaxation length; the unsprung masses have no roll inertia of their own.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+
+#include "dampnet/damper.hpp"
+#include "dampnet/dampnet.h"
+#include "dampnet/loop.hpp"
+
+namespace dampnet {
+
+constexpr int kCorners = DN_FULLCAR_CORNERS;
+
+enum FullCarStateIndex {
+#define DN_FC_STATE_ENUM_(i, name, doc) FC_##name = i,
+  DN_FULLCAR_STATE_LIST(DN_FC_STATE_ENUM_)
+#undef DN_FC_STATE_ENUM_
+};
+enum FullCarCornerIndex {
+#define DN_FC_CORNER_ENUM_(i, name, doc) FCC_##name = i,
+  DN_FULLCAR_CORNER_STATE_LIST(DN_FC_CORNER_ENUM_)
+#undef DN_FC_CORNER_ENUM_
+};
+#define DN_FC_COUNT_(i, name, doc) +1
+static_assert(DN_FULLCAR_CORNER_BASE == 0 DN_FULLCAR_STATE_LIST(DN_FC_COUNT_), "corner base");
+static_assert(DN_FULLCAR_CORNER_SIZE == 0 DN_FULLCAR_CORNER_STATE_LIST(DN_FC_COUNT_), "corner size");
+#undef DN_FC_COUNT_
+static_assert(DN_FULLCAR_STATE_SIZE == DN_FULLCAR_CORNER_BASE + kCorners * DN_FULLCAR_CORNER_SIZE,
+              "DN_FULLCAR_STATE_SIZE");
+
+// Index of corner i's state k in the flat state.
+constexpr int fc_corner(int i, int k) noexcept {
+  return DN_FULLCAR_CORNER_BASE + i * DN_FULLCAR_CORNER_SIZE + k;
+}
+
+inline dn_fullcar_params default_fullcar() noexcept {
+  dn_fullcar_params p;
+#define DN_FIELD_DEF_(type, name, def, doc) p.name = def;
+  DN_FULLCAR_FIELDS(DN_FIELD_DEF_)
+#undef DN_FIELD_DEF_
+  return p;
+}
+
+namespace detail {
+#define DN_ENUM_VALUE_(id, value, name, doc) value,
+inline bool is_tyre_model(int x) noexcept { return is_one_of(x, {DN_TYRE_MODEL_LIST(DN_ENUM_VALUE_)}); }
+inline bool is_steer_mode(int x) noexcept { return is_one_of(x, {DN_STEER_MODE_LIST(DN_ENUM_VALUE_)}); }
+#undef DN_ENUM_VALUE_
+}  // namespace detail
+
+// Validation (dn_fullcar_check, FullCarModel::init): DN_OK or a DN_E_* error.
+inline int check_fullcar(const dn_fullcar_params& s) noexcept {
+#define DN_CHECK_FINITE_(type, name, def, doc) \
+  if (!detail::finite_field(s.name)) return DN_E_NONFINITE_PARAM;
+  DN_FULLCAR_FIELDS(DN_CHECK_FINITE_)
+#undef DN_CHECK_FINITE_
+  const dn_fullcar_params& p = s;
+  auto pos = [](double x) { return x > 0 && std::isfinite(1.0 / x); };  // > 0, not subnormal
+  if (!pos(p.m_s) || !pos(p.i_xx) || !pos(p.i_yy) || !pos(p.i_zz) || !pos(p.m_us_f) ||
+      !pos(p.m_us_r) || !pos(p.k_t) || !pos(p.tyre_fz0))
+    return DN_E_PARAM;
+  if (!(p.a > 0) || !(p.b > 0) || !(p.t_f > 0) || !(p.t_r > 0) || !(p.h_cg > 0)) return DN_E_PARAM;
+  if (!(p.a + p.b <= 100) || !(p.t_f <= 10) || !(p.t_r <= 10) || !(p.h_cg <= 10)) return DN_E_PARAM;
+  if (p.h_rc_f < 0 || !(p.h_rc_f < p.h_cg) || p.h_rc_r < 0 || !(p.h_rc_r < p.h_cg)) return DN_E_PARAM;
+  if (p.k_s_f < 0 || p.k_s_r < 0 || p.k_arb_f < 0 || p.k_arb_r < 0 || p.c_t < 0) return DN_E_PARAM;
+  if (!(p.tyre_pky1 > 0) || !(p.tyre_pky2 > 0) || !(p.tyre_mu0 > 0) || !(p.tyre_pdy2 > -1) ||
+      !(p.tyre_pdy2 < 1) || !(p.tyre_c > 1) || !(p.tyre_c <= 2) || !(p.tyre_e >= -10) ||
+      !(p.tyre_e <= 1))
+    return DN_E_PARAM;
+  if (p.speed < 0 || p.speed > 100 || p.g < 0) return DN_E_PARAM;
+  if (!(p.steer_max > 0) || !(p.driver_preview_s > 0) || !(p.driver_preview_min_m > 0) ||
+      !(p.driver_gain > 0) || p.driver_tau_s < 0)
+    return DN_E_PARAM;
+  if (!(p.dt >= kMinDt) || p.dt > 0.1) return DN_E_PARAM;
+  if (!detail::is_tyre_model(p.tyre_model) || !detail::is_steer_mode(p.steer_mode) ||
+      !detail::is_damper_eval(p.damper_eval) || !detail::is_accel_feature(p.accel_feature))
+    return DN_E_PARAM;
+  return DN_OK;
+}
+
+// The corner positions (x_i, y_i) [m] of corner i (0 FL, 1 FR, 2 RL, 3 RR).
+inline double corner_x(const dn_fullcar_params& p, int i) noexcept { return i < 2 ? p.a : -p.b; }
+inline double corner_y(const dn_fullcar_params& p, int i) noexcept {
+  return ((i % 2) == 0 ? 0.5 : -0.5) * (i < 2 ? p.t_f : p.t_r);
+}
+
+// The corner mobility K [1/kg]: a = a_free - K (F - f_static) (see the file comment).
+inline void corner_mobility(const dn_fullcar_params& p, double K[kCorners][kCorners]) noexcept {
+  for (int i = 0; i < kCorners; ++i)
+    for (int j = 0; j < kCorners; ++j)
+      K[i][j] = 1.0 / p.m_s + corner_x(p, i) * corner_x(p, j) / p.i_yy +
+                corner_y(p, i) * corner_y(p, j) / p.i_xx +
+                (i == j ? 1.0 / (i < 2 ? p.m_us_f : p.m_us_r) : 0.0);
+}
+
+struct FullCarModel {
+  dn_fullcar_params p = default_fullcar();
+  LoopModel corner[kCorners];  // damper copy, controller, lag coefficients (m_s = 1 / G_ii)
+  double xc[kCorners] = {}, yc[kCorners] = {};  // corner positions [m]
+  double ks[kCorners] = {}, inv_mus[kCorners] = {}, n0[kCorners] = {}, k_lin[kCorners] = {};
+  double fs[kCorners] = {};  // f_static per corner [N]
+  double karb[2] = {}, geo[2] = {};  // per axle: ARB rate, h_rc / t
+  double K[kCorners][kCorners] = {};  // corner mobility [1/kg]
+  double inv_ms = 0, inv_ixx = 0, inv_iyy = 0, inv_izz = 0, inv_m = 0;
+  double h_roll = 0;  // CG height above the roll axis [m]
+  double steer_keep = 0;  // exp(-dt / driver_tau_s); 0 = no lag
+  bool any_implicit = false;  // some corner's damper reads a and accel_feature != explicit
+  int n_path = 0;
+  double path_x[DN_FULLCAR_MAX_PATH] = {}, path_y[DN_FULLCAR_MAX_PATH] = {};
+
+  // Validate and derive; DN_OK or a DN_E_* error. dampers and ctrls: 4 each.
+  int init(const dn_fullcar_params& v, const Damper* const* dampers, const dn_controller* ctrls,
+           const double* px, const double* py, int np) noexcept {
+    int st = check_fullcar(v);
+    if (st != DN_OK) return st;
+    if (np < 0 || np > DN_FULLCAR_MAX_PATH || np == 1) return DN_E_SIZE;
+    if (v.steer_mode == DN_STEER_DRIVER && np < 2) return DN_E_PARAM;
+    if (np > 0 && (!px || !py)) return DN_E_NULL;
+    for (int k = 0; k < np; ++k) {
+      if (!std::isfinite(px[k]) || !std::isfinite(py[k])) return DN_E_NONFINITE_PARAM;
+      if (k > 0 && !(px[k] > px[k - 1])) return DN_E_PARAM;
+    }
+    p = v;
+    n_path = np;
+    for (int k = 0; k < np; ++k) path_x[k] = px[k], path_y[k] = py[k];
+    const double L = v.a + v.b;
+    inv_ms = 1.0 / v.m_s;
+    inv_ixx = 1.0 / v.i_xx;
+    inv_iyy = 1.0 / v.i_yy;
+    inv_izz = 1.0 / v.i_zz;
+    inv_m = 1.0 / (v.m_s + 2 * v.m_us_f + 2 * v.m_us_r);
+    h_roll = v.h_cg - (v.b * v.h_rc_f + v.a * v.h_rc_r) / L;
+    karb[0] = v.k_arb_f;
+    karb[1] = v.k_arb_r;
+    geo[0] = v.h_rc_f / v.t_f;
+    geo[1] = v.h_rc_r / v.t_r;
+    steer_keep = v.driver_tau_s > 0 ? std::exp(-v.dt / v.driver_tau_s) : 0.0;
+    for (int i = 0; i < kCorners; ++i) {
+      const bool front = i < 2;
+      xc[i] = corner_x(v, i);
+      yc[i] = corner_y(v, i);
+      ks[i] = front ? v.k_s_f : v.k_s_r;
+      const double mus = front ? v.m_us_f : v.m_us_r;
+      inv_mus[i] = 1.0 / mus;
+      fs[i] = front ? v.f_static_f : v.f_static_r;
+      n0[i] = v.g * (v.m_s * (front ? v.b : v.a) / (2 * L) + mus);
+      k_lin[i] = cornering_stiffness(n0[i]);
+    }
+    corner_mobility(v, K);
+    any_implicit = false;
+    for (int i = 0; i < kCorners; ++i) {
+      if (!dampers[i]) return DN_E_NULL;
+      // The corner as a quarter car: its sprung mass is the body's mobility at the corner
+      // (1 / G_ii), so the corner's LoopModel derives k_rel = K_ii and every lag coefficient.
+      dn_vehicle qv = default_vehicle();
+      const bool front = i < 2;
+      qv.m_s = 1.0 / (K[i][i] - inv_mus[i]);
+      qv.m_us = front ? v.m_us_f : v.m_us_r;
+      qv.k_s = ks[i];
+      qv.k_t = v.k_t;
+      qv.c_t = v.c_t;
+      qv.dt = v.dt;
+      qv.integrator = DN_INT_RK4;
+      qv.damper_eval = v.damper_eval;
+      qv.x_static = front ? v.x_static_f : v.x_static_r;
+      qv.f_static = fs[i];
+      qv.temperature = v.temperature;
+      qv.accel_feature = v.accel_feature;
+      dn_controller c = ctrls ? ctrls[i] : default_controller(DN_CTRL_PASSIVE);
+      if (!ctrls) c.u_passive = 0.0;
+      st = corner[i].init(qv, *dampers[i], c);
+      if (st != DN_OK) return st;
+      if (corner[i].implicit_a) any_implicit = true;
+    }
+    return DN_OK;
+  }
+
+  // K(N) of the Magic Formula [N/rad].
+  double cornering_stiffness(double n) const noexcept {
+    return p.tyre_pky1 * p.tyre_fz0 * std::sin(2.0 * std::atan(n / (p.tyre_pky2 * p.tyre_fz0)));
+  }
+
+  // [RT] Lateral tyre force [N] at slip angle alpha [rad] and load n >= 0 [N], of wheel i.
+  double tyre_fy(int i, double alpha, double n) const noexcept {
+    if (!(n > 0)) return 0.0;
+    if (p.tyre_model == DN_TYRE_LINEAR) return k_lin[i] * alpha;
+    const double dfz = (n - p.tyre_fz0) / p.tyre_fz0;
+    double mu = p.tyre_mu0 * (1.0 + p.tyre_pdy2 * dfz);
+    if (mu < 0.05 * p.tyre_mu0) mu = 0.05 * p.tyre_mu0;  // far above Fz0 with pdy2 < 0
+    const double D = mu * n, C = p.tyre_c, E = p.tyre_e;
+    const double B = cornering_stiffness(n) / (C * D);
+    const double ba = B * alpha;
+    return D * std::sin(C * std::atan(ba - E * (ba - std::atan(ba))));
+  }
+
+  // [RT] The driver's path Y at x [m] (piecewise linear, ends held).
+  double path_at(double x) const noexcept {
+    if (x <= path_x[0]) return path_y[0];
+    if (x >= path_x[n_path - 1]) return path_y[n_path - 1];
+    int lo = 0, hi = n_path - 1;
+    while (hi - lo > 1) {  // at most log2(256) = 8 iterations
+      const int mid = (lo + hi) / 2;
+      if (path_x[mid] <= x) lo = mid;
+      else hi = mid;
+    }
+    const double w = (x - path_x[lo]) / (path_x[hi] - path_x[lo]);
+    return path_y[lo] + w * (path_y[hi] - path_y[lo]);
+  }
+};
+
+struct FullCarData {
+  double s[DN_FULLCAR_STATE_SIZE] = {};
+  int64_t n_evals = 0;
+};
+
+namespace detail {
+
+// The integrated motion: body, lateral and wheels (the RK4 vector).
+struct FcMotion {
+  double z, vz, phi, p, theta, q, vy, r, psi, X, Y;
+  double zus[kCorners], vus[kCorners];
+};
+constexpr int kFcMotion = 11 + 2 * kCorners;
+static_assert(sizeof(FcMotion) == kFcMotion * sizeof(double), "FcMotion is a flat vector");
+
+inline const double* vec(const FcMotion& m) noexcept { return &m.z; }
+inline double* vec(FcMotion& m) noexcept { return &m.z; }
+
+// Everything of one evaluation point that does not depend on the damper forces.
+struct FcFree {
+  double zb[kCorners], vb[kCorners];  // body corner height, velocity
+  double dfl[kCorners];               // suspension deflection d_i
+  double fs_free[kCorners];           // F_s,i without the damper's share
+  double ftz[kCorners], load[kCorners], fy[kCorners], fgeo[kCorners];
+  double alpha_f, alpha_r, a_y, dvy, dr;
+};
+
+inline FcFree free_forces(const FullCarModel& m, const FcMotion& y, const double* zr,
+                          const double* vr, double delta) noexcept {
+  const dn_fullcar_params& p = m.p;
+  FcFree f;
+  for (int i = 0; i < kCorners; ++i) {
+    f.zb[i] = y.z + m.yc[i] * y.phi - m.xc[i] * y.theta;
+    f.vb[i] = y.vz + m.yc[i] * y.p - m.xc[i] * y.q;
+    f.dfl[i] = f.zb[i] - y.zus[i];
+    double t = -p.k_t * (y.zus[i] - zr[i]) - p.c_t * (y.vus[i] - vr[i]);
+    if (t < -m.n0[i]) t = -m.n0[i];  // lift-off: the tyre cannot pull
+    f.ftz[i] = t;
+    f.load[i] = m.n0[i] + t;
+  }
+  for (int ax = 0; ax < 2; ++ax) {
+    const int l = 2 * ax, r = l + 1;
+    const double farb = m.karb[ax] * (f.dfl[l] - f.dfl[r]);
+    f.fs_free[l] = -m.ks[l] * f.dfl[l] - farb;
+    f.fs_free[r] = -m.ks[r] * f.dfl[r] + farb;
+  }
+  const double U = p.speed;
+  if (U > 0) {
+    f.alpha_f = delta - std::atan((y.vy + p.a * y.r) / U);
+    f.alpha_r = -std::atan((y.vy - p.b * y.r) / U);
+    for (int i = 0; i < kCorners; ++i) f.fy[i] = m.tyre_fy(i, i < 2 ? f.alpha_f : f.alpha_r, f.load[i]);
+    const double fyf = (f.fy[0] + f.fy[1]) * std::cos(delta), fyr = f.fy[2] + f.fy[3];
+    f.a_y = (fyf + fyr) * m.inv_m;
+    f.dvy = f.a_y - U * y.r;
+    f.dr = (p.a * fyf - p.b * fyr) * m.inv_izz;
+    f.fgeo[0] = fyf * m.geo[0];
+    f.fgeo[1] = -f.fgeo[0];
+    f.fgeo[2] = fyr * m.geo[1];
+    f.fgeo[3] = -f.fgeo[2];
+  } else {
+    f.alpha_f = f.alpha_r = f.a_y = f.dvy = f.dr = 0.0;
+    for (int i = 0; i < kCorners; ++i) f.fy[i] = f.fgeo[i] = 0.0;
+  }
+  return f;
+}
+
+// Body and wheel accelerations for damper forces F (dF = F - f_static per corner).
+struct FcAccel {
+  double az, aphi, atheta, aus[kCorners];
+};
+
+inline FcAccel accelerations(const FullCarModel& m, const FcMotion& y, const FcFree& f,
+                             const double* dF) noexcept {
+  FcAccel a;
+  double sz = 0, sth = 0, sph = 0;
+  double fsi[kCorners];
+  for (int i = 0; i < kCorners; ++i) {
+    fsi[i] = f.fs_free[i] - dF[i];
+    sz += fsi[i];
+    sth -= m.xc[i] * fsi[i];
+    sph += m.yc[i] * fsi[i];
+  }
+  const double mh = m.p.m_s * m.h_roll;
+  a.az = sz * m.inv_ms;
+  a.atheta = sth * m.inv_iyy;
+  a.aphi = (sph + mh * f.a_y + mh * m.p.g * y.phi) * m.inv_ixx;
+  for (int i = 0; i < kCorners; ++i) a.aus[i] = (-fsi[i] + f.ftz[i] + f.fgeo[i]) * m.inv_mus[i];
+  return a;
+}
+
+// Relative (damper) accelerations a_i = z_b,i'' - z_us,i''.
+inline void relative_accel(const FullCarModel& m, const FcAccel& a, double* out) noexcept {
+  for (int i = 0; i < kCorners; ++i)
+    out[i] = a.az + m.yc[i] * a.aphi - m.xc[i] * a.atheta - a.aus[i];
+}
+
+// The motion's time derivative for given accelerations.
+inline FcMotion derivative(const FullCarModel& m, const FcMotion& y, const FcFree& f,
+                           const FcAccel& a) noexcept {
+  FcMotion d;
+  const double U = m.p.speed;
+  d.z = y.vz;
+  d.vz = a.az;
+  d.phi = y.p;
+  d.p = a.aphi;
+  d.theta = y.q;
+  d.q = a.atheta;
+  d.vy = f.dvy;
+  d.r = f.dr;
+  d.psi = U > 0 ? y.r : 0.0;
+  d.X = U > 0 ? U * std::cos(y.psi) - y.vy * std::sin(y.psi) : 0.0;
+  d.Y = U > 0 ? U * std::sin(y.psi) + y.vy * std::cos(y.psi) : 0.0;
+  for (int i = 0; i < kCorners; ++i) {
+    d.zus[i] = y.vus[i];
+    d.vus[i] = a.aus[i];
+  }
+  return d;
+}
+
+// Solve A x = b (4x4) by Gaussian elimination with partial pivoting; false when singular or
+// non-finite. Fixed loops, no allocation.
+inline bool solve4(double A[kCorners][kCorners], double* b) noexcept {
+  for (int c = 0; c < kCorners; ++c) {
+    int piv = c;
+    for (int r = c + 1; r < kCorners; ++r)
+      if (std::fabs(A[r][c]) > std::fabs(A[piv][c])) piv = r;
+    if (!(std::fabs(A[piv][c]) > 1e-300)) return false;
+    if (piv != c) {
+      for (int k = 0; k < kCorners; ++k) {
+        const double t = A[c][k];
+        A[c][k] = A[piv][k];
+        A[piv][k] = t;
+      }
+      const double t = b[c];
+      b[c] = b[piv];
+      b[piv] = t;
+    }
+    for (int r = c + 1; r < kCorners; ++r) {
+      const double f = A[r][c] / A[c][c];
+      for (int k = c; k < kCorners; ++k) A[r][k] -= f * A[c][k];
+      b[r] -= f * b[c];
+    }
+  }
+  for (int c = kCorners - 1; c >= 0; --c) {
+    double s = b[c];
+    for (int k = c + 1; k < kCorners; ++k) s -= A[c][k] * b[k];
+    b[c] = s / A[c][c];
+  }
+  for (int c = 0; c < kCorners; ++c)
+    if (!std::isfinite(b[c])) return false;
+  return true;
+}
+
+// [RT] The four corners' damper evaluations at one point (the one place the dampers are
+// called). in[i].a holds the explicit acceleration feature (from f_last) on entry and the
+// value used on return; f_last: the forces it came from. Returns the OR of the corners'
+// warnings, or the first error.
+inline int evaluate_corners(const FullCarModel& m, dn_damper_input* in, const double* f_last,
+                            double* F, double* feat_out, uint32_t* mask,
+                            int64_t* n_evals) noexcept {
+  int status = DN_OK;
+  auto merge = [&status](int st) noexcept {
+    if (st < 0) {
+      if (status >= 0) status = st;
+    } else if (status >= 0) {
+      status |= st;
+    }
+  };
+  if (!m.any_implicit) {
+    for (int i = 0; i < kCorners; ++i) {
+      const LoopModel& c = m.corner[i];
+      merge(diverged_if_overflow(c, c.damper.force(in[i], &F[i],
+                                                   feat_out ? feat_out + i * DN_MAX_INPUTS : nullptr,
+                                                   mask ? &mask[i] : nullptr)));
+    }
+    *n_evals += kCorners;
+    return status;
+  }
+  // The coupled acceleration: a_free from the explicit values, Newton on the 4-vector.
+  double a_free[kCorners], a0[kCorners];
+  for (int i = 0; i < kCorners; ++i) {
+    double s = 0;
+    for (int j = 0; j < kCorners; ++j) s += m.K[i][j] * (f_last[j] - m.fs[j]);
+    a0[i] = in[i].a;
+    a_free[i] = in[i].a + s;
+  }
+  const bool linear = m.p.accel_feature == DN_ACCEL_LINEAR;
+  const int max_iter = linear ? 1 : DN_ACCEL_MAX_EVALS;
+  double best_F[kCorners], best_a[kCorners], best_g = INFINITY;
+  uint32_t best_mask[kCorners] = {};
+  int best_status = DN_OK;
+  bool done = false;
+  for (int it = 0; it < max_iter && !done; ++it) {
+    double f0[kCorners], D[kCorners], g[kCorners];
+    uint32_t mk[kCorners] = {};
+    int st_it = DN_OK;
+    for (int i = 0; i < kCorners; ++i) {
+      const LoopModel& c = m.corner[i];
+      D[i] = 0.0;
+      int st;
+      if (c.implicit_a) st = diverged_if_overflow(c, c.damper.force_da(in[i], &f0[i], &D[i], &mk[i]));
+      else if (it == 0) st = diverged_if_overflow(c, c.damper.force(in[i], &f0[i], nullptr, &mk[i]));
+      else {  // a corner not reading a: its first force stands
+        f0[i] = best_F[i];
+        mk[i] = best_mask[i];
+        continue;
+      }
+      *n_evals += 1;
+      if (st < 0) {
+        if (st_it >= 0) st_it = st;
+      } else if (st_it >= 0) {
+        st_it |= st;
+      }
+    }
+    if (st_it < 0) {  // an error: as the explicit scheme (the error is the step's)
+      if (it == 0) {
+        for (int i = 0; i < kCorners; ++i) F[i] = f0[i];
+        return st_it;
+      }
+      break;
+    }
+    double gmax = 0;
+    for (int i = 0; i < kCorners; ++i) {
+      double s = 0;
+      for (int j = 0; j < kCorners; ++j) s += m.K[i][j] * (f0[j] - m.fs[j]);
+      g[i] = in[i].a - a_free[i] + s;
+      const double tol = 1e-7 * (1.0 + std::fabs(a_free[i])) +
+                         m.K[i][i] * m.corner[i].f_eps * (1.0 + std::fabs(f0[i]));
+      double rel = std::fabs(g[i]) / tol;
+      if (!std::isfinite(rel)) rel = INFINITY;  // never converged, never the best
+      if (rel > gmax) gmax = rel;
+    }
+    if (gmax < best_g || it == 0) {
+      best_g = gmax;
+      best_status = st_it;
+      for (int i = 0; i < kCorners; ++i) best_F[i] = f0[i], best_a[i] = in[i].a, best_mask[i] = mk[i];
+    }
+    if (!linear && gmax <= 1.0) {
+      done = true;
+      break;
+    }
+    // Newton step: (I + K D) da = -g
+    double A[kCorners][kCorners], da[kCorners];
+    bool ok = true;
+    for (int i = 0; i < kCorners; ++i) {
+      for (int j = 0; j < kCorners; ++j) A[i][j] = (i == j ? 1.0 : 0.0) + m.K[i][j] * D[j];
+      if (linear && !(A[i][i] >= DN_ACCEL_LINEAR_MIN_SLOPE)) ok = false;
+      da[i] = -g[i];
+    }
+    ok = ok && solve4(A, da);
+    if (linear) {
+      if (!ok) {
+        for (int i = 0; i < kCorners; ++i) F[i] = f0[i], in[i].a = a0[i];
+        if (mask)
+          for (int i = 0; i < kCorners; ++i) mask[i] = mk[i];
+        status = st_it | DN_W_ACCEL_FALLBACK;
+      } else {
+        for (int i = 0; i < kCorners; ++i) {
+          F[i] = f0[i] + D[i] * da[i];
+          in[i].a = a0[i] + da[i];
+        }
+        if (mask)
+          for (int i = 0; i < kCorners; ++i) mask[i] = mk[i];
+        status = st_it;
+      }
+      if (feat_out)
+        for (int i = 0; i < kCorners; ++i)
+          m.corner[i].damper.feature_values(in[i], feat_out + i * DN_MAX_INPUTS);
+      return status;
+    }
+    if (!ok) break;
+    for (int i = 0; i < kCorners; ++i) in[i].a += da[i];
+  }
+  for (int i = 0; i < kCorners; ++i) F[i] = best_F[i], in[i].a = best_a[i];
+  if (mask)
+    for (int i = 0; i < kCorners; ++i) mask[i] = best_mask[i];
+  if (feat_out)
+    for (int i = 0; i < kCorners; ++i)
+      m.corner[i].damper.feature_values(in[i], feat_out + i * DN_MAX_INPUTS);
+  return done ? best_status : (best_status | DN_W_ACCEL_UNCONVERGED);
+}
+
+// The damper inputs at one evaluation point (a from the explicit forces f_last).
+inline void corner_inputs(const FullCarModel& m, const FcMotion& y, const FcFree& f,
+                          const double* f_last, const double* u, const double* ul,
+                          const MotionLag* lag, const double* temp, double t, int stage,
+                          dn_damper_input* in) noexcept {
+  double dF[kCorners], arel[kCorners];
+  for (int i = 0; i < kCorners; ++i) dF[i] = f_last[i] - m.fs[i];
+  relative_accel(m, accelerations(m, y, f, dF), arel);
+  for (int i = 0; i < kCorners; ++i) {
+    dn_damper_input d = unfilled_input();
+    d.x = f.dfl[i] + m.corner[i].veh.x_static;
+    d.v = f.vb[i] - y.vus[i];
+    d.a = arel[i];
+    d.u = u[i];
+    d.u_lag = ul[i];
+    d.v_lag = lag[i].v_lag;
+    d.z_fric = lag[i].z_fric;
+    d.temperature = temp[i];
+    d.t = t;
+    d.dt = m.p.dt;
+    d.stage = stage;
+    in[i] = d;
+  }
+}
+
+inline FcMotion motion_of(const double* s) noexcept {
+  FcMotion y;
+  y.z = s[FC_z];
+  y.vz = s[FC_vz];
+  y.phi = s[FC_phi];
+  y.p = s[FC_p];
+  y.theta = s[FC_theta];
+  y.q = s[FC_q];
+  y.vy = s[FC_vy];
+  y.r = s[FC_r];
+  y.psi = s[FC_psi];
+  y.X = s[FC_x_pos];
+  y.Y = s[FC_y_pos];
+  for (int i = 0; i < kCorners; ++i) {
+    y.zus[i] = s[fc_corner(i, FCC_z_us)];
+    y.vus[i] = s[fc_corner(i, FCC_v_us)];
+  }
+  return y;
+}
+
+inline void store_motion(const FcMotion& y, double* s) noexcept {
+  s[FC_z] = y.z;
+  s[FC_vz] = y.vz;
+  s[FC_phi] = y.phi;
+  s[FC_p] = y.p;
+  s[FC_theta] = y.theta;
+  s[FC_q] = y.q;
+  s[FC_vy] = y.vy;
+  s[FC_r] = y.r;
+  s[FC_psi] = y.psi;
+  s[FC_x_pos] = y.X;
+  s[FC_y_pos] = y.Y;
+  for (int i = 0; i < kCorners; ++i) {
+    s[fc_corner(i, FCC_z_us)] = y.zus[i];
+    s[fc_corner(i, FCC_v_us)] = y.vus[i];
+  }
+}
+
+// The road-wheel angle applied over the step starting at state s.
+inline double steer_for_step(const FullCarModel& m, const double* s, double steer_in) noexcept {
+  const dn_fullcar_params& p = m.p;
+  double cmd;
+  if (p.steer_mode == DN_STEER_DRIVER) {
+    const double U = p.speed;
+    double l = p.driver_preview_s * U;
+    if (l < p.driver_preview_min_m) l = p.driver_preview_min_m;
+    const double px = s[FC_x_pos] + l * std::cos(s[FC_psi]);
+    const double py = s[FC_y_pos] + l * std::sin(s[FC_psi]);
+    const double e = m.path_at(px) - py;
+    cmd = p.driver_gain * 2.0 * (p.a + p.b) * e / (l * l);
+  } else {
+    cmd = steer_in;
+  }
+  cmd = clamp(cmd, -p.steer_max, p.steer_max);
+  if (m.steer_keep > 0.0) cmd = cmd + (s[FC_steer] - cmd) * m.steer_keep;
+  return clamp(cmd, -p.steer_max, p.steer_max);  // a set_state steer may be out of range
+}
+
+// Everything at the step start: controls, steering, first evaluation, report.
+struct FcStart {
+  double u[kCorners], F[kCorners], delta;
+  FcFree f;
+  FcAccel acc;
+  int status;
+};
+
+inline FcStart fc_start(const FullCarModel& m, const double* s, const dn_fullcar_input& in,
+                        dn_fullcar_out* out, int64_t* n_evals) noexcept {
+  FcStart r;
+  const FcMotion y = motion_of(s);
+  r.delta = steer_for_step(m, s, in.steer);
+  double zr[kCorners], vr[kCorners], ul[kCorners], fl[kCorners], temp[kCorners];
+  MotionLag lag[kCorners];
+  for (int i = 0; i < kCorners; ++i) {
+    const LoopModel& c = m.corner[i];
+    zr[i] = s[fc_corner(i, FCC_z_r)];
+    vr[i] = s[fc_corner(i, FCC_v_r)];
+    ul[i] = s[fc_corner(i, FCC_u_lag)];
+    fl[i] = s[fc_corner(i, FCC_f_last)];
+    temp[i] = s[fc_corner(i, FCC_temperature)];
+    lag[i] = {s[fc_corner(i, FCC_v_lag)], s[fc_corner(i, FCC_z_fric)]};
+    const double vb = y.vz + m.yc[i] * y.p - m.xc[i] * y.q;
+    double u = control_law(c.ctrl, vb, y.vus[i], in.u[i]);
+    if (c.cmd_keep > 0.0)
+      u = clamp(u + (s[fc_corner(i, FCC_u_cmd)] - u) * c.cmd_keep, c.ctrl.u_min, c.ctrl.u_max);
+    r.u[i] = u;
+  }
+  r.f = free_forces(m, y, zr, vr, r.delta);
+  dn_damper_input di[kCorners];
+  corner_inputs(m, y, r.f, fl, r.u, ul, lag, temp, s[FC_t], 0, di);
+  double feat[kCorners * DN_MAX_INPUTS];
+  uint32_t mask[kCorners] = {};
+  r.status = evaluate_corners(m, di, fl, r.F, out ? feat : nullptr, mask, n_evals);
+  double dF[kCorners];
+  for (int i = 0; i < kCorners; ++i) dF[i] = r.F[i] - m.fs[i];
+  r.acc = accelerations(m, y, r.f, dF);
+  double sum = r.acc.az + r.acc.aphi + r.acc.atheta + r.f.a_y + r.f.dr;
+  for (int i = 0; i < kCorners; ++i) sum += r.acc.aus[i] + di[i].a + di[i].x + di[i].v + r.f.fy[i];
+  if (r.status >= 0 && !std::isfinite(sum)) r.status = DN_E_DIVERGED;
+  if (out) {
+    double arel[kCorners];
+    relative_accel(m, r.acc, arel);
+    for (int i = 0; i < kCorners; ++i) {
+      out->force[i] = r.F[i];
+      out->u[i] = r.u[i];
+      out->x[i] = di[i].x;
+      out->v[i] = di[i].v;
+      out->a[i] = di[i].a;
+      out->acc_s[i] = arel[i] + r.acc.aus[i];
+      out->acc_us[i] = r.acc.aus[i];
+      out->tyre_load[i] = r.f.load[i];
+      out->tyre_fy[i] = r.f.fy[i];
+      out->clamped_mask[i] = mask[i];
+    }
+    out->acc_z = r.acc.az;
+    out->acc_phi = r.acc.aphi;
+    out->acc_theta = r.acc.atheta;
+    out->a_y = r.f.a_y;
+    out->steer = r.delta;
+    out->slip_f = r.f.alpha_f;
+    out->slip_r = r.f.alpha_r;
+    out->beta = m.p.speed > 0 ? std::atan(y.vy / m.p.speed) : 0.0;
+  }
+  return r;
+}
+
+inline bool finite_input(const FullCarModel& m, const dn_fullcar_input& in, bool road) noexcept {
+  for (int i = 0; i < kCorners; ++i) {
+    if (road && (!std::isfinite(in.z_r[i]) || !std::isfinite(in.v_r[i]))) return false;
+    if (m.corner[i].ctrl.kind == DN_CTRL_EXTERNAL && !std::isfinite(in.u[i])) return false;
+  }
+  return m.p.steer_mode == DN_STEER_DRIVER || std::isfinite(in.steer);
+}
+
+}  // namespace detail
+
+// [RT] Reset to rest (see dn_fullcar_reset).
+inline void reset(const FullCarModel& m, FullCarData& d) noexcept {
+  for (double& x : d.s) x = 0.0;
+  for (int i = 0; i < kCorners; ++i) {
+    const LoopModel& c = m.corner[i];
+    const double u0 = c.ctrl.kind == DN_CTRL_EXTERNAL ? 0.0 : control_law(c.ctrl, 0.0, 0.0, 0.0);
+    d.s[fc_corner(i, FCC_u_lag)] = u0;
+    d.s[fc_corner(i, FCC_u_cmd)] = u0;
+    d.s[fc_corner(i, FCC_f_last)] = m.fs[i];
+    d.s[fc_corner(i, FCC_temperature)] = m.p.temperature;
+  }
+}
+
+// [RT] What step() would report, without advancing.
+DN_REALTIME inline int forward(const FullCarModel& m, const FullCarData& d,
+                               const dn_fullcar_input& in, dn_fullcar_out* out) noexcept {
+  if (!detail::finite_input(m, in, false)) return DN_E_NONFINITE_INPUT;
+  int64_t n = 0;
+  return detail::fc_start(m, d.s, in, out, &n).status;
+}
+
+// [RT] One step (see the file comment and dn_fullcar_step).
+DN_REALTIME inline int step(const FullCarModel& m, FullCarData& d, const dn_fullcar_input& in,
+                            dn_fullcar_out* out) noexcept {
+  using namespace detail;
+  if (!finite_input(m, in, true)) return DN_E_NONFINITE_INPUT;
+  const double* s = d.s;
+  const double h = m.p.dt;
+  const FcStart r = fc_start(m, s, in, out, &d.n_evals);
+  int status = r.status;
+  if (status < 0) return status;
+
+  const double t0 = s[FC_t];
+  const FcMotion y0 = motion_of(s);
+  double ul0[kCorners], ul_mid[kCorners], ul_end[kCorners], temp[kCorners];
+  double zr0[kCorners], vr0[kCorners], zrm[kCorners], vrm[kCorners];
+  double vrel0[kCorners], xrel0[kCorners], f_last[kCorners];
+  MotionLag lag0[kCorners];
+  for (int i = 0; i < kCorners; ++i) {
+    const LoopModel& c = m.corner[i];
+    const double u = r.u[i];
+    ul0[i] = s[fc_corner(i, FCC_u_lag)];
+    const bool has_lag = c.lag_full > 0.0;
+    ul_mid[i] = has_lag ? u + (ul0[i] - u) * c.lag_half : u;
+    ul_end[i] = has_lag ? u + (ul0[i] - u) * c.lag_full : u;
+    temp[i] = s[fc_corner(i, FCC_temperature)];
+    zr0[i] = s[fc_corner(i, FCC_z_r)];
+    vr0[i] = s[fc_corner(i, FCC_v_r)];
+    // road at mid-step: cubic Hermite of (zr0, vr0) -> (zr1, vr1), as the quarter car
+    zrm[i] = 0.5 * (zr0[i] + in.z_r[i]) + 0.125 * h * (vr0[i] - in.v_r[i]);
+    vrm[i] = 1.5 * (in.z_r[i] - zr0[i]) / h - 0.25 * (vr0[i] + in.v_r[i]);
+    lag0[i] = {s[fc_corner(i, FCC_v_lag)], s[fc_corner(i, FCC_z_fric)]};
+    vrel0[i] = r.f.vb[i] - y0.vus[i];
+    xrel0[i] = r.f.dfl[i];
+    f_last[i] = r.F[i];
+  }
+  const bool per_stage = m.p.damper_eval == DN_EVAL_PER_STAGE;
+  // The derivative at a stage point: dampers evaluated (per_stage) or held (per_step).
+  auto stage_deriv = [&](const FcMotion& y, const double* zr, const double* vr,
+                         const double* ul, double t, int stage) noexcept -> FcMotion {
+    const FcFree f = free_forces(m, y, zr, vr, r.delta);
+    double F[kCorners];
+    if (per_stage) {
+      const bool half = stage < 3;
+      MotionLag lag[kCorners];
+      for (int i = 0; i < kCorners; ++i) {
+        const LoopModel& c = m.corner[i];
+        lag[i] = motion_lag(c, lag0[i], vrel0[i], xrel0[i], f.vb[i] - y.vus[i], f.dfl[i],
+                            half ? c.vlag_a_half : c.vlag_a_full, half ? c.vlag_g_half : c.vlag_g_full);
+      }
+      dn_damper_input di[kCorners];
+      corner_inputs(m, y, f, f_last, r.u, ul, lag, temp, t, stage, di);
+      const int st = evaluate_corners(m, di, f_last, F, nullptr, nullptr, &d.n_evals);
+      if (st < 0) status = st;
+      else if (status >= 0) status |= st;
+      for (int i = 0; i < kCorners; ++i) f_last[i] = F[i];
+    } else {
+      for (int i = 0; i < kCorners; ++i) F[i] = r.F[i];
+    }
+    double dF[kCorners];
+    for (int i = 0; i < kCorners; ++i) dF[i] = F[i] - m.fs[i];
+    return derivative(m, y, f, accelerations(m, y, f, dF));
+  };
+  auto axpy = [](const FcMotion& y, double c, const FcMotion& k) noexcept {
+    FcMotion o;
+    const double* a = vec(y);
+    const double* b = vec(k);
+    double* w = vec(o);
+    for (int j = 0; j < kFcMotion; ++j) w[j] = a[j] + c * b[j];
+    return o;
+  };
+  const FcMotion k1 = derivative(m, y0, r.f, r.acc);
+  const FcMotion y1 = axpy(y0, 0.5 * h, k1);
+  const FcMotion k2 = stage_deriv(y1, zrm, vrm, ul_mid, t0 + 0.5 * h, 1);
+  const FcMotion y2 = axpy(y0, 0.5 * h, k2);
+  const FcMotion k3 = stage_deriv(y2, zrm, vrm, ul_mid, t0 + 0.5 * h, 2);
+  const FcMotion y3 = axpy(y0, h, k3);
+  const FcMotion k4 = stage_deriv(y3, in.z_r, in.v_r, ul_end, t0 + h, 3);
+  if (status < 0) return status;
+  FcMotion y;
+  {
+    const double h6 = h / 6.0;
+    const double *a = vec(y0), *b1 = vec(k1), *b2 = vec(k2), *b3 = vec(k3), *b4 = vec(k4);
+    double* w = vec(y);
+    for (int j = 0; j < kFcMotion; ++j) w[j] = a[j] + h6 * (b1[j] + 2 * b2[j] + 2 * b3[j] + b4[j]);
+  }
+  double ns[DN_FULLCAR_STATE_SIZE];
+  for (int j = 0; j < DN_FULLCAR_STATE_SIZE; ++j) ns[j] = s[j];
+  store_motion(y, ns);
+  ns[FC_t] = t0 + h;
+  ns[FC_steer] = r.delta;
+  double check = 0.0;
+  for (int j = 0; j < kFcMotion; ++j) check += vec(y)[j];
+  for (int i = 0; i < kCorners; ++i) {
+    const LoopModel& c = m.corner[i];
+    ns[fc_corner(i, FCC_z_r)] = in.z_r[i];
+    ns[fc_corner(i, FCC_v_r)] = in.v_r[i];
+    ns[fc_corner(i, FCC_u_lag)] = ul_end[i];
+    ns[fc_corner(i, FCC_u_cmd)] = r.u[i];
+    ns[fc_corner(i, FCC_f_last)] = f_last[i];
+    const double zb = y.z + m.yc[i] * y.phi - m.xc[i] * y.theta;
+    const double vb = y.vz + m.yc[i] * y.p - m.xc[i] * y.q;
+    if (c.has_vlag || c.inv_presliding > 0) {
+      const MotionLag l1 = motion_lag(c, lag0[i], vrel0[i], xrel0[i], vb - y.vus[i],
+                                      zb - y.zus[i], c.vlag_a_full, c.vlag_g_full);
+      ns[fc_corner(i, FCC_v_lag)] = l1.v_lag;
+      ns[fc_corner(i, FCC_z_fric)] = l1.z_fric;
+    } else {
+      ns[fc_corner(i, FCC_v_lag)] = vb - y.vus[i];
+    }
+    check += ns[fc_corner(i, FCC_v_lag)] + ns[fc_corner(i, FCC_z_fric)];
+  }
+  if (!std::isfinite(check)) return DN_E_DIVERGED;
+  for (int j = 0; j < DN_FULLCAR_STATE_SIZE; ++j) d.s[j] = ns[j];
+  return status;
+}
+
+}  // namespace dampnet
