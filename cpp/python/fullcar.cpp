@@ -323,8 +323,9 @@ class PyFullCar {
     int32_t* ST = status.mutable_data();
     uint32_t* MK = masks.mutable_data();
     const double *R = road.data(), *RR = rate.data();
-    const double* SS = steer ? steer.data() : nullptr;
-    const double* UU = u ? u.data() : nullptr;
+    // a default DArray is an empty array, not a null handle: whether given is the argument's
+    const double* SS = steer_h.is_none() ? nullptr : steer.data();
+    const double* UU = u_h.is_none() ? nullptr : u.data();
     const dn_fullcar_model* m = model->m.get();
     dn_fullcar_data* dd = d.get();
     py::ssize_t fail_at = -1;

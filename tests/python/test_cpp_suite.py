@@ -31,11 +31,15 @@ def test_no_allocation_in_a_plain_build(plain_build):
     hook counts them: the ctest run above). Each program first checks that its counter
     sees every entry point, then counts through the forward calls and loop steps (every
     damper, integrator, law and accel_feature mode)."""
-    run(["cmake", "--build", plain_build, "--target", "test_no_alloc", "test_loop_no_alloc"])
-    for exe in ("test_no_alloc", "test_loop_no_alloc"):
-        out = run([plain_build / "tests" / "cpp" / exe]).stdout
+    run(["cmake", "--build", plain_build, "--target", "test_no_alloc", "test_loop_no_alloc", "test_fullcar"])
+    outs = {}
+    for exe in ("test_no_alloc", "test_loop_no_alloc", "test_fullcar"):
+        outs[exe] = out = run([plain_build / "tests" / "cpp" / exe]).stdout
         assert "NOT counted" not in out and "all checks passed" in out, out
-    assert "steps per accel_feature mode (implicit, linear, explicit): 432000 432000 432000" in out
+    assert ("steps per accel_feature mode (implicit, linear, explicit): 432000 432000 432000"
+            in outs["test_loop_no_alloc"])
+    # the full car: 2 damper_eval x 3 accel_feature x 2 steering modes x 4000 steps
+    assert "full car: allocations during 48000 steps: 0, errors 0" in outs["test_fullcar"]
 
 
 def test_find_package_consumer_links_and_runs(installed_prefix, tmp_path):
