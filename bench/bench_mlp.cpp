@@ -1,7 +1,8 @@
 // Latency of single-sample MLP forward calls (what a HIL step does), for the
 // default 3-30-1 model compiled in from its generated header, and of the
 // quarter-car RK4 step with that model as a float neural damper and on-off
-// skyhook (the HIL budget's case), through the C ABI.
+// skyhook (the HIL budget's case), and of the full vehicle's step with four such dampers,
+// through the C ABI.
 // Usage: dn_bench_mlp [N]   (N timed calls per candidate, default 1e6)
 // Output: one JSON line per candidate (ns), a machine-facts line first.
 #include <cmath>
@@ -190,6 +191,61 @@ int main(int argc, char** argv) {
     dn_bench::print_json(variant_names[j], dn_bench::measure(
         [&](long i) { step_errors += dn_loop_step(me, ld, &road[i & 4095], nullptr) < 0; },
         [&] { dn_loop_set_state(ld, saved); }, n, warm, 1000));
+  }
+  // The full vehicle (fullcar.hpp): four neural dampers (the same float model), on-off skyhook
+  // at every corner, Magic-Formula tyres, open-loop steering; each corner its own road.
+  // FULLCAR_CASE: the HIL configuration (damper and tyres once per step, linearised a).
+  {
+    dn_damper* corners[4] = {damper, damper, damper, damper};
+    dn_controller ctrls[4] = {ctrl, ctrl, ctrl, ctrl};
+    std::vector<dn_fullcar_input> froad(4096);
+    for (size_t k = 0; k < froad.size(); ++k) {
+      const double t = double(k + 1) * 1e-3, w1 = 2 * M_PI * 1.3, w2 = 2 * M_PI * 11.0;
+      dn_fullcar_input& in = froad[k];
+      for (int c = 0; c < 4; ++c) {
+        const double ph = 0.9 * c;
+        in.z_r[c] = 0.015 * std::sin(w1 * t + ph) + 0.005 * std::sin(w2 * t + 2 * ph);
+        in.v_r[c] = 0.015 * w1 * std::cos(w1 * t + ph) + 0.005 * w2 * std::cos(w2 * t + 2 * ph);
+        in.u[c] = 0.0;
+      }
+      in.steer = 0.03 * std::sin(2 * M_PI * 0.5 * t);
+    }
+    struct FcCase {
+      const char* name;
+      int eval, precision;
+    };
+    const FcCase fc_cases[3] = {
+        {"fullcar_step_rk4_per_step_eval_neural_float_skyhook_linear_accel", DN_EVAL_PER_STEP, DN_PRECISION_FLOAT},
+        {"fullcar_step_rk4_per_step_eval_neural_double_skyhook_linear_accel", DN_EVAL_PER_STEP, DN_PRECISION_DOUBLE},
+        {"fullcar_step_rk4_neural_float_skyhook_linear_accel", DN_EVAL_PER_STAGE, DN_PRECISION_FLOAT}};
+    const char* const feats[3] = {"velocity", "acceleration", "voltage"};
+    double fsaved[DN_FULLCAR_STATE_SIZE];
+    for (const FcCase& fc : fc_cases) {
+      dn_damper* dd = nullptr;
+      if (dn_damper_create_neural(cm, feats, 3, nullptr, nullptr, 0, fc.precision, &dd)) return 1;
+      for (auto& c : corners) c = dd;
+      dn_fullcar_params fp;
+      dn_fullcar_default(&fp);
+      fp.damper_eval = fc.eval;
+      fp.accel_feature = DN_ACCEL_LINEAR;
+      dn_fullcar_model* fm = nullptr;
+      dn_fullcar_data* fd = nullptr;
+      if (dn_fullcar_model_create(&fp, corners, ctrls, nullptr, nullptr, 0, &fm) ||
+          dn_fullcar_data_create(fm, &fd))
+        return 1;
+      for (int k = 0; k < 2000; ++k) step_errors += dn_fullcar_step(fm, fd, &froad[k & 4095], nullptr) < 0;
+      dn_fullcar_get_state(fd, fsaved);
+      dn_bench::print_json(fc.name, dn_bench::measure(
+          [&](long i) { step_errors += dn_fullcar_step(fm, fd, &froad[i & 4095], nullptr) < 0; },
+          [&] { dn_fullcar_set_state(fd, fsaved); }, n, warm, 1000));
+      // plausible output after the timed steps: a finite state, a body that moved
+      double s[DN_FULLCAR_STATE_SIZE];
+      dn_fullcar_get_state(fd, s);
+      for (double x : s) step_errors += !std::isfinite(x);
+      dn_fullcar_data_destroy(fd);
+      dn_fullcar_model_destroy(fm);
+      dn_damper_destroy(dd);
+    }
   }
   dn_loop_data_destroy(ld);
   dn_loop_model_destroy(lm);

@@ -45,11 +45,16 @@ def test_dampnet_bench_quick_runs_and_reports_the_budget(tmp_path):
     verdict = "-> GO" if proc.returncode == 0 else "-> NO-GO"
     assert "HIL budget" in proc.stdout and verdict in proc.stdout
     res = json.loads(out.read_text())
-    for case in ("clock_overhead", "dampnet_static_float", "naive_cpp_std_tanh", "loop_step_rk4_neural_float_skyhook"):
+    for case in ("clock_overhead", "dampnet_static_float", "naive_cpp_std_tanh", "loop_step_rk4_neural_float_skyhook",
+                 "fullcar_step_rk4_per_step_eval_neural_float_skyhook_linear_accel",
+                 "fullcar_step_rk4_neural_float_skyhook_linear_accel"):
         r = res["results"][case]
         assert r["n"] == 20000 and 0 < r["p50_ns"] <= r["p99_ns"] <= r["p999_ns"] <= r["max_ns"]
     assert res["budget"]["p999_budget_ns"] == 1000.0
     assert (proc.returncode == 0) == res["headroom"]["within_budget"]
+    fc = res["fullcar"]  # the full vehicle's step against its targets, reported beside the budget
+    assert fc["p50_ns"] == res["results"][fc["case"]]["p50_ns"] and fc["p999_target_ns"] == 2000.0
+    assert "full vehicle: " in proc.stdout
 
 
 def _bench(*args, harness_dir, timeout=600):

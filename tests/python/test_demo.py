@@ -8,6 +8,8 @@ program is compiled against the installed headers and library."""
 from __future__ import annotations
 
 import json
+
+import numpy as np
 import shutil
 
 import pytest
@@ -35,13 +37,22 @@ def test_demo_tells_the_whole_story(demo_out):
     assert summary["diagnosis"]["hidden_effect"] not in summary["diagnosis"]["significant_after"]
     assert summary["error_fell"] and summary["holdout_nrmse"]["improved"] < summary["holdout_nrmse"]["original"]
     assert summary["c_program"]["match"] and summary["c_program"]["samples"] > 1000
-    for stage in ("rig", "train", "diagnose", "improve", "export", "study", "latency"):
-        assert stage in summary["stage_times_s"] and f"[{list(summary['stage_times_s']).index(stage) + 1}/7]" in stdout
+    for stage in ("rig", "train", "diagnose", "improve", "export", "study", "vehicle", "latency"):
+        assert stage in summary["stage_times_s"] and f"[{list(summary['stage_times_s']).index(stage) + 1}/8]" in stdout
     # the study's worst case against the truth is named, and the rough road's error is at most the worst
     st = summary["study"]
     for name, worst in st["worst_acc_rms_error_vs_truth"].items():
         assert st["worst_case_vs_truth"][name].split()[0] in ("impulse", "sine", "rough", "skyhook"), st
         assert 0 <= st["worst_rough_road_error_vs_truth"][name] <= worst
+    # the full vehicle: every model at both damping settings in both tests, compared with the truth
+    veh = summary["vehicle"]
+    for test in ("bsst_heave", "dlc"):
+        for d in ("low", "high"):
+            assert set(veh["results"][test][d]) == {"neural", "lookup", "truth"}
+            for name in ("neural", "lookup"):
+                assert np.isfinite(veh["errors"][test][d][name]["acc_rms_m_s2" if test == "bsst_heave"
+                                                                else "a_y_peak_m_s2"])
+    assert veh["results"]["dlc"]["low"]["truth"]["a_y_peak_m_s2"] > 3.0
     for name in ("report.html", "summary.json", "model_original/model.json", "model_improved/model.h",
                  "data/manifest.csv", "c_program/controller.c"):
         assert (out / name).is_file(), name
@@ -57,7 +68,8 @@ def test_demo_report_renders_in_chromium(demo_out):
     assert check["images"] >= 8 and check["broken_images"] == 0 and check["empty_tables"] == 0
     text = (out / "report.html").read_text()
     order = [text.index(h) for h in ("1. The test campaign", "2. The thesis", "3. Diagnosis", "4. The effect added",
-                                     "5. Export to C", "6. Quarter-car study", "7. Real-time latency")]
+                                     "5. Export to C", "6. Quarter-car study", "7. Full vehicle",
+                                     "8. Real-time latency")]
     assert order == sorted(order)
 
 

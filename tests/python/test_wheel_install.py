@@ -65,6 +65,7 @@ def test_the_wheel_carries_the_package_and_every_runtime_file(wheel):
     # what CMake installs for the C side: `dampnet info`'s headers and library, `dampnet bench`'s
     # harness sources and the default model (header and model.json), the demo's C program
     for f in ("include/dampnet/dampnet.h", "include/dampnet/mlp.hpp", "include/dampnet/loop.hpp",
+              "include/dampnet/fullcar.hpp",
               "include/dn_model_default.h", "include/dn_model_default.json", "lib/libdampnet.so",
               "bench/bench_mlp.cpp", "bench/latency.hpp", "demo/controller.c"):
         assert f"dampnet/{f}" in names, f
@@ -130,6 +131,15 @@ def test_simulate(wheel, work, model):
     ok(wheel.dampnet("simulate", model, "--road", "impulse", "--out", "simulate_out", cwd=work))
     assert json.loads((work / "simulate_out" / "metrics.json").read_text())["metrics"]["acc_rms_m_s2"] > 0
     assert (work / "simulate_out" / "run.npz").is_file()
+
+
+def test_vehicle(wheel, work, model):
+    """The full vehicle from the wheel: fullcar.hpp's runtime, the lane change and its plot."""
+    out = ok(wheel.dampnet("vehicle", model, "--test", "dlc", "--speed", "80", "--out", "vehicle_out", cwd=work))
+    assert "cones hit" in out
+    metrics = json.loads((work / "vehicle_out" / "metrics.json").read_text())["metrics"]
+    assert metrics["a_y_peak_m_s2"] > 2.0
+    assert (work / "vehicle_out" / "vehicle.png").is_file()
 
 
 def test_study(wheel, work, model):

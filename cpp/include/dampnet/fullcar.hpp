@@ -59,7 +59,8 @@
 // Within a step, as the quarter car: controls held (each corner's law and command filter at
 // the step start), steering held (driver or input, then its lag), road per corner the cubic
 // Hermite interpolant between the step's start and end, RK4 (damper_eval per_stage: four
-// evaluations per corner; per_step: one, forces held). Driver (steer_mode driver): preview
+// evaluations per corner; per_step: one, forces held, and the tyres' lateral forces too:
+// the real-time configuration, first order in the forces). Driver (steer_mode driver): preview
 // distance l = max(driver_preview_s U, driver_preview_min_m), preview point P = (X + l cos
 // psi, Y + l sin psi), e = Y_path(P_x) - P_y, delta_cmd = clamp(driver_gain 2 L e / l^2,
 // +-steer_max) (pure pursuit); the applied angle follows delta_cmd through a first-order lag
@@ -246,8 +247,10 @@ struct FullCarModel {
   }
 
   // K(N) of the Magic Formula [N/rad].
+  // sin(2 atan(x)) = 2 x / (1 + x^2): no transcendental in the step.
   double cornering_stiffness(double n) const noexcept {
-    return p.tyre_pky1 * p.tyre_fz0 * std::sin(2.0 * std::atan(n / (p.tyre_pky2 * p.tyre_fz0)));
+    const double x = n / (p.tyre_pky2 * p.tyre_fz0);
+    return p.tyre_pky1 * p.tyre_fz0 * 2.0 * x / (1.0 + x * x);
   }
 
   // [RT] Lateral tyre force [N] at slip angle alpha [rad] and load n >= 0 [N], of wheel i.
@@ -305,8 +308,11 @@ struct FcFree {
   double alpha_f, alpha_r, a_y, dvy, dr;
 };
 
+// held: the lateral tyre forces of the step start (damper_eval per_step: tyres, like the
+// dampers, evaluated once per step and held), or nullptr to evaluate them here.
 inline FcFree free_forces(const FullCarModel& m, const FcMotion& y, const double* zr,
-                          const double* vr, double delta) noexcept {
+                          const double* vr, double delta, double cos_delta,
+                          const FcFree* held = nullptr) noexcept {
   const dn_fullcar_params& p = m.p;
   FcFree f;
   for (int i = 0; i < kCorners; ++i) {
@@ -325,11 +331,18 @@ inline FcFree free_forces(const FullCarModel& m, const FcMotion& y, const double
     f.fs_free[r] = -m.ks[r] * f.dfl[r] + farb;
   }
   const double U = p.speed;
-  if (U > 0) {
+  if (held) {
+    for (int i = 0; i < kCorners; ++i) f.fy[i] = held->fy[i], f.fgeo[i] = held->fgeo[i];
+    f.alpha_f = held->alpha_f;
+    f.alpha_r = held->alpha_r;
+    f.a_y = held->a_y;
+    f.dr = held->dr;
+    f.dvy = f.a_y - U * y.r;
+  } else if (U > 0) {
     f.alpha_f = delta - std::atan((y.vy + p.a * y.r) / U);
     f.alpha_r = -std::atan((y.vy - p.b * y.r) / U);
     for (int i = 0; i < kCorners; ++i) f.fy[i] = m.tyre_fy(i, i < 2 ? f.alpha_f : f.alpha_r, f.load[i]);
-    const double fyf = (f.fy[0] + f.fy[1]) * std::cos(delta), fyr = f.fy[2] + f.fy[3];
+    const double fyf = (f.fy[0] + f.fy[1]) * cos_delta, fyr = f.fy[2] + f.fy[3];
     f.a_y = (fyf + fyr) * m.inv_m;
     f.dvy = f.a_y - U * y.r;
     f.dr = (p.a * fyf - p.b * fyr) * m.inv_izz;
@@ -375,8 +388,29 @@ inline void relative_accel(const FullCarModel& m, const FcAccel& a, double* out)
 }
 
 // The motion's time derivative for given accelerations.
+// sin and cos of the heading at a stage, from the step start's (psi0, sin psi0, cos psi0):
+// the stage's change d = psi - psi0 is tiny (r h), so sin d and cos d by their series (to
+// d^7 / 5040 < 2e-18 for |d| < 0.01 rad), else std::sin / std::cos. Saves two libm calls
+// per stage.
+struct Heading {
+  double psi0, s0, c0;
+};
+inline void heading_at(const Heading& h, double psi, double* sn, double* cs) noexcept {
+  const double d = psi - h.psi0;
+  if (std::fabs(d) < 0.01) {
+    const double d2 = d * d;
+    const double sd = d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0 * (1.0 - d2 / 42.0)));
+    const double cd = 1.0 - d2 / 2.0 * (1.0 - d2 / 12.0 * (1.0 - d2 / 30.0));
+    *sn = h.s0 * cd + h.c0 * sd;
+    *cs = h.c0 * cd - h.s0 * sd;
+  } else {
+    *sn = std::sin(psi);
+    *cs = std::cos(psi);
+  }
+}
+
 inline FcMotion derivative(const FullCarModel& m, const FcMotion& y, const FcFree& f,
-                           const FcAccel& a) noexcept {
+                           const FcAccel& a, const Heading& hd) noexcept {
   FcMotion d;
   const double U = m.p.speed;
   d.z = y.vz;
@@ -388,8 +422,14 @@ inline FcMotion derivative(const FullCarModel& m, const FcMotion& y, const FcFre
   d.vy = f.dvy;
   d.r = f.dr;
   d.psi = U > 0 ? y.r : 0.0;
-  d.X = U > 0 ? U * std::cos(y.psi) - y.vy * std::sin(y.psi) : 0.0;
-  d.Y = U > 0 ? U * std::sin(y.psi) + y.vy * std::cos(y.psi) : 0.0;
+  if (U > 0) {
+    double sn, cs;
+    heading_at(hd, y.psi, &sn, &cs);
+    d.X = U * cs - y.vy * sn;
+    d.Y = U * sn + y.vy * cs;
+  } else {
+    d.X = d.Y = 0.0;
+  }
   for (int i = 0; i < kCorners; ++i) {
     d.zus[i] = y.vus[i];
     d.vus[i] = a.aus[i];
@@ -645,7 +685,7 @@ inline double steer_for_step(const FullCarModel& m, const double* s, double stee
 
 // Everything at the step start: controls, steering, first evaluation, report.
 struct FcStart {
-  double u[kCorners], F[kCorners], delta;
+  double u[kCorners], F[kCorners], delta, cos_delta;
   FcFree f;
   FcAccel acc;
   int status;
@@ -672,7 +712,8 @@ inline FcStart fc_start(const FullCarModel& m, const double* s, const dn_fullcar
       u = clamp(u + (s[fc_corner(i, FCC_u_cmd)] - u) * c.cmd_keep, c.ctrl.u_min, c.ctrl.u_max);
     r.u[i] = u;
   }
-  r.f = free_forces(m, y, zr, vr, r.delta);
+  r.cos_delta = std::cos(r.delta);
+  r.f = free_forces(m, y, zr, vr, r.delta, r.cos_delta);
   dn_damper_input di[kCorners];
   corner_inputs(m, y, r.f, fl, r.u, ul, lag, temp, s[FC_t], 0, di);
   double feat[kCorners * DN_MAX_INPUTS];
@@ -778,10 +819,11 @@ DN_REALTIME inline int step(const FullCarModel& m, FullCarData& d, const dn_full
     f_last[i] = r.F[i];
   }
   const bool per_stage = m.p.damper_eval == DN_EVAL_PER_STAGE;
+  const Heading hd{y0.psi, std::sin(y0.psi), std::cos(y0.psi)};
   // The derivative at a stage point: dampers evaluated (per_stage) or held (per_step).
   auto stage_deriv = [&](const FcMotion& y, const double* zr, const double* vr,
                          const double* ul, double t, int stage) noexcept -> FcMotion {
-    const FcFree f = free_forces(m, y, zr, vr, r.delta);
+    const FcFree f = free_forces(m, y, zr, vr, r.delta, r.cos_delta, per_stage ? nullptr : &r.f);
     double F[kCorners];
     if (per_stage) {
       const bool half = stage < 3;
@@ -802,7 +844,7 @@ DN_REALTIME inline int step(const FullCarModel& m, FullCarData& d, const dn_full
     }
     double dF[kCorners];
     for (int i = 0; i < kCorners; ++i) dF[i] = F[i] - m.fs[i];
-    return derivative(m, y, f, accelerations(m, y, f, dF));
+    return derivative(m, y, f, accelerations(m, y, f, dF), hd);
   };
   auto axpy = [](const FcMotion& y, double c, const FcMotion& k) noexcept {
     FcMotion o;
@@ -812,7 +854,7 @@ DN_REALTIME inline int step(const FullCarModel& m, FullCarData& d, const dn_full
     for (int j = 0; j < kFcMotion; ++j) w[j] = a[j] + c * b[j];
     return o;
   };
-  const FcMotion k1 = derivative(m, y0, r.f, r.acc);
+  const FcMotion k1 = derivative(m, y0, r.f, r.acc, hd);
   const FcMotion y1 = axpy(y0, 0.5 * h, k1);
   const FcMotion k2 = stage_deriv(y1, zrm, vrm, ul_mid, t0 + 0.5 * h, 1);
   const FcMotion y2 = axpy(y0, 0.5 * h, k2);

@@ -107,6 +107,11 @@ def run(args) -> int:
           f" -> {'GO' if h['within_budget'] else 'NO-GO'}")
     for name, t in res["targets"].items():
         print(f"target {name} {t['metric']} <= {t['target_ns']:.0f} ns: measured {t['measured_ns'] if t['measured_ns'] is not None else float('nan'):.1f} ns")
+    fc = res.get("fullcar", {})
+    if fc.get("p50_ns") is not None:
+        print(f"full vehicle: {fc['case']} p50 {fc['p50_ns']:.0f} ns (target <= {fc['p50_target_ns']:.0f}), "
+              f"p99.9 {fc['p999_ns']:.0f} ns (target <= {fc['p999_target_ns']:.0f}) -> "
+              f"{'met' if fc['within_target'] else 'MISSED'}")
     lo, hi = hard["bounds_n"]
     print(f"hard inputs through the HIL configuration ({', '.join(f'{k} {v}' for k, v in hard['vehicle'].items())}, "
           f"{hard['controller']['kind']}): forces must stay within the model's range "

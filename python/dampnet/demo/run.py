@@ -82,7 +82,7 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
     figs = work / "figures"
     figs.mkdir()
     t_start = time.perf_counter()
-    stage = Stages(log, 7)
+    stage = Stages(log, 8)
     summary: dict[str, Any] = {"schema": "dampnet.demo/1", "quick": quick, "seed": seed,
                                "thesis": THESIS}
     try:
@@ -137,6 +137,10 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
             study_res = _study(model0, model1, lookup, figs / "study", quick)
             log("      " + study_res["headline"])
 
+        with stage("vehicle", "full vehicle (thesis chapter 5.2): bounce sine sweep and ISO 3888-1 lane change"):
+            vehicle_res = _vehicle(model1, lookup, figs / "vehicle", quick, log)
+            log("      " + vehicle_res["headline"])
+
         with stage("latency", "quick latency benchmark and HIL headroom"):
             from dampnet.latency.harness import quick_latency
 
@@ -144,9 +148,10 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
             log("      " + bench["headline"])
 
         summary.update(_headline(metrics0, metrics1, diag0, diag1, verdict, adds, cres, study_res, bench))
+        summary["vehicle"] = {k: vehicle_res[k] for k in ("results", "errors", "headline")}
         summary["stage_times_s"] = stage.times
         summary["total_time_s"] = round(time.perf_counter() - t_start, 1)
-        report.write(work, summary, metrics0, metrics1, diag0, diag1, study_res, bench)
+        report.write(work, summary, metrics0, metrics1, diag0, diag1, study_res, bench, vehicle_res)
         summary["report_rendered"] = report.check_rendering(work / "report.html")
         (work / "summary.json").write_text(json_text(summary))
     except BaseException:
@@ -207,6 +212,32 @@ def _study(model0, model1, lookup, fig_dir: Path, quick: bool) -> dict:
                             "; on the rough road (passive and skyhook) at most " +
                             ", ".join(f"{k} {100 * v:.1f} %" for k, v in worst_ride.items() if v is not None))
     return res_json
+
+
+def _vehicle(model, lookup, fig_dir: Path, quick: bool, log) -> dict:
+    """The thesis's full-vehicle comparison: the improved model, the lookup table and the truth
+    damper at all four corners, low and high damping, in the bounce sine sweep and the double
+    lane change at 120 km/h (quick: a 4x faster sweep)."""
+    from dampnet.fullcar import maneuvers, study
+    from dampnet.fullcar.plots import plot_test
+    from dampnet.sim.dampers import lookup_spec, neural_spec, truth_spec
+
+    fig_dir.mkdir(parents=True, exist_ok=True)
+    specs = [neural_spec(model, "neural"), lookup_spec(lookup, "lookup"), truth_spec([HIDDEN_EFFECT], "truth")]
+    tests = {"bsst_heave": maneuvers.bsst(rate_oct_s=1.0 if quick else 0.25), "dlc": maneuvers.dlc()}
+    res = study.run_study(specs, tests, damping=("low", "high"), keep_runs=True)
+    for test, by_d in res.pop("runs").items():
+        for d, runs in by_d.items():
+            plot_test(test.split("_")[0], runs, fig_dir / f"{test}_{d}.png", f"{test.replace('_', ' ')}, {d} damping")
+    res["text"] = study.text_table(res)
+    worst = {name: max(abs(row["acc_rms_m_s2"]) for row in (res["errors"]["bsst_heave"][d][name]
+                                                            for d in ("low", "high")))
+             for name in ("neural", "lookup")}
+    res["headline"] = ("bounce sweep body-acceleration RMS against the truth damper: " +
+                       ", ".join(f"{k} within {100 * v:.1f} %" for k, v in worst.items()) +
+                       "; lane change at 120 km/h: cones hit " +
+                       ", ".join(f"{k} {res['results']['dlc']['low'][k]['cones_hit']}" for k in ("neural", "lookup", "truth")))
+    return res
 
 
 def _headline(metrics0, metrics1, diag0, diag1, verdict, adds, cres, study_res, bench) -> dict:

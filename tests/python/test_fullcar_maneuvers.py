@@ -1,0 +1,152 @@
+"""The full vehicle's tests (dampnet.fullcar.maneuvers, metrics, runs, study) and `dampnet vehicle`:
+the ISO 3888-1 geometry against the standard's numbers, the sweep, the rear wheels' delay, the
+tracks' coherence, cone counting on constructed paths, one run of each test, the CLI."""
+
+import json
+
+import numpy as np
+import pytest
+
+from dampnet import _core
+from dampnet.cli import main
+from dampnet.fullcar import maneuvers, metrics, runs, study
+from dampnet.sim.dampers import linear_spec, lookup_spec
+from dampnet.sim.roads import RoadError, sweep_frequency
+
+
+def test_iso3888_lanes_follow_the_standard():
+    """ISO 3888-1:2018: sections 15, 30, 25, 25, 15 m; lane widths 1.1 w + 0.25, w + 1,
+    1.3 w + 0.25; the offset lane's right cone line 3.5 m left of the entry lane's."""
+    w = 1.85
+    lanes = maneuvers.iso3888_lanes(w)
+    assert [round(s["x1"] - s["x0"], 9) for s in lanes] == [15.0, 30.0, 25.0, 25.0, 15.0]
+    assert lanes[0]["x0"] == 0.0 and lanes[-1]["x1"] == 110.0
+    np.testing.assert_allclose([lanes[0]["width"], lanes[2]["width"], lanes[4]["width"]],
+                               [1.1 * w + 0.25, w + 1.0, 1.3 * w + 0.25])
+    np.testing.assert_allclose(lanes[2]["y_right"] - lanes[0]["y_right"], 3.5)
+    np.testing.assert_allclose(lanes[4]["y_right"], lanes[0]["y_right"])
+    np.testing.assert_allclose(lanes[0]["y_centre"], 0.0)
+    cones = maneuvers.iso3888_cones(w)
+    assert cones.shape == (6 * maneuvers.CONES_PER_LINE, 2)
+    x, y = maneuvers.iso3888_path(w)
+    assert len(x) <= 256 and np.all(np.diff(x) > 0)
+    for sec in (lanes[0], lanes[2], lanes[4]):  # the path runs along each lane's centre
+        inside = (x >= sec["x0"]) & (x <= sec["x1"])
+        np.testing.assert_allclose(y[inside], sec["y_centre"], atol=1e-12)
+    with pytest.raises(RoadError, match="vehicle width"):
+        maneuvers.iso3888_lanes(0.0)
+
+
+def _fake_run(x, y, psi=None):
+    """A run's arrays with the CG at (x, y) [m] (lanes' frame, the run starting at x = -60)."""
+    n = len(x)
+    state = np.zeros((n, len(_core.FULLCAR_STATE_NAMES)))
+    state[:, _core.FULLCAR_STATE_NAMES.index("x_pos")] = np.asarray(x) + maneuvers.DLC_RUN_IN_M
+    state[:, _core.FULLCAR_STATE_NAMES.index("y_pos")] = y
+    if psi is not None:
+        state[:, _core.FULLCAR_STATE_NAMES.index("psi")] = psi
+    return {"state": state}
+
+
+def test_cones_hit_on_constructed_paths():
+    """Straight along y = 0: no cone (the vehicle's half width, 0.95 m, clears every line).
+    Straight along y = 1.17 m: the entry lane's left line (at +1.17 m) and the exit lane's left
+    line (+1.55 m, 0.38 m away) are hit, 2 x 5 cones; a car yawed 90 degrees at the entry lane's
+    centre spans 5.35 m across it and hits one cone on each side."""
+    man = maneuvers.dlc(1e-3, 80.0)
+    params = {"a": 1.5, "b": 1.75}
+    x = np.linspace(-60, 170, 5000)
+    assert metrics.cones_hit(_fake_run(x, np.zeros_like(x)), man, params) == []
+    hit = metrics.cones_hit(_fake_run(x, np.full_like(x, 1.17)), man, params)
+    cones = np.asarray(man.meta["cones"])
+    assert len(hit) == 10
+    assert set(np.round(cones[hit, 1], 2)) == {1.17, 1.55}
+    hit = metrics.cones_hit(_fake_run([7.5], [0.0], [np.pi / 2]), man, params)
+    assert sorted(np.round(cones[hit, 1], 2)) == [-1.17, 1.17]
+
+
+def test_bsst_sweeps_all_wheels_in_heave_and_front_against_rear_in_pitch():
+    heave = maneuvers.bsst(1e-3, "heave", rate_oct_s=1.0)
+    pitch = maneuvers.bsst(1e-3, "pitch", rate_oct_s=1.0)
+    assert heave.speed == 0.0 and heave.path is None
+    for k in range(1, 4):
+        np.testing.assert_array_equal(heave.road[:, k], heave.road[:, 0])
+    np.testing.assert_array_equal(pitch.road[:, 2], -pitch.road[:, 0])
+    np.testing.assert_array_equal(pitch.road[:, 1], pitch.road[:, 0])
+    # the instantaneous frequency from the zero crossings follows the log sweep's law
+    z, t = heave.road[:, 0], heave.t
+    pre = heave.meta["pre_s"]
+    cross = t[1:][(np.sign(z[1:]) != np.sign(z[:-1])) & (t[1:] > pre + 0.5) & (t[1:] < pre + 4.5)]
+    f_est = 0.5 / np.diff(cross)
+    mid = 0.5 * (cross[1:] + cross[:-1]) - pre
+    np.testing.assert_allclose(f_est, sweep_frequency(mid, rate_oct_s=1.0), rtol=0.03)
+    with pytest.raises(RoadError, match="mode"):
+        maneuvers.bsst(mode="roll")
+
+
+def test_rough_road_rear_wheels_follow_the_front_a_wheelbase_later():
+    """At 117 km/h (32.5 m/s) a 3.25 m wheelbase is 0.1 s: 100 steps of 1 ms. The left and
+    right tracks are correlated by the stated coherence."""
+    man = maneuvers.rough_road(1e-3, 117.0, "thesis", wheelbase_m=3.25)
+    d = 100
+    np.testing.assert_allclose(man.road[d:, 2], man.road[:-d, 0], atol=1e-4 * np.std(man.road[:, 0]))
+    np.testing.assert_allclose(man.road[d:, 3], man.road[:-d, 1], atol=1e-4 * np.std(man.road[:, 1]))
+    rho = np.corrcoef(man.road[:, 0], man.road[:, 1])[0, 1]
+    assert abs(rho - maneuvers.TRACK_COHERENCE) < 0.15
+    assert man.meta["rear_delay_s"] == pytest.approx(0.1)
+    with pytest.raises(RoadError, match="coherence"):
+        maneuvers.rough_road(coherence=1.5)
+
+
+def test_each_test_runs_and_the_study_compares_models():
+    """A linear damper and a two-level lookup table through every test (shortened): finite
+    metrics of the right kind, the lane change steers the car across (a_y of several m/s^2),
+    and the study's table holds every model at every damping."""
+    import types
+
+    table = types.SimpleNamespace(velocities=np.array([-1.0, 0.0, 1.0]), voltages=np.array([0.0, 5.0]),
+                                  forces=np.array([[-3000.0, 0.0, 3000.0], [-800.0, 0.0, 800.0]]))
+    specs = [linear_spec(2500.0, "linear"), lookup_spec(table, "lookup")]
+    tests = {"bsst_heave": maneuvers.bsst(2e-3, rate_oct_s=2.0), "dlc": maneuvers.dlc(2e-3, 80.0),
+             "road_thesis": maneuvers.rough_road(2e-3, 60.0)}
+    tests["road_thesis"].road = tests["road_thesis"].road[:1500]
+    tests["road_thesis"].road_rate = tests["road_thesis"].road_rate[:1500]
+    tests["road_thesis"].steer = tests["road_thesis"].steer[:1500]
+    res = study.run_study(specs, tests, damping=("low", "high"))
+    for test, by_d in res["results"].items():
+        for d in ("low", "high"):
+            assert set(by_d[d]) == {"linear", "lookup"}
+    dlc = res["results"]["dlc"]["low"]["linear"]
+    assert 2.0 < dlc["a_y_peak_m_s2"] < 12.0 and dlc["cones"] == 30
+    bs = res["results"]["bsst_heave"]
+    # the table's high setting (u = 0 V: 3000 N at 1 m/s) damps the body more than its low one
+    assert bs["high"]["lookup"]["acc_rms_m_s2"] != bs["low"]["lookup"]["acc_rms_m_s2"]
+    assert "bsst_heave" in study.text_table(res)
+
+
+def test_vehicle_cli_writes_metrics_and_plot(tmp_path, capsys):
+    out = tmp_path / "v"
+    assert main(["vehicle", "linear:2500", "--test", "dlc", "--speed", "80", "--dt", "0.002",
+                 "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "cones hit" in text and "running dlc" in text
+    meta = json.loads((out / "metrics.json").read_text())
+    assert meta["schema"] == "dampnet.vehicle/1" and meta["metrics"]["a_y_peak_m_s2"] > 2.0
+    assert (out / "vehicle.png").stat().st_size > 10_000
+    assert np.load(out / "run.npz")["state"].shape[1] == len(_core.FULLCAR_STATE_NAMES)
+    # an existing run is kept unless --force
+    assert main(["vehicle", "linear:2500", "--test", "bsst", "--out", str(out)]) == 2
+    assert "exists" in capsys.readouterr().err
+    assert json.loads((out / "metrics.json").read_text())["test"] == "dlc"
+
+
+@pytest.mark.parametrize("args,message", [
+    (["--test", "bsst", "--speed", "50"], "four-post rig"),
+    (["--test", "road", "--profile", "Z"], "ISO 8608 class"),
+    (["--test", "dlc", "--speed", "-5"], "speed must be > 0"),
+    (["--dt", "0.5"], "--dt"),
+])
+def test_vehicle_cli_bad_input(tmp_path, capsys, args, message):
+    assert main(["vehicle", "linear:2500", *args, "--out", str(tmp_path / "v")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("dampnet: error: ") and message in err
