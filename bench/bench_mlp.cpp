@@ -210,20 +210,28 @@ int main(int argc, char** argv) {
       }
       in.steer = 0.03 * std::sin(2 * M_PI * 0.5 * t);
     }
+    // shared: the four corners given one damper object, so their four evaluations go through
+    // the kernel in one pass (fullcar.hpp, batch4); the *_four_calls cases give four damper
+    // objects of the same model, evaluated one call each.
     struct FcCase {
       const char* name;
       int eval, precision;
+      bool shared;
     };
-    const FcCase fc_cases[3] = {
-        {"fullcar_step_rk4_per_step_eval_neural_float_skyhook_linear_accel", DN_EVAL_PER_STEP, DN_PRECISION_FLOAT},
-        {"fullcar_step_rk4_per_step_eval_neural_double_skyhook_linear_accel", DN_EVAL_PER_STEP, DN_PRECISION_DOUBLE},
-        {"fullcar_step_rk4_neural_float_skyhook_linear_accel", DN_EVAL_PER_STAGE, DN_PRECISION_FLOAT}};
+    const FcCase fc_cases[5] = {
+        {"fullcar_step_rk4_per_step_eval_neural_float_skyhook_linear_accel", DN_EVAL_PER_STEP, DN_PRECISION_FLOAT, true},
+        {"fullcar_step_rk4_per_step_eval_neural_float_skyhook_linear_accel_four_calls", DN_EVAL_PER_STEP,
+         DN_PRECISION_FLOAT, false},
+        {"fullcar_step_rk4_per_step_eval_neural_double_skyhook_linear_accel", DN_EVAL_PER_STEP, DN_PRECISION_DOUBLE, true},
+        {"fullcar_step_rk4_neural_float_skyhook_linear_accel", DN_EVAL_PER_STAGE, DN_PRECISION_FLOAT, true},
+        {"fullcar_step_rk4_neural_float_skyhook_linear_accel_four_calls", DN_EVAL_PER_STAGE, DN_PRECISION_FLOAT, false}};
     const char* const feats[3] = {"velocity", "acceleration", "voltage"};
     double fsaved[DN_FULLCAR_STATE_SIZE];
     for (const FcCase& fc : fc_cases) {
-      dn_damper* dd = nullptr;
-      if (dn_damper_create_neural(cm, feats, 3, nullptr, nullptr, 0, fc.precision, &dd)) return 1;
-      for (auto& c : corners) c = dd;
+      dn_damper* own[4] = {nullptr, nullptr, nullptr, nullptr};
+      for (int c = 0; c < (fc.shared ? 1 : 4); ++c)
+        if (dn_damper_create_neural(cm, feats, 3, nullptr, nullptr, 0, fc.precision, &own[c])) return 1;
+      for (int c = 0; c < 4; ++c) corners[c] = own[fc.shared ? 0 : c];
       dn_fullcar_params fp;
       dn_fullcar_default(&fp);
       fp.damper_eval = fc.eval;
@@ -244,7 +252,7 @@ int main(int argc, char** argv) {
       for (double x : s) step_errors += !std::isfinite(x);
       dn_fullcar_data_destroy(fd);
       dn_fullcar_model_destroy(fm);
-      dn_damper_destroy(dd);
+      for (dn_damper* o : own) dn_damper_destroy(o);
     }
   }
   dn_loop_data_destroy(ld);

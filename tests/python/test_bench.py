@@ -122,6 +122,20 @@ def test_every_timed_loop_configuration_is_checked_on_the_hard_inputs():
     assert not any(r["passed"] for r in bm.timed_configs_hard_input_check(spiky).values())
 
 
+def test_every_timed_fullcar_configuration_is_checked_on_the_hard_inputs():
+    """The full vehicle's timed configurations (float and double once per step, float per
+    stage) on the hard inputs: the shipped model passes in all three, the 12x-swing model is
+    caught in all three (its forces leave the model's range)."""
+    import dampnet.latency.harness as bm
+    from dampnet.modeldir import default_model
+
+    timed = bm.fullcar_hard_input_check()
+    assert set(timed) == set(bm.TIMED_FULLCAR_CONFIGS) and all(r["passed"] for r in timed.values()), timed
+    spiky = default_model()
+    spiky.w_out = spiky.w_out * 12.0
+    assert not any(r["passed"] for r in bm.fullcar_hard_input_check(spiky).values())
+
+
 def test_bench_json_that_cannot_be_written_fails_before_the_timing(tmp_path):
     """--json naming a directory: one line and exit 2 at once, not after minutes of timing."""
     proc = subprocess.run([sys.executable, "-m", "dampnet.cli", "bench", "--json", str(tmp_path)],

@@ -47,7 +47,7 @@ def test_demo_tells_the_whole_story(demo_out):
     # the full vehicle: every model at both damping settings in both tests, compared with the truth
     veh = summary["vehicle"]
     for test in ("bsst_heave", "dlc"):
-        for d in ("low", "high"):
+        for d in ("low", "high", "skyhook"):
             assert set(veh["results"][test][d]) == {"neural", "lookup", "truth"}
             for name in ("neural", "lookup"):
                 assert np.isfinite(veh["errors"][test][d][name]["acc_rms_m_s2" if test == "bsst_heave"

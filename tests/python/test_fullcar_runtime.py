@@ -216,3 +216,28 @@ def test_a_fullcar_refuses_concurrent_use():
     th.join()
     assert errors and "one mutable vehicle state" in errors[0]
     assert np.all(results[0]["status"] >= 0) and np.all(results[0]["state"][:, 1] == 0.0)
+
+
+@pytest.mark.parametrize("evaluation", ["per_step", "per_stage"])
+def test_corners_sharing_one_damper_evaluate_in_one_pass_with_identical_results(evaluation):
+    """Four corners given one float neural damper object go through the kernel together
+    (Damper::force_da4); four objects of the same model go one call each. The runs are
+    bit-identical (and the batch was taken: the evaluation count is the same, the path is
+    checked in C++ by tests/cpp/unit/test_mlp_batch.cpp)."""
+    model = default_model()
+    n = 1500
+    z, v = _road(n)
+    road = np.stack([z, 0.8 * z, np.roll(z, 50), np.roll(z, 70)], axis=1)
+    rate = np.stack([v, 0.8 * v, np.roll(v, 50), np.roll(v, 70)], axis=1)
+    steer = 0.03 * np.sin(np.arange(n) * DT * 3.0)
+    params = {"damper_eval": evaluation, "accel_feature": "linear"}
+    shared = damper_from_model(model, single=True)
+    runs = []
+    for dampers in ([shared] * 4, [damper_from_model(model, single=True) for _ in range(4)]):
+        car = _core.FullCar(_core.FullCarModel(dampers, params, {"kind": "skyhook_onoff"}))
+        runs.append((car.simulate(road, rate, steer=steer), car.damper_evals))
+    (a, na), (b, nb) = runs
+    assert na == nb
+    for key in ("state", "force", "a", "status"):
+        np.testing.assert_array_equal(a[key], b[key])
+    assert np.max(np.abs(a["force"])) > 100.0

@@ -299,6 +299,48 @@ class Damper {
     return st;
   }
 
+  // [RT] force_da of four inputs to this damper in one pass of the MLP kernel (a float neural
+  // damper reading the acceleration: Mlp::forward_grad4; every other damper, or an input with
+  // a non-finite feature, four force_da calls). Each result is identical to its own call's.
+  // Nullable: clamped_mask (4).
+  DN_REALTIME void force_da4(const dn_damper_input* in, double* f, double* df_da, int* status,
+                             uint32_t* clamped_mask = nullptr) const noexcept {
+    bool batch = kind == DN_DAMPER_NEURAL && accel_input >= 0 && precision == DN_PRECISION_FLOAT;
+    float xf[4][DN_MAX_INPUTS] = {};
+    for (int b = 0; b < 4 && batch; ++b) {
+      double x[DN_MAX_INPUTS];
+      feature_values(in[b], x);
+      for (int i = 0; i < n_feat; ++i) {
+        if (!std::isfinite(x[i])) batch = false;
+        xf[b][i] = static_cast<float>(x[i]);
+      }
+      if (n_terms > 0 && !std::isfinite(in[b].x)) batch = false;
+    }
+    if (!batch) {
+      for (int b = 0; b < 4; ++b)
+        status[b] = force_da(in[b], &f[b], &df_da[b], clamped_mask ? &clamped_mask[b] : nullptr);
+      return;
+    }
+    const float* xp[4] = {xf[0], xf[1], xf[2], xf[3]};
+    float yf[4], gf[4];
+    mf.forward_grad4(xp, yf, accel_input, gf, status, clamped_mask);
+    for (int b = 0; b < 4; ++b) {
+      df_da[b] = gf[b];  // as force_da, also on an error
+      if (status[b] < 0) {
+        f[b] = 0.0;
+        continue;
+      }
+      double y = yf[b];
+      if (n_terms > 0) y += terms::sum(terms, n_terms, in[b]);
+      if (!std::isfinite(y)) {
+        f[b] = 0.0;
+        status[b] = DN_E_NONFINITE_OUTPUT;
+        continue;
+      }
+      f[b] = y;
+    }
+  }
+
   // Thesis eq. 1-3.
   double parametric(double v, double u) const noexcept {
     const double V = u < 0.0 ? 0.0 : (u > par.v_max ? par.v_max : u);

@@ -176,6 +176,10 @@ struct FullCarModel {
   double h_roll = 0;  // CG height above the roll axis [m]
   double steer_keep = 0;  // exp(-dt / driver_tau_s); 0 = no lag
   bool any_implicit = false;  // some corner's damper reads a and accel_feature != explicit
+  // The four corners share one damper object (the same dn_damper / Damper passed four times)
+  // whose model is a float MLP reading a: its four evaluations go through the kernel in one
+  // pass (Damper::force_da4), each result identical to four single calls.
+  bool batch4 = false;
   int n_path = 0;
   double path_x[DN_FULLCAR_MAX_PATH] = {}, path_y[DN_FULLCAR_MAX_PATH] = {};
 
@@ -243,6 +247,8 @@ struct FullCarModel {
       if (st != DN_OK) return st;
       if (corner[i].implicit_a) any_implicit = true;
     }
+    batch4 = dampers[1] == dampers[0] && dampers[2] == dampers[0] && dampers[3] == dampers[0] &&
+             corner[0].implicit_a && corner[0].damper.precision == DN_PRECISION_FLOAT;
     return DN_OK;
   }
 
@@ -514,7 +520,20 @@ inline int evaluate_corners(const FullCarModel& m, dn_damper_input* in, const do
     double f0[kCorners], D[kCorners], g[kCorners];
     uint32_t mk[kCorners] = {};
     int st_it = DN_OK;
-    for (int i = 0; i < kCorners; ++i) {
+    if (m.batch4) {  // every corner reads a: one pass of the kernel for the four
+      int st4[kCorners];
+      m.corner[0].damper.force_da4(in, f0, D, st4, mk);
+      for (int i = 0; i < kCorners; ++i) {
+        const int st = diverged_if_overflow(m.corner[i], st4[i]);
+        if (st < 0) {
+          if (st_it >= 0) st_it = st;
+        } else if (st_it >= 0) {
+          st_it |= st;
+        }
+      }
+      *n_evals += kCorners;
+    }
+    for (int i = 0; i < kCorners && !m.batch4; ++i) {
       const LoopModel& c = m.corner[i];
       D[i] = 0.0;
       int st;

@@ -431,6 +431,41 @@ inline float forward_simd(const P& p, const float* xs, const float* col, float* 
   if constexpr (kGrad) *dys = S::hsum(dacc);
   return S::hsum(acc);
 }
+
+// forward_simd of kB samples at once, one hidden layer: per block of neurons the weights
+// are loaded once for all samples, and the samples' kB independent chains interleave (more
+// work in flight per weight load). Each sample's operations and their order are
+// forward_simd's, so its result is bit-identical to a single call's.
+template <class S, int kIn, int kH1, bool kGrad, int kB, class P>
+inline void forward_simd_batch(const P& p, const float* const* xs, const float* const* col,
+                               float* sums, float* dys) noexcept {
+  using V = typename S::V;
+  constexpr int kW = S::kW;
+  constexpr int kP1 = kH1 > 0 ? pad(kH1) : kDynamic;
+  constexpr int stride = P::kTw;
+  const int ni = kIn > 0 ? kIn : p.n_in;
+  const int h1 = kP1 > 0 ? kP1 : p.n_h1p;
+  V acc[kB], dacc[kB];
+  for (int b = 0; b < kB; ++b) acc[b] = S::lane0(p.b_out), dacc[b] = S::zero();
+  for (int j = 0; j < h1; j += kW) {
+    for (int b = 0; b < kB; ++b) {
+      const V z = dense_block<S, kIn>(S::load(p.b1.data() + j), p.w1t.data() + j, xs[b], ni, h1);
+      V r, pw;
+      tanh_folded<S>(z, p.tw.data() + j, stride, r, pw);
+      acc[b] = S::fmadd(r, pw, acc[b]);
+      if constexpr (kGrad) {
+        if (col[b]) {
+          const V wt = S::mul(r, pw), t = S::mul(wt, S::load(p.inv_w.data() + j));
+          dacc[b] = S::fmadd(S::fnmadd(wt, t, S::load(p.w_out.data() + j)), S::load(col[b] + j), dacc[b]);
+        }
+      }
+    }
+  }
+  for (int b = 0; b < kB; ++b) {
+    sums[b] = S::hsum(acc[b]);
+    if constexpr (kGrad) dys[b] = S::hsum(dacc[b]);
+  }
+}
 #if DN_KERNEL_AVX512 && defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic pop
 #endif
@@ -520,6 +555,57 @@ DN_REALTIME inline int forward(const P& p, const T* x, T* y, uint32_t* clamped_m
   *y = out;
   if (clamped_mask) *clamped_mask = mask;
   return status;
+}
+
+// forward() of kB samples (x[b], y[b], clamped_mask[b], dy_dxi[b]; masks and dy_dxi
+// nullable), each result identical to its own forward() call: float models with one hidden
+// layer go through forward_simd_batch (the weights loaded once per block for all samples);
+// the others are kB forward() calls. Returns the samples' statuses in status[b].
+template <typename T, int kIn, int kH1, class P, bool kGrad, int kB>
+DN_REALTIME inline void forward_batch(const P& p, const T* const* x, T* y, uint32_t* clamped_mask,
+                                      int grad_input, T* dy_dxi, int* status) noexcept {
+#if DN_KERNEL_AVX2 || DN_KERNEL_AVX512
+  if constexpr (std::is_same<T, float>::value) {
+    if (p.n_h2p == 0) {
+      constexpr int cap_in = kIn > 0 ? kIn : DN_MAX_INPUTS;
+      constexpr int kP1 = kH1 > 0 ? pad(kH1) : kDynamic;
+      const int h1 = kP1 > 0 ? kP1 : p.n_h1p;
+      alignas(DN_KERNEL_ALIGN) T xs_buf[kB][cap_in] = {};
+      const T* xs[kB];
+      const T* col[kB];
+      uint32_t mask[kB];
+      for (int b = 0; b < kB; ++b) {  // forward()'s input handling, per sample
+        mask[b] = 0;
+        xs[b] = x[b];
+        status[b] = DN_OK;
+        if (!p.in_offset_folded) {
+          status[b] = prepare_inputs<T, kIn, true>(p, x[b], xs_buf[b], mask[b]);
+          xs[b] = xs_buf[b];
+        } else if (!inputs_in_range<T, kIn>(p, x[b])) {
+          status[b] = prepare_inputs<T, kIn, false>(p, x[b], xs_buf[b], mask[b]);
+          xs[b] = xs_buf[b];
+        }
+        col[b] = (kGrad && !((mask[b] >> grad_input) & 1u)) ? p.w1t.data() + grad_input * h1 : nullptr;
+      }
+      T sums[kB], dys[kB] = {};
+      forward_simd_batch<SimdKernel, kIn, kH1, kGrad, kB>(p, xs, col, sums, dys);
+      for (int b = 0; b < kB; ++b) {
+        T out = sums[b];
+        if (!std::isfinite(out)) {
+          out = p.out_offset;
+          status[b] = DN_E_NONFINITE_OUTPUT;
+        }
+        y[b] = out;
+        if (clamped_mask) clamped_mask[b] = mask[b];
+        if constexpr (kGrad) dy_dxi[b] = dys[b];
+      }
+      return;
+    }
+  }
+#endif
+  for (int b = 0; b < kB; ++b)
+    status[b] = forward<T, kIn, kH1, kDynamic, P, kGrad>(p, x[b], &y[b], clamped_mask ? &clamped_mask[b] : nullptr,
+                                                         grad_input, kGrad ? &dy_dxi[b] : nullptr);
 }
 
 // Validate a description against fixed sizes (kDynamic = any) and copy it in,
@@ -703,6 +789,22 @@ class Mlp {
       return forward(x, y, clamped_mask);
     }
     return dispatch<true>(x, y, clamped_mask, i, dy_dxi);
+  }
+  // [RT] forward_grad of 4 samples in one pass of the kernel (detail::forward_batch: each
+  // result identical to its own call); statuses in status[4]. Nullable: clamped_mask.
+  DN_REALTIME void forward_grad4(const T* const x[4], T y[4], int i, T dy_dxi[4], int status[4],
+                                 uint32_t* clamped_mask = nullptr) const noexcept {
+    using P = decltype(p_);
+    if (i < 0 || i >= p_.n_in) {
+      for (int b = 0; b < 4; ++b) {
+        dy_dxi[b] = T(0);
+        status[b] = forward(x[b], &y[b], clamped_mask ? &clamped_mask[b] : nullptr);
+      }
+      return;
+    }
+    if (p_.n_h2 == 0 && p_.n_in == 3)  // the thesis's shape, compiled for its input count
+      return detail::forward_batch<T, 3, kDynamic, P, true, 4>(p_, x, y, clamped_mask, i, dy_dxi, status);
+    detail::forward_batch<T, kDynamic, kDynamic, P, true, 4>(p_, x, y, clamped_mask, i, dy_dxi, status);
   }
   int n_inputs() const noexcept { return p_.n_in; }
   const T* sat_lo() const noexcept { return p_.sat_lo.data(); }

@@ -40,6 +40,7 @@ def run(args) -> int:
     from dampnet.latency import python_bench as bench_python
     from dampnet.latency.harness import (
         HIL_FORCE_MARGIN,
+        fullcar_hard_input_check,
         hil_hard_input_check,
         quick_latency,
         timed_configs_hard_input_check,
@@ -61,6 +62,7 @@ def run(args) -> int:
     try:
         hard = hil_hard_input_check(margin=margin)
         timed = timed_configs_hard_input_check(margin=margin)
+        timed.update(fullcar_hard_input_check(margin=margin))
         with tempfile.TemporaryDirectory() as tmp:
             res = quick_latency(Path(tmp), n_calls=n, budget_ns=args.budget_ns)
         res["hard_inputs"] = hard

@@ -148,7 +148,7 @@ def write(work: Path, summary: dict, m0: dict, m1: dict, d0: dict, d1: dict, stu
     parts.append("<h2>7. Full vehicle (thesis chapter 5.2)</h2>"
                  "<p>The damper model at all four corners of a compact pickup (the runtime's full car: "
                  "heave, pitch, roll, yaw, side-slip, four wheels, Magic-Formula tyres), beside the lookup "
-                 "table and the truth damper, at the low and high damping setting. The bounce sine sweep "
+                 "table and the truth damper, at the low and high damping setting and under on-off skyhook. The bounce sine sweep "
                  "(0.5–20 Hz under all four wheels, the thesis's Figure 59) shows ride; the ISO 3888-1 "
                  "double lane change at 120 km/h driven by the preview driver (Figure 60) shows handling. "
                  "As in the thesis, the models differ in ride, hardly in handling.</p>")

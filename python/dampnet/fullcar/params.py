@@ -28,8 +28,8 @@ SOURCES = {
                         "(within the same database's pickup range)",
     "h_rc_f, h_rc_r": "estimate: 0.10 m front (independent), 0.35 m rear (leaf-sprung live axle)",
     "m_us_f, m_us_r, k_s_f, k_s_r, k_t": "thesis Table 5 (40 kg, 15 kN/m, 200 kN/m), all corners",
-    "k_arb_f, k_arb_r": "estimate: 40 / 15 kN/m at the wheel, a roll gradient of ~0.5 deg per m/s^2 "
-                        "(about 5 deg/g, class typical)",
+    "k_arb_f, k_arb_r": "estimate: 40 / 15 kN/m at the wheel: a roll gradient of 0.75 deg per m/s^2 "
+                        "(7.4 deg/g with the tyres' compliance; soft Table 5 springs need stiff bars)",
     "tyre_*": "estimate: Magic Formula of a light-truck tyre: cornering stiffness ~100 kN/rad at "
               "7 kN, peak friction 0.95, load sensitivity -0.1",
     "speed": "120 km/h: the thesis's CarSim double lane change",

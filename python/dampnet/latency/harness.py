@@ -248,3 +248,57 @@ def timed_configs_hard_input_check(model=None, margin: float = HIL_FORCE_MARGIN,
 
     model = model or default_model()
     return {name: hil_hard_input_check(model, margin, dt, vehicle=cfg) for name, cfg in TIMED_LOOP_CONFIGS.items()}
+
+
+#: the full-vehicle configurations the C++ harness times (four neural dampers, on-off skyhook
+#: at every corner, linearised acceleration): name -> (damper_eval, single precision)
+TIMED_FULLCAR_CONFIGS = {"fullcar_linear_per_step_float": ("per_step", True),
+                         "fullcar_linear_per_step_double": ("per_step", False),
+                         "fullcar_linear_per_stage_float": ("per_stage", True)}
+
+
+def fullcar_hard_input_check(model=None, margin: float = HIL_FORCE_MARGIN, dt: float = 1e-3) -> dict:
+    """Each timed full-vehicle configuration on the hard inputs (under the left wheels; the
+    right wheels see them 0.1 s later) at 120 km/h with a 0.05 rad, 0.5 Hz steering weave:
+    no step error, every corner's force within the model's range +- margin, tyre loads >= 0.
+    name -> {"passed", "failures", "inputs": {input: row}}."""
+    from dampnet import _core
+    from dampnet.modeldir import default_model
+    from dampnet.sim.loop import damper_from_model
+
+    model = model or default_model()
+    lo = model.out_offset
+    hi = model.out_offset + (1.0 - model.out_ymin) / model.out_gain
+    tol = margin * (hi - lo)
+    lag = int(round(0.1 / dt))
+    out = {}
+    for name, (evaluation, single) in TIMED_FULLCAR_CONFIGS.items():
+        params = {"damper_eval": evaluation, "accel_feature": "linear", "dt": dt}
+        rows, failures = {}, []
+        for inp, (z, zd) in hard_inputs(dt).items():
+            zr = np.stack([z, np.roll(z, lag), z, np.roll(z, lag)], axis=1)
+            zr[:lag, 1] = zr[:lag, 3] = 0.0
+            vr = np.stack([zd, np.roll(zd, lag), zd, np.roll(zd, lag)], axis=1)
+            vr[:lag, 1] = vr[:lag, 3] = 0.0
+            steer = 0.05 * np.sin(2 * np.pi * 0.5 * np.arange(z.size) * dt)
+            # one damper object at the four corners, as the harness times it (one kernel pass)
+            car = _core.FullCar(_core.FullCarModel([damper_from_model(model, single=single)] * 4,
+                                                   params, HIL_CONTROLLER))
+            row = {"steps": int(z.size)}
+            try:
+                res = car.simulate(zr, vr, steer=steer)
+            except ValueError as e:
+                row.update(ok=False, why=f"step error: {e}")
+            else:
+                f = res["force"]
+                row.update(f_min=float(f.min()), f_max=float(f.max()), tyre_load_min_n=float(res["tyre_load"].min()))
+                bad = (f < lo - tol) | (f > hi + tol)
+                row["ok"] = not bad.any() and row["tyre_load_min_n"] >= 0.0
+                if not row["ok"]:
+                    row["why"] = (f"{int(bad.sum())} corner-steps with a force outside [{lo - tol:.0f}, {hi + tol:.0f}] N"
+                                  if bad.any() else f"a negative tyre load {row['tyre_load_min_n']:.1f} N")
+            rows[inp] = row
+            if not row["ok"]:
+                failures.append(f"{inp}: {row['why']}")
+        out[name] = {"inputs": rows, "passed": not failures, "failures": failures}
+    return out
