@@ -14,7 +14,7 @@ import importlib
 import sys
 
 # Module names under dampnet.commands, in the order `dampnet --help` lists them.
-COMMANDS = ["demo", "rig", "train", "evaluate", "compare_algorithms", "diagnose", "compare",
+COMMANDS = ["demo", "rig", "train", "evaluate", "compare_algorithms", "diagnose", "compare", "export",
             "simulate", "study", "vehicle", "iri", "bench", "info"]
 
 

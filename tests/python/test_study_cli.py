@@ -63,3 +63,22 @@ def test_study_command_refuses_to_overwrite(model_and_data, capsys):
     assert main(["study", str(root / "model"), "--quick", "--no-plots", "--out", str(out)]) == 2
     assert "refusing to overwrite" in capsys.readouterr().err
     assert (out / "study.json").read_text() == "{}"
+
+
+def test_study_command_full_vehicle(model_and_data):
+    """--vehicle: the chapter 5.2 comparison of the same models (the neural model, the lookup
+    table, the truth) in the bounce sweep and the lane change, each damping, with the errors
+    against the truth, in study.json and study.txt."""
+    root = model_and_data
+    out = root / "out_vehicle"
+    assert main(["study", str(root / "model"), str(root / "data"), "--quick", "--no-plots", "--vehicle",
+                 "--out", str(out)]) == 0
+    res = json.loads((out / "study.json").read_text())
+    veh = res["vehicle"]
+    for test in ("bsst_heave", "dlc"):
+        for d in ("low", "high", "skyhook"):
+            assert set(veh["results"][test][d]) == set(res["models"])
+            assert set(veh["errors"][test][d]) == set(res["models"]) - {"truth"}
+    dlc = veh["results"]["dlc"]["low"]["truth"]
+    assert 3.0 < dlc["a_y_peak_m_s2"] < 12.0 and dlc["cones"] == 30
+    assert "full vehicle (chapter 5.2)" in (out / "study.txt").read_text()

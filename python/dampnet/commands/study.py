@@ -22,6 +22,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--no-plots", action="store_true")
     p.add_argument("--quick", action="store_true",
                    help="shortened roads: a 5x faster sweep (0.5 octave/s) and half the rough road (92 m)")
+    p.add_argument("--vehicle", action="store_true",
+                   help="also the full vehicle (chapter 5.2): the bounce sine sweep and the ISO 3888-1 lane "
+                        "change at 120 km/h, every model at low and high damping and under skyhook")
     p.add_argument("--force", action="store_true", help="replace an existing study in --out")
     p.set_defaults(handler=run)
     return p
@@ -57,15 +60,23 @@ def run(args) -> int:
                 truth = truth_spec(list(ds.meta.get("effects", {})))
         res = run_study(specs, truth, dt=args.dt, seed=args.seed, keep_runs=not args.no_plots,
                         progress=lambda s: print(f"  {s}", file=sys.stderr), **roads)
+        vehicle = _vehicle_study(specs + ([truth] if truth else []), args) if args.vehicle else None
     except (ValueError, OSError) as e:
         print(f"dampnet: error: {e}", file=sys.stderr)
         return 2
     from dampnet.outputs import staged_files
 
     table = text_tables(res)
+    if vehicle is not None:
+        from dampnet.fullcar.study import text_table
+
+        table += "\n\nfull vehicle (chapter 5.2)\n" + text_table(vehicle)
     try:
         with staged_files(out) as tmp:  # study.json (the marker) moved into place last
-            (tmp / "study.json").write_text(json_text(without_arrays(res)))
+            data = without_arrays(res)
+            if vehicle is not None:
+                data["vehicle"] = {k: vehicle[k] for k in ("results", "errors")}
+            (tmp / "study.json").write_text(json_text(data))
             (tmp / "study.txt").write_text(table + "\n")
             if not args.no_plots:
                 write_plots(res, tmp)
@@ -75,3 +86,14 @@ def run(args) -> int:
     print(table)
     print(f"-> {out}/study.json, study.txt" + ("" if args.no_plots else ", PNG plots"))
     return 0
+
+
+def _vehicle_study(specs, args) -> dict:
+    """The full-vehicle comparison (dampnet.fullcar.study) of the study's models: BSST (a 4x
+    faster sweep with --quick) and the lane change, low / high damping and on-off skyhook."""
+    from dampnet.fullcar import maneuvers
+    from dampnet.fullcar.study import run_study as run_vehicle
+
+    tests = {"bsst_heave": maneuvers.bsst(args.dt, rate_oct_s=1.0 if args.quick else 0.25),
+             "dlc": maneuvers.dlc(args.dt)}
+    return run_vehicle(specs, tests, progress=lambda s: print(f"  vehicle {s}", file=sys.stderr))
