@@ -8,12 +8,15 @@ import sys
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
-        "export", help="export a model: an ONNX graph, a C/C++ header",
+        "export", help="export a model: an FMI 2.0 co-simulation FMU, an ONNX graph, a C/C++ header",
         description="Export MODEL (a model directory or model.json). --onnx: the network with its input "
                     "saturation and scalings as one ONNX graph (opset 17, float32, one input per feature "
                     "named as the feature, output 'force' [N]; a hybrid model's physics terms are listed "
-                    "in its metadata, not in the graph). --header: the C/C++ header `dampnet train` writes.")
+                    "in its metadata, not in the graph). --fmu: the damper as an FMI 2.0 co-simulation FMU "
+                    "(inputs x, v, a, u, temperature; output force [N]; compiled here for linux64, sources "
+                    "included). --header: the C/C++ header `dampnet train` writes.")
     p.add_argument("model")
+    p.add_argument("--fmu", metavar="OUT.fmu", help="write the damper FMU (FMI 2.0, co-simulation) here")
     p.add_argument("--onnx", metavar="OUT.onnx", help="write the ONNX graph here")
     p.add_argument("--header", metavar="OUT.h", help="write the C/C++ header here")
     p.add_argument("--prefix", default="dn_model", help="the header's name prefix (default dn_model)")
@@ -29,16 +32,23 @@ def run(args) -> int:
     from dampnet.model import ModelError
     from dampnet.modeldir import load_model
 
-    if not args.onnx and not args.header:
-        print("dampnet: error: nothing to export: give --onnx OUT.onnx and/or --header OUT.h", file=sys.stderr)
+    if not args.onnx and not args.header and not args.fmu:
+        print("dampnet: error: nothing to export: give --fmu OUT.fmu, --onnx OUT.onnx and/or --header OUT.h",
+              file=sys.stderr)
         return 2
     try:
         model = load_model(args.model)
         if args.header:
             check_prefix(args.prefix)
-        for out in (args.onnx, args.header):
+        for out in (args.fmu, args.onnx, args.header):
             if out and os.path.exists(out) and not args.force:
                 raise FileExistsError(f"{out}: exists; refusing to overwrite (use --force)")
+        if args.fmu:
+            from dampnet.fmu import MODEL_IDENTIFIER, build_damper_fmu
+
+            build_damper_fmu(model, args.fmu, overwrite=args.force)
+            print(f"{args.fmu}: FMI 2.0 co-simulation FMU {MODEL_IDENTIFIER} (linux64 binary and sources), "
+                  f"inputs x [m], v [m/s], a [m/s2], u, temperature [degC]; output force [N]")
         if args.onnx:
             try:
                 import onnx  # noqa: F401
