@@ -1,4 +1,4 @@
-// The damper model as an FMI 2.0 co-simulation FMU: dampnet's runtime (header-only damper and
+// The damper model as an FMI 2.0 FMU (co-simulation and model exchange): dampnet's runtime (header-only damper and
 // MLP kernel) evaluating the model of the generated header "fmu_model.h" (prefix fmu_model),
 // behind the FMI 2 C API. Built by dampnet.fmu (python/dampnet/fmu.py), which writes the
 // header and modelDescription.xml and compiles this file into binaries/linux64/.
@@ -9,7 +9,8 @@
 //   6 status (a dampnet status code)   7 clamped_mask (bit i: input i clamped)    outputs (Integer)
 // The force is a function of the inputs at the same instant (direct feedthrough): it is
 // evaluated whenever an output is read. The model has no state (features derived with a state,
-// e.g. voltage_lag, are refused at export), so fmi2DoStep only advances the time.
+// e.g. voltage_lag, are refused at export), so fmi2DoStep only advances the time, and as a
+// model-exchange FMU it has no continuous states and no event indicators.
 //
 // No exceptions, RTTI or operator new: the binary depends on libc and libm only.
 #include <cmath>
@@ -88,7 +89,8 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
     if (cb->logger) cb->logger(cb->componentEnvironment, name ? name : "", fmi2Error, "error", "%s", msg);
     return nullptr;
   };
-  if (type != fmi2CoSimulation) return fail("this FMU supports co-simulation only (fmi2CoSimulation)");
+  if (type != fmi2CoSimulation && type != fmi2ModelExchange)
+    return fail("unknown fmi2Type (expected fmi2ModelExchange or fmi2CoSimulation)");
   if (!guid || std::strcmp(guid, FMU_MODEL_ID) != 0)
     return fail("GUID mismatch: the modelDescription.xml is not this binary's (expected the model id " FMU_MODEL_ID ")");
   void* mem = cb->allocateMemory(1, sizeof(Instance));
@@ -259,5 +261,37 @@ fmi2Status fmi2GetRealStatus(fmi2Component, const fmi2StatusKind, fmi2Real*) { r
 fmi2Status fmi2GetIntegerStatus(fmi2Component, const fmi2StatusKind, fmi2Integer*) { return fmi2Discard; }
 fmi2Status fmi2GetBooleanStatus(fmi2Component, const fmi2StatusKind, fmi2Boolean*) { return fmi2Discard; }
 fmi2Status fmi2GetStringStatus(fmi2Component, const fmi2StatusKind, fmi2String*) { return fmi2Discard; }
+
+// Model exchange: no continuous states, no event indicators, no events of its own.
+fmi2Status fmi2EnterEventMode(fmi2Component c) { return c ? fmi2OK : fmi2Error; }
+fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo* info) {
+  if (!c || !info) return fmi2Error;
+  info->newDiscreteStatesNeeded = fmi2False;
+  info->terminateSimulation = fmi2False;
+  info->nominalsOfContinuousStatesChanged = fmi2False;
+  info->valuesOfContinuousStatesChanged = fmi2False;
+  info->nextEventTimeDefined = fmi2False;
+  info->nextEventTime = 0.0;
+  return fmi2OK;
+}
+fmi2Status fmi2EnterContinuousTimeMode(fmi2Component c) { return c ? fmi2OK : fmi2Error; }
+fmi2Status fmi2CompletedIntegratorStep(fmi2Component c, fmi2Boolean, fmi2Boolean* enter_event, fmi2Boolean* terminate) {
+  if (!c || !enter_event || !terminate) return fmi2Error;
+  *enter_event = fmi2False;
+  *terminate = fmi2False;
+  return fmi2OK;
+}
+fmi2Status fmi2SetTime(fmi2Component c, fmi2Real t) {
+  if (!c) return fmi2Error;
+  static_cast<Instance*>(c)->time = t;
+  return fmi2OK;
+}
+fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real[], size_t nx) { return c && nx == 0 ? fmi2OK : fmi2Error; }
+fmi2Status fmi2GetDerivatives(fmi2Component c, fmi2Real[], size_t nx) { return c && nx == 0 ? fmi2OK : fmi2Error; }
+fmi2Status fmi2GetEventIndicators(fmi2Component c, fmi2Real[], size_t ni) { return c && ni == 0 ? fmi2OK : fmi2Error; }
+fmi2Status fmi2GetContinuousStates(fmi2Component c, fmi2Real[], size_t nx) { return c && nx == 0 ? fmi2OK : fmi2Error; }
+fmi2Status fmi2GetNominalsOfContinuousStates(fmi2Component c, fmi2Real[], size_t nx) {
+  return c && nx == 0 ? fmi2OK : fmi2Error;
+}
 
 }  // extern "C"

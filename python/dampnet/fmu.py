@@ -1,4 +1,4 @@
-"""The damper model as an FMI 2.0 co-simulation FMU, for vehicle-simulation tools that import
+"""The damper model as an FMI 2.0 FMU (co-simulation and model exchange), for vehicle-simulation tools that import
 FMUs (CarSim, CarMaker, Simulink, Dymola, OpenModelica, Silver, FMPy, ...).
 
 `build_damper_fmu(model, out)` writes the model's header (export.header_text), the
@@ -93,6 +93,9 @@ def model_description(model: MlpModel, step_s: float = 1e-3) -> str:
             f'<fmiModelDescription fmiVersion="2.0" modelName="{MODEL_IDENTIFIER}" guid="{model.model_id()}" '
             f'description="{escape(desc)}" generationTool="dampnet {escape(_package_version())}" '
             f'variableNamingConvention="flat" numberOfEventIndicators="0">\n'
+            f'  <ModelExchange modelIdentifier="{MODEL_IDENTIFIER}" canGetAndSetFMUstate="false" '
+            f'canSerializeFMUstate="false" providesDirectionalDerivative="false">\n'
+            f'    <SourceFiles><File name="damper_fmu2.cpp"/></SourceFiles>\n  </ModelExchange>\n'
             f'  <CoSimulation modelIdentifier="{MODEL_IDENTIFIER}" canHandleVariableCommunicationStepSize="true" '
             f'canGetAndSetFMUstate="false" canSerializeFMUstate="false" providesDirectionalDerivative="false">\n'
             f'    <SourceFiles><File name="damper_fmu2.cpp"/></SourceFiles>\n  </CoSimulation>\n'

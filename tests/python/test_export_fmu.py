@@ -1,4 +1,4 @@
-"""`dampnet export --fmu`: the damper as an FMI 2.0 co-simulation FMU, checked by an independent
+"""`dampnet export --fmu`: the damper as an FMI 2.0 FMU (co-simulation and model exchange), checked by an independent
 importer (FMPy): no validation problems, a binary needing only libc and libm, and FMPy's
 simulation of a recorded rig test equal to the runtime's Damper.forces to 1e-9 N."""
 
@@ -81,7 +81,7 @@ def test_export_fmu_command_and_its_errors(tmp_path, capsys, monkeypatch):
     save_model_dir(default_model(), None, tmp_path / "model")
     out = tmp_path / "d.fmu"
     assert main(["export", str(tmp_path / "model"), "--fmu", str(out)]) == 0
-    assert "FMI 2.0 co-simulation FMU" in capsys.readouterr().out and zipfile.is_zipfile(out)
+    assert "FMI 2.0 FMU dampnet_damper" in capsys.readouterr().out and zipfile.is_zipfile(out)
     assert main(["export", str(tmp_path / "model"), "--fmu", str(out)]) == 2  # exists
     assert "refusing to overwrite" in capsys.readouterr().err
     # a model with a feature the FMU cannot feed
@@ -97,3 +97,23 @@ def test_export_fmu_command_and_its_errors(tmp_path, capsys, monkeypatch):
     assert not list(tmp_path.glob(".dampnet-fmu-*"))
     with pytest.raises(FmuError, match="cannot feed"):
         build_damper_fmu(lagged, tmp_path / "z.fmu")
+
+
+def test_model_exchange_follows_co_simulation(tmp_path, rig_signals):
+    """The same FMU imported for model exchange (no continuous states: FMPy's solver only
+    advances time and samples the outputs) gives the co-simulation's forces."""
+    t, x, v, a, u = rig_signals
+    path = build_damper_fmu(default_model(), tmp_path / "d.fmu")
+    cs = _simulate(path, t, x, v, a, u)
+    names = ["x", "v", "a", "u"]
+    sig = np.zeros(t.size, dtype=[("time", float)] + [(n, float) for n in names])
+    sig["time"], sig["x"], sig["v"], sig["a"], sig["u"] = t, x, v, a, u
+    dt = float(t[1] - t[0])
+    me = simulate_fmu(str(path), start_time=0.0, stop_time=float(t[-1]), step_size=dt, output_interval=dt,
+                      input=sig, output=["force"], fmi_type="ModelExchange", solver="Euler")
+    f = damper_from_model(default_model()).forces(x, v, a, u, u, np.full(t.size, 20.0))[0]
+    assert len(me) == len(cs)
+    # model exchange samples the outputs with the inputs of the same instant (no step delay;
+    # FMPy interpolates the inputs at its own float times: 7e-11 N measured)
+    np.testing.assert_allclose(me["force"], f, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(cs["force"][1:], me["force"][:-1], rtol=0, atol=1e-9)

@@ -8,15 +8,17 @@ import sys
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
-        "export", help="export a model: an FMI 2.0 co-simulation FMU, an ONNX graph, a C/C++ header",
+        "export", help="export a model: an FMI 2.0 FMU, an ONNX graph, a C/C++ header",
         description="Export MODEL (a model directory or model.json). --onnx: the network with its input "
                     "saturation and scalings as one ONNX graph (opset 17, float32, one input per feature "
                     "named as the feature, output 'force' [N]; a hybrid model's physics terms are listed "
-                    "in its metadata, not in the graph). --fmu: the damper as an FMI 2.0 co-simulation FMU "
+                    "in its metadata, not in the graph). --fmu: the damper as an FMI 2.0 FMU, co-simulation and "
+                    "model exchange "
                     "(inputs x, v, a, u, temperature; output force [N]; compiled here for linux64, sources "
                     "included). --header: the C/C++ header `dampnet train` writes.")
     p.add_argument("model")
-    p.add_argument("--fmu", metavar="OUT.fmu", help="write the damper FMU (FMI 2.0, co-simulation) here")
+    p.add_argument("--fmu", metavar="OUT.fmu",
+                   help="write the damper FMU (FMI 2.0, co-simulation and model exchange) here")
     p.add_argument("--onnx", metavar="OUT.onnx", help="write the ONNX graph here")
     p.add_argument("--header", metavar="OUT.h", help="write the C/C++ header here")
     p.add_argument("--prefix", default="dn_model", help="the header's name prefix (default dn_model)")
@@ -47,7 +49,7 @@ def run(args) -> int:
             from dampnet.fmu import MODEL_IDENTIFIER, build_damper_fmu
 
             build_damper_fmu(model, args.fmu, overwrite=args.force)
-            print(f"{args.fmu}: FMI 2.0 co-simulation FMU {MODEL_IDENTIFIER} (linux64 binary and sources), "
+            print(f"{args.fmu}: FMI 2.0 FMU {MODEL_IDENTIFIER} (linux64 binary and sources), "
                   f"inputs x [m], v [m/s], a [m/s2], u, temperature [degC]; output force [N]")
         if args.onnx:
             try:
