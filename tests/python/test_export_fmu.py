@@ -68,7 +68,7 @@ def test_the_fmu_binary_needs_only_libc_and_libm(tmp_path):
     with zipfile.ZipFile(path) as z:
         names = set(z.namelist())
         z.extractall(tmp_path / "x")
-    assert {"modelDescription.xml", "binaries/linux64/dampnet_damper.so", "sources/damper_fmu2.cpp",
+    assert {"modelDescription.xml", "binaries/linux64/dampnet_damper.so", "sources/fmu2.cpp",
             "sources/fmu_model.h", "sources/fmi2Functions.h"} <= names
     ldd = subprocess.run(["ldd", str(tmp_path / "x/binaries/linux64/dampnet_damper.so")], capture_output=True,
                          text=True).stdout

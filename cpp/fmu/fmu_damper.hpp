@@ -1,0 +1,342 @@
+// The damper FMU's model: dampnet's damper (the MLP of the generated header "fmu_model.h",
+// prefix fmu_model, plus its physics terms) with the derived features' states.
+//
+// Value references (python/dampnet/fmu/damper.py writes the same in modelDescription.xml):
+//   0 x [m]  1 v [m/s]  2 a [m/s2]  3 u [control unit]  4 temperature [degC]      inputs
+//   5 force [N]                                                                   output (Real)
+//   6 status (dampnet status)  7 clamped_mask (bit i: input i clamped)            outputs (Integer)
+//   10 + k   the model's k-th feature constant (names sorted, as in the header)   parameters
+//   100 + 10 i + j   parameter j of physics term i                               parameters
+//   40 u_lag [u]  41 v_lag [m/s]  42 z_fric [-]   the derived features' states (those the model uses)
+//   50, 51, 52    their time derivatives (model exchange)
+//
+// The states follow dampnet's quarter-car loop (cpp/include/dampnet/loop.hpp) exactly.
+// Co-simulation: between two communication points t0 and t0 + h the control is held at its
+// value at t0 and the velocity and displacement move as a ramp to the values set at t0 + h,
+// so the states at time t (t0 <= t) with the inputs currently set are, T = t - t0:
+//   u_lag = u0 + (u_lag0 - u0) exp(-T/tau_u)
+//   v_lag = A v_lag0 + (1 - A) v0 + (v - v0) (1 - tau_v (1 - A) / T),  A = exp(-T/tau_v)
+//   z_fric = s + (z_fric0 - s) exp(-|x - x0| / x_c),  s = sgn(x - x0)  (unchanged when x = x0)
+// and fmi2DoStep / fmi3DoStep commits them at the communication point before advancing the
+// time. So the force read at a communication point, after setting that point's inputs, is
+// the force the runtime loop computes there; a force read after a step before new inputs are
+// set has the inputs held over the step.
+// Model exchange: the states are continuous states, du_lag/dt = (u - u_lag)/tau_u,
+// dv_lag/dt = (v - v_lag)/tau_v, dz/dt = (v - |v| z)/x_c (Dahl along the travel).
+// Initial states (both interfaces): u_lag = u, v_lag = v (steady state at the initial inputs,
+// as dampnet.features' training columns start), z_fric = 0.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <new>
+
+#include "dampnet/damper.hpp"
+#include "dampnet/mlp.hpp"
+#include "fmu_common.hpp"
+#include "fmu_model.h"
+
+#ifndef FMU_MODEL_TERM_PARAMS
+#define FMU_MODEL_TERM_PARAMS 1
+#endif
+
+namespace dnfmu {
+
+class DamperModel {
+ public:
+  enum Vr : unsigned {
+    VR_X = 0, VR_V, VR_A, VR_U, VR_TEMP, VR_FORCE, VR_STATUS, VR_MASK,
+    VR_FPARAM = 10, VR_TERM = 100, VR_STATE = 40, VR_DERIV = 50
+  };
+  enum State { ST_ULAG, ST_VLAG, ST_ZFRIC, ST_N };
+  static constexpr int kTerms = FMU_MODEL_N_TERMS;
+  static constexpr int kFparams = FMU_MODEL_N_FEATURE_PARAMS;
+
+  Message message;
+
+  int instantiate() noexcept {
+    const dn_mlp_desc desc = FMU_MODEL_DESC_INIT;
+    int st = mlp_d_.load(&desc);
+    if (st == DN_OK) st = mlp_f_.load(&desc);
+    if (st != DN_OK) return message.fail(st, "the model header does not load: %s", status_text(st));
+    for (int k = 0; k < kFparams; ++k) fparam_[k] = fparam_default(k);
+    for (int i = 0; i < kTerms; ++i)
+      for (int j = 0; j < FMU_MODEL_TERM_PARAMS; ++j) term_[i][j] = term_default(i, j);
+    reset();
+    st = build();  // the defaults are the trained model's: a failure here is a broken header
+    if (st < 0) return st;
+    for (int s = 0; s < ST_N; ++s) used_[s] = false;
+    for (int i = 0; i < FMU_MODEL_N_INPUTS; ++i) {
+      const int f = damper_.feat[i];
+      if (f == DN_FEAT_VOLTAGE_LAG || f == DN_FEAT_CURRENT_LAG) used_[ST_ULAG] = true;
+      if (f == DN_FEAT_VELOCITY_LAG) used_[ST_VLAG] = true;
+      if (f == DN_FEAT_FRICTION_STATE) used_[ST_ZFRIC] = true;
+    }
+    n_states_ = 0;
+    for (int s = 0; s < ST_N; ++s)
+      if (used_[s]) slot_[n_states_++] = s;
+    return DN_OK;
+  }
+
+  void reset() noexcept {
+    for (double& v : in_) v = 0.0;
+    in_[VR_TEMP] = 20.0;
+    time_ = t0_ = 0.0;
+    for (double& v : x_) v = 0.0;
+    for (double& v : start_in_) v = 0.0;
+  }
+
+  // Parameters take effect here; the initial states are the steady state at the inputs set.
+  int exit_initialization(bool model_exchange) noexcept {
+    me_ = model_exchange;
+    const int st = build();
+    if (st < 0) return st;
+    x_[ST_ULAG] = in_[VR_U];
+    x_[ST_VLAG] = in_[VR_V];
+    x_[ST_ZFRIC] = 0.0;
+    snapshot();
+    return DN_OK;
+  }
+
+  bool parameter(unsigned vr) const noexcept { return fparam_index(vr) >= 0 || term_index(vr, nullptr) >= 0; }
+
+  int get_real(unsigned vr, double* value) noexcept {
+    if (vr <= VR_TEMP) {
+      *value = in_[vr];
+      return DN_OK;
+    }
+    if (vr == VR_FORCE) {
+      uint32_t mask = 0;
+      const int st = evaluate(value, &mask);
+      return st < 0 ? message.fail(st, "the force cannot be evaluated at t = %g s: %s", time_, status_text(st)) : DN_OK;
+    }
+    const int k = fparam_index(vr);
+    if (k >= 0) {
+      *value = fparam_[k];
+      return DN_OK;
+    }
+    int j = 0;
+    const int i = term_index(vr, &j);
+    if (i >= 0) {
+      *value = term_[i][j];
+      return DN_OK;
+    }
+    const int s = state_of(vr, VR_STATE);
+    if (s >= 0) {
+      double st[ST_N];
+      states_now(st);
+      *value = st[s];
+      return DN_OK;
+    }
+    const int d = state_of(vr, VR_DERIV);
+    if (d >= 0) {
+      double st[ST_N], dx[ST_N];
+      states_now(st);
+      rates(st, dx);
+      *value = dx[d];
+      return DN_OK;
+    }
+    return no_such(message, "Real", vr);
+  }
+
+  int set_real(unsigned vr, double value) noexcept {
+    if (vr <= VR_TEMP) {
+      in_[vr] = value;
+      return DN_OK;
+    }
+    const int k = fparam_index(vr);
+    if (k >= 0) {
+      fparam_[k] = value;
+      return DN_OK;
+    }
+    int j = 0;
+    const int i = term_index(vr, &j);
+    if (i >= 0) {
+      term_[i][j] = value;
+      return DN_OK;
+    }
+    return message.fail(DN_E_PARAM, "value reference %u cannot be set: only the inputs x, v, a, u, temperature "
+                        "and the parameters", vr);
+  }
+
+  int get_int(unsigned vr, int* value) noexcept {
+    if (vr != VR_STATUS && vr != VR_MASK) return no_such(message, "Integer", vr);
+    double f = 0.0;
+    uint32_t mask = 0;
+    const int st = evaluate(&f, &mask);
+    *value = vr == VR_STATUS ? st : static_cast<int>(mask);
+    return DN_OK;
+  }
+  int set_int(unsigned vr, int) noexcept { return message.fail(DN_E_PARAM, "no settable Integer %u", vr); }
+
+  int do_step(double t, double h) noexcept {
+    if (!(h > 0) || !std::isfinite(t + h))
+      return message.fail(DN_E_PARAM, "the communication step must be a finite step > 0 s (got t = %g s, h = %g s)",
+                          t, h);
+    time_ = t;  // the states at the communication point t, committed
+    double st[ST_N];
+    states_now(st);
+    for (int s = 0; s < ST_N; ++s)
+      if (!std::isfinite(st[s]))
+        return message.fail(DN_E_NONFINITE_INPUT, "a state is not finite at t = %g s (an input is NaN or infinite)",
+                            t);
+    for (int s = 0; s < ST_N; ++s) x_[s] = st[s];
+    snapshot();
+    time_ = t + h;
+    return DN_OK;
+  }
+
+  void set_time(double t) noexcept { time_ = t; }
+  double time() const noexcept { return time_; }
+  int n_states() const noexcept { return n_states_; }
+  void get_states(double* x) const noexcept {
+    for (int i = 0; i < n_states_; ++i) x[i] = x_[slot_[i]];
+  }
+  void set_states(const double* x) noexcept {
+    for (int i = 0; i < n_states_; ++i) x_[slot_[i]] = x[i];
+  }
+  int derivatives(double* dx) noexcept {
+    double r[ST_N];
+    rates(x_, r);
+    for (int i = 0; i < n_states_; ++i) dx[i] = r[slot_[i]];
+    return DN_OK;
+  }
+
+ private:
+  dampnet::Mlp<double> mlp_d_;
+  dampnet::Mlp<float> mlp_f_;
+  dampnet::Damper damper_;
+  double fparam_[kFparams > 0 ? kFparams : 1] = {};
+  double term_[kTerms > 0 ? kTerms : 1][FMU_MODEL_TERM_PARAMS] = {};
+  double in_[5] = {};         // x, v, a, u, temperature
+  double start_in_[5] = {};   // the inputs at the last communication point t0 (co-simulation)
+  double x_[ST_N] = {};       // states: at t0 (co-simulation), the integrator's (model exchange)
+  double time_ = 0.0, t0_ = 0.0;
+  bool me_ = false;
+  bool used_[ST_N] = {};
+  int slot_[ST_N] = {};
+  int n_states_ = 0;
+
+  static double fparam_default(int k) noexcept {
+#if FMU_MODEL_N_FEATURE_PARAMS > 0
+    return fmu_model_feature_param_values[k];
+#else
+    (void)k;
+    return 0.0;
+#endif
+  }
+  static double term_default(int i, int j) noexcept {
+#if FMU_MODEL_N_TERMS > 0
+    return fmu_model_term_params[i * FMU_MODEL_TERM_PARAMS + j];
+#else
+    (void)i, (void)j;
+    return 0.0;
+#endif
+  }
+  static int fparam_index(unsigned vr) noexcept {
+    return vr >= VR_FPARAM && vr < VR_FPARAM + unsigned(kFparams) ? int(vr - VR_FPARAM) : -1;
+  }
+  static int term_index(unsigned vr, int* j) noexcept {
+#if FMU_MODEL_N_TERMS > 0
+    if (vr < VR_TERM || vr >= VR_TERM + 10u * kTerms) return -1;
+    const int i = int(vr - VR_TERM) / 10, p = int(vr - VR_TERM) % 10;
+    if (p >= fmu_model_term_n_params[i]) return -1;
+    if (j) *j = p;
+    return i;
+#else
+    (void)vr, (void)j;
+    return -1;
+#endif
+  }
+  int state_of(unsigned vr, unsigned base) const noexcept {
+    return vr >= base && vr < base + ST_N && used_[vr - base] ? int(vr - base) : -1;
+  }
+
+  // The damper from the model and the current parameters (validated by the runtime).
+  int build() noexcept {
+    dampnet::Damper d;
+    d.md = mlp_d_;
+    d.mf = mlp_f_;
+#if FMU_MODEL_N_FEATURE_PARAMS > 0
+    int st = d.set_neural_features(fmu_model_feature_names, FMU_MODEL_N_INPUTS, fmu_model_feature_param_names,
+                                   fparam_, kFparams, DN_PRECISION_DOUBLE);
+    if (st == DN_E_PARAM || st == DN_E_NONFINITE_PARAM) {
+      for (int k = 0; k < kFparams; ++k)
+        if (!(fparam_[k] > 0) || !std::isfinite(fparam_[k]))
+          return message.fail(st, "parameter %s = %g: must be finite and > 0", fmu_model_feature_param_names[k],
+                              fparam_[k]);
+    }
+#else
+    int st = d.set_neural_features(fmu_model_feature_names, FMU_MODEL_N_INPUTS, nullptr, nullptr, 0,
+                                   DN_PRECISION_DOUBLE);
+#endif
+    if (st != DN_OK) return message.fail(st, "the model's features are refused: %s", status_text(st));
+#if FMU_MODEL_N_TERMS > 0
+    for (int i = 0; i < kTerms; ++i) {
+      st = d.add_term(fmu_model_term_kinds[i], term_[i], fmu_model_term_n_params[i]);
+      if (st != DN_OK)
+        return message.fail(st, "term %d (%s): its parameters are refused: %s", i, fmu_model_term_kinds[i],
+                            status_text(st));
+    }
+#endif
+    damper_ = d;
+    return DN_OK;
+  }
+
+  void snapshot() noexcept {
+    t0_ = time_;
+    for (int i = 0; i < 5; ++i) start_in_[i] = in_[i];
+  }
+
+  // The states at the current time with the current inputs (see the file comment).
+  void states_now(double* s) const noexcept {
+    for (int i = 0; i < ST_N; ++i) s[i] = x_[i];
+    if (me_) return;
+    const double T = time_ - t0_;
+    if (!(T > 0)) return;
+    if (used_[ST_ULAG]) {
+      const double u0 = start_in_[VR_U];
+      s[ST_ULAG] = u0 + (x_[ST_ULAG] - u0) * std::exp(-T / damper_.lag_tau());
+    }
+    if (used_[ST_VLAG]) {
+      const double tau = damper_.velocity_lag_tau(), v0 = start_in_[VR_V];
+      const double one_minus_a = -std::expm1(-T / tau);
+      s[ST_VLAG] = (1.0 - one_minus_a) * x_[ST_VLAG] + one_minus_a * v0 +
+                   (in_[VR_V] - v0) * (1.0 - tau * one_minus_a / T);
+    }
+    if (used_[ST_ZFRIC]) {
+      const double dx = in_[VR_X] - start_in_[VR_X];
+      if (dx != 0.0) {
+        const double sg = dx > 0.0 ? 1.0 : -1.0;
+        s[ST_ZFRIC] = sg + (x_[ST_ZFRIC] - sg) * std::exp(-std::fabs(dx) / damper_.presliding());
+      }
+    }
+  }
+
+  void rates(const double* s, double* r) const noexcept {
+    for (int i = 0; i < ST_N; ++i) r[i] = 0.0;
+    if (used_[ST_ULAG]) r[ST_ULAG] = (in_[VR_U] - s[ST_ULAG]) / damper_.lag_tau();
+    if (used_[ST_VLAG]) r[ST_VLAG] = (in_[VR_V] - s[ST_VLAG]) / damper_.velocity_lag_tau();
+    if (used_[ST_ZFRIC]) r[ST_ZFRIC] = (in_[VR_V] - std::fabs(in_[VR_V]) * s[ST_ZFRIC]) / damper_.presliding();
+  }
+
+  int evaluate(double* force, uint32_t* mask) const noexcept {
+    double s[ST_N];
+    states_now(s);
+    dn_damper_input d{};
+    d.x = in_[VR_X];
+    d.v = in_[VR_V];
+    d.a = in_[VR_A];
+    d.u = in_[VR_U];
+    d.temperature = in_[VR_TEMP];
+    d.t = time_;
+    d.dt = 0.0;
+    d.stage = 0;
+    d.u_lag = used_[ST_ULAG] ? s[ST_ULAG] : in_[VR_U];
+    d.v_lag = used_[ST_VLAG] ? s[ST_VLAG] : in_[VR_V];
+    d.z_fric = s[ST_ZFRIC];
+    return damper_.force(d, force, nullptr, mask);
+  }
+};
+
+}  // namespace dnfmu

@@ -1,0 +1,98 @@
+"""The damper FMU's variables (cpp/fmu/fmu_damper.hpp: the same value references).
+
+Inputs x [m], v [m/s], a [m/s2], u (the model's control unit), temperature [degC]; outputs
+force [N], status, clamped_mask; parameters: the model's feature constants (lags, pre-sliding
+travel) and its physics terms' parameters, settable before initialisation; the derived
+features' states (u_lag, v_lag, z_fric) as local variables, continuous states in model exchange.
+"""
+
+from __future__ import annotations
+
+from dampnet.export import _package_version
+from dampnet.features import param_doc
+from dampnet.fmu.description import Description, Variable, fmi_unit, unit_in
+from dampnet.model import MlpModel, ModelError
+from dampnet.terms import KINDS
+
+MODEL_IDENTIFIER = "dampnet_damper"
+#: the features the FMU feeds: from its inputs, or from the states it keeps
+FMU_FEATURES = ("velocity", "acceleration", "displacement", "voltage", "current", "temperature",
+                "voltage_lag", "current_lag", "velocity_lag", "friction_state")
+VR_FPARAM, VR_TERM, VR_STATE, VR_DERIV, VR_TIME = 10, 100, 40, 50, 9
+#: the derived features' states: (name, slot, the features that need it, description)
+STATES = (("u_lag", 0, ("voltage_lag", "current_lag"), "control after the model's first-order lag"),
+          ("v_lag", 1, ("velocity_lag",), "velocity after the model's first-order lag"),
+          ("z_fric", 2, ("friction_state",), "Dahl friction state, in [-1, 1]"))
+
+
+class FmuError(ModelError):
+    """A model the FMU cannot carry, a missing compiler, a failed build."""
+
+
+def check_model(model: MlpModel) -> None:
+    bad = [f for f in model.features if f not in FMU_FEATURES]
+    if bad:
+        raise FmuError(f"the FMU cannot feed feature(s) {', '.join(bad)}: it takes {', '.join(FMU_FEATURES)}")
+    for term in model.terms:
+        if len(term.get("params") or []) > 10:  # value references 100 + 10 i + j
+            raise FmuError(f"term {term['kind']!r} has more than 10 parameters: the FMU exposes at most 10")
+
+
+def control_unit(model: MlpModel) -> str | None:
+    for name in ("voltage", "current", "voltage_lag", "current_lag"):
+        if name in model.features:
+            return fmi_unit(model.units[model.features.index(name)]) or ("V" if "voltage" in name else "A")
+    return "V"
+
+
+def data_label(model: MlpModel) -> str:
+    return str(model.meta.get("data_hash") or model.meta.get("dataset") or "unknown data")
+
+
+def damper_variables(model: MlpModel) -> list[Variable]:
+    """The damper's variables, in value-reference order within each group."""
+    u_unit = control_unit(model)
+    v = [Variable("x", 0, "Real", "input", "continuous",
+                  "damper displacement, extension positive, from the mid position", "m", 0.0),
+         Variable("v", 1, "Real", "input", "continuous", "damper velocity, extension positive", "m/s", 0.0),
+         Variable("a", 2, "Real", "input", "continuous", "damper relative acceleration, extension positive",
+                  "m/s2", 0.0),
+         Variable("u", 3, "Real", "input", "continuous", "control (the model's control unit)", u_unit, 0.0),
+         Variable("temperature", 4, "Real", "input", "continuous", "damper temperature", "degC", 20.0),
+         Variable("force", 5, "Real", "output", "continuous",
+                  "damper force, positive resisting extension (network plus physics terms)", "N", initial="calculated"),
+         Variable("status", 6, "Integer", "output", "discrete",
+                  "dampnet status of the evaluation: 0 ok, 1 an input clamped to the training range, "
+                  "2 a NaN input replaced, negative an error", initial="calculated"),
+         Variable("clamped_mask", 7, "Integer", "output", "discrete",
+                  "bit i set: network input i was clamped to its training range", initial="calculated")]
+    for k, (name, value) in enumerate(sorted(model.feature_params.items())):  # the header's order
+        doc = param_doc(name)
+        v.append(Variable(name, VR_FPARAM + k, "Real", "parameter", "fixed", doc.split(" [")[0],
+                          unit_in(doc), float(value), initial="exact"))
+    for i, term in enumerate(model.terms):
+        names = KINDS[term["kind"]].params
+        for j, value in enumerate(term.get("params") or []):
+            pname, _, unit = names[j].partition(" [")
+            v.append(Variable(f"{term['kind']}_{i}.{pname}", VR_TERM + 10 * i + j, "Real", "parameter", "fixed",
+                              f"physics term {i} ({term['kind']}): {KINDS[term['kind']].doc}", fmi_unit(unit.rstrip("]")),
+                              float(value), initial="exact"))
+    for name, slot, features, doc in STATES:
+        if any(f in model.features for f in features):
+            unit = u_unit if name == "u_lag" else ("m/s" if name == "v_lag" else None)
+            d_unit = {"V": None, "A": None, "m/s": "m/s2", None: "1/s"}.get(unit)
+            v.append(Variable(name, VR_STATE + slot, "Real", "local", "continuous", doc, unit,
+                              initial="calculated", state=True))
+            v.append(Variable(f"der({name})", VR_DERIV + slot, "Real", "local", "continuous",
+                              f"time derivative of {name}", d_unit, initial="calculated",
+                              derivative_of=VR_STATE + slot))
+    return v
+
+
+def damper_description(model: MlpModel, step_s: float = 1e-3) -> Description:
+    check_model(model)
+    text = (f"dampnet damper model {model.model_id()}: a {model.n_inputs}-input MLP on {', '.join(model.features)}"
+            + (f" plus {len(model.terms)} physics term(s)" if model.terms else "")
+            + f"; trained on {data_label(model)}")
+    return Description(MODEL_IDENTIFIER, model.model_id(), text, f"dampnet {_package_version()}",
+                       damper_variables(model), step_s=step_s, time_vr=VR_TIME)

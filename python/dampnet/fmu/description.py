@@ -1,0 +1,200 @@
+"""modelDescription.xml (FMI 2.0 and 3.0) and buildDescription.xml (FMI 3.0) from one list of
+variables: the damper's and the quarter car's variable tables (damper.py, quarter_car.py)
+are written once and rendered for either standard here."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from xml.sax.saxutils import quoteattr
+
+#: SI base-unit exponents of every unit a dampnet FMU variable may carry (FMI <Unit>/<BaseUnit>).
+BASE_UNITS = {
+    "m": 'm="1"', "m/s": 'm="1" s="-1"', "m/s2": 'm="1" s="-2"', "N": 'kg="1" m="1" s="-2"',
+    "degC": 'K="1" offset="273.15"', "V": 'kg="1" m="2" s="-3" A="-1"', "A": 'A="1"', "kg": 'kg="1"',
+    "s": 's="1"', "N/m": 'kg="1" s="-2"', "N.s/m": 'kg="1" s="-1"', "1/s": 's="-1"',
+}
+#: the sources an FMI version's binary is built from, and its platform folder
+SOURCE = {2: "fmu2.cpp", 3: "fmu3.cpp"}
+PLATFORM = {2: "linux64", 3: "x86_64-linux"}
+INTERFACES = ("cs", "me", "both")
+
+
+def fmi_unit(text: str | None) -> str | None:
+    """An FMI unit name from dampnet's notation ("m/s^2" -> "m/s2", "N s/m" -> "N.s/m");
+    None for dimensionless or unknown ("-", "")."""
+    if not text:
+        return None
+    u = text.strip().replace("^", "").replace(" ", ".")
+    return u if u in BASE_UNITS else None
+
+
+def unit_in(doc: str) -> str | None:
+    """The unit in a dampnet doc string's first [...] ("sprung mass [kg], > 0" -> "kg")."""
+    m = re.search(r"\[([^\]]+)\]", doc)
+    return fmi_unit(m.group(1)) if m else None
+
+
+@dataclass(frozen=True)
+class Variable:
+    """One FMU variable. type: "Real" (FMI 3 Float64) or "Integer" (Int32).
+    causality: input, output, parameter, local; variability: continuous, discrete, fixed, tunable."""
+    name: str
+    vr: int
+    type: str
+    causality: str
+    variability: str
+    description: str
+    unit: str | None = None
+    start: float | int | None = None
+    initial: str | None = None
+    derivative_of: int | None = None  # the state's value reference, for a state derivative
+    state: bool = False  # a continuous state (model exchange)
+
+
+@dataclass
+class Description:
+    """What a modelDescription says: identity, variables, interfaces and the default experiment."""
+    model_identifier: str
+    guid: str  # FMI 2 guid, FMI 3 instantiationToken: the binary checks it
+    description: str
+    tool: str
+    variables: list[Variable]
+    step_s: float = 1e-3
+    stop_s: float = 10.0
+    time_vr: int = 9  # FMI 3's independent variable
+    co_simulation_only: bool = False  # the model has no model-exchange form
+    notes: list[str] = field(default_factory=list)
+
+    def by_vr(self) -> dict[int, Variable]:
+        return {v.vr: v for v in self.variables}
+
+
+def _units_block(variables: list[Variable], extra: tuple[str, ...] = ()) -> str:
+    used = sorted({v.unit for v in variables if v.unit} | set(extra))
+    rows = "\n".join(f"    <Unit name={quoteattr(u)}><BaseUnit {BASE_UNITS[u]}/></Unit>" for u in used)
+    return f"  <UnitDefinitions>\n{rows}\n  </UnitDefinitions>\n" if used else ""
+
+
+def _num(x: float | int) -> str:
+    return repr(int(x)) if isinstance(x, int) else repr(float(x))
+
+
+def _interfaces(d: Description, interface: str) -> tuple[bool, bool]:
+    if interface not in INTERFACES:
+        raise ValueError(f"interface {interface!r}: expected one of {', '.join(INTERFACES)}")
+    if d.co_simulation_only and interface != "cs":
+        raise ValueError(f"{d.model_identifier} is a co-simulation FMU only: use interface 'cs' (got {interface!r})")
+    return interface in ("cs", "both"), interface in ("me", "both")
+
+
+def model_description_2(d: Description, interface: str = "both") -> str:
+    """FMI 2.0 modelDescription.xml."""
+    cs, me = _interfaces(d, interface)
+    variables = [v for v in d.variables if me or v.derivative_of is None]
+    index = {v.vr: i + 1 for i, v in enumerate(variables)}  # FMI 2 refers to variables by 1-based index
+    rows = []
+    for v in variables:
+        attrs = [f"name={quoteattr(v.name)}", f'valueReference="{v.vr}"', f'causality="{v.causality}"',
+                 f'variability="{v.variability}"']
+        if v.initial:
+            attrs.append(f'initial="{v.initial}"')
+        doc = v.description + (f" [{v.unit}]" if v.unit else "")
+        attrs.append(f"description={quoteattr(doc)}")
+        typed = []
+        if v.type == "Real" and v.unit:
+            typed.append(f"unit={quoteattr(v.unit)}")
+        if v.derivative_of is not None:
+            typed.append(f'derivative="{index[v.derivative_of]}"')
+        if v.start is not None:
+            typed.append(f'start="{_num(v.start)}"')
+        rows.append(f"    <ScalarVariable {' '.join(attrs)}>\n      <{v.type}{''.join(' ' + t for t in typed)}/>\n"
+                    f"    </ScalarVariable>")
+    outputs = [v for v in variables if v.causality == "output"]
+    derivs = [v for v in variables if v.derivative_of is not None]
+    initial = sorted([v for v in variables if v.causality == "output" or v.derivative_of is not None
+                      or (v.state and v.initial in (None, "calculated", "approx"))], key=lambda v: index[v.vr])
+
+    def unknowns(vs):
+        return "".join(f'      <Unknown index="{index[v.vr]}"/>\n' for v in vs)
+
+    structure = f"    <Outputs>\n{unknowns(outputs)}    </Outputs>\n"
+    if derivs:
+        structure += f"    <Derivatives>\n{unknowns(derivs)}    </Derivatives>\n"
+    structure += f"    <InitialUnknowns>\n{unknowns(initial)}    </InitialUnknowns>\n"
+    src = f'    <SourceFiles><File name="{SOURCE[2]}"/></SourceFiles>\n'
+    head = (f'<?xml version="1.0" encoding="UTF-8"?>\n'
+            f'<fmiModelDescription fmiVersion="2.0" modelName="{d.model_identifier}" guid={quoteattr(d.guid)} '
+            f"description={quoteattr(d.description)} generationTool={quoteattr(d.tool)} "
+            f'variableNamingConvention="flat" numberOfEventIndicators="0">\n')
+    if me:
+        head += (f'  <ModelExchange modelIdentifier="{d.model_identifier}" canGetAndSetFMUstate="false" '
+                 f'canSerializeFMUstate="false" providesDirectionalDerivative="false">\n{src}  </ModelExchange>\n')
+    if cs:
+        head += (f'  <CoSimulation modelIdentifier="{d.model_identifier}" canHandleVariableCommunicationStepSize="true" '
+                 f'canGetAndSetFMUstate="false" canSerializeFMUstate="false" providesDirectionalDerivative="false">\n'
+                 f"{src}  </CoSimulation>\n")
+    return (head + _units_block(variables)
+            + f'  <DefaultExperiment startTime="0" stopTime="{_num(d.stop_s)}" stepSize="{_num(d.step_s)}"/>\n'
+            + "  <ModelVariables>\n" + "\n".join(rows) + "\n  </ModelVariables>\n"
+            + f"  <ModelStructure>\n{structure}  </ModelStructure>\n</fmiModelDescription>\n")
+
+
+def model_description_3(d: Description, interface: str = "both") -> str:
+    """FMI 3.0 modelDescription.xml (the independent variable `time` first)."""
+    cs, me = _interfaces(d, interface)
+    variables = [v for v in d.variables if me or v.derivative_of is None]
+    rows = [f'    <Float64 name="time" valueReference="{d.time_vr}" causality="independent" '
+            f'variability="continuous" description="simulation time [s]" unit="s"/>']
+    for v in variables:
+        attrs = [f"name={quoteattr(v.name)}", f'valueReference="{v.vr}"', f'causality="{v.causality}"',
+                 f'variability="{v.variability}"']
+        if v.initial:
+            attrs.append(f'initial="{v.initial}"')
+        doc = v.description + (f" [{v.unit}]" if v.unit else "")
+        attrs.append(f"description={quoteattr(doc)}")
+        if v.type == "Real" and v.unit:
+            attrs.append(f"unit={quoteattr(v.unit)}")
+        if v.derivative_of is not None:
+            attrs.append(f'derivative="{v.derivative_of}"')
+        if v.start is not None:
+            attrs.append(f'start="{_num(v.start)}"')
+        rows.append(f"    <{'Float64' if v.type == 'Real' else 'Int32'} {' '.join(attrs)}/>")
+    outputs = [v for v in variables if v.causality == "output"]
+    derivs = [v for v in variables if v.derivative_of is not None]
+    initial = [v for v in variables if v.causality == "output" or v.derivative_of is not None
+               or (v.state and v.initial in (None, "calculated", "approx"))]
+    structure = "".join(f'    <Output valueReference="{v.vr}"/>\n' for v in outputs)
+    structure += "".join(f'    <ContinuousStateDerivative valueReference="{v.vr}"/>\n' for v in derivs)
+    structure += "".join(f'    <InitialUnknown valueReference="{v.vr}"/>\n' for v in initial)
+    head = (f'<?xml version="1.0" encoding="UTF-8"?>\n'
+            f'<fmiModelDescription fmiVersion="3.0" modelName="{d.model_identifier}" '
+            f"instantiationToken={quoteattr(d.guid)} description={quoteattr(d.description)} "
+            f'generationTool={quoteattr(d.tool)} variableNamingConvention="flat">\n')
+    if me:
+        head += (f'  <ModelExchange modelIdentifier="{d.model_identifier}" canGetAndSetFMUState="false" '
+                 f'canSerializeFMUState="false"/>\n')
+    if cs:
+        head += (f'  <CoSimulation modelIdentifier="{d.model_identifier}" canHandleVariableCommunicationStepSize="true" '
+                 f'canGetAndSetFMUState="false" canSerializeFMUState="false" providesIntermediateUpdate="false" '
+                 f'canReturnEarlyAfterIntermediateUpdate="false" hasEventMode="false"/>\n')
+    return (head + _units_block(variables, extra=("s",))  # the unit of `time`
+            + f'  <DefaultExperiment startTime="0" stopTime="{_num(d.stop_s)}" stepSize="{_num(d.step_s)}"/>\n'
+            + "  <ModelVariables>\n" + "\n".join(rows) + "\n  </ModelVariables>\n"
+            + f"  <ModelStructure>\n{structure}  </ModelStructure>\n</fmiModelDescription>\n")
+
+
+def build_description_3(d: Description) -> str:
+    """FMI 3.0 sources/buildDescription.xml: one C++17 source, sources/ on the include path."""
+    return (f'<?xml version="1.0" encoding="UTF-8"?>\n<fmiBuildDescription fmiVersion="3.0">\n'
+            f'  <BuildConfiguration modelIdentifier="{d.model_identifier}">\n'
+            f'    <SourceFileSet language="C++17">\n      <SourceFile name="{SOURCE[3]}"/>\n    </SourceFileSet>\n'
+            f"  </BuildConfiguration>\n</fmiBuildDescription>\n")
+
+
+def model_description(d: Description, fmi: int, interface: str = "both") -> str:
+    if fmi == 2:
+        return model_description_2(d, interface)
+    if fmi == 3:
+        return model_description_3(d, interface)
+    raise ValueError(f"FMI version {fmi!r}: expected 2 or 3")
