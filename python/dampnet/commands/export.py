@@ -1,4 +1,5 @@
-"""`dampnet export MODEL --onnx OUT.onnx | --header OUT.h`: the model for other runtimes."""
+"""`dampnet export MODEL --fmu OUT.fmu | --onnx OUT.onnx | --header OUT.h`: the model for other
+tools and runtimes."""
 
 from __future__ import annotations
 
@@ -8,17 +9,30 @@ import sys
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
-        "export", help="export a model: an FMI 2.0 FMU, an ONNX graph, a C/C++ header",
+        "export", help="export a model: an FMI 2.0/3.0 FMU, an ONNX graph, a C/C++ header",
         description="Export MODEL (a model directory or model.json). --onnx: the network with its input "
                     "saturation and scalings as one ONNX graph (opset 17, float32, one input per feature "
                     "named as the feature, output 'force' [N]; a hybrid model's physics terms are listed "
-                    "in its metadata, not in the graph). --fmu: the damper as an FMI 2.0 FMU, co-simulation and "
-                    "model exchange "
-                    "(inputs x, v, a, u, temperature; output force [N]; compiled here for linux64, sources "
-                    "included). --header: the C/C++ header `dampnet train` writes.")
+                    "in its metadata, not in the graph). --fmu: an FMU (FMI 2.0 or 3.0; co-simulation, model "
+                    "exchange or both) of the damper (inputs x, v, a, u, temperature; output force [N]; "
+                    "parameters the feature constants and physics terms; the lag and friction states inside) "
+                    "or of the quarter car (co-simulation: road in, motion out, every vehicle and controller "
+                    "parameter exposed); compiled here for Linux x86-64, sources included so an importer can "
+                    "rebuild it elsewhere. --header: the C/C++ header `dampnet train` writes.")
     p.add_argument("model")
-    p.add_argument("--fmu", metavar="OUT.fmu",
-                   help="write the damper FMU (FMI 2.0, co-simulation and model exchange) here")
+    p.add_argument("--fmu", metavar="OUT.fmu", help="write an FMU here (see --fmi, --interface, --what)")
+    p.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version of the FMU (default 2)")
+    p.add_argument("--interface", choices=("cs", "me", "both"), default=None,
+                   help="co-simulation, model exchange or both in one FMU (default: both for the damper, "
+                        "cs for the quarter car, which is co-simulation only)")
+    p.add_argument("--what", choices=("damper", "quarter-car"), default="damper",
+                   help="the damper alone (default), or the quarter car with this damper (thesis Table 5 "
+                        "vehicle; fixed step = its dt)")
+    p.add_argument("--controller", metavar="LAW", default=None,
+                   help="quarter car: the control law's start value (passive, skyhook_onoff, ...; default passive)")
+    p.add_argument("--set", metavar="NAME=VALUE", action="append", default=[],
+                   help="quarter car: a vehicle or controller parameter's start value, e.g. --set m_s=450 "
+                        "--set c_sky=3000 (repeatable; the importer can change them too)")
     p.add_argument("--onnx", metavar="OUT.onnx", help="write the ONNX graph here")
     p.add_argument("--header", metavar="OUT.h", help="write the C/C++ header here")
     p.add_argument("--prefix", default="dn_model", help="the header's name prefix (default dn_model)")
@@ -46,11 +60,7 @@ def run(args) -> int:
             if out and os.path.exists(out) and not args.force:
                 raise FileExistsError(f"{out}: exists; refusing to overwrite (use --force)")
         if args.fmu:
-            from dampnet.fmu import MODEL_IDENTIFIER, build_damper_fmu
-
-            build_damper_fmu(model, args.fmu, overwrite=args.force)
-            print(f"{args.fmu}: FMI 2.0 FMU {MODEL_IDENTIFIER} (linux64 binary and sources), "
-                  f"inputs x [m], v [m/s], a [m/s2], u, temperature [degC]; output force [N]")
+            _export_fmu(model, args)
         if args.onnx:
             try:
                 import onnx  # noqa: F401
@@ -67,3 +77,43 @@ def run(args) -> int:
         print(f"dampnet: error: {e}", file=sys.stderr)
         return 2
     return 0
+
+
+def _fmu_start_values(args) -> tuple[dict, dict]:
+    """--controller and --set NAME=VALUE as the quarter car's vehicle and controller start values."""
+    from dampnet import _core
+    from dampnet.model import ModelError
+
+    if args.what != "quarter-car" and (args.controller or args.set):
+        raise ModelError("--controller and --set are the quarter car's parameters: add --what quarter-car")
+    vehicle, controller = {}, {}
+    if args.controller:
+        controller["kind"] = args.controller
+    for item in args.set:
+        name, sep, text = item.partition("=")
+        if not sep or not name:
+            raise ModelError(f"--set {item!r}: expected NAME=VALUE, e.g. --set m_s=450")
+        target = vehicle if name in _core.VEHICLE_FIELDS else controller if name in _core.CONTROLLER_FIELDS else None
+        if target is None:
+            raise ModelError(f"--set {name}: not a vehicle or controller parameter; known: "
+                             f"{', '.join([*_core.VEHICLE_FIELDS, *_core.CONTROLLER_FIELDS])}")
+        try:
+            target[name] = float(text)
+        except ValueError:
+            target[name] = text  # an enum field's name (integrator, damper_eval, accel_feature, kind)
+    return vehicle, controller
+
+
+def _export_fmu(model, args) -> None:
+    from dampnet.fmu import build_fmu
+    from dampnet.fmu.description import PLATFORM
+
+    vehicle, controller = _fmu_start_values(args)
+    interface = args.interface or ("both" if args.what == "damper" else "cs")
+    build_fmu(model, args.fmu, fmi=args.fmi, interface=interface, what=args.what, overwrite=args.force,
+              vehicle=vehicle or None, controller=controller or None)
+    kinds = {"cs": "co-simulation", "me": "model exchange", "both": "co-simulation and model exchange"}[interface]
+    ident = "dampnet_damper" if args.what == "damper" else "dampnet_quarter_car"
+    io = ("inputs x [m], v [m/s], a [m/s2], u, temperature [degC]; output force [N]" if args.what == "damper"
+          else "inputs z_r [m], v_r [m/s], u; outputs the quarter car's motion and forces")
+    print(f"{args.fmu}: FMI {args.fmi}.0 FMU {ident} ({kinds}; {PLATFORM[args.fmi]} binary and sources), {io}")

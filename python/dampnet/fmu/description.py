@@ -113,7 +113,7 @@ def model_description_2(d: Description, interface: str = "both") -> str:
     outputs = [v for v in variables if v.causality == "output"]
     derivs = [v for v in variables if v.derivative_of is not None]
     initial = sorted([v for v in variables if v.causality == "output" or v.derivative_of is not None
-                      or (v.state and v.initial in (None, "calculated", "approx"))], key=lambda v: index[v.vr])
+                      or (me and v.state and v.initial in (None, "calculated", "approx"))], key=lambda v: index[v.vr])
 
     def unknowns(vs):
         return "".join(f'      <Unknown index="{index[v.vr]}"/>\n' for v in vs)
@@ -163,7 +163,7 @@ def model_description_3(d: Description, interface: str = "both") -> str:
     outputs = [v for v in variables if v.causality == "output"]
     derivs = [v for v in variables if v.derivative_of is not None]
     initial = [v for v in variables if v.causality == "output" or v.derivative_of is not None
-               or (v.state and v.initial in (None, "calculated", "approx"))]
+               or (me and v.state and v.initial in (None, "calculated", "approx"))]
     structure = "".join(f'    <Output valueReference="{v.vr}"/>\n' for v in outputs)
     structure += "".join(f'    <ContinuousStateDerivative valueReference="{v.vr}"/>\n' for v in derivs)
     structure += "".join(f'    <InitialUnknown valueReference="{v.vr}"/>\n' for v in initial)
