@@ -148,6 +148,11 @@ def test_export_fmu_and_onnx(wheel, work, model):
     assert "FMI 2.0 FMU dampnet_damper" in out and "ONNX opset 17" in out
     with zipfile.ZipFile(work / "damper.fmu") as z:
         assert "binaries/linux64/dampnet_damper.so" in z.namelist()
+    out = ok(wheel.dampnet("export", model, "--fmu", "damper3.fmu", "--fmi", "3", cwd=work))
+    assert "FMI 3.0 FMU dampnet_damper" in out
+    with zipfile.ZipFile(work / "damper3.fmu") as z:  # fmi3/ headers and buildDescription.xml from fmu_src/
+        assert {"binaries/x86_64-linux/dampnet_damper.so", "sources/buildDescription.xml",
+                "sources/fmi3Functions.h"} <= set(z.namelist())
 
 
 def test_study(wheel, work, model):
