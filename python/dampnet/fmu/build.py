@@ -42,7 +42,8 @@ def config_header(d: Description, quarter_car: bool) -> str:
             "#pragma once\n"
             f'#define DNFMU_GUID "{d.guid}"\n'
             f"#define DNFMU_QUARTER_CAR {int(quarter_car)}\n"
-            f"#define DNFMU_VR_TIME {d.time_vr}\n")
+            f"#define DNFMU_VR_TIME {d.time_vr}\n"
+            + "".join(f"{line}\n" for line in getattr(d, "config_lines", ())))  # e.g. the quarter car's start values
 
 
 def stage_sources(model: MlpModel, d: Description, fmi: int, quarter_car: bool, sources: Path) -> None:
