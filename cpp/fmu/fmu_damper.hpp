@@ -34,11 +34,8 @@
 #include "dampnet/damper.hpp"
 #include "dampnet/mlp.hpp"
 #include "fmu_common.hpp"
+#include "fmu_damper_params.hpp"
 #include "fmu_model.h"
-
-#ifndef FMU_MODEL_TERM_PARAMS
-#define FMU_MODEL_TERM_PARAMS 1
-#endif
 
 namespace dnfmu {
 
@@ -46,24 +43,20 @@ class DamperModel {
  public:
   enum Vr : unsigned {
     VR_X = 0, VR_V, VR_A, VR_U, VR_TEMP, VR_FORCE, VR_STATUS, VR_MASK,
-    VR_FPARAM = 10, VR_TERM = 100, VR_STATE = 40, VR_DERIV = 50
+    VR_STATE = 40, VR_DERIV = 50  // the parameters: DamperParams (10 + k, 100 + 10 i + j)
   };
   enum State { ST_ULAG, ST_VLAG, ST_ZFRIC, ST_N };
-  static constexpr int kTerms = FMU_MODEL_N_TERMS;
-  static constexpr int kFparams = FMU_MODEL_N_FEATURE_PARAMS;
 
   Message message;
 
   int instantiate() noexcept {
     const dn_mlp_desc desc = FMU_MODEL_DESC_INIT;
-    int st = mlp_d_.load(&desc);
-    if (st == DN_OK) st = mlp_f_.load(&desc);
+    int st = damper_.md.load(&desc);
+    if (st == DN_OK) st = damper_.mf.load(&desc);
     if (st != DN_OK) return message.fail(st, "the model header does not load: %s", status_text(st));
-    for (int k = 0; k < kFparams; ++k) fparam_[k] = fparam_default(k);
-    for (int i = 0; i < kTerms; ++i)
-      for (int j = 0; j < FMU_MODEL_TERM_PARAMS; ++j) term_[i][j] = term_default(i, j);
+    params_.load_defaults();
     reset();
-    st = build();  // the defaults are the trained model's: a failure here is a broken header
+    st = params_.build(damper_, message);  // the defaults are the trained model's: a failure here is a broken header
     if (st < 0) return st;
     for (int s = 0; s < ST_N; ++s) used_[s] = false;
     for (int i = 0; i < FMU_MODEL_N_INPUTS; ++i) {
@@ -89,7 +82,7 @@ class DamperModel {
   // Parameters take effect here; the initial states are the steady state at the inputs set.
   int exit_initialization(bool model_exchange) noexcept {
     me_ = model_exchange;
-    const int st = build();
+    const int st = params_.build(damper_, message);
     if (st < 0) return st;
     x_[ST_ULAG] = in_[VR_U];
     x_[ST_VLAG] = in_[VR_V];
@@ -98,7 +91,7 @@ class DamperModel {
     return DN_OK;
   }
 
-  bool parameter(unsigned vr) const noexcept { return fparam_index(vr) >= 0 || term_index(vr, nullptr) >= 0; }
+  bool parameter(unsigned vr) const noexcept { return params_.owns(vr); }
 
   int get_real(unsigned vr, double* value) noexcept {
     if (vr <= VR_TEMP) {
@@ -110,15 +103,8 @@ class DamperModel {
       const int st = evaluate(value, &mask);
       return st < 0 ? message.fail(st, "the force cannot be evaluated at t = %g s: %s", time_, status_text(st)) : DN_OK;
     }
-    const int k = fparam_index(vr);
-    if (k >= 0) {
-      *value = fparam_[k];
-      return DN_OK;
-    }
-    int j = 0;
-    const int i = term_index(vr, &j);
-    if (i >= 0) {
-      *value = term_[i][j];
+    if (const double* p = params_.find(vr)) {
+      *value = *p;
       return DN_OK;
     }
     const int s = state_of(vr, VR_STATE);
@@ -144,15 +130,8 @@ class DamperModel {
       in_[vr] = value;
       return DN_OK;
     }
-    const int k = fparam_index(vr);
-    if (k >= 0) {
-      fparam_[k] = value;
-      return DN_OK;
-    }
-    int j = 0;
-    const int i = term_index(vr, &j);
-    if (i >= 0) {
-      term_[i][j] = value;
+    if (double* p = params_.find(vr)) {
+      *p = value;
       return DN_OK;
     }
     return message.fail(DN_E_PARAM, "value reference %u cannot be set: only the inputs x, v, a, u, temperature "
@@ -203,11 +182,8 @@ class DamperModel {
   }
 
  private:
-  dampnet::Mlp<double> mlp_d_;
-  dampnet::Mlp<float> mlp_f_;
-  dampnet::Damper damper_;
-  double fparam_[kFparams > 0 ? kFparams : 1] = {};
-  double term_[kTerms > 0 ? kTerms : 1][FMU_MODEL_TERM_PARAMS] = {};
+  dampnet::Damper damper_;  // the MLP of the header with the current parameters
+  DamperParams params_;
   double in_[5] = {};         // x, v, a, u, temperature
   double start_in_[5] = {};   // the inputs at the last communication point t0 (co-simulation)
   double x_[ST_N] = {};       // states: at t0 (co-simulation), the integrator's (model exchange)
@@ -217,70 +193,8 @@ class DamperModel {
   int slot_[ST_N] = {};
   int n_states_ = 0;
 
-  static double fparam_default(int k) noexcept {
-#if FMU_MODEL_N_FEATURE_PARAMS > 0
-    return fmu_model_feature_param_values[k];
-#else
-    (void)k;
-    return 0.0;
-#endif
-  }
-  static double term_default(int i, int j) noexcept {
-#if FMU_MODEL_N_TERMS > 0
-    return fmu_model_term_params[i * FMU_MODEL_TERM_PARAMS + j];
-#else
-    (void)i, (void)j;
-    return 0.0;
-#endif
-  }
-  static int fparam_index(unsigned vr) noexcept {
-    return vr >= VR_FPARAM && vr < VR_FPARAM + unsigned(kFparams) ? int(vr - VR_FPARAM) : -1;
-  }
-  static int term_index(unsigned vr, int* j) noexcept {
-#if FMU_MODEL_N_TERMS > 0
-    if (vr < VR_TERM || vr >= VR_TERM + 10u * kTerms) return -1;
-    const int i = int(vr - VR_TERM) / 10, p = int(vr - VR_TERM) % 10;
-    if (p >= fmu_model_term_n_params[i]) return -1;
-    if (j) *j = p;
-    return i;
-#else
-    (void)vr, (void)j;
-    return -1;
-#endif
-  }
   int state_of(unsigned vr, unsigned base) const noexcept {
     return vr >= base && vr < base + ST_N && used_[vr - base] ? int(vr - base) : -1;
-  }
-
-  // The damper from the model and the current parameters (validated by the runtime).
-  int build() noexcept {
-    dampnet::Damper d;
-    d.md = mlp_d_;
-    d.mf = mlp_f_;
-#if FMU_MODEL_N_FEATURE_PARAMS > 0
-    int st = d.set_neural_features(fmu_model_feature_names, FMU_MODEL_N_INPUTS, fmu_model_feature_param_names,
-                                   fparam_, kFparams, DN_PRECISION_DOUBLE);
-    if (st == DN_E_PARAM || st == DN_E_NONFINITE_PARAM) {
-      for (int k = 0; k < kFparams; ++k)
-        if (!(fparam_[k] > 0) || !std::isfinite(fparam_[k]))
-          return message.fail(st, "parameter %s = %g: must be finite and > 0", fmu_model_feature_param_names[k],
-                              fparam_[k]);
-    }
-#else
-    int st = d.set_neural_features(fmu_model_feature_names, FMU_MODEL_N_INPUTS, nullptr, nullptr, 0,
-                                   DN_PRECISION_DOUBLE);
-#endif
-    if (st != DN_OK) return message.fail(st, "the model's features are refused: %s", status_text(st));
-#if FMU_MODEL_N_TERMS > 0
-    for (int i = 0; i < kTerms; ++i) {
-      st = d.add_term(fmu_model_term_kinds[i], term_[i], fmu_model_term_n_params[i]);
-      if (st != DN_OK)
-        return message.fail(st, "term %d (%s): its parameters are refused: %s", i, fmu_model_term_kinds[i],
-                            status_text(st));
-    }
-#endif
-    damper_ = d;
-    return DN_OK;
   }
 
   void snapshot() noexcept {

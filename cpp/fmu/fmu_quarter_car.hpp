@@ -40,11 +40,8 @@
 #include "dampnet/loop.hpp"
 #include "dampnet/mlp.hpp"
 #include "fmu_common.hpp"
+#include "fmu_damper_params.hpp"
 #include "fmu_model.h"
-
-#ifndef FMU_MODEL_TERM_PARAMS
-#define FMU_MODEL_TERM_PARAMS 1
-#endif
 
 namespace dnfmu {
 
@@ -163,13 +160,10 @@ int explain(Message& m, const char* what, const S& user, const S& defaults, cons
 class QuarterCarModel {
  public:
   enum Vr : unsigned {
-    VR_Z_R = 0, VR_V_R = 1, VR_U = 2,
-    VR_FPARAM = 10, VR_TERM = 100,
+    VR_Z_R = 0, VR_V_R = 1, VR_U = 2,  // the damper's parameters: DamperParams (10 + k, 100 + 10 i + j)
     VR_STATE = 200, VR_OUT = 230, VR_TRAVEL = 240, VR_TYRE = 241, VR_STATUS = 250, VR_MASK = 251,
     VR_VEHICLE = 1000, VR_CONTROLLER = 1100
   };
-  static constexpr int kTerms = FMU_MODEL_N_TERMS;
-  static constexpr int kFparams = FMU_MODEL_N_FEATURE_PARAMS;
 #define DNFMU_QC_COUNT_(name, doc) +1
   static constexpr int kOut = 0 DN_LOOP_OUT_LIST(DNFMU_QC_COUNT_);
 #undef DNFMU_QC_COUNT_
@@ -184,9 +178,7 @@ class QuarterCarModel {
     int st = damper_.md.load(&desc);
     if (st == DN_OK) st = damper_.mf.load(&desc);
     if (st != DN_OK) return message.fail(st, "the model header does not load: %s", status_text(st));
-    for (int k = 0; k < kFparams; ++k) fparam_[k] = fparam_default(k);
-    for (int i = 0; i < kTerms; ++i)
-      for (int j = 0; j < FMU_MODEL_TERM_PARAMS; ++j) term_[i][j] = term_default(i, j);
+    params_.load_defaults();
     veh_ = dampnet::default_vehicle();
     ctrl_ = dampnet::default_controller();
 #ifdef DNFMU_VEHICLE_START  // the start values of modelDescription.xml (fmu_config.h), DN_VEHICLE_FIELDS order
@@ -204,7 +196,7 @@ class QuarterCarModel {
     }
 #endif
     reset();
-    st = build_damper();  // the defaults are the trained model's: a failure here is a broken header
+    st = params_.build(damper_, message);  // the trained model's values: a failure here is a broken header
     return st < 0 ? st : DN_OK;
   }
 
@@ -226,7 +218,7 @@ class QuarterCarModel {
   }
 
   bool parameter(unsigned vr) const noexcept {
-    return fparam_index(vr) >= 0 || term_index(vr, nullptr) >= 0 || vehicle_field(vr) || controller_field(vr);
+    return params_.owns(vr) || vehicle_field(vr) || controller_field(vr);
   }
 
   int get_real(unsigned vr, double* value) noexcept {
@@ -244,15 +236,8 @@ class QuarterCarModel {
       *value = qc::get(ctrl_, *f);
       return DN_OK;
     }
-    const int k = fparam_index(vr);
-    if (k >= 0) {
-      *value = fparam_[k];
-      return DN_OK;
-    }
-    int j = 0;
-    const int i = term_index(vr, &j);
-    if (i >= 0) {
-      *value = term_[i][j];
+    if (const double* p = params_.find(vr)) {
+      *value = *p;
       return DN_OK;
     }
     const bool state = vr >= VR_STATE && vr < VR_STATE + DN_LOOP_STATE_SIZE;
@@ -289,16 +274,8 @@ class QuarterCarModel {
       ready_ = false;
       return DN_OK;
     }
-    const int k = fparam_index(vr);
-    if (k >= 0) {
-      fparam_[k] = value;
-      ready_ = false;
-      return DN_OK;
-    }
-    int j = 0;
-    const int i = term_index(vr, &j);
-    if (i >= 0) {
-      term_[i][j] = value;
+    if (double* p = params_.find(vr)) {
+      *p = value;
       ready_ = false;
       return DN_OK;
     }
@@ -372,8 +349,7 @@ class QuarterCarModel {
   dampnet::LoopData data_;
   dn_vehicle veh_ = dampnet::default_vehicle();
   dn_controller ctrl_ = dampnet::default_controller();
-  double fparam_[kFparams > 0 ? kFparams : 1] = {};
-  double term_[kTerms > 0 ? kTerms : 1][FMU_MODEL_TERM_PARAMS] = {};
+  DamperParams params_;
   double in_[3] = {};  // z_r, v_r, u
   double time_ = 0.0;
   bool ready_ = false;        // lm_ and data_ built from the current parameters (and start inputs)
@@ -396,38 +372,6 @@ class QuarterCarModel {
     return vr >= VR_CONTROLLER && vr < VR_CONTROLLER + unsigned(qc::kNController) ? &qc::kController[vr - VR_CONTROLLER]
                                                                                  : nullptr;
   }
-  static double fparam_default(int k) noexcept {
-#if FMU_MODEL_N_FEATURE_PARAMS > 0
-    return fmu_model_feature_param_values[k];
-#else
-    (void)k;
-    return 0.0;
-#endif
-  }
-  static double term_default(int i, int j) noexcept {
-#if FMU_MODEL_N_TERMS > 0
-    return fmu_model_term_params[i * FMU_MODEL_TERM_PARAMS + j];
-#else
-    (void)i, (void)j;
-    return 0.0;
-#endif
-  }
-  static int fparam_index(unsigned vr) noexcept {
-    return vr >= VR_FPARAM && vr < VR_FPARAM + unsigned(kFparams) ? int(vr - VR_FPARAM) : -1;
-  }
-  static int term_index(unsigned vr, int* j) noexcept {
-#if FMU_MODEL_N_TERMS > 0
-    if (vr < VR_TERM || vr >= VR_TERM + 10u * kTerms) return -1;
-    const int i = int(vr - VR_TERM) / 10, p = int(vr - VR_TERM) % 10;
-    if (p >= fmu_model_term_n_params[i]) return -1;
-    if (j) *j = p;
-    return i;
-#else
-    (void)vr, (void)j;
-    return -1;
-#endif
-  }
-
   double out_value(unsigned j) const noexcept {
     unsigned k = 0;
 #define DNFMU_QC_OUT_(name, doc) \
@@ -437,41 +381,12 @@ class QuarterCarModel {
     return 0.0;
   }
 
-  // The damper from the model header and the current feature constants and term parameters
-  // (validated by the runtime), as DamperModel::build does, in place.
-  int build_damper() noexcept {
-#if FMU_MODEL_N_FEATURE_PARAMS > 0
-    int st = damper_.set_neural_features(fmu_model_feature_names, FMU_MODEL_N_INPUTS, fmu_model_feature_param_names,
-                                         fparam_, kFparams, DN_PRECISION_DOUBLE);
-    if (st == DN_E_PARAM || st == DN_E_NONFINITE_PARAM) {
-      for (int k = 0; k < kFparams; ++k)
-        if (!(fparam_[k] > 0) || !std::isfinite(fparam_[k]))
-          return message.fail(st, "parameter %s = %.12g: must be finite and > 0", fmu_model_feature_param_names[k],
-                              fparam_[k]);
-    }
-#else
-    int st = damper_.set_neural_features(fmu_model_feature_names, FMU_MODEL_N_INPUTS, nullptr, nullptr, 0,
-                                         DN_PRECISION_DOUBLE);
-#endif
-    if (st != DN_OK) return message.fail(st, "the model's features are refused: %s", status_text(st));
-    damper_.n_terms = 0;
-#if FMU_MODEL_N_TERMS > 0
-    for (int i = 0; i < kTerms; ++i) {
-      st = damper_.add_term(fmu_model_term_kinds[i], term_[i], fmu_model_term_n_params[i]);
-      if (st != DN_OK)
-        return message.fail(st, "term %d (%s): its parameters are refused: %s", i, fmu_model_term_kinds[i],
-                            status_text(st));
-    }
-#endif
-    return DN_OK;
-  }
-
   // The loop model from the current parameters, reset to rest with the road at the inputs set:
   // the state at the experiment's start (QuarterCar.simulate's start). Before initialization
   // (an importer reading the outputs in initialization mode) and at exit_initialization.
   int prepare() noexcept {
     if (ready_) return DN_OK;
-    int st = build_damper();
+    int st = params_.build(damper_, message);
     if (st < 0) return st;
     st = lm_.init(veh_, damper_, ctrl_);
     if (st < 0) {

@@ -13,7 +13,7 @@ import pytest
 from fmpy import read_model_description, simulate_fmu
 from fmpy.validation import validate_fmu
 
-from dampnet.fmu import build_fmu
+from dampnet.fmu import FmuError, build_fmu
 from dampnet.modeldir import default_model
 from dampnet.sim.loop import QuarterCar, damper_from_model
 from dampnet.sim.roads import thesis_rough_road
@@ -36,7 +36,7 @@ def road():
 def fmus(tmp_path_factory):
     """The default model's quarter-car FMU (default parameters: thesis Table 5, passive), FMI 2 and 3."""
     d = tmp_path_factory.mktemp("qc")
-    return {fmi: build_fmu(default_model(), d / f"qc{fmi}.fmu", fmi=fmi, interface="cs", what="quarter-car")
+    return {fmi: build_fmu(default_model(), d / f"qc{fmi}.fmu", fmi=fmi, what="quarter-car")
             for fmi in (2, 3)}
 
 
@@ -181,7 +181,7 @@ def test_errors_name_the_step_and_the_parameter(fmus, tmp_path):
                      logger=log)
     assert any("u_min = 3 and u_max = 1 are refused together" in m for m in messages), messages
     for interface in ("me", "both"):
-        with pytest.raises(ValueError, match="co-simulation FMU only") as e:
+        with pytest.raises(FmuError, match="co-simulation FMU only") as e:
             build_fmu(default_model(), tmp_path / "me.fmu", interface=interface, what="quarter-car")
         assert "\n" not in str(e.value) and not (tmp_path / "me.fmu").exists()
     with pytest.raises(ValueError, match="vehicle 'm_s' = -1.0"):
@@ -201,3 +201,29 @@ def test_the_binary_needs_only_libc_and_libm(fmus, tmp_path, fmi):
     ldd = subprocess.run(["ldd", str(tmp_path / "x" / BINARY[fmi])], capture_output=True, text=True).stdout
     libs = {line.split()[0] for line in ldd.splitlines() if line.strip()}
     assert libs <= {"linux-vdso.so.1", "libm.so.6", "libc.so.6", "/lib64/ld-linux-x86-64.so.2"}, ldd
+
+
+def test_export_quarter_car_command(tmp_path, capsys):
+    """`dampnet export MODEL --fmu OUT --what quarter-car --controller LAW --set NAME=VALUE`: the start
+    values land in modelDescription.xml (and the binary), co-simulation only, fixed step; a
+    parameter the runtime refuses or an unknown name is one line, exit 2, nothing written."""
+    from dampnet.cli import main
+    from dampnet.modeldir import save_model_dir
+
+    save_model_dir(default_model(), None, tmp_path / "model")
+    out = tmp_path / "qc.fmu"
+    assert main(["export", str(tmp_path / "model"), "--fmu", str(out), "--what", "quarter-car", "--fmi", "3",
+                 "--controller", "skyhook_onoff", "--set", "m_s=450", "--set", "c_sky=3000"]) == 0
+    assert "FMI 3.0 FMU dampnet_quarter_car (co-simulation;" in capsys.readouterr().out
+    assert validate_fmu(str(out)) == []
+    md = read_model_description(str(out))
+    start = {v.name: v.start for v in md.modelVariables}
+    assert float(start["m_s"]) == 450.0 and float(start["c_sky"]) == 3000.0 and int(start["kind"]) == 1
+    assert md.modelExchange is None and md.coSimulation.canHandleVariableCommunicationStepSize is False
+    for bad, said in ((["--set", "m_s=-1"], "m_s"), (["--set", "mass=3"], "not a vehicle or controller parameter"),
+                      (["--interface", "me"], "co-simulation FMU only")):
+        assert main(["export", str(tmp_path / "model"), "--fmu", str(tmp_path / "bad.fmu"), "--what", "quarter-car",
+                     *bad]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("dampnet: error: ") and said in err and err.count("\n") == 1, err
+        assert not (tmp_path / "bad.fmu").exists()

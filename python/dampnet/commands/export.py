@@ -106,14 +106,16 @@ def _fmu_start_values(args) -> tuple[dict, dict]:
 
 def _export_fmu(model, args) -> None:
     from dampnet.fmu import build_fmu
+    from dampnet.fmu.damper import MODEL_IDENTIFIER as DAMPER
     from dampnet.fmu.description import PLATFORM
+    from dampnet.fmu.quarter_car import MODEL_IDENTIFIER as QUARTER_CAR
 
     vehicle, controller = _fmu_start_values(args)
     interface = args.interface or ("both" if args.what == "damper" else "cs")
     build_fmu(model, args.fmu, fmi=args.fmi, interface=interface, what=args.what, overwrite=args.force,
               vehicle=vehicle or None, controller=controller or None)
     kinds = {"cs": "co-simulation", "me": "model exchange", "both": "co-simulation and model exchange"}[interface]
-    ident = "dampnet_damper" if args.what == "damper" else "dampnet_quarter_car"
+    ident = DAMPER if args.what == "damper" else QUARTER_CAR
     io = ("inputs x [m], v [m/s], a [m/s2], u, temperature [degC]; output force [N]" if args.what == "damper"
           else "inputs z_r [m], v_r [m/s], u; outputs the quarter car's motion and forces")
     print(f"{args.fmu}: FMI {args.fmi}.0 FMU {ident} ({kinds}; {PLATFORM[args.fmi]} binary and sources), {io}")

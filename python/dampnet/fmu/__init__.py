@@ -27,11 +27,12 @@ WHATS = ("damper", "quarter-car")
 __all__ = ["FMU_FEATURES", "MODEL_IDENTIFIER", "WHATS", "FmuError", "build_damper_fmu", "build_fmu", "check_model"]
 
 
-def build_fmu(model: MlpModel, out: str | os.PathLike, fmi: int = 2, interface: str = "both",
+def build_fmu(model: MlpModel, out: str | os.PathLike, fmi: int = 2, interface: str | None = None,
               what: str = "damper", overwrite: bool = False, vehicle: dict | None = None,
               controller: dict | None = None) -> Path:
     """Build OUT.fmu (see the module docstring); staged in a temporary directory and moved
-    into place, so a failure leaves nothing half-written. vehicle / controller: the quarter
+    into place, so a failure leaves nothing half-written. interface: "cs", "me" or "both"
+    (default: both for the damper, cs for the quarter car). vehicle / controller: the quarter
     car's parameter start values (dampnet.sim.vehicle field names; defaults Table 5, passive)."""
     from dampnet.fmu.build import package
 
@@ -48,6 +49,6 @@ def build_fmu(model: MlpModel, out: str | os.PathLike, fmi: int = 2, interface: 
 
 
 def build_damper_fmu(model: MlpModel, out: str | os.PathLike, overwrite: bool = False, fmi: int = 2,
-                     interface: str = "both") -> Path:
+                     interface: str | None = None) -> Path:
     """The damper FMU (build_fmu with what='damper')."""
     return build_fmu(model, out, fmi=fmi, interface=interface, what="damper", overwrite=overwrite)

@@ -12,8 +12,7 @@ from pathlib import Path
 
 from dampnet import paths
 from dampnet.export import header_text
-from dampnet.fmu.description import PLATFORM, SOURCE, Description, build_description_3, model_description
-from dampnet.fmu.damper import FmuError
+from dampnet.fmu.description import PLATFORM, SOURCE, Description, FmuError, build_description_3, model_description
 from dampnet.model import MlpModel
 
 HEADER_PREFIX = "fmu_model"
@@ -43,7 +42,7 @@ def config_header(d: Description, quarter_car: bool) -> str:
             f'#define DNFMU_GUID "{d.guid}"\n'
             f"#define DNFMU_QUARTER_CAR {int(quarter_car)}\n"
             f"#define DNFMU_VR_TIME {d.time_vr}\n"
-            + "".join(f"{line}\n" for line in getattr(d, "config_lines", ())))  # e.g. the quarter car's start values
+            + "".join(f"{line}\n" for line in d.config_lines))  # e.g. the quarter car's start values
 
 
 def stage_sources(model: MlpModel, d: Description, fmi: int, quarter_car: bool, sources: Path) -> None:
@@ -75,7 +74,7 @@ def compile_binary(sources: Path, fmi: int, out_so: Path) -> None:
         raise FmuError(f"compiling the FMU failed: {' '.join(cmd)}\n{proc.stderr[-2000:]}")
 
 
-def package(model: MlpModel, d: Description, out: str | os.PathLike, fmi: int, interface: str,
+def package(model: MlpModel, d: Description, out: str | os.PathLike, fmi: int, interface: str | None,
             quarter_car: bool, overwrite: bool) -> Path:
     out = Path(out)
     if fmi not in SOURCE:

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 from dampnet.export import _package_version
 from dampnet.features import param_doc
-from dampnet.fmu.description import Description, Variable, fmi_unit, unit_in
-from dampnet.model import MlpModel, ModelError
+from dampnet.fmu.description import Description, FmuError, Variable, fmi_unit, unit_in
+from dampnet.model import MlpModel
 from dampnet.terms import KINDS
 
 MODEL_IDENTIFIER = "dampnet_damper"
@@ -24,9 +24,7 @@ STATES = (("u_lag", 0, ("voltage_lag", "current_lag"), "control after the model'
           ("v_lag", 1, ("velocity_lag",), "velocity after the model's first-order lag"),
           ("z_fric", 2, ("friction_state",), "Dahl friction state, in [-1, 1]"))
 
-
-class FmuError(ModelError):
-    """A model the FMU cannot carry, a missing compiler, a failed build."""
+__all__ = ["FMU_FEATURES", "MODEL_IDENTIFIER", "FmuError", "check_model", "damper_description", "damper_variables"]
 
 
 def check_model(model: MlpModel) -> None:

@@ -5,8 +5,10 @@ are written once and rendered for either standard here."""
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from xml.sax.saxutils import quoteattr
+
+from dampnet.model import ModelError
 
 #: SI base-unit exponents of every unit a dampnet FMU variable may carry (FMI <Unit>/<BaseUnit>).
 BASE_UNITS = {
@@ -18,6 +20,10 @@ BASE_UNITS = {
 SOURCE = {2: "fmu2.cpp", 3: "fmu3.cpp"}
 PLATFORM = {2: "linux64", 3: "x86_64-linux"}
 INTERFACES = ("cs", "me", "both")
+
+
+class FmuError(ModelError):
+    """A model the FMU cannot carry, an interface it does not have, a missing compiler, a failed build."""
 
 
 def fmi_unit(text: str | None) -> str | None:
@@ -64,7 +70,8 @@ class Description:
     stop_s: float = 10.0
     time_vr: int = 9  # FMI 3's independent variable
     co_simulation_only: bool = False  # the model has no model-exchange form
-    notes: list[str] = field(default_factory=list)
+    fixed_step: bool = False  # co-simulation takes exactly step_s per communication step
+    config_lines: tuple[str, ...] = ()  # more lines for fmu_config.h (e.g. compiled start values)
 
     def by_vr(self) -> dict[int, Variable]:
         return {v.vr: v for v in self.variables}
@@ -80,15 +87,24 @@ def _num(x: float | int) -> str:
     return repr(int(x)) if isinstance(x, int) else repr(float(x))
 
 
-def _interfaces(d: Description, interface: str) -> tuple[bool, bool]:
+def default_interface(d: Description) -> str:
+    return "cs" if d.co_simulation_only else "both"
+
+
+def _interfaces(d: Description, interface: str | None) -> tuple[bool, bool]:
+    interface = interface or default_interface(d)
     if interface not in INTERFACES:
-        raise ValueError(f"interface {interface!r}: expected one of {', '.join(INTERFACES)}")
+        raise FmuError(f"interface {interface!r}: expected one of {', '.join(INTERFACES)}")
     if d.co_simulation_only and interface != "cs":
-        raise ValueError(f"{d.model_identifier} is a co-simulation FMU only: use interface 'cs' (got {interface!r})")
+        raise FmuError(f"{d.model_identifier} is a co-simulation FMU only: use interface 'cs' (got {interface!r})")
     return interface in ("cs", "both"), interface in ("me", "both")
 
 
-def model_description_2(d: Description, interface: str = "both") -> str:
+def _variable_step(d: Description) -> str:
+    return "false" if d.fixed_step else "true"
+
+
+def model_description_2(d: Description, interface: str | None = None) -> str:
     """FMI 2.0 modelDescription.xml."""
     cs, me = _interfaces(d, interface)
     variables = [v for v in d.variables if me or v.derivative_of is None]
@@ -131,7 +147,7 @@ def model_description_2(d: Description, interface: str = "both") -> str:
         head += (f'  <ModelExchange modelIdentifier="{d.model_identifier}" canGetAndSetFMUstate="false" '
                  f'canSerializeFMUstate="false" providesDirectionalDerivative="false">\n{src}  </ModelExchange>\n')
     if cs:
-        head += (f'  <CoSimulation modelIdentifier="{d.model_identifier}" canHandleVariableCommunicationStepSize="true" '
+        head += (f'  <CoSimulation modelIdentifier="{d.model_identifier}" canHandleVariableCommunicationStepSize="{_variable_step(d)}" '
                  f'canGetAndSetFMUstate="false" canSerializeFMUstate="false" providesDirectionalDerivative="false">\n'
                  f"{src}  </CoSimulation>\n")
     return (head + _units_block(variables)
@@ -140,7 +156,7 @@ def model_description_2(d: Description, interface: str = "both") -> str:
             + f"  <ModelStructure>\n{structure}  </ModelStructure>\n</fmiModelDescription>\n")
 
 
-def model_description_3(d: Description, interface: str = "both") -> str:
+def model_description_3(d: Description, interface: str | None = None) -> str:
     """FMI 3.0 modelDescription.xml (the independent variable `time` first)."""
     cs, me = _interfaces(d, interface)
     variables = [v for v in d.variables if me or v.derivative_of is None]
@@ -175,7 +191,9 @@ def model_description_3(d: Description, interface: str = "both") -> str:
         head += (f'  <ModelExchange modelIdentifier="{d.model_identifier}" canGetAndSetFMUState="false" '
                  f'canSerializeFMUState="false"/>\n')
     if cs:
-        head += (f'  <CoSimulation modelIdentifier="{d.model_identifier}" canHandleVariableCommunicationStepSize="true" '
+        fixed = f'fixedInternalStepSize="{_num(d.step_s)}" ' if d.fixed_step else ""
+        head += (f'  <CoSimulation modelIdentifier="{d.model_identifier}" '
+                 f'canHandleVariableCommunicationStepSize="{_variable_step(d)}" {fixed}'
                  f'canGetAndSetFMUState="false" canSerializeFMUState="false" providesIntermediateUpdate="false" '
                  f'canReturnEarlyAfterIntermediateUpdate="false" hasEventMode="false"/>\n')
     return (head + _units_block(variables, extra=("s",))  # the unit of `time`
@@ -192,7 +210,7 @@ def build_description_3(d: Description) -> str:
             f"  </BuildConfiguration>\n</fmiBuildDescription>\n")
 
 
-def model_description(d: Description, fmi: int, interface: str = "both") -> str:
+def model_description(d: Description, fmi: int, interface: str | None = None) -> str:
     if fmi == 2:
         return model_description_2(d, interface)
     if fmi == 3:

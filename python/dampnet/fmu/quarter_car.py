@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import hashlib
 import re
-from dataclasses import dataclass
 from pathlib import Path
 
 from dampnet import _core, paths
@@ -53,13 +52,6 @@ RENAMED = {"u": "control"}
 #: the name tables of the enum (Integer) fields, by the enum type their doc names first
 ENUMS = {"dn_integrator": _core.INTEGRATORS, "dn_damper_eval": _core.DAMPER_EVALS,
          "dn_accel_feature": _core.ACCEL_FEATURES, "dn_controller_kind": _core.CONTROLLER_KINDS}
-
-
-@dataclass
-class QuarterCarDescription(Description):
-    """A Description with the lines build.config_header adds to fmu_config.h: the parameters'
-    start values, compiled into the binary so that it starts where modelDescription.xml says."""
-    config_lines: tuple[str, ...] = ()
 
 
 def _x_macro(name: str, pattern: str) -> list[tuple[str, ...]]:
@@ -208,7 +200,7 @@ def _c_array(values: list) -> str:
 
 
 def quarter_car_description(model: MlpModel, vehicle: dict | None = None,
-                            controller: dict | None = None) -> QuarterCarDescription:
+                            controller: dict | None = None) -> Description:
     """The quarter car's Description; vehicle / controller: start values by field name
     (dampnet._core.VEHICLE_FIELDS / CONTROLLER_FIELDS; enum fields by name or value; defaults
     the runtime's: thesis Table 5, passive). Refused with FmuError naming the field."""
@@ -228,8 +220,8 @@ def quarter_car_description(model: MlpModel, vehicle: dict | None = None,
             f"{model.n_inputs}-input MLP on {', '.join(model.features)}"
             + (f" plus {len(model.terms)} physics term(s)" if model.terms else "")
             + f"; trained on {data_label(model)}; controller {kind}")
-    return QuarterCarDescription(
+    return Description(
         MODEL_IDENTIFIER, guid, text, f"dampnet {_package_version()}",
-        quarter_car_variables(model, veh, ctrl), step_s=dt, time_vr=VR_TIME, co_simulation_only=True,
+        quarter_car_variables(model, veh, ctrl), step_s=dt, time_vr=VR_TIME, co_simulation_only=True, fixed_step=True,
         config_lines=(f"#define DNFMU_VEHICLE_START {_c_array(veh)}",
                       f"#define DNFMU_CONTROLLER_START {_c_array(ctrl)}"))
