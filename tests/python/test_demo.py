@@ -37,8 +37,18 @@ def test_demo_tells_the_whole_story(demo_out):
     assert summary["diagnosis"]["hidden_effect"] not in summary["diagnosis"]["significant_after"]
     assert summary["error_fell"] and summary["holdout_nrmse"]["improved"] < summary["holdout_nrmse"]["original"]
     assert summary["c_program"]["match"] and summary["c_program"]["samples"] > 1000
-    for stage in ("rig", "train", "diagnose", "improve", "export", "study", "vehicle", "latency"):
-        assert stage in summary["stage_times_s"] and f"[{list(summary['stage_times_s']).index(stage) + 1}/8]" in stdout
+    stages = ("rig", "train", "diagnose", "improve", "export", "fmu", "study", "vehicle", "latency")
+    assert list(summary["stage_times_s"]) == list(stages)
+    for i, stage in enumerate(stages):
+        assert f"[{i + 1}/{len(stages)}]" in stdout
+    # the improved model as an FMU, simulated by FMPy on a held-out test, equals the runtime
+    fmu = summary["fmu"]
+    assert "skipped" not in fmu, fmu
+    assert fmu["match"] and fmu["max_abs_diff_n"] <= 1e-9 and fmu["tolerance_n"] == 1e-9, fmu
+    assert fmu["fmi_version"] == "2.0" and fmu["samples"] > 1000 and fmu["force_range_n"] > 100.0
+    assert (out / fmu["path"]).is_file() and (out / fmu["figure"]).is_file()
+    held_out = json.loads((out / "model_improved" / "metrics.json").read_text())["holdout_tests"]
+    assert fmu["test"] in held_out, (fmu["test"], held_out)
     # the study's worst case against the truth is named, and the rough road's error is at most the worst
     st = summary["study"]
     for name, worst in st["worst_acc_rms_error_vs_truth"].items():
@@ -68,9 +78,23 @@ def test_demo_report_renders_in_chromium(demo_out):
     assert check["images"] >= 8 and check["broken_images"] == 0 and check["empty_tables"] == 0
     text = (out / "report.html").read_text()
     order = [text.index(h) for h in ("1. The test campaign", "2. The thesis", "3. Diagnosis", "4. The effect added",
-                                     "5. Export to C", "6. Quarter-car study", "7. Full vehicle",
-                                     "8. Real-time latency")]
+                                     "5. Export to C", "The improved model as an FMU, run by FMPy",
+                                     "6. Quarter-car study", "7. Full vehicle", "8. Real-time latency")]
     assert order == sorted(order)
+
+
+def test_demo_report_shows_the_fmu_trace(demo_out):
+    """Section 5's FMU part: the FMU's force trace in FMPy beside the runtime's (an embedded
+    image) and the largest difference in words."""
+    out, _ = demo_out
+    summary = json.loads((out / "summary.json").read_text())
+    text = (out / "report.html").read_text()
+    start = text.index("<h3 id='fmu'>The improved model as an FMU, run by FMPy</h3>")
+    part = text[start:text.index("6. Quarter-car study")]
+    assert text.index("5. Export to C") < start
+    assert 'alt="FMU: its force trace in FMPy beside the runtime' in part and "data:image/png;base64," in part
+    assert f"at most <b>{summary['fmu']['max_abs_diff_n']:.3g} N</b>" in part
+    assert "<span class='ok'>match</span>" in part and summary["fmu"]["test"] in part
 
 
 def test_demo_refuses_to_overwrite(wheel, demo_out):

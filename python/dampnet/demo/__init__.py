@@ -9,9 +9,12 @@ Stages (each timed, each shown on the terminal as it runs):
   4 improve    the diagnosed effect added, retrained, the error falling; diagnosed again
   5 export     the improved model's header compiled into a C program against the C library,
                run, and checked against Python
-  6 study      the quarter-car study (thesis Tables 6, 7, skyhook): improved, original,
+  6 fmu        the improved model as an FMI 2.0 FMU, simulated by FMPy on a held-out test and
+               checked against the runtime's forces (fmucheck.py)
+  7 study      the quarter-car study (thesis Tables 6, 7, skyhook): improved, original,
                lookup table and the truth damper
-  7 latency    the quick latency benchmark and the HIL headroom
+  8 vehicle    the full vehicle (thesis chapter 5.2): bounce sine sweep and lane change
+  9 latency    the quick latency benchmark and the HIL headroom
 Output (never overwritten without force): report.html, summary.json, models, header, data.
 """
 

@@ -121,6 +121,7 @@ def write(work: Path, summary: dict, m0: dict, m1: dict, d0: dict, d1: dict, stu
                  f"samples its force differs from Python's by at most {cp['max_abs_diff_n']:.3g} N "
                  f"(tolerance {cp['tolerance_n']:.3g} N): "
                  f"<span class='{'ok' if cp['match'] else 'bad'}'>{'match' if cp['match'] else 'MISMATCH'}</span>.</p>")
+    parts.append(_fmu_section(work, summary.get("fmu")))
 
     parts.append("<h2>6. Quarter-car study (thesis chapter 5)</h2>"
                  "<p>Thesis Table 6 (sine sweep, acceleration RMS m/s²): ANN 0.1966 / 0.2467, lookup "
@@ -166,6 +167,31 @@ def write(work: Path, summary: dict, m0: dict, m1: dict, d0: dict, d1: dict, stu
     path = work / "report.html"
     path.write_text("\n".join(parts))
     return path
+
+
+def _fmu_section(work: Path, fm: dict | None) -> str:
+    """Section 5's FMU part: the improved model as an FMU, run by FMPy, beside the runtime."""
+    head = "<h3 id='fmu'>The improved model as an FMU, run by FMPy</h3>"
+    if not fm:
+        return ""
+    if "skipped" in fm:
+        built = (f" The FMU was built (<code>{_fmt(fm['path'])}</code>) but not simulated." if "path" in fm else "")
+        return head + f"<p>Not checked: {_fmt(fm['skipped'])}.{built}</p>"
+    ok = fm["match"]
+    return (head +
+            f"<p>The improved model exported as an FMI {_fmt(fm['fmi_version'])} damper FMU "
+            f"(<code>{_fmt(fm['path'])}</code>; inputs x, v, a, u, "
+            f"temperature, output the force), the form CarSim, CarMaker, Simulink and other vehicle "
+            f"tools import. FMPy, an independent FMI importer, ran it in co-simulation at the rig's "
+            f"sample time ({fm['step_s'] * 1e3:.2g} ms) on the first {fm['samples']} samples of held-out test "
+            f"{_fmt(fm['test'])}, with the test's x, v, a and u as input signals. Its force differs from "
+            f"the runtime's by at most <b>{fm['max_abs_diff_n']:.3g} N</b> over a force range of "
+            f"{fm['force_range_n']:.0f} N (tolerance {fm['tolerance_n']:.0e} N): "
+            f"<span class='{'ok' if ok else 'bad'}'>{'match' if ok else 'MISMATCH'}</span>. "
+            f"FMPy records a co-simulation output one step late (after the step, with the inputs of "
+            f"its start), so the FMU's trace is drawn shifted back one sample. Built in "
+            f"{fm['build_time_s']:.1f} s, simulated in {fm['simulate_time_s']:.2f} s.</p>" +
+            _img(work / fm["figure"], "FMU: its force trace in FMPy beside the runtime's"))
 
 
 def check_rendering(path: Path) -> dict:

@@ -67,7 +67,7 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
     """Run every stage, write out_dir/{report.html, summary.json, ...}; returns the summary."""
     from dampnet.data import write_dataset
     from dampnet.rig import generate, noise_floor_nrmse
-    from dampnet.demo import cprogram, report
+    from dampnet.demo import cprogram, fmucheck, report
     from dampnet.diagnosis.run import diagnose
     from dampnet.evaluation.lookup import LookupTable
     from dampnet.evaluation.report import write_plots
@@ -82,7 +82,7 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
     figs = work / "figures"
     figs.mkdir()
     t_start = time.perf_counter()
-    stage = Stages(log, 8)
+    stage = Stages(log, 9)
     summary: dict[str, Any] = {"schema": "dampnet.demo/1", "quick": quick, "seed": seed,
                                "thesis": THESIS}
     try:
@@ -132,6 +132,21 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
             cres["source"], cres["executable"] = "c_program/controller.c", "c_program/controller"
             log(f"      C program vs Python: max |difference| {cres['max_abs_diff_n']:.3g} N over "
                 f"{cres['samples']} samples ({'match' if cres['match'] else 'MISMATCH'})")
+
+        with stage("fmu", "exporting the improved model as an FMI 2.0 FMU and running it in FMPy"):
+            fres = fmucheck.check_fmu(model1, split1.holdout.tests, work / "model_improved" / "damper.fmu",
+                                      figs / "fmu" / "fmu_vs_runtime.png")
+            # paths relative to the output directory (work is moved into place at the end)
+            for key in ("path", "figure"):
+                if key in fres:
+                    fres[key] = Path(fres[key]).relative_to(work).as_posix()
+            summary["fmu"] = fres
+            if "skipped" in fres:
+                log(f"      FMU check skipped: {fres['skipped']}")
+            else:
+                log(f"      {fres['path']} (FMI {fres['fmi_version']}) in FMPy vs the runtime: max |difference| "
+                    f"{fres['max_abs_diff_n']:.3g} N over {fres['samples']} samples of {fres['test']} "
+                    f"({'match' if fres['match'] else 'MISMATCH'}, tolerance {fres['tolerance_n']:.0e} N)")
 
         with stage("study", "quarter-car study (thesis Tables 6, 7, skyhook) against the truth damper"):
             study_res = _study(model0, model1, lookup, figs / "study", quick)
