@@ -37,6 +37,11 @@ need_apt=()
 [ -f /usr/include/eigen3/Eigen/Core ] || need_apt+=(libeigen3-dev)
 command -v chromium >/dev/null 2>&1 || need_apt+=(chromium)
 command -v clang++ >/dev/null 2>&1 || need_apt+=(clang)
+# The Cortex-M cross build and its emulator (cpp/embedded/, tests/python/test_embedded.py):
+# arm-none-eabi GCC with newlib, and QEMU's Arm system emulator (MPS2 boards).
+command -v arm-none-eabi-gcc >/dev/null 2>&1 || need_apt+=(gcc-arm-none-eabi)
+[ -f /usr/lib/arm-none-eabi/lib/libc_nano.a ] || need_apt+=(libnewlib-arm-none-eabi)
+command -v qemu-system-arm >/dev/null 2>&1 || need_apt+=(qemu-system-arm)
 if ((${#need_apt[@]})); then
   dn_apt_install "${need_apt[@]}" || true
 fi

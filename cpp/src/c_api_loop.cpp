@@ -19,41 +19,78 @@ static_assert(DN_LOOP_STATE_SIZE == 0 DN_LOOP_STATE_LIST(DN_STATE_COUNT_), "DN_L
 #undef DN_STATE_COUNT_
 
 namespace {
-template <class T>
-int make(T** out) {
-  if (!out) return DN_E_NULL;
-  *out = new (std::nothrow) T;
-  return *out ? int(DN_OK) : int(DN_E_ALLOC);
-}
-template <class T>
-int finish(T** out, int st) {
-  if (st != DN_OK) {
-    delete *out;
-    *out = nullptr;
-  }
+// A damper's set-up in caller memory: place, then the kind's set_* (set(Damper&) -> status).
+template <class Set>
+int damper_init(void* mem, size_t bytes, dn_damper** out, Set set) noexcept {
+  dn_damper* d = nullptr;
+  int st = dn_storage::place(mem, bytes, out, &d);
+  if (st != DN_OK) return st;
+  st = set(d->d);
+  if (st == DN_OK) *out = d;
   return st;
 }
 }  // namespace
 
 extern "C" {
 
+size_t dn_storage_align(void) {
+  constexpr size_t a = alignof(dn_mlp) > alignof(dn_damper) ? alignof(dn_mlp) : alignof(dn_damper);
+  constexpr size_t b = alignof(dn_loop_model) > alignof(dn_loop_data) ? alignof(dn_loop_model) : alignof(dn_loop_data);
+  static_assert((a > b ? a : b) <= DN_STORAGE_ALIGN, "raise DN_STORAGE_ALIGN");
+  return a > b ? a : b;
+}
+
+size_t dn_damper_size(void) { return sizeof(dn_damper); }
+
+int dn_damper_init_linear(double c, void* mem, size_t bytes, dn_damper** out) {
+  return damper_init(mem, bytes, out, [&](dampnet::Damper& d) noexcept { return d.set_linear(c); });
+}
+
+int dn_damper_init_parametric(const dn_parametric_params* p, void* mem, size_t bytes, dn_damper** out) {
+  return damper_init(mem, bytes, out, [&](dampnet::Damper& d) noexcept { return d.set_parametric(p); });
+}
+
+int dn_damper_init_table(const double* velocities, int n_v, const double* controls, int n_u,
+                         const double* forces, void* mem, size_t bytes, dn_damper** out) {
+  return damper_init(mem, bytes, out, [&](dampnet::Damper& d) noexcept {
+    return d.set_table(velocities, n_v, controls, n_u, forces);
+  });
+}
+
+int dn_damper_init_neural(const dn_mlp* mlp, const char* const* features, int n_features,
+                          const char* const* param_names, const double* param_values, int n_params,
+                          int precision, void* mem, size_t bytes, dn_damper** out) {
+  if (!out) return DN_E_NULL;
+  *out = nullptr;
+  if (!mlp) return DN_E_NULL;
+  return damper_init(mem, bytes, out, [&](dampnet::Damper& d) noexcept {
+    d.md = mlp->md;
+    d.mf = mlp->mf;
+    return d.set_neural_features(features, n_features, param_names, param_values, n_params, precision);
+  });
+}
+
+int dn_damper_init_callback(dn_damper_fn fn, void* user, void* mem, size_t bytes, dn_damper** out) {
+  return damper_init(mem, bytes, out, [&](dampnet::Damper& d) noexcept { return d.set_callback(fn, user); });
+}
+
 int dn_damper_create_linear(double c, dn_damper** out) {
-  int st = make(out);
-  if (st != DN_OK) return st;
-  return finish(out, (*out)->d.set_linear(c));
+  return dn_storage::create(out, [&](void* m, size_t b, dn_damper** o) noexcept {
+    return dn_damper_init_linear(c, m, b, o);
+  });
 }
 
 int dn_damper_create_parametric(const dn_parametric_params* p, dn_damper** out) {
-  int st = make(out);
-  if (st != DN_OK) return st;
-  return finish(out, (*out)->d.set_parametric(p));
+  return dn_storage::create(out, [&](void* m, size_t b, dn_damper** o) noexcept {
+    return dn_damper_init_parametric(p, m, b, o);
+  });
 }
 
 int dn_damper_create_table(const double* velocities, int n_v, const double* controls, int n_u,
                            const double* forces, dn_damper** out) {
-  int st = make(out);
-  if (st != DN_OK) return st;
-  return finish(out, (*out)->d.set_table(velocities, n_v, controls, n_u, forces));
+  return dn_storage::create(out, [&](void* m, size_t b, dn_damper** o) noexcept {
+    return dn_damper_init_table(velocities, n_v, controls, n_u, forces, m, b, o);
+  });
 }
 
 int dn_damper_create_neural(const dn_mlp* mlp, const char* const* features, int n_features,
@@ -62,18 +99,16 @@ int dn_damper_create_neural(const dn_mlp* mlp, const char* const* features, int 
   if (!out) return DN_E_NULL;
   *out = nullptr;
   if (!mlp) return DN_E_NULL;
-  int st = make(out);
-  if (st != DN_OK) return st;
-  (*out)->d.md = mlp->md;
-  (*out)->d.mf = mlp->mf;
-  return finish(out, (*out)->d.set_neural_features(features, n_features, param_names,
-                                                   param_values, n_params, precision));
+  return dn_storage::create(out, [&](void* m, size_t b, dn_damper** o) noexcept {
+    return dn_damper_init_neural(mlp, features, n_features, param_names, param_values, n_params,
+                                 precision, m, b, o);
+  });
 }
 
 int dn_damper_create_callback(dn_damper_fn fn, void* user, dn_damper** out) {
-  int st = make(out);
-  if (st != DN_OK) return st;
-  return finish(out, (*out)->d.set_callback(fn, user));
+  return dn_storage::create(out, [&](void* m, size_t b, dn_damper** o) noexcept {
+    return dn_damper_init_callback(fn, user, m, b, o);
+  });
 }
 
 int dn_damper_add_term(dn_damper* d, const char* kind, const double* params, int n_params) {
@@ -81,7 +116,7 @@ int dn_damper_add_term(dn_damper* d, const char* kind, const double* params, int
   return d->d.add_term(kind, params, n_params);
 }
 
-void dn_damper_destroy(dn_damper* d) { delete d; }
+void dn_damper_destroy(dn_damper* d) { dn_storage::destroy(d); }
 
 int dn_damper_kind_of(const dn_damper* d) { return d ? d->d.kind : DN_E_NULL; }
 
@@ -105,32 +140,60 @@ int dn_controller_check(const dn_controller* c) {
   return c ? dampnet::check_controller(*c) : int(DN_E_NULL);
 }
 
+size_t dn_loop_model_size(void) { return sizeof(dn_loop_model); }
+
+int dn_loop_model_init(const dn_vehicle* veh, const dn_damper* damper, const dn_controller* ctrl,
+                       void* mem, size_t bytes, dn_loop_model** out) {
+  if (!out) return DN_E_NULL;
+  *out = nullptr;
+  if (!veh || !damper) return DN_E_NULL;
+  dn_loop_model* m = nullptr;
+  int st = dn_storage::place(mem, bytes, out, &m);
+  if (st != DN_OK) return st;
+  dn_controller c = dampnet::default_controller(DN_CTRL_PASSIVE);
+  if (ctrl) c = *ctrl;
+  else c.u_passive = 0.0;
+  st = m->m.init(*veh, damper->d, c);
+  if (st == DN_OK) *out = m;
+  return st;
+}
+
 int dn_loop_model_create(const dn_vehicle* veh, const dn_damper* damper, const dn_controller* ctrl,
                          dn_loop_model** out) {
   if (!out) return DN_E_NULL;
   *out = nullptr;
   if (!veh || !damper) return DN_E_NULL;
-  int st = make(out);
-  if (st != DN_OK) return st;
-  dn_controller c = dampnet::default_controller(DN_CTRL_PASSIVE);
-  if (ctrl) c = *ctrl;
-  else c.u_passive = 0.0;
-  return finish(out, (*out)->m.init(*veh, damper->d, c));
+  return dn_storage::create(out, [&](void* m, size_t b, dn_loop_model** o) noexcept {
+    return dn_loop_model_init(veh, damper, ctrl, m, b, o);
+  });
 }
 
-void dn_loop_model_destroy(dn_loop_model* m) { delete m; }
+void dn_loop_model_destroy(dn_loop_model* m) { dn_storage::destroy(m); }
+
+size_t dn_loop_data_size(void) { return sizeof(dn_loop_data); }
+
+int dn_loop_data_init(const dn_loop_model* m, void* mem, size_t bytes, dn_loop_data** out) {
+  if (!out) return DN_E_NULL;
+  *out = nullptr;
+  if (!m) return DN_E_NULL;
+  dn_loop_data* d = nullptr;
+  const int st = dn_storage::place(mem, bytes, out, &d);
+  if (st != DN_OK) return st;
+  dampnet::reset(m->m, d->d);
+  *out = d;
+  return DN_OK;
+}
 
 int dn_loop_data_create(const dn_loop_model* m, dn_loop_data** out) {
   if (!out) return DN_E_NULL;
   *out = nullptr;
   if (!m) return DN_E_NULL;
-  int st = make(out);
-  if (st != DN_OK) return st;
-  dampnet::reset(m->m, (*out)->d);
-  return DN_OK;
+  return dn_storage::create(out, [&](void* mem, size_t b, dn_loop_data** o) noexcept {
+    return dn_loop_data_init(m, mem, b, o);
+  });
 }
 
-void dn_loop_data_destroy(dn_loop_data* d) { delete d; }
+void dn_loop_data_destroy(dn_loop_data* d) { dn_storage::destroy(d); }
 
 int dn_loop_reset(const dn_loop_model* m, dn_loop_data* d) {
   if (!m || !d) return DN_E_NULL;

@@ -7,22 +7,25 @@
 
 extern "C" {
 
-int dn_mlp_create(const dn_mlp_desc* desc, dn_mlp** out) {
-  if (!out) return DN_E_NULL;
-  *out = nullptr;
-  dn_mlp* m = new (std::nothrow) dn_mlp;
-  if (!m) return DN_E_ALLOC;
-  int st = m->md.load(desc);
+size_t dn_mlp_size(void) { return sizeof(dn_mlp); }
+
+int dn_mlp_init(const dn_mlp_desc* desc, void* mem, size_t bytes, dn_mlp** out) {
+  dn_mlp* m = nullptr;
+  int st = dn_storage::place(mem, bytes, out, &m);
+  if (st != DN_OK) return st;
+  st = m->md.load(desc);
   if (st == DN_OK) st = m->mf.load(desc);
-  if (st != DN_OK) {
-    delete m;
-    return st;
-  }
-  *out = m;
-  return DN_OK;
+  if (st == DN_OK) *out = m;
+  return st;
 }
 
-void dn_mlp_destroy(dn_mlp* m) { delete m; }
+int dn_mlp_create(const dn_mlp_desc* desc, dn_mlp** out) {
+  return dn_storage::create(out, [&](void* mem, size_t bytes, dn_mlp** o) noexcept {
+    return dn_mlp_init(desc, mem, bytes, o);
+  });
+}
+
+void dn_mlp_destroy(dn_mlp* m) { dn_storage::destroy(m); }
 
 int dn_mlp_n_inputs(const dn_mlp* m) { return m ? m->md.n_inputs() : DN_E_NULL; }
 

@@ -67,9 +67,9 @@ struct LinearParams {
 
 struct TableParams {
   int n_v = 0, n_u = 0;
-  double v[DN_MAX_TABLE_V] = {};
-  double u[DN_MAX_TABLE_U] = {};
-  double f[DN_MAX_TABLE_U * DN_MAX_TABLE_V] = {};  // [n_u][n_v]
+  double v[DN_CAP_TABLE_V] = {};
+  double u[DN_CAP_TABLE_U] = {};
+  double f[DN_CAP_TABLE_U * DN_CAP_TABLE_V] = {};  // [n_u][n_v]
 };
 
 class Damper {
@@ -79,7 +79,7 @@ class Damper {
   dn_parametric_params par{};
   TableParams tab;
   // neural
-  Mlp<double> md;
+  MlpDouble md;  // Mlp<double>, or with DN_DOUBLE_KERNEL 0 only the sizes and ranges
   Mlp<float> mf;
   int precision = DN_PRECISION_DOUBLE;
   int n_feat = 0;
@@ -92,7 +92,7 @@ class Damper {
   void* user = nullptr;
   // terms
   int n_terms = 0;
-  Term terms[DN_MAX_TERMS];
+  Term terms[DN_CAP_TERMS > 0 ? DN_CAP_TERMS : 1];
 
   // A feature parameter's value, 0 when not set (every parameter is > 0 when set).
   double fparam(int id) const noexcept { return fparam_set[id] ? fparams[id] : 0.0; }
@@ -126,7 +126,7 @@ class Damper {
 
   int set_table(const double* vs, int n_v, const double* us, int n_u, const double* fs) noexcept {
     if (!vs || !us || !fs) return DN_E_NULL;
-    if (n_v < 2 || n_v > DN_MAX_TABLE_V || n_u < 1 || n_u > DN_MAX_TABLE_U) return DN_E_SIZE;
+    if (n_v < 2 || n_v > DN_CAP_TABLE_V || n_u < 1 || n_u > DN_CAP_TABLE_U) return DN_E_SIZE;
     for (int i = 0; i < n_v; ++i)
       if (!std::isfinite(vs[i])) return DN_E_NONFINITE_PARAM;
     for (int j = 0; j < n_u; ++j)
@@ -154,6 +154,7 @@ class Damper {
     if (n < 1 || n > DN_MAX_INPUTS || n_params < 0) return DN_E_SIZE;
     if (n != md.n_inputs()) return DN_E_MISMATCH;
     if (prec != DN_PRECISION_DOUBLE && prec != DN_PRECISION_FLOAT) return DN_E_PARAM;
+    if (prec == DN_PRECISION_DOUBLE && !DN_DOUBLE_KERNEL) return DN_E_PARAM;  // float-only build
     int ids[DN_MAX_INPUTS];
     for (int i = 0; i < n; ++i) {
       ids[i] = features::id_of(names[i]);
@@ -197,7 +198,7 @@ class Damper {
   }
 
   int add_term(const char* kind_name, const double* params, int n_params) noexcept {
-    if (n_terms >= DN_MAX_TERMS) return DN_E_SIZE;
+    if (n_terms >= DN_CAP_TERMS) return DN_E_SIZE;
     Term t;
     const int st = terms::make(t, kind_name, params, n_params);
     if (st != DN_OK) return st;

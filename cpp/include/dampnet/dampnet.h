@@ -115,6 +115,47 @@ DN_API const char* dn_status_str(int status);
 #define DN_MAX_HIDDEN 64       /* neurons per hidden layer */
 #define DN_MAX_HIDDEN_LAYERS 2 /* hidden layers */
 
+/* Capacities of this build of the library: what its fixed-size objects hold. The defaults are
+ * the limits above; a build for a small target lowers them (compile definitions of the library
+ * and of every C++ file including its headers: the Cortex-M presets of CMakePresets.json set
+ * them from the DAMPNET_CAP_* cache options) so that the objects, dn_*_size() and RAM shrink.
+ * Set-up refuses a model beyond them with DN_E_SIZE. C code sees the objects only through
+ * pointers, so a C program needs no definitions of its own.
+ *   DN_CAP_INPUTS   inputs of an MLP, 1..DN_MAX_INPUTS
+ *   DN_CAP_HIDDEN   neurons of hidden layer 1, 1..DN_MAX_HIDDEN
+ *   DN_CAP_HIDDEN2  neurons of hidden layer 2, 0 (one hidden layer only)..DN_MAX_HIDDEN
+ *   DN_CAP_TABLE_V, DN_CAP_TABLE_U  lookup-table velocities (2..) and controls (1..)
+ *   DN_CAP_TERMS    physics terms per damper, 0..DN_MAX_TERMS
+ *   DN_DOUBLE_KERNEL  1: the double-precision MLP kernel; 0: none (float-only targets:
+ *                   DN_PRECISION_DOUBLE and dn_mlp_forward give DN_E_PARAM) */
+#ifndef DN_CAP_INPUTS
+#define DN_CAP_INPUTS DN_MAX_INPUTS
+#endif
+#ifndef DN_CAP_HIDDEN
+#define DN_CAP_HIDDEN DN_MAX_HIDDEN
+#endif
+#ifndef DN_CAP_HIDDEN2
+#define DN_CAP_HIDDEN2 DN_MAX_HIDDEN
+#endif
+#ifndef DN_DOUBLE_KERNEL
+#define DN_DOUBLE_KERNEL 1
+#endif
+
+/* Caller-provided storage (no heap): every object that dn_*_create allocates can instead be
+ * placed in memory the caller owns by the matching dn_*_init, MuJoCo-arena style, e.g. static
+ * arrays on a microcontroller. dn_*_size() is the number of bytes an object needs in this build
+ * (it depends on the DN_CAP_* capacities, not on the model); the memory must be aligned to
+ * dn_storage_align() (at most DN_STORAGE_ALIGN). init validates exactly as create does and
+ * returns the same statuses, plus DN_E_SIZE when bytes < dn_*_size() and DN_E_PARAM when mem is
+ * misaligned (*out = NULL on every error, the memory's content then unspecified). An object
+ * from init is never passed to dn_*_destroy: it lives as long as its memory, which the caller
+ * may reuse once no object using it is needed (a loop model copies its damper and a damper its
+ * MLP, so their memory is free again after the copy). create is init on memory from the heap.
+ * Set-up only: init is not [RT]. */
+#define DN_STORAGE_ALIGN 64
+/* The alignment every dn_*_init needs in this build (a power of two <= DN_STORAGE_ALIGN). */
+DN_API size_t dn_storage_align(void);
+
 /* Hidden-layer activations (MlpModel.activation); the output layer is always linear. */
 #define DN_ACTIVATION_LIST(X)                                  \
   X(DN_ACT_TANH, 0, "tanh", "tanh(x) (MATLAB's tansig)")       \
@@ -160,6 +201,10 @@ DN_API int dn_mlp_create(const dn_mlp_desc* desc, dn_mlp** out);
 
 /* Destroy a model. Nullable: m. */
 DN_API void dn_mlp_destroy(dn_mlp* m);
+
+/* Bytes of a dn_mlp, and dn_mlp_create in caller memory (see "Caller-provided storage"). */
+DN_API size_t dn_mlp_size(void);
+DN_API int dn_mlp_init(const dn_mlp_desc* desc, void* mem, size_t bytes, dn_mlp** out);
 
 /* Number of inputs of a model, or DN_E_NULL. */
 DN_API int dn_mlp_n_inputs(const dn_mlp* m);
@@ -294,6 +339,16 @@ typedef enum dn_term_kind { DN_TERM_LIST(DN_TERM_ENUM_) DN_N_TERM_KINDS } dn_ter
 #define DN_MAX_TERM_PARAMS 8  /* parameters per term */
 #define DN_MAX_TABLE_V 64     /* velocity points of a lookup table */
 #define DN_MAX_TABLE_U 16     /* control points of a lookup table */
+/* This build's capacities of a damper (see DN_CAP_INPUTS above). */
+#ifndef DN_CAP_TERMS
+#define DN_CAP_TERMS DN_MAX_TERMS
+#endif
+#ifndef DN_CAP_TABLE_V
+#define DN_CAP_TABLE_V DN_MAX_TABLE_V
+#endif
+#ifndef DN_CAP_TABLE_U
+#define DN_CAP_TABLE_U DN_MAX_TABLE_U
+#endif
 
 /* Damper model kinds. */
 #define DN_DAMPER_KIND_LIST(X)                                                                \
@@ -368,6 +423,21 @@ DN_API int dn_damper_add_term(dn_damper* d, const char* kind, const double* para
 
 /* Destroy a damper. Nullable: d. */
 DN_API void dn_damper_destroy(dn_damper* d);
+
+/* Bytes of a dn_damper (any kind), and each dn_damper_create_* in caller memory (see
+ * "Caller-provided storage"): the same arguments, then the memory. */
+DN_API size_t dn_damper_size(void);
+DN_API int dn_damper_init_linear(double c, void* mem, size_t bytes, dn_damper** out);
+DN_API int dn_damper_init_parametric(const dn_parametric_params* p, void* mem, size_t bytes,
+                                     dn_damper** out);
+DN_API int dn_damper_init_table(const double* velocities, int n_v, const double* controls, int n_u,
+                                const double* forces, void* mem, size_t bytes, dn_damper** out);
+DN_API int dn_damper_init_neural(const dn_mlp* mlp, const char* const* features, int n_features,
+                                 const char* const* param_names, const double* param_values,
+                                 int n_params, int precision, void* mem, size_t bytes,
+                                 dn_damper** out);
+DN_API int dn_damper_init_callback(dn_damper_fn fn, void* user, void* mem, size_t bytes,
+                                   dn_damper** out);
 
 /* The dn_damper_kind of a damper, or DN_E_NULL. */
 DN_API int dn_damper_kind_of(const dn_damper* d);
@@ -582,6 +652,15 @@ DN_API void dn_loop_model_destroy(dn_loop_model* m);
 DN_API int dn_loop_data_create(const dn_loop_model* m, dn_loop_data** out);
 /* Destroy data. Nullable: d. */
 DN_API void dn_loop_data_destroy(dn_loop_data* d);
+
+/* Bytes of a dn_loop_model / dn_loop_data, and their create in caller memory (see
+ * "Caller-provided storage"). */
+DN_API size_t dn_loop_model_size(void);
+DN_API int dn_loop_model_init(const dn_vehicle* veh, const dn_damper* damper,
+                              const dn_controller* ctrl, void* mem, size_t bytes,
+                              dn_loop_model** out);
+DN_API size_t dn_loop_data_size(void);
+DN_API int dn_loop_data_init(const dn_loop_model* m, void* mem, size_t bytes, dn_loop_data** out);
 
 /* [RT] Reset to rest: zero displacements, velocities, road and time; u_lag and
  * u_cmd = the control the controller gives at rest (external: 0); f_last = f_static;

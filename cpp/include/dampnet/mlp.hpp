@@ -388,7 +388,7 @@ inline float forward_simd(const P& p, const float* xs, const float* col, float* 
   constexpr int kW = S::kW;
   constexpr int kP1 = kH1 > 0 ? pad(kH1) : kDynamic;
   constexpr int kP2 = kH2 > 0 ? pad(kH2) : (kH2 == 0 ? 0 : kDynamic);
-  constexpr int cap_h1 = kH1 > 0 ? kP1 : DN_MAX_HIDDEN;
+  constexpr int cap_h1 = kH1 > 0 ? kP1 : P::P1;
   constexpr int stride = P::kTw;
   const int ni = kIn > 0 ? kIn : p.n_in;
   const int h1 = kP1 > 0 ? kP1 : p.n_h1p;
@@ -471,6 +471,40 @@ inline void forward_simd_batch(const P& p, const float* const* xs, const float* 
 #endif
 #endif
 
+#if !defined(__SSE__) && !defined(DAMPNET_USE_EIGEN)
+// Scalar targets (no SIMD: Cortex-M and the like), one hidden layer: forward()'s passes
+// below (dense_t, tanh_all, dot_padded's eight partial sums; with kGrad the forward-mode
+// column) fused into one pass over the neurons, so no activation is stored and loaded
+// again and the output weights meet each tanh in registers. The operations on each neuron
+// and their order are the passes', so the result is theirs bit for bit (and the SSE
+// kernel's, whose dot_padded keeps that order). Returns b_out + sum_j w_out[j] t_j.
+template <typename T, int kIn, int kP1, bool kGrad, class P>
+inline T forward_fused1(const P& p, const T* xs, const T* col, T* dys) noexcept {
+  const int ni = kIn > 0 ? kIn : p.n_in;
+  const int h1 = kP1 > 0 ? kP1 : p.n_h1p;
+  T part[8] = {}, dpart[8] = {};
+  for (int j0 = 0; j0 < h1; j0 += 8) {
+#pragma GCC unroll 8
+    for (int l = 0; l < 8; ++l) {
+      const int j = j0 + l;
+      T z = p.b1[j];
+      for (int i = 0; i < ni; ++i) z += p.w1t[i * h1 + j] * xs[i];
+      const T t = tanh_rational(clamp_tanh_arg(z));
+      part[l] += p.w_out[j] * t;
+      if constexpr (kGrad) {
+        if (col) dpart[l] += p.w_out[j] * ((T(1) - t * t) * col[j]);
+      }
+    }
+  }
+  auto combine = [](const T* q) noexcept {
+    return ((q[0] + q[4]) + (q[1] + q[5])) + ((q[2] + q[6]) + (q[3] + q[7]));
+  };
+  if constexpr (kGrad) *dys = col ? combine(dpart) : T(0);
+  return p.b_out + combine(part);
+}
+#define DN_KERNEL_FUSED1 1
+#endif
+
 // The forward pass shared by Mlp and StaticMlp. kH2 == 0: one hidden layer.
 // Sizes used here are the padded ones (pad()). With kGrad, *dy_dxi also receives
 // dy/dx[grad_input] (output units per input unit) by forward-mode differentiation;
@@ -480,9 +514,10 @@ DN_REALTIME inline int forward(const P& p, const T* x, T* y, uint32_t* clamped_m
                                int grad_input = 0, T* dy_dxi = nullptr) noexcept {
   constexpr int kP1 = kH1 > 0 ? pad(kH1) : kDynamic;
   constexpr int kP2 = kH2 > 0 ? pad(kH2) : (kH2 == 0 ? 0 : kDynamic);
-  constexpr int cap_in = kIn > 0 ? kIn : DN_MAX_INPUTS;
-  constexpr int cap_h1 = kH1 > 0 ? kP1 : DN_MAX_HIDDEN;
-  constexpr int cap_h2 = kH2 > 0 ? kP2 : DN_MAX_HIDDEN;
+  // Stack arrays of the model's capacity (P's), or of its compile-time sizes.
+  constexpr int cap_in = kIn > 0 ? kIn : P::kCapIn;
+  constexpr int cap_h1 = kH1 > 0 ? kP1 : P::P1;
+  constexpr int cap_h2 = kH2 > 0 ? kP2 : P::P2;
   const int h1 = kP1 > 0 ? kP1 : p.n_h1p;
   const int h2 = kP2 >= 0 ? kP2 : p.n_h2p;
 
@@ -506,6 +541,11 @@ DN_REALTIME inline int forward(const P& p, const T* x, T* y, uint32_t* clamped_m
 #if DN_KERNEL_AVX2 || DN_KERNEL_AVX512
   if constexpr (std::is_same<T, float>::value) {
     sum = forward_simd<SimdKernel, kIn, kH1, kH2, kGrad>(p, xs, col, &dys);  // b_out included
+  } else
+#endif
+#if DN_KERNEL_FUSED1
+  if (kH2 == 0 || h2 == 0) {
+    sum = forward_fused1<T, kIn, kP1, kGrad>(p, xs, col, &dys);  // b_out included
   } else
 #endif
   {
@@ -567,7 +607,7 @@ DN_REALTIME inline void forward_batch(const P& p, const T* const* x, T* y, uint3
 #if DN_KERNEL_AVX2 || DN_KERNEL_AVX512
   if constexpr (std::is_same<T, float>::value) {
     if (p.n_h2p == 0) {
-      constexpr int cap_in = kIn > 0 ? kIn : DN_MAX_INPUTS;
+      constexpr int cap_in = kIn > 0 ? kIn : P::kCapIn;
       constexpr int kP1 = kH1 > 0 ? pad(kH1) : kDynamic;
       const int h1 = kP1 > 0 ? kP1 : p.n_h1p;
       alignas(DN_KERNEL_ALIGN) T xs_buf[kB][cap_in] = {};
@@ -621,6 +661,8 @@ inline int load(P& p, const dn_mlp_desc* d) noexcept {
   if ((kIn > 0 && d->n_inputs != kIn) || (kH1 > 0 && d->n_hidden1 != kH1) ||
       (kH2 >= 0 && d->n_hidden2 != kH2))
     return DN_E_MISMATCH;
+  // beyond this object's capacity (a build with lowered DN_CAP_*: dampnet.h)
+  if (d->n_inputs > P::kCapIn || d->n_hidden1 > P::kCapH1 || d->n_hidden2 > P::kCapH2) return DN_E_SIZE;
   if (d->n_hidden2 > 0 && (!d->w2 || !d->b2)) return DN_E_NULL;
   if (d->activation != DN_ACT_TANH && d->activation != DN_ACT_SIGMOID) return DN_E_ACTIVATION;
   const int ni = d->n_inputs, h1 = d->n_hidden1, h2 = d->n_hidden2;
@@ -743,6 +785,7 @@ struct MlpParams {
   static_assert(H1 >= 1 && H1 <= DN_MAX_HIDDEN, "1..64 neurons in hidden layer 1");
   static_assert(H2 >= 0 && H2 <= DN_MAX_HIDDEN, "0..64 neurons in hidden layer 2");
   static constexpr int P1 = pad(H1), P2 = pad(H2);
+  static constexpr int kCapIn = In, kCapH1 = H1, kCapH2 = H2;
   int n_in = 0, n_h1 = 0, n_h2 = 0;  // real sizes
   int n_h1p = 0, n_h2p = 0;          // padded sizes the loops run over
   Activation act = Activation::tanh;
@@ -754,14 +797,23 @@ struct MlpParams {
   // float only: the last hidden layer's tanh numerator with the output weight folded in,
   // tw[k * kTw + j] = kTanhP[k] w_out[j] (activation.hpp), and 1 / w_out[j] (0 where
   // w_out[j] is 0 or its reciprocal would not be finite), for the SIMD kernels.
+  // (Not stored for the other kernels, which never read them.)
+#if DN_KERNEL_AVX2 || DN_KERNEL_AVX512
   static constexpr int kTw = std::is_same<T, float>::value ? (H2 > 0 ? P2 : P1) : 0;
+#else
+  static constexpr int kTw = 0;
+#endif
   alignas(DN_KERNEL_ALIGN) std::array<T, kTanhPTerms * kTw> tw{};
   alignas(DN_KERNEL_ALIGN) std::array<T, kTw> inv_w{};
   T b_out{};  // the output for all-zero hidden units, in output units
   std::array<T, In> in_offset{}, in_mid{}, sat_lo{}, sat_hi{};
   // float only: sat_lo / sat_hi padded to 8 with -inf / +inf, and -1 for each input (0
   // beyond), for the SIMD kernels' range check (inputs_in_range).
+#if DN_KERNEL_AVX2 || DN_KERNEL_AVX512
   static constexpr int kR8 = std::is_same<T, float>::value ? 8 : 0;
+#else
+  static constexpr int kR8 = 0;
+#endif
   alignas(32) std::array<T, kR8> sat_lo8{}, sat_hi8{};
   alignas(32) std::array<int32_t, kR8> in_mask8{};
   bool in_offset_folded = false;  // layer 1's bias holds -W1 offset (forward skips x - offset)
@@ -802,8 +854,10 @@ class Mlp {
       }
       return;
     }
-    if (p_.n_h2 == 0 && p_.n_in == 3)  // the thesis's shape, compiled for its input count
-      return detail::forward_batch<T, 3, kDynamic, P, true, 4>(p_, x, y, clamped_mask, i, dy_dxi, status);
+    if constexpr (P::kCapIn >= 3) {
+      if (p_.n_h2 == 0 && p_.n_in == 3)  // the thesis's shape, compiled for its input count
+        return detail::forward_batch<T, 3, kDynamic, P, true, 4>(p_, x, y, clamped_mask, i, dy_dxi, status);
+    }
     detail::forward_batch<T, kDynamic, kDynamic, P, true, 4>(p_, x, y, clamped_mask, i, dy_dxi, status);
   }
   int n_inputs() const noexcept { return p_.n_in; }
@@ -817,19 +871,66 @@ class Mlp {
   template <bool kGrad>
   int dispatch(const T* x, T* y, uint32_t* m, int i, T* g) const noexcept {
     using P = decltype(p_);
+    // (Shapes beyond this build's capacity are never compiled: DN_CAP_* in dampnet.h.)
     if (p_.n_h2 == 0) {
       switch (p_.n_in) {
         case 1: return detail::forward<T, 1, kDynamic, 0, P, kGrad>(p_, x, y, m, i, g);
-        case 2: return detail::forward<T, 2, kDynamic, 0, P, kGrad>(p_, x, y, m, i, g);
-        case 3: return detail::forward<T, 3, kDynamic, 0, P, kGrad>(p_, x, y, m, i, g);
-        case 4: return detail::forward<T, 4, kDynamic, 0, P, kGrad>(p_, x, y, m, i, g);
+        case 2:
+          if constexpr (P::kCapIn >= 2) return detail::forward<T, 2, kDynamic, 0, P, kGrad>(p_, x, y, m, i, g);
+          break;
+        case 3:
+          if constexpr (P::kCapIn >= 3) return detail::forward<T, 3, kDynamic, 0, P, kGrad>(p_, x, y, m, i, g);
+          break;
+        case 4:
+          if constexpr (P::kCapIn >= 4) return detail::forward<T, 4, kDynamic, 0, P, kGrad>(p_, x, y, m, i, g);
+          break;
         default: break;
       }
     }
-    return detail::forward<T, kDynamic, kDynamic, kDynamic, P, kGrad>(p_, x, y, m, i, g);
+    if constexpr (P::kCapH2 == 0) return detail::forward<T, kDynamic, kDynamic, 0, P, kGrad>(p_, x, y, m, i, g);
+    else return detail::forward<T, kDynamic, kDynamic, kDynamic, P, kGrad>(p_, x, y, m, i, g);
   }
-  MlpParams<T, DN_MAX_INPUTS, DN_MAX_HIDDEN, DN_MAX_HIDDEN> p_;
+  MlpParams<T, DN_CAP_INPUTS, DN_CAP_HIDDEN, DN_CAP_HIDDEN2> p_;
 };
+
+// What a build without the double kernel (DN_DOUBLE_KERNEL 0: float-only targets) holds in
+// place of Mlp<double> (MlpDouble below): the input count and saturation ranges that set-up
+// reads, no weights and no kernel; every evaluation gives DN_E_PARAM and 0. (The float copy,
+// loaded from the same description, validates it.)
+template <typename T>
+class NoKernelMlp {
+ public:
+  int load(const dn_mlp_desc* d) noexcept {
+    if (!d || !d->sat_lo || !d->sat_hi) return DN_E_NULL;
+    if (d->n_inputs < 1 || d->n_inputs > DN_CAP_INPUTS) return DN_E_SIZE;
+    n_in_ = d->n_inputs;
+    for (int i = 0; i < n_in_; ++i) lo_[i] = static_cast<T>(d->sat_lo[i]), hi_[i] = static_cast<T>(d->sat_hi[i]);
+    return DN_OK;
+  }
+  int forward(const T*, T* y, uint32_t* clamped_mask = nullptr) const noexcept {
+    *y = T(0);
+    if (clamped_mask) *clamped_mask = 0;
+    return DN_E_PARAM;
+  }
+  int forward_grad(const T* x, T* y, int, T* dy_dxi, uint32_t* clamped_mask = nullptr) const noexcept {
+    *dy_dxi = T(0);
+    return forward(x, y, clamped_mask);
+  }
+  int n_inputs() const noexcept { return n_in_; }
+  const T* sat_lo() const noexcept { return lo_; }
+  const T* sat_hi() const noexcept { return hi_; }
+
+ private:
+  int n_in_ = 0;
+  T lo_[DN_CAP_INPUTS] = {}, hi_[DN_CAP_INPUTS] = {};
+};
+
+// The double-precision model of dn_mlp and of neural dampers in this build.
+#if DN_DOUBLE_KERNEL
+using MlpDouble = Mlp<double>;
+#else
+using MlpDouble = NoKernelMlp<double>;
+#endif
 
 // A model whose sizes are compile-time constants (H2 = 0: one hidden layer).
 template <typename T, int In, int H1, int H2 = 0>

@@ -1,0 +1,315 @@
+"""dampnet on a Cortex-M microcontroller: the cross build, the QEMU firmware and its output.
+
+The C library builds freestanding for ``arm-none-eabi`` (``cmake/arm-none-eabi.cmake``,
+``CMakePresets.json``: presets ``cortex-m4`` and ``cortex-m7``); ``cpp/embedded/`` holds a small
+firmware (``firmware.c``, ``startup.c``, ``mps2.ld``) that QEMU runs on its MPS2 boards
+(``mps2-an386``: Cortex-M4F, ``mps2-an500``: Cortex-M7) with semihosting output. This module
+
+* writes the firmware's stored inputs and road (``write_vectors``; ``python -m dampnet.embedded
+  vectors OUT.h``),
+* configures and builds it (``build``), runs it in QEMU (``run``) and parses what it prints
+  (``parse_output``),
+* and writes the ready-to-build folder of ``dampnet export MODEL --target cortex-m4|cortex-m7
+  --out DIR`` (``export_target``).
+
+tests/python/test_embedded.py compares the firmware with the host runtime; bench/embedded.py
+measures flash, RAM and instructions (bench/RESULTS.md).
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import struct
+import subprocess
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+
+# The two cores: the QEMU board that emulates each and the compiler's flags for it.
+CPUS = {
+    "cortex-m4": {"machine": "mps2-an386", "flags": "-mcpu=cortex-m4 -mfpu=fpv4-sp-d16 -mfloat-abi=hard -mthumb",
+                  "fpu": "single-precision (FPv4-SP): double arithmetic in software"},
+    "cortex-m7": {"machine": "mps2-an500", "flags": "-mcpu=cortex-m7 -mfpu=fpv5-d16 -mfloat-abi=hard -mthumb",
+                  "fpu": "double-precision (FPv5-D16)"},
+}
+
+# The library's capacities for the firmware (dampnet.h "Capacities"; the presets' values): the
+# thesis's 3-30-1 network (hidden layers hold multiples of 8 neurons), one hidden layer, no
+# physics terms, no lookup table to speak of, and no double kernel (the damper runs the float
+# MLP). `dampnet export --target` sets them from the model instead (capacities_for).
+DEFAULT_CAPS = {"INPUTS": 3, "HIDDEN": 32, "HIDDEN2": 0, "TERMS": 0, "TABLE_V": 2, "TABLE_U": 1}
+DEFAULT_DOUBLE_KERNEL = 0
+
+# The quarter car the firmware runs (and the host comparison with it): the HIL configuration
+# of `dampnet bench` (one damper evaluation per RK4 step, the linearised acceleration feature,
+# the float MLP), thesis Table 5 vehicle, on-off skyhook through a 5 ms command filter.
+LOOP_CONFIG = {"damper_eval": "per_step", "accel_feature": "linear", "controller": "skyhook_onoff",
+               "u_tau_s": 0.005}
+ROAD_SPEED = 18.4      # [m/s]: the thesis rough road (184 m) in 10 s
+ROAD_SECONDS = 10.0
+DT = 0.001             # the vehicle's default step [s]
+N_INPUTS_DEFAULT = 1000
+PRINT_EVERY = 100      # the firmware prints the state every this many steps
+
+
+class EmbeddedError(RuntimeError):
+    """A cross build or a QEMU run failed (the message holds the tool's output)."""
+
+
+def toolchain_missing() -> str | None:
+    """Why the cross build cannot run here (None: it can): the tools python/env.sh installs."""
+    need = {"arm-none-eabi-gcc": "gcc-arm-none-eabi", "qemu-system-arm": "qemu-system-arm",
+            "cmake": "cmake"}
+    missing = [f"{tool} (Debian package {pkg})" for tool, pkg in need.items() if not shutil.which(tool)]
+    if not missing and not _newlib_present():
+        missing.append("newlib (Debian package libnewlib-arm-none-eabi)")
+    return ", ".join(missing) + " not installed; python/env.sh installs them" if missing else None
+
+
+def _newlib_present() -> bool:
+    try:
+        out = subprocess.run(["arm-none-eabi-gcc", "--specs=nano.specs", "-print-file-name=libc_nano.a"],
+                             capture_output=True, text=True, timeout=30).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return False
+    return os.path.isabs(out) and os.path.isfile(out)
+
+
+# ---- the stored inputs and road ----
+
+@dataclass
+class Vectors:
+    x: np.ndarray          # [n, n_inputs] float32: the MLP's inputs
+    road: np.ndarray       # [n_steps, 2] float64: road [m] and its rate [m/s] at each step's end
+
+
+def make_vectors(model, n_x: int = N_INPUTS_DEFAULT, seconds: float = ROAD_SECONDS, seed: int = 0) -> Vectors:
+    """Inputs in and out of the model's saturation range (the first half uniform within it, the
+    second over the range widened by half its width on each side, so most of those clamp an
+    input), six non-finite ones (NaN, +-Inf in rows 0..5), and the thesis's rough road at
+    ROAD_SPEED, shifted to start at 0 (the loop starts at rest)."""
+    from dampnet.sim import roads
+
+    rng = np.random.default_rng(seed)
+    lo, hi = np.asarray(model.sat_lo, float), np.asarray(model.sat_hi, float)
+    span = hi - lo
+    half = n_x // 2
+    x = np.concatenate([rng.uniform(lo, hi, size=(half, len(lo))),
+                        rng.uniform(lo - 0.5 * span, hi + 0.5 * span, size=(n_x - half, len(lo)))])
+    x = x.astype(np.float32)
+    for k, v in enumerate([np.nan, np.nan, np.nan, np.inf, -np.inf, np.inf]):
+        if k < n_x:
+            x[k, k % len(lo)] = v
+    r = roads.thesis_rough_road(seed=0).sample(DT, speed=ROAD_SPEED)
+    n_steps = int(round(seconds / DT))
+    z = np.asarray(r.z, float)[1:n_steps + 1] - float(r.z[0])
+    zdot = np.asarray(r.zdot, float)[1:n_steps + 1]
+    return Vectors(x=x, road=np.column_stack([z, zdot]))
+
+
+def write_vectors(path, vectors: Vectors | None = None, model=None) -> Vectors:
+    """The firmware's header (DN_FW_VECTORS): the inputs as float bits (NaN and infinities
+    exactly), the road as doubles that round-trip, and the loop's configuration."""
+    from dampnet import _core
+    from dampnet.modeldir import load_model
+
+    if vectors is None:
+        vectors = make_vectors(model or load_model(ROOT / "export" / "dn_model_default.json"))
+    n, k = vectors.x.shape
+    bits = vectors.x.view(np.uint32)
+    ctrl = _core.CONTROLLER_KINDS[LOOP_CONFIG["controller"]][0]
+    lines = ["/* Generated by dampnet.embedded.write_vectors: the firmware's inputs and road. */",
+             "#ifndef DN_FW_VECTORS_H_", "#define DN_FW_VECTORS_H_", "#include <stdint.h>",
+             f"#define DN_FW_N_X {n}", f"#define DN_FW_N_STEPS {len(vectors.road)}",
+             f"#define DN_FW_PRINT_EVERY {PRINT_EVERY}",
+             f"#define DN_FW_DAMPER_EVAL {_core.DAMPER_EVALS[LOOP_CONFIG['damper_eval']][0]}",
+             f"#define DN_FW_ACCEL_FEATURE {_core.ACCEL_FEATURES[LOOP_CONFIG['accel_feature']][0]}",
+             f"#define DN_FW_CONTROLLER {ctrl}", f"#define DN_FW_U_TAU_S {LOOP_CONFIG['u_tau_s']!r}",
+             f"static const union {{ uint32_t u[{n}][{k}]; float f[{n}][{k}]; }} dn_fw_x_ = {{{{"]
+    lines += ["  {" + ", ".join(f"0x{b:08x}u" for b in row) + "}," for row in bits]
+    lines += ["}};", "#define dn_fw_x (dn_fw_x_.f)",
+              f"static const double dn_fw_road[{len(vectors.road)}][2] = {{"]
+    lines += [f"  {{{z!r}, {v!r}}}," for z, v in vectors.road.tolist()]
+    lines += ["};", "#endif", ""]
+    Path(path).write_text("\n".join(lines))
+    return vectors
+
+
+# ---- build and run ----
+
+def cmake_args(cpu: str, vectors: Path | None = None, build_type: str = "Release",
+               caps: dict | None = None, double_kernel: int = DEFAULT_DOUBLE_KERNEL,
+               fp_contract: str = "off") -> list[str]:
+    """The configure options of a firmware build (what the presets of CMakePresets.json set)."""
+    if cpu not in CPUS:
+        raise ValueError(f"unknown core {cpu!r}; known: {', '.join(CPUS)}")
+    args = [f"--toolchain={ROOT / 'cmake' / 'arm-none-eabi.cmake'}", f"-DDAMPNET_ARM_CPU={cpu}",
+            f"-DCMAKE_BUILD_TYPE={build_type}", f"-DDAMPNET_DOUBLE_KERNEL={double_kernel}",
+            f"-DDAMPNET_FP_CONTRACT={fp_contract}"]
+    args += [f"-DDAMPNET_CAP_{k}={v}" for k, v in (caps or DEFAULT_CAPS).items()]
+    if vectors is not None:
+        args.append(f"-DDAMPNET_FIRMWARE_VECTORS={Path(vectors).resolve()}")
+    return args
+
+
+def build(cpu: str, build_dir, vectors: Path | None = None, targets=("dn_firmware",), **options) -> Path:
+    """Configure (once) and build the firmware for a core into build_dir; returns build_dir."""
+    build_dir = Path(build_dir)
+    gen = ["-G", "Ninja"] if shutil.which("ninja") else []
+    _run(["cmake", "-S", ROOT, "-B", build_dir, *gen, *cmake_args(cpu, vectors, **options)])
+    _run(["cmake", "--build", build_dir, "--parallel", str(os.cpu_count() or 2), "--target", *targets])
+    return build_dir
+
+
+def firmware_path(build_dir, name: str = "dn_firmware") -> Path:
+    return Path(build_dir) / "cpp" / "embedded" / f"{name}.elf"
+
+
+def run(elf, cpu: str, icount: bool = True, timeout: float = 120) -> str:
+    """Run a firmware in QEMU on the core's board; returns what it printed. -icount shift=0:
+    one instruction per nanosecond of virtual time, so SysTick counts instructions (the
+    firmware's "calib" line gives how many per tick) and every run prints the same."""
+    cmd = ["qemu-system-arm", "-M", CPUS[cpu]["machine"], "-nographic", "-monitor", "none",
+           "-serial", "none", "-semihosting-config", "enable=on,target=native", "-kernel", str(elf)]
+    if icount:
+        cmd += ["-icount", "shift=0"]
+    proc = _run(cmd, timeout=timeout)
+    return proc.stdout + proc.stderr  # QEMU writes semihosting output to stderr with -nographic
+
+
+def _run(cmd, timeout: float = 900) -> subprocess.CompletedProcess:
+    try:
+        proc = subprocess.run([str(c) for c in cmd], capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired as e:
+        raise EmbeddedError(f"timed out after {timeout} s: {' '.join(map(str, cmd))}") from e
+    if proc.returncode != 0:
+        raise EmbeddedError(f"command failed ({proc.returncode}): {' '.join(map(str, cmd))}\n"
+                            f"--- stdout\n{proc.stdout[-4000:]}\n--- stderr\n{proc.stderr[-4000:]}")
+    return proc
+
+
+# ---- the firmware's output ----
+
+@dataclass
+class FirmwareOutput:
+    cpu: str = ""
+    part: int = 0
+    sizes: dict = field(default_factory=dict)       # bytes of the C ABI objects (dn_sizes.h)
+    instructions_per_tick: float = 0.0              # from the calibration loop
+    forces: np.ndarray | None = None                # float32 forces of the stored inputs
+    status: np.ndarray | None = None
+    mask: np.ndarray | None = None
+    time: dict = field(default_factory=dict)        # name -> (ticks, stub ticks, n)
+    stack: dict = field(default_factory=dict)       # name -> peak bytes below main's frame
+    states: list = field(default_factory=list)      # (step, state[13], force) every PRINT_EVERY steps
+    final: np.ndarray | None = None
+    evals: int = 0
+    status_or: int = 0
+    errors: int = -1
+
+    def instructions(self, name: str) -> float:
+        """Instructions per call of a timed loop, its empty-stub loop subtracted."""
+        ticks, stub, n = self.time[name]
+        return (ticks - stub) * self.instructions_per_tick / n
+
+
+def _f64(h: str) -> float:
+    return struct.unpack(">d", bytes.fromhex(h))[0]
+
+
+def parse_output(text: str) -> FirmwareOutput:
+    out = FirmwareOutput()
+    forces, status, mask = [], [], []
+    for line in text.splitlines():
+        f = line.split()
+        if not f:
+            continue
+        if f[0] == "dn_fw":
+            out.cpu, out.part = f[2], int(f[4])
+            out.sizes = {f[i]: int(f[i + 1]) for i in range(6, len(f) - 1, 2)}
+        elif f[0] == "calib":
+            out.instructions_per_tick = int(f[3]) / int(f[1])
+        elif f[0] == "x":
+            forces.append(struct.unpack(">f", bytes.fromhex(f[2]))[0])
+            status.append(int(f[3]))
+            mask.append(int(f[4]))
+        elif f[0] == "time":
+            out.time[f[1]] = (int(f[2]), int(f[4]), int(f[6]))
+        elif f[0] == "stack":
+            out.stack[f[1]] = int(f[2])
+        elif f[0] in ("s", "final"):
+            vals = np.array([_f64(h) for h in f[2:]])
+            if f[0] == "s":
+                out.states.append((int(f[1]), vals[:-1], vals[-1]))
+            else:
+                out.final = vals[:-1]
+        elif f[0] == "loop":
+            out.evals, out.status_or = int(f[2]), int(f[4])
+        elif f[0] == "done":
+            out.errors = int(f[2])
+    if forces:
+        out.forces = np.array(forces, dtype=np.float32)
+        out.status, out.mask = np.array(status), np.array(mask, dtype=np.uint32)
+    return out
+
+
+# ---- the host's side of the comparison ----
+
+def host_forces(model, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The host runtime's float forward (dampnet._core, the kernel the host was built with)."""
+    y, st, _ = model.core().predict(np.asarray(x, np.float32).astype(np.float64), single=True)
+    return y, st
+
+
+def host_loop(model, road: np.ndarray, every: int = PRINT_EVERY):
+    """The host loop in the firmware's configuration (float MLP, double state) over the road:
+    the state after every `every` steps, the final state and the damper evaluations."""
+    from dampnet import _core
+    from dampnet.sim.loop import damper_from_model
+
+    vehicle = {k: LOOP_CONFIG[k] for k in ("damper_eval", "accel_feature")}
+    controller = {"kind": LOOP_CONFIG["controller"], "u_tau_s": LOOP_CONFIG["u_tau_s"]}
+    loop = _core.Loop(_core.LoopModel(damper_from_model(model, single=True), vehicle, controller))
+    states = []
+    for k, (z, v) in enumerate(road.tolist(), start=1):
+        loop.step(z, v)
+        if k % every == 0 or k == len(road):
+            states.append((k, np.array(loop.state)))
+    return states, np.array(loop.state), loop.damper_evals
+
+
+def main(argv=None) -> int:
+    import argparse
+
+    p = argparse.ArgumentParser(prog="python -m dampnet.embedded", description=__doc__.split("\n\n")[0])
+    sub = p.add_subparsers(dest="cmd", required=True)
+    v = sub.add_parser("vectors", help="write the firmware's inputs and road header")
+    v.add_argument("out")
+    b = sub.add_parser("build", help="build the firmware for a core")
+    b.add_argument("--cpu", choices=sorted(CPUS), default="cortex-m4")
+    b.add_argument("--dir", default=None, help="build directory (default build/CPU)")
+    r = sub.add_parser("run", help="build and run the firmware in QEMU, print its output")
+    r.add_argument("--cpu", choices=sorted(CPUS), default="cortex-m4")
+    r.add_argument("--dir", default=None)
+    a = p.parse_args(argv)
+    if a.cmd == "vectors":
+        write_vectors(a.out)
+        return 0
+    bdir = Path(a.dir or ROOT / "build" / a.cpu)
+    try:
+        build(a.cpu, bdir)
+        if a.cmd == "run":
+            sys.stdout.write(run(firmware_path(bdir), a.cpu))
+    except EmbeddedError as e:
+        print(f"dampnet: error: {e}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,164 @@
+/* Caller-provided storage (dn_*_size / dn_*_init, "Caller-provided storage" in dampnet.h): every
+ * object built by init in the caller's memory behaves exactly as the one create allocates
+ * (bit-identical outputs and loop states), init refuses memory that is too small, misaligned or
+ * NULL with *out = NULL, and invalid arguments give the same status as create. C99. */
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "dampnet/dampnet.h"
+#include "dn_model_default.h"
+
+#include "expect.h"
+
+/* Memory aligned as dn_storage_align() says, from a pool freed at the end. */
+static void* pool[64];
+static int n_pool;
+static void* aligned(size_t bytes) {
+  const size_t a = dn_storage_align();
+  unsigned char* raw = (unsigned char*)malloc(bytes + a);
+  pool[n_pool++] = raw;
+  return raw + (a - (size_t)((uintptr_t)raw % a)) % a;
+}
+
+static int same_bits(double a, double b) { return memcmp(&a, &b, sizeof a) == 0; }
+
+static void sizes_and_refusals(void) {
+  const size_t a = dn_storage_align();
+  EXPECT(a >= 1 && a <= DN_STORAGE_ALIGN && (a & (a - 1)) == 0);
+  EXPECT(dn_mlp_size() > 0 && dn_damper_size() > 0 && dn_loop_model_size() > 0 && dn_loop_data_size() > 0);
+  const dn_mlp_desc desc = DN_MODEL_DEFAULT_DESC_INIT;
+  void* mem = aligned(dn_mlp_size() + 1);
+  dn_mlp* m = (dn_mlp*)&m; /* not NULL: init must clear it on every error */
+  EXPECT(dn_mlp_init(&desc, mem, dn_mlp_size() - 1, &m) == DN_E_SIZE && m == NULL);
+  m = (dn_mlp*)&m;
+  EXPECT(dn_mlp_init(&desc, NULL, dn_mlp_size(), &m) == DN_E_NULL && m == NULL);
+  EXPECT(dn_mlp_init(&desc, mem, dn_mlp_size(), NULL) == DN_E_NULL);
+  if (a > 1) {
+    m = (dn_mlp*)&m;
+    EXPECT(dn_mlp_init(&desc, (unsigned char*)mem + 1, dn_mlp_size(), &m) == DN_E_PARAM && m == NULL);
+  }
+  /* an invalid model: the same status as create */
+  dn_mlp_desc bad = desc;
+  bad.out_gain = 0.0;
+  dn_mlp* c = NULL;
+  EXPECT(dn_mlp_create(&bad, &c) == DN_E_PARAM && c == NULL);
+  EXPECT(dn_mlp_init(&bad, mem, dn_mlp_size(), &m) == DN_E_PARAM && m == NULL);
+  bad = desc;
+  bad.n_hidden1 = DN_MAX_HIDDEN + 1;
+  EXPECT(dn_mlp_init(&bad, mem, dn_mlp_size(), &m) == dn_mlp_create(&bad, &c) && m == NULL && c == NULL);
+  /* dampers and loops */
+  dn_damper* d = (dn_damper*)&d;
+  void* dmem = aligned(dn_damper_size());
+  EXPECT(dn_damper_init_linear(NAN, dmem, dn_damper_size(), &d) == DN_E_NONFINITE_PARAM && d == NULL);
+  EXPECT(dn_damper_init_linear(1000.0, dmem, dn_damper_size() / 2, &d) == DN_E_SIZE && d == NULL);
+  EXPECT(dn_damper_init_neural(NULL, dn_model_default_feature_names, 3, NULL, NULL, 0, DN_PRECISION_FLOAT,
+                               dmem, dn_damper_size(), &d) == DN_E_NULL && d == NULL);
+  EXPECT(dn_damper_init_linear(1000.0, dmem, dn_damper_size(), &d) == DN_OK && d != NULL);
+  dn_vehicle veh;
+  dn_vehicle_default(&veh);
+  veh.dt = 0.0;
+  dn_loop_model* lm = (dn_loop_model*)&lm;
+  void* lmem = aligned(dn_loop_model_size());
+  EXPECT(dn_loop_model_init(&veh, d, NULL, lmem, dn_loop_model_size(), &lm) == DN_E_PARAM && lm == NULL);
+  dn_vehicle_default(&veh);
+  EXPECT(dn_loop_model_init(&veh, d, NULL, lmem, 8, &lm) == DN_E_SIZE && lm == NULL);
+  dn_loop_data* ld = (dn_loop_data*)&ld;
+  EXPECT(dn_loop_data_init(NULL, aligned(dn_loop_data_size()), dn_loop_data_size(), &ld) == DN_E_NULL && ld == NULL);
+}
+
+/* The default model: init and create give the same forward, damper force and loop run. */
+static void identical_to_create(int precision) {
+  const dn_mlp_desc desc = DN_MODEL_DEFAULT_DESC_INIT;
+  dn_mlp *mc = NULL, *mi = NULL;
+  EXPECT(dn_mlp_create(&desc, &mc) == DN_OK);
+  EXPECT(dn_mlp_init(&desc, aligned(dn_mlp_size()), dn_mlp_size(), &mi) == DN_OK && mi != NULL);
+  for (int k = 0; k < 2000; ++k) { /* a grid in and beyond the saturation ranges */
+    double x[3];
+    float xf[3];
+    for (int i = 0; i < 3; ++i) {
+      const double lo = dn_model_default_sat_lo[i], hi = dn_model_default_sat_hi[i];
+      x[i] = lo - 0.3 * (hi - lo) + 1.6 * (hi - lo) * (double)((k * (7 + 4 * i)) % 101) / 100.0;
+      xf[i] = (float)x[i];
+    }
+    double yc = 0, yi = 1;
+    float fc = 0, fi = 1;
+    uint32_t kc = 9, ki = 8;
+    EXPECT(dn_mlp_forward(mc, x, &yc, &kc) == dn_mlp_forward(mi, x, &yi, &ki) && same_bits(yc, yi) && kc == ki);
+    EXPECT(dn_mlp_forward_f(mc, xf, &fc, &kc) == dn_mlp_forward_f(mi, xf, &fi, &ki) && fc == fi && kc == ki);
+  }
+  dn_damper *dc = NULL, *di = NULL;
+  EXPECT(dn_damper_create_neural(mc, dn_model_default_feature_names, 3, NULL, NULL, 0, precision, &dc) == DN_OK);
+  EXPECT(dn_damper_init_neural(mi, dn_model_default_feature_names, 3, NULL, NULL, 0, precision,
+                               aligned(dn_damper_size()), dn_damper_size(), &di) == DN_OK);
+  dn_mlp_destroy(mc); /* the dampers hold copies */
+  dn_controller ctrl;
+  dn_controller_default(&ctrl, DN_CTRL_SKYHOOK_ONOFF);
+  ctrl.u_tau_s = 0.005;
+  dn_vehicle veh;
+  dn_vehicle_default(&veh);
+  dn_loop_model *lc = NULL, *li = NULL;
+  dn_loop_data *ddc = NULL, *ddi = NULL;
+  EXPECT(dn_loop_model_create(&veh, dc, &ctrl, &lc) == DN_OK);
+  EXPECT(dn_loop_model_init(&veh, di, &ctrl, aligned(dn_loop_model_size()), dn_loop_model_size(), &li) == DN_OK);
+  dn_damper_destroy(dc);
+  memset(di, 0xA5, dn_damper_size()); /* the loop model copied it: its memory may be reused */
+  EXPECT(dn_loop_data_create(lc, &ddc) == DN_OK);
+  EXPECT(dn_loop_data_init(li, aligned(dn_loop_data_size()), dn_loop_data_size(), &ddi) == DN_OK);
+  for (int k = 1; k <= 2000; ++k) {
+    const double t = k * veh.dt;
+    const dn_loop_input in = {0.02 * sin(7.0 * t) + 0.004 * sin(40.0 * t), 0.14 * cos(7.0 * t) + 0.16 * cos(40.0 * t), 0.0};
+    dn_loop_out oc, oi;
+    EXPECT(dn_loop_step(lc, ddc, &in, &oc) == dn_loop_step(li, ddi, &in, &oi));
+    EXPECT(same_bits(oc.force, oi.force) && same_bits(oc.a, oi.a) && oc.clamped_mask == oi.clamped_mask);
+  }
+  double sc[DN_LOOP_STATE_SIZE], si[DN_LOOP_STATE_SIZE];
+  dn_loop_get_state(ddc, sc);
+  dn_loop_get_state(ddi, si);
+  for (int i = 0; i < DN_LOOP_STATE_SIZE; ++i) EXPECT(same_bits(sc[i], si[i]));
+  EXPECT(fabs(sc[1]) > 1e-4); /* the car moved */
+  EXPECT(dn_loop_damper_evals(ddc) == dn_loop_damper_evals(ddi));
+  dn_loop_data_destroy(ddc);
+  dn_loop_model_destroy(lc);
+}
+
+static void other_dampers(void) {
+  const dn_parametric_params p = {400.0, 3500.0, 1800.0, 40.0, 5.0, 0.0};
+  const double v[5] = {-1.0, -0.2, 0.0, 0.2, 1.0}, u[2] = {0.0, 5.0};
+  const double f[10] = {-3000, -900, 0, 1000, 3500, -800, -300, 0, 400, 1200};
+  dn_damper *c[3] = {NULL, NULL, NULL}, *i[3] = {NULL, NULL, NULL};
+  EXPECT(dn_damper_create_parametric(&p, &c[0]) == DN_OK);
+  EXPECT(dn_damper_init_parametric(&p, aligned(dn_damper_size()), dn_damper_size(), &i[0]) == DN_OK);
+  EXPECT(dn_damper_create_table(v, 5, u, 2, f, &c[1]) == DN_OK);
+  EXPECT(dn_damper_init_table(v, 5, u, 2, f, aligned(dn_damper_size()), dn_damper_size(), &i[1]) == DN_OK);
+  EXPECT(dn_damper_create_linear(1500.0, &c[2]) == DN_OK);
+  EXPECT(dn_damper_init_linear(1500.0, aligned(dn_damper_size()), dn_damper_size(), &i[2]) == DN_OK);
+  for (int k = 0; k < 3; ++k) {
+    EXPECT(dn_damper_kind_of(c[k]) == dn_damper_kind_of(i[k]));
+    for (int j = -50; j <= 50; ++j) {
+      dn_damper_input in;
+      memset(&in, 0, sizeof in);
+      in.v = 0.03 * j;
+      in.u = 0.05 * (j + 50);
+      double fc = 0, fi = 1;
+      EXPECT(dn_damper_force(c[k], &in, &fc, NULL) == dn_damper_force(i[k], &in, &fi, NULL) && same_bits(fc, fi));
+    }
+    dn_damper_destroy(c[k]);
+  }
+}
+
+int main(void) {
+  sizes_and_refusals();
+  identical_to_create(DN_PRECISION_FLOAT);
+  identical_to_create(DN_PRECISION_DOUBLE);
+  other_dampers();
+  for (int k = 0; k < n_pool; ++k) free(pool[k]);
+  if (failures) {
+    fprintf(stderr, "%d failures\n", failures);
+    return 1;
+  }
+  printf("test_storage: all checks passed (sizes: mlp %zu, damper %zu, loop model %zu, loop data %zu, align %zu)\n",
+         dn_mlp_size(), dn_damper_size(), dn_loop_model_size(), dn_loop_data_size(), dn_storage_align());
+  return 0;
+}
