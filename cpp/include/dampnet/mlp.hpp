@@ -871,6 +871,14 @@ class Mlp {
   template <bool kGrad>
   int dispatch(const T* x, T* y, uint32_t* m, int i, T* g) const noexcept {
     using P = decltype(p_);
+#if DN_KERNEL_FUSED1
+    // Scalar targets (a microcontroller's flash): one specialised kernel, for the capacity's
+    // input count (DN_CAP_INPUTS: the model the build is made for), and the run-time one.
+    if constexpr (P::kCapH2 == 0) {
+      if (p_.n_in == P::kCapIn) return detail::forward<T, P::kCapIn, kDynamic, 0, P, kGrad>(p_, x, y, m, i, g);
+      return detail::forward<T, kDynamic, kDynamic, 0, P, kGrad>(p_, x, y, m, i, g);
+    }
+#endif
     // (Shapes beyond this build's capacity are never compiled: DN_CAP_* in dampnet.h.)
     if (p_.n_h2 == 0) {
       switch (p_.n_in) {

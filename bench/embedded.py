@@ -1,0 +1,284 @@
+"""Flash, RAM, instructions and a cycle estimate of dampnet on Cortex-M4F and Cortex-M7 (QEMU),
+beside emlearn's C for the same 3-30-1 network (bench/RESULTS.md, "On a microcontroller").
+
+    python bench/embedded.py [--json FILE] [--fp-contract off|fast]   # about a minute; needs the cross toolchain,
+                                                # QEMU and `pip install emlearn`
+
+What it does, per core (cortex-m4: mps2-an386, cortex-m7: mps2-an500), with the presets'
+configuration (python/dampnet/embedded.py: DEFAULT_CAPS, -O3, -ffp-contract=off):
+
+* builds the firmware of cpp/embedded/ three ways: the harness alone (DN_FW_PART 0), + the MLP
+  (1), + the MLP, neural damper, quarter-car loop and skyhook controller (2);
+* flash = .text (code and constants) + .ARM.exidx + .init_array + .data's load image, the stored
+  test data (dn_fw_x_, dn_fw_road) excluded, minus the harness's; RAM = .data + .bss minus the
+  harness's (the objects' static storage) + the peak stack measured by painting (the largest of
+  set-up and run);
+* runs it under QEMU -icount shift=0: SysTick then counts instructions (the firmware's
+  calibration loop gives 40 per tick on both boards); per call = (timed loop - the same loop
+  calling an empty function) / calls, over the 1,000 stored inputs and the 10,000 steps;
+* compiles emlearn's generated C (its "loadable" eml_net, tanhf from newlib's libm) for the same
+  folded weights with the same flags into the same harness (DN_FW_PART 3) and measures it the
+  same way;
+* the cycle estimate (Cortex-M4F only): the instructions times the mean cycles per instruction
+  of the executed instruction mix, taken from a QEMU execution trace (-d exec) of the functions
+  reachable from dn_mlp_forward_f / dn_loop_step, each instruction weighted by the Cortex-M4
+  Technical Reference Manual's timings (ALU 1, load/store 2, LDM/STM/PUSH/POP 1+N, branch 2
+  (1 not taken, 2-4 taken), SDIV/UDIV 12 (2-12), VADD/VMUL 1, VMLA/VFMA 3, VDIV/VSQRT 14,
+  VLDR/VSTR 2, VLDM/VSTM/VPUSH/VPOP 1+N). An estimate: no wait states, no cache, no interrupts.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "python"))
+
+from dampnet import embedded as emb  # noqa: E402
+from dampnet.modeldir import load_model  # noqa: E402
+
+OUT = ROOT / "build" / "bench-embedded"
+SYMS_DATA = ("dn_fw_x_", "dn_fw_road")
+BUDGET_HZ, CLOCK_HZ = 10_000, 168e6  # the issue's 10 kHz step on a 168 MHz Cortex-M4F
+
+
+def _out(cmd) -> str:
+    return subprocess.run([str(c) for c in cmd], capture_output=True, text=True, check=True).stdout
+
+
+def sizes(elf: Path) -> dict:
+    """Flash and static RAM of an image, the stored test data excluded."""
+    sec = {}
+    for line in _out(["arm-none-eabi-size", "-A", elf]).splitlines():
+        f = line.split()
+        if len(f) >= 2 and f[0].startswith("."):
+            sec[f[0]] = int(f[1])
+    data = 0
+    for line in _out(["arm-none-eabi-nm", "-S", elf]).splitlines():
+        f = line.split()
+        if len(f) == 4 and f[3] in SYMS_DATA:
+            data += int(f[1], 16)
+    flash = sec.get(".text", 0) + sec.get(".ARM.exidx", 0) + sec.get(".init_array", 0) + sec.get(".data", 0) - data
+    return {"flash": flash, "ram_static": sec.get(".data", 0) + sec.get(".bss", 0)}
+
+
+# ---- the cycle estimate: the executed instruction mix under the M4's documented timings ----
+
+def _disassembly(elf: Path):
+    """address -> (mnemonic, operands, function) for every instruction; the function symbols."""
+    ins, funcs = {}, {}
+    cur = None
+    for line in _out(["arm-none-eabi-objdump", "-d", "--no-show-raw-insn", elf]).splitlines():
+        m = re.match(r"^([0-9a-f]+) <([^>]+)>:$", line)
+        if m:
+            cur = m.group(2)
+            funcs[cur] = int(m.group(1), 16)
+            continue
+        m = re.match(r"^\s+([0-9a-f]+):\s+(\S+)\s*(.*)$", line)
+        if m and cur:
+            ins[int(m.group(1), 16)] = (m.group(2), m.group(3), cur)
+    return ins, funcs
+
+
+def _cycles(mn: str, ops: str) -> float:
+    m = mn.split(".")[0]
+    n_regs = ops.count(",") + 1 if "{" in ops else 1
+    if m in ("vdiv", "vsqrt"):
+        return 14
+    if m in ("vmla", "vmls", "vfma", "vfms", "vnmla", "vnmls", "vfnma", "vfnms"):
+        return 3
+    if m in ("vldr", "vstr"):
+        return 2
+    if m in ("vldm", "vstm", "vpush", "vpop", "vldmia", "vstmia", "vldmdb", "vstmdb"):
+        return 1 + n_regs
+    if m in ("ldm", "stm", "push", "pop", "ldmia", "stmia", "ldmdb", "stmdb"):
+        return 1 + n_regs
+    if m in ("ldrd", "strd"):
+        return 3
+    if m.startswith(("ldr", "str")):
+        return 2
+    if m in ("sdiv", "udiv"):
+        return 12
+    if m in ("b", "bl", "bx", "blx", "cbz", "cbnz") or (m.startswith("b") and len(m) <= 3 and m not in ("bic", "bfi", "bfc")):
+        return 2
+    return 1
+
+
+def _is_branch(mn: str, ops: str) -> bool:
+    m = mn.split(".")[0]
+    if m in ("b", "bl", "bx", "blx", "cbz", "cbnz", "bkpt", "tbb", "tbh") or re.fullmatch(r"b(eq|ne|cs|cc|hs|lo|mi|pl|vs|vc|hi|ls|ge|lt|gt|le)", m):
+        return True
+    return ("pc" in ops and (m.startswith(("pop", "ldm", "ldr", "mov", "add")) and ops.split(",")[0].strip("{} ") == "pc")) or \
+        (m == "pop" and "pc" in ops)
+
+
+def trace_cpi(elf: Path, cpu: str, roots: dict[str, str], log: Path) -> dict:
+    """Mean cycles per instruction (M4 timings) of the instructions executed inside the functions
+    reachable from each root, from a QEMU -d exec trace of the firmware."""
+    ins, funcs = _disassembly(elf)
+    addrs = sorted(ins)
+    index = {a: i for i, a in enumerate(addrs)}
+    calls: dict[str, set[str]] = {}
+    for a in addrs:
+        mn, ops, fn = ins[a]
+        m = re.search(r"<([^>+]+)>", ops)
+        if m and mn.split(".")[0] in ("bl", "b", "blx") and m.group(1) != fn:
+            calls.setdefault(fn, set()).add(m.group(1))
+
+    def reach(root):
+        seen, todo = set(), [root]
+        while todo:
+            f = todo.pop()
+            if f not in seen:
+                seen.add(f)
+                todo.extend(calls.get(f, ()))
+        return seen
+
+    reach_sets = {k: reach(r) for k, r in roots.items()}
+    subprocess.run(["qemu-system-arm", "-M", emb.CPUS[cpu]["machine"], "-nographic", "-monitor", "none",
+                    "-serial", "none", "-semihosting-config", "enable=on,target=native", "-kernel", str(elf),
+                    "-d", "exec,nochain", "-D", str(log)], capture_output=True, timeout=600, check=True)
+    tb_cost: dict[int, tuple[int, float, str]] = {}
+    acc = {k: [0, 0.0] for k in roots}
+    with open(log) as fh:
+        for line in fh:
+            m = re.search(r"\[[0-9a-f]+/([0-9a-f]+)/", line)
+            if not m:
+                continue
+            pc = int(m.group(1), 16)
+            if pc not in tb_cost:
+                i, n, c = index.get(pc), 0, 0.0
+                fn = ins[pc][2] if pc in ins else ""
+                while i is not None and i < len(addrs) and n < 512:
+                    mn, ops, _ = ins[addrs[i]]
+                    n += 1
+                    c += _cycles(mn, ops)
+                    if _is_branch(mn, ops):
+                        break
+                    i += 1
+                tb_cost[pc] = (n, c, fn)
+            n, c, fn = tb_cost[pc]
+            for k, s in reach_sets.items():
+                if fn in s:
+                    acc[k][0] += n
+                    acc[k][1] += c
+    log.unlink(missing_ok=True)
+    return {k: (c / n if n else float("nan")) for k, (n, c) in acc.items()}
+
+
+# ---- emlearn ----
+
+def emlearn_sources(model, out_dir: Path) -> Path:
+    """emlearn's C for the default model's network, the mapminmax scalings folded into the first
+    and last layers (as dampnet's load() folds them), and the glue dn_fw_emlearn_forward."""
+    import emlearn.net
+
+    w1 = np.asarray(model.w1, float) * np.asarray(model.in_gain, float)[None, :]
+    b1 = np.asarray(model.b1, float) + np.asarray(model.w1, float) @ (
+        model.in_ymin - np.asarray(model.in_gain) * np.asarray(model.in_offset))
+    w_out = np.asarray(model.w_out, float).reshape(-1) / model.out_gain
+    b_out = (float(np.asarray(model.b_out).reshape(-1)[0]) - model.out_ymin) / model.out_gain + model.out_offset
+    net = emlearn.net.Wrapper(["tanh", "identity"], [w1.T.astype(np.float32), w_out.reshape(-1, 1).astype(np.float32)],
+                              [b1.astype(np.float32), np.array([b_out], np.float32)], classifier="loadable",
+                              return_type="regressor")
+    out_dir.mkdir(parents=True, exist_ok=True)
+    net.save(name="dnmodel", file=str(out_dir / "dnmodel.h"))
+    glue = out_dir / "emlearn_glue.c"
+    glue.write_text('#include "dnmodel.h"\n'
+                    "float dn_fw_emlearn_forward(const float* x) { return eml_net_regress1(&dnmodel, x, 3); }\n")
+    return glue
+
+
+def build_manual(cpu: str, part: int, bdir: Path, vectors: Path, extra_src=(), extra_inc=(),
+                 fp_contract: str = "off") -> Path:
+    """firmware.c + startup.c (+ extra sources) with the CMake build's flags, by hand."""
+    import emlearn
+
+    flags = emb.CPUS[cpu]["flags"].split() + ["-O3", "-DNDEBUG", "-std=gnu99", "-ffunction-sections",
+                                              "-fdata-sections", f"-ffp-contract={fp_contract}"]
+    inc = [f"-I{ROOT / 'cpp' / 'include'}", f"-I{ROOT / 'export'}", f"-I{bdir / 'cpp' / 'embedded'}",
+           f"-I{Path(emlearn.__file__).parent}", *[f"-I{d}" for d in extra_inc]]
+    elf = bdir / f"manual_part{part}.elf"
+    subprocess.run(["arm-none-eabi-gcc", *flags, *inc, f"-DDN_FW_PART={part}", f'-DDN_FW_CPU="{cpu}"',
+                    f'-DDN_FW_VECTORS="{vectors}"', "-DDN_STATIC", "--specs=nano.specs", "-nostartfiles",
+                    "-Wl,--gc-sections", f"-T{ROOT / 'cpp' / 'embedded' / 'mps2.ld'}",
+                    str(ROOT / "cpp" / "embedded" / "firmware.c"), str(ROOT / "cpp" / "embedded" / "startup.c"),
+                    *map(str, extra_src), "-lm", "-o", str(elf)], check=True, capture_output=True, text=True)
+    return elf
+
+
+def measure(cpu: str, vectors: Path, tiny: Path, model, fp_contract: str = "off") -> dict:
+    bdir = emb.build(cpu, OUT / f"{cpu}-{fp_contract}", vectors=vectors, fp_contract=fp_contract,
+                     targets=("dn_firmware", "dn_firmware_kernel", "dn_firmware_base"))
+    path = lambda n: emb.firmware_path(bdir, n)  # noqa: E731
+    base, kern, full = sizes(path("dn_firmware_base")), sizes(path("dn_firmware_kernel")), sizes(path("dn_firmware"))
+    fw = emb.parse_output(emb.run(path("dn_firmware"), cpu))
+    assert fw.errors == 0
+    r = {"sizes": fw.sizes, "stack": fw.stack,
+         "instructions": {"forward": fw.instructions("forward"), "step": fw.instructions("step")},
+         "kernel": {"flash": kern["flash"] - base["flash"], "ram_static": kern["ram_static"] - base["ram_static"],
+                    "stack": max(fw.stack["mlp_init"], fw.stack["forward"])},
+         "loop": {"flash": full["flash"] - base["flash"], "ram_static": full["ram_static"] - base["ram_static"],
+                  "stack_setup": max(fw.stack["mlp_init"], fw.stack["loop_setup"]), "stack_step": fw.stack["step"]}}
+    r["kernel"]["ram"] = r["kernel"]["ram_static"] + r["kernel"]["stack"]
+    r["loop"]["ram"] = r["loop"]["ram_static"] + max(r["loop"]["stack_setup"], r["loop"]["stack_step"])
+    r["loop"]["ram_run"] = r["loop"]["ram_static"] + r["loop"]["stack_step"]
+    # emlearn: the same harness, its forward instead
+    edir = bdir / "emlearn"
+    glue = emlearn_sources(model, edir)
+    ebase = build_manual(cpu, 0, bdir, vectors, fp_contract=fp_contract)
+    eelf = build_manual(cpu, 3, bdir, vectors, extra_src=[glue], extra_inc=[edir], fp_contract=fp_contract)
+    eo = emb.parse_output(emb.run(eelf, cpu))
+    es, ebs = sizes(eelf), sizes(ebase)
+    x = emb.make_vectors(model).x
+    ok = np.all(np.isfinite(x), axis=1)
+    r["emlearn"] = {"instructions": eo.instructions("forward"), "flash": es["flash"] - ebs["flash"],
+                    "ram_static": es["ram_static"] - ebs["ram_static"], "stack": eo.stack["forward"],
+                    "max_diff_vs_dampnet_in_range_N": float(np.max(np.abs(
+                        eo.forces[ok & (fw.status == 0)] - fw.forces[ok & (fw.status == 0)])))}
+    if cpu == "cortex-m4":
+        tdir = emb.build(cpu, OUT / f"{cpu}-{fp_contract}-trace", vectors=tiny, fp_contract=fp_contract,
+                         targets=("dn_firmware",))
+        cpi = trace_cpi(emb.firmware_path(tdir), cpu, {"forward": "dn_mlp_forward_f", "step": "dn_loop_step"},
+                        OUT / "trace.log")
+        ecpi = trace_cpi(eelf, cpu, {"forward": "dn_fw_emlearn_forward"}, OUT / "trace.log")
+        r["cpi"] = cpi
+        r["cycles"] = {k: r["instructions"][k] * cpi[k] for k in cpi}
+        r["emlearn"]["cycles"] = r["emlearn"]["instructions"] * ecpi["forward"]
+        r["step_budget_cycles"] = CLOCK_HZ / BUDGET_HZ
+        r["step_margin"] = r["step_budget_cycles"] / r["cycles"]["step"]
+    return r
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--json", help="write the results here")
+    p.add_argument("--fp-contract", choices=("off", "fast"), default="off",
+                   help="-ffp-contract of the builds (the presets: off; fast lets GCC fuse multiply-adds)")
+    a = p.parse_args(argv)
+    why = emb.toolchain_missing()
+    if why:
+        print(f"bench/embedded.py: {why}", file=sys.stderr)
+        return 2
+    model = load_model(ROOT / "export" / "dn_model_default.json")
+    OUT.mkdir(parents=True, exist_ok=True)
+    vectors, tiny = OUT / "vectors.h", OUT / "vectors_tiny.h"
+    emb.write_vectors(vectors, model=model)
+    emb.write_vectors(tiny, emb.make_vectors(model, n_x=50, seconds=0.2))
+    res = {cpu: measure(cpu, vectors, tiny, model, a.fp_contract) for cpu in sorted(emb.CPUS)}
+    res["fp_contract"] = a.fp_contract
+    print(json.dumps(res, indent=1))
+    if a.json:
+        Path(a.json).write_text(json.dumps(res, indent=1) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
