@@ -28,6 +28,12 @@
 #define DN_FW_N_INPUTS DN_MODEL_DEFAULT_N_INPUTS
 #endif
 #include DN_FW_MODEL_HEADER
+/* the constants of derived features (a model header's feature_param arrays), if any */
+#ifdef DN_FW_PARAM_NAMES
+#define DN_FW_PARAMS DN_FW_PARAM_NAMES, DN_FW_PARAM_VALUES, DN_FW_N_PARAMS
+#else
+#define DN_FW_PARAMS NULL, NULL, 0
+#endif
 
 #ifndef DN_FW_VECTORS
 #define DN_FW_VECTORS "dn_fw_vectors.h"
@@ -279,7 +285,7 @@ __attribute__((noinline)) static const dn_loop_model* loop_setup(const dn_mlp* m
   unsigned char damper_mem[DN_SIZE_DAMPER] ALIGNED;
   dn_damper* damper = NULL;
   check("dn_damper_init_neural",
-        dn_damper_init_neural(mlp, DN_FW_FEATURE_NAMES, DN_FW_N_INPUTS, NULL, NULL, 0,
+        dn_damper_init_neural(mlp, DN_FW_FEATURE_NAMES, DN_FW_N_INPUTS, DN_FW_PARAMS,
                               DN_PRECISION_FLOAT, damper_mem, sizeof damper_mem, &damper));
   if (!damper) return NULL;
   dn_vehicle veh;

@@ -283,6 +283,174 @@ def host_loop(model, road: np.ndarray, every: int = PRINT_EVERY):
     return states, np.array(loop.state), loop.damper_evals
 
 
+# ---- dampnet export MODEL --target cortex-m4|cortex-m7 --out DIR ----
+
+def capacities_for(model) -> dict:
+    """The smallest capacities (dampnet.h DN_CAP_*) that hold this model."""
+    return {"INPUTS": len(model.features), "HIDDEN": int(np.asarray(model.w1).shape[0]),
+            "HIDDEN2": int(np.asarray(model.w2).shape[0]) if model.w2 is not None else 0,
+            "TERMS": len(model.terms), "TABLE_V": 2, "TABLE_U": 1}
+
+
+_FOLDER_CMAKE = """# A ready-to-build dampnet for {cpu}, written by `dampnet export --target {cpu}`.
+# The library (static, no exceptions, RTTI or heap; capacities fitted to model.h's network) and an
+# example firmware for QEMU's {machine} (see README.md):
+#   cmake -B build --toolchain cmake/arm-none-eabi.cmake && cmake --build build
+# In your own firmware's CMake project: add_subdirectory(this folder) and link `dampnet`
+# (set DN_EXAMPLE_FIRMWARE OFF), or compile the three src/*.cpp with the flags below.
+cmake_minimum_required(VERSION 3.18)
+project(dampnet_{ident} LANGUAGES C CXX)
+set(CMAKE_CXX_STANDARD 17)
+set(CMAKE_CXX_STANDARD_REQUIRED ON)
+if(NOT CMAKE_BUILD_TYPE)
+  set(CMAKE_BUILD_TYPE Release CACHE STRING "" FORCE)
+endif()
+set(DAMPNET_ARM_CPU {cpu} CACHE STRING "the core")
+set(DN_CAPS {caps})
+add_library(dampnet STATIC src/c_api_common.cpp src/c_api_mlp.cpp src/c_api_loop.cpp)
+target_include_directories(dampnet PUBLIC include ${{CMAKE_CURRENT_SOURCE_DIR}})
+target_compile_definitions(dampnet PUBLIC DN_STATIC ${{DN_CAPS}})
+target_compile_options(dampnet PRIVATE -ffunction-sections -fdata-sections -ffp-contract=off
+  -fno-exceptions -fno-rtti -fno-threadsafe-statics)
+
+option(DN_EXAMPLE_FIRMWARE "the example firmware (QEMU {machine})" ON)
+if(DN_EXAMPLE_FIRMWARE)
+  # dn_sizes.h: the objects' sizes in this build, read from the target's object code
+  set(defs "")
+  foreach(d ${{DN_CAPS}})
+    list(APPEND defs "-D${{d}}")
+  endforeach()
+  try_compile(ok ${{CMAKE_CURRENT_BINARY_DIR}}/sizes-check SOURCES ${{CMAKE_CURRENT_SOURCE_DIR}}/example/sizes.cpp
+    CMAKE_FLAGS "-DINCLUDE_DIRECTORIES=${{CMAKE_CURRENT_SOURCE_DIR}}/include"
+    COMPILE_DEFINITIONS ${{defs}} -DDN_STATIC CXX_STANDARD 17 OUTPUT_VARIABLE log
+    COPY_FILE ${{CMAKE_CURRENT_BINARY_DIR}}/dn_sizes_info.a)
+  if(NOT ok)
+    message(FATAL_ERROR "could not compile example/sizes.cpp for the target:\\n${{log}}")
+  endif()
+  file(STRINGS ${{CMAKE_CURRENT_BINARY_DIR}}/dn_sizes_info.a info REGEX "DNSIZES\\\\[[0-9,]+\\\\]")
+  string(REGEX MATCH "DNSIZES\\\\[([0-9]+),([0-9]+),([0-9]+),([0-9]+),([0-9]+)\\\\]" _ "${{info}}")
+  math(EXPR DN_SIZE_MLP "${{CMAKE_MATCH_1}}")
+  math(EXPR DN_SIZE_DAMPER "${{CMAKE_MATCH_2}}")
+  math(EXPR DN_SIZE_LOOP_MODEL "${{CMAKE_MATCH_3}}")
+  math(EXPR DN_SIZE_LOOP_DATA "${{CMAKE_MATCH_4}}")
+  math(EXPR DN_SIZE_ALIGN "${{CMAKE_MATCH_5}}")
+  set(DN_CAP_DEFINES "${{DN_CAPS}}")
+  configure_file(example/dn_sizes.h.in ${{CMAKE_CURRENT_BINARY_DIR}}/dn_sizes.h @ONLY)
+  set(CMAKE_CXX_IMPLICIT_LINK_LIBRARIES "")
+  set(CMAKE_CXX_IMPLICIT_LINK_DIRECTORIES "")
+  add_executable(firmware example/firmware.c example/startup.c)
+  set_target_properties(firmware PROPERTIES SUFFIX .elf LINKER_LANGUAGE C C_STANDARD 99)
+  target_compile_options(firmware PRIVATE -ffunction-sections -fdata-sections -ffp-contract=off)
+  target_compile_definitions(firmware PRIVATE DN_FW_PART=2 "DN_FW_CPU=\\"{cpu}\\""
+    "DN_FW_VECTORS=\\"dn_fw_vectors.h\\"" "DN_FW_MODEL_HEADER=\\"model.h\\"" DN_FW_DESC_INIT=DN_MODEL_DESC_INIT
+    DN_FW_FEATURE_NAMES=dn_model_feature_names DN_FW_N_INPUTS=DN_MODEL_N_INPUTS{params})
+  target_include_directories(firmware PRIVATE ${{CMAKE_CURRENT_BINARY_DIR}} example)
+  target_link_libraries(firmware PRIVATE dampnet m)
+  target_link_options(firmware PRIVATE -T${{CMAKE_CURRENT_SOURCE_DIR}}/example/mps2.ld)
+endif()
+"""
+
+_FOLDER_README = """# dampnet for {cpu}
+
+Written by `dampnet export {model_name} --target {cpu}` (dampnet {version}). Model id `{model_id}`:
+{network}, inputs {inputs}.
+
+| path | what |
+| --- | --- |
+| `model.h` | the model (weights, scalings, saturation limits, feature names): `DN_MODEL_DESC_INIT` |
+| `include/dampnet/` | the C ABI (`dampnet.h`) and the header-only C++ runtime it is built from |
+| `src/` | the library's three sources (MLP, dampers and loop, status strings) |
+| `CMakeLists.txt` | the static library `dampnet` with this model's capacities: {caps} |
+| `cmake/arm-none-eabi.cmake` | the toolchain file (`DAMPNET_ARM_CPU` = cortex-m4 or cortex-m7) |
+| `example/` | a firmware for QEMU's `{machine}` (start-up code, linker script `mps2.ld`, `firmware.c`) |
+
+## Build and try it
+
+```sh
+cmake -B build --toolchain cmake/arm-none-eabi.cmake    # arm-none-eabi-gcc + newlib (Debian packages)
+cmake --build build
+qemu-system-arm -M {machine} -nographic -monitor none -serial none \
+  -semihosting-config enable=on,target=native -kernel build/firmware.elf
+```
+
+The firmware evaluates the model on {n_x} stored inputs and runs the quarter car over 1 s of road,
+printing forces and states as the bits of their floats and doubles.
+
+## Into your firmware
+
+1. Compile `src/*.cpp` as C++17 with your core's flags ({flags}) and
+   `-fno-exceptions -fno-rtti -fno-threadsafe-statics -ffunction-sections -fdata-sections`, the
+   definitions `DN_STATIC {caps}` (also for any C++ file of yours that includes the C++ headers),
+   and link with `-Wl,--gc-sections` (newlib's libm and libgcc; no libstdc++, no heap).
+2. Keep every object in static storage: `dn_mlp_init`, `dn_damper_init_neural`,
+   `dn_loop_model_init`, `dn_loop_data_init` over memory of `dn_*_size()` bytes aligned to
+   `dn_storage_align()` (`example/firmware.c` does this; `example/sizes.cpp` turns the sizes into
+   compile-time constants for static arrays). A loop model copies its damper and a damper its MLP,
+   so their memory is free again after set-up.
+3. The real-time call is `dn_loop_step` (or `dn_mlp_forward_f` / `dn_damper_force` alone): no
+   allocation, no exceptions, bounded time, finite output for any input.
+4. Linker script: `.text`/`.rodata` in flash, `.data` copied and `.bss` zeroed by the start-up code,
+   a stack of at least the peak measured for your core (dampnet's bench/RESULTS.md, "On a
+   microcontroller"; the example paints and prints it); see the marked lines of `example/mps2.ld`.
+
+Figures for the 3-30-1 default model (dampnet's bench/RESULTS.md): the float forward 1,563
+instructions on a Cortex-M4F (1,480 on a Cortex-M7); the quarter-car step in double 14,871 (M4F,
+software double) and 2,651 (M7).
+"""
+
+
+def export_target(model, target: str, out_dir, overwrite: bool = False, model_name: str = "MODEL") -> Path:
+    """The ready-to-build folder of `dampnet export MODEL --target CPU --out DIR`: model.h, the
+    library's headers and sources, a CMakeLists.txt with the model's capacities, the toolchain
+    file, an example firmware and a README. Refuses an existing DIR unless overwrite."""
+    import dampnet
+    from dampnet.export import write_header
+
+    if target not in CPUS:
+        raise ValueError(f"--target {target!r}: expected one of {', '.join(CPUS)}")
+    out = Path(out_dir)
+    if out.exists():
+        if not overwrite:
+            raise FileExistsError(f"{out}: exists; refusing to overwrite (use --force)")
+        if not (out / "model.h").is_file() or not (out / "CMakeLists.txt").is_file():
+            raise FileExistsError(f"{out}: not a folder `dampnet export --target` wrote; refusing to replace it")
+        shutil.rmtree(out)
+    # the files: from the source tree, or from an installed wheel (CMakeLists.txt installs them
+    # into the package: include/, src/, cmake/, embedded/)
+    src_root, cmake_dir, fw_dir = ROOT / "cpp", ROOT / "cmake", ROOT / "cpp" / "embedded"
+    if not (src_root / "src" / "c_api_loop.cpp").is_file():
+        pkg = Path(dampnet.__file__).parent
+        src_root, cmake_dir, fw_dir = pkg, pkg / "cmake", pkg / "embedded"
+    out.mkdir(parents=True)
+    write_header(model, out / "model.h", "dn_model")
+    shutil.copytree(src_root / "include" / "dampnet", out / "include" / "dampnet")
+    (out / "src").mkdir()
+    for f in ("c_api_common.cpp", "c_api_mlp.cpp", "c_api_loop.cpp", "internal.hpp"):
+        shutil.copy2(src_root / "src" / f, out / "src" / f)
+    (out / "cmake").mkdir()
+    shutil.copy2(cmake_dir / "arm-none-eabi.cmake", out / "cmake" / "arm-none-eabi.cmake")
+    (out / "example").mkdir()
+    for f in ("firmware.c", "startup.c", "mps2.ld", "dn_sizes.h.in", "sizes.cpp"):
+        shutil.copy2(fw_dir / f, out / "example" / f)
+    write_vectors(out / "example" / "dn_fw_vectors.h", make_vectors(model, n_x=16, seconds=1.0))
+    caps = capacities_for(model)
+    cap_defs = [f"DN_CAP_{k}={v}" for k, v in caps.items()] + ["DN_DOUBLE_KERNEL=0"]
+    params = ""
+    if model.feature_params:
+        params = (" DN_FW_PARAM_NAMES=dn_model_feature_param_names DN_FW_PARAM_VALUES=dn_model_feature_param_values"
+                  " DN_FW_N_PARAMS=DN_MODEL_N_FEATURE_PARAMS")
+    ident = target.replace("-", "_")
+    (out / "CMakeLists.txt").write_text(_FOLDER_CMAKE.format(
+        cpu=target, machine=CPUS[target]["machine"], ident=ident, caps=" ".join(cap_defs), params=params))
+    h2 = caps["HIDDEN2"]
+    (out / "README.md").write_text(_FOLDER_README.format(
+        cpu=target, machine=CPUS[target]["machine"], model_name=model_name, version=dampnet.__version__,
+        model_id=getattr(model, "id", "") or "", inputs=", ".join(model.features), n_x=16,
+        network=f"{caps['INPUTS']}-{caps['HIDDEN']}-" + (f"{h2}-" if h2 else "") + f"1 {model.activation}",
+        caps=" ".join(cap_defs), flags=CPUS[target]["flags"]))
+    return out
+
+
 def main(argv=None) -> int:
     import argparse
 

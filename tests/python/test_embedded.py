@@ -148,3 +148,31 @@ def test_no_cxx_runtime_no_heap_and_a_float_forward_without_double(firmware):
     assert not soft_double, soft_double
     # the float kernel compiled with -Wdouble-promotion -Werror (dn_float_kernel_check)
     assert list((bdir / "cpp" / "embedded").rglob("float_kernel_check.cpp.obj"))
+
+
+def test_export_target_folder_builds_and_runs(vectors, model, tmp_path):
+    """`dampnet export MODEL --target cortex-m4 --out DIR`: the folder builds on its own with
+    its toolchain file (library with the model's capacities, example firmware) and the firmware
+    gives the host's forces; an existing folder is refused without --force."""
+    import shutil
+    import sys
+
+    out = tmp_path / "m4"
+    cmd = [sys.executable, "-m", "dampnet.cli", "export", str(ROOT / "export" / "dn_model_default.json"),
+           "--target", "cortex-m4", "--out", str(out)]
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert (out / "model.h").is_file() and (out / "README.md").is_file()
+    assert "DN_CAP_INPUTS=3 DN_CAP_HIDDEN=30" in (out / "CMakeLists.txt").read_text()
+    again = subprocess.run(cmd, capture_output=True, text=True)
+    assert again.returncode == 2 and "refusing to overwrite" in again.stderr
+    gen = ["-G", "Ninja"] if shutil.which("ninja") else []
+    subprocess.run(["cmake", "-S", out, "-B", out / "build", *gen, "--toolchain",
+                    out / "cmake" / "arm-none-eabi.cmake"], check=True, capture_output=True)
+    subprocess.run(["cmake", "--build", out / "build"], check=True, capture_output=True)
+    fw = emb.parse_output(emb.run(out / "build" / "firmware.elf", "cortex-m4", icount=False))
+    assert fw.errors == 0 and fw.final is not None and fw.evals == 1000
+    x = emb.make_vectors(model, n_x=16, seconds=1.0).x
+    y, status = emb.host_forces(model, x)
+    assert np.max(np.abs(fw.forces - y)) <= 1e-5 * 2.0 / model.out_gain
+    np.testing.assert_array_equal(fw.status, status)

@@ -37,6 +37,11 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--header", metavar="OUT.h", help="write the C/C++ header here")
     p.add_argument("--prefix", default="dn_model", help="the header's name prefix (default dn_model)")
     p.add_argument("--force", action="store_true", help="replace existing output files")
+    # a microcontroller: dampnet.embedded (README: On a microcontroller)
+    p.add_argument("--target", choices=("cortex-m4", "cortex-m7"), default=None,
+                   help="a ready-to-build folder for this core (with --out DIR): model.h, the library's sources, "
+                        "a CMakeLists.txt with the model's capacities, the toolchain file, an example firmware")
+    p.add_argument("--out", metavar="DIR", help="--target: the folder to write")
     p.set_defaults(handler=run)
     return p
 
@@ -48,6 +53,8 @@ def run(args) -> int:
     from dampnet.model import ModelError
     from dampnet.modeldir import load_model
 
+    if args.target or args.out:
+        return _export_target(args)
     if not args.onnx and not args.header and not args.fmu:
         print("dampnet: error: nothing to export: give --fmu OUT.fmu, --onnx OUT.onnx and/or --header OUT.h",
               file=sys.stderr)
@@ -119,3 +126,25 @@ def _export_fmu(model, args) -> None:
     io = ("inputs x [m], v [m/s], a [m/s2], u, temperature [degC]; output force [N]" if args.what == "damper"
           else "inputs z_r [m], v_r [m/s], u; outputs the quarter car's motion and forces")
     print(f"{args.fmu}: FMI {args.fmi}.0 FMU {ident} ({kinds}; {PLATFORM[args.fmi]} binary and sources), {io}")
+
+
+def _export_target(args) -> int:
+    """--target CPU --out DIR: dampnet.embedded.export_target."""
+    from dampnet.embedded import capacities_for, export_target
+    from dampnet.model import ModelError
+    from dampnet.modeldir import load_model
+
+    if not (args.target and args.out):
+        print("dampnet: error: --target and --out go together: --target cortex-m4|cortex-m7 --out DIR",
+              file=sys.stderr)
+        return 2
+    try:
+        model = load_model(args.model)
+        out = export_target(model, args.target, args.out, overwrite=args.force, model_name=args.model)
+    except (ModelError, ValueError, OSError) as e:
+        print(f"dampnet: error: {e}", file=sys.stderr)
+        return 2
+    caps = ", ".join(f"{k.lower()} {v}" for k, v in capacities_for(model).items())
+    print(f"{out}: dampnet for {args.target} (model.h, library sources, CMakeLists.txt with capacities {caps}, "
+          f"toolchain file, example firmware, README.md)")
+    return 0
