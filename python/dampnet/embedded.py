@@ -154,6 +154,8 @@ def cmake_args(cpu: str, vectors: Path | None = None, build_type: str = "Release
     args += [f"-DDAMPNET_CAP_{k}={v}" for k, v in (caps or DEFAULT_CAPS).items()]
     if vectors is not None:
         args.append(f"-DDAMPNET_FIRMWARE_VECTORS={Path(vectors).resolve()}")
+    else:  # CMake writes them with this interpreter (python -m dampnet.embedded vectors)
+        args.append(f"-DPython3_EXECUTABLE={sys.executable}")
     return args
 
 
