@@ -8,6 +8,7 @@ features' states (u_lag, v_lag, z_fric) as local variables, continuous states in
 
 from __future__ import annotations
 
+from dampnet import _core
 from dampnet.export import _package_version
 from dampnet.features import param_doc
 from dampnet.fmu.description import Description, FmuError, Variable, fmi_unit, unit_in
@@ -15,14 +16,20 @@ from dampnet.model import MlpModel
 from dampnet.terms import KINDS
 
 MODEL_IDENTIFIER = "dampnet_damper"
-#: the features the FMU feeds: from its inputs, or from the states it keeps
-FMU_FEATURES = ("velocity", "acceleration", "displacement", "voltage", "current", "temperature",
-                "voltage_lag", "current_lag", "velocity_lag", "friction_state")
+#: the features the FMU feeds: every feature the runtime knows (from its inputs, or from the
+#: states it keeps for the derived ones)
+FMU_FEATURES = tuple(_core.FEATURE_NAMES)
 VR_FPARAM, VR_TERM, VR_STATE, VR_DERIV, VR_TIME = 10, 100, 40, 50, 9
-#: the derived features' states: (name, slot, the features that need it, description)
-STATES = (("u_lag", 0, ("voltage_lag", "current_lag"), "control after the model's first-order lag"),
-          ("v_lag", 1, ("velocity_lag",), "velocity after the model's first-order lag"),
-          ("z_fric", 2, ("friction_state",), "Dahl friction state, in [-1, 1]"))
+#: the derived features' states, by the dn_damper_input field a feature reads (the runtime's
+#: registry, _core.FEATURE_INPUTS): (field, slot in fmu_damper.hpp, description)
+STATES = (("u_lag", 0, "control after the model's first-order lag"),
+          ("v_lag", 1, "velocity after the model's first-order lag"),
+          ("z_fric", 2, "Dahl friction state, in [-1, 1]"))
+
+
+def _fields(model: MlpModel) -> set[str]:
+    return {_core.FEATURE_INPUTS[f] for f in model.features if f in _core.FEATURE_INPUTS}
+
 
 __all__ = ["FMU_FEATURES", "MODEL_IDENTIFIER", "FmuError", "check_model", "damper_description", "damper_variables"]
 
@@ -37,9 +44,10 @@ def check_model(model: MlpModel) -> None:
 
 
 def control_unit(model: MlpModel) -> str | None:
-    for name in ("voltage", "current", "voltage_lag", "current_lag"):
-        if name in model.features:
-            return fmi_unit(model.units[model.features.index(name)]) or ("V" if "voltage" in name else "A")
+    """The unit of the model's control feature (the first reading u or u_lag), V by default."""
+    for name, unit in zip(model.features, model.units):
+        if _core.FEATURE_INPUTS.get(name) in ("u", "u_lag"):
+            return fmi_unit(unit) or "V"
     return "V"
 
 
@@ -75,8 +83,9 @@ def damper_variables(model: MlpModel) -> list[Variable]:
             v.append(Variable(f"{term['kind']}_{i}.{pname}", VR_TERM + 10 * i + j, "Real", "parameter", "fixed",
                               f"physics term {i} ({term['kind']}): {KINDS[term['kind']].doc}", fmi_unit(unit.rstrip("]")),
                               float(value), initial="exact"))
-    for name, slot, features, doc in STATES:
-        if any(f in model.features for f in features):
+    used = _fields(model)
+    for name, slot, doc in STATES:
+        if name in used:
             unit = u_unit if name == "u_lag" else ("m/s" if name == "v_lag" else None)
             d_unit = {"V": None, "A": None, "m/s": "m/s2", None: "1/s"}.get(unit)
             v.append(Variable(name, VR_STATE + slot, "Real", "local", "continuous", doc, unit,
