@@ -45,6 +45,7 @@ KIND_MARKERS = {
     "model": "model.json",
     "dataset": "manifest.csv and a meta.json written by dampnet",
     "demo": "summary.json of a dampnet demo",
+    "sweep": "sweep.json of a dampnet sweep",
 }
 
 
@@ -67,6 +68,8 @@ def is_kind(path: Path, kind: str) -> bool:
         return (path / "manifest.csv").is_file() and str(meta.get("generator", "")).startswith("dampnet")
     if kind == "demo":
         return str(_json_object(path / "summary.json").get("schema", "")).startswith("dampnet.demo/")
+    if kind == "sweep":
+        return str(_json_object(path / "sweep.json").get("schema", "")).startswith("dampnet.sweep/")
     raise ValueError(f"unknown output kind {kind!r}")
 
 

@@ -1,0 +1,570 @@
+"""The sweep's SPEC.toml: what it may say, read and checked into a `Spec` (one-line errors).
+
+    spec = load_spec("sweep.toml")        # or parse_spec(dict_or_toml_text, source=..., base=...)
+
+A spec has up to three tables:
+
+  [sweep]       data = "shared" | "ship" (how workers get datasets and models: by path on a
+                shared filesystem, or shipped once per worker), allowed_failures (deaths of a
+                worker under one cell before it is given up, embedded cluster; default 3)
+  [training]    axes (a list: one value per item, every combination of the axes is a cell; a
+                single value: a one-value axis) over datasets, data_seeds, rig_effects,
+                algorithms, add, features, seeds, hidden, decimate, max_epochs, max_fail,
+                holdout_voltage, activation; objective (the metric the summary ranks, lower is
+                better). Where a value is itself a list, the axis is a list of them:
+                hidden = [30, [20, 10]], rig_effects = [[], ["gas_spring", "thermal"]],
+                features = [["velocity", "acceleration", "voltage", "displacement"]]
+  [simulation]  models, roads, road_seeds, road_length_m, speeds [m/s], controllers;
+                [simulation.vehicle] and [simulation.controller]: the quarter car's and the
+                control law's fields (a value or a list); objective
+
+`[training.random]` / `[simulation.random]`: n samples drawn with `seed` (numpy's
+default_rng), each parameter named by its cell name or its key (speed or speeds, road_seed,
+vehicle.m_s as m_s in a [....random.vehicle] table; the training seed as seeds = {...}, since
+`seed` there is the draws' own) with one distribution: {uniform = [lo, hi]},
+{loguniform = [lo, hi]}, {normal = [mean, sd]}, {integers = [lo, hi]} (both ends included)
+or {choice = [...]}. Every grid point is combined with every sample (the same n samples for
+each point: Monte Carlo over parameter spreads, compared on common draws).
+
+Relative paths are relative to the spec file's directory (to the working directory for a
+spec given as a dict). Errors are `SpecError` (a ValueError): one line naming the file, the
+line where the key is when it can be found, and the field, e.g.
+`sweep.toml: line 7: training.algorithms[1]: 'foo' is not a training algorithm; valid: ...`.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+from dampnet.sweep.metrics import objectives
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10: the same parser as the package tomli (the sweep extra)
+    import tomli as tomllib  # type: ignore[no-redef]
+
+DATA_MODES = ("shared", "ship")
+#: controllers of a simulation cell: passive at the damper's low or high damping (passive = high,
+#: or u_passive when [simulation.controller] sets it), and the runtime's semi-active laws
+CONTROLLERS = ("passive", "passive_low", "passive_high", "skyhook_onoff", "skyhook_continuous",
+               "groundhook_onoff", "groundhook_continuous")
+#: roads by name (dampnet.sim.roads); a CSV file distance_m,elevation_m is also a road
+ROAD_NAMES = ("impulse", "bump", "sweep", "rough")
+TEMPORAL_ROADS = ("impulse", "sweep")         # time profiles: no speed
+SEEDED_ROADS = ("rough",)                      # and iso:X: random profiles, with a seed
+DISTRIBUTIONS = ("uniform", "loguniform", "normal", "integers", "choice")
+DEFAULT_OBJECTIVE = {"training": "holdout_nrmse", "simulation": "acc_wk_rms_m_s2"}
+
+
+class SpecError(ValueError):
+    """A bad sweep spec: one line naming the file, the line and the field."""
+
+
+class _Bad(ValueError):
+    """A bad value (message without the location); turned into a SpecError by the parser."""
+
+
+# -- values -----------------------------------------------------------------------------------
+
+def _int(lo: int | None = None) -> Callable[[Any], int]:
+    def norm(v):
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise _Bad(f"expected an integer, got {v!r}")
+        if lo is not None and v < lo:
+            raise _Bad(f"expected an integer >= {lo}, got {v}")
+        return int(v)
+    return norm
+
+
+def _float(positive: bool = False, allow_none: str | None = None) -> Callable[[Any], float | None]:
+    def norm(v):
+        if allow_none is not None and isinstance(v, str) and v.strip().lower() == allow_none:
+            return None
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            extra = f" or {allow_none!r}" if allow_none else ""
+            raise _Bad(f"expected a number{extra}, got {v!r}")
+        if positive and v <= 0:
+            raise _Bad(f"expected a number > 0, got {v!r}")
+        return float(v)
+    return norm
+
+
+def _choice(valid: tuple[str, ...] | Callable[[], tuple[str, ...]], what: str) -> Callable[[Any], str]:
+    def norm(v):
+        names = valid() if callable(valid) else valid
+        if not isinstance(v, str) or v not in names:
+            raise _Bad(f"{v!r} is not {what}; valid: {', '.join(names)}")
+        return v
+    return norm
+
+
+def _text(v) -> str:
+    if not isinstance(v, str) or not v.strip():
+        raise _Bad(f"expected a non-empty string, got {v!r}")
+    return v.strip()
+
+
+def _effects(v) -> list[str]:
+    """An effect id, a list of them, or "none" / "" / []: none."""
+    from dampnet.effects import CATALOGUE
+
+    items = [] if v in ("none", "") else [v] if isinstance(v, str) else v
+    if not isinstance(items, list) or not all(isinstance(e, str) for e in items):
+        raise _Bad(f"expected an effect id, a list of them or 'none', got {v!r}")
+    for e in items:
+        if e not in CATALOGUE:
+            raise _Bad(f"{e!r} is not an effect; valid: {', '.join(CATALOGUE)}")
+    out: list[str] = []
+    for e in items:
+        if e not in out:
+            out.append(e)
+    return out
+
+
+def _hidden(v) -> list[int]:
+    """30, [20, 10] or "20-10": the hidden layer sizes."""
+    items = v
+    if isinstance(v, str):
+        try:
+            items = [int(s) for s in re.split(r"[-,x ]+", v.strip()) if s]
+        except ValueError:
+            raise _Bad(f"expected hidden sizes like 30, [20, 10] or '20-10', got {v!r}") from None
+    elif isinstance(v, int) and not isinstance(v, bool):
+        items = [v]
+    if (not isinstance(items, list) or not 1 <= len(items) <= 2
+            or not all(isinstance(h, int) and not isinstance(h, bool) and h >= 1 for h in items)):
+        raise _Bad(f"expected one or two hidden layer sizes >= 1 (30, [20, 10]), got {v!r}")
+    return [int(h) for h in items]
+
+
+def _features(v) -> list[str] | None:
+    """"default" (velocity, acceleration and the data's control) or a list of feature names."""
+    from dampnet.features import FEATURES
+
+    if v == "default":
+        return None
+    if not isinstance(v, list) or not v or not all(isinstance(f, str) for f in v):
+        raise _Bad(f"expected 'default' or a list of feature names, got {v!r}")
+    bad = [f for f in v if f not in FEATURES]
+    if bad:
+        raise _Bad(f"{bad[0]!r} is not a feature; valid: {', '.join(FEATURES)}")
+    if len(set(v)) != len(v):
+        raise _Bad(f"each feature once, got {v!r}")
+    return list(v)
+
+
+def _decimate(v) -> int | None:
+    if v == "auto":
+        return None
+    return _int(1)(v)
+
+
+def _objective(kind: str, v) -> str:
+    """A numeric metric of the section's cells (what the summary ranks, lower is better)."""
+    valid = objectives(kind)
+    if v not in valid:
+        raise _Bad(f"{v!r} is not a {kind} metric; valid: {', '.join(valid)}")
+    return v
+
+
+def _algorithms() -> tuple[str, ...]:
+    from dampnet.training.fit import ALGORITHMS
+
+    return tuple(ALGORITHMS)
+
+
+# -- the parameters ---------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Param:
+    """One cell parameter: `name` in the cell and the table, `key` in its spec table (a value, or a
+    list of values: an axis), `axis`: a main axis of its section (a plural key); `kind`: the type a
+    random draw must have ("int", "float", "any": choice only)."""
+
+    name: str
+    key: str
+    norm: Callable[[Any], Any]
+    default: Any
+    axis: bool = False
+    kind: str = "any"
+    input: str | None = None      # the input role the value names (a file read by the cell)
+    help: str = ""
+
+
+def _vehicle_params() -> list[Param]:
+    from dampnet.sim.vehicle import Vehicle
+
+    out = []
+    for name in ("m_s", "m_us", "k_s", "k_t", "c_t", "dt", "x_static", "f_static"):
+        if name in Vehicle.__dataclass_fields__:
+            out.append(Param(f"vehicle.{name}", name, _float(), None, kind="float",
+                             help="quarter-car field (SI units), default: Table 5's"))
+    return out
+
+
+def _controller_params() -> list[Param]:
+    from dampnet.sim.vehicle import Controller
+
+    return [Param(f"controller.{name}", name, _float(), None, kind="float",
+                  help="control-law field (V, N s/m, s), default: calibrated on the damper")
+            for name in Controller.__dataclass_fields__ if name != "kind"]
+
+
+TRAINING_PARAMS = [
+    Param("dataset", "datasets", _text, None, axis=True, input="dataset",
+          help="a dataset path, or rig:PLAN (thesis, quick, a plan JSON) generated per cell"),
+    Param("data_seed", "data_seeds", _int(0), 0, axis=True, kind="int", help="seed of rig:PLAN data"),
+    Param("rig_effects", "rig_effects", _effects, [], axis=True, help="effects on in the rig (rig:PLAN)"),
+    Param("algorithm", "algorithms", _choice(_algorithms, "a training algorithm"), "lm", axis=True),
+    Param("add", "add", _effects, [], axis=True, help="effects whose features/terms are added"),
+    Param("features", "features", _features, None, axis=True, help="'default' or feature names"),
+    Param("seed", "seeds", _int(0), 0, axis=True, kind="int", help="training seed"),
+    Param("hidden", "hidden", _hidden, [30], axis=True, help="hidden layer sizes"),
+    Param("decimate", "decimate", _decimate, None, kind="int", help="every N-th sample, or 'auto'"),
+    Param("max_epochs", "max_epochs", _int(1), 1000, kind="int"),
+    Param("max_fail", "max_fail", _int(1), 6, kind="int"),
+    Param("holdout_voltage", "holdout_voltage", _float(allow_none="none"), 2.25, kind="float",
+          help="[V], or 'none'"),
+    Param("activation", "activation", _choice(("tanh", "sigmoid"), "an activation"), "tanh"),
+]
+
+SIMULATION_PARAMS = [
+    Param("model", "models", _text, "default", axis=True, input="model",
+          help="'default', a model directory or model.json, a lookup-table JSON, 'truth', "
+               "'truth:EFFECT,...', 'linear:C' [N s/m]"),
+    Param("road", "roads", _text, None, axis=True, input="road",
+          help="impulse, bump, sweep, rough, iso:A..iso:H, or a CSV distance_m,elevation_m"),
+    Param("road_seed", "road_seeds", _int(0), 0, axis=True, kind="int", help="seed of rough and iso roads"),
+    Param("road_length_m", "road_length_m", _float(positive=True), 200.0, kind="float",
+          help="length of iso roads [m]"),
+    Param("speed", "speeds", _float(positive=True), 10.0, axis=True, kind="float", help="[m/s]"),
+    Param("controller", "controllers", _choice(CONTROLLERS, "a controller"), "passive_high", axis=True),
+]
+
+SECTION_PARAMS = {"training": TRAINING_PARAMS, "simulation": SIMULATION_PARAMS}
+SUBTABLES = {"simulation": {"vehicle": _vehicle_params, "controller": _controller_params}}
+
+
+def section_params(kind: str) -> list[Param]:
+    """Every parameter of a section's cells, in table order (sub-table fields last)."""
+    out = list(SECTION_PARAMS[kind])
+    for make in SUBTABLES.get(kind, {}).values():
+        out += make()
+    return out
+
+
+# -- the spec ---------------------------------------------------------------------------------
+
+@dataclass
+class RandomSpec:
+    """n samples drawn with numpy.random.default_rng(seed): {param name: (distribution, args)}."""
+
+    n: int
+    seed: int
+    dists: dict[str, tuple[str, list]]
+
+
+@dataclass
+class Section:
+    """A section's grid: {param name: its values} (every parameter: one value when fixed)."""
+
+    kind: str
+    axes: dict[str, list]
+    random: RandomSpec | None
+    objective: str
+    given: set[str] = field(default_factory=set)   # parameters the spec named (the rest: defaults)
+
+
+@dataclass
+class Spec:
+    source: str                       # the file name in messages
+    base: Path                        # relative paths resolve here
+    sections: dict[str, Section]
+    data: str = "shared"
+    allowed_failures: int = 3
+    raw: dict = field(default_factory=dict)   # the parsed TOML (kept in DIR/sweep.json)
+    text: str | None = None
+
+
+def load_spec(path: str | os.PathLike) -> Spec:
+    """The spec in a TOML file; SpecError naming the file, line and field."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise SpecError(f"{path}: no such sweep spec file") from None
+    except IsADirectoryError:
+        raise SpecError(f"{path}: is a directory: expected a sweep spec (TOML file)") from None
+    except UnicodeDecodeError:
+        raise SpecError(f"{path}: not a UTF-8 text file: expected a sweep spec (TOML)") from None
+    except OSError as e:
+        raise SpecError(f"{path}: cannot read the sweep spec ({e.strerror or e})") from None
+    return parse_spec(text, source=str(path), base=p.resolve().parent)
+
+
+def parse_spec(spec: str | dict, source: str = "<spec>", base: str | os.PathLike | None = None) -> Spec:
+    """A Spec from TOML text or an already parsed dict; SpecError on anything wrong."""
+    text = None
+    if isinstance(spec, str):
+        text = spec
+        try:
+            raw = tomllib.loads(spec)
+        except tomllib.TOMLDecodeError as e:
+            raise SpecError(f"{source}: not valid TOML ({e})") from None
+    elif isinstance(spec, dict):
+        raw = spec
+    else:
+        raise SpecError(f"{source}: expected a TOML text, a file or a dict, got {type(spec).__name__}")
+    return _Parser(raw, source, Path(base) if base is not None else Path.cwd(), text).spec()
+
+
+class _Parser:
+    def __init__(self, raw: dict, source: str, base: Path, text: str | None):
+        self.raw, self.source, self.base, self.text = raw, source, base.resolve(), text
+
+    # -- errors with a location
+    def fail(self, table: str, key: str | None, msg: str, index: int | None = None) -> SpecError:
+        path = ".".join(p for p in (table, key) if p)
+        line = _line_of(self.text, table, key) if self.text is not None else None
+        where = f"line {line}: " if line else ""
+        field_ = f"{path}[{index}]" if index is not None else path
+        return SpecError(f"{self.source}: {where}{field_}: {msg}")
+
+    def table(self, d: Any, table: str) -> dict:
+        if not isinstance(d, dict):
+            raise self.fail(table, None, f"expected a table, got {d!r}")
+        return d
+
+    def spec(self) -> Spec:
+        raw = self.table(self.raw, "")
+        unknown = [k for k in raw if k not in ("sweep", "training", "simulation")]
+        if unknown:
+            raise self.fail("", unknown[0], "unknown table; valid: sweep, training, simulation")
+        if "training" not in raw and "simulation" not in raw:
+            raise SpecError(f"{self.source}: no [training] or [simulation] table: nothing to sweep")
+        out = Spec(source=self.source, base=self.base, sections={}, raw=raw, text=self.text)
+        top = self.table(raw.get("sweep", {}), "sweep")
+        for k, v in top.items():
+            try:
+                if k == "data":
+                    out.data = _choice(DATA_MODES, "a data mode")(v)
+                elif k == "allowed_failures":
+                    out.allowed_failures = _int(0)(v)
+                elif k == "name":
+                    _text(v)
+                else:
+                    raise _Bad("unknown key; valid: data, allowed_failures, name")
+            except _Bad as e:
+                raise self.fail("sweep", k, str(e)) from None
+        for kind in ("training", "simulation"):
+            if kind in raw:
+                out.sections[kind] = self.section(kind, self.table(raw[kind], kind))
+        return out
+
+    def section(self, kind: str, d: dict) -> Section:
+        params = {p.key: p for p in SECTION_PARAMS[kind]}
+        subtables = SUBTABLES.get(kind, {})
+        axes: dict[str, list] = {}
+        given: set[str] = set()
+        objective = DEFAULT_OBJECTIVE[kind]
+        random = None
+        for key, v in d.items():
+            if key == "objective":
+                try:
+                    objective = _objective(kind, v)
+                except _Bad as e:
+                    raise self.fail(kind, key, str(e)) from None
+            elif key == "random":
+                random = self.random(kind, self.table(v, f"{kind}.random"))
+            elif key in subtables:
+                sub = {p.key: p for p in subtables[key]()}
+                for k2, v2 in self.table(v, f"{kind}.{key}").items():
+                    if k2 not in sub:
+                        raise self.fail(f"{kind}.{key}", k2, f"unknown key; valid: {', '.join(sub)}")
+                    axes[sub[k2].name] = self.values(sub[k2], v2, f"{kind}.{key}")
+                    given.add(sub[k2].name)
+            elif key in params:
+                axes[params[key].name] = self.values(params[key], v, kind)
+                given.add(params[key].name)
+            else:
+                valid = [*params, *subtables, "objective", "random"]
+                raise self.fail(kind, key, f"unknown key; valid: {', '.join(valid)}")
+        for p in section_params(kind):
+            if p.name not in axes:
+                if "." in p.name:
+                    continue      # a vehicle or controller field not set: the run's own default
+                if p.default is None and p.axis and p.input:
+                    raise SpecError(f"{self.source}: [{kind}] needs {p.key} ({p.help})")
+                axes[p.name] = [p.default]
+        if random is not None:
+            both = sorted(set(random.dists) & given)
+            if both:
+                raise self.fail(f"{kind}.random", both[0].split(".")[-1],
+                                f"is also set in [{kind}]: a parameter is either swept on the grid or "
+                                "drawn at random")
+        return Section(kind, axes, random, objective, given)
+
+    def values(self, p: Param, v: Any, table: str) -> list:
+        """A key's values: each item of a list, or the one value."""
+        if isinstance(v, list) and not v:
+            raise self.fail(table, p.key, "expected a value or a non-empty list of values, got []")
+        items = v if isinstance(v, list) else [v]
+        out = []
+        for i, item in enumerate(items):
+            try:
+                val = p.norm(item)
+            except _Bad as e:
+                raise self.fail(table, p.key, str(e), i if isinstance(v, list) else None) from None
+            if p.input:
+                try:
+                    check_input(p.input, val, self.base)
+                except _Bad as e:
+                    raise self.fail(table, p.key, str(e), i if isinstance(v, list) else None) from None
+            if val not in out:
+                out.append(val)
+        return out
+
+    def random(self, kind: str, d: dict) -> RandomSpec:
+        table = f"{kind}.random"
+        by_name = {p.name: p for p in section_params(kind)}
+        by_key = {p.key: p for p in SECTION_PARAMS[kind]}
+        n = seed = None
+        dists: dict[str, tuple[str, list]] = {}
+        entries: list[tuple[str, str, Any]] = []
+        for k, v in d.items():
+            if k in SUBTABLES.get(kind, {}):
+                entries += [(f"{table}.{k}", f"{k}.{k2}", v2) for k2, v2 in self.table(v, f"{table}.{k}").items()]
+            else:
+                entries.append((table, k, v))
+        for tbl, name, v in entries:
+            key = name.split(".")[-1]
+            try:
+                if name == "n":
+                    n = _int(1)(v)
+                    continue
+                if name == "seed" and not isinstance(v, dict):
+                    seed = _int(0)(v)
+                    continue
+                p = by_name.get(name) or by_key.get(name)
+                if p is None:
+                    raise _Bad("unknown parameter; valid: n, seed (of the draws) and "
+                               + ", ".join(by_name))
+                dists[p.name] = self.dist(p, v)
+            except _Bad as e:
+                raise self.fail(tbl, key, str(e)) from None
+        if n is None:
+            raise self.fail(table, "n", "missing: the number of random samples")
+        if seed is None:
+            raise self.fail(table, "seed", "missing: the seed of the random samples (an integer >= 0)")
+        if not dists:
+            raise SpecError(f"{self.source}: [{table}] draws nothing: name a parameter with a distribution, "
+                            "e.g. speed = {uniform = [5, 25]}")
+        return RandomSpec(n, seed, dists)
+
+    def dist(self, p: Param, v: Any) -> tuple[str, list]:
+        if not isinstance(v, dict) or len(v) != 1:
+            raise _Bad(f"expected one distribution, e.g. {{uniform = [lo, hi]}}; valid: {', '.join(DISTRIBUTIONS)}")
+        (name, args), = v.items()
+        if name not in DISTRIBUTIONS:
+            raise _Bad(f"{name!r} is not a distribution; valid: {', '.join(DISTRIBUTIONS)}")
+        if not isinstance(args, list) or not args:
+            raise _Bad(f"{name}: expected a list, got {args!r}")
+        if name == "choice":
+            vals = []
+            for a in args:
+                vals.append(p.norm(a))
+                if p.input:
+                    check_input(p.input, vals[-1], self.base)
+            return name, vals
+        if len(args) != 2 or not all(isinstance(a, (int, float)) and not isinstance(a, bool) for a in args):
+            raise _Bad(f"{name}: expected two numbers, got {args!r}")
+        lo, hi = args
+        if name == "integers":
+            if p.kind != "int" or not all(isinstance(a, int) for a in args) or lo > hi:
+                raise _Bad("integers = [lo, hi] (integers, lo <= hi) draws an integer parameter only")
+        elif p.kind != "float":
+            raise _Bad(f"{name} draws a number parameter only; use choice = [...] or integers")
+        elif name == "normal" and hi < 0:
+            raise _Bad("normal = [mean, sd]: sd must be >= 0")
+        elif name in ("uniform", "loguniform") and lo > hi:
+            raise _Bad(f"{name} = [lo, hi]: lo must be <= hi")
+        elif name == "loguniform" and lo <= 0:
+            raise _Bad("loguniform = [lo, hi]: lo must be > 0")
+        return name, [lo, hi]
+
+
+def check_input(role: str, value: str, base: Path) -> None:
+    """_Bad unless a dataset / model / road names something that exists (generated ones: by name)."""
+    if role == "dataset":
+        if value.startswith("rig:"):
+            plan = value[4:]
+            if plan in ("thesis", "quick"):
+                return
+            if not resolve(plan, base).is_file():
+                raise _Bad(f"{value!r}: rig:PLAN takes thesis, quick or a plan JSON file; {plan!r} is none")
+            from dampnet.rig.plans import load_plan
+
+            try:
+                load_plan(str(resolve(plan, base)))
+            except (ValueError, OSError) as e:
+                raise _Bad(f"{value!r}: {e}") from None
+            return
+        if not os.path.exists(resolve(value, base)):
+            raise _Bad(f"{value!r}: no such dataset (a directory, CSV/text or .mat file, or rig:PLAN)")
+    elif role == "model":
+        if value in ("default", "truth") or value.startswith(("truth:", "linear:")):
+            return
+        p = resolve(value, base)
+        if not os.path.exists(p):
+            raise _Bad(f"{value!r}: no such model (a model directory or model.json, a lookup-table JSON, "
+                       "'default', 'truth', 'truth:EFFECT,...' or 'linear:C')")
+        if p.is_dir() and not (p / "model.json").is_file():
+            raise _Bad(f"{value!r}: a directory without model.json: not a model directory")
+    elif role == "road":
+        key = value.lower()
+        if key in ROAD_NAMES:
+            return
+        if key.startswith("iso:"):
+            if value[4:].upper() not in "ABCDEFGH" or len(value) != 5:
+                raise _Bad(f"{value!r}: iso:CLASS takes a class A to H")
+            return
+        if not os.path.isfile(resolve(value, base)):
+            raise _Bad(f"{value!r}: not a road: use {', '.join(ROAD_NAMES)}, iso:A..iso:H or a CSV file "
+                       "distance_m,elevation_m")
+
+
+def resolve(value: str, base: Path) -> Path:
+    """A spec's path, relative to `base` (the spec file's directory) unless absolute."""
+    p = Path(os.path.expanduser(value))
+    return p if p.is_absolute() else base / p
+
+
+def _line_of(text: str, table: str, key: str | None) -> int | None:
+    """The line (1-based) of `key` in `[table]` of the TOML text, or of the table's header; None if
+    not found (a best effort: plain and dotted keys, quoted or not)."""
+    current = ""
+    header_line = None
+    want = table.split(".") if table else []
+    for i, line in enumerate(text.splitlines(), 1):
+        s = line.strip()
+        m = re.match(r"^\[\[?\s*([^\]]+?)\s*\]\]?", s)
+        if m:
+            current = m.group(1).replace('"', "").replace("'", "").replace(" ", "")
+            if current == table and header_line is None:
+                header_line = i
+            continue
+        if key is None:
+            continue
+        m = re.match(r"""^["']?([A-Za-z0-9_.\-"' ]+?)["']?\s*=""", s)
+        if not m:
+            continue
+        full = [x for x in (current.split(".") if current else [])]
+        full += [x.strip().strip('"').strip("'") for x in m.group(1).split(".")]
+        if full == [*want, key]:
+            return i
+    return header_line

@@ -1,0 +1,83 @@
+"""The results table: one row per cell, its parameters and its metrics (pandas; Parquet and CSV).
+
+Columns, in order: cell (its key), kind (training / simulation), status (ok / error), error
+(the message, empty when ok); the parameters (lists as text: hidden "20-10", add and
+rig_effects "a+b" or "none", features "velocity,acceleration,voltage" or "default"; a
+parameter that does not apply to a cell is empty); the metrics (training: NRMSE = RMSE / force
+range, errors in N; simulation: SI units, see dampnet.sim.ride); time_s (the cell's wall time on
+its worker, s), cpu_s (its worker's CPU time, s), worker (host:pid), model_dir (a training cell's model, relative to DIR).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from dampnet.sweep.grid import Cell
+from dampnet.sweep.metrics import BY_KIND as METRICS
+from dampnet.sweep.spec import section_params
+
+HEAD = ("cell", "kind", "status", "error")
+TAIL = ("time_s", "cpu_s", "worker", "model_dir")
+#: columns that differ between runs of the same cells (timings, where they ran)
+VOLATILE = ("time_s", "cpu_s", "worker", "train_time_s")
+
+
+def flat(name: str, v: Any) -> Any:
+    """A parameter's value as a table cell."""
+    if v is None and name == "features":
+        return "default"
+    if isinstance(v, list):
+        if name == "hidden":
+            return "-".join(str(h) for h in v)
+        if name == "features":
+            return ",".join(v)
+        return "+".join(v) if v else "none"
+    return v
+
+
+def row(cell: Cell, rec: dict[str, Any]) -> dict[str, Any]:
+    r: dict[str, Any] = {"cell": cell.key, "kind": cell.kind, "status": rec.get("status", "error"),
+                         "error": rec.get("error")}
+    r.update({k: flat(k, v) for k, v in cell.params.items()})
+    r.update(rec.get("metrics") or {})
+    r.update({"time_s": rec.get("time_s"), "cpu_s": rec.get("cpu_s"), "worker": rec.get("worker"),
+              "model_dir": rec.get("model_dir")})
+    return r
+
+
+def columns(kinds: list[str], rows: list[dict[str, Any]]) -> list[str]:
+    cols = list(HEAD)
+    for kind in kinds:
+        cols += [p.name for p in section_params(kind) if p.name not in cols]
+    for kind in kinds:
+        cols += [m for m in METRICS[kind] if m not in cols]
+    seen = set(cols) | set(TAIL)
+    extra = []
+    for r in rows:
+        extra += [k for k in r if k not in seen and k not in extra]
+    cols += extra + list(TAIL)
+    present = set().union(*rows) if rows else set()
+    return [c for c in cols if c in present or c in HEAD]
+
+
+def frame(cells: list[Cell], records: dict[str, dict[str, Any]]):
+    """The DataFrame of `cells` (spec order) with their records (every cell must have one)."""
+    import pandas as pd
+
+    rows = [row(c, records[c.key]) for c in cells]
+    kinds = [k for k in ("training", "simulation") if any(c.kind == k for c in cells)]
+    df = pd.DataFrame(rows, columns=columns(kinds, rows))
+    for col in df.columns:   # integer columns stay integers where other kinds leave them empty
+        vals = [r[col] for r in rows if r.get(col) is not None]
+        if vals and all(isinstance(v, int) and not isinstance(v, bool) for v in vals):
+            df[col] = df[col].astype("Int64")
+    return df
+
+
+def write_parquet(df, path: Path) -> None:
+    df.to_parquet(path, engine="pyarrow", index=False)
+
+
+def write_csv(df, path: Path) -> None:
+    df.to_csv(path, index=False)
