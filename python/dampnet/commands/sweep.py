@@ -7,11 +7,11 @@ import argparse
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
-        "sweep", help="run a grid of trainings and/or quarter-car simulations on Dask",
-        description="Run every cell of SPEC.toml (a grid and/or random samples over training and simulation "
-                    "settings) on Dask: an embedded cluster of this machine's cores, or an existing cluster "
-                    "(--scheduler). Writes DIR/results.parquet and .csv (one row per cell), summary.json and "
-                    "summary.txt (the best cells), sensitivity_*.png, one model directory per training cell, "
+        "sweep", help="run a grid of trainings, quarter-car and/or full-vehicle simulations on Dask",
+        description="Run every cell of SPEC.toml (a grid and/or random samples over training, quarter-car and "
+                    "full-vehicle simulation settings) on Dask: an embedded cluster of this machine's cores, or an "
+                    "existing cluster (--scheduler). Writes DIR/results.parquet and .csv (one row per cell), "
+                    "summary.json and summary.txt (the best cells), sensitivity_*.png, one model directory per training cell, "
                     "and each cell's result as it finishes (DIR/cells), so --resume continues an interrupted "
                     "sweep. Progress (cells done, errors, time left) goes to stderr.")
     p.add_argument("spec", metavar="SPEC.toml", help="the sweep's spec (TOML; README: dampnet sweep)")

@@ -1,4 +1,4 @@
-"""Sweeps over training and simulation settings on Dask (`dampnet sweep SPEC.toml`).
+"""Sweeps over training, quarter-car and full-vehicle simulation settings on Dask (`dampnet sweep SPEC.toml`).
 
     import dampnet.sweep
     df = dampnet.sweep.run("sweep.toml", out="sweep-out")    # a pandas DataFrame, one row per cell
@@ -12,6 +12,7 @@ One job per module, each importing only the ones above it:
   inputs.py      a cell's inputs (datasets, models, road files): by path (shared filesystem) or shipped
   train_cell.py  one training cell (on a worker): train_dataset, model_metrics
   sim_cell.py    one simulation cell (on a worker): dampnet.sim.runs.simulate and its ride metrics
+  fullcar_cell.py  one full-vehicle cell (on a worker): dampnet.fullcar.runs.run and its test's metrics
   tasks.py       what a worker runs: one cell, its error recorded, its time measured
   store.py       the sweep directory: state, each cell saved atomically as it completes, model directories
   table.py       the results table (pandas; Parquet, CSV)

@@ -4,7 +4,10 @@
 
 A parameter that does not apply to a cell is None there and does not make cells differ: a
 dataset read from a path has no data_seed or rig_effects, a time profile (impulse, sweep)
-no speed, a road that is not random no road_seed, a road that is not iso:X no road_length_m.
+no speed, a road that is not random no road_seed, a road that is not iso:X no road_length_m; a
+full-vehicle cell's bounce sweep (bsst) no speed, lane change (dlc) no profile or road_seed, and
+only a bsst has a mode and the bsst_* settings. A full-vehicle dlc or road cell without a speed
+gets its test's (dlc 120, road 60 km/h, as `dampnet vehicle`).
 Cells with equal parameters are one cell.
 """
 
@@ -18,12 +21,12 @@ from typing import Any
 
 import numpy as np
 
-from dampnet.sweep.spec import SEEDED_ROADS, TEMPORAL_ROADS, RandomSpec, Section, Spec, section_params
+from dampnet.sweep.spec import KINDS, SEEDED_ROADS, TEMPORAL_ROADS, RandomSpec, Section, Spec, section_params
 
 
 @dataclass
 class Cell:
-    """One unit of work: kind "training" or "simulation", its parameters, its position in the spec."""
+    """One unit of work: kind "training", "simulation" or "fullcar", its parameters, its position in the spec."""
 
     kind: str
     index: int
@@ -33,9 +36,9 @@ class Cell:
 
 
 def expand(spec: Spec) -> list[Cell]:
-    """The cells of every section of `spec`, training first, in grid order."""
+    """The cells of every section of `spec` (training, simulation, fullcar), in grid order."""
     cells: list[Cell] = []
-    for kind in ("training", "simulation"):
+    for kind in KINDS:
         if kind in spec.sections:
             seen: set[str] = set()
             for params in section_cells(spec.sections[kind]):
@@ -85,6 +88,20 @@ def applicable(kind: str, params: dict[str, Any]) -> dict[str, Any]:
     if kind == "training":
         if not str(p["dataset"]).startswith("rig:"):
             p["data_seed"] = p["rig_effects"] = None
+    elif kind == "fullcar":
+        from dampnet.commands.vehicle import DEFAULT_SPEED_KMH
+
+        test = p["test"]
+        if test != "bsst":
+            p["mode"] = None
+            for k in ("bsst_amplitude_m", "bsst_f0_hz", "bsst_f1_hz", "bsst_rate_oct_s"):
+                p[k] = None
+        if test == "bsst":
+            p["speed_kmh"] = None
+        elif p["speed_kmh"] is None:
+            p["speed_kmh"] = DEFAULT_SPEED_KMH[test]
+        if test != "road":
+            p["profile"] = p["road_seed"] = None
     else:
         road = str(p["road"]).lower()
         if road in TEMPORAL_ROADS:

@@ -3,7 +3,12 @@
 Training (dampnet.sweep.train_cell): NRMSE = RMSE / the force range of the data it is measured
 on (the hold-out tests, the training subsets), errors in N, times in s. Simulation
 (dampnet.sweep.sim_cell): dampnet.sim.ride.ride_metrics in SI units (m/s^2, m, N), the static
-damper force f_static_n [N], the transmissibility peak of sine-sweep roads.
+damper force f_static_n [N], the transmissibility peak of sine-sweep roads. Full vehicle
+(dampnet.sweep.fullcar_cell): dampnet.fullcar.metrics of the cell's test, as `dampnet vehicle`
+reports them (units in the names: m_s2 = m/s^2, rad_s2, deg, deg_s = deg/s, n = N; counts:
+cones_hit, cones; passed: no cone hit), the road test's dynamic tyre load RMS one column per
+wheel (fl, fr, rl, rr), the damper's force at rest f_static_n [N] and the run's duration_s [s];
+a metric the cell's test does not measure is empty.
 """
 
 TRAINING = ("holdout_nrmse", "holdout_rmse_n", "holdout_max_abs_error_n", "lookup_holdout_nrmse",
@@ -12,9 +17,19 @@ TRAINING = ("holdout_nrmse", "holdout_rmse_n", "holdout_max_abs_error_n", "looku
 SIMULATION = ("acc_rms_m_s2", "acc_wk_rms_m_s2", "acc_peak_m_s2", "disp_rms_m", "disp_peak_to_rms",
               "travel_rms_m", "travel_max_m", "tyre_load_rms_n", "tyre_load_rms_rel", "duration_s", "dt_s",
               "f_static_n", "transmissibility_peak", "transmissibility_peak_hz")
-BY_KIND = {"training": TRAINING, "simulation": SIMULATION}
+#: bsst and road (ride), dlc (handling), all tests
+FULLCAR = ("acc_rms_m_s2", "acc_wk_rms_m_s2", "acc_peak_m_s2", "pitch_acc_rms_rad_s2", "roll_rate_rms_deg_s",
+           "pitch_rate_rms_deg_s", "tyre_load_dyn_rms_fl_n", "tyre_load_dyn_rms_fr_n", "tyre_load_dyn_rms_rl_n",
+           "tyre_load_dyn_rms_rr_n",
+           "a_y_peak_m_s2", "a_y_rms_m_s2", "roll_peak_deg", "roll_rms_deg", "roll_rate_peak_deg_s",
+           "yaw_rate_peak_deg_s", "yaw_rate_rms_deg_s", "side_slip_peak_deg", "side_slip_rms_deg", "steer_peak_deg",
+           "steer_rms_deg", "cones_hit", "cones", "passed",
+           "tyre_load_min_n", "f_static_n", "duration_s")
+#: the wheels of per-wheel full-car metrics (FL, FR, RL, RR: the runtime's corner order)
+WHEELS = ("fl", "fr", "rl", "rr")
+BY_KIND = {"training": TRAINING, "simulation": SIMULATION, "fullcar": FULLCAR}
 #: metrics that are not numbers (never an objective)
-TEXT = ("stop_reason", "features_used", "model_id")
+TEXT = ("stop_reason", "features_used", "model_id", "passed")
 
 
 def objectives(kind: str) -> list[str]:

@@ -2,7 +2,7 @@
 
     spec = load_spec("sweep.toml")        # or parse_spec(dict_or_toml_text, source=..., base=...)
 
-A spec has up to three tables:
+A spec has up to four tables:
 
   [sweep]       data = "shared" | "ship" (how workers get datasets and models: by path on a
                 shared filesystem, or shipped once per worker), allowed_failures (deaths of a
@@ -17,12 +17,23 @@ A spec has up to three tables:
   [simulation]  models, roads, road_seeds, road_length_m, speeds [m/s], controllers;
                 [simulation.vehicle] and [simulation.controller]: the quarter car's and the
                 control law's fields (a value or a list); objective
+  [fullcar]     full-vehicle cells (dampnet.fullcar.runs.run, as `dampnet vehicle`): models (as
+                [simulation]), tests (bsst, dlc, road), damping (low, high, skyhook: every
+                corner), speeds_kmh [km/h] (dlc, road; default the test's: 120, 60), modes
+                (bsst: heave, pitch), profiles (road: thesis or an ISO 8608 class A..H),
+                road_seeds (road), dt [s], bsst_amplitude_m, bsst_f0_hz, bsst_f1_hz,
+                bsst_rate_oct_s (the bounce sweep); [fullcar.vehicle]: the full car's fields
+                (dampnet._core.FULLCAR_FIELDS, SI; enums by name: tyre_model, damper_eval,
+                accel_feature) except those the test sets (speed, dt, steer_mode, f_static_f,
+                f_static_r); objective (default acc_rms_m_s2; roll_peak_deg when every test is dlc).
+                E.g. [fullcar] models = ["default", "truth"], tests = ["dlc", "bsst"],
+                damping = ["low", "skyhook"] and [fullcar.vehicle] m_s = [2400.0, 2800.0]: 16 cells
 
-`[training.random]` / `[simulation.random]`: n samples drawn with `seed` (numpy's
-default_rng), each parameter named by its cell name or its key (speed or speeds, road_seed,
-vehicle.m_s as m_s in a [....random.vehicle] table; the training seed as seeds = {...}, since
-`seed` there is the draws' own) with one distribution: {uniform = [lo, hi]},
-{loguniform = [lo, hi]}, {normal = [mean, sd]}, {integers = [lo, hi]} (both ends included)
+`[training.random]` / `[simulation.random]` / `[fullcar.random]`: n samples drawn with `seed`
+(numpy's default_rng), each parameter named by its cell name or its key (speed or speeds,
+road_seed, vehicle.m_s as m_s in a [simulation.random.vehicle] or [fullcar.random.vehicle]
+table; the training seed as seeds = {...}, since `seed` there is the draws' own) with one
+distribution: {uniform = [lo, hi]}, {loguniform = [lo, hi]}, {normal = [mean, sd]}, {integers = [lo, hi]} (both ends included)
 or {choice = [...]}. Every grid point is combined with every sample (the same n samples for
 each point: Monte Carlo over parameter spreads, compared on common draws).
 
@@ -58,7 +69,24 @@ ROAD_NAMES = ("impulse", "bump", "sweep", "rough")
 TEMPORAL_ROADS = ("impulse", "sweep")         # time profiles: no speed
 SEEDED_ROADS = ("rough",)                      # and iso:X: random profiles, with a seed
 DISTRIBUTIONS = ("uniform", "loguniform", "normal", "integers", "choice")
-DEFAULT_OBJECTIVE = {"training": "holdout_nrmse", "simulation": "acc_wk_rms_m_s2"}
+DEFAULT_OBJECTIVE = {"training": "holdout_nrmse", "simulation": "acc_wk_rms_m_s2", "fullcar": "acc_rms_m_s2"}
+#: the objective of a [fullcar] section whose every test is the lane change (no ride metric there)
+DLC_OBJECTIVE = "roll_peak_deg"
+#: the sections (tables) that make cells, in the table's order
+KINDS = ("training", "simulation", "fullcar")
+#: full-vehicle tests (dampnet vehicle --test), damping settings (--damping), bsst modes, road profiles
+FULLCAR_TESTS = ("bsst", "dlc", "road")
+FULLCAR_DAMPING = ("low", "high", "skyhook")
+FULLCAR_MODES = ("heave", "pitch")
+FULLCAR_PROFILES = ("thesis", *"ABCDEFGH")
+#: full-car fields a cell sets from its test (not [fullcar.vehicle] keys): why, for the error
+FULLCAR_SET_BY_TEST = {
+    "speed": "set by the test: use [fullcar] speeds_kmh [km/h]",
+    "dt": "set by the test: use [fullcar] dt [s]",
+    "steer_mode": "set by the test (the preview driver for dlc, open loop otherwise)",
+    "f_static_f": "set per cell: the damper's force at rest",
+    "f_static_r": "set per cell: the damper's force at rest",
+}
 
 
 class SpecError(ValueError):
@@ -207,6 +235,32 @@ def _vehicle_params() -> list[Param]:
     return out
 
 
+def _step(v) -> float:
+    """A full-vehicle run's step [s]: (0, 0.01], as `dampnet vehicle --dt`."""
+    dt = _float(positive=True)(v)
+    if dt > 0.01:
+        raise _Bad(f"expected a step in (0, 0.01] s, got {v!r}")
+    return dt
+
+
+def _fullcar_params() -> list[Param]:
+    """[fullcar.vehicle]: every field of the runtime's full car (FULLCAR_FIELDS) but those the test sets."""
+    from dampnet import _core
+
+    enums = {"tyre_model": _core.TYRE_MODELS, "damper_eval": _core.DAMPER_EVALS,
+             "accel_feature": _core.ACCEL_FEATURES}
+    out = []
+    for name, (_default, doc) in _core.FULLCAR_FIELDS.items():
+        if name in FULLCAR_SET_BY_TEST:
+            continue
+        if name in enums:
+            out.append(Param(f"vehicle.{name}", name, _choice(tuple(enums[name]), f"a {name}"), None,
+                             help=f"full-car field: one of {', '.join(enums[name])}"))
+        else:
+            out.append(Param(f"vehicle.{name}", name, _float(), None, kind="float", help=f"full-car field: {doc}"))
+    return out
+
+
 def _controller_params() -> list[Param]:
     from dampnet.sim.vehicle import Controller
 
@@ -246,8 +300,33 @@ SIMULATION_PARAMS = [
     Param("controller", "controllers", _choice(CONTROLLERS, "a controller"), "passive_high", axis=True),
 ]
 
-SECTION_PARAMS = {"training": TRAINING_PARAMS, "simulation": SIMULATION_PARAMS}
-SUBTABLES = {"simulation": {"vehicle": _vehicle_params, "controller": _controller_params}}
+FULLCAR_PARAMS = [
+    Param("model", "models", _text, "default", axis=True, input="model",
+          help="as [simulation] models: the damper at all four corners"),
+    Param("test", "tests", _choice(FULLCAR_TESTS, "a full-vehicle test"), "dlc", axis=True,
+          help="bsst (bounce sine sweep), dlc (ISO 3888-1 double lane change), road (two rough tracks)"),
+    Param("damping", "damping", _choice(FULLCAR_DAMPING, "a full-vehicle damping setting"), "low", axis=True,
+          help="every corner passive at the damper's low or high setting, or on-off skyhook"),
+    Param("speed_kmh", "speeds_kmh", _float(positive=True), None, axis=True, kind="float",
+          help="[km/h] of dlc and road (default: the test's, 120 and 60)"),
+    Param("mode", "modes", _choice(FULLCAR_MODES, "a bsst mode"), "heave", axis=True,
+          help="bsst: all wheels in phase (heave) or the rear against the front (pitch)"),
+    Param("profile", "profiles", _choice(FULLCAR_PROFILES, "a road profile"), "thesis", axis=True,
+          help="road: the thesis's rough road or an ISO 8608 class A..H"),
+    Param("road_seed", "road_seeds", _int(0), 0, axis=True, kind="int", help="seed of the road test's tracks"),
+    Param("dt", "dt", _step, 1e-3, kind="float", help="step [s], (0, 0.01]"),
+    Param("bsst_amplitude_m", "bsst_amplitude_m", _float(positive=True), 0.005, kind="float", help="[m]"),
+    Param("bsst_f0_hz", "bsst_f0_hz", _float(positive=True), 0.5, kind="float", help="sweep start [Hz]"),
+    Param("bsst_f1_hz", "bsst_f1_hz", _float(positive=True), 20.0, kind="float", help="sweep end [Hz]"),
+    Param("bsst_rate_oct_s", "bsst_rate_oct_s", _float(positive=True), 0.1, kind="float",
+          help="sweep rate [octave/s]"),
+]
+
+SECTION_PARAMS = {"training": TRAINING_PARAMS, "simulation": SIMULATION_PARAMS, "fullcar": FULLCAR_PARAMS}
+SUBTABLES = {"simulation": {"vehicle": _vehicle_params, "controller": _controller_params},
+             "fullcar": {"vehicle": _fullcar_params}}
+#: why a key is not in a sub-table (instead of "unknown key"): {(section, sub-table): {key: reason}}
+SUBTABLE_HINTS = {("fullcar", "vehicle"): FULLCAR_SET_BY_TEST}
 
 
 def section_params(kind: str) -> list[Param]:
@@ -342,11 +421,11 @@ class _Parser:
 
     def spec(self) -> Spec:
         raw = self.table(self.raw, "")
-        unknown = [k for k in raw if k not in ("sweep", "training", "simulation")]
+        unknown = [k for k in raw if k not in ("sweep", *KINDS)]
         if unknown:
-            raise self.fail("", unknown[0], "unknown table; valid: sweep, training, simulation")
-        if "training" not in raw and "simulation" not in raw:
-            raise SpecError(f"{self.source}: no [training] or [simulation] table: nothing to sweep")
+            raise self.fail("", unknown[0], f"unknown table; valid: sweep, {', '.join(KINDS)}")
+        if not any(k in raw for k in KINDS):
+            raise SpecError(f"{self.source}: no [training], [simulation] or [fullcar] table: nothing to sweep")
         out = Spec(source=self.source, base=self.base, sections={}, raw=raw, text=self.text)
         top = self.table(raw.get("sweep", {}), "sweep")
         for k, v in top.items():
@@ -361,7 +440,7 @@ class _Parser:
                     raise _Bad("unknown key; valid: data, allowed_failures, name")
             except _Bad as e:
                 raise self.fail("sweep", k, str(e)) from None
-        for kind in ("training", "simulation"):
+        for kind in KINDS:
             if kind in raw:
                 out.sections[kind] = self.section(kind, self.table(raw[kind], kind))
         return out
@@ -372,9 +451,11 @@ class _Parser:
         axes: dict[str, list] = {}
         given: set[str] = set()
         objective = DEFAULT_OBJECTIVE[kind]
+        objective_given = False
         random = None
         for key, v in d.items():
             if key == "objective":
+                objective_given = True
                 try:
                     objective = _objective(kind, v)
                 except _Bad as e:
@@ -385,7 +466,7 @@ class _Parser:
                 sub = {p.key: p for p in subtables[key]()}
                 for k2, v2 in self.table(v, f"{kind}.{key}").items():
                     if k2 not in sub:
-                        raise self.fail(f"{kind}.{key}", k2, f"unknown key; valid: {', '.join(sub)}")
+                        raise self.fail(f"{kind}.{key}", k2, _unknown(kind, key, k2, sub))
                     axes[sub[k2].name] = self.values(sub[k2], v2, f"{kind}.{key}")
                     given.add(sub[k2].name)
             elif key in params:
@@ -407,6 +488,10 @@ class _Parser:
                 raise self.fail(f"{kind}.random", both[0].split(".")[-1],
                                 f"is also set in [{kind}]: a parameter is either swept on the grid or "
                                 "drawn at random")
+        if kind == "fullcar" and not objective_given:
+            tests = random.dists["test"][1] if random is not None and "test" in random.dists else axes["test"]
+            if set(tests) == {"dlc"}:
+                objective = DLC_OBJECTIVE
         return Section(kind, axes, random, objective, given)
 
     def values(self, p: Param, v: Any, table: str) -> list:
@@ -438,7 +523,11 @@ class _Parser:
         entries: list[tuple[str, str, Any]] = []
         for k, v in d.items():
             if k in SUBTABLES.get(kind, {}):
-                entries += [(f"{table}.{k}", f"{k}.{k2}", v2) for k2, v2 in self.table(v, f"{table}.{k}").items()]
+                sub = [p.key for p in SUBTABLES[kind][k]()]
+                for k2, v2 in self.table(v, f"{table}.{k}").items():
+                    if k2 not in sub:
+                        raise self.fail(f"{table}.{k}", k2, _unknown(kind, k, k2, sub))
+                    entries.append((f"{table}.{k}", f"{k}.{k2}", v2))
             else:
                 entries.append((table, k, v))
         for tbl, name, v in entries:
@@ -496,6 +585,14 @@ class _Parser:
         elif name == "loguniform" and lo <= 0:
             raise _Bad("loguniform = [lo, hi]: lo must be > 0")
         return name, [lo, hi]
+
+
+def _unknown(kind: str, sub: str, key: str, valid) -> str:
+    """The message for a key a sub-table does not have (why, when it is one the cell sets itself)."""
+    hint = SUBTABLE_HINTS.get((kind, sub), {}).get(key)
+    if hint:
+        return f"not a key of [{kind}.{sub}]: {hint}"
+    return f"unknown key; valid: {', '.join(valid)}"
 
 
 def check_input(role: str, value: str, base: Path) -> None:

@@ -3,7 +3,8 @@
     summary(df, objectives, stats) -> the summary.json dict;  text(summary) -> summary.txt
 
 Best: the cells with status ok of lowest objective (the spec's objective per section: training
-holdout_nrmse, simulation acc_wk_rms_m_s2 by default; lower is better). Sensitivity: for each
+holdout_nrmse, simulation acc_wk_rms_m_s2, fullcar acc_rms_m_s2 or, for lane changes only,
+roll_peak_deg by default; lower is better; cells without the metric are not ranked). Sensitivity: for each
 parameter that takes more than one value among the ok cells, the objective's mean, min and max
 over the cells at each value, and the spread of those means (max - min): the parameters that
 move the objective most come first.
@@ -14,7 +15,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from dampnet.sweep.spec import section_params
+from dampnet.sweep.spec import KINDS, section_params
 
 SUMMARY_SCHEMA = "dampnet.sweep.summary/1"
 N_BEST = 5
@@ -126,7 +127,7 @@ def text(s: dict[str, Any]) -> str:
              f"({s.get('computed', 0)} computed, {s.get('reused', 0)} reused from an earlier run) "
              f"in {s.get('wall_s', 0.0):.1f} s on {s.get('workers', '?')} workers ({s.get('scheduler', '?')}, "
              f"data {s.get('data', '?')})"]
-    for kind in ("training", "simulation"):
+    for kind in KINDS:
         if kind not in s:
             continue
         d = s[kind]

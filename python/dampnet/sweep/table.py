@@ -1,10 +1,13 @@
 """The results table: one row per cell, its parameters and its metrics (pandas; Parquet and CSV).
 
-Columns, in order: cell (its key), kind (training / simulation), status (ok / error), error
+Columns, in order: cell (its key), kind (training / simulation / fullcar), status (ok / error), error
 (the message, empty when ok); the parameters (lists as text: hidden "20-10", add and
 rig_effects "a+b" or "none", features "velocity,acceleration,voltage" or "default"; a
 parameter that does not apply to a cell is empty); the metrics (training: NRMSE = RMSE / force
-range, errors in N; simulation: SI units, see dampnet.sim.ride); time_s (the cell's wall time on
+range, errors in N; simulation: SI units, see dampnet.sim.ride; fullcar: units in the names, see
+dampnet.sweep.metrics; a parameter or metric of another kind's cells shares a column only where
+it has the same name, e.g. model, road_seed, acc_rms_m_s2; vehicle.m_s is the quarter car's in a
+simulation row, the full car's in a fullcar row); time_s (the cell's wall time on
 its worker, s), cpu_s (its worker's CPU time, s), worker (host:pid), model_dir (a training cell's model, relative to DIR).
 """
 
@@ -15,7 +18,7 @@ from typing import Any
 
 from dampnet.sweep.grid import Cell
 from dampnet.sweep.metrics import BY_KIND as METRICS
-from dampnet.sweep.spec import section_params
+from dampnet.sweep.spec import KINDS, section_params
 
 HEAD = ("cell", "kind", "status", "error")
 TAIL = ("time_s", "cpu_s", "worker", "model_dir")
@@ -66,7 +69,7 @@ def frame(cells: list[Cell], records: dict[str, dict[str, Any]]):
     import pandas as pd
 
     rows = [row(c, records[c.key]) for c in cells]
-    kinds = [k for k in ("training", "simulation") if any(c.kind == k for c in cells)]
+    kinds = [k for k in KINDS if any(c.kind == k for c in cells)]
     df = pd.DataFrame(rows, columns=columns(kinds, rows))
     for col in df.columns:   # integer columns stay integers where other kinds leave them empty
         vals = [r[col] for r in rows if r.get(col) is not None]

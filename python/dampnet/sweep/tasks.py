@@ -29,6 +29,8 @@ def run_cell(kind: str, params: dict[str, Any], inputs: dict[str, Any]) -> dict[
         got = {role: materialise(v) for role, v in inputs.items()}
         if kind == "training":
             from dampnet.sweep import train_cell as cell
+        elif kind == "fullcar":
+            from dampnet.sweep import fullcar_cell as cell  # type: ignore[no-redef]
         else:
             from dampnet.sweep import sim_cell as cell  # type: ignore[no-redef]
         out = {"status": "ok", **cell.run(params, got)}
@@ -73,4 +75,7 @@ def warm(kinds: list[str]) -> int:
     if "simulation" in kinds:
         import dampnet.sim.runs  # noqa: F401
         import dampnet.sweep.sim_cell  # noqa: F401
+    if "fullcar" in kinds:
+        import dampnet.fullcar.runs  # noqa: F401
+        import dampnet.sweep.fullcar_cell  # noqa: F401
     return os.getpid()

@@ -1,0 +1,62 @@
+"""One full-vehicle cell, on a worker: a damper model at all four corners, a test (bounce sine
+sweep, ISO 3888-1 double lane change, rough road), a damping setting and the full car's
+parameters in, the test's metrics out.
+
+The run is `dampnet.fullcar.runs.run` (the runtime's FullCar, as `dampnet vehicle`): the same
+damper spec at every corner, passive at its low or high damping setting or on-off skyhook per
+corner, its force at rest as the static force; [fullcar.vehicle] fields over the runtime's
+defaults. The test is built as `dampnet vehicle` builds it (dampnet.fullcar.maneuvers) at the
+cell's dt, with the cell's speed [km/h], bsst mode and sweep, road profile and seed; the road
+test's rear wheels follow the front ones by the cell's wheelbase (a + b).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from dampnet.sweep.metrics import WHEELS
+
+
+def vehicle(params: dict[str, Any]) -> dict[str, Any]:
+    """The cell's [fullcar.vehicle] fields (those set; the runtime's defaults for the others)."""
+    return {k[8:]: v for k, v in params.items() if k.startswith("vehicle.") and v is not None}
+
+
+def maneuver(params: dict[str, Any]):
+    """The cell's test (a dampnet.fullcar.maneuvers.Maneuver)."""
+    from dampnet.fullcar import maneuvers
+    from dampnet.fullcar.params import wheelbase
+
+    test, dt = params["test"], params["dt"]
+    if test == "bsst":
+        return maneuvers.bsst(dt, params["mode"], amplitude_m=params["bsst_amplitude_m"], f0=params["bsst_f0_hz"],
+                              f1=params["bsst_f1_hz"], rate_oct_s=params["bsst_rate_oct_s"])
+    if test == "dlc":
+        return maneuvers.dlc(dt, params["speed_kmh"])
+    return maneuvers.rough_road(dt, params["speed_kmh"], params["profile"], params["road_seed"],
+                                wheelbase_m=wheelbase(vehicle(params)))
+
+
+def flat_metrics(metrics: dict[str, Any]) -> dict[str, Any]:
+    """fullcar's metrics as table cells: a per-wheel list as one column per wheel (name_fl_n, ...)."""
+    out: dict[str, Any] = {}
+    for k, v in metrics.items():
+        if isinstance(v, (list, tuple)):
+            stem, unit = k.rsplit("_", 1)
+            out.update({f"{stem}_{w}_{unit}": x for w, x in zip(WHEELS, v)})
+        else:
+            out[k] = v
+    return out
+
+
+def run(params: dict[str, Any], inputs: dict[str, Any]) -> dict[str, Any]:
+    """{"metrics": the test's metrics, f_static_n and duration_s, "controller_settings": the law's fields}."""
+    from dampnet.fullcar.runs import run as run_test
+    from dampnet.sweep.sim_cell import damper
+
+    spec = damper(params, inputs["model"])
+    man = maneuver(params)
+    res = run_test(spec, man, params["damping"], vehicle(params))
+    metrics = {**flat_metrics(res["metrics"]), "f_static_n": res["f_static_n"],
+               "duration_s": man.road.shape[0] * man.dt}
+    return {"metrics": metrics, "controller_settings": res["controller"]}
