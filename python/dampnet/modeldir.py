@@ -1,4 +1,6 @@
-"""The model directory: MODEL_DIR/{model.json, metrics.json, model.h}, written as one atomic step."""
+"""The model directory: MODEL_DIR/{model.json, metrics.json, model.h} and, when the training
+samples are known, the training envelope (envelope.npz, envelope.json: dampnet.envelope),
+written as one atomic step."""
 
 from __future__ import annotations
 
@@ -43,8 +45,10 @@ def default_model() -> MlpModel:
 
 def save_model_dir(model: MlpModel, metrics: dict[str, Any] | None, out_dir: str | os.PathLike,
                    force: bool = False, prefix: str = HEADER_PREFIX,
-                   inputs: Sequence[str | os.PathLike] = ()) -> Path:
-    """Write MODEL_DIR/{model.json, metrics.json, model.h} as one atomic step.
+                   inputs: Sequence[str | os.PathLike] = (), envelope=None) -> Path:
+    """Write MODEL_DIR/{model.json, metrics.json, model.h} as one atomic step, with
+    envelope.npz and envelope.json when `envelope` (a dampnet.envelope.Envelope of this model:
+    `envelope_of(model, split)` after training) is given.
 
     The files go to a staging directory next to out_dir that is then swapped into
     place (`dampnet.outputs`): a reader never sees a half-written model directory,
@@ -57,4 +61,11 @@ def save_model_dir(model: MlpModel, metrics: dict[str, Any] | None, out_dir: str
         model.save(tmp / "model.json", overwrite=True)
         write_json(tmp / "metrics.json", metrics or {}, overwrite=True)
         write_header(model, tmp / HEADER_NAME, prefix=prefix, overwrite=True)
+        if envelope is not None:
+            from dampnet.envelope import save_envelope
+
+            if envelope.params.get("model_id") not in (None, model.model_id()):
+                raise ValueError(f"envelope: built for model {envelope.params.get('model_id')}, "
+                                 f"not {model.model_id()}")
+            save_envelope(envelope, tmp)
     return out

@@ -10,7 +10,7 @@ from dampnet.outputs import json_text
 # /2: the runtime's law names in "controller", no "backend" (the runtime's loop is the only one)
 RUN_SCHEMA = "dampnet.simulate/2"
 #: the files of a run (metrics.json is its marker: a JSON object with "schema": RUN_SCHEMA)
-RUN_FILES = ("run.npz", "metrics.json", "time_history.png", "transmissibility.png")
+RUN_FILES = ("run.npz", "metrics.json", "time_history.png", "transmissibility.png", "coverage.png")
 COMMAND_TAU_S = 0.005  # = dampnet.sim.calibration.SKYHOOK_COMMAND_TAU_S (not imported: keeps --help fast)
 
 
@@ -92,6 +92,8 @@ def run(args) -> int:
         for k in ("f_hz", "magnitude", "phase_rad"):
             arrays[f"transmissibility_{k}"] = res["transmissibility"][k]
     meta = {"schema": RUN_SCHEMA, **{k: v for k, v in res.items() if k not in ("arrays", "transmissibility")}}
+    if "coverage" in res:   # a neural model: the verdict at the top (dampnet.coverage)
+        meta["extrapolated"] = res["coverage"]["extrapolated"]
     writers = {"run.npz": lambda f: np.savez_compressed(f, **arrays),
                "time_history.png": lambda f: plot_run(res, f, f"{spec.name} on {road.name}, {ctrl.kind}"),
                "metrics.json": lambda f: Path(f).write_text(json_text(meta))}
@@ -99,6 +101,15 @@ def run(args) -> int:
         writers["transmissibility.png"] = lambda f: plot_transmissibility({spec.name: res}, f)
     elif (out / "transmissibility.png").exists():   # --force over a sweep run: not this run's
         (out / "transmissibility.png").unlink()
+    if "coverage" in res:   # a neural model: its inputs over its training data
+        from dampnet.coverage import quarter_car_inputs
+        from dampnet.coverage_plot import plot_coverage
+
+        writers["coverage.png"] = lambda f: plot_coverage(
+            spec.obj, {road.name: quarter_car_inputs(spec.obj, res["arrays"])}, f, spec.meta.get("envelope"),
+            f"{spec.name} on {road.name}, {ctrl.kind}: damper inputs")
+    elif (out / "coverage.png").exists():   # --force over a neural model's run: not this run's
+        (out / "coverage.png").unlink()
     try:
         _publish(out, writers)
     except OSError as e:
@@ -111,6 +122,10 @@ def run(args) -> int:
           f"Wk RMS {m['acc_wk_rms_m_s2']:.4f} m/s^2, disp peak/RMS {m['disp_peak_to_rms']:.3f}, travel RMS "
           f"{1e3 * m['travel_rms_m']:.2f} mm (max {1e3 * m['travel_max_m']:.2f}), tyre load RMS "
           f"{m['tyre_load_rms_n']:.1f} N -> {out}")
+    if "coverage" in res:
+        from dampnet.coverage import summary_line
+
+        print(summary_line(spec.name, res["coverage"]))
     return 0
 
 

@@ -8,7 +8,7 @@ import sys
 
 RUN_SCHEMA = "dampnet.vehicle/1"
 #: the files of a run (metrics.json is its marker: a JSON object with "schema": RUN_SCHEMA)
-RUN_FILES = ("run.npz", "metrics.json", "vehicle.png")
+RUN_FILES = ("run.npz", "metrics.json", "vehicle.png", "coverage.png")
 TESTS = ("bsst", "dlc", "road")
 DEFAULT_SPEED_KMH = {"dlc": 120.0, "road": 60.0}
 
@@ -85,11 +85,22 @@ def run(args) -> int:
         print(f"dampnet: error: {e}", file=sys.stderr)
         return 2
     meta = {"schema": RUN_SCHEMA, **{k: v for k, v in res.items() if k != "arrays"}}
+    if "coverage" in res:   # a neural model: the verdict at the top (dampnet.coverage)
+        meta["extrapolated"] = res["coverage"]["extrapolated"]
     title = f"{spec.name}, {args.damping} damping: {man.name}"
     try:
         with staged_files(out) as tmp:
             np.savez_compressed(tmp / "run.npz", **res["arrays"])
             plot_test(args.test, {spec.name: res}, tmp / "vehicle.png", title)
+            if "coverage" in res:
+                from dampnet.coverage import fullcar_inputs
+                from dampnet.coverage_plot import plot_coverage
+
+                per = fullcar_inputs(spec.obj, res["arrays"])
+                plot_coverage(spec.obj, {f"{spec.name} {c}": X for c, X in zip(("FL", "FR", "RL", "RR"), per)},
+                              tmp / "coverage.png", spec.meta.get("envelope"), f"{title}: damper inputs")
+            elif (out / "coverage.png").exists():   # --force over a neural model's run: not this run's
+                (out / "coverage.png").unlink()
             (tmp / "metrics.json").write_text(json_text(meta))
     except OSError as e:
         print(f"dampnet: error: {out}: cannot write the run ({e.strerror or e})", file=sys.stderr)
@@ -106,4 +117,8 @@ def run(args) -> int:
         line = (f"body acc RMS {m['acc_rms_m_s2']:.4f} m/s^2, Wk RMS {m['acc_wk_rms_m_s2']:.4f} m/s^2, "
                 f"roll rate RMS {m['roll_rate_rms_deg_s']:.2f} deg/s")
     print(f"{title}: {line} -> {out}")
+    if "coverage" in res:
+        from dampnet.coverage import summary_line
+
+        print(summary_line(spec.name, res["coverage"]) + " (the four corners together)")
     return 0

@@ -16,6 +16,8 @@ from dampnet.sim.vehicle import Controller, LoopError, Vehicle
 
 #: the damping settings of a run: passive at the damper's low / high setting, or skyhook
 DAMPING = ("low", "high", "skyhook")
+#: the corners, in the runtime's order (FullCarModel's dampers, the [n, 4] columns)
+CORNERS = ("fl", "fr", "rl", "rr")
 
 
 def controller_for(spec: DamperSpec, damping: str, levels: dict | None = None) -> Controller:
@@ -32,7 +34,8 @@ def controller_for(spec: DamperSpec, damping: str, levels: dict | None = None) -
 
 
 def run(spec: DamperSpec, man: Maneuver, damping: str = "low", params: dict | None = None) -> dict:
-    """{'arrays': FullCar.simulate's arrays, 'metrics': ..., 'params', 'controller', ...}.
+    """{'arrays': FullCar.simulate's arrays, 'metrics': ..., 'params', 'controller', ...,
+    'coverage' (neural and hybrid dampers: `run_coverage`)}.
 
     params: full-car fields over the defaults (speed, dt and the steering mode come from the
     maneuver; damper_eval per_step as every Python-side run, RUN_SCHEME)."""
@@ -55,6 +58,36 @@ def run(spec: DamperSpec, man: Maneuver, damping: str = "low", params: dict | No
     res = _core.FullCar(model).simulate(man.road, man.road_rate,
                                         steer=None if man.path is not None else man.steer)
     res["t"] = np.arange(man.road.shape[0]) * man.dt
-    return dict(arrays=res, metrics=metrics_of(res, man, p), params=p, controller=ctrl.to_dict(),
-                damper=spec.name, damping=damping, test=man.name, f_static_n=f_static,
-                maneuver=man.meta)
+    out = dict(arrays=res, metrics=metrics_of(res, man, p), params=p, controller=ctrl.to_dict(),
+               damper=spec.name, damping=damping, test=man.name, f_static_n=f_static,
+               maneuver=man.meta)
+    cov = run_coverage(spec, res)
+    if cov is not None:
+        out["coverage"] = cov
+    return out
+
+
+def man_dt(arrays: dict) -> float | None:
+    t = np.asarray(arrays["t"])
+    return float(t[1] - t[0]) if t.size > 1 else None
+
+
+def run_coverage(spec: DamperSpec, arrays: dict) -> dict | None:
+    """The coverage (dampnet.coverage) of a full-vehicle run of a neural or hybrid spec: the four
+    corners' damper inputs together (one row per corner and step), and per corner the share of
+    time outside the envelope; None for other dampers."""
+    if spec.kind not in ("neural", "hybrid"):
+        return None
+    from dampnet.coverage import coverage, fullcar_inputs, step_durations
+
+    env, note = spec.meta.get("envelope"), spec.meta.get("envelope_note")
+    per = fullcar_inputs(spec.obj, arrays)
+    t = np.asarray(arrays["t"])
+    w = step_durations(len(t), t, man_dt(arrays))
+    cov = coverage(spec.obj, np.concatenate(per), env, durations=np.tile(w, len(per)), note=note)
+    cov["worst_excursion"]["corner"] = CORNERS[cov["worst_excursion"]["step"] // max(1, len(t))]
+    cov["worst_excursion"]["step"] %= max(1, len(t))
+    cov["worst_excursion"]["t_s"] = float(t[cov["worst_excursion"]["step"]]) if len(t) else None
+    cov["corners"] = {c: {k: v for k, v in coverage(spec.obj, X, env, t=t, note=note)["outside"].items()
+                          if k in ("share_steps", "share_time")} for c, X in zip(CORNERS, per)}
+    return cov

@@ -44,14 +44,17 @@ class DamperSpec:
     meta: dict = field(default_factory=dict)
 
 
-def neural_spec(model, name: str = "neural") -> DamperSpec:
+def neural_spec(model, name: str = "neural", envelope=None, envelope_note: str | None = None) -> DamperSpec:
+    """A neural (hybrid with terms) spec of an MlpModel; `envelope` its training envelope
+    (dampnet.envelope; None: coverage reports per-input ranges only, `envelope_note` says why)."""
     u_range = (0.0, 5.0)
     for key in ("voltage", "current"):
         if key in model.features:
             i = model.features.index(key)
             u_range = (float(model.sat_lo[i]), float(model.sat_hi[i]))
     kind = "hybrid" if model.terms else "neural"
-    return DamperSpec(name, kind, model, u_range, meta=dict(model_id=model.model_id()))
+    return DamperSpec(name, kind, model, u_range, meta=dict(model_id=model.model_id(), envelope=envelope,
+                                                            envelope_note=envelope_note))
 
 
 def lookup_spec(table, name: str = "lookup") -> DamperSpec:
@@ -91,7 +94,11 @@ def load_spec(text: str) -> DamperSpec:
             return lookup_spec(LookupTable.from_dict(d))
         except (KeyError, TypeError, ValueError) as e:
             raise ModelError(f"{path}: not a valid lookup table ({schema.show(str(e))})") from None
-    return neural_spec(MlpModel.from_dict(d, path))
+    from dampnet.envelope import load_envelope
+
+    model = MlpModel.from_dict(d, path)
+    env, note = load_envelope(path, model)
+    return neural_spec(model, envelope=env, envelope_note=note)
 
 
 @dataclass

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from dampnet.coverage import coverage, quarter_car_inputs
 from dampnet.sim.dampers import DamperSpec, force_at_rest, runtime_damper
 from dampnet.sim.loop import QuarterCar, columns
 from dampnet.sim.ride import ride_metrics, transmissibility
@@ -37,9 +38,19 @@ def loop_arrays(spec: DamperSpec, z_r, v_r, vehicle: Vehicle, controller: Contro
     return {k: np.array(a[:n]) for k, a in columns(res).items()}, float(f_static)
 
 
+def spec_coverage(spec: DamperSpec, arrays: dict) -> dict | None:
+    """The coverage (dampnet.coverage) of a quarter-car run of a neural or hybrid spec against
+    its model's training envelope (spec.meta["envelope"], or its ranges only); None for others."""
+    if spec.kind not in ("neural", "hybrid"):
+        return None
+    return coverage(spec.obj, quarter_car_inputs(spec.obj, arrays), spec.meta.get("envelope"), t=arrays["t"],
+                    note=spec.meta.get("envelope_note"))
+
+
 def simulate(spec: DamperSpec, road: Road, speed: float | None = None, controller: Controller | None = None,
              vehicle: Vehicle | None = None, transfer: bool | None = None) -> dict:
-    """One run: {'arrays': {...}, 'metrics': {...}, 'transmissibility': {...} (sweeps), ...}.
+    """One run: {'arrays': {...}, 'metrics': {...}, 'transmissibility': {...} (sweeps), ...,
+    'coverage': {...} (neural and hybrid dampers: dampnet.coverage, against the training envelope)}.
 
     A wrong vehicle or controller setting (an unknown law name among them) raises LoopError
     naming the field and the valid range or names.
@@ -54,6 +65,9 @@ def simulate(spec: DamperSpec, road: Road, speed: float | None = None, controlle
                            veh.m_s, veh.m_us)
     out = dict(arrays=arr, metrics=metrics, f_static_n=f_static, road=road.meta,
                speed_m_s=speed, controller=ctrl.to_dict(), vehicle=veh.to_dict(), damper=spec.name)
+    cov = spec_coverage(spec, arr)
+    if cov is not None:
+        out["coverage"] = cov
     if transfer or (transfer is None and road.meta.get("input") == "sine_sweep"):
         f1 = road.meta.get("f1_hz", 20.0)
         tr = transmissibility(arr["z_r"], arr["z_s"], 1.0 / veh.dt, fmin=road.meta.get("f0_hz", 0.5),
