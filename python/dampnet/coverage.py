@@ -135,7 +135,7 @@ def coverage(model, X: np.ndarray, envelope: Envelope | None = None, t: np.ndarr
         wo = w[outside]
         for i, f in enumerate(model.features):
             share = float(np.sum(wo[dom == i]) / np.sum(wo))
-            if share > 0:
+            if share >= 0.005:
                 mostly[f] = share
         mostly = dict(sorted(mostly.items(), key=lambda kv: -kv[1]))
     worst_i = int(np.argmax(np.nan_to_num(exc, posinf=1e300).max(axis=0))) if n else 0

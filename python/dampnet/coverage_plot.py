@@ -1,7 +1,7 @@
 """The coverage plot: a run's damper inputs over the model's training data (PNG, matplotlib Agg).
 
-Two panels, (velocity, acceleration) and (velocity, control), in feature units: grey dots, the
-envelope's stored training samples (without an envelope file: none); dashed, the training range
+Two panels, (velocity, acceleration) and (velocity, control), in feature units: grey dots (drawn over
+the runs), the envelope's stored training samples (without an envelope file: none); dashed, the training range
 of each input (the model's saturation limits); each run's trajectory a thin line, its steps
 outside the envelope (dampnet.coverage: outside a range, or farther than the joint threshold
 from every training sample) marked with dots of the same colour.
@@ -63,10 +63,10 @@ def plot_coverage(model, runs: Mapping[str, np.ndarray], path, envelope=None, ti
     for ax, (i, j) in zip(axes[0], pairs):
         if cloud is not None:
             ax.plot(cloud[:, i], cloud[:, j], ".", ms=1.5, color="0.65", label="training data (envelope)",
-                    rasterized=True)
+                    rasterized=True, zorder=3)
         lo, hi = model.sat_lo, model.sat_hi
         ax.plot([lo[i], hi[i], hi[i], lo[i], lo[i]], [lo[j], lo[j], hi[j], hi[j], lo[j]], "--", lw=0.8,
-                color="0.3", label="training ranges")
+                color="0.1", label="training ranges", zorder=4)
         for k, (label, X) in enumerate(runs.items()):
             X = np.asarray(X, dtype=np.float64)
             step = max(1, X.shape[0] // max_points)

@@ -75,7 +75,7 @@ def run(args) -> int:
         with staged_files(out) as tmp:  # study.json (the marker) moved into place last
             data = without_arrays(res)
             if vehicle is not None:
-                data["vehicle"] = {k: vehicle[k] for k in ("results", "errors")}
+                data["vehicle"] = {k: vehicle[k] for k in ("results", "errors", "coverage") if k in vehicle}
             (tmp / "study.json").write_text(json_text(data))
             (tmp / "study.txt").write_text(table + "\n")
             if not args.no_plots:
@@ -84,8 +84,21 @@ def run(args) -> int:
         print(f"dampnet: error: {out}: cannot write the study ({e.strerror or e})", file=sys.stderr)
         return 2
     print(table)
+    for name, ex in res.get("extrapolated", {}).items():
+        print(f"coverage of {name}: " + (f"extrapolated in {len(ex['extrapolated'])} of {ex['runs']} runs: the "
+              f"model was outside its training data for {_worst_run(res, name)}" if ex["any"]
+              else f"within its training data in all {ex['runs']} runs"))
     print(f"-> {out}/study.json, study.txt" + ("" if args.no_plots else ", PNG plots"))
     return 0
+
+
+def _worst_run(res: dict, name: str) -> str:
+    """The run of a study where model `name` spent the largest share of time outside its envelope,
+    in words: "X % of <section case> (its verdict)"."""
+    runs = [(by[name]["outside"]["share_time"], f"{section} {case}", by[name]["verdict"])
+            for section, cases in res["coverage"].items() for case, by in cases.items() if name in by]
+    share, where, verdict = max(runs)
+    return f"{100 * share:.1f} % of {where}, the most ({verdict})"
 
 
 def _vehicle_study(specs, args) -> dict:

@@ -21,8 +21,10 @@ HEADLINE = {"bsst": ("acc_rms_m_s2", "acc_peak_m_s2"),
 def run_study(specs: list[DamperSpec], tests: dict[str, Maneuver], damping=DAMPING,
               progress: Callable[[str], None] | None = None, keep_runs: bool = False) -> dict:
     """{'results': {test: {damping: {model: metrics}}}, 'errors': ... vs the model named
-    'truth' when there is one (relative, per headline metric), 'runs' (with keep_runs)}."""
+    'truth' when there is one (relative, per headline metric), 'coverage': {test: {damping:
+    {model: dampnet.coverage result}}} for neural models, 'runs' (with keep_runs)}."""
     results: dict = {}
+    coverage: dict = {}
     runs: dict = {}
     for test, man in tests.items():
         for d in damping:
@@ -31,9 +33,12 @@ def run_study(specs: list[DamperSpec], tests: dict[str, Maneuver], damping=DAMPI
                     progress(f"{test} {d}: {spec.name}")
                 r = run(spec, man, d)
                 results.setdefault(test, {}).setdefault(d, {})[spec.name] = r["metrics"]
+                if "coverage" in r:
+                    coverage.setdefault(test, {}).setdefault(d, {})[spec.name] = r["coverage"]
                 if keep_runs:
                     runs.setdefault(test, {}).setdefault(d, {})[spec.name] = r
-    out = {"results": results, "errors": relative_errors(results), "tests": {t: m.meta.get("test") for t, m in tests.items()}}
+    out = {"results": results, "errors": relative_errors(results), "coverage": coverage,
+           "tests": {t: m.meta.get("test") for t, m in tests.items()}}
     if keep_runs:
         out["runs"] = runs
     return out

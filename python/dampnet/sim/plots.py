@@ -81,4 +81,29 @@ def write_plots(res: dict, out_dir) -> list:
                 p = out / f"transmissibility_{case}.png"
                 plot_transmissibility(by_model, p, f"Transmissibility, {case} damping")
                 written.append(p)
+    written += write_coverage_plots(res, out)
+    return written
+
+
+def write_coverage_plots(res: dict, out_dir) -> list:
+    """coverage_<model>.png for each neural model of a study run with keep_runs=True: the damper
+    inputs of each section's first case over the model's training data (dampnet.coverage_plot)."""
+    from dampnet.coverage import quarter_car_inputs
+    from dampnet.coverage_plot import plot_coverage
+
+    written = []
+    runs, specs = res.get("_runs", {}), res.get("_specs", {})
+    for name, spec in specs.items():
+        if spec.kind not in ("neural", "hybrid"):
+            continue
+        traj = {}
+        for section, cases in runs.items():
+            for case, by_model in cases.items():
+                if name in by_model and "coverage" in by_model[name]:
+                    traj[f"{section} {case}"] = quarter_car_inputs(spec.obj, by_model[name]["arrays"])
+                    break
+        if traj:
+            p = Path(out_dir) / f"coverage_{name}.png"
+            plot_coverage(spec.obj, traj, p, spec.meta.get("envelope"), f"{name}: damper inputs of the study's runs")
+            written.append(p)
     return written

@@ -51,7 +51,37 @@ def text_tables(res: dict) -> str:
             for c, by in cases.items():
                 lines.append("  " + f"{section + ' ' + c:<34}" + "".join(
                     f"{100 * by[m]['acc_rms_m_s2']:>11.2f}%" for m in others))
+    lines += coverage_lines(res)
     return "\n".join(lines)
+
+
+def coverage_lines(res: dict) -> list[str]:
+    """The coverage table (dampnet.coverage): per case and neural model, the share of the run's
+    time outside the training envelope, '*' when the run is extrapolated; then each model's verdict."""
+    cov = res.get("coverage") or {}
+    names = list(res.get("extrapolated") or {})
+    if not names:
+        return []
+    lines = ["Coverage: share of the run's time outside the training envelope, % (* extrapolated: over "
+             f"{100 * _first(cov)['threshold_share']:g} % of the time, or beyond {_first(cov)['excursion_limit_ranges']:g} "
+             "training range)"]
+    lines.append("  " + f"{'case':<34}" + "".join(f"{m:>12}" for m in names))
+    for section, cases in cov.items():
+        for c, by in cases.items():
+            lines.append("  " + f"{section + ' ' + c:<34}" + "".join(
+                f"{100 * by[m]['outside']['share_time']:>10.1f}{'*' if by[m]['extrapolated'] else ' '} "
+                if m in by else f"{'':>12}" for m in names))
+    for m in names:
+        ex = res["extrapolated"][m]
+        envelope = next((by[m]["envelope"] for cases in cov.values() for by in cases.values() if m in by), "?")
+        lines.append(f"  {m}: extrapolated in {len(ex['extrapolated'])} of {ex['runs']} runs"
+                     + (" (no envelope file beside the model: per-input training ranges only)"
+                        if envelope != "joint" else ""))
+    return lines
+
+
+def _first(cov: dict) -> dict:
+    return next(r for cases in cov.values() for by in cases.values() for r in by.values())
 
 
 def without_arrays(res: dict) -> dict:

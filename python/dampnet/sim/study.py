@@ -10,7 +10,10 @@ step, the same dt for all, so the models are compared like for like):
                  own low and high settings (cases "<v>_<law>": "10_skyhook_onoff",
                  "10_skyhook_continuous", the runtime's law names) against passive at the same
                  damper's low and high settings ("<v>_passive_low", "<v>_passive_high")
-and `errors`: per model and case, (model - truth) / truth of every metric. The damping
+and `errors`: per model and case, (model - truth) / truth of every metric; for each neural or
+hybrid model, `coverage` (section -> case -> model: dampnet.coverage's result, the run against
+the model's training envelope) and `extrapolated` (model -> {any, runs, extrapolated: the
+"section case" runs whose verdict is extrapolated}). The damping
 levels and the controllers' calibration: `dampnet.sim.calibration`. Tables and plots of a
 result: `dampnet.sim.report`, `dampnet.sim.plots`.
 
@@ -72,7 +75,8 @@ def run_study(specs: list[DamperSpec], truth: DamperSpec | None = None, dt: floa
                                settings=dict(dt_s=dt, vehicle=veh.to_dict(), speeds_m_s=list(speeds),
                                              damping_levels=levels,
                                              roads={k: r.meta for k, r in roads.items()}),
-                               impulse={}, sine_sweep={}, rough_road={}, skyhook={}, errors={})
+                               impulse={}, sine_sweep={}, rough_road={}, skyhook={}, errors={},
+                               coverage={}, extrapolated={})
     runs: dict[str, Any] = {}
     ref = truth or all_specs[0]
     sky_c = continuous_skyhook(ref, levels[ref.name], veh)
@@ -87,6 +91,13 @@ def run_study(specs: list[DamperSpec], truth: DamperSpec | None = None, dt: floa
             progress(f"{section} {case} {spec.name}")
         r = simulate(spec, road, speed, ctrl, veh)
         res[section].setdefault(case, {})[spec.name] = r["metrics"]
+        if "coverage" in r:
+            res["coverage"].setdefault(section, {}).setdefault(case, {})[spec.name] = r["coverage"]
+            ex = res["extrapolated"].setdefault(spec.name, dict(any=False, runs=0, extrapolated=[]))
+            ex["runs"] += 1
+            if r["coverage"]["extrapolated"]:
+                ex["any"] = True
+                ex["extrapolated"].append(f"{section} {case}")
         if keep_runs:
             runs.setdefault(section, {}).setdefault(case, {})[spec.name] = r
         return r
@@ -118,4 +129,5 @@ def run_study(specs: list[DamperSpec], truth: DamperSpec | None = None, dt: floa
                         k: _rel(by_model[spec.name][k], ref[k]) for k in ERROR_METRICS}
     if keep_runs:
         res["_runs"] = runs
+        res["_specs"] = {s.name: s for s in all_specs}
     return res
