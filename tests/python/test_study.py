@@ -12,7 +12,8 @@ from dampnet.sim.plots import write_plots
 from dampnet.sim.report import without_arrays, text_tables
 from dampnet.sim.study import run_study
 
-KEYS = {"schema", "models", "truth", "settings", "impulse", "sine_sweep", "rough_road", "skyhook", "errors"}
+KEYS = {"schema", "models", "truth", "settings", "impulse", "sine_sweep", "rough_road", "skyhook", "errors",
+        "coverage", "extrapolated"}  # dampnet.coverage: neural models only (empty for linear dampers)
 
 
 def test_study_structure_and_tables(tmp_path):
