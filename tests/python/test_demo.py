@@ -97,6 +97,46 @@ def test_demo_report_shows_the_fmu_trace(demo_out):
     assert "<span class='ok'>match</span>" in part and summary["fmu"]["test"] in part
 
 
+def test_demo_trains_with_restarts_and_shows_their_spread(demo_out):
+    """Both trainings keep the best of DEMO_RESTARTS restarts by the interpolation score alone; the
+    summary and the report show every restart's held-out NRMSE, the kept one being the model's."""
+    out, stdout = demo_out
+    summary = json.loads((out / "summary.json").read_text())
+    for which in ("original", "improved"):
+        r = summary["restarts"][which]
+        assert r["n"] == 6 and len(r["runs"]) == 6 and len({x["seed"] for x in r["runs"]}) == 6
+        scores = [x["score"] for x in r["runs"]]
+        assert r["kept"] == int(np.argmin(scores)) and r["runs"][r["kept"]]["kept"]
+        assert r["holdout_nrmse_kept"] == pytest.approx(summary["holdout_nrmse"][which], abs=1e-7)
+        held = [x["holdout_nrmse"] for x in r["runs"]]
+        assert r["holdout_nrmse_min"] == min(held) < max(held) == r["holdout_nrmse_max"]
+        meta = json.loads((out / f"model_{which}" / "model.json").read_text())["meta"]["restarts"]
+        assert meta["kept_seed"] == r["kept_seed"] and "holdout_nrmse" not in meta["runs"][0]
+    assert "restarts: hold-out NRMSE" in stdout
+    text = (out / "report.html").read_text()
+    part = text[text.index("2. The thesis"):text.index("3. Diagnosis")]
+    assert "6 restarts" in part and "held-out NRMSE (not seen)" in part
+    assert part.count("<td>kept</td>") == 2 and 'alt="held-out NRMSE of every restart' in part
+
+
+def test_demo_reports_where_the_models_were_guessing(demo_out):
+    """Both models carry their training envelope; the study's impulse (far beyond the 1-inch sines)
+    is marked extrapolated for both, and the report's coverage table says so."""
+    out, _ = demo_out
+    summary = json.loads((out / "summary.json").read_text())
+    for which in ("original", "improved"):
+        assert (out / f"model_{which}" / "envelope.npz").is_file()
+    st = summary["study"]
+    for name in ("original", "improved"):
+        ex = st["extrapolated"][name]
+        assert ex["runs"] >= 10 and any(r.startswith("impulse") for r in ex["extrapolated"]), ex
+    shares = st["time_outside_training_data"]
+    assert all(0.0 <= v <= 1.0 for case in shares.values() for v in case.values())
+    text = (out / "report.html").read_text()
+    part = text[text.index("Where the models were guessing"):text.index("7. Full vehicle")]
+    assert "<td>extrapolated</td>" in part and 'alt="study: coverage improved"' in part
+
+
 def test_demo_refuses_to_overwrite(wheel, demo_out):
     out, _ = demo_out
     proc = wheel.dampnet("demo", "--quick", "--out", out, cwd=out.parent, timeout=120)

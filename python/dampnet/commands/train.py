@@ -7,6 +7,7 @@ The pipeline is `dampnet.training.pipeline.train_dataset`; see its docstring for
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 
 from dampnet.commands.common import error
@@ -30,6 +31,18 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("data", help="dataset: a directory, CSV/text file or .mat file (see dampnet rig)")
     p.add_argument("--out", required=True, help="model directory to write (must not exist unless --force)")
     add_training_options(p)
+    p.add_argument("--restarts", default="auto", metavar="N",
+                   help="train N times from different seeds (--seed first) and keep the model that interpolates "
+                        "best between the training control levels, never looking at the hold-out (default "
+                        "'auto': 6 when the training tests have two control levels or more, else 1; 1: train "
+                        "once, exactly as before). model.json records every restart (meta.restarts)")
+    p.add_argument("--restart-score", default="interpolation", choices=["interpolation", "lolo"],
+                   help="how restarts are ranked: interpolation (default: how far each model strays between "
+                        "adjacent levels from the smooth curve through its own predictions at them) or lolo "
+                        "(leave-one-level-out refits on interior levels; costs about 2x more and selects worse, "
+                        "bench/RESULTS.md)")
+    p.add_argument("--workers", default=None, metavar="N",
+                   help="processes the restarts run in, one torch thread each (default: the local cores)")
     p.add_argument("--prefix", default="dn_model", help="C identifier prefix in model.h (default dn_model)")
     p.add_argument("--force", action="store_true", help="replace MODEL_DIR if it exists")
     p.add_argument("--quiet", action="store_true", help="no progress bar and no summary (for scripts)")
@@ -54,15 +67,23 @@ def run(args) -> int:
         check_output_dir(out, "model", inputs, args.force)  # before the work, again when writing
         ds = load_dataset(args.data)
         kw, added = training_kwargs(args, ds)
-        bar = Progress(kw["max_epochs"], f"train {args.algorithm}", not args.quiet)
+        restarts, workers, note = restart_options(args, ds, kw)
+        if restarts > 1:
+            bar = RestartProgress(not args.quiet)
+        else:
+            bar = Progress(kw["max_epochs"], f"train {args.algorithm}", not args.quiet)
         from dampnet.training.pipeline import train_dataset
 
         t0 = time.perf_counter()
-        model, info, split = train_dataset(ds, algorithm=args.algorithm, progress=bar, **kw)
+        model, info, split = train_dataset(ds, algorithm=args.algorithm, progress=bar, restarts=restarts,
+                                           workers=workers, restart_score=args.restart_score, **kw)
         bar.close()
         t_train = time.perf_counter() - t0
         metrics = model_metrics(model, info, split)
-        save_model_dir(model, metrics, out, force=args.force, prefix=args.prefix, inputs=inputs)
+        from dampnet.envelope import envelope_of
+
+        save_model_dir(model, metrics, out, force=args.force, prefix=args.prefix, inputs=inputs,
+                       envelope=envelope_of(model, split))
     except (DataError, ModelError, FileExistsError, ValueError, OSError) as e:
         if bar is not None:
             bar.close()
@@ -73,7 +94,55 @@ def run(args) -> int:
                   + "".join(f", {k} = {v:.4g}" for k, v in a["feature_params"].items())
                   + f" (parameters: {a['parameters_from']})")
         print_summary(model, info, split, metrics, out, t_train)
+        if note:
+            print(f"restarts: 1 ({note})")
     return 0
+
+
+def restart_options(args, ds, kw) -> tuple[int, int | None, str | None]:
+    """(restarts, workers, why 'auto' trained once or None) from --restarts and --workers;
+    ValueError (exit 2, one line) for anything but a whole number >= 1 (or 'auto')."""
+    from dampnet.training.restarts import auto_restarts
+
+    def whole(text: str, name: str) -> int:
+        try:
+            n = int(str(text).strip())
+        except ValueError:
+            n = 0
+        if n < 1 or str(text).strip() != str(n):
+            raise ValueError(f"--{name}: expected a whole number >= 1{' or auto' if name == 'restarts' else ''}, "
+                             f"got {text!r}")
+        return n
+
+    workers = None if args.workers is None else whole(args.workers, "workers")
+    if str(args.restarts).strip().lower() == "auto":
+        n, note = auto_restarts(ds, kw["holdout_voltage"], kw["holdout_tests"], kw["features"], args.restart_score)
+        return n, workers, note
+    return whole(args.restarts, "restarts"), workers, None
+
+
+class RestartProgress:
+    """A tqdm bar over the restarts' fits (each runs whole in a worker process)."""
+
+    def __init__(self, enabled: bool):
+        self.bar = None
+        self.enabled = enabled and sys.stderr.isatty()
+
+    def __call__(self, rec: dict):
+        if self.enabled and self.bar is None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=rec["total"], desc="train restarts", unit="fit", file=sys.stderr, leave=False)
+        if self.bar is not None:
+            if "score" in rec:
+                self.bar.set_postfix({"restart": rec["restart"], "score": f"{rec['score']:.4f}"}, refresh=False)
+            self.bar.update(1)
+        return None
+
+    def close(self):
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
 
 
 def print_summary(model, info, split, metrics, out, t_train) -> None:
@@ -92,5 +161,9 @@ def print_summary(model, info, split, metrics, out, t_train) -> None:
         lk = metrics.get("holdout_lookup", {})
         if "overall" in lk:
             print(f"lookup-table baseline on the hold-out: NRMSE {lk['overall']['nrmse']:.4f}")
+    if "restarts" in metrics["training"]:
+        from dampnet.training.restarts import summary_line
+
+        print(summary_line(metrics["training"]["restarts"]))
     if "noise_floor" in metrics:
         print(f"noise floor of these data (rig sensor noise): NRMSE {metrics['noise_floor']['nrmse_range']:.4f}")

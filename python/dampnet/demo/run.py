@@ -17,6 +17,10 @@ HIDDEN_EFFECT = "gas_spring"
 QUICK_PLAN = {"name": "demo-quick", "frequencies_hz": [0.25, 1.0, 2.0, 3.0], "amplitudes_m": [0.0254],
               "voltages_v": [0.0, 1.0, 1.5, 2.0, 2.25, 2.5, 3.0, 5.0], "samples": 2500}
 
+# Both trainings keep the best of this many restarts (dampnet train's default; bench/RESULTS.md
+# "Restarts"), and the report shows how far the restarts' held-out errors spread.
+DEMO_RESTARTS = 6
+
 
 class DemoError(RuntimeError):
     """A demo stage could not run (the message says which and why)."""
@@ -48,10 +52,24 @@ class Stages:
         return _Stage()
 
 
+def _log_restarts(log, metrics: dict) -> None:
+    r = metrics["training"].get("restarts")
+    if r:
+        log(f"      {r['n']} restarts: hold-out NRMSE {r['holdout_nrmse_min']:.4f} to {r['holdout_nrmse_max']:.4f} "
+            f"over their seeds; kept restart {r['kept']} by its interpolation between the training voltages "
+            f"({r['runs'][r['kept']]['holdout_nrmse']:.4f}), {r['time_s']:.1f} s on {r['workers']} "
+            f"process{'es' if r['workers'] != 1 else ''}")
+
+
 def _train_progress(log):
     state = {"last": 0.0}
 
     def cb(info: dict) -> None:
+        if "restart" in info:  # one record per finished restart (dampnet.training.restarts)
+            if "score" in info:
+                log(f"      restart {info['restart']} (seed {info['seed']}) done: interpolation score "
+                    f"{info['score']:.4f} ({info['done']}/{info['total']})")
+            return
         now = time.perf_counter()
         if now - state["last"] > 2.0:
             state["last"] = now
@@ -73,6 +91,7 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
     from dampnet.evaluation.report import write_plots
     from dampnet.training.pipeline import model_metrics, train_dataset
     from dampnet.modeldir import save_model_dir
+    from dampnet.envelope import envelope_of
 
     from dampnet.outputs import check_output_dir, json_text, staged_dir
 
@@ -98,13 +117,15 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
         settings = {"max_epochs": 150 if quick else 400}
         with stage("train", "training the thesis's 3-30-1 MLP (velocity, acceleration, voltage) with LM"):
             model0, info0, split0 = train_dataset(ds, algorithm="lm", seed=seed, progress=_train_progress(log),
-                                                  **settings)
+                                                  restarts=DEMO_RESTARTS, **settings)
             metrics0 = model_metrics(model0, info0, split0)
-            save_model_dir(model0, metrics0, work / "model_original")
+            env0 = envelope_of(model0, split0)
+            save_model_dir(model0, metrics0, work / "model_original", envelope=env0)
             lookup = LookupTable.from_dict(metrics0["lookup_table"])
             write_plots(model0, split0.holdout.tests, metrics0["holdout"], figs / "original", lookup=lookup)
             log(f"      held-out (2.25 V) NRMSE {metrics0['holdout']['overall']['nrmse']:.4f} "
                 f"(lookup table {metrics0['holdout_lookup']['overall']['nrmse']:.4f}, thesis {THESIS['lm_nrmse']})")
+            _log_restarts(log, metrics0)
 
         with stage("diagnose", "diagnosing the model: where it fails, which effect is missing"):
             diag0 = diagnose(model0, ds, seed=seed, dataset_label="DATA")
@@ -116,13 +137,16 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
         with stage("improve", f"adding '{verdict}', retraining, diagnosing again"):
             settings1, adds = improved_settings(model0, ds, diag0, verdict)
             model1, info1, split1 = train_dataset(ds, **settings1, algorithm="lm", seed=seed,
-                                                  progress=_train_progress(log), **settings)
+                                                  progress=_train_progress(log), restarts=DEMO_RESTARTS,
+                                                  **settings)
             metrics1 = model_metrics(model1, info1, split1)
-            save_model_dir(model1, metrics1, work / "model_improved")
+            env1 = envelope_of(model1, split1)
+            save_model_dir(model1, metrics1, work / "model_improved", envelope=env1)
             write_plots(model1, split1.holdout.tests, metrics1["holdout"], figs / "improved", lookup=lookup)
             diag1 = diagnose(model1, ds, seed=seed, dataset_label="DATA")
             n0 = metrics0["holdout"]["overall"]["nrmse"]
             n1 = metrics1["holdout"]["overall"]["nrmse"]
+            _log_restarts(log, metrics1)
             log(f"      held-out NRMSE {n0:.4f} -> {n1:.4f} ({100 * (1 - n1 / n0):.0f} % lower); "
                 f"diagnosis now: {diag1.get('verdict') or 'nothing significant'}")
 
@@ -149,11 +173,11 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
                     f"({'match' if fres['match'] else 'MISMATCH'}, tolerance {fres['tolerance_n']:.0e} N)")
 
         with stage("study", "quarter-car study (thesis Tables 6, 7, skyhook) against the truth damper"):
-            study_res = _study(model0, model1, lookup, figs / "study", quick)
+            study_res = _study(model0, model1, lookup, figs / "study", quick, env0, env1)
             log("      " + study_res["headline"])
 
         with stage("vehicle", "full vehicle (thesis chapter 5.2): bounce sine sweep and ISO 3888-1 lane change"):
-            vehicle_res = _vehicle(model1, lookup, figs / "vehicle", quick, log)
+            vehicle_res = _vehicle(model1, lookup, figs / "vehicle", quick, log, envelope=env1)
             log("      " + vehicle_res["headline"])
 
         with stage("latency", "quick latency benchmark and HIL headroom"):
@@ -187,14 +211,15 @@ def improved_settings(model0, ds, diagnosis: dict, effect: str) -> tuple[dict, d
     return apply_additions({"features": list(model0.features)}, ds, effect, diagnosis=diagnosis)
 
 
-def _study(model0, model1, lookup, fig_dir: Path, quick: bool) -> dict:
+def _study(model0, model1, lookup, fig_dir: Path, quick: bool, env0=None, env1=None) -> dict:
     from dampnet.sim import study
     from dampnet.sim.dampers import lookup_spec, neural_spec, truth_spec
     from dampnet.sim.plots import write_plots
     from dampnet.sim.report import without_arrays, text_tables
     from dampnet.sim.roads import thesis_rough_road
 
-    specs = [neural_spec(model1, "improved"), neural_spec(model0, "original"), lookup_spec(lookup, "lookup")]
+    specs = [neural_spec(model1, "improved", envelope=env1), neural_spec(model0, "original", envelope=env0),
+             lookup_spec(lookup, "lookup")]
     from dampnet.sim.roads import sine_sweep
 
     if quick:  # shortened roads: a 5x faster sweep and half the rough road's length
@@ -229,7 +254,7 @@ def _study(model0, model1, lookup, fig_dir: Path, quick: bool) -> dict:
     return res_json
 
 
-def _vehicle(model, lookup, fig_dir: Path, quick: bool, log) -> dict:
+def _vehicle(model, lookup, fig_dir: Path, quick: bool, log, envelope=None) -> dict:
     """The thesis's full-vehicle comparison: the improved model, the lookup table and the truth
     damper at all four corners, low and high damping and on-off skyhook, in the bounce sine
     sweep and the double lane change at 120 km/h (quick: a 4x faster sweep)."""
@@ -238,7 +263,7 @@ def _vehicle(model, lookup, fig_dir: Path, quick: bool, log) -> dict:
     from dampnet.sim.dampers import lookup_spec, neural_spec, truth_spec
 
     fig_dir.mkdir(parents=True, exist_ok=True)
-    specs = [neural_spec(model, "neural"), lookup_spec(lookup, "lookup"), truth_spec([HIDDEN_EFFECT], "truth")]
+    specs = [neural_spec(model, "neural", envelope=envelope), lookup_spec(lookup, "lookup"), truth_spec([HIDDEN_EFFECT], "truth")]
     tests = {"bsst_heave": maneuvers.bsst(rate_oct_s=1.0 if quick else 0.25), "dlc": maneuvers.dlc()}
     res = study.run_study(specs, tests, damping=("low", "high", "skyhook"), keep_runs=True)
     for test, by_d in res.pop("runs").items():
@@ -253,6 +278,24 @@ def _vehicle(model, lookup, fig_dir: Path, quick: bool, log) -> dict:
                        "; lane change at 120 km/h: cones hit " +
                        ", ".join(f"{k} {res['results']['dlc']['low'][k]['cones_hit']}" for k in ("neural", "lookup", "truth")))
     return res
+
+
+def _training_time(metrics: dict) -> float:
+    """Wall time of the whole training [s]: all restarts when there were several."""
+    r = metrics["training"].get("restarts")
+    return r["time_s"] if r else metrics["training"]["time_s"]
+
+
+def _restarts_summary(metrics: dict) -> dict | None:
+    r = metrics["training"].get("restarts")
+    if not r:
+        return None
+    return {"n": r["n"], "kept": r["kept"], "kept_seed": r["kept_seed"], "workers": r["workers"],
+            "time_s": r["time_s"], "holdout_nrmse_min": r["holdout_nrmse_min"],
+            "holdout_nrmse_max": r["holdout_nrmse_max"],
+            "holdout_nrmse_kept": r["runs"][r["kept"]]["holdout_nrmse"],
+            "runs": [{k: x[k] for k in ("restart", "seed", "score", "val_nrmse", "holdout_nrmse", "kept")}
+                     for x in r["runs"]]}
 
 
 def _headline(metrics0, metrics1, diag0, diag1, verdict, adds, cres, study_res, bench) -> dict:
@@ -271,9 +314,13 @@ def _headline(metrics0, metrics1, diag0, diag1, verdict, adds, cres, study_res, 
                       "added_as": adds.get("how"), "why": adds.get("why"),
                       "significant_after": still, "verdict_after": diag1.get("verdict")},
         "c_program": cres,
-        "study": {k: study_res[k] for k in ("worst_acc_rms_error_vs_truth", "worst_case_vs_truth",
-                                            "worst_rough_road_error_vs_truth")},
+        "study": {**{k: study_res[k] for k in ("worst_acc_rms_error_vs_truth", "worst_case_vs_truth",
+                                               "worst_rough_road_error_vs_truth")},
+                  "extrapolated": study_res.get("extrapolated", {}),
+                  "time_outside_training_data": {
+                      f"{section} {case}": {m: c["outside"]["share_time"] for m, c in by_model.items()}
+                      for section, cases in study_res.get("coverage", {}).items() for case, by_model in cases.items()}},
         "latency": {k: bench[k] for k in ("results", "budget", "headroom") if k in bench},
-        "training_time_s": {"original": metrics0["training"]["time_s"],
-                            "improved": metrics1["training"]["time_s"]},
+        "training_time_s": {"original": _training_time(metrics0), "improved": _training_time(metrics1)},
+        "restarts": {"original": _restarts_summary(metrics0), "improved": _restarts_summary(metrics1)},
     }

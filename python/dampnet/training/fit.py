@@ -85,10 +85,13 @@ class TrainInfo:
     train_idx: np.ndarray | None = None  # indices into X of each subset
     val_idx: np.ndarray | None = None
     test_idx: np.ndarray | None = None
+    #: with restarts (dampnet.training.restarts): every restart's full-fit model, in restart
+    #: order (the kept one among them), so that the spread can be shown; not serialised
+    restart_models: list | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready summary (without the per-sample subset indices)."""
-        return {k: v for k, v in self.__dict__.items() if not k.endswith("_idx")}
+        """JSON-ready summary (without the per-sample subset indices and restart models)."""
+        return {k: v for k, v in self.__dict__.items() if not k.endswith("_idx") and k != "restart_models"}
 
 
 @contextlib.contextmanager
@@ -144,12 +147,40 @@ def zero_force_points(X_train: np.ndarray, features: Sequence[str], fraction: fl
     return rows
 
 
+def warm_start_weights(model: MlpModel, layout: Layout, features: Sequence[str], in_off, in_gain,
+                       out_off: float, out_gain: float) -> torch.Tensor:
+    """`model`'s weights as a flat vector of `layout` in another mapminmax scaling, same function.
+
+    The scaled input of the model, s = (x - off) g - 1, is an affine map of the new one,
+    s = A s' + c; so is the output. Folding both into the first layer and the output layer
+    gives a network of the new scaling that computes the same force (to rounding).
+    """
+    if list(model.features) != list(features) or tuple(model.hidden) != tuple(layout.hidden) \
+            or model.activation != layout.activation:
+        raise ValueError(f"init: the model's features {model.features}, hidden {list(model.hidden)} and "
+                         f"activation {model.activation!r} must be this fit's ({list(features)}, "
+                         f"{list(layout.hidden)}, {layout.activation!r})")
+    ymin = model.in_ymin
+    a = model.in_gain / in_gain
+    c = (1.0 / in_gain + in_off - model.in_offset) * model.in_gain + ymin
+    w1 = model.w1 * a[None, :]
+    b1 = model.b1 + model.w1 @ c
+    # force = (y - ymin_out) / g_old + off_old; new scaled output = (force - off) g - 1
+    r = out_gain / model.out_gain
+    d = (-model.out_ymin / model.out_gain + model.out_offset - out_off) * out_gain - 1.0
+    p = {"w1": w1, "b1": b1, "w_out": model.w_out * r, "b_out": np.array([model.b_out * r + d])}
+    if model.w2 is not None:
+        p.update(w2=model.w2, b2=model.b2)
+    return layout.pack({k: torch.as_tensor(v, dtype=DTYPE) for k, v in p.items()})
+
+
 def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequence[str] | None = None,
         hidden: Sequence[int] = (30,), activation: str = "tanh", algorithm: str = "lm", seed: int = 0,
         split: Sequence[float] = (0.7, 0.15, 0.15), max_epochs: int = 1000, max_fail: int = 6,
         zero_points: bool = True, zero_fraction: float = 0.01,
         settings: dict[str, Any] | None = None, progress: Callable[[dict], Any] | None = None,
-        threads: int | None = None, data: Any = None) -> tuple[MlpModel, TrainInfo]:
+        threads: int | None = None, data: Any = None,
+        init: MlpModel | None = None) -> tuple[MlpModel, TrainInfo]:
     """Train an MLP force model on X [n, k] (feature units) and y [n] (force [N]).
 
     `settings` overrides the algorithm's defaults (e.g. {"mu_max": 1e8} for lm,
@@ -157,6 +188,9 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
     after every epoch with the history record; returning True stops training.
     `threads`: torch threads during training (None: 1 for small problems, else
     the idle cores, see _auto_threads). `data` is stored in model.meta as provenance.
+    `init`: start from this model's weights (same features, hidden sizes and activation; its
+    function carried over exactly into this fit's scaling) instead of Nguyen-Widrow; the seed
+    still draws the split and the zero points (a warm start: dampnet.training.restarts).
     The same inputs and seed give bit-identical weights on the same machine.
     """
     X = np.asarray(X, dtype=np.float64)
@@ -195,6 +229,8 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
                          scale_x(X[va]), scale_y(y[va]))
     gen = torch.Generator().manual_seed(seed)
     x0 = layout.init(gen)
+    if init is not None:
+        x0 = warm_start_weights(init, layout, features, in_off, in_gain, float(out_off), float(out_gain))
     cls = ALGORITHMS[algorithm]
     kwargs = {"generator": gen} if cls is Adam else {}
     if threads is None:

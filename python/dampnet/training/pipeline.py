@@ -27,6 +27,11 @@ What train_dataset does, in order (the thesis's chapter 4 data handling):
     (fit_terms) and the network learns the residual force minus the terms.
  5. `dampnet.training.fit`: mapminmax scaling, random 70/15/15 split with early
     stopping, zero-force points, saturation limits from the training range.
+ 6. With restarts=N > 1, steps 4-5 run N times from different seeds in worker processes
+    and the model that interpolates best between the training control levels is kept
+    (`dampnet.training.restarts`; `dampnet train` runs 6 by default).
+
+Steps 1-3 are `prepare_training` (a `Prepared`), steps 4-5 `fit_prepared`.
 
 Features and terms are data: a feature is a name in the registry
 (`dampnet.features.FEATURES`), a term a dict {"kind": ..., "params": [...]}
@@ -118,14 +123,79 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
                   progress: Callable[[dict], Any] | None = None, zero_points: bool = True,
                   max_epochs: int = 1000, max_fail: int = 6, settings: dict[str, Any] | None = None,
                   threads: int | None = None,
-                  acceleration_window: float | None = None) -> tuple[MlpModel, Any, Split]:
+                  acceleration_window: float | None = None,
+                  init: MlpModel | None = None, restarts: int = 1, workers: int | None = None,
+                  restart_score: str = "interpolation") -> tuple[MlpModel, Any, Split]:
     """Train a (hybrid) MLP damper model on a dataset; see the module docstring for the steps.
 
     Returns (model, info, split): `info` is dampnet.train.TrainInfo (its subset indices
     refer to the decimated training samples, split.train_used), `split` says which
     tests trained and which were held out. Raises DataError for unusable data
     (nothing to hold out, missing feature, no training tests) and ModelError for bad terms.
+
+    `restarts` > 1 trains that many times from different seeds (`seed` first) and keeps the
+    model that interpolates best between the training control levels, scored by
+    `restart_score` ("interpolation" or "lolo"), in `workers` processes (None: the local
+    cores) with one torch thread each; model.meta["restarts"] records every restart. See
+    dampnet.training.restarts for the scores and why the default is what it is; `progress`
+    then receives one record per finished fit instead of one per epoch. restarts=1 (the
+    default) is exactly the single training it always was.
     """
+    from dampnet.training.restarts import check_restarts, train_restarts
+
+    restarts = check_restarts(restarts, workers, restart_score)
+    if restarts > 1 and init is not None:
+        raise ValueError("init: a warm start is one training; use restarts=1 with init")
+    prep = prepare_training(ds, features, algorithm, hidden=hidden, activation=activation,
+                            holdout_voltage=holdout_voltage, holdout_tests=holdout_tests,
+                            decimate=decimate, terms=terms, feature_params=feature_params,
+                            zero_points=zero_points, max_epochs=max_epochs, max_fail=max_fail,
+                            settings=settings, acceleration_window=acceleration_window)
+    if restarts == 1:
+        model, info = fit_prepared(prep, seed, progress=progress, threads=threads, init=init)
+    else:
+        model, info = train_restarts(prep, restarts, seed, workers=workers, score=restart_score,
+                                     progress=progress)
+    return model, info, prep.split
+
+
+@dataclass
+class Prepared:
+    """The training samples train_dataset fits, one row per decimated sample, before any fit.
+
+    `level` is each row's test's nominal control (NaN for a test without one): the control
+    levels the restarts' scores interpolate between (dampnet.training.restarts). `terms` are
+    the terms as requested (their free parameters are fitted with each fit, on its rows).
+    """
+
+    X: np.ndarray
+    force: np.ndarray  # measured force [N]
+    level: np.ndarray
+    features: list[str]
+    control_name: str
+    terms: list[dict[str, Any]]
+    xd: np.ndarray | None  # displacement [m], velocity [m/s], control: what the terms need
+    v: np.ndarray | None
+    u: np.ndarray | None
+    feature_params: dict[str, float]
+    fit_kwargs: dict[str, Any]  # hidden, activation, algorithm, max_epochs, max_fail, zero_points, settings
+    provenance: dict[str, Any]
+    split: Split | None = None  # not shipped to restart workers (it holds the full-rate tests)
+
+    def lean(self) -> "Prepared":
+        """A copy without the split: what a restart worker needs."""
+        return Prepared(**{**self.__dict__, "split": None})
+
+
+def prepare_training(ds: Dataset, features: Sequence[str] | None = None, algorithm: str = "lm", *,
+                     hidden: Sequence[int] = (30,), activation: str = "tanh",
+                     holdout_voltage: float | None = DEFAULT_HOLDOUT_VOLTAGE,
+                     holdout_tests: Sequence[str] | None = None, decimate: int | None = None,
+                     terms: Sequence[dict[str, Any]] | None = None,
+                     feature_params: dict[str, float] | None = None, zero_points: bool = True,
+                     max_epochs: int = 1000, max_fail: int = 6, settings: dict[str, Any] | None = None,
+                     acceleration_window: float | None = None) -> Prepared:
+    """Steps 1-3 of the module docstring: acceleration, hold-out, decimation, the feature matrix."""
     if not ds.tests:
         raise DataError(f"{ds.source}: no tests")
     features = list(features) if features else default_features(ds)
@@ -153,7 +223,10 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
     X = np.concatenate([feature_matrix([t], features, feature_params, window)[::factor]
                         for t in train.tests])
     y = np.concatenate([t.channels["force"] for t in used.tests])
+    level = np.concatenate([np.full(len(t), np.nan if t.control_nominal is None else float(t.control_nominal))
+                            for t in used.tests])
     terms = list(terms or [])
+    xd = v = u = None
     if terms:
         for t in used.tests:
             if "displacement" not in t.channels:
@@ -161,26 +234,47 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
         xd = np.concatenate([t.channels["displacement"] for t in used.tests])
         v = np.concatenate([t.channels["velocity"] for t in used.tests])
         u = np.concatenate([t.control for t in used.tests])
+    split = Split(train=train, holdout=hold, holdout_voltage=holdout_voltage,
+                  holdout_tests=list(holdout_tests or []), decimate=factor, train_used=used)
+    return Prepared(X=X, force=y, level=level, features=features,
+                    control_name=train.tests[0].control_name, terms=terms, xd=xd, v=v, u=u,
+                    feature_params=dict(feature_params or {}),
+                    fit_kwargs=dict(hidden=hidden, activation=activation, algorithm=algorithm,
+                                    max_epochs=max_epochs, max_fail=max_fail, zero_points=zero_points,
+                                    settings={**ALGORITHM_SETTINGS.get(algorithm, {}), **(settings or {})}),
+                    provenance=_data_provenance(ds, split, features, window), split=split)
+
+
+def fit_prepared(prep: Prepared, seed: int, *, rows: np.ndarray | None = None,
+                 progress: Callable[[dict], Any] | None = None, threads: int | None = None,
+                 init: MlpModel | None = None) -> tuple[MlpModel, Any]:
+    """Steps 4-5 of the module docstring on the prepared samples (all, or the boolean mask
+    `rows`: a restart's leave-one-level-out fit): (model, info)."""
+    X, y = prep.X, prep.force
+    xd, v, u = prep.xd, prep.v, prep.u
+    if rows is not None:
+        X, y = X[rows], y[rows]
+        if xd is not None:
+            xd, v, u = xd[rows], v[rows], u[rows]
+    terms = list(prep.terms)
+    if terms:
         try:
             terms = fit_terms(terms, xd, v, u, y)
         except ValueError as e:
             raise ModelError(str(e)) from None
         y = y - terms_force(terms, xd)
-    _check_magnitudes(X, y, features)
-    split = Split(train=train, holdout=hold, holdout_voltage=holdout_voltage,
-                  holdout_tests=list(holdout_tests or []), decimate=factor, train_used=used)
+    _check_magnitudes(X, y, prep.features)
+    fk = prep.fit_kwargs
     try:
-        model, info = fit(X, y, features=features, hidden=hidden, activation=activation,
-                          algorithm=algorithm, seed=seed, max_epochs=max_epochs, max_fail=max_fail,
-                          zero_points=zero_points,
-                          settings={**ALGORITHM_SETTINGS.get(algorithm, {}), **(settings or {})},
-                          progress=progress,
-                          threads=threads, data=_data_provenance(ds, split, features, window))
+        model, info = fit(X, y, features=prep.features, hidden=fk["hidden"], activation=fk["activation"],
+                          algorithm=fk["algorithm"], seed=seed, max_epochs=fk["max_epochs"],
+                          max_fail=fk["max_fail"], zero_points=fk["zero_points"], settings=fk["settings"],
+                          progress=progress, threads=threads, data=prep.provenance, init=init)
     except ValueError as e:
         raise DataError(str(e)) from None
     model.terms = terms
-    model.feature_params = dict(feature_params or {})
-    model.meta["zero_points"] = bool(zero_points)
+    model.feature_params = dict(prep.feature_params)
+    model.meta["zero_points"] = bool(fk["zero_points"])
     if terms:
         # fit() measured NRMSE on the residual force; report the hybrid model's.
         y_all = y + terms_force(terms, xd)
@@ -195,7 +289,7 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
         raise ModelError(f"training gave non-finite NRMSE ({', '.join(sorted(bad))}): the fit diverged; "
                          "check the data's scale and units, or try another --algorithm or --seed")
     model.validate()  # feature_params (time constants > 0) and the rest, as model.json is checked
-    return model, info, split
+    return model, info
 
 
 #: largest |value| accepted in a training feature or force, in its SI unit. The runtime runs in
@@ -297,11 +391,15 @@ def model_metrics(model: MlpModel, info, split: Split, lookup: bool = True) -> d
             "samples": {"train": info.n_train, "val": info.n_val, "test": info.n_test,
                         "zero_points": info.n_zero_points},
             "history": info.history,
+            **({"restarts": model.meta["restarts"]} if "restarts" in model.meta else {}),
         },
         "holdout_tests": split.holdout_ids,
     }
     if split.holdout is not None:
         out["holdout"] = evaluate_model(lambda t: predict_force(model, t), split.holdout.tests)
+        if "restarts" in model.meta and getattr(info, "restart_models", None):
+            out["training"]["restarts"] = restarts_holdout(model.meta["restarts"], info.restart_models,
+                                                           split.holdout.tests)
         if lookup:
             try:
                 table = fit_lookup(split.train)
@@ -312,6 +410,19 @@ def model_metrics(model: MlpModel, info, split: Split, lookup: bool = True) -> d
     nf = noise_floors(split.holdout or split.train)
     if nf:
         out["noise_floor"] = nf
+    return out
+
+
+def restarts_holdout(record: dict[str, Any], models: list[MlpModel], tests) -> dict[str, Any]:
+    """The restart record with every restart's hold-out NRMSE added (run["holdout_nrmse"]) and its
+    spread: shown to the user after the fact, never used to choose (the selection saw only the
+    training levels)."""
+    out = {**record, "runs": [dict(r) for r in record["runs"]]}
+    for run, m in zip(out["runs"], models):
+        run["holdout_nrmse"] = round(evaluate_model(lambda t: predict_force(m, t), tests)["overall"]["nrmse"], 7)
+    h = [r["holdout_nrmse"] for r in out["runs"]]
+    out.update(holdout_nrmse_min=min(h), holdout_nrmse_max=max(h),
+               holdout_note="each restart's hold-out NRMSE, for information: the selection never saw the hold-out")
     return out
 
 

@@ -1,0 +1,390 @@
+"""Restarts: train N times from different seeds, keep the model that interpolates best between
+the control levels (issue 18, robust training).
+
+Why: a dyno campaign runs each test at one of a few control levels (voltages), so the network
+sees the control input at a handful of values and is free in between. Early stopping watches
+random samples, which all lie on those levels, so it cannot see a network that wiggles between
+them; the held-out level (2.25 V) then lands in a wiggle for some seeds. Measured on the
+5-frequency x 8-voltage plan (LM, 120 epochs, bench/experiments/restarts_seed_spread.py): held-out
+NRMSE 0.0054-0.117 over seeds 0-9 with the same validation error.
+
+What a restart run does (`train_restarts`, `train_dataset(..., restarts=N)`):
+ 1. Seeds: restart 0 uses `seed` itself (so its fit is exactly `restarts=1`'s), restart k the
+    seed `restart_seeds` derives from (seed, k) (numpy SeedSequence, below 2^31).
+ 2. Every restart is scored on the training levels only (never the hold-out tests), in
+    processes (`workers`, default the local cores, or this process for small problems, see
+    SMALL_RESTARTS; one torch thread each). Parallel and serial
+    runs give the same fits, scores and kept model (every fit runs with one thread).
+ 3. The restart with the lowest score is kept (the earliest on a tie); model.meta["restarts"]
+    records every restart's seed, score and per-gap or per-level scores, and which was kept.
+    The kept model is bit for bit `train_dataset(..., seed=its seed, restarts=1, threads=1)`.
+
+The scores (`restart_score`):
+  "interpolation" (default): each restart is the ordinary full fit, scored by how far it strays,
+      between adjacent training levels, from the smooth interpolation of its own predictions at
+      those levels: on the training samples' kinematics, the model is evaluated at every level
+      and at 1/4, 1/2 and 3/4 of every gap (the control-derived inputs, e.g. voltage_lag, set to
+      the same value), the monotone cubic (PCHIP) through its values at the levels is the
+      reference, and the score is the RMS difference at the gap points over the force range of
+      the training samples. It needs two training levels; it costs N fits.
+  "lolo": leave-one-level-out validation, the scheme issue 18 proposed: for each restart seed,
+      fits on the training levels with one interior level withheld (LOLO_LEVELS interior levels,
+      spread over them, never the lowest or highest: they cannot be interpolated), each scored by
+      its NRMSE on the withheld level, the mean ranking the seeds; then the best seed's full fit
+      is the model. It needs three training levels; it costs N x min(LOLO_LEVELS, interior) + 1
+      fits.
+
+Why "interpolation" is the default (measured on the 5 x 8 plan, 80 LM fits of 10 base seeds x 8
+restarts, and their leave-one-level-out fits; bench/RESULTS.md "Restarts"): a leave-one-level-out
+fit is a different network from the full fit of the same seed (LM follows the data to a different
+minimum), so its score says little about the model that is kept: Spearman 0.1-0.4 between a seed's
+LOLO score and its full fit's held-out NRMSE, whichever levels are withheld, and the kept models'
+spread stays 2-4x at 4-8 restarts. Keeping the LOLO fit itself instead throws a level of data
+away and is worse on the hold-out (2-7x). Warm-starting the full fit from the best LOLO fit loses
+what was scored (Spearman 0.1-0.5). The interpolation score judges the very model that is kept
+and correlates with its held-out error (Spearman 0.75 on the 5 x 8 plan, 0.91 on the quick plan,
+where no level is interior and LOLO cannot run at all), at a third of LOLO's cost.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing
+import os
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from typing import Any, Callable
+
+import numpy as np
+
+from dampnet.data import DataError
+
+#: restarts `dampnet train` runs unless --restarts says otherwise (bench/RESULTS.md "Restarts")
+DEFAULT_RESTARTS = 6
+#: how many interior levels the "lolo" score withholds, one per fit
+LOLO_LEVELS = 2
+SCORES = ("interpolation", "lolo")
+#: where in each gap between adjacent training levels the interpolation score looks
+GAP_FRACTIONS = (0.25, 0.5, 0.75)
+#: training samples (evenly spaced) whose kinematics the interpolation score uses
+SCORE_ROWS = 4000
+#: below this many training rows x weights, workers=None runs the restarts in this process: starting
+#: the worker processes (spawn, importing torch) costs ~3 s, more than such fits take (measured: the
+#: quick plan at 4272 rows x 151 weights, 6 restarts, 3.9 s in one process and 4.5 s in two; the
+#: demo's quick plan at 16359 rows, 15.5 s and 11.4 s)
+SMALL_RESTARTS = 1_000_000
+
+
+def check_restarts(restarts: Any, workers: Any = None, score: str = "interpolation") -> int:
+    """`restarts` as an int >= 1; ValueError naming the field otherwise (also for workers, score)."""
+    if isinstance(restarts, bool) or not isinstance(restarts, (int, np.integer)) or restarts < 1:
+        raise ValueError(f"restarts: expected a whole number >= 1 (1: train once), got {restarts!r}")
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, (int, np.integer))
+                                or workers < 1):
+        raise ValueError(f"workers: expected a whole number >= 1 or None (the local cores), got {workers!r}")
+    if score not in SCORES:
+        raise ValueError(f"restart_score: expected one of {', '.join(SCORES)}, got {score!r}")
+    return int(restarts)
+
+
+def restart_seeds(seed: int, n: int) -> list[int]:
+    """The seeds of n restarts: `seed` itself, then one derived from (seed, k) for each k >= 1."""
+    return [int(seed)] + [int(np.random.SeedSequence([int(seed) & 0xFFFFFFFF, k]).generate_state(1)[0] & 0x7FFFFFFF)
+                          for k in range(1, n)]
+
+
+def training_levels(prep) -> list[float]:
+    """The distinct nominal control levels of the training samples, ascending."""
+    lv = prep.level[np.isfinite(prep.level)]
+    return sorted({float(x) for x in np.unique(lv)})
+
+
+def lolo_levels(levels: list[float], k: int = LOLO_LEVELS) -> list[float]:
+    """Up to k interior levels (not the lowest or highest), spread evenly over the interior ones."""
+    interior = levels[1:-1]
+    if len(interior) <= k:
+        return list(interior)
+    idx = sorted({int(round(i)) for i in np.linspace(0, len(interior) - 1, k)})
+    return [interior[i] for i in idx]
+
+
+def auto_restarts(ds, holdout_voltage=None, holdout_tests=(), features=None,
+                  score: str = "interpolation") -> tuple[int, str | None]:
+    """(DEFAULT_RESTARTS, None) when `ds`'s training tests allow `score`, else (1, why not):
+    what `dampnet train` runs without --restarts."""
+    from dampnet.features import FEATURES, default_features
+
+    if not ds.tests:
+        return 1, "no tests"
+    control = ds.tests[0].control_name
+    feats = list(features) if features else default_features(ds)
+    held = set(holdout_tests or ())
+    levels = sorted({float(t.control_nominal) for t in ds.tests
+                     if t.control_nominal is not None and t.test_id not in held
+                     and not (holdout_voltage is not None and abs(t.control_nominal - holdout_voltage) <= 1e-6)})
+    if not any(f in FEATURES and FEATURES[f].channel == control for f in feats):
+        return 1, f"the control ({control}) is not a feature, so there are no levels to interpolate between"
+    need = 2 if score == "interpolation" else 3
+    if len(levels) < need:
+        return 1, (f"the training tests have {len(levels)} control level{'s' if len(levels) != 1 else ''} "
+                   f"({', '.join(f'{x:g}' for x in levels) or 'none'}); the {score} score needs {need}")
+    return DEFAULT_RESTARTS, None
+
+
+def _n_params(prep) -> int:
+    sizes = [prep.X.shape[1], *prep.fit_kwargs["hidden"], 1]
+    return sum((a + 1) * b for a, b in zip(sizes[:-1], sizes[1:]))
+
+
+def default_workers(n_jobs: int) -> int:
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        cores = os.cpu_count() or 1
+    return max(1, min(cores, n_jobs))
+
+
+# -- the interpolation score ------------------------------------------------------------------
+
+def _control_columns(prep) -> list[int]:
+    from dampnet.features import FEATURES
+
+    return [j for j, f in enumerate(prep.features) if f in FEATURES and FEATURES[f].channel == prep.control_name]
+
+
+def interpolation_score(model, prep, levels: list[float] | None = None) -> dict[str, Any]:
+    """How far `model` strays between adjacent training levels from the monotone cubic through its
+    own predictions at the levels: {"score": RMS over every gap point / force range, "gaps":
+    {"a-b": the same per gap}} (see the module docstring)."""
+    from scipy.interpolate import PchipInterpolator
+
+    levels = training_levels(prep) if levels is None else levels
+    cols = _control_columns(prep)
+    if len(levels) < 2 or not cols:
+        raise DataError("restarts: the interpolation score needs the control as a feature and at least two "
+                        f"training control levels; the training tests have {len(levels)}")
+    n = len(prep.X)
+    rows = np.unique(np.linspace(0, n - 1, min(n, SCORE_ROWS)).round().astype(int))
+    K = prep.X[rows].copy()
+
+    def at(u: float) -> np.ndarray:
+        K[:, cols] = u
+        return np.asarray(model.predict(K), dtype=np.float64)
+
+    F = np.array([at(u) for u in levels])
+    span = float(np.ptp(prep.force)) or 1.0
+    gaps, sq = {}, []
+    for a, b in zip(levels[:-1], levels[1:]):
+        pts = [a + (b - a) * f for f in GAP_FRACTIONS]
+        ref = PchipInterpolator(levels, F, axis=0)(pts)
+        d = np.array([at(u) for u in pts]) - ref
+        sq.append(np.mean(d * d))
+        gaps[f"{a:g}-{b:g}"] = float(np.sqrt(np.mean(d * d)) / span)
+    return {"score": float(np.sqrt(np.mean(sq)) / span), "gaps": gaps}
+
+
+# -- the jobs (run in worker processes or in-process) ---------------------------------------------
+
+_PREP = None
+
+
+def _init_worker(prep, extra_features) -> None:
+    import torch
+
+    from dampnet.features import FEATURES, register_feature
+
+    torch.set_num_threads(1)
+    for name, (unit, source, at_rest, param) in extra_features.items():
+        if name not in FEATURES:
+            register_feature(name, unit, source, at_rest, param)
+    global _PREP
+    _PREP = prep
+
+
+def _job(kind: str, seed: int, level: float | None) -> dict[str, Any]:
+    """One fit of the restart run: ("full", seed) -> the model and its interpolation score;
+    ("lolo", seed, level) -> the NRMSE on the withheld level of a fit without it."""
+    from dampnet.training.metrics import nrmse
+    from dampnet.training.pipeline import fit_prepared
+
+    prep = _PREP
+    t0 = time.perf_counter()
+    if kind == "full":
+        model, info = fit_prepared(prep, seed, threads=1)
+        sc = interpolation_score(model, prep)
+        return {"model": model, "info": info, "score": sc["score"], "scores": sc["gaps"],
+                "time_s": time.perf_counter() - t0}
+    held = np.isclose(prep.level, level, rtol=0.0, atol=1e-6)
+    model, info = fit_prepared(prep, seed, rows=~held, threads=1)
+    from dampnet.predict import predict_force
+
+    pred = predict_force(model, prep.X[held], None if prep.xd is None else prep.xd[held])
+    return {"score": nrmse(pred, prep.force[held]), "time_s": time.perf_counter() - t0,
+            "epochs": info.epochs}
+
+
+def _extra_features(prep) -> dict[str, tuple]:
+    """Features registered at run time (dampnet.features.register_feature): a spawned worker
+    re-registers them."""
+    from dampnet import _core
+    from dampnet.features import FEATURES
+
+    out = {}
+    for f in prep.features:
+        if f not in _core.FEATURE_NAMES and f in FEATURES:
+            ft = FEATURES[f]
+            out[f] = (ft.unit, ft.source, ft.at_rest, ft.param)
+    return out
+
+
+@contextlib.contextmanager
+def _importable_main():
+    """A spawned worker re-runs the parent's __main__ file; when that is no file (a script read
+    from stdin, a notebook cell), hide its name while the workers start, so they skip it."""
+    main = sys.modules.get("__main__")
+    path = getattr(main, "__file__", None)
+    hide = path is not None and not os.path.isfile(path)
+    if hide:
+        del main.__file__
+    try:
+        yield
+    finally:
+        if hide:
+            main.__file__ = path
+
+
+def _run(prep, jobs: list[tuple], workers: int, done: Callable[[int, dict], None]) -> list[dict]:
+    """Run `jobs` (argument tuples of _job), in-process when workers == 1; results in job order."""
+    results: list[dict | None] = [None] * len(jobs)
+    lean = prep.lean()
+    if workers <= 1:
+        global _PREP
+        old = _PREP
+        _PREP = lean
+        try:
+            for i, job in enumerate(jobs):
+                results[i] = _job(*job)
+                done(i, results[i])
+        finally:
+            _PREP = old
+        return results  # type: ignore[return-value]
+    ctx = multiprocessing.get_context("spawn")  # no fork of a process with torch's threads running
+    with _importable_main(), ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker,
+                             initargs=(lean, _extra_features(prep))) as ex:
+        futures = {ex.submit(_job, *job): i for i, job in enumerate(jobs)}
+        try:
+            for fut in as_completed(futures):
+                i = futures[fut]
+                results[i] = fut.result()
+                done(i, results[i])
+        except BaseException:
+            for fut in futures:
+                fut.cancel()
+            raise
+    return results  # type: ignore[return-value]
+
+
+# -- the run --------------------------------------------------------------------------------------
+
+def train_restarts(prep, restarts: int, seed: int = 0, *, workers: int | None = None,
+                   score: str = "interpolation",
+                   progress: Callable[[dict], Any] | None = None):
+    """(model, info) of the best of `restarts` fits of the prepared samples (module docstring).
+
+    `progress(record)` after every finished fit: {"done", "total", "restart", "seed", "score"
+    (or the LOLO "level")}. DataError when the training tests have too few control levels for
+    the score (interpolation: two; lolo: three, one of them interior).
+    """
+    from dampnet.training.pipeline import fit_prepared
+
+    restarts = check_restarts(restarts, workers, score)
+    levels = training_levels(prep)
+    seeds = restart_seeds(seed, restarts)
+    t0 = time.perf_counter()
+    if score == "interpolation":
+        if len(levels) < 2 or not _control_columns(prep):
+            raise DataError(f"restarts: scoring needs the control ({prep.control_name}) as a feature and at least "
+                            f"two training control levels to interpolate between; the training tests have "
+                            f"{len(levels)} ({', '.join(f'{x:g}' for x in levels) or 'none'}): use restarts=1")
+        jobs = [("full", s, None) for s in seeds]
+    else:
+        withheld = lolo_levels(levels)
+        if not withheld:
+            raise DataError(f"restarts: leave-one-level-out needs an interior training control level (not the "
+                            f"lowest or highest) to withhold; the training tests have {len(levels)} "
+                            f"({', '.join(f'{x:g}' for x in levels) or 'none'}): use restart_score "
+                            "'interpolation' or restarts=1")
+        jobs = [("lolo", s, lv) for s in seeds for lv in withheld]
+    total = len(jobs) + (1 if score == "lolo" else 0)
+    if workers is None:
+        n_workers = 1 if len(prep.X) * _n_params(prep) < SMALL_RESTARTS else default_workers(len(jobs))
+    else:
+        n_workers = min(int(workers), len(jobs))
+    # data errors (a feature or force beyond MAX_TRAINING_MAGNITUDE) before any worker starts
+    from dampnet.training.pipeline import _check_magnitudes
+
+    _check_magnitudes(prep.X, prep.force if not prep.terms else np.zeros(0), prep.features)
+    count = [0]
+
+    def done(i: int, res: dict) -> None:
+        count[0] += 1
+        if progress is not None:
+            kind, s, lv = jobs[i]
+            rec = {"done": count[0], "total": total, "restart": seeds.index(s), "seed": s, "score": res["score"]}
+            if lv is not None:
+                rec["level"] = lv
+            progress(rec)
+
+    results = _run(prep, jobs, n_workers, done)
+    runs = []
+    if score == "interpolation":
+        for k, (s, res) in enumerate(zip(seeds, results)):
+            runs.append({"restart": k, "seed": s, "score": round(res["score"], 7),
+                         "gaps": {g: round(v, 7) for g, v in res["scores"].items()},
+                         "val_nrmse": round(res["info"].metrics.get("val", float("nan")), 7),
+                         "epochs": res["info"].epochs, "time_s": round(res["time_s"], 3)})
+        best = min(range(restarts), key=lambda k: (runs[k]["score"], k))
+        model, info = results[best]["model"], results[best]["info"]
+        info.restart_models = [res["model"] for res in results]
+    else:
+        per = len(withheld)
+        for k, s in enumerate(seeds):
+            chunk = results[k * per:(k + 1) * per]
+            lv_scores = {f"{lv:g}": round(r["score"], 7) for lv, r in zip(withheld, chunk)}
+            runs.append({"restart": k, "seed": s, "score": round(float(np.mean([r["score"] for r in chunk])), 7),
+                         "levels": lv_scores, "time_s": round(sum(r["time_s"] for r in chunk), 3)})
+        best = min(range(restarts), key=lambda k: (runs[k]["score"], k))
+        t1 = time.perf_counter()
+        model, info = fit_prepared(prep, seeds[best], threads=1)  # in this process, serial or not
+        runs[best]["final_fit_time_s"] = round(time.perf_counter() - t1, 3)
+        if progress is not None:
+            progress({"done": total, "total": total, "restart": best, "seed": seeds[best], "final": True})
+    for k, r in enumerate(runs):
+        r["kept"] = k == best
+    scores = [r["score"] for r in runs]
+    model.meta["restarts"] = {
+        "n": restarts, "score": score, "seed": int(seed), "kept": best, "kept_seed": seeds[best],
+        "levels": levels, **({"withheld_levels": withheld} if score == "lolo" else {}),
+        "score_min": min(scores), "score_max": max(scores),
+        "workers": n_workers, "time_s": round(time.perf_counter() - t0, 3), "runs": runs,
+    }
+    return model, info
+
+
+def summary_line(meta: dict[str, Any]) -> str:
+    """Lines for the CLI: how many restarts, their score range, which was kept, and (when the
+    record has it, dampnet.training.pipeline.restarts_holdout) the hold-out NRMSE's spread."""
+    r = meta
+    what = "interpolation between levels" if r["score"] == "interpolation" else "leave-one-level-out NRMSE"
+    line = (f"restarts: {r['n']} ({what}: {r['score_min']:.4f} to {r['score_max']:.4f}), kept restart "
+            f"{r['kept']} (seed {r['kept_seed']}, score {r['runs'][r['kept']]['score']:.4f}), "
+            f"{r['workers']} worker{'s' if r['workers'] != 1 else ''}, {r['time_s']:.1f} s")
+    if "holdout_nrmse_min" in r:
+        line += (f"\n  hold-out NRMSE over the restarts {r['holdout_nrmse_min']:.4f} to {r['holdout_nrmse_max']:.4f}, "
+                 f"kept {r['runs'][r['kept']]['holdout_nrmse']:.4f} (shown after the fact; the choice never saw it)")
+    if len(r.get("levels", [])) == 2:
+        line += (f"\n  note: only two training control levels ({r['levels'][0]:g}, {r['levels'][1]:g}): between "
+                 "them the data do not determine the model, and the restarts keep the one closest to a straight "
+                 "line; test intermediate levels to know it")
+    return line

@@ -1,0 +1,175 @@
+"""Issue 18, robust training: `dampnet train --restarts N` / train_dataset(restarts=N).
+
+The selection keeps the restart that interpolates the held-out level well on a case that fails
+today; model.json records every restart; restarts=1 is the training as it was; the kept model is
+the plain fit of its seed; parallel and serial runs keep the same model; bad values are one-line
+errors. Heavy measurements (seeds 0-9, several plans): bench/experiments/restarts_seed_spread.py.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from dampnet.cli import main
+from dampnet.data import DataError, write_dataset
+from dampnet.evaluation.metrics import evaluate_predictions
+from dampnet.features import feature_matrix
+from dampnet.model import MlpModel
+from dampnet.predict import predict_force
+from dampnet.rig import generate
+from dampnet.training import fit
+from dampnet.training.pipeline import train_dataset
+from dampnet.training.restarts import restart_seeds
+
+# The 5-frequency x 8-voltage plan of issue 18 (tests/python/test_diagnose_hidden.py's), with
+# the issue's training settings: seed 3 fits the training levels as well as any seed but puts
+# 2.25 V in a wiggle between 1.5 and 3 V (held-out NRMSE 0.117 against 0.005-0.03).
+SPARSE_PLAN = {"name": "sparse-5x8", "frequencies_hz": [0.25, 0.5, 1.0, 2.0, 3.0], "amplitudes_m": [0.0254],
+               "voltages_v": [0.0, 0.5, 1.0, 1.5, 2.25, 3.0, 4.0, 5.0], "sample_rate_hz": 1000.0,
+               "samples": 2000, "min_cycles": 2}
+SPARSE_TRAIN = {"decimate": 4, "max_epochs": 120}
+# Small and quick for the bookkeeping tests: 3 voltages, 2 of them for training.
+TINY = {"decimate": 50, "max_epochs": 40}
+
+
+def _holdout(model, split) -> float:
+    tests = split.holdout.tests
+    return evaluate_predictions(tests, [predict_force(model, t) for t in tests])["overall"]["nrmse"]
+
+
+@pytest.fixture(scope="module")
+def quick():
+    return generate("quick", seed=0)
+
+
+@pytest.fixture(scope="module")
+def quick_dir(quick, tmp_path_factory):
+    d = tmp_path_factory.mktemp("data") / "quick"
+    write_dataset(quick, d)
+    return d
+
+
+def test_selection_keeps_the_restart_that_interpolates_the_held_out_level():
+    """Seed 3 fails today on the sparse plan; with 2 restarts the second (a good interpolator)
+    is kept, found from the training levels alone, and its held-out error is a fraction."""
+    ds = generate(SPARSE_PLAN, seed=1)
+    today, _, split = train_dataset(ds, seed=3, **SPARSE_TRAIN)
+    bad = _holdout(today, split)
+    assert bad > 0.05  # the failure this case is built on (measured 0.117)
+    kept, _, split2 = train_dataset(ds, seed=3, restarts=2, workers=2, **SPARSE_TRAIN)
+    r = kept.meta["restarts"]
+    assert r["kept"] == 1 and r["kept_seed"] == restart_seeds(3, 2)[1]
+    good = _holdout(kept, split2)
+    assert good < 0.3 * bad and good < 0.03  # measured 0.013
+    # the score saw the wiggle: restart 0 strays several times more between levels, most in 1.5-3 V
+    s0, s1 = r["runs"][0], r["runs"][1]
+    assert s0["score"] > 3 * s1["score"]
+    assert max(s0["gaps"], key=s0["gaps"].get) == "1.5-3"
+    assert split2.holdout_ids == split.holdout_ids  # the hold-out never entered the selection
+
+
+def test_model_json_records_every_restart(quick_dir, tmp_path):
+    out = tmp_path / "m"
+    rc = main(["train", str(quick_dir), "--out", str(out), "--quiet", "--seed", "7", "--restarts", "3",
+               "--decimate", "50", "--max-epochs", "40"])
+    assert rc == 0
+    model = MlpModel.load(out)
+    r = model.meta["restarts"]
+    assert r["n"] == 3 and r["seed"] == 7 and r["score"] == "interpolation"
+    assert [x["seed"] for x in r["runs"]] == restart_seeds(7, 3) and r["runs"][0]["seed"] == 7
+    assert len(set(x["seed"] for x in r["runs"])) == 3
+    assert [x["restart"] for x in r["runs"]] == [0, 1, 2]
+    scores = [x["score"] for x in r["runs"]]
+    assert all(np.isfinite(scores)) and all(s > 0 for s in scores)
+    assert [x["kept"] for x in r["runs"]].count(True) == 1
+    assert r["runs"][r["kept"]]["kept"] and r["kept"] == int(np.argmin(scores))
+    assert r["kept_seed"] == r["runs"][r["kept"]]["seed"] == model.meta["seed"]
+    assert r["levels"] == [0.0, 5.0] and list(r["runs"][0]["gaps"]) == ["0-5"]
+    assert r["score_min"] == min(scores) and r["score_max"] == max(scores)
+    metrics = json.loads((out / "metrics.json").read_text())
+    mr = metrics["training"]["restarts"]
+    # metrics.json adds each restart's hold-out NRMSE (for the user, after the fact): the kept
+    # restart's is the model's own hold-out figure
+    assert {k: v for k, v in mr.items() if not k.startswith("holdout")} == {**r, "runs": mr["runs"]}
+    assert [{k: v for k, v in x.items() if k != "holdout_nrmse"} for x in mr["runs"]] == r["runs"]
+    kept_h = mr["runs"][r["kept"]]["holdout_nrmse"]
+    assert kept_h == pytest.approx(metrics["holdout"]["overall"]["nrmse"], abs=1e-7)
+    hs = [x["holdout_nrmse"] for x in mr["runs"]]
+    assert mr["holdout_nrmse_min"] == min(hs) and mr["holdout_nrmse_max"] == max(hs) and len(set(hs)) == 3
+
+
+def test_restarts_1_is_the_training_as_it_was(quick):
+    """restarts=1 is the plain fit: no restart record, and the same weights as fit() on the
+    samples the pipeline's docstring describes (hold-out removed, features decimated by 50)."""
+    model, info, split = train_dataset(quick, seed=2, restarts=1, **TINY)
+    assert "restarts" not in model.meta
+    train = [t for t in quick.tests if abs(t.control_nominal - 2.25) > 1e-9]
+    X = np.concatenate([feature_matrix([t], model.features, None, 0.02)[::50] for t in train])
+    y = np.concatenate([t.channels["force"][::50] for t in train])
+    ref, _ = fit(X, y, features=model.features, seed=2, max_epochs=40)
+    for name in ("w1", "b1", "w_out", "in_offset", "in_gain", "sat_lo", "sat_hi"):
+        np.testing.assert_array_equal(getattr(model, name), getattr(ref, name), err_msg=name)
+    assert model.b_out == ref.b_out and model.out_gain == ref.out_gain
+    default, _, _ = train_dataset(quick, seed=2, **TINY)  # the default is restarts=1
+    assert default.model_id() == model.model_id()
+
+
+def test_parallel_and_serial_restarts_keep_the_same_model(quick):
+    par, _, _ = train_dataset(quick, seed=5, restarts=3, workers=2, **TINY)
+    ser, _, _ = train_dataset(quick, seed=5, restarts=3, workers=1, **TINY)
+    assert par.meta["restarts"]["workers"] == 2 and ser.meta["restarts"]["workers"] == 1
+    assert par.model_id() == ser.model_id()
+    strip = ("time_s",)
+    runs = [[{k: v for k, v in x.items() if k not in strip} for x in m.meta["restarts"]["runs"]] for m in (par, ser)]
+    assert runs[0] == runs[1]
+    # the kept model is the plain fit of its seed (one thread), bit for bit
+    plain, _, _ = train_dataset(quick, seed=par.meta["restarts"]["kept_seed"], threads=1, **TINY)
+    assert plain.model_id() == par.model_id()
+
+
+def test_leave_one_level_out_score_records_levels_and_needs_an_interior_level(quick):
+    plan = {"name": "four", "frequencies_hz": [1.0, 3.0], "amplitudes_m": [0.0254],
+            "voltages_v": [0.0, 1.5, 2.25, 3.0, 5.0], "samples": 2500}
+    ds = generate(plan, seed=0)
+    model, _, _ = train_dataset(ds, seed=0, restarts=2, workers=1, restart_score="lolo", **TINY)
+    r = model.meta["restarts"]
+    assert r["score"] == "lolo" and r["withheld_levels"] == [1.5, 3.0]
+    for run in r["runs"]:
+        assert set(run["levels"]) == {"1.5", "3"}
+        assert run["score"] == pytest.approx(np.mean(list(run["levels"].values())), rel=1e-5)
+    assert r["kept"] == int(np.argmin([x["score"] for x in r["runs"]]))
+    plain, _, _ = train_dataset(ds, seed=r["kept_seed"], threads=1, **TINY)
+    assert plain.model_id() == model.model_id()
+    with pytest.raises(DataError, match="interior training control level"):
+        train_dataset(quick, restarts=2, workers=1, restart_score="lolo", **TINY)
+
+
+@pytest.mark.parametrize("bad", [0, -1, True, 1.5, "3", None])
+def test_bad_restarts_value_is_a_clear_error(quick, bad):
+    with pytest.raises(ValueError, match=r"restarts: expected a whole number >= 1"):
+        train_dataset(quick, restarts=bad, **TINY)
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--restarts", "0"], "--restarts: expected a whole number >= 1 or auto, got '0'"),
+    (["--restarts", "-2"], "--restarts: expected a whole number >= 1 or auto, got '-2'"),
+    (["--restarts", "two"], "--restarts: expected a whole number >= 1 or auto, got 'two'"),
+    (["--workers", "0"], "--workers: expected a whole number >= 1, got '0'"),
+])
+def test_bad_restarts_option_is_one_line_and_exit_2(quick_dir, tmp_path, capsys, argv, message):
+    rc = main(["train", str(quick_dir), "--out", str(tmp_path / "m"), "--quiet", *argv])
+    err = capsys.readouterr().err
+    assert rc == 2 and err == f"dampnet: error: {message}\n"
+    assert not (tmp_path / "m").exists()
+
+
+def test_auto_trains_once_when_there_is_nothing_to_interpolate(quick_dir, tmp_path, capsys):
+    """--restarts auto (the default) on data with one training level trains once and says why."""
+    rc = main(["train", str(quick_dir), "--out", str(tmp_path / "m"), "--holdout-tests", "T001,T004,T007",
+               "--holdout-voltage", "5", "--decimate", "50", "--max-epochs", "20"])
+    out = capsys.readouterr().out
+    assert rc == 0 and "restarts: 1 (the training tests have 1 control level (2.25)" in out
+    assert "restarts" not in MlpModel.load(tmp_path / "m").meta
