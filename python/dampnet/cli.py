@@ -15,7 +15,7 @@ import sys
 
 # Module names under dampnet.commands, in the order `dampnet --help` lists them.
 COMMANDS = ["demo", "rig", "train", "evaluate", "compare_algorithms", "diagnose", "compare", "export",
-            "simulate", "study", "vehicle", "sweep", "iri", "bench", "info"]
+            "simulate", "study", "vehicle", "plan_tests", "sweep", "iri", "bench", "info"]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -18,6 +18,12 @@ Other plans: a JSON file, e.g.
   {"name": "mine", "frequencies_hz": [0.5, 2], "amplitudes_m": [0.0254, 0.0127],
    "voltages_v": [0, 2.5, 5], "sample_rate_hz": 5000, "samples": 10000, "min_cycles": 2,
    "excitation": "sine", "control": {"waveform": "constant"}}
+Or an explicit list of sines (what `dampnet plan-tests` writes), instead of the grid:
+  {"name": "extra", "tests": [{"frequency_hz": 15, "amplitude_m": 0.02, "control": 5.0}, ...],
+   "min_cycles": 3, "samples": 2500}
+each test a sine of `frequency_hz` [Hz] and `amplitude_m` [m] at the constant control level
+`control` [V] (optional `test_id`, default T001...); `about` (any JSON object) is kept in the
+dataset's meta and not used.
 excitation: "sine" (every frequency x amplitude x voltage) or "random"
 (band-limited random displacement, `amplitudes_m` = RMS, `band_hz` = [lo, hi],
 `duration_s`; frequency_hz is recorded as 0). control.waveform: "constant"
@@ -41,9 +47,9 @@ class Plan:
     """A test plan (SI units)."""
 
     name: str
-    frequencies_hz: list[float]
-    amplitudes_m: list[float]
-    voltages_v: list[float]
+    frequencies_hz: list[float] = field(default_factory=list)
+    amplitudes_m: list[float] = field(default_factory=list)
+    voltages_v: list[float] = field(default_factory=list)
     sample_rate_hz: float = 5000.0
     samples: int = 10000
     min_cycles: float = 2.0
@@ -51,8 +57,24 @@ class Plan:
     band_hz: list[float] = field(default_factory=lambda: [0.5, 5.0])
     duration_s: float = 4.0
     control: dict = field(default_factory=lambda: {"waveform": "constant"})
+    #: explicit sines [{frequency_hz, amplitude_m, control, test_id?}] instead of the grid (None: the grid)
+    tests: list[dict] | None = None
+    #: free description (what planned the tests), kept in the dataset's meta
+    about: dict = field(default_factory=dict)
 
     def __post_init__(self):
+        if self.tests is not None:
+            self.tests = _check_tests(self.name, self.tests)
+            if self.excitation != "sine":
+                raise ValueError(f"plan {self.name}: tests: explicit tests are sines; excitation must be 'sine'")
+            if not self.voltages_v:   # the control levels (what the effects step among)
+                self.voltages_v = sorted({t["control"] for t in self.tests})
+            if not self.amplitudes_m:
+                self.amplitudes_m = sorted({t["amplitude_m"] for t in self.tests})
+            if not self.frequencies_hz:
+                self.frequencies_hz = sorted({t["frequency_hz"] for t in self.tests})
+        if not isinstance(self.about, dict):
+            raise ValueError(f"plan {self.name}: about: expected a JSON object")
         if self.excitation not in ("sine", "random"):
             raise ValueError(f"plan {self.name}: excitation: expected 'sine' or 'random', got {self.excitation!r}")
         if self.control.get("waveform", "constant") not in ("constant", "steps"):
@@ -73,6 +95,14 @@ class Plan:
     def specs(self) -> list[dict]:
         """One dict per test: test_id, frequency_hz, amplitude_m, voltage_v, n."""
         out = []
+        if self.tests is not None:
+            for t in self.tests:
+                out.append({"frequency_hz": t["frequency_hz"], "amplitude_m": t["amplitude_m"],
+                            "voltage_v": t["control"], "n": self.n_samples(t["frequency_hz"])})
+            width = max(3, len(str(len(out))))
+            for i, (s, t) in enumerate(zip(out, self.tests), start=1):
+                s["test_id"] = t.get("test_id") or f"T{i:0{width}d}"
+            return out
         freqs = self.frequencies_hz if self.excitation == "sine" else [None]
         for f in freqs:
             for a in self.amplitudes_m:
@@ -86,6 +116,45 @@ class Plan:
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+
+TEST_KEYS = ("frequency_hz", "amplitude_m", "control", "test_id")
+
+
+def _check_tests(name: str, tests) -> list[dict]:
+    """Explicit tests, checked: a list of {frequency_hz > 0, amplitude_m > 0, control, test_id?};
+    ValueError naming the test and the field."""
+    if not isinstance(tests, list) or not tests:
+        raise ValueError(f"plan {name}: tests: expected a non-empty list of "
+                         "{frequency_hz, amplitude_m, control} objects")
+    out, ids = [], set()
+    for i, t in enumerate(tests):
+        where = f"plan {name}: tests[{i}]"
+        if not isinstance(t, dict):
+            raise ValueError(f"{where}: expected an object {{frequency_hz, amplitude_m, control}}, got {t!r:.60}")
+        unknown = sorted(set(t) - set(TEST_KEYS))
+        if unknown:
+            raise ValueError(f"{where}: unknown key(s) {unknown}: expected {', '.join(TEST_KEYS)}")
+        row = {}
+        for k in ("frequency_hz", "amplitude_m", "control"):
+            if k not in t:
+                raise ValueError(f"{where}.{k}: missing (expected {', '.join(TEST_KEYS[:3])})")
+            v = t[k]
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ValueError(f"{where}.{k}: expected a finite number, got {v!r:.60}")
+            if k != "control" and v <= 0:
+                raise ValueError(f"{where}.{k}: expected a positive number, got {v!r}")
+            row[k] = float(v)
+        if "test_id" in t:
+            tid = t["test_id"]
+            if not isinstance(tid, str) or not tid or not all(c.isalnum() or c in "-_" for c in tid):
+                raise ValueError(f"{where}.test_id: expected letters, digits, '-' or '_', got {tid!r:.60}")
+            if tid in ids:
+                raise ValueError(f"{where}.test_id: {tid!r} appears twice")
+            ids.add(tid)
+            row["test_id"] = tid
+        out.append(row)
+    return out
 
 
 def thesis_plan() -> Plan:
