@@ -25,14 +25,14 @@ CONFIGS = {"quick": ("quick", 0, {}), "sparse": (SPARSE_PLAN, 1, {"decimate": 4,
 def collect(name: str, n: int) -> list[dict]:
     from dampnet.rig import generate
     from dampnet.training import restarts as R
-    from dampnet.training.pipeline import prepare_training
+    from dampnet.training.pipeline import fit_prepared, prepare_training
 
     plan, data_seed, kw = CONFIGS[name]
     prep = prepare_training(generate(plan, seed=data_seed), **kw)
     rows = []
     for base in range(10):
         seeds = R.restart_seeds(base, n)
-        res = R._run(prep, [("full", s, None) for s in seeds], 2, lambda i, r: None)
+        res = R._run(prep, fit_prepared, [("full", s, None) for s in seeds], 2, lambda i, r: None)
         rows.append({"base": base, "seeds": seeds, "hold": [holdout_nrmse(r["model"], prep.split) for r in res],
                      "score": [r["score"] for r in res], "val": [r["info"].metrics.get("val") for r in res],
                      "train": [r["info"].metrics.get("train") for r in res]})

@@ -51,9 +51,11 @@ def plot_coverage(model, runs: Mapping[str, np.ndarray], path, envelope=None, ti
                   max_points: int = 20000) -> None:
     """runs: label -> the run's inputs [n, n_inputs] (feature units, dampnet.coverage's
     quarter_car_inputs / fullcar_inputs); at most max_points steps of each are drawn."""
-    from dampnet.sim.plots import _pyplot
+    import matplotlib
 
-    plt = _pyplot()
+    matplotlib.use("Agg")  # files only, no display (as dampnet.sim.plots; not imported: it imports this)
+    import matplotlib.pyplot as plt
+
     pairs = _pair_axes(model)
     fig, axes = plt.subplots(1, len(pairs), figsize=(5.5 * len(pairs), 4.6), squeeze=False)
     cloud = None

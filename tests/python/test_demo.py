@@ -36,6 +36,9 @@ def test_demo_tells_the_whole_story(demo_out):
     assert summary["diagnosis"]["named_hidden_effect"], summary["diagnosis"]
     assert summary["diagnosis"]["hidden_effect"] not in summary["diagnosis"]["significant_after"]
     assert summary["error_fell"] and summary["holdout_nrmse"]["improved"] < summary["holdout_nrmse"]["original"]
+    hv = summary["holdout_nrmse"]["improved_vs_noise_floor"]
+    assert hv["ratio"] > 1.0 and len(hv["per_frequency"]) == 4
+    assert f"held-out RMSE is <b>{hv['ratio']:.1f}×</b> the noise's RMS" in (out / "report.html").read_text()
     assert summary["c_program"]["match"] and summary["c_program"]["samples"] > 1000
     stages = ("rig", "train", "diagnose", "improve", "export", "fmu", "study", "vehicle", "latency")
     assert list(summary["stage_times_s"]) == list(stages)

@@ -38,7 +38,8 @@ def trained(small_dir, tmp_path_factory):
 
 
 def test_model_dir_holds_model_metrics_and_header(trained):
-    assert sorted(p.name for p in trained.iterdir()) == ["metrics.json", "model.h", "model.json"]
+    assert sorted(p.name for p in trained.iterdir()) == ["envelope.json", "envelope.npz", "metrics.json", "model.h",
+                                                         "model.json"]
     model = MlpModel.load(trained)
     assert model.features == ["velocity", "acceleration", "voltage"]
     assert model.hidden == (30,) and model.activation == "tanh"
@@ -55,6 +56,13 @@ def test_model_dir_holds_model_metrics_and_header(trained):
         assert key in metrics["holdout"]["overall"] and key in metrics["holdout_lookup"]["overall"]
     assert [r["frequency_hz"] for r in metrics["holdout"]["per_frequency"]] == [0.5, 1.5, 3.0]
     assert metrics["noise_floor"]["nrmse_range"] < metrics["noise_floor"]["nrmse_std"]
+    # the hold-out error against the noise floor: RMSE over the noise's RMS, overall and per frequency
+    hv, nf = metrics["noise_floor"]["holdout_vs_floor"], metrics["noise_floor"]
+    assert hv["ratio"] == pytest.approx(metrics["holdout"]["overall"]["rmse_n"] / nf["rmse_n"], rel=1e-12)
+    assert hv["ratio"] > 1.0  # the measured force carries the noise, so no model is below it
+    for r, row in zip(hv["per_frequency"], metrics["holdout"]["per_frequency"]):
+        assert r["frequency_hz"] == row["frequency_hz"]
+        assert r["ratio"] == pytest.approx(row["nrmse"] / r["floor_nrmse"], rel=1e-9)
 
 
 def test_model_json_round_trips(trained):

@@ -103,7 +103,8 @@ def test_info_and_version(wheel, work):
 
 def test_rig_and_train(dataset, model):
     assert (dataset / "manifest.csv").is_file() and len(list(dataset.glob("*.csv"))) == 7
-    assert sorted(p.name for p in model.iterdir()) == ["metrics.json", "model.h", "model.json"]
+    assert sorted(p.name for p in model.iterdir()) == ["envelope.json", "envelope.npz", "metrics.json", "model.h",
+                                                       "model.json"]
 
 
 def test_evaluate(wheel, work, model, dataset):

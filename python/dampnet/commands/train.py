@@ -121,28 +121,22 @@ def restart_options(args, ds, kw) -> tuple[int, int | None, str | None]:
     return whole(args.restarts, "restarts"), workers, None
 
 
-class RestartProgress:
+class RestartProgress(Progress):
     """A tqdm bar over the restarts' fits (each runs whole in a worker process)."""
 
     def __init__(self, enabled: bool):
-        self.bar = None
-        self.enabled = enabled and sys.stderr.isatty()
+        super().__init__(0, "train restarts", enabled)
 
     def __call__(self, rec: dict):
         if self.enabled and self.bar is None:
             from tqdm import tqdm
 
-            self.bar = tqdm(total=rec["total"], desc="train restarts", unit="fit", file=sys.stderr, leave=False)
+            self.bar = tqdm(total=rec["total"], desc=self.desc, unit="fit", file=sys.stderr, leave=False)
         if self.bar is not None:
             if "score" in rec:
                 self.bar.set_postfix({"restart": rec["restart"], "score": f"{rec['score']:.4f}"}, refresh=False)
             self.bar.update(1)
         return None
-
-    def close(self):
-        if self.bar is not None:
-            self.bar.close()
-            self.bar = None
 
 
 def print_summary(model, info, split, metrics, out, t_train) -> None:
@@ -167,3 +161,8 @@ def print_summary(model, info, split, metrics, out, t_train) -> None:
         print(summary_line(metrics["training"]["restarts"]))
     if "noise_floor" in metrics:
         print(f"noise floor of these data (rig sensor noise): NRMSE {metrics['noise_floor']['nrmse_range']:.4f}")
+        hv = metrics["noise_floor"].get("holdout_vs_floor")
+        if hv:
+            print(f"hold-out error {hv['ratio']:.1f}x the noise floor (per frequency: "
+                  + ", ".join(f"{r['frequency_hz']:g} Hz {r['ratio']:.1f}x" for r in hv["per_frequency"]
+                              if r["frequency_hz"] is not None) + ")")

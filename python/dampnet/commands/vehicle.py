@@ -10,7 +10,6 @@ RUN_SCHEMA = "dampnet.vehicle/1"
 #: the files of a run (metrics.json is its marker: a JSON object with "schema": RUN_SCHEMA)
 RUN_FILES = ("run.npz", "metrics.json", "vehicle.png", "coverage.png")
 TESTS = ("bsst", "dlc", "road")
-DEFAULT_SPEED_KMH = {"dlc": 120.0, "road": 60.0}
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -42,6 +41,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 def _maneuver(args):
     from dampnet.fullcar import maneuvers
+    from dampnet.fullcar.runs import DEFAULT_SPEED_KMH
     from dampnet.sim.roads import RoadError
 
     if args.speed is not None and args.test == "bsst":

@@ -187,6 +187,13 @@ def write(work: Path, summary: dict, m0: dict, m1: dict, d0: dict, d1: dict, stu
                          ["noise floor of the data", hn.get("noise_floor"), None, None, None]]))
     parts.append(f"<p>NRMSE fell by <b>{summary['error_fall_pct']:.0f} %</b>. Diagnosis of the improved "
                  f"model: significant effects now {', '.join(dg['significant_after']) or 'none'}.</p>")
+    hv = m1.get("noise_floor", {}).get("holdout_vs_floor")
+    if hv:
+        parts.append("<p>Against the noise floor (the rig's sensor noise, which the measured force carries): the "
+                     f"improved model's held-out RMSE is <b>{hv['ratio']:.1f}×</b> the noise's RMS; per frequency "
+                     + ", ".join(f"{r['frequency_hz']:g} Hz {r['ratio']:.1f}×" for r in hv["per_frequency"]
+                                 if r["frequency_hz"] is not None)
+                     + ". 1× would be a model as good as these data can show.</p>")
     for name in sorted((figs / "improved").glob("*.png")):
         parts.append(_img(name, f"improved model: {name.stem.replace('_', ' ')}"))
 

@@ -16,6 +16,8 @@ from dampnet.sim.vehicle import Controller, LoopError, Vehicle
 
 #: the damping settings of a run: passive at the damper's low / high setting, or skyhook
 DAMPING = ("low", "high", "skyhook")
+#: the speed [km/h] each moving test runs at unless told (dampnet vehicle --speed, sweep speeds_kmh)
+DEFAULT_SPEED_KMH = {"dlc": 120.0, "road": 60.0}
 #: the corners, in the runtime's order (FullCarModel's dampers, the [n, 4] columns)
 CORNERS = ("fl", "fr", "rl", "rr")
 

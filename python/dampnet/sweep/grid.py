@@ -89,7 +89,7 @@ def applicable(kind: str, params: dict[str, Any]) -> dict[str, Any]:
         if not str(p["dataset"]).startswith("rig:"):
             p["data_seed"] = p["rig_effects"] = None
     elif kind == "fullcar":
-        from dampnet.commands.vehicle import DEFAULT_SPEED_KMH
+        from dampnet.fullcar.runs import DEFAULT_SPEED_KMH
 
         test = p["test"]
         if test != "bsst":

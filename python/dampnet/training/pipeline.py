@@ -154,7 +154,9 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
     if restarts == 1:
         model, info = fit_prepared(prep, seed, progress=progress, threads=threads, init=init)
     else:
-        model, info = train_restarts(prep, restarts, seed, workers=workers, score=restart_score,
+        # data errors (a feature or force beyond MAX_TRAINING_MAGNITUDE) before any worker starts
+        _check_magnitudes(prep.X, prep.force if not prep.terms else np.zeros(0), prep.features)
+        model, info = train_restarts(prep, fit_prepared, restarts, seed, workers=workers, score=restart_score,
                                      progress=progress)
     return model, info, prep.split
 
@@ -410,7 +412,23 @@ def model_metrics(model: MlpModel, info, split: Split, lookup: bool = True) -> d
     nf = noise_floors(split.holdout or split.train)
     if nf:
         out["noise_floor"] = nf
+        if "holdout" in out:
+            out["noise_floor"]["holdout_vs_floor"] = holdout_vs_noise_floor(out["holdout"], nf["rmse_n"])
     return out
+
+
+def holdout_vs_noise_floor(holdout: dict[str, Any], noise_rmse_n: float) -> dict[str, Any]:
+    """The hold-out error against the rig's noise floor, overall and per frequency: the ratio of the
+    model's RMSE to the sensor noise's RMS [N] (the same ratio as NRMSE over the floor's NRMSE on the
+    same tests; 1 is a model as good as the data can show, since the measured force carries the noise)."""
+    o = holdout["overall"]
+    # a per-frequency row's NRMSE is its RMSE over its own force range: the floor's NRMSE on it is
+    # the noise's RMS over that range
+    rows = [{"frequency_hz": r["frequency_hz"], "nrmse": r["nrmse"],
+             "floor_nrmse": noise_rmse_n * r["nrmse"] / r["rmse_n"] if r["rmse_n"] > 0 else float("nan"),
+             "ratio": r["rmse_n"] / noise_rmse_n} for r in holdout.get("per_frequency", [])]
+    return {"ratio": o["rmse_n"] / noise_rmse_n, "floor_nrmse": noise_rmse_n / o["force_range_n"],
+            "per_frequency": rows}
 
 
 def restarts_holdout(record: dict[str, Any], models: list[MlpModel], tests) -> dict[str, Any]:

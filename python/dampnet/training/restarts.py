@@ -187,9 +187,12 @@ def interpolation_score(model, prep, levels: list[float] | None = None) -> dict[
 # -- the jobs (run in worker processes or in-process) ---------------------------------------------
 
 _PREP = None
+#: the fit of one restart: dampnet.training.pipeline.fit_prepared, handed in by the caller (the
+#: pipeline calls this module, so importing it back would make a cycle)
+_FIT = None
 
 
-def _init_worker(prep, extra_features) -> None:
+def _init_worker(prep, fit, extra_features) -> None:
     import torch
 
     from dampnet.features import FEATURES, register_feature
@@ -198,16 +201,15 @@ def _init_worker(prep, extra_features) -> None:
     for name, (unit, source, at_rest, param) in extra_features.items():
         if name not in FEATURES:
             register_feature(name, unit, source, at_rest, param)
-    global _PREP
-    _PREP = prep
+    global _PREP, _FIT
+    _PREP, _FIT = prep, fit
 
 
 def _job(kind: str, seed: int, level: float | None) -> dict[str, Any]:
     """One fit of the restart run: ("full", seed) -> the model and its interpolation score;
     ("lolo", seed, level) -> the NRMSE on the withheld level of a fit without it."""
     from dampnet.training.metrics import nrmse
-    from dampnet.training.pipeline import fit_prepared
-
+    fit_prepared = _FIT
     prep = _PREP
     t0 = time.perf_counter()
     if kind == "full":
@@ -254,24 +256,24 @@ def _importable_main():
             main.__file__ = path
 
 
-def _run(prep, jobs: list[tuple], workers: int, done: Callable[[int, dict], None]) -> list[dict]:
+def _run(prep, fit, jobs: list[tuple], workers: int, done: Callable[[int, dict], None]) -> list[dict]:
     """Run `jobs` (argument tuples of _job), in-process when workers == 1; results in job order."""
     results: list[dict | None] = [None] * len(jobs)
     lean = prep.lean()
     if workers <= 1:
-        global _PREP
-        old = _PREP
-        _PREP = lean
+        global _PREP, _FIT
+        old = _PREP, _FIT
+        _PREP, _FIT = lean, fit
         try:
             for i, job in enumerate(jobs):
                 results[i] = _job(*job)
                 done(i, results[i])
         finally:
-            _PREP = old
+            _PREP, _FIT = old
         return results  # type: ignore[return-value]
     ctx = multiprocessing.get_context("spawn")  # no fork of a process with torch's threads running
     with _importable_main(), ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker,
-                             initargs=(lean, _extra_features(prep))) as ex:
+                             initargs=(lean, fit, _extra_features(prep))) as ex:
         futures = {ex.submit(_job, *job): i for i, job in enumerate(jobs)}
         try:
             for fut in as_completed(futures):
@@ -287,17 +289,18 @@ def _run(prep, jobs: list[tuple], workers: int, done: Callable[[int, dict], None
 
 # -- the run --------------------------------------------------------------------------------------
 
-def train_restarts(prep, restarts: int, seed: int = 0, *, workers: int | None = None,
+def train_restarts(prep, fit_prepared: Callable, restarts: int, seed: int = 0, *, workers: int | None = None,
                    score: str = "interpolation",
                    progress: Callable[[dict], Any] | None = None):
     """(model, info) of the best of `restarts` fits of the prepared samples (module docstring).
+
+    `fit_prepared(prep, seed, rows=None, threads=1) -> (model, info)` is one fit
+    (dampnet.training.pipeline.fit_prepared; the pipeline checks the data's magnitudes first).
 
     `progress(record)` after every finished fit: {"done", "total", "restart", "seed", "score"
     (or the LOLO "level")}. DataError when the training tests have too few control levels for
     the score (interpolation: two; lolo: three, one of them interior).
     """
-    from dampnet.training.pipeline import fit_prepared
-
     restarts = check_restarts(restarts, workers, score)
     levels = training_levels(prep)
     seeds = restart_seeds(seed, restarts)
@@ -321,10 +324,6 @@ def train_restarts(prep, restarts: int, seed: int = 0, *, workers: int | None = 
         n_workers = 1 if len(prep.X) * _n_params(prep) < SMALL_RESTARTS else default_workers(len(jobs))
     else:
         n_workers = min(int(workers), len(jobs))
-    # data errors (a feature or force beyond MAX_TRAINING_MAGNITUDE) before any worker starts
-    from dampnet.training.pipeline import _check_magnitudes
-
-    _check_magnitudes(prep.X, prep.force if not prep.terms else np.zeros(0), prep.features)
     count = [0]
 
     def done(i: int, res: dict) -> None:
@@ -336,7 +335,7 @@ def train_restarts(prep, restarts: int, seed: int = 0, *, workers: int | None = 
                 rec["level"] = lv
             progress(rec)
 
-    results = _run(prep, jobs, n_workers, done)
+    results = _run(prep, fit_prepared, jobs, n_workers, done)
     runs = []
     if score == "interpolation":
         for k, (s, res) in enumerate(zip(seeds, results)):
