@@ -28,13 +28,15 @@ VARIANTS = {
     "45 hidden": {"max_epochs": 150, "hidden": (45,)},
     "45 hidden, 400 epochs": {"max_epochs": 400, "hidden": (45,)},
     "no decimation (5 kHz)": {"max_epochs": 150, "decimate": 1},
+    "45 hidden, max_fail 20, window 10 ms": {"max_epochs": 1000, "max_fail": 20, "hidden": (45,),
+                                              "acceleration_window": 0.010},
 }
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seeds", type=int, default=3)
-    ap.add_argument("--only", default=None, help="comma-separated variant names (default: all)")
+    ap.add_argument("--only", default=None, help="variant names separated by semicolons (default: all)")
     ap.add_argument("--json", default=None)
     args = ap.parse_args()
     from dampnet.demo.run import HIDDEN_EFFECT, QUICK_PLAN
@@ -42,14 +44,18 @@ def main() -> None:
     from dampnet.rig import generate
     from dampnet.training.pipeline import apply_additions, model_metrics, train_dataset
 
-    ds = generate(QUICK_PLAN, effects=[HIDDEN_EFFECT], seed=0, progress=False)
+    def data():  # afresh for each variant: training adds the acceleration channel to the tests in place
+        return generate(QUICK_PLAN, effects=[HIDDEN_EFFECT], seed=0, progress=False)
+
+    ds = data()
     base, _ = apply_additions({"features": default_features(ds)}, ds, HIDDEN_EFFECT)
-    names = args.only.split(",") if args.only else list(VARIANTS)
+    names = args.only.split(";") if args.only else list(VARIANTS)
     out = {}
     print("| variant | held-out RMSE / noise RMS, median of seeds | per frequency 0.25 / 1 / 2 / 3 Hz | train time [s] |")
     print("|---|---|---|---|")
     for name in names:
         ratios, perf, times = [], [], []
+        ds = data()
         for seed in range(args.seeds):
             t0 = time.perf_counter()
             model, info, split = train_dataset(ds, algorithm="lm", seed=seed, **base, **VARIANTS[name])

@@ -83,3 +83,27 @@ def test_split_by_tests_is_disjoint_and_seeded(quick_truth):
     a, b = split_by_tests(quick_truth, 0.3, seed=1)
     assert set(a.test_ids).isdisjoint(b.test_ids) and len(a) + len(b) == len(quick_truth)
     assert split_by_tests(quick_truth, 0.3, seed=1)[1].test_ids == b.test_ids
+
+
+def test_training_rederives_acceleration_for_another_window(quick_truth):
+    """Training derives the acceleration in place; a later training of the same dataset with another
+    window must use that window's acceleration, not the first one's (it once silently did not)."""
+    from dampnet.data.preprocess import acceleration_of
+    from dampnet.training.pipeline import prepare_training
+
+    ds = quick_truth.subset([t.copy() for t in quick_truth.tests])
+    for t in ds.tests:
+        t.channels.pop("acceleration", None)
+        t.meta.pop("acceleration_window_samples", None)
+    prepare_training(ds, decimate=50)
+    t = ds.tests[0]
+    assert t.meta["acceleration_window_samples"] == 101  # 20 ms at 5 kHz
+    prepare_training(ds, decimate=50, acceleration_window=0.010)
+    assert t.meta["acceleration_window_samples"] == 51
+    np.testing.assert_array_equal(t.channels["acceleration"], acceleration_of(t, 0.010))
+    # a measured channel (no derivation mark) is the user's and is kept
+    measured = ds.tests[1]
+    measured.meta.pop("acceleration_window_samples")
+    kept = measured.channels["acceleration"].copy()
+    prepare_training(ds, decimate=50, acceleration_window=0.040)
+    np.testing.assert_array_equal(measured.channels["acceleration"], kept)

@@ -40,7 +40,7 @@ def test_demo_tells_the_whole_story(demo_out):
     assert hv["ratio"] > 1.0 and len(hv["per_frequency"]) == 4
     assert f"held-out RMSE is <b>{hv['ratio']:.1f}×</b> the noise's RMS" in (out / "report.html").read_text()
     assert summary["c_program"]["match"] and summary["c_program"]["samples"] > 1000
-    stages = ("rig", "train", "diagnose", "improve", "export", "fmu", "study", "vehicle", "latency")
+    stages = ("rig", "train", "diagnose", "improve", "export", "fmu", "study", "plan", "vehicle", "latency")
     assert list(summary["stage_times_s"]) == list(stages)
     for i, stage in enumerate(stages):
         assert f"[{i + 1}/{len(stages)}]" in stdout
@@ -138,6 +138,26 @@ def test_demo_reports_where_the_models_were_guessing(demo_out):
     text = (out / "report.html").read_text()
     part = text[text.index("Where the models were guessing"):text.index("7. Full vehicle")]
     assert "<td>extrapolated</td>" in part and 'alt="study: coverage improved"' in part
+
+
+def test_demo_plans_the_tests_the_impulse_needs(demo_out):
+    """After the hidden-effect story: plan-tests proposes dyno tests for the impulse, the rig runs them,
+    and the retrained model is within 10 % of the truth on the impulse, less often outside its data."""
+    out, _ = demo_out
+    summary = json.loads((out / "summary.json").read_text())
+    p = summary["plan"]
+    assert 1 <= len(p["tests"]) <= p["budget"] == 6
+    assert p["share_covered"] > p["share_covered_by_training"]
+    e, o = p["impulse_error_vs_truth"], p["impulse_time_outside"]
+    assert max(abs(v) for v in e["before"].values()) > 0.15, e
+    assert p["fixed"] and all(abs(v) < 0.10 for v in e["after"].values()), e
+    assert sum(o["after"].values()) < sum(o["before"].values()), o
+    plan = json.loads((out / p["plan"]).read_text())
+    assert [t["test_id"] for t in plan["tests"]] == [t["test_id"] for t in p["tests"]]
+    assert (out / p["table"]).read_text().startswith("test,frequency_hz,")
+    text = (out / "report.html").read_text()
+    part = text[text.index("The dyno tests the impulse needs"):text.index("7. Full vehicle")]
+    assert "<span class='ok'>" in part
 
 
 def test_demo_refuses_to_overwrite(wheel, demo_out):

@@ -51,6 +51,32 @@ def _img(path: Path, caption: str) -> str:
             f"<figcaption>{html.escape(caption)}</figcaption></figure>")
 
 
+def _plan_section(plan: dict | None) -> str:
+    """The planning story: the tests plan-tests proposed for the impulse, and the impulse after them."""
+    if not plan:
+        return ""
+    e, o = plan["impulse_error_vs_truth"], plan["impulse_time_outside"]
+    rows = [[p["test_id"], p["frequency_hz"], 1e3 * p["amplitude_m"], p["peak_velocity_m_s"],
+             p["peak_acceleration_m_s2"], p["control"], p["peak_force_n"], 100 * p["share_covered_after"]]
+            for p in plan["tests"]]
+    res = [[k, 100 * e["before"][k], 100 * e["after"][k], 100 * o.get("before", {}).get(k, float("nan")),
+            100 * o.get("after", {}).get(k, float("nan"))] for k in e["before"]]
+    return ("<h3 id='plan'>The dyno tests the impulse needs (dampnet plan-tests)</h3>"
+            "<p>The impulse drives the damper far beyond the 1-inch sines, so the model is guessing there. "
+            f"<code>dampnet plan-tests MODEL impulse --budget {plan['budget']}</code> proposes the sines, within "
+            "the dyno's stroke, velocity and force limits, that cover the damper inputs the impulse needs and the "
+            f"training data lack (covered {100 * plan['share_covered_by_training']:.0f} % before, "
+            f"{100 * plan['share_covered']:.0f} % with them). The virtual dyno ran them "
+            f"(<code>{html.escape(plan['plan'])}</code>, the operator's table <code>{html.escape(plan['table'])}</code>), "
+            "the improved model was retrained on all the tests, and the impulse was run again against the truth "
+            "damper:</p>"
+            + _table(["test", "frequency [Hz]", "amplitude [mm]", "peak velocity [m/s]", "peak acceleration [m/s²]",
+                      "control [V]", "expected peak force [N]", "required points covered after [%]"], rows)
+            + _table(["impulse, damping", "error vs truth before [%]", "after [%]", "time outside the training data "
+                      "before [%]", "after [%]"], res)
+            + f"<p><span class='{'ok' if plan['fixed'] else 'bad'}'>{html.escape(plan['headline'])}</span></p>")
+
+
 def _coverage_section(study: dict) -> str:
     """How much of each quarter-car run the neural models spent outside their training data
     (dampnet.coverage): the runs whose verdict is 'extrapolated' are the ones not to trust."""
@@ -229,6 +255,8 @@ def write(work: Path, summary: dict, m0: dict, m1: dict, d0: dict, d1: dict, stu
     parts.append(_coverage_section(study))
     for name in sorted((figs / "study").glob("*.png")):
         parts.append(_img(name, f"study: {name.stem.replace('_', ' ')}"))
+
+    parts.append(_plan_section(summary.get("plan")))
 
     parts.append("<h2>7. Full vehicle (thesis chapter 5.2)</h2>"
                  "<p>The damper model at all four corners of a compact pickup (the runtime's full car: "

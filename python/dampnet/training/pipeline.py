@@ -47,7 +47,7 @@ import numpy as np
 
 from dampnet.data import DataError, Dataset, add_acceleration, decimate as _decimate
 from dampnet.data import holdout_split
-from dampnet.data.preprocess import DEFAULT_WINDOW_S
+from dampnet.data.preprocess import DEFAULT_WINDOW_S, window_samples
 from dampnet.data.types import RIG_GENERATOR
 from dampnet.effects import additions as effect_additions, effect as catalogue_effect
 from dampnet.evaluation.lookup import fit_lookup
@@ -206,7 +206,10 @@ def prepare_training(ds: Dataset, features: Sequence[str] | None = None, algorit
     window = DEFAULT_WINDOW_S if acceleration_window is None else acceleration_window
     if "acceleration" in features:
         for t in ds.tests:
-            if "acceleration" not in t.channels:
+            # derive it when missing, and again when an earlier training derived it (in place, as
+            # add_acceleration does) with another window; a measured channel has no such mark
+            derived = t.meta.get("acceleration_window_samples")
+            if "acceleration" not in t.channels or (derived is not None and derived != window_samples(t, window)):
                 add_acceleration(t, window)
     if holdout_voltage is None and not holdout_tests:
         train, hold = ds, None
