@@ -28,6 +28,9 @@ VARIANTS = {
     "45 hidden": {"max_epochs": 150, "hidden": (45,)},
     "45 hidden, 400 epochs": {"max_epochs": 400, "hidden": (45,)},
     "no decimation (5 kHz)": {"max_epochs": 150, "decimate": 1},
+    "compressibility added (velocity lag)": {"max_epochs": 150, "add": "compressibility"},
+    "compressibility added, 45 hidden, max_fail 20": {"max_epochs": 1000, "max_fail": 20, "hidden": (45,),
+                                                       "add": "compressibility"},
     "45 hidden, max_fail 20, window 10 ms": {"max_epochs": 1000, "max_fail": 20, "hidden": (45,),
                                               "acceleration_window": 0.010},
 }
@@ -56,9 +59,11 @@ def main() -> None:
     for name in names:
         ratios, perf, times = [], [], []
         ds = data()
+        kw = dict(VARIANTS[name])
+        settings = apply_additions(base, ds, kw.pop("add"))[0] if "add" in kw else base
         for seed in range(args.seeds):
             t0 = time.perf_counter()
-            model, info, split = train_dataset(ds, algorithm="lm", seed=seed, **base, **VARIANTS[name])
+            model, info, split = train_dataset(ds, algorithm="lm", seed=seed, **settings, **kw)
             times.append(time.perf_counter() - t0)
             hv = model_metrics(model, info, split, lookup=False)["noise_floor"]["holdout_vs_floor"]
             ratios.append(hv["ratio"])

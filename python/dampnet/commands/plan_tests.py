@@ -4,7 +4,6 @@ and the model's training data lack (dampnet.planning), as a rig plan and an oper
 from __future__ import annotations
 
 import argparse
-import sys
 
 from dampnet.commands.common import error
 
@@ -100,14 +99,3 @@ def run(args) -> int:
             print(f"-> {p}")
     return 0
 
-
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="dampnet")
-    sub = parser.add_subparsers(dest="command", required=True)
-    add_parser(sub)
-    args = parser.parse_args(["plan-tests", *(sys.argv[1:] if argv is None else argv)])
-    return args.handler(args)
-
-
-if __name__ == "__main__":
-    sys.exit(main())
