@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from dampnet.sweep.metrics import WHEELS
+from dampnet.sweep.metrics import WHEELS, coverage_columns
 
 
 def vehicle(params: dict[str, Any]) -> dict[str, Any]:
@@ -58,5 +58,5 @@ def run(params: dict[str, Any], inputs: dict[str, Any]) -> dict[str, Any]:
     man = maneuver(params)
     res = run_test(spec, man, params["damping"], vehicle(params))
     metrics = {**flat_metrics(res["metrics"]), "f_static_n": res["f_static_n"],
-               "duration_s": man.road.shape[0] * man.dt}
+               "duration_s": man.road.shape[0] * man.dt, **coverage_columns(res)}
     return {"metrics": metrics, "controller_settings": res["controller"]}

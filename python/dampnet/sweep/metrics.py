@@ -9,14 +9,20 @@ reports them (units in the names: m_s2 = m/s^2, rad_s2, deg, deg_s = deg/s, n = 
 cones_hit, cones; passed: no cone hit), the road test's dynamic tyre load RMS one column per
 wheel (fl, fr, rl, rr), the damper's force at rest f_static_n [N] and the run's duration_s [s];
 a metric the cell's test does not measure is empty.
+Both simulation kinds, for a neural or hybrid model (dampnet.coverage): time_outside_training_data,
+the share [0-1] of the run's time its damper inputs spent outside the model's training envelope,
+and extrapolated, the verdict "yes" or "no" (both empty for the truth, lookup and linear dampers).
 """
+
+#: coverage columns of the simulation kinds (dampnet.coverage; empty for non-neural dampers)
+COVERAGE = ("time_outside_training_data", "extrapolated")
 
 TRAINING = ("holdout_nrmse", "holdout_rmse_n", "holdout_max_abs_error_n", "lookup_holdout_nrmse",
             "train_nrmse", "val_nrmse", "test_nrmse", "noise_floor_nrmse", "epochs", "stop_reason",
             "train_time_s", "n_inputs", "features_used", "model_id")
 SIMULATION = ("acc_rms_m_s2", "acc_wk_rms_m_s2", "acc_peak_m_s2", "disp_rms_m", "disp_peak_to_rms",
               "travel_rms_m", "travel_max_m", "tyre_load_rms_n", "tyre_load_rms_rel", "duration_s", "dt_s",
-              "f_static_n", "transmissibility_peak", "transmissibility_peak_hz")
+              "f_static_n", "transmissibility_peak", "transmissibility_peak_hz") + COVERAGE
 #: bsst and road (ride), dlc (handling), all tests
 FULLCAR = ("acc_rms_m_s2", "acc_wk_rms_m_s2", "acc_peak_m_s2", "pitch_acc_rms_rad_s2", "roll_rate_rms_deg_s",
            "pitch_rate_rms_deg_s", "tyre_load_dyn_rms_fl_n", "tyre_load_dyn_rms_fr_n", "tyre_load_dyn_rms_rl_n",
@@ -24,12 +30,21 @@ FULLCAR = ("acc_rms_m_s2", "acc_wk_rms_m_s2", "acc_peak_m_s2", "pitch_acc_rms_ra
            "a_y_peak_m_s2", "a_y_rms_m_s2", "roll_peak_deg", "roll_rms_deg", "roll_rate_peak_deg_s",
            "yaw_rate_peak_deg_s", "yaw_rate_rms_deg_s", "side_slip_peak_deg", "side_slip_rms_deg", "steer_peak_deg",
            "steer_rms_deg", "cones_hit", "cones", "passed",
-           "tyre_load_min_n", "f_static_n", "duration_s")
+           "tyre_load_min_n", "f_static_n", "duration_s") + COVERAGE
 #: the wheels of per-wheel full-car metrics (FL, FR, RL, RR: the runtime's corner order)
 WHEELS = ("fl", "fr", "rl", "rr")
 BY_KIND = {"training": TRAINING, "simulation": SIMULATION, "fullcar": FULLCAR}
 #: metrics that are not numbers (never an objective)
-TEXT = ("stop_reason", "features_used", "model_id", "passed")
+TEXT = ("stop_reason", "features_used", "model_id", "passed", "extrapolated")
+
+
+def coverage_columns(res: dict) -> dict:
+    """The COVERAGE cells of a simulation result (dampnet.sim.runs.simulate, dampnet.fullcar.runs.run)."""
+    cov = res.get("coverage")
+    if cov is None:
+        return {}
+    return {"time_outside_training_data": float(cov["outside"]["share_time"]),
+            "extrapolated": "yes" if cov["extrapolated"] else "no"}  # text: a bool column with gaps is not one in Parquet
 
 
 def objectives(kind: str) -> list[str]:

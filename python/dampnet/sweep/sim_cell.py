@@ -92,5 +92,7 @@ def run(params: dict[str, Any], inputs: dict[str, Any]) -> dict[str, Any]:
     veh = vehicle(params)
     ctrl = controller(params, spec, veh)
     res = simulate(spec, prof, params["speed"] if prof.kind == "spatial" else None, ctrl, veh)
-    metrics = {**res["metrics"], "f_static_n": res["f_static_n"]}
+    from dampnet.sweep.metrics import coverage_columns
+
+    metrics = {**res["metrics"], "f_static_n": res["f_static_n"], **coverage_columns(res)}
     return {"metrics": metrics, "controller_settings": ctrl.to_dict()}
