@@ -134,6 +134,27 @@ def test_simulate(wheel, work, model):
     assert (work / "simulate_out" / "run.npz").is_file()
 
 
+def test_plan_tests(wheel, work, model):
+    """plan-tests from the wheel: the envelope beside the trained model, a built-in case, the plan
+    the installed rig reads back."""
+    out = ok(wheel.dampnet("plan-tests", model, "impulse:low", "--budget", "2", "--out", "plan.json",
+                           "--table", "plan.csv", cwd=work))
+    assert "P01" in out
+    tests = json.loads((work / "plan.json").read_text())["tests"]
+    assert 1 <= len(tests) <= 2
+    ok(wheel.dampnet("rig", "planned", "--plan", "plan.json", "--no-progress", cwd=work))
+    assert (work / "planned" / "manifest.csv").is_file()
+
+
+def test_sweep(wheel, work):
+    """A two-cell simulation sweep from the wheel, on its embedded Dask cluster."""
+    (work / "sweep.toml").write_text("[simulation]\nmodels = ['default', 'linear:1800']\nroads = ['bump']\n"
+                                     "controllers = ['passive_low']\n")
+    ok(wheel.dampnet("sweep", "sweep.toml", "--out", "sweep_out", "--workers", "1", "--quiet", cwd=work))
+    rows = (work / "sweep_out" / "results.csv").read_text().splitlines()
+    assert len(rows) == 3 and "time_outside_training_data" in rows[0]
+
+
 def test_vehicle(wheel, work, model):
     """The full vehicle from the wheel: fullcar.hpp's runtime, the lane change and its plot."""
     out = ok(wheel.dampnet("vehicle", model, "--test", "dlc", "--speed", "80", "--out", "vehicle_out", cwd=work))
