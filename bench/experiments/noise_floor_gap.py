@@ -31,6 +31,13 @@ VARIANTS = {
     "compressibility added (velocity lag)": {"max_epochs": 150, "add": "compressibility"},
     "compressibility added, 45 hidden, max_fail 20": {"max_epochs": 1000, "max_fail": 20, "hidden": (45,),
                                                        "add": "compressibility"},
+    "compressibility and friction added, 45 hidden, max_fail 20": {"max_epochs": 1000, "max_fail": 20,
+                                                                    "hidden": (45,),
+                                                                    "add": "compressibility,friction"},
+    "compressibility added, 60 hidden, max_fail 20": {"max_epochs": 1000, "max_fail": 20, "hidden": (60,),
+                                                       "add": "compressibility"},
+    "compressibility added, 25-25 hidden, max_fail 20": {"max_epochs": 1000, "max_fail": 20, "hidden": (25, 25),
+                                                          "add": "compressibility"},
     "45 hidden, max_fail 20, window 10 ms": {"max_epochs": 1000, "max_fail": 20, "hidden": (45,),
                                               "acceleration_window": 0.010},
 }
@@ -60,7 +67,9 @@ def main() -> None:
         ratios, perf, times = [], [], []
         ds = data()
         kw = dict(VARIANTS[name])
-        settings = apply_additions(base, ds, kw.pop("add"))[0] if "add" in kw else base
+        settings = base
+        for effect in (kw.pop("add").split(",") if "add" in kw else []):
+            settings = apply_additions(settings, ds, effect)[0]
         for seed in range(args.seeds):
             t0 = time.perf_counter()
             model, info, split = train_dataset(ds, algorithm="lm", seed=seed, **settings, **kw)

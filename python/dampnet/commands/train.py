@@ -28,7 +28,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                     "metrics.json and the C header model.h. --add EFFECT adds what captures a physical "
                     f"effect the diagnosis named: {ADD_RULE}, e.g. `dampnet diagnose MODEL DATA --json d.json` "
                     "then `dampnet train DATA --out MODEL2 --add valve_lag --diagnosis d.json`.")
-    p.add_argument("data", help="dataset: a directory, CSV/text file or .mat file (see dampnet rig)")
+    p.add_argument("data", nargs="+", metavar="DATA",
+                   help="dataset: a directory, CSV/text file or .mat file (see dampnet rig); several are trained on "
+                        "as one (e.g. a campaign and the tests dampnet plan-tests proposed; test ids must be unique)")
     p.add_argument("--out", required=True, help="model directory to write (must not exist unless --force)")
     add_training_options(p)
     p.add_argument("--restarts", default="auto", metavar="N",
@@ -54,18 +56,18 @@ def run(args) -> int:
     """Train and write MODEL_DIR; 0 on success, 2 (one-line message) on bad input."""
     from pathlib import Path
 
-    from dampnet.data import DataError, load_dataset
+    from dampnet.data import DataError, load_dataset, merge_datasets
     from dampnet.model import ModelError
     from dampnet.modeldir import save_model_dir
     from dampnet.outputs import check_output_dir
     from dampnet.training.pipeline import model_metrics
 
     out = Path(args.out)
-    inputs = [args.data, *([args.diagnosis] if args.diagnosis else [])]
+    inputs = [*args.data, *([args.diagnosis] if args.diagnosis else [])]
     bar = None
     try:
         check_output_dir(out, "model", inputs, args.force)  # before the work, again when writing
-        ds = load_dataset(args.data)
+        ds = merge_datasets([load_dataset(d) for d in args.data])
         kw, added = training_kwargs(args, ds)
         restarts, workers, note = restart_options(args, ds, kw)
         if restarts > 1:

@@ -8,10 +8,12 @@
   readers.py     load_dataset: directories, single CSV/text files, .mat files
   real.py        the two real MR-damper data sets in ../shared/data
   preprocess.py  acceleration, decimation, hold-out and by-test splits
+  merge.py       several datasets as one (merge_datasets)
   rig/           the virtual shock dyno (generate, EFFECTS, truth_force, TruthDamper)
 """
 
 from dampnet.data.fileformat import write_dataset
+from dampnet.data.merge import merge_datasets
 from dampnet.data.preprocess import (DEFAULT_WINDOW_S, add_acceleration, decimate, holdout_split,
                                      split_by_tests)
 from dampnet.data.readers import load_dataset, read_mat, read_text
