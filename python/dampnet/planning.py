@@ -3,7 +3,8 @@
 `dampnet plan-tests MODEL RUN... --budget N` (issue 20). From
 
   required   the damper inputs of the runs the model must serve (a `dampnet simulate` or
-             `dampnet vehicle` output directory: its run.npz keeps every step's inputs; or a
+             `dampnet vehicle` output directory: its run.npz keeps every step's inputs; a
+             `dampnet study` directory: its inputs.npz, every run of the model; or a
              built-in case run on the spot with the model: `impulse`, `sine-sweep`,
              `rough-road`, each optionally `:low` / `:high` damping), kept where they are
              outside the model's training envelope (dampnet.envelope: beyond a training range
@@ -144,8 +145,7 @@ def _dir_runs(model, path: Path) -> list[RunInputs]:
 
     mj, npz = path / "metrics.json", path / "run.npz"
     if (path / "study.json").is_file():
-        raise PlanError(f"{path}: a dampnet study keeps no per-step damper inputs; name its cases instead "
-                        f"({', '.join(CASES)}, each optionally :low or :high)")
+        return _study_runs(model, path)
     if not mj.is_file() or not npz.is_file():
         raise PlanError(f"{path}: expected a dampnet simulate or vehicle output directory (metrics.json and run.npz)")
     try:
@@ -173,6 +173,36 @@ def _dir_runs(model, path: Path) -> list[RunInputs]:
         X = _npz_inputs(model, arrays, npz)
         return [RunInputs(path.name, X, np.full(X.shape[0], dt), f"dampnet simulate run {path}")]
     raise PlanError(f"{mj}: schema {schema!r}: expected a dampnet simulate or vehicle run")
+
+
+def _study_runs(model, path: Path) -> list[RunInputs]:
+    """Every run of MODEL in a `dampnet study` directory (its inputs.npz, dampnet.sim.study.neural_inputs)."""
+    from dampnet.sim.study import INPUTS_FILE
+
+    f = path / INPUTS_FILE
+    if not f.is_file():
+        raise PlanError(f"{path}: this study kept no per-step damper inputs ({INPUTS_FILE}: run dampnet study "
+                        f"without --no-plots), or name its cases instead ({', '.join(CASES)}, each optionally "
+                        ":low or :high)")
+    try:
+        with np.load(f) as z:
+            arrays = {k: z[k] for k in z.files}
+    except (OSError, ValueError) as e:
+        raise PlanError(f"{f}: unreadable ({e})") from None
+    ids = dict(str(m).split("=", 1) for m in arrays.get("models", []))
+    mine = [name for name, mid in ids.items() if mid == model.model_id()]
+    if not mine:
+        raise PlanError(f"{path}: the study ran {', '.join(sorted(ids)) or 'no neural model'} (model_id "
+                        f"{', '.join(sorted(ids.values())) or '-'}), not this MODEL (model_id {model.model_id()})")
+    out = []
+    for key in sorted(k for k in arrays if k.endswith("__features")):
+        section, case, name = key[:-len("__features")].split("__", 2)
+        if name not in mine:
+            continue
+        X, t = arrays[key], arrays[key[:-len("__features")] + "__t"]
+        dt = float(np.median(np.diff(t))) if t.size > 1 else 1e-3
+        out.append(RunInputs(f"{section} {case}", X, np.full(X.shape[0], dt), f"dampnet study {path}: {section} {case}"))
+    return out
 
 
 def load_runs(model, envelope, runs: Sequence[str], note: str | None = None) -> list[RunInputs]:

@@ -149,3 +149,29 @@ def test_rig_plan_with_explicit_tests(tmp_path, capsys):
     capsys.readouterr()
     assert main(["rig", str(tmp_path / "out"), "--plan", str(f), "--no-progress"]) == 2
     assert "tests[1]" in capsys.readouterr().err
+
+
+def test_a_study_directory_is_a_run(planned, capsys):
+    """dampnet study keeps its neural model's per-step inputs (inputs.npz); plan-tests reads every run
+    of that model from it, and refuses another model."""
+    import numpy as np
+
+    from dampnet.modeldir import default_model_path
+
+    root, model = planned["root"], str(planned["root"] / "model")
+    assert main(["study", model, "--quick", "--out", str(root / "study")]) == 0
+    with np.load(root / "study" / "inputs.npz") as z:
+        arrays = {k: z[k] for k in z.files}
+    (key,) = [k for k in arrays if k.startswith("impulse__low__") and k.endswith("__features")]
+    # the study's impulse at low damping is the same run as simulate's, step for step
+    spec = neural_spec(planned["model"], envelope=planned["env"])
+    ref = impulse_runs(spec)["low"]["arrays"]
+    np.testing.assert_array_equal(arrays[key], ref["features"])
+    np.testing.assert_array_equal(arrays[key[:-len("features")] + "t"], ref["t"])
+    capsys.readouterr()
+    assert main(["plan-tests", model, str(root / "study"), "--budget", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "impulse low" in out and "rough_road" in out and "P01" in out
+    assert main(["plan-tests", str(default_model_path()), str(root / "study"), "--budget", "2"]) == 2
+    err = capsys.readouterr().err
+    assert "not this MODEL" in err and err.count("\n") == 1

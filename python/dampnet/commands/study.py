@@ -38,11 +38,11 @@ def run(args) -> int:
     from dampnet.sim.dampers import load_spec, lookup_spec, truth_spec
     from dampnet.sim.plots import write_plots
     from dampnet.sim.report import text_tables, without_arrays
-    from dampnet.sim.study import run_study
+    from dampnet.sim.study import INPUTS_FILE, neural_inputs, run_study
 
     out = Path(args.out)
     try:
-        check_run_dir(out, ("study.json", "study.txt"), "study.json", "dampnet.sim.study/",
+        check_run_dir(out, ("study.json", "study.txt", "inputs.npz"), "study.json", "dampnet.sim.study/",
                       [p for p in (args.model, args.data) if p and Path(p).exists()], args.force)
         from dampnet.sim.roads import sine_sweep, thesis_rough_road
 
@@ -72,6 +72,7 @@ def run(args) -> int:
 
         table += "\n\nfull vehicle (chapter 5.2)\n" + text_table(vehicle)
     try:
+        wrote_inputs = False
         with staged_files(out) as tmp:  # study.json (the marker) moved into place last
             data = without_arrays(res)
             if vehicle is not None:
@@ -80,6 +81,14 @@ def run(args) -> int:
             (tmp / "study.txt").write_text(table + "\n")
             if not args.no_plots:
                 write_plots(res, tmp)
+                inputs = neural_inputs(res)  # for dampnet plan-tests STUDY_DIR
+                if inputs:
+                    import numpy as np
+
+                    np.savez_compressed(tmp / INPUTS_FILE, **inputs)
+                    wrote_inputs = True
+        if not wrote_inputs and (out / INPUTS_FILE).is_file():
+            (out / INPUTS_FILE).unlink()  # a replaced (--force) study's inputs are not this one's
     except OSError as e:
         print(f"dampnet: error: {out}: cannot write the study ({e.strerror or e})", file=sys.stderr)
         return 2

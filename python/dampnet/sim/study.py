@@ -39,6 +39,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import numpy as np
+
 from dampnet.sim.calibration import (SKYHOOK_V_RMS_M_S, SKYHOOK_ZETA, continuous_skyhook, damping_levels,
                                      semi_active)
 from dampnet.sim.dampers import DamperSpec
@@ -131,3 +133,31 @@ def run_study(specs: list[DamperSpec], truth: DamperSpec | None = None, dt: floa
         res["_runs"] = runs
         res["_specs"] = {s.name: s for s in all_specs}
     return res
+
+
+#: the file beside study.json holding the neural models' per-step damper inputs (dampnet plan-tests)
+INPUTS_FILE = "inputs.npz"
+
+
+def neural_inputs(res: dict) -> dict[str, np.ndarray]:
+    """Each neural or hybrid model's damper inputs of every run of a study kept with keep_runs:
+    {"<section>__<case>__<model>__features": [n, n_inputs] in the model's feature units,
+    "...__t": [n] time [s], "models": "<model>=<model_id>" per model}; {} without kept runs."""
+    runs, specs = res.get("_runs"), res.get("_specs", {})
+    if not runs:
+        return {}
+    out: dict[str, np.ndarray] = {}
+    names = set()
+    for section, cases in runs.items():
+        for case, by_model in cases.items():
+            for name, r in by_model.items():
+                spec = specs.get(name)
+                if spec is None or spec.kind not in ("neural", "hybrid") or "features" not in r["arrays"]:
+                    continue
+                key = f"{section}__{case}__{name}"
+                out[key + "__features"] = np.asarray(r["arrays"]["features"], dtype=np.float64)
+                out[key + "__t"] = np.asarray(r["arrays"]["t"], dtype=np.float64)
+                names.add(name)
+    if out:
+        out["models"] = np.array([f"{n}={specs[n].obj.model_id()}" for n in sorted(names)])
+    return out
