@@ -180,6 +180,28 @@ __attribute__((unused)) static void check(const char* what, int st) {
   }
 }
 
+/* "time forward T stub S n N": the forward's ticks t0..t1 beside the stub's over the same inputs
+ * (call overhead and loop, subtracted by bench/embedded.py) */
+__attribute__((unused)) static void report_forward_time(uint32_t t0, uint32_t t1, const void* mlp) {
+  float acc = 0.f;
+  uint32_t mask = 0;
+  uint32_t t2 = now();
+  for (int i = 0; i < DN_FW_N_X; ++i) {
+    float y;
+    stub_forward(mlp, dn_fw_x[i], &y, &mask);
+    acc += y;
+  }
+  uint32_t t3 = now();
+  sink_f = acc;
+  put_str("time forward ");
+  put_u(ticks(t0, t1));
+  put_str(" stub ");
+  put_u(ticks(t2, t3));
+  put_str(" n ");
+  put_u(DN_FW_N_X);
+  end_line();
+}
+
 #if DN_FW_PART == 1 || DN_FW_PART == 2
 /* Part 1: the MLP alone. */
 static const dn_mlp* kernel_part(void) {
@@ -204,21 +226,7 @@ static const dn_mlp* kernel_part(void) {
   uint32_t t1 = now();
   print_stack("forward", sp0);
   sink_f = acc;
-  uint32_t t2 = now();
-  for (int i = 0; i < DN_FW_N_X; ++i) {
-    float y;
-    stub_forward(mlp, dn_fw_x[i], &y, &mask);
-    acc += y;
-  }
-  uint32_t t3 = now();
-  sink_f = acc;
-  put_str("time forward ");
-  put_u(ticks(t0, t1));
-  put_str(" stub ");
-  put_u(ticks(t2, t3));
-  put_str(" n ");
-  put_u(DN_FW_N_X);
-  end_line();
+  report_forward_time(t0, t1, mlp);
 
   /* the forces */
   for (int i = 0; i < DN_FW_N_X; ++i) {
@@ -244,7 +252,6 @@ static const dn_mlp* kernel_part(void) {
 float dn_fw_emlearn_forward(const float* x);
 static void emlearn_part(void) {
   float acc = 0.f;
-  uint32_t mask = 0;
   uint32_t sp0 = sp_now();
   stack_paint();
   uint32_t t0 = now();
@@ -252,21 +259,7 @@ static void emlearn_part(void) {
   uint32_t t1 = now();
   print_stack("forward", sp0);
   sink_f = acc;
-  uint32_t t2 = now();
-  for (int i = 0; i < DN_FW_N_X; ++i) {
-    float y;
-    stub_forward(NULL, dn_fw_x[i], &y, &mask);
-    acc += y;
-  }
-  uint32_t t3 = now();
-  sink_f = acc;
-  put_str("time forward ");
-  put_u(ticks(t0, t1));
-  put_str(" stub ");
-  put_u(ticks(t2, t3));
-  put_str(" n ");
-  put_u(DN_FW_N_X);
-  end_line();
+  report_forward_time(t0, t1, NULL);
   for (int i = 0; i < DN_FW_N_X; ++i) {
     put_str("x ");
     put_u((uint32_t)i);

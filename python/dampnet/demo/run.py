@@ -220,19 +220,22 @@ def improved_settings(model0, ds, diagnosis: dict, effect: str) -> tuple[dict, d
 PLAN_BUDGET = 6
 
 
-def _impulse_errors(spec, truth_runs: dict) -> tuple[dict, dict]:
-    """(model - truth) / truth of the impulse's sprung-acceleration RMS per damping level, and the share
-    of the run's time outside the model's training envelope."""
+def _impulse(spec) -> dict:
+    """The study's impulse at the spec's low and high damping: {level: dampnet.sim.runs.simulate's result}."""
     from dampnet.sim.calibration import damping_levels
     from dampnet.sim.roads import impulse
     from dampnet.sim.runs import simulate
     from dampnet.sim.vehicle import Controller
 
     lv = damping_levels(spec)
-    runs = {k: simulate(spec, impulse(), None, Controller(kind="passive", u_passive=lv[k])) for k in ("low", "high")}
-    if truth_runs is None:
-        return {k: r["metrics"]["acc_rms_m_s2"] for k, r in runs.items()}, {}
-    return ({k: r["metrics"]["acc_rms_m_s2"] / truth_runs[k] - 1.0 for k, r in runs.items()},
+    return {k: simulate(spec, impulse(), None, Controller(kind="passive", u_passive=lv[k])) for k in ("low", "high")}
+
+
+def _impulse_vs_truth(spec, truth: dict) -> tuple[dict, dict]:
+    """(model - truth) / truth of the impulse's sprung-acceleration RMS per damping level, and the share
+    of the run's time outside the model's training envelope."""
+    runs = _impulse(spec)
+    return ({k: r["metrics"]["acc_rms_m_s2"] / truth[k]["metrics"]["acc_rms_m_s2"] - 1.0 for k, r in runs.items()},
             {k: r["coverage"]["outside"]["share_time"] for k, r in runs.items() if "coverage" in r})
 
 
@@ -249,8 +252,8 @@ def _plan(model1, env1, ds, train_kw: dict, seed: int, out: Path, log) -> dict:
     from dampnet.sim.dampers import neural_spec, truth_spec
     from dampnet.training.pipeline import train_dataset
 
-    truth, _ = _impulse_errors(truth_spec([HIDDEN_EFFECT]), None)
-    before, out_before = _impulse_errors(neural_spec(model1, envelope=env1), truth)
+    truth = _impulse(truth_spec([HIDDEN_EFFECT]))
+    before, out_before = _impulse_vs_truth(neural_spec(model1, envelope=env1), truth)
     res = plan_tests(model1, env1, load_runs(model1, env1, ["impulse"]), PLAN_BUDGET)
     plan = rig_plan(res, name="demo-plan-tests")
     out.mkdir()
@@ -266,7 +269,7 @@ def _plan(model1, env1, ds, train_kw: dict, seed: int, out: Path, log) -> dict:
     both = Dataset(tests=ds.tests + extra.tests, source=f"{ds.source} + {len(extra.tests)} planned tests",
                    meta=ds.meta)
     model2, _, split2 = train_dataset(both, algorithm="lm", seed=seed, restarts=DEMO_RESTARTS, **train_kw)
-    after, out_after = _impulse_errors(neural_spec(model2, envelope=envelope_of(model2, split2)), truth)
+    after, out_after = _impulse_vs_truth(neural_spec(model2, envelope=envelope_of(model2, split2)), truth)
     worst_b, worst_a = max(abs(v) for v in before.values()), max(abs(v) for v in after.values())
     return {"budget": PLAN_BUDGET, "tests": res["tests"], "share_covered_by_training": res["share_covered_by_training"],
             "share_covered": res["share_covered"], "plan": "plan/plan.json", "table": "plan/plan.csv",

@@ -372,17 +372,10 @@ class Spec:
 
 def load_spec(path: str | os.PathLike) -> Spec:
     """The spec in a TOML file; SpecError naming the file, line and field."""
+    from dampnet.schema import read_text
+
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise SpecError(f"{path}: no such sweep spec file") from None
-    except IsADirectoryError:
-        raise SpecError(f"{path}: is a directory: expected a sweep spec (TOML file)") from None
-    except UnicodeDecodeError:
-        raise SpecError(f"{path}: not a UTF-8 text file: expected a sweep spec (TOML)") from None
-    except OSError as e:
-        raise SpecError(f"{path}: cannot read the sweep spec ({e.strerror or e})") from None
+    text = read_text(p, SpecError, "UTF-8 text (a sweep spec is TOML)")
     return parse_spec(text, source=str(path), base=p.resolve().parent)
 
 
