@@ -5,7 +5,8 @@
  *     (dn_fw_x of the vectors header), each force printed as its float's bits;
  *  2. the quarter car: MLP -> neural damper (float kernel) -> loop model with a controller
  *     (the header's configuration, DN_FW_*), dn_loop_step over the stored road (dn_fw_road),
- *     the state printed every DN_FW_PRINT_EVERY steps and at the end (doubles' bits).
+ *     the state printed every DN_FW_PRINT_EVERY steps and at the end (as doubles' bits; the
+ *     state itself is dn_real: float with DN_LOOP_FLOAT).
  * Each part is timed with SysTick (under QEMU -icount, a count of instructions: the
  * "calib" line converts), beside the same loop calling an empty function (its overhead),
  * and its peak stack measured by painting. DN_FW_PART (0 none, 1 the MLP, 2 both) builds the
@@ -39,7 +40,7 @@
 #define DN_FW_VECTORS "dn_fw_vectors.h"
 #endif
 /* DN_FW_N_X, dn_fw_x[DN_FW_N_X][n_inputs] (float), DN_FW_N_STEPS, dn_fw_road[DN_FW_N_STEPS][2]
- * (road and its rate at each step's end, double), DN_FW_PRINT_EVERY, and the loop's
+ * (road and its rate at each step's end, dn_real), DN_FW_PRINT_EVERY, and the loop's
  * configuration DN_FW_DAMPER_EVAL, DN_FW_ACCEL_FEATURE, DN_FW_CONTROLLER, DN_FW_U_TAU_S. */
 #include DN_FW_VECTORS
 
@@ -296,7 +297,7 @@ __attribute__((noinline)) static const dn_loop_model* loop_setup(const dn_mlp* m
 }
 
 static void print_state(const char* tag, const dn_loop_data* data, int k, const dn_loop_out* out) {
-  double s[DN_LOOP_STATE_SIZE];
+  dn_real s[DN_LOOP_STATE_SIZE];
   dn_loop_get_state(data, s);
   put_str(tag);
   put_str(" ");
@@ -323,7 +324,7 @@ static void loop_part(const dn_mlp* mlp) {
     const int k1 = k0 + DN_FW_PRINT_EVERY < DN_FW_N_STEPS ? k0 + DN_FW_PRINT_EVERY : DN_FW_N_STEPS;
     uint32_t t0 = now();
     for (int k = k0; k < k1; ++k) {
-      const dn_loop_input in = {dn_fw_road[k][0], dn_fw_road[k][1], 0.0};
+      const dn_loop_input in = {dn_fw_road[k][0], dn_fw_road[k][1], 0};
       const int st = dn_loop_step(model, data, &in, &out);
       if (st < 0) ++errors;
       else status_or |= st;
@@ -337,7 +338,7 @@ static void loop_part(const dn_mlp* mlp) {
     const int k1 = k0 + DN_FW_PRINT_EVERY < DN_FW_N_STEPS ? k0 + DN_FW_PRINT_EVERY : DN_FW_N_STEPS;
     uint32_t t0 = now();
     for (int k = k0; k < k1; ++k) {
-      const dn_loop_input in = {dn_fw_road[k][0], dn_fw_road[k][1], 0.0};
+      const dn_loop_input in = {dn_fw_road[k][0], dn_fw_road[k][1], 0};
       stub_step(model, data, &in, &out);
     }
     uint32_t t1 = now();
@@ -416,7 +417,7 @@ int main(void) {
   uint32_t mask;
   stub_forward(NULL, dn_fw_x[0], &y, &mask);
   dn_loop_out out;
-  const dn_loop_input in = {0.0, 0.0, 0.0};
+  const dn_loop_input in = {0, 0, 0};
   stub_step(NULL, NULL, &in, &out);
   print_stack("none", sp_now());
 #endif

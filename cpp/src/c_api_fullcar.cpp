@@ -5,6 +5,7 @@
 #include "dampnet/dampnet.h"
 #include "internal.hpp"
 
+#if !DN_LOOP_FLOAT  // the full vehicle is built with double only (dampnet.h)
 extern "C" {
 
 void dn_fullcar_default(dn_fullcar_params* p) {
@@ -91,3 +92,4 @@ int dn_fullcar_forward(const dn_fullcar_model* m, const dn_fullcar_data* d,
 }
 
 }  // extern "C"
+#endif  // !DN_LOOP_FLOAT

@@ -7,13 +7,13 @@
 
 // The ABI: fields of 0.1 keep their offsets (0.2 appended v_lag, z_fric); the state
 // size is the length of its list.
-static_assert(offsetof(dn_damper_input, u_lag) == 4 * sizeof(double), "dn_damper_input 0.1 layout");
-static_assert(offsetof(dn_damper_input, temperature) == 5 * sizeof(double), "dn_damper_input 0.1 layout");
-static_assert(offsetof(dn_damper_input, dt) == 7 * sizeof(double), "dn_damper_input 0.1 layout");
-static_assert(offsetof(dn_damper_input, stage) == 8 * sizeof(double), "dn_damper_input 0.1 layout");
+static_assert(offsetof(dn_damper_input, u_lag) == 4 * sizeof(dn_real), "dn_damper_input 0.1 layout");
+static_assert(offsetof(dn_damper_input, temperature) == 5 * sizeof(dn_real), "dn_damper_input 0.1 layout");
+static_assert(offsetof(dn_damper_input, dt) == 7 * sizeof(dn_real), "dn_damper_input 0.1 layout");
+static_assert(offsetof(dn_damper_input, stage) == 8 * sizeof(dn_real), "dn_damper_input 0.1 layout");
 static_assert(offsetof(dn_damper_input, v_lag) > offsetof(dn_damper_input, stage), "0.2 fields appended");
-static_assert(offsetof(dn_controller, c_max) == 9 * sizeof(double), "dn_controller 0.2 layout");
-static_assert(offsetof(dn_controller, u_tau_s) == 10 * sizeof(double), "0.3 field appended");
+static_assert(offsetof(dn_controller, c_max) == 9 * sizeof(dn_real), "dn_controller 0.2 layout");
+static_assert(offsetof(dn_controller, u_tau_s) == 10 * sizeof(dn_real), "0.3 field appended");
 #define DN_STATE_COUNT_(i, name, doc) +1
 static_assert(DN_LOOP_STATE_SIZE == 0 DN_LOOP_STATE_LIST(DN_STATE_COUNT_), "DN_LOOP_STATE_SIZE");
 #undef DN_STATE_COUNT_
@@ -120,7 +120,7 @@ void dn_damper_destroy(dn_damper* d) { dn_storage::destroy(d); }
 
 int dn_damper_kind_of(const dn_damper* d) { return d ? d->d.kind : DN_E_NULL; }
 
-int dn_damper_force(const dn_damper* d, const dn_damper_input* in, double* force,
+int dn_damper_force(const dn_damper* d, const dn_damper_input* in, dn_real* force,
                     uint32_t* clamped_mask) {
   if (!d || !in || !force) return DN_E_NULL;
   return d->d.force(*in, force, nullptr, clamped_mask);
@@ -203,13 +203,13 @@ int dn_loop_reset(const dn_loop_model* m, dn_loop_data* d) {
 
 int dn_loop_state_size(void) { return DN_LOOP_STATE_SIZE; }
 
-int dn_loop_get_state(const dn_loop_data* d, double* state) {
+int dn_loop_get_state(const dn_loop_data* d, dn_real* state) {
   if (!d || !state) return DN_E_NULL;
   for (int i = 0; i < DN_LOOP_STATE_SIZE; ++i) state[i] = d->d.s[i];
   return DN_OK;
 }
 
-int dn_loop_set_state(dn_loop_data* d, const double* state) {
+int dn_loop_set_state(dn_loop_data* d, const dn_real* state) {
   if (!d || !state) return DN_E_NULL;
   for (int i = 0; i < DN_LOOP_STATE_SIZE; ++i)
     if (!std::isfinite(state[i])) return DN_E_NONFINITE_INPUT;

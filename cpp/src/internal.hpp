@@ -7,7 +7,9 @@
 
 #include "dampnet/damper.hpp"
 #include "dampnet/dampnet.h"
+#if !DN_LOOP_FLOAT
 #include "dampnet/fullcar.hpp"
+#endif
 #include "dampnet/loop.hpp"
 #include "dampnet/mlp.hpp"
 
@@ -28,6 +30,7 @@ struct dn_loop_data {
   dampnet::LoopData d;
 };
 
+#if !DN_LOOP_FLOAT  // the full vehicle is built with double only
 struct dn_fullcar_model {
   dampnet::FullCarModel m;
 };
@@ -35,6 +38,7 @@ struct dn_fullcar_model {
 struct dn_fullcar_data {
   dampnet::FullCarData d;
 };
+#endif
 
 // Caller-provided storage (dn_*_size / dn_*_init) and the heap (dn_*_create / _destroy):
 // every create is its init on memory from operator new, so both do the same set-up.

@@ -7,14 +7,16 @@ newlib) and run in QEMU (mps2-an386, mps2-an500; semihosting), against the host 
   (dampnet._core, the host's SIMD kernel) to 1e-5 of the model's force range, with the same
   statuses. (Measured: 5e-7; the kernels' tanh approximations differ by up to 5e-7.)
 * The quarter car (thesis Table 5, RK4 with one damper evaluation per step and the linearised
-  acceleration feature, on-off skyhook through a 5 ms command filter, float MLP, double loop
-  state on both cores: on the M4F's single-precision FPU the double arithmetic is libgcc's
-  software routines) over 10 s of the thesis's rough road (10,000 steps): the state every 100
-  steps and at the end equals the host loop's within 1e-4 of each quantity's peak over the run
-  (measured: below 1e-6; only the MLP's float rounding differs, the double arithmetic is IEEE
-  on both).
-* No C++ runtime and no heap are linked, dn_sizes.h matches the library, and the float forward
-  calls no double-precision routine.
+  acceleration feature, on-off skyhook through a 5 ms command filter, float MLP; the loop state
+  in float on the M4F (DN_LOOP_FLOAT: its FPU has no double) and in double on the M7) over
+  10 s of the thesis's rough road (10,000 steps), against the host loop (double state): the
+  state every 100 steps and at the end within 1e-4 of each quantity's peak over the run
+  (measured: M7 below 1e-6, only the MLP's float rounding differs; M4F float state at most
+  6.3e-7 of the peak); the time t (a float sum of dt on the M4F: 4.1e-4 s off after 10,000
+  steps of 1 ms) within 1e-4 of 10 s.
+* No C++ runtime and no heap are linked, dn_sizes.h matches the library, neither the float
+  forward nor the loop step calls a software double routine, and only the neural damper kind
+  is linked (DN_DAMPER_KINDS): no tanh or pow of the other kinds and terms.
 Builds are cached in build/embedded-test/ (CMake rebuilds only what changed)."""
 
 from __future__ import annotations
@@ -57,8 +59,9 @@ def vectors(model):
 @pytest.fixture(scope="module", params=CPUS)
 def firmware(request, vectors):
     cpu = request.param
+    checks = ("dn_float_kernel_check",) + (("dn_float_loop_check",) if emb.LOOP_FLOAT[cpu] else ())
     bdir = emb.build(cpu, TEST_DIR / cpu, vectors=vectors[0],
-                     targets=("dn_firmware", "dn_firmware_kernel", "dn_float_kernel_check"))
+                     targets=("dn_firmware", "dn_firmware_kernel") + checks)
     out = emb.parse_output(emb.run(emb.firmware_path(bdir), cpu, timeout=120))
     return cpu, bdir, out
 
@@ -85,7 +88,7 @@ def test_forces_equal_host_float_forward(firmware, vectors, model):
 
 
 def test_quarter_car_equals_host_loop(firmware, vectors, model):
-    _, _, out = firmware
+    cpu, _, out = firmware
     road = vectors[1].road
     states, final, evals = emb.host_loop(model, road)
     assert [k for k, _, _ in out.states] == [k for k, _ in states]
@@ -99,7 +102,10 @@ def test_quarter_car_equals_host_loop(firmware, vectors, model):
     err = np.abs(fw[:, idx] - host[:, idx]).max(axis=0)
     assert np.all(err <= 1e-4 * peak), dict(zip(names, err / peak))
     np.testing.assert_allclose(out.final[idx], final[idx], rtol=0, atol=1e-4 * peak.max())
-    assert out.final[0] == pytest.approx(10.0) and out.evals == evals == len(road)
+    # time: t += dt in the loop's precision (float on the M4F: rounding accumulates; the road is
+    # the caller's input, so only the reported time drifts)
+    assert out.final[0] == pytest.approx(10.0, rel=1e-4 if emb.LOOP_FLOAT[cpu] else 1e-12)
+    assert out.evals == evals == len(road)
     # the road moved the car: the sprung mass travelled centimetres
     assert peak[0] > 5e-3
 
@@ -144,10 +150,28 @@ def test_no_cxx_runtime_no_heap_and_a_float_forward_without_double(firmware):
         assert not heap, heap
     reach = _calls_from(emb.firmware_path(bdir, "dn_firmware_kernel"), "dn_mlp_forward_f")
     assert any("forward" in f for f in reach), reach
-    soft_double = sorted(f for f in reach if re.match(r"__aeabi_d|__aeabi_[fi]2d|__aeabi_d2|__.*df[23]", f))
-    assert not soft_double, soft_double
+    assert not _soft_double(reach), _soft_double(reach)
     # the float kernel compiled with -Wdouble-promotion -Werror (dn_float_kernel_check)
     assert list((bdir / "cpp" / "embedded").rglob("float_kernel_check.cpp.obj"))
+
+
+def _soft_double(functions) -> list[str]:
+    return sorted(f for f in functions if re.match(r"__aeabi_d|__aeabi_[fi]2d|__aeabi_d2|__.*df[23]", f))
+
+
+def test_the_step_calls_no_software_double_and_links_only_the_neural_kind(firmware):
+    """The quarter-car step on the M4F's float state and on the M7's hardware double calls no
+    libgcc double routine; a build of the neural kind only (DN_DAMPER_KINDS) links none of the
+    other kinds' libm functions (parametric: tanh; terms: pow)."""
+    cpu, bdir, _ = firmware
+    elf = emb.firmware_path(bdir)
+    reach = _calls_from(elf, "dn_loop_step")
+    assert any("step" in f for f in reach) and any("force_da" in f for f in reach), reach
+    assert not _soft_double(reach), _soft_double(reach)
+    other_kinds = {"tanh", "tanhf", "pow", "powf"} & _symbols(elf)
+    assert not other_kinds, other_kinds
+    if emb.LOOP_FLOAT[cpu]:  # the float loop compiled with -Wdouble-promotion -Werror
+        assert list((bdir / "cpp" / "embedded").rglob("float_loop_check.cpp.obj"))
 
 
 def test_export_target_folder_builds_and_runs(vectors, model, tmp_path):

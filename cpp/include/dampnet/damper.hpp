@@ -10,10 +10,21 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <type_traits>
 
 #include "dampnet/dampnet.h"
 #include "dampnet/mlp.hpp"
+#include "dampnet/real.hpp"
 #include "dampnet/terms.hpp"
+
+// Where flash is scarce (DN_SMALL_CODE: CMake sets it for freestanding builds) a damper's
+// evaluations stay out of line: the loop calls them from several places, and -O3 inlining the
+// MLP kernel into each made detail::evaluate alone 25 KB on the Cortex-M4F. The host inlines.
+#if defined(DN_SMALL_CODE) && DN_SMALL_CODE
+#define DN_OUTLINE __attribute__((noinline))
+#else
+#define DN_OUTLINE
+#endif
 
 namespace dampnet {
 
@@ -21,7 +32,7 @@ namespace features {
 
 struct Info {
   const char* name;
-  double dn_damper_input::*field;
+  real dn_damper_input::*field;
   int param;  // the dn_feature_param it needs, or DN_FPARAM_NONE
 };
 
@@ -62,14 +73,14 @@ inline int param_id_of(const char* name) noexcept {
 }  // namespace features
 
 struct LinearParams {
-  double c = 0.0;  // [N s/m]
+  real c = 0;  // [N s/m]
 };
 
 struct TableParams {
   int n_v = 0, n_u = 0;
-  double v[DN_CAP_TABLE_V] = {};
-  double u[DN_CAP_TABLE_U] = {};
-  double f[DN_CAP_TABLE_U * DN_CAP_TABLE_V] = {};  // [n_u][n_v]
+  real v[DN_CAP_TABLE_V] = {};
+  real u[DN_CAP_TABLE_U] = {};
+  real f[DN_CAP_TABLE_U * DN_CAP_TABLE_V] = {};  // [n_u][n_v]
 };
 
 class Damper {
@@ -85,7 +96,7 @@ class Damper {
   int n_feat = 0;
   int accel_input = -1;  // neural: index of the "acceleration" input, or -1
   int feat[DN_MAX_INPUTS] = {};
-  double fparams[DN_N_FEATURE_PARAMS > 0 ? DN_N_FEATURE_PARAMS : 1] = {};
+  real fparams[DN_N_FEATURE_PARAMS > 0 ? DN_N_FEATURE_PARAMS : 1] = {};
   bool fparam_set[DN_N_FEATURE_PARAMS > 0 ? DN_N_FEATURE_PARAMS : 1] = {};
   // callback
   dn_damper_fn fn = nullptr;
@@ -95,26 +106,29 @@ class Damper {
   Term terms[DN_CAP_TERMS > 0 ? DN_CAP_TERMS : 1];
 
   // A feature parameter's value, 0 when not set (every parameter is > 0 when set).
-  double fparam(int id) const noexcept { return fparam_set[id] ? fparams[id] : 0.0; }
+  real fparam(int id) const noexcept { return fparam_set[id] ? fparams[id] : real(0); }
   // The control-lag time constant [s] (0: no lag feature, u_lag follows u).
-  double lag_tau() const noexcept { return fparam(DN_FPARAM_CONTROL_LAG_TAU_S); }
+  real lag_tau() const noexcept { return fparam(DN_FPARAM_CONTROL_LAG_TAU_S); }
   // The velocity-lag time constant [s] (0: v_lag follows v).
-  double velocity_lag_tau() const noexcept { return fparam(DN_FPARAM_VELOCITY_LAG_TAU_S); }
+  real velocity_lag_tau() const noexcept { return fparam(DN_FPARAM_VELOCITY_LAG_TAU_S); }
   // The Dahl pre-sliding travel [m] (0: no friction_state; z_fric stays 0).
-  double presliding() const noexcept { return fparam(DN_FPARAM_FRICTION_PRESLIDING_M); }
+  real presliding() const noexcept { return fparam(DN_FPARAM_FRICTION_PRESLIDING_M); }
 
   // ---- set-up ----
   int set_linear(double c) noexcept {
-    if (!std::isfinite(c)) return DN_E_NONFINITE_PARAM;
+    if (!(DN_DAMPER_KINDS & (1 << DN_DAMPER_LINEAR))) return DN_E_PARAM;  // not in this build
+    const real cr = static_cast<real>(c);
+    if (!std::isfinite(cr)) return DN_E_NONFINITE_PARAM;
     kind = DN_DAMPER_LINEAR;
-    lin.c = c;
+    lin.c = cr;
     return DN_OK;
   }
 
   int set_parametric(const dn_parametric_params* p) noexcept {
     if (!p) return DN_E_NULL;
-    const double v[] = {p->c_min, p->c_max, p->gamma, p->f0, p->v_max, p->v_smooth};
-    for (double x : v)
+    if (!(DN_DAMPER_KINDS & (1 << DN_DAMPER_PARAMETRIC))) return DN_E_PARAM;
+    const real v[] = {p->c_min, p->c_max, p->gamma, p->f0, p->v_max, p->v_smooth};
+    for (real x : v)
       if (!std::isfinite(x)) return DN_E_NONFINITE_PARAM;
     if (p->c_min < 0 || p->c_max < p->c_min || p->gamma < 0 || p->f0 < 0 || !(p->v_max > 0) ||
         p->v_smooth < 0)
@@ -124,25 +138,29 @@ class Damper {
     return DN_OK;
   }
 
+  // The grid is validated in dn_real (finite, strictly increasing after the conversion).
   int set_table(const double* vs, int n_v, const double* us, int n_u, const double* fs) noexcept {
     if (!vs || !us || !fs) return DN_E_NULL;
+    if (!(DN_DAMPER_KINDS & (1 << DN_DAMPER_TABLE))) return DN_E_PARAM;
     if (n_v < 2 || n_v > DN_CAP_TABLE_V || n_u < 1 || n_u > DN_CAP_TABLE_U) return DN_E_SIZE;
+    TableParams t;
+    t.n_v = n_v;
+    t.n_u = n_u;
+    for (int i = 0; i < n_v; ++i) t.v[i] = static_cast<real>(vs[i]);
+    for (int j = 0; j < n_u; ++j) t.u[j] = static_cast<real>(us[j]);
+    for (int k = 0; k < n_u * n_v; ++k) t.f[k] = static_cast<real>(fs[k]);
     for (int i = 0; i < n_v; ++i)
-      if (!std::isfinite(vs[i])) return DN_E_NONFINITE_PARAM;
+      if (!std::isfinite(t.v[i])) return DN_E_NONFINITE_PARAM;
     for (int j = 0; j < n_u; ++j)
-      if (!std::isfinite(us[j])) return DN_E_NONFINITE_PARAM;
+      if (!std::isfinite(t.u[j])) return DN_E_NONFINITE_PARAM;
     for (int k = 0; k < n_u * n_v; ++k)
-      if (!std::isfinite(fs[k])) return DN_E_NONFINITE_PARAM;
+      if (!std::isfinite(t.f[k])) return DN_E_NONFINITE_PARAM;
     for (int i = 1; i < n_v; ++i)
-      if (!(vs[i] > vs[i - 1])) return DN_E_PARAM;
+      if (!(t.v[i] > t.v[i - 1])) return DN_E_PARAM;
     for (int j = 1; j < n_u; ++j)
-      if (!(us[j] > us[j - 1])) return DN_E_PARAM;
+      if (!(t.u[j] > t.u[j - 1])) return DN_E_PARAM;
     kind = DN_DAMPER_TABLE;
-    tab.n_v = n_v;
-    tab.n_u = n_u;
-    for (int i = 0; i < n_v; ++i) tab.v[i] = vs[i];
-    for (int j = 0; j < n_u; ++j) tab.u[j] = us[j];
-    for (int k = 0; k < n_u * n_v; ++k) tab.f[k] = fs[k];
+    tab = t;
     return DN_OK;
   }
 
@@ -151,6 +169,7 @@ class Damper {
                           const double* pvalues, int n_params, int prec) noexcept {
     if (n > 0 && !names) return DN_E_NULL;
     if (n_params > 0 && (!pnames || !pvalues)) return DN_E_NULL;
+    if (!(DN_DAMPER_KINDS & (1 << DN_DAMPER_NEURAL))) return DN_E_PARAM;  // not in this build
     if (n < 1 || n > DN_MAX_INPUTS || n_params < 0) return DN_E_SIZE;
     if (n != md.n_inputs()) return DN_E_MISMATCH;
     if (prec != DN_PRECISION_DOUBLE && prec != DN_PRECISION_FLOAT) return DN_E_PARAM;
@@ -161,13 +180,14 @@ class Damper {
       if (ids[i] < 0) return DN_E_UNKNOWN_NAME;
     }
     bool set[DN_N_FEATURE_PARAMS] = {};
-    double vals[DN_N_FEATURE_PARAMS] = {};
+    real vals[DN_N_FEATURE_PARAMS] = {};
     for (int i = 0; i < n_params; ++i) {
       const int id = features::param_id_of(pnames[i]);
       if (id < 0) return DN_E_UNKNOWN_NAME;
-      if (!std::isfinite(pvalues[i])) return DN_E_NONFINITE_PARAM;
-      if (!(pvalues[i] > 0)) return DN_E_PARAM;  // time constants and lengths
-      vals[id] = pvalues[i];
+      const real value = static_cast<real>(pvalues[i]);
+      if (!std::isfinite(value)) return DN_E_NONFINITE_PARAM;
+      if (!(value > 0)) return DN_E_PARAM;  // time constants and lengths
+      vals[id] = value;
       set[id] = true;
     }
     for (int i = 0; i < n; ++i) {
@@ -191,6 +211,7 @@ class Damper {
 
   int set_callback(dn_damper_fn f, void* u) noexcept {
     if (!f) return DN_E_NULL;
+    if (!(DN_DAMPER_KINDS & (1 << DN_DAMPER_CALLBACK))) return DN_E_PARAM;
     kind = DN_DAMPER_CALLBACK;
     fn = f;
     user = u;
@@ -209,7 +230,7 @@ class Damper {
   // ---- evaluation ----
 
   // [RT] The neural inputs for an evaluation (unsaturated), into x[n_feat].
-  void feature_values(const dn_damper_input& in, double* x) const noexcept {
+  void feature_values(const dn_damper_input& in, real* x) const noexcept {
     const features::Info* t = features::table();
     for (int i = 0; i < n_feat; ++i) x[i] = in.*(t[feat[i]].field);
   }
@@ -217,26 +238,32 @@ class Damper {
   // [RT] Force [N] of the model plus its terms. feat_out (nullable) receives the
   // neural inputs. Returns DN_OK, warnings, or DN_E_NONFINITE_INPUT /
   // DN_E_NONFINITE_OUTPUT (force set to 0).
-  DN_REALTIME int force(const dn_damper_input& in, double* f, double* feat_out = nullptr,
+  DN_REALTIME DN_OUTLINE int force(const dn_damper_input& in, real* f, real* feat_out = nullptr,
                         uint32_t* clamped_mask = nullptr) const noexcept {
     int st = DN_OK;
-    double y = 0.0;
+    real y = 0;
     if (clamped_mask) *clamped_mask = 0;
+    // A kind left out of this build (DN_DAMPER_KINDS) cannot be set, so its case is dead: the
+    // `kind_built` tests let the compiler drop its code (and its libm functions) from flash.
     switch (kind) {
       case DN_DAMPER_LINEAR:
+        if (!kind_built(DN_DAMPER_LINEAR)) return fail(f, DN_E_PARAM);
         if (!std::isfinite(in.v)) return fail(f, DN_E_NONFINITE_INPUT);
         y = lin.c * in.v;
         break;
       case DN_DAMPER_PARAMETRIC:
+        if (!kind_built(DN_DAMPER_PARAMETRIC)) return fail(f, DN_E_PARAM);
         if (!std::isfinite(in.v) || !std::isfinite(in.u)) return fail(f, DN_E_NONFINITE_INPUT);
         y = parametric(in.v, in.u);
         break;
       case DN_DAMPER_TABLE:
+        if (!kind_built(DN_DAMPER_TABLE)) return fail(f, DN_E_PARAM);
         if (!std::isfinite(in.v) || !std::isfinite(in.u)) return fail(f, DN_E_NONFINITE_INPUT);
         y = table(in.v, in.u, &st);
         break;
       case DN_DAMPER_NEURAL: {
-        double x[DN_MAX_INPUTS];
+        if (!kind_built(DN_DAMPER_NEURAL)) return fail(f, DN_E_PARAM);
+        real x[DN_MAX_INPUTS];
         feature_values(in, x);
         for (int i = 0; i < n_feat; ++i)
           if (!std::isfinite(x[i])) return fail(f, DN_E_NONFINITE_INPUT);
@@ -248,18 +275,19 @@ class Damper {
           st = mf.forward(xf, &yf, clamped_mask);
           y = yf;
         } else {
-          st = md.forward(x, &y, clamped_mask);
+          st = double_forward(md, x, &y, clamped_mask);
         }
         if (st < 0) return fail(f, st);
         break;
       }
       case DN_DAMPER_CALLBACK:
+        if (!kind_built(DN_DAMPER_CALLBACK)) return fail(f, DN_E_PARAM);
         y = fn(user, &in);
         break;
       default:
         return fail(f, DN_E_PARAM);
     }
-    if (n_terms > 0) {
+    if (DN_CAP_TERMS > 0 && n_terms > 0) {
       if (!std::isfinite(in.x)) return fail(f, DN_E_NONFINITE_INPUT);
       y += terms::sum(terms, n_terms, in);
     }
@@ -270,16 +298,16 @@ class Damper {
 
   // [RT] As force(), plus dF/da [N s^2/m] of the model (terms do not depend on a):
   // analytic for a neural damper that reads the acceleration, 0 for the others.
-  DN_REALTIME int force_da(const dn_damper_input& in, double* f, double* df_da,
+  DN_REALTIME DN_OUTLINE int force_da(const dn_damper_input& in, real* f, real* df_da,
                            uint32_t* clamped_mask = nullptr) const noexcept {
-    *df_da = 0.0;
-    if (kind != DN_DAMPER_NEURAL || accel_input < 0) return force(in, f, nullptr, clamped_mask);
+    *df_da = 0;
+    if (!kind_built(DN_DAMPER_NEURAL) || kind != DN_DAMPER_NEURAL || accel_input < 0) return force(in, f, nullptr, clamped_mask);
     if (clamped_mask) *clamped_mask = 0;
-    double x[DN_MAX_INPUTS];
+    real x[DN_MAX_INPUTS];
     feature_values(in, x);
     for (int i = 0; i < n_feat; ++i)
       if (!std::isfinite(x[i])) return fail(f, DN_E_NONFINITE_INPUT);
-    double y = 0.0;
+    real y = 0;
     int st;
     if (precision == DN_PRECISION_FLOAT) {
       float xf[DN_MAX_INPUTS], yf = 0.0f, gf = 0.0f;
@@ -288,10 +316,10 @@ class Damper {
       y = yf;
       *df_da = gf;
     } else {
-      st = md.forward_grad(x, &y, accel_input, df_da, clamped_mask);
+      st = double_forward_grad(md, x, &y, accel_input, df_da, clamped_mask);
     }
     if (st < 0) return fail(f, st);
-    if (n_terms > 0) {
+    if (DN_CAP_TERMS > 0 && n_terms > 0) {
       if (!std::isfinite(in.x)) return fail(f, DN_E_NONFINITE_INPUT);
       y += terms::sum(terms, n_terms, in);
     }
@@ -304,18 +332,18 @@ class Damper {
   // damper reading the acceleration: Mlp::forward_grad4; every other damper, or an input with
   // a non-finite feature, four force_da calls). Each result is identical to its own call's.
   // Nullable: clamped_mask (4).
-  DN_REALTIME void force_da4(const dn_damper_input* in, double* f, double* df_da, int* status,
+  DN_REALTIME void force_da4(const dn_damper_input* in, real* f, real* df_da, int* status,
                              uint32_t* clamped_mask = nullptr) const noexcept {
-    bool batch = kind == DN_DAMPER_NEURAL && accel_input >= 0 && precision == DN_PRECISION_FLOAT;
+    bool batch = kind_built(DN_DAMPER_NEURAL) && kind == DN_DAMPER_NEURAL && accel_input >= 0 && precision == DN_PRECISION_FLOAT;
     float xf[4][DN_MAX_INPUTS] = {};
     for (int b = 0; b < 4 && batch; ++b) {
-      double x[DN_MAX_INPUTS];
+      real x[DN_MAX_INPUTS];
       feature_values(in[b], x);
       for (int i = 0; i < n_feat; ++i) {
         if (!std::isfinite(x[i])) batch = false;
         xf[b][i] = static_cast<float>(x[i]);
       }
-      if (n_terms > 0 && !std::isfinite(in[b].x)) batch = false;
+      if (DN_CAP_TERMS > 0 && n_terms > 0 && !std::isfinite(in[b].x)) batch = false;
     }
     if (!batch) {
       for (int b = 0; b < 4; ++b)
@@ -328,13 +356,13 @@ class Damper {
     for (int b = 0; b < 4; ++b) {
       df_da[b] = gf[b];  // as force_da, also on an error
       if (status[b] < 0) {
-        f[b] = 0.0;
+        f[b] = 0;
         continue;
       }
-      double y = yf[b];
-      if (n_terms > 0) y += terms::sum(terms, n_terms, in[b]);
+      real y = yf[b];
+      if (DN_CAP_TERMS > 0 && n_terms > 0) y += terms::sum(terms, n_terms, in[b]);
       if (!std::isfinite(y)) {
-        f[b] = 0.0;
+        f[b] = 0;
         status[b] = DN_E_NONFINITE_OUTPUT;
         continue;
       }
@@ -343,29 +371,29 @@ class Damper {
   }
 
   // Thesis eq. 1-3.
-  double parametric(double v, double u) const noexcept {
-    const double V = u < 0.0 ? 0.0 : (u > par.v_max ? par.v_max : u);
-    double c = V > 0.0 ? par.gamma / V + par.c_min : par.c_max;
+  real parametric(real v, real u) const noexcept {
+    const real V = u < 0 ? real(0) : (u > par.v_max ? par.v_max : u);
+    real c = V > 0 ? par.gamma / V + par.c_min : par.c_max;
     if (c > par.c_max) c = par.c_max;  // also +Inf from a denormal V
     if (c < par.c_min) c = par.c_min;
-    double s;
-    if (par.v_smooth > 0.0) s = std::tanh(v / par.v_smooth);
-    else s = v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0);
+    real s;
+    if (par.v_smooth > 0) s = std::tanh(v / par.v_smooth);
+    else s = v > 0 ? 1 : (v < 0 ? -1 : 0);
     return c * v + par.f0 * s;
   }
 
   // Bilinear in (v, u), clamped to the grid.
-  double table(double v, double u, int* st) const noexcept {
+  real table(real v, real u, int* st) const noexcept {
     const int nv = tab.n_v, nu = tab.n_u;
     if (v < tab.v[0] || v > tab.v[nv - 1]) {
       v = v < tab.v[0] ? tab.v[0] : tab.v[nv - 1];
       *st |= DN_W_SATURATED;
     }
     const int i = segment(tab.v, nv, v);
-    const double wv = (v - tab.v[i]) / (tab.v[i + 1] - tab.v[i]);
+    const real wv = (v - tab.v[i]) / (tab.v[i + 1] - tab.v[i]);
     auto row = [&](int j) {
-      const double* fr = tab.f + j * nv;
-      return (1.0 - wv) * fr[i] + wv * fr[i + 1];  // exact at grid points
+      const real* fr = tab.f + j * nv;
+      return (1 - wv) * fr[i] + wv * fr[i + 1];  // exact at grid points
     };
     if (nu == 1) return row(0);
     if (u < tab.u[0] || u > tab.u[nu - 1]) {
@@ -373,18 +401,43 @@ class Damper {
       *st |= DN_W_SATURATED;
     }
     const int j = segment(tab.u, nu, u);
-    const double wu = (u - tab.u[j]) / (tab.u[j + 1] - tab.u[j]);
-    const double f0 = row(j), f1 = row(j + 1);
-    return (1.0 - wu) * f0 + wu * f1;
+    const real wu = (u - tab.u[j]) / (tab.u[j + 1] - tab.u[j]);
+    const real f0 = row(j), f1 = row(j + 1);
+    return (1 - wu) * f0 + wu * f1;
   }
 
  private:
-  static int fail(double* f, int st) noexcept {
-    *f = 0.0;
+  static int fail(real* f, int st) noexcept {
+    *f = 0;
+    return st;
+  }
+  static constexpr bool kind_built(int k) noexcept { return (DN_DAMPER_KINDS >> k) & 1; }
+  // The double-precision MLP on the loop's reals (a float loop converts its inputs).
+  static int double_forward(const MlpDouble& m, const double* x, double* y, uint32_t* mask) noexcept {
+    return m.forward(x, y, mask);
+  }
+  static int double_forward(const MlpDouble& m, const float* x, float* y, uint32_t* mask) noexcept {
+    double xd[DN_MAX_INPUTS], yd = 0;
+    for (int i = 0; i < m.n_inputs(); ++i) xd[i] = x[i];
+    const int st = m.forward(xd, &yd, mask);
+    *y = static_cast<float>(yd);
+    return st;
+  }
+  static int double_forward_grad(const MlpDouble& m, const double* x, double* y, int i, double* g,
+                                 uint32_t* mask) noexcept {
+    return m.forward_grad(x, y, i, g, mask);
+  }
+  static int double_forward_grad(const MlpDouble& m, const float* x, float* y, int i, float* g,
+                                 uint32_t* mask) noexcept {
+    double xd[DN_MAX_INPUTS], yd = 0, gd = 0;
+    for (int k = 0; k < m.n_inputs(); ++k) xd[k] = x[k];
+    const int st = m.forward_grad(xd, &yd, i, &gd, mask);
+    *y = static_cast<float>(yd);
+    *g = static_cast<float>(gd);
     return st;
   }
   // Index i of the grid segment [g[i], g[i+1]] holding x (g[0] <= x <= g[n-1], n >= 2).
-  static int segment(const double* g, int n, double x) noexcept {
+  static int segment(const real* g, int n, real x) noexcept {
     int lo = 0, hi = n - 1;  // invariant: g[lo] <= x, and x <= g[hi]
     while (hi - lo > 1) {    // at most log2(64) = 6 iterations
       const int mid = (lo + hi) / 2;

@@ -141,6 +141,30 @@ DN_API const char* dn_status_str(int status);
 #define DN_DOUBLE_KERNEL 1
 #endif
 
+/* The loop's real type. DN_LOOP_FLOAT 1 (CMake DAMPNET_LOOP_FLOAT; the cortex-m4 preset) makes
+ * dn_real float: the quarter-car loop's state and arithmetic, the damper models, the vehicle
+ * and controller parameters, dn_damper_input, dn_loop_input / dn_loop_out and the flat state
+ * are single precision, for cores whose FPU has no double (Cortex-M4F: every double operation
+ * there is a library routine of ~20-100 cycles). Default 0: double, the host's. The MLP's
+ * own API (dn_mlp_*) and the set-up arrays (tables, feature and term parameters) keep double;
+ * the full vehicle (dn_fullcar_*) exists only with double. */
+#ifndef DN_LOOP_FLOAT
+#define DN_LOOP_FLOAT 0
+#endif
+#if DN_LOOP_FLOAT
+typedef float dn_real;
+#else
+typedef double dn_real;
+#endif
+
+/* The damper kinds this build evaluates, a bit mask (bit k: dn_damper_kind k; CMake
+ * DAMPNET_DAMPER_KINDS, a list of kind names). Default: all. A kind left out is not linked
+ * (a microcontroller's flash: the Cortex-M presets keep only "neural"); creating a damper of
+ * it gives DN_E_PARAM. */
+#ifndef DN_DAMPER_KINDS
+#define DN_DAMPER_KINDS 0x1f
+#endif
+
 /* Caller-provided storage (no heap): every object that dn_*_create allocates can instead be
  * placed in memory the caller owns by the matching dn_*_init, MuJoCo-arena style, e.g. static
  * arrays on a microcontroller. dn_*_size() is the number of bytes an object needs in this build
@@ -252,19 +276,19 @@ typedef enum dn_feature_param {
  * CTX, the evaluation's context for callback dampers. Fields are only ever appended
  * (the ABI keeps every offset). */
 #define DN_DAMPER_INPUT_FIELDS(X)                                                              \
-  X(double, x, QTY, "relative displacement, extension positive, from the mid position [m]")  \
-  X(double, v, QTY, "relative velocity, extension positive [m/s]")                          \
-  X(double, a, QTY, "relative acceleration, extension positive [m/s^2] (see the loop)")     \
-  X(double, u, QTY, "control, held over the step [V or A]")             \
-  X(double, u_lag, QTY, "control after a first-order lag of the model's control_lag_tau_s [V or A]") \
-  X(double, temperature, QTY, "damper temperature [degC]")                                   \
-  X(double, t, CTX, "time of this evaluation [s] (callback dampers)")                        \
-  X(double, dt, CTX, "step size of the loop [s] (callback dampers); 0 outside a loop")      \
+  X(dn_real, x, QTY, "relative displacement, extension positive, from the mid position [m]")  \
+  X(dn_real, v, QTY, "relative velocity, extension positive [m/s]")                          \
+  X(dn_real, a, QTY, "relative acceleration, extension positive [m/s^2] (see the loop)")     \
+  X(dn_real, u, QTY, "control, held over the step [V or A]")             \
+  X(dn_real, u_lag, QTY, "control after a first-order lag of the model's control_lag_tau_s [V or A]") \
+  X(dn_real, temperature, QTY, "damper temperature [degC]")                                   \
+  X(dn_real, t, CTX, "time of this evaluation [s] (callback dampers)")                        \
+  X(dn_real, dt, CTX, "step size of the loop [s] (callback dampers); 0 outside a loop")      \
   X(int, stage, CTX, "integrator stage of this evaluation, 0..3 [-] (callback dampers)")     \
   /* since 0.2 (appended: the fields above keep their 0.1 offsets) */                         \
-  X(double, v_lag, QTY_OPT,                                                                  \
+  X(dn_real, v_lag, QTY_OPT,                                                                  \
     "velocity after a first-order lag of the model's velocity_lag_tau_s [m/s]")             \
-  X(double, z_fric, QTY_OPT,                                                                 \
+  X(dn_real, z_fric, QTY_OPT,                                                                 \
     "Dahl friction state in [-1, 1]: follows sgn(v) over a travel of a few "                \
     "friction_presliding_m after each reversal [-]")
 
@@ -360,7 +384,7 @@ typedef enum dn_term_kind { DN_TERM_LIST(DN_TERM_ENUM_) DN_N_TERM_KINDS } dn_ter
     "a user function (slow path; e.g. a truth model or a real damper)")
 typedef enum dn_damper_kind { DN_DAMPER_KIND_LIST(DN_ENUM_ROW_) } dn_damper_kind;
 
-/* Precision of a neural damper's MLP evaluation (the loop's state is always double). */
+/* Precision of a neural damper's MLP evaluation (the loop's state is dn_real). */
 #define DN_PRECISION_LIST(X)                                          \
   X(DN_PRECISION_DOUBLE, 0, "double", "double-precision kernel")     \
   X(DN_PRECISION_FLOAT, 1, "float", "single-precision kernel")
@@ -371,19 +395,19 @@ typedef enum dn_precision { DN_PRECISION_LIST(DN_ENUM_ROW_) } dn_precision;
  * clamped to [c_min, c_max]; V is the control clamped to [0, v_max] first.
  * sgn is exact with sgn(0) = 0 when v_smooth = 0, else tanh(v / v_smooth). */
 typedef struct dn_parametric_params {
-  double c_min;    /* minimum damping [N s/m], >= 0 */
-  double c_max;    /* maximum damping [N s/m], >= c_min */
-  double gamma;    /* gain [N s V/m] (c = gamma / V + c_min), >= 0 */
-  double f0;       /* breakaway (friction) force [N], >= 0 */
-  double v_max;    /* largest control [V], > 0 */
-  double v_smooth; /* sgn smoothing velocity [m/s], >= 0 (0: exact sgn) */
+  dn_real c_min;    /* minimum damping [N s/m], >= 0 */
+  dn_real c_max;    /* maximum damping [N s/m], >= c_min */
+  dn_real gamma;    /* gain [N s V/m] (c = gamma / V + c_min), >= 0 */
+  dn_real f0;       /* breakaway (friction) force [N], >= 0 */
+  dn_real v_max;    /* largest control [V], > 0 */
+  dn_real v_smooth; /* sgn smoothing velocity [m/s], >= 0 (0: exact sgn) */
 } dn_parametric_params;
 
 /* A user damper: returns the force [N] for one evaluation. It runs inside the
  * step, so it must follow the real-time rules if the loop does. A stateful
  * callback should be used with DN_EVAL_PER_STEP (then called once per step,
  * stage 0). Nullable: user. */
-typedef double (*dn_damper_fn)(void* user, const dn_damper_input* in);
+typedef dn_real (*dn_damper_fn)(void* user, const dn_damper_input* in);
 
 /* A damper model: immutable once handed to a loop model (which copies it). Opaque. */
 typedef struct dn_damper dn_damper;
@@ -446,7 +470,7 @@ DN_API int dn_damper_kind_of(const dn_damper* d);
  * A non-finite field of *in that the model uses: DN_E_NONFINITE_INPUT, *force = 0.
  * Warnings (OR-ed): DN_W_SATURATED (MLP input or table clamped),
  * DN_W_NONFINITE_INPUT. Nullable: clamped_mask (neural: bit i = input i clamped). */
-DN_API int dn_damper_force(const dn_damper* d, const dn_damper_input* in, double* force,
+DN_API int dn_damper_force(const dn_damper* d, const dn_damper_input* in, dn_real* force,
                            uint32_t* clamped_mask);
 
 /*---- Controllers ----*/
@@ -484,16 +508,16 @@ typedef enum dn_controller_kind { DN_CONTROLLER_KIND_LIST(DN_ENUM_ROW_) } dn_con
 /* Controller parameters: X(type, name, default, doc). */
 #define DN_CONTROLLER_FIELDS(X)                                                     \
   X(int, kind, DN_CTRL_PASSIVE, "dn_controller_kind")                               \
-  X(double, u_passive, 0.0, "control of the passive law [V]")                       \
-  X(double, u_soft, 5.0, "control giving the least damping [V]")                    \
-  X(double, u_hard, 0.0, "control giving the most damping [V]")                     \
-  X(double, u_min, 0.0, "lower control limit [V], <= u_max")                                  \
-  X(double, u_max, 5.0, "upper control limit [V], >= u_min")                                  \
-  X(double, c_sky, 2500.0, "skyhook damping [N s/m], >= 0")                         \
-  X(double, c_gnd, 2500.0, "groundhook damping [N s/m], >= 0")                      \
-  X(double, c_min, 500.0, "damping at u_soft [N s/m] (continuous laws: < c_max)")            \
-  X(double, c_max, 4000.0, "damping at u_hard [N s/m] (continuous laws), > c_min")           \
-  X(double, u_tau_s, 0.0, "command filter time constant [s], >= 0; 0 = none (not EXTERNAL)")
+  X(dn_real, u_passive, 0.0, "control of the passive law [V]")                       \
+  X(dn_real, u_soft, 5.0, "control giving the least damping [V]")                    \
+  X(dn_real, u_hard, 0.0, "control giving the most damping [V]")                     \
+  X(dn_real, u_min, 0.0, "lower control limit [V], <= u_max")                                  \
+  X(dn_real, u_max, 5.0, "upper control limit [V], >= u_min")                                  \
+  X(dn_real, c_sky, 2500.0, "skyhook damping [N s/m], >= 0")                         \
+  X(dn_real, c_gnd, 2500.0, "groundhook damping [N s/m], >= 0")                      \
+  X(dn_real, c_min, 500.0, "damping at u_soft [N s/m] (continuous laws: < c_max)")            \
+  X(dn_real, c_max, 4000.0, "damping at u_hard [N s/m] (continuous laws), > c_min")           \
+  X(dn_real, u_tau_s, 0.0, "command filter time constant [s], >= 0; 0 = none (not EXTERNAL)")
 
 #define DN_FIELD_DECL_(type, name, def, doc) type name;
 typedef struct dn_controller { DN_CONTROLLER_FIELDS(DN_FIELD_DECL_) } dn_controller;
@@ -562,17 +586,17 @@ typedef enum dn_accel_feature { DN_ACCEL_FEATURE_LIST(DN_ENUM_ROW_) } dn_accel_f
  *   m_s  z_s''  = -k_s (z_s - z_us) - F_a
  *   m_us z_us'' =  k_s (z_s - z_us) + F_a - k_t (z_us - z_r) - c_t (z_us' - z_r') */
 #define DN_VEHICLE_FIELDS(X)                                                               \
-  X(double, m_s, 700.0, "sprung mass [kg], > 0")                                           \
-  X(double, m_us, 40.0, "unsprung mass [kg], > 0")                                         \
-  X(double, k_s, 15000.0, "suspension spring stiffness [N/m], >= 0")                       \
-  X(double, k_t, 200000.0, "tyre stiffness [N/m], > 0")                                    \
-  X(double, c_t, 0.0, "tyre damping [N s/m], >= 0")                                        \
-  X(double, dt, 0.001, "step [s], 1e-9 <= dt <= 0.1")                                          \
+  X(dn_real, m_s, 700.0, "sprung mass [kg], > 0")                                           \
+  X(dn_real, m_us, 40.0, "unsprung mass [kg], > 0")                                         \
+  X(dn_real, k_s, 15000.0, "suspension spring stiffness [N/m], >= 0")                       \
+  X(dn_real, k_t, 200000.0, "tyre stiffness [N/m], > 0")                                    \
+  X(dn_real, c_t, 0.0, "tyre damping [N s/m], >= 0")                                        \
+  X(dn_real, dt, 0.001, "step [s], 1e-9 <= dt <= 0.1")                                          \
   X(int, integrator, DN_INT_RK4, "dn_integrator")                                          \
   X(int, damper_eval, DN_EVAL_PER_STAGE, "dn_damper_eval (RK4 only)")                      \
-  X(double, x_static, 0.0, "damper displacement at static equilibrium, from mid [m]")      \
-  X(double, f_static, 0.0, "damper force carried at static equilibrium [N] (e.g. gas)")    \
-  X(double, temperature, 20.0, "damper temperature at reset [degC]")                       \
+  X(dn_real, x_static, 0.0, "damper displacement at static equilibrium, from mid [m]")      \
+  X(dn_real, f_static, 0.0, "damper force carried at static equilibrium [N] (e.g. gas)")    \
+  X(dn_real, temperature, 20.0, "damper temperature at reset [degC]")                       \
   X(int, accel_feature, DN_ACCEL_IMPLICIT, "dn_accel_feature (neural dampers reading a)")
 
 typedef struct dn_vehicle { DN_VEHICLE_FIELDS(DN_FIELD_DECL_) } dn_vehicle;
@@ -590,7 +614,7 @@ DN_API void dn_controller_default(dn_controller* c, int kind);
 DN_API int dn_vehicle_check(const dn_vehicle* v);
 DN_API int dn_controller_check(const dn_controller* c);
 
-/* The loop's state, a flat array of doubles: X(index, name, doc). */
+/* The loop's state, a flat array of dn_real: X(index, name, doc). */
 #define DN_LOOP_STATE_LIST(X)                                                         \
   X(0, t, "time [s]")                                                                 \
   X(1, z_s, "sprung-mass displacement from static equilibrium [m]")                   \
@@ -609,9 +633,9 @@ DN_API int dn_controller_check(const dn_controller* c);
 
 /* Per step input: the road at the END of the step (t + dt) and an external control. */
 typedef struct dn_loop_input {
-  double z_r; /* road displacement at t + dt [m] */
-  double v_r; /* road rate at t + dt [m/s] */
-  double u;   /* control for DN_CTRL_EXTERNAL [V]; ignored by the other laws */
+  dn_real z_r; /* road displacement at t + dt [m] */
+  dn_real v_r; /* road rate at t + dt [m/s] */
+  dn_real u;   /* control for DN_CTRL_EXTERNAL [V]; ignored by the other laws */
 } dn_loop_input;
 
 /* What a step reports, all at the step's START time t (before advancing): its scalar
@@ -626,10 +650,10 @@ typedef struct dn_loop_input {
   X(acc_s, "sprung-mass acceleration with this force [m/s^2]")                             \
   X(acc_us, "unsprung-mass acceleration with this force [m/s^2]")
 
-#define DN_OUT_DECL_(name, doc) double name;
+#define DN_OUT_DECL_(name, doc) dn_real name;
 typedef struct dn_loop_out {
   DN_LOOP_OUT_LIST(DN_OUT_DECL_)
-  double features[DN_MAX_INPUTS]; /* a neural damper's inputs (before saturation), feature units */
+  dn_real features[DN_MAX_INPUTS]; /* a neural damper's inputs (before saturation), feature units */
   int n_features;                 /* number of valid features (0 unless neural) */
   uint32_t clamped_mask;          /* neural: bit i = input i clamped */
 } dn_loop_out;
@@ -668,13 +692,13 @@ DN_API int dn_loop_data_init(const dn_loop_model* m, void* mem, size_t bytes, dn
  * direction). */
 DN_API int dn_loop_reset(const dn_loop_model* m, dn_loop_data* d);
 
-/* Number of doubles in the flat state (DN_LOOP_STATE_SIZE). */
+/* Number of dn_real in the flat state (DN_LOOP_STATE_SIZE). */
 DN_API int dn_loop_state_size(void);
-/* [RT] Copy the state out (DN_LOOP_STATE_SIZE doubles, DN_LOOP_STATE_LIST order). */
-DN_API int dn_loop_get_state(const dn_loop_data* d, double* state);
+/* [RT] Copy the state out (DN_LOOP_STATE_SIZE dn_real, DN_LOOP_STATE_LIST order). */
+DN_API int dn_loop_get_state(const dn_loop_data* d, dn_real* state);
 /* [RT] Set the state; a non-finite value: DN_E_NONFINITE_INPUT, state unchanged.
  * (An u_cmd outside [u_min, u_max] is clamped when the filter next uses it.) */
-DN_API int dn_loop_set_state(dn_loop_data* d, const double* state);
+DN_API int dn_loop_set_state(dn_loop_data* d, const dn_real* state);
 /* Damper evaluations since creation (for tests of the evaluation count). */
 DN_API int64_t dn_loop_damper_evals(const dn_loop_data* d);
 
@@ -694,6 +718,7 @@ DN_API int dn_loop_forward(const dn_loop_model* m, const dn_loop_data* d, const 
                            dn_loop_out* out);
 
 /*---- The full vehicle ----*/
+#if !DN_LOOP_FLOAT /* the full vehicle is built with double only (DN_LOOP_FLOAT above) */
 /* A ride-and-handling vehicle model beside the quarter car, built the same way (constant
  * model, flat state, allocation-free [RT] step): body heave z, roll phi, pitch theta, lateral
  * velocity vy and yaw rate r at a constant forward speed, yaw angle psi and position X, Y,
@@ -877,6 +902,7 @@ DN_API int dn_fullcar_step(const dn_fullcar_model* m, dn_fullcar_data* d,
 /* [RT] What the next step would report at the current state, without advancing. */
 DN_API int dn_fullcar_forward(const dn_fullcar_model* m, const dn_fullcar_data* d,
                               const dn_fullcar_input* in, dn_fullcar_out* out);
+#endif /* !DN_LOOP_FLOAT */
 
 #undef DN_ENUM_ROW_
 

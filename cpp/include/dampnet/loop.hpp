@@ -62,6 +62,7 @@
 
 #include "dampnet/damper.hpp"
 #include "dampnet/dampnet.h"
+#include "dampnet/real.hpp"
 
 namespace dampnet {
 
@@ -89,38 +90,38 @@ inline dn_controller default_controller(int kind = DN_CTRL_PASSIVE) noexcept {
 }
 
 namespace detail {
-inline double clamp(double x, double lo, double hi) noexcept {
+inline real clamp(real x, real lo, real hi) noexcept {
   return x < lo ? lo : (x > hi ? hi : x);
 }
 }  // namespace detail
 
 // [RT] The control law (see DN_CONTROLLER_FIELDS / dn_controller_kind in dampnet.h).
 // v_s, v_us absolute velocities, v = v_s - v_us; u_ext for DN_CTRL_EXTERNAL.
-inline double control_law(const dn_controller& c, double v_s, double v_us, double u_ext) noexcept {
-  const double v = v_s - v_us;
-  double d = 0.0, u;
+inline real control_law(const dn_controller& c, real v_s, real v_us, real u_ext) noexcept {
+  const real v = v_s - v_us;
+  real d = 0, u;
   switch (c.kind) {
     case DN_CTRL_PASSIVE:
       return detail::clamp(c.u_passive, c.u_min, c.u_max);
     case DN_CTRL_EXTERNAL:
       return detail::clamp(u_ext, c.u_min, c.u_max);
     case DN_CTRL_SKYHOOK_ONOFF:
-      d = v_s * v > 0.0 ? 1.0 : 0.0;
+      d = v_s * v > 0 ? 1 : 0;
       break;
     case DN_CTRL_GROUNDHOOK_ONOFF:
-      d = -v_us * v > 0.0 ? 1.0 : 0.0;
+      d = -v_us * v > 0 ? 1 : 0;
       break;
     case DN_CTRL_SKYHOOK_CONTINUOUS:
-      if (v_s * v > 0.0) d = detail::clamp((c.c_sky * v_s / v - c.c_min) / (c.c_max - c.c_min), 0, 1);
+      if (v_s * v > 0) d = detail::clamp((c.c_sky * v_s / v - c.c_min) / (c.c_max - c.c_min), 0, 1);
       break;
     case DN_CTRL_GROUNDHOOK_CONTINUOUS:
-      if (-v_us * v > 0.0)
+      if (-v_us * v > 0)
         d = detail::clamp((-c.c_gnd * v_us / v - c.c_min) / (c.c_max - c.c_min), 0, 1);
       break;
     default:
       break;
   }
-  if (d != d) d = 1.0;  // only from an infinite ratio of infinities; state is finite
+  if (d != d) d = 1;  // only from an infinite ratio of infinities; state is finite
   u = c.u_soft + d * (c.u_hard - c.u_soft);
   return detail::clamp(u, c.u_min, c.u_max);
 }
@@ -147,10 +148,10 @@ inline bool is_controller_kind(int x) noexcept {
 // The smallest step accepted [s]: 1 ns, far below any real loop (a 1 MHz loop is 1 us);
 // below it the Hermite road's rate (dz_r / dt) and the lag coefficients lose their
 // meaning, and a subnormal dt (1e-320) overflows every difference quotient.
-constexpr double kMinDt = 1e-9;
+constexpr real kMinDt = R(1e-9);
 
 namespace detail {
-inline bool finite_field(double x) noexcept { return std::isfinite(x); }
+inline bool finite_field(real x) noexcept { return std::isfinite(x); }
 inline bool finite_field(int) noexcept { return true; }  // enum fields: checked by value
 }  // namespace detail
 
@@ -162,10 +163,10 @@ inline int check_vehicle(const dn_vehicle& s) noexcept {
   DN_VEHICLE_FIELDS(DN_CHECK_FINITE_)
   const dn_vehicle& v = s;
   if (!(v.m_s > 0) || !(v.m_us > 0) || v.k_s < 0 || !(v.k_t > 0) || v.c_t < 0 ||
-      !(v.dt >= kMinDt) || v.dt > 0.1)
+      !(v.dt >= kMinDt) || v.dt > R(0.1))
     return DN_E_PARAM;
   // a subnormal mass (1e-320 kg) is > 0 but its reciprocal overflows
-  if (!std::isfinite(1.0 / v.m_s) || !std::isfinite(1.0 / v.m_us)) return DN_E_PARAM;
+  if (!std::isfinite(1 / v.m_s) || !std::isfinite(1 / v.m_us)) return DN_E_PARAM;
   if (!detail::is_integrator(v.integrator) || !detail::is_damper_eval(v.damper_eval) ||
       !detail::is_accel_feature(v.accel_feature))
     return DN_E_PARAM;
@@ -189,19 +190,19 @@ struct LoopModel {
   dn_controller ctrl = default_controller();
   Damper damper;
   // derived
-  double inv_ms = 0, inv_mus = 0;
-  double lag_half = 0, lag_full = 0;  // exp(-dt/2/tau), exp(-dt/tau); 0 without a lag
+  real inv_ms = 0, inv_mus = 0;
+  real lag_half = 0, lag_full = 0;  // exp(-dt/2/tau), exp(-dt/tau); 0 without a lag
   // velocity_lag over T = dt/2 and dt: A = exp(-T/tau), ramp gain 1 - tau (1 - A) / T
-  double vlag_a_half = 1, vlag_g_half = 0, vlag_a_full = 1, vlag_g_full = 0;
+  real vlag_a_half = 1, vlag_g_half = 0, vlag_a_full = 1, vlag_g_full = 0;
   bool has_vlag = false;
-  double inv_presliding = 0;  // 1 / friction_presliding_m; 0 without friction_state
-  double cmd_keep = 0;        // exp(-dt / u_tau_s): the command filter; 0 = unfiltered
-  double k_rel = 0;                   // 1/m_s + 1/m_us: da/dF of the relative acceleration
+  real inv_presliding = 0;  // 1 / friction_presliding_m; 0 without friction_state
+  real cmd_keep = 0;        // exp(-dt / u_tau_s): the command filter; 0 = unfiltered
+  real k_rel = 0;                   // 1/m_s + 1/m_us: da/dF of the relative acceleration
   bool implicit_a = false;            // solve the acceleration coupling (see dn_accel_feature)
   bool linear_a = false;              // ... by one linearised Newton step (DN_ACCEL_LINEAR)
-  double a_span = 1.0;                // width of the acceleration input's saturation range
+  real a_span = 1;                // width of the acceleration input's saturation range
   uint32_t a_bit = 0;                 // clamped-mask bit of the acceleration input
-  double f_eps = 1e-12;               // relative force rounding of the MLP (convergence test)
+  real f_eps = R(1e-12);               // relative force rounding of the MLP (convergence test)
 
   // Validate and derive; DN_OK or a DN_E_* error.
   int init(const dn_vehicle& v, const Damper& d, const dn_controller& c) noexcept {
@@ -212,25 +213,25 @@ struct LoopModel {
     veh = v;
     ctrl = c;
     damper = d;
-    inv_ms = 1.0 / v.m_s;
-    inv_mus = 1.0 / v.m_us;
-    const double tau = d.lag_tau();
-    lag_half = tau > 0 ? std::exp(-0.5 * v.dt / tau) : 0.0;
-    lag_full = tau > 0 ? std::exp(-v.dt / tau) : 0.0;
-    const double tv = d.velocity_lag_tau();
+    inv_ms = 1 / v.m_s;
+    inv_mus = 1 / v.m_us;
+    const real tau = d.lag_tau();
+    lag_half = tau > 0 ? std::exp(-R(0.5) * v.dt / tau) : 0;
+    lag_full = tau > 0 ? std::exp(-v.dt / tau) : 0;
+    const real tv = d.velocity_lag_tau();
     has_vlag = tv > 0;
     if (has_vlag) {
-      const double c_half = -std::expm1(-0.5 * v.dt / tv), c_full = -std::expm1(-v.dt / tv);
-      vlag_a_half = 1.0 - c_half;  // 1 - A from expm1: exact also for tau >> dt
-      vlag_g_half = 1.0 - tv * c_half / (0.5 * v.dt);
-      vlag_a_full = 1.0 - c_full;
-      vlag_g_full = 1.0 - tv * c_full / v.dt;
+      const real c_half = -std::expm1(-R(0.5) * v.dt / tv), c_full = -std::expm1(-v.dt / tv);
+      vlag_a_half = 1 - c_half;  // 1 - A from expm1: exact also for tau >> dt
+      vlag_g_half = 1 - tv * c_half / (R(0.5) * v.dt);
+      vlag_a_full = 1 - c_full;
+      vlag_g_full = 1 - tv * c_full / v.dt;
     }
-    inv_presliding = d.presliding() > 0 ? 1.0 / d.presliding() : 0.0;
-    cmd_keep = c.u_tau_s > 0 && c.kind != DN_CTRL_EXTERNAL ? std::exp(-v.dt / c.u_tau_s) : 0.0;
+    inv_presliding = d.presliding() > 0 ? 1 / d.presliding() : 0;
+    cmd_keep = c.u_tau_s > 0 && c.kind != DN_CTRL_EXTERNAL ? std::exp(-v.dt / c.u_tau_s) : 0;
     k_rel = inv_ms + inv_mus;
     implicit_a = false;
-    a_span = 1.0;
+    a_span = 1;
     a_bit = 0;
     linear_a = v.accel_feature == DN_ACCEL_LINEAR;
     if (v.accel_feature != DN_ACCEL_EXPLICIT && d.kind == DN_DAMPER_NEURAL) {
@@ -238,61 +239,61 @@ struct LoopModel {
         if (d.feat[i] != DN_FEAT_ACCELERATION) continue;
         implicit_a = true;
         a_bit = 1u << i;
-        const double span = d.md.sat_hi()[i] - d.md.sat_lo()[i];
+        const real span = d.md.sat_hi()[i] - d.md.sat_lo()[i];
         if (std::isfinite(span) && span > 0) a_span = span;
       }
     }
-    f_eps = d.precision == DN_PRECISION_FLOAT ? 1e-5 : 1e-12;
+    f_eps = d.precision == DN_PRECISION_FLOAT ? R(1e-5) : R(1e-12);
     return DN_OK;
   }
 };
 
 struct LoopData {
-  double s[DN_LOOP_STATE_SIZE] = {};
+  real s[DN_LOOP_STATE_SIZE] = {};
   int64_t n_evals = 0;
 };
 
 namespace detail {
 
 struct Body {
-  double zs, vs, zus, vus;
+  real zs, vs, zus, vus;
 };
 struct Accel {
-  double as, aus;
+  real as, aus;
 };
 
 // Accelerations for a given applied damper force F (model force, before f_static).
-inline Accel accel(const LoopModel& m, const Body& b, double zr, double vr, double F) noexcept {
+inline Accel accel(const LoopModel& m, const Body& b, real zr, real vr, real F) noexcept {
   const dn_vehicle& p = m.veh;
-  const double fs = p.k_s * (b.zs - b.zus);
-  const double fa = F - p.f_static;
+  const real fs = p.k_s * (b.zs - b.zus);
+  const real fa = F - p.f_static;
   return {(-fs - fa) * m.inv_ms,
           (fs + fa - p.k_t * (b.zus - zr) - p.c_t * (b.vus - vr)) * m.inv_mus};
 }
 
 // The motion-derived feature states at one evaluation (see the file comment).
 struct MotionLag {
-  double v_lag, z_fric;
+  real v_lag, z_fric;
 };
 
 // [RT] The derived states at relative velocity v and displacement x, from the
 // step-start values (v0, x0, lag0); a_lag/g_lag: the velocity-lag coefficients
 // of the time since the step start (A = 1, g = 0 at the start itself).
-inline MotionLag motion_lag(const LoopModel& m, const MotionLag& lag0, double v0, double x0,
-                            double v, double x, double a_lag, double g_lag) noexcept {
+inline MotionLag motion_lag(const LoopModel& m, const MotionLag& lag0, real v0, real x0,
+                            real v, real x, real a_lag, real g_lag) noexcept {
   MotionLag r = lag0;
-  r.v_lag = m.has_vlag ? a_lag * lag0.v_lag + (1.0 - a_lag) * v0 + (v - v0) * g_lag : v;
+  r.v_lag = m.has_vlag ? a_lag * lag0.v_lag + (1 - a_lag) * v0 + (v - v0) * g_lag : v;
   if (m.inv_presliding > 0) {
-    const double dx = x - x0;
-    if (dx != 0.0) {
-      const double sg = dx > 0.0 ? 1.0 : -1.0;
+    const real dx = x - x0;
+    if (dx != 0) {
+      const real sg = dx > 0 ? 1 : -1;
       r.z_fric = sg + (lag0.z_fric - sg) * std::exp(-std::fabs(dx) * m.inv_presliding);
     }
   }
   return r;
 }
 
-// A damper input with every double field NaN (ints 0) before damper_input fills its own: a
+// A damper input with every real field NaN (ints 0) before damper_input fills its own: a
 // field appended to DN_DAMPER_INPUT_FIELDS for a new feature but not filled below reaches the
 // model as NaN, so the step fails (DN_E_DIVERGED) instead of reading stack garbage. The
 // compiler drops the stores that damper_input overwrites.
@@ -310,9 +311,9 @@ inline dn_damper_input unfilled_input() noexcept {
 }
 
 // The damper's input at one evaluation (the acceleration feature from f_last).
-inline dn_damper_input damper_input(const LoopModel& m, const Body& b, double zr, double vr,
-                                    double u, double u_lag, const MotionLag& lag, double f_last,
-                                    double temperature, double t, int stage) noexcept {
+inline dn_damper_input damper_input(const LoopModel& m, const Body& b, real zr, real vr,
+                                    real u, real u_lag, const MotionLag& lag, real f_last,
+                                    real temperature, real t, int stage) noexcept {
   const Accel a = accel(m, b, zr, vr, f_last);
   dn_damper_input in = unfilled_input();
   in.x = b.zs - b.zus + m.veh.x_static;
@@ -350,21 +351,21 @@ inline int diverged_if_overflow(const LoopModel& m, int st) noexcept {
 // most DN_ACCEL_MAX_EVALS evaluations. Adds the
 // evaluations made to *n_evals. Returns the damper's status of the chosen
 // evaluation, | DN_W_ACCEL_UNCONVERGED when the iteration did not converge.
-inline int evaluate(const LoopModel& m, dn_damper_input& in, double f_last, double* f,
-                    double* feat_out, uint32_t* mask, int64_t* n_evals) noexcept {
+inline int evaluate(const LoopModel& m, dn_damper_input& in, real f_last, real* f,
+                    real* feat_out, uint32_t* mask, int64_t* n_evals) noexcept {
   if (!m.implicit_a) {
     *n_evals += 1;
     return diverged_if_overflow(m, m.damper.force(in, f, feat_out, mask));
   }
-  const double k = m.k_rel, fs = m.veh.f_static;
-  const double a_free = in.a + k * (f_last - fs);
+  const real k = m.k_rel, fs = m.veh.f_static;
+  const real a_free = in.a + k * (f_last - fs);
   if (m.linear_a) {  // one Newton step with the slope, force linearised (DN_ACCEL_LINEAR)
-    double f0 = 0.0, dfda = 0.0;
+    real f0 = 0, dfda = 0;
     uint32_t mk = 0;
     const int st = diverged_if_overflow(m, m.damper.force_da(in, &f0, &dfda, &mk));
     *n_evals += 1;
     if (mask) *mask = mk;
-    const double g = in.a - a_free + k * (f0 - fs), gp = 1.0 + k * dfda;
+    const real g = in.a - a_free + k * (f0 - fs), gp = 1 + k * dfda;
     if (st < 0 || !std::isfinite(g) || !std::isfinite(gp)) {  // as the explicit scheme
       *f = f0;
       return st;
@@ -376,32 +377,32 @@ inline int evaluate(const LoopModel& m, dn_damper_input& in, double f_last, doub
     // bound (issue 14's 30-400 kN spikes at g' ~ 0.02), so the step is refused and the
     // explicit value is kept: one evaluation still, and its force is a model evaluation,
     // bounded by the model's output range.
-    const double a1 = in.a - g / gp;
-    const bool ok = gp >= DN_ACCEL_LINEAR_MIN_SLOPE && std::isfinite(a1);
+    const real a1 = in.a - g / gp;
+    const bool ok = gp >= R(DN_ACCEL_LINEAR_MIN_SLOPE) && std::isfinite(a1);
     *f = ok ? f0 + dfda * (a1 - in.a) : f0;
     if (ok) in.a = a1;
     if (feat_out) m.damper.feature_values(in, feat_out);
     return ok ? st : (st | DN_W_ACCEL_FALLBACK);
   }
   struct It {
-    double a, f, g, gp;  // acceleration, force, g(a), g'(a) = 1 + k dF/da
+    real a, f, g, gp;  // acceleration, force, g(a), g'(a) = 1 + k dF/da
     int st;
     uint32_t mask;
   };
   int evals = 0;
-  auto eval = [&](double a, It& r) noexcept -> bool {
+  auto eval = [&](real a, It& r) noexcept -> bool {
     in.a = a;
     r.a = a;
     r.mask = 0;
-    double dfda = 0.0;
+    real dfda = 0;
     r.st = diverged_if_overflow(m, m.damper.force_da(in, &r.f, &dfda, &r.mask));
     ++evals;
     r.g = a - a_free + k * (r.f - fs);
-    r.gp = 1.0 + k * dfda;
+    r.gp = 1 + k * dfda;
     return r.st >= 0 && std::isfinite(r.g) && std::isfinite(r.gp);
   };
   auto converged = [&](const It& r) noexcept {
-    const double tol = 1e-7 * (1.0 + std::fabs(a_free)) + k * m.f_eps * (1.0 + std::fabs(r.f));
+    const real tol = R(1e-7) * (1 + std::fabs(a_free)) + k * m.f_eps * (1 + std::fabs(r.f));
     return std::fabs(r.g) <= tol;
   };
   It cur{}, best{}, lo{}, hi{};  // lo: a point with g < 0, hi: g > 0
@@ -424,12 +425,12 @@ inline int evaluate(const LoopModel& m, dn_damper_input& in, double f_last, doub
   // the coupling is nearly singular) the fixed-point step; bisection whenever a root
   // is bracketed and the step would leave the bracket.
   while (!done && evals < DN_ACCEL_MAX_EVALS) {
-    double a_new;
-    if (cur.gp > 1e-3) a_new = cur.a - cur.g / cur.gp;
+    real a_new;
+    if (cur.gp > R(1e-3)) a_new = cur.a - cur.g / cur.gp;
     else a_new = cur.a - cur.g;
     if (has_lo && has_hi) {
-      const double b0 = std::fmin(lo.a, hi.a), b1 = std::fmax(lo.a, hi.a);
-      if (!(a_new > b0 && a_new < b1)) a_new = 0.5 * (lo.a + hi.a);
+      const real b0 = std::fmin(lo.a, hi.a), b1 = std::fmax(lo.a, hi.a);
+      if (!(a_new > b0 && a_new < b1)) a_new = R(0.5) * (lo.a + hi.a);
     }
     if (!std::isfinite(a_new) || a_new == cur.a) break;
     It nxt;
@@ -449,27 +450,27 @@ inline int evaluate(const LoopModel& m, dn_damper_input& in, double f_last, doub
 
 // Everything at the step start: control, first damper evaluation, report.
 struct Start {
-  double u;
-  double force;
+  real u;
+  real force;
   Accel acc;  // the accelerations with this force: the report's, and RK4's first stage
   dn_damper_input in;
   int status;
 };
 
-inline Start start(const LoopModel& m, const double* s, double u_ext, dn_loop_out* out,
+inline Start start(const LoopModel& m, const real* s, real u_ext, dn_loop_out* out,
                    uint32_t* mask, int64_t* n_evals) noexcept {
   Start r;
   r.u = control_law(m.ctrl, s[S_v_s], s[S_v_us], u_ext);
   // Command filter; clamped again because a caller's set_state may put u_cmd out of range.
-  if (m.cmd_keep > 0.0)
+  if (m.cmd_keep > 0)
     r.u = detail::clamp(r.u + (s[S_u_cmd] - r.u) * m.cmd_keep, m.ctrl.u_min, m.ctrl.u_max);
   const Body b{s[S_z_s], s[S_v_s], s[S_z_us], s[S_v_us]};
   r.in = damper_input(m, b, s[S_z_r], s[S_v_r], r.u, s[S_u_lag], {s[S_v_lag], s[S_z_fric]},
                       s[S_f_last], s[S_temperature], s[S_t], 0);
-  double* feat = nullptr;
+  real* feat = nullptr;
   if (out) {
     feat = out->features;
-    for (int i = 0; i < DN_MAX_INPUTS; ++i) feat[i] = 0.0;  // fixed length: two vector stores
+    for (int i = 0; i < DN_MAX_INPUTS; ++i) feat[i] = 0;  // fixed length: two vector stores
   }
   r.status = evaluate(m, r.in, s[S_f_last], &r.force, feat, mask, n_evals);
   r.acc = accel(m, b, s[S_z_r], s[S_v_r], r.force);
@@ -496,8 +497,8 @@ inline Start start(const LoopModel& m, const double* s, double u_ext, dn_loop_ou
 
 // [RT] Reset to rest (see dn_loop_reset).
 inline void reset(const LoopModel& m, LoopData& d) noexcept {
-  for (double& x : d.s) x = 0.0;
-  d.s[S_u_lag] = m.ctrl.kind == DN_CTRL_EXTERNAL ? 0.0 : control_law(m.ctrl, 0.0, 0.0, 0.0);
+  for (real& x : d.s) x = 0;
+  d.s[S_u_lag] = m.ctrl.kind == DN_CTRL_EXTERNAL ? 0 : control_law(m.ctrl, 0, 0, 0);
   d.s[S_u_cmd] = d.s[S_u_lag];  // the control at rest: a filtered law starts settled
   d.s[S_f_last] = m.veh.f_static;
   d.s[S_temperature] = m.veh.temperature;
@@ -520,25 +521,25 @@ DN_REALTIME inline int step(const LoopModel& m, LoopData& d, const dn_loop_input
   using detail::Body;
   if (!std::isfinite(in.z_r) || !std::isfinite(in.v_r)) return DN_E_NONFINITE_INPUT;
   if (m.ctrl.kind == DN_CTRL_EXTERNAL && !std::isfinite(in.u)) return DN_E_NONFINITE_INPUT;
-  const double* s = d.s;
-  const double h = m.veh.dt;
+  const real* s = d.s;
+  const real h = m.veh.dt;
   uint32_t mask = 0;
   const detail::Start r = detail::start(m, s, in.u, out, &mask, &d.n_evals);
   int status = r.status;
   if (status < 0) return status;
 
-  const double u = r.u, ul0 = s[S_u_lag], t0 = s[S_t];
-  const double temp = s[S_temperature];
-  const bool has_lag = m.lag_full > 0.0;
-  const double ul_mid = has_lag ? u + (ul0 - u) * m.lag_half : u;
-  const double ul_end = has_lag ? u + (ul0 - u) * m.lag_full : u;
-  const double zr0 = s[S_z_r], vr0 = s[S_v_r], zr1 = in.z_r, vr1 = in.v_r;
+  const real u = r.u, ul0 = s[S_u_lag], t0 = s[S_t];
+  const real temp = s[S_temperature];
+  const bool has_lag = m.lag_full > 0;
+  const real ul_mid = has_lag ? u + (ul0 - u) * m.lag_half : u;
+  const real ul_end = has_lag ? u + (ul0 - u) * m.lag_full : u;
+  const real zr0 = s[S_z_r], vr0 = s[S_v_r], zr1 = in.z_r, vr1 = in.v_r;
   const Body b0{s[S_z_s], s[S_v_s], s[S_z_us], s[S_v_us]};
   const detail::MotionLag lag0{s[S_v_lag], s[S_z_fric]};
-  const double vrel0 = b0.vs - b0.vus, xrel0 = b0.zs - b0.zus;
-  double ns[DN_LOOP_STATE_SIZE];
+  const real vrel0 = b0.vs - b0.vus, xrel0 = b0.zs - b0.zus;
+  real ns[DN_LOOP_STATE_SIZE];
   for (int i = 0; i < DN_LOOP_STATE_SIZE; ++i) ns[i] = s[i];
-  double f_last = r.force;
+  real f_last = r.force;
 
   if (m.veh.integrator == DN_INT_SEMI_EULER) {
     ns[S_v_s] = b0.vs + h * r.acc.as;
@@ -547,11 +548,11 @@ DN_REALTIME inline int step(const LoopModel& m, LoopData& d, const dn_loop_input
     ns[S_z_us] = b0.zus + h * ns[S_v_us];
   } else {
     // road at mid-step: cubic Hermite of (zr0, vr0) -> (zr1, vr1)
-    const double zrm = 0.5 * (zr0 + zr1) + 0.125 * h * (vr0 - vr1);
-    const double vrm = 1.5 * (zr1 - zr0) / h - 0.25 * (vr0 + vr1);
+    const real zrm = R(0.5) * (zr0 + zr1) + R(0.125) * h * (vr0 - vr1);
+    const real vrm = R(1.5) * (zr1 - zr0) / h - R(0.25) * (vr0 + vr1);
     const bool per_stage = m.veh.damper_eval == DN_EVAL_PER_STAGE;
-    auto force_at = [&](const Body& b, double zr, double vr, double ul, double t,
-                        int stage) noexcept -> double {
+    auto force_at = [&](const Body& b, real zr, real vr, real ul, real t,
+                        int stage) noexcept -> real {
       if (!per_stage) return r.force;
       const bool half = stage < 3;
       const detail::MotionLag lag = detail::motion_lag(
@@ -559,7 +560,7 @@ DN_REALTIME inline int step(const LoopModel& m, LoopData& d, const dn_loop_input
           half ? m.vlag_g_half : m.vlag_g_full);
       dn_damper_input di =
           detail::damper_input(m, b, zr, vr, u, ul, lag, f_last, temp, t, stage);
-      double f = 0.0;
+      real f = 0;
       const int st = detail::evaluate(m, di, f_last, &f, nullptr, nullptr, &d.n_evals);
       if (st < 0) status = st;
       else status |= st;
@@ -567,16 +568,16 @@ DN_REALTIME inline int step(const LoopModel& m, LoopData& d, const dn_loop_input
       return f;
     };
     const Accel& k1 = r.acc;
-    const Body b1{b0.zs + 0.5 * h * b0.vs, b0.vs + 0.5 * h * k1.as, b0.zus + 0.5 * h * b0.vus,
-                  b0.vus + 0.5 * h * k1.aus};
-    const Accel k2 = detail::accel(m, b1, zrm, vrm, force_at(b1, zrm, vrm, ul_mid, t0 + 0.5 * h, 1));
-    const Body b2{b0.zs + 0.5 * h * b1.vs, b0.vs + 0.5 * h * k2.as, b0.zus + 0.5 * h * b1.vus,
-                  b0.vus + 0.5 * h * k2.aus};
-    const Accel k3 = detail::accel(m, b2, zrm, vrm, force_at(b2, zrm, vrm, ul_mid, t0 + 0.5 * h, 2));
+    const Body b1{b0.zs + R(0.5) * h * b0.vs, b0.vs + R(0.5) * h * k1.as, b0.zus + R(0.5) * h * b0.vus,
+                  b0.vus + R(0.5) * h * k1.aus};
+    const Accel k2 = detail::accel(m, b1, zrm, vrm, force_at(b1, zrm, vrm, ul_mid, t0 + R(0.5) * h, 1));
+    const Body b2{b0.zs + R(0.5) * h * b1.vs, b0.vs + R(0.5) * h * k2.as, b0.zus + R(0.5) * h * b1.vus,
+                  b0.vus + R(0.5) * h * k2.aus};
+    const Accel k3 = detail::accel(m, b2, zrm, vrm, force_at(b2, zrm, vrm, ul_mid, t0 + R(0.5) * h, 2));
     const Body b3{b0.zs + h * b2.vs, b0.vs + h * k3.as, b0.zus + h * b2.vus, b0.vus + h * k3.aus};
     const Accel k4 = detail::accel(m, b3, zr1, vr1, force_at(b3, zr1, vr1, ul_end, t0 + h, 3));
     if (status < 0) return status;
-    const double h6 = h / 6.0;
+    const real h6 = h / 6;
     ns[S_z_s] = b0.zs + h6 * (b0.vs + 2 * b1.vs + 2 * b2.vs + b3.vs);
     ns[S_v_s] = b0.vs + h6 * (k1.as + 2 * k2.as + 2 * k3.as + k4.as);
     ns[S_z_us] = b0.zus + h6 * (b0.vus + 2 * b1.vus + 2 * b2.vus + b3.vus);
