@@ -44,6 +44,10 @@ CPUS = {
 # MLP). `dampnet export --target` sets them from the model instead (capacities_for).
 DEFAULT_CAPS = {"INPUTS": 3, "HIDDEN": 32, "HIDDEN2": 0, "TERMS": 0, "TABLE_V": 2, "TABLE_U": 1}
 DEFAULT_DOUBLE_KERNEL = 0
+# The float kernel for flash (dampnet.h DN_KERNEL_SMALL, DN_KERNEL_UNROLL; the presets' values):
+# one forward, compiled for the capacity's input count, two neurons per pass
+# (bench/RESULTS.md, "On a microcontroller": the trade-off measured).
+DEFAULT_KERNEL = {"SMALL": 1, "UNROLL": 2}
 
 # The quarter car the firmware runs (and the host comparison with it): the HIL configuration
 # of `dampnet bench` (one damper evaluation per RK4 step, the linearised acceleration feature,
@@ -144,7 +148,7 @@ def write_vectors(path, vectors: Vectors | None = None, model=None) -> Vectors:
 
 def cmake_args(cpu: str, vectors: Path | None = None, build_type: str = "Release",
                caps: dict | None = None, double_kernel: int = DEFAULT_DOUBLE_KERNEL,
-               fp_contract: str = "off") -> list[str]:
+               fp_contract: str = "off", kernel: dict | None = None) -> list[str]:
     """The configure options of a firmware build (what the presets of CMakePresets.json set)."""
     if cpu not in CPUS:
         raise ValueError(f"unknown core {cpu!r}; known: {', '.join(CPUS)}")
@@ -152,6 +156,7 @@ def cmake_args(cpu: str, vectors: Path | None = None, build_type: str = "Release
             f"-DCMAKE_BUILD_TYPE={build_type}", f"-DDAMPNET_DOUBLE_KERNEL={double_kernel}",
             f"-DDAMPNET_FP_CONTRACT={fp_contract}"]
     args += [f"-DDAMPNET_CAP_{k}={v}" for k, v in (caps or DEFAULT_CAPS).items()]
+    args += [f"-DDAMPNET_KERNEL_{k}={v}" for k, v in (DEFAULT_KERNEL if kernel is None else kernel).items()]
     if vectors is not None:
         args.append(f"-DDAMPNET_FIRMWARE_VECTORS={Path(vectors).resolve()}")
     else:  # CMake writes them with this interpreter (python -m dampnet.embedded vectors)
@@ -359,7 +364,7 @@ Written by `dampnet export {model_name} --target {cpu}` (dampnet {version}). Mod
 
 | path | what |
 | --- | --- |
-| `model.h` | the model (weights, scalings, saturation limits, feature names): `DN_MODEL_DESC_INIT` |
+| `model.h` | the model (weights, scalings, saturation limits, feature names): `DN_MODEL_DESC_INIT` (double), `DN_MODEL_FOLDED_INIT` (float weights with the scalings folded in) |
 | `include/dampnet/` | the C ABI (`dampnet.h`) and the header-only C++ runtime it is built from |
 | `src/` | the library's three sources (MLP, dampers and loop, status strings) |
 | `CMakeLists.txt` | the static library `dampnet` with this model's capacities: {caps} |
@@ -384,14 +389,20 @@ printing forces and states as the bits of their floats and doubles.
    `-fno-exceptions -fno-rtti -fno-threadsafe-statics -ffunction-sections -fdata-sections`, the
    definitions `DN_STATIC {caps}` (also for any C++ file of yours that includes the C++ headers),
    and link with `-Wl,--gc-sections` (newlib's libm and libgcc; no libstdc++, no heap).
-2. Keep every object in static storage: `dn_mlp_init`, `dn_damper_init_neural`,
+2. Set the MLP up with `dn_mlp_init_folded` from `model.h`'s `DN_MODEL_FOLDED_INIT` (a
+   `dn_mlp_folded_f`: the float weights with the input and output scalings already folded in, what
+   `dn_mlp_init` would compute from `DN_MODEL_DESC_INIT` bit for bit): set-up then checks and copies
+   floats only, so no software double routine and no double weights take flash (the example does
+   this). With `DN_KERNEL_SMALL=1` (set here) the forward is compiled for exactly this model's
+   input count.
+3. Keep every object in static storage: `dn_mlp_init_folded`, `dn_damper_init_neural`,
    `dn_loop_model_init`, `dn_loop_data_init` over memory of `dn_*_size()` bytes aligned to
    `dn_storage_align()` (`example/firmware.c` does this; `example/sizes.cpp` turns the sizes into
    compile-time constants for static arrays). A loop model copies its damper and a damper its MLP,
    so their memory is free again after set-up.
-3. The real-time call is `dn_loop_step` (or `dn_mlp_forward_f` / `dn_damper_force` alone): no
+4. The real-time call is `dn_loop_step` (or `dn_mlp_forward_f` / `dn_damper_force` alone): no
    allocation, no exceptions, bounded time, finite output for any input.
-4. Linker script: `.text`/`.rodata` in flash, `.data` copied and `.bss` zeroed by the start-up code,
+5. Linker script: `.text`/`.rodata` in flash, `.data` copied and `.bss` zeroed by the start-up code,
    a stack of at least the peak measured for your core (dampnet's bench/RESULTS.md, "On a
    microcontroller"; the example paints and prints it); see the marked lines of `example/mps2.ld`.
 
@@ -437,10 +448,14 @@ def export_target(model, target: str, out_dir, overwrite: bool = False, model_na
     write_vectors(out / "example" / "dn_fw_vectors.h", make_vectors(model, n_x=16, seconds=1.0))
     caps = capacities_for(model)
     cap_defs = [f"DN_CAP_{k}={v}" for k, v in caps.items()] + ["DN_DOUBLE_KERNEL=0"]
-    params = ""
+    cap_defs += [f"DN_KERNEL_{k}={v}" for k, v in DEFAULT_KERNEL.items()]
+    # the float weights with the scalings folded in (set-up without double arithmetic), when the
+    # header has them (a model whose folded values overflow float has only DN_MODEL_DESC_INIT)
+    folded = " DN_FW_FOLDED_INIT=DN_MODEL_FOLDED_INIT" if "DN_MODEL_FOLDED_INIT" in (out / "model.h").read_text() else ""
+    params = folded
     if model.feature_params:
-        params = (" DN_FW_PARAM_NAMES=dn_model_feature_param_names DN_FW_PARAM_VALUES=dn_model_feature_param_values"
-                  " DN_FW_N_PARAMS=DN_MODEL_N_FEATURE_PARAMS")
+        params += (" DN_FW_PARAM_NAMES=dn_model_feature_param_names DN_FW_PARAM_VALUES=dn_model_feature_param_values"
+                   " DN_FW_N_PARAMS=DN_MODEL_N_FEATURE_PARAMS")
     ident = target.replace("-", "_")
     (out / "CMakeLists.txt").write_text(_FOLDER_CMAKE.format(
         cpu=target, machine=CPUS[target]["machine"], ident=ident, caps=" ".join(cap_defs), params=params))
