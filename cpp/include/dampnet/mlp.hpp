@@ -594,12 +594,20 @@ inline T forward_fused1(const P& p, const T* xs, const T* col, T* dys) noexcept 
 #define DN_KERNEL_FUSED1 1
 #endif
 
+// A flash-lean build keeps each forward one function (not inlined into every caller: the
+// damper's and the loop's several call sites would each get a copy, and its stack).
+#if DN_KERNEL_SMALL && defined(__GNUC__)
+#define DN_KERNEL_OUTLINE __attribute__((noinline))
+#else
+#define DN_KERNEL_OUTLINE
+#endif
+
 // The forward pass shared by Mlp and StaticMlp. kH2 == 0: one hidden layer.
 // Sizes used here are the padded ones (pad()). With kGrad, *dy_dxi also receives
 // dy/dx[grad_input] (output units per input unit) by forward-mode differentiation;
 // it is 0 when that input was clamped (the saturated model does not depend on it).
 template <typename T, int kIn, int kH1, int kH2, class P, bool kGrad = false>
-DN_REALTIME inline int forward(const P& p, const T* x, T* y, uint32_t* clamped_mask,
+DN_KERNEL_OUTLINE DN_REALTIME inline int forward(const P& p, const T* x, T* y, uint32_t* clamped_mask,
                                int grad_input = 0, T* dy_dxi = nullptr) noexcept {
   constexpr int kP1 = kH1 > 0 ? pad(kH1) : kDynamic;
   constexpr int kP2 = kH2 > 0 ? pad(kH2) : (kH2 == 0 ? 0 : kDynamic);
@@ -611,7 +619,13 @@ DN_REALTIME inline int forward(const P& p, const T* x, T* y, uint32_t* clamped_m
   const int h2 = kP2 >= 0 ? kP2 : p.n_h2p;
 
   uint32_t mask = 0;
-  alignas(DN_KERNEL_ALIGN) T xs_buf[cap_in] = {};  // zeroed: GCC cannot see that prepare_inputs writes all it reads
+  // zeroed: GCC cannot see that prepare_inputs writes all it reads (scalar cores: no vector
+  // alignment, which would cost a realigned stack frame)
+#ifdef DN_KERNEL_FUSED1
+  T xs_buf[cap_in] = {};
+#else
+  alignas(DN_KERNEL_ALIGN) T xs_buf[cap_in] = {};
+#endif
   // Layer 1's input: the caller's x itself when no input needs saturating and the
   // offsets are folded (the common case; the same values prepare_inputs would copy).
   const T* xs = x;
