@@ -406,8 +406,9 @@ printing forces and states as the bits of their floats and doubles.
    a stack of at least the peak measured for your core (dampnet's bench/RESULTS.md, "On a
    microcontroller"; the example paints and prints it); see the marked lines of `example/mps2.ld`.
 
-Figures for the 3-30-1 default model (dampnet's bench/RESULTS.md): the float forward 1,563
-instructions on a Cortex-M4F (1,480 on a Cortex-M7); the quarter-car step in double 14,871 (M4F,
+Figures for the 3-30-1 default model (dampnet's bench/RESULTS.md): the float forward 1,443
+instructions on a Cortex-M4F (1,432 on a Cortex-M7), set up by `dn_mlp_init_folded`, in 3,192 B
+of flash with its weights (M4F; 3,064 B on the M7); the quarter-car step in double 14,871 (M4F,
 software double) and 2,651 (M7).
 """
 
