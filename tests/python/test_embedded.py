@@ -18,7 +18,8 @@ newlib) and run in QEMU (mps2-an386, mps2-an500; semihosting), against the host 
 * The MLP part alone (dn_firmware_kernel: dn_mlp_init_folded on the header's folded float
   weights, the forward; what bench/embedded.py's kernel flash counts) gives the host's forces and
   links no software double routine at all; the exporter's folded floats (P_FOLDED_INIT) are the C
-  library's own folding of the double description, bit for bit (a host program compares).
+  library's own folding of the double description, bit for bit (a host program compares); the
+  integer float-to-double widening that set-up uses on the M4F is exact on the target.
 Builds are cached in build/embedded-test/ (CMake rebuilds only what changed)."""
 
 from __future__ import annotations
@@ -223,6 +224,39 @@ def test_kernel_part_links_no_double_routine(firmware):
     assert not _soft_double(_symbols(emb.firmware_path(bdir, "dn_firmware_kernel")))
     if cpu == "cortex-m4":  # the check itself sees them where they are
         assert "__aeabi_dadd" in _soft_double(_symbols(emb.firmware_path(bdir, "dn_firmware")))
+
+
+def test_widening_without_double_arithmetic_is_exact_on_the_m4f(vectors, tmp_path):
+    """dn_mlp_init_folded fills a DN_DOUBLE_KERNEL 0 build's double saturation ranges by
+    widening floats in integer arithmetic on the M4F (detail::widen_exact; a cast would link
+    __aeabi_f2d): on the target, every kind of float (zeros, subnormals, normals, infinities)
+    widens to the double the host's cast gives."""
+    import struct
+
+    rng = np.random.default_rng(3)
+    bits = [0x00000000, 0x80000000, 0x00000001, 0x807fffff, 0x00400000, 0x00800000, 0x7f7fffff,
+            0x7f800000, 0xff800000, 0x3f800000, 0xc0600000] + [int(b) for b in rng.integers(0, 2**32, 300)]
+    bits = [b for b in bits if not ((b >> 23) & 0xff == 0xff and b & 0x7fffff)]  # no NaNs
+    rows = [f"{{0x{b:08x}u, 0x{struct.unpack('<Q', struct.pack('<d', struct.unpack('<f', struct.pack('<I', b))[0]))[0]:016x}ull}}"
+            for b in bits]
+    src = tmp_path / "widen.cpp"
+    src.write_text('#include <cstdint>\n#include <cstring>\n#include "dampnet/mlp.hpp"\n'
+                   'static const struct { uint32_t f; uint64_t d; } cases[] = {' + ",\n".join(rows) + "};\n"
+                   'extern "C" int dn_fw_semihost(int op, const void* arg);\n'
+                   'extern "C" int main() {\n  int bad = 0;\n'
+                   '  for (const auto& c : cases) {\n    float f;\n    std::memcpy(&f, &c.f, 4);\n'
+                   '    const double d = dampnet::detail::widen_exact(f);\n    uint64_t b;\n'
+                   '    std::memcpy(&b, &d, 8);\n    bad += b != c.d;\n  }\n'
+                   '  dn_fw_semihost(0x04, bad ? "widen bad\\n" : "widen ok\\n");\n  return bad;\n}\n')
+    flags = emb.CPUS["cortex-m4"]["flags"].split() + ["-O2"]
+    elf = tmp_path / "widen.elf"
+    run(["arm-none-eabi-g++", *flags, "-std=c++17", "-fno-exceptions", "-fno-rtti", "-DDN_STATIC",
+         "-DDN_DOUBLE_KERNEL=0", f"-I{ROOT / 'cpp' / 'include'}", "-c", src, "-o", tmp_path / "widen.o"])
+    run(["arm-none-eabi-gcc", *flags, "-c", ROOT / "cpp" / "embedded" / "startup.c", "-o", tmp_path / "startup.o"])
+    run(["arm-none-eabi-gcc", *flags, "--specs=nano.specs", "-nostartfiles", "-Wl,--gc-sections",
+         f"-T{ROOT / 'cpp' / 'embedded' / 'mps2.ld'}", tmp_path / "widen.o", tmp_path / "startup.o", "-o", elf])
+    assert not _soft_double(_symbols(elf))
+    assert "widen ok" in emb.run(elf, "cortex-m4", icount=False, timeout=60)
 
 
 def test_exported_folded_floats_are_the_librarys_folding(vectors, model, tmp_path):
