@@ -25,7 +25,7 @@ static bool bitwise_kernel() { return Params::kTw == 0; }
 
 template <class A>
 static bool same_bits(const A& a, const A& b) {
-  return std::memcmp(a.data(), b.data(), sizeof(a[0]) * a.size()) == 0;
+  return a.size() == 0 || std::memcmp(a.data(), b.data(), sizeof(a[0]) * a.size()) == 0;  // (empty: data() may be null)
 }
 static bool same_bits(float a, float b) { return std::memcmp(&a, &b, sizeof a) == 0; }
 
