@@ -1,16 +1,23 @@
 """Flash, RAM, instructions and a cycle estimate of dampnet on Cortex-M4F and Cortex-M7 (QEMU),
 beside emlearn's C for the same 3-30-1 network (bench/RESULTS.md, "On a microcontroller").
 
-    python bench/embedded.py [--json FILE] [--fp-contract off|fast]   # about a minute; needs the cross toolchain,
-                                                # QEMU and `pip install emlearn`
+    python bench/embedded.py [--json FILE] [--fp-contract off|fast] [--out-dir DIR]  # about a minute;
+                                                # needs the cross toolchain, QEMU and `pip install emlearn`
+    python bench/embedded.py --unroll-sweep [--json FILE] [--fp-contract off|fast]  # the kernel's
+                                                # flash against instructions, DN_KERNEL_UNROLL 1/2/4/8
 
 What it does, per core (cortex-m4: mps2-an386, cortex-m7: mps2-an500), with the presets'
-configuration (python/dampnet/embedded.py: DEFAULT_CAPS, -O3, -ffp-contract=off):
+configuration (python/dampnet/embedded.py: DEFAULT_CAPS, DEFAULT_KERNEL, -O3, -ffp-contract=off);
+builds go to --out-dir (default build/bench-embedded), so that runs with different options or
+from different checkouts need not share one:
 
 * builds the firmware of cpp/embedded/ three ways: the harness alone (DN_FW_PART 0), + the MLP
-  (1), + the MLP, neural damper, quarter-car loop and skyhook controller (2);
+  (1: dn_mlp_init_folded on the model header's folded float weights, dn_mlp_forward_f), + the
+  MLP, neural damper, quarter-car loop and skyhook controller (2);
 * flash = .text (code and constants) + .ARM.exidx + .init_array + .data's load image, the stored
-  test data (dn_fw_x_, dn_fw_road) excluded, minus the harness's; RAM = .data + .bss minus the
+  test data (dn_fw_x_, dn_fw_road) excluded, minus the harness's (whose printing and timing
+  helpers are functions of their own in every variant, firmware.c HARNESS: a part's flash is the
+  code and data it adds, not inlined copies of them); RAM = .data + .bss minus the
   harness's (the objects' static storage) + the peak stack measured by painting (the largest of
   set-up and run);
 * runs it under QEMU -icount shift=0: SysTick then counts instructions (the firmware's
@@ -25,6 +32,10 @@ configuration (python/dampnet/embedded.py: DEFAULT_CAPS, -O3, -ffp-contract=off)
   Technical Reference Manual's timings (ALU 1, load/store 2, LDM/STM/PUSH/POP 1+N, branch 2
   (1 not taken, 2-4 taken), SDIV/UDIV 12 (2-12), VADD/VMUL 1, VMLA/VFMA 3, VDIV/VSQRT 14,
   VLDR/VSTR 2, VLDM/VSTM/VPUSH/VPOP 1+N). An estimate: no wait states, no cache, no interrupts.
+
+--unroll-sweep builds only the harness and the MLP part, per core, for DN_KERNEL_SMALL 1 with
+DN_KERNEL_UNROLL 1, 2, 4 and 8 and for DN_KERNEL_SMALL 0 (two forwards, 8 neurons per pass), and
+prints each one's kernel flash and forward instructions (about two minutes).
 """
 
 from __future__ import annotations
@@ -44,7 +55,7 @@ sys.path.insert(0, str(ROOT / "python"))
 from dampnet import embedded as emb  # noqa: E402
 from dampnet.modeldir import load_model  # noqa: E402
 
-OUT = ROOT / "build" / "bench-embedded"
+OUT_DEFAULT = ROOT / "build" / "bench-embedded"
 SYMS_DATA = ("dn_fw_x_", "dn_fw_road")
 BUDGET_HZ, CLOCK_HZ = 10_000, 168e6  # the issue's 10 kHz step on a 168 MHz Cortex-M4F
 
@@ -214,8 +225,8 @@ def build_manual(cpu: str, part: int, bdir: Path, vectors: Path, extra_src=(), e
     return elf
 
 
-def measure(cpu: str, vectors: Path, tiny: Path, model, fp_contract: str = "off") -> dict:
-    bdir = emb.build(cpu, OUT / f"{cpu}-{fp_contract}", vectors=vectors, fp_contract=fp_contract,
+def measure(cpu: str, vectors: Path, tiny: Path, model, out: Path, fp_contract: str = "off") -> dict:
+    bdir = emb.build(cpu, out / f"{cpu}-{fp_contract}", vectors=vectors, fp_contract=fp_contract,
                      targets=("dn_firmware", "dn_firmware_kernel", "dn_firmware_base"))
     path = lambda n: emb.firmware_path(bdir, n)  # noqa: E731
     base, kern, full = sizes(path("dn_firmware_base")), sizes(path("dn_firmware_kernel")), sizes(path("dn_firmware"))
@@ -244,11 +255,11 @@ def measure(cpu: str, vectors: Path, tiny: Path, model, fp_contract: str = "off"
                     "max_diff_vs_dampnet_in_range_N": float(np.max(np.abs(
                         eo.forces[ok & (fw.status == 0)] - fw.forces[ok & (fw.status == 0)])))}
     if cpu == "cortex-m4":
-        tdir = emb.build(cpu, OUT / f"{cpu}-{fp_contract}-trace", vectors=tiny, fp_contract=fp_contract,
+        tdir = emb.build(cpu, out / f"{cpu}-{fp_contract}-trace", vectors=tiny, fp_contract=fp_contract,
                          targets=("dn_firmware",))
         cpi = trace_cpi(emb.firmware_path(tdir), cpu, {"forward": "dn_mlp_forward_f", "step": "dn_loop_step"},
-                        OUT / "trace.log")
-        ecpi = trace_cpi(eelf, cpu, {"forward": "dn_fw_emlearn_forward"}, OUT / "trace.log")
+                        out / "trace.log")
+        ecpi = trace_cpi(eelf, cpu, {"forward": "dn_fw_emlearn_forward"}, out / "trace.log")
         r["cpi"] = cpi
         r["cycles"] = {k: r["instructions"][k] * cpi[k] for k in cpi}
         r["emlearn"]["cycles"] = r["emlearn"]["instructions"] * ecpi["forward"]
@@ -257,22 +268,60 @@ def measure(cpu: str, vectors: Path, tiny: Path, model, fp_contract: str = "off"
     return r
 
 
+UNROLL_SWEEP = [(1, 1), (1, 2), (1, 4), (1, 8), (0, 8)]  # (DN_KERNEL_SMALL, DN_KERNEL_UNROLL)
+
+
+def unroll_sweep(cpu: str, vectors: Path, out: Path, fp_contract: str = "off") -> list[dict]:
+    """Kernel flash and forward instructions for each (small, unroll) of UNROLL_SWEEP."""
+    rows = []
+    for small, unroll in UNROLL_SWEEP:
+        bdir = emb.build(cpu, out / f"{cpu}-{fp_contract}-small{small}-unroll{unroll}", vectors=vectors,
+                         fp_contract=fp_contract, kernel={"SMALL": small, "UNROLL": unroll},
+                         targets=("dn_firmware_kernel", "dn_firmware_base"))
+        kern = sizes(emb.firmware_path(bdir, "dn_firmware_kernel"))
+        base = sizes(emb.firmware_path(bdir, "dn_firmware_base"))
+        fw = emb.parse_output(emb.run(emb.firmware_path(bdir, "dn_firmware_kernel"), cpu))
+        assert fw.errors == 0
+        rows.append({"small": small, "unroll": unroll, "flash": kern["flash"] - base["flash"],
+                     "instructions": fw.instructions("forward")})
+    return rows
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--json", help="write the results here")
     p.add_argument("--fp-contract", choices=("off", "fast"), default="off",
                    help="-ffp-contract of the builds (the presets: off; fast lets GCC fuse multiply-adds)")
+    p.add_argument("--out-dir", default=str(OUT_DEFAULT),
+                   help="the builds' directory (default build/bench-embedded)")
+    p.add_argument("--unroll-sweep", action="store_true",
+                   help="only the kernel's flash and instructions for DN_KERNEL_UNROLL 1/2/4/8 (and DN_KERNEL_SMALL 0)")
     a = p.parse_args(argv)
     why = emb.toolchain_missing()
     if why:
         print(f"bench/embedded.py: {why}", file=sys.stderr)
         return 2
+    if emb.ROOT != ROOT:  # an editable install of another checkout shadows this one's python/
+        print(f"bench/embedded.py: dampnet is imported from {emb.ROOT}, not {ROOT}: its sources would be built",
+              file=sys.stderr)
+        return 2
+    out = Path(a.out_dir).resolve()
     model = load_model(ROOT / "export" / "dn_model_default.json")
-    OUT.mkdir(parents=True, exist_ok=True)
-    vectors, tiny = OUT / "vectors.h", OUT / "vectors_tiny.h"
+    out.mkdir(parents=True, exist_ok=True)
+    vectors, tiny = out / "vectors.h", out / "vectors_tiny.h"
     emb.write_vectors(vectors, model=model)
+    if a.unroll_sweep:
+        res = {cpu: unroll_sweep(cpu, vectors, out, a.fp_contract) for cpu in sorted(emb.CPUS)}
+        res["fp_contract"] = a.fp_contract
+        for cpu in sorted(emb.CPUS):
+            for r in res[cpu]:
+                print(f"{cpu} {a.fp_contract} small {r['small']} unroll {r['unroll']}: kernel flash {r['flash']} B, "
+                      f"forward {r['instructions']:.1f} instructions")
+        if a.json:
+            Path(a.json).write_text(json.dumps(res, indent=1) + "\n")
+        return 0
     emb.write_vectors(tiny, emb.make_vectors(model, n_x=50, seconds=0.2))
-    res = {cpu: measure(cpu, vectors, tiny, model, a.fp_contract) for cpu in sorted(emb.CPUS)}
+    res = {cpu: measure(cpu, vectors, tiny, model, out, a.fp_contract) for cpu in sorted(emb.CPUS)}
     res["fp_contract"] = a.fp_contract
     print(json.dumps(res, indent=1))
     if a.json:

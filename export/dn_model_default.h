@@ -119,4 +119,72 @@ static const double dn_model_default_sat_hi[3] = {
     dn_model_default_in_offset, dn_model_default_in_gain, DN_MODEL_DEFAULT_IN_YMIN, DN_MODEL_DEFAULT_OUT_OFFSET, DN_MODEL_DEFAULT_OUT_GAIN, DN_MODEL_DEFAULT_OUT_YMIN, \
     dn_model_default_sat_lo, dn_model_default_sat_hi }
 
+/* The same model folded into float weights (dn_mlp_folded_f, dampnet.h): what dn_mlp_init's float copy
+   holds, for dn_mlp_init_folded on float-only targets (no double arithmetic at set-up). */
+#define DN_MODEL_DEFAULT_FOLDED_OFFSETS 1 /* 1: b1 holds the input offsets */
+#define DN_MODEL_DEFAULT_FOLDED_B_OUT (501.117859f) /* [N] */
+#define DN_MODEL_DEFAULT_FOLDED_OUT_OFFSET (-1620.56396f) /* [N] */
+/* layer 1, [30][3] row-major, input gains folded in, 1/feature unit */
+static const float dn_model_default_folded_w1[30 * 3] = {
+  -5.30552197f, 0.0112371212f, 0.157118574f, 31.8816566f, -0.0668999404f, -1.61838639f,
+  -5.53171396f, 0.00946124922f, -0.532213271f, 6.59358358f, -0.011528749f, 1.10516167f,
+  9.31245708f, -0.0180742182f, -0.589963019f, 33.0810356f, -0.0695156232f, -1.65712857f,
+  -9.53793144f, 0.0137764886f, 0.138410002f, 2.18451142f, -0.00196601823f, -1.56717181f,
+  -5.84914017f, 0.0167647451f, 1.0782516f, -28.7873878f, 0.0501257554f, 0.273074448f,
+  -9.67173004f, -0.0174826942f, -0.18928802f, 19.2396526f, -0.0362428278f, -2.03025222f,
+  -6.55396414f, -0.305775493f, 0.941266716f, 33.2138252f, -0.0149627812f, 0.263207257f,
+  -2.24508882f, 0.00535484962f, -0.151078299f, 1.8103621f, -0.640406787f, 0.389508754f,
+  -28.4399052f, 0.0495167598f, 0.288695455f, -2.25617647f, 0.00383515889f, 1.51685715f,
+  3.4800868f, -0.00547741819f, -0.41636306f, -24.6541805f, 0.0434543602f, -0.28310284f,
+  -0.00699701253f, -0.00109797495f, 1.37599611f, -1.37647939f, -0.569776118f, -0.162523285f,
+  23.6022625f, -0.0453860648f, 1.06936538f, 6.98050833f, -0.343643874f, 1.38609314f,
+  -5.30384827f, 0.0157039985f, -0.963488102f, -8.86339664f, 0.0224833395f, 0.14993085f,
+  -13.2031832f, 0.0255208164f, -0.744653642f, 4.2881546f, -0.159934103f, -1.01758564f,
+  1.34548378f, -0.00714864768f, -1.13643539f, -4.10203743f, 0.261305273f, -1.11005151f,
+};
+
+/* layer 1 biases */
+static const float dn_model_default_folded_b1[30] = {
+  2.04794526f, -2.21807289f, 5.15226078f, -5.86280346f, -1.51231575f, -2.38358927f,
+  0.844987512f, 1.02638352f, -1.63522661f, 1.02759576f, 1.01345062f, 0.92382431f,
+  -1.6647222f, -0.76085043f, -0.742035747f, -1.57933581f, 0.939468563f, -2.77867508f,
+  0.960124254f, -1.78009033f, -3.75782967f, -1.41099656f, 2.44505191f, -0.309572697f,
+  3.50809193f, -2.40292454f, -0.597797215f, 6.262568f, 7.6481266f, -1.95650589f,
+};
+
+/* output weights, output unscaling folded in, [N] */
+static const float dn_model_default_folded_w_out[30] = {
+  -742.424561f, 2619.91772f, 469.961975f, -72.8602219f, 186.855743f, -2474.66455f,
+  -347.259186f, 60.253212f, -48.016346f, -3409.31226f, 67.2741241f, 80.8642273f,
+  -1.45145547f, 116.781677f, -813.725769f, -1.00525475f, 3420.48511f, -56.8801422f,
+  -147.680298f, -70.0195389f, -33.360569f, -2.3025651f, -106.313202f, -1.95114779f,
+  66.7896576f, -35.215786f, -297.826874f, 2.99723077f, -761.512878f, 3.72479296f,
+};
+
+/* input offsets, feature units */
+static const float dn_model_default_folded_in_offset[3] = {
+  -0.480437011f, -9.06943035f, -0.00779999979f,
+};
+
+/* lower saturation limits, feature units */
+static const float dn_model_default_folded_sat_lo[3] = {
+  -0.480437011f, -9.06943035f, -0.00779999979f,
+};
+
+/* upper saturation limits, feature units */
+static const float dn_model_default_folded_sat_hi[3] = {
+  0.482053012f, 9.09099007f, 5.00719976f,
+};
+
+/* what a NaN input becomes, feature units */
+static const float dn_model_default_folded_sat_mid[3] = {
+  0.000807999982f, 0.010779703f, 2.49970007f,
+};
+
+/* Initializer for a dn_mlp_folded_f (dampnet.h), field by field in its order. */
+#define DN_MODEL_DEFAULT_FOLDED_INIT { DN_MODEL_DEFAULT_N_INPUTS, DN_MODEL_DEFAULT_N_HIDDEN1, DN_MODEL_DEFAULT_N_HIDDEN2, DN_MODEL_DEFAULT_FOLDED_OFFSETS, \
+    dn_model_default_folded_w1, dn_model_default_folded_b1, (const float*)0, (const float*)0, dn_model_default_folded_w_out, \
+    DN_MODEL_DEFAULT_FOLDED_B_OUT, DN_MODEL_DEFAULT_FOLDED_OUT_OFFSET, dn_model_default_folded_in_offset, \
+    dn_model_default_folded_sat_lo, dn_model_default_folded_sat_hi, dn_model_default_folded_sat_mid }
+
 #endif /* DN_MODEL_DEFAULT_H_ */

@@ -1,8 +1,10 @@
 /* The dampnet firmware: the C library on a Cortex-M core (QEMU mps2-an386: Cortex-M4F,
  * mps2-an500: Cortex-M7), no heap, output by semihosting.
  *
- *  1. the MLP alone: dn_mlp_init into static storage, dn_mlp_forward_f on every stored input
- *     (dn_fw_x of the vectors header), each force printed as its float's bits;
+ *  1. the MLP alone: dn_mlp_init_folded (the model header's float weights with the scalings
+ *     folded in, DN_FW_FOLDED_INIT; without one, dn_mlp_init from the double description
+ *     DN_FW_DESC_INIT) into static storage, dn_mlp_forward_f on every stored input (dn_fw_x of
+ *     the vectors header), each force printed as its float's bits;
  *  2. the quarter car: MLP -> neural damper (float kernel) -> loop model with a controller
  *     (the header's configuration, DN_FW_*), dn_loop_step over the stored road (dn_fw_road),
  *     the state printed every DN_FW_PRINT_EVERY steps and at the end (as doubles' bits; the
@@ -25,6 +27,7 @@
 #ifndef DN_FW_MODEL_HEADER
 #define DN_FW_MODEL_HEADER "dn_model_default.h"
 #define DN_FW_DESC_INIT DN_MODEL_DEFAULT_DESC_INIT
+#define DN_FW_FOLDED_INIT DN_MODEL_DEFAULT_FOLDED_INIT
 #define DN_FW_FEATURE_NAMES dn_model_default_feature_names
 #define DN_FW_N_INPUTS DN_MODEL_DEFAULT_N_INPUTS
 #endif
@@ -55,31 +58,40 @@ int dn_fw_semihost(int op, const void* arg);
 
 /*---- output: one line at a time, numbers as decimal or as the bits of their value ----*/
 
+/* The harness's helpers are functions of their own in every variant, the harness alone
+ * (DN_FW_PART 0) calling each of them too: a variant's flash minus the harness's is then the
+ * code it adds (its library or emlearn code, weights, call sites), not inlined copies of these. */
+#if defined(__clang__)
+#define HARNESS __attribute__((noinline, unused))
+#else
+#define HARNESS __attribute__((noinline, noipa, unused))
+#endif
+
 static char line[256];
 static int line_len;
 
-static void put_str(const char* s) {
+HARNESS static void put_str(const char* s) {
   while (*s && line_len < (int)sizeof line - 2) line[line_len++] = *s++;
 }
-static void put_u(uint32_t v) {
+HARNESS static void put_u(uint32_t v) {
   char b[11];
   int n = 0;
   do b[n++] = (char)('0' + v % 10u), v /= 10u;
   while (v);
   while (n) line[line_len < (int)sizeof line - 2 ? line_len++ : line_len] = b[--n];
 }
-static void put_i(int32_t v) {
+HARNESS static void put_i(int32_t v) {
   if (v < 0) put_str("-"), v = -v;
   put_u((uint32_t)v);
 }
-static void put_hex(uint32_t v, int digits) {
+HARNESS static void put_hex(uint32_t v, int digits) {
   static const char h[] = "0123456789abcdef";
   for (int i = digits - 1; i >= 0; --i) {
     char c[2] = {h[(v >> (4 * i)) & 15u], 0};
     put_str(c);
   }
 }
-__attribute__((unused)) static void put_f32(float x) {
+HARNESS static void put_f32(float x) {
   union { float f; uint32_t u; } b;
   b.f = x;
   put_hex(b.u, 8);
@@ -90,7 +102,7 @@ __attribute__((unused)) static void put_f64(double x) {
   put_hex((uint32_t)(b.u >> 32), 8);
   put_hex((uint32_t)b.u, 8);
 }
-static void end_line(void) {
+HARNESS static void end_line(void) {
   line[line_len++] = '\n';
   line[line_len] = 0;
   dn_fw_semihost(0x04 /* SYS_WRITE0 */, line);
@@ -136,7 +148,7 @@ __attribute__((noinline)) static uint32_t stack_low(void) {
   while (*p == PAINT) ++p;
   return (uint32_t)(uintptr_t)p;
 }
-static void print_stack(const char* what, uint32_t sp0) {
+HARNESS static void print_stack(const char* what, uint32_t sp0) {
   put_str("stack ");
   put_str(what);
   put_str(" ");
@@ -170,7 +182,7 @@ static unsigned char model_mem[DN_SIZE_MLP] ALIGNED;
 #endif
 
 static int errors;
-__attribute__((unused)) static void check(const char* what, int st) {
+HARNESS static void check(const char* what, int st) {
   if (st < 0) {
     ++errors;
     put_str("error ");
@@ -183,7 +195,7 @@ __attribute__((unused)) static void check(const char* what, int st) {
 
 /* "time forward T stub S n N": the forward's ticks t0..t1 beside the stub's over the same inputs
  * (call overhead and loop, subtracted by bench/embedded.py) */
-__attribute__((unused)) static void report_forward_time(uint32_t t0, uint32_t t1, const void* mlp) {
+HARNESS static void report_forward_time(uint32_t t0, uint32_t t1, const void* mlp) {
   float acc = 0.f;
   uint32_t mask = 0;
   uint32_t t2 = now();
@@ -206,11 +218,17 @@ __attribute__((unused)) static void report_forward_time(uint32_t t0, uint32_t t1
 #if DN_FW_PART == 1 || DN_FW_PART == 2
 /* Part 1: the MLP alone. */
 static const dn_mlp* kernel_part(void) {
-  const dn_mlp_desc desc = DN_FW_DESC_INIT;
   dn_mlp* mlp = NULL;
   uint32_t sp0 = sp_now();
   stack_paint();
+#ifdef DN_FW_FOLDED_INIT
+  /* float weights, set-up without double arithmetic */
+  const dn_mlp_folded_f folded = DN_FW_FOLDED_INIT;
+  check("dn_mlp_init_folded", dn_mlp_init_folded(&folded, model_mem, sizeof model_mem, &mlp));
+#else
+  const dn_mlp_desc desc = DN_FW_DESC_INIT;
   check("dn_mlp_init", dn_mlp_init(&desc, model_mem, sizeof model_mem, &mlp));
+#endif
   print_stack("mlp_init", sp0);
   if (!mlp) return NULL;
 
@@ -416,6 +434,13 @@ int main(void) {
   float y;
   uint32_t mask;
   stub_forward(NULL, dn_fw_x[0], &y, &mask);
+  check("none", 0); /* the helpers the other variants call (HARNESS) */
+  put_str("stub ");
+  put_f32(y);
+  put_str(" ");
+  put_i(0);
+  end_line();
+  report_forward_time(now(), now(), NULL);
   dn_loop_out out;
   const dn_loop_input in = {0, 0, 0};
   stub_step(NULL, NULL, &in, &out);

@@ -19,6 +19,16 @@ int dn_mlp_init(const dn_mlp_desc* desc, void* mem, size_t bytes, dn_mlp** out) 
   return st;
 }
 
+int dn_mlp_init_folded(const dn_mlp_folded_f* folded, void* mem, size_t bytes, dn_mlp** out) {
+  dn_mlp* m = nullptr;
+  int st = dn_storage::place(mem, bytes, out, &m);
+  if (st != DN_OK) return st;
+  st = m->mf.load_folded(folded);  // validates (float) before the double copy is filled
+  if (st == DN_OK) st = m->md.load_folded(folded);
+  if (st == DN_OK) *out = m;
+  return st;
+}
+
 int dn_mlp_create(const dn_mlp_desc* desc, dn_mlp** out) {
   return dn_storage::create(out, [&](void* mem, size_t bytes, dn_mlp** o) noexcept {
     return dn_mlp_init(desc, mem, bytes, o);

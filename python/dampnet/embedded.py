@@ -44,6 +44,10 @@ CPUS = {
 # MLP). `dampnet export --target` sets them from the model instead (capacities_for).
 DEFAULT_CAPS = {"INPUTS": 3, "HIDDEN": 32, "HIDDEN2": 0, "TERMS": 0, "TABLE_V": 2, "TABLE_U": 1}
 DEFAULT_DOUBLE_KERNEL = 0
+# The float kernel for flash (dampnet.h DN_KERNEL_SMALL, DN_KERNEL_UNROLL; the presets' values):
+# one forward, compiled for the capacity's input count, two neurons per pass
+# (bench/RESULTS.md, "On a microcontroller": the trade-off measured).
+DEFAULT_KERNEL = {"SMALL": 1, "UNROLL": 2}
 # Only the neural damper kind is linked (dampnet.h DN_DAMPER_KINDS): the others' code and their
 # libm functions stay out of flash.
 DEFAULT_DAMPER_KINDS = ("neural",)
@@ -57,14 +61,15 @@ def target_defines(cpu: str, caps: dict, loop_float: int | None = None,
                    damper_kinds=DEFAULT_DAMPER_KINDS) -> list[str]:
     """The library's compile definitions for a core (what the root CMakeLists.txt derives from the
     DAMPNET_* options of a freestanding build): capacities, float MLP only, the loop's real type,
-    the damper kinds linked, and code size over inlining."""
+    the damper kinds linked, code size over inlining, and the lean float kernel."""
     unknown = sorted(set(damper_kinds) - set(DAMPER_KIND_BITS))
     if unknown:
         raise ValueError(f"damper kinds {unknown}: expected some of {', '.join(DAMPER_KIND_BITS)}")
     mask = sum(1 << DAMPER_KIND_BITS.index(k) for k in set(damper_kinds))
     lf = LOOP_FLOAT[cpu] if loop_float is None else int(loop_float)
     return ([f"DN_CAP_{k}={v}" for k, v in caps.items()]
-            + ["DN_DOUBLE_KERNEL=0", f"DN_LOOP_FLOAT={lf}", f"DN_DAMPER_KINDS={mask}", "DN_SMALL_CODE=1"])
+            + ["DN_DOUBLE_KERNEL=0", f"DN_LOOP_FLOAT={lf}", f"DN_DAMPER_KINDS={mask}", "DN_SMALL_CODE=1"]
+            + [f"DN_KERNEL_{k}={v}" for k, v in DEFAULT_KERNEL.items()])
 
 # The quarter car the firmware runs (and the host comparison with it): the HIL configuration
 # of `dampnet bench` (one damper evaluation per RK4 step, the linearised acceleration feature,
@@ -167,7 +172,7 @@ def write_vectors(path, vectors: Vectors | None = None, model=None) -> Vectors:
 
 def cmake_args(cpu: str, vectors: Path | None = None, build_type: str = "Release",
                caps: dict | None = None, double_kernel: int = DEFAULT_DOUBLE_KERNEL,
-               fp_contract: str = "off", loop_float: int | None = None,
+               fp_contract: str = "off", kernel: dict | None = None, loop_float: int | None = None,
                damper_kinds=DEFAULT_DAMPER_KINDS) -> list[str]:
     """The configure options of a firmware build (what the presets of CMakePresets.json set);
     loop_float None: the core's default (LOOP_FLOAT)."""
@@ -179,6 +184,7 @@ def cmake_args(cpu: str, vectors: Path | None = None, build_type: str = "Release
             f"-DDAMPNET_FP_CONTRACT={fp_contract}", f"-DDAMPNET_LOOP_FLOAT={loop_float}",
             f"-DDAMPNET_DAMPER_KINDS={';'.join(damper_kinds)}"]
     args += [f"-DDAMPNET_CAP_{k}={v}" for k, v in (caps or DEFAULT_CAPS).items()]
+    args += [f"-DDAMPNET_KERNEL_{k}={v}" for k, v in (DEFAULT_KERNEL if kernel is None else kernel).items()]
     if vectors is not None:
         args.append(f"-DDAMPNET_FIRMWARE_VECTORS={Path(vectors).resolve()}")
     else:  # CMake writes them with this interpreter (python -m dampnet.embedded vectors)
@@ -386,7 +392,7 @@ Written by `dampnet export {model_name} --target {cpu}` (dampnet {version}). Mod
 
 | path | what |
 | --- | --- |
-| `model.h` | the model (weights, scalings, saturation limits, feature names): `DN_MODEL_DESC_INIT` |
+| `model.h` | the model (weights, scalings, saturation limits, feature names): `DN_MODEL_DESC_INIT` (double), `DN_MODEL_FOLDED_INIT` (float weights with the scalings folded in) |
 | `include/dampnet/` | the C ABI (`dampnet.h`) and the header-only C++ runtime it is built from |
 | `src/` | the library's three sources (MLP, dampers and loop, status strings) |
 | `CMakeLists.txt` | the static library `dampnet` with this model's capacities: {caps} |
@@ -411,19 +417,26 @@ printing forces and states as the bits of their floats and doubles.
    `-fno-exceptions -fno-rtti -fno-threadsafe-statics -ffunction-sections -fdata-sections`, the
    definitions `DN_STATIC {caps}` (also for any C++ file of yours that includes the C++ headers),
    and link with `-Wl,--gc-sections` (newlib's libm and libgcc; no libstdc++, no heap).
-2. Keep every object in static storage: `dn_mlp_init`, `dn_damper_init_neural`,
+2. Set the MLP up with `dn_mlp_init_folded` from `model.h`'s `DN_MODEL_FOLDED_INIT` (a
+   `dn_mlp_folded_f`: the float weights with the input and output scalings already folded in, what
+   `dn_mlp_init` would compute from `DN_MODEL_DESC_INIT` bit for bit): set-up then checks and copies
+   floats only, so no software double routine and no double weights take flash (the example does
+   this). With `DN_KERNEL_SMALL=1` (set here) the forward is compiled for exactly this model's
+   input count.
+3. Keep every object in static storage: `dn_mlp_init_folded`, `dn_damper_init_neural`,
    `dn_loop_model_init`, `dn_loop_data_init` over memory of `dn_*_size()` bytes aligned to
    `dn_storage_align()` (`example/firmware.c` does this; `example/sizes.cpp` turns the sizes into
    compile-time constants for static arrays). A loop model copies its damper and a damper its MLP,
    so their memory is free again after set-up.
-3. The real-time call is `dn_loop_step` (or `dn_mlp_forward_f` / `dn_damper_force` alone): no
+4. The real-time call is `dn_loop_step` (or `dn_mlp_forward_f` / `dn_damper_force` alone): no
    allocation, no exceptions, bounded time, finite output for any input.
-4. Linker script: `.text`/`.rodata` in flash, `.data` copied and `.bss` zeroed by the start-up code,
+5. Linker script: `.text`/`.rodata` in flash, `.data` copied and `.bss` zeroed by the start-up code,
    a stack of at least the peak measured for your core (dampnet's bench/RESULTS.md, "On a
    microcontroller"; the example paints and prints it); see the marked lines of `example/mps2.ld`.
 
-Figures for the 3-30-1 default model (dampnet's bench/RESULTS.md): the float forward 1,563
-instructions on a Cortex-M4F (1,480 on a Cortex-M7); the quarter-car step in double 14,871 (M4F,
+Figures for the 3-30-1 default model (dampnet's bench/RESULTS.md): the float forward 1,443
+instructions on a Cortex-M4F (1,432 on a Cortex-M7), set up by `dn_mlp_init_folded`, in 3,192 B
+of flash with its weights (M4F; 3,064 B on the M7); the quarter-car step in double 14,871 (M4F,
 software double) and 2,651 (M7).
 """
 
@@ -464,10 +477,13 @@ def export_target(model, target: str, out_dir, overwrite: bool = False, model_na
     write_vectors(out / "example" / "dn_fw_vectors.h", make_vectors(model, n_x=16, seconds=1.0))
     caps = capacities_for(model)
     cap_defs = target_defines(target, caps)
-    params = ""
+    # the float weights with the scalings folded in (set-up without double arithmetic), when the
+    # header has them (a model whose folded values overflow float has only DN_MODEL_DESC_INIT)
+    folded = " DN_FW_FOLDED_INIT=DN_MODEL_FOLDED_INIT" if "DN_MODEL_FOLDED_INIT" in (out / "model.h").read_text() else ""
+    params = folded
     if model.feature_params:
-        params = (" DN_FW_PARAM_NAMES=dn_model_feature_param_names DN_FW_PARAM_VALUES=dn_model_feature_param_values"
-                  " DN_FW_N_PARAMS=DN_MODEL_N_FEATURE_PARAMS")
+        params += (" DN_FW_PARAM_NAMES=dn_model_feature_param_names DN_FW_PARAM_VALUES=dn_model_feature_param_values"
+                   " DN_FW_N_PARAMS=DN_MODEL_N_FEATURE_PARAMS")
     ident = target.replace("-", "_")
     (out / "CMakeLists.txt").write_text(_FOLDER_CMAKE.format(
         cpu=target, machine=CPUS[target]["machine"], ident=ident, caps=" ".join(cap_defs), params=params))

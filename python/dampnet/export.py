@@ -9,11 +9,14 @@ include from several translation units). It holds, for a prefix `p`:
   p_w1[], p_b1[], (p_w2[], p_b2[]), p_w_out[], p_b_out[]    weights, [out][in] row-major
   p_in_offset[], p_in_gain[], p_sat_lo[], p_sat_hi[]        input scaling and limits
   P_DESC_INIT                                               a dn_mlp_desc initializer
+  p_folded_*[], P_FOLDED_*, P_FOLDED_INIT                   the same model folded into float
+                                                            weights: a dn_mlp_folded_f initializer
   P_N_TERMS and p_terms_*                                   physics terms (hybrid models)
   P_N_FEATURE_PARAMS, P_<PARAM>, p_feature_param_names[],   constants of derived features
   p_feature_param_values[] (arrays only when there are any)  (e.g. P_VELOCITY_LAG_TAU_S)
 
 C:   dn_mlp_desc d = P_DESC_INIT; dn_mlp_create(&d, &m);
+     float-only targets: dn_mlp_folded_f f = P_FOLDED_INIT; dn_mlp_init_folded(&f, mem, bytes, &m);
 C++: dampnet::StaticMlp<float, P_N_INPUTS, P_N_HIDDEN1, P_N_HIDDEN2> m; m.load(&d);
 """
 
@@ -83,6 +86,117 @@ def _array(name: str, values: np.ndarray, dims: str, layout: str) -> str:
         rows.append("  " + ", ".join(_num(v) for v in flat[i:i + 4]) + ",")
     body = "\n".join(rows)
     return f"/* {layout} */\nstatic const double {name}[{dims}] = {{\n{body}\n}};\n"
+
+
+def _f32(v) -> str:
+    """A float literal that round-trips to the same float32 (9 significant digits)."""
+    s = f"{float(v):.9g}"
+    if not any(c in s for c in ".en"):
+        s += ".0"
+    return s + "f"
+
+
+def _farray(name: str, values: np.ndarray, dims: str, layout: str) -> str:
+    flat = np.asarray(values, dtype=np.float32).ravel()
+    rows = ["  " + ", ".join(_f32(v) for v in flat[i:i + 6]) + "," for i in range(0, flat.size, 6)]
+    return f"/* {layout} */\nstatic const float {name}[{dims}] = {{\n" + "\n".join(rows) + "\n};\n"
+
+
+def folded_float(model: MlpModel) -> dict | None:
+    """The model as a dn_mlp_folded_f (dampnet.h): the scalings folded into the weights exactly
+    as the runtime's load() folds them (cpp/include/dampnet/mlp.hpp: the same double operations in
+    the same order, then one rounding to float32), so that dn_mlp_init_folded on these values
+    holds what dn_mlp_init on the double description holds, bit for bit (tests/cpp and
+    tests/python/test_embedded.py compare). None when a folded value overflows float (the
+    runtime refuses such a model: DN_E_PARAM). Arrays in the description's [out][in] layout."""
+    w1 = np.asarray(model.w1, np.float64)
+    h1, ni = w1.shape
+    w2 = None if model.w2 is None else np.asarray(model.w2, np.float64)
+    h2 = 0 if w2 is None else w2.shape[0]
+    wo = np.asarray(model.w_out, np.float64).ravel()
+    off = [float(v) for v in model.in_offset]
+    gain = [float(v) for v in model.in_gain]
+    lo = [float(v) for v in model.sat_lo]
+    hi = [float(v) for v in model.sat_hi]
+    ymin, og, oy = float(model.in_ymin), float(model.out_gain), float(model.out_ymin)
+    sig = model.activation == "sigmoid"
+    zs, alpha, beta = (0.5, 0.5, 0.5) if sig else (1.0, 1.0, 0.0)
+    # Python floats are IEEE doubles and `a * b + c` is never fused: load()'s arithmetic
+    fold_off = all(abs(off[i]) <= hi[i] - lo[i] for i in range(ni))
+    f1, fb1 = np.zeros((h1, ni)), np.zeros(h1)
+    for j in range(h1):
+        b = float(model.b1[j])
+        for i in range(ni):
+            w = float(w1[j, i]) * gain[i]
+            f1[j, i] = zs * w
+            b += ymin * float(w1[j, i])
+            if fold_off:
+                b -= w * off[i]
+        fb1[j] = zs * b
+    f2 = fb2 = None
+    if h2:
+        f2, fb2 = np.zeros((h2, h1)), np.zeros(h2)
+        for k in range(h2):
+            b = float(model.b2[k])
+            for j in range(h1):
+                f2[k, j] = zs * alpha * float(w2[k, j])
+                b += beta * float(w2[k, j])
+            fb2[k] = zs * b
+    c = float(model.b_out)
+    fo = np.zeros(wo.size)
+    for j in range(wo.size):
+        fo[j] = alpha * float(wo[j]) / og
+        c += beta * float(wo[j])
+    with np.errstate(over="ignore"):
+        out = {"n_inputs": ni, "n_hidden1": h1, "n_hidden2": h2, "offsets_folded": int(fold_off),
+               "w1": f1.astype(np.float32), "b1": fb1.astype(np.float32),
+               "w2": None if f2 is None else f2.astype(np.float32),
+               "b2": None if fb2 is None else fb2.astype(np.float32),
+               "w_out": fo.astype(np.float32), "b_out": np.float32((c - oy) / og + float(model.out_offset)),
+               "out_offset": np.float32(float(model.out_offset)),
+               "in_offset": np.array(off).astype(np.float32), "sat_lo": np.array(lo).astype(np.float32),
+               "sat_hi": np.array(hi).astype(np.float32),
+               "sat_mid": np.array([0.5 * (a + b) for a, b in zip(lo, hi)]).astype(np.float32)}
+    finite = all(np.all(np.isfinite(v)) for k, v in out.items() if k not in ("n_inputs", "n_hidden1", "n_hidden2",
+                                                                            "offsets_folded") and v is not None)
+    return out if finite else None
+
+
+def _folded_block(p: str, P: str, model: MlpModel) -> list[str]:
+    """The float-folded arrays and P_FOLDED_INIT (a dn_mlp_folded_f initializer)."""
+    f = folded_float(model)
+    head = ("/* The same model folded into float weights (dn_mlp_folded_f, dampnet.h): what dn_mlp_init's "
+            "float copy\n   holds, for dn_mlp_init_folded on float-only targets (no double arithmetic at "
+            "set-up). */")
+    if f is None:
+        return [head.replace("*/", "Not written: a folded value overflows float. */"), ""]
+    h1, ni, h2 = f["n_hidden1"], f["n_inputs"], f["n_hidden2"]
+    n_last = h2 or h1
+    out = [head,
+           f"#define {P}_FOLDED_OFFSETS {f['offsets_folded']} /* 1: b1 holds the input offsets */",
+           f"#define {P}_FOLDED_B_OUT ({_f32(f['b_out'])}) /* [{model.output_unit}] */",
+           f"#define {P}_FOLDED_OUT_OFFSET ({_f32(f['out_offset'])}) /* [{model.output_unit}] */",
+           _farray(f"{p}_folded_w1", f["w1"], f"{h1} * {ni}",
+                   f"layer 1, [{h1}][{ni}] row-major, input gains folded in, 1/feature unit"),
+           _farray(f"{p}_folded_b1", f["b1"], f"{h1}", "layer 1 biases")]
+    if h2:
+        out += [_farray(f"{p}_folded_w2", f["w2"], f"{h2} * {h1}", f"layer 2, [{h2}][{h1}] row-major"),
+                _farray(f"{p}_folded_b2", f["b2"], f"{h2}", "layer 2 biases")]
+    out += [_farray(f"{p}_folded_w_out", f["w_out"], f"{n_last}",
+                    f"output weights, output unscaling folded in, [{model.output_unit}]"),
+            _farray(f"{p}_folded_in_offset", f["in_offset"], f"{ni}", "input offsets, feature units"),
+            _farray(f"{p}_folded_sat_lo", f["sat_lo"], f"{ni}", "lower saturation limits, feature units"),
+            _farray(f"{p}_folded_sat_hi", f["sat_hi"], f"{ni}", "upper saturation limits, feature units"),
+            _farray(f"{p}_folded_sat_mid", f["sat_mid"], f"{ni}", "what a NaN input becomes, feature units")]
+    w2 = f"{p}_folded_w2" if h2 else "(const float*)0"
+    b2 = f"{p}_folded_b2" if h2 else "(const float*)0"
+    out += ["/* Initializer for a dn_mlp_folded_f (dampnet.h), field by field in its order. */",
+            f"#define {P}_FOLDED_INIT {{ {P}_N_INPUTS, {P}_N_HIDDEN1, {P}_N_HIDDEN2, {P}_FOLDED_OFFSETS, \\",
+            f"    {p}_folded_w1, {p}_folded_b1, {w2}, {b2}, {p}_folded_w_out, \\",
+            f"    {P}_FOLDED_B_OUT, {P}_FOLDED_OUT_OFFSET, {p}_folded_in_offset, \\",
+            f"    {p}_folded_sat_lo, {p}_folded_sat_hi, {p}_folded_sat_mid }}",
+            ""]
+    return out
 
 
 def _cstr(s: str) -> str:
@@ -163,6 +277,7 @@ def header_text(model: MlpModel, prefix: str = "dn_model") -> str:
         f"    {p}_in_offset, {p}_in_gain, {P}_IN_YMIN, {P}_OUT_OFFSET, {P}_OUT_GAIN, {P}_OUT_YMIN, \\",
         f"    {p}_sat_lo, {p}_sat_hi }}",
         "",
+        *_folded_block(p, P, model),
         f"#endif /* {guard} */",
         "",
     ]

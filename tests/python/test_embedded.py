@@ -17,6 +17,11 @@ newlib) and run in QEMU (mps2-an386, mps2-an500; semihosting), against the host 
 * No C++ runtime and no heap are linked, dn_sizes.h matches the library, neither the float
   forward nor the loop step calls a software double routine, and only the neural damper kind
   is linked (DN_DAMPER_KINDS): no tanh or pow of the other kinds and terms.
+* The MLP part alone (dn_firmware_kernel: dn_mlp_init_folded on the header's folded float
+  weights, the forward; what bench/embedded.py's kernel flash counts) gives the host's forces and
+  links no software double routine at all; the exporter's folded floats (P_FOLDED_INIT) are the C
+  library's own folding of the double description, bit for bit (a host program compares); the
+  integer float-to-double widening that set-up uses on the M4F is exact on the target.
 Builds are cached in build/embedded-test/ (CMake rebuilds only what changed)."""
 
 from __future__ import annotations
@@ -27,7 +32,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from cbuild import BUILD, ROOT
+from cbuild import BUILD, ROOT, compile_program, run
 from dampnet import embedded as emb
 from dampnet.modeldir import load_model
 
@@ -45,6 +50,8 @@ def vectors(model):
     why = emb.toolchain_missing()
     if why:
         pytest.skip(why)
+    # the dampnet package imported is this checkout's (its builds use emb.ROOT's sources)
+    assert emb.ROOT == ROOT, f"dampnet imported from {emb.ROOT}, the tests are {ROOT}'s"
     TEST_DIR.mkdir(parents=True, exist_ok=True)
     path = TEST_DIR / "dn_fw_vectors.h"
     v = emb.make_vectors(model)
@@ -155,8 +162,158 @@ def test_no_cxx_runtime_no_heap_and_a_float_forward_without_double(firmware):
     assert list((bdir / "cpp" / "embedded").rglob("float_kernel_check.cpp.obj"))
 
 
-def _soft_double(functions) -> list[str]:
-    return sorted(f for f in functions if re.match(r"__aeabi_d|__aeabi_[fi]2d|__aeabi_d2|__.*df[23]", f))
+def _soft_double(syms) -> list[str]:
+    """libgcc's software double routines (AEABI and GCC names) among the symbols."""
+    return sorted(f for f in syms if re.match(r"__aeabi_(d|\w*2d$)", f) or re.match(r"__\w*df\w*$", f))
+
+
+def test_kernel_part_folded_init_equals_host_float_forward(firmware, vectors, model):
+    """The MLP part alone: set-up by dn_mlp_init_folded from the header's folded float weights
+    (no dn_mlp_init, no double description linked), forces as the host float forward's."""
+    cpu, bdir, _ = firmware
+    elf = emb.firmware_path(bdir, "dn_firmware_kernel")
+    syms = _symbols(elf)
+    assert "dn_mlp_init_folded" in syms and "dn_mlp_init" not in syms
+    assert not any(s.startswith("dn_model_default_w1") for s in syms)  # the double weights
+    out = emb.parse_output(emb.run(elf, cpu, timeout=120))
+    assert out.cpu == cpu and out.part == 1 and out.errors == 0
+    x = vectors[1].x
+    y, status = emb.host_forces(model, x)
+    err = np.abs(out.forces.astype(float) - y)
+    assert err.max() <= 1e-5 * 2.0 / model.out_gain, err.max()
+    np.testing.assert_array_equal(out.status, status)
+
+
+def test_kernel_part_gives_the_host_sse_kernels_bits(firmware, vectors, tmp_path):
+    """Under -ffp-contract=off (the presets') the targets' scalar kernel (one pass per partial sum,
+    the padding neurons skipped) gives the host's SSE kernel's float bits for every stored input,
+    statuses and masks included: a host program (the header-only Mlp<float> on the default
+    header's double description, -mno-avx2) against the MLP part."""
+    cpu, bdir, _ = firmware
+    out = emb.parse_output(emb.run(emb.firmware_path(bdir, "dn_firmware_kernel"), cpu, timeout=120))
+    src = tmp_path / "sse_forces.cpp"
+    src.write_text(f"""#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include "dampnet/mlp.hpp"
+#include "dn_model_default.h"
+#include "{vectors[0]}"
+static dampnet::Mlp<float> m;
+int main() {{
+  const dn_mlp_desc d = DN_MODEL_DEFAULT_DESC_INIT;
+  if (m.load(&d) != DN_OK) return 1;
+  for (int i = 0; i < DN_FW_N_X; ++i) {{
+    float y;
+    uint32_t mask = 0, bits;
+    const int st = m.forward(dn_fw_x[i], &y, &mask);
+    std::memcpy(&bits, &y, sizeof bits);
+    std::printf("%08x %d %u\\n", (unsigned)bits, st, (unsigned)mask);
+  }}
+  return 0;
+}}
+""")
+    exe = compile_program([src], tmp_path / "sse_forces", cxx=True, include_dirs=[ROOT / "cpp" / "include",
+                          ROOT / "export"], extra=["-mno-avx2", "-mno-fma", "-ffp-contract=off"])
+    rows = [line.split() for line in run([exe]).stdout.splitlines()]
+    host = np.array([int(r[0], 16) for r in rows], dtype=np.uint32)
+    assert len(host) == len(out.forces)
+    np.testing.assert_array_equal(out.forces.view(np.uint32), host)
+    np.testing.assert_array_equal(out.status, [int(r[1]) for r in rows])
+    np.testing.assert_array_equal(out.mask, [int(r[2]) for r in rows])
+
+
+def test_kernel_part_links_no_double_routine(firmware):
+    """On the M4F's single-precision FPU every double operation is a libgcc routine: the MLP
+    part (set-up and forward) links none."""
+    cpu, bdir, _ = firmware
+    assert not _soft_double(_symbols(emb.firmware_path(bdir, "dn_firmware_kernel")))
+    if cpu == "cortex-m4":  # the check itself sees them where they are: the harness widens the
+        # loop's float state to print it as doubles
+        assert "__aeabi_f2d" in _soft_double(_symbols(emb.firmware_path(bdir, "dn_firmware")))
+
+
+def test_widening_without_double_arithmetic_is_exact_on_the_m4f(vectors, tmp_path):
+    """dn_mlp_init_folded fills a DN_DOUBLE_KERNEL 0 build's double saturation ranges by
+    widening floats in integer arithmetic on the M4F (detail::widen_exact; a cast would link
+    __aeabi_f2d): on the target, every kind of float (zeros, subnormals, normals, infinities)
+    widens to the double the host's cast gives."""
+    import struct
+
+    rng = np.random.default_rng(3)
+    bits = [0x00000000, 0x80000000, 0x00000001, 0x807fffff, 0x00400000, 0x00800000, 0x7f7fffff,
+            0x7f800000, 0xff800000, 0x3f800000, 0xc0600000] + [int(b) for b in rng.integers(0, 2**32, 300)]
+    bits = [b for b in bits if not ((b >> 23) & 0xff == 0xff and b & 0x7fffff)]  # no NaNs
+    rows = [f"{{0x{b:08x}u, 0x{struct.unpack('<Q', struct.pack('<d', struct.unpack('<f', struct.pack('<I', b))[0]))[0]:016x}ull}}"
+            for b in bits]
+    src = tmp_path / "widen.cpp"
+    src.write_text('#include <cstdint>\n#include <cstring>\n#include "dampnet/mlp.hpp"\n'
+                   'static const struct { uint32_t f; uint64_t d; } cases[] = {' + ",\n".join(rows) + "};\n"
+                   'extern "C" int dn_fw_semihost(int op, const void* arg);\n'
+                   'extern "C" int main() {\n  int bad = 0;\n'
+                   '  for (const auto& c : cases) {\n    float f;\n    std::memcpy(&f, &c.f, 4);\n'
+                   '    const double d = dampnet::detail::widen_exact(f);\n    uint64_t b;\n'
+                   '    std::memcpy(&b, &d, 8);\n    bad += b != c.d;\n  }\n'
+                   '  dn_fw_semihost(0x04, bad ? "widen bad\\n" : "widen ok\\n");\n  return bad;\n}\n')
+    flags = emb.CPUS["cortex-m4"]["flags"].split() + ["-O2"]
+    elf = tmp_path / "widen.elf"
+    run(["arm-none-eabi-g++", *flags, "-std=c++17", "-fno-exceptions", "-fno-rtti", "-DDN_STATIC",
+         "-DDN_DOUBLE_KERNEL=0", f"-I{ROOT / 'cpp' / 'include'}", "-c", src, "-o", tmp_path / "widen.o"])
+    run(["arm-none-eabi-gcc", *flags, "-c", ROOT / "cpp" / "embedded" / "startup.c", "-o", tmp_path / "startup.o"])
+    run(["arm-none-eabi-gcc", *flags, "--specs=nano.specs", "-nostartfiles", "-Wl,--gc-sections",
+         f"-T{ROOT / 'cpp' / 'embedded' / 'mps2.ld'}", tmp_path / "widen.o", tmp_path / "startup.o", "-o", elf])
+    assert not _soft_double(_symbols(elf))
+    assert "widen ok" in emb.run(elf, "cortex-m4", icount=False, timeout=60)
+
+
+def test_exported_folded_floats_are_the_librarys_folding(vectors, model, tmp_path):
+    """P_FOLDED_INIT (python/dampnet/export.py folds in Python) holds what the C library's
+    load() makes of P_DESC_INIT, bit for bit: a host program loads both into Mlp<float> and
+    compares every parameter, for the default model and random ones (tanh and sigmoid, one and
+    two hidden layers, offsets folded into layer 1 or not)."""
+    from kernel_cases import SHAPES, random_model
+
+    from dampnet.export import write_header
+
+    models = {"m_default": model}
+    models.update({f"m_{k}": random_model(n, h, act, seed=k) for k, (n, h, act) in enumerate(SHAPES)})
+    far = random_model(3, (30,), "tanh", seed=99)
+    far.in_offset = far.in_offset + 100.0  # an offset beyond its input's range: not folded
+    models["m_far"] = far
+    lines = ["#include <cstdio>", "#include <cstring>", '#include "dampnet/mlp.hpp"']
+    for name, m in models.items():
+        write_header(m, tmp_path / f"{name}.h", name)
+        lines.append(f'#include "{name}.h"')
+    lines += ["""
+using P = dampnet::MlpParams<float, DN_CAP_INPUTS, DN_CAP_HIDDEN, DN_CAP_HIDDEN2>;
+template <class A> static bool eq(const A& a, const A& b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+static bool same(const P& a, const P& b) {
+  static_assert(P::kTw == 0, "the host program is built without AVX2: no tw");
+  return a.n_in == b.n_in && a.n_h1 == b.n_h1 && a.n_h2 == b.n_h2 && a.n_h1p == b.n_h1p &&
+         a.n_h2p == b.n_h2p && a.in_offset_folded == b.in_offset_folded && eq(a.w1t, b.w1t) &&
+         eq(a.b1, b.b1) && eq(a.w2t, b.w2t) && eq(a.b2, b.b2) && eq(a.w_out, b.w_out) &&
+         eq(a.b_out, b.b_out) && eq(a.in_offset, b.in_offset) && eq(a.in_mid, b.in_mid) &&
+         eq(a.sat_lo, b.sat_lo) && eq(a.sat_hi, b.sat_hi) && eq(a.out_offset, b.out_offset);
+}
+static dampnet::Mlp<float> a, b;
+static int check(const char* name, const dn_mlp_desc& d, const dn_mlp_folded_f& f) {
+  if (a.load(&d) != DN_OK || b.load_folded(&f) != DN_OK) return std::printf("%s: not loaded\\n", name), 1;
+  if (!same(a.params(), b.params())) return std::printf("%s: differ\\n", name), 1;
+  return std::printf("%s: same (offsets folded %d)\\n", name, int(b.params().in_offset_folded)), 0;
+}
+int main() {
+  int bad = 0;"""]
+    for name in models:
+        P = name.upper()
+        lines.append(f'  {{ const dn_mlp_desc d = {P}_DESC_INIT; const dn_mlp_folded_f f = {P}_FOLDED_INIT; '
+                     f'bad += check("{name}", d, f); }}')
+    lines += ["  return bad;", "}", ""]
+    src = tmp_path / "folded_check.cpp"
+    src.write_text("\n".join(lines))
+    exe = compile_program([src], tmp_path / "folded_check", cxx=True,
+                          include_dirs=[ROOT / "cpp" / "include", tmp_path], extra=["-mno-avx2", "-mno-fma"])
+    text = run([exe]).stdout
+    assert text.count(": same") == len(models), text
+    assert "offsets folded 0" in text and "offsets folded 1" in text
 
 
 def test_the_step_calls_no_software_double_and_links_only_the_neural_kind(firmware):
@@ -187,7 +344,10 @@ def test_export_target_folder_builds_and_runs(vectors, model, tmp_path):
     proc = subprocess.run(cmd, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     assert (out / "model.h").is_file() and (out / "README.md").is_file()
-    assert "DN_CAP_INPUTS=3 DN_CAP_HIDDEN=30" in (out / "CMakeLists.txt").read_text()
+    cmake_text = (out / "CMakeLists.txt").read_text()
+    assert "DN_CAP_INPUTS=3 DN_CAP_HIDDEN=30" in cmake_text
+    assert "DN_FW_FOLDED_INIT=DN_MODEL_FOLDED_INIT" in cmake_text and "DN_KERNEL_SMALL=1" in cmake_text
+    assert "dn_mlp_init_folded" in (out / "README.md").read_text()
     again = subprocess.run(cmd, capture_output=True, text=True)
     assert again.returncode == 2 and "refusing to overwrite" in again.stderr
     gen = ["-G", "Ninja"] if shutil.which("ninja") else []
@@ -196,6 +356,7 @@ def test_export_target_folder_builds_and_runs(vectors, model, tmp_path):
     subprocess.run(["cmake", "--build", out / "build"], check=True, capture_output=True)
     fw = emb.parse_output(emb.run(out / "build" / "firmware.elf", "cortex-m4", icount=False))
     assert fw.errors == 0 and fw.final is not None and fw.evals == 1000
+    assert "dn_mlp_init_folded" in _symbols(out / "build" / "firmware.elf")
     x = emb.make_vectors(model, n_x=16, seconds=1.0).x
     y, status = emb.host_forces(model, x)
     assert np.max(np.abs(fw.forces - y)) <= 1e-5 * 2.0 / model.out_gain

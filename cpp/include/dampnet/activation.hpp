@@ -36,17 +36,26 @@ enum class Activation : int { tanh = DN_ACT_TANH, sigmoid = DN_ACT_SIGMOID };
 // Both polynomials (in y = x^2) are evaluated by Estrin's scheme rather than
 // Horner's: the same operations, but a dependency chain about half as long,
 // which is what bounds a single-sample call's latency.
-inline float tanh_rational(float x) noexcept {
+// Its coefficients (numerator p0..p6, denominator q0..q3) as one object, so that a scalar
+// kernel can hold them in registers across its loop (mlp.hpp, forward_fused1).
+struct TanhRationalK {
+  float p0, p1, p2, p3, p4, p5, p6, q0, q1, q2, q3;
+};
+constexpr TanhRationalK kTanhRational = {
+    4.89352455891786e-03f,  6.37261928875436e-04f, 1.48572235717979e-05f, 5.12229709037114e-08f,
+    -8.60467152213735e-11f, 2.00018790482477e-13f, -2.76076847742355e-16f, 4.89352518554385e-03f,
+    2.26843463243900e-03f,  1.18534705686654e-04f, 1.19825839466702e-06f};
+inline float tanh_rational(float x, const TanhRationalK& k) noexcept {
   const float y = x * x, y2 = y * y, y4 = y2 * y2;
-  const float e01 = 4.89352455891786e-03f + 6.37261928875436e-04f * y;
-  const float e23 = 1.48572235717979e-05f + 5.12229709037114e-08f * y;
-  const float e45 = -8.60467152213735e-11f + 2.00018790482477e-13f * y;
-  const float e6 = -2.76076847742355e-16f;
+  const float e01 = k.p0 + k.p1 * y;
+  const float e23 = k.p2 + k.p3 * y;
+  const float e45 = k.p4 + k.p5 * y;
+  const float e6 = k.p6;
   const float p = x * ((e01 + e23 * y2) + (e45 + e6 * y2) * y4);
-  const float q = (4.89352518554385e-03f + 2.26843463243900e-03f * y) +
-                  (1.18534705686654e-04f + 1.19825839466702e-06f * y) * y2;
+  const float q = (k.q0 + k.q1 * y) + (k.q2 + k.q3 * y) * y2;
   return p / q;
 }
+inline float tanh_rational(float x) noexcept { return tanh_rational(x, kTanhRational); }
 
 // Outside [-9, 9] tanh rounds to +-1 in float; clamping also maps +-Inf.
 inline float clamp_tanh_arg(float a) noexcept {
@@ -191,6 +200,7 @@ inline double tanh_d(double z) noexcept { return tanh_d_core(clamp_tanh_arg(z));
 
 inline double fast_tanh(double a) noexcept { return tanh_d(a); }
 inline double tanh_rational(double a) noexcept { return tanh_d_core(a); }  // after clamp_tanh_arg
+inline double tanh_rational(double a, const TanhRationalK&) noexcept { return tanh_d_core(a); }
 
 // Activation applied to one pre-activation value.
 template <typename T>

@@ -127,7 +127,15 @@ DN_API const char* dn_status_str(int status);
  *   DN_CAP_TABLE_V, DN_CAP_TABLE_U  lookup-table velocities (2..) and controls (1..)
  *   DN_CAP_TERMS    physics terms per damper, 0..DN_MAX_TERMS
  *   DN_DOUBLE_KERNEL  1: the double-precision MLP kernel; 0: none (float-only targets:
- *                   DN_PRECISION_DOUBLE and dn_mlp_forward give DN_E_PARAM) */
+ *                   DN_PRECISION_DOUBLE and dn_mlp_forward give DN_E_PARAM)
+ *   DN_KERNEL_SMALL   1: flash before speed on scalar cores (CMake DAMPNET_KERNEL_SMALL; the
+ *                   Cortex-M presets): the one-hidden-layer float forward is compiled once, for
+ *                   exactly DN_CAP_INPUTS inputs (set-up refuses another input count with
+ *                   DN_E_SIZE), and set-up code is optimised for size; 0 (default): also a
+ *                   forward for any input count. No effect on x86's SIMD kernels.
+ *   DN_KERNEL_UNROLL  neurons per pass of the scalar float forward, 1, 2, 4 or 8 (CMake
+ *                   DAMPNET_KERNEL_UNROLL; default 2 with DN_KERNEL_SMALL, else 8): more is
+ *                   more flash and fewer instructions; the result is the same bits for any. */
 #ifndef DN_CAP_INPUTS
 #define DN_CAP_INPUTS DN_MAX_INPUTS
 #endif
@@ -229,6 +237,46 @@ DN_API void dn_mlp_destroy(dn_mlp* m);
 /* Bytes of a dn_mlp, and dn_mlp_create in caller memory (see "Caller-provided storage"). */
 DN_API size_t dn_mlp_size(void);
 DN_API int dn_mlp_init(const dn_mlp_desc* desc, void* mem, size_t bytes, dn_mlp** out);
+
+/* A model with its scalings already folded into float weights: exactly what a dn_mlp's float
+ * copy holds after dn_mlp_init from a dn_mlp_desc (the folding is done in double and rounded to
+ * float once), written by the exporter (a generated header's P_FOLDED_INIT). For float-only
+ * targets (DN_DOUBLE_KERNEL 0): dn_mlp_init_folded only checks and copies floats, so set-up does
+ * no double arithmetic (on a single-precision FPU no software double routine is linked) and the
+ * image holds float weights, not the double description. The float forward is then
+ *   x'_i = x_i clamped to [sat_lo[i], sat_hi[i]] (NaN: sat_mid[i]), minus in_offset[i] when
+ *          offsets_folded is 0 (1: layer 1's biases hold the offsets, layer 1 reads x' itself),
+ *   t1_j = tanh(b1[j] + sum_i w1[j * n_inputs + i] x'_i),
+ *   t2_k = tanh(b2[k] + sum_j w2[k * n_hidden1 + j] t1_j)   (n_hidden2 > 0),
+ *   y    = b_out + sum_j w_out[j] t_last_j,   out_offset when that is not finite,
+ * tanh for both activations (a sigmoid network's halvings are folded into the weights), and its
+ * result is dn_mlp_init's bit for bit on the scalar and SSE kernels (the AVX2 and AVX-512 host
+ * kernels fold w_out into their tanh from the float w_out here, from the double one there: a
+ * difference of float roundings). Units: y in the model's output unit (N for a damper model). */
+typedef struct dn_mlp_folded_f {
+  int n_inputs;            /* inputs, 1..DN_MAX_INPUTS */
+  int n_hidden1;           /* neurons in hidden layer 1, 1..DN_MAX_HIDDEN */
+  int n_hidden2;           /* neurons in hidden layer 2, 0 (no second layer) or 1..DN_MAX_HIDDEN */
+  int offsets_folded;      /* 1: b1 includes -w1 in_offset (layer 1 on x'); 0: layer 1 on x' - in_offset */
+  const float* w1;         /* [n_hidden1][n_inputs], 1/input unit (mapminmax gain folded in) */
+  const float* b1;         /* [n_hidden1] */
+  const float* w2;         /* [n_hidden2][n_hidden1]; NULL when n_hidden2 == 0 */
+  const float* b2;         /* [n_hidden2]; NULL when n_hidden2 == 0 */
+  const float* w_out;      /* [n_last_hidden], output units (the output unscaling folded in) */
+  float b_out;             /* output for all-zero hidden units, output units */
+  float out_offset;        /* the output given in place of a non-finite one, output units */
+  const float* in_offset;  /* [n_inputs] mapminmax xoffset, input units (used when !offsets_folded) */
+  const float* sat_lo;     /* [n_inputs] lower saturation limit, input units */
+  const float* sat_hi;     /* [n_inputs] upper saturation limit, input units, >= sat_lo */
+  const float* sat_mid;    /* [n_inputs] what a NaN input becomes, in [sat_lo, sat_hi], input units */
+} dn_mlp_folded_f;
+
+/* dn_mlp_init from a folded description (caller memory, see "Caller-provided storage"; no heap).
+ * Validated in float: DN_E_NULL (a NULL array), DN_E_SIZE (sizes beyond DN_MAX_* or this build's
+ * DN_CAP_*), DN_E_NONFINITE_PARAM (a NaN or infinite value), DN_E_PARAM (offsets_folded not 0/1,
+ * sat_lo > sat_hi, sat_mid outside them). The double copy (DN_DOUBLE_KERNEL 1) holds the same
+ * float values widened: dn_mlp_forward evaluates the float weights in double. Set-up only. */
+DN_API int dn_mlp_init_folded(const dn_mlp_folded_f* folded, void* mem, size_t bytes, dn_mlp** out);
 
 /* Number of inputs of a model, or DN_E_NULL. */
 DN_API int dn_mlp_n_inputs(const dn_mlp* m);

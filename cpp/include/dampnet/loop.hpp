@@ -200,7 +200,6 @@ struct LoopModel {
   real k_rel = 0;                   // 1/m_s + 1/m_us: da/dF of the relative acceleration
   bool implicit_a = false;            // solve the acceleration coupling (see dn_accel_feature)
   bool linear_a = false;              // ... by one linearised Newton step (DN_ACCEL_LINEAR)
-  real a_span = 1;                // width of the acceleration input's saturation range
   uint32_t a_bit = 0;                 // clamped-mask bit of the acceleration input
   real f_eps = R(1e-12);               // relative force rounding of the MLP (convergence test)
 
@@ -231,7 +230,6 @@ struct LoopModel {
     cmd_keep = c.u_tau_s > 0 && c.kind != DN_CTRL_EXTERNAL ? std::exp(-v.dt / c.u_tau_s) : 0;
     k_rel = inv_ms + inv_mus;
     implicit_a = false;
-    a_span = 1;
     a_bit = 0;
     linear_a = v.accel_feature == DN_ACCEL_LINEAR;
     if (v.accel_feature != DN_ACCEL_EXPLICIT && d.kind == DN_DAMPER_NEURAL) {
@@ -239,8 +237,6 @@ struct LoopModel {
         if (d.feat[i] != DN_FEAT_ACCELERATION) continue;
         implicit_a = true;
         a_bit = 1u << i;
-        const real span = d.md.sat_hi()[i] - d.md.sat_lo()[i];
-        if (std::isfinite(span) && span > 0) a_span = span;
       }
     }
     f_eps = d.precision == DN_PRECISION_FLOAT ? R(1e-5) : R(1e-12);

@@ -16,7 +16,9 @@
 // into the layers around it, and the output unscaling ((y - ymin) / gain + offset)
 // into the output weights, so that forward() is the input saturation, dense + tanh
 // per layer, then one dot product plus a constant: the shortest dependency chain,
-// which is what bounds a single call's latency.
+// which is what bounds a single call's latency. load_folded() takes those folded parameters
+// already rounded to float (dn_mlp_folded_f, written by the exporter) and only checks and
+// copies them: a float-only target's set-up without double arithmetic.
 //
 // SIMD path, chosen at compile time (kernel_isa() says which one a translation
 // unit got): AVX-512 (F, VL, DQ) when compiled with -mavx512f -mavx512vl -mavx512dq
@@ -34,7 +36,9 @@
 
 #include <array>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <type_traits>
 
 #if defined(__SSE__)
@@ -52,6 +56,19 @@
 #define DN_REALTIME [[clang::nonblocking]]
 #else
 #define DN_REALTIME
+#endif
+
+// Flash against speed on scalar cores (dampnet.h, "Capacities"): DN_KERNEL_SMALL 1 compiles
+// one float forward, for DN_CAP_INPUTS inputs; DN_KERNEL_UNROLL neurons per pass of it.
+#ifndef DN_KERNEL_SMALL
+#define DN_KERNEL_SMALL 0
+#endif
+#ifndef DN_KERNEL_UNROLL
+#if DN_KERNEL_SMALL
+#define DN_KERNEL_UNROLL 2
+#else
+#define DN_KERNEL_UNROLL 8
+#endif
 #endif
 
 // The kernel's SIMD path in this translation unit.
@@ -228,6 +245,32 @@ inline int prepare_inputs(const P& p, const T* x, T* xs, uint32_t& mask) noexcep
   return status;
 }
 
+// prepare_inputs with the offsets to subtract given (zeros: none), for DN_KERNEL_SMALL.
+template <typename T, int kIn, class P>
+inline int prepare_inputs_off(const P& p, const T* x, const T* off, T* xs, uint32_t& mask) noexcept {
+  const int ni = kIn > 0 ? kIn : p.n_in;
+  int status = DN_OK;
+  for (int i = 0; i < ni; ++i) {
+    T v = x[i];
+    const T lo = p.sat_lo[i], hi = p.sat_hi[i];
+    if (v != v) {
+      v = p.in_mid[i];
+      status |= DN_W_NONFINITE_INPUT;
+      mask |= (1u << i);
+    } else if (v < lo) {
+      v = lo;
+      status |= DN_W_SATURATED;
+      mask |= (1u << i);
+    } else if (v > hi) {
+      v = hi;
+      status |= DN_W_SATURATED;
+      mask |= (1u << i);
+    }
+    xs[i] = v - off[i];
+  }
+  return status;
+}
+
 // True when every input lies within its saturation range (false for NaN): then,
 // with the offsets folded, the kernel reads the caller's inputs directly and the
 // values reach layer 1 without passing through the saturation's min/max (compares
@@ -262,9 +305,16 @@ inline bool inputs_in_range(const P& p, const T* x) noexcept {
   }
 #endif
   const int ni = kIn > 0 ? kIn : p.n_in;
+#if !defined(__SSE__)
+  // scalar cores: a compare and a branch each (fewer instructions than combining the flags)
+  for (int i = 0; i < ni; ++i)
+    if (!(x[i] >= p.sat_lo[i] && x[i] <= p.sat_hi[i])) return false;
+  return true;
+#else
   bool ok = true;
   for (int i = 0; i < ni; ++i) ok &= (x[i] >= p.sat_lo[i]) & (x[i] <= p.sat_hi[i]);
   return ok;
+#endif
 }
 #if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic pop
@@ -472,29 +522,68 @@ inline void forward_simd_batch(const P& p, const float* const* xs, const float* 
 #endif
 
 #if !defined(__SSE__) && !defined(DAMPNET_USE_EIGEN)
+#define DN_PRAGMA_(x) _Pragma(#x)
+#define DN_UNROLL_(n) DN_PRAGMA_(GCC unroll n)
 // Scalar targets (no SIMD: Cortex-M and the like), one hidden layer: forward()'s passes
 // below (dense_t, tanh_all, dot_padded's eight partial sums; with kGrad the forward-mode
-// column) fused into one pass over the neurons, so no activation is stored and loaded
-// again and the output weights meet each tanh in registers. The operations on each neuron
-// and their order are the passes', so the result is theirs bit for bit (and the SSE
-// kernel's, whose dot_padded keeps that order). Returns b_out + sum_j w_out[j] t_j.
+// column) fused into one pass per partial sum, so that no activation is stored and loaded
+// again and the output weights meet each tanh in registers. dot_padded's partial sum l is
+// part[l] = sum_k w[8k+l] a[8k+l] in k order: here lane l's neurons j = l, l+8, ... in that
+// order, one loop (DN_KERNEL_UNROLL neurons per pass; the lanes are not unrolled: one copy
+// of the neuron's code, the flash a microcontroller has little of). The operations on each
+// neuron and their order are the passes', so the result is theirs bit for bit (and the SSE
+// kernel's, whose dot_padded keeps that order). The padding neurons (n_h1 .. n_h1p - 1) are
+// skipped: each would add exactly +0 (zero weights; a finite input), and a sum that starts at
+// +0 is never -0, so adding +0 changes no bit. The tanh's coefficients are held in registers
+// across the loop (on Arm: else reloaded for every neuron). Returns b_out + sum_j w_out[j] t_j.
 template <typename T, int kIn, int kP1, bool kGrad, class P>
 inline T forward_fused1(const P& p, const T* xs, const T* col, T* dys) noexcept {
   const int ni = kIn > 0 ? kIn : p.n_in;
-  const int h1 = kP1 > 0 ? kP1 : p.n_h1p;
-  T part[8] = {}, dpart[8] = {};
-  for (int j0 = 0; j0 < h1; j0 += 8) {
-#pragma GCC unroll 8
-    for (int l = 0; l < 8; ++l) {
-      const int j = j0 + l;
-      T z = p.b1[j];
-      for (int i = 0; i < ni; ++i) z += p.w1t[i * h1 + j] * xs[i];
-      const T t = tanh_rational(clamp_tanh_arg(z));
-      part[l] += p.w_out[j] * t;
-      if constexpr (kGrad) {
-        if (col) dpart[l] += p.w_out[j] * ((T(1) - t * t) * col[j]);
+  constexpr int stride = P::P1;  // of w1t's rows (layer1_stride)
+  const int n = p.n_h1;
+  TanhRationalK k = kTanhRational;
+#if defined(__arm__) && defined(__ARM_FP)
+  __asm__("" : "+t"(k.p0), "+t"(k.p1), "+t"(k.p2), "+t"(k.p3), "+t"(k.p4), "+t"(k.p5));
+  __asm__("" : "+t"(k.p6), "+t"(k.q0), "+t"(k.q1), "+t"(k.q2), "+t"(k.q3));
+#endif
+  constexpr int cap_in = kIn > 0 ? kIn : P::kCapIn;
+  T xr[cap_in];  // the inputs in registers (kIn > 0), read once
+  for (int i = 0; i < ni; ++i) xr[i] = xs[i];
+  T part[8], dpart[8];
+  // One pointer walks the neurons of a lane through w1t's row 0; b1, w_out and the other rows
+  // are at fixed distances from it (members of p; the rows at the capacity's stride).
+  // (Byte offsets within p's object representation.)
+  const char* const w0 = reinterpret_cast<const char*>(p.w1t.data());
+  constexpr ptrdiff_t ob = static_cast<ptrdiff_t>(offsetof(P, b1)) - static_cast<ptrdiff_t>(offsetof(P, w1t));
+  constexpr ptrdiff_t oo = static_cast<ptrdiff_t>(offsetof(P, w_out)) - static_cast<ptrdiff_t>(offsetof(P, w1t));
+  const ptrdiff_t oc = col ? reinterpret_cast<const char*>(col) - w0 : 0;
+  auto at = [](const char* q, ptrdiff_t off) noexcept { return *reinterpret_cast<const T*>(q + off); };
+  constexpr int kU = DN_KERNEL_UNROLL;  // lanes per pass
+  static_assert(kU == 1 || kU == 2 || kU == 4 || kU == 8, "DN_KERNEL_UNROLL: 1, 2, 4 or 8");
+  DN_UNROLL_(1)
+  for (int l = 0; l < 8; l += kU) {  // lanes l .. l + kU - 1, row by row
+    T acc[kU], dacc[kU];
+    for (int u = 0; u < kU; ++u) acc[u] = T(0), dacc[u] = T(0);
+    for (const char* r = w0 + l * sizeof(T); r < w0 + n * sizeof(T); r += 8 * sizeof(T)) {
+      DN_UNROLL_(kU)
+      for (int u = 0; u < kU; ++u) {  // neuron j = (q - w0) / sizeof(T); j >= n: padding, adds +0
+        const char* const q = r + u * sizeof(T);
+        T z = at(q, ob);
+        for (int i = 0; i < ni; ++i) z += at(q, static_cast<ptrdiff_t>(i * stride * sizeof(T))) * xr[i];
+        // clamp_tanh_arg(z) with one compare on the common path: |z| <= 9 (or NaN) keeps z
+        T x = z;
+        if (std::fabs(z) > T(9)) x = z > T(0) ? T(9) : T(-9);
+#if defined(__arm__) && defined(__ARM_FP)
+        if constexpr (std::is_same<T, float>::value) __asm__("" : "+t"(x));  // one path: no code per branch
+#endif
+        const T t = tanh_rational(x, k);
+        acc[u] += at(q, oo) * t;
+        if constexpr (kGrad) {
+          if (col) dacc[u] += at(q, oo) * ((T(1) - t * t) * at(q, oc));
+        }
       }
     }
+    for (int u = 0; u < kU; ++u) part[l + u] = acc[u], dpart[l + u] = dacc[u];
   }
   auto combine = [](const T* q) noexcept {
     return ((q[0] + q[4]) + (q[1] + q[5])) + ((q[2] + q[6]) + (q[3] + q[7]));
@@ -505,12 +594,20 @@ inline T forward_fused1(const P& p, const T* xs, const T* col, T* dys) noexcept 
 #define DN_KERNEL_FUSED1 1
 #endif
 
+// A flash-lean build keeps each forward one function (not inlined into every caller: the
+// damper's and the loop's several call sites would each get a copy, and its stack).
+#if DN_KERNEL_SMALL && defined(__GNUC__)
+#define DN_KERNEL_OUTLINE __attribute__((noinline))
+#else
+#define DN_KERNEL_OUTLINE
+#endif
+
 // The forward pass shared by Mlp and StaticMlp. kH2 == 0: one hidden layer.
 // Sizes used here are the padded ones (pad()). With kGrad, *dy_dxi also receives
 // dy/dx[grad_input] (output units per input unit) by forward-mode differentiation;
 // it is 0 when that input was clamped (the saturated model does not depend on it).
 template <typename T, int kIn, int kH1, int kH2, class P, bool kGrad = false>
-DN_REALTIME inline int forward(const P& p, const T* x, T* y, uint32_t* clamped_mask,
+DN_KERNEL_OUTLINE DN_REALTIME inline int forward(const P& p, const T* x, T* y, uint32_t* clamped_mask,
                                int grad_input = 0, T* dy_dxi = nullptr) noexcept {
   constexpr int kP1 = kH1 > 0 ? pad(kH1) : kDynamic;
   constexpr int kP2 = kH2 > 0 ? pad(kH2) : (kH2 == 0 ? 0 : kDynamic);
@@ -522,11 +619,26 @@ DN_REALTIME inline int forward(const P& p, const T* x, T* y, uint32_t* clamped_m
   const int h2 = kP2 >= 0 ? kP2 : p.n_h2p;
 
   uint32_t mask = 0;
-  alignas(DN_KERNEL_ALIGN) T xs_buf[cap_in] = {};  // zeroed: GCC cannot see that prepare_inputs writes all it reads
+  // zeroed: GCC cannot see that prepare_inputs writes all it reads (scalar cores: no vector
+  // alignment, which would cost a realigned stack frame)
+#ifdef DN_KERNEL_FUSED1
+  T xs_buf[cap_in] = {};
+#else
+  alignas(DN_KERNEL_ALIGN) T xs_buf[cap_in] = {};
+#endif
   // Layer 1's input: the caller's x itself when no input needs saturating and the
   // offsets are folded (the common case; the same values prepare_inputs would copy).
   const T* xs = x;
   int status = DN_OK;
+#if DN_KERNEL_SMALL
+  // One copy of the saturation code (flash): the offsets subtracted, or zeros when they are
+  // folded (v - 0 is v, -0 included: the same values as prepare_inputs<..., false>).
+  if (!p.in_offset_folded || !inputs_in_range<T, kIn>(p, x)) {
+    static constexpr T kZeros[cap_in] = {};
+    status = prepare_inputs_off<T, kIn>(p, x, p.in_offset_folded ? kZeros : p.in_offset.data(), xs_buf, mask);
+    xs = xs_buf;
+  }
+#else
   if (!p.in_offset_folded) {
     status = prepare_inputs<T, kIn, true>(p, x, xs_buf, mask);
     xs = xs_buf;
@@ -534,6 +646,7 @@ DN_REALTIME inline int forward(const P& p, const T* x, T* y, uint32_t* clamped_m
     status = prepare_inputs<T, kIn, false>(p, x, xs_buf, mask);
     xs = xs_buf;
   }
+#endif
   // Layer 1's column for the differentiated input (its gain folded in); none if clamped.
   const T* col = (kGrad && !((mask >> grad_input) & 1u)) ? p.w1t.data() + grad_input * h1 : nullptr;
 
@@ -648,6 +761,28 @@ DN_REALTIME inline void forward_batch(const P& p, const T* const* x, T* y, uint3
                                                          grad_input, kGrad ? &dy_dxi[b] : nullptr);
 }
 
+// A flash-lean build (DN_KERNEL_SMALL) on a scalar core compiles the one-hidden-layer forward
+// for exactly its capacity's input count (Mlp::dispatch): set-up refuses another (DN_E_SIZE).
+template <class P>
+constexpr bool small_refuses(int n_in) noexcept {
+#if DN_KERNEL_SMALL && defined(DN_KERNEL_FUSED1)
+  return P::kCapH2 == 0 && n_in != P::kCapIn;
+#else
+  return (void)n_in, false;
+#endif
+}
+
+// The stride of w1t's rows (and the padded length of b1 and w_out): pad(h1), or on scalar
+// targets for one hidden layer the capacity's P::P1, so that forward_fused1 finds every
+// input's weight of a neuron at a fixed offset from one pointer.
+template <class P>
+constexpr int layer1_stride(int h1, int h2) noexcept {
+#ifdef DN_KERNEL_FUSED1
+  if (h2 == 0) return P::P1;
+#endif
+  return (void)h2, pad(h1);
+}
+
 // Validate a description against fixed sizes (kDynamic = any) and copy it in,
 // folding the scalings into the weights (see the top of this file).
 template <typename T, int kIn, int kH1, int kH2, class P>
@@ -663,6 +798,7 @@ inline int load(P& p, const dn_mlp_desc* d) noexcept {
     return DN_E_MISMATCH;
   // beyond this object's capacity (a build with lowered DN_CAP_*: dampnet.h)
   if (d->n_inputs > P::kCapIn || d->n_hidden1 > P::kCapH1 || d->n_hidden2 > P::kCapH2) return DN_E_SIZE;
+  if (small_refuses<P>(d->n_inputs)) return DN_E_SIZE;
   if (d->n_hidden2 > 0 && (!d->w2 || !d->b2)) return DN_E_NULL;
   if (d->activation != DN_ACT_TANH && d->activation != DN_ACT_SIGMOID) return DN_E_ACTIVATION;
   const int ni = d->n_inputs, h1 = d->n_hidden1, h2 = d->n_hidden2;
@@ -680,7 +816,7 @@ inline int load(P& p, const dn_mlp_desc* d) noexcept {
   for (int i = 0; i < ni; ++i)
     if (!(d->sat_lo[i] <= d->sat_hi[i])) return DN_E_PARAM;
 
-  const int h1p = pad(h1), h2p = pad(h2);
+  const int h1p = layer1_stride<P>(h1, h2), h2p = pad(h2);
   p.n_in = ni;
   p.n_h1 = h1;
   p.n_h2 = h2;
@@ -775,6 +911,138 @@ inline int load(P& p, const dn_mlp_desc* d) noexcept {
   return DN_OK;
 }
 
+inline bool all_finite_f(const float* a, int n) noexcept {
+  for (int i = 0; i < n; ++i)
+    if (!std::isfinite(a[i])) return false;
+  return true;
+}
+
+template <class A>
+inline void zero_all(A& a) noexcept {
+  for (auto& v : a) v = {};
+}
+
+// Set-up code of a flash-lean build (DN_KERNEL_SMALL) is optimised for size (GCC): it runs
+// once, and -O3 would unroll its copies and checks into kilobytes.
+#if DN_KERNEL_SMALL && defined(__GNUC__) && !defined(__clang__)
+#define DN_SETUP_SIZE __attribute__((optimize("Os")))
+#else
+#define DN_SETUP_SIZE
+#endif
+
+// Validate a folded float description (dn_mlp_folded_f: what load() above makes of a
+// dn_mlp_desc, already rounded to float) and copy it in: float comparisons and copies only
+// (for T = float no double arithmetic at all), so that a float-only target's set-up links no
+// software double routine. For T = float the parameters are load()'s bit for bit when the
+// description holds load()'s values (the exporter writes them; tests compare), except the SIMD
+// kernels' tw / inv_w, made here from the float w_out (load(): from the double one).
+template <typename T, int kIn, int kH1, int kH2, class P>
+DN_SETUP_SIZE inline int load_folded(P& p, const dn_mlp_folded_f* f) noexcept {
+  if (!f || !f->w1 || !f->b1 || !f->w_out || !f->in_offset || !f->sat_lo || !f->sat_hi || !f->sat_mid)
+    return DN_E_NULL;
+  if (f->n_inputs < 1 || f->n_inputs > DN_MAX_INPUTS || f->n_hidden1 < 1 ||
+      f->n_hidden1 > DN_MAX_HIDDEN || f->n_hidden2 < 0 || f->n_hidden2 > DN_MAX_HIDDEN)
+    return DN_E_SIZE;
+  if ((kIn > 0 && f->n_inputs != kIn) || (kH1 > 0 && f->n_hidden1 != kH1) ||
+      (kH2 >= 0 && f->n_hidden2 != kH2))
+    return DN_E_MISMATCH;
+  if (f->n_inputs > P::kCapIn || f->n_hidden1 > P::kCapH1 || f->n_hidden2 > P::kCapH2) return DN_E_SIZE;
+  if (small_refuses<P>(f->n_inputs)) return DN_E_SIZE;
+  if (f->n_hidden2 > 0 && (!f->w2 || !f->b2)) return DN_E_NULL;
+  const int ni = f->n_inputs, h1 = f->n_hidden1, h2 = f->n_hidden2;
+  const int n_last = h2 > 0 ? h2 : h1;
+  if (!all_finite_f(f->w1, h1 * ni) || !all_finite_f(f->b1, h1) || !all_finite_f(f->w_out, n_last) ||
+      !std::isfinite(f->b_out) || !std::isfinite(f->out_offset) || !all_finite_f(f->in_offset, ni) ||
+      !all_finite_f(f->sat_lo, ni) || !all_finite_f(f->sat_hi, ni) || !all_finite_f(f->sat_mid, ni))
+    return DN_E_NONFINITE_PARAM;
+  if (h2 > 0 && (!all_finite_f(f->w2, h2 * h1) || !all_finite_f(f->b2, h2))) return DN_E_NONFINITE_PARAM;
+  if (f->offsets_folded != 0 && f->offsets_folded != 1) return DN_E_PARAM;
+  for (int i = 0; i < ni; ++i)
+    if (!(f->sat_lo[i] <= f->sat_mid[i] && f->sat_mid[i] <= f->sat_hi[i])) return DN_E_PARAM;
+
+  const int h1p = layer1_stride<P>(h1, h2), h2p = pad(h2);
+  p.n_in = ni;
+  p.n_h1 = h1;
+  p.n_h2 = h2;
+  p.n_h1p = h1p;
+  p.n_h2p = h2p;
+  p.act = Activation::tanh;  // a sigmoid's halvings are in the weights
+  p.in_offset_folded = f->offsets_folded == 1;
+  // Zero everything first: the padding must hold zeros even when a model is reloaded.
+  zero_all(p.w1t);  // (not std::array::fill: a size-optimised build outlines that as a std:: symbol)
+  zero_all(p.b1);
+  zero_all(p.w2t);
+  zero_all(p.b2);
+  zero_all(p.w_out);
+  for (int j = 0; j < h1; ++j) {
+    for (int i = 0; i < ni; ++i) p.w1t[i * h1p + j] = static_cast<T>(f->w1[j * ni + i]);
+    p.b1[j] = static_cast<T>(f->b1[j]);
+  }
+  for (int k = 0; k < h2; ++k) {
+    for (int j = 0; j < h1; ++j) p.w2t[j * h2p + k] = static_cast<T>(f->w2[k * h1 + j]);
+    p.b2[k] = static_cast<T>(f->b2[k]);
+  }
+  for (int j = 0; j < n_last; ++j) p.w_out[j] = static_cast<T>(f->w_out[j]);
+  p.b_out = static_cast<T>(f->b_out);
+  p.out_offset = static_cast<T>(f->out_offset);
+  for (int i = 0; i < ni; ++i) {
+    p.in_offset[i] = static_cast<T>(f->in_offset[i]);
+    p.sat_lo[i] = static_cast<T>(f->sat_lo[i]);
+    p.sat_hi[i] = static_cast<T>(f->sat_hi[i]);
+    p.in_mid[i] = static_cast<T>(f->sat_mid[i]);
+  }
+  if constexpr (P::kTw > 0) {  // the AVX2 / AVX-512 kernels (host builds) only
+    zero_all(p.tw);
+    zero_all(p.inv_w);
+    for (int j = 0; j < n_last; ++j) {
+      const double w = static_cast<double>(f->w_out[j]);
+      for (int k = 0; k < kTanhPTerms; ++k) p.tw[k * P::kTw + j] = static_cast<T>(kTanhP[k] * w);
+      const double iw = 1.0 / w;
+      if (std::fabs(iw) < 1e30) p.inv_w[j] = static_cast<T>(iw);
+    }
+    for (const auto& x : p.tw)
+      if (!std::isfinite(x)) return DN_E_PARAM;
+  }
+  if constexpr (P::kR8 > 0) {
+    for (int i = 0; i < P::kR8; ++i) {
+      p.sat_lo8[i] = i < ni ? p.sat_lo[i] : -HUGE_VALF;
+      p.sat_hi8[i] = i < ni ? p.sat_hi[i] : HUGE_VALF;
+      p.in_mask8[i] = i < ni ? -1 : 0;
+    }
+  }
+  return DN_OK;
+}
+
+// A float widened to double exactly. On a core whose FPU has no double precision (Cortex-M4F)
+// in integer arithmetic: a cast would link libgcc's software __aeabi_f2d.
+inline double widen_exact(float f) noexcept {
+#if defined(__arm__) && !(defined(__ARM_FP) && (__ARM_FP & 8))
+  uint32_t u;
+  std::memcpy(&u, &f, sizeof u);
+  const int e = static_cast<int>((u >> 23) & 0xffu);  // float's biased exponent
+  uint32_t m = u & 0x7fffffu;
+  int ed;  // double's: 1023 - 127 = 896 more
+  if (e == 0xff) {
+    ed = 0x7ff;  // infinities and NaNs
+  } else if (e != 0) {
+    ed = e + 896;
+  } else if (m == 0u) {
+    ed = 0;  // +-0
+  } else {  // subnormal, m 2^-149: normalised by s places
+    const int s = __builtin_clz(m) - 8;
+    m = (m << s) & 0x7fffffu;
+    ed = 897 - s;
+  }
+  const uint64_t d = (static_cast<uint64_t>(u >> 31) << 63) | (static_cast<uint64_t>(ed) << 52) |
+                     (static_cast<uint64_t>(m) << 29);
+  double r;
+  std::memcpy(&r, &d, sizeof r);
+  return r;
+#else
+  return static_cast<double>(f);
+#endif
+}
+
 }  // namespace detail
 
 // Parameters of an MLP with capacities In x H1 x H2 (storage only; see load(),
@@ -828,6 +1096,10 @@ class Mlp {
   int load(const dn_mlp_desc* d) noexcept {
     return detail::load<T, kDynamic, kDynamic, kDynamic>(p_, d);
   }
+  // Validate and copy a folded float description (dn_mlp_folded_f; no double arithmetic for T = float).
+  int load_folded(const dn_mlp_folded_f* f) noexcept {
+    return detail::load_folded<T, kDynamic, kDynamic, kDynamic>(p_, f);
+  }
   // [RT] One sample; see dn_mlp_forward for the input policy.
   DN_REALTIME int forward(const T* x, T* y, uint32_t* clamped_mask = nullptr) const noexcept {
     return dispatch<false>(x, y, clamped_mask, 0, nullptr);
@@ -854,6 +1126,10 @@ class Mlp {
       }
       return;
     }
+#if DN_KERNEL_SMALL && defined(DN_KERNEL_FUSED1)
+    if constexpr (P::kCapH2 == 0)  // the one forward this build has (dispatch)
+      return detail::forward_batch<T, P::kCapIn, kDynamic, P, true, 4>(p_, x, y, clamped_mask, i, dy_dxi, status);
+#endif
     if constexpr (P::kCapIn >= 3) {
       if (p_.n_h2 == 0 && p_.n_in == 3)  // the thesis's shape, compiled for its input count
         return detail::forward_batch<T, 3, kDynamic, P, true, 4>(p_, x, y, clamped_mask, i, dy_dxi, status);
@@ -863,6 +1139,8 @@ class Mlp {
   int n_inputs() const noexcept { return p_.n_in; }
   const T* sat_lo() const noexcept { return p_.sat_lo.data(); }
   const T* sat_hi() const noexcept { return p_.sat_hi.data(); }
+  // The folded parameters as the kernel reads them (tests compare the two loads).
+  const MlpParams<T, DN_CAP_INPUTS, DN_CAP_HIDDEN, DN_CAP_HIDDEN2>& params() const noexcept { return p_; }
 
  private:
   // The common shapes (one hidden layer, 1-4 inputs) go to the kernel compiled for their
@@ -875,8 +1153,13 @@ class Mlp {
     // Scalar targets (a microcontroller's flash): one specialised kernel, for the capacity's
     // input count (DN_CAP_INPUTS: the model the build is made for), and the run-time one.
     if constexpr (P::kCapH2 == 0) {
+#if DN_KERNEL_SMALL
+      // only that one (set-up refuses another input count: small_refuses)
+      return detail::forward<T, P::kCapIn, kDynamic, 0, P, kGrad>(p_, x, y, m, i, g);
+#else
       if (p_.n_in == P::kCapIn) return detail::forward<T, P::kCapIn, kDynamic, 0, P, kGrad>(p_, x, y, m, i, g);
       return detail::forward<T, kDynamic, kDynamic, 0, P, kGrad>(p_, x, y, m, i, g);
+#endif
     }
 #endif
     // (Shapes beyond this build's capacity are never compiled: DN_CAP_* in dampnet.h.)
@@ -915,6 +1198,15 @@ class NoKernelMlp {
     for (int i = 0; i < n_in_; ++i) lo_[i] = static_cast<T>(d->sat_lo[i]), hi_[i] = static_cast<T>(d->sat_hi[i]);
     return DN_OK;
   }
+  // The same from a folded float description (the float copy validates it), widened exactly
+  // without double arithmetic (detail::widen_exact).
+  DN_SETUP_SIZE int load_folded(const dn_mlp_folded_f* f) noexcept {
+    if (!f || !f->sat_lo || !f->sat_hi) return DN_E_NULL;
+    if (f->n_inputs < 1 || f->n_inputs > DN_CAP_INPUTS) return DN_E_SIZE;
+    n_in_ = f->n_inputs;
+    for (int i = 0; i < n_in_; ++i) lo_[i] = detail::widen_exact(f->sat_lo[i]), hi_[i] = detail::widen_exact(f->sat_hi[i]);
+    return DN_OK;
+  }
   int forward(const T*, T* y, uint32_t* clamped_mask = nullptr) const noexcept {
     *y = T(0);
     if (clamped_mask) *clamped_mask = 0;
@@ -947,6 +1239,8 @@ class StaticMlp {
   static constexpr int kInputs = In;
   // Validate and copy a description of exactly these sizes (else DN_E_MISMATCH).
   int load(const dn_mlp_desc* d) noexcept { return detail::load<T, In, H1, H2>(p_, d); }
+  // Validate and copy a folded float description of exactly these sizes.
+  int load_folded(const dn_mlp_folded_f* f) noexcept { return detail::load_folded<T, In, H1, H2>(p_, f); }
   // [RT] One sample; see dn_mlp_forward for the input policy.
   DN_REALTIME int forward(const T* x, T* y, uint32_t* clamped_mask = nullptr) const noexcept {
     return detail::forward<T, In, H1, H2>(p_, x, y, clamped_mask);
