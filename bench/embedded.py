@@ -130,9 +130,13 @@ def _is_branch(mn: str, ops: str) -> bool:
         (m == "pop" and "pc" in ops)
 
 
-def trace_cpi(elf: Path, cpu: str, roots: dict[str, str], log: Path) -> dict:
+def trace_cpi(elf: Path, cpu: str, roots: dict[str, str], log: Path, after: dict | None = None) -> dict:
     """Mean cycles per instruction (M4 timings) of the instructions executed inside the functions
-    reachable from each root, from a QEMU -d exec trace of the firmware."""
+    reachable from each root, from a QEMU -d exec trace of the firmware. after[name] = (function,
+    True/False): count that root's instructions only after (True) / before (False) the trace
+    first enters the function: the firmware runs the MLP part before the loop part, and both
+    reach the same kernel, so the loop's mix is taken from the steps only and the forward's from
+    the MLP part only."""
     ins, funcs = _disassembly(elf)
     addrs = sorted(ins)
     index = {a: i for i, a in enumerate(addrs)}
@@ -158,6 +162,9 @@ def trace_cpi(elf: Path, cpu: str, roots: dict[str, str], log: Path) -> dict:
                     "-d", "exec,nochain", "-D", str(log)], capture_output=True, timeout=600, check=True)
     tb_cost: dict[int, tuple[int, float, str]] = {}
     acc = {k: [0, 0.0] for k in roots}
+    after = after or {}
+    gates = {f: funcs.get(f) for f, _ in after.values()}
+    entered = {f: False for f in gates}
     with open(log) as fh:
         for line in fh:
             m = re.search(r"\[[0-9a-f]+/([0-9a-f]+)/", line)
@@ -176,7 +183,12 @@ def trace_cpi(elf: Path, cpu: str, roots: dict[str, str], log: Path) -> dict:
                     i += 1
                 tb_cost[pc] = (n, c, fn)
             n, c, fn = tb_cost[pc]
+            for f, addr in gates.items():
+                if pc == addr:
+                    entered[f] = True
             for k, s in reach_sets.items():
+                if k in after and entered[after[k][0]] != after[k][1]:
+                    continue
                 if fn in s:
                     acc[k][0] += n
                     acc[k][1] += c
@@ -258,7 +270,7 @@ def measure(cpu: str, vectors: Path, tiny: Path, model, out: Path, fp_contract: 
         tdir = emb.build(cpu, out / f"{cpu}-{fp_contract}-trace", vectors=tiny, fp_contract=fp_contract,
                          targets=("dn_firmware",))
         cpi = trace_cpi(emb.firmware_path(tdir), cpu, {"forward": "dn_mlp_forward_f", "step": "dn_loop_step"},
-                        out / "trace.log")
+                        out / "trace.log", after={"forward": ("dn_loop_step", False), "step": ("dn_loop_step", True)})
         ecpi = trace_cpi(eelf, cpu, {"forward": "dn_fw_emlearn_forward"}, out / "trace.log")
         r["cpi"] = cpi
         r["cycles"] = {k: r["instructions"][k] * cpi[k] for k in cpi}

@@ -5,10 +5,11 @@
  *     folded in, DN_FW_FOLDED_INIT; without one, dn_mlp_init from the double description
  *     DN_FW_DESC_INIT) into static storage, dn_mlp_forward_f on every stored input (dn_fw_x of
  *     the vectors header), each force printed as its float's bits;
- *  2. the quarter car: MLP -> neural damper (float kernel) -> loop model with a controller
- *     (the header's configuration, DN_FW_*), dn_loop_step over the stored road (dn_fw_road),
- *     the state printed every DN_FW_PRINT_EVERY steps and at the end (as doubles' bits; the
- *     state itself is dn_real: float with DN_LOOP_FLOAT).
+ *  2. the quarter car: a loop model with a neural damper (float kernel) and a controller (the
+ *     header's configuration, DN_FW_*; with the folded floats built in place by
+ *     dn_loop_model_init_neural, else MLP -> damper -> loop model), dn_loop_step over the stored road (dn_fw_road),
+ *     the state printed every DN_FW_PRINT_EVERY steps and at the end (its dn_real bits: float
+ *     with DN_LOOP_FLOAT, else double).
  * Each part is timed with SysTick (under QEMU -icount, a count of instructions: the
  * "calib" line converts), beside the same loop calling an empty function (its overhead),
  * and its peak stack measured by painting. DN_FW_PART (0 none, 1 the MLP, 2 both) builds the
@@ -96,6 +97,13 @@ HARNESS static void put_f32(float x) {
   b.f = x;
   put_hex(b.u, 8);
 }
+/* A dn_real's bits: 8 hex digits for float (a DN_LOOP_FLOAT build: no widening to double,
+ * whose software routines would count as the loop's flash), 16 for double. */
+#if DN_LOOP_FLOAT
+#define put_real put_f32
+#else
+#define put_real put_f64
+#endif
 __attribute__((unused)) static void put_f64(double x) {
   union { double d; uint64_t u; } b;
   b.d = x;
@@ -157,7 +165,7 @@ HARNESS static void print_stack(const char* what, uint32_t sp0) {
 }
 
 static volatile float sink_f;
-__attribute__((unused)) static volatile double sink_d;
+__attribute__((unused)) static volatile dn_real sink_r;
 
 /* The empty functions the timed loops are compared with (same signatures, same loops). */
 __attribute__((noinline, unused)) static int stub_forward(const void* m, const float* x, float* y, uint32_t* mask) {
@@ -291,15 +299,11 @@ static void emlearn_part(void) {
 #endif
 
 #if DN_FW_PART >= 2 && DN_FW_PART != 3
-/* Set-up of the loop: the damper on this function's stack, copied into the loop model, which
+/* Set-up of the loop. With the folded floats: dn_loop_model_init_neural builds the damper and
+ * its network inside the loop model's memory (which the kernel part's MLP leaves): the network
+ * is held once. Otherwise the damper on this function's stack, copied into the loop model, which
  * takes the MLP's memory (the damper holds its own copy of the MLP by then). */
 __attribute__((noinline)) static const dn_loop_model* loop_setup(const dn_mlp* mlp, dn_loop_data** data) {
-  unsigned char damper_mem[DN_SIZE_DAMPER] ALIGNED;
-  dn_damper* damper = NULL;
-  check("dn_damper_init_neural",
-        dn_damper_init_neural(mlp, DN_FW_FEATURE_NAMES, DN_FW_N_INPUTS, DN_FW_PARAMS,
-                              DN_PRECISION_FLOAT, damper_mem, sizeof damper_mem, &damper));
-  if (!damper) return NULL;
   dn_vehicle veh;
   dn_vehicle_default(&veh);
   veh.damper_eval = DN_FW_DAMPER_EVAL;
@@ -308,7 +312,21 @@ __attribute__((noinline)) static const dn_loop_model* loop_setup(const dn_mlp* m
   dn_controller_default(&ctrl, DN_FW_CONTROLLER);
   ctrl.u_tau_s = DN_FW_U_TAU_S;
   dn_loop_model* model = NULL;
+#ifdef DN_FW_FOLDED_INIT
+  (void)mlp;
+  const dn_mlp_folded_f folded = DN_FW_FOLDED_INIT;
+  check("dn_loop_model_init_neural",
+        dn_loop_model_init_neural(&veh, &ctrl, &folded, DN_FW_FEATURE_NAMES, DN_FW_N_INPUTS, DN_FW_PARAMS,
+                                  model_mem, sizeof model_mem, &model));
+#else
+  unsigned char damper_mem[DN_SIZE_DAMPER] ALIGNED;
+  dn_damper* damper = NULL;
+  check("dn_damper_init_neural",
+        dn_damper_init_neural(mlp, DN_FW_FEATURE_NAMES, DN_FW_N_INPUTS, DN_FW_PARAMS,
+                              DN_PRECISION_FLOAT, damper_mem, sizeof damper_mem, &damper));
+  if (!damper) return NULL;
   check("dn_loop_model_init", dn_loop_model_init(&veh, damper, &ctrl, model_mem, sizeof model_mem, &model));
+#endif
   if (!model) return NULL;
   check("dn_loop_data_init", dn_loop_data_init(model, data_mem, sizeof data_mem, data));
   return *data ? model : NULL;
@@ -320,9 +338,9 @@ static void print_state(const char* tag, const dn_loop_data* data, int k, const 
   put_str(tag);
   put_str(" ");
   put_u((uint32_t)k);
-  for (int i = 0; i < DN_LOOP_STATE_SIZE; ++i) put_str(" "), put_f64(s[i]);
+  for (int i = 0; i < DN_LOOP_STATE_SIZE; ++i) put_str(" "), put_real(s[i]);
   put_str(" ");
-  put_f64(out->force);
+  put_real(out->force);
   end_line();
 }
 
@@ -362,7 +380,7 @@ static void loop_part(const dn_mlp* mlp) {
     uint32_t t1 = now();
     stub += ticks(t0, t1);
   }
-  sink_d = out.force;
+  sink_r = out.force;
   put_str("time step ");
   put_u(total);
   put_str(" stub ");

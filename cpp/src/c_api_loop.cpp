@@ -19,6 +19,14 @@ static_assert(DN_LOOP_STATE_SIZE == 0 DN_LOOP_STATE_LIST(DN_STATE_COUNT_), "DN_L
 #undef DN_STATE_COUNT_
 
 namespace {
+// A loop model's controller: the caller's, or passive at u = 0 when none is given.
+dn_controller controller_or_passive(const dn_controller* ctrl) noexcept {
+  dn_controller c = dampnet::default_controller(DN_CTRL_PASSIVE);
+  if (ctrl) c = *ctrl;
+  else c.u_passive = 0;
+  return c;
+}
+
 // A damper's set-up in caller memory: place, then the kind's set_* (set(Damper&) -> status).
 template <class Set>
 int damper_init(void* mem, size_t bytes, dn_damper** out, Set set) noexcept {
@@ -150,10 +158,28 @@ int dn_loop_model_init(const dn_vehicle* veh, const dn_damper* damper, const dn_
   dn_loop_model* m = nullptr;
   int st = dn_storage::place(mem, bytes, out, &m);
   if (st != DN_OK) return st;
-  dn_controller c = dampnet::default_controller(DN_CTRL_PASSIVE);
-  if (ctrl) c = *ctrl;
-  else c.u_passive = 0.0;
-  st = m->m.init(*veh, damper->d, c);
+  st = m->m.init(*veh, damper->d, controller_or_passive(ctrl));
+  if (st == DN_OK) *out = m;
+  return st;
+}
+
+int dn_loop_model_init_neural(const dn_vehicle* veh, const dn_controller* ctrl,
+                              const dn_mlp_folded_f* folded, const char* const* features,
+                              int n_features, const char* const* param_names,
+                              const double* param_values, int n_params, void* mem, size_t bytes,
+                              dn_loop_model** out) {
+  if (!out) return DN_E_NULL;
+  *out = nullptr;
+  if (!veh || !folded) return DN_E_NULL;
+  dn_loop_model* m = nullptr;
+  int st = dn_storage::place(mem, bytes, out, &m);
+  if (st != DN_OK) return st;
+  dampnet::Damper& d = m->m.damper;  // built where the model keeps its damper: one copy
+  st = d.mf.load_folded(folded);
+  if (st == DN_OK) st = d.md.load_folded(folded);
+  if (st == DN_OK)
+    st = d.set_neural_features(features, n_features, param_names, param_values, n_params, DN_PRECISION_FLOAT);
+  if (st == DN_OK) st = m->m.init(*veh, d, controller_or_passive(ctrl));
   if (st == DN_OK) *out = m;
   return st;
 }

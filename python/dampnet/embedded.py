@@ -51,6 +51,11 @@ DEFAULT_KERNEL = {"SMALL": 1, "UNROLL": 2}
 # Only the neural damper kind is linked (dampnet.h DN_DAMPER_KINDS): the others' code and their
 # libm functions stay out of flash.
 DEFAULT_DAMPER_KINDS = ("neural",)
+# The acceleration-feature schemes linked (dampnet.h DN_ACCEL_FEATURES): linear (the HIL choice:
+# one network evaluation per damper call) and explicit, not the implicit solve's iteration (up to
+# DN_ACCEL_MAX_EVALS = 6 evaluations per call, ~2 KB of flash).
+DEFAULT_ACCEL_FEATURES = ("linear", "explicit")
+ACCEL_FEATURE_BITS = ("implicit", "explicit", "linear")  # dn_accel_feature order
 # The loop's state and arithmetic per core (dampnet.h DN_LOOP_FLOAT): float on the M4F, whose FPU
 # has no double, double on the M7 (FPv5-D16 does double in hardware; the host's precision).
 LOOP_FLOAT = {"cortex-m4": 1, "cortex-m7": 0}
@@ -66,9 +71,11 @@ def target_defines(cpu: str, caps: dict, loop_float: int | None = None,
     if unknown:
         raise ValueError(f"damper kinds {unknown}: expected some of {', '.join(DAMPER_KIND_BITS)}")
     mask = sum(1 << DAMPER_KIND_BITS.index(k) for k in set(damper_kinds))
+    accel_mask = sum(1 << ACCEL_FEATURE_BITS.index(k) for k in set(DEFAULT_ACCEL_FEATURES))
     lf = LOOP_FLOAT[cpu] if loop_float is None else int(loop_float)
     return ([f"DN_CAP_{k}={v}" for k, v in caps.items()]
-            + ["DN_DOUBLE_KERNEL=0", f"DN_LOOP_FLOAT={lf}", f"DN_DAMPER_KINDS={mask}", "DN_SMALL_CODE=1"]
+            + ["DN_DOUBLE_KERNEL=0", f"DN_LOOP_FLOAT={lf}", f"DN_DAMPER_KINDS={mask}",
+               f"DN_ACCEL_FEATURES={accel_mask}", "DN_SMALL_CODE=1"]
             + [f"DN_KERNEL_{k}={v}" for k, v in DEFAULT_KERNEL.items()])
 
 # The quarter car the firmware runs (and the host comparison with it): the HIL configuration
@@ -182,7 +189,8 @@ def cmake_args(cpu: str, vectors: Path | None = None, build_type: str = "Release
     args = [f"--toolchain={ROOT / 'cmake' / 'arm-none-eabi.cmake'}", f"-DDAMPNET_ARM_CPU={cpu}",
             f"-DCMAKE_BUILD_TYPE={build_type}", f"-DDAMPNET_DOUBLE_KERNEL={double_kernel}",
             f"-DDAMPNET_FP_CONTRACT={fp_contract}", f"-DDAMPNET_LOOP_FLOAT={loop_float}",
-            f"-DDAMPNET_DAMPER_KINDS={';'.join(damper_kinds)}"]
+            f"-DDAMPNET_DAMPER_KINDS={';'.join(damper_kinds)}",
+            f"-DDAMPNET_ACCEL_FEATURES={';'.join(DEFAULT_ACCEL_FEATURES)}"]
     args += [f"-DDAMPNET_CAP_{k}={v}" for k, v in (caps or DEFAULT_CAPS).items()]
     args += [f"-DDAMPNET_KERNEL_{k}={v}" for k, v in (DEFAULT_KERNEL if kernel is None else kernel).items()]
     if vectors is not None:
@@ -254,7 +262,8 @@ class FirmwareOutput:
 
 
 def _f64(h: str) -> float:
-    return struct.unpack(">d", bytes.fromhex(h))[0]
+    """A printed real's bits: 16 hex digits a double, 8 a float (a DN_LOOP_FLOAT build's state)."""
+    return struct.unpack(">d" if len(h) == 16 else ">f", bytes.fromhex(h))[0]
 
 
 def parse_output(text: str) -> FirmwareOutput:

@@ -298,7 +298,7 @@ class Damper {
 
   // [RT] As force(), plus dF/da [N s^2/m] of the model (terms do not depend on a):
   // analytic for a neural damper that reads the acceleration, 0 for the others.
-  DN_REALTIME DN_OUTLINE int force_da(const dn_damper_input& in, real* f, real* df_da,
+  DN_REALTIME int force_da(const dn_damper_input& in, real* f, real* df_da,
                            uint32_t* clamped_mask = nullptr) const noexcept {
     *df_da = 0;
     if (!kind_built(DN_DAMPER_NEURAL) || kind != DN_DAMPER_NEURAL || accel_input < 0) return force(in, f, nullptr, clamped_mask);

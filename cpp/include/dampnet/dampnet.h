@@ -173,6 +173,15 @@ typedef double dn_real;
 #define DN_DAMPER_KINDS 0x1f
 #endif
 
+/* The acceleration-feature schemes this build has, a bit mask (bit k: dn_accel_feature k; CMake
+ * DAMPNET_ACCEL_FEATURES, a list of names). Default: all. A scheme left out is not linked (the
+ * Cortex-M presets keep "linear" and "explicit": the implicit solve's iteration is ~2 KB of
+ * flash); a vehicle asking for it is refused (dn_vehicle_check: DN_E_PARAM), and
+ * dn_vehicle_default gives DN_ACCEL_LINEAR when DN_ACCEL_IMPLICIT is out. */
+#ifndef DN_ACCEL_FEATURES
+#define DN_ACCEL_FEATURES 0x7
+#endif
+
 /* Caller-provided storage (no heap): every object that dn_*_create allocates can instead be
  * placed in memory the caller owns by the matching dn_*_init, MuJoCo-arena style, e.g. static
  * arrays on a microcontroller. dn_*_size() is the number of bytes an object needs in this build
@@ -626,6 +635,8 @@ typedef enum dn_damper_eval { DN_DAMPER_EVAL_LIST(DN_ENUM_ROW_) } dn_damper_eval
   X(DN_ACCEL_LINEAR, 2, "linear", "one evaluation with its slope, one linearised Newton step")
 typedef enum dn_accel_feature { DN_ACCEL_FEATURE_LIST(DN_ENUM_ROW_) } dn_accel_feature;
 #define DN_ACCEL_MAX_EVALS 6 /* damper evaluations per implicit solve, at most */
+/* The default scheme: implicit, or linear in a build without it (DN_ACCEL_FEATURES). */
+#define DN_ACCEL_DEFAULT ((DN_ACCEL_FEATURES & (1 << DN_ACCEL_IMPLICIT)) ? DN_ACCEL_IMPLICIT : DN_ACCEL_LINEAR)
 /* Smallest g' = 1 + k dF/da at which DN_ACCEL_LINEAR takes its Newton step (see above). */
 #define DN_ACCEL_LINEAR_MIN_SLOPE 0.5
 
@@ -645,7 +656,7 @@ typedef enum dn_accel_feature { DN_ACCEL_FEATURE_LIST(DN_ENUM_ROW_) } dn_accel_f
   X(dn_real, x_static, 0.0, "damper displacement at static equilibrium, from mid [m]")      \
   X(dn_real, f_static, 0.0, "damper force carried at static equilibrium [N] (e.g. gas)")    \
   X(dn_real, temperature, 20.0, "damper temperature at reset [degC]")                       \
-  X(int, accel_feature, DN_ACCEL_IMPLICIT, "dn_accel_feature (neural dampers reading a)")
+  X(int, accel_feature, DN_ACCEL_DEFAULT, "dn_accel_feature (neural dampers reading a)")
 
 typedef struct dn_vehicle { DN_VEHICLE_FIELDS(DN_FIELD_DECL_) } dn_vehicle;
 #undef DN_FIELD_DECL_
@@ -733,6 +744,20 @@ DN_API int dn_loop_model_init(const dn_vehicle* veh, const dn_damper* damper,
                               dn_loop_model** out);
 DN_API size_t dn_loop_data_size(void);
 DN_API int dn_loop_data_init(const dn_loop_model* m, void* mem, size_t bytes, dn_loop_data** out);
+
+/* A loop model with a neural damper built in place, in the model's own memory, from a folded
+ * float description (dn_mlp_folded_f, e.g. a generated header's P_FOLDED_INIT): the result of
+ * dn_mlp_init_folded + dn_damper_init_neural(..., DN_PRECISION_FLOAT, ...) + dn_loop_model_init,
+ * bit for bit, without the separate MLP and damper. Those hold the network twice at set-up (the
+ * damper's copy and the loop model's); this holds it once, which on a microcontroller is the
+ * peak RAM (Cortex-M4F: 1.2 KB less stack). Statuses: those of the three calls (DN_E_NULL for
+ * a NULL veh or folded). Nullable: ctrl (passive at u = 0), param_names / param_values when
+ * n_params == 0. Set-up only. */
+DN_API int dn_loop_model_init_neural(const dn_vehicle* veh, const dn_controller* ctrl,
+                                     const dn_mlp_folded_f* folded, const char* const* features,
+                                     int n_features, const char* const* param_names,
+                                     const double* param_values, int n_params, void* mem,
+                                     size_t bytes, dn_loop_model** out);
 
 /* [RT] Reset to rest: zero displacements, velocities, road and time; u_lag and
  * u_cmd = the control the controller gives at rest (external: 0); f_last = f_static;

@@ -168,7 +168,7 @@ inline int check_vehicle(const dn_vehicle& s) noexcept {
   // a subnormal mass (1e-320 kg) is > 0 but its reciprocal overflows
   if (!std::isfinite(1 / v.m_s) || !std::isfinite(1 / v.m_us)) return DN_E_PARAM;
   if (!detail::is_integrator(v.integrator) || !detail::is_damper_eval(v.damper_eval) ||
-      !detail::is_accel_feature(v.accel_feature))
+      !detail::is_accel_feature(v.accel_feature) || !((DN_ACCEL_FEATURES >> v.accel_feature) & 1))
     return DN_E_PARAM;
   return DN_OK;
 }
@@ -211,7 +211,7 @@ struct LoopModel {
     if (st != DN_OK) return st;
     veh = v;
     ctrl = c;
-    damper = d;
+    if (&d != &damper) damper = d;  // dn_loop_model_init_neural builds it in place
     inv_ms = 1 / v.m_s;
     inv_mus = 1 / v.m_us;
     const real tau = d.lag_tau();
@@ -380,6 +380,10 @@ inline int evaluate(const LoopModel& m, dn_damper_input& in, real f_last, real* 
     if (feat_out) m.damper.feature_values(in, feat_out);
     return ok ? st : (st | DN_W_ACCEL_FALLBACK);
   }
+  if (!((DN_ACCEL_FEATURES >> DN_ACCEL_IMPLICIT) & 1)) {  // not in this build: never reached
+    *n_evals += 1;                                          // (check_vehicle refuses it)
+    return diverged_if_overflow(m, m.damper.force(in, f, feat_out, mask));
+  }
   struct It {
     real a, f, g, gp;  // acceleration, force, g(a), g'(a) = 1 + k dF/da
     int st;
@@ -547,9 +551,10 @@ DN_REALTIME inline int step(const LoopModel& m, LoopData& d, const dn_loop_input
     const real zrm = R(0.5) * (zr0 + zr1) + R(0.125) * h * (vr0 - vr1);
     const real vrm = R(1.5) * (zr1 - zr0) / h - R(0.25) * (vr0 + vr1);
     const bool per_stage = m.veh.damper_eval == DN_EVAL_PER_STAGE;
+    // A stage's force: evaluated per stage, else the step start's (tested at the call sites, so
+    // a per-step loop makes no call: the Cortex-M4F build keeps the lambda out of line).
     auto force_at = [&](const Body& b, real zr, real vr, real ul, real t,
                         int stage) noexcept -> real {
-      if (!per_stage) return r.force;
       const bool half = stage < 3;
       const detail::MotionLag lag = detail::motion_lag(
           m, lag0, vrel0, xrel0, b.vs - b.vus, b.zs - b.zus, half ? m.vlag_a_half : m.vlag_a_full,
@@ -566,12 +571,12 @@ DN_REALTIME inline int step(const LoopModel& m, LoopData& d, const dn_loop_input
     const Accel& k1 = r.acc;
     const Body b1{b0.zs + R(0.5) * h * b0.vs, b0.vs + R(0.5) * h * k1.as, b0.zus + R(0.5) * h * b0.vus,
                   b0.vus + R(0.5) * h * k1.aus};
-    const Accel k2 = detail::accel(m, b1, zrm, vrm, force_at(b1, zrm, vrm, ul_mid, t0 + R(0.5) * h, 1));
+    const Accel k2 = detail::accel(m, b1, zrm, vrm, per_stage ? force_at(b1, zrm, vrm, ul_mid, t0 + R(0.5) * h, 1) : r.force);
     const Body b2{b0.zs + R(0.5) * h * b1.vs, b0.vs + R(0.5) * h * k2.as, b0.zus + R(0.5) * h * b1.vus,
                   b0.vus + R(0.5) * h * k2.aus};
-    const Accel k3 = detail::accel(m, b2, zrm, vrm, force_at(b2, zrm, vrm, ul_mid, t0 + R(0.5) * h, 2));
+    const Accel k3 = detail::accel(m, b2, zrm, vrm, per_stage ? force_at(b2, zrm, vrm, ul_mid, t0 + R(0.5) * h, 2) : r.force);
     const Body b3{b0.zs + h * b2.vs, b0.vs + h * k3.as, b0.zus + h * b2.vus, b0.vus + h * k3.aus};
-    const Accel k4 = detail::accel(m, b3, zr1, vr1, force_at(b3, zr1, vr1, ul_end, t0 + h, 3));
+    const Accel k4 = detail::accel(m, b3, zr1, vr1, per_stage ? force_at(b3, zr1, vr1, ul_end, t0 + h, 3) : r.force);
     if (status < 0) return status;
     const real h6 = h / 6;
     ns[S_z_s] = b0.zs + h6 * (b0.vs + 2 * b1.vs + 2 * b2.vs + b3.vs);

@@ -123,6 +123,68 @@ static void identical_to_create(int precision) {
   dn_loop_model_destroy(lc);
 }
 
+/* dn_loop_model_init_neural (the damper built inside the loop model from the folded floats) is
+ * the three-call set-up bit for bit over 2,000 steps, and refuses what those calls refuse. */
+static void neural_in_place(void) {
+  const dn_mlp_folded_f folded = DN_MODEL_DEFAULT_FOLDED_INIT;
+  dn_mlp* mlp = NULL;
+  dn_damper* damper = NULL;
+  EXPECT(dn_mlp_init_folded(&folded, aligned(dn_mlp_size()), dn_mlp_size(), &mlp) == DN_OK);
+  EXPECT(dn_damper_init_neural(mlp, dn_model_default_feature_names, 3, NULL, NULL, 0, DN_PRECISION_FLOAT,
+                               aligned(dn_damper_size()), dn_damper_size(), &damper) == DN_OK);
+  dn_controller ctrl;
+  dn_controller_default(&ctrl, DN_CTRL_SKYHOOK_ONOFF);
+  dn_vehicle veh;
+  dn_vehicle_default(&veh);
+  veh.damper_eval = DN_EVAL_PER_STEP;
+  veh.accel_feature = DN_ACCEL_LINEAR;
+  dn_loop_model *l3 = NULL, *l1 = NULL;
+  EXPECT(dn_loop_model_init(&veh, damper, &ctrl, aligned(dn_loop_model_size()), dn_loop_model_size(), &l3) == DN_OK);
+  void* mem = aligned(dn_loop_model_size());
+  memset(mem, 0x5A, dn_loop_model_size()); /* no reliance on zeroed memory */
+  EXPECT(dn_loop_model_init_neural(&veh, &ctrl, &folded, dn_model_default_feature_names, 3, NULL, NULL, 0, mem,
+                                   dn_loop_model_size(), &l1) == DN_OK && l1 != NULL);
+  dn_loop_data *d3 = NULL, *d1 = NULL;
+  EXPECT(dn_loop_data_init(l3, aligned(dn_loop_data_size()), dn_loop_data_size(), &d3) == DN_OK);
+  EXPECT(dn_loop_data_init(l1, aligned(dn_loop_data_size()), dn_loop_data_size(), &d1) == DN_OK);
+  for (int k = 1; k <= 2000; ++k) {
+    const double t = k * veh.dt;
+    const dn_loop_input in = {0.02 * sin(7.0 * t) + 0.004 * sin(40.0 * t), 0.14 * cos(7.0 * t) + 0.16 * cos(40.0 * t), 0.0};
+    dn_loop_out o3, o1;
+    EXPECT(dn_loop_step(l3, d3, &in, &o3) == dn_loop_step(l1, d1, &in, &o1));
+    EXPECT(same_bits(o3.force, o1.force) && same_bits(o3.a, o1.a) && o3.clamped_mask == o1.clamped_mask);
+  }
+  double s3[DN_LOOP_STATE_SIZE], s1[DN_LOOP_STATE_SIZE];
+  dn_loop_get_state(d3, s3);
+  dn_loop_get_state(d1, s1);
+  for (int i = 0; i < DN_LOOP_STATE_SIZE; ++i) EXPECT(same_bits(s3[i], s1[i]));
+  EXPECT(fabs(s1[1]) > 1e-4); /* the car moved */
+  /* refusals, *out cleared on each */
+  dn_loop_model* r = (dn_loop_model*)&r;
+  const char* unknown[3] = {"velocity", "acceleration", "no_such_feature"};
+  EXPECT(dn_loop_model_init_neural(&veh, &ctrl, &folded, unknown, 3, NULL, NULL, 0, mem, dn_loop_model_size(), &r) ==
+             DN_E_UNKNOWN_NAME && r == NULL);
+  EXPECT(dn_loop_model_init_neural(&veh, &ctrl, &folded, dn_model_default_feature_names, 2, NULL, NULL, 0, mem,
+                                   dn_loop_model_size(), &r) == DN_E_MISMATCH && r == NULL);
+  EXPECT(dn_loop_model_init_neural(NULL, &ctrl, &folded, dn_model_default_feature_names, 3, NULL, NULL, 0, mem,
+                                   dn_loop_model_size(), &r) == DN_E_NULL && r == NULL);
+  EXPECT(dn_loop_model_init_neural(&veh, &ctrl, NULL, dn_model_default_feature_names, 3, NULL, NULL, 0, mem,
+                                   dn_loop_model_size(), &r) == DN_E_NULL && r == NULL);
+  EXPECT(dn_loop_model_init_neural(&veh, &ctrl, &folded, dn_model_default_feature_names, 3, NULL, NULL, 0, mem,
+                                   dn_loop_model_size() - 1, &r) == DN_E_SIZE && r == NULL);
+  dn_mlp_folded_f bad = folded;
+  float w1[DN_MODEL_DEFAULT_N_HIDDEN1 * 3];
+  memcpy(w1, folded.w1, sizeof w1);
+  w1[4] = NAN;
+  bad.w1 = w1;
+  EXPECT(dn_loop_model_init_neural(&veh, &ctrl, &bad, dn_model_default_feature_names, 3, NULL, NULL, 0, mem,
+                                   dn_loop_model_size(), &r) == DN_E_NONFINITE_PARAM && r == NULL);
+  dn_vehicle bad_veh = veh;
+  bad_veh.m_s = -1.0;
+  EXPECT(dn_loop_model_init_neural(&bad_veh, &ctrl, &folded, dn_model_default_feature_names, 3, NULL, NULL, 0, mem,
+                                   dn_loop_model_size(), &r) == DN_E_PARAM && r == NULL);
+}
+
 static void other_dampers(void) {
   const dn_parametric_params p = {400.0, 3500.0, 1800.0, 40.0, 5.0, 0.0};
   const double v[5] = {-1.0, -0.2, 0.0, 0.2, 1.0}, u[2] = {0.0, 5.0};
@@ -152,6 +214,7 @@ int main(void) {
   sizes_and_refusals();
   identical_to_create(DN_PRECISION_FLOAT);
   identical_to_create(DN_PRECISION_DOUBLE);
+  neural_in_place();
   other_dampers();
   for (int k = 0; k < n_pool; ++k) free(pool[k]);
   if (failures) {
