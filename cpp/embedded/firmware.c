@@ -68,6 +68,13 @@ int dn_fw_semihost(int op, const void* arg);
 #define HARNESS __attribute__((noinline, noipa, unused))
 #endif
 
+/* errno as one int: a single-threaded bare-metal firmware's choice. Without it newlib's errno
+ * lives in its 96-byte reentrancy structure (impure_data), which libm's expf pulls in from the
+ * loop's set-up (the lag and command-filter coefficients). */
+static int errno_value;
+int* __errno(void);
+int* __errno(void) { return &errno_value; }
+
 static char line[256];
 static int line_len;
 

@@ -56,6 +56,9 @@ DEFAULT_DAMPER_KINDS = ("neural",)
 # DN_ACCEL_MAX_EVALS = 6 evaluations per call, ~2 KB of flash).
 DEFAULT_ACCEL_FEATURES = ("linear", "explicit")
 ACCEL_FEATURE_BITS = ("implicit", "explicit", "linear")  # dn_accel_feature order
+# The damper-evaluation schemes linked (dampnet.h DN_DAMPER_EVALS): one evaluation per step.
+DEFAULT_DAMPER_EVALS = ("per_step",)
+DAMPER_EVAL_BITS = ("per_stage", "per_step")  # dn_damper_eval order
 # The loop's state and arithmetic per core (dampnet.h DN_LOOP_FLOAT): float on the M4F, whose FPU
 # has no double, double on the M7 (FPv5-D16 does double in hardware; the host's precision).
 LOOP_FLOAT = {"cortex-m4": 1, "cortex-m7": 0}
@@ -66,16 +69,18 @@ def target_defines(cpu: str, caps: dict, loop_float: int | None = None,
                    damper_kinds=DEFAULT_DAMPER_KINDS) -> list[str]:
     """The library's compile definitions for a core (what the root CMakeLists.txt derives from the
     DAMPNET_* options of a freestanding build): capacities, float MLP only, the loop's real type,
-    the damper kinds linked, code size over inlining, and the lean float kernel."""
+    the damper kinds, acceleration and evaluation schemes linked, code size over inlining, and
+    the lean float kernel."""
     unknown = sorted(set(damper_kinds) - set(DAMPER_KIND_BITS))
     if unknown:
         raise ValueError(f"damper kinds {unknown}: expected some of {', '.join(DAMPER_KIND_BITS)}")
     mask = sum(1 << DAMPER_KIND_BITS.index(k) for k in set(damper_kinds))
     accel_mask = sum(1 << ACCEL_FEATURE_BITS.index(k) for k in set(DEFAULT_ACCEL_FEATURES))
+    eval_mask = sum(1 << DAMPER_EVAL_BITS.index(k) for k in set(DEFAULT_DAMPER_EVALS))
     lf = LOOP_FLOAT[cpu] if loop_float is None else int(loop_float)
     return ([f"DN_CAP_{k}={v}" for k, v in caps.items()]
             + ["DN_DOUBLE_KERNEL=0", f"DN_LOOP_FLOAT={lf}", f"DN_DAMPER_KINDS={mask}",
-               f"DN_ACCEL_FEATURES={accel_mask}", "DN_SMALL_CODE=1"]
+               f"DN_ACCEL_FEATURES={accel_mask}", f"DN_DAMPER_EVALS={eval_mask}", "DN_SMALL_CODE=1"]
             + [f"DN_KERNEL_{k}={v}" for k, v in DEFAULT_KERNEL.items()])
 
 # The quarter car the firmware runs (and the host comparison with it): the HIL configuration
@@ -190,7 +195,8 @@ def cmake_args(cpu: str, vectors: Path | None = None, build_type: str = "Release
             f"-DCMAKE_BUILD_TYPE={build_type}", f"-DDAMPNET_DOUBLE_KERNEL={double_kernel}",
             f"-DDAMPNET_FP_CONTRACT={fp_contract}", f"-DDAMPNET_LOOP_FLOAT={loop_float}",
             f"-DDAMPNET_DAMPER_KINDS={';'.join(damper_kinds)}",
-            f"-DDAMPNET_ACCEL_FEATURES={';'.join(DEFAULT_ACCEL_FEATURES)}"]
+            f"-DDAMPNET_ACCEL_FEATURES={';'.join(DEFAULT_ACCEL_FEATURES)}",
+            f"-DDAMPNET_DAMPER_EVALS={';'.join(DEFAULT_DAMPER_EVALS)}"]
     args += [f"-DDAMPNET_CAP_{k}={v}" for k, v in (caps or DEFAULT_CAPS).items()]
     args += [f"-DDAMPNET_KERNEL_{k}={v}" for k, v in (DEFAULT_KERNEL if kernel is None else kernel).items()]
     if vectors is not None:

@@ -1,14 +1,15 @@
 """The compile-time options of a microcontroller build, on the host (no cross toolchain needed):
 a header-only program built as the cortex-m4 preset builds the library (dampnet.h: DN_LOOP_FLOAT 1,
-DN_DAMPER_KINDS neural only, DN_ACCEL_FEATURES linear and explicit, DN_DOUBLE_KERNEL 0) and
-compiled with -Wdouble-promotion -Werror.
+DN_DAMPER_KINDS neural only, DN_ACCEL_FEATURES linear and explicit, DN_DAMPER_EVALS per step,
+DN_DOUBLE_KERNEL 0) and compiled with -Wdouble-promotion -Werror.
 
 * The float loop (the quarter car of tests/python/test_embedded.py: per-step evaluation, the
   linearised acceleration feature, on-off skyhook with a 5 ms command filter, the default model
   built in place from its folded floats) over 2 s of the thesis rough road equals the host's
   double loop (dampnet._core) within 1e-4 of each state's peak.
 * A kind left out is refused at set-up (DN_E_PARAM); so is a vehicle asking for the implicit
-  solve, and the default vehicle then asks for the linear scheme."""
+  solve or per-stage evaluation, and the default vehicle then asks for the linear scheme and
+  one evaluation per step."""
 
 from __future__ import annotations
 
@@ -40,6 +41,10 @@ int main() {
   dn_vehicle implicit = v;
   implicit.accel_feature = DN_ACCEL_IMPLICIT;
   std::printf("implicit %d\n", check_vehicle(implicit));
+  std::printf("default_eval %d\n", v.damper_eval);
+  dn_vehicle per_stage = v;
+  per_stage.damper_eval = DN_EVAL_PER_STAGE;
+  std::printf("per_stage %d\n", check_vehicle(per_stage));
   const dn_mlp_folded_f folded = DN_MODEL_DEFAULT_FOLDED_INIT;
   Damper& d = model.damper;
   int st = d.mf.load_folded(&folded);
@@ -70,7 +75,7 @@ int main() {
 }
 """
 
-DEFINES = ["-DDN_STATIC", "-DDN_LOOP_FLOAT=1", "-DDN_DAMPER_KINDS=8", "-DDN_ACCEL_FEATURES=6",
+DEFINES = ["-DDN_STATIC", "-DDN_LOOP_FLOAT=1", "-DDN_DAMPER_KINDS=8", "-DDN_ACCEL_FEATURES=6", "-DDN_DAMPER_EVALS=2",
            "-DDN_DOUBLE_KERNEL=0", "-DDN_CAP_INPUTS=3", "-DDN_CAP_HIDDEN=32", "-DDN_CAP_HIDDEN2=0",
            "-DDN_CAP_TERMS=0", "-DDN_CAP_TABLE_V=2", "-DDN_CAP_TABLE_U=1"]
 
@@ -89,8 +94,9 @@ def test_the_float_loop_build_on_the_host(tmp_path):
     head = dict(line.split(" ", 1) for line in lines if not line.startswith("s "))
     # kinds and schemes left out: refused at set-up; the default vehicle asks for "linear"
     linear, _, callback = head["linear"].split()
-    assert int(linear) == int(callback) == int(head["implicit"]) == _core.DN_E_PARAM
+    assert int(linear) == int(callback) == int(head["implicit"]) == int(head["per_stage"]) == _core.DN_E_PARAM
     assert int(head["default_accel"]) == _core.ACCEL_FEATURES["linear"][0]
+    assert int(head["default_eval"]) == _core.DAMPER_EVALS["per_step"][0]
     assert int(head["setup"]) == 0 and int(head["errors"]) == 0
     fw = np.array([[float(x) for x in line.split()[2:]] for line in lines if line.startswith("s ")])
     states, _, _ = emb.host_loop(model, road)

@@ -21,7 +21,7 @@
 // evaluations stay out of line: the loop calls them from several places, and -O3 inlining the
 // MLP kernel into each made detail::evaluate alone 25 KB on the Cortex-M4F. The host inlines.
 #if defined(DN_SMALL_CODE) && DN_SMALL_CODE
-#define DN_OUTLINE __attribute__((noinline))
+#define DN_OUTLINE __attribute__((noinline, noclone))
 #else
 #define DN_OUTLINE
 #endif
@@ -165,7 +165,7 @@ class Damper {
   }
 
   // The MLP itself is loaded by the caller into md and mf before this.
-  int set_neural_features(const char* const* names, int n, const char* const* pnames,
+  DN_SETUP_SIZE int set_neural_features(const char* const* names, int n, const char* const* pnames,
                           const double* pvalues, int n_params, int prec) noexcept {
     if (n > 0 && !names) return DN_E_NULL;
     if (n_params > 0 && (!pnames || !pvalues)) return DN_E_NULL;

@@ -182,6 +182,15 @@ typedef double dn_real;
 #define DN_ACCEL_FEATURES 0x7
 #endif
 
+/* The damper-evaluation schemes this build has, a bit mask (bit k: dn_damper_eval k; CMake
+ * DAMPNET_DAMPER_EVALS, names). Default: both. The Cortex-M presets keep "per_step" (one
+ * evaluation per step, the real-time choice): the per-stage path (~1.5 KB of flash) is not
+ * linked, a vehicle asking for it is refused (DN_E_PARAM) and dn_vehicle_default asks for
+ * DN_EVAL_PER_STEP. */
+#ifndef DN_DAMPER_EVALS
+#define DN_DAMPER_EVALS 0x3
+#endif
+
 /* Caller-provided storage (no heap): every object that dn_*_create allocates can instead be
  * placed in memory the caller owns by the matching dn_*_init, MuJoCo-arena style, e.g. static
  * arrays on a microcontroller. dn_*_size() is the number of bytes an object needs in this build
@@ -595,6 +604,8 @@ typedef enum dn_integrator { DN_INTEGRATOR_LIST(DN_ENUM_ROW_) } dn_integrator;
   X(DN_EVAL_PER_STEP, 1, "per_step",                                                    \
     "once at the step start, force held over the step (1 evaluation; 1st order)")
 typedef enum dn_damper_eval { DN_DAMPER_EVAL_LIST(DN_ENUM_ROW_) } dn_damper_eval;
+/* The default: per stage, or per step in a build without it (DN_DAMPER_EVALS). */
+#define DN_EVAL_DEFAULT ((DN_DAMPER_EVALS & (1 << DN_EVAL_PER_STAGE)) ? DN_EVAL_PER_STAGE : DN_EVAL_PER_STEP)
 
 /* How the loop computes the acceleration feature a (the relative acceleration
  * z_s'' - z_us'') of a neural damper that uses "acceleration". a and the force
@@ -652,7 +663,7 @@ typedef enum dn_accel_feature { DN_ACCEL_FEATURE_LIST(DN_ENUM_ROW_) } dn_accel_f
   X(dn_real, c_t, 0.0, "tyre damping [N s/m], >= 0")                                        \
   X(dn_real, dt, 0.001, "step [s], 1e-9 <= dt <= 0.1")                                          \
   X(int, integrator, DN_INT_RK4, "dn_integrator")                                          \
-  X(int, damper_eval, DN_EVAL_PER_STAGE, "dn_damper_eval (RK4 only)")                      \
+  X(int, damper_eval, DN_EVAL_DEFAULT, "dn_damper_eval (RK4 only)")                      \
   X(dn_real, x_static, 0.0, "damper displacement at static equilibrium, from mid [m]")      \
   X(dn_real, f_static, 0.0, "damper force carried at static equilibrium [N] (e.g. gas)")    \
   X(dn_real, temperature, 20.0, "damper temperature at reset [degC]")                       \

@@ -168,7 +168,8 @@ inline int check_vehicle(const dn_vehicle& s) noexcept {
   // a subnormal mass (1e-320 kg) is > 0 but its reciprocal overflows
   if (!std::isfinite(1 / v.m_s) || !std::isfinite(1 / v.m_us)) return DN_E_PARAM;
   if (!detail::is_integrator(v.integrator) || !detail::is_damper_eval(v.damper_eval) ||
-      !detail::is_accel_feature(v.accel_feature) || !((DN_ACCEL_FEATURES >> v.accel_feature) & 1))
+      !detail::is_accel_feature(v.accel_feature) || !((DN_ACCEL_FEATURES >> v.accel_feature) & 1) ||
+      !((DN_DAMPER_EVALS >> v.damper_eval) & 1))
     return DN_E_PARAM;
   return DN_OK;
 }
@@ -550,7 +551,7 @@ DN_REALTIME inline int step(const LoopModel& m, LoopData& d, const dn_loop_input
     // road at mid-step: cubic Hermite of (zr0, vr0) -> (zr1, vr1)
     const real zrm = R(0.5) * (zr0 + zr1) + R(0.125) * h * (vr0 - vr1);
     const real vrm = R(1.5) * (zr1 - zr0) / h - R(0.25) * (vr0 + vr1);
-    const bool per_stage = m.veh.damper_eval == DN_EVAL_PER_STAGE;
+    const bool per_stage = ((DN_DAMPER_EVALS >> DN_EVAL_PER_STAGE) & 1) && m.veh.damper_eval == DN_EVAL_PER_STAGE;
     // A stage's force: evaluated per stage, else the step start's (tested at the call sites, so
     // a per-step loop makes no call: the Cortex-M4F build keeps the lambda out of line).
     auto force_at = [&](const Body& b, real zr, real vr, real ul, real t,

@@ -597,7 +597,7 @@ inline T forward_fused1(const P& p, const T* xs, const T* col, T* dys) noexcept 
 // A flash-lean build keeps each forward one function (not inlined into every caller: the
 // damper's and the loop's several call sites would each get a copy, and its stack).
 #if DN_KERNEL_SMALL && defined(__GNUC__)
-#define DN_KERNEL_OUTLINE __attribute__((noinline))
+#define DN_KERNEL_OUTLINE __attribute__((noinline, noclone))
 #else
 #define DN_KERNEL_OUTLINE
 #endif
