@@ -209,7 +209,9 @@ def cmake_args(cpu: str, vectors: Path | None = None, build_type: str = "Release
 def build(cpu: str, build_dir, vectors: Path | None = None, targets=("dn_firmware",), **options) -> Path:
     """Configure (once) and build the firmware for a core into build_dir; returns build_dir."""
     build_dir = Path(build_dir)
-    gen = ["-G", "Ninja"] if shutil.which("ninja") else []
+    # an existing build keeps its generator (e.g. one of `cmake --preset cortex-m4`'s, which
+    # CMake would refuse to switch)
+    gen = ["-G", "Ninja"] if shutil.which("ninja") and not (build_dir / "CMakeCache.txt").is_file() else []
     _run(["cmake", "-S", ROOT, "-B", build_dir, *gen, *cmake_args(cpu, vectors, **options)])
     _run(["cmake", "--build", build_dir, "--parallel", str(os.cpu_count() or 2), "--target", *targets])
     return build_dir
@@ -424,7 +426,8 @@ qemu-system-arm -M {machine} -nographic -monitor none -serial none \
 ```
 
 The firmware evaluates the model on {n_x} stored inputs and runs the quarter car over 1 s of road,
-printing forces and states as the bits of their floats and doubles.
+printing forces and states as the bits of their floats (and of the loop's reals: float on the
+M4F, double on the M7).
 
 ## Into your firmware
 
@@ -438,21 +441,27 @@ printing forces and states as the bits of their floats and doubles.
    floats only, so no software double routine and no double weights take flash (the example does
    this). With `DN_KERNEL_SMALL=1` (set here) the forward is compiled for exactly this model's
    input count.
-3. Keep every object in static storage: `dn_mlp_init_folded`, `dn_damper_init_neural`,
-   `dn_loop_model_init`, `dn_loop_data_init` over memory of `dn_*_size()` bytes aligned to
-   `dn_storage_align()` (`example/firmware.c` does this; `example/sizes.cpp` turns the sizes into
-   compile-time constants for static arrays). A loop model copies its damper and a damper its MLP,
-   so their memory is free again after set-up.
+3. Keep every object in static storage, and build the loop in one call:
+   `dn_loop_model_init_neural(&veh, &ctrl, &folded, dn_model_feature_names, DN_MODEL_N_INPUTS, ...,
+   mem, bytes, &model)` puts the damper and its network straight into the loop model's memory
+   (the network held once; the example does this), then `dn_loop_data_init`. Memory of
+   `dn_*_size()` bytes aligned to `dn_storage_align()` (`example/sizes.cpp` turns the sizes into
+   compile-time constants for static arrays). `dn_mlp_init_folded` + `dn_damper_init_neural` +
+   `dn_loop_model_init` give the same model (a loop model copies its damper, a damper its MLP).
 4. The real-time call is `dn_loop_step` (or `dn_mlp_forward_f` / `dn_damper_force` alone): no
-   allocation, no exceptions, bounded time, finite output for any input.
+   allocation, no exceptions, bounded time, finite output for any input. This build links only
+   the neural damper kind, the linear and explicit acceleration feature and one damper evaluation
+   per step (`DN_DAMPER_KINDS`, `DN_ACCEL_FEATURES`, `DN_DAMPER_EVALS`: anything else is refused
+   at set-up with `DN_E_PARAM`); {loop_real}
 5. Linker script: `.text`/`.rodata` in flash, `.data` copied and `.bss` zeroed by the start-up code,
    a stack of at least the peak measured for your core (dampnet's bench/RESULTS.md, "On a
    microcontroller"; the example paints and prints it); see the marked lines of `example/mps2.ld`.
 
-Figures for the 3-30-1 default model (dampnet's bench/RESULTS.md): the float forward 1,443
-instructions on a Cortex-M4F (1,432 on a Cortex-M7), set up by `dn_mlp_init_folded`, in 3,192 B
-of flash with its weights (M4F; 3,064 B on the M7); the quarter-car step in double 14,871 (M4F,
-software double) and 2,651 (M7).
+Figures for the 3-30-1 default model with these options (dampnet's bench/RESULTS.md): on a
+Cortex-M4F (float loop) the float forward 1,447 instructions, the kernel 2,528 B of flash with its
+weights, the quarter-car step 2,220 instructions (about 3,315 cycles by the TRM's timings, an
+estimate), kernel + loop + controller 15.5 KB of flash and 2.0 KB of RAM; on a Cortex-M7 (double
+loop) 1,439 instructions, 3,312 B, 2,247 instructions, 19.1 KB and 2.7 KB.
 """
 
 
@@ -507,7 +516,12 @@ def export_target(model, target: str, out_dir, overwrite: bool = False, model_na
         cpu=target, machine=CPUS[target]["machine"], model_name=model_name, version=dampnet.__version__,
         model_id=getattr(model, "id", "") or "", inputs=", ".join(model.features), n_x=16,
         network=f"{caps['INPUTS']}-{caps['HIDDEN']}-" + (f"{h2}-" if h2 else "") + f"1 {model.activation}",
-        caps=" ".join(cap_defs), flags=CPUS[target]["flags"]))
+        caps=" ".join(cap_defs), flags=CPUS[target]["flags"],
+        loop_real=("the loop's state and arithmetic are float (`DN_LOOP_FLOAT=1`: this core's FPU has no "
+                   "double), within 1.2e-6 of the host's double loop's peaks over 10 s of the thesis rough road."
+                   if LOOP_FLOAT[target] else
+                   "the loop's state and arithmetic are double (`DN_LOOP_FLOAT=0`: this core's FPU has double), "
+                   "as on the host.")))
     return out
 
 
