@@ -2,7 +2,8 @@
 beside emlearn's C for the same 3-30-1 network (bench/RESULTS.md, "On a microcontroller").
 
     python bench/embedded.py [--json FILE] [--fp-contract off|fast] [--out-dir DIR]  # about a minute;
-                                                # needs the cross toolchain, QEMU and `pip install emlearn`
+                                                # needs the cross toolchain, QEMU and emlearn
+                                                # (python/env.sh installs all three)
     python bench/embedded.py --unroll-sweep [--json FILE] [--fp-contract off|fast]  # the kernel's
                                                 # flash against instructions, DN_KERNEL_UNROLL 1/2/4/8
 
