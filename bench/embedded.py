@@ -1,7 +1,7 @@
 """Flash, RAM, instructions and a cycle estimate of dampnet on Cortex-M4F and Cortex-M7 (QEMU),
 beside emlearn's C for the same 3-30-1 network (bench/RESULTS.md, "On a microcontroller").
 
-    python bench/embedded.py [--json FILE] [--fp-contract off|fast] [--out-dir DIR]  # about a minute;
+    python bench/embedded.py [--json FILE] [--fp-contract off|fast] [--loop-float 0|1] [--out-dir DIR]  # ~1 min;
                                                 # needs the cross toolchain, QEMU and emlearn
                                                 # (python/env.sh installs all three)
     python bench/embedded.py --unroll-sweep [--json FILE] [--fp-contract off|fast]  # the kernel's
@@ -238,8 +238,12 @@ def build_manual(cpu: str, part: int, bdir: Path, vectors: Path, extra_src=(), e
     return elf
 
 
-def measure(cpu: str, vectors: Path, tiny: Path, model, out: Path, fp_contract: str = "off") -> dict:
-    bdir = emb.build(cpu, out / f"{cpu}-{fp_contract}", vectors=vectors, fp_contract=fp_contract,
+def measure(cpu: str, vectors: Path, tiny: Path, model, out: Path, fp_contract: str = "off",
+            loop_float: int | None = None) -> dict:
+    """loop_float None: the core's preset (dampnet.embedded.LOOP_FLOAT)."""
+    tag = "" if loop_float is None else f"-loopfloat{int(loop_float)}"
+    bdir = emb.build(cpu, out / f"{cpu}-{fp_contract}{tag}", vectors=vectors, fp_contract=fp_contract,
+                     loop_float=loop_float,
                      targets=("dn_firmware", "dn_firmware_kernel", "dn_firmware_base"))
     path = lambda n: emb.firmware_path(bdir, n)  # noqa: E731
     base, kern, full = sizes(path("dn_firmware_base")), sizes(path("dn_firmware_kernel")), sizes(path("dn_firmware"))
@@ -268,7 +272,8 @@ def measure(cpu: str, vectors: Path, tiny: Path, model, out: Path, fp_contract: 
                     "max_diff_vs_dampnet_in_range_N": float(np.max(np.abs(
                         eo.forces[ok & (fw.status == 0)] - fw.forces[ok & (fw.status == 0)])))}
     if cpu == "cortex-m4":
-        tdir = emb.build(cpu, out / f"{cpu}-{fp_contract}-trace", vectors=tiny, fp_contract=fp_contract,
+        tdir = emb.build(cpu, out / f"{cpu}-{fp_contract}{tag}-trace", vectors=tiny, fp_contract=fp_contract,
+                         loop_float=loop_float,
                          targets=("dn_firmware",))
         cpi = trace_cpi(emb.firmware_path(tdir), cpu, {"forward": "dn_mlp_forward_f", "step": "dn_loop_step"},
                         out / "trace.log", after={"forward": ("dn_loop_step", False), "step": ("dn_loop_step", True)})
@@ -307,6 +312,8 @@ def main(argv=None) -> int:
                    help="-ffp-contract of the builds (the presets: off; fast lets GCC fuse multiply-adds)")
     p.add_argument("--out-dir", default=str(OUT_DEFAULT),
                    help="the builds' directory (default build/bench-embedded)")
+    p.add_argument("--loop-float", type=int, choices=(0, 1), default=None,
+                   help="DN_LOOP_FLOAT on both cores (default: the presets', float on the M4F, double on the M7)")
     p.add_argument("--unroll-sweep", action="store_true",
                    help="only the kernel's flash and instructions for DN_KERNEL_UNROLL 1/2/4/8 (and DN_KERNEL_SMALL 0)")
     a = p.parse_args(argv)
@@ -334,8 +341,9 @@ def main(argv=None) -> int:
             Path(a.json).write_text(json.dumps(res, indent=1) + "\n")
         return 0
     emb.write_vectors(tiny, emb.make_vectors(model, n_x=50, seconds=0.2))
-    res = {cpu: measure(cpu, vectors, tiny, model, out, a.fp_contract) for cpu in sorted(emb.CPUS)}
+    res = {cpu: measure(cpu, vectors, tiny, model, out, a.fp_contract, a.loop_float) for cpu in sorted(emb.CPUS)}
     res["fp_contract"] = a.fp_contract
+    res["loop_float"] = {cpu: emb.LOOP_FLOAT[cpu] if a.loop_float is None else a.loop_float for cpu in sorted(emb.CPUS)}
     print(json.dumps(res, indent=1))
     if a.json:
         Path(a.json).write_text(json.dumps(res, indent=1) + "\n")

@@ -65,22 +65,28 @@ LOOP_FLOAT = {"cortex-m4": 1, "cortex-m7": 0}
 DAMPER_KIND_BITS = ("linear", "parametric", "table", "neural", "callback")  # dn_damper_kind order
 
 
+def _name_mask(what: str, names, bits) -> int:
+    """The bit mask of names of one dampnet.h enum (bits: its names in value order), as the root
+    CMakeLists.txt's dn_name_mask makes it."""
+    unknown = sorted(set(names) - set(bits))
+    if unknown:
+        raise ValueError(f"{what} {unknown}: expected some of {', '.join(bits)}")
+    return sum(1 << bits.index(k) for k in set(names))
+
+
 def target_defines(cpu: str, caps: dict, loop_float: int | None = None,
                    damper_kinds=DEFAULT_DAMPER_KINDS) -> list[str]:
     """The library's compile definitions for a core (what the root CMakeLists.txt derives from the
     DAMPNET_* options of a freestanding build): capacities, float MLP only, the loop's real type,
     the damper kinds, acceleration and evaluation schemes linked, code size over inlining, and
     the lean float kernel."""
-    unknown = sorted(set(damper_kinds) - set(DAMPER_KIND_BITS))
-    if unknown:
-        raise ValueError(f"damper kinds {unknown}: expected some of {', '.join(DAMPER_KIND_BITS)}")
-    mask = sum(1 << DAMPER_KIND_BITS.index(k) for k in set(damper_kinds))
-    accel_mask = sum(1 << ACCEL_FEATURE_BITS.index(k) for k in set(DEFAULT_ACCEL_FEATURES))
-    eval_mask = sum(1 << DAMPER_EVAL_BITS.index(k) for k in set(DEFAULT_DAMPER_EVALS))
     lf = LOOP_FLOAT[cpu] if loop_float is None else int(loop_float)
     return ([f"DN_CAP_{k}={v}" for k, v in caps.items()]
-            + ["DN_DOUBLE_KERNEL=0", f"DN_LOOP_FLOAT={lf}", f"DN_DAMPER_KINDS={mask}",
-               f"DN_ACCEL_FEATURES={accel_mask}", f"DN_DAMPER_EVALS={eval_mask}", "DN_SMALL_CODE=1"]
+            + ["DN_DOUBLE_KERNEL=0", f"DN_LOOP_FLOAT={lf}",
+               f"DN_DAMPER_KINDS={_name_mask('damper kinds', damper_kinds, DAMPER_KIND_BITS)}",
+               f"DN_ACCEL_FEATURES={_name_mask('acceleration features', DEFAULT_ACCEL_FEATURES, ACCEL_FEATURE_BITS)}",
+               f"DN_DAMPER_EVALS={_name_mask('damper evaluations', DEFAULT_DAMPER_EVALS, DAMPER_EVAL_BITS)}",
+               "DN_SMALL_CODE=1"]
             + [f"DN_KERNEL_{k}={v}" for k, v in DEFAULT_KERNEL.items()])
 
 # The quarter car the firmware runs (and the host comparison with it): the HIL configuration
@@ -458,10 +464,10 @@ M4F, double on the M7).
    microcontroller"; the example paints and prints it); see the marked lines of `example/mps2.ld`.
 
 Figures for the 3-30-1 default model with these options (dampnet's bench/RESULTS.md): on a
-Cortex-M4F (float loop) the float forward 1,447 instructions, the kernel 2,528 B of flash with its
-weights, the quarter-car step 2,220 instructions (about 3,315 cycles by the TRM's timings, an
+Cortex-M4F (float loop) the float forward 1,447 instructions, the kernel 2,508 B of flash with its
+weights, the quarter-car step 2,220 instructions (about 3,314 cycles by the TRM's timings, an
 estimate), kernel + loop + controller 15.5 KB of flash and 2.0 KB of RAM; on a Cortex-M7 (double
-loop) 1,439 instructions, 3,312 B, 2,247 instructions, 19.1 KB and 2.7 KB.
+loop) 1,440 instructions, 3,292 B, 2,247 instructions, 19.1 KB and 2.7 KB.
 """
 
 

@@ -783,6 +783,19 @@ constexpr int layer1_stride(int h1, int h2) noexcept {
   return (void)h2, pad(h1);
 }
 
+// A description's sizes (inputs, hidden 1, hidden 2) against the library's limits, fixed sizes
+// (kDynamic = any) and this object's capacity: DN_OK, DN_E_SIZE or DN_E_MISMATCH.
+template <int kIn, int kH1, int kH2, class P>
+inline int check_sizes(int ni, int h1, int h2) noexcept {
+  if (ni < 1 || ni > DN_MAX_INPUTS || h1 < 1 || h1 > DN_MAX_HIDDEN || h2 < 0 || h2 > DN_MAX_HIDDEN)
+    return DN_E_SIZE;
+  if ((kIn > 0 && ni != kIn) || (kH1 > 0 && h1 != kH1) || (kH2 >= 0 && h2 != kH2)) return DN_E_MISMATCH;
+  // beyond this object's capacity (a build with lowered DN_CAP_*: dampnet.h)
+  if (ni > P::kCapIn || h1 > P::kCapH1 || h2 > P::kCapH2) return DN_E_SIZE;
+  if (small_refuses<P>(ni)) return DN_E_SIZE;
+  return DN_OK;
+}
+
 // Validate a description against fixed sizes (kDynamic = any) and copy it in,
 // folding the scalings into the weights (see the top of this file).
 template <typename T, int kIn, int kH1, int kH2, class P>
@@ -790,15 +803,8 @@ inline int load(P& p, const dn_mlp_desc* d) noexcept {
   if (!d || !d->w1 || !d->b1 || !d->w_out || !d->b_out || !d->in_offset || !d->in_gain ||
       !d->sat_lo || !d->sat_hi)
     return DN_E_NULL;
-  if (d->n_inputs < 1 || d->n_inputs > DN_MAX_INPUTS || d->n_hidden1 < 1 ||
-      d->n_hidden1 > DN_MAX_HIDDEN || d->n_hidden2 < 0 || d->n_hidden2 > DN_MAX_HIDDEN)
-    return DN_E_SIZE;
-  if ((kIn > 0 && d->n_inputs != kIn) || (kH1 > 0 && d->n_hidden1 != kH1) ||
-      (kH2 >= 0 && d->n_hidden2 != kH2))
-    return DN_E_MISMATCH;
-  // beyond this object's capacity (a build with lowered DN_CAP_*: dampnet.h)
-  if (d->n_inputs > P::kCapIn || d->n_hidden1 > P::kCapH1 || d->n_hidden2 > P::kCapH2) return DN_E_SIZE;
-  if (small_refuses<P>(d->n_inputs)) return DN_E_SIZE;
+  const int size_status = check_sizes<kIn, kH1, kH2, P>(d->n_inputs, d->n_hidden1, d->n_hidden2);
+  if (size_status != DN_OK) return size_status;
   if (d->n_hidden2 > 0 && (!d->w2 || !d->b2)) return DN_E_NULL;
   if (d->activation != DN_ACT_TANH && d->activation != DN_ACT_SIGMOID) return DN_E_ACTIVATION;
   const int ni = d->n_inputs, h1 = d->n_hidden1, h2 = d->n_hidden2;
@@ -940,14 +946,8 @@ template <typename T, int kIn, int kH1, int kH2, class P>
 DN_SETUP_SIZE inline int load_folded(P& p, const dn_mlp_folded_f* f) noexcept {
   if (!f || !f->w1 || !f->b1 || !f->w_out || !f->in_offset || !f->sat_lo || !f->sat_hi || !f->sat_mid)
     return DN_E_NULL;
-  if (f->n_inputs < 1 || f->n_inputs > DN_MAX_INPUTS || f->n_hidden1 < 1 ||
-      f->n_hidden1 > DN_MAX_HIDDEN || f->n_hidden2 < 0 || f->n_hidden2 > DN_MAX_HIDDEN)
-    return DN_E_SIZE;
-  if ((kIn > 0 && f->n_inputs != kIn) || (kH1 > 0 && f->n_hidden1 != kH1) ||
-      (kH2 >= 0 && f->n_hidden2 != kH2))
-    return DN_E_MISMATCH;
-  if (f->n_inputs > P::kCapIn || f->n_hidden1 > P::kCapH1 || f->n_hidden2 > P::kCapH2) return DN_E_SIZE;
-  if (small_refuses<P>(f->n_inputs)) return DN_E_SIZE;
+  const int size_status = check_sizes<kIn, kH1, kH2, P>(f->n_inputs, f->n_hidden1, f->n_hidden2);
+  if (size_status != DN_OK) return size_status;
   if (f->n_hidden2 > 0 && (!f->w2 || !f->b2)) return DN_E_NULL;
   const int ni = f->n_inputs, h1 = f->n_hidden1, h2 = f->n_hidden2;
   const int n_last = h2 > 0 ? h2 : h1;
