@@ -783,6 +783,16 @@ constexpr int layer1_stride(int h1, int h2) noexcept {
   return (void)h2, pad(h1);
 }
 
+// The real and padded sizes of a validated description (the loops run over the padded ones).
+template <class P>
+inline void set_shape(P& p, int ni, int h1, int h2) noexcept {
+  p.n_in = ni;
+  p.n_h1 = h1;
+  p.n_h2 = h2;
+  p.n_h1p = layer1_stride<P>(h1, h2);
+  p.n_h2p = pad(h2);
+}
+
 // A description's sizes (inputs, hidden 1, hidden 2) against the library's limits, fixed sizes
 // (kDynamic = any) and this object's capacity: DN_OK, DN_E_SIZE or DN_E_MISMATCH.
 template <int kIn, int kH1, int kH2, class P>
@@ -822,12 +832,8 @@ inline int load(P& p, const dn_mlp_desc* d) noexcept {
   for (int i = 0; i < ni; ++i)
     if (!(d->sat_lo[i] <= d->sat_hi[i])) return DN_E_PARAM;
 
-  const int h1p = layer1_stride<P>(h1, h2), h2p = pad(h2);
-  p.n_in = ni;
-  p.n_h1 = h1;
-  p.n_h2 = h2;
-  p.n_h1p = h1p;
-  p.n_h2p = h2p;
+  set_shape(p, ni, h1, h2);
+  const int h1p = p.n_h1p, h2p = p.n_h2p;
   p.act = static_cast<Activation>(d->activation);
   // Zero everything first: the padding must hold zeros even when a model is reloaded.
   p.w1t.fill(T(0));
@@ -960,12 +966,8 @@ DN_SETUP_SIZE inline int load_folded(P& p, const dn_mlp_folded_f* f) noexcept {
   for (int i = 0; i < ni; ++i)
     if (!(f->sat_lo[i] <= f->sat_mid[i] && f->sat_mid[i] <= f->sat_hi[i])) return DN_E_PARAM;
 
-  const int h1p = layer1_stride<P>(h1, h2), h2p = pad(h2);
-  p.n_in = ni;
-  p.n_h1 = h1;
-  p.n_h2 = h2;
-  p.n_h1p = h1p;
-  p.n_h2p = h2p;
+  set_shape(p, ni, h1, h2);
+  const int h1p = p.n_h1p, h2p = p.n_h2p;
   p.act = Activation::tanh;  // a sigmoid's halvings are in the weights
   p.in_offset_folded = f->offsets_folded == 1;
   // Zero everything first: the padding must hold zeros even when a model is reloaded.
