@@ -46,6 +46,21 @@ VARIANTS = {
                                                           "add": "compressibility"},
     "45 hidden, max_fail 20, window 10 ms": {"max_epochs": 1000, "max_fail": 20, "hidden": (45,),
                                               "acceleration_window": 0.010},
+    # Bayesian regularisation (MATLAB's trainbr: no early stopping, the evidence sets the weight decay)
+    "BR 300 epochs, compressibility and friction added, 45 hidden": {"algorithm": "br", "max_epochs": 300,
+                                                                      "hidden": (45,),
+                                                                      "add": "compressibility,friction"},
+    "BR 300 epochs, compressibility and friction added, 30 hidden": {"algorithm": "br", "max_epochs": 300,
+                                                                      "add": "compressibility,friction"},
+    "BR 300 epochs, compressibility and friction added, 60 hidden": {"algorithm": "br", "max_epochs": 300,
+                                                                      "hidden": (60,),
+                                                                      "add": "compressibility,friction"},
+    "BR 1000 epochs, compressibility and friction added, 45 hidden, window 10 ms": {
+        "algorithm": "br", "max_epochs": 1000, "hidden": (45,), "acceleration_window": 0.010,
+        "add": "compressibility,friction"},
+    "BR 1000 epochs, compressibility and friction added, 60 hidden, window 10 ms": {
+        "algorithm": "br", "max_epochs": 1000, "hidden": (60,), "acceleration_window": 0.010,
+        "add": "compressibility,friction"},
 }
 
 
@@ -114,7 +129,7 @@ def main() -> None:
             settings = apply_additions(settings, ds, effect)[0]
         for seed in range(args.seeds):
             t0 = time.perf_counter()
-            model, info, split = train_dataset(ds, algorithm="lm", seed=seed, **settings, **kw)
+            model, info, split = train_dataset(ds, seed=seed, **settings, **{"algorithm": "lm", **kw})
             times.append(time.perf_counter() - t0)
             hv = model_metrics(model, info, split, lookup=False)["noise_floor"]["holdout_vs_floor"]
             ratios.append(hv["ratio"])
