@@ -58,6 +58,11 @@ VARIANTS = {
     "BR 1000 epochs, compressibility and friction added, 45 hidden, window 10 ms": {
         "algorithm": "br", "max_epochs": 1000, "hidden": (45,), "acceleration_window": 0.010,
         "add": "compressibility,friction"},
+    "BR 1000 epochs, compressibility and friction added, 45 hidden": {
+        "algorithm": "br", "max_epochs": 1000, "hidden": (45,), "add": "compressibility,friction"},
+    "BR 2000 epochs, compressibility and friction added, 45 hidden, window 10 ms": {
+        "algorithm": "br", "max_epochs": 2000, "hidden": (45,), "acceleration_window": 0.010,
+        "add": "compressibility,friction"},
     "BR 1000 epochs, compressibility and friction added, 60 hidden, window 10 ms": {
         "algorithm": "br", "max_epochs": 1000, "hidden": (60,), "acceleration_window": 0.010,
         "add": "compressibility,friction"},
