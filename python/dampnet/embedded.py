@@ -53,7 +53,7 @@ DEFAULT_KERNEL = {"SMALL": 1, "UNROLL": 2}
 DEFAULT_DAMPER_KINDS = ("neural",)
 # The acceleration-feature schemes linked (dampnet.h DN_ACCEL_FEATURES): linear (the HIL choice:
 # one network evaluation per damper call) and explicit, not the implicit solve's iteration (up to
-# DN_ACCEL_MAX_EVALS = 6 evaluations per call, ~2 KB of flash).
+# DN_ACCEL_MAX_EVALS = 6 evaluations per call).
 DEFAULT_ACCEL_FEATURES = ("linear", "explicit")
 ACCEL_FEATURE_BITS = ("implicit", "explicit", "linear")  # dn_accel_feature order
 # The damper-evaluation schemes linked (dampnet.h DN_DAMPER_EVALS): one evaluation per step.
@@ -465,9 +465,9 @@ M4F, double on the M7).
 
 Figures for the 3-30-1 default model with these options (dampnet's bench/RESULTS.md): on a
 Cortex-M4F (float loop) the float forward 1,447 instructions, the kernel 2,508 B of flash with its
-weights, the quarter-car step 2,220 instructions (about 3,314 cycles by the TRM's timings, an
-estimate), kernel + loop + controller 15.5 KB of flash and 2.0 KB of RAM; on a Cortex-M7 (double
-loop) 1,440 instructions, 3,292 B, 2,247 instructions, 19.1 KB and 2.7 KB.
+weights, the quarter-car step 2,211 instructions (about 3,261 cycles by the TRM's timings, an
+estimate), kernel + loop + controller 15.2 KB of flash and 2.0 KB of RAM; on a Cortex-M7 (double
+loop) 1,440 instructions, 3,292 B, 2,238 instructions, 18.8 KB and 2.6 KB.
 """
 
 

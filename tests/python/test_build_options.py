@@ -9,7 +9,10 @@ DN_DOUBLE_KERNEL 0) and compiled with -Wdouble-promotion -Werror.
   double loop (dampnet._core) within 1e-4 of each state's peak.
 * A kind left out is refused at set-up (DN_E_PARAM); so is a vehicle asking for the implicit
   solve or per-stage evaluation, and the default vehicle then asks for the linear scheme and
-  one evaluation per step."""
+  one evaluation per step.
+* Hard inputs: a NaN or infinite road gives DN_E_NONFINITE_INPUT; a huge road (1e30-3e38 m)
+  steps with every value finite or, where float overflows, gives DN_E_DIVERGED; the state is
+  unchanged on every error."""
 
 from __future__ import annotations
 
@@ -23,6 +26,7 @@ from dampnet import embedded as emb
 from dampnet.modeldir import load_model
 
 PROGRAM = r"""
+#include <cmath>
 #include <cstdio>
 #include <type_traits>
 #include "dampnet/loop.hpp"
@@ -71,6 +75,20 @@ int main() {
     }
   }
   std::printf("errors %d\n", errors);
+  // hard inputs to the float loop: a NaN or infinite road is refused; a huge one either steps with
+  // every value finite or fails (DN_E_DIVERGED) leaving the state as it was
+  const float hard[][2] = {{NAN, 0.0f}, {0.0f, INFINITY}, {1e30f, 0.0f}, {0.0f, 1e38f}, {3e38f, -3e38f}};
+  for (const auto& h : hard) {
+    const LoopData before = data;
+    dn_loop_out out{};
+    const int st = step(model, data, dn_loop_input{h[0], h[1], 0.0f}, &out);
+    bool same = true, finite = std::isfinite(out.force) && std::isfinite(out.a) && std::isfinite(out.acc_s);
+    for (int i = 0; i < DN_LOOP_STATE_SIZE; ++i) {
+      same = same && data.s[i] == before.s[i];
+      finite = finite && std::isfinite(data.s[i]);
+    }
+    std::printf("hard %d %d %d\n", st, int(same), int(finite));
+  }
   return 0;
 }
 """
@@ -91,13 +109,19 @@ def test_the_float_loop_build_on_the_host(tmp_path):
     stdin = "\n".join(f"{z!r} {v!r}" for z, v in road.tolist())
     proc = subprocess.run([str(exe)], input=stdin, capture_output=True, text=True, timeout=120, check=True)
     lines = proc.stdout.splitlines()
-    head = dict(line.split(" ", 1) for line in lines if not line.startswith("s "))
+    head = dict(line.split(" ", 1) for line in lines if not line.startswith(("s ", "hard ")))
     # kinds and schemes left out: refused at set-up; the default vehicle asks for "linear"
     linear, _, callback = head["linear"].split()
     assert int(linear) == int(callback) == int(head["implicit"]) == int(head["per_stage"]) == _core.DN_E_PARAM
     assert int(head["default_accel"]) == _core.ACCEL_FEATURES["linear"][0]
     assert int(head["default_eval"]) == _core.DAMPER_EVALS["per_step"][0]
     assert int(head["setup"]) == 0 and int(head["errors"]) == 0
+    hard = [tuple(map(int, line.split()[1:])) for line in lines if line.startswith("hard ")]
+    assert len(hard) == 5 and all(finite for _, _, finite in hard)
+    assert [(st, same) for st, same, _ in hard[:2]] == [(_core.DN_E_NONFINITE_INPUT, 1)] * 2
+    assert all(same for st, same, _ in hard if st < 0)  # the state unchanged on every error
+    assert all(st >= 0 or st == _core.DN_E_DIVERGED for st, _, _ in hard[2:])
+    assert any(st == _core.DN_E_DIVERGED for st, _, _ in hard[2:])  # 3e38 m overflows float
     fw = np.array([[float(x) for x in line.split()[2:]] for line in lines if line.startswith("s ")])
     states, _, _ = emb.host_loop(model, road)
     host = np.array([s for _, s in states])

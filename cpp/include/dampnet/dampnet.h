@@ -175,8 +175,8 @@ typedef double dn_real;
 
 /* The acceleration-feature schemes this build has, a bit mask (bit k: dn_accel_feature k; CMake
  * DAMPNET_ACCEL_FEATURES, a list of names). Default: all. A scheme left out is not linked (the
- * Cortex-M presets keep "linear" and "explicit": the implicit solve's iteration is ~2 KB of
- * flash); a vehicle asking for it is refused (dn_vehicle_check: DN_E_PARAM), and
+ * Cortex-M presets keep "linear" and "explicit": not the implicit solve's iteration); a vehicle
+ * asking for it is refused (dn_vehicle_check: DN_E_PARAM), and
  * dn_vehicle_default gives DN_ACCEL_LINEAR when DN_ACCEL_IMPLICIT is out. */
 #ifndef DN_ACCEL_FEATURES
 #define DN_ACCEL_FEATURES 0x7
@@ -184,7 +184,7 @@ typedef double dn_real;
 
 /* The damper-evaluation schemes this build has, a bit mask (bit k: dn_damper_eval k; CMake
  * DAMPNET_DAMPER_EVALS, names). Default: both. The Cortex-M presets keep "per_step" (one
- * evaluation per step, the real-time choice): the per-stage path (~1.5 KB of flash) is not
+ * evaluation per step, the real-time choice): the per-stage path is not
  * linked, a vehicle asking for it is refused (DN_E_PARAM) and dn_vehicle_default asks for
  * DN_EVAL_PER_STEP. */
 #ifndef DN_DAMPER_EVALS
@@ -761,7 +761,7 @@ DN_API int dn_loop_data_init(const dn_loop_model* m, void* mem, size_t bytes, dn
  * dn_mlp_init_folded + dn_damper_init_neural(..., DN_PRECISION_FLOAT, ...) + dn_loop_model_init,
  * bit for bit, without the separate MLP and damper. Those hold the network twice at set-up (the
  * damper's copy and the loop model's); this holds it once, which on a microcontroller is the
- * peak RAM (Cortex-M4F: 1.2 KB less stack). Statuses: those of the three calls (DN_E_NULL for
+ * peak RAM. Statuses: those of the three calls (DN_E_NULL for
  * a NULL veh or folded). Nullable: ctrl (passive at u = 0), param_names / param_values when
  * n_params == 0. Set-up only. */
 DN_API int dn_loop_model_init_neural(const dn_vehicle* veh, const dn_controller* ctrl,

@@ -189,8 +189,7 @@ inline int check_controller(const dn_controller& s) noexcept {
 struct LoopModel {
   dn_vehicle veh = default_vehicle();
   dn_controller ctrl = default_controller();
-  Damper damper;
-  // derived
+  // derived (before the damper: the step's parameters stay within a load's immediate offset)
   real inv_ms = 0, inv_mus = 0;
   real lag_half = 0, lag_full = 0;  // exp(-dt/2/tau), exp(-dt/tau); 0 without a lag
   // velocity_lag over T = dt/2 and dt: A = exp(-T/tau), ramp gain 1 - tau (1 - A) / T
@@ -201,8 +200,8 @@ struct LoopModel {
   real k_rel = 0;                   // 1/m_s + 1/m_us: da/dF of the relative acceleration
   bool implicit_a = false;            // solve the acceleration coupling (see dn_accel_feature)
   bool linear_a = false;              // ... by one linearised Newton step (DN_ACCEL_LINEAR)
-  uint32_t a_bit = 0;                 // clamped-mask bit of the acceleration input
   real f_eps = R(1e-12);               // relative force rounding of the MLP (convergence test)
+  Damper damper;
 
   // Validate and derive; DN_OK or a DN_E_* error.
   int init(const dn_vehicle& v, const Damper& d, const dn_controller& c) noexcept {
@@ -230,16 +229,9 @@ struct LoopModel {
     inv_presliding = d.presliding() > 0 ? 1 / d.presliding() : 0;
     cmd_keep = c.u_tau_s > 0 && c.kind != DN_CTRL_EXTERNAL ? std::exp(-v.dt / c.u_tau_s) : 0;
     k_rel = inv_ms + inv_mus;
-    implicit_a = false;
-    a_bit = 0;
+    // a neural damper reading the acceleration (Damper::accel_input) couples it to the force
+    implicit_a = v.accel_feature != DN_ACCEL_EXPLICIT && d.kind == DN_DAMPER_NEURAL && d.accel_input >= 0;
     linear_a = v.accel_feature == DN_ACCEL_LINEAR;
-    if (v.accel_feature != DN_ACCEL_EXPLICIT && d.kind == DN_DAMPER_NEURAL) {
-      for (int i = 0; i < d.n_feat; ++i) {
-        if (d.feat[i] != DN_FEAT_ACCELERATION) continue;
-        implicit_a = true;
-        a_bit = 1u << i;
-      }
-    }
     f_eps = d.precision == DN_PRECISION_FLOAT ? R(1e-5) : R(1e-12);
     return DN_OK;
   }
@@ -382,7 +374,7 @@ inline int evaluate(const LoopModel& m, dn_damper_input& in, real f_last, real* 
     return ok ? st : (st | DN_W_ACCEL_FALLBACK);
   }
   if (!((DN_ACCEL_FEATURES >> DN_ACCEL_IMPLICIT) & 1)) {  // not in this build: never reached
-    *n_evals += 1;                                          // (check_vehicle refuses it)
+    *n_evals += 1;  // (check_vehicle refuses it); the constant test drops the iteration below
     return diverged_if_overflow(m, m.damper.force(in, f, feat_out, mask));
   }
   struct It {

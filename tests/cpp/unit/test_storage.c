@@ -68,6 +68,25 @@ static void sizes_and_refusals(void) {
   EXPECT(dn_loop_data_init(NULL, aligned(dn_loop_data_size()), dn_loop_data_size(), &ld) == DN_E_NULL && ld == NULL);
 }
 
+/* Two loops over the same 2,000-step road: the same statuses, forces, acceleration features,
+ * clamped masks, final states (bit for bit) and evaluation counts; the car moved. */
+static void same_runs(const dn_loop_model* ma, dn_loop_data* da, const dn_loop_model* mb, dn_loop_data* db,
+                      double dt) {
+  for (int k = 1; k <= 2000; ++k) {
+    const double t = k * dt;
+    const dn_loop_input in = {0.02 * sin(7.0 * t) + 0.004 * sin(40.0 * t), 0.14 * cos(7.0 * t) + 0.16 * cos(40.0 * t), 0.0};
+    dn_loop_out oa, ob;
+    EXPECT(dn_loop_step(ma, da, &in, &oa) == dn_loop_step(mb, db, &in, &ob));
+    EXPECT(same_bits(oa.force, ob.force) && same_bits(oa.a, ob.a) && oa.clamped_mask == ob.clamped_mask);
+  }
+  double sa[DN_LOOP_STATE_SIZE], sb[DN_LOOP_STATE_SIZE];
+  dn_loop_get_state(da, sa);
+  dn_loop_get_state(db, sb);
+  for (int i = 0; i < DN_LOOP_STATE_SIZE; ++i) EXPECT(same_bits(sa[i], sb[i]));
+  EXPECT(fabs(sa[1]) > 1e-4); /* the car moved */
+  EXPECT(dn_loop_damper_evals(da) == dn_loop_damper_evals(db));
+}
+
 /* The default model: init and create give the same forward, damper force and loop run. */
 static void identical_to_create(int precision) {
   const dn_mlp_desc desc = DN_MODEL_DEFAULT_DESC_INIT;
@@ -106,19 +125,7 @@ static void identical_to_create(int precision) {
   memset(di, 0xA5, dn_damper_size()); /* the loop model copied it: its memory may be reused */
   EXPECT(dn_loop_data_create(lc, &ddc) == DN_OK);
   EXPECT(dn_loop_data_init(li, aligned(dn_loop_data_size()), dn_loop_data_size(), &ddi) == DN_OK);
-  for (int k = 1; k <= 2000; ++k) {
-    const double t = k * veh.dt;
-    const dn_loop_input in = {0.02 * sin(7.0 * t) + 0.004 * sin(40.0 * t), 0.14 * cos(7.0 * t) + 0.16 * cos(40.0 * t), 0.0};
-    dn_loop_out oc, oi;
-    EXPECT(dn_loop_step(lc, ddc, &in, &oc) == dn_loop_step(li, ddi, &in, &oi));
-    EXPECT(same_bits(oc.force, oi.force) && same_bits(oc.a, oi.a) && oc.clamped_mask == oi.clamped_mask);
-  }
-  double sc[DN_LOOP_STATE_SIZE], si[DN_LOOP_STATE_SIZE];
-  dn_loop_get_state(ddc, sc);
-  dn_loop_get_state(ddi, si);
-  for (int i = 0; i < DN_LOOP_STATE_SIZE; ++i) EXPECT(same_bits(sc[i], si[i]));
-  EXPECT(fabs(sc[1]) > 1e-4); /* the car moved */
-  EXPECT(dn_loop_damper_evals(ddc) == dn_loop_damper_evals(ddi));
+  same_runs(lc, ddc, li, ddi, veh.dt);
   dn_loop_data_destroy(ddc);
   dn_loop_model_destroy(lc);
 }
@@ -147,18 +154,7 @@ static void neural_in_place(void) {
   dn_loop_data *d3 = NULL, *d1 = NULL;
   EXPECT(dn_loop_data_init(l3, aligned(dn_loop_data_size()), dn_loop_data_size(), &d3) == DN_OK);
   EXPECT(dn_loop_data_init(l1, aligned(dn_loop_data_size()), dn_loop_data_size(), &d1) == DN_OK);
-  for (int k = 1; k <= 2000; ++k) {
-    const double t = k * veh.dt;
-    const dn_loop_input in = {0.02 * sin(7.0 * t) + 0.004 * sin(40.0 * t), 0.14 * cos(7.0 * t) + 0.16 * cos(40.0 * t), 0.0};
-    dn_loop_out o3, o1;
-    EXPECT(dn_loop_step(l3, d3, &in, &o3) == dn_loop_step(l1, d1, &in, &o1));
-    EXPECT(same_bits(o3.force, o1.force) && same_bits(o3.a, o1.a) && o3.clamped_mask == o1.clamped_mask);
-  }
-  double s3[DN_LOOP_STATE_SIZE], s1[DN_LOOP_STATE_SIZE];
-  dn_loop_get_state(d3, s3);
-  dn_loop_get_state(d1, s1);
-  for (int i = 0; i < DN_LOOP_STATE_SIZE; ++i) EXPECT(same_bits(s3[i], s1[i]));
-  EXPECT(fabs(s1[1]) > 1e-4); /* the car moved */
+  same_runs(l3, d3, l1, d1, veh.dt);
   /* refusals, *out cleared on each */
   dn_loop_model* r = (dn_loop_model*)&r;
   const char* unknown[3] = {"velocity", "acceleration", "no_such_feature"};
