@@ -130,6 +130,20 @@ int main(int argc, char** argv) {
     float y; dn_mlp_forward_f(cm, &xf[(i & 1023) * kIn], &y, nullptr); sink = y; }, none, n, warm));
   dn_bench::print_json("naive_cpp_std_tanh", dn_bench::measure([&](long i) {
     sink = naive.forward(&xd[(i & 1023) * kIn]); }, none, n, warm));
+  // The training envelope's bounded-time check (dn_envelope_check) on the same inputs: every
+  // input in range, so every pair's bitmap is read (its worst case); half the cells marked.
+  {
+    static uint32_t cells[DN_ENVELOPE_MAX_PAIRS * DN_ENVELOPE_PAIR_WORDS];
+    for (uint32_t& w : cells) w = 0x5555aaaau;
+    const dn_envelope_desc ed{kIn, d.sat_lo, d.sat_hi, cells};
+    dn_envelope* env = nullptr;
+    if (dn_envelope_create(&ed, &env) != DN_OK) return 1;
+    volatile uint32_t flag_sink = 0;
+    dn_bench::print_json("envelope_check_c_abi", dn_bench::measure([&](long i) {
+      uint32_t f; dn_envelope_check(env, &xd[(i & 1023) * kIn], &f); flag_sink = f; }, none, n, warm));
+    (void)flag_sink;
+    dn_envelope_destroy(env);
+  }
 
   // The quarter-car RK4 step (damper per stage, 4 MLP evaluations) with skyhook.
   const char* const features[3] = {"velocity", "acceleration", "voltage"};

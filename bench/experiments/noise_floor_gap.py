@@ -8,6 +8,14 @@ overall and per frequency: median over the seeds.
 
   python bench/experiments/noise_floor_gap.py [--seeds 3] [--json FILE]
   python bench/experiments/noise_floor_gap.py --where     # where the rest of the gap is (below)
+  python bench/experiments/noise_floor_gap.py --only NAME --seeds S --ensemble K   # means of K models
+
+--ensemble K: the seeds' models in disjoint groups of K consecutive seeds (S // K groups), each
+group's predictions averaged: whether what is left is the seeds' scatter (averaging helps) or a
+bias they share (it does not); the ratio of each group's mean and their median. The mean of K
+one-hidden-layer networks with the same input and output scaling is one network with their
+hidden layers side by side and output weights divided by K, so an ensemble that fits the
+runtime's DN_MAX_HIDDEN (64) is deployable as it is.
 
 --where: for the best variant (compressibility and friction added, 45 hidden, max_fail 20, 10 ms
 window), seeds 0-1, the ratio on the hold-out beside the ratio on the model's own training tests at
@@ -63,6 +71,12 @@ VARIANTS = {
     "BR 2000 epochs, compressibility and friction added, 45 hidden, window 10 ms": {
         "algorithm": "br", "max_epochs": 2000, "hidden": (45,), "acceleration_window": 0.010,
         "add": "compressibility,friction"},
+    "BR 1000 epochs, compressibility and friction added, 20 hidden, window 10 ms": {
+        "algorithm": "br", "max_epochs": 1000, "hidden": (20,), "acceleration_window": 0.010,
+        "add": "compressibility,friction"},
+    "BR 1000 epochs, compressibility and friction added, 30 hidden, window 10 ms": {
+        "algorithm": "br", "max_epochs": 1000, "hidden": (30,), "acceleration_window": 0.010,
+        "add": "compressibility,friction"},
     "BR 1000 epochs, compressibility and friction added, 60 hidden, window 10 ms": {
         "algorithm": "br", "max_epochs": 1000, "hidden": (60,), "acceleration_window": 0.010,
         "add": "compressibility,friction"},
@@ -108,13 +122,17 @@ def main() -> None:
     ap.add_argument("--only", default=None, help="variant names separated by semicolons (default: all)")
     ap.add_argument("--json", default=None)
     ap.add_argument("--where", action="store_true", help="where the rest of the gap is (see above)")
+    ap.add_argument("--ensemble", type=int, default=0, metavar="K",
+                    help="also the means of groups of K seeds' models (see above)")
     args = ap.parse_args()
     if args.where:
         return where()
     from dampnet.demo.run import HIDDEN_EFFECT, QUICK_PLAN
     from dampnet.features import default_features
     from dampnet.rig import generate
-    from dampnet.training.pipeline import apply_additions, model_metrics, train_dataset
+    from dampnet.evaluation.metrics import evaluate_predictions
+    from dampnet.predict import predict_force
+    from dampnet.training.pipeline import apply_additions, holdout_vs_noise_floor, model_metrics, train_dataset
 
     def data():  # afresh for each variant: training adds the acceleration channel to the tests in place
         return generate(QUICK_PLAN, effects=[HIDDEN_EFFECT], seed=0, progress=False)
@@ -126,7 +144,7 @@ def main() -> None:
     print("| variant | held-out RMSE / noise RMS, median of seeds | per frequency 0.25 / 1 / 2 / 3 Hz | train time [s] |")
     print("|---|---|---|---|")
     for name in names:
-        ratios, perf, times = [], [], []
+        ratios, perf, times, preds = [], [], [], []
         ds = data()
         kw = dict(VARIANTS[name])
         settings = base
@@ -136,13 +154,36 @@ def main() -> None:
             t0 = time.perf_counter()
             model, info, split = train_dataset(ds, seed=seed, **settings, **{"algorithm": "lm", **kw})
             times.append(time.perf_counter() - t0)
-            hv = model_metrics(model, info, split, lookup=False)["noise_floor"]["holdout_vs_floor"]
+            nf = model_metrics(model, info, split, lookup=False)["noise_floor"]
+            hv = nf["holdout_vs_floor"]
             ratios.append(hv["ratio"])
+            if args.ensemble:
+                preds.append([predict_force(model, t) for t in split.holdout.tests])
             perf.append([r["ratio"] for r in hv["per_frequency"]])
         k = int(np.argsort(ratios)[len(ratios) // 2])
         out[name] = {"ratios": ratios, "per_frequency_median_seed": perf[k], "time_s": times}
         print(f"| {name} | {np.median(ratios):.2f} ({min(ratios):.2f}-{max(ratios):.2f}) | "
               f"{' / '.join(f'{x:.1f}' for x in perf[k])} | {np.median(times):.1f} |", flush=True)
+        if args.ensemble:
+            k = args.ensemble
+            groups = []
+            for g in range(len(preds) // k):
+                mean = [np.mean(ps, axis=0) for ps in zip(*preds[g * k:(g + 1) * k])]
+                hv = holdout_vs_noise_floor(evaluate_predictions(split.holdout.tests, mean), nf["rmse_n"])
+                groups.append({"seeds": list(range(g * k, (g + 1) * k)), "ratio": hv["ratio"],
+                               "per_frequency": [r["ratio"] for r in hv["per_frequency"]]})
+            if len(groups) > 1:  # and every seed's model together
+                mean = [np.mean(ps, axis=0) for ps in zip(*preds)]
+                hv = holdout_vs_noise_floor(evaluate_predictions(split.holdout.tests, mean), nf["rmse_n"])
+                out[name]["ensemble_all"] = {"seeds": len(preds), "ratio": hv["ratio"],
+                                             "per_frequency": [r["ratio"] for r in hv["per_frequency"]]}
+                pf = " / ".join(f"{x:.1f}" for x in out[name]["ensemble_all"]["per_frequency"])
+                print(f"| {name}, mean of all {len(preds)} seeds' models | {hv['ratio']:.2f} | {pf} | |", flush=True)
+            out[name]["ensembles"] = groups
+            r = [g["ratio"] for g in groups]
+            m = groups[int(np.argsort(r)[len(r) // 2])]
+            print(f"| {name}, mean of {k} seeds' models ({len(groups)} groups) | {np.median(r):.2f} "
+                  f"({min(r):.2f}-{max(r):.2f}) | {' / '.join(f'{x:.1f}' for x in m['per_frequency'])} | |", flush=True)
     if args.json:
         with open(args.json, "w") as f:
             json.dump(out, f, indent=1)

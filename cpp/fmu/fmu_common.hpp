@@ -20,8 +20,23 @@
 #include <cstdio>
 
 #include "dampnet/dampnet.h"
+#include "dampnet/envelope.hpp"
+#include "fmu_model.h"  // the generated model header: FMU_MODEL_HAS_ENVELOPE below
 
 namespace dnfmu {
+
+// The model's training envelope for the envelope_flags output: the generated header's grid
+// when the model was exported with its envelope (FMU_MODEL_HAS_ENVELOPE), else its training
+// ranges alone (then only DN_ENV_OUTSIDE_RANGE can be set).
+inline int load_envelope(dampnet::Envelope& env, const dn_mlp_desc& model) noexcept {
+#ifdef FMU_MODEL_HAS_ENVELOPE
+  (void)model;
+  const dn_envelope_desc d = FMU_MODEL_ENVELOPE_DESC_INIT;
+  return env.load(&d);
+#else
+  return env.load_ranges(model.n_inputs, model.sat_lo, model.sat_hi);
+#endif
+}
 
 // The reason for the last error, in words, for the importer's logger.
 struct Message {

@@ -5,6 +5,7 @@
 //   0 x [m]  1 v [m/s]  2 a [m/s2]  3 u [control unit]  4 temperature [degC]      inputs
 //   5 force [N]                                                                   output (Real)
 //   6 status (dampnet status)  7 clamped_mask (bit i: input i clamped)            outputs (Integer)
+//   8 envelope_flags (0 inside the training envelope, else DN_ENV_OUTSIDE_* bits)  output (Integer)
 //   10 + k   the model's k-th feature constant (names sorted, as in the header)   parameters
 //   100 + 10 i + j   parameter j of physics term i                               parameters
 //   40 u_lag [u]  41 v_lag [m/s]  42 z_fric [-]   the derived features' states (those the model uses)
@@ -42,7 +43,7 @@ namespace dnfmu {
 class DamperModel {
  public:
   enum Vr : unsigned {
-    VR_X = 0, VR_V, VR_A, VR_U, VR_TEMP, VR_FORCE, VR_STATUS, VR_MASK,
+    VR_X = 0, VR_V, VR_A, VR_U, VR_TEMP, VR_FORCE, VR_STATUS, VR_MASK, VR_ENVELOPE,
     VR_STATE = 40, VR_DERIV = 50  // the parameters: DamperParams (10 + k, 100 + 10 i + j)
   };
   enum State { ST_ULAG, ST_VLAG, ST_ZFRIC, ST_N };
@@ -53,6 +54,7 @@ class DamperModel {
     const dn_mlp_desc desc = FMU_MODEL_DESC_INIT;
     int st = damper_.md.load(&desc);
     if (st == DN_OK) st = damper_.mf.load(&desc);
+    if (st == DN_OK) st = load_envelope(envelope_, desc);
     if (st != DN_OK) return message.fail(st, "the model header does not load: %s", status_text(st));
     params_.load_defaults();
     reset();
@@ -139,11 +141,11 @@ class DamperModel {
   }
 
   int get_int(unsigned vr, int* value) noexcept {
-    if (vr != VR_STATUS && vr != VR_MASK) return no_such(message, "Integer", vr);
+    if (vr != VR_STATUS && vr != VR_MASK && vr != VR_ENVELOPE) return no_such(message, "Integer", vr);
     double f = 0.0;
-    uint32_t mask = 0;
-    const int st = evaluate(&f, &mask);
-    *value = vr == VR_STATUS ? st : static_cast<int>(mask);
+    uint32_t mask = 0, env = 0;
+    const int st = evaluate(&f, &mask, &env);
+    *value = vr == VR_STATUS ? st : static_cast<int>(vr == VR_MASK ? mask : env);
     return DN_OK;
   }
   int set_int(unsigned vr, int) noexcept { return message.fail(DN_E_PARAM, "no settable Integer %u", vr); }
@@ -183,6 +185,7 @@ class DamperModel {
 
  private:
   dampnet::Damper damper_;  // the MLP of the header with the current parameters
+  dampnet::Envelope envelope_;  // its training envelope (the header's, or its ranges alone)
   DamperParams params_;
   double in_[5] = {};         // x, v, a, u, temperature
   double start_in_[5] = {};   // the inputs at the last communication point t0 (co-simulation)
@@ -234,7 +237,8 @@ class DamperModel {
     if (used_[ST_ZFRIC]) r[ST_ZFRIC] = (in_[VR_V] - std::fabs(in_[VR_V]) * s[ST_ZFRIC]) / damper_.presliding();
   }
 
-  int evaluate(double* force, uint32_t* mask) const noexcept {
+  // The force; with env, the envelope flags of the network's inputs (before saturation).
+  int evaluate(double* force, uint32_t* mask, uint32_t* env = nullptr) const noexcept {
     double s[ST_N];
     states_now(s);
     dn_damper_input d{};
@@ -249,7 +253,11 @@ class DamperModel {
     d.u_lag = used_[ST_ULAG] ? s[ST_ULAG] : in_[VR_U];
     d.v_lag = used_[ST_VLAG] ? s[ST_VLAG] : in_[VR_V];
     d.z_fric = s[ST_ZFRIC];
-    return damper_.force(d, force, nullptr, mask);
+    double feat[DN_MAX_INPUTS];
+    for (double& v : feat) v = NAN;  // left NaN (outside) when an input is not finite
+    const int st = damper_.force(d, force, env ? feat : nullptr, mask);
+    if (env) *env = envelope_.check(feat);
+    return st;
   }
 };
 

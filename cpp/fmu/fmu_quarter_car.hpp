@@ -11,7 +11,8 @@
 //   200 + i                  the loop state, DN_LOOP_STATE_LIST order (t, z_s, v_s, z_us, v_us, ...)
 //   230 + j                  the step quantities, DN_LOOP_OUT_LIST order (force, u, x, v, a, acc_s, acc_us)
 //   240 travel = z_s - z_us [m]   241 tyre force k_t (z_us - z_r) + c_t (v_us - v_r) [N]
-//   250 status  251 clamped_mask  (Integer)
+//   250 status  251 clamped_mask  252 envelope_flags (the damper's inputs at the communication
+//       point against the model's training envelope: 0 inside, else DN_ENV_OUTSIDE_* bits)  (Integer)
 //   1000 + i                 vehicle field i (DN_VEHICLE_FIELDS order; int fields are Integer)
 //   1100 + i                 controller field i (DN_CONTROLLER_FIELDS order)
 //
@@ -162,7 +163,7 @@ class QuarterCarModel {
   enum Vr : unsigned {
     VR_Z_R = 0, VR_V_R = 1, VR_U = 2,  // the damper's parameters: DamperParams (10 + k, 100 + 10 i + j)
     VR_STATE = 200, VR_OUT = 230, VR_TRAVEL = 240, VR_TYRE = 241, VR_STATUS = 250, VR_MASK = 251,
-    VR_VEHICLE = 1000, VR_CONTROLLER = 1100
+    VR_ENVELOPE = 252, VR_VEHICLE = 1000, VR_CONTROLLER = 1100
   };
 #define DNFMU_QC_COUNT_(name, doc) +1
   static constexpr int kOut = 0 DN_LOOP_OUT_LIST(DNFMU_QC_COUNT_);
@@ -177,6 +178,7 @@ class QuarterCarModel {
     const dn_mlp_desc desc = FMU_MODEL_DESC_INIT;
     int st = damper_.md.load(&desc);
     if (st == DN_OK) st = damper_.mf.load(&desc);
+    if (st == DN_OK) st = load_envelope(envelope_, desc);
     if (st != DN_OK) return message.fail(st, "the model header does not load: %s", status_text(st));
     params_.load_defaults();
     veh_ = dampnet::default_vehicle();
@@ -294,9 +296,14 @@ class QuarterCarModel {
       *value = int(qc::get(ctrl_, *f));
       return DN_OK;
     }
-    if (vr != VR_STATUS && vr != VR_MASK) return no_such(message, "Integer", vr);
+    if (vr != VR_STATUS && vr != VR_MASK && vr != VR_ENVELOPE) return no_such(message, "Integer", vr);
     const int st = outputs();
     if (st < 0 && !ready_) return st;  // no model to evaluate (a parameter refused)
+    if (vr == VR_ENVELOPE) {
+      // the features of a failed evaluation are not the damper's: outside (a non-finite input)
+      *value = st < 0 ? int(DN_ENV_OUTSIDE_RANGE) : int(envelope_.check(out_.features));
+      return DN_OK;
+    }
     *value = vr == VR_STATUS ? (st < 0 ? st : (last_status_ | out_status_)) : int(out_.clamped_mask);
     return DN_OK;
   }
@@ -350,6 +357,7 @@ class QuarterCarModel {
   dn_vehicle veh_ = dampnet::default_vehicle();
   dn_controller ctrl_ = dampnet::default_controller();
   DamperParams params_;
+  dampnet::Envelope envelope_;  // the model's training envelope (the header's, or its ranges alone)
   double in_[3] = {};  // z_r, v_r, u
   double time_ = 0.0;
   bool ready_ = false;        // lm_ and data_ built from the current parameters (and start inputs)

@@ -70,5 +70,6 @@ void bind_damper(py::module_& mod);       // damper.cpp: DamperInput, Damper
 void bind_step_report(py::module_& mod);  // step_report.cpp: StepReport
 void bind_loop(py::module_& mod);         // loop.cpp: LoopModel, Loop
 void bind_fullcar(py::module_& mod);      // fullcar.cpp: FullCarModel, FullCar
+void bind_envelope(py::module_& mod);     // envelope.cpp: Envelope
 
 }  // namespace dnpy

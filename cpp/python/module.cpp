@@ -6,6 +6,7 @@
 //   step_report.cpp  StepReport (a hand-built CPython type)
 //   loop.cpp         LoopModel, Loop (simulate's arrays: arrays.cpp, huge_pages.cpp)
 //   fullcar.cpp      FullCarModel, FullCar (the full vehicle)
+//   envelope.cpp     Envelope (the training envelope's bounded-time check)
 // Shared: common.hpp (status -> exception, safe self access), fields.hpp (dict <-> struct),
 // busy.hpp (one call at a time on a Loop), callback_run.hpp (a callback's exception).
 #include <pybind11/pybind11.h>
@@ -25,4 +26,5 @@ PYBIND11_MODULE(_core, mod) {
   dnpy::bind_step_report(mod);
   dnpy::bind_loop(mod);
   dnpy::bind_fullcar(mod);
+  dnpy::bind_envelope(mod);
 }

@@ -7,6 +7,7 @@
 
 #include "dampnet/damper.hpp"
 #include "dampnet/dampnet.h"
+#include "dampnet/envelope.hpp"
 #if !DN_LOOP_FLOAT
 #include "dampnet/fullcar.hpp"
 #endif
@@ -16,6 +17,10 @@
 struct dn_mlp {
   dampnet::MlpDouble md;  // Mlp<double> unless DN_DOUBLE_KERNEL is 0
   dampnet::Mlp<float> mf;
+};
+
+struct dn_envelope {
+  dampnet::Envelope e;
 };
 
 struct dn_damper {

@@ -317,3 +317,20 @@ class FullCar(metaclass=_pybind11_type):
     def model(self) -> FullCarModel: ...
     @property
     def damper_evals(self) -> int: ...
+
+# ---- the training envelope's bounded-time check ----
+
+ENVELOPE_CELLS: Final[int]  # cells per input across its training range
+ENVELOPE_PAIR_WORDS: Final[int]  # uint32 words of one pair's bitmap
+ENV_OUTSIDE_RANGE: Final[int]  # flag bit: an input outside its training range, or NaN
+ENV_OUTSIDE_JOINT: Final[int]  # flag bit: two inputs in range, in an empty cell of their plane
+
+class Envelope(metaclass=_pybind11_type):
+    """A model's coarse training envelope (per-input ranges and per-pair occupancy bitmaps,
+    dampnet.h 'Training envelope'); immutable, may be shared by threads."""
+
+    def __init__(self, lo: npt.ArrayLike, hi: npt.ArrayLike, cells: npt.ArrayLike) -> None: ...
+    @property
+    def n_inputs(self) -> int: ...
+    def check(self, x: npt.ArrayLike) -> npt.NDArray[np.uint32]:
+        """Points [n, n_inputs] (feature units) -> flags[n] uint32: 0 inside, bit 0 an input outside its range (or NaN), bit 1 a pair of inputs in an empty cell; GIL released."""

@@ -13,6 +13,9 @@ by the runtime's feature registry), `coverage` reports:
   joint            (with an envelope) the share of steps / time farther than the threshold from
                    every stored training sample (scaled space), the largest and 95th-percentile
                    distance
+  runtime_flag     (with an envelope) what the runtime's bounded-time check (dampnet.envelope_grid,
+                   the FMU's envelope_flags) says of the same steps: its share of steps / time
+                   flagged, and the share of steps where it agrees with `outside` below
   outside          the envelope's share: outside any range OR (with an envelope) outside the joint
                    envelope; `mostly` names the inputs that put the run outside, by the share of
                    outside time each dominates (the input with the largest scaled difference to
@@ -118,6 +121,7 @@ def coverage(model, X: np.ndarray, envelope: Envelope | None = None, t: np.ndarr
                             distance_p95=float(np.percentile(finite, 95)) if finite.size else None,
                             unit="scaled input space (1 = half an input's training range)")
         outside = out_range | far
+        res["runtime_flag"] = _runtime_flag(envelope, X, w, outside)
         ok = idx >= 0
         gap = np.full(X.shape, np.inf)
         gap[ok] = np.abs(envelope.scale(X[ok]) - envelope.points[idx[ok]])
@@ -125,6 +129,7 @@ def coverage(model, X: np.ndarray, envelope: Envelope | None = None, t: np.ndarr
         res["envelope"] = "joint"
     else:
         res["joint"] = None
+        res["runtime_flag"] = None
         res["envelope"] = "ranges only"
     res["envelope_note"] = note or ("joint envelope" if envelope is not None
                                     else "no envelope file beside the model: per-input training ranges only")
@@ -154,6 +159,20 @@ def coverage(model, X: np.ndarray, envelope: Envelope | None = None, t: np.ndarr
     res["extrapolated"] = bool(by)
     res["verdict"] = verdict(res)
     return res
+
+
+def _runtime_flag(envelope: Envelope, X: np.ndarray, w: np.ndarray, outside: np.ndarray) -> dict[str, Any]:
+    """The runtime check's flags of the steps X against the offline measure's `outside`."""
+    from dampnet import _core
+    from dampnet.envelope_grid import runtime_flags
+
+    flags = runtime_flags(envelope, X)
+    flagged = flags != 0
+    s_steps, s_time = _share(flagged, w)
+    return dict(share_steps_outside=s_steps, share_time_outside=s_time,
+                share_steps_outside_joint_only=_share(flags == _core.ENV_OUTSIDE_JOINT, w)[0],
+                agreement_steps=float(np.mean(flagged == outside)) if flags.size else 1.0,
+                check="dn_envelope_check: per-input ranges and 32 x 32 cells per pair of inputs")
 
 
 def verdict(cov: Mapping[str, Any]) -> str:
@@ -219,6 +238,10 @@ def summary_line(name: str, cov: Mapping[str, Any]) -> str:
     parts = [f"outside the training ranges {100 * r['share_time']:.1f} % of the time"]
     if j is not None:
         parts.append(f"outside the joint envelope {100 * j['share_time_outside']:.1f} %")
+        rt = cov.get("runtime_flag")
+        if rt is not None:
+            parts.append(f"runtime flag {100 * rt['share_time_outside']:.1f} % (agrees on "
+                         f"{100 * rt['agreement_steps']:.1f} % of steps)")
     else:
         parts.append("no joint envelope (no envelope file beside the model)")
     return f"coverage of {name}: " + ", ".join(parts) + f" -> {cov['verdict']}"
@@ -230,5 +253,7 @@ def strip(cov: Mapping[str, Any]) -> dict[str, Any]:
     return dict(share_time_outside=cov["outside"]["share_time"],
                 share_time_outside_ranges=cov["outside_ranges"]["share_time"],
                 share_time_outside_joint=None if j is None else j["share_time_outside"],
+                share_time_runtime_flag=None if cov.get("runtime_flag") is None
+                else cov["runtime_flag"]["share_time_outside"],
                 worst_excursion=cov["worst_excursion"], mostly=cov["outside"]["mostly"],
                 extrapolated=cov["extrapolated"], envelope=cov["envelope"])

@@ -365,7 +365,8 @@ if(NOT CMAKE_BUILD_TYPE)
 endif()
 set(DAMPNET_ARM_CPU {cpu} CACHE STRING "the core")
 set(DN_CAPS {caps})
-add_library(dampnet STATIC src/c_api_common.cpp src/c_api_mlp.cpp src/c_api_loop.cpp)
+add_library(dampnet STATIC src/c_api_common.cpp src/c_api_mlp.cpp src/c_api_loop.cpp
+  src/c_api_envelope.cpp)
 target_include_directories(dampnet PUBLIC include ${{CMAKE_CURRENT_SOURCE_DIR}})
 target_compile_definitions(dampnet PUBLIC DN_STATIC ${{DN_CAPS}})
 target_compile_options(dampnet PRIVATE -ffunction-sections -fdata-sections -ffp-contract=off
@@ -497,7 +498,7 @@ def export_target(model, target: str, out_dir, overwrite: bool = False, model_na
     write_header(model, out / "model.h", "dn_model")
     shutil.copytree(src_root / "include" / "dampnet", out / "include" / "dampnet")
     (out / "src").mkdir()
-    for f in ("c_api_common.cpp", "c_api_mlp.cpp", "c_api_loop.cpp", "internal.hpp"):
+    for f in ("c_api_common.cpp", "c_api_mlp.cpp", "c_api_loop.cpp", "c_api_envelope.cpp", "internal.hpp"):
         shutil.copy2(src_root / "src" / f, out / "src" / f)
     (out / "cmake").mkdir()
     shutil.copy2(cmake_dir / "arm-none-eabi.cmake", out / "cmake" / "arm-none-eabi.cmake")

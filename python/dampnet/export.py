@@ -14,10 +14,16 @@ include from several translation units). It holds, for a prefix `p`:
   P_N_TERMS and p_terms_*                                   physics terms (hybrid models)
   P_N_FEATURE_PARAMS, P_<PARAM>, p_feature_param_names[],   constants of derived features
   p_feature_param_values[] (arrays only when there are any)  (e.g. P_VELOCITY_LAG_TAU_S)
+  P_HAS_ENVELOPE, p_envelope_lo[], p_envelope_hi[],          the training envelope's bounded-time
+  p_envelope_cells[], P_ENVELOPE_DESC_INIT                  check (a dn_envelope_desc initializer),
+                                                            only when exported with an envelope
 
 C:   dn_mlp_desc d = P_DESC_INIT; dn_mlp_create(&d, &m);
      float-only targets: dn_mlp_folded_f f = P_FOLDED_INIT; dn_mlp_init_folded(&f, mem, bytes, &m);
 C++: dampnet::StaticMlp<float, P_N_INPUTS, P_N_HIDDEN1, P_N_HIDDEN2> m; m.load(&d);
+Envelope (each step, on the damper's inputs, e.g. dn_loop_out.features):
+     dn_envelope_desc e = P_ENVELOPE_DESC_INIT; dn_envelope_create(&e, &env);
+     dn_envelope_check(env, x, &flags);   /* 0: the model is inside its training data */
 """
 
 from __future__ import annotations
@@ -203,8 +209,9 @@ def _cstr(s: str) -> str:
     return '"' + s.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
 
-def header_text(model: MlpModel, prefix: str = "dn_model") -> str:
-    """The header for a model, as text (see the module docstring for its contents)."""
+def header_text(model: MlpModel, prefix: str = "dn_model", envelope=None) -> str:
+    """The header for a model, as text (see the module docstring for its contents); with the
+    training envelope's grid when `envelope` (a dampnet.envelope.Envelope of this model) is given."""
     p = check_prefix(prefix)
     P = p.upper()
     n_in = model.n_inputs
@@ -278,10 +285,44 @@ def header_text(model: MlpModel, prefix: str = "dn_model") -> str:
         f"    {p}_sat_lo, {p}_sat_hi }}",
         "",
         *_folded_block(p, P, model),
+        *([_envelope_block(p, P, model, envelope)] if envelope is not None else []),
         f"#endif /* {guard} */",
         "",
     ]
     return "\n".join(out)
+
+
+def _envelope_block(p: str, P: str, model: MlpModel, envelope) -> str:
+    """The training envelope's ranges and per-pair occupancy bitmaps (dampnet.envelope_grid) and
+    a dn_envelope_desc initializer."""
+    from dampnet.envelope_grid import DILATE_CELLS, grid_cells, grid_size
+
+    if list(envelope.features) != list(model.features):
+        raise ValueError(f"envelope: features {envelope.features} are not the model's {model.features}")
+    if envelope.params.get("model_id") not in (None, model.model_id()):
+        raise ValueError(f"envelope: built for model {envelope.params.get('model_id')}, not {model.model_id()}")
+    cells = grid_cells(envelope)
+    n = model.n_inputs
+    words = [f"0x{int(w):08x}u" for w in cells.ravel()]
+    rows = ["  " + ", ".join(words[i:i + 6]) + "," for i in range(0, len(words), 6)]
+    lines = ["/* Training envelope (dampnet.h, \"Training envelope\"): each input's training range and, for",
+             f"   each of the {cells.shape[0]} pairs of inputs, a DN_ENVELOPE_CELLS^2 bitmap of the cells its",
+             f"   {envelope.params.get('n_points', envelope.points.shape[0])} stored training samples fell in "
+             f"(grown by {DILATE_CELLS} cell). */",
+             "#include <stdint.h>",
+             f"#define {P}_HAS_ENVELOPE 1",
+             f"#define {P}_ENVELOPE_CELLS {grid_size()} /* the grid it was written for: dampnet.h's DN_ENVELOPE_CELLS */",
+             f"#if defined(DN_ENVELOPE_CELLS) && DN_ENVELOPE_CELLS != {P}_ENVELOPE_CELLS",
+             f'#error "{p}: envelope written for a {grid_size()}-cell grid; this dampnet.h has another"',
+             "#endif",
+             _array(f"{p}_envelope_lo", envelope.lo, f"{n}", "training range, lower limit, feature units"),
+             _array(f"{p}_envelope_hi", envelope.hi, f"{n}", "training range, upper limit, feature units")]
+    if cells.size:
+        lines.append(f"/* [{cells.shape[0]}][DN_ENVELOPE_PAIR_WORDS = {cells.shape[1]}] */\n"
+                     f"static const uint32_t {p}_envelope_cells[{cells.size}] = {{\n" + "\n".join(rows) + "\n};\n")
+    cells_ptr = f"{p}_envelope_cells" if cells.size else "(const uint32_t*)0"
+    lines.append(f"#define {P}_ENVELOPE_DESC_INIT {{ {P}_N_INPUTS, {p}_envelope_lo, {p}_envelope_hi, {cells_ptr} }}\n")
+    return "\n".join(lines)
 
 
 def _terms_block(p: str, P: str, model: MlpModel) -> str:
@@ -343,9 +384,10 @@ def _activation_value(name: str) -> int:
 
 
 def write_header(model: MlpModel, path: str | os.PathLike, prefix: str = "dn_model",
-                 overwrite: bool = False) -> Path:
-    """Write the model's header to path atomically; refuses to overwrite unless asked."""
-    return atomic_write_text(path, header_text(model, prefix), overwrite)
+                 overwrite: bool = False, envelope=None) -> Path:
+    """Write the model's header (with `envelope`'s grid when given) to path atomically; refuses
+    to overwrite unless asked."""
+    return atomic_write_text(path, header_text(model, prefix, envelope), overwrite)
 
 
 # ---- ONNX ---------------------------------------------------------------------------------

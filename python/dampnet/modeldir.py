@@ -60,7 +60,7 @@ def save_model_dir(model: MlpModel, metrics: dict[str, Any] | None, out_dir: str
     with staged_dir(out) as tmp:
         model.save(tmp / "model.json", overwrite=True)
         write_json(tmp / "metrics.json", metrics or {}, overwrite=True)
-        write_header(model, tmp / HEADER_NAME, prefix=prefix, overwrite=True)
+        write_header(model, tmp / HEADER_NAME, prefix=prefix, overwrite=True, envelope=envelope)
         if envelope is not None:
             from dampnet.envelope import save_envelope
 

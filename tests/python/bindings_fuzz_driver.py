@@ -217,11 +217,14 @@ class Pool:
         self.cars = [dloop.QuarterCar(self.dampers[0]), dloop.QuarterCar(self.dampers[3])]
         # made by __new__ without __init__: pybind11 would hand them to methods as raw memory
         self.uninitialised = {cls: cls.__new__(cls) for cls in
-                              (_core.Mlp, _core.Damper, _core.LoopModel, _core.Loop)}
+                              (_core.Mlp, _core.Damper, _core.LoopModel, _core.Loop, _core.Envelope)}
+        self.envelopes = [_core.Envelope(np.array([-1.0, 0.0, -5.0]), np.array([1.0, 5.0, 5.0]),
+                                         np.full((3, _core.ENVELOPE_PAIR_WORDS), 0x0F0F0F0F, np.uint32))]
         self.by_class = {
             _core.Mlp: [self.mlp, self.mlp2], _core.Damper: self.dampers,
             _core.LoopModel: self.models, _core.Loop: self.loops,
             _core.DamperInput: [_core.DamperInput()], _core.StepReport: [self.report],
+            _core.Envelope: self.envelopes,
             dloop.QuarterCar: self.cars}
         for cls, obj in self.uninitialised.items():
             self.by_class[cls].append(obj)

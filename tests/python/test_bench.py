@@ -45,7 +45,8 @@ def test_dampnet_bench_quick_runs_and_reports_the_budget(tmp_path):
     verdict = "-> GO" if proc.returncode == 0 else "-> NO-GO"
     assert "HIL budget" in proc.stdout and verdict in proc.stdout
     res = json.loads(out.read_text())
-    for case in ("clock_overhead", "dampnet_static_float", "naive_cpp_std_tanh", "loop_step_rk4_neural_float_skyhook",
+    for case in ("clock_overhead", "dampnet_static_float", "naive_cpp_std_tanh", "envelope_check_c_abi",
+                 "loop_step_rk4_neural_float_skyhook",
                  "fullcar_step_rk4_per_step_eval_neural_float_skyhook_linear_accel",
                  "fullcar_step_rk4_neural_float_skyhook_linear_accel"):
         r = res["results"][case]

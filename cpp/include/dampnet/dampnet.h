@@ -311,6 +311,57 @@ DN_API int dn_mlp_forward(const dn_mlp* m, const double* x, double* y, uint32_t*
 /* [RT] Evaluate the float kernel on one sample; as dn_mlp_forward. */
 DN_API int dn_mlp_forward_f(const dn_mlp* m, const float* x, float* y, uint32_t* clamped_mask);
 
+/*---- Training envelope: a bounded-time "is the model guessing here?" flag ----*/
+
+/* The coarse joint envelope of a model's training data (dampnet.envelope_grid writes it; a
+ * generated header's P_ENVELOPE_DESC_INIT when the model was exported with its envelope).
+ * Every input's training range [lo, hi] is cut into DN_ENVELOPE_CELLS cells; for every pair
+ * of inputs (i < j, in the order (0,1), (0,2), .., (0,n-1), (1,2), ..) a bitmap says which of
+ * the DN_ENVELOPE_CELLS^2 cells of the pair's plane held a training sample or bordered one
+ * (the training cells dilated by one cell each way). A point is inside when every input is in
+ * its range and every pair of inputs falls in a marked cell: the data's 2-D shadows, so a point
+ * between two training control levels, or off the (velocity, acceleration) ellipses of the sine
+ * tests, is outside; a point inside every shadow can still be far from the data in more than two
+ * inputs (the offline k-d tree measure of dampnet.envelope catches that). Memory: the struct is
+ * fixed (DN_ENVELOPE_MAX_PAIRS bitmaps of 128 bytes); a check reads one word per pair. */
+#define DN_ENVELOPE_CELLS 32 /* cells per input across its training range */
+#define DN_ENVELOPE_MAX_PAIRS (DN_MAX_INPUTS * (DN_MAX_INPUTS - 1) / 2)
+#define DN_ENVELOPE_PAIR_WORDS (DN_ENVELOPE_CELLS * DN_ENVELOPE_CELLS / 32) /* uint32 per pair */
+
+/* Bits of a check's flags (0: inside). */
+#define DN_ENV_OUTSIDE_RANGE 1u /* an input outside its training range, or NaN */
+#define DN_ENV_OUTSIDE_JOINT 2u /* two inputs, each in range, in a cell of their plane no training
+                                   sample is near */
+
+typedef struct dn_envelope_desc {
+  int n_inputs;          /* the model's inputs, 1..DN_MAX_INPUTS */
+  const double* lo;      /* [n_inputs] training range, lower limit, feature units (the model's sat_lo) */
+  const double* hi;      /* [n_inputs] upper limit (sat_hi), > lo */
+  const uint32_t* cells; /* [n_pairs * DN_ENVELOPE_PAIR_WORDS], n_pairs = n (n - 1) / 2: pair p's
+                            cell (ci, cj) is bit (ci * DN_ENVELOPE_CELLS + cj) % 32 of word
+                            p * DN_ENVELOPE_PAIR_WORDS + (ci * DN_ENVELOPE_CELLS + cj) / 32, where
+                            ci = floor((x_i - lo_i) / (hi_i - lo_i) * DN_ENVELOPE_CELLS) clamped
+                            to the last cell (x_i = hi_i). NULL allowed for one input only. */
+} dn_envelope_desc;
+
+/* A validated envelope (ranges and bitmaps, copied). Opaque, immutable: share it freely. */
+typedef struct dn_envelope dn_envelope;
+
+/* Validate and copy a description: DN_E_NULL, DN_E_SIZE (n_inputs), DN_E_NONFINITE_PARAM
+ * (lo, hi), DN_E_PARAM (hi <= lo). create allocates; init uses caller memory. */
+DN_API int dn_envelope_create(const dn_envelope_desc* desc, dn_envelope** out);
+DN_API void dn_envelope_destroy(dn_envelope* e);
+DN_API size_t dn_envelope_size(void);
+DN_API int dn_envelope_init(const dn_envelope_desc* desc, void* mem, size_t bytes, dn_envelope** out);
+DN_API int dn_envelope_n_inputs(const dn_envelope* e);
+
+/* [RT] Where a point x [n_inputs] (the model's inputs before saturation, feature units: e.g. a
+ * loop step's dn_loop_out.features) lies: *flags = 0 inside, else DN_ENV_OUTSIDE_* bits. A
+ * bounded loop over the pairs (at most 28 word reads); any input, NaN and Inf included, gives a
+ * defined result. Returns DN_OK or DN_E_NULL. */
+DN_API int dn_envelope_check(const dn_envelope* e, const double* x, uint32_t* flags);
+DN_API int dn_envelope_check_f(const dn_envelope* e, const float* x, uint32_t* flags);
+
 /*---- Damper models ----*/
 
 /* Sign convention (the dyno's): displacement x and velocity v are the damper's

@@ -18,7 +18,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                     "parameters the feature constants and physics terms; the lag and friction states inside) "
                     "or of the quarter car (co-simulation: road in, motion out, every vehicle and controller "
                     "parameter exposed); compiled here for Linux x86-64, sources included so an importer can "
-                    "rebuild it elsewhere. --header: the C/C++ header `dampnet train` writes.")
+                    "rebuild it elsewhere. --header: the C/C++ header `dampnet train` writes. With an envelope.npz "
+                    "beside the model (`dampnet train` writes one), the header and the FMU carry the training "
+                    "envelope's bounded-time check (P_ENVELOPE_DESC_INIT; the FMU's envelope_flags output).")
     p.add_argument("model")
     p.add_argument("--fmu", metavar="OUT.fmu", help="write an FMU here (see --fmi, --interface, --what)")
     p.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version of the FMU (default 2)")
@@ -49,6 +51,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 def run(args) -> int:
     import os
 
+    from dampnet.envelope import load_envelope
     from dampnet.export import ONNX_OPSET, check_prefix, write_header, write_onnx
     from dampnet.model import ModelError
     from dampnet.modeldir import load_model
@@ -61,13 +64,16 @@ def run(args) -> int:
         return 2
     try:
         model = load_model(args.model)
+        envelope, envelope_note = load_envelope(args.model, model)
+        carries = ("the training envelope's grid (ranges and pairs of inputs)" if envelope is not None
+                   else f"training ranges only ({envelope_note})")
         if args.header:
             check_prefix(args.prefix)
         for out in (args.fmu, args.onnx, args.header):
             if out and os.path.exists(out) and not args.force:
                 raise FileExistsError(f"{out}: exists; refusing to overwrite (use --force)")
         if args.fmu:
-            _export_fmu(model, args)
+            _export_fmu(model, args, envelope, carries)
         if args.onnx:
             try:
                 import onnx  # noqa: F401
@@ -78,8 +84,9 @@ def run(args) -> int:
                   f"({', '.join(model.units)}), output force [N]"
                   + (f"; the model's {len(model.terms)} physics term(s) are not in the graph" if model.terms else ""))
         if args.header:
-            write_header(model, args.header, args.prefix, overwrite=args.force)
-            print(f"{args.header}: C/C++ header, prefix {args.prefix}")
+            write_header(model, args.header, args.prefix, overwrite=args.force, envelope=envelope)
+            print(f"{args.header}: C/C++ header, prefix {args.prefix}; "
+                  + ("with the training envelope (P_ENVELOPE_DESC_INIT)" if envelope is not None else carries))
     except (ModelError, ValueError, OSError) as e:
         print(f"dampnet: error: {e}", file=sys.stderr)
         return 2
@@ -111,7 +118,7 @@ def _fmu_start_values(args) -> tuple[dict, dict]:
     return vehicle, controller
 
 
-def _export_fmu(model, args) -> None:
+def _export_fmu(model, args, envelope, carries: str) -> None:
     from dampnet.fmu import build_fmu
     from dampnet.fmu.damper import MODEL_IDENTIFIER as DAMPER
     from dampnet.fmu.description import PLATFORM
@@ -120,12 +127,13 @@ def _export_fmu(model, args) -> None:
     vehicle, controller = _fmu_start_values(args)
     interface = args.interface or ("both" if args.what == "damper" else "cs")
     build_fmu(model, args.fmu, fmi=args.fmi, interface=interface, what=args.what, overwrite=args.force,
-              vehicle=vehicle or None, controller=controller or None)
+              vehicle=vehicle or None, controller=controller or None, envelope=envelope)
     kinds = {"cs": "co-simulation", "me": "model exchange", "both": "co-simulation and model exchange"}[interface]
     ident = DAMPER if args.what == "damper" else QUARTER_CAR
     io = ("inputs x [m], v [m/s], a [m/s2], u, temperature [degC]; output force [N]" if args.what == "damper"
           else "inputs z_r [m], v_r [m/s], u; outputs the quarter car's motion and forces")
-    print(f"{args.fmu}: FMI {args.fmi}.0 FMU {ident} ({kinds}; {PLATFORM[args.fmi]} binary and sources), {io}")
+    print(f"{args.fmu}: FMI {args.fmi}.0 FMU {ident} ({kinds}; {PLATFORM[args.fmi]} binary and sources), {io}; "
+          f"envelope_flags from {carries}")
 
 
 def _export_target(args) -> int:

@@ -9,7 +9,8 @@ fmi3) into binaries/<platform>/, with the sources in sources/ (and sources/build
 for FMI 3) so an importer elsewhere can rebuild it. The binary depends on libc and libm only.
 
 - what="damper" (damper.py): inputs x [m], v [m/s], a [m/s2], u, temperature [degC]; outputs
-  force [N], status, clamped_mask; parameters the feature constants and physics terms; the
+  force [N], status, clamped_mask, envelope_flags (with `envelope`, the training envelope's
+  bounded-time check, dampnet.envelope_grid; without, the training ranges only); parameters the feature constants and physics terms; the
   derived features' states advance exactly as in dampnet's loop (cpp/fmu/fmu_damper.hpp).
 - what="quarter-car" (quarter_car.py): co-simulation only; road in, the quarter car's motion out.
 """
@@ -29,26 +30,28 @@ __all__ = ["FMU_FEATURES", "MODEL_IDENTIFIER", "WHATS", "FmuError", "build_dampe
 
 def build_fmu(model: MlpModel, out: str | os.PathLike, fmi: int = 2, interface: str | None = None,
               what: str = "damper", overwrite: bool = False, vehicle: dict | None = None,
-              controller: dict | None = None) -> Path:
+              controller: dict | None = None, envelope=None) -> Path:
     """Build OUT.fmu (see the module docstring); staged in a temporary directory and moved
     into place, so a failure leaves nothing half-written. interface: "cs", "me" or "both"
     (default: both for the damper, cs for the quarter car). vehicle / controller: the quarter
-    car's parameter start values (dampnet.sim.vehicle field names; defaults Table 5, passive)."""
+    car's parameter start values (dampnet.sim.vehicle field names; defaults Table 5, passive).
+    envelope: the model's dampnet.envelope.Envelope, for the envelope_flags output's grid."""
     from dampnet.fmu.build import package
 
     if what == "damper":
         if vehicle or controller:
             raise FmuError("vehicle and controller parameters belong to the quarter-car FMU (what='quarter-car')")
-        return package(model, damper_description(model), out, fmi, interface, False, overwrite)
+        return package(model, damper_description(model, envelope is not None), out, fmi, interface, False,
+                       overwrite, envelope)
     if what == "quarter-car":
         from dampnet.fmu.quarter_car import quarter_car_description
 
-        return package(model, quarter_car_description(model, vehicle, controller), out, fmi, interface, True,
-                       overwrite)
+        return package(model, quarter_car_description(model, vehicle, controller, envelope is not None), out, fmi,
+                       interface, True, overwrite, envelope)
     raise FmuError(f"what={what!r}: expected one of {', '.join(WHATS)}")
 
 
 def build_damper_fmu(model: MlpModel, out: str | os.PathLike, overwrite: bool = False, fmi: int = 2,
-                     interface: str | None = None) -> Path:
+                     interface: str | None = None, envelope=None) -> Path:
     """The damper FMU (build_fmu with what='damper')."""
-    return build_fmu(model, out, fmi=fmi, interface=interface, what="damper", overwrite=overwrite)
+    return build_fmu(model, out, fmi=fmi, interface=interface, what="damper", overwrite=overwrite, envelope=envelope)

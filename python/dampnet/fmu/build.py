@@ -45,12 +45,13 @@ def config_header(d: Description, quarter_car: bool) -> str:
             + "".join(f"{line}\n" for line in d.config_lines))  # e.g. the quarter car's start values
 
 
-def stage_sources(model: MlpModel, d: Description, fmi: int, quarter_car: bool, sources: Path) -> None:
+def stage_sources(model: MlpModel, d: Description, fmi: int, quarter_car: bool, sources: Path,
+                  envelope=None) -> None:
     """Everything an importer needs to rebuild the binary: one source file (fmu2.cpp or
     fmu3.cpp) with sources/ on the include path."""
     src = fmu_sources()
     sources.mkdir(parents=True)
-    (sources / f"{HEADER_PREFIX}.h").write_text(header_text(model, HEADER_PREFIX))
+    (sources / f"{HEADER_PREFIX}.h").write_text(header_text(model, HEADER_PREFIX, envelope))
     (sources / "fmu_config.h").write_text(config_header(d, quarter_car))
     shutil.copy(src / SOURCE[fmi], sources / SOURCE[fmi])
     for h in src.glob("*.hpp"):
@@ -75,7 +76,7 @@ def compile_binary(sources: Path, fmi: int, out_so: Path) -> None:
 
 
 def package(model: MlpModel, d: Description, out: str | os.PathLike, fmi: int, interface: str | None,
-            quarter_car: bool, overwrite: bool) -> Path:
+            quarter_car: bool, overwrite: bool, envelope=None) -> Path:
     out = Path(out)
     if fmi not in SOURCE:
         raise FmuError(f"FMI version {fmi!r}: dampnet writes FMI 2 and FMI 3 FMUs (--fmi 2|3)")
@@ -84,7 +85,7 @@ def package(model: MlpModel, d: Description, out: str | os.PathLike, fmi: int, i
     xml = model_description(d, fmi, interface)  # checks the interface before compiling
     with tempfile.TemporaryDirectory(prefix=".dampnet-fmu-", dir=out.parent if str(out.parent) else ".") as tmp:
         t = Path(tmp) / "fmu"
-        stage_sources(model, d, fmi, quarter_car, t / "sources")
+        stage_sources(model, d, fmi, quarter_car, t / "sources", envelope)
         (t / "modelDescription.xml").write_text(xml)
         binaries = t / "binaries" / PLATFORM[fmi]
         binaries.mkdir(parents=True)

@@ -1,7 +1,7 @@
 """The damper FMU's variables (cpp/fmu/fmu_damper.hpp: the same value references).
 
 Inputs x [m], v [m/s], a [m/s2], u (the model's control unit), temperature [degC]; outputs
-force [N], status, clamped_mask; parameters: the model's feature constants (lags, pre-sliding
+force [N], status, clamped_mask, envelope_flags; parameters: the model's feature constants (lags, pre-sliding
 travel) and its physics terms' parameters, settable before initialisation; the derived
 features' states (u_lag, v_lag, z_fric) as local variables, continuous states in model exchange.
 """
@@ -19,7 +19,7 @@ MODEL_IDENTIFIER = "dampnet_damper"
 #: the features the FMU feeds: every feature the runtime knows (from its inputs, or from the
 #: states it keeps for the derived ones)
 FMU_FEATURES = tuple(_core.FEATURE_NAMES)
-VR_FPARAM, VR_TERM, VR_STATE, VR_DERIV, VR_TIME = 10, 100, 40, 50, 9
+VR_FPARAM, VR_TERM, VR_STATE, VR_DERIV, VR_TIME, VR_ENVELOPE = 10, 100, 40, 50, 9, 8
 #: the derived features' states, by the dn_damper_input field a feature reads (the runtime's
 #: registry, _core.FEATURE_INPUTS): (field, slot in fmu_damper.hpp, description)
 STATES = (("u_lag", 0, "control after the model's first-order lag"),
@@ -55,8 +55,18 @@ def data_label(model: MlpModel) -> str:
     return str(model.meta.get("data_hash") or model.meta.get("dataset") or "unknown data")
 
 
-def damper_variables(model: MlpModel) -> list[Variable]:
-    """The damper's variables, in value-reference order within each group."""
+def envelope_doc(with_grid: bool) -> str:
+    """What the envelope_flags output means, with or without the training envelope's grid."""
+    return ("the network's inputs against the model's training envelope: 0 inside; bit 0 (1) an input outside "
+            "its training range or not finite; bit 1 (2) two inputs, each in range, in a cell of their plane "
+            "(32 x 32 over the ranges) no training sample is near"
+            + ("" if with_grid else " (not computed: this FMU was exported without the model's envelope, "
+               "so it carries the training ranges only)"))
+
+
+def damper_variables(model: MlpModel, with_grid: bool = False) -> list[Variable]:
+    """The damper's variables, in value-reference order within each group (with_grid: the FMU
+    carries the training envelope's grid)."""
     u_unit = control_unit(model)
     v = [Variable("x", 0, "Real", "input", "continuous",
                   "damper displacement, extension positive, from the mid position", "m", 0.0),
@@ -71,7 +81,9 @@ def damper_variables(model: MlpModel) -> list[Variable]:
                   "dampnet status of the evaluation: 0 ok, 1 an input clamped to the training range, "
                   "2 a NaN input replaced, negative an error", initial="calculated"),
          Variable("clamped_mask", 7, "Integer", "output", "discrete",
-                  "bit i set: network input i was clamped to its training range", initial="calculated")]
+                  "bit i set: network input i was clamped to its training range", initial="calculated"),
+         Variable("envelope_flags", VR_ENVELOPE, "Integer", "output", "discrete", envelope_doc(with_grid),
+                  initial="calculated")]
     for k, (name, value) in enumerate(sorted(model.feature_params.items())):  # the header's order
         doc = param_doc(name)
         v.append(Variable(name, VR_FPARAM + k, "Real", "parameter", "fixed", doc.split(" [")[0],
@@ -96,10 +108,10 @@ def damper_variables(model: MlpModel) -> list[Variable]:
     return v
 
 
-def damper_description(model: MlpModel, step_s: float = 1e-3) -> Description:
+def damper_description(model: MlpModel, with_grid: bool = False, step_s: float = 1e-3) -> Description:
     check_model(model)
     text = (f"dampnet damper model {model.model_id()}: a {model.n_inputs}-input MLP on {', '.join(model.features)}"
             + (f" plus {len(model.terms)} physics term(s)" if model.terms else "")
             + f"; trained on {data_label(model)}")
     return Description(MODEL_IDENTIFIER, model.model_id(), text, f"dampnet {_package_version()}",
-                       damper_variables(model), step_s=step_s, time_vr=VR_TIME)
+                       damper_variables(model, with_grid), step_s=step_s, time_vr=VR_TIME)

@@ -11,7 +11,7 @@ with an error naming dt.
   DN_LOOP_STATE_LIST order; z_s, v_s, z_us, v_us are outputs, the loop's internal states
   locals), the step quantities of dampnet::forward at the current state (230 + j,
   DN_LOOP_OUT_LIST order: force, control, x, v, a, acc_s, acc_us), suspension travel (240),
-  dynamic tyre force (241), status and clamped_mask (250, 251);
+  dynamic tyre force (241), status, clamped_mask and envelope_flags (250-252);
 - parameters: the vehicle's fields (1000 + i, DN_VEHICLE_FIELDS order) and the controller's
   (1100 + i, DN_CONTROLLER_FIELDS order), enum fields as Integer parameters, and the damper's
   feature constants and term parameters (10 + k, 100 + 10 i + j, as the damper FMU); all fixed,
@@ -37,13 +37,13 @@ from pathlib import Path
 
 from dampnet import _core, paths
 from dampnet.export import _package_version
-from dampnet.fmu.damper import FmuError, check_model, control_unit, damper_variables, data_label
+from dampnet.fmu.damper import FmuError, check_model, control_unit, damper_variables, data_label, envelope_doc
 from dampnet.fmu.description import Description, Variable, unit_in
 from dampnet.model import MlpModel
 
 MODEL_IDENTIFIER = "dampnet_quarter_car"
 VR_Z_R, VR_V_R, VR_U, VR_TIME = 0, 1, 2, 9
-VR_STATE, VR_OUT, VR_TRAVEL, VR_TYRE, VR_STATUS, VR_MASK = 200, 230, 240, 241, 250, 251
+VR_STATE, VR_OUT, VR_TRAVEL, VR_TYRE, VR_STATUS, VR_MASK, VR_ENVELOPE = 200, 230, 240, 241, 250, 251, 252
 VR_VEHICLE, VR_CONTROLLER = 1000, 1100
 #: the loop-state columns that are outputs (the others are the loop's internal states: locals)
 OUTPUT_STATES = ("z_s", "v_s", "z_us", "v_us")
@@ -144,7 +144,7 @@ def _doc_unit(doc: str, u_unit: str | None) -> tuple[str, str | None]:
     return text, unit
 
 
-def quarter_car_variables(model: MlpModel, vehicle: list, controller: list) -> list[Variable]:
+def quarter_car_variables(model: MlpModel, vehicle: list, controller: list, with_grid: bool = False) -> list[Variable]:
     """The quarter car's variables (vehicle, controller: the start values in field order)."""
     u_unit = control_unit(model)
     v = [Variable("z_r", VR_Z_R, "Real", "input", "continuous",
@@ -184,7 +184,9 @@ def quarter_car_variables(model: MlpModel, vehicle: list, controller: list) -> l
                    "< 0 error", initial="calculated"),
           Variable("clamped_mask", VR_MASK, "Integer", "output", "discrete",
                    "bit i set: network input i was clamped to its training range at the communication point",
-                   initial="calculated")]
+                   initial="calculated"),
+          Variable("envelope_flags", VR_ENVELOPE, "Integer", "output", "discrete",
+                   "at the communication point, " + envelope_doc(with_grid), initial="calculated")]
     v += _parameters(_core.VEHICLE_FIELDS, vehicle, VR_VEHICLE, u_unit, "vehicle")
     v += _parameters(_core.CONTROLLER_FIELDS, controller, VR_CONTROLLER, u_unit, "controller")
     v += [p for p in damper_variables(model) if p.causality == "parameter"]
@@ -200,7 +202,7 @@ def _c_array(values: list) -> str:
 
 
 def quarter_car_description(model: MlpModel, vehicle: dict | None = None,
-                            controller: dict | None = None) -> Description:
+                            controller: dict | None = None, with_grid: bool = False) -> Description:
     """The quarter car's Description; vehicle / controller: start values by field name
     (dampnet._core.VEHICLE_FIELDS / CONTROLLER_FIELDS; enum fields by name or value; defaults
     the runtime's: thesis Table 5, passive). Refused with FmuError naming the field."""
@@ -222,6 +224,6 @@ def quarter_car_description(model: MlpModel, vehicle: dict | None = None,
             + f"; trained on {data_label(model)}; controller {kind}")
     return Description(
         MODEL_IDENTIFIER, guid, text, f"dampnet {_package_version()}",
-        quarter_car_variables(model, veh, ctrl), step_s=dt, time_vr=VR_TIME, co_simulation_only=True, fixed_step=True,
+        quarter_car_variables(model, veh, ctrl, with_grid), step_s=dt, time_vr=VR_TIME, co_simulation_only=True, fixed_step=True,
         config_lines=(f"#define DNFMU_VEHICLE_START {_c_array(veh)}",
                       f"#define DNFMU_CONTROLLER_START {_c_array(ctrl)}"))

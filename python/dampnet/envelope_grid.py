@@ -1,0 +1,105 @@
+"""The runtime's coarse training envelope: what an FMU, a HIL loop or a controller can check each
+step in bounded time (dampnet.h, "Training envelope"; the C++ check is dampnet::Envelope).
+
+From a model's envelope (dampnet.envelope: its stored training samples), for every pair of
+inputs (i < j) a DN_ENVELOPE_CELLS x DN_ENVELOPE_CELLS bitmap over the two inputs' training
+ranges marks the cells a training sample fell in and, one cell each way, the cells around them
+(DILATE_CELLS): a run that follows the data, or passes between two samples of one sine test, stays
+in marked cells; a run between two training control levels (2 scaled units apart on the quick
+plan), or off the sine tests' (velocity, acceleration) ellipses by more than a cell or two, does
+not. A cell is 2/32 = 0.0625 scaled units wide (1 scaled unit = half an input's training range),
+so the flag is coarser than the k-d tree measure and sees only 2-D shadows: `coverage` reports
+both, and how often they agree, for every run.
+
+  cells = grid_cells(env)               # uint32 [n_pairs, DN_ENVELOPE_PAIR_WORDS]
+  rt = runtime_envelope(env)            # dampnet._core.Envelope: rt.check(X) -> flags [n]
+  flags = runtime_flags(env, X)         # the same, in one call (X [n, n_inputs], feature units)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dampnet.envelope import Envelope
+
+#: cells a training sample marks around its own in each direction (1: a 3 x 3 block)
+DILATE_CELLS = 1
+
+
+def _constants() -> tuple[int, int]:
+    from dampnet import _core
+
+    return int(_core.ENVELOPE_CELLS), int(_core.ENVELOPE_PAIR_WORDS)
+
+
+def grid_size() -> int:
+    """Cells per input across its training range (DN_ENVELOPE_CELLS)."""
+    return _constants()[0]
+
+
+def pairs(n_inputs: int) -> list[tuple[int, int]]:
+    """The input pairs (i < j) in the bitmaps' order: (0,1), (0,2), .., (1,2), .."""
+    return [(i, j) for i in range(n_inputs) for j in range(i + 1, n_inputs)]
+
+
+def cell_index(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, cells: int) -> np.ndarray:
+    """The cell [n, n_inputs] of each input of x [n, n_inputs] (feature units), as the C++ check
+    computes it: floor((x - lo) * (cells / (hi - lo))), the last cell for x = hi; -1 outside
+    [lo, hi] or NaN."""
+    x = np.asarray(x, dtype=np.float64)
+    scale = float(cells) / (hi - lo)
+    inside = (x >= lo) & (x <= hi)
+    c = np.zeros(x.shape, dtype=np.int64)
+    c[inside] = np.floor((np.where(inside, x, lo) - lo) * scale)[inside]
+    c = np.minimum(c, cells - 1)
+    c[~inside] = -1
+    return c
+
+
+def grid_cells(env: Envelope, dilate: int = DILATE_CELLS) -> np.ndarray:
+    """The per-pair occupancy bitmaps [n_pairs, DN_ENVELOPE_PAIR_WORDS] (uint32) of env's stored
+    training samples, each sample's cell and `dilate` cells around it marked."""
+    cells, words = _constants()
+    n = len(env.features)
+    # back to feature units (clipped: a training sample is in its range, whatever the rounding)
+    x = np.clip((env.points - env.in_ymin) / env.in_gain + env.in_offset, env.lo, env.hi)
+    ci = cell_index(x, env.lo, env.hi, cells)
+    ci = ci[np.all(ci >= 0, axis=1)]
+    out = np.zeros((len(pairs(n)), words), dtype=np.uint32)
+    for p, (i, j) in enumerate(pairs(n)):
+        occupied = np.zeros((cells, cells), dtype=bool)
+        occupied[ci[:, i], ci[:, j]] = True
+        grown = occupied.copy()
+        for di in range(-dilate, dilate + 1):
+            for dj in range(-dilate, dilate + 1):
+                grown |= _shift(occupied, di, dj)
+        out[p] = _pack(grown.ravel())  # bit index ci * cells + cj
+    return out
+
+
+def _shift(a: np.ndarray, di: int, dj: int) -> np.ndarray:
+    """a moved by (di, dj) cells, with zeros shifted in (no wrap-around)."""
+    out = np.zeros_like(a)
+    n0, n1 = a.shape
+    out[max(di, 0):n0 + min(di, 0), max(dj, 0):n1 + min(dj, 0)] = a[max(-di, 0):n0 + min(-di, 0),
+                                                                   max(-dj, 0):n1 + min(-dj, 0)]
+    return out
+
+
+def _pack(bits: np.ndarray) -> np.ndarray:
+    """Bits [k * 32] -> uint32 [k], bit b in word b // 32 at position b % 32."""
+    b = bits.reshape(-1, 32).astype(np.uint64)
+    return (b << np.arange(32, dtype=np.uint64)).sum(axis=1).astype(np.uint32)
+
+
+def runtime_envelope(env: Envelope):
+    """The C++ check of env's grid (dampnet._core.Envelope)."""
+    from dampnet import _core
+
+    return _core.Envelope(env.lo, env.hi, grid_cells(env))
+
+
+def runtime_flags(env: Envelope, X: np.ndarray) -> np.ndarray:
+    """What the runtime's check says of inputs X [n, n_inputs] (feature units): flags [n] (uint32;
+    0 inside, bit 0 outside a range or NaN, bit 1 outside the grid)."""
+    return runtime_envelope(env).check(np.asarray(X, dtype=np.float64))
