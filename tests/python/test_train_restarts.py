@@ -21,7 +21,8 @@ from dampnet.model import MlpModel
 from dampnet.predict import predict_force
 from dampnet.rig import generate
 from dampnet.training import fit
-from dampnet.training.pipeline import train_dataset
+from dampnet.training.metrics import nrmse
+from dampnet.training.pipeline import prepare_training, train_dataset
 from dampnet.training.restarts import restart_seeds
 
 # The 5-frequency x 8-voltage plan of issue 18 (tests/python/test_diagnose_hidden.py's), with
@@ -173,3 +174,41 @@ def test_auto_trains_once_when_there_is_nothing_to_interpolate(quick_dir, tmp_pa
     out = capsys.readouterr().out
     assert rc == 0 and "restarts: 1 (the training tests have 1 control level (2.25)" in out
     assert "restarts" not in MlpModel.load(tmp_path / "m").meta
+
+
+def test_average_keeps_the_best_restarts_as_one_network(quick_dir, tmp_path, capsys):
+    """--average 2: the two lowest-scored restarts averaged into one network twice as wide, whose
+    output is their mean (each restart refitted alone: the plain fit of its seed), with the
+    training NRMSE measured for the averaged network and the summary saying so."""
+    out = tmp_path / "m"
+    rc = main(["train", str(quick_dir), "--out", str(out), "--seed", "7", "--restarts", "3", "--average", "2",
+               "--hidden", "12", "--decimate", "50", "--max-epochs", "40"])
+    text = capsys.readouterr().out
+    assert rc == 0
+    model = MlpModel.load(out)
+    r = model.meta["restarts"]
+    ranked = sorted(range(3), key=lambda k: (r["runs"][k]["score"], k))
+    assert r["averaged"] == ranked[:2] and r["averaged_seeds"] == [r["runs"][k]["seed"] for k in ranked[:2]]
+    assert model.hidden == (24,) and model.meta["ensemble"]["members"] == 2
+    assert f"averaged the best 2 (restarts {ranked[0]}, {ranked[1]}) into one network" in text
+    ds = generate("quick", seed=0)
+    members = [train_dataset(ds, seed=r["runs"][k]["seed"], hidden=(12,), threads=1, **TINY)[0] for k in ranked[:2]]
+    test = ds.tests[4]
+    mean = np.mean([predict_force(m, test) for m in members], axis=0)
+    np.testing.assert_allclose(predict_force(model, test), mean, rtol=1e-12, atol=1e-9)
+    # the training NRMSE in model.json is the averaged network's own, on the training rows
+    prep = prepare_training(ds, hidden=(12,), **TINY)
+    assert model.meta["metrics"]["all"] == pytest.approx(nrmse(predict_force(model, prep.X), prep.force), abs=1e-6)
+    assert model.meta["metrics"]["all"] != members[0].meta["metrics"]["all"]
+
+
+@pytest.mark.parametrize("kw, message", [
+    ({"restarts": 2, "average": 3}, "only 2 restart"),
+    ({"restarts": 3, "average": 3, "hidden": (30,)}, "a layer of 90; the runtime holds at most 64"),
+    ({"restarts": 2, "average": 2, "hidden": (8, 8)}, "only one-hidden-layer networks"),
+    ({"restarts": 2, "average": 2, "restart_score": "lolo"}, "use restart_score 'interpolation'"),
+    ({"restarts": 2, "average": 0}, "average: expected a whole number >= 1"),
+])
+def test_bad_average_is_a_clear_error(quick, kw, message):
+    with pytest.raises(ValueError, match=message):
+        train_dataset(quick, **{**TINY, **kw})

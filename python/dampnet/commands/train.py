@@ -43,6 +43,11 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         "adjacent levels from the smooth curve through its own predictions at them) or lolo "
                         "(leave-one-level-out refits on interior levels; costs about 2x more and selects worse, "
                         "bench/RESULTS.md)")
+    p.add_argument("--average", type=int, default=1, metavar="K",
+                   help="keep the K best restarts and average them into one network K times as wide (their mean "
+                        "output, exactly; the width must fit the runtime's 64 neurons, e.g. 2 x 30 hidden): lower "
+                        "held-out error than one seed or one wide network (bench/RESULTS.md 'Inside the "
+                        "envelope'); default 1, the best restart alone")
     p.add_argument("--workers", default=None, metavar="N",
                    help="processes the restarts run in, one torch thread each (default: the local cores)")
     p.add_argument("--prefix", default="dn_model", help="C identifier prefix in model.h (default dn_model)")
@@ -78,7 +83,8 @@ def run(args) -> int:
 
         t0 = time.perf_counter()
         model, info, split = train_dataset(ds, algorithm=args.algorithm, progress=bar, restarts=restarts,
-                                           workers=workers, restart_score=args.restart_score, **kw)
+                                           workers=workers, restart_score=args.restart_score,
+                                           average=args.average, **kw)
         bar.close()
         t_train = time.perf_counter() - t0
         metrics = model_metrics(model, info, split)

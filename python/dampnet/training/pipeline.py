@@ -125,7 +125,7 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
                   threads: int | None = None,
                   acceleration_window: float | None = None,
                   init: MlpModel | None = None, restarts: int = 1, workers: int | None = None,
-                  restart_score: str = "interpolation") -> tuple[MlpModel, Any, Split]:
+                  restart_score: str = "interpolation", average: int = 1) -> tuple[MlpModel, Any, Split]:
     """Train a (hybrid) MLP damper model on a dataset; see the module docstring for the steps.
 
     Returns (model, info, split): `info` is dampnet.train.TrainInfo (its subset indices
@@ -139,11 +139,13 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
     cores) with one torch thread each; model.meta["restarts"] records every restart. See
     dampnet.training.restarts for the scores and why the default is what it is; `progress`
     then receives one record per finished fit instead of one per epoch. restarts=1 (the
-    default) is exactly the single training it always was.
+    default) is exactly the single training it always was. `average` > 1 keeps the best `average`
+    restarts instead and averages them into one network (dampnet.training.restarts, step 4).
     """
-    from dampnet.training.restarts import check_restarts, train_restarts
+    from dampnet.training.restarts import check_average, check_restarts, train_restarts
 
     restarts = check_restarts(restarts, workers, restart_score)
+    check_average(average, restarts, hidden, restart_score)
     if restarts > 1 and init is not None:
         raise ValueError("init: a warm start is one training; use restarts=1 with init")
     prep = prepare_training(ds, features, algorithm, hidden=hidden, activation=activation,
@@ -157,7 +159,7 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
         # data errors (a feature or force beyond MAX_TRAINING_MAGNITUDE) before any worker starts
         _check_magnitudes(prep.X, prep.force if not prep.terms else np.zeros(0), prep.features)
         model, info = train_restarts(prep, fit_prepared, restarts, seed, workers=workers, score=restart_score,
-                                     progress=progress)
+                                     progress=progress, average=average)
     return model, info, prep.split
 
 

@@ -18,6 +18,12 @@ What a restart run does (`train_restarts`, `train_dataset(..., restarts=N)`):
  3. The restart with the lowest score is kept (the earliest on a tie); model.meta["restarts"]
     records every restart's seed, score and per-gap or per-level scores, and which was kept.
     The kept model is bit for bit `train_dataset(..., seed=its seed, restarts=1, threads=1)`.
+ 4. With `average` = K > 1 (interpolation score only), the K lowest-scored restarts are kept and
+    averaged into one network of K times the width (dampnet.ensemble.average_networks: their
+    mean output, exactly); meta["restarts"]["averaged"] lists them. Why: seeds scatter, and their
+    mean less: on the demo's data (BR, 30 hidden) pairs of seeds are 2.17x the noise floor on the
+    hold-out against 2.41x for one seed, and a single 60-hidden network 2.77x (bench/RESULTS.md
+    "Inside the envelope"). The width must fit the runtime's DN_MAX_HIDDEN (64) neurons.
 
 The scores (`restart_score`):
   "interpolation" (default): each restart is the ordinary full fit, scored by how far it strays,
@@ -74,6 +80,31 @@ SCORE_ROWS = 4000
 #: quick plan at 4272 rows x 151 weights, 6 restarts, 3.9 s in one process and 4.5 s in two; the
 #: demo's quick plan at 16359 rows, 15.5 s and 11.4 s)
 SMALL_RESTARTS = 1_000_000
+
+
+def check_average(average: Any, restarts: int, hidden, score: str = "interpolation") -> int:
+    """`average` (restarts averaged into one network) as an int in 1..restarts whose averaged
+    width fits the runtime; ValueError naming the field otherwise."""
+    from dampnet import _core
+
+    if isinstance(average, bool) or not isinstance(average, (int, np.integer)) or average < 1:
+        raise ValueError(f"average: expected a whole number >= 1 (1: keep the best restart alone), got {average!r}")
+    if average == 1:
+        return 1
+    if average > restarts:
+        raise ValueError(f"average: {average} restarts averaged, but only {restarts} restart(s) trained: "
+                         f"train at least {average} (restarts)")
+    if score != "interpolation":
+        raise ValueError("average: averaging keeps the best-scored full fits, which the 'lolo' score does not "
+                         "train; use restart_score 'interpolation'")
+    hidden = tuple(int(h) for h in hidden)
+    if len(hidden) != 1:
+        raise ValueError(f"average: only one-hidden-layer networks add up to one network; hidden is {hidden}")
+    cap = int(_core.MAX_HIDDEN)
+    if average * hidden[0] > cap:
+        raise ValueError(f"average: {average} networks of {hidden[0]} hidden neurons make a layer of "
+                         f"{average * hidden[0]}; the runtime holds at most {cap} (use fewer or narrower networks)")
+    return int(average)
 
 
 def check_restarts(restarts: Any, workers: Any = None, score: str = "interpolation") -> int:
@@ -291,8 +322,9 @@ def _run(prep, fit, jobs: list[tuple], workers: int, done: Callable[[int, dict],
 
 def train_restarts(prep, fit_prepared: Callable, restarts: int, seed: int = 0, *, workers: int | None = None,
                    score: str = "interpolation",
-                   progress: Callable[[dict], Any] | None = None):
-    """(model, info) of the best of `restarts` fits of the prepared samples (module docstring).
+                   progress: Callable[[dict], Any] | None = None, average: int = 1):
+    """(model, info) of the best of `restarts` fits of the prepared samples (module docstring;
+    with `average` > 1, the mean of the best `average` as one network, step 4).
 
     `fit_prepared(prep, seed, rows=None, threads=1) -> (model, info)` is one fit
     (dampnet.training.pipeline.fit_prepared; the pipeline checks the data's magnitudes first).
@@ -302,6 +334,7 @@ def train_restarts(prep, fit_prepared: Callable, restarts: int, seed: int = 0, *
     the score (interpolation: two; lolo: three, one of them interior).
     """
     restarts = check_restarts(restarts, workers, score)
+    average = check_average(average, restarts, prep.fit_kwargs["hidden"], score)
     levels = training_levels(prep)
     seeds = restart_seeds(seed, restarts)
     t0 = time.perf_counter()
@@ -343,9 +376,12 @@ def train_restarts(prep, fit_prepared: Callable, restarts: int, seed: int = 0, *
                          "gaps": {g: round(v, 7) for g, v in res["scores"].items()},
                          "val_nrmse": round(res["info"].metrics.get("val", float("nan")), 7),
                          "epochs": res["info"].epochs, "time_s": round(res["time_s"], 3)})
-        best = min(range(restarts), key=lambda k: (runs[k]["score"], k))
+        ranked = sorted(range(restarts), key=lambda k: (runs[k]["score"], k))
+        best = ranked[0]
         model, info = results[best]["model"], results[best]["info"]
         info.restart_models = [res["model"] for res in results]
+        if average > 1:
+            model = _averaged(prep, [results[k]["model"] for k in ranked[:average]], info)
     else:
         per = len(withheld)
         for k, s in enumerate(seeds):
@@ -364,6 +400,8 @@ def train_restarts(prep, fit_prepared: Callable, restarts: int, seed: int = 0, *
     scores = [r["score"] for r in runs]
     model.meta["restarts"] = {
         "n": restarts, "score": score, "seed": int(seed), "kept": best, "kept_seed": seeds[best],
+        **({"averaged": ranked[:average], "averaged_seeds": [seeds[k] for k in ranked[:average]]}
+           if average > 1 else {}),
         "levels": levels, **({"withheld_levels": withheld} if score == "lolo" else {}),
         "score_min": min(scores), "score_max": max(scores),
         "workers": n_workers, "time_s": round(time.perf_counter() - t0, 3), "runs": runs,
@@ -371,17 +409,41 @@ def train_restarts(prep, fit_prepared: Callable, restarts: int, seed: int = 0, *
     return model, info
 
 
+def _averaged(prep, models: list, info):
+    """The models averaged into one network (dampnet.ensemble), with info.metrics (NRMSE on the
+    train / val / test rows of the best restart's split) re-measured for it."""
+    from dampnet.ensemble import average_networks
+    from dampnet.training.metrics import nrmse
+    from dampnet.predict import predict_force
+
+    model = average_networks(models)
+    pred = predict_force(model, prep.X, prep.xd)
+    y = prep.force
+    for name, idx in (("train", info.train_idx), ("val", info.val_idx), ("test", info.test_idx)):
+        if len(idx):
+            info.metrics[name] = nrmse(pred[idx], y[idx])
+    info.metrics["all"] = nrmse(pred, y)
+    model.meta["metrics"] = {k: round(v, 6) for k, v in info.metrics.items()}
+    return model
+
+
 def summary_line(meta: dict[str, Any]) -> str:
     """Lines for the CLI: how many restarts, their score range, which was kept, and (when the
     record has it, dampnet.training.pipeline.restarts_holdout) the hold-out NRMSE's spread."""
     r = meta
     what = "interpolation between levels" if r["score"] == "interpolation" else "leave-one-level-out NRMSE"
-    line = (f"restarts: {r['n']} ({what}: {r['score_min']:.4f} to {r['score_max']:.4f}), kept restart "
-            f"{r['kept']} (seed {r['kept_seed']}, score {r['runs'][r['kept']]['score']:.4f}), "
+    if r.get("averaged"):
+        kept = (f"averaged the best {len(r['averaged'])} (restarts {', '.join(str(k) for k in r['averaged'])}) "
+                "into one network")
+    else:
+        kept = f"kept restart {r['kept']} (seed {r['kept_seed']}, score {r['runs'][r['kept']]['score']:.4f})"
+    line = (f"restarts: {r['n']} ({what}: {r['score_min']:.4f} to {r['score_max']:.4f}), {kept}, "
             f"{r['workers']} worker{'s' if r['workers'] != 1 else ''}, {r['time_s']:.1f} s")
     if "holdout_nrmse_min" in r:
+        kept = (f"averaged ones {', '.join(format(r['runs'][k]['holdout_nrmse'], '.4f') for k in r['averaged'])}"
+                if r.get("averaged") else f"kept {r['runs'][r['kept']]['holdout_nrmse']:.4f}")
         line += (f"\n  hold-out NRMSE over the restarts {r['holdout_nrmse_min']:.4f} to {r['holdout_nrmse_max']:.4f}, "
-                 f"kept {r['runs'][r['kept']]['holdout_nrmse']:.4f} (shown after the fact; the choice never saw it)")
+                 f"{kept} (shown after the fact; the choice never saw it)")
     if len(r.get("levels", [])) == 2:
         line += (f"\n  note: only two training control levels ({r['levels'][0]:g}, {r['levels'][1]:g}): between "
                  "them the data do not determine the model, and the restarts keep the one closest to a straight "
