@@ -56,3 +56,24 @@ def one_torch_thread():
     torch.set_num_threads(1)
     yield
     torch.set_num_threads(old)
+
+
+@pytest.fixture(scope="session")
+def quick_envelope_model(tmp_path_factory):
+    """A quick-plan model (LM, 30 epochs, seed 0) with its training envelope, shared by the
+    coverage tests: {root, model, split, env}; root/model is its directory with envelope.npz,
+    root/model_old the same model without (as written before envelopes), root/data the data."""
+    from dampnet.data import write_dataset
+    from dampnet.envelope import envelope_of
+    from dampnet.modeldir import save_model_dir
+    from dampnet.rig import generate
+    from dampnet.training.pipeline import train_dataset
+
+    root = tmp_path_factory.mktemp("quick_envelope_model")
+    ds = generate("quick", seed=0)
+    model, _, split = train_dataset(ds, algorithm="lm", max_epochs=30, seed=0)
+    env = envelope_of(model, split)
+    save_model_dir(model, {}, root / "model", envelope=env)
+    save_model_dir(model, {}, root / "model_old")
+    write_dataset(ds, root / "data")
+    return dict(root=root, model=model, split=split, env=env)

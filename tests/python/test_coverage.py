@@ -12,29 +12,18 @@ import pytest
 
 from dampnet.cli import main
 from dampnet.coverage import EXTRAPOLATED_SHARE, coverage, quarter_car_inputs
-from dampnet.data import write_dataset
-from dampnet.envelope import ENVELOPE_JSON, ENVELOPE_NPZ, build_envelope, envelope_of, load_envelope, training_samples
+from dampnet.envelope import ENVELOPE_JSON, ENVELOPE_NPZ, build_envelope, load_envelope, training_samples
 from dampnet.features import feature_matrix
-from dampnet.modeldir import save_model_dir
-from dampnet.rig import generate
 from dampnet.sim.calibration import damping_levels
 from dampnet.sim.dampers import load_spec, neural_spec
 from dampnet.sim.roads import impulse
 from dampnet.sim.runs import simulate
 from dampnet.sim.vehicle import Controller
-from dampnet.training.pipeline import train_dataset
 
 
 @pytest.fixture(scope="module")
-def trained(tmp_path_factory):
-    root = tmp_path_factory.mktemp("coverage")
-    ds = generate("quick", seed=0)
-    model, _, split = train_dataset(ds, algorithm="lm", max_epochs=30, seed=0)
-    env = envelope_of(model, split)
-    save_model_dir(model, {}, root / "model", envelope=env)
-    save_model_dir(model, {}, root / "model_old")   # as before this change: no envelope files
-    write_dataset(ds, root / "data")
-    return dict(root=root, model=model, split=split, env=env)
+def trained(quick_envelope_model):
+    return quick_envelope_model
 
 
 def test_envelope_files_and_nearest_distance_against_brute_force(trained):

@@ -16,19 +16,16 @@ from fmpy.fmi2 import FMU2Slave
 from cbuild import compile_program
 from dampnet import _core, paths
 from dampnet.cli import main
-from dampnet.envelope import envelope_of
 from dampnet.envelope_grid import grid_cells, pairs, runtime_flags
 from dampnet.export import write_header
 from dampnet.features import feature_matrix
 from dampnet.modeldir import save_model_dir
-from dampnet.rig import generate
 from dampnet.sim.calibration import damping_levels
 from dampnet.sim.dampers import neural_spec
 from dampnet.sim.loop import QuarterCar, damper_from_model
 from dampnet.sim.roads import impulse
 from dampnet.sim.runs import simulate
 from dampnet.sim.vehicle import Controller
-from dampnet.training.pipeline import train_dataset
 
 CELLS = 32  # dampnet.h's DN_ENVELOPE_CELLS, as the header documents it
 
@@ -100,13 +97,8 @@ def test_bad_descriptions_are_refused():
 
 
 @pytest.fixture(scope="module")
-def trained(tmp_path_factory):
-    root = tmp_path_factory.mktemp("envelope_grid")
-    ds = generate("quick", seed=0)
-    model, _, split = train_dataset(ds, algorithm="lm", max_epochs=30, seed=0)
-    env = envelope_of(model, split)
-    save_model_dir(model, {}, root / "model", envelope=env)
-    return dict(root=root, model=model, split=split, env=env)
+def trained(quick_envelope_model):
+    return quick_envelope_model
 
 
 def test_grid_of_a_model_follows_its_training_data(trained):
