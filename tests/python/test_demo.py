@@ -52,6 +52,11 @@ def test_demo_tells_the_whole_story(demo_out):
     assert (out / fmu["path"]).is_file() and (out / fmu["figure"]).is_file()
     held_out = json.loads((out / "model_improved" / "metrics.json").read_text())["holdout_tests"]
     assert fmu["test"] in held_out, (fmu["test"], held_out)
+    # its envelope_flags carry the model's envelope and equal the runtime's check. The held-out
+    # level (2.25 V) is 0.25 V from the trained 2.0 and 2.5 V, under two of the grid's 0.16 V
+    # cells: inside (measured 0.2 % flagged)
+    ef = fmu["envelope_flags"]
+    assert ef["grid"] and ef["match"] and ef["share_flagged"] < 0.05, ef
     # the study's worst case against the truth is named, and the rough road's error is at most the worst
     st = summary["study"]
     for name, worst in st["worst_acc_rms_error_vs_truth"].items():
@@ -98,6 +103,7 @@ def test_demo_report_shows_the_fmu_trace(demo_out):
     assert 'alt="FMU: its force trace in FMPy beside the runtime' in part and "data:image/png;base64," in part
     assert f"at most <b>{summary['fmu']['max_abs_diff_n']:.3g} N</b>" in part
     assert "<span class='ok'>match</span>" in part and summary["fmu"]["test"] in part
+    assert "<code>envelope_flags</code> output marked" in part and "the same flags</span>" in part
 
 
 def test_demo_trains_with_restarts_and_shows_their_spread(demo_out):

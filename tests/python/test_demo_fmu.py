@@ -45,11 +45,35 @@ def test_stateful_model_matches_fmpy_to_1e9(rig_tests, tmp_path):
     # the stage picked the test with the widest measured force range in the window (the 3 Hz one)
     assert res["test"] == max(rig_tests, key=lambda t: np.ptp(t.channels["force"][:2501])).test_id
 
+    # without an envelope the FMU flags the training ranges only, as the runtime's ranges do
+    assert res["envelope_flags"]["match"] and not res["envelope_flags"]["grid"]
+
     # the comparison is not vacuous: the states FMPy reads (held over its late step) are not
     # the loop's committed ones, so the loop's forces merely shifted one sample differ
     sig = fmucheck.rig_signals(model, next(t for t in rig_tests if t.test_id == res["test"]))
     f_loop, f_fmpy, _ = fmucheck.runtime_forces(model, sig)
     assert np.max(np.abs(f_fmpy[1:] - f_loop[:-1])) > 1.0
+
+
+def test_envelope_flags_of_the_fmu_equal_the_runtime_check(rig_tests, tmp_path):
+    """With the model's envelope (here built from the 1 Hz test's inputs alone), the FMU's
+    envelope_flags on the 3 Hz test equal dampnet.envelope_grid's flags of the inputs FMPy's
+    record has (states held over its late step), with samples both inside and outside."""
+    from dampnet.envelope import build_envelope
+    from dampnet.envelope_grid import runtime_flags
+    from dampnet.features import feature_matrix
+
+    model = random_model(STATEFUL, hidden=9, seed=4, feature_params=PARAMS)
+    slow = next(t for t in rig_tests if t.frequency_hz == 1.0)
+    env = build_envelope(model, feature_matrix([slow], model.features, model.feature_params))
+    res = fmucheck.check_fmu(model, rig_tests, tmp_path / "damper.fmu", tmp_path / "fmu.png", envelope=env)
+    ef = res["envelope_flags"]
+    assert ef["grid"] and ef["match"] and 0.05 < ef["share_flagged"] < 0.95, ef
+    sig = fmucheck.rig_signals(model, next(t for t in rig_tests if t.test_id == res["test"]))
+    flags = runtime_flags(env, fmucheck.fmpy_inputs(model, sig))
+    assert np.mean(flags != 0) == pytest.approx(ef["share_flagged"])
+    html = report._fmu_section(tmp_path, {**res, "path": "damper.fmu", "figure": "fmu.png"})
+    assert "envelope_flags" in html and "the same flags" in html
 
 
 def test_a_model_the_fmu_refuses_is_reported_not_raised(tmp_path, monkeypatch):

@@ -40,15 +40,14 @@ def rig_signals(model, test: DynoTest, window_s: float = WINDOW_S) -> dict[str, 
             "temperature": np.full(n, 20.0) if temp is None else np.asarray(temp[:n], dtype=np.float64)}
 
 
-def runtime_forces(model, sig: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(loop, as_fmpy, status): the runtime damper's (dampnet.sim.loop.damper_from_model) force
-    [N] at each sample with the states dampnet's loop keeps, and the force FMPy's co-simulation
-    should record at each sample (one step late, see the module docstring); status of the latter.
+def _states(model, sig: dict[str, np.ndarray]) -> tuple[dict, dict, np.ndarray]:
+    """(loop, held, prev): the derived features' states (u_lag, v_lag, z_fric) [n] as dampnet's
+    loop commits them at each sample, as FMPy reads them (held over its late step), and the
+    sample whose inputs FMPy's output at each sample has (k - 1; the first its own).
 
     States (only those the model's features use) by dampnet.features' loop updates, from the
     runtime's reset at the first sample: over a step the control is held and the motion a ramp."""
     from dampnet import features
-    from dampnet.sim.loop import damper_from_model
 
     t, n = sig["t"], sig["t"].size
     dt = float(t[1] - t[0])
@@ -67,17 +66,41 @@ def runtime_forces(model, sig: dict[str, np.ndarray]) -> tuple[np.ndarray, np.nd
             y[k] = f.state.step(y[k - 1], q[k - 1], q[k], dt, p)      # committed at t_k (the loop's)
             h[k] = f.state.step(y[k - 1], q[k - 1], q[k - 1], dt, p)  # what FMPy reads at t_k
         loop[f.field], held[f.field] = y, h
+    prev = np.concatenate([[0], np.arange(n - 1)])  # FMPy's output at t_k has sample k-1's inputs (t_0: its own)
+    return loop, held, prev
+
+
+def runtime_forces(model, sig: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(loop, as_fmpy, status): the runtime damper's (dampnet.sim.loop.damper_from_model) force
+    [N] at each sample with the states dampnet's loop keeps (_states), and the force FMPy's
+    co-simulation should record at each sample (one step late, see the module docstring);
+    status of the latter."""
+    from dampnet.sim.loop import damper_from_model
+
+    loop, held, prev = _states(model, sig)
     damper = damper_from_model(model)
     f_loop = damper.forces(sig["x"], sig["v"], sig["a"], sig["u"], loop["u_lag"], sig["temperature"],
                            loop["v_lag"], loop["z_fric"])[0]
-    prev = np.concatenate([[0], np.arange(n - 1)])  # FMPy's output at t_k has sample k-1's inputs (t_0: its own)
     f_fmpy, status, _ = damper.forces(sig["x"][prev], sig["v"][prev], sig["a"][prev], sig["u"][prev],
                                       held["u_lag"], sig["temperature"][prev], held["v_lag"], held["z_fric"])
     return f_loop, f_fmpy, status
 
 
-def simulate(path: Path, sig: dict[str, np.ndarray]) -> np.ndarray:
-    """FMPy's co-simulation of the FMU at a fixed step = the sample time; the force [N] it records."""
+def fmpy_inputs(model, sig: dict[str, np.ndarray]) -> np.ndarray:
+    """The network's inputs [n, n_inputs] behind FMPy's record at each sample (sample k-1's
+    inputs with the states held over the step: _states), by each feature's dn_damper_input
+    field (dampnet.features registry)."""
+    from dampnet.features import feature
+
+    _, held, prev = _states(model, sig)
+    fields = {"x": sig["x"][prev], "v": sig["v"][prev], "a": sig["a"][prev], "u": sig["u"][prev],
+              "temperature": sig["temperature"][prev], **held}
+    return np.stack([np.asarray(fields[feature(f).field], dtype=np.float64) for f in model.features], axis=1)
+
+
+def simulate(path: Path, sig: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """FMPy's co-simulation of the FMU at a fixed step = the sample time; the force [N] and the
+    envelope flags it records."""
     from fmpy import simulate_fmu
 
     names = ("x", "v", "a", "u", "temperature")
@@ -87,8 +110,26 @@ def simulate(path: Path, sig: dict[str, np.ndarray]) -> np.ndarray:
         inp[nm] = sig[nm]
     dt = float(sig["t"][1] - sig["t"][0])
     res = simulate_fmu(str(path), start_time=0.0, stop_time=float(sig["t"][-1]), step_size=dt,
-                       output_interval=dt, input=inp, output=["force"], fmi_type="CoSimulation")
-    return np.asarray(res["force"], dtype=np.float64)
+                       output_interval=dt, input=inp, output=["force", "envelope_flags"],
+                       fmi_type="CoSimulation")
+    return np.asarray(res["force"], dtype=np.float64), np.asarray(res["envelope_flags"], dtype=np.uint32)
+
+
+def _flags_check(model, envelope, sig: dict, flags: np.ndarray) -> dict:
+    """The FMU's envelope_flags against the runtime check's on the inputs FMPy's record has."""
+    from dampnet import _core
+
+    X = fmpy_inputs(model, sig)
+    if envelope is not None:
+        from dampnet.envelope_grid import runtime_flags
+
+        expected = runtime_flags(envelope, X)
+    else:  # ranges only: outside a range (or NaN)
+        expected = np.where(np.all((X >= model.sat_lo) & (X <= model.sat_hi), axis=1), 0,
+                            _core.ENV_OUTSIDE_RANGE).astype(np.uint32)
+    return {"grid": envelope is not None, "share_flagged": float(np.mean(flags != 0)),
+            "share_outside_joint": float(np.mean((flags & _core.ENV_OUTSIDE_JOINT) != 0)),
+            "match": bool(flags.shape == expected.shape and np.array_equal(flags, expected))}
 
 
 def plot(sig: dict, f_loop: np.ndarray, f_fmu: np.ndarray, diff: np.ndarray, path: Path, title: str) -> None:
@@ -115,12 +156,16 @@ def plot(sig: dict, f_loop: np.ndarray, f_fmu: np.ndarray, diff: np.ndarray, pat
 
 
 def check_fmu(model, tests: Sequence[DynoTest], out_fmu: Path, fig_path: Path,
-              window_s: float = WINDOW_S) -> dict:
-    """Build out_fmu (FMI 2.0) from the model, simulate it with FMPy on the test among `tests`
-    with the widest measured force range in its first window_s, compare with the runtime.
+              window_s: float = WINDOW_S, envelope=None) -> dict:
+    """Build out_fmu (FMI 2.0) from the model (with `envelope`, the model's dampnet.envelope
+    Envelope, its envelope_flags output checks the training envelope's grid), simulate it with
+    FMPy on the test among `tests` with the widest measured force range in its first window_s,
+    compare with the runtime.
 
     Returns {path, fmi_version, test, samples, step_s, max_abs_diff_n, tolerance_n, match,
-    force_range_n, build_time_s, simulate_time_s, time_s, figure}; when the check cannot run,
+    force_range_n, build_time_s, simulate_time_s, time_s, figure, envelope_flags}
+    (envelope_flags: {grid, share_flagged, share_outside_joint, match}: the FMU's flags against the
+    runtime check's on the same inputs; ranges only without an envelope); when the check cannot run,
     {skipped: why} (the FMU refuses the model or no compiler: FmuError's message; no fmpy),
     with path and fmi_version if the FMU was built."""
     from dampnet.fmu import FmuError, build_damper_fmu
@@ -133,7 +178,7 @@ def check_fmu(model, tests: Sequence[DynoTest], out_fmu: Path, fig_path: Path,
         have_fmpy = False
     out_fmu.parent.mkdir(parents=True, exist_ok=True)
     try:
-        path = build_damper_fmu(model, out_fmu)
+        path = build_damper_fmu(model, out_fmu, envelope=envelope)
     except FmuError as e:
         return {"skipped": f"the FMU could not be built: {e}", "time_s": round(time.perf_counter() - t0, 2)}
     built = {"path": str(path), "fmi_version": "2.0", "build_time_s": round(time.perf_counter() - t0, 2)}
@@ -147,7 +192,7 @@ def check_fmu(model, tests: Sequence[DynoTest], out_fmu: Path, fig_path: Path,
     test = max(tests, key=lambda tt: float(np.ptp(tt.channels["force"][:n])) if "force" in tt.channels else 0.0)
     sig = rig_signals(model, test, window_s)
     t1 = time.perf_counter()
-    f_fmu = simulate(path, sig)
+    f_fmu, flags = simulate(path, sig)
     t_sim = time.perf_counter() - t1
     f_loop, f_expected, status = runtime_forces(model, sig)
     if f_fmu.size != f_expected.size:
@@ -157,6 +202,7 @@ def check_fmu(model, tests: Sequence[DynoTest], out_fmu: Path, fig_path: Path,
     plot(sig, f_loop, f_fmu, diff, fig_path,
          f"rig test {test.test_id}: FMU in FMPy vs runtime, max |difference| {worst:.3g} N")
     return {**built, "interface": "co-simulation", "test": test.test_id, "samples": int(sig["t"].size),
+            "envelope_flags": _flags_check(model, envelope, sig, flags),
             "step_s": float(sig["t"][1] - sig["t"][0]), "max_abs_diff_n": worst, "tolerance_n": TOLERANCE_N,
             "match": bool(worst <= TOLERANCE_N), "force_range_n": float(np.ptp(f_loop)),
             "runtime_status_ok": bool(np.all(status >= 0)), "simulate_time_s": round(t_sim, 2),

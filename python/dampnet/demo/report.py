@@ -303,7 +303,22 @@ def _fmu_section(work: Path, fm: dict | None) -> str:
             f"FMPy records a co-simulation output one step late (after the step, with the inputs of "
             f"its start), so the FMU's trace is drawn shifted back one sample. Built in "
             f"{fm['build_time_s']:.1f} s, simulated in {fm['simulate_time_s']:.2f} s.</p>" +
+            _fmu_envelope(fm.get("envelope_flags")) +
             _img(work / fm["figure"], "FMU: its force trace in FMPy beside the runtime's"))
+
+
+def _fmu_envelope(ef: dict | None) -> str:
+    """The FMU's envelope_flags output on the same run, in a sentence."""
+    if not ef:
+        return ""
+    what = ("the training envelope's grid (ranges and pairs of inputs)" if ef["grid"]
+            else "the training ranges only (no envelope)")
+    return (f"<p>The FMU also carries {what}: its <code>envelope_flags</code> output marked "
+            f"{100 * ef['share_flagged']:.1f} % of these samples outside the training data "
+            f"({100 * ef['share_outside_joint']:.1f} % between training samples with every input in range), "
+            f"<span class='{'ok' if ef['match'] else 'bad'}'>{'the same flags' if ef['match'] else 'NOT the flags'}"
+            f"</span> as the runtime's check on the same inputs, so a vehicle tool running the FMU sees "
+            f"when the model is guessing.</p>")
 
 
 def check_rendering(path: Path) -> dict:

@@ -159,7 +159,7 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
 
         with stage("fmu", "exporting the improved model as an FMI 2.0 FMU and running it in FMPy"):
             fres = fmucheck.check_fmu(model1, split1.holdout.tests, work / "model_improved" / "damper.fmu",
-                                      figs / "fmu" / "fmu_vs_runtime.png")
+                                      figs / "fmu" / "fmu_vs_runtime.png", envelope=env1)
             # paths relative to the output directory (work is moved into place at the end)
             for key in ("path", "figure"):
                 if key in fres:
@@ -171,6 +171,10 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
                 log(f"      {fres['path']} (FMI {fres['fmi_version']}) in FMPy vs the runtime: max |difference| "
                     f"{fres['max_abs_diff_n']:.3g} N over {fres['samples']} samples of {fres['test']} "
                     f"({'match' if fres['match'] else 'MISMATCH'}, tolerance {fres['tolerance_n']:.0e} N)")
+                ef = fres["envelope_flags"]
+                log(f"      its envelope_flags output: {100 * ef['share_flagged']:.1f} % of the samples outside the "
+                    f"training envelope ({100 * ef['share_outside_joint']:.1f} % between the training data), "
+                    f"{'equal to' if ef['match'] else 'DIFFERENT from'} the runtime's check")
 
         with stage("study", "quarter-car study (thesis Tables 6, 7, skyhook) against the truth damper"):
             study_res = _study(model0, model1, lookup, figs / "study", quick, env0, env1)
