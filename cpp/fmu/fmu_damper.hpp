@@ -256,7 +256,8 @@ class DamperModel {
     double feat[DN_MAX_INPUTS];
     for (double& v : feat) v = NAN;  // left NaN (outside) when an input is not finite
     const int st = damper_.force(d, force, env ? feat : nullptr, mask);
-    if (env) *env = envelope_.check(feat);
+    // a failed evaluation's inputs are not the network's: outside (as the quarter-car FMU says)
+    if (env) *env = st < 0 ? DN_ENV_OUTSIDE_RANGE : envelope_.check(feat);
     return st;
   }
 };

@@ -52,7 +52,11 @@ def average_networks(models: Sequence[MlpModel]) -> MlpModel:
                 raise ModelError(f"average_networks: model {k}'s {name} differs from model 0's: members must be "
                                  "trained on the same data with the same features (their scalings equal)")
     k = len(models)
-    meta = dict(first.meta)
+    # the training record of the first member, less what describes one member's own fit
+    meta = {key: v for key, v in first.meta.items()
+            if key not in ("seed", "split", "epochs", "best_epoch", "stop_reason", "samples", "metrics", "stats")}
+    meta["hidden"] = [int(sum(m.w1.shape[0] for m in models))]
+    meta["seeds"] = [m.meta.get("seed") for m in models]
     meta["ensemble"] = {"members": k, "hidden_each": [int(m.w1.shape[0]) for m in models],
                         "member_ids": [m.model_id() for m in models],
                         "what": "the mean of the members' outputs as one network (dampnet.ensemble)"}

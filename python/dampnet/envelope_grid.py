@@ -44,10 +44,16 @@ def pairs(n_inputs: int) -> list[tuple[int, int]]:
 
 def cell_index(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, cells: int) -> np.ndarray:
     """The cell [n, n_inputs] of each input of x [n, n_inputs] (feature units), as the C++ check
-    computes it: floor((x - lo) * (cells / (hi - lo))), the last cell for x = hi; -1 outside
-    [lo, hi] or NaN."""
+    computes it (dampnet.h): floor((x - lo) * (cells / (hi - lo))), the last cell for x = hi, one
+    cell (0) for a constant input (hi = lo); -1 outside [lo, hi] or NaN."""
     x = np.asarray(x, dtype=np.float64)
-    scale = float(cells) / (hi - lo)
+    lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(hi >= lo)
+            and np.all(np.isfinite(hi - lo))):
+        raise ValueError(f"envelope ranges: expected finite lo <= hi with a finite width, got lo {lo}, hi {hi}")
+    with np.errstate(divide="ignore"):
+        scale = float(cells) / (hi - lo)
+    scale = np.where((hi > lo) & np.isfinite(scale), scale, 0.0)
     inside = (x >= lo) & (x <= hi)
     c = np.zeros(x.shape, dtype=np.int64)
     c[inside] = np.floor((np.where(inside, x, lo) - lo) * scale)[inside]

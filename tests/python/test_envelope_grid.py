@@ -6,6 +6,7 @@ the exported header, and the FMUs' envelope_flags output against the runtime's f
 
 from __future__ import annotations
 
+import dataclasses
 import subprocess
 
 import numpy as np
@@ -16,6 +17,7 @@ from fmpy.fmi2 import FMU2Slave
 from cbuild import compile_program
 from dampnet import _core, paths
 from dampnet.cli import main
+from dampnet.envelope import Envelope, build_envelope
 from dampnet.envelope_grid import grid_cells, pairs, runtime_flags
 from dampnet.export import write_header
 from dampnet.features import feature_matrix
@@ -26,13 +28,16 @@ from dampnet.sim.loop import QuarterCar, damper_from_model
 from dampnet.sim.roads import impulse
 from dampnet.sim.runs import simulate
 from dampnet.sim.vehicle import Controller
+from loop_helpers import random_model
 
 CELLS = 32  # dampnet.h's DN_ENVELOPE_CELLS, as the header documents it
+FEATURES3 = ["velocity", "acceleration", "voltage"]
 
 
 def reference_flags(lo, hi, cells, X):
     """dampnet.h's definition, point by point: outside a range (or NaN) -> bit 0; else a pair's
-    cell (floor((x - lo) / (hi - lo) * 32), the last cell at x = hi) unmarked -> bit 1."""
+    cell (floor((x - lo) * s), s = 32 / (hi - lo) computed first, the last cell at x = hi)
+    unmarked -> bit 1."""
     n = len(lo)
     out = []
     for x in X:
@@ -79,10 +84,36 @@ def test_check_against_the_header_definition():
             assert np.any(got == 2) and np.any(got == 0)  # both outcomes inside the ranges occur
 
 
+def test_grid_cells_against_loops_over_the_samples():
+    """grid_cells' bitmaps: each stored sample's cell and the 8 around it (inside the grid) marked,
+    bit ci * 32 + cj of the pair's words, written here with plain loops."""
+    lo, hi = np.array([0.0, -2.0, 1.0]), np.array([1.0, 2.0, 6.0])
+    rng = np.random.default_rng(5)
+    x = rng.uniform(lo, hi, size=(40, 3))
+    x[0] = lo  # the corners: the dilation must not wrap around
+    x[1] = hi
+    gain = 2.0 / (hi - lo)
+    env = Envelope(FEATURES3, ["m/s", "m/s^2", "V"], lo, hi, lo, gain, -1.0, (x - lo) * gain - 1.0, 0.1)
+    expected = np.zeros((3, 32), dtype=np.uint32)
+    for p, (i, j) in enumerate([(0, 1), (0, 2), (1, 2)]):
+        marked = set()
+        for row in x:
+            ci = min(int(np.floor((row[i] - lo[i]) * (32 / (hi[i] - lo[i])))), 31)
+            cj = min(int(np.floor((row[j] - lo[j]) * (32 / (hi[j] - lo[j])))), 31)
+            marked |= {(a, b) for a in range(ci - 1, ci + 2) for b in range(cj - 1, cj + 2)
+                       if 0 <= a < 32 and 0 <= b < 32}
+        for a, b in marked:
+            bit = a * 32 + b
+            expected[p, bit // 32] |= np.uint32(1 << (bit % 32))
+    np.testing.assert_array_equal(grid_cells(env), expected)
+
+
 def test_bad_descriptions_are_refused():
     ok = np.zeros((1, 32), np.uint32)
     with pytest.raises(ValueError, match="DN_E_PARAM"):
-        _core.Envelope([0.0, 1.0], [1.0, 1.0], ok)  # hi <= lo
+        _core.Envelope([0.0, 1.5], [1.0, 1.0], ok)  # hi < lo
+    with pytest.raises(ValueError, match="DN_E_PARAM"):
+        _core.Envelope([-1e308, 0.0], [1e308, 1.0], ok)  # a width beyond double
     with pytest.raises(ValueError, match="DN_E_NONFINITE_PARAM"):
         _core.Envelope([np.nan, 0.0], [1.0, 1.0], ok)
     with pytest.raises(ValueError, match=r"cells must be \[1, 32\]"):
@@ -163,6 +194,31 @@ int main(void) {
     got = np.array([int(v) for v in out], dtype=np.uint32)
     np.testing.assert_array_equal(got, runtime_flags(env, X))
     assert {0, 1, 2} <= set(got)
+
+
+def test_a_constant_input_is_one_cell(tmp_path):
+    """A model trained at one voltage (sat_lo = sat_hi = 5 V): its envelope, its grid, the runtime
+    check and the FMU (with and without the envelope) all work; off 5 V is outside the range."""
+    base = random_model(FEATURES3, hidden=6, seed=2)
+    lo, hi = base.sat_lo.copy(), base.sat_hi.copy()
+    lo[2] = hi[2] = 5.0
+    model = dataclasses.replace(base, sat_lo=lo, sat_hi=hi)
+    rng = np.random.default_rng(1)
+    t = np.linspace(0, 2, 4000)
+    X = np.stack([0.3 * np.sin(2 * np.pi * t), 0.3 * 2 * np.pi * np.cos(2 * np.pi * t), np.full(t.size, 5.0)], 1)
+    env = build_envelope(model, X)
+    assert not np.any(runtime_flags(env, X))
+    probe = np.concatenate([X[::50], X[::50] * [1, 1, 0.98], rng.uniform(lo, hi, (50, 3))])
+    flags = runtime_flags(env, probe)
+    assert np.all(flags[80:160] == _core.ENV_OUTSIDE_RANGE) and np.any(flags[160:] == _core.ENV_OUTSIDE_JOINT)
+    save_model_dir(model, {}, tmp_path / "m", envelope=env)
+    for name, args in (("grid", []), ("ranges", ["--force"])):
+        if name == "ranges":
+            save_model_dir(model, {}, tmp_path / "m", force=True)  # no envelope this time
+        assert main(["export", str(tmp_path / "m"), "--fmu", str(tmp_path / f"{name}.fmu")]) == 0
+        got, _ = _drive_flags(tmp_path / f"{name}.fmu", np.zeros(len(probe)), probe[:, 0], probe[:, 1], probe[:, 2])
+        expect = runtime_flags(env, probe)
+        np.testing.assert_array_equal(got, expect if name == "grid" else expect & _core.ENV_OUTSIDE_RANGE)
 
 
 def _drive_flags(path, x, v, a, u):

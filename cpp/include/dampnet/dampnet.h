@@ -315,10 +315,11 @@ DN_API int dn_mlp_forward_f(const dn_mlp* m, const float* x, float* y, uint32_t*
 
 /* The coarse joint envelope of a model's training data (dampnet.envelope_grid writes it; a
  * generated header's P_ENVELOPE_DESC_INIT when the model was exported with its envelope).
- * Every input's training range [lo, hi] is cut into DN_ENVELOPE_CELLS cells; for every pair
- * of inputs (i < j, in the order (0,1), (0,2), .., (0,n-1), (1,2), ..) a bitmap says which of
- * the DN_ENVELOPE_CELLS^2 cells of the pair's plane held a training sample or bordered one
- * (the training cells dilated by one cell each way). A point is inside when every input is in
+ * Every input's training range [lo, hi] is cut into DN_ENVELOPE_CELLS cells (one cell for a
+ * constant input, hi = lo); for every pair of inputs (i < j, in the order (0,1), (0,2), ..,
+ * (0,n-1), (1,2), ..) a bitmap says which of the DN_ENVELOPE_CELLS^2 cells of the pair's plane
+ * held one of the envelope's stored training samples (at most 20,000, dampnet.envelope) or
+ * bordered one (those cells dilated by one cell each way). A point is inside when every input is in
  * its range and every pair of inputs falls in a marked cell: the data's 2-D shadows, so a point
  * between two training control levels, or off the (velocity, acceleration) ellipses of the sine
  * tests, is outside; a point inside every shadow can still be far from the data in more than two
@@ -336,19 +337,22 @@ DN_API int dn_mlp_forward_f(const dn_mlp* m, const float* x, float* y, uint32_t*
 typedef struct dn_envelope_desc {
   int n_inputs;          /* the model's inputs, 1..DN_MAX_INPUTS */
   const double* lo;      /* [n_inputs] training range, lower limit, feature units (the model's sat_lo) */
-  const double* hi;      /* [n_inputs] upper limit (sat_hi), > lo */
+  const double* hi;      /* [n_inputs] upper limit (sat_hi), >= lo, hi - lo finite */
   const uint32_t* cells; /* [n_pairs * DN_ENVELOPE_PAIR_WORDS], n_pairs = n (n - 1) / 2: pair p's
                             cell (ci, cj) is bit (ci * DN_ENVELOPE_CELLS + cj) % 32 of word
                             p * DN_ENVELOPE_PAIR_WORDS + (ci * DN_ENVELOPE_CELLS + cj) / 32, where
-                            ci = floor((x_i - lo_i) / (hi_i - lo_i) * DN_ENVELOPE_CELLS) clamped
-                            to the last cell (x_i = hi_i). NULL allowed for one input only. */
+                            ci = floor((x_i - lo_i) * s_i) with s_i = DN_ENVELOPE_CELLS / (hi_i -
+                            lo_i) in double, in that order (0 when hi_i = lo_i or the quotient is
+                            infinite), clamped to the last cell (x_i = hi_i). NULL allowed for
+                            one input only. */
 } dn_envelope_desc;
 
 /* A validated envelope (ranges and bitmaps, copied). Opaque, immutable: share it freely. */
 typedef struct dn_envelope dn_envelope;
 
 /* Validate and copy a description: DN_E_NULL, DN_E_SIZE (n_inputs), DN_E_NONFINITE_PARAM
- * (lo, hi), DN_E_PARAM (hi <= lo). create allocates; init uses caller memory. */
+ * (lo, hi), DN_E_PARAM (hi < lo, or hi - lo beyond double). create allocates; init uses caller
+ * memory. */
 DN_API int dn_envelope_create(const dn_envelope_desc* desc, dn_envelope** out);
 DN_API void dn_envelope_destroy(dn_envelope* e);
 DN_API size_t dn_envelope_size(void);

@@ -41,7 +41,8 @@ class Envelope {
         cell[i] = -1;
         continue;
       }
-      const int c = int((v - lo_[i]) * scale_[i]);  // in [0, CELLS] since v is in range
+      // in [0, CELLS]: v - lo is in [0, hi - lo], finite (checked at load)
+      const int c = int((v - lo_[i]) * scale_[i]);
       cell[i] = c < DN_ENVELOPE_CELLS ? c : DN_ENVELOPE_CELLS - 1;
     }
     int p = 0;
@@ -56,21 +57,27 @@ class Envelope {
   }
 
  private:
+  // Cells per feature unit of a range: 0 (one cell) for a constant input (hi == lo, as a model
+  // trained on a constant column has) or a width too small to divide (below ~1e-307).
+  static double scale_of(double lo, double hi) noexcept {
+    const double s = double(DN_ENVELOPE_CELLS) / (hi - lo);
+    return hi > lo && std::isfinite(s) ? s : 0.0;
+  }
+
   // Validate, then copy (cells NULL: all marked); unchanged on error.
   int set(int n, const double* lo, const double* hi, const uint32_t* cells) noexcept {
     if (!lo || !hi) return DN_E_NULL;
     if (n < 1 || n > DN_MAX_INPUTS) return DN_E_SIZE;
     for (int i = 0; i < n; ++i) {
       if (!std::isfinite(lo[i]) || !std::isfinite(hi[i])) return DN_E_NONFINITE_PARAM;
-      if (!(hi[i] > lo[i])) return DN_E_PARAM;
-      // cells per feature unit: infinite for a range below ~1e-307 (no cell width)
-      if (!std::isfinite(double(DN_ENVELOPE_CELLS) / (hi[i] - lo[i]))) return DN_E_PARAM;
+      // hi < lo, or a width beyond double (then (x - lo) * scale could be Inf * 0)
+      if (!(hi[i] >= lo[i]) || !std::isfinite(hi[i] - lo[i])) return DN_E_PARAM;
     }
     n_ = n;
     for (int i = 0; i < n; ++i) {
       lo_[i] = lo[i];
       hi_[i] = hi[i];
-      scale_[i] = double(DN_ENVELOPE_CELLS) / (hi[i] - lo[i]);
+      scale_[i] = scale_of(lo[i], hi[i]);
     }
     const int words = n * (n - 1) / 2 * DN_ENVELOPE_PAIR_WORDS;
     for (int w = 0; w < words; ++w) cells_[w] = cells ? cells[w] : ~0u;

@@ -156,8 +156,13 @@ def print_summary(model, info, split, metrics, out, t_train) -> None:
     if model.terms:
         print("physics terms: " + "; ".join(f"{t['kind']} {t['params']}" for t in model.terms))
     m = info.metrics
-    print(f"NRMSE train {m.get('train', float('nan')):.4f}, validation {m.get('val', float('nan')):.4f}, "
-          f"test {m.get('test', float('nan')):.4f} ({info.n_train} training samples, decimated by {split.decimate})")
+    if set(m) == {"all"}:  # an average of restarts (--average): no rows held out of every member
+        print(f"NRMSE on all training samples {m['all']:.4f} (the averaged network; its members split the samples "
+              f"differently, so it has no validation or test rows of its own; decimated by {split.decimate})")
+    else:
+        print(f"NRMSE train {m.get('train', float('nan')):.4f}, validation {m.get('val', float('nan')):.4f}, "
+              f"test {m.get('test', float('nan')):.4f} ({info.n_train} training samples, decimated by "
+              f"{split.decimate})")
     if "holdout" in metrics:
         print(format_table(metrics["holdout"], f"hold-out tests ({len(split.holdout_ids)}):"))
         lk = metrics.get("holdout_lookup", {})

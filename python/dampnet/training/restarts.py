@@ -92,8 +92,9 @@ def check_average(average: Any, restarts: int, hidden, score: str = "interpolati
     if average == 1:
         return 1
     if average > restarts:
-        raise ValueError(f"average: {average} restarts averaged, but only {restarts} restart(s) trained: "
-                         f"train at least {average} (restarts)")
+        raise ValueError(f"average (--average): {average} restarts averaged, but only {restarts} restart(s) "
+                         f"trained: train at least {average} (--restarts; 'auto' trains 1 when the training tests "
+                         "have fewer than two control levels)")
     if score != "interpolation":
         raise ValueError("average: averaging keeps the best-scored full fits, which the 'lolo' score does not "
                          "train; use restart_score 'interpolation'")
@@ -410,19 +411,17 @@ def train_restarts(prep, fit_prepared: Callable, restarts: int, seed: int = 0, *
 
 
 def _averaged(prep, models: list, info):
-    """The models averaged into one network (dampnet.ensemble), with info.metrics (NRMSE on the
-    train / val / test rows of the best restart's split) re-measured for it."""
+    """The models averaged into one network (dampnet.ensemble), with info.metrics re-measured for
+    it: NRMSE on all training rows only. Each member drew its own train / validation / test split
+    (its seed), so a row one member never saw another trained on: the averaged network has no
+    held-out rows of its own (its hold-out is the held-out tests, as for any model)."""
     from dampnet.ensemble import average_networks
     from dampnet.training.metrics import nrmse
     from dampnet.predict import predict_force
 
     model = average_networks(models)
     pred = predict_force(model, prep.X, prep.xd)
-    y = prep.force
-    for name, idx in (("train", info.train_idx), ("val", info.val_idx), ("test", info.test_idx)):
-        if len(idx):
-            info.metrics[name] = nrmse(pred[idx], y[idx])
-    info.metrics["all"] = nrmse(pred, y)
+    info.metrics = {"all": nrmse(pred, prep.force)}
     model.meta["metrics"] = {k: round(v, 6) for k, v in info.metrics.items()}
     return model
 

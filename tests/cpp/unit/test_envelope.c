@@ -92,16 +92,35 @@ int main(void) {
     EXPECT(dn_envelope_create(&d, &bad) == DN_OK && bad != NULL);
     EXPECT(flags_of(bad, 0.3, 0, 0) == 0 && flags_of(bad, -0.1, 0, 0) == DN_ENV_OUTSIDE_RANGE);
     dn_envelope_destroy(bad);
-    const double lo2[3] = {0.0, 2.0, 0.0}, nan_lo[3] = {NAN, -2.0, 0.0}, tiny_hi[3] = {1e-310, 2.0, 5.0};
+    const double lo2[3] = {0.0, 2.5, 0.0}, nan_lo[3] = {NAN, -2.0, 0.0}, huge_lo[3] = {-1e308, -2.0, 0.0},
+                 huge_hi[3] = {1e308, 2.0, 5.0};
     d = desc;
-    d.lo = lo2; /* hi = lo for input 1 */
+    d.lo = lo2; /* hi < lo for input 1 */
     EXPECT(dn_envelope_create(&d, &bad) == DN_E_PARAM && bad == NULL);
     d.lo = nan_lo;
     EXPECT(dn_envelope_create(&d, &bad) == DN_E_NONFINITE_PARAM && bad == NULL);
-    d.lo = lo;
-    d.hi = tiny_hi; /* a range of 1e-310: no cell width */
+    d.lo = huge_lo; /* a width beyond double: refused, not a NaN cell index later */
+    d.hi = huge_hi;
     EXPECT(dn_envelope_create(&d, &bad) == DN_E_PARAM && bad == NULL);
     EXPECT(dn_envelope_create(NULL, &bad) == DN_E_NULL && bad == NULL);
+    /* a constant input (hi = lo, a model trained on a constant column) or a width too small to
+     * divide (1e-310) is one cell: inside at exactly its value, outside off it */
+    {
+      const double c_lo[3] = {0.0, 1.0, 0.0}, c_hi[3] = {1.0, 1.0, 1e-310};
+      uint32_t c_cells[3 * DN_ENVELOPE_PAIR_WORDS];
+      memset(c_cells, 0, sizeof c_cells);
+      mark(c_cells, 0, 16, 0); /* (x0 in cell 16, x1 = 1) */
+      mark(c_cells, 1, 16, 0);
+      mark(c_cells, 2, 0, 0);
+      const dn_envelope_desc cd = {3, c_lo, c_hi, c_cells};
+      dn_envelope* c = NULL;
+      EXPECT(dn_envelope_create(&cd, &c) == DN_OK && c != NULL);
+      EXPECT(flags_of(c, 0.51, 1.0, 0.0) == 0);
+      EXPECT(flags_of(c, 0.51, 1.0, 1e-310) == 0);
+      EXPECT(flags_of(c, 0.51, 1.0 + 1e-9, 0.0) == DN_ENV_OUTSIDE_RANGE);
+      EXPECT(flags_of(c, 0.9, 1.0, 0.0) == DN_ENV_OUTSIDE_JOINT);
+      dn_envelope_destroy(c);
+    }
     EXPECT(dn_envelope_create(&desc, NULL) == DN_E_NULL);
     EXPECT(dn_envelope_n_inputs(NULL) == DN_E_NULL);
     dn_envelope_destroy(NULL);
