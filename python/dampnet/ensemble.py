@@ -9,8 +9,8 @@ share their input and output scaling is itself one network:
 
 is a network whose hidden layer is the K hidden layers side by side (w1, b1 stacked), with output
 weights w_out_k / K and output bias mean(b_out_k). So the ensemble runs wherever one network runs
-(the C++ runtime, the generated header, the FMU, ONNX) as long as its width fits: the runtime holds
-at most DN_MAX_HIDDEN (64) neurons a layer (two networks of 30, not six).
+(the C++ runtime, the generated header, the FMU, ONNX) as long as its width fits the 64 neurons a
+layer that dampnet's models and runtime hold (DN_MAX_HIDDEN: two networks of 30, not six).
 
 Training the same data makes the scalings equal bit for bit (mapminmax of the same samples; the
 physics terms fitted by the same least squares); `average_networks` refuses models that differ
@@ -52,10 +52,17 @@ def average_networks(models: Sequence[MlpModel]) -> MlpModel:
                 raise ModelError(f"average_networks: model {k}'s {name} differs from model 0's: members must be "
                                  "trained on the same data with the same features (their scalings equal)")
     k = len(models)
+    width = int(sum(m.w1.shape[0] for m in models))
+    from dampnet import _core
+
+    if width > int(_core.MAX_HIDDEN):
+        raise ModelError(f"average_networks: {k} networks of {', '.join(str(m.w1.shape[0]) for m in models)} hidden "
+                         f"neurons make a layer of {width}; dampnet's models hold at most {int(_core.MAX_HIDDEN)} "
+                         "(average fewer or narrower networks)")
     # the training record of the first member, less what describes one member's own fit
     meta = {key: v for key, v in first.meta.items()
             if key not in ("seed", "split", "epochs", "best_epoch", "stop_reason", "samples", "metrics", "stats")}
-    meta["hidden"] = [int(sum(m.w1.shape[0] for m in models))]
+    meta["hidden"] = [width]
     meta["seeds"] = [m.meta.get("seed") for m in models]
     meta["ensemble"] = {"members": k, "hidden_each": [int(m.w1.shape[0]) for m in models],
                         "member_ids": [m.model_id() for m in models],
