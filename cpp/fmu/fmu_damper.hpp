@@ -253,10 +253,9 @@ class DamperModel {
     d.u_lag = used_[ST_ULAG] ? s[ST_ULAG] : in_[VR_U];
     d.v_lag = used_[ST_VLAG] ? s[ST_VLAG] : in_[VR_V];
     d.z_fric = s[ST_ZFRIC];
-    double feat[DN_MAX_INPUTS];
-    for (double& v : feat) v = NAN;  // left NaN (outside) when an input is not finite
+    double feat[DN_MAX_INPUTS] = {};
     const int st = damper_.force(d, force, env ? feat : nullptr, mask);
-    // a failed evaluation's inputs are not the network's: outside (as the quarter-car FMU says)
+    // a failed evaluation (a non-finite input) has no network inputs: outside, as in the quarter car
     if (env) *env = st < 0 ? DN_ENV_OUTSIDE_RANGE : envelope_.check(feat);
     return st;
   }

@@ -30,6 +30,18 @@ SHARED = ("features", "units", "activation", "in_offset", "in_gain", "in_ymin", 
           "out_ymin", "sat_lo", "sat_hi", "output", "output_unit", "terms", "feature_params")
 
 
+def check_width(hidden_each: Sequence[int]) -> int:
+    """The averaged layer's width; ModelError when it exceeds the 64 neurons a dampnet model holds."""
+    from dampnet import _core
+
+    width, cap = int(sum(hidden_each)), int(_core.MAX_HIDDEN)
+    if width > cap:
+        raise ModelError(f"average: {len(hidden_each)} networks of {', '.join(map(str, hidden_each))} hidden "
+                         f"neurons make a layer of {width}; dampnet's models hold at most {cap} "
+                         "(average fewer or narrower networks)")
+    return width
+
+
 def _same(a, b) -> bool:
     if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
         return np.array_equal(np.asarray(a), np.asarray(b))
@@ -52,13 +64,7 @@ def average_networks(models: Sequence[MlpModel]) -> MlpModel:
                 raise ModelError(f"average_networks: model {k}'s {name} differs from model 0's: members must be "
                                  "trained on the same data with the same features (their scalings equal)")
     k = len(models)
-    width = int(sum(m.w1.shape[0] for m in models))
-    from dampnet import _core
-
-    if width > int(_core.MAX_HIDDEN):
-        raise ModelError(f"average_networks: {k} networks of {', '.join(str(m.w1.shape[0]) for m in models)} hidden "
-                         f"neurons make a layer of {width}; dampnet's models hold at most {int(_core.MAX_HIDDEN)} "
-                         "(average fewer or narrower networks)")
+    width = check_width([int(m.w1.shape[0]) for m in models])
     # the training record of the first member, less what describes one member's own fit
     meta = {key: v for key, v in first.meta.items()
             if key not in ("seed", "split", "epochs", "best_epoch", "stop_reason", "samples", "metrics", "stats")}

@@ -77,6 +77,7 @@ class Envelope:
     threshold: float  # joint distance beyond which a point is outside [scaled units]
     params: dict[str, Any] = field(default_factory=dict)
     _tree: Any = field(default=None, repr=False, compare=False)
+    _runtime: Any = field(default=None, repr=False, compare=False)  # dampnet.envelope_grid's check, built once
 
     def scale(self, x: np.ndarray) -> np.ndarray:
         """Inputs [n, n_in] in feature units -> the model's scaled space."""
@@ -113,6 +114,14 @@ class Envelope:
                 f"{self.threshold:.4g} (scaled units: 1 = half an input's training range) = {p.get('factor')} x the "
                 f"{p.get('percentile'):g}th percentile {p.get('nn_percentile_value', float('nan')):.4g} of their "
                 "nearest-neighbour distances")
+
+
+def check_belongs(env: Envelope, model) -> None:
+    """ValueError unless `env` is `model`'s envelope: the same features, and built for its id."""
+    if list(env.features) != list(model.features):
+        raise ValueError(f"envelope: features {env.features} are not the model's {model.features}")
+    if env.params.get("model_id") not in (None, model.model_id()):
+        raise ValueError(f"envelope: built for model {env.params.get('model_id')}, not {model.model_id()}")
 
 
 def _nn_distances(points: np.ndarray) -> np.ndarray:

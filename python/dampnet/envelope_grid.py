@@ -71,38 +71,35 @@ def grid_cells(env: Envelope, dilate: int = DILATE_CELLS) -> np.ndarray:
     x = np.clip((env.points - env.in_ymin) / env.in_gain + env.in_offset, env.lo, env.hi)
     ci = cell_index(x, env.lo, env.hi, cells)
     ci = ci[np.all(ci >= 0, axis=1)]
+    from scipy.ndimage import binary_dilation
+
+    square = np.ones((2 * dilate + 1, 2 * dilate + 1), dtype=bool)
     out = np.zeros((len(pairs(n)), words), dtype=np.uint32)
     for p, (i, j) in enumerate(pairs(n)):
         occupied = np.zeros((cells, cells), dtype=bool)
         occupied[ci[:, i], ci[:, j]] = True
-        grown = occupied.copy()
-        for di in range(-dilate, dilate + 1):
-            for dj in range(-dilate, dilate + 1):
-                grown |= _shift(occupied, di, dj)
-        out[p] = _pack(grown.ravel())  # bit index ci * cells + cj
+        grown = binary_dilation(occupied, structure=square) if dilate else occupied
+        # bit ci * cells + cj: little-endian bit order within bytes, bytes within words
+        out[p] = np.packbits(grown.ravel(), bitorder="little").view("<u4")
     return out
-
-
-def _shift(a: np.ndarray, di: int, dj: int) -> np.ndarray:
-    """a moved by (di, dj) cells, with zeros shifted in (no wrap-around)."""
-    out = np.zeros_like(a)
-    n0, n1 = a.shape
-    out[max(di, 0):n0 + min(di, 0), max(dj, 0):n1 + min(dj, 0)] = a[max(-di, 0):n0 + min(-di, 0),
-                                                                   max(-dj, 0):n1 + min(-dj, 0)]
-    return out
-
-
-def _pack(bits: np.ndarray) -> np.ndarray:
-    """Bits [k * 32] -> uint32 [k], bit b in word b // 32 at position b % 32."""
-    b = bits.reshape(-1, 32).astype(np.uint64)
-    return (b << np.arange(32, dtype=np.uint64)).sum(axis=1).astype(np.uint32)
 
 
 def runtime_envelope(env: Envelope):
-    """The C++ check of env's grid (dampnet._core.Envelope)."""
+    """The C++ check of env's grid (dampnet._core.Envelope), built once per envelope."""
     from dampnet import _core
 
-    return _core.Envelope(env.lo, env.hi, grid_cells(env))
+    if env._runtime is None:
+        env._runtime = _core.Envelope(env.lo, env.hi, grid_cells(env))
+    return env._runtime
+
+
+def ranges_check(lo: np.ndarray, hi: np.ndarray):
+    """The C++ check of the training ranges alone, every cell marked: what an FMU exported without
+    its envelope computes (dampnet::Envelope::load_ranges)."""
+    from dampnet import _core
+
+    n = len(lo)
+    return _core.Envelope(lo, hi, np.full((n * (n - 1) // 2, _constants()[1]), 0xFFFFFFFF, dtype=np.uint32))
 
 
 def runtime_flags(env: Envelope, X: np.ndarray) -> np.ndarray:

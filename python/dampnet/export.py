@@ -295,12 +295,10 @@ def header_text(model: MlpModel, prefix: str = "dn_model", envelope=None) -> str
 def _envelope_block(p: str, P: str, model: MlpModel, envelope) -> str:
     """The training envelope's ranges and per-pair occupancy bitmaps (dampnet.envelope_grid) and
     a dn_envelope_desc initializer."""
+    from dampnet.envelope import check_belongs
     from dampnet.envelope_grid import DILATE_CELLS, grid_cells, grid_size
 
-    if list(envelope.features) != list(model.features):
-        raise ValueError(f"envelope: features {envelope.features} are not the model's {model.features}")
-    if envelope.params.get("model_id") not in (None, model.model_id()):
-        raise ValueError(f"envelope: built for model {envelope.params.get('model_id')}, not {model.model_id()}")
+    check_belongs(envelope, model)
     cells = grid_cells(envelope)
     n = model.n_inputs
     words = [f"0x{int(w):08x}u" for w in cells.ravel()]

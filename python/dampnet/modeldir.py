@@ -57,6 +57,10 @@ def save_model_dir(model: MlpModel, metrics: dict[str, Any] | None, out_dir: str
     is a model directory (model.json) that is not one of `inputs`, `.` or a parent.
     """
     out = check_output_dir(out_dir, "model", inputs, force)
+    if envelope is not None:
+        from dampnet.envelope import check_belongs
+
+        check_belongs(envelope, model)
     with staged_dir(out) as tmp:
         model.save(tmp / "model.json", overwrite=True)
         write_json(tmp / "metrics.json", metrics or {}, overwrite=True)
@@ -64,8 +68,5 @@ def save_model_dir(model: MlpModel, metrics: dict[str, Any] | None, out_dir: str
         if envelope is not None:
             from dampnet.envelope import save_envelope
 
-            if envelope.params.get("model_id") not in (None, model.model_id()):
-                raise ValueError(f"envelope: built for model {envelope.params.get('model_id')}, "
-                                 f"not {model.model_id()}")
             save_envelope(envelope, tmp)
     return out

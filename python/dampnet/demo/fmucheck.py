@@ -118,15 +118,10 @@ def simulate(path: Path, sig: dict[str, np.ndarray]) -> tuple[np.ndarray, np.nda
 def _flags_check(model, envelope, sig: dict, flags: np.ndarray) -> dict:
     """The FMU's envelope_flags against the runtime check's on the inputs FMPy's record has."""
     from dampnet import _core
+    from dampnet.envelope_grid import ranges_check, runtime_envelope
 
-    X = fmpy_inputs(model, sig)
-    if envelope is not None:
-        from dampnet.envelope_grid import runtime_flags
-
-        expected = runtime_flags(envelope, X)
-    else:  # ranges only: outside a range (or NaN)
-        expected = np.where(np.all((X >= model.sat_lo) & (X <= model.sat_hi), axis=1), 0,
-                            _core.ENV_OUTSIDE_RANGE).astype(np.uint32)
+    check = runtime_envelope(envelope) if envelope is not None else ranges_check(model.sat_lo, model.sat_hi)
+    expected = check.check(fmpy_inputs(model, sig))
     return {"grid": envelope is not None, "share_flagged": float(np.mean(flags != 0)),
             "share_outside_joint": float(np.mean((flags & _core.ENV_OUTSIDE_JOINT) != 0)),
             "match": bool(flags.shape == expected.shape and np.array_equal(flags, expected))}

@@ -85,7 +85,7 @@ SMALL_RESTARTS = 1_000_000
 def check_average(average: Any, restarts: int, hidden, score: str = "interpolation") -> int:
     """`average` (restarts averaged into one network) as an int in 1..restarts whose averaged
     width fits the runtime; ValueError naming the field otherwise."""
-    from dampnet import _core
+    from dampnet.ensemble import check_width
 
     if isinstance(average, bool) or not isinstance(average, (int, np.integer)) or average < 1:
         raise ValueError(f"average: expected a whole number >= 1 (1: keep the best restart alone), got {average!r}")
@@ -101,10 +101,7 @@ def check_average(average: Any, restarts: int, hidden, score: str = "interpolati
     hidden = tuple(int(h) for h in hidden)
     if len(hidden) != 1:
         raise ValueError(f"average: only one-hidden-layer networks add up to one network; hidden is {hidden}")
-    cap = int(_core.MAX_HIDDEN)
-    if average * hidden[0] > cap:
-        raise ValueError(f"average: {average} networks of {hidden[0]} hidden neurons make a layer of "
-                         f"{average * hidden[0]}; the runtime holds at most {cap} (use fewer or narrower networks)")
+    check_width([hidden[0]] * int(average))
     return int(average)
 
 
