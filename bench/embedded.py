@@ -249,7 +249,14 @@ def measure(cpu: str, vectors: Path, tiny: Path, model, out: Path, fp_contract: 
     base, kern, full = sizes(path("dn_firmware_base")), sizes(path("dn_firmware_kernel")), sizes(path("dn_firmware"))
     fw = emb.parse_output(emb.run(path("dn_firmware"), cpu))
     assert fw.errors == 0
+    # a configuration measured must also compute the loop: its states against the host's double
+    # loop on the same road (every option measured here: --fp-contract, --loop-float, each core)
+    host = emb.loop_vs_host(model, emb.make_vectors(model).road, fw)
+    if not host["within"]:
+        raise SystemExit(f"{cpu} (fp-contract {fp_contract}, loop-float {loop_float}): the firmware's loop differs "
+                         f"from the host's beyond {emb.HOST_TOLERANCE:g} of the peaks: {host['error_over_peak']}")
     r = {"sizes": fw.sizes, "stack": fw.stack,
+         "loop_vs_host_error_over_peak": host["error_over_peak"],
          "instructions": {"forward": fw.instructions("forward"), "step": fw.instructions("step")},
          "kernel": {"flash": kern["flash"] - base["flash"], "ram_static": kern["ram_static"] - base["ram_static"],
                     "stack": max(fw.stack["mlp_init"], fw.stack["forward"])},

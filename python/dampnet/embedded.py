@@ -55,23 +55,20 @@ DEFAULT_DAMPER_KINDS = ("neural",)
 # one network evaluation per damper call) and explicit, not the implicit solve's iteration (up to
 # DN_ACCEL_MAX_EVALS = 6 evaluations per call).
 DEFAULT_ACCEL_FEATURES = ("linear", "explicit")
-ACCEL_FEATURE_BITS = ("implicit", "explicit", "linear")  # dn_accel_feature order
 # The damper-evaluation schemes linked (dampnet.h DN_DAMPER_EVALS): one evaluation per step.
 DEFAULT_DAMPER_EVALS = ("per_step",)
-DAMPER_EVAL_BITS = ("per_stage", "per_step")  # dn_damper_eval order
 # The loop's state and arithmetic per core (dampnet.h DN_LOOP_FLOAT): float on the M4F, whose FPU
 # has no double, double on the M7 (FPv5-D16 does double in hardware; the host's precision).
 LOOP_FLOAT = {"cortex-m4": 1, "cortex-m7": 0}
-DAMPER_KIND_BITS = ("linear", "parametric", "table", "neural", "callback")  # dn_damper_kind order
 
 
-def _name_mask(what: str, names, bits) -> int:
-    """The bit mask of names of one dampnet.h enum (bits: its names in value order), as the root
-    CMakeLists.txt's dn_name_mask makes it."""
-    unknown = sorted(set(names) - set(bits))
+def _name_mask(what: str, names, registry: dict) -> int:
+    """The bit mask of names of one dampnet.h enum (registry: the runtime's name -> (value, doc),
+    e.g. _core.DAMPER_KINDS), as the root CMakeLists.txt's dn_name_mask makes it."""
+    unknown = sorted(set(names) - set(registry))
     if unknown:
-        raise ValueError(f"{what} {unknown}: expected some of {', '.join(bits)}")
-    return sum(1 << bits.index(k) for k in set(names))
+        raise ValueError(f"{what} {unknown}: expected some of {', '.join(registry)}")
+    return sum(1 << registry[k][0] for k in set(names))
 
 
 def target_defines(cpu: str, caps: dict, loop_float: int | None = None,
@@ -80,12 +77,14 @@ def target_defines(cpu: str, caps: dict, loop_float: int | None = None,
     DAMPNET_* options of a freestanding build): capacities, float MLP only, the loop's real type,
     the damper kinds, acceleration and evaluation schemes linked, code size over inlining, and
     the lean float kernel."""
+    from dampnet import _core
+
     lf = LOOP_FLOAT[cpu] if loop_float is None else int(loop_float)
     return ([f"DN_CAP_{k}={v}" for k, v in caps.items()]
             + ["DN_DOUBLE_KERNEL=0", f"DN_LOOP_FLOAT={lf}",
-               f"DN_DAMPER_KINDS={_name_mask('damper kinds', damper_kinds, DAMPER_KIND_BITS)}",
-               f"DN_ACCEL_FEATURES={_name_mask('acceleration features', DEFAULT_ACCEL_FEATURES, ACCEL_FEATURE_BITS)}",
-               f"DN_DAMPER_EVALS={_name_mask('damper evaluations', DEFAULT_DAMPER_EVALS, DAMPER_EVAL_BITS)}",
+               f"DN_DAMPER_KINDS={_name_mask('damper kinds', damper_kinds, _core.DAMPER_KINDS)}",
+               f"DN_ACCEL_FEATURES={_name_mask('acceleration features', DEFAULT_ACCEL_FEATURES, _core.ACCEL_FEATURES)}",
+               f"DN_DAMPER_EVALS={_name_mask('damper evaluations', DEFAULT_DAMPER_EVALS, _core.DAMPER_EVALS)}",
                "DN_SMALL_CODE=1"]
             + [f"DN_KERNEL_{k}={v}" for k, v in DEFAULT_KERNEL.items()])
 
@@ -341,6 +340,33 @@ def host_loop(model, road: np.ndarray, every: int = PRINT_EVERY):
     return states, np.array(loop.state), loop.damper_evals
 
 
+#: the loop-state columns the firmware-vs-host comparison reads (z_s, v_s, z_us, v_us, u_cmd)
+COMPARED_STATES = {"z_s": 1, "v_s": 2, "z_us": 3, "v_us": 4, "u_cmd": 12}
+#: the firmware's state may differ from the host's double loop by this share of each state's peak
+#: (the float loop's rounding: measured 1.2e-6 on the M4F)
+HOST_TOLERANCE = 1e-4
+
+
+def loop_vs_host(model, road: np.ndarray, out) -> dict:
+    """The firmware run `out` (parse_output) against host_loop on the same road: {error_over_peak
+    {state: max |fw - host| / peak}, peak, final_error_over_peak, evals (firmware, host), within
+    (every error <= HOST_TOLERANCE of its peak, the same step indices and evaluation count)}."""
+    states, final, evals = host_loop(model, road)
+    idx = list(COMPARED_STATES.values())
+    fw = np.array([s for _, s, _ in out.states])
+    host = np.array([s for _, s in states])
+    same_steps = [k for k, _, _ in out.states] == [k for k, _ in states] and fw.shape == host.shape
+    peak = np.abs(host[:, idx]).max(axis=0)
+    err = np.abs(fw[:, idx] - host[:, idx]).max(axis=0) if same_steps else np.full(len(idx), np.inf)
+    final_err = np.abs(np.asarray(out.final)[idx] - final[idx]) / peak
+    ratio = err / peak
+    return {"error_over_peak": dict(zip(COMPARED_STATES, ratio.tolist())), "peak": dict(zip(COMPARED_STATES, peak.tolist())),
+            "final_error_over_peak": dict(zip(COMPARED_STATES, final_err.tolist())),
+            "evals": (int(out.evals), int(evals)),
+            "within": bool(same_steps and np.all(peak > 0) and np.all(ratio <= HOST_TOLERANCE)
+                           and np.all(final_err <= HOST_TOLERANCE) and out.evals == evals)}
+
+
 # ---- dampnet export MODEL --target cortex-m4|cortex-m7 --out DIR ----
 
 def capacities_for(model) -> dict:
@@ -370,6 +396,7 @@ add_library(dampnet STATIC src/c_api_common.cpp src/c_api_mlp.cpp src/c_api_loop
 target_include_directories(dampnet PUBLIC include ${{CMAKE_CURRENT_SOURCE_DIR}})
 target_compile_definitions(dampnet PUBLIC DN_STATIC ${{DN_CAPS}})
 target_compile_options(dampnet PRIVATE -ffunction-sections -fdata-sections -ffp-contract=off
+  -fno-tree-loop-distribute-patterns
   -fno-exceptions -fno-rtti -fno-threadsafe-statics)
 
 option(DN_EXAMPLE_FIRMWARE "the example firmware (QEMU {machine})" ON)
@@ -466,7 +493,7 @@ M4F, double on the M7).
 
 Figures for the 3-30-1 default model with these options (dampnet's bench/RESULTS.md): on a
 Cortex-M4F (float loop) the float forward 1,447 instructions, the kernel 2,508 B of flash with its
-weights, the quarter-car step 2,211 instructions (about 3,261 cycles by the TRM's timings, an
+weights, the quarter-car step 2,211 instructions (about 3,232 cycles by the TRM's timings, an
 estimate), kernel + loop + controller 15.2 KB of flash and 2.0 KB of RAM; on a Cortex-M7 (double
 loop) 1,440 instructions, 3,292 B, 2,238 instructions, 18.8 KB and 2.6 KB.
 """

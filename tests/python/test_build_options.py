@@ -1,11 +1,12 @@
 """The compile-time options of a microcontroller build, on the host (no cross toolchain needed):
-a header-only program built as the cortex-m4 preset builds the library (dampnet.h: DN_LOOP_FLOAT 1,
-DN_DAMPER_KINDS neural only, DN_ACCEL_FEATURES linear and explicit, DN_DAMPER_EVALS per step,
-DN_DOUBLE_KERNEL 0) and compiled with -Wdouble-promotion -Werror.
+a program and the library's sources the firmware links, built with the cortex-m4 preset's
+definitions (dampnet.embedded.target_defines: DN_LOOP_FLOAT 1, DN_DAMPER_KINDS neural only,
+DN_ACCEL_FEATURES linear and explicit, DN_DAMPER_EVALS per step, DN_DOUBLE_KERNEL 0, the small
+kernel, DN_SMALL_CODE) and compiled with -Wdouble-promotion -Werror.
 
 * The float loop (the quarter car of tests/python/test_embedded.py: per-step evaluation, the
   linearised acceleration feature, on-off skyhook with a 5 ms command filter, the default model
-  built in place from its folded floats) over 2 s of the thesis rough road equals the host's
+  built in place from its folded floats by dn_loop_model_init_neural) over 2 s of the thesis rough road equals the host's
   double loop (dampnet._core) within 1e-4 of each state's peak.
 * A kind left out is refused at set-up (DN_E_PARAM); so is a vehicle asking for the implicit
   solve or per-stage evaluation, and the default vehicle then asks for the linear scheme and
@@ -31,8 +32,9 @@ PROGRAM = r"""
 #include <type_traits>
 #include "dampnet/loop.hpp"
 #include "dn_model_default.h"
+#include "internal.hpp"  // the C ABI's handles: the loop model dn_loop_model_init_neural builds
 using namespace dampnet;
-static LoopModel model;  // the damper and its network built in place, as dn_loop_model_init_neural does
+alignas(DN_STORAGE_ALIGN) static unsigned char storage[sizeof(dn_loop_model)];
 static LoopData data;
 int main() {
   static_assert(std::is_same<real, float>::value, "DN_LOOP_FLOAT makes the loop float");
@@ -50,17 +52,16 @@ int main() {
   per_stage.damper_eval = DN_EVAL_PER_STAGE;
   std::printf("per_stage %d\n", check_vehicle(per_stage));
   const dn_mlp_folded_f folded = DN_MODEL_DEFAULT_FOLDED_INIT;
-  Damper& d = model.damper;
-  int st = d.mf.load_folded(&folded);
-  st |= d.md.load_folded(&folded);
-  st |= d.set_neural_features(dn_model_default_feature_names, DN_MODEL_DEFAULT_N_INPUTS, nullptr, nullptr, 0,
-                              DN_PRECISION_FLOAT);
   v.damper_eval = DN_EVAL_PER_STEP;
   v.accel_feature = DN_ACCEL_LINEAR;
   dn_controller c = default_controller(DN_CTRL_SKYHOOK_ONOFF);
   c.u_tau_s = 0.005f;
-  st |= model.init(v, d, c);
+  dn_loop_model* handle = nullptr;
+  const int st = dn_loop_model_init_neural(&v, &c, &folded, dn_model_default_feature_names, DN_MODEL_DEFAULT_N_INPUTS,
+                                           nullptr, nullptr, 0, storage, sizeof storage, &handle);
   std::printf("setup %d\n", st);
+  if (st != DN_OK) return 1;
+  const LoopModel& model = handle->m;
   reset(model, data);
   double z, zdot;
   int k = 0, errors = 0;
@@ -93,16 +94,17 @@ int main() {
 }
 """
 
-DEFINES = ["-DDN_STATIC", "-DDN_LOOP_FLOAT=1", "-DDN_DAMPER_KINDS=8", "-DDN_ACCEL_FEATURES=6", "-DDN_DAMPER_EVALS=2",
-           "-DDN_DOUBLE_KERNEL=0", "-DDN_CAP_INPUTS=3", "-DDN_CAP_HIDDEN=32", "-DDN_CAP_HIDDEN2=0",
-           "-DDN_CAP_TERMS=0", "-DDN_CAP_TABLE_V=2", "-DDN_CAP_TABLE_U=1"]
+# the cortex-m4 preset's definitions, as dampnet.embedded gives them to its cross builds
+DEFINES = ["-DDN_STATIC"] + [f"-D{d}" for d in emb.target_defines("cortex-m4", emb.DEFAULT_CAPS)]
 
 
 def test_the_float_loop_build_on_the_host(tmp_path):
     src = tmp_path / "float_loop.cpp"
     src.write_text(PROGRAM)
-    exe = compile_program([src], tmp_path / "float_loop", cxx=True,
-                          include_dirs=[ROOT / "cpp" / "include", ROOT / "export"],
+    # with the library's sources the firmware links (its set-up is dn_loop_model_init_neural's)
+    lib = [ROOT / "cpp" / "src" / f for f in ("c_api_common.cpp", "c_api_mlp.cpp", "c_api_loop.cpp")]
+    exe = compile_program([src, *lib], tmp_path / "float_loop", cxx=True,
+                          include_dirs=[ROOT / "cpp" / "include", ROOT / "cpp" / "src", ROOT / "export"],
                           extra=[*DEFINES, "-Wdouble-promotion"])
     model = load_model(ROOT / "export" / "dn_model_default.json")
     road = emb.make_vectors(model, n_x=8, seconds=2.0).road

@@ -116,7 +116,7 @@ class Damper {
 
   // ---- set-up ----
   int set_linear(double c) noexcept {
-    if (!(DN_DAMPER_KINDS & (1 << DN_DAMPER_LINEAR))) return DN_E_PARAM;  // not in this build
+    if (!kind_built(DN_DAMPER_LINEAR)) return DN_E_PARAM;  // not in this build
     const real cr = static_cast<real>(c);
     if (!std::isfinite(cr)) return DN_E_NONFINITE_PARAM;
     kind = DN_DAMPER_LINEAR;
@@ -126,7 +126,7 @@ class Damper {
 
   int set_parametric(const dn_parametric_params* p) noexcept {
     if (!p) return DN_E_NULL;
-    if (!(DN_DAMPER_KINDS & (1 << DN_DAMPER_PARAMETRIC))) return DN_E_PARAM;
+    if (!kind_built(DN_DAMPER_PARAMETRIC)) return DN_E_PARAM;
     const real v[] = {p->c_min, p->c_max, p->gamma, p->f0, p->v_max, p->v_smooth};
     for (real x : v)
       if (!std::isfinite(x)) return DN_E_NONFINITE_PARAM;
@@ -141,7 +141,7 @@ class Damper {
   // The grid is validated in dn_real (finite, strictly increasing after the conversion).
   int set_table(const double* vs, int n_v, const double* us, int n_u, const double* fs) noexcept {
     if (!vs || !us || !fs) return DN_E_NULL;
-    if (!(DN_DAMPER_KINDS & (1 << DN_DAMPER_TABLE))) return DN_E_PARAM;
+    if (!kind_built(DN_DAMPER_TABLE)) return DN_E_PARAM;
     if (n_v < 2 || n_v > DN_CAP_TABLE_V || n_u < 1 || n_u > DN_CAP_TABLE_U) return DN_E_SIZE;
     TableParams t;
     t.n_v = n_v;
@@ -169,7 +169,7 @@ class Damper {
                           const double* pvalues, int n_params, int prec) noexcept {
     if (n > 0 && !names) return DN_E_NULL;
     if (n_params > 0 && (!pnames || !pvalues)) return DN_E_NULL;
-    if (!(DN_DAMPER_KINDS & (1 << DN_DAMPER_NEURAL))) return DN_E_PARAM;  // not in this build
+    if (!kind_built(DN_DAMPER_NEURAL)) return DN_E_PARAM;  // not in this build
     if (n < 1 || n > DN_MAX_INPUTS || n_params < 0) return DN_E_SIZE;
     if (n != md.n_inputs()) return DN_E_MISMATCH;
     if (prec != DN_PRECISION_DOUBLE && prec != DN_PRECISION_FLOAT) return DN_E_PARAM;
@@ -211,7 +211,7 @@ class Damper {
 
   int set_callback(dn_damper_fn f, void* u) noexcept {
     if (!f) return DN_E_NULL;
-    if (!(DN_DAMPER_KINDS & (1 << DN_DAMPER_CALLBACK))) return DN_E_PARAM;
+    if (!kind_built(DN_DAMPER_CALLBACK)) return DN_E_PARAM;
     kind = DN_DAMPER_CALLBACK;
     fn = f;
     user = u;
