@@ -2,7 +2,7 @@
 # Usage: bash python/env.sh COMMAND [ARGS...]   e.g. `bash python/env.sh dampnet demo`
 # Sets up everything dampnet needs on a fresh machine, idempotently, then runs
 # COMMAND inside the environment:
-# Debian packages (Eigen, a C compiler is assumed), a virtual environment in
+# the Debian packages of python/debian-packages.txt, a virtual environment in
 # .venv, the Python dependencies (torch pinned to the local CPU build), and
 # the C++ core built into the package (editable install, incremental rebuild).
 set -euo pipefail
@@ -11,52 +11,28 @@ cd "$DN_ROOT"
 
 dn_log() { printf '[dampnet setup] %s\n' "$*" >&2; }
 
-# Debian packages: Eigen (optional dense kernel), Chromium (report check), clang and
-# its libFuzzer runtime (the fuzz harnesses of fuzz/, run by tests/python/test_fuzz_smoke.py).
-dn_apt_install() {  # dn_apt_install PKG... : install quietly when root; 1 when it could not
-  if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
-    dn_log "installing Debian packages: $*"
-    if [ -z "${dn_apt_updated:-}" ]; then
-      apt-get update -qq >/dev/null 2>&1 || true
-      dn_apt_updated=1
-    fi
-    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "$@" >/dev/null 2>&1 && return 0
-    dn_log "warning: could not install $*; features that need them are skipped with a reason"
-  else
-    dn_log "warning: missing $* and not root; features that need them are skipped with a reason"
-  fi
-  return 1
-}
-# The libFuzzer runtime of the installed clang (the Debian package libclang-rt-N-dev).
-dn_libfuzzer() {
-  command -v clang++ >/dev/null 2>&1 || return 1
-  [ -f "$(clang++ -print-resource-dir 2>/dev/null)/lib/linux/libclang_rt.fuzzer-x86_64.a" ] \
-    || [ -f "$(clang++ -print-file-name=libclang_rt.fuzzer-x86_64.a 2>/dev/null)" ]
-}
+# Debian packages: every one named in python/debian-packages.txt (one a line, with what needs
+# it), each checked with dpkg-query and installed when missing. A package that could not be
+# installed is named here, and every test that needs it fails naming it again.
+dn_apt_list="$DN_ROOT/python/debian-packages.txt"
+dn_installed() { [ "$(dpkg-query -W -f='${db:Status-Status}' "$1" 2>/dev/null)" = installed ]; }
 need_apt=()
-[ -f /usr/include/eigen3/Eigen/Core ] || need_apt+=(libeigen3-dev)
-command -v chromium >/dev/null 2>&1 || need_apt+=(chromium)
-command -v clang++ >/dev/null 2>&1 || need_apt+=(clang)
-# The Cortex-M cross build and its emulator (cpp/embedded/, tests/python/test_embedded.py):
-# arm-none-eabi GCC with newlib, and QEMU's Arm system emulator (MPS2 boards).
-command -v arm-none-eabi-gcc >/dev/null 2>&1 || need_apt+=(gcc-arm-none-eabi)
-[ -f /usr/lib/arm-none-eabi/lib/libc_nano.a ] || need_apt+=(libnewlib-arm-none-eabi)
-command -v qemu-system-arm >/dev/null 2>&1 || need_apt+=(qemu-system-arm)
+while read -r pkg _; do
+  dn_installed "$pkg" || need_apt+=("$pkg")
+done < <(sed -e 's/#.*//' -e '/^[[:space:]]*$/d' "$dn_apt_list")
 if ((${#need_apt[@]})); then
-  dn_apt_install "${need_apt[@]}" || true
-fi
-# The test of the fuzz harnesses fails without libFuzzer unless this marker says why
-# it could not be installed here (removed again once it is).
-dn_fuzz_marker=build/libfuzzer-unavailable.txt
-if ! dn_libfuzzer && command -v clang++ >/dev/null 2>&1; then
-  clang_major="$(clang++ -dumpversion 2>/dev/null | cut -d. -f1)"
-  dn_apt_install "libclang-rt-${clang_major}-dev" || true
-fi
-if dn_libfuzzer; then
-  rm -f "$dn_fuzz_marker"
-else
-  mkdir -p build
-  echo "python/env.sh could not install clang and its libFuzzer runtime (libclang-rt-N-dev): not root, no apt-get, or the install failed" >"$dn_fuzz_marker"
+  if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+    dn_log "installing Debian packages: ${need_apt[*]}"
+    apt-get update -qq >/dev/null 2>&1 || dn_log "warning: apt-get update failed"
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${need_apt[@]}" \
+      >/dev/null 2>&1 || true
+  fi
+  still=()
+  for pkg in "${need_apt[@]}"; do dn_installed "$pkg" || still+=("$pkg"); done
+  if ((${#still[@]})); then
+    dn_log "warning: Debian packages not installed (not root, no apt-get, or the install failed): ${still[*]}"
+    dn_log "         the tests that need them will fail naming them; install with: apt-get install ${still[*]}"
+  fi
 fi
 
 PY="${PYTHON:-python3}"

@@ -105,12 +105,17 @@ class EmbeddedError(RuntimeError):
 
 
 def toolchain_missing() -> str | None:
-    """Why the cross build cannot run here (None: it can): the tools python/env.sh installs."""
-    need = {"arm-none-eabi-gcc": "gcc-arm-none-eabi", "qemu-system-arm": "qemu-system-arm",
-            "cmake": "cmake"}
+    """Why the cross build cannot run here (None: it can), naming the Debian packages of
+    python/debian-packages.txt that python/env.sh installs: the cross compiler, newlib, the cross
+    C++ headers (compiling ``#include <cstdint>``), QEMU and cmake."""
+    need = {"arm-none-eabi-gcc": "gcc-arm-none-eabi", "arm-none-eabi-g++": "gcc-arm-none-eabi",
+            "qemu-system-arm": "qemu-system-arm", "cmake": "cmake (PyPI)"}
     missing = [f"{tool} (Debian package {pkg})" for tool, pkg in need.items() if not shutil.which(tool)]
     if not missing and not _newlib_present():
         missing.append("newlib (Debian package libnewlib-arm-none-eabi)")
+    if not missing and not _cross_cxx_headers_present():
+        missing.append("the cross C++ headers: arm-none-eabi-g++ cannot compile #include <cstdint> "
+                       "(Debian package libstdc++-arm-none-eabi-dev)")
     return ", ".join(missing) + " not installed; python/env.sh installs them" if missing else None
 
 
@@ -121,6 +126,17 @@ def _newlib_present() -> bool:
     except (OSError, subprocess.SubprocessError):
         return False
     return os.path.isabs(out) and os.path.isfile(out)
+
+
+def _cross_cxx_headers_present() -> bool:
+    """True if arm-none-eabi-g++ preprocesses <cstdint> and <cmath> (the runtime's C++ headers)."""
+    try:
+        proc = subprocess.run(["arm-none-eabi-g++", "-x", "c++", "-std=c++17", "-E", "-o", os.devnull, "-"],
+                              input="#include <cstdint>\n#include <cmath>\n", capture_output=True,
+                              text=True, timeout=60)
+    except (OSError, subprocess.SubprocessError):
+        return False
+    return proc.returncode == 0
 
 
 # ---- the stored inputs and road ----

@@ -42,14 +42,13 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from dampnet.outputs import atomic_write_text, json_text
+from dampnet.outputs import atomic_write_bytes, atomic_write_text, json_text
 
 SCHEMA = "dampnet.envelope/1"
 ENVELOPE_NPZ = "envelope.npz"
@@ -194,16 +193,9 @@ def save_envelope(env: Envelope, model_dir: str | os.PathLike) -> list[Path]:
     rename; inside save_model_dir's staging directory the whole model directory is atomic)."""
     d = Path(model_dir)
     d.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{ENVELOPE_NPZ}.", suffix=".npz", dir=d)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            np.savez_compressed(f, points=env.points, lo=env.lo, hi=env.hi, in_offset=env.in_offset,
-                                in_gain=env.in_gain, in_ymin=np.array(env.in_ymin), threshold=np.array(env.threshold))
-        os.replace(tmp, d / ENVELOPE_NPZ)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    atomic_write_bytes(d / ENVELOPE_NPZ, lambda f: np.savez_compressed(
+        f, points=env.points, lo=env.lo, hi=env.hi, in_offset=env.in_offset, in_gain=env.in_gain,
+        in_ymin=np.array(env.in_ymin), threshold=np.array(env.threshold)), overwrite=True)
     atomic_write_text(d / ENVELOPE_JSON, json_text(_params_json(env)), overwrite=True)
     return [d / ENVELOPE_NPZ, d / ENVELOPE_JSON]
 

@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from dampnet.model import MlpModel
-from dampnet.outputs import atomic_write_text
+from dampnet.outputs import atomic_write_bytes, atomic_write_text
 
 # C89/C99/C++17 keywords and names the header itself defines, which a prefix must not be.
 _RESERVED = set(
@@ -458,19 +458,8 @@ def onnx_graph(model: MlpModel):
 
 def write_onnx(model: MlpModel, path: str | os.PathLike, overwrite: bool = False) -> Path:
     """onnx_graph(model) written atomically to path (an existing file only with overwrite)."""
-    import tempfile
-
     path = Path(path)
     if path.exists() and not overwrite:
         raise FileExistsError(f"{path}: exists; refusing to overwrite")
-    data = onnx_graph(model).SerializeToString()
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    atomic_write_bytes(path, onnx_graph(model).SerializeToString(), overwrite=True)
     return path

@@ -341,8 +341,18 @@ def _alive(pid: int) -> bool:
 
 # -- writing files ------------------------------------------------------------------------------
 
-def atomic_write_text(path: str | os.PathLike, text: str, overwrite: bool = False) -> Path:
-    """Write text to path via a temporary file and rename, never half-written.
+def umask_mode(mode: int = 0o666) -> int:
+    """`mode` less the process's umask: what open() gives a new file (mkstemp gives 0600)."""
+    mask = os.umask(0)
+    os.umask(mask)
+    return mode & ~mask
+
+
+def atomic_write_bytes(path: str | os.PathLike, data: bytes | Callable[[Any], None],
+                       overwrite: bool = False) -> Path:
+    """Write `data` (bytes, or a function writing to a binary file) to `path` via a temporary
+    file in the same directory and a rename: never half-written, and with the mode a plain
+    open() would give (0666 less the umask), not mkstemp's 0600.
 
     Refuses (FileExistsError) to replace an existing file unless overwrite.
     """
@@ -350,16 +360,25 @@ def atomic_write_text(path: str | os.PathLike, text: str, overwrite: bool = Fals
     if p.exists() and not overwrite:
         raise FileExistsError(f"{p}: exists; refusing to overwrite (use --force)")
     p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", dir=p.parent)
+    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
     try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
+        os.fchmod(fd, umask_mode())
+        with os.fdopen(fd, "wb") as f:
+            if callable(data):
+                data(f)
+            else:
+                f.write(data)
         os.replace(tmp, p)
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
     return p
+
+
+def atomic_write_text(path: str | os.PathLike, text: str, overwrite: bool = False) -> Path:
+    """atomic_write_bytes of `text` in UTF-8."""
+    return atomic_write_bytes(path, text.encode("utf-8"), overwrite)
 
 
 def jsonable(obj: Any, default: Callable[[Any], Any] | None = None) -> Any:

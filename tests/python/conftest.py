@@ -7,6 +7,8 @@ from pathlib import Path
 
 import pytest
 
+import needs
+
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from cbuild import ROOT, cmake_build  # noqa: E402
@@ -41,8 +43,7 @@ def plain_build() -> Path:
 @pytest.fixture(scope="session")
 def eigen_build() -> Path:
     """The standalone project with tests, dense layers through Eigen (libeigen3-dev)."""
-    if not Path("/usr/include/eigen3/Eigen/Core").is_file():
-        pytest.skip("Eigen headers not installed (Debian libeigen3-dev); python/env.sh installs them")
+    needs.need_file("/usr/include/eigen3/Eigen/Core", "libeigen3-dev", "Eigen's headers")
     return cmake_build("eigen", "DAMPNET_BUILD_TESTS=ON", "DAMPNET_USE_EIGEN=ON",
                        "CMAKE_BUILD_TYPE=Release", target="dn_print_outputs")
 

@@ -12,6 +12,8 @@ import sys
 import numpy as np
 import pytest
 
+import needs
+
 from cbuild import ROOT, compile_program, run
 from dampnet.latency import python_bench as bp
 from dampnet.modeldir import default_model
@@ -52,8 +54,8 @@ def test_references_compute_the_kernels_function(model, tmp_path):
     """torch eager, TorchScript, onnxruntime (float32) within 1e-5 of the output range of
     MlpModel.predict (float64 kernel), numpy and the pybind double call within 1e-10; on the
     harness inputs and on inputs beyond the training range (the clamp)."""
-    pytest.importorskip("torch")
-    pytest.importorskip("onnxruntime")
+    needs.need_module("torch", "train")
+    needs.need_module("onnxruntime")
     rng = np.random.default_rng(5)
     span = model.sat_hi - model.sat_lo
     outside = model.sat_lo - 0.5 * span + 2.0 * span * rng.random((200, model.n_inputs))

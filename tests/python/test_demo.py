@@ -10,9 +10,10 @@ from __future__ import annotations
 import json
 
 import numpy as np
-import shutil
 
 import pytest
+
+import needs
 
 from wheel_env import wheel_env
 
@@ -79,8 +80,7 @@ def test_demo_tells_the_whole_story(demo_out):
 def test_demo_report_renders_in_chromium(demo_out):
     out, _ = demo_out
     summary = json.loads((out / "summary.json").read_text())
-    if not shutil.which("chromium"):
-        pytest.skip("Chromium not installed (Debian package chromium; python/env.sh installs it)")
+    needs.need_tool("chromium")
     check = summary["report_rendered"]
     assert check["checked"] and check["ok"], check
     assert check["images"] >= 8 and check["broken_images"] == 0 and check["empty_tables"] == 0

@@ -21,23 +21,24 @@ from pathlib import Path
 
 import pytest
 
+import needs
+
 from cbuild import BUILD, ROOT, run
 
 HARNESSES = ("mlp", "damper", "loop")
 CORPUS = ROOT / "fuzz" / "corpus"
 RUNS = 10000  # mutations per harness after the corpus replay: about a second each on an idle core
-UNAVAILABLE = BUILD / "libfuzzer-unavailable.txt"  # written by python/env.sh
 
 
 @pytest.fixture(scope="session")
 def fuzz_build() -> Path:
     """The harnesses built with clang into build/fuzz (incremental after the first time)."""
-    clang = shutil.which("clang++")
-    if clang is None:
-        if UNAVAILABLE.is_file():
-            pytest.skip(UNAVAILABLE.read_text().strip())
-        pytest.fail("clang++ not found: the fuzz harnesses need clang and its libFuzzer runtime "
-                    "(Debian clang, libclang-rt-N-dev), which python/env.sh installs")
+    clang = needs.need_tool("clang++")
+    runtime = run([clang, "-print-file-name=libclang_rt.fuzzer-x86_64.a"]).stdout.strip()
+    if not os.path.isfile(runtime):
+        runtime = str(Path(run([clang, "-print-resource-dir"]).stdout.strip())
+                      / "lib" / "linux" / "libclang_rt.fuzzer-x86_64.a")
+    needs.need_file(runtime, "libclang-rt-14-dev", "clang's libFuzzer runtime")
     bdir = BUILD / "fuzz"
     gen = ["-G", "Ninja"] if shutil.which("ninja") else []
     run(["cmake", "-S", ROOT, "-B", bdir, *gen, "-DCMAKE_CXX_COMPILER=" + clang,

@@ -9,6 +9,8 @@ import subprocess
 import numpy as np
 import pytest
 
+import needs
+
 from cbuild import compile_program
 from cdefs import MLP_CDEF
 from dampnet import paths
@@ -52,7 +54,7 @@ int dn_mlp_forward_f(const dn_mlp* m, const float* x, float* y, uint32_t* clampe
 
 @pytest.fixture(scope="module")
 def cffi_lib():
-    cffi = pytest.importorskip("cffi")
+    cffi = needs.need_module("cffi")
     ffi = cffi.FFI()
     ffi.cdef(CDEF)
     return ffi, ffi.dlopen(str(paths.shared_library()))

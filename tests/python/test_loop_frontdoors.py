@@ -9,6 +9,8 @@ import subprocess
 import numpy as np
 import pytest
 
+import needs
+
 from cbuild import ROOT, compile_program
 from cdefs import MLP_CDEF
 from dampnet import paths
@@ -97,7 +99,7 @@ def test_c_program_equals_pybind(tmp_path, road, via_pybind):
 
 def run_cffi(model, road, u_tau_s=0.0):
     """The skyhook run of via_pybind through the C ABI from Python (cffi): (states, forces)."""
-    cffi = pytest.importorskip("cffi")
+    cffi = needs.need_module("cffi")
     ffi = cffi.FFI()
     ffi.cdef(CDEF)
     lib = ffi.dlopen(str(paths.shared_library()))

@@ -21,9 +21,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-pytest.importorskip("dask.distributed")
-pytest.importorskip("pandas")
-pytest.importorskip("pyarrow")
+import needs
+
+for _module in ("dask.distributed", "pandas", "pyarrow"):
+    needs.need_module(_module)
 
 import pandas as pd  # noqa: E402
 

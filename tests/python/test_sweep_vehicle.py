@@ -15,9 +15,10 @@ import json
 import numpy as np
 import pytest
 
-pytest.importorskip("dask.distributed")
-pytest.importorskip("pandas")
-pytest.importorskip("pyarrow")
+import needs
+
+for _module in ("dask.distributed", "pandas", "pyarrow"):
+    needs.need_module(_module)
 
 from dampnet.cli import main  # noqa: E402
 from dampnet.sweep import parse_spec, run  # noqa: E402
