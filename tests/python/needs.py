@@ -23,7 +23,7 @@ DEBIAN_LIST = ROOT / "python" / "debian-packages.txt"
 #: external programs the suite, the commands it runs and the benchmarks call -> Debian package
 TOOLS = {
     "cc": "build-essential", "c++": "build-essential", "gcc": "build-essential",
-    "g++": "build-essential", "make": "build-essential", "ldd": "libc-bin",
+    "g++": "build-essential", "make": "build-essential", "ldd": "libc-bin", "dpkg-query": "dpkg",
     "chromium": "chromium",
     "clang": "clang", "clang++": "clang",
     "arm-none-eabi-gcc": "gcc-arm-none-eabi", "arm-none-eabi-g++": "gcc-arm-none-eabi",
@@ -33,7 +33,9 @@ TOOLS = {
 #: programs that come from PyPI with the build tools python/env.sh installs into .venv
 PYPI_TOOLS = {"cmake": "cmake", "ctest": "cmake", "ninja": "ninja"}
 #: Debian packages that come with another one of the list (a dependency), not listed themselves
-DEPENDENCIES = {"binutils-arm-none-eabi": "gcc-arm-none-eabi", "libc-bin": "build-essential"}
+DEPENDENCIES = {"binutils-arm-none-eabi": "gcc-arm-none-eabi"}
+#: Debian's essential packages: on every Debian system, never listed
+ESSENTIAL = {"dpkg", "libc-bin"}
 #: names tried only as alternatives to a listed tool (another distribution's Chromium)
 ALTERNATIVES = {"chromium-browser": "chromium", "google-chrome": "chromium"}
 
