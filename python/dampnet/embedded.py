@@ -28,7 +28,14 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[2]  # the source tree, when dampnet runs from one
+
+
+def source_tree() -> bool:
+    """True if dampnet runs from its source tree (a checkout, an editable install): the root
+    CMakeLists.txt and cpp/embedded/ are there. An installed wheel has only what
+    `dampnet export --target` needs (installed into the package by CMakeLists.txt)."""
+    return (ROOT / "CMakeLists.txt").is_file() and (ROOT / "cpp" / "embedded" / "firmware.c").is_file()
 
 # The two cores: the QEMU board that emulates each and the compiler's flags for it.
 CPUS = {
@@ -176,10 +183,10 @@ def write_vectors(path, vectors: Vectors | None = None, model=None) -> Vectors:
     exactly), the road as doubles that round-trip (dn_real: rounded to float by the compiler in
     a DN_LOOP_FLOAT build), and the loop's configuration."""
     from dampnet import _core
-    from dampnet.modeldir import load_model
+    from dampnet.modeldir import default_model
 
     if vectors is None:
-        vectors = make_vectors(model or load_model(ROOT / "export" / "dn_model_default.json"))
+        vectors = make_vectors(model or default_model())
     n, k = vectors.x.shape
     bits = vectors.x.view(np.uint32)
     ctrl = _core.CONTROLLER_KINDS[LOOP_CONFIG["controller"]][0]
@@ -228,8 +235,14 @@ def cmake_args(cpu: str, vectors: Path | None = None, build_type: str = "Release
 
 
 def build(cpu: str, build_dir, vectors: Path | None = None, targets=("dn_firmware",), **options) -> Path:
-    """Configure (once) and build the firmware for a core into build_dir; returns build_dir."""
+    """Configure (once) and build the firmware for a core into build_dir; returns build_dir.
+
+    From an installed wheel (no source tree) only the default firmware builds: the folder
+    `dampnet export default --target CPU` writes, with the stored inputs and road of a source
+    build (build_from_folder); other targets and options need the source tree."""
     build_dir = Path(build_dir)
+    if not source_tree():
+        return build_from_folder(cpu, build_dir, vectors, targets, **options)
     # an existing build keeps its generator (e.g. one of `cmake --preset cortex-m4`'s, which
     # CMake would refuse to switch)
     gen = ["-G", "Ninja"] if shutil.which("ninja") and not (build_dir / "CMakeCache.txt").is_file() else []
@@ -238,8 +251,33 @@ def build(cpu: str, build_dir, vectors: Path | None = None, targets=("dn_firmwar
     return build_dir
 
 
+def build_from_folder(cpu: str, build_dir: Path, vectors: Path | None = None, targets=("dn_firmware",),
+                      **options) -> Path:
+    """The default firmware without the source tree: the default model's export folder
+    (export_target, with make_vectors' inputs and road) in build_dir/folder, built into build_dir."""
+    from dampnet.modeldir import default_model
+
+    if tuple(targets) != ("dn_firmware",) or vectors is not None or options:
+        raise EmbeddedError(f"building {', '.join(targets)} with options {sorted(options) or 'none'} and "
+                            f"vectors {vectors or 'default'} needs dampnet's source tree (this dampnet is installed "
+                            f"at {Path(__file__).parent}): clone it and run bash python/env.sh, or export a folder "
+                            "with `dampnet export MODEL --target CPU --out DIR` and build that")
+    model = default_model()
+    folder = build_dir / "folder"
+    export_target(model, cpu, folder, overwrite=True, model_name="default", vectors=make_vectors(model))
+    gen = ["-G", "Ninja"] if shutil.which("ninja") and not (build_dir / "CMakeCache.txt").is_file() else []
+    _run(["cmake", "-S", folder, "-B", build_dir, *gen, f"--toolchain={folder / 'cmake' / 'arm-none-eabi.cmake'}",
+          f"-DDAMPNET_ARM_CPU={cpu}"])
+    _run(["cmake", "--build", build_dir, "--parallel", str(os.cpu_count() or 2)])
+    return build_dir
+
+
 def firmware_path(build_dir, name: str = "dn_firmware") -> Path:
-    return Path(build_dir) / "cpp" / "embedded" / f"{name}.elf"
+    """The firmware `name` of a build: build_dir/cpp/embedded/NAME.elf of a source build, or the
+    example firmware (build_dir/firmware.elf) of an export folder's build (build_from_folder)."""
+    path = Path(build_dir) / "cpp" / "embedded" / f"{name}.elf"
+    folder_fw = Path(build_dir) / "firmware.elf"
+    return folder_fw if name == "dn_firmware" and not path.is_file() and folder_fw.is_file() else path
 
 
 def run(elf, cpu: str, icount: bool = True, timeout: float = 120) -> str:
@@ -392,28 +430,44 @@ def capacities_for(model) -> dict:
             "TERMS": len(model.terms), "TABLE_V": 2, "TABLE_U": 1}
 
 
+#: the library's sources in an exported folder (and its private header, src/internal.hpp)
+FOLDER_SOURCES = ("c_api_common.cpp", "c_api_mlp.cpp", "c_api_loop.cpp", "c_api_envelope.cpp")
+#: the flags the folder compiles the library with besides the core's, as every measured build
+#: (the root CMakeLists.txt's freestanding options): sections for --gc-sections, no fused
+#: multiply-add (the host's rounding: the firmware's forces are the host kernel's bits), short
+#: loops as stores (not calls to newlib-nano's byte-wise memset), no C++ runtime
+FOLDER_FLAGS = ("-ffunction-sections", "-fdata-sections", "-ffp-contract=off", "-fno-tree-loop-distribute-patterns",
+                "-fno-exceptions", "-fno-rtti", "-fno-threadsafe-statics")
+#: the marker file of an exported folder (outputs.is_kind "export-target": what --force may replace)
+FOLDER_MARKER = "dampnet-export.json"
+FOLDER_SCHEMA = "dampnet.export-target/1"
+
 _FOLDER_CMAKE = """# A ready-to-build dampnet for {cpu}, written by `dampnet export --target {cpu}`.
 # The library (static, no exceptions, RTTI or heap; capacities fitted to model.h's network) and an
 # example firmware for QEMU's {machine} (see README.md):
 #   cmake -B build --toolchain cmake/arm-none-eabi.cmake && cmake --build build
 # In your own firmware's CMake project: add_subdirectory(this folder) and link `dampnet`
-# (set DN_EXAMPLE_FIRMWARE OFF), or compile the three src/*.cpp with the flags below.
+# (set DN_EXAMPLE_FIRMWARE OFF), or compile the {n_sources} src/*.cpp with the flags below.
 cmake_minimum_required(VERSION 3.18)
 project(dampnet_{ident} LANGUAGES C CXX)
 set(CMAKE_CXX_STANDARD 17)
 set(CMAKE_CXX_STANDARD_REQUIRED ON)
-if(NOT CMAKE_BUILD_TYPE)
-  set(CMAKE_BUILD_TYPE Release CACHE STRING "" FORCE)
-endif()
 set(DAMPNET_ARM_CPU {cpu} CACHE STRING "the core")
 set(DN_CAPS {caps})
-add_library(dampnet STATIC src/c_api_common.cpp src/c_api_mlp.cpp src/c_api_loop.cpp
-  src/c_api_envelope.cpp)
+add_library(dampnet STATIC {sources})
 target_include_directories(dampnet PUBLIC include ${{CMAKE_CURRENT_SOURCE_DIR}})
 target_compile_definitions(dampnet PUBLIC DN_STATIC ${{DN_CAPS}})
-target_compile_options(dampnet PRIVATE -ffunction-sections -fdata-sections -ffp-contract=off
-  -fno-tree-loop-distribute-patterns
-  -fno-exceptions -fno-rtti -fno-threadsafe-statics)
+target_compile_options(dampnet PRIVATE {flags})
+# Release (-O3, as measured) when no build type is given: for this folder built on its own a
+# normal variable (nothing written into the cache); inside another project (add_subdirectory)
+# that project's build type applies, and without one the library alone gets -O3.
+if(NOT CMAKE_BUILD_TYPE AND NOT CMAKE_CONFIGURATION_TYPES)
+  if(CMAKE_SOURCE_DIR STREQUAL CMAKE_CURRENT_SOURCE_DIR)
+    set(CMAKE_BUILD_TYPE Release)
+  else()
+    target_compile_options(dampnet PRIVATE -O3)
+  endif()
+endif()
 
 option(DN_EXAMPLE_FIRMWARE "the example firmware (QEMU {machine})" ON)
 if(DN_EXAMPLE_FIRMWARE)
@@ -454,37 +508,42 @@ endif()
 
 _FOLDER_README = """# dampnet for {cpu}
 
-Written by `dampnet export {model_name} --target {cpu}` (dampnet {version}). Model id `{model_id}`:
-{network}, inputs {inputs}.
+Written by `dampnet export {model_name} --target {cpu}` (dampnet {version}). Model id `{model_id}`
+(`DN_MODEL_ID` in `model.h`): {network}, inputs {inputs}.
 
 | path | what |
 | --- | --- |
 | `model.h` | the model (weights, scalings, saturation limits, feature names): `DN_MODEL_DESC_INIT` (double), `DN_MODEL_FOLDED_INIT` (float weights with the scalings folded in) |
 | `include/dampnet/` | the C ABI (`dampnet.h`) and the header-only C++ runtime it is built from |
-| `src/` | the library's three sources (MLP, dampers and loop, status strings) |
+| `src/` | the library's {n_sources} sources ({source_list}) and its private header `internal.hpp` |
 | `CMakeLists.txt` | the static library `dampnet` with this model's capacities: {caps} |
 | `cmake/arm-none-eabi.cmake` | the toolchain file (`DAMPNET_ARM_CPU` = cortex-m4 or cortex-m7) |
 | `example/` | a firmware for QEMU's `{machine}` (start-up code, linker script `mps2.ld`, `firmware.c`) |
+| `{marker}` | what wrote this folder (`dampnet export --force` replaces only a folder holding it) |
 
 ## Build and try it
 
 ```sh
 cmake -B build --toolchain cmake/arm-none-eabi.cmake    # arm-none-eabi-gcc + newlib (Debian packages)
 cmake --build build
-qemu-system-arm -M {machine} -nographic -monitor none -serial none \
+qemu-system-arm -M {machine} -nographic -monitor none -serial none \\
   -semihosting-config enable=on,target=native -kernel build/firmware.elf
 ```
 
-The firmware evaluates the model on {n_x} stored inputs and runs the quarter car over 1 s of road,
-printing forces and states as the bits of their floats (and of the loop's reals: float on the
-M4F, double on the M7).
+The firmware evaluates the model on {n_x} stored inputs and runs the quarter car over {seconds:g} s of
+road, printing forces and states as the bits of their floats (and of the loop's reals: float on
+the M4F, double on the M7).
 
 ## Into your firmware
 
-1. Compile `src/*.cpp` as C++17 with your core's flags ({flags}) and
-   `-fno-exceptions -fno-rtti -fno-threadsafe-statics -ffunction-sections -fdata-sections`, the
-   definitions `DN_STATIC {caps}` (also for any C++ file of yours that includes the C++ headers),
-   and link with `-Wl,--gc-sections` (newlib's libm and libgcc; no libstdc++, no heap).
+1. Compile `src/*.cpp` as C++17 with your core's flags ({flags}) and {folder_flags} (what
+   `CMakeLists.txt` uses and every figure below was measured with: `-ffp-contract=off` keeps the
+   host's rounding, no fused multiply-add; `-fno-tree-loop-distribute-patterns` keeps short
+   loops as stores instead of calls to newlib-nano's byte-wise `memset`), optimised (`-O3`
+   measured), the definitions `DN_STATIC {caps}` (also for any C++ file of yours that includes
+   the C++ headers), and link with `-Wl,--gc-sections` (newlib's libm and libgcc; no libstdc++,
+   no heap). With CMake: `add_subdirectory` this folder and link `dampnet` (it sets no cache
+   variable of yours; without a build type the library gets `-O3`).
 2. Set the MLP up with `dn_mlp_init_folded` from `model.h`'s `DN_MODEL_FOLDED_INIT` (a
    `dn_mlp_folded_f`: the float weights with the input and output scalings already folded in, what
    `dn_mlp_init` would compute from `DN_MODEL_DESC_INIT` bit for bit): set-up then checks and copies
@@ -507,72 +566,90 @@ M4F, double on the M7).
    a stack of at least the peak measured for your core (dampnet's bench/RESULTS.md, "On a
    microcontroller"; the example paints and prints it); see the marked lines of `example/mps2.ld`.
 
-Figures for the 3-30-1 default model with these options (dampnet's bench/RESULTS.md): on a
+{figures}
+"""
+
+#: the measured figures the folder's README quotes (bench/RESULTS.md, "On a microcontroller")
+_FOLDER_FIGURES = """Figures for the 3-30-1 default model with these options (dampnet's bench/RESULTS.md): on a
 Cortex-M4F (float loop) the float forward 1,447 instructions, the kernel 2,508 B of flash with its
 weights, the quarter-car step 2,211 instructions (about 3,232 cycles by the TRM's timings, an
 estimate), kernel + loop + controller 15.2 KB of flash and 2.0 KB of RAM; on a Cortex-M7 (double
-loop) 1,440 instructions, 3,292 B, 2,238 instructions, 18.8 KB and 2.6 KB.
-"""
+loop) 1,440 instructions, 3,292 B, 2,238 instructions, 18.8 KB and 2.6 KB."""
 
 
-def export_target(model, target: str, out_dir, overwrite: bool = False, model_name: str = "MODEL") -> Path:
+def _folder_sources() -> tuple[Path, Path, Path]:
+    """(cpp root holding include/ and src/, the toolchain file's folder, the firmware's folder):
+    the source tree's, or those CMakeLists.txt installs into the package (include/, src/,
+    cmake/, embedded/)."""
+    if source_tree():
+        return ROOT / "cpp", ROOT / "cmake", ROOT / "cpp" / "embedded"
+    pkg = Path(__file__).resolve().parent
+    return pkg, pkg / "cmake", pkg / "embedded"
+
+
+def export_target(model, target: str, out_dir, overwrite: bool = False, model_name: str = "MODEL",
+                  inputs=(), vectors: Vectors | None = None) -> Path:
     """The ready-to-build folder of `dampnet export MODEL --target CPU --out DIR`: model.h, the
     library's headers and sources, a CMakeLists.txt with the model's capacities, the toolchain
-    file, an example firmware and a README. Refuses an existing DIR unless overwrite."""
+    file, an example firmware (its stored inputs and road: `vectors`, default 16 inputs and 1 s),
+    a README and the marker FOLDER_MARKER.
+
+    An existing DIR is replaced only with overwrite and only if it is such a folder (its marker),
+    never if it is or holds one of `inputs` (the model's path); the folder is built in a staging
+    directory and swapped in (outputs.staged_dir), so a kill leaves the old folder or the new."""
     import dampnet
-    from dampnet.export import write_header
+    from dampnet.export import header_text
+    from dampnet.outputs import check_output_dir, json_text, staged_dir
 
     if target not in CPUS:
         raise ValueError(f"--target {target!r}: expected one of {', '.join(CPUS)}")
-    out = Path(out_dir)
-    if out.exists():
-        if not overwrite:
-            raise FileExistsError(f"{out}: exists; refusing to overwrite (use --force)")
-        if not (out / "model.h").is_file() or not (out / "CMakeLists.txt").is_file():
-            raise FileExistsError(f"{out}: not a folder `dampnet export --target` wrote; refusing to replace it")
-        shutil.rmtree(out)
-    # the files: from the source tree, or from an installed wheel (CMakeLists.txt installs them
-    # into the package: include/, src/, cmake/, embedded/)
-    src_root, cmake_dir, fw_dir = ROOT / "cpp", ROOT / "cmake", ROOT / "cpp" / "embedded"
-    if not (src_root / "src" / "c_api_loop.cpp").is_file():
-        pkg = Path(dampnet.__file__).parent
-        src_root, cmake_dir, fw_dir = pkg, pkg / "cmake", pkg / "embedded"
-    out.mkdir(parents=True)
-    write_header(model, out / "model.h", "dn_model")
-    shutil.copytree(src_root / "include" / "dampnet", out / "include" / "dampnet")
-    (out / "src").mkdir()
-    for f in ("c_api_common.cpp", "c_api_mlp.cpp", "c_api_loop.cpp", "c_api_envelope.cpp", "internal.hpp"):
-        shutil.copy2(src_root / "src" / f, out / "src" / f)
-    (out / "cmake").mkdir()
-    shutil.copy2(cmake_dir / "arm-none-eabi.cmake", out / "cmake" / "arm-none-eabi.cmake")
-    (out / "example").mkdir()
-    for f in ("firmware.c", "startup.c", "mps2.ld", "dn_sizes.h.in", "sizes.cpp"):
-        shutil.copy2(fw_dir / f, out / "example" / f)
-    write_vectors(out / "example" / "dn_fw_vectors.h", make_vectors(model, n_x=16, seconds=1.0))
+    out = check_output_dir(out_dir, "export-target", inputs, force=overwrite)
+    if vectors is None:
+        vectors = make_vectors(model, n_x=16, seconds=1.0)
+    src_root, cmake_dir, fw_dir = _folder_sources()
     caps = capacities_for(model)
     cap_defs = target_defines(target, caps)
+    header = header_text(model, "dn_model")
     # the float weights with the scalings folded in (set-up without double arithmetic), when the
     # header has them (a model whose folded values overflow float has only DN_MODEL_DESC_INIT)
-    folded = " DN_FW_FOLDED_INIT=DN_MODEL_FOLDED_INIT" if "DN_MODEL_FOLDED_INIT" in (out / "model.h").read_text() else ""
-    params = folded
+    params = " DN_FW_FOLDED_INIT=DN_MODEL_FOLDED_INIT" if "DN_MODEL_FOLDED_INIT" in header else ""
     if model.feature_params:
         params += (" DN_FW_PARAM_NAMES=dn_model_feature_param_names DN_FW_PARAM_VALUES=dn_model_feature_param_values"
                    " DN_FW_N_PARAMS=DN_MODEL_N_FEATURE_PARAMS")
-    ident = target.replace("-", "_")
-    (out / "CMakeLists.txt").write_text(_FOLDER_CMAKE.format(
-        cpu=target, machine=CPUS[target]["machine"], ident=ident, caps=" ".join(cap_defs), params=params))
     h2 = caps["HIDDEN2"]
-    (out / "README.md").write_text(_FOLDER_README.format(
-        cpu=target, machine=CPUS[target]["machine"], model_name=model_name, version=dampnet.__version__,
-        model_id=getattr(model, "id", "") or "", inputs=", ".join(model.features), n_x=16,
-        network=f"{caps['INPUTS']}-{caps['HIDDEN']}-" + (f"{h2}-" if h2 else "") + f"1 {model.activation}",
-        caps=" ".join(cap_defs), flags=CPUS[target]["flags"],
-        loop_real=("the loop's state and arithmetic are float (`DN_LOOP_FLOAT=1`: this core's FPU has no "
-                   "double), within 1.2e-6 of the host's double loop's peaks over 10 s of the thesis rough road."
-                   if LOOP_FLOAT[target] else
-                   "the loop's state and arithmetic are double (`DN_LOOP_FLOAT=0`: this core's FPU has double), "
-                   "as on the host.")))
+    with staged_dir(out) as tmp:
+        (tmp / "model.h").write_text(header)
+        shutil.copytree(src_root / "include" / "dampnet", tmp / "include" / "dampnet")
+        (tmp / "src").mkdir()
+        for f in (*FOLDER_SOURCES, "internal.hpp"):
+            shutil.copy2(src_root / "src" / f, tmp / "src" / f)
+        (tmp / "cmake").mkdir()
+        shutil.copy2(cmake_dir / "arm-none-eabi.cmake", tmp / "cmake" / "arm-none-eabi.cmake")
+        (tmp / "example").mkdir()
+        for f in ("firmware.c", "startup.c", "mps2.ld", "dn_sizes.h.in", "sizes.cpp"):
+            shutil.copy2(fw_dir / f, tmp / "example" / f)
+        write_vectors(tmp / "example" / "dn_fw_vectors.h", vectors)
+        (tmp / "CMakeLists.txt").write_text(_FOLDER_CMAKE.format(
+            cpu=target, machine=CPUS[target]["machine"], ident=target.replace("-", "_"), caps=" ".join(cap_defs),
+            params=params, n_sources=len(FOLDER_SOURCES), sources=" ".join(f"src/{f}" for f in FOLDER_SOURCES),
+            flags=" ".join(FOLDER_FLAGS)))
+        (tmp / "README.md").write_text(_FOLDER_README.format(
+            cpu=target, machine=CPUS[target]["machine"], model_name=model_name, version=dampnet.__version__,
+            model_id=model.model_id(), inputs=", ".join(model.features), n_x=len(vectors.x),
+            seconds=len(vectors.road) * DT, marker=FOLDER_MARKER,
+            network=f"{caps['INPUTS']}-{caps['HIDDEN']}-" + (f"{h2}-" if h2 else "") + f"1 {model.activation}",
+            n_sources=len(FOLDER_SOURCES), source_list=", ".join(f"`{f}`" for f in FOLDER_SOURCES),
+            caps=" ".join(cap_defs), flags=CPUS[target]["flags"],
+            folder_flags=" ".join(f"`{f}`" for f in FOLDER_FLAGS), figures=_FOLDER_FIGURES,
+            loop_real=("the loop's state and arithmetic are float (`DN_LOOP_FLOAT=1`: this core's FPU has no "
+                       "double), within 1.2e-6 of the host's double loop's peaks over 10 s of the thesis rough road."
+                       if LOOP_FLOAT[target] else
+                       "the loop's state and arithmetic are double (`DN_LOOP_FLOAT=0`: this core's FPU has double), "
+                       "as on the host.")))
+        (tmp / FOLDER_MARKER).write_text(json_text({"schema": FOLDER_SCHEMA, "target": target,
+                                                    "model_id": model.model_id(), "dampnet": dampnet.__version__}))
     return out
+
 
 
 def main(argv=None) -> int:
@@ -584,7 +661,8 @@ def main(argv=None) -> int:
     v.add_argument("out")
     b = sub.add_parser("build", help="build the firmware for a core")
     b.add_argument("--cpu", choices=sorted(CPUS), default="cortex-m4")
-    b.add_argument("--dir", default=None, help="build directory (default build/CPU)")
+    b.add_argument("--dir", default=None, help="build directory (default: the source tree's build/CPU; "
+                                                "installed: ./build/dampnet-CPU)")
     r = sub.add_parser("run", help="build and run the firmware in QEMU, print its output")
     r.add_argument("--cpu", choices=sorted(CPUS), default="cortex-m4")
     r.add_argument("--dir", default=None)
@@ -592,12 +670,17 @@ def main(argv=None) -> int:
     if a.cmd == "vectors":
         write_vectors(a.out)
         return 0
-    bdir = Path(a.dir or ROOT / "build" / a.cpu)
+    why = toolchain_missing()
+    if why:
+        print(f"dampnet: error: {why}", file=sys.stderr)
+        return 2
+    # the source tree's build/CPU, or for an installed dampnet ./build/dampnet-CPU
+    bdir = Path(a.dir or (ROOT / "build" / a.cpu if source_tree() else Path("build") / f"dampnet-{a.cpu}"))
     try:
         build(a.cpu, bdir)
         if a.cmd == "run":
             sys.stdout.write(run(firmware_path(bdir), a.cpu))
-    except EmbeddedError as e:
+    except (EmbeddedError, OSError, ValueError) as e:
         print(f"dampnet: error: {e}", file=sys.stderr)
         return 2
     return 0

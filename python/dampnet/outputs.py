@@ -46,6 +46,7 @@ KIND_MARKERS = {
     "dataset": "manifest.csv and a meta.json written by dampnet",
     "demo": "summary.json of a dampnet demo",
     "sweep": "sweep.json of a dampnet sweep",
+    "export-target": "dampnet-export.json of a `dampnet export --target` folder",
 }
 
 
@@ -70,6 +71,8 @@ def is_kind(path: Path, kind: str) -> bool:
         return str(_json_object(path / "summary.json").get("schema", "")).startswith("dampnet.demo/")
     if kind == "sweep":
         return str(_json_object(path / "sweep.json").get("schema", "")).startswith("dampnet.sweep/")
+    if kind == "export-target":
+        return str(_json_object(path / "dampnet-export.json").get("schema", "")).startswith("dampnet.export-target/")
     raise ValueError(f"unknown output kind {kind!r}")
 
 

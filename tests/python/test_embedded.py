@@ -26,6 +26,7 @@ Builds are cached in build/embedded-test/ (CMake rebuilds only what changed)."""
 
 from __future__ import annotations
 
+import json
 import re
 import subprocess
 
@@ -356,3 +357,134 @@ def test_export_target_folder_builds_and_runs(vectors, model, tmp_path):
     y, status = emb.host_forces(model, x)
     assert np.max(np.abs(fw.forces - y)) <= 1e-5 * 2.0 / model.out_gain
     np.testing.assert_array_equal(fw.status, status)
+
+
+# ---- the exported folder: what --force may replace, crash safety, its README (issue 29) ----
+
+DEFAULT_JSON = ROOT / "export" / "dn_model_default.json"
+
+
+def _export(*args) -> subprocess.CompletedProcess:
+    import sys
+
+    return subprocess.run([sys.executable, "-m", "dampnet.cli", "export", *map(str, args)],
+                          capture_output=True, text=True, timeout=120)
+
+
+def test_export_target_never_replaces_a_folder_holding_its_input(tmp_path):
+    """--force replaced any folder holding model.h and CMakeLists.txt, deleting an input model in
+    it: the input model's own folder (or one containing it) is refused, the model intact."""
+    model_dir = tmp_path / "m"
+    model_dir.mkdir()
+    (model_dir / "model.json").write_bytes(DEFAULT_JSON.read_bytes())
+    for f in ("model.h", "CMakeLists.txt"):  # what the old check looked for
+        (model_dir / f).write_text("// mine\n")
+    for model, out in ((model_dir, model_dir), (model_dir / "model.json", model_dir), (model_dir, tmp_path)):
+        proc = _export(model, "--target", "cortex-m4", "--out", out, "--force")
+        assert proc.returncode == 2 and "is an input of this command" in proc.stderr, proc.stderr
+        assert len(proc.stderr.strip().splitlines()) == 1 and "Traceback" not in proc.stderr
+    assert (model_dir / "model.json").read_bytes() == DEFAULT_JSON.read_bytes()
+    assert (model_dir / "model.h").read_text() == "// mine\n"
+
+
+def test_export_target_force_replaces_only_an_exported_folder(tmp_path):
+    other = tmp_path / "mine"
+    other.mkdir()
+    (other / "notes.txt").write_text("keep")
+    proc = _export(DEFAULT_JSON, "--target", "cortex-m4", "--out", other, "--force")
+    assert proc.returncode == 2 and "not a dampnet export-target directory" in proc.stderr, proc.stderr
+    assert sorted(p.name for p in other.iterdir()) == ["notes.txt"]
+    out = tmp_path / "fw"
+    assert _export(DEFAULT_JSON, "--target", "cortex-m4", "--out", out).returncode == 0
+    marker = json.loads((out / emb.FOLDER_MARKER).read_text())
+    assert marker["schema"] == emb.FOLDER_SCHEMA and marker["target"] == "cortex-m4"
+    (out / "stale.txt").write_text("from the previous export")
+    proc = _export(DEFAULT_JSON, "--target", "cortex-m7", "--out", out, "--force")
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads((out / emb.FOLDER_MARKER).read_text())["target"] == "cortex-m7"
+    assert not (out / "stale.txt").exists() and not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+
+
+KILL_EXPORT = """
+import os, sys
+from dampnet import outputs
+from dampnet.cli import main
+def checkpoint(step):
+    if step == sys.argv[1]:
+        os._exit(9)
+outputs._checkpoint = checkpoint
+main(["export", sys.argv[2], "--target", "cortex-m7", "--out", sys.argv[3], "--force"])
+"""
+
+
+@pytest.mark.parametrize("step, target", [("staged", "cortex-m4"), ("exchanged", "cortex-m7")])
+def test_a_kill_while_exporting_leaves_the_old_folder_or_the_new(tmp_path, step, target):
+    """The folder is written in a staging directory and swapped in: killed after writing all of
+    it but before the swap, the old folder is untouched; after the swap, the new one is whole."""
+    import sys
+
+    from dampnet.outputs import clean_stale
+
+    out = tmp_path / "fw"
+    assert _export(DEFAULT_JSON, "--target", "cortex-m4", "--out", out).returncode == 0
+    (out / "old.txt").write_text("the previous export")
+    before = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    proc = subprocess.run([sys.executable, "-c", KILL_EXPORT, step, str(DEFAULT_JSON), str(out)],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 9, proc.stderr
+    clean_stale(tmp_path)  # what the next run does first
+    assert json.loads((out / emb.FOLDER_MARKER).read_text())["target"] == target
+    now = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    if step == "staged":
+        assert now == before
+    else:
+        assert not (out / "old.txt").exists() and len(now) == len(before) - 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fw"]
+
+
+def _backticked_flags(text: str) -> set[str]:
+    return set(re.findall(r"`(-f[\w=-]+)`", text))
+
+
+def test_export_folder_readme_states_its_cmakelists_flags_model_id_and_sources(model, tmp_path):
+    """The README's integration steps give the flags the folder's CMakeLists compiles the library
+    with (-ffp-contract=off and -fno-tree-loop-distribute-patterns were missing), the model id of
+    model.h (it said "Model id ``") and as many sources as src/ holds (it said three of four)."""
+    out = emb.export_target(model, "cortex-m4", tmp_path / "fw")
+    readme, cmake_text = (out / "README.md").read_text(), (out / "CMakeLists.txt").read_text()
+    cmake_flags = set(re.search(r"target_compile_options\(dampnet PRIVATE ([^)]*)\)", cmake_text).group(1).split())
+    step1 = re.search(r"\n1\. (.*?)\n2\. ", readme, re.S).group(1)
+    assert {"-ffp-contract=off", "-fno-tree-loop-distribute-patterns"} <= cmake_flags
+    assert _backticked_flags(step1) == cmake_flags
+    model_id = re.search(r'#define DN_MODEL_ID "([0-9a-f]+)"', (out / "model.h").read_text()).group(1)
+    assert f"Model id `{model_id}`" in readme and model_id == model.model_id()
+    sources = sorted(p.name for p in (out / "src").glob("*.cpp"))
+    stated = int(re.search(r"the library's (\d+) sources", readme).group(1))
+    assert stated == len(sources) == 4
+    assert sorted(re.findall(r"src/(\w+\.cpp)", cmake_text)) == sources
+    assert "CMAKE_BUILD_TYPE Release CACHE" not in cmake_text
+
+
+def test_export_folder_as_a_subdirectory_leaves_the_parents_build_type(model, tmp_path):
+    """add_subdirectory(the folder) in a firmware's own CMake project: the library builds (-O3
+    without a build type) and the parent's cache keeps its CMAKE_BUILD_TYPE (empty, or its own);
+    the folder wrote Release into it."""
+    import shutil
+
+    why = emb.toolchain_missing()
+    if why:
+        pytest.fail(why, pytrace=False)
+    folder = emb.export_target(model, "cortex-m4", tmp_path / "fw")
+    parent = tmp_path / "parent"
+    parent.mkdir()
+    (parent / "CMakeLists.txt").write_text("cmake_minimum_required(VERSION 3.18)\nproject(parent LANGUAGES C CXX)\n"
+                                           f"add_subdirectory({folder.as_posix()} dampnet)\n")
+    gen = ["-G", "Ninja"] if shutil.which("ninja") else []
+    for build_type in ("", "Debug"):
+        bdir = tmp_path / f"build{build_type}"
+        run(["cmake", "-S", parent, "-B", bdir, *gen, f"--toolchain={folder / 'cmake' / 'arm-none-eabi.cmake'}",
+             "-DDN_EXAMPLE_FIRMWARE=OFF", *([f"-DCMAKE_BUILD_TYPE={build_type}"] if build_type else [])])
+        run(["cmake", "--build", bdir, "--target", "dampnet"])
+        cache = (bdir / "CMakeCache.txt").read_text()
+        assert re.search(r"^CMAKE_BUILD_TYPE:\w+=(.*)$", cache, re.M).group(1) == build_type
+        assert (bdir / "dampnet" / "libdampnet.a").is_file()

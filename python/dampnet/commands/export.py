@@ -148,7 +148,8 @@ def _export_target(args) -> int:
         return 2
     try:
         model = load_model(args.model)
-        out = export_target(model, args.target, args.out, overwrite=args.force, model_name=args.model)
+        out = export_target(model, args.target, args.out, overwrite=args.force, model_name=args.model,
+                            inputs=[args.model])
     except (ModelError, ValueError, OSError) as e:
         print(f"dampnet: error: {e}", file=sys.stderr)
         return 2
