@@ -243,7 +243,7 @@ def summary_line(name: str, cov: Mapping[str, Any]) -> str:
             parts.append(f"runtime flag {100 * rt['share_time_outside']:.1f} % (agrees on "
                          f"{100 * rt['agreement_steps']:.1f} % of steps)")
     else:
-        parts.append("no joint envelope (no envelope file beside the model)")
+        parts.append(f"no joint envelope ({cov.get('envelope_note') or 'no envelope file beside the model'})")
     return f"coverage of {name}: " + ", ".join(parts) + f" -> {cov['verdict']}"
 
 

@@ -40,14 +40,18 @@ units, ranges, threshold and how it was derived, counts).
 
 from __future__ import annotations
 
-import json
 import os
-from dataclasses import dataclass, field
+import struct
+import sys
+import zipfile
+import zlib
+from dataclasses import InitVar, dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from dampnet import schema
 from dampnet.outputs import atomic_write_bytes, atomic_write_text, json_text
 
 SCHEMA = "dampnet.envelope/1"
@@ -59,6 +63,18 @@ MAX_POINTS = 20000
 NN_PERCENTILE = 99.0
 #: the threshold is this many times that percentile (see the module docstring)
 THRESHOLD_FACTOR = 3.0
+#: most inputs a model (and so an envelope) has (dampnet.h DN_MAX_INPUTS)
+MAX_INPUTS = 8
+#: most bytes the arrays of an envelope.npz may expand to: 1 million stored points of 8 inputs
+#: (50 x MAX_POINTS), checked before anything is decompressed (a small file can expand to gigabytes)
+MAX_NPZ_BYTES = 64 * 2**20
+#: the arrays of ENVELOPE_NPZ
+NPZ_ARRAYS = ("points", "lo", "hi", "in_offset", "in_gain", "in_ymin", "threshold")
+
+
+class EnvelopeError(ValueError):
+    """An envelope (its files or fields) that is not a usable training envelope: one line naming
+    the file and the field."""
 
 
 @dataclass
@@ -77,6 +93,11 @@ class Envelope:
     params: dict[str, Any] = field(default_factory=dict)
     _tree: Any = field(default=None, repr=False, compare=False)
     _runtime: Any = field(default=None, repr=False, compare=False)  # dampnet.envelope_grid's check, built once
+    #: where the arrays and the parameters came from, for messages: a name, or (npz, json) file names
+    source: InitVar[Any] = None
+
+    def __post_init__(self, source) -> None:
+        validate_envelope(self, source)
 
     def scale(self, x: np.ndarray) -> np.ndarray:
         """Inputs [n, n_in] in feature units -> the model's scaled space."""
@@ -109,18 +130,128 @@ class Envelope:
 
     def describe(self) -> str:
         p = self.params
-        return (f"joint envelope: {self.points.shape[0]} of {p.get('n_training', '?')} training samples, threshold "
-                f"{self.threshold:.4g} (scaled units: 1 = half an input's training range) = {p.get('factor')} x the "
-                f"{p.get('percentile'):g}th percentile {p.get('nn_percentile_value', float('nan')):.4g} of their "
+
+        def num(key: str) -> str:  # the file's informative numbers, whatever they hold
+            v = p.get(key)
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                return "?"
+            return str(v) if isinstance(v, int) else f"{v:.4g}"
+
+        return (f"joint envelope: {self.points.shape[0]} of {num('n_training')} training samples, threshold "
+                f"{self.threshold:.4g} (scaled units: 1 = half an input's training range) = {num('factor')} x the "
+                f"{num('percentile')}th percentile {num('nn_percentile_value')} of their "
                 "nearest-neighbour distances")
 
 
-def check_belongs(env: Envelope, model) -> None:
-    """ValueError unless `env` is `model`'s envelope: the same features, and built for its id."""
+def _sources(source) -> tuple[str, str]:
+    """(where the arrays came from, where the parameters came from) for messages."""
+    if isinstance(source, tuple):
+        return str(source[0]), str(source[1])
+    return (str(source), str(source)) if source is not None else ("envelope", "envelope")
+
+
+def _float_array(value: Any, where: str) -> np.ndarray:
+    """value as float64: real numbers only (not text, objects or complex numbers)."""
+    a = np.asarray(value) if isinstance(value, np.ndarray) else None
+    if a is not None and a.dtype.kind not in "biuf":
+        raise EnvelopeError(f"{where}: expected real numbers, got an array of {a.dtype.name}")
+    try:
+        return np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError):
+        raise EnvelopeError(f"{where}: expected real numbers, got {schema.show(value)}") from None
+
+
+def _scalar(value: Any, where: str) -> float:
+    a = _float_array(value, where)
+    if a.shape not in ((), (1,)):
+        raise EnvelopeError(f"{where}: expected one number, got an array of shape {a.shape}")
+    return float(a.reshape(()))
+
+
+def validate_envelope(env: Envelope, source: Any = None) -> Envelope:
+    """`env` with its arrays as float64 if it is a usable envelope; EnvelopeError naming the file
+    (`source`: a name, or (npz, json) file names) and the field otherwise. The one check of an
+    envelope, however it was made (Envelope() runs it; so do read_envelope and build_envelope):
+
+      features, units  1..MAX_INPUTS distinct names, one unit each
+      lo, hi           one finite number per input, lo <= hi, a finite width (the training ranges)
+      in_offset        one finite number per input; in_gain: finite, non-zero, with a finite
+                       inverse (the model's mapminmax, used both ways); in_ymin finite
+      points           [m >= 1, n_inputs] finite, and finite back in feature units
+      threshold        a finite number > 0 (scaled units)
+
+    Without this a NaN or negative threshold, an in_gain of 0 or no stored points gave silently
+    wrong coverage (0 % or 100 % outside), an IndexError, or a runtime grid flagging every step."""
+    npz, js = _sources(source)
+
+    def bad(where: str, what: str) -> EnvelopeError:
+        return EnvelopeError(f"{where}: {what}")
+
+    feats, units = env.features, env.units
+    if not isinstance(feats, (list, tuple)) or not all(isinstance(f, str) and f for f in feats):
+        raise bad(f"{js}: features", f"expected a list of input names, got {schema.show(feats)}")
+    if not 1 <= len(feats) <= MAX_INPUTS or len(set(feats)) != len(feats):
+        raise bad(f"{js}: features", f"expected 1 to {MAX_INPUTS} distinct input names, got "
+                  f"{schema.show(', '.join(feats))}")
+    if not isinstance(units, (list, tuple)) or not all(isinstance(u, str) for u in units) or len(units) != len(feats):
+        raise bad(f"{js}: units", f"expected {len(feats)} unit names (one per feature), got {schema.show(units)}")
+    env.features, env.units = list(feats), list(units)
+    n = len(feats)
+    for name in ("lo", "hi", "in_offset", "in_gain"):
+        a = _float_array(getattr(env, name), f"{npz}: {name}")
+        if a.shape != (n,):
+            raise bad(f"{npz}: {name}", f"expected {n} values (one per feature: {', '.join(feats)}), got shape {a.shape}")
+        if not np.all(np.isfinite(a)):
+            i = int(np.argmin(np.isfinite(a)))
+            raise bad(f"{npz}: {name}", f"expected finite numbers, got {schema.show(float(a[i]))} for {feats[i]}")
+        setattr(env, name, a)
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        width = env.hi - env.lo
+        inverse = 1.0 / env.in_gain
+    for i in range(n):
+        if not (env.lo[i] <= env.hi[i] and np.isfinite(width[i])):
+            raise bad(f"{npz}: lo, hi", f"expected lo <= hi with a finite width, got [{env.lo[i]:.6g}, "
+                      f"{env.hi[i]:.6g}] for {feats[i]}")
+        if env.in_gain[i] == 0 or not np.isfinite(inverse[i]):
+            raise bad(f"{npz}: in_gain", f"expected a non-zero gain with a finite inverse (the model's mapminmax "
+                      f"scaling), got {env.in_gain[i]:.6g} for {feats[i]}")
+    env.in_ymin = _scalar(env.in_ymin, f"{npz}: in_ymin")
+    if not np.isfinite(env.in_ymin):
+        raise bad(f"{npz}: in_ymin", f"expected a finite number, got {env.in_ymin}")
+    pts = _float_array(env.points, f"{npz}: points")
+    if pts.ndim != 2 or pts.shape[1] != n or pts.shape[0] < 1:
+        raise bad(f"{npz}: points", f"expected [m >= 1 stored samples, {n} inputs], got shape {pts.shape}")
+    with np.errstate(over="ignore", invalid="ignore"):
+        back = (pts - env.in_ymin) * inverse + env.in_offset
+    if not (np.all(np.isfinite(pts)) and np.all(np.isfinite(back))):
+        row = int(np.argmin(np.all(np.isfinite(pts) & np.isfinite(back), axis=1)))
+        raise bad(f"{npz}: points", f"expected finite scaled samples, got {schema.show(pts[row].tolist())} "
+                  f"in row {row}")
+    env.points = pts
+    env.threshold = _scalar(env.threshold, f"{npz}: threshold")
+    if not (np.isfinite(env.threshold) and env.threshold > 0):
+        raise bad(f"{npz}: threshold", f"expected a finite distance > 0 (scaled units), got {env.threshold}")
+    if not isinstance(env.params, dict):
+        raise bad(js, f"expected a JSON object of parameters, got {schema.show(env.params)}")
+    mid = env.params.get("model_id")
+    if mid is not None and not isinstance(mid, str):
+        raise bad(f"{js}: model_id", f"expected the model's id (a string), got {schema.show(mid)}")
+    return env
+
+
+def check_belongs(env: Envelope, model, source: Any = None) -> None:
+    """EnvelopeError unless `env` is `model`'s envelope: the same features, built for its id,
+    and the model's ranges and input scaling (what the envelope measures with)."""
+    npz, js = _sources(source)
     if list(env.features) != list(model.features):
-        raise ValueError(f"envelope: features {env.features} are not the model's {model.features}")
+        raise EnvelopeError(f"{js}: features {env.features} are not the model's {model.features}")
     if env.params.get("model_id") not in (None, model.model_id()):
-        raise ValueError(f"envelope: built for model {env.params.get('model_id')}, not {model.model_id()}")
+        raise EnvelopeError(f"{js}: built for model {env.params.get('model_id')}, not {model.model_id()}")
+    for name, mine in (("lo", model.sat_lo), ("hi", model.sat_hi), ("in_offset", model.in_offset),
+                       ("in_gain", model.in_gain), ("in_ymin", model.in_ymin)):
+        if not np.array_equal(getattr(env, name), mine):
+            what = {"lo": "sat_lo", "hi": "sat_hi"}.get(name, name)
+            raise EnvelopeError(f"{npz}: {name}: differs from the model's {what}: not this model's envelope")
 
 
 def _nn_distances(points: np.ndarray) -> np.ndarray:
@@ -206,28 +337,79 @@ def envelope_dir(model_path: str | os.PathLike) -> Path:
     return p if p.is_dir() else p.parent
 
 
-def load_envelope(model_path: str | os.PathLike, model=None) -> tuple[Envelope | None, str]:
-    """(the envelope beside a model, a note): (None, why) when there is none, it is unreadable,
-    or it belongs to another model (its model id differs from `model`'s)."""
+def envelope_files(model_path: str | os.PathLike) -> list[Path]:
+    """[ENVELOPE_NPZ, ENVELOPE_JSON] beside the model at model_path (whether they exist or not)."""
     d = envelope_dir(model_path)
-    npz, js = d / ENVELOPE_NPZ, d / ENVELOPE_JSON
-    if not npz.is_file() or not js.is_file():
-        return None, f"no {ENVELOPE_NPZ} beside the model: per-input training ranges only"
+    return [d / ENVELOPE_NPZ, d / ENVELOPE_JSON]
+
+
+def _read_npz(npz: Path) -> dict[str, np.ndarray]:
+    """ENVELOPE_NPZ's arrays; EnvelopeError naming the file (and the array) otherwise. The
+    uncompressed size is checked first (MAX_NPZ_BYTES), no pickled objects are loaded."""
     try:
-        meta = json.loads(js.read_text(encoding="utf-8"))
-        with np.load(npz) as z:
-            arr = {k: z[k] for k in z.files}
-        if meta.get("schema") != SCHEMA:
-            return None, f"{js}: schema {meta.get('schema')!r} is not {SCHEMA}: per-input training ranges only"
-        params = {k: v for k, v in meta.items()
-                  if k not in ("schema", "features", "units", "lo", "hi", "threshold", "threshold_unit")}
-        env = Envelope(list(meta["features"]), list(meta["units"]), arr["lo"], arr["hi"], arr["in_offset"],
-                       arr["in_gain"], float(arr["in_ymin"]), arr["points"], float(arr["threshold"]), params)
-    except (OSError, ValueError, KeyError, TypeError) as e:
-        return None, f"{npz}: unreadable ({e}): per-input training ranges only"
-    if env.points.ndim != 2 or env.points.shape[1] != len(env.features):
-        return None, f"{npz}: points of shape {env.points.shape} do not match its features: per-input ranges only"
-    if model is not None and params.get("model_id") not in (None, model.model_id()):
-        return None, (f"{js} belongs to model {params.get('model_id')}, not {model.model_id()}: "
-                      "per-input training ranges only")
-    return env, "joint envelope " + str(npz)
+        with zipfile.ZipFile(npz) as zf:
+            size = sum(i.file_size for i in zf.infolist())
+        if size > MAX_NPZ_BYTES:
+            raise EnvelopeError(f"{npz}: expands to {size} bytes, more than the {MAX_NPZ_BYTES} an envelope "
+                                "may hold")
+        out = {}
+        with np.load(npz, allow_pickle=False) as z:
+            for name in NPZ_ARRAYS:
+                if name not in z.files:
+                    raise EnvelopeError(f"{npz}: {name}: missing (an envelope holds {', '.join(NPZ_ARRAYS)})")
+                try:
+                    out[name] = z[name]
+                except (ValueError, OSError, EOFError, KeyError, zipfile.BadZipFile, zlib.error,
+                        struct.error, NotImplementedError, RuntimeError, TypeError, OverflowError) as e:
+                    raise EnvelopeError(f"{npz}: {name}: unreadable ({schema.show(str(e) or type(e).__name__)})"
+                                        ) from None
+        return out
+    except EnvelopeError:
+        raise
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error, struct.error,
+            NotImplementedError, RuntimeError, TypeError, OverflowError) as e:
+        raise EnvelopeError(f"{npz}: not a readable envelope file ({type(e).__name__}: "
+                            f"{schema.show(str(e), 120)})") from None
+
+
+def read_envelope(model_path: str | os.PathLike, model=None) -> Envelope | None:
+    """The envelope beside a model (a directory or its model.json), validated
+    (validate_envelope; with `model`, check_belongs too); None when neither ENVELOPE_NPZ nor
+    ENVELOPE_JSON is there. EnvelopeError (one line: the file and the field) when one of the two
+    is missing, a file is unreadable, a field is out of range, or it is another model's."""
+    npz, js = envelope_files(model_path)
+    have = [p for p in (npz, js) if p.exists()]
+    if not have:
+        return None
+    if len(have) == 1:
+        other = js if have[0] == npz else npz
+        raise EnvelopeError(f"{other}: missing (its companion {have[0].name} is there; an envelope is both files)")
+    meta = schema.expect_object(schema.load_json(js, EnvelopeError), str(js), EnvelopeError)
+    if meta.get("schema") != SCHEMA:
+        raise EnvelopeError(f"{js}: schema: expected {SCHEMA!r}, got {schema.show(meta.get('schema'))}")
+    for key in ("features", "units"):
+        schema.expect_strings(meta.get(key), f"{js}: {key}", EnvelopeError)
+    arr = _read_npz(npz)
+    params = {k: v for k, v in meta.items()
+              if k not in ("schema", "features", "units", "lo", "hi", "threshold", "threshold_unit")}
+    env = Envelope(meta["features"], meta["units"], arr["lo"], arr["hi"], arr["in_offset"], arr["in_gain"],
+                   arr["in_ymin"], arr["points"], arr["threshold"], params, source=(npz, js))
+    if model is not None:
+        check_belongs(env, model, (npz, js))
+    return env
+
+
+def load_envelope(model_path: str | os.PathLike, model=None) -> tuple[Envelope | None, str]:
+    """(the envelope beside a model, a note) for a run's coverage: read_envelope, falling back to
+    the per-input training ranges (None, why) when there is none, or, with a one-line warning on
+    stderr naming the file and the field, when it is damaged or another model's (README: "The
+    envelope"). `dampnet export` uses read_envelope: a damaged envelope is an error there."""
+    try:
+        env = read_envelope(model_path, model)
+    except EnvelopeError as e:
+        note = f"{e}: envelope ignored, per-input training ranges only"
+        print(f"dampnet: warning: {note}", file=sys.stderr)
+        return None, note
+    if env is None:
+        return None, f"no {ENVELOPE_NPZ} beside the model: per-input training ranges only"
+    return env, "joint envelope " + str(envelope_files(model_path)[0])

@@ -251,7 +251,7 @@ class MlpModel:
                         f"{', '.join(sorted(term_kinds.KINDS))}), got {schema.show(kind)}")
             schema.expect_array(t.get("params", []), 1, f"{at('terms')}[{i}].params", E)
         try:
-            return cls(w1=arr("w1", 2), b1=arr("b1"), w_out=arr("w_out"), b_out=num("b_out"),
+            model = cls(w1=arr("w1", 2), b1=arr("b1"), w_out=arr("w_out"), b_out=num("b_out"),
                        in_offset=arr("in_offset"), in_gain=arr("in_gain"), out_offset=num("out_offset"),
                        out_gain=num("out_gain"), sat_lo=arr("sat_lo"), sat_hi=arr("sat_hi"),
                        features=schema.expect_strings(d["features"], at("features"), E),
@@ -268,6 +268,9 @@ class MlpModel:
         except ModelError as e:
             msg = str(e)
             raise ModelError(msg if msg.startswith(source) else f"{source}: {msg}") from None
+        from dampnet.export import check_runtime_accepts  # the runtime's own loader, the field named
+
+        return check_runtime_accepts(model, source)
 
     def save(self, path: str | os.PathLike, overwrite: bool = False) -> Path:
         """Write model.json atomically; refuses to replace a file unless overwrite."""

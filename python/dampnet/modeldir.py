@@ -17,10 +17,15 @@ HEADER_NAME = "model.h"
 HEADER_PREFIX = "dn_model"
 
 
+def model_file(path: str | os.PathLike) -> Path:
+    """The model.json of `path`: the file itself, or the one in a model directory."""
+    p = Path(path)
+    return p / "model.json" if p.is_dir() else p
+
+
 def load_model(path: str | os.PathLike) -> MlpModel:
     """The model in `path`: a model.json file or a model directory holding one."""
-    p = Path(path)
-    return MlpModel.load(p / "model.json" if p.is_dir() else p)
+    return MlpModel.load(model_file(path))
 
 
 def default_model_path() -> Path:

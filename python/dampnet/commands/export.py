@@ -49,12 +49,11 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    import os
-
-    from dampnet.envelope import load_envelope
+    from dampnet.envelope import ENVELOPE_JSON, ENVELOPE_NPZ, EnvelopeError, envelope_files, read_envelope
     from dampnet.export import ONNX_OPSET, check_prefix, write_header, write_onnx
     from dampnet.model import ModelError
-    from dampnet.modeldir import load_model
+    from dampnet.modeldir import load_model, model_file
+    from dampnet.outputs import check_output_files
 
     if args.target or args.out:
         return _export_target(args)
@@ -63,22 +62,31 @@ def run(args) -> int:
               file=sys.stderr)
         return 2
     try:
-        model = load_model(args.model)
-        envelope, envelope_note = load_envelope(args.model, model)
-        carries = ("the training envelope's grid (ranges and pairs of inputs)" if envelope is not None
-                   else f"training ranges only ({envelope_note})")
+        # every output checked before anything is written: none is the model, its envelope or an
+        # existing file of its model directory (model.json's folder), no two are the same file, none
+        # exists without --force
+        model_json = model_file(args.model)
+        check_output_files({"--fmu": args.fmu, "--onnx": args.onnx, "--header": args.header},
+                           [args.model, model_json, *envelope_files(args.model),
+                            model_json.parent if model_json.name == "model.json" else None], args.force)
         if args.header:
             check_prefix(args.prefix)
-        for out in (args.fmu, args.onnx, args.header):
-            if out and os.path.exists(out) and not args.force:
-                raise FileExistsError(f"{out}: exists; refusing to overwrite (use --force)")
-        if args.fmu:
-            _export_fmu(model, args, envelope, carries)
         if args.onnx:
             try:
                 import onnx  # noqa: F401
             except ImportError:
                 raise ModelError("--onnx needs the onnx package: pip install 'dampnet[onnx]'") from None
+        model = load_model(args.model)  # refused here if the runtime's loader would refuse it
+        try:
+            envelope = read_envelope(args.model, model)
+        except EnvelopeError as e:  # an export would carry the weaker ranges-only check for good
+            raise EnvelopeError(f"{e} (to export with the training ranges only, move {ENVELOPE_NPZ} and "
+                                f"{ENVELOPE_JSON} away)") from None
+        carries = ("the training envelope's grid (ranges and pairs of inputs)" if envelope is not None
+                   else f"training ranges only (no {ENVELOPE_NPZ} beside the model)")
+        if args.fmu:
+            _export_fmu(model, args, envelope, carries)
+        if args.onnx:
             write_onnx(model, args.onnx, overwrite=args.force)
             print(f"{args.onnx}: ONNX opset {ONNX_OPSET}, inputs {', '.join(model.features)} "
                   f"({', '.join(model.units)}), output force [N]"

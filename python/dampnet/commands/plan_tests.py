@@ -62,19 +62,13 @@ def run(args) -> int:
     from dampnet.envelope import load_envelope
     from dampnet.model import ModelError
     from dampnet.modeldir import load_model
-    from dampnet.outputs import OutputError, atomic_write_text, check_output_file, json_text
+    from dampnet.outputs import OutputError, atomic_write_text, check_output_files, json_text
     from dampnet.sim.roads import RoadError
     from dampnet.sim.vehicle import LoopError
 
     inputs = [args.model] + [r for r in args.runs if os.path.exists(r)]
     try:
-        outs = [p for p in (args.out, args.table) if p]
-        for p in outs:
-            check_output_file(p, inputs)
-            if os.path.lexists(p) and not args.force:
-                raise OutputError(f"{p}: exists; refusing to overwrite (use --force)")
-        if args.out and args.table and os.path.abspath(args.out) == os.path.abspath(args.table):
-            raise OutputError(f"--out and --table name the same file {args.out}")
+        check_output_files({"--out": args.out, "--table": args.table}, inputs, args.force)
         model = load_model(args.model)
         env, note = load_envelope(args.model, model)
         runs = P.load_runs(model, env, args.runs, note)
