@@ -84,8 +84,11 @@ def _json_object(path: Path) -> dict:
     return d if isinstance(d, dict) else {}
 
 
-def check_not_input(out: Path, inputs: Iterable[str | os.PathLike], what: str = "output") -> None:
-    """OutputError if `out` is an input, contains one, or is `.` or a parent of the working directory."""
+def check_not_input(out: Path, inputs: Iterable[str | os.PathLike], what: str = "output",
+                    inside: bool = False) -> None:
+    """OutputError if `out` is an input, contains one, or is `.` or a parent of the working directory;
+    with `inside`, also if it is inside an input directory (for a command that hashes its input
+    directories whole, as a sweep does: its own output would change them)."""
     real = Path(out).resolve()
     cwd = Path.cwd().resolve()
     if real == cwd or cwd.is_relative_to(real):
@@ -98,6 +101,9 @@ def check_not_input(out: Path, inputs: Iterable[str | os.PathLike], what: str = 
         if ip == real or ip.is_relative_to(real):
             raise OutputError(f"{out}: is an input of this command ({inp}) or contains it: refusing to "
                               f"write the {what} there")
+        if inside and ip.is_dir() and real.is_relative_to(ip):
+            raise OutputError(f"{out}: is inside an input directory of this command ({inp}): writing the "
+                              f"{what} there would change that input; name a directory outside it")
 
 
 def check_output_dir(out: str | os.PathLike, kind: str, inputs: Iterable[str | os.PathLike] = (),

@@ -16,8 +16,16 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                     "sweep. Progress (cells done, errors, time left) goes to stderr.")
     p.add_argument("spec", metavar="SPEC.toml", help="the sweep's spec (TOML; README: dampnet sweep)")
     p.add_argument("--out", default="sweep_out", metavar="DIR", help="the sweep directory (default sweep_out)")
-    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="an existing Dask scheduler, e.g. tcp://host:8786 (default: an embedded local cluster)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS|FILE",
+                   help="an existing Dask cluster: its scheduler's address, e.g. tcp://host:8786, or the scheduler "
+                        "file it wrote (dask scheduler --scheduler-file FILE; the usual way on HPC job queues); "
+                        "its workers must run this dampnet (checked). Default: an embedded local cluster")
+    p.add_argument("--worker-timeout", type=float, default=None, metavar="S",
+                   help="stop (state interrupted; --resume continues) when the cluster has had no worker for S "
+                        "seconds (default 600; inf: wait as long as it takes); a line says so after 10 s")
+    p.add_argument("--max-cells", type=int, default=None, metavar="N",
+                   help="the most cells the spec may make (default 100000, at most 10000000): a larger spec is "
+                        "refused before any work")
     p.add_argument("--workers", type=int, default=None, metavar="N",
                    help="worker processes of the embedded cluster, one thread each (default: this machine's cores)")
     p.add_argument("--data", choices=("shared", "ship"), default=None,
@@ -40,8 +48,13 @@ def run(args) -> int:
         from dampnet.sweep import run as run_sweep
         from dampnet.sweep.runner import SweepError
 
+        from dampnet.sweep.grid import MAX_CELLS
+        from dampnet.sweep.runner import WORKER_TIMEOUT_S
+
         df = run_sweep(args.spec, out=args.out, resume=args.resume, force=args.force, workers=args.workers,
-                       scheduler=args.scheduler, data=args.data, progress=not args.quiet)
+                       scheduler=args.scheduler, data=args.data, progress=not args.quiet,
+                       worker_timeout=WORKER_TIMEOUT_S if args.worker_timeout is None else args.worker_timeout,
+                       max_cells=MAX_CELLS if args.max_cells is None else args.max_cells)
     except (SweepError, ValueError, OSError) as e:   # SpecError, OutputError: ValueErrors
         return error(str(e))
     except KeyboardInterrupt:

@@ -565,7 +565,10 @@ class _Parser:
             return name, vals
         if len(args) != 2 or not all(isinstance(a, (int, float)) and not isinstance(a, bool) for a in args):
             raise _Bad(f"{name}: expected two numbers, got {args!r}")
+        if not all(math.isfinite(a) for a in args):
+            raise _Bad(f"{name}: expected two finite numbers, got {args!r}")
         lo, hi = args
+        what = ("mean", "sd") if name == "normal" else ("lo", "hi")
         if name == "integers":
             if p.kind != "int" or not all(isinstance(a, int) for a in args) or lo > hi:
                 raise _Bad("integers = [lo, hi] (integers, lo <= hi) draws an integer parameter only")
@@ -577,6 +580,14 @@ class _Parser:
             raise _Bad(f"{name} = [lo, hi]: lo must be <= hi")
         elif name == "loguniform" and lo <= 0:
             raise _Bad("loguniform = [lo, hi]: lo must be > 0")
+        if not math.isfinite(float(hi) - float(lo)) or not math.isfinite(float(lo) + float(hi)):
+            raise _Bad(f"{name} = {args!r}: the range is too wide to draw from (beyond a float's range)")
+        for w, a in zip(what, args):
+            if w != "sd":
+                try:       # the ends (and the mean) must be values of the parameter
+                    p.norm(a)
+                except _Bad as e:
+                    raise _Bad(f"{name} = [{', '.join(what)}]: {w}: {e}") from None
         return name, [lo, hi]
 
 
@@ -604,8 +615,13 @@ def check_input(role: str, value: str, base: Path) -> None:
             except (ValueError, OSError) as e:
                 raise _Bad(f"{value!r}: {e}") from None
             return
-        if not os.path.exists(resolve(value, base)):
+        path = resolve(value, base)
+        if not os.path.exists(path):
             raise _Bad(f"{value!r}: no such dataset (a directory, CSV/text or .mat file, or rig:PLAN)")
+        from dampnet.data.fileformat import is_dataset_dir
+
+        if path.is_dir() and not is_dataset_dir(path):   # (the sweep hashes an input directory whole)
+            raise _Bad(f"{value!r}: a directory without manifest.csv: not a dataset directory")
     elif role == "model":
         if value in ("default", "truth") or value.startswith(("truth:", "linear:")):
             return

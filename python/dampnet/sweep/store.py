@@ -9,7 +9,9 @@
     DIR/results.parquet, results.csv, summary.json, summary.txt, sensitivity_*.png
                              the table, the summary and the plots, written at the end
 
-Rules: a new DIR is created through a staging directory (dampnet.outputs); an existing DIR is
+Rules: DIR is no input, holds none and is not inside an input directory (the cells check the
+hash of every input directory, which a DIR inside one would change); a new DIR is created
+through a staging directory (dampnet.outputs); an existing DIR is
 refused unless --force (then it must be a sweep directory: sweep.json, and it is replaced as a
 whole) or --resume (then it must be a sweep directory: its finished cells are kept, new cells
 are added, the table, summary and plots are rewritten). A cell's file is only ever replaced by
@@ -54,8 +56,9 @@ class Store:
         inputs = list(inputs)
         if resume and force:
             raise OutputError(f"{out}: --resume keeps its finished cells, --force replaces it: choose one")
+        # nor inside an input directory: its content hash, checked by every cell, would change
+        check_not_input(out, inputs, "sweep directory", inside=True)
         if resume and os.path.lexists(out):
-            check_not_input(out, inputs, "sweep directory")
             if out.is_symlink() or not out.is_dir() or not is_kind(out, "sweep"):
                 raise OutputError(f"{out}: is not a dampnet sweep directory (no {STATE_FILE} of a sweep): "
                                   "cannot resume it")

@@ -72,9 +72,12 @@ def frame(cells: list[Cell], records: dict[str, dict[str, Any]]):
     kinds = [k for k in KINDS if any(c.kind == k for c in cells)]
     df = pd.DataFrame(rows, columns=columns(kinds, rows))
     for col in df.columns:   # integer columns stay integers where other kinds leave them empty
-        vals = [r[col] for r in rows if r.get(col) is not None]
-        if vals and all(isinstance(v, int) and not isinstance(v, bool) for v in vals):
-            df[col] = df[col].astype("Int64")
+        vals = [r.get(col) for r in rows]
+        given = [v for v in vals if v is not None]
+        if given and all(isinstance(v, int) and not isinstance(v, bool) for v in given):
+            # from the Python integers, not from the float column pandas made of them (2**53 + 1
+            # would come back as 2**53)
+            df[col] = pd.array(vals, dtype="Int64")
     return df
 
 
@@ -83,4 +86,6 @@ def write_parquet(df, path: Path) -> None:
 
 
 def write_csv(df, path: Path) -> None:
+    """Integer columns as integers (an empty field where a row has none): read them back as integers
+    with pandas.read_csv(path, dtype_backend="numpy_nullable")."""
     df.to_csv(path, index=False)

@@ -1,6 +1,6 @@
 """The function every worker runs: one cell, its error caught and recorded, its cost timed.
 
-    run_cell(kind, params, inputs) -> {"status": "ok" | "error", "error", "metrics", ..., "time_s", "cpu_s", "worker"}
+    run_cell(kind, params, inputs, source) -> {"status": "ok" | "error", "error", "metrics", ..., "time_s", "cpu_s", "worker"}
 
 time_s: the cell's wall time on its worker [s]; cpu_s: the worker process's CPU time during it [s]
 (below time_s when the machine's cores are shared with other work).
@@ -8,6 +8,10 @@ time_s: the cell's wall time on its worker [s]; cpu_s: the worker process's CPU 
 A cell that raises is a result with status "error" and its message (type: message, one line);
 the sweep goes on. Only what kills the worker process (a segfault, a kill, out of memory)
 escapes: Dask then runs the cell again on another worker (allowed failures).
+
+A worker whose dampnet is not the client's (`source`: the client's source hash, see
+dampnet.sweep.hashing) runs nothing: its result has status "mismatch", and the sweep stops
+naming the worker (a worker that joined after the sweep's first check of the cluster).
 """
 
 from __future__ import annotations
@@ -21,10 +25,13 @@ from typing import Any
 MAX_ERROR_CHARS = 500
 
 
-def run_cell(kind: str, params: dict[str, Any], inputs: dict[str, Any]) -> dict[str, Any]:
+def run_cell(kind: str, params: dict[str, Any], inputs: dict[str, Any], source: str | None = None) -> dict[str, Any]:
+    from dampnet.sweep.hashing import source_digest
     from dampnet.sweep.inputs import materialise
 
     t0, c0 = time.perf_counter(), time.process_time()
+    if source is not None and source_digest() != source:
+        return {"status": "mismatch", "worker": worker_name(), "source": source_digest()}
     try:
         got = {role: materialise(v) for role, v in inputs.items()}
         if kind == "training":
@@ -39,8 +46,12 @@ def run_cell(kind: str, params: dict[str, Any], inputs: dict[str, Any]) -> dict[
                "traceback": "".join(traceback.format_exception(e))[-4000:]}
     out["time_s"] = time.perf_counter() - t0
     out["cpu_s"] = time.process_time() - c0
-    out["worker"] = f"{socket.gethostname()}:{os.getpid()}"
+    out["worker"] = worker_name()
     return out
+
+
+def worker_name() -> str:
+    return f"{socket.gethostname()}:{os.getpid()}"
 
 
 def one_line(e: BaseException) -> str:
@@ -58,6 +69,9 @@ def dask_setup(worker=None) -> None:
 
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, signal.SIG_IGN)
+    from dampnet.sweep.hashing import source_digest
+
+    source_digest()     # this worker's dampnet as it starts (the client hashes its own then too)
 
 
 def warm(kinds: list[str]) -> int:

@@ -1,0 +1,111 @@
+"""`dampnet sweep` refuses up front, in one line naming the field, what used to fail late (issue 29):
+an output directory inside an input dataset (every cell failed with InputChanged), non-finite or
+out-of-range numbers of a random distribution (OverflowError tracebacks), samples drawn outside
+their parameter's range, and specs too large to list (10^6 cells never finished submitting;
+n = 10^9 samples ran out of memory). No cluster is started: these are refused before one."""
+
+from __future__ import annotations
+
+import pytest
+
+import needs
+
+for _module in ("dask.distributed", "pandas", "pyarrow"):
+    needs.need_module(_module)
+
+from dampnet.cli import main  # noqa: E402
+from dampnet.sweep import SpecError, parse_spec  # noqa: E402
+from dampnet.sweep.grid import MAX_CELLS, MAX_CELLS_CEILING, expand  # noqa: E402
+
+
+def one_line_error(capsys, argv, *fragments) -> str:
+    capsys.readouterr()
+    rc = main(argv)
+    err = capsys.readouterr().err
+    assert rc == 2 and err.startswith("dampnet: error: ") and err.count("\n") == 1, (rc, err)
+    for f in fragments:
+        assert f in err, (f, err)
+    return err
+
+
+def test_an_output_inside_an_input_dataset_is_refused(tmp_path, capsys):
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "manifest.csv").write_text("test_id,file\n")
+    spec = tmp_path / "s.toml"
+    spec.write_text(f"[training]\ndatasets = ['{data}']\n")
+    for extra in ([], ["--force"], ["--resume"]):
+        one_line_error(capsys, ["sweep", str(spec), "--out", str(data / "sweep"), *extra],
+                       f"{data / 'sweep'}: is inside an input directory of this command ({data})",
+                       "name a directory outside it")
+    assert sorted(p.name for p in data.iterdir()) == ["manifest.csv"]
+    # a directory that is no dataset (it would be hashed whole, e.g. "/") is refused as one
+    spec.write_text(f"[training]\ndatasets = ['{tmp_path}']\n")
+    one_line_error(capsys, ["sweep", str(spec), "--out", str(tmp_path / "o")], "line 2", "training.datasets[0]",
+                   "a directory without manifest.csv")
+
+
+BAD_RANDOM = [
+    ("speed = {uniform = [nan, 10]}", "simulation.random.speed: uniform: expected two finite numbers, got [nan, 10]"),
+    ("speed = {uniform = [1, inf]}", "simulation.random.speed: uniform: expected two finite numbers, got [1, inf]"),
+    ("speed = {loguniform = [1, inf]}", "simulation.random.speed: loguniform: expected two finite numbers"),
+    ("speed = {normal = [10, -inf]}", "simulation.random.speed: normal: expected two finite numbers"),
+    ("speed = {uniform = [-1e308, 1e308]}", "simulation.random.speed: uniform = [-1e+308, 1e+308]: the range is too wide"),
+    ("speed = {uniform = [-5, 5]}", "simulation.random.speed: uniform = [lo, hi]: lo: expected a number > 0, got -5"),
+    ("speeds = {normal = [-3, 1]}", "simulation.random.speeds: normal = [mean, sd]: mean: expected a number > 0"),
+    ("road_seed = {integers = [-3, 4]}", "simulation.random.road_seed: integers = [lo, hi]: lo: expected an integer >= 0"),
+    ("speed = {normal = [10, 5]}", "simulation.random.speed: sample 24 of the normal distribution is out of the "
+                                   "parameter's range (expected a number > 0, got -3.5"),
+]
+
+
+@pytest.mark.parametrize("line, fragment", BAD_RANDOM)
+def test_bad_random_numbers_are_one_line_errors_naming_the_field(tmp_path, capsys, line, fragment):
+    spec = tmp_path / "s.toml"
+    spec.write_text(f"[simulation]\nroads = ['iso:A']\n[simulation.random]\nn = 50\nseed = 1\n{line}\n")
+    one_line_error(capsys, ["sweep", str(spec), "--out", str(tmp_path / "o")], f"{spec}: line 6: {fragment}")
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_vehicle_draw_names_its_sub_table(tmp_path, capsys):
+    spec = tmp_path / "s.toml"
+    spec.write_text("[simulation]\nroads = ['impulse']\n[simulation.random]\nn = 3\nseed = 0\n"
+                    "[simulation.random.vehicle]\nm_s = {uniform = [200, inf]}\n")
+    one_line_error(capsys, ["sweep", str(spec), "--out", str(tmp_path / "o")],
+                   "line 7: simulation.random.vehicle.m_s: uniform: expected two finite numbers")
+
+
+def test_specs_beyond_the_cell_limit_are_refused_before_any_cell_is_listed(tmp_path, capsys):
+    spec = tmp_path / "s.toml"
+    spec.write_text("[simulation]\nroads = ['iso:A']\n[simulation.random]\nn = 1000000000\nseed = 1\n"
+                    "speed = {uniform = [1, 2]}\n")
+    one_line_error(capsys, ["sweep", str(spec), "--out", str(tmp_path / "o")],
+                   f"{spec}: line 4: simulation.random.n: 1,000,000,000 random samples, more than the limit of "
+                   f"{MAX_CELLS:,} cells", "--max-cells N raises it")
+    seeds = list(range(1000))
+    spec.write_text(f"[simulation]\nroads = ['rough']\nroad_seeds = {seeds}\nspeeds = {list(range(1, 1001))}\n")
+    one_line_error(capsys, ["sweep", str(spec), "--out", str(tmp_path / "o")],
+                   "the spec makes up to 1,000,000 cells (simulation 1,000,000 (1000 road_seed x 1000 speed))",
+                   f"more than the limit of {MAX_CELLS:,} cells")
+    assert not (tmp_path / "o").exists()
+    # the limit is an option, itself bounded
+    spec.write_text("[simulation]\nroads = ['rough']\nroad_seeds = [0, 1]\nspeeds = [5.0, 10.0]\n")
+    one_line_error(capsys, ["sweep", str(spec), "--out", str(tmp_path / "o"), "--max-cells", "3"],
+                   "up to 4 cells", "more than the limit of 3 cells")
+    for bad in ("0", str(MAX_CELLS_CEILING + 1)):
+        one_line_error(capsys, ["sweep", str(spec), "--out", str(tmp_path / "o"), "--max-cells", bad],
+                       f"--max-cells: expected an integer in [1, {MAX_CELLS_CEILING:,}], got {bad}")
+    sp = parse_spec(spec.read_text(), source="s.toml")
+    assert len(expand(sp, max_cells=4)) == 4
+    with pytest.raises(SpecError, match="more than the limit of 3 cells"):
+        expand(sp, max_cells=3)
+
+
+def test_the_help_states_the_limits_the_code_uses(capsys):
+    from dampnet.sweep.runner import NO_WORKER_NOTICE_S, WORKER_TIMEOUT_S
+
+    with pytest.raises(SystemExit):
+        main(["sweep", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert f"default {MAX_CELLS}, at most {MAX_CELLS_CEILING}" in text
+    assert f"(default {WORKER_TIMEOUT_S:g};" in text and f"after {NO_WORKER_NOTICE_S:g} s" in text
