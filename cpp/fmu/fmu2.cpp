@@ -31,6 +31,18 @@ fmi2Status result(Inst* s, const char* where, int st) {
 
 Inst* inst(fmi2Component c) { return static_cast<Inst*>(c); }
 
+// Steps, events and derivatives need a successful initialization (after a failed
+// fmi2ExitInitializationMode the FMU is in the error state: only reset or free).
+bool ready(Inst* s, const char* where) {
+  if (s->initialized) return true;
+  char msg[240];
+  std::snprintf(msg, sizeof msg, "%s: the FMU is not initialized (%s): call fmi2ExitInitializationMode%s first",
+                where, s->failed ? "fmi2ExitInitializationMode failed" : "still in initialization",
+                s->failed ? " successfully after fmi2Reset" : "");
+  log(s, fmi2Error, "logStatusError", msg);
+  return false;
+}
+
 }  // namespace
 
 extern "C" {
@@ -88,7 +100,8 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
   if (!c) return fmi2Error;
   Inst* s = inst(c);
   const fmi2Status r = result(s, "fmi2ExitInitializationMode", s->model.exit_initialization(s->model_exchange));
-  if (r == fmi2OK) s->initialized = true;
+  s->initialized = r == fmi2OK;
+  s->failed = r != fmi2OK;
   return r;
 }
 fmi2Status fmi2Terminate(fmi2Component c) { return c ? fmi2OK : fmi2Error; }
@@ -96,6 +109,7 @@ fmi2Status fmi2Reset(fmi2Component c) {
   if (!c) return fmi2Error;
   Inst* s = inst(c);
   s->initialized = false;
+  s->failed = false;
   return result(s, "fmi2Reset", s->model.instantiate());
 }
 
@@ -183,6 +197,7 @@ fmi2Status fmi2GetRealOutputDerivatives(fmi2Component, const fmi2ValueReference[
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean) {
   if (!c) return fmi2Error;
   Inst* s = inst(c);
+  if (!ready(s, "fmi2DoStep")) return fmi2Error;
   return result(s, "fmi2DoStep", s->model.do_step(t, h));
 }
 fmi2Status fmi2CancelStep(fmi2Component) { return fmi2Error; }
@@ -196,10 +211,12 @@ fmi2Status fmi2GetIntegerStatus(fmi2Component, const fmi2StatusKind, fmi2Integer
 fmi2Status fmi2GetBooleanStatus(fmi2Component, const fmi2StatusKind, fmi2Boolean*) { return fmi2Discard; }
 fmi2Status fmi2GetStringStatus(fmi2Component, const fmi2StatusKind, fmi2String*) { return fmi2Discard; }
 
-// ---- Model exchange: the model's continuous states, no event indicators, no events ----
-fmi2Status fmi2EnterEventMode(fmi2Component c) { return c ? fmi2OK : fmi2Error; }
+// ---- Model exchange: the model's continuous states, no event indicators; step events when the
+// discrete outputs change (fmi2CompletedIntegratorStep), which take their values in event mode ----
+fmi2Status fmi2EnterEventMode(fmi2Component c) { return c && ready(inst(c), "fmi2EnterEventMode") ? fmi2OK : fmi2Error; }
 fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo* info) {
-  if (!c || !info) return fmi2Error;
+  if (!c || !info || !ready(inst(c), "fmi2NewDiscreteStates")) return fmi2Error;
+  inst(c)->model.update_discrete();
   info->newDiscreteStatesNeeded = fmi2False;
   info->terminateSimulation = fmi2False;
   info->nominalsOfContinuousStatesChanged = fmi2False;
@@ -208,10 +225,12 @@ fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo* info) {
   info->nextEventTime = 0.0;
   return fmi2OK;
 }
-fmi2Status fmi2EnterContinuousTimeMode(fmi2Component c) { return c ? fmi2OK : fmi2Error; }
+fmi2Status fmi2EnterContinuousTimeMode(fmi2Component c) {
+  return c && ready(inst(c), "fmi2EnterContinuousTimeMode") ? fmi2OK : fmi2Error;
+}
 fmi2Status fmi2CompletedIntegratorStep(fmi2Component c, fmi2Boolean, fmi2Boolean* enter_event, fmi2Boolean* terminate) {
-  if (!c || !enter_event || !terminate) return fmi2Error;
-  *enter_event = fmi2False;
+  if (!c || !enter_event || !terminate || !ready(inst(c), "fmi2CompletedIntegratorStep")) return fmi2Error;
+  *enter_event = inst(c)->model.step_event() ? fmi2True : fmi2False;
   *terminate = fmi2False;
   return fmi2OK;
 }
@@ -234,6 +253,7 @@ fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[], size_t n
 }
 fmi2Status fmi2GetDerivatives(fmi2Component c, fmi2Real dx[], size_t nx) {
   if (!c || (nx && !dx) || !states_match(inst(c), nx, "fmi2GetDerivatives")) return fmi2Error;
+  if (inst(c)->failed && !ready(inst(c), "fmi2GetDerivatives")) return fmi2Error;
   return result(inst(c), "fmi2GetDerivatives", inst(c)->model.derivatives(dx));
 }
 fmi2Status fmi2GetEventIndicators(fmi2Component c, fmi2Real[], size_t ni) { return c && ni == 0 ? fmi2OK : fmi2Error; }

@@ -2,12 +2,15 @@
 // fmu_select.hpp (the damper or the quarter car, with the generated model header), built by
 // python/dampnet/fmu/ into binaries/x86_64-linux/ and shipped in sources/ with
 // buildDescription.xml (this file is the only source to compile; include path: sources/).
-// Float64 and Int32 variables only; no clocks, no events, no FMU state, no scheduled execution.
+// Float64, Int32 and Enumeration (Int64 access) variables only; no clocks, no event indicators
+// (model exchange: step events when the discrete outputs change), no FMU state, no scheduled
+// execution.
 // The instance is allocated with calloc at instantiation (FMI 3 has no allocator callbacks);
 // nothing else allocates. No exceptions or RTTI: the binary depends on libc and libm only.
 #define DN_STATIC 1  // header-only dampnet: no import/export decoration
 
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
 #include <cstring>
 #include <new>
@@ -36,6 +39,29 @@ fmi3Status result(Inst* s, const char* where, int st) {
 }
 
 Inst* inst(fmi3Instance c) { return static_cast<Inst*>(c); }
+
+// Steps, events and derivatives need a successful initialization (after a failed
+// fmi3ExitInitializationMode the FMU is in the error state: only reset or free).
+bool ready(Inst* s, const char* where) {
+  if (s->initialized) return true;
+  char msg[240];
+  std::snprintf(msg, sizeof msg, "%s: the FMU is not initialized (%s): call fmi3ExitInitializationMode%s first",
+                where, s->failed ? "fmi3ExitInitializationMode failed" : "still in initialization",
+                s->failed ? " successfully after fmi3Reset" : "");
+  log(s, fmi3Error, "logStatusError", msg);
+  return false;
+}
+
+// Enumerations are accessed as Int64 (FMI 3), the other integers as Int32: the wrong one is an error.
+bool typed(Inst* s, const char* where, fmi3ValueReference vr, bool as_enumeration) {
+  if (s->model.enumeration(vr) == as_enumeration) return true;
+  char msg[200];
+  std::snprintf(msg, sizeof msg, "%s: value reference %u is %s", where, static_cast<unsigned>(vr),
+                as_enumeration ? "not an Enumeration (use the Int32 or Float64 functions)"
+                               : "an Enumeration: use fmi3GetInt64 / fmi3SetInt64");
+  log(s, fmi3Error, "logStatusError", msg);
+  return false;
+}
 
 fmi3Instance instantiate(fmi3String name, fmi3String token, fmi3Boolean logging, fmi3InstanceEnvironment env,
                          fmi3LogMessageCallback logger, bool model_exchange) {
@@ -134,19 +160,21 @@ fmi3Status fmi3ExitInitializationMode(fmi3Instance c) {
   if (!c) return fmi3Error;
   Inst* s = inst(c);
   const fmi3Status r = result(s, "fmi3ExitInitializationMode", s->model.exit_initialization(s->model_exchange));
-  if (r == fmi3OK) s->initialized = true;
+  s->initialized = r == fmi3OK;
+  s->failed = r != fmi3OK;
   return r;
 }
-fmi3Status fmi3EnterEventMode(fmi3Instance c) { return c ? fmi3OK : fmi3Error; }
+fmi3Status fmi3EnterEventMode(fmi3Instance c) { return c && ready(inst(c), "fmi3EnterEventMode") ? fmi3OK : fmi3Error; }
 fmi3Status fmi3Terminate(fmi3Instance c) { return c ? fmi3OK : fmi3Error; }
 fmi3Status fmi3Reset(fmi3Instance c) {
   if (!c) return fmi3Error;
   Inst* s = inst(c);
   s->initialized = false;
+  s->failed = false;
   return result(s, "fmi3Reset", s->model.instantiate());
 }
 
-// ---- Getters and setters: Float64 and Int32; the other types have no variables ----
+// ---- Getters and setters: Float64, Int32 and Int64 (Enumerations); the other types have no variables ----
 fmi3Status fmi3GetFloat64(fmi3Instance c, const fmi3ValueReference vr[], size_t n, fmi3Float64 value[], size_t nv) {
   if (!c || n != nv || (n && (!vr || !value))) return fmi3Error;
   Inst* s = inst(c);
@@ -164,7 +192,19 @@ fmi3Status fmi3GetInt32(fmi3Instance c, const fmi3ValueReference vr[], size_t n,
   Inst* s = inst(c);
   for (size_t i = 0; i < n; ++i) {
     int v = 0;
+    if (!typed(s, "fmi3GetInt32", vr[i], false)) return fmi3Error;
     if (result(s, "fmi3GetInt32", s->model.get_int(vr[i], &v)) != fmi3OK) return fmi3Error;
+    value[i] = v;
+  }
+  return fmi3OK;
+}
+fmi3Status fmi3GetInt64(fmi3Instance c, const fmi3ValueReference vr[], size_t n, fmi3Int64 value[], size_t nv) {
+  if (!c || n != nv || (n && (!vr || !value))) return fmi3Error;
+  Inst* s = inst(c);
+  for (size_t i = 0; i < n; ++i) {
+    int v = 0;
+    if (!typed(s, "fmi3GetInt64", vr[i], true)) return fmi3Error;
+    if (result(s, "fmi3GetInt64", s->model.get_int(vr[i], &v)) != fmi3OK) return fmi3Error;
     value[i] = v;
   }
   return fmi3OK;
@@ -183,8 +223,21 @@ fmi3Status fmi3SetInt32(fmi3Instance c, const fmi3ValueReference vr[], size_t n,
   if (!c || n != nv || (n && (!vr || !value))) return fmi3Error;
   Inst* s = inst(c);
   for (size_t i = 0; i < n; ++i) {
+    if (!typed(s, "fmi3SetInt32", vr[i], false)) return fmi3Error;
     if (check_settable(s, "fmi3SetInt32", vr[i]) != fmi3OK) return fmi3Error;
     if (result(s, "fmi3SetInt32", s->model.set_int(vr[i], value[i])) != fmi3OK) return fmi3Error;
+  }
+  return fmi3OK;
+}
+fmi3Status fmi3SetInt64(fmi3Instance c, const fmi3ValueReference vr[], size_t n, const fmi3Int64 value[], size_t nv) {
+  if (!c || n != nv || (n && (!vr || !value))) return fmi3Error;
+  Inst* s = inst(c);
+  for (size_t i = 0; i < n; ++i) {
+    if (!typed(s, "fmi3SetInt64", vr[i], true)) return fmi3Error;
+    if (check_settable(s, "fmi3SetInt64", vr[i]) != fmi3OK) return fmi3Error;
+    // no enumeration has a value beyond int: one that does is no item of it (refused at initialisation)
+    const int v = value[i] < INT32_MIN ? INT32_MIN : value[i] > INT32_MAX ? INT32_MAX : static_cast<int>(value[i]);
+    if (result(s, "fmi3SetInt64", s->model.set_int(vr[i], v)) != fmi3OK) return fmi3Error;
   }
   return fmi3OK;
 }
@@ -202,7 +255,6 @@ DNFMU_NO_VARIABLES_(UInt8, fmi3UInt8)
 DNFMU_NO_VARIABLES_(Int16, fmi3Int16)
 DNFMU_NO_VARIABLES_(UInt16, fmi3UInt16)
 DNFMU_NO_VARIABLES_(UInt32, fmi3UInt32)
-DNFMU_NO_VARIABLES_(Int64, fmi3Int64)
 DNFMU_NO_VARIABLES_(UInt64, fmi3UInt64)
 DNFMU_NO_VARIABLES_(Boolean, fmi3Boolean)
 DNFMU_NO_VARIABLES_(String, fmi3String)
@@ -269,13 +321,18 @@ fmi3Status fmi3SetShiftFraction(fmi3Instance, const fmi3ValueReference[], size_t
                                 const fmi3UInt64[]) {
   return fmi3Error;
 }
-fmi3Status fmi3EvaluateDiscreteStates(fmi3Instance c) { return c ? fmi3OK : fmi3Error; }
+fmi3Status fmi3EvaluateDiscreteStates(fmi3Instance c) {
+  if (!c || !ready(inst(c), "fmi3EvaluateDiscreteStates")) return fmi3Error;
+  inst(c)->model.update_discrete();
+  return fmi3OK;
+}
 fmi3Status fmi3ActivateModelPartition(fmi3Instance, fmi3ValueReference, fmi3Float64) { return fmi3Error; }
 
 fmi3Status fmi3UpdateDiscreteStates(fmi3Instance c, fmi3Boolean* update, fmi3Boolean* terminate,
                                     fmi3Boolean* nominals_changed, fmi3Boolean* values_changed,
                                     fmi3Boolean* next_defined, fmi3Float64* next_time) {
-  if (!c) return fmi3Error;
+  if (!c || !ready(inst(c), "fmi3UpdateDiscreteStates")) return fmi3Error;
+  inst(c)->model.update_discrete();
   if (update) *update = fmi3False;
   if (terminate) *terminate = fmi3False;
   if (nominals_changed) *nominals_changed = fmi3False;
@@ -285,11 +342,14 @@ fmi3Status fmi3UpdateDiscreteStates(fmi3Instance c, fmi3Boolean* update, fmi3Boo
   return fmi3OK;
 }
 
-// ---- Model exchange: the model's continuous states, no event indicators ----
-fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance c) { return c ? fmi3OK : fmi3Error; }
+// ---- Model exchange: the model's continuous states, no event indicators; step events when the
+// discrete outputs change (fmi3CompletedIntegratorStep), which take their values in event mode ----
+fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance c) {
+  return c && ready(inst(c), "fmi3EnterContinuousTimeMode") ? fmi3OK : fmi3Error;
+}
 fmi3Status fmi3CompletedIntegratorStep(fmi3Instance c, fmi3Boolean, fmi3Boolean* enter_event, fmi3Boolean* terminate) {
-  if (!c || !enter_event || !terminate) return fmi3Error;
-  *enter_event = fmi3False;
+  if (!c || !enter_event || !terminate || !ready(inst(c), "fmi3CompletedIntegratorStep")) return fmi3Error;
+  *enter_event = inst(c)->model.step_event() ? fmi3True : fmi3False;
   *terminate = fmi3False;
   return fmi3OK;
 }
@@ -305,6 +365,7 @@ fmi3Status fmi3SetContinuousStates(fmi3Instance c, const fmi3Float64 x[], size_t
 }
 fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance c, fmi3Float64 dx[], size_t nx) {
   if (!c || (nx && !dx) || !states_match(inst(c), nx, "fmi3GetContinuousStateDerivatives")) return fmi3Error;
+  if (inst(c)->failed && !ready(inst(c), "fmi3GetContinuousStateDerivatives")) return fmi3Error;
   return result(inst(c), "fmi3GetContinuousStateDerivatives", inst(c)->model.derivatives(dx));
 }
 fmi3Status fmi3GetEventIndicators(fmi3Instance c, fmi3Float64[], size_t ni) { return c && ni == 0 ? fmi3OK : fmi3Error; }
@@ -339,6 +400,7 @@ fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 t, fmi3Float64 h, fmi3Boolean,
                       fmi3Boolean* terminate, fmi3Boolean* early_return, fmi3Float64* last_time) {
   if (!c) return fmi3Error;
   Inst* s = inst(c);
+  if (!ready(s, "fmi3DoStep")) return fmi3Error;
   if (event_needed) *event_needed = fmi3False;
   if (terminate) *terminate = fmi3False;
   if (early_return) *early_return = fmi3False;

@@ -11,7 +11,12 @@
 //   int  do_step(t, h)                 co-simulation: advance from t to t + h
 //   void set_time(t)                   model exchange
 //   int  n_states(), get_states(x), set_states(x), derivatives(dx)    model exchange
+//   bool step_event()                  model exchange, after an integrator step: the discrete
+//                                      outputs would change (the importer enters event mode)
+//   void update_discrete()             model exchange, event mode: the discrete outputs take
+//                                      their values at this instant (they hold between events)
 //   bool parameter(vr)                 the value reference is a parameter (settable before init only)
+//   bool enumeration(vr)               the value reference is an Enumeration (FMI 3: Int64 access)
 // Every int return is a dampnet status (< 0: error, with the reason in `message`).
 // Nothing here allocates, throws or uses RTTI: the binary needs libc and libm only.
 #pragma once

@@ -26,6 +26,12 @@
 // dv_lag/dt = (v - v_lag)/tau_v, dz/dt = (v - |v| z)/x_c (Dahl along the travel).
 // Initial states (both interfaces): u_lag = u, v_lag = v (steady state at the initial inputs,
 // as dampnet.features' training columns start), z_fric = 0.
+// The Integer outputs status, clamped_mask and envelope_flags are discrete variables: in
+// co-simulation they are evaluated at the communication point with the inputs set there; in
+// model exchange they change only at events (FMI: a discrete variable changes only at an event
+// instant): they hold the values of the last event (the end of initialisation, or an event
+// mode), and after each completed integrator step the FMU asks for a step event when the
+// evaluation at that instant would give other values (step_event, update_discrete).
 #pragma once
 
 #include <cmath>
@@ -74,6 +80,8 @@ class DamperModel {
   }
 
   void reset() noexcept {
+    me_ = false;
+    latched_ = Discrete{};
     for (double& v : in_) v = 0.0;
     in_[VR_TEMP] = 20.0;
     time_ = t0_ = 0.0;
@@ -90,10 +98,17 @@ class DamperModel {
     x_[ST_VLAG] = in_[VR_V];
     x_[ST_ZFRIC] = 0.0;
     snapshot();
+    if (me_) update_discrete();
     return DN_OK;
   }
 
   bool parameter(unsigned vr) const noexcept { return params_.owns(vr); }
+  bool enumeration(unsigned) const noexcept { return false; }
+
+  // Model exchange: the discrete outputs would change at this instant (a step event), and
+  // their update in event mode.
+  bool step_event() const noexcept { return me_ && !(discrete_now() == latched_); }
+  void update_discrete() noexcept { latched_ = discrete_now(); }
 
   int get_real(unsigned vr, double* value) noexcept {
     if (vr <= VR_TEMP) {
@@ -142,10 +157,8 @@ class DamperModel {
 
   int get_int(unsigned vr, int* value) noexcept {
     if (vr != VR_STATUS && vr != VR_MASK && vr != VR_ENVELOPE) return no_such(message, "Integer", vr);
-    double f = 0.0;
-    uint32_t mask = 0, env = 0;
-    const int st = evaluate(&f, &mask, &env);
-    *value = vr == VR_STATUS ? st : static_cast<int>(vr == VR_MASK ? mask : env);
+    const Discrete d = me_ ? latched_ : discrete_now();  // model exchange: the last event's values
+    *value = vr == VR_STATUS ? d.status : vr == VR_MASK ? d.mask : d.envelope;
     return DN_OK;
   }
   int set_int(unsigned vr, int) noexcept { return message.fail(DN_E_PARAM, "no settable Integer %u", vr); }
@@ -184,6 +197,14 @@ class DamperModel {
   }
 
  private:
+  // The Integer outputs of one evaluation.
+  struct Discrete {
+    int status = DN_OK, mask = 0, envelope = 0;
+    bool operator==(const Discrete& o) const noexcept {
+      return status == o.status && mask == o.mask && envelope == o.envelope;
+    }
+  };
+
   dampnet::Damper damper_;  // the MLP of the header with the current parameters
   dampnet::Envelope envelope_;  // its training envelope (the header's, or its ranges alone)
   DamperParams params_;
@@ -192,6 +213,7 @@ class DamperModel {
   double x_[ST_N] = {};       // states: at t0 (co-simulation), the integrator's (model exchange)
   double time_ = 0.0, t0_ = 0.0;
   bool me_ = false;
+  Discrete latched_;          // model exchange: the discrete outputs since the last event
   bool used_[ST_N] = {};
   int slot_[ST_N] = {};
   int n_states_ = 0;
@@ -235,6 +257,13 @@ class DamperModel {
     if (used_[ST_ULAG]) r[ST_ULAG] = (in_[VR_U] - s[ST_ULAG]) / damper_.lag_tau();
     if (used_[ST_VLAG]) r[ST_VLAG] = (in_[VR_V] - s[ST_VLAG]) / damper_.velocity_lag_tau();
     if (used_[ST_ZFRIC]) r[ST_ZFRIC] = (in_[VR_V] - std::fabs(in_[VR_V]) * s[ST_ZFRIC]) / damper_.presliding();
+  }
+
+  Discrete discrete_now() const noexcept {
+    double f = 0.0;
+    uint32_t mask = 0, env = 0;
+    const int st = evaluate(&f, &mask, &env);
+    return Discrete{st, static_cast<int>(mask), static_cast<int>(env)};
   }
 
   // The force; with env, the envelope flags of the network's inputs (before saturation).

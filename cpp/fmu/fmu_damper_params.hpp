@@ -1,17 +1,24 @@
 // The damper's parameters as both FMUs expose them: the model's feature constants (value
 // references 10 + k, the header's order: names sorted) and its physics terms' parameters
 // (100 + 10 i + j), their start values from the generated header "fmu_model.h", and the
-// damper built from them (validated by the runtime, an invalid value named in the message).
+// damper built from them (validated by the runtime, an invalid value named in the message with
+// its FMU name from "fmu_config.h", DNFMU_TERM_PARAM_NAMES, and the runtime's range).
 #pragma once
 
 #include <cmath>
+#include <cstring>
 
 #include "dampnet/damper.hpp"
+#include "dampnet/terms.hpp"
 #include "fmu_common.hpp"
+#include "fmu_config.h"
 #include "fmu_model.h"
 
 #ifndef FMU_MODEL_TERM_PARAMS
 #define FMU_MODEL_TERM_PARAMS 1
+#endif
+#ifndef DNFMU_TERM_PARAM_NAMES  // the FMU's names of the terms' parameters, [term][parameter]
+#define DNFMU_TERM_PARAM_NAMES {{""}}
 #endif
 
 namespace dnfmu {
@@ -68,9 +75,7 @@ class DamperParams {
 #if FMU_MODEL_N_TERMS > 0
     for (int i = 0; i < kTerms; ++i) {
       st = d.add_term(fmu_model_term_kinds[i], term_[i], fmu_model_term_n_params[i]);
-      if (st != DN_OK)
-        return m.fail(st, "term %d (%s): its parameters are refused: %s", i, fmu_model_term_kinds[i],
-                      status_text(st));
+      if (st != DN_OK) return explain_term(m, i, st);
     }
 #endif
     damper = d;
@@ -78,6 +83,34 @@ class DamperParams {
   }
 
  private:
+#if FMU_MODEL_N_TERMS > 0
+  // Why term i's parameters are refused: the first one refused on its own (the others at the
+  // trained values), by its FMU name, with the runtime's doc of the kind (its ranges).
+  static const char* term_doc(const char* kind) noexcept {
+#define DNFMU_TERM_DOC_(id, value, name, n, text) \
+  if (std::strcmp(kind, name) == 0) return text;
+    DN_TERM_LIST(DNFMU_TERM_DOC_)
+#undef DNFMU_TERM_DOC_
+    return "";
+  }
+  int explain_term(Message& m, int i, int st) const noexcept {
+    static constexpr const char* names[kTerms][FMU_MODEL_TERM_PARAMS] = DNFMU_TERM_PARAM_NAMES;
+    const char* kind = fmu_model_term_kinds[i];
+    const int n = fmu_model_term_n_params[i];
+    for (int j = 0; j < n; ++j) {
+      double trial[FMU_MODEL_TERM_PARAMS];
+      for (int k = 0; k < n; ++k) trial[k] = k == j ? term_[i][k] : fmu_model_term_params[i * FMU_MODEL_TERM_PARAMS + k];
+      dampnet::Term t;
+      const int s = dampnet::terms::make(t, kind, trial, n);
+      if (s != DN_OK)
+        return m.fail(s, "parameter %s = %.12g is refused (term %d, %s: %s): %s", names[i][j] ? names[i][j] : "?",
+                      term_[i][j], i, kind, term_doc(kind), status_text(s));
+    }
+    return m.fail(st, "term %d (%s): its parameters are refused together (%s): %s", i, kind, term_doc(kind),
+                  status_text(st));
+  }
+#endif
+
   double fparam_[kFparams > 0 ? kFparams : 1] = {};
   double term_[kTerms > 0 ? kTerms : 1][FMU_MODEL_TERM_PARAMS] = {};
 };

@@ -16,10 +16,12 @@
 //   1000 + i                 vehicle field i (DN_VEHICLE_FIELDS order; int fields are Integer)
 //   1100 + i                 controller field i (DN_CONTROLLER_FIELDS order)
 //
-// Timing. One communication step is exactly one loop step: do_step(t, h) refuses an h that is
-// not the vehicle's dt (relative tolerance 1e-9). The road inputs set before do_step(t, h) are
-// the road at t + h (the end of the step, as dn_loop_input): an importer that sets the road of
-// the step's start gets the response one step late. Every output read at a communication point
+// Timing. A communication step is n loop steps of the vehicle's fixed dt: do_step(t, h) refuses
+// an h that is not a whole multiple n dt (relative tolerance 1e-9). The road inputs set before
+// do_step(t, h) are the road at t + h (the end of the step, as dn_loop_input): an importer that
+// sets the road of the step's start gets the response one step late. With n > 1 the road inside
+// the communication step is the cubic Hermite interpolant of (z_r, v_r) at t and at t + h (the
+// loop's own assumption within a step), and u is held; n = 1 is exactly one loop step. Every output read at a communication point
 // is at that instant: after do_step(t, h) the state at t + h, and force, control, accelerations
 // from dampnet::forward at that state (exactly what the next step reports at its start; with
 // the 'external' law, with the u currently set). status: the last step's status (its damper
@@ -222,6 +224,12 @@ class QuarterCarModel {
   bool parameter(unsigned vr) const noexcept {
     return params_.owns(vr) || vehicle_field(vr) || controller_field(vr);
   }
+  // The enum fields (integrator, kind, ...): FMI Enumeration variables.
+  bool enumeration(unsigned vr) const noexcept {
+    const qc::Field* f = vehicle_field(vr);
+    if (!f) f = controller_field(vr);
+    return f && f->is_int;
+  }
 
   int get_real(unsigned vr, double* value) noexcept {
     if (vr <= VR_U) {
@@ -327,15 +335,27 @@ class QuarterCarModel {
   int do_step(double t, double h) noexcept {
     if (!initialized_ || !ready_) return message.fail(DN_E_PARAM, "a step before the initialization finished");
     const double dt = lm_.veh.dt;
-    if (!(std::fabs(h - dt) <= 1e-9 * dt))
-      return message.fail(DN_E_PARAM, "the communication step h = %.17g s is not the quarter car's fixed step "
-                          "dt = %.17g s (parameter dt): the FMU takes exactly one loop step per communication "
-                          "step; use h = dt", h, dt);
-    const dn_loop_input in{in_[VR_Z_R], in_[VR_V_R], in_[VR_U]};
-    const int st = dampnet::step(lm_, data_, in, nullptr);
-    if (st < 0)
-      return message.fail(st, "the loop step from t = %.17g s failed (state unchanged): %s", t, status_text(st));
-    last_status_ = st;
+    const double n = std::round(h / dt);
+    if (!(n >= 1 && n <= double(kMaxSteps)) || !(std::fabs(h - n * dt) <= 1e-9 * n * dt))
+      return message.fail(DN_E_PARAM, "the communication step h = %.17g s is not a whole multiple of the quarter "
+                          "car's fixed step dt = %.17g s (parameter dt): the FMU takes h / dt loop steps per "
+                          "communication step; use h = n dt, n = 1, 2, ... (at most %ld)", h, dt, kMaxSteps);
+    const long steps = long(n);
+    const double z0 = data_.s[dampnet::S_z_r], v0 = data_.s[dampnet::S_v_r];
+    const dampnet::LoopData before = data_;
+    int status = DN_OK;
+    for (long k = 1; k <= steps; ++k) {
+      dn_loop_input in{in_[VR_Z_R], in_[VR_V_R], in_[VR_U]};
+      if (k < steps) hermite_road(z0, v0, in.z_r, in.v_r, steps * dt, double(k) / double(steps), &in.z_r, &in.v_r);
+      const int st = dampnet::step(lm_, data_, in, nullptr);
+      if (st < 0) {
+        data_ = before;
+        return message.fail(st, "the loop step %ld of %ld from t = %.17g s failed (state unchanged): %s", k, steps,
+                            t + double(k - 1) * dt, status_text(st));
+      }
+      status |= st;
+    }
+    last_status_ = status;
     time_ = t + h;
     out_ready_ = false;
     return DN_OK;
@@ -349,6 +369,8 @@ class QuarterCarModel {
   int derivatives(double*) noexcept {
     return message.fail(DN_E_PARAM, "the quarter-car FMU is a co-simulation FMU only (no model exchange)");
   }
+  bool step_event() const noexcept { return false; }
+  void update_discrete() noexcept {}
 
  private:
   dampnet::Damper damper_;   // the MLP of the header (double precision) with the current parameters
@@ -366,6 +388,18 @@ class QuarterCarModel {
   int last_status_ = DN_OK;   // the status of the last step
   int out_status_ = DN_OK;
   dn_loop_out out_{};
+
+  // loop steps in one communication step (a step count that fits a long everywhere)
+  static constexpr long kMaxSteps = 2147483647L;
+
+  // The road at theta in [0, 1] of a communication step of length H: the cubic Hermite
+  // interpolant of (z0, v0) at its start and (z1, v1) at its end.
+  static void hermite_road(double z0, double v0, double z1, double v1, double H, double theta, double* z,
+                           double* v) noexcept {
+    const double t2 = theta * theta, t3 = t2 * theta;
+    *z = (2 * t3 - 3 * t2 + 1) * z0 + (t3 - 2 * t2 + theta) * H * v0 + (3 * t2 - 2 * t3) * z1 + (t3 - t2) * H * v1;
+    *v = (6 * t2 - 6 * theta) / H * (z0 - z1) + (3 * t2 - 4 * theta + 1) * v0 + (3 * t2 - 2 * theta) * v1;
+  }
 
   template <class S>
   static void put(S& s, const qc::Field& f, double v) noexcept {

@@ -26,7 +26,8 @@ struct Instance {
   Callbacks cb;
   char name[128];
   bool model_exchange = false;
-  bool initialized = false;  // after exitInitializationMode: parameters are fixed
+  bool initialized = false;  // after a successful exitInitializationMode: parameters fixed, steps allowed
+  bool failed = false;       // exitInitializationMode failed: nothing but reset or free until a reset
   bool logging = false;
 };
 

@@ -3,7 +3,9 @@ by an independent importer (FMPy): no validation problems, a binary needing only
 and FMPy's co-simulation on the thesis rough road equal to QuarterCar.simulate (states, damper
 force, accelerations) to 1e-9 for the passive and the on-off skyhook law; parameters set by the
 importer or compiled in as start values give the run of QuarterCar with the same parameters;
-a step other than dt and an invalid parameter are errors naming them."""
+a communication step of n dt is n loop steps on the road's Hermite interpolant (FMPy's default
+run takes 16 dt); a step that is not a whole multiple of dt and an invalid parameter are errors
+naming them."""
 
 import subprocess
 import zipfile
@@ -40,7 +42,7 @@ def fmus(tmp_path_factory):
             for fmi in (2, 3)}
 
 
-def road_signal(z, zd, u=None):
+def road_signal(z, zd, u=None, dt=DT):
     """FMPy's input table for a road sampled at DT. FMPy applies the input of t_k before the step
     from t_k, and the FMU takes it as the road at the step's END (t_k+1, as dn_loop_input): so
     the table holds the road one sample ahead. The first row (t = -dt) and the event at t = 0 (two
@@ -48,7 +50,7 @@ def road_signal(z, zd, u=None):
     first step on. u (the external law's control over the step from t_k) is not shifted."""
     n = z.size
     sig = np.zeros(n + 1, dtype=[("time", float), ("z_r", float), ("v_r", float), ("u", float)])
-    sig["time"] = np.concatenate([[-DT, 0.0], np.arange(n - 1) * DT])
+    sig["time"] = np.concatenate([[-dt, 0.0], np.arange(n - 1) * dt])
     sig["z_r"] = np.concatenate([[z[0]], z])
     sig["v_r"] = np.concatenate([[zd[0]], zd])
     if u is not None:
@@ -157,10 +159,40 @@ def test_hybrid_damper_parameters(road, tmp_path):
     assert_same_run(res, ref)
 
 
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_communication_steps_of_whole_multiples_of_dt(fmus, road, fmi):
+    """FMPy's run with all its defaults (the default experiment, 10 s: its interval doubled to
+    16 dt) runs. A step of n = 4 dt with the road given at the communication points equals
+    QuarterCar.simulate at dt on the road's cubic Hermite interpolant between them (scipy's
+    CubicHermiteSpline, an independent one) to 1e-9; holding the road at the step's end instead
+    differs by far more, so the interpolant matters."""
+    from scipy.interpolate import CubicHermiteSpline
+
+    res = simulate_fmu(str(fmus[fmi]))
+    assert res["time"][-1] == pytest.approx(10.0) and np.diff(res["time"])[0] == pytest.approx(16 * DT)
+    n = 4
+    z, zd = road
+    zc, zdc = z[::n], zd[::n]  # the road at the communication points, h = n dt
+    tc = np.arange(zc.size) * n * DT
+    spline = CubicHermiteSpline(tc, zc, zdc)
+    t = np.arange((zc.size - 1) * n + 1) * DT
+    zf, zdf = spline(t), spline.derivative()(t)
+    zf[::n], zdf[::n] = zc, zdc  # the knots exactly (the FMU uses the given values there)
+    ref = QuarterCar(damper_from_model(default_model())).simulate(zf, zdf)
+    run = simulate_fmu(str(fmus[fmi]), start_time=0.0, stop_time=float(tc[-1]), output_interval=n * DT,
+                       input=road_signal(zc, zdc, dt=n * DT), output=OUTPUTS, fmi_type="CoSimulation")
+    assert len(run) == zc.size
+    for name, col in STATES.items():
+        np.testing.assert_allclose(run[name], ref["state"][::n, col], rtol=0, atol=1e-9, err_msg=name)
+    held = QuarterCar(damper_from_model(default_model())).simulate(np.repeat(zc, n)[n - 1:], np.repeat(zdc, n)[n - 1:])
+    assert np.max(np.abs(held["state"][::n, 1] - ref["state"][::n, 1])) > 1e-5
+
+
 def test_errors_name_the_step_and_the_parameter(fmus, tmp_path):
-    """A communication step other than dt: fmi2Error/fmi3Error from doStep, the logged message
-    naming dt; m_s = -1: initialisation fails naming m_s and its range; two fields refused only
-    together are named together; model exchange is refused by build_fmu in one line."""
+    """A communication step that is not a whole multiple of dt: fmi2Error/fmi3Error from doStep,
+    the logged message naming h and dt; m_s = -1: initialisation fails naming m_s and its range;
+    two fields refused only together are named together; model exchange is refused by build_fmu
+    in one line."""
     messages = []
 
     def log(*args):
@@ -169,8 +201,9 @@ def test_errors_name_the_step_and_the_parameter(fmus, tmp_path):
     for fmi, path in fmus.items():
         messages.clear()
         with pytest.raises(Exception, match=f"fmi{fmi}DoStep"):
-            simulate_fmu(str(path), stop_time=0.02, step_size=2e-3, output_interval=2e-3, logger=log)
-        assert any("h = 0.002 s" in m and "fixed step dt = 0.001 s" in m for m in messages), messages
+            simulate_fmu(str(path), stop_time=0.03, output_interval=1.5e-3, logger=log)
+        assert any("h = 0.0015 s is not a whole multiple" in m and "fixed step dt = 0.001 s" in m
+                   for m in messages), messages
         messages.clear()
         with pytest.raises(Exception, match=f"fmi{fmi}ExitInitializationMode"):
             simulate_fmu(str(path), stop_time=0.01, output_interval=DT, start_values={"m_s": -1.0}, logger=log)

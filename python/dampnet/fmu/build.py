@@ -1,16 +1,25 @@
 """Compile and package an FMU: stage sources/, binaries/<platform>/ and modelDescription.xml in a
-temporary directory beside the output, zip it, and move it into place (a failure leaves nothing)."""
+scratch directory in the system's temporary directory, zip it, and write the .fmu atomically
+(outputs.atomic_write_bytes: a failure or a kill leaves no partial .fmu; a missing parent
+directory is created, as for every other export). The scratch directory carries dampnet's
+staging marker (outputs.STAGING_MARKER, its pid in its name), so the next export removes those
+of killed runs (outputs.clean_stale)."""
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
+import socket
 import subprocess
 import tempfile
 import zipfile
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Iterator
 
 from dampnet import paths
+from dampnet.outputs import STAGING_MARKER, atomic_write_bytes, clean_stale
 from dampnet.export import header_text
 from dampnet.fmu.description import PLATFORM, SOURCE, Description, FmuError, build_description_3, model_description
 from dampnet.model import MlpModel
@@ -75,6 +84,22 @@ def compile_binary(sources: Path, fmi: int, out_so: Path) -> None:
         raise FmuError(f"compiling the FMU failed: {' '.join(cmd)}\n{proc.stderr[-2000:]}")
 
 
+@contextmanager
+def scratch_dir() -> Iterator[Path]:
+    """A fresh directory in the system's temporary directory, removed on exit. Named and marked
+    as outputs.staged_dir's staging directories (pid in the name, STAGING_MARKER inside), so
+    clean_stale removes one a killed export left; stale ones are removed here first."""
+    base = tempfile.gettempdir()
+    clean_stale(base)
+    container = Path(tempfile.mkdtemp(prefix=f".fmu.dampnet-tmp-{os.getpid()}-", dir=base))
+    try:
+        (container / STAGING_MARKER).write_text(json.dumps(
+            {"pid": os.getpid(), "host": socket.gethostname(), "out": ""}))
+        yield container
+    finally:
+        shutil.rmtree(container, ignore_errors=True)
+
+
 def package(model: MlpModel, d: Description, out: str | os.PathLike, fmi: int, interface: str | None,
             quarter_car: bool, overwrite: bool, envelope=None) -> Path:
     out = Path(out)
@@ -83,16 +108,18 @@ def package(model: MlpModel, d: Description, out: str | os.PathLike, fmi: int, i
     if out.exists() and not overwrite:
         raise FileExistsError(f"{out}: exists; refusing to overwrite (use --force)")
     xml = model_description(d, fmi, interface)  # checks the interface before compiling
-    with tempfile.TemporaryDirectory(prefix=".dampnet-fmu-", dir=out.parent if str(out.parent) else ".") as tmp:
-        t = Path(tmp) / "fmu"
+    with scratch_dir() as tmp:
+        t = tmp / "fmu"
         stage_sources(model, d, fmi, quarter_car, t / "sources", envelope)
         (t / "modelDescription.xml").write_text(xml)
         binaries = t / "binaries" / PLATFORM[fmi]
         binaries.mkdir(parents=True)
         compile_binary(t / "sources", fmi, binaries / f"{d.model_identifier}.so")
-        part = Path(tmp) / "out.fmu"
-        with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
-            for f in sorted(p for p in t.rglob("*") if p.is_file()):
-                z.write(f, f.relative_to(t).as_posix())
-        os.replace(part, out)
+
+        def write_zip(f) -> None:
+            with zipfile.ZipFile(f, "w", zipfile.ZIP_DEFLATED) as z:
+                for p in sorted(p for p in t.rglob("*") if p.is_file()):
+                    z.write(p, p.relative_to(t).as_posix())
+
+        atomic_write_bytes(out, write_zip, overwrite=overwrite)
     return out

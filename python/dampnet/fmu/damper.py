@@ -8,10 +8,12 @@ features' states (u_lag, v_lag, z_fric) as local variables, continuous states in
 
 from __future__ import annotations
 
+import json
+
 from dampnet import _core
 from dampnet.export import _package_version
 from dampnet.features import param_doc
-from dampnet.fmu.description import Description, FmuError, Variable, fmi_unit, unit_in
+from dampnet.fmu.description import Description, FmuError, Variable, fmi_unit, range_in, unit_in
 from dampnet.model import MlpModel
 from dampnet.terms import KINDS
 
@@ -52,7 +54,27 @@ def control_unit(model: MlpModel) -> str | None:
 
 
 def data_label(model: MlpModel) -> str:
-    return str(model.meta.get("data_hash") or model.meta.get("dataset") or "unknown data")
+    """The training data, as training recorded it (meta["data"]: the dataset's source, e.g. its
+    folder or "dampnet rig: plan quick, ...", and how many tests), or "unknown data"."""
+    data = model.meta.get("data")
+    if not isinstance(data, dict) or not data.get("source"):
+        return "unknown data"
+    n = data.get("n_tests")
+    return str(data["source"]) + (f" ({n} tests)" if isinstance(n, int) and not isinstance(n, bool) else "")
+
+
+#: the status codes one damper evaluation gives (cpp/include/dampnet/damper.hpp: Damper::force)
+DAMPER_STATUSES = ("DN_OK", "DN_W_SATURATED", "DN_E_NONFINITE_INPUT", "DN_E_NONFINITE_OUTPUT")
+
+
+def status_doc(names: tuple[str, ...]) -> str:
+    """'CODE (NAME: the runtime's text)' for each status, from the runtime's status list."""
+    return "; ".join(f"{getattr(_core, n)} ({_core.status_str(getattr(_core, n))})" for n in names)
+
+
+#: how the damper's discrete outputs behave in model exchange (cpp/fmu/fmu_damper.hpp)
+LATCHED = ("; model exchange: the value at the last event (discrete: it changes only at events; after an "
+           "integrator step that would change it the FMU asks for a step event)")
 
 
 def envelope_doc(with_grid: bool) -> str:
@@ -62,6 +84,21 @@ def envelope_doc(with_grid: bool) -> str:
             "(32 x 32 over the ranges) no training sample is near"
             + ("" if with_grid else " (not computed: this FMU was exported without the model's envelope, "
                "so it carries the training ranges only)"))
+
+
+def term_param_name(term: dict, i: int, j: int) -> str:
+    """The FMU's name of parameter j of term i ("bump_stop_1.k")."""
+    return f"{term['kind']}_{i}.{KINDS[term['kind']].params[j].partition(' [')[0]}"
+
+
+def term_names_config(model: MlpModel) -> tuple[str, ...]:
+    """fmu_config.h's DNFMU_TERM_PARAM_NAMES: the terms' parameters by their FMU names, for the
+    binary's messages (cpp/fmu/fmu_damper_params.hpp)."""
+    if not model.terms:
+        return ()
+    rows = ", ".join("{" + ", ".join(json.dumps(term_param_name(t, i, j)) for j in range(len(t.get("params") or [])))
+                     + "}" for i, t in enumerate(model.terms))
+    return (f"#define DNFMU_TERM_PARAM_NAMES {{{rows}}}",)
 
 
 def damper_variables(model: MlpModel, with_grid: bool = False) -> list[Variable]:
@@ -78,28 +115,31 @@ def damper_variables(model: MlpModel, with_grid: bool = False) -> list[Variable]
          Variable("force", 5, "Real", "output", "continuous",
                   "damper force, positive resisting extension (network plus physics terms)", "N", initial="calculated"),
          Variable("status", 6, "Integer", "output", "discrete",
-                  "dampnet status of the evaluation: 0 ok, 1 an input clamped to the training range, "
-                  "2 a NaN input replaced, negative an error", initial="calculated"),
+                  "dampnet status of the evaluation: " + status_doc(DAMPER_STATUSES) + "; an error also fails "
+                  "reading the force" + LATCHED, initial="calculated"),
          Variable("clamped_mask", 7, "Integer", "output", "discrete",
-                  "bit i set: network input i was clamped to its training range", initial="calculated"),
-         Variable("envelope_flags", VR_ENVELOPE, "Integer", "output", "discrete", envelope_doc(with_grid),
+                  "bit i set: network input i was clamped to its training range" + LATCHED, initial="calculated"),
+         Variable("envelope_flags", VR_ENVELOPE, "Integer", "output", "discrete", envelope_doc(with_grid) + LATCHED,
                   initial="calculated")]
     for k, (name, value) in enumerate(sorted(model.feature_params.items())):  # the header's order
         doc = param_doc(name)
+        lo, hi = range_in(doc, name)
         v.append(Variable(name, VR_FPARAM + k, "Real", "parameter", "fixed", doc.split(" [")[0],
-                          unit_in(doc), float(value), initial="exact"))
+                          unit_in(doc), float(value), initial="exact", min=lo, max=hi))
     for i, term in enumerate(model.terms):
         names = KINDS[term["kind"]].params
+        runtime_doc = _core.TERM_KINDS[term["kind"]][1]  # the runtime's, with its parameters' ranges
         for j, value in enumerate(term.get("params") or []):
             pname, _, unit = names[j].partition(" [")
-            v.append(Variable(f"{term['kind']}_{i}.{pname}", VR_TERM + 10 * i + j, "Real", "parameter", "fixed",
+            lo, hi = range_in(runtime_doc, pname, named_only=True)
+            v.append(Variable(term_param_name(term, i, j), VR_TERM + 10 * i + j, "Real", "parameter", "fixed",
                               f"physics term {i} ({term['kind']}): {KINDS[term['kind']].doc}", fmi_unit(unit.rstrip("]")),
-                              float(value), initial="exact"))
+                              float(value), initial="exact", min=lo, max=hi))
     used = _fields(model)
     for name, slot, doc in STATES:
         if name in used:
             unit = u_unit if name == "u_lag" else ("m/s" if name == "v_lag" else None)
-            d_unit = {"V": None, "A": None, "m/s": "m/s2", None: "1/s"}.get(unit)
+            d_unit = {"V": "V/s", "A": "A/s", "m/s": "m/s2", None: "1/s"}.get(unit)
             v.append(Variable(name, VR_STATE + slot, "Real", "local", "continuous", doc, unit,
                               initial="calculated", state=True))
             v.append(Variable(f"der({name})", VR_DERIV + slot, "Real", "local", "continuous",
@@ -114,4 +154,5 @@ def damper_description(model: MlpModel, with_grid: bool = False, step_s: float =
             + (f" plus {len(model.terms)} physics term(s)" if model.terms else "")
             + f"; trained on {data_label(model)}")
     return Description(MODEL_IDENTIFIER, model.model_id(), text, f"dampnet {_package_version()}",
-                       damper_variables(model, with_grid), step_s=step_s, time_vr=VR_TIME)
+                       damper_variables(model, with_grid), step_s=step_s, time_vr=VR_TIME,
+                       config_lines=term_names_config(model))

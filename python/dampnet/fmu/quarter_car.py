@@ -1,8 +1,9 @@
 """The quarter-car FMU's variables (cpp/fmu/fmu_quarter_car.hpp: the same value references).
 
-Co-simulation only. One communication step is one step of dampnet's quarter-car loop
-(cpp/include/dampnet/loop.hpp) at the vehicle's fixed dt: a step of another size is refused
-with an error naming dt.
+Co-simulation only. A communication step is n steps of dampnet's quarter-car loop
+(cpp/include/dampnet/loop.hpp) at the vehicle's fixed dt (h = n dt; the road inside it the cubic
+Hermite interpolant of its two ends, as the loop assumes within a step): a step that is not a
+whole multiple of dt is refused with an error naming h and dt.
 
 - inputs (0-2): z_r [m], v_r [m/s], the road at the END of the coming step (t + h, as
   dn_loop_input: an importer that sets the road of the step's start gets the response one step
@@ -13,14 +14,14 @@ with an error naming dt.
   DN_LOOP_OUT_LIST order: force, control, x, v, a, acc_s, acc_us), suspension travel (240),
   dynamic tyre force (241), status, clamped_mask and envelope_flags (250-252);
 - parameters: the vehicle's fields (1000 + i, DN_VEHICLE_FIELDS order) and the controller's
-  (1100 + i, DN_CONTROLLER_FIELDS order), enum fields as Integer parameters, and the damper's
-  feature constants and term parameters (10 + k, 100 + 10 i + j, as the damper FMU); all fixed,
-  validated at initialisation by the runtime's checks.
+  (1100 + i, DN_CONTROLLER_FIELDS order), enum fields as Enumeration parameters (FMI
+  TypeDefinitions from the runtime's lists), and the damper's feature constants and term
+  parameters (10 + k, 100 + 10 i + j, as the damper FMU); all fixed, with the ranges the runtime's
+  docs state as min/max, validated at initialisation by the runtime's checks.
 
-Importers: run it with a fixed communication step equal to dt (FMPy: simulate_fmu(...,
-output_interval=dt); its default interval doubles beyond 1000 steps, which the FMU refuses), and
-feed the road one sample ahead to get QuarterCar.simulate's run exactly (see
-tests/python/test_export_fmu_quarter_car.py). The vehicle's f_static starts at the runtime's
+Importers: run it with a fixed communication step n dt (FMPy's default run of the default
+experiment takes 16 dt), and with dt itself and the road fed one sample ahead to get
+QuarterCar.simulate's run exactly (see tests/python/test_export_fmu_quarter_car.py). The vehicle's f_static starts at the runtime's
 0 N: for a damper with a force at rest (a gas force), set it to that force.
 
 The state and step-report names and docs are read from the runtime's dampnet.h (the X-macro
@@ -37,8 +38,9 @@ from pathlib import Path
 
 from dampnet import _core, paths
 from dampnet.export import _package_version
-from dampnet.fmu.damper import FmuError, check_model, control_unit, damper_variables, data_label, envelope_doc
-from dampnet.fmu.description import Description, Variable, unit_in
+from dampnet.fmu.damper import (FmuError, check_model, control_unit, damper_variables, data_label, envelope_doc,
+                                status_doc, term_names_config)
+from dampnet.fmu.description import Description, Variable, range_in, unit_in
 from dampnet.model import MlpModel
 
 MODEL_IDENTIFIER = "dampnet_quarter_car"
@@ -52,6 +54,11 @@ RENAMED = {"u": "control"}
 #: the name tables of the enum (Integer) fields, by the enum type their doc names first
 ENUMS = {"dn_integrator": _core.INTEGRATORS, "dn_damper_eval": _core.DAMPER_EVALS,
          "dn_accel_feature": _core.ACCEL_FEATURES, "dn_controller_kind": _core.CONTROLLER_KINDS}
+#: the status codes of a loop step and of the evaluation at a communication point (loop.hpp)
+LOOP_STATUSES = ("DN_OK", "DN_W_SATURATED", "DN_W_ACCEL_UNCONVERGED", "DN_W_ACCEL_FALLBACK", "DN_E_NONFINITE_INPUT",
+                 "DN_E_DIVERGED")
+#: the default experiment: 10 s of road, or 10,000 steps when dt is so small that 10 s would take longer
+DEFAULT_STOP_S, DEFAULT_STOP_STEPS = 10.0, 10_000
 
 
 def _x_macro(name: str, pattern: str) -> list[tuple[str, ...]]:
@@ -125,12 +132,15 @@ def _parameters(fields: dict, starts: list, base: int, u_unit: str | None, group
             table = _enum_table(doc)
             if table is None:
                 raise FmuError(f"{group} field {name}: an Integer field whose doc {doc!r} names no known enum")
-            out.append(Variable(name, base + i, "Integer", "parameter", "fixed", f"{group}: {_enum_text(doc, table)}",
-                                None, int(start), initial="exact"))
+            items = tuple((item, int(value), what) for item, (value, what) in table.items())
+            out.append(Variable(name, base + i, "Enumeration", "parameter", "fixed",
+                                f"{group}: {_enum_text(doc, table)}", None, int(start), initial="exact",
+                                enum=(doc.split(" ")[0], items)))
         else:
             text, unit = _doc_unit(doc, u_unit)
+            lo, hi = range_in(doc, name)
             out.append(Variable(name, base + i, "Real", "parameter", "fixed", f"{group}: {text}", unit, float(start),
-                                initial="exact"))
+                                initial="exact", min=lo, max=hi))
     return out
 
 
@@ -179,9 +189,9 @@ def quarter_car_variables(model: MlpModel, vehicle: list, controller: list, with
                    "dampnet.sim.ride's dynamic tyre load); the tyre never lifts off in this model", "N",
                    initial="calculated"),
           Variable("status", VR_STATUS, "Integer", "output", "discrete",
-                   "dampnet status: the last step's (its damper evaluations' warnings OR-ed) with the evaluation "
-                   "at the communication point: 0 ok, > 0 warnings (1 an input clamped to the training range), "
-                   "< 0 error", initial="calculated"),
+                   "dampnet status: the last communication step's (its loop steps' warnings OR-ed) with the "
+                   "evaluation at the communication point: 0 ok, > 0 warnings OR-ed, < 0 an error: "
+                   + status_doc(LOOP_STATUSES), initial="calculated"),
           Variable("clamped_mask", VR_MASK, "Integer", "output", "discrete",
                    "bit i set: network input i was clamped to its training range at the communication point",
                    initial="calculated"),
@@ -217,13 +227,15 @@ def quarter_car_description(model: MlpModel, vehicle: dict | None = None,
     dt = float(veh[list(_core.VEHICLE_FIELDS).index("dt")])
     kind_value = ctrl[list(_core.CONTROLLER_FIELDS).index("kind")]
     kind = next(name for name, (value, _) in _core.CONTROLLER_KINDS.items() if value == kind_value)
-    text = (f"dampnet quarter car (2-DOF, thesis Table 5 defaults; fixed step dt = {dt:g} s, co-simulation only; "
-            f"road inputs are the road at the end of each step) with damper model {model.model_id()}: a "
+    text = (f"dampnet quarter car (2-DOF, thesis Table 5 defaults; fixed step dt = {dt:g} s, communication steps "
+            f"n dt, co-simulation only; road inputs are the road at the end of each step) with damper model "
+            f"{model.model_id()}: a "
             f"{model.n_inputs}-input MLP on {', '.join(model.features)}"
             + (f" plus {len(model.terms)} physics term(s)" if model.terms else "")
             + f"; trained on {data_label(model)}; controller {kind}")
     return Description(
         MODEL_IDENTIFIER, guid, text, f"dampnet {_package_version()}",
-        quarter_car_variables(model, veh, ctrl, with_grid), step_s=dt, time_vr=VR_TIME, co_simulation_only=True, fixed_step=True,
+        quarter_car_variables(model, veh, ctrl, with_grid), step_s=dt, stop_s=min(DEFAULT_STOP_S, DEFAULT_STOP_STEPS * dt),
+        time_vr=VR_TIME, co_simulation_only=True, fixed_step=True,
         config_lines=(f"#define DNFMU_VEHICLE_START {_c_array(veh)}",
-                      f"#define DNFMU_CONTROLLER_START {_c_array(ctrl)}"))
+                      f"#define DNFMU_CONTROLLER_START {_c_array(ctrl)}", *term_names_config(model)))
