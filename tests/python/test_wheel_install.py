@@ -67,7 +67,10 @@ def test_the_wheel_carries_the_package_and_every_runtime_file(wheel):
     for f in ("include/dampnet/dampnet.h", "include/dampnet/mlp.hpp", "include/dampnet/loop.hpp",
               "include/dampnet/fullcar.hpp",
               "include/dn_model_default.h", "include/dn_model_default.json", "lib/libdampnet.so",
-              "bench/bench_mlp.cpp", "bench/latency.hpp", "demo/controller.c"):
+              "bench/bench_mlp.cpp", "bench/latency.hpp", "demo/controller.c",
+              # `dampnet export --target` and `python -m dampnet.embedded build|run` (dampnet.embedded)
+              "src/c_api_loop.cpp", "src/internal.hpp", "cmake/arm-none-eabi.cmake", "embedded/firmware.c",
+              "embedded/mps2.ld"):
         assert f"dampnet/{f}" in names, f
     assert any(n.startswith("dampnet/_core.") and n.endswith(".so") for n in names)
     assert (ROOT / "export" / "dn_model_default.json").read_bytes() == \
@@ -199,3 +202,62 @@ def test_bench_quick(wheel, work):
     assert "HIL budget" in proc.stdout and "DIFFERENT MODEL" not in proc.stdout
     res = json.loads((work / "bench.json").read_text())
     assert res["python"]["header_model_id"] == res["python"]["model_id"]
+
+
+def test_embedded_firmware_from_the_wheel(wheel, work):
+    """`python -m dampnet.embedded run` from the wheel ran `cmake -S` on site-packages' parent: it
+    now builds the default model's exported folder (the sources CMake installs into the package)
+    for the M4F, and QEMU runs it: the forces are the host's, the quarter car the host loop's. A
+    build that needs the source tree (another firmware target) is refused in one line."""
+    import numpy as np
+
+    from dampnet import embedded as emb
+    from dampnet.modeldir import load_model
+
+    why = emb.toolchain_missing()
+    if why:
+        pytest.fail(why, pytrace=False)
+    out = emb.parse_output(ok(wheel.python_code(
+        "import sys; from dampnet.embedded import main; sys.exit(main(['run', '--cpu', 'cortex-m4', '--dir', "
+        "'firmware_m4']))", cwd=work, timeout=900)))
+    assert out.cpu == "cortex-m4" and out.part == 2 and out.errors == 0
+    model = load_model(ROOT / "export" / "dn_model_default.json")
+    vectors = emb.make_vectors(model)
+    y, status = emb.host_forces(model, vectors.x)
+    assert np.max(np.abs(out.forces - y)) <= 1e-5 * 2.0 / model.out_gain
+    np.testing.assert_array_equal(out.status, status)
+    assert emb.loop_vs_host(model, vectors.road, out)["within"]
+    proc = wheel.python_code("from dampnet import embedded as e\n"
+                             "e.build('cortex-m4', 'x', targets=('dn_firmware_kernel',))", cwd=work)
+    last = proc.stderr.strip().splitlines()[-1]
+    assert proc.returncode != 0 and last.startswith("dampnet.embedded.EmbeddedError:") and "source tree" in last
+
+
+def test_compare_algorithms(wheel, work, dataset):
+    ok(wheel.dampnet("compare-algorithms", dataset, "--algorithms", "lm,scg", "--max-epochs", "5",
+                     "--decimate", "4", "--json", "algorithms.json", "--quiet", cwd=work))
+    rows = json.loads((work / "algorithms.json").read_text())
+    assert rows  # one result per algorithm, whatever the layout
+    assert {"lm", "scg"} <= set(json.dumps(rows).replace('"', " ").split())
+
+
+def test_export_header_and_target(wheel, work, model):
+    """The header and the microcontroller folder from the wheel (the folder's sources are the
+    package's own copy); the folder is not built here (test_embedded_firmware_from_the_wheel
+    builds the default one)."""
+    ok(wheel.dampnet("export", model, "--header", "m.h", cwd=work))
+    assert "#define" in (work / "m.h").read_text()
+    ok(wheel.dampnet("export", model, "--target", "cortex-m4", "--out", "m4_folder", cwd=work))
+    assert {"model.h", "CMakeLists.txt"} <= {p.name for p in (work / "m4_folder").iterdir()}
+
+
+def test_every_command_is_run_from_the_wheel():
+    """Each of the CLI's commands has a run from the wheel in this file (demo: test_demo.py)."""
+    import argparse
+
+    from dampnet.cli import build_parser
+
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    text = Path(__file__).read_text()
+    missing = [c for c in sub.choices if c != "demo" and f'wheel.dampnet("{c}"' not in text]
+    assert not missing, f"commands never run from the wheel: {missing}"
