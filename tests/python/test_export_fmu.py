@@ -3,7 +3,9 @@ exchange), checked by an independent importer (FMPy): no validation problems, a 
 only libc and libm, FMPy's simulations of a recorded rig test equal to the runtime's
 Damper.forces to 1e-9 N, the derived features' states (lags, Dahl friction) equal to the
 reference loop's updates (dampnet.features), settable parameters, the source FMU rebuilt by
-FMPy, and model exchange integrated by CVode following co-simulation."""
+FMPy and from buildDescription.xml alone, model exchange integrated by CVode following
+co-simulation with its discrete outputs changing only at events, FMPy's default runs, and no
+step after a failed initialisation."""
 
 import subprocess
 import zipfile
@@ -11,8 +13,8 @@ import zipfile
 import numpy as np
 import pytest
 from fmpy import extract, read_model_description, simulate_fmu
-from fmpy.fmi2 import FMU2Slave
-from fmpy.fmi3 import FMU3Slave
+from fmpy.fmi2 import FMU2Model, FMU2Slave
+from fmpy.fmi3 import FMU3Model, FMU3Slave
 from fmpy.validation import validate_fmu
 
 from dampnet import features
@@ -312,3 +314,113 @@ def test_non_finite_input_is_an_error_with_a_message(hybrid_fmus, rig_signals):
         simulate_fmu(str(hybrid_fmus[2]), stop_time=float(t[49]), step_size=float(t[1]), input=sig,
                      output=["force"], logger=lambda *args: messages.append(str(args[-1])))
     assert any("NaN or infinite" in m for m in messages), messages
+
+
+def test_the_source_fmu_builds_from_its_build_description_alone(tmp_path, hybrid_fmus, rig_signals):
+    """FMI 3: compiling exactly what sources/buildDescription.xml lists (its source files, include
+    directories relative to sources/, definitions and language; run from elsewhere, so nothing
+    is found by accident) gives a binary with the same forces."""
+    import xml.etree.ElementTree as ET
+
+    unzip = tmp_path / "src"
+    with zipfile.ZipFile(hybrid_fmus[3]) as z:
+        z.extractall(unzip)
+    sources = unzip / "sources"
+    fileset = ET.parse(sources / "buildDescription.xml").getroot().find("BuildConfiguration/SourceFileSet")
+    assert fileset.get("language") == "C++17"
+    cmd = ["g++", "-std=c++17", "-O2", "-fPIC", "-shared", "-o", str(tmp_path / "dampnet_damper.so")]
+    cmd += [str(sources / f.get("name")) for f in fileset.findall("SourceFile")]
+    cmd += [f"-I{sources / d.get('name')}" for d in fileset.findall("IncludeDirectory")]
+    cmd += [f"-D{d.get('name')}" + (f"={d.get('value')}" if d.get("value") else "")
+            for d in fileset.findall("PreprocessorDefinition")]
+    proc = subprocess.run(cmd, capture_output=True, text=True, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    binary = unzip / "binaries" / "x86_64-linux" / "dampnet_damper.so"
+    binary.write_bytes((tmp_path / "dampnet_damper.so").read_bytes())
+    rebuilt = tmp_path / "rebuilt.fmu"
+    with zipfile.ZipFile(rebuilt, "w") as z:
+        for p in unzip.rglob("*"):
+            if p.is_file():
+                z.write(p, p.relative_to(unzip).as_posix())
+    np.testing.assert_allclose(drive(rebuilt, rig_signals), drive(hybrid_fmus[3], rig_signals), rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_fmpy_default_runs(hybrid_fmus, fmi):
+    """simulate_fmu with nothing but the file: co-simulation and model exchange run the default
+    experiment (10 s) at the inputs' start values, status 0."""
+    for fmi_type in ("CoSimulation", "ModelExchange"):
+        res = simulate_fmu(str(hybrid_fmus[fmi]), fmi_type=fmi_type)
+        assert res["time"][-1] == pytest.approx(10.0) and np.all(res["status"] == 0), fmi_type
+
+
+def _model_exchange(path, fmi):
+    """An initialised model-exchange instance in continuous-time mode, inputs in range."""
+    md = read_model_description(str(path))
+    cls = FMU2Model if fmi == 2 else FMU3Model
+    fmu = cls(guid=md.guid, unzipDirectory=extract(str(path)), modelIdentifier=md.modelExchange.modelIdentifier,
+              instanceName="me")
+    fmu.instantiate()
+    if fmi == 2:
+        fmu.setupExperiment(startTime=0.0)
+        fmu.enterInitializationMode()
+    else:
+        fmu.enterInitializationMode(startTime=0.0)
+    (fmu.setReal if fmi == 2 else fmu.setFloat64)(IN_VRS, [0.0, 0.1, 0.0, 2.0, 20.0])
+    fmu.exitInitializationMode()
+    fmu.newDiscreteStates() if fmi == 2 else fmu.updateDiscreteStates()
+    fmu.enterContinuousTimeMode()
+    return fmu
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_discrete_outputs_change_only_at_events_in_model_exchange(hybrid_fmus, fmi):
+    """status, clamped_mask and envelope_flags are discrete: in continuous-time mode an input
+    leaving the training range does not change them; the completed integrator step asks for an
+    event, and in event mode they take the new values (status 1, the velocity's bit); with
+    nothing changing, no event."""
+    fmu = _model_exchange(hybrid_fmus[fmi], fmi)
+    get_int = fmu.getInteger if fmi == 2 else fmu.getInt32
+    set_real = fmu.setReal if fmi == 2 else fmu.setFloat64
+    assert get_int([6, 7, 8]) == [0, 0, 0]
+    assert not fmu.completedIntegratorStep()[0]
+    set_real([1], [50.0])  # v far outside the training range: clamped
+    assert get_int([6, 7, 8]) == [0, 0, 0]  # between events: the last event's values
+    enter_event = fmu.completedIntegratorStep()[0]
+    assert enter_event
+    fmu.enterEventMode()
+    fmu.newDiscreteStates() if fmi == 2 else fmu.updateDiscreteStates()
+    fmu.enterContinuousTimeMode()
+    status, mask, flags = get_int([6, 7, 8])
+    v_bit = 1 << HYBRID_FEATURES.index("velocity")
+    assert status == 1 and mask & v_bit and flags & 1
+    assert not fmu.completedIntegratorStep()[0]
+    fmu.terminate()
+    fmu.freeInstance()
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_no_step_after_a_failed_initialisation(hybrid_fmus, fmi):
+    """A parameter the runtime refuses fails ExitInitializationMode; a doStep after it is an
+    error naming why (as the quarter-car FMU), not a step with the previous parameters."""
+    md = read_model_description(str(hybrid_fmus[fmi]))
+    messages = []
+    cls = FMU2Slave if fmi == 2 else FMU3Slave
+    fmu = cls(guid=md.guid, unzipDirectory=extract(str(hybrid_fmus[fmi])), modelIdentifier="dampnet_damper")
+    if fmi == 2:
+        fmu.instantiate(callbacks=None)
+        fmu.setupExperiment(startTime=0.0)
+        fmu.enterInitializationMode()
+        fmu.setReal([10], [-1.0])  # control_lag_tau_s (the first feature constant)
+    else:
+        fmu.instantiate(logMessage=lambda env, status, category, message: messages.append(message.decode()))
+        fmu.enterInitializationMode(startTime=0.0)
+        fmu.setFloat64([10], [-1.0])
+    with pytest.raises(Exception, match=f"fmi{fmi}ExitInitializationMode"):
+        fmu.exitInitializationMode()
+    with pytest.raises(Exception, match=f"fmi{fmi}DoStep"):
+        fmu.doStep(0.0, 1e-3)
+    if fmi == 3:
+        assert any("fmi3DoStep: the FMU is not initialized (fmi3ExitInitializationMode failed)" in m
+                   for m in messages), messages
+    fmu.freeInstance()

@@ -72,12 +72,15 @@ def stage_sources(model: MlpModel, d: Description, fmi: int, quarter_car: bool, 
         (sources / "buildDescription.xml").write_text(build_description_3(d))
 
 
-def compile_binary(sources: Path, fmi: int, out_so: Path) -> None:
+def compile_binary(sources: Path, fmi: int, out_so: Path, tmpdir: Path | None = None) -> None:
+    """Compile sources/ into out_so; the compiler's own temporary files go to tmpdir (the build's
+    scratch directory: a killed compiler's leftovers go with it)."""
     cxx = compiler()
     cmd = [cxx, "-std=c++17", "-O2", "-fPIC", "-shared", "-fno-exceptions", "-fno-rtti", "-fvisibility=hidden",
            f"-I{sources}", str(sources / SOURCE[fmi]), "-o", str(out_so), "-static-libgcc"]
+    env = {**os.environ, "TMPDIR": str(tmpdir)} if tmpdir is not None else None
     try:
-        proc = subprocess.run(cmd, capture_output=True, text=True)
+        proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
     except OSError as e:
         raise FmuError(f"the C++ compiler {cxx} could not run: {e}") from None
     if proc.returncode != 0:
@@ -114,7 +117,7 @@ def package(model: MlpModel, d: Description, out: str | os.PathLike, fmi: int, i
         (t / "modelDescription.xml").write_text(xml)
         binaries = t / "binaries" / PLATFORM[fmi]
         binaries.mkdir(parents=True)
-        compile_binary(t / "sources", fmi, binaries / f"{d.model_identifier}.so")
+        compile_binary(t / "sources", fmi, binaries / f"{d.model_identifier}.so", tmpdir=tmp)
 
         def write_zip(f) -> None:
             with zipfile.ZipFile(f, "w", zipfile.ZIP_DEFLATED) as z:
