@@ -97,12 +97,22 @@ class _Bad(ValueError):
     """A bad value (message without the location); turned into a SpecError by the parser."""
 
 
+#: the most characters of a value (or key) an error message repeats
+SHOW_CHARS = 80
+
+
+def _show(v: Any) -> str:
+    """A value as an error message repeats it: its repr, cut to SHOW_CHARS."""
+    text = repr(v)
+    return text if len(text) <= SHOW_CHARS else text[:SHOW_CHARS - 3] + "..."
+
+
 # -- values -----------------------------------------------------------------------------------
 
 def _int(lo: int | None = None) -> Callable[[Any], int]:
     def norm(v):
         if isinstance(v, bool) or not isinstance(v, int):
-            raise _Bad(f"expected an integer, got {v!r}")
+            raise _Bad(f"expected an integer, got {_show(v)}")
         if lo is not None and v < lo:
             raise _Bad(f"expected an integer >= {lo}, got {v}")
         return int(v)
@@ -114,10 +124,10 @@ def _float(positive: bool = False, allow_none: str | None = None) -> Callable[[A
         if allow_none is not None and isinstance(v, str) and v.strip().lower() == allow_none:
             return None
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            extra = f" or {allow_none!r}" if allow_none else ""
-            raise _Bad(f"expected a number{extra}, got {v!r}")
+            extra = f" or {_show(allow_none)}" if allow_none else ""
+            raise _Bad(f"expected a number{extra}, got {_show(v)}")
         if positive and v <= 0:
-            raise _Bad(f"expected a number > 0, got {v!r}")
+            raise _Bad(f"expected a number > 0, got {_show(v)}")
         return float(v)
     return norm
 
@@ -126,14 +136,14 @@ def _choice(valid: tuple[str, ...] | Callable[[], tuple[str, ...]], what: str) -
     def norm(v):
         names = valid() if callable(valid) else valid
         if not isinstance(v, str) or v not in names:
-            raise _Bad(f"{v!r} is not {what}; valid: {', '.join(names)}")
+            raise _Bad(f"{_show(v)} is not {what}; valid: {', '.join(names)}")
         return v
     return norm
 
 
 def _text(v) -> str:
     if not isinstance(v, str) or not v.strip():
-        raise _Bad(f"expected a non-empty string, got {v!r}")
+        raise _Bad(f"expected a non-empty string, got {_show(v)}")
     return v.strip()
 
 
@@ -143,10 +153,10 @@ def _effects(v) -> list[str]:
 
     items = [] if v in ("none", "") else [v] if isinstance(v, str) else v
     if not isinstance(items, list) or not all(isinstance(e, str) for e in items):
-        raise _Bad(f"expected an effect id, a list of them or 'none', got {v!r}")
+        raise _Bad(f"expected an effect id, a list of them or 'none', got {_show(v)}")
     for e in items:
         if e not in CATALOGUE:
-            raise _Bad(f"{e!r} is not an effect; valid: {', '.join(CATALOGUE)}")
+            raise _Bad(f"{_show(e)} is not an effect; valid: {', '.join(CATALOGUE)}")
     out: list[str] = []
     for e in items:
         if e not in out:
@@ -161,12 +171,12 @@ def _hidden(v) -> list[int]:
         try:
             items = [int(s) for s in re.split(r"[-,x ]+", v.strip()) if s]
         except ValueError:
-            raise _Bad(f"expected hidden sizes like 30, [20, 10] or '20-10', got {v!r}") from None
+            raise _Bad(f"expected hidden sizes like 30, [20, 10] or '20-10', got {_show(v)}") from None
     elif isinstance(v, int) and not isinstance(v, bool):
         items = [v]
     if (not isinstance(items, list) or not 1 <= len(items) <= 2
             or not all(isinstance(h, int) and not isinstance(h, bool) and h >= 1 for h in items)):
-        raise _Bad(f"expected one or two hidden layer sizes >= 1 (30, [20, 10]), got {v!r}")
+        raise _Bad(f"expected one or two hidden layer sizes >= 1 (30, [20, 10]), got {_show(v)}")
     return [int(h) for h in items]
 
 
@@ -177,12 +187,12 @@ def _features(v) -> list[str] | None:
     if v == "default":
         return None
     if not isinstance(v, list) or not v or not all(isinstance(f, str) for f in v):
-        raise _Bad(f"expected 'default' or a list of feature names, got {v!r}")
+        raise _Bad(f"expected 'default' or a list of feature names, got {_show(v)}")
     bad = [f for f in v if f not in FEATURES]
     if bad:
-        raise _Bad(f"{bad[0]!r} is not a feature; valid: {', '.join(FEATURES)}")
+        raise _Bad(f"{_show(bad[0])} is not a feature; valid: {', '.join(FEATURES)}")
     if len(set(v)) != len(v):
-        raise _Bad(f"each feature once, got {v!r}")
+        raise _Bad(f"each feature once, got {_show(v)}")
     return list(v)
 
 
@@ -196,7 +206,7 @@ def _objective(kind: str, v) -> str:
     """A numeric metric of the section's cells (what the summary ranks, lower is better)."""
     valid = objectives(kind)
     if v not in valid:
-        raise _Bad(f"{v!r} is not a {kind} metric; valid: {', '.join(valid)}")
+        raise _Bad(f"{_show(v)} is not a {kind} metric; valid: {', '.join(valid)}")
     return v
 
 
@@ -239,7 +249,7 @@ def _step(v) -> float:
     """A full-vehicle run's step [s]: (0, 0.01], as `dampnet vehicle --dt`."""
     dt = _float(positive=True)(v)
     if dt > 0.01:
-        raise _Bad(f"expected a step in (0, 0.01] s, got {v!r}")
+        raise _Bad(f"expected a step in (0, 0.01] s, got {_show(v)}")
     return dt
 
 
@@ -388,6 +398,8 @@ def parse_spec(spec: str | dict, source: str = "<spec>", base: str | os.PathLike
             raw = tomllib.loads(spec)
         except tomllib.TOMLDecodeError as e:
             raise SpecError(f"{source}: not valid TOML ({e})") from None
+        except RecursionError:
+            raise SpecError(f"{source}: arrays or tables nested too deeply to read") from None
     elif isinstance(spec, dict):
         raw = spec
     else:
@@ -401,15 +413,17 @@ class _Parser:
 
     # -- errors with a location
     def fail(self, table: str, key: str | None, msg: str, index: int | None = None) -> SpecError:
-        path = ".".join(p for p in (table, key) if p)
         line = _line_of(self.text, table, key) if self.text is not None else None
+        if key is not None and len(key) > SHOW_CHARS:
+            key = key[:SHOW_CHARS - 3] + "..."
+        path = ".".join(p for p in (table, key) if p)
         where = f"line {line}: " if line else ""
         field_ = f"{path}[{index}]" if index is not None else path
         return SpecError(f"{self.source}: {where}{field_}: {msg}")
 
     def table(self, d: Any, table: str) -> dict:
         if not isinstance(d, dict):
-            raise self.fail(table, None, f"expected a table, got {d!r}")
+            raise self.fail(table, None, f"expected a table, got {_show(d)}")
         return d
 
     def spec(self) -> Spec:
@@ -553,9 +567,9 @@ class _Parser:
             raise _Bad(f"expected one distribution, e.g. {{uniform = [lo, hi]}}; valid: {', '.join(DISTRIBUTIONS)}")
         (name, args), = v.items()
         if name not in DISTRIBUTIONS:
-            raise _Bad(f"{name!r} is not a distribution; valid: {', '.join(DISTRIBUTIONS)}")
+            raise _Bad(f"{_show(name)} is not a distribution; valid: {', '.join(DISTRIBUTIONS)}")
         if not isinstance(args, list) or not args:
-            raise _Bad(f"{name}: expected a list, got {args!r}")
+            raise _Bad(f"{name}: expected a list, got {_show(args)}")
         if name == "choice":
             vals = []
             for a in args:
@@ -564,9 +578,9 @@ class _Parser:
                     check_input(p.input, vals[-1], self.base)
             return name, vals
         if len(args) != 2 or not all(isinstance(a, (int, float)) and not isinstance(a, bool) for a in args):
-            raise _Bad(f"{name}: expected two numbers, got {args!r}")
+            raise _Bad(f"{name}: expected two numbers, got {_show(args)}")
         if not all(math.isfinite(a) for a in args):
-            raise _Bad(f"{name}: expected two finite numbers, got {args!r}")
+            raise _Bad(f"{name}: expected two finite numbers, got {_show(args)}")
         lo, hi = args
         what = ("mean", "sd") if name == "normal" else ("lo", "hi")
         if name == "integers":
@@ -581,7 +595,7 @@ class _Parser:
         elif name == "loguniform" and lo <= 0:
             raise _Bad("loguniform = [lo, hi]: lo must be > 0")
         if not math.isfinite(float(hi) - float(lo)) or not math.isfinite(float(lo) + float(hi)):
-            raise _Bad(f"{name} = {args!r}: the range is too wide to draw from (beyond a float's range)")
+            raise _Bad(f"{name} = {_show(args)}: the range is too wide to draw from (beyond a float's range)")
         for w, a in zip(what, args):
             if w != "sd":
                 try:       # the ends (and the mean) must be values of the parameter
@@ -607,40 +621,40 @@ def check_input(role: str, value: str, base: Path) -> None:
             if plan in ("thesis", "quick"):
                 return
             if not resolve(plan, base).is_file():
-                raise _Bad(f"{value!r}: rig:PLAN takes thesis, quick or a plan JSON file; {plan!r} is none")
+                raise _Bad(f"{_show(value)}: rig:PLAN takes thesis, quick or a plan JSON file; {_show(plan)} is none")
             from dampnet.rig.plans import load_plan
 
             try:
                 load_plan(str(resolve(plan, base)))
             except (ValueError, OSError) as e:
-                raise _Bad(f"{value!r}: {e}") from None
+                raise _Bad(f"{_show(value)}: {e}") from None
             return
         path = resolve(value, base)
         if not os.path.exists(path):
-            raise _Bad(f"{value!r}: no such dataset (a directory, CSV/text or .mat file, or rig:PLAN)")
+            raise _Bad(f"{_show(value)}: no such dataset (a directory, CSV/text or .mat file, or rig:PLAN)")
         from dampnet.data.fileformat import is_dataset_dir
 
         if path.is_dir() and not is_dataset_dir(path):   # (the sweep hashes an input directory whole)
-            raise _Bad(f"{value!r}: a directory without manifest.csv: not a dataset directory")
+            raise _Bad(f"{_show(value)}: a directory without manifest.csv: not a dataset directory")
     elif role == "model":
         if value in ("default", "truth") or value.startswith(("truth:", "linear:")):
             return
         p = resolve(value, base)
         if not os.path.exists(p):
-            raise _Bad(f"{value!r}: no such model (a model directory or model.json, a lookup-table JSON, "
+            raise _Bad(f"{_show(value)}: no such model (a model directory or model.json, a lookup-table JSON, "
                        "'default', 'truth', 'truth:EFFECT,...' or 'linear:C')")
         if p.is_dir() and not (p / "model.json").is_file():
-            raise _Bad(f"{value!r}: a directory without model.json: not a model directory")
+            raise _Bad(f"{_show(value)}: a directory without model.json: not a model directory")
     elif role == "road":
         key = value.lower()
         if key in ROAD_NAMES:
             return
         if key.startswith("iso:"):
             if value[4:].upper() not in "ABCDEFGH" or len(value) != 5:
-                raise _Bad(f"{value!r}: iso:CLASS takes a class A to H")
+                raise _Bad(f"{_show(value)}: iso:CLASS takes a class A to H")
             return
         if not os.path.isfile(resolve(value, base)):
-            raise _Bad(f"{value!r}: not a road: use {', '.join(ROAD_NAMES)}, iso:A..iso:H or a CSV file "
+            raise _Bad(f"{_show(value)}: not a road: use {', '.join(ROAD_NAMES)}, iso:A..iso:H or a CSV file "
                        "distance_m,elevation_m")
 
 
