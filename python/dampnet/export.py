@@ -173,16 +173,17 @@ def folded_float(model: MlpModel) -> dict | None:
     return out if finite else None
 
 
-#: each folded parameter: the model file's field it is blamed on, and what it is made of
+#: each folded parameter (the plain copies first): the model file's field it is blamed on, and
+#: what it is made of (runtime_refusal blames w1 or w_out/b_out instead where they are the large factor)
 _FOLDED_FROM = {
+    "out_offset": ("out_offset", "out_offset"), "in_offset": ("in_offset", "in_offset"),
+    "sat_lo": ("sat_lo", "sat_lo"), "sat_hi": ("sat_hi", "sat_hi"),
+    "sat_mid": ("sat_lo", "(sat_lo + sat_hi) / 2: the middle of the saturation range"),
     "w1": ("in_gain", "w1 x in_gain: the first layer's weights on the raw inputs"),
     "b1": ("b1", "b1 + in_ymin w1 - in_offset in_gain w1: the first layer's bias"),
     "w2": ("w2", "w2"), "b2": ("b2", "b2 + w2 / 2"),
     "w_out": ("out_gain", "w_out / out_gain: the output weights in newtons"),
     "b_out": ("out_gain", "(b_out - out_ymin) / out_gain + out_offset: the output bias in newtons"),
-    "out_offset": ("out_offset", "out_offset"), "in_offset": ("in_offset", "in_offset"),
-    "sat_lo": ("sat_lo", "sat_lo"), "sat_hi": ("sat_hi", "sat_hi"),
-    "sat_mid": ("sat_lo", "(sat_lo + sat_hi) / 2: the middle of the saturation range"),
 }
 _FLOAT_MAX = float(np.finfo(np.float32).max)
 _PER_INPUT = ("w1", "in_offset", "sat_lo", "sat_hi", "sat_mid")
@@ -213,6 +214,8 @@ def runtime_refusal(model: MlpModel) -> str | None:
             if key == "w1" and not abs(model.in_gain[i]) >= np.max(np.abs(model.w1[:, i])):
                 name = "w1"
             where = f" (input {model.features[i]})"
+        elif key in ("w_out", "b_out") and abs(model.out_gain) >= 1:
+            name = key  # a gain of 1 or more only shrinks: the weight or bias itself is the large factor
         return (f"field {name!r}{where}: the runtime folds it into {made_of} = {a[at]:.4g}, beyond float's range "
                 f"(3.4e38), and refuses the model ({status})")
     return (f"the runtime refuses the model ({status}): a folded parameter (e.g. w_out / out_gain: the output "
