@@ -72,17 +72,27 @@ def _write(path: Path, data: bytes) -> None:
 
 
 def _arrays_from(fdp: atheris.FuzzedDataProvider) -> tuple[dict, int]:
-    """The npz's arrays from the fuzzer's bytes (target 2)."""
+    """The npz's arrays from the fuzzer's bytes (target 2): plausible values (ranges with lo <= hi,
+    positive gains and threshold, points in [-1, 1]), one element of an array in four replaced by
+    any float (NaN, Inf, 0, negative, huge), so that both sides of every check are reached."""
     n = fdp.ConsumeIntInRange(1, 8)
     m = fdp.ConsumeIntInRange(0, 24)
 
-    def floats(k: int) -> np.ndarray:
-        return np.array([fdp.ConsumeFloat() if fdp.ConsumeIntInRange(0, 3) == 0 else fdp.ConsumeRegularFloat()
-                         for _ in range(k)], dtype=np.float64)
+    def floats(k: int, lo: float, hi: float) -> np.ndarray:
+        a = np.array([fdp.ConsumeFloatInRange(lo, hi) for _ in range(k)], dtype=np.float64)
+        if k and fdp.ConsumeIntInRange(0, 3) == 0:
+            a[fdp.ConsumeIntInRange(0, k - 1)] = fdp.ConsumeFloat()
+        return a
 
-    arr = {"lo": floats(n), "hi": floats(n), "in_offset": floats(n), "in_gain": floats(n),
-           "in_ymin": np.array(fdp.ConsumeFloat()), "threshold": np.array(fdp.ConsumeFloat()),
-           "points": floats(m * n).reshape(m, n)}
+    def one(lo: float, hi: float) -> float:
+        return float(floats(1, lo, hi)[0])
+
+    lo = floats(n, -1e3, 1e3)
+    with np.errstate(over="ignore", invalid="ignore"):
+        hi = lo + floats(n, 0.0, 1e3)
+    arr = {"lo": lo, "hi": hi, "in_offset": lo, "in_gain": floats(n, 1e-6, 1e3),
+           "in_ymin": np.array(one(-1.0, -1.0)), "threshold": np.array(one(1e-9, 2.0)),
+           "points": floats(m * n, -1.0, 1.0).reshape(m, n)}
     if fdp.ConsumeIntInRange(0, 7) == 0:  # now and then a wrong shape or a missing array
         key = fdp.PickValueInList(sorted(arr))
         arr[key] = arr[key].reshape(-1)[: fdp.ConsumeIntInRange(0, 3)] if fdp.ConsumeBool() else None

@@ -102,7 +102,8 @@ class Envelope:
     def scale(self, x: np.ndarray) -> np.ndarray:
         """Inputs [n, n_in] in feature units -> the model's scaled space."""
         x = np.asarray(x, dtype=np.float64)
-        return (x - self.in_offset) * self.in_gain + self.in_ymin
+        with np.errstate(over="ignore", invalid="ignore"):  # a non-finite result is a point outside
+            return (x - self.in_offset) * self.in_gain + self.in_ymin
 
     @property
     def tree(self):

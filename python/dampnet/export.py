@@ -218,8 +218,13 @@ def runtime_refusal(model: MlpModel) -> str | None:
             name = key  # a gain of 1 or more only shrinks: the weight or bias itself is the large factor
         return (f"field {name!r}{where}: the runtime folds it into {made_of} = {a[at]:.4g}, beyond float's range "
                 f"(3.4e38), and refuses the model ({status})")
-    return (f"the runtime refuses the model ({status}): a folded parameter (e.g. w_out / out_gain: the output "
-            "weights in newtons) is out of float's range")
+    # every folded value fits float: the vector kernels' coefficients (activation.hpp's tanh
+    # polynomial, up to ~56 x each output weight) are what overflow
+    w = float(np.max(np.abs(folded["w_out"])))
+    name = "out_gain" if abs(model.out_gain) < 1 else "w_out"
+    return (f"field {name!r}: the runtime folds it into w_out / out_gain (the output weights in newtons), up to "
+            f"{w:.4g}, and its vector kernel's coefficients (a multiple of them) exceed float's range (3.4e38): "
+            f"it refuses the model ({status})")
 
 
 def check_runtime_accepts(model: MlpModel, source: str = "model") -> MlpModel:

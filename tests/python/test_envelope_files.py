@@ -167,12 +167,15 @@ def test_vehicle_reports_the_ranges_and_says_why(model_dir, tmp_path, capsys):
     assert '"envelope": "ranges only"' in cov and "threshold" in cov
 
 
-def test_plan_tests_falls_back_with_the_warning(model_dir, tmp_path, capsys):
-    DAMAGES["empty npz"][0](model_dir)
+@pytest.mark.parametrize("name", ["empty npz", "threshold NaN"])
+def test_plan_tests_falls_back_with_the_warning(model_dir, tmp_path, capsys, name):
+    """Before: EOFError / AttributeError tracebacks, and a NaN threshold reported as "--radius"."""
+    damage, file, says = DAMAGES[name]
+    damage(model_dir)
     assert main(["plan-tests", str(model_dir), "impulse:low", "--budget", "1"]) == 0
     cap = capsys.readouterr()
-    assert cap.err.count("dampnet: warning: ") == 1 and str(model_dir / ENVELOPE_NPZ) in cap.err
-    assert "Traceback" not in cap.err
+    assert cap.err.count("dampnet: warning: ") == 1 and str(model_dir / file) in cap.err and says in cap.err
+    assert "Traceback" not in cap.err and "--radius" not in cap.err + cap.out
 
 
 def test_a_valid_envelope_round_trips_and_works(model_dir, tmp_path):
