@@ -54,6 +54,14 @@ def test_an_output_that_is_a_file_of_the_input_model_is_refused(model_dir, capsy
     assert _snapshot(model_dir) == before  # nothing written, nothing replaced
 
 
+def test_a_link_to_the_models_file_is_refused(model_dir, tmp_path, capsys):
+    before = _snapshot(model_dir)
+    (tmp_path / "link.onnx").symlink_to(model_dir / "model.json")
+    assert main(["export", str(model_dir), "--onnx", str(tmp_path / "link.onnx"), "--force"]) == 2
+    assert "is an input of this command" in _one_error_line(capsys)
+    assert _snapshot(model_dir) == before and (tmp_path / "link.onnx").is_symlink()
+
+
 @pytest.mark.parametrize("first,second", [("--header", "--onnx"), ("--fmu", "--onnx"), ("--fmu", "--header")])
 @pytest.mark.parametrize("exists", [False, True])
 def test_two_outputs_naming_one_file_are_refused_before_writing(model_dir, tmp_path, capsys, first, second, exists):
