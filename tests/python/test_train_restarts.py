@@ -150,15 +150,18 @@ def test_leave_one_level_out_score_records_levels_and_needs_an_interior_level(qu
 
 @pytest.mark.parametrize("bad", [0, -1, True, 1.5, "3", None])
 def test_bad_restarts_value_is_a_clear_error(quick, bad):
-    with pytest.raises(ValueError, match=r"restarts: expected a whole number >= 1"):
+    with pytest.raises(ValueError, match=r"restarts \(--restarts, .*\): expected a whole number in \[1, 1000\]"):
         train_dataset(quick, restarts=bad, **TINY)
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["--restarts", "0"], "--restarts: expected a whole number >= 1 or auto, got '0'"),
-    (["--restarts", "-2"], "--restarts: expected a whole number >= 1 or auto, got '-2'"),
-    (["--restarts", "two"], "--restarts: expected a whole number >= 1 or auto, got 'two'"),
-    (["--workers", "0"], "--workers: expected a whole number >= 1, got '0'"),
+    (["--restarts", "0"], "restarts (--restarts, trainings from different seeds, the best kept): expected a whole "
+                          "number in [1, 1000], got 0"),
+    (["--restarts", "-2"], "restarts (--restarts, trainings from different seeds, the best kept): expected a whole "
+                           "number in [1, 1000], got -2"),
+    (["--restarts", "two"], "--restarts: expected a whole number or auto, got 'two'"),
+    (["--workers", "0"], "workers (--workers, processes the restarts run in): expected a whole number in [1, 1024] "
+                         "or null (the local cores), got 0"),
 ])
 def test_bad_restarts_option_is_one_line_and_exit_2(quick_dir, tmp_path, capsys, argv, message):
     rc = main(["train", str(quick_dir), "--out", str(tmp_path / "m"), "--quiet", *argv])
@@ -207,7 +210,7 @@ def test_average_keeps_the_best_restarts_as_one_network(quick_dir, tmp_path, cap
     ({"restarts": 3, "average": 3, "hidden": (30,)}, "a layer of 90; dampnet's models hold at most 64"),
     ({"restarts": 2, "average": 2, "hidden": (8, 8)}, "only one-hidden-layer networks"),
     ({"restarts": 2, "average": 2, "restart_score": "lolo"}, "use restart_score 'interpolation'"),
-    ({"restarts": 2, "average": 0}, "average: expected a whole number >= 1"),
+    ({"restarts": 2, "average": 0}, r"average \(--average, .*\): expected a whole number in \[1, 1000\], got 0"),
 ])
 def test_bad_average_is_a_clear_error(quick, kw, message):
     with pytest.raises(ValueError, match=message):

@@ -14,8 +14,9 @@ from dampnet.commands.common import error
 from dampnet.commands.training_options import (
     ADD_RULE,
     Progress,
+    add_effects,
     add_training_options,
-    training_kwargs,
+    option_kwargs,
 )
 
 
@@ -72,8 +73,10 @@ def run(args) -> int:
     bar = None
     try:
         check_output_dir(out, "model", inputs, args.force)  # before the work, again when writing
+        kw = option_kwargs(args)
+        check_options(args, kw)  # every option and setting before the data are loaded
         ds = merge_datasets([load_dataset(d) for d in args.data])
-        kw, added = training_kwargs(args, ds)
+        kw, added = add_effects(args, ds, kw)
         restarts, workers, note = restart_options(args, ds, kw)
         if restarts > 1:
             bar = RestartProgress(not args.quiet)
@@ -107,26 +110,47 @@ def run(args) -> int:
     return 0
 
 
-def restart_options(args, ds, kw) -> tuple[int, int | None, str | None]:
-    """(restarts, workers, why 'auto' trained once or None) from --restarts and --workers;
-    ValueError (exit 2, one line) for anything but a whole number >= 1 (or 'auto')."""
-    from dampnet.training.restarts import auto_restarts
+def check_options(args, kw) -> None:
+    """The training layer's checks (dampnet.training.settings; train_dataset repeats them) of every
+    option and --settings, before any data are loaded: ValueError of one line naming the option."""
+    from dampnet.training.restarts import check_average, check_restarts
+    from dampnet.training.settings import check_request, train_settings
+
+    check_request(algorithm=args.algorithm, settings=train_settings(args.algorithm, kw["settings"]),
+                  hidden=kw["hidden"], features=kw["features"], max_epochs=kw["max_epochs"], seed=kw["seed"],
+                  decimate=kw["decimate"], holdout_voltage=kw["holdout_voltage"])
+    restarts, workers = given_restarts(args)
+    check_restarts(1 if restarts is None else restarts, workers, args.restart_score)
+    # with --restarts auto the count is known with the data: its relation to --average is checked then
+    check_average(args.average, args.average if restarts is None else restarts, kw["hidden"], args.restart_score)
+
+
+def given_restarts(args) -> tuple[int | None, int | None]:
+    """(--restarts, None for 'auto'; --workers, None when not given) as whole numbers; their ranges are
+    check_restarts's. ValueError (exit 2, one line) for anything else."""
 
     def whole(text: str, name: str) -> int:
         try:
-            n = int(str(text).strip())
+            return int(str(text).strip())
         except ValueError:
-            n = 0
-        if n < 1 or str(text).strip() != str(n):
-            raise ValueError(f"--{name}: expected a whole number >= 1{' or auto' if name == 'restarts' else ''}, "
-                             f"got {text!r}")
-        return n
+            raise ValueError(f"--{name}: expected a whole number{' or auto' if name == 'restarts' else ''}, "
+                             f"got {text!r}") from None
 
     workers = None if args.workers is None else whole(args.workers, "workers")
     if str(args.restarts).strip().lower() == "auto":
+        return None, workers
+    return whole(args.restarts, "restarts"), workers
+
+
+def restart_options(args, ds, kw) -> tuple[int, int | None, str | None]:
+    """(restarts, workers, why 'auto' trained once or None) from --restarts and --workers."""
+    from dampnet.training.restarts import auto_restarts
+
+    restarts, workers = given_restarts(args)
+    if restarts is None:
         n, note = auto_restarts(ds, kw["holdout_voltage"], kw["holdout_tests"], kw["features"], args.restart_score)
         return n, workers, note
-    return whole(args.restarts, "restarts"), workers, None
+    return restarts, workers, None
 
 
 class RestartProgress(Progress):

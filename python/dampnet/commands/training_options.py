@@ -45,10 +45,14 @@ def add_training_options(p: argparse.ArgumentParser, algorithm: bool = True) -> 
                    help="keep every N-th training sample ('auto': about 200 Hz, 25 at 5 kHz)")
     p.add_argument("--no-zero-points", action="store_true",
                    help="do not add the zero-input, zero-force training points")
-    p.add_argument("--max-epochs", type=int, default=1000, help="epoch limit (default 1000)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (split, initial weights)")
+    from dampnet.training.settings import MAX_EPOCHS, MAX_SEED, TRAIN_DEFAULTS, settings_help
+
+    p.add_argument("--max-epochs", type=int, default=1000, help=f"epoch limit, 1..{MAX_EPOCHS} (default 1000)")
+    p.add_argument("--seed", type=int, default=0,
+                   help=f"random seed (split, initial weights), 0..{MAX_SEED} (default 0)")
     p.add_argument("--settings", default=None,
-                   help='algorithm settings as JSON, e.g. \'{"mu_max": 1e8}\' or \'{"lr": 0.01}\'')
+                   help='algorithm settings as JSON, e.g. \'{"mu_max": 1e8}\' or \'{"lr": 0.01}\'; each with its '
+                        f"range (dampnet.training.settings): {settings_help(TRAIN_DEFAULTS)}")
 
 
 def training_kwargs(args, ds) -> tuple[dict, list[dict]]:
@@ -58,20 +62,17 @@ def training_kwargs(args, ds) -> tuple[dict, list[dict]]:
     improve stage does: with --diagnosis FILE the diagnosis's parameters, else parameters
     estimated from the data (dampnet.diagnosis.estimate). ValueError on bad options.
     """
-    from dampnet.diagnosis.estimate import estimate_parameters
-    from dampnet.effects import effect
-    from dampnet.training.pipeline import apply_additions
+    return add_effects(args, ds, option_kwargs(args))
 
+
+def option_kwargs(args) -> dict:
+    """train_dataset keyword arguments from the parsed options, before any --add (no data needed);
+    ValueError on options that do not parse (their ranges are the training layer's to check)."""
     features = [f.strip() for f in args.features.split(",") if f.strip()] if args.features else None
     terms = json_arg(args.terms, "terms", list) or []
     for t in terms:
         if not isinstance(t, dict) or "kind" not in t:
             raise ValueError(f"--terms: each term must be an object with a 'kind', got {t!r}")
-    diagnosis = None
-    if args.diagnosis is not None:
-        if not args.add:
-            raise ValueError("--diagnosis: name the effect(s) to add with --add EFFECT (e.g. the diagnosis's verdict)")
-        diagnosis = read_json_file(args.diagnosis, "the diagnosis JSON of `dampnet diagnose --json`")
     try:
         hidden = tuple(int(h) for h in args.hidden.split(",") if h.strip())
     except ValueError:
@@ -86,14 +87,26 @@ def training_kwargs(args, ds) -> tuple[dict, list[dict]]:
         decimate = None if dec == "auto" else int(dec)
     except ValueError:
         raise ValueError(f"--decimate: expected a positive integer or 'auto', got {args.decimate!r}") from None
-    if decimate is not None and decimate < 1:
-        raise ValueError(f"--decimate: expected a positive integer, got {decimate}")
     kw = dict(features=features, hidden=hidden, activation=args.activation,
               holdout_voltage=holdout_voltage,
               holdout_tests=[s.strip() for s in args.holdout_tests.split(",") if s.strip()],
               decimate=decimate, terms=terms, feature_params=None, seed=args.seed,
               zero_points=not args.no_zero_points, max_epochs=args.max_epochs,
               settings=json_arg(args.settings, "settings", dict))
+    return kw
+
+
+def add_effects(args, ds, kw: dict) -> tuple[dict, list[dict]]:
+    """(`kw` with what each --add EFFECT adds, the additions): see training_kwargs."""
+    from dampnet.diagnosis.estimate import estimate_parameters
+    from dampnet.effects import effect
+    from dampnet.training.pipeline import apply_additions
+
+    diagnosis = None
+    if args.diagnosis is not None:
+        if not args.add:
+            raise ValueError("--diagnosis: name the effect(s) to add with --add EFFECT (e.g. the diagnosis's verdict)")
+        diagnosis = read_json_file(args.diagnosis, "the diagnosis JSON of `dampnet diagnose --json`")
     added = []
     for name in args.add:
         try:

@@ -14,8 +14,9 @@ import math
 
 import torch
 
-DEFAULTS = {"lr": 1e-3, "betas": (0.9, 0.999), "eps": 1e-8, "batch_size": None, "lr_decay": 1.0,
-            "cosine_epochs": None, "lr_min": 0.0}
+from dampnet.training.settings import check_settings, defaults
+
+DEFAULTS = defaults("adam")
 
 
 class Adam:
@@ -25,10 +26,7 @@ class Adam:
 
     def __init__(self, problem, x0: torch.Tensor, generator: torch.Generator | None = None,
                  **settings):
-        unknown = set(settings) - set(DEFAULTS)
-        if unknown:
-            raise ValueError(f"adam: unknown settings {sorted(unknown)} (known: {sorted(DEFAULTS)})")
-        self.settings = {**DEFAULTS, **settings}
+        self.settings = check_settings(self.name, settings)
         self.problem = problem
         self.generator = generator or torch.Generator().manual_seed(0)
         self._w = x0.detach().clone().requires_grad_(True)
@@ -37,9 +35,7 @@ class Adam:
         if s["cosine_epochs"] is None:
             self.sched = torch.optim.lr_scheduler.ExponentialLR(self.opt, gamma=s["lr_decay"])
         else:
-            n, lr0, lr_min = int(s["cosine_epochs"]), s["lr"], s["lr_min"]
-            if n < 1 or s["lr_decay"] != 1.0:
-                raise ValueError("adam: cosine_epochs must be >= 1 and excludes lr_decay")
+            n, lr0, lr_min = int(s["cosine_epochs"]), s["lr"], s["lr_min"]  # checked: n >= 1, lr_decay 1
 
             def factor(epoch):
                 f = min(epoch, n) / n

@@ -13,9 +13,11 @@ from __future__ import annotations
 
 import torch
 
+from dampnet.training.lm import damping_trials
 from dampnet.training.loop import Converged
+from dampnet.training.settings import check_settings, defaults
 
-DEFAULTS = {"mu": 5e-3, "mu_dec": 0.1, "mu_inc": 10.0, "mu_max": 1e10, "min_grad": 1e-7}
+DEFAULTS = defaults("br")
 
 
 class BayesianRegularization:
@@ -24,10 +26,7 @@ class BayesianRegularization:
     name = "br"
 
     def __init__(self, problem, x0: torch.Tensor, **settings):
-        unknown = set(settings) - set(DEFAULTS)
-        if unknown:
-            raise ValueError(f"br: unknown settings {sorted(unknown)} (known: {sorted(DEFAULTS)})")
-        self.settings = {**DEFAULTS, **settings}
+        self.settings = check_settings(self.name, settings)
         self.problem = problem
         self.x = x0.clone()
         self.mu = float(self.settings["mu"])
@@ -52,9 +51,9 @@ class BayesianRegularization:
         if grad_norm < s["min_grad"]:
             raise Converged(f"gradient {grad_norm:.3g} below min_grad {s['min_grad']:g}")
         bjj = self.beta * jj
-        while self.mu <= s["mu_max"]:
+        for mu in damping_trials(self, "objective"):
             a = bjj.clone()
-            a.diagonal().add_(self.mu + self.alpha)
+            a.diagonal().add_(mu + self.alpha)
             L, info = torch.linalg.cholesky_ex(a)
             if int(info) == 0:
                 x2 = self.x - torch.cholesky_solve(g.unsqueeze(1), L).squeeze(1)
@@ -66,8 +65,6 @@ class BayesianRegularization:
                     self._update_hyper(bjj, sse2, ssx2)
                     return {"train": sse2 / p.n_train, "mu": self.mu, "gamma": self.gamma,
                             "alpha": self.alpha, "beta": self.beta}
-            self.mu *= s["mu_inc"]
-        raise Converged(f"mu exceeded mu_max {s['mu_max']:g} (no step lowers the objective)")
 
     def _update_hyper(self, bjj: torch.Tensor, sse: float, ssx: float) -> None:
         """Evidence re-estimation (as trainbr: Hessian from this epoch's Jacobian)."""

@@ -53,6 +53,7 @@ from dampnet.training.net import DTYPE, Layout
 from dampnet.training.problem import MlpProblem
 from dampnet.training.torch_reference import torch_forward
 from dampnet.training.scg import ScaledConjugateGradient
+from dampnet.training.settings import check_request
 
 ALGORITHMS = {
     "lm": LevenbergMarquardt,
@@ -192,7 +193,13 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
     function carried over exactly into this fit's scaling) instead of Nguyen-Widrow; the seed
     still draws the split and the zero points (a warm start: dampnet.training.restarts).
     The same inputs and seed give bit-identical weights on the same machine.
+    Every option and setting is checked first (dampnet.training.settings.check_request: a
+    one-line ValueError naming it and its range); a training that stops before its first epoch
+    (e.g. min_grad above the initial gradient) is a ValueError too, not an untrained model.
     """
+    checked = check_request(algorithm=algorithm, settings=settings, hidden=hidden, features=list(features),
+                            max_epochs=max_epochs, max_fail=max_fail, seed=seed, zero_fraction=zero_fraction,
+                            threads=threads)
     X = np.asarray(X, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64).ravel()
     if X.ndim == 1:
@@ -207,9 +214,7 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
     if not (np.all(np.isfinite(X)) and np.all(np.isfinite(y))):
         raise ValueError("X and y must be finite (found NaN or Inf); clean the data first")
     units = units_of(features) if units is None else list(units)
-    if algorithm not in ALGORITHMS:
-        raise ValueError(f"algorithm: one of {sorted(ALGORITHMS)} expected, got {algorithm!r}")
-    layout = Layout(len(features), tuple(int(h) for h in hidden), activation)
+    layout = Layout(len(features), checked["hidden"], activation)
 
     rng = np.random.default_rng(seed)
     tr, va, te = split_indices(len(X), split, rng)
@@ -239,6 +244,9 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
         algo = cls(problem, x0, **kwargs, **(settings or {}))
         res = run(algo, problem, max_epochs=max_epochs,
                   max_fail=None if algorithm == "br" else max_fail, progress=progress)
+    if res.epochs == 0 and init is None:  # the initial random network is no model
+        raise ValueError(f"training stopped before its first epoch ({res.stop_reason}): check the {algorithm} "
+                         "settings")
     stats = algo.stats() if hasattr(algo, "stats") else {}
 
     p = {k: v.numpy().copy() for k, v in layout.unpack(res.x).items()}

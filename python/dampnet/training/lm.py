@@ -3,7 +3,8 @@
 Each epoch: one residual vector r and Jacobian J = dr/dx at x, then trial
 steps dx = -(JᵀJ + mu I)⁻¹ Jᵀr solved by Cholesky. A trial that lowers the
 sum of squared errors is taken and mu shrinks by mu_dec; otherwise mu grows
-by mu_inc and the trial is repeated, until mu exceeds mu_max.
+by mu_inc and the trial is repeated, until mu exceeds mu_max (or has grown
+MAX_MU_INCREASES times in the epoch: a bound no setting can lift).
 """
 
 from __future__ import annotations
@@ -11,8 +12,9 @@ from __future__ import annotations
 import torch
 
 from dampnet.training.loop import Converged
+from dampnet.training.settings import MAX_MU_INCREASES, check_settings, defaults
 
-DEFAULTS = {"mu": 1e-3, "mu_dec": 0.1, "mu_inc": 10.0, "mu_max": 1e10, "min_grad": 1e-7}
+DEFAULTS = defaults("lm")
 
 
 def damped_solve(jj: torch.Tensor, rhs: torch.Tensor, diag: float) -> torch.Tensor | None:
@@ -25,6 +27,20 @@ def damped_solve(jj: torch.Tensor, rhs: torch.Tensor, diag: float) -> torch.Tens
     return torch.cholesky_solve(rhs.unsqueeze(1), L).squeeze(1)
 
 
+def damping_trials(algo, what: str):
+    """The damping values to try in one epoch of LM or BR: algo.mu, then algo.mu * mu_inc after
+    each rejected trial (the caller returns on an accepted one). Converged when mu exceeds mu_max
+    or after MAX_MU_INCREASES increases: so an epoch ends whatever the settings."""
+    s = algo.settings
+    for _ in range(MAX_MU_INCREASES + 1):
+        if not algo.mu <= s["mu_max"]:
+            raise Converged(f"mu exceeded mu_max {s['mu_max']:g} (no step lowers the {what})")
+        yield algo.mu
+        algo.mu *= s["mu_inc"]
+    raise Converged(f"mu was raised {MAX_MU_INCREASES} times in one epoch (mu_inc {s['mu_inc']:g}) and no step "
+                    f"lowered the {what}")
+
+
 class LevenbergMarquardt:
     """One LM epoch per step(); settings as MATLAB trainlm (see DEFAULTS).
 
@@ -34,10 +50,7 @@ class LevenbergMarquardt:
     name = "lm"
 
     def __init__(self, problem, x0: torch.Tensor, **settings):
-        unknown = set(settings) - set(DEFAULTS)
-        if unknown:
-            raise ValueError(f"lm: unknown settings {sorted(unknown)} (known: {sorted(DEFAULTS)})")
-        self.settings = {**DEFAULTS, **settings}
+        self.settings = check_settings(self.name, settings)
         self.problem = problem
         self.x = x0.clone()
         self.mu = float(self.settings["mu"])
@@ -51,8 +64,8 @@ class LevenbergMarquardt:
         grad_norm = 2.0 * float(g.norm()) / p.n_train
         if grad_norm < s["min_grad"]:
             raise Converged(f"gradient {grad_norm:.3g} below min_grad {s['min_grad']:g}")
-        while self.mu <= s["mu_max"]:
-            dx = damped_solve(jj, g, self.mu)
+        for mu in damping_trials(self, "error"):
+            dx = damped_solve(jj, g, mu)
             if dx is not None:
                 x2 = self.x - dx
                 r2 = p.residual(x2)
@@ -61,5 +74,3 @@ class LevenbergMarquardt:
                     self.x = x2
                     self.mu = max(self.mu * s["mu_dec"], 1e-20)
                     return {"train": sse2 / p.n_train, "mu": self.mu, "grad": grad_norm}
-            self.mu *= s["mu_inc"]
-        raise Converged(f"mu exceeded mu_max {s['mu_max']:g} (no step lowers the error)")

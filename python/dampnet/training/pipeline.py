@@ -59,15 +59,13 @@ from dampnet.rig import noise_floor_nrmse
 from dampnet.terms import fit_terms, terms_force
 from dampnet.training.fit import fit
 from dampnet.training.metrics import nrmse
+from dampnet.training.settings import check_request, train_settings
 
 #: Decimated sample rate aimed for when decimate=None [Hz] (see the module docstring).
 DECIMATE_TARGET_HZ = 200.0
 DEFAULT_HOLDOUT_VOLTAGE = 2.25
-#: Settings train_dataset uses unless `settings` overrides them. Adam's own defaults
-#: (full batch, lr 1e-3: one small step per epoch) need thousands of epochs on dyno data;
-#: mini-batches of 128 with lr 1e-2 decaying 2 %/epoch reach about 0.012 NRMSE in ~50
-#: epochs on tests/python/test_train_cli.py's small plan (full batch: 0.066 after 150).
-ALGORITHM_SETTINGS = {"adam": {"batch_size": 128, "lr": 1e-2, "lr_decay": 0.98}}
+# the algorithm settings train_dataset uses unless `settings` overrides them, and every setting's
+# range: dampnet.training.settings (TRAIN_DEFAULTS, check_request)
 
 
 @dataclass
@@ -144,6 +142,10 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
     """
     from dampnet.training.restarts import check_average, check_restarts, train_restarts
 
+    # every option and setting before any work (one-line errors naming it and its range)
+    check_request(algorithm=algorithm, settings=train_settings(algorithm, settings),
+                  hidden=hidden, features=features, max_epochs=max_epochs, max_fail=max_fail, seed=seed,
+                  decimate=decimate, holdout_voltage=holdout_voltage, threads=threads)
     restarts = check_restarts(restarts, workers, restart_score)
     check_average(average, restarts, hidden, restart_score)
     if restarts > 1 and init is not None:
@@ -248,7 +250,7 @@ def prepare_training(ds: Dataset, features: Sequence[str] | None = None, algorit
                     feature_params=dict(feature_params or {}),
                     fit_kwargs=dict(hidden=hidden, activation=activation, algorithm=algorithm,
                                     max_epochs=max_epochs, max_fail=max_fail, zero_points=zero_points,
-                                    settings={**ALGORITHM_SETTINGS.get(algorithm, {}), **(settings or {})}),
+                                    settings=train_settings(algorithm, settings)),
                     provenance=_data_provenance(ds, split, features, window), split=split)
 
 

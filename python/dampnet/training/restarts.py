@@ -86,9 +86,9 @@ def check_average(average: Any, restarts: int, hidden, score: str = "interpolati
     """`average` (restarts averaged into one network) as an int in 1..restarts whose averaged
     width fits the runtime; ValueError naming the field otherwise."""
     from dampnet.ensemble import check_width
+    from dampnet.training.settings import option
 
-    if isinstance(average, bool) or not isinstance(average, (int, np.integer)) or average < 1:
-        raise ValueError(f"average: expected a whole number >= 1 (1: keep the best restart alone), got {average!r}")
+    average = option("average", average)
     if average == 1:
         return 1
     if average > restarts:
@@ -106,12 +106,12 @@ def check_average(average: Any, restarts: int, hidden, score: str = "interpolati
 
 
 def check_restarts(restarts: Any, workers: Any = None, score: str = "interpolation") -> int:
-    """`restarts` as an int >= 1; ValueError naming the field otherwise (also for workers, score)."""
-    if isinstance(restarts, bool) or not isinstance(restarts, (int, np.integer)) or restarts < 1:
-        raise ValueError(f"restarts: expected a whole number >= 1 (1: train once), got {restarts!r}")
-    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, (int, np.integer))
-                                or workers < 1):
-        raise ValueError(f"workers: expected a whole number >= 1 or None (the local cores), got {workers!r}")
+    """`restarts` as an int in 1..MAX_RESTARTS; ValueError naming the field and its range otherwise
+    (also for workers, score: dampnet.training.settings.OPTIONS)."""
+    from dampnet.training.settings import option
+
+    restarts = option("restarts", restarts)
+    option("workers", workers)
     if score not in SCORES:
         raise ValueError(f"restart_score: expected one of {', '.join(SCORES)}, got {score!r}")
     return int(restarts)

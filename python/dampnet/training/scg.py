@@ -15,8 +15,9 @@ from __future__ import annotations
 import torch
 
 from dampnet.training.loop import Converged
+from dampnet.training.settings import check_settings, defaults
 
-DEFAULTS = {"sigma": 5e-5, "lambda": 5e-7, "min_grad": 1e-6, "restart": None}
+DEFAULTS = defaults("scg")
 
 
 class ScaledConjugateGradient:
@@ -29,10 +30,7 @@ class ScaledConjugateGradient:
     name = "scg"
 
     def __init__(self, problem, x0: torch.Tensor, **settings):
-        unknown = set(settings) - set(DEFAULTS)
-        if unknown:
-            raise ValueError(f"scg: unknown settings {sorted(unknown)} (known: {sorted(DEFAULTS)})")
-        self.settings = {**DEFAULTS, **settings}
+        self.settings = check_settings(self.name, settings)
         self.problem = problem
         self.n_restart = self.settings["restart"] or problem.n_params
         # 1. Initial weights, scale, steepest-descent direction.
