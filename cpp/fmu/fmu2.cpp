@@ -31,14 +31,10 @@ fmi2Status result(Inst* s, const char* where, int st) {
 
 Inst* inst(fmi2Component c) { return static_cast<Inst*>(c); }
 
-// Steps, events and derivatives need a successful initialization (after a failed
-// fmi2ExitInitializationMode the FMU is in the error state: only reset or free).
+// False, with the reason logged, before a successful initialization (dnfmu::not_ready).
 bool ready(Inst* s, const char* where) {
-  if (s->initialized) return true;
   char msg[240];
-  std::snprintf(msg, sizeof msg, "%s: the FMU is not initialized (%s): call fmi2ExitInitializationMode%s first",
-                where, s->failed ? "fmi2ExitInitializationMode failed" : "still in initialization",
-                s->failed ? " successfully after fmi2Reset" : "");
+  if (!dnfmu::not_ready(*s, where, "fmi2", msg, sizeof msg)) return true;
   log(s, fmi2Error, "logStatusError", msg);
   return false;
 }

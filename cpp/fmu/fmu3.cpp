@@ -40,14 +40,10 @@ fmi3Status result(Inst* s, const char* where, int st) {
 
 Inst* inst(fmi3Instance c) { return static_cast<Inst*>(c); }
 
-// Steps, events and derivatives need a successful initialization (after a failed
-// fmi3ExitInitializationMode the FMU is in the error state: only reset or free).
+// False, with the reason logged, before a successful initialization (dnfmu::not_ready).
 bool ready(Inst* s, const char* where) {
-  if (s->initialized) return true;
   char msg[240];
-  std::snprintf(msg, sizeof msg, "%s: the FMU is not initialized (%s): call fmi3ExitInitializationMode%s first",
-                where, s->failed ? "fmi3ExitInitializationMode failed" : "still in initialization",
-                s->failed ? " successfully after fmi3Reset" : "");
+  if (!dnfmu::not_ready(*s, where, "fmi3", msg, sizeof msg)) return true;
   log(s, fmi3Error, "logStatusError", msg);
   return false;
 }
@@ -95,6 +91,37 @@ fmi3Status check_settable(Inst* s, const char* where, fmi3ValueReference vr) {
                   "fmi3ExitInitializationMode", where, static_cast<unsigned>(vr));
     log(s, fmi3Error, "logStatusError", msg);
     return fmi3Error;
+  }
+  return fmi3OK;
+}
+
+// Int32 (status, clamped_mask, envelope_flags) and Int64 (the Enumerations) through the model's
+// get_int / set_int; each type reaches its own variables only.
+template <class T>
+fmi3Status get_ints(fmi3Instance c, const fmi3ValueReference vr[], size_t n, T value[], size_t nv, const char* where,
+                    bool enumeration) {
+  if (!c || n != nv || (n && (!vr || !value))) return fmi3Error;
+  Inst* s = inst(c);
+  for (size_t i = 0; i < n; ++i) {
+    int v = 0;
+    if (!typed(s, where, vr[i], enumeration)) return fmi3Error;
+    if (result(s, where, s->model.get_int(vr[i], &v)) != fmi3OK) return fmi3Error;
+    value[i] = v;
+  }
+  return fmi3OK;
+}
+template <class T>
+fmi3Status set_ints(fmi3Instance c, const fmi3ValueReference vr[], size_t n, const T value[], size_t nv,
+                    const char* where, bool enumeration) {
+  if (!c || n != nv || (n && (!vr || !value))) return fmi3Error;
+  Inst* s = inst(c);
+  for (size_t i = 0; i < n; ++i) {
+    if (!typed(s, where, vr[i], enumeration)) return fmi3Error;
+    if (check_settable(s, where, vr[i]) != fmi3OK) return fmi3Error;
+    // an Int64 beyond int is no item of any enumeration: clamped, it is refused at initialisation
+    const int64_t w = value[i];
+    const int v = w < INT32_MIN ? INT32_MIN : w > INT32_MAX ? INT32_MAX : static_cast<int>(w);
+    if (result(s, where, s->model.set_int(vr[i], v)) != fmi3OK) return fmi3Error;
   }
   return fmi3OK;
 }
@@ -188,26 +215,10 @@ fmi3Status fmi3GetFloat64(fmi3Instance c, const fmi3ValueReference vr[], size_t 
   return fmi3OK;
 }
 fmi3Status fmi3GetInt32(fmi3Instance c, const fmi3ValueReference vr[], size_t n, fmi3Int32 value[], size_t nv) {
-  if (!c || n != nv || (n && (!vr || !value))) return fmi3Error;
-  Inst* s = inst(c);
-  for (size_t i = 0; i < n; ++i) {
-    int v = 0;
-    if (!typed(s, "fmi3GetInt32", vr[i], false)) return fmi3Error;
-    if (result(s, "fmi3GetInt32", s->model.get_int(vr[i], &v)) != fmi3OK) return fmi3Error;
-    value[i] = v;
-  }
-  return fmi3OK;
+  return get_ints(c, vr, n, value, nv, "fmi3GetInt32", false);
 }
 fmi3Status fmi3GetInt64(fmi3Instance c, const fmi3ValueReference vr[], size_t n, fmi3Int64 value[], size_t nv) {
-  if (!c || n != nv || (n && (!vr || !value))) return fmi3Error;
-  Inst* s = inst(c);
-  for (size_t i = 0; i < n; ++i) {
-    int v = 0;
-    if (!typed(s, "fmi3GetInt64", vr[i], true)) return fmi3Error;
-    if (result(s, "fmi3GetInt64", s->model.get_int(vr[i], &v)) != fmi3OK) return fmi3Error;
-    value[i] = v;
-  }
-  return fmi3OK;
+  return get_ints(c, vr, n, value, nv, "fmi3GetInt64", true);
 }
 fmi3Status fmi3SetFloat64(fmi3Instance c, const fmi3ValueReference vr[], size_t n, const fmi3Float64 value[],
                           size_t nv) {
@@ -220,26 +231,10 @@ fmi3Status fmi3SetFloat64(fmi3Instance c, const fmi3ValueReference vr[], size_t 
   return fmi3OK;
 }
 fmi3Status fmi3SetInt32(fmi3Instance c, const fmi3ValueReference vr[], size_t n, const fmi3Int32 value[], size_t nv) {
-  if (!c || n != nv || (n && (!vr || !value))) return fmi3Error;
-  Inst* s = inst(c);
-  for (size_t i = 0; i < n; ++i) {
-    if (!typed(s, "fmi3SetInt32", vr[i], false)) return fmi3Error;
-    if (check_settable(s, "fmi3SetInt32", vr[i]) != fmi3OK) return fmi3Error;
-    if (result(s, "fmi3SetInt32", s->model.set_int(vr[i], value[i])) != fmi3OK) return fmi3Error;
-  }
-  return fmi3OK;
+  return set_ints(c, vr, n, value, nv, "fmi3SetInt32", false);
 }
 fmi3Status fmi3SetInt64(fmi3Instance c, const fmi3ValueReference vr[], size_t n, const fmi3Int64 value[], size_t nv) {
-  if (!c || n != nv || (n && (!vr || !value))) return fmi3Error;
-  Inst* s = inst(c);
-  for (size_t i = 0; i < n; ++i) {
-    if (!typed(s, "fmi3SetInt64", vr[i], true)) return fmi3Error;
-    if (check_settable(s, "fmi3SetInt64", vr[i]) != fmi3OK) return fmi3Error;
-    // no enumeration has a value beyond int: one that does is no item of it (refused at initialisation)
-    const int v = value[i] < INT32_MIN ? INT32_MIN : value[i] > INT32_MAX ? INT32_MAX : static_cast<int>(value[i]);
-    if (result(s, "fmi3SetInt64", s->model.set_int(vr[i], v)) != fmi3OK) return fmi3Error;
-  }
-  return fmi3OK;
+  return set_ints(c, vr, n, value, nv, "fmi3SetInt64", true);
 }
 
 #define DNFMU_NO_VARIABLES_(Type, CType)                                                                  \

@@ -3,6 +3,9 @@
 // DNFMU_QUARTER_CAR (1: the quarter car, 0: the damper).
 #pragma once
 
+#include <cstddef>
+#include <cstdio>
+
 #include "fmu_config.h"
 
 #if DNFMU_QUARTER_CAR
@@ -30,5 +33,19 @@ struct Instance {
   bool failed = false;       // exitInitializationMode failed: nothing but reset or free until a reset
   bool logging = false;
 };
+
+// Steps, events and derivatives need a successful initialization (after a failed
+// ExitInitializationMode the FMU is in the error state: only reset or free). False when the
+// instance may go on; else true, with why in buf. fmi: "fmi2" or "fmi3", for the functions' names.
+template <class I>
+bool not_ready(const I& s, const char* where, const char* fmi, char* buf, std::size_t n) noexcept {
+  if (s.initialized) return false;
+  if (s.failed)
+    std::snprintf(buf, n, "%s: the FMU is not initialized (%sExitInitializationMode failed): %sReset it and "
+                  "initialize it again", where, fmi, fmi);
+  else
+    std::snprintf(buf, n, "%s: the FMU is not initialized: call %sExitInitializationMode first", where, fmi);
+  return true;
+}
 
 }  // namespace dnfmu

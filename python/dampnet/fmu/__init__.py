@@ -31,8 +31,9 @@ __all__ = ["FMU_FEATURES", "MODEL_IDENTIFIER", "WHATS", "FmuError", "build_dampe
 def build_fmu(model: MlpModel, out: str | os.PathLike, fmi: int = 2, interface: str | None = None,
               what: str = "damper", overwrite: bool = False, vehicle: dict | None = None,
               controller: dict | None = None, envelope=None) -> Path:
-    """Build OUT.fmu (see the module docstring); staged in a temporary directory and moved
-    into place, so a failure leaves nothing half-written. interface: "cs", "me" or "both"
+    """Build OUT.fmu (see the module docstring); built in a scratch directory of the system's
+    temporary directory and written atomically (a missing parent directory is created), so a
+    failure or a kill leaves nothing half-written. interface: "cs", "me" or "both"
     (default: both for the damper, cs for the quarter car). vehicle / controller: the quarter
     car's parameter start values (dampnet.sim.vehicle field names; defaults Table 5, passive).
     envelope: the model's dampnet.envelope.Envelope, for the envelope_flags output's grid."""
