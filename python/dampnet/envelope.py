@@ -36,6 +36,11 @@ Files beside the model (`save_envelope`, `load_envelope`; written into the model
 `dampnet.modeldir.save_model_dir(..., envelope=...)`): ENVELOPE_NPZ (the stored points,
 scaled, and the ranges) and ENVELOPE_JSON (the parameters: schema, the model's id, features,
 units, ranges, threshold and how it was derived, counts).
+
+An envelope is checked like a model, however it is made (`validate_envelope`, run by Envelope()
+itself): from files by `read_envelope` (EnvelopeError, one line naming the file and the field:
+what `dampnet export` uses) or `load_envelope` (the coverage commands: a damaged envelope is
+ignored with a one-line warning and the per-input ranges are used, as for a model without one).
 """
 
 from __future__ import annotations
@@ -51,7 +56,7 @@ from typing import Any
 
 import numpy as np
 
-from dampnet import schema
+from dampnet import _core, schema
 from dampnet.outputs import atomic_write_bytes, atomic_write_text, json_text
 
 SCHEMA = "dampnet.envelope/1"
@@ -63,8 +68,6 @@ MAX_POINTS = 20000
 NN_PERCENTILE = 99.0
 #: the threshold is this many times that percentile (see the module docstring)
 THRESHOLD_FACTOR = 3.0
-#: most inputs a model (and so an envelope) has (dampnet.h DN_MAX_INPUTS)
-MAX_INPUTS = 8
 #: most bytes the arrays of an envelope.npz may expand to: 1 million stored points of 8 inputs
 #: (50 x MAX_POINTS), checked before anything is decompressed (a small file can expand to gigabytes)
 MAX_NPZ_BYTES = 64 * 2**20
@@ -174,7 +177,7 @@ def validate_envelope(env: Envelope, source: Any = None) -> Envelope:
     (`source`: a name, or (npz, json) file names) and the field otherwise. The one check of an
     envelope, however it was made (Envelope() runs it; so do read_envelope and build_envelope):
 
-      features, units  1..MAX_INPUTS distinct names, one unit each
+      features, units  1..DN_MAX_INPUTS distinct names, one unit each
       lo, hi           one finite number per input, lo <= hi, a finite width (the training ranges)
       in_offset        one finite number per input; in_gain: finite, non-zero, with a finite
                        inverse (the model's mapminmax, used both ways); in_ymin finite
@@ -191,8 +194,8 @@ def validate_envelope(env: Envelope, source: Any = None) -> Envelope:
     feats, units = env.features, env.units
     if not isinstance(feats, (list, tuple)) or not all(isinstance(f, str) and f for f in feats):
         raise bad(f"{js}: features", f"expected a list of input names, got {schema.show(feats)}")
-    if not 1 <= len(feats) <= MAX_INPUTS or len(set(feats)) != len(feats):
-        raise bad(f"{js}: features", f"expected 1 to {MAX_INPUTS} distinct input names, got "
+    if not 1 <= len(feats) <= _core.MAX_INPUTS or len(set(feats)) != len(feats):
+        raise bad(f"{js}: features", f"expected 1 to {_core.MAX_INPUTS} distinct input names, got "
                   f"{schema.show(', '.join(feats))}")
     if not isinstance(units, (list, tuple)) or not all(isinstance(u, str) for u in units) or len(units) != len(feats):
         raise bad(f"{js}: units", f"expected {len(feats)} unit names (one per feature), got {schema.show(units)}")
@@ -344,6 +347,12 @@ def envelope_files(model_path: str | os.PathLike) -> list[Path]:
     return [d / ENVELOPE_NPZ, d / ENVELOPE_JSON]
 
 
+#: what numpy and zipfile raise on a damaged .npz (truncated, not a zip, bad compressed data,
+#: a header that lies, pickled objects refused)
+_NPZ_ERRORS = (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error, struct.error,
+               NotImplementedError, RuntimeError, TypeError, OverflowError)
+
+
 def _read_npz(npz: Path) -> dict[str, np.ndarray]:
     """ENVELOPE_NPZ's arrays; EnvelopeError naming the file (and the array) otherwise. The
     uncompressed size is checked first (MAX_NPZ_BYTES), no pickled objects are loaded."""
@@ -353,22 +362,21 @@ def _read_npz(npz: Path) -> dict[str, np.ndarray]:
         if size > MAX_NPZ_BYTES:
             raise EnvelopeError(f"{npz}: expands to {size} bytes, more than the {MAX_NPZ_BYTES} an envelope "
                                 "may hold")
-        out = {}
         with np.load(npz, allow_pickle=False) as z:
+            names = set(z.files)
+            out = {}
             for name in NPZ_ARRAYS:
-                if name not in z.files:
+                if name not in names:
                     raise EnvelopeError(f"{npz}: {name}: missing (an envelope holds {', '.join(NPZ_ARRAYS)})")
                 try:
                     out[name] = z[name]
-                except (ValueError, OSError, EOFError, KeyError, zipfile.BadZipFile, zlib.error,
-                        struct.error, NotImplementedError, RuntimeError, TypeError, OverflowError) as e:
+                except _NPZ_ERRORS as e:
                     raise EnvelopeError(f"{npz}: {name}: unreadable ({schema.show(str(e) or type(e).__name__)})"
                                         ) from None
         return out
-    except EnvelopeError:
-        raise
-    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error, struct.error,
-            NotImplementedError, RuntimeError, TypeError, OverflowError) as e:
+    except _NPZ_ERRORS as e:  # EnvelopeError is a ValueError: re-raised as it is
+        if isinstance(e, EnvelopeError):
+            raise
         raise EnvelopeError(f"{npz}: not a readable envelope file ({type(e).__name__}: "
                             f"{schema.show(str(e), 120)})") from None
 
