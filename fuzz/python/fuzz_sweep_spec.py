@@ -17,6 +17,12 @@ write it into a directory first, since libFuzzer adds what it finds to its first
 
 (tests/python/test_sweep_fuzz.py runs that CI-sized run; longer runs take -runs=N as
 fuzz/python/README.md describes for the readers' harness.)
+
+Recorded run (issue 29, on the shared 2-core machine at load 10-15, nice 10): 200,000 executions
+from the seeds (-seed=7, -max_len=2048), 766 s, 261 exec/s, cov 505 / ft 1337 (dampnet edges /
+features), 384 new units: no unexpected exception, no timeout. Found while writing the harness,
+not by the run: tomllib's RecursionError on deeply nested arrays, and messages repeating a whole
+5000-character value or key (both now one short SpecError line).
 """
 
 from __future__ import annotations

@@ -109,3 +109,22 @@ def test_the_help_states_the_limits_the_code_uses(capsys):
     text = " ".join(capsys.readouterr().out.split())
     assert f"default {MAX_CELLS}, at most {MAX_CELLS_CEILING}" in text
     assert f"(default {WORKER_TIMEOUT_S:g};" in text and f"after {NO_WORKER_NOTICE_S:g} s" in text
+
+
+@pytest.mark.parametrize("line, fragment", [
+    ("max_epochs = 0", "line 3: training.max_epochs: max_epochs (--max-epochs, the epoch limit): expected a whole "
+                       "number in [1, 1000000], got 0"),
+    ("seeds = [1, -1]", "line 3: training.seeds[1]: seed (--seed"),
+    ("hidden = [30, 65]", "line 3: training.hidden[1]: hidden (--hidden): expected one or two layer sizes, each a "
+                          "whole number in [1, 64]"),
+    ("decimate = 0", "line 3: training.decimate: decimate (--decimate"),
+    ("max_fail = 9999999999", "line 3: training.max_fail: max_fail"),
+    ("holdout_voltage = 1e300", "line 3: training.holdout_voltage: holdout_voltage (--holdout-voltage"),
+])
+def test_training_options_are_checked_as_dampnet_train_checks_them_before_any_cell(tmp_path, capsys, line, fragment):
+    """The ranges are dampnet.training.settings' (the one place a training's inputs are checked):
+    refused when the spec is read, not in every cell."""
+    spec = tmp_path / "s.toml"
+    spec.write_text(f"[training]\ndatasets = ['rig:quick']\n{line}\n")
+    one_line_error(capsys, ["sweep", str(spec), "--out", str(tmp_path / "o")], f"{spec}: {fragment}")
+    assert not (tmp_path / "o").exists()

@@ -35,7 +35,14 @@ road_seed, vehicle.m_s as m_s in a [simulation.random.vehicle] or [fullcar.rando
 table; the training seed as seeds = {...}, since `seed` there is the draws' own) with one
 distribution: {uniform = [lo, hi]}, {loguniform = [lo, hi]}, {normal = [mean, sd]}, {integers = [lo, hi]} (both ends included)
 or {choice = [...]}. Every grid point is combined with every sample (the same n samples for
-each point: Monte Carlo over parameter spreads, compared on common draws).
+each point: Monte Carlo over parameter spreads, compared on common draws). A distribution's
+numbers are finite, its ends (a normal's mean) valid values of the parameter, and every sample
+is checked as a value of the parameter (dampnet.sweep.grid).
+
+Training values are checked where every training front end checks them
+(dampnet.training.settings: seeds, hidden sizes up to the runtime's limit, max_epochs,
+max_fail, decimate, holdout_voltage, the feature count), so a bad one is refused when the spec
+is read, not in every cell.
 
 Relative paths are relative to the spec file's directory (to the working directory for a
 spec given as a dict). Errors are `SpecError` (a ValueError): one line naming the file, the
@@ -177,7 +184,12 @@ def _hidden(v) -> list[int]:
     if (not isinstance(items, list) or not 1 <= len(items) <= 2
             or not all(isinstance(h, int) and not isinstance(h, bool) and h >= 1 for h in items)):
         raise _Bad(f"expected one or two hidden layer sizes >= 1 (30, [20, 10]), got {_show(v)}")
-    return [int(h) for h in items]
+    from dampnet.training.settings import check_hidden
+
+    try:        # the runtime's layer limit, as `dampnet train --hidden` checks it
+        return list(check_hidden(items))
+    except ValueError as e:
+        raise _Bad(str(e)) from None
 
 
 def _features(v) -> list[str] | None:
@@ -193,13 +205,28 @@ def _features(v) -> list[str] | None:
         raise _Bad(f"{_show(bad[0])} is not a feature; valid: {', '.join(FEATURES)}")
     if len(set(v)) != len(v):
         raise _Bad(f"each feature once, got {_show(v)}")
+    from dampnet.training.settings import check_inputs
+
+    try:
+        check_inputs(v)
+    except ValueError as e:
+        raise _Bad(str(e)) from None
     return list(v)
 
 
-def _decimate(v) -> int | None:
-    if v == "auto":
-        return None
-    return _int(1)(v)
+def _training(name: str, none: str | None = None) -> Callable[[Any], Any]:
+    """A training option checked as every front end checks it (dampnet.training.settings.option:
+    one line naming the option and its range), before any cell trains; `none`: the word for None."""
+    def norm(v):
+        from dampnet.training.settings import option
+
+        if none is not None and isinstance(v, str) and v.strip().lower() == none:
+            return None
+        try:
+            return option(name, v)
+        except ValueError as e:
+            raise _Bad(str(e)) from None
+    return norm
 
 
 def _objective(kind: str, v) -> str:
@@ -287,12 +314,13 @@ TRAINING_PARAMS = [
     Param("algorithm", "algorithms", _choice(_algorithms, "a training algorithm"), "lm", axis=True),
     Param("add", "add", _effects, [], axis=True, help="effects whose features/terms are added"),
     Param("features", "features", _features, None, axis=True, help="'default' or feature names"),
-    Param("seed", "seeds", _int(0), 0, axis=True, kind="int", help="training seed"),
+    Param("seed", "seeds", _training("seed"), 0, axis=True, kind="int", help="training seed"),
     Param("hidden", "hidden", _hidden, [30], axis=True, help="hidden layer sizes"),
-    Param("decimate", "decimate", _decimate, None, kind="int", help="every N-th sample, or 'auto'"),
-    Param("max_epochs", "max_epochs", _int(1), 1000, kind="int"),
-    Param("max_fail", "max_fail", _int(1), 6, kind="int"),
-    Param("holdout_voltage", "holdout_voltage", _float(allow_none="none"), 2.25, kind="float",
+    Param("decimate", "decimate", _training("decimate", none="auto"), None, kind="int",
+          help="every N-th sample, or 'auto'"),
+    Param("max_epochs", "max_epochs", _training("max_epochs"), 1000, kind="int"),
+    Param("max_fail", "max_fail", _training("max_fail"), 6, kind="int"),
+    Param("holdout_voltage", "holdout_voltage", _training("holdout_voltage", none="none"), 2.25, kind="float",
           help="[V], or 'none'"),
     Param("activation", "activation", _choice(("tanh", "sigmoid"), "an activation"), "tanh"),
 ]
