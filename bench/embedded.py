@@ -1,7 +1,8 @@
 """Flash, RAM, instructions and a cycle estimate of dampnet on Cortex-M4F and Cortex-M7 (QEMU),
 beside emlearn's C for the same 3-30-1 network (bench/RESULTS.md, "On a microcontroller").
 
-    python bench/embedded.py [--json FILE] [--fp-contract off|fast] [--loop-float 0|1] [--out-dir DIR]  # ~1 min;
+    python bench/embedded.py [--json FILE] [--fp-contract off|fast] [--loop-float 0|1] [--out-dir DIR]
+                             [--no-worst-step]  # ~10 min (the per-step traces; ~1 min without);
                                                 # needs the cross toolchain, QEMU and emlearn
                                                 # (python/env.sh installs all three)
     python bench/embedded.py --unroll-sweep [--json FILE] [--fp-contract off|fast]  # the kernel's
@@ -26,7 +27,14 @@ from different checkouts need not share one:
   calling an empty function) / calls, over the 1,000 stored inputs and the 10,000 steps;
 * compiles emlearn's generated C (its "loadable" eml_net, tanhf from newlib's libm) for the same
   folded weights with the same flags into the same harness (DN_FW_PART 3) and measures it the
-  same way;
+  same way, and from an execution trace the share of its instructions inside newlib's tanhf;
+* the worst step: the instructions of each of the 10,000 steps, exact, from a QEMU execution
+  trace (-d exec: every translation block's instructions, counted inside the functions reachable
+  from dn_loop_step, one count per call), on the stored thesis rough road and on an ISO 8608
+  class D road (200 m, seed 1) at the same speed, whose firmware's loop is also checked against
+  the host's; the mean of those counts is a little above the SysTick figure (the call's own
+  instructions); the M4F's worst-case cycles are the worst step's instructions times the step's
+  mean cycles per instruction;
 * the cycle estimate (Cortex-M4F only): the instructions times the mean cycles per instruction
   of the executed instruction mix, taken from a QEMU execution trace (-d exec) of the functions
   reachable from dn_mlp_forward_f / dn_loop_step, each instruction weighted by the Cortex-M4
@@ -131,70 +139,107 @@ def _is_branch(mn: str, ops: str) -> bool:
         (m == "pop" and "pc" in ops)
 
 
-def trace_cpi(elf: Path, cpu: str, roots: dict[str, str], log: Path, after: dict | None = None) -> dict:
-    """Mean cycles per instruction (M4 timings) of the instructions executed inside the functions
-    reachable from each root, from a QEMU -d exec trace of the firmware. after[name] = (function,
+def _call_graph(ins: dict) -> dict[str, set[str]]:
+    """function -> the functions it calls or jumps to directly (bl/b/blx to a symbol)."""
+    calls: dict[str, set[str]] = {}
+    for mn, ops, fn in ins.values():
+        m = re.search(r"<([^>+]+)>", ops)
+        if m and mn.split(".")[0] in ("bl", "b", "blx") and m.group(1) != fn:
+            calls.setdefault(fn, set()).add(m.group(1))
+    return calls
+
+
+def _reach(calls: dict[str, set[str]], root: str) -> set[str]:
+    seen, todo = set(), [root]
+    while todo:
+        f = todo.pop()
+        if f not in seen:
+            seen.add(f)
+            todo.extend(calls.get(f, ()))
+    return seen
+
+
+def _trace_blocks(elf: Path, cpu: str, log: Path, ins: dict):
+    """(pc, instructions, M4 cycles, function) of every translation block the firmware executes,
+    in order, from a QEMU -d exec,nochain trace (a block: from its pc to the first branch)."""
+    subprocess.run(["qemu-system-arm", "-M", emb.CPUS[cpu]["machine"], "-nographic", "-monitor", "none",
+                    "-serial", "none", "-semihosting-config", "enable=on,target=native", "-kernel", str(elf),
+                    "-d", "exec,nochain", "-D", str(log)], capture_output=True, timeout=900, check=True)
+    addrs = sorted(ins)
+    index = {a: i for i, a in enumerate(addrs)}
+    tb_cost: dict[int, tuple[int, float, str]] = {}
+    pc_re = re.compile(r"\[[0-9a-f]+/([0-9a-f]+)/")
+    try:
+        with open(log) as fh:
+            for line in fh:
+                m = pc_re.search(line)
+                if not m:
+                    continue
+                pc = int(m.group(1), 16)
+                if pc not in tb_cost:
+                    i, n, c = index.get(pc), 0, 0.0
+                    fn = ins[pc][2] if pc in ins else ""
+                    while i is not None and i < len(addrs) and n < 512:
+                        mn, ops, _ = ins[addrs[i]]
+                        n += 1
+                        c += _cycles(mn, ops)
+                        # QEMU ends a block at a branch, and where the next instruction starts on
+                        # another page (1 KB on M-profile): the next block is logged on its own
+                        if _is_branch(mn, ops) or (i + 1 < len(addrs) and addrs[i + 1] >> 10 != pc >> 10):
+                            break
+                        i += 1
+                    tb_cost[pc] = (n, c, fn)
+                yield (pc, *tb_cost[pc])
+    finally:
+        log.unlink(missing_ok=True)
+
+
+def trace_mix(elf: Path, cpu: str, roots: dict[str, str], log: Path, after: dict | None = None) -> dict:
+    """{name: (instructions, M4 cycles)} executed inside the functions reachable from each root
+    (name -> function), from a QEMU execution trace of the firmware. after[name] = (function,
     True/False): count that root's instructions only after (True) / before (False) the trace
     first enters the function: the firmware runs the MLP part before the loop part, and both
     reach the same kernel, so the loop's mix is taken from the steps only and the forward's from
     the MLP part only."""
     ins, funcs = _disassembly(elf)
-    addrs = sorted(ins)
-    index = {a: i for i, a in enumerate(addrs)}
-    calls: dict[str, set[str]] = {}
-    for a in addrs:
-        mn, ops, fn = ins[a]
-        m = re.search(r"<([^>+]+)>", ops)
-        if m and mn.split(".")[0] in ("bl", "b", "blx") and m.group(1) != fn:
-            calls.setdefault(fn, set()).add(m.group(1))
-
-    def reach(root):
-        seen, todo = set(), [root]
-        while todo:
-            f = todo.pop()
-            if f not in seen:
-                seen.add(f)
-                todo.extend(calls.get(f, ()))
-        return seen
-
-    reach_sets = {k: reach(r) for k, r in roots.items()}
-    subprocess.run(["qemu-system-arm", "-M", emb.CPUS[cpu]["machine"], "-nographic", "-monitor", "none",
-                    "-serial", "none", "-semihosting-config", "enable=on,target=native", "-kernel", str(elf),
-                    "-d", "exec,nochain", "-D", str(log)], capture_output=True, timeout=600, check=True)
-    tb_cost: dict[int, tuple[int, float, str]] = {}
+    calls = _call_graph(ins)
+    reach_sets = {k: _reach(calls, r) for k, r in roots.items()}
     acc = {k: [0, 0.0] for k in roots}
     after = after or {}
     gates = {f: funcs.get(f) for f, _ in after.values()}
     entered = {f: False for f in gates}
-    with open(log) as fh:
-        for line in fh:
-            m = re.search(r"\[[0-9a-f]+/([0-9a-f]+)/", line)
-            if not m:
+    for pc, n, c, fn in _trace_blocks(elf, cpu, log, ins):
+        for f, addr in gates.items():
+            if pc == addr:
+                entered[f] = True
+        for k, s in reach_sets.items():
+            if k in after and entered[after[k][0]] != after[k][1]:
                 continue
-            pc = int(m.group(1), 16)
-            if pc not in tb_cost:
-                i, n, c = index.get(pc), 0, 0.0
-                fn = ins[pc][2] if pc in ins else ""
-                while i is not None and i < len(addrs) and n < 512:
-                    mn, ops, _ = ins[addrs[i]]
-                    n += 1
-                    c += _cycles(mn, ops)
-                    if _is_branch(mn, ops):
-                        break
-                    i += 1
-                tb_cost[pc] = (n, c, fn)
-            n, c, fn = tb_cost[pc]
-            for f, addr in gates.items():
-                if pc == addr:
-                    entered[f] = True
-            for k, s in reach_sets.items():
-                if k in after and entered[after[k][0]] != after[k][1]:
-                    continue
-                if fn in s:
-                    acc[k][0] += n
-                    acc[k][1] += c
-    log.unlink(missing_ok=True)
-    return {k: (c / n if n else float("nan")) for k, (n, c) in acc.items()}
+            if fn in s:
+                acc[k][0] += n
+                acc[k][1] += c
+    return {k: (n, c) for k, (n, c) in acc.items()}
+
+
+def trace_cpi(elf: Path, cpu: str, roots: dict[str, str], log: Path, after: dict | None = None) -> dict:
+    """Mean cycles per instruction (M4 timings) of each root's executed mix (trace_mix)."""
+    return {k: (c / n if n else float("nan")) for k, (n, c) in trace_mix(elf, cpu, roots, log, after).items()}
+
+
+def per_call_instructions(elf: Path, cpu: str, root: str, log: Path) -> np.ndarray:
+    """The instructions of every call of `root` (the function and what it calls), in order, from
+    a QEMU execution trace: exact per call, where SysTick (40 instructions a tick) gives means.
+    Counting starts at the first call (the MLP part's forwards, before, reach the same kernel)."""
+    ins, funcs = _disassembly(elf)
+    inside = _reach(_call_graph(ins), root)
+    entry = funcs[root]
+    counts: list[int] = []
+    for pc, n, _, fn in _trace_blocks(elf, cpu, log, ins):
+        if pc == entry:
+            counts.append(0)
+        if counts and fn in inside:
+            counts[-1] += n
+    return np.array(counts)
 
 
 # ---- emlearn ----
@@ -238,9 +283,34 @@ def build_manual(cpu: str, part: int, bdir: Path, vectors: Path, extra_src=(), e
     return elf
 
 
+def worst_steps(cpu: str, roads: dict[str, tuple[Path, object]], model, out: Path, fp_contract: str,
+                loop_float: int | None, first_elf: Path) -> dict:
+    """Per road (name -> (vectors header, Vectors)): the instructions of every quarter-car step
+    (per_call_instructions: exact, from an execution trace), their mean and maximum and where it
+    is. The first road's firmware is `first_elf`; each other one is built (and its loop checked
+    against the host's on that road)."""
+    res = {}
+    tag = "" if loop_float is None else f"-loopfloat{int(loop_float)}"
+    for k, (name, (header, vec)) in enumerate(roads.items()):
+        elf = first_elf
+        if k:
+            bdir = emb.build(cpu, out / f"{cpu}-{fp_contract}{tag}-{name}", vectors=header, fp_contract=fp_contract,
+                             loop_float=loop_float, targets=("dn_firmware",))
+            elf = emb.firmware_path(bdir)
+            host = emb.loop_vs_host(model, vec.road, emb.parse_output(emb.run(elf, cpu)))
+            if not host["within"]:
+                raise SystemExit(f"{cpu} on {name}: the firmware's loop differs from the host's: {host}")
+        steps = per_call_instructions(elf, cpu, "dn_loop_step", out / "trace.log")
+        assert len(steps) == len(vec.road), (len(steps), len(vec.road))
+        res[name] = {"mean": float(steps.mean()), "max": int(steps.max()), "min": int(steps.min()),
+                     "max_at_step": int(steps.argmax()) + 1, "max_over_mean": float(steps.max() / steps.mean())}
+    return res
+
+
 def measure(cpu: str, vectors: Path, tiny: Path, model, out: Path, fp_contract: str = "off",
-            loop_float: int | None = None) -> dict:
-    """loop_float None: the core's preset (dampnet.embedded.LOOP_FLOAT)."""
+            loop_float: int | None = None, roads: dict | None = None) -> dict:
+    """loop_float None: the core's preset (dampnet.embedded.LOOP_FLOAT). roads: name -> (vectors
+    header, Vectors) of the roads the worst step is looked for on (the first: `vectors`'s)."""
     tag = "" if loop_float is None else f"-loopfloat{int(loop_float)}"
     bdir = emb.build(cpu, out / f"{cpu}-{fp_contract}{tag}", vectors=vectors, fp_contract=fp_contract,
                      loop_float=loop_float,
@@ -272,24 +342,33 @@ def measure(cpu: str, vectors: Path, tiny: Path, model, out: Path, fp_contract: 
     eelf = build_manual(cpu, 3, bdir, vectors, extra_src=[glue], extra_inc=[edir], fp_contract=fp_contract)
     eo = emb.parse_output(emb.run(eelf, cpu))
     es, ebs = sizes(eelf), sizes(ebase)
+    # emlearn's forward: how much of it is newlib's tanhf (and what that calls)
+    emix = trace_mix(eelf, cpu, {"forward": "dn_fw_emlearn_forward", "tanhf": "tanhf"}, out / "trace.log")
     x = emb.make_vectors(model).x
     ok = np.all(np.isfinite(x), axis=1)
     r["emlearn"] = {"instructions": eo.instructions("forward"), "flash": es["flash"] - ebs["flash"],
                     "ram_static": es["ram_static"] - ebs["ram_static"], "stack": eo.stack["forward"],
                     "max_diff_vs_dampnet_in_range_N": float(np.max(np.abs(
-                        eo.forces[ok & (fw.status == 0)] - fw.forces[ok & (fw.status == 0)])))}
+                        eo.forces[ok & (fw.status == 0)] - fw.forces[ok & (fw.status == 0)]))),
+                    "tanhf_share_of_instructions": emix["tanhf"][0] / emix["forward"][0]}
+    if roads:
+        r["step_per_road"] = worst_steps(cpu, roads, model, out, fp_contract, loop_float, path("dn_firmware"))
+        r["instructions"]["step_worst"] = max(v["max"] for v in r["step_per_road"].values())
     if cpu == "cortex-m4":
         tdir = emb.build(cpu, out / f"{cpu}-{fp_contract}{tag}-trace", vectors=tiny, fp_contract=fp_contract,
                          loop_float=loop_float,
                          targets=("dn_firmware",))
         cpi = trace_cpi(emb.firmware_path(tdir), cpu, {"forward": "dn_mlp_forward_f", "step": "dn_loop_step"},
                         out / "trace.log", after={"forward": ("dn_loop_step", False), "step": ("dn_loop_step", True)})
-        ecpi = trace_cpi(eelf, cpu, {"forward": "dn_fw_emlearn_forward"}, out / "trace.log")
+        ecpi = {"forward": emix["forward"][1] / emix["forward"][0]}
         r["cpi"] = cpi
         r["cycles"] = {k: r["instructions"][k] * cpi[k] for k in cpi}
         r["emlearn"]["cycles"] = r["emlearn"]["instructions"] * ecpi["forward"]
         r["step_budget_cycles"] = CLOCK_HZ / BUDGET_HZ
         r["step_margin"] = r["step_budget_cycles"] / r["cycles"]["step"]
+        if roads:  # the worst step at the step's mean cycles per instruction
+            r["cycles"]["step_worst"] = r["instructions"]["step_worst"] * cpi["step"]
+            r["step_margin_worst"] = r["step_budget_cycles"] / r["cycles"]["step_worst"]
     return r
 
 
@@ -323,6 +402,8 @@ def main(argv=None) -> int:
                    help="DN_LOOP_FLOAT on both cores (default: the presets', float on the M4F, double on the M7)")
     p.add_argument("--unroll-sweep", action="store_true",
                    help="only the kernel's flash and instructions for DN_KERNEL_UNROLL 1/2/4/8 (and DN_KERNEL_SMALL 0)")
+    p.add_argument("--no-worst-step", action="store_true",
+                   help="skip the per-step instruction traces (the worst step on two roads: a few minutes)")
     a = p.parse_args(argv)
     why = emb.toolchain_missing()
     if why:
@@ -348,7 +429,14 @@ def main(argv=None) -> int:
             Path(a.json).write_text(json.dumps(res, indent=1) + "\n")
         return 0
     emb.write_vectors(tiny, emb.make_vectors(model, n_x=50, seconds=0.2))
-    res = {cpu: measure(cpu, vectors, tiny, model, out, a.fp_contract, a.loop_float) for cpu in sorted(emb.CPUS)}
+    roads = {}
+    if not a.no_worst_step:  # the worst step on the stored road and on a rougher one
+        from dampnet.sim.roads import iso8608
+
+        iso_d = out / "vectors_iso8608_D.h"
+        roads = {"thesis_rough": (vectors, emb.make_vectors(model)),
+                 "iso8608_D": (iso_d, emb.write_vectors(iso_d, emb.make_vectors(model, road=iso8608("D", 200.0, seed=1))))}
+    res = {cpu: measure(cpu, vectors, tiny, model, out, a.fp_contract, a.loop_float, roads) for cpu in sorted(emb.CPUS)}
     res["fp_contract"] = a.fp_contract
     res["loop_float"] = {cpu: emb.LOOP_FLOAT[cpu] if a.loop_float is None else a.loop_float for cpu in sorted(emb.CPUS)}
     print(json.dumps(res, indent=1))

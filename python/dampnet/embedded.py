@@ -154,11 +154,12 @@ class Vectors:
     road: np.ndarray       # [n_steps, 2] float64: road [m] and its rate [m/s] at each step's end
 
 
-def make_vectors(model, n_x: int = N_INPUTS_DEFAULT, seconds: float = ROAD_SECONDS, seed: int = 0) -> Vectors:
+def make_vectors(model, n_x: int = N_INPUTS_DEFAULT, seconds: float = ROAD_SECONDS, seed: int = 0,
+                 road=None) -> Vectors:
     """Inputs in and out of the model's saturation range (the first half uniform within it, the
     second over the range widened by half its width on each side, so most of those clamp an
-    input), six non-finite ones (NaN, +-Inf in rows 0..5), and the thesis's rough road at
-    ROAD_SPEED, shifted to start at 0 (the loop starts at rest)."""
+    input), six non-finite ones (NaN, +-Inf in rows 0..5), and a road (a dampnet.sim.roads Road,
+    default the thesis's rough road) at ROAD_SPEED, shifted to start at 0 (the loop starts at rest)."""
     from dampnet.sim import roads
 
     rng = np.random.default_rng(seed)
@@ -171,7 +172,7 @@ def make_vectors(model, n_x: int = N_INPUTS_DEFAULT, seconds: float = ROAD_SECON
     for k, v in enumerate([np.nan, np.nan, np.nan, np.inf, -np.inf, np.inf]):
         if k < n_x:
             x[k, k % len(lo)] = v
-    r = roads.thesis_rough_road(seed=0).sample(DT, speed=ROAD_SPEED)
+    r = (road or roads.thesis_rough_road(seed=0)).sample(DT, speed=ROAD_SPEED)
     n_steps = int(round(seconds / DT))
     z = np.asarray(r.z, float)[1:n_steps + 1] - float(r.z[0])
     zdot = np.asarray(r.zdot, float)[1:n_steps + 1]
@@ -263,6 +264,7 @@ def build_from_folder(cpu: str, build_dir: Path, vectors: Path | None = None, ta
                             f"at {Path(__file__).parent}): clone it and run bash python/env.sh, or export a folder "
                             "with `dampnet export MODEL --target CPU --out DIR` and build that")
     model = default_model()
+    build_dir = build_dir.resolve()  # the toolchain file's path is read from the build directory
     folder = build_dir / "folder"
     export_target(model, cpu, folder, overwrite=True, model_name="default", vectors=make_vectors(model))
     gen = ["-G", "Ninja"] if shutil.which("ninja") and not (build_dir / "CMakeCache.txt").is_file() else []
@@ -572,9 +574,10 @@ the M4F, double on the M7).
 #: the measured figures the folder's README quotes (bench/RESULTS.md, "On a microcontroller")
 _FOLDER_FIGURES = """Figures for the 3-30-1 default model with these options (dampnet's bench/RESULTS.md): on a
 Cortex-M4F (float loop) the float forward 1,447 instructions, the kernel 2,508 B of flash with its
-weights, the quarter-car step 2,211 instructions (about 3,232 cycles by the TRM's timings, an
-estimate), kernel + loop + controller 15.2 KB of flash and 2.0 KB of RAM; on a Cortex-M7 (double
-loop) 1,440 instructions, 3,292 B, 2,238 instructions, 18.8 KB and 2.6 KB."""
+weights, the quarter-car step 2,211 instructions on average and 2,363 at worst over two rough roads
+(about 3,312 and 3,540 cycles by the TRM's timings, an estimate: 4.75x a 10 kHz step's budget at
+168 MHz), kernel + loop + controller 15.2 KB of flash and 2.0 KB of RAM; on a Cortex-M7 (double
+loop) 1,440 instructions, 3,292 B, 2,238 (worst 2,391) instructions, 18.8 KB and 2.6 KB."""
 
 
 def _folder_sources() -> tuple[Path, Path, Path]:
