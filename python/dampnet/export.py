@@ -456,7 +456,8 @@ def _activation_value(name: str) -> int:
 def write_header(model: MlpModel, path: str | os.PathLike, prefix: str = "dn_model",
                  overwrite: bool = False, envelope=None) -> Path:
     """Write the model's header (with `envelope`'s grid when given) to path atomically; refuses
-    to overwrite unless asked."""
+    to overwrite unless asked, and a model the runtime would refuse (check_runtime_accepts)."""
+    check_runtime_accepts(model)
     return atomic_write_text(path, header_text(model, prefix, envelope), overwrite)
 
 
@@ -529,7 +530,9 @@ def onnx_graph(model: MlpModel):
 
 
 def write_onnx(model: MlpModel, path: str | os.PathLike, overwrite: bool = False) -> Path:
-    """onnx_graph(model) written atomically to path (an existing file only with overwrite)."""
+    """onnx_graph(model) written atomically to path (an existing file only with overwrite); a
+    model the runtime would refuse is refused (check_runtime_accepts: its graph would give NaN)."""
+    check_runtime_accepts(model)
     path = Path(path)
     if path.exists() and not overwrite:
         raise FileExistsError(f"{path}: exists; refusing to overwrite")

@@ -15,7 +15,7 @@ import pytest
 
 from dampnet.cli import main
 from dampnet.envelope import build_envelope
-from dampnet.export import runtime_refusal
+from dampnet.export import runtime_refusal, write_header, write_onnx
 from dampnet.model import MlpModel, ModelError
 from dampnet.modeldir import default_model, save_model_dir
 
@@ -136,6 +136,18 @@ def test_other_commands_name_the_file_and_field_too(tmp_path, capsys):
     err = _one_error_line(capsys)
     assert f"{g}/model.json: field 'in_gain' (input acceleration)" in err and "DN_E_PARAM" in err
     assert not (tmp_path / "v").exists()
+
+
+def test_the_export_target_folder_and_the_python_writers_refuse_it_too(tmp_path, capsys):
+    g = _model_json(tmp_path, in_gain=(0, 1e300))
+    assert main(["export", g, "--target", "cortex-m4", "--out", str(tmp_path / "fw")]) == 2
+    assert f"{g}/model.json: field 'in_gain' (input velocity)" in _one_error_line(capsys)
+    assert not (tmp_path / "fw").exists()
+    m = dataclasses.replace(default_model(), in_gain=default_model().in_gain * [1e300, 1, 1])  # not from a file
+    for write in (write_header, write_onnx):
+        with pytest.raises(ModelError, match=r"^model: field 'in_gain' \(input velocity\)"):
+            write(m, tmp_path / "x.out")
+        assert not (tmp_path / "x.out").exists()
 
 
 @pytest.mark.parametrize("field,index", [("in_gain", 0), ("in_gain", 1), ("w1", None), ("out_gain", None),
