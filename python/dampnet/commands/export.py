@@ -38,7 +38,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--onnx", metavar="OUT.onnx", help="write the ONNX graph here")
     p.add_argument("--header", metavar="OUT.h", help="write the C/C++ header here")
     p.add_argument("--prefix", default="dn_model", help="the header's name prefix (default dn_model)")
-    p.add_argument("--force", action="store_true", help="replace existing output files")
+    p.add_argument("--force", action="store_true",
+                   help="replace existing output files (never the model, its envelope or another file of its "
+                        "directory; all outputs are checked before the first is written)")
     # a microcontroller: dampnet.embedded (README: On a microcontroller)
     p.add_argument("--target", choices=("cortex-m4", "cortex-m7"), default=None,
                    help="a ready-to-build folder for this core (with --out DIR): model.h, the library's sources, "
