@@ -174,6 +174,16 @@ def test_limits_are_the_runtime_s(no_training):
         fit(X, X[:, 0], features=(names * 2)[:_core.MAX_INPUTS + 1], hidden=(3,))
 
 
+@pytest.mark.parametrize("front_end", ["api", "fit"])
+def test_an_unknown_activation_is_refused_before_the_data_are_prepared(front_end, no_training):
+    with pytest.raises(ValueError, match=r"^activation \(--activation\): expected one of tanh, sigmoid, got 'relu'$"):
+        if front_end == "api":
+            dampnet.train(dampnet.Dataset(tests=[], source="none"), activation="relu")
+        else:
+            X = np.linspace(0, 1, 30)[:, None]
+            fit(X, X[:, 0], features=["velocity"], activation="relu")
+
+
 def test_tables_match_the_algorithms_and_accept_their_own_ends():
     assert list(ALGORITHMS) == list(ALGORITHM_TABLES)
     for algo, cls in ALGORITHMS.items():

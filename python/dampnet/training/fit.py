@@ -197,7 +197,8 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
     one-line ValueError naming it and its range); a training that stops before its first epoch
     (e.g. min_grad above the initial gradient) is a ValueError too, not an untrained model.
     """
-    checked = check_request(algorithm=algorithm, settings=settings, hidden=hidden, features=list(features),
+    checked = check_request(algorithm=algorithm, settings=settings, hidden=hidden, activation=activation,
+                            features=list(features),
                             max_epochs=max_epochs, max_fail=max_fail, seed=seed, zero_fraction=zero_fraction,
                             threads=threads)
     X = np.asarray(X, dtype=np.float64)

@@ -144,8 +144,10 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
 
     # every option and setting before any work (one-line errors naming it and its range)
     check_request(algorithm=algorithm, settings=train_settings(algorithm, settings),
-                  hidden=hidden, features=features, max_epochs=max_epochs, max_fail=max_fail, seed=seed,
-                  decimate=decimate, holdout_voltage=holdout_voltage, threads=threads)
+                  hidden=hidden, activation=activation, features=features, max_epochs=max_epochs,
+                  max_fail=max_fail, seed=seed,
+                  decimate=decimate, holdout_voltage=holdout_voltage, threads=threads,
+                  acceleration_window=acceleration_window)
     restarts = check_restarts(restarts, workers, restart_score)
     check_average(average, restarts, hidden, restart_score)
     if restarts > 1 and init is not None:

@@ -240,6 +240,8 @@ OPTIONS = _table(
     Setting("zero_fraction", "real", 0, 1, 0.01, "zero-force points added, as a fraction of the training samples"),
     Setting("holdout_voltage", "real", -1e15, 1e15, 2.25, "the control level held out [V or A]",
             none="hold nothing out by level", cli="--holdout-voltage"),
+    Setting("acceleration_window", "real", 0, 10, None, "the smoothing window of the derived acceleration [s]",
+            open_low=True, none="20 ms"),
 )
 
 
@@ -280,9 +282,9 @@ _UNSET = object()
 
 
 def check_request(*, algorithm: Any = _UNSET, settings: Any = _UNSET, hidden: Any = _UNSET,
-                  features: Any = _UNSET, **options: Any) -> dict[str, Any]:
+                  activation: Any = _UNSET, features: Any = _UNSET, **options: Any) -> dict[str, Any]:
     """Check the given parts of a training request (only those passed): the algorithm and its
-    settings, the hidden sizes, the feature count and any OPTIONS by name (max_epochs=...,
+    settings, the hidden sizes and activation, the feature count and any OPTIONS by name (max_epochs=...,
     restarts=...). Returns the checked values by name (settings: the algorithm's full settings).
     ValueError of one line naming the first bad one. Cheap: call it before any work."""
     out: dict[str, Any] = {}
@@ -293,6 +295,13 @@ def check_request(*, algorithm: Any = _UNSET, settings: Any = _UNSET, hidden: An
         out["algorithm"] = check_algorithm(algorithm)
     if hidden is not _UNSET:
         out["hidden"] = check_hidden(hidden)
+    if activation is not _UNSET:
+        from dampnet.model import ACTIVATIONS
+
+        if not isinstance(activation, str) or activation not in ACTIVATIONS:
+            raise ValueError(f"activation (--activation): expected one of {', '.join(ACTIVATIONS)}, "
+                             f"got {show(activation)}")
+        out["activation"] = activation
     if features is not _UNSET and features is not None:
         check_inputs(list(features))
     for name, value in options.items():
