@@ -55,10 +55,11 @@ def no_training(monkeypatch):
 
 
 def bad_values(s) -> list:
-    """A wrong type, NaN, +-inf, and values just outside each end of the setting's range."""
+    """A wrong type, NaN, +-inf, values just outside each end of the setting's range, an int beyond
+    any float."""
     below = s.low if s.open_low else (s.low - 1 if s.kind == "whole" or s.low <= 0 else s.low / 2)
     above = s.high if s.open_high else (s.high + 1 if s.kind == "whole" else s.high * 2 + 1)
-    out = ["x", math.nan, math.inf, -math.inf, below, above, True]
+    out = ["x", math.nan, math.inf, -math.inf, below, above, True, 10**400]
     if s.kind == "whole":
         out.append(1.5)
     if s.none is None:

@@ -87,7 +87,10 @@ class Setting:
         else:
             if not isinstance(v, (int, float, np.integer, np.floating)):
                 return None
-            v = float(v)
+            try:
+                v = float(v)
+            except OverflowError:  # an int beyond any float, e.g. JSON's 1 followed by 400 zeros
+                return None
             if not math.isfinite(v):
                 return None
         return v if self._in_range(v) else None
