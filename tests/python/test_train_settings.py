@@ -185,6 +185,13 @@ def test_an_unknown_activation_is_refused_before_the_data_are_prepared(front_end
             fit(X, X[:, 0], features=["velocity"], activation="relu")
 
 
+@pytest.mark.parametrize("split", ["abc", 5, [0.5, 0.5, math.nan], (0.7, 0.15, 0.15, 0.0), (1.2, -0.1, -0.1)])
+def test_a_bad_split_is_named(split, no_training):
+    X = np.linspace(0, 1, 30)[:, None]
+    with pytest.raises(ValueError, match=r"^split: three non-negative fractions summing to 1 expected, got "):
+        fit(X, X[:, 0], features=["velocity"], split=split)
+
+
 def test_tables_match_the_algorithms_and_accept_their_own_ends():
     assert list(ALGORITHMS) == list(ALGORITHM_TABLES)
     for algo, cls in ALGORITHMS.items():

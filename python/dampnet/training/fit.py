@@ -53,7 +53,7 @@ from dampnet.training.net import DTYPE, Layout
 from dampnet.training.problem import MlpProblem
 from dampnet.training.torch_reference import torch_forward
 from dampnet.training.scg import ScaledConjugateGradient
-from dampnet.training.settings import check_request
+from dampnet.training.settings import check_request, show_value
 
 ALGORITHMS = {
     "lm": LevenbergMarquardt,
@@ -124,8 +124,13 @@ def _auto_threads(jacobian_entries: int) -> int:
 
 def split_indices(n: int, split: Sequence[float], rng: np.random.Generator):
     """Random disjoint train/val/test index arrays with fractions `split` (summing to 1)."""
-    if len(split) != 3 or min(split) < 0 or not math.isclose(sum(split), 1.0, abs_tol=1e-9):
-        raise ValueError(f"split: three non-negative fractions summing to 1 expected, got {split}")
+    given = split
+    try:
+        split = [float(f) for f in split]
+    except (TypeError, ValueError):
+        split = None
+    if split is None or len(split) != 3 or not min(split) >= 0 or not math.isclose(sum(split), 1.0, abs_tol=1e-9):
+        raise ValueError(f"split: three non-negative fractions summing to 1 expected, got {show_value(given)}")
     perm = rng.permutation(n)
     n_tr = int(round(split[0] * n))
     n_va = int(round(split[1] * n))
