@@ -63,6 +63,33 @@ auto method(R (C::*f)(A...) const) {
   return [f](py::handle self, A... a) -> R { return (constructed<C>(self).*f)(std::forward<A>(a)...); };
 }
 
+// A second __init__ on an initialised object: pybind11 ignores it (its dispatcher returns None
+// before the constructor runs, the object keeps its old value), so a caller re-initialising one
+// believes it changed. refuse_reinit wraps the class's __init__: an initialised object is refused
+// with TypeError; anything else (a new object, a wrong self) goes to pybind11's own.
+template <class C>
+bool initialised(py::handle h) {
+  static const py::detail::type_info* const ti = py::detail::get_type_info(typeid(C));
+  if (!ti || !h || !PyObject_TypeCheck(h.ptr(), ti->type)) return false;
+  auto vh = reinterpret_cast<py::detail::instance*>(h.ptr())->get_value_and_holder(ti, false);
+  return vh && vh.holder_constructed();
+}
+template <class C, class... O>
+void refuse_reinit(py::class_<C, O...>& cls) {
+  py::object init = cls.attr("__init__");
+  const std::string name = py::str(cls.attr("__name__"));
+  const std::string doc = py::str(init.attr("__doc__"));
+  cls.attr("__init__") = py::cpp_function(
+      [init, name](py::handle self, py::args args, py::kwargs kwargs) {
+        if (initialised<C>(self))
+          throw py::type_error(name + ".__init__: this " + name +
+                               " is already initialised; make a new " + name + " instead");
+        init(self, *args, **kwargs);
+      },
+      // not named "__init__": pybind11 would take it for a constructor and skip it the same way
+      py::is_method(cls), py::name("init_once"), py::doc(doc.c_str()));
+}
+
 // The parts of the module, in the order module.cpp binds them.
 void bind_registries(py::module_& mod);   // registries.cpp: version, constants, name lists
 void bind_mlp(py::module_& mod);          // mlp.cpp: Mlp

@@ -69,7 +69,10 @@ class PyDamper {
 
   static std::shared_ptr<PyDamper> linear(double c) {
     dn_damper* r = nullptr;
-    check(dn_damper_create_linear(c, &r), "Damper.linear");
+    const int st = dn_damper_create_linear(c, &r);
+    if (st < 0)  // name the argument, its unit and the range (the status alone says neither)
+      throw py::value_error("Damper.linear: c = " + py::str(py::float_(c)).cast<std::string>() +
+                            " N s/m: expected a finite damping coefficient >= 0 (" + dn_status_str(st) + ")");
     return wrap(r);
   }
   static std::shared_ptr<PyDamper> parametric(double c_min, double c_max, double gamma, double f0,

@@ -66,14 +66,14 @@ class PyEnvelope {
 }  // namespace
 
 void bind_envelope(py::module_& mod) {
-  py::class_<PyEnvelope>(mod, "Envelope",
+  refuse_reinit(py::class_<PyEnvelope>(mod, "Envelope",
                          "A model's coarse training envelope (per-input ranges and per-pair occupancy "
                          "bitmaps, dampnet.h 'Training envelope'); immutable, may be shared by threads.")
       .def(py::init<DArray, DArray, CellArray>(), py::arg("lo"), py::arg("hi"), py::arg("cells"))
       .def_property_readonly("n_inputs", method(&PyEnvelope::n_inputs))
       .def("check", method(&PyEnvelope::check_points), py::arg("x"),
            "Points [n, n_inputs] (feature units) -> flags[n] uint32: 0 inside, bit 0 an input outside "
-           "its range (or NaN), bit 1 a pair of inputs in an empty cell; GIL released.");
+           "its range (or NaN), bit 1 a pair of inputs in an empty cell; GIL released."));
   mod.attr("ENVELOPE_CELLS") = DN_ENVELOPE_CELLS;
   mod.attr("ENVELOPE_PAIR_WORDS") = DN_ENVELOPE_PAIR_WORDS;
   mod.attr("ENV_OUTSIDE_RANGE") = DN_ENV_OUTSIDE_RANGE;

@@ -452,7 +452,7 @@ void bind_fullcar(py::module_& mod) {
      "Validate full-car parameters (FULLCAR_FIELDS) as FullCarModel does: None, or ValueError / "
      "TypeError naming the field and its valid range or names.");
 
-  py::class_<PyFullCarModel, std::shared_ptr<PyFullCarModel>>(
+  refuse_reinit(py::class_<PyFullCarModel, std::shared_ptr<PyFullCarModel>>(
       mod, "FullCarModel",
       "The full vehicle's parameters, four dampers (FL, FR, RL, RR), four controllers and the "
       "driver's path (constant): immutable, may drive FullCars in many threads at once.")
@@ -465,9 +465,9 @@ void bind_fullcar(py::module_& mod) {
       .def_property_readonly("params", [](py::handle m) { return fullcar_dict(constructed<PyFullCarModel>(m).params); })
       .def_property_readonly("controllers", method(&PyFullCarModel::controller_list))
       .def_property_readonly("corner_mobility", method(&PyFullCarModel::mobility),
-                             "K [1/kg]: the corners' relative accelerations per damper force (a = a_free - K (F - f_static)).");
+                             "K [1/kg]: the corners' relative accelerations per damper force (a = a_free - K (F - f_static))."));
 
-  py::class_<PyFullCar>(mod, "FullCar",
+  refuse_reinit(py::class_<PyFullCar>(mod, "FullCar",
                         "A full vehicle's state (mutable) for a FullCarModel. Not shareable: one call at a "
                         "time (a second concurrent call raises RuntimeError); one FullCar per thread.")
       .def(py::init([](py::handle model) {
@@ -488,7 +488,7 @@ void bind_fullcar(py::module_& mod) {
            "Run roads [n, 4] in C++ (GIL released) -> dict of arrays: state [n, S], status [n], "
            "the report's corner fields [n, 4] and vehicle fields [n].")
       .def_property_readonly("model", [](py::handle c) { return constructed<PyFullCar>(c).model; })
-      .def_property_readonly("damper_evals", method(&PyFullCar::damper_evals));
+      .def_property_readonly("damper_evals", method(&PyFullCar::damper_evals)));
 }
 
 }  // namespace dnpy

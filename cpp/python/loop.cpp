@@ -216,7 +216,7 @@ class PyLoop {
 }  // namespace
 
 void bind_loop(py::module_& mod) {
-  py::class_<PyLoopModel, std::shared_ptr<PyLoopModel>>(mod, "LoopModel",
+  refuse_reinit(py::class_<PyLoopModel, std::shared_ptr<PyLoopModel>>(mod, "LoopModel",
                                                         "Vehicle, damper and controller (constant): immutable, may drive Loops in many threads at once.")
       .def(py::init([](py::handle damper, py::dict vehicle, py::dict controller) {
              return std::make_shared<PyLoopModel>(
@@ -229,9 +229,9 @@ void bind_loop(py::module_& mod) {
                              [](py::handle m) { return controller_dict(constructed<PyLoopModel>(m).ctrl); })
       .def("control", method(&PyLoopModel::control), py::arg("v_s"), py::arg("v_us"),
            py::arg("u_ext") = DArray(py::array_t<double>(py::ssize_t(1), std::array<double, 1>{0.0}.data())),
-           "The control law alone on arrays of velocities.");
+           "The control law alone on arrays of velocities."));
 
-  py::class_<PyLoop>(mod, "Loop", "A loop's state (mutable) for a LoopModel. Not shareable: one call at a time; a second call "
+  refuse_reinit(py::class_<PyLoop>(mod, "Loop", "A loop's state (mutable) for a LoopModel. Not shareable: one call at a time; a second call "
       "while one is under way (from another thread, simulate releasing the GIL, or re-entered "
       "from a callback damper) raises RuntimeError and leaves the first undisturbed. Give each "
       "thread its own Loop(model) on a shared LoopModel.")
@@ -253,7 +253,7 @@ void bind_loop(py::module_& mod) {
            "RuntimeError if the Loop is in use by another call; out's arrays must not be read or "
            "written by another thread during the run.")
       .def_property_readonly("model", [](py::handle l) { return constructed<PyLoop>(l).model; })
-      .def_property_readonly("damper_evals", method(&PyLoop::damper_evals));
+      .def_property_readonly("damper_evals", method(&PyLoop::damper_evals)));
 }
 
 }  // namespace dnpy

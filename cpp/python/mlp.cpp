@@ -135,7 +135,7 @@ class PyMlp {
 const dn_mlp* mlp_handle(py::handle mlp) { return constructed<PyMlp>(mlp).handle(); }
 
 void bind_mlp(py::module_& mod) {
-  py::class_<PyMlp>(mod, "Mlp", "An immutable MLP model evaluated by the C++ kernel; may be shared by threads "
+  refuse_reinit(py::class_<PyMlp>(mod, "Mlp", "An immutable MLP model evaluated by the C++ kernel; may be shared by threads "
                           "(predict releases the GIL).")
       .def(py::init<DArray, DArray, py::object, py::object, DArray, DArray, DArray, DArray, double,
                     double, double, double, DArray, DArray, const std::string&>(),
@@ -147,7 +147,7 @@ void bind_mlp(py::module_& mod) {
       .def("forward", method(&PyMlp::forward), py::arg("x"), py::arg("single") = false,
            "One sample -> (output, status, clamped_mask).")
       .def("predict", method(&PyMlp::predict), py::arg("x"), py::arg("single") = false,
-           "Samples [n, n_inputs] -> (outputs[n], status[n], clamped_mask[n]); GIL released.");
+           "Samples [n, n_inputs] -> (outputs[n], status[n], clamped_mask[n]); GIL released."));
 
 }
 

@@ -122,6 +122,17 @@ void bind_registries(py::module_& mod) {
   mod.attr("MAX_INPUTS") = DN_MAX_INPUTS;
   mod.attr("MAX_HIDDEN") = DN_MAX_HIDDEN;
   mod.attr("DN_ACCEL_MAX_EVALS") = DN_ACCEL_MAX_EVALS;
+  {  // the physical bounds of a step's state and the step's stability limits (dampnet.h)
+    py::dict bounds;
+#define DNPY_PLAUSIBLE_(name, doc) bounds[#name] = py::make_tuple(double(name), doc);
+    DN_PLAUSIBLE_LIST(DNPY_PLAUSIBLE_)
+#undef DNPY_PLAUSIBLE_
+    mod.attr("PLAUSIBLE_BOUNDS") = bounds;
+    py::dict wdt;
+    wdt["rk4"] = DN_STABLE_WDT_RK4;
+    wdt["semi_euler"] = DN_STABLE_WDT_SEMI_EULER;
+    mod.attr("STABLE_WDT") = wdt;
+  }
 #define DN_STATUS_ATTR_(name, value, text) mod.attr(#name) = static_cast<int>(value);
   DN_STATUS_LIST(DN_STATUS_ATTR_)
 #undef DN_STATUS_ATTR_

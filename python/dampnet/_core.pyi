@@ -29,6 +29,10 @@ BUILD_INFO: Final[dict[str, str | bool]]  # kernel_isa, flags, isa_flags, eigen,
 MAX_INPUTS: Final[int]
 MAX_HIDDEN: Final[int]
 DN_ACCEL_MAX_EVALS: Final[int]
+#: dampnet.h DN_PLAUSIBLE_LIST: {name: (bound [SI unit], doc)}; a step beyond one is DN_E_DIVERGED
+PLAUSIBLE_BOUNDS: Final[dict[str, tuple[float, str]]]
+#: dampnet.h DN_STABLE_WDT_*: {integrator: largest dt w_hop}, checked when a model is created
+STABLE_WDT: Final[dict[str, float]]
 
 # ---- status codes (DN_STATUS_LIST): warnings are bit flags > 0, errors < 0 ----
 

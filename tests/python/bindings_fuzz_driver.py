@@ -217,7 +217,13 @@ class Pool:
         self.cars = [dloop.QuarterCar(self.dampers[0]), dloop.QuarterCar(self.dampers[3])]
         # made by __new__ without __init__: pybind11 would hand them to methods as raw memory
         self.uninitialised = {cls: cls.__new__(cls) for cls in
-                              (_core.Mlp, _core.Damper, _core.LoopModel, _core.Loop, _core.Envelope)}
+                              (_core.Mlp, _core.Damper, _core.LoopModel, _core.Loop, _core.Envelope,
+                               _core.FullCarModel, _core.FullCar)}
+        # the full vehicle: a linear and a neural model (their __init__ again is refused)
+        self.fullcar_models = [_core.FullCarModel([self.dampers[0]] * 4),
+                               _core.FullCarModel([self.dampers[3]] * 4, {"damper_eval": "per_step"},
+                                                  {"kind": "skyhook_onoff"})]
+        self.fullcars = [_core.FullCar(m) for m in self.fullcar_models]
         self.envelopes = [_core.Envelope(np.array([-1.0, 0.0, -5.0]), np.array([1.0, 5.0, 5.0]),
                                          np.full((3, _core.ENVELOPE_PAIR_WORDS), 0x0F0F0F0F, np.uint32))]
         self.by_class = {
@@ -225,6 +231,7 @@ class Pool:
             _core.LoopModel: self.models, _core.Loop: self.loops,
             _core.DamperInput: [_core.DamperInput()], _core.StepReport: [self.report],
             _core.Envelope: self.envelopes,
+            _core.FullCarModel: self.fullcar_models, _core.FullCar: self.fullcars,
             dloop.QuarterCar: self.cars}
         for cls, obj in self.uninitialised.items():
             self.by_class[cls].append(obj)
@@ -239,6 +246,8 @@ class Pool:
             except RuntimeError:  # busy: only while a call is under way, never after one
                 raise AssertionError("a Loop is still marked busy after a call returned")
             assert np.isfinite(s).all(), f"non-finite loop state after a call: {s}"
+        for car in self.fullcars[:-1]:   # the last is uninitialised
+            assert np.isfinite(car.state).all(), f"non-finite full-car state after a call: {car.state}"
 
 
 # ---- targets ------------------------------------------------------------------------------

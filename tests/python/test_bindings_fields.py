@@ -136,7 +136,7 @@ def test_unknown_and_non_string_keys_are_refused(where):
 
 
 @pytest.mark.parametrize("vehicle, controller, named", [
-    ({"dt": 1.0}, {}, "vehicle 'dt' = 1.0 (step [s], 1e-9 <= dt <= 0.1): DN_E_PARAM"),
+    ({"dt": 1.0}, {}, "vehicle 'dt' = 1.0 (step [s], 1e-9 <= dt <= 0.1; stable:"),
     ({"m_s": -700.0, "dt": 1e-3}, {}, "vehicle 'm_s' = -700.0 (sprung mass [kg], > 0): DN_E_PARAM"),
     ({"k_t": math.nan}, {}, "vehicle 'k_t' = nan (tyre stiffness [N/m], > 0): DN_E_NONFINITE_PARAM"),
     ({}, {"kind": "skyhook_onoff", "c_sky": -1.0}, "controller 'c_sky' = -1.0 (skyhook damping"),

@@ -77,3 +77,40 @@ def test_every_core_callable_with_arbitrary_arguments(tmp_path):
     proc = run_python([str(HERE / "bindings_fuzz_driver.py"), "10"], tmp_path)
     assert proc.returncode == 0, crash_report(proc)
     assert "no crash" in proc.stdout
+
+
+def test_init_again_on_an_initialised_object_is_refused(tmp_path):
+    # Issue 29: pybind11 ignores a second __init__ (the object kept its old value, the call
+    # returned None); now TypeError naming the class, and the object is unchanged.
+    proc = run_python("""
+        import numpy as np
+        from dampnet import _core
+        lin = [_core.Damper.linear(1500.0)] * 4
+        fcm = _core.FullCarModel(lin)
+        lm = _core.LoopModel(lin[0], {}, {})
+        env_args = (np.array([-1.0, 0.0]), np.array([1.0, 5.0]),
+                    np.full((1, _core.ENVELOPE_PAIR_WORDS), 0xFFFFFFFF, np.uint32))
+        objects = {
+            "FullCarModel": (fcm, ([_core.Damper.linear(10.0)] * 4, {"m_s": 900.0})),
+            "FullCar": (_core.FullCar(fcm), (fcm,)),
+            "Envelope": (_core.Envelope(*env_args), (np.zeros(3), np.ones(3), np.zeros((3, _core.ENVELOPE_PAIR_WORDS), np.uint32))),
+            "LoopModel": (lm, (lin[0], {"m_s": 900.0}, {})),
+            "Loop": (_core.Loop(lm), (lm,)),
+        }
+        for name, (obj, args) in objects.items():
+            try:
+                obj.__init__(*args)
+                print(name, "returned")
+            except TypeError as e:
+                print(name, e)
+        print("m_s", fcm.params["m_s"], lm.vehicle["m_s"])
+        fresh = _core.FullCar.__new__(_core.FullCar)
+        fresh.__init__(fcm)   # the first __init__ of an object made by __new__ still works
+        print("fresh", fresh.state.shape)
+        """, tmp_path)
+    assert proc.returncode == 0, crash_report(proc)
+    lines = proc.stdout.splitlines()
+    for name in ("FullCarModel", "FullCar", "Envelope", "LoopModel", "Loop"):
+        assert f"{name} {name}.__init__: this {name} is already initialised; make a new {name} instead" in lines
+    assert "m_s 2600.0 700.0" in lines     # unchanged
+    assert "fresh (53,)" in lines

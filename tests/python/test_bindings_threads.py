@@ -79,10 +79,11 @@ def test_threads_sharing_one_loop_get_the_right_result_or_the_busy_error():
 
 def test_separate_loops_on_one_shared_model_equal_serial_runs():
     # One neural model (acceleration feature, implicit solve) and its MLP shared by four
-    # threads, each with its own Loop and road: bit-identical to the serial runs.
+    # threads, each with its own Loop and road: bit-identical to the serial runs. (The random
+    # network feeds energy in: its car leaves the physical bounds after 2.8 s, DN_E_DIVERGED.)
     model = random_model(["velocity", "acceleration", "displacement"], seed=3)
     car = QuarterCar(damper_from_model(model), {}, {"kind": "skyhook_onoff"})
-    roads = [road(20_000, seed=i) for i in range(4)]
+    roads = [road(2_500, seed=i) for i in range(4)]
     serial = [car.spawn().simulate(z, zd) for z, zd in roads]
     got = [None] * 4
     start = threading.Barrier(4)

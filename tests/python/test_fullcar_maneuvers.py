@@ -143,7 +143,7 @@ def test_vehicle_cli_writes_metrics_and_plot(tmp_path, capsys):
 @pytest.mark.parametrize("args,message", [
     (["--test", "bsst", "--speed", "50"], "four-post rig"),
     (["--test", "road", "--profile", "Z"], "ISO 8608 class"),
-    (["--test", "dlc", "--speed", "-5"], "speed must be > 0"),
+    (["--test", "dlc", "--speed", "-5"], "--speed: expected a finite number in (0, 360] km/h, got -5.0"),
     (["--dt", "0.5"], "--dt"),
 ])
 def test_vehicle_cli_bad_input(tmp_path, capsys, args, message):

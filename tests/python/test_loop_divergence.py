@@ -47,16 +47,20 @@ def test_finite_overflowing_road_is_divergence_and_state_kept(default_model, kin
 
 
 @pytest.mark.parametrize("kind", ["linear", "neural_float", "neural_double"])
-def test_stiff_divergence_is_reported_as_divergence(default_model, kind):
-    """dt = 0.05 s, far beyond RK4's limit for the 11 Hz wheel hop, and a stiff tyre:
-    the state runs away until something would overflow; the first error is DN_E_DIVERGED
-    and the state stays finite."""
-    car = QuarterCar(dampers(default_model)[kind], {"dt": 0.05, "k_t": 2e7,
-                                                    "accel_feature": "explicit"})
+def test_stiff_divergence_is_refused_or_reported_as_divergence(default_model, kind):
+    """dt = 0.05 s, far beyond RK4's limit for the 11 Hz wheel hop, and a stiff tyre: refused
+    when the model is made (issue 29: DN_STABLE_WDT_RK4). Within the limit, a damper far
+    stiffer than any car's (20 kN s/m) still makes RK4 run away: the first error is
+    DN_E_DIVERGED (at the physical bounds, long before an overflow) and the state stays
+    finite and within the bounds."""
+    with pytest.raises(ValueError, match="vehicle 'dt' = 0.05 .*DN_E_PARAM"):
+        QuarterCar(dampers(default_model)[kind], {"dt": 0.05, "k_t": 2e7, "accel_feature": "explicit"})
+    car = QuarterCar(_core.Damper.linear(20000.0), {"dt": 0.02})
     road = np.full(4000, 0.05)
     with pytest.raises(ValueError, match="DN_E_DIVERGED"):
         car.simulate(road, np.zeros_like(road))
-    assert np.all(np.isfinite(car.state))
+    s = car.state
+    assert np.all(np.isfinite(s)) and abs(s[1] - s[3]) <= _core.PLAUSIBLE_BOUNDS["DN_PLAUSIBLE_TRAVEL_M"][0]
 
 
 @pytest.mark.parametrize("dt", [1e-320, 5e-324, 1e-12, 9.9e-10])

@@ -223,8 +223,11 @@ def test_nonfinite_road_is_refused_and_state_kept():
 
 
 def test_unstable_step_reports_divergence_not_a_silent_result():
-    # dt = 0.05 s is far beyond RK4's stability limit for the 11 Hz wheel-hop mode
-    car = QuarterCar(_core.Damper.linear(C), {"dt": 0.05})
+    # dt = 0.05 s is far beyond RK4's stability limit for the 11 Hz wheel-hop mode: refused
+    # when made (DN_STABLE_WDT_RK4); at 20 ms, within it, a 20 kN s/m damper still runs away
+    with pytest.raises(ValueError, match="vehicle 'dt' = 0.05"):
+        QuarterCar(_core.Damper.linear(C), {"dt": 0.05})
+    car = QuarterCar(_core.Damper.linear(20000.0), {"dt": 0.02})
     road = np.full(2000, 0.05)
     with pytest.raises(ValueError, match="DN_E_DIVERGED"):
         car.simulate(road, np.zeros_like(road))

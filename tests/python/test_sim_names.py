@@ -78,7 +78,7 @@ def test_vehicle_accel_feature_takes_the_runtime_names_only():
 
 @pytest.mark.parametrize("vehicle, controller, fragment", [
     # ranges the old Python re-implementation did not have (it accepted these)
-    (dict(dt=1e-10), {}, "vehicle 'dt' = 1e-10 (step [s], 1e-9 <= dt <= 0.1)"),
+    (dict(dt=1e-10), {}, "vehicle 'dt' = 1e-10 (step [s], 1e-9 <= dt <= 0.1; stable:"),
     ({}, dict(kind="skyhook_onoff", c_sky=-1.0), "controller 'c_sky' = -1.0 (skyhook damping [N s/m], >= 0)"),
     ({}, dict(c_gnd=-1.0), "controller 'c_gnd' = -1.0"),
     # and the ones it had, now in the runtime's words

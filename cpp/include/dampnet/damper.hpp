@@ -119,6 +119,7 @@ class Damper {
     if (!kind_built(DN_DAMPER_LINEAR)) return DN_E_PARAM;  // not in this build
     const real cr = static_cast<real>(c);
     if (!std::isfinite(cr)) return DN_E_NONFINITE_PARAM;
+    if (cr < 0) return DN_E_PARAM;  // negative damping feeds energy in: a runaway, never a damper
     kind = DN_DAMPER_LINEAR;
     lin.c = cr;
     return DN_OK;

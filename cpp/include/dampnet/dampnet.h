@@ -99,8 +99,10 @@ DN_API const char* dn_version_string(void);
   X(DN_E_NONFINITE_INPUT, -10,                                                               \
     "a step or evaluation input is NaN or infinite; nothing was computed or advanced")       \
   X(DN_E_DIVERGED, -11,                                                                      \
-    "the step would produce a non-finite state, acceleration or damper force from finite "   \
-    "inputs (unstable: step too large? a runaway or overflowing road?); state not advanced")
+    "the step would produce a non-finite state, acceleration or damper force, or a state beyond " \
+    "the physical bounds (DN_PLAUSIBLE_LIST: suspension travel, wheel to road, damper speed, " \
+    "body roll and pitch) from finite inputs (unstable: step too large? a damper feeding energy "  \
+    "in? a runaway or overflowing road?); state not advanced")
 
 #define DN_STATUS_ENUM_(name, value, text) name = value,
 typedef enum dn_status { DN_STATUS_LIST(DN_STATUS_ENUM_) } dn_status;
@@ -533,7 +535,8 @@ typedef dn_real (*dn_damper_fn)(void* user, const dn_damper_input* in);
 /* A damper model: immutable once handed to a loop model (which copies it). Opaque. */
 typedef struct dn_damper dn_damper;
 
-/* Create F = c v; c [N s/m] finite. Allocates. */
+/* Create F = c v; c [N s/m] finite (else DN_E_NONFINITE_PARAM) and >= 0 (else DN_E_PARAM).
+ * Allocates. */
 DN_API int dn_damper_create_linear(double c, dn_damper** out);
 
 /* Create the parametric model; params validated (DN_E_PARAM, DN_E_NONFINITE_PARAM). Allocates. */
@@ -706,6 +709,18 @@ typedef enum dn_accel_feature { DN_ACCEL_FEATURE_LIST(DN_ENUM_ROW_) } dn_accel_f
 /* Smallest g' = 1 + k dF/da at which DN_ACCEL_LINEAR takes its Newton step (see above). */
 #define DN_ACCEL_LINEAR_MIN_SLOPE 0.5
 
+/* The step's stability limit: dt w_hop <= DN_STABLE_WDT_RK4 (DN_INT_RK4) or
+ * DN_STABLE_WDT_SEMI_EULER (DN_INT_SEMI_EULER), w_hop = sqrt(k_s / m_s + (k_s + k_t) / m_us)
+ * [rad/s] (a bound on the wheel-hop mode's frequency; the full car: sqrt((k_s + 2 k_arb + k_t) /
+ * m_us) of its stiffer axle, RK4). Measured on the Table 5 car (w_hop 73.5 rad/s: dt <= 20 ms
+ * RK4, 13.6 ms semi-implicit Euler) with linear dampers up to 3 kN s/m: stable; beyond these
+ * the step runs away. A stronger damper lowers the limit further (RK4 diverges at 6 kN s/m and
+ * dt = 13.6 ms): such a run stops with DN_E_DIVERGED (DN_PLAUSIBLE_LIST). */
+#define DN_STABLE_WDT_RK4 1.5
+#define DN_STABLE_WDT_SEMI_EULER 1.0
+#define DN_STR_(x) #x
+#define DN_XSTR_(x) DN_STR_(x)
+
 /* Vehicle and loop parameters (thesis Table 5 defaults): X(type, name, default, doc).
  * Equations (z from static equilibrium, up positive; F_a = F - f_static):
  *   m_s  z_s''  = -k_s (z_s - z_us) - F_a
@@ -716,7 +731,10 @@ typedef enum dn_accel_feature { DN_ACCEL_FEATURE_LIST(DN_ENUM_ROW_) } dn_accel_f
   X(dn_real, k_s, 15000.0, "suspension spring stiffness [N/m], >= 0")                       \
   X(dn_real, k_t, 200000.0, "tyre stiffness [N/m], > 0")                                    \
   X(dn_real, c_t, 0.0, "tyre damping [N s/m], >= 0")                                        \
-  X(dn_real, dt, 0.001, "step [s], 1e-9 <= dt <= 0.1")                                          \
+  X(dn_real, dt, 0.001,                                                                    \
+    "step [s], 1e-9 <= dt <= 0.1; stable: dt w_hop <= " DN_XSTR_(DN_STABLE_WDT_RK4) " with rk4 " \
+    "and " DN_XSTR_(DN_STABLE_WDT_SEMI_EULER) " with semi_euler, w_hop^2 = k_s/m_s + "          \
+    "k_s/m_us + k_t/m_us: 20 ms with rk4 for Table 5")                                       \
   X(int, integrator, DN_INT_RK4, "dn_integrator")                                          \
   X(int, damper_eval, DN_EVAL_DEFAULT, "dn_damper_eval (RK4 only)")                      \
   X(dn_real, x_static, 0.0, "damper displacement at static equilibrium, from mid [m]")      \
@@ -725,6 +743,25 @@ typedef enum dn_accel_feature { DN_ACCEL_FEATURE_LIST(DN_ENUM_ROW_) } dn_accel_f
   X(int, accel_feature, DN_ACCEL_DEFAULT, "dn_accel_feature (neural dampers reading a)")
 
 typedef struct dn_vehicle { DN_VEHICLE_FIELDS(DN_FIELD_DECL_) } dn_vehicle;
+
+
+/* Physical plausibility, X(name, value, doc): a step whose new state leaves any of these fails
+ * with DN_E_DIVERGED and is not taken, like a step that overflows. They lie far beyond any road
+ * vehicle (long-travel off-road suspensions move about 0.9 m; a body rolled 57 degrees has
+ * overturned), so only a runaway reaches them: a damper that feeds energy in (a negative-slope
+ * table, a callback), a step beyond the stability limit, a road far beyond ISO 8608 class H's at
+ * speed. The quarter car and the full car check them at every step (and the Python reference
+ * loop, dampnet.sim.reference_loop). */
+#define DN_PLAUSIBLE_TRAVEL_M 2.0
+#define DN_PLAUSIBLE_WHEEL_ROAD_M 5.0
+#define DN_PLAUSIBLE_DAMPER_SPEED_M_S 50.0
+#define DN_PLAUSIBLE_ANGLE_RAD 1.0
+#define DN_PLAUSIBLE_LIST(X)                                                                    \
+  X(DN_PLAUSIBLE_TRAVEL_M, "suspension travel from static equilibrium |z_s - z_us| [m]")        \
+  X(DN_PLAUSIBLE_WHEEL_ROAD_M,                                                                  \
+    "wheel to road |z_us - z_r| [m]: tyre compression, or the wheel's height in the air")       \
+  X(DN_PLAUSIBLE_DAMPER_SPEED_M_S, "damper velocity |v_s - v_us| [m/s]")                        \
+  X(DN_PLAUSIBLE_ANGLE_RAD, "full car: body roll |phi| and pitch |theta| [rad]")
 #undef DN_FIELD_DECL_
 
 /* Fill with the defaults above. Nullable: nothing. */
@@ -923,7 +960,9 @@ typedef enum dn_steer_mode { DN_STEER_MODE_LIST(DN_ENUM_ROW_) } dn_steer_mode;
   X(double, driver_preview_min_m, 5.0, "driver shortest preview distance [m], > 0")            \
   X(double, driver_gain, 1.0, "driver gain on the pure-pursuit angle [-], > 0")                \
   X(double, driver_tau_s, 0.05, "steering lag time constant [s], >= 0 (0: none)")              \
-  X(double, dt, 0.001, "step [s], 1e-9 <= dt <= 0.1")                                          \
+  X(double, dt, 0.001,                                                                         \
+    "step [s], 1e-9 <= dt <= 0.1; stable: dt w_hop <= " DN_XSTR_(DN_STABLE_WDT_RK4) " with "     \
+    "w_hop^2 = k/m_us of the stiffer axle, k = k_s + 2 k_arb + k_t: 17.5 ms for the defaults")  \
   X(int, damper_eval, DN_EVAL_PER_STAGE, "dn_damper_eval")                                     \
   X(int, accel_feature, DN_ACCEL_LINEAR, "dn_accel_feature (neural dampers reading a)")        \
   X(double, x_static_f, 0.0, "front damper displacement at static equilibrium [m]")            \

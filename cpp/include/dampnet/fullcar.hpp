@@ -143,6 +143,9 @@ inline int check_fullcar(const dn_fullcar_params& s) noexcept {
       !(p.driver_gain > 0) || p.driver_tau_s < 0)
     return DN_E_PARAM;
   if (!(p.dt >= kMinDt) || p.dt > 0.1) return DN_E_PARAM;
+  if (!detail::stable_step(p.dt, (p.k_s_f + 2 * p.k_arb_f + p.k_t) / p.m_us_f, DN_STABLE_WDT_RK4) ||
+      !detail::stable_step(p.dt, (p.k_s_r + 2 * p.k_arb_r + p.k_t) / p.m_us_r, DN_STABLE_WDT_RK4))
+    return DN_E_PARAM;
   if (!detail::is_tyre_model(p.tyre_model) || !detail::is_steer_mode(p.steer_mode) ||
       !detail::is_damper_eval(p.damper_eval) || !detail::is_accel_feature(p.accel_feature))
     return DN_E_PARAM;
@@ -915,6 +918,14 @@ DN_REALTIME inline int step(const FullCarModel& m, FullCarData& d, const dn_full
     check += ns[fc_corner(i, FCC_v_lag)] + ns[fc_corner(i, FCC_z_fric)];
   }
   if (!std::isfinite(check)) return DN_E_DIVERGED;
+  // a runaway: beyond any car (dampnet.h DN_PLAUSIBLE_LIST)
+  if (!(std::fabs(y.phi) <= DN_PLAUSIBLE_ANGLE_RAD) || !(std::fabs(y.theta) <= DN_PLAUSIBLE_ANGLE_RAD))
+    return DN_E_DIVERGED;
+  for (int i = 0; i < kCorners; ++i) {
+    const double zb = y.z + m.yc[i] * y.phi - m.xc[i] * y.theta;
+    const double vb = y.vz + m.yc[i] * y.p - m.xc[i] * y.q;
+    if (!plausible_corner(zb - y.zus[i], y.zus[i] - in.z_r[i], vb - y.vus[i])) return DN_E_DIVERGED;
+  }
   for (int j = 0; j < DN_FULLCAR_STATE_SIZE; ++j) d.s[j] = ns[j];
   return status;
 }

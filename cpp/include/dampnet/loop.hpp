@@ -151,6 +151,19 @@ inline bool is_controller_kind(int x) noexcept {
 constexpr real kMinDt = R(1e-9);
 
 namespace detail {
+// dt w <= limit with w^2 = w2 (dampnet.h DN_STABLE_WDT_*); in double (a float dt^2 w^2 may underflow).
+inline bool stable_step(double dt, double w2, double limit) noexcept {
+  return dt * dt * w2 <= limit * limit;
+}
+
+// The new state of one corner within DN_PLAUSIBLE_LIST (NaN fails too): travel, wheel to road,
+// damper velocity. In the loop's own type T (float on a microcontroller: no double arithmetic).
+template <class T>
+inline bool plausible_corner(T travel, T wheel_road, T damper_speed) noexcept {
+  return std::fabs(travel) <= T(DN_PLAUSIBLE_TRAVEL_M) && std::fabs(wheel_road) <= T(DN_PLAUSIBLE_WHEEL_ROAD_M) &&
+         std::fabs(damper_speed) <= T(DN_PLAUSIBLE_DAMPER_SPEED_M_S);
+}
+
 inline bool finite_field(real x) noexcept { return std::isfinite(x); }
 inline bool finite_field(int) noexcept { return true; }  // enum fields: checked by value
 }  // namespace detail
@@ -167,6 +180,9 @@ inline int check_vehicle(const dn_vehicle& s) noexcept {
     return DN_E_PARAM;
   // a subnormal mass (1e-320 kg) is > 0 but its reciprocal overflows
   if (!std::isfinite(1 / v.m_s) || !std::isfinite(1 / v.m_us)) return DN_E_PARAM;
+  if (!detail::stable_step(v.dt, v.k_s / v.m_s + (v.k_s + v.k_t) / v.m_us,
+                           v.integrator == DN_INT_SEMI_EULER ? DN_STABLE_WDT_SEMI_EULER : DN_STABLE_WDT_RK4))
+    return DN_E_PARAM;
   if (!detail::is_integrator(v.integrator) || !detail::is_damper_eval(v.damper_eval) ||
       !detail::is_accel_feature(v.accel_feature) || !((DN_ACCEL_FEATURES >> v.accel_feature) & 1) ||
       !((DN_DAMPER_EVALS >> v.damper_eval) & 1))
@@ -596,6 +612,8 @@ DN_REALTIME inline int step(const LoopModel& m, LoopData& d, const dn_loop_input
   // here); a sum is non-finite when any term is (or when it overflows: diverged too).
   if (!std::isfinite(ns[S_z_s] + ns[S_v_s] + ns[S_z_us] + ns[S_v_us] + ns[S_v_lag] + ns[S_z_fric]))
     return DN_E_DIVERGED;
+  if (!detail::plausible_corner(ns[S_z_s] - ns[S_z_us], ns[S_z_us] - zr1, ns[S_v_s] - ns[S_v_us]))
+    return DN_E_DIVERGED;  // a runaway: beyond any car (dampnet.h DN_PLAUSIBLE_LIST)
   for (int i = 0; i < DN_LOOP_STATE_SIZE; ++i) d.s[i] = ns[i];
   return status;
 }

@@ -65,6 +65,7 @@ def run(args) -> int:
     out = Path(args.out)
     tau = COMMAND_TAU_S if args.command_tau is None else args.command_tau
     try:
+        check_options(args)
         laws = control_laws()
         if args.control not in laws:
             what = ("takes its control from the caller (QuarterCar.simulate(u=...)), not from this command"
@@ -127,6 +128,19 @@ def run(args) -> int:
 
         print(summary_line(spec.name, res["coverage"]))
     return 0
+
+
+def check_options(args) -> None:
+    """Every numeric option within its range (dampnet.sim.limits), before anything runs."""
+    from dampnet.sim import limits
+
+    limits.check_number("--dt", args.dt, limits.STEP_S)
+    limits.check_number("--speed", args.speed, limits.SPEED_M_S)
+    if args.command_tau is not None:
+        limits.check_number("--command-tau (the controller's u_tau_s)", args.command_tau, limits.COMMAND_TAU_S)
+    if args.u is not None:
+        limits.check_number("--u", args.u, limits.CONTROL_V)
+    limits.check_seed("--seed", args.seed)
 
 
 def _model_inputs(model: str, road: str) -> list[str]:

@@ -42,6 +42,10 @@ def run(args) -> int:
 
     out = Path(args.out)
     try:
+        from dampnet.sim import limits
+
+        limits.check_number("--dt", args.dt, limits.STEP_S)
+        limits.check_seed("--seed", args.seed)
         check_run_dir(out, ("study.json", "study.txt", "inputs.npz"), "study.json", "dampnet.sim.study/",
                       [p for p in (args.model, args.data) if p and Path(p).exists()], args.force)
         from dampnet.sim.roads import sine_sweep, thesis_rough_road

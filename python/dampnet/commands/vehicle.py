@@ -39,6 +39,16 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     return p
 
 
+def check_options(args) -> None:
+    """Every numeric option within its range (dampnet.sim.limits), before anything runs."""
+    from dampnet.sim import limits
+
+    limits.check_number("--dt", args.dt, limits.STEP_S)
+    if args.speed is not None:
+        limits.check_number("--speed", args.speed, limits.SPEED_KMH)
+    limits.check_seed("--seed", args.seed)
+
+
 def _maneuver(args):
     from dampnet.fullcar import maneuvers
     from dampnet.fullcar.runs import DEFAULT_SPEED_KMH
@@ -72,8 +82,7 @@ def run(args) -> int:
 
     out = Path(args.out)
     try:
-        if not (args.dt > 0 and args.dt <= 0.01):
-            raise LoopError(f"--dt: expected a step in (0, 0.01] s, got {args.dt}")
+        check_options(args)
         inputs = [args.model] if os.path.exists(args.model) else []
         check_run_dir(out, RUN_FILES, "metrics.json", RUN_SCHEMA.split("/")[0] + "/", inputs, args.force)
         spec = load_spec(args.model)

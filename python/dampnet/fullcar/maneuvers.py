@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from dampnet.sim import limits
 from dampnet.sim.roads import RoadError, iso8608, sine_sweep, thesis_rough_road
 
 #: ISO 3888-1:2018 lane change: (section, length [m], lane width as (factor, add) of the
@@ -37,6 +38,33 @@ DLC_RUN_IN_M = 60.0   # straight road before the entry lane: the driver settles
 DLC_RUN_OUT_M = 60.0
 CONES_PER_LINE = 5     # cones on each lane line of each lane section, ends included
 TRACK_COHERENCE = 0.6  # correlation of the left and right wheel tracks (a constant: see rough_road)
+
+
+def _speed(speed_kmh: float) -> float:
+    """A test's speed [km/h] within dampnet.sim.limits.SPEED_KMH (RoadError otherwise)."""
+    try:
+        return limits.check_number("speed", speed_kmh, limits.SPEED_KMH)
+    except ValueError as e:
+        raise RoadError(str(e)) from None
+
+
+def _step(dt: float) -> float:
+    """A test's step [s]: > 0 and at most the runtime's 0.1 s (RoadError otherwise)."""
+    try:
+        return limits.check_number("dt", dt, limits.Range(0.0, 0.1, "s", lo_open=True))
+    except ValueError as e:
+        raise RoadError(str(e)) from None
+
+
+def _steps(length_m: float, speed_m_s: float, dt: float, what: str) -> int:
+    """Steps of a run over length_m at speed_m_s (+1: both ends), within the run size limit."""
+    try:
+        limits.check_run_size(length_m / speed_m_s / dt + 1.0, limits.FULL_CAR_VALUES,
+                              f"{what} ({length_m:.6g} m at {speed_m_s * 3.6:.6g} km/h) in steps of "
+                              f"dt = {dt:.6g} s", "raise the speed or the step (--speed, --dt)")
+    except ValueError as e:
+        raise RoadError(str(e)) from None
+    return int(length_m / speed_m_s / dt) + 1
 
 
 @dataclass
@@ -65,7 +93,7 @@ def bsst(dt: float = 1e-3, mode: str = "heave", amplitude_m: float = 0.005, f0: 
     if mode not in ("heave", "pitch"):
         raise RoadError(f"bsst mode must be 'heave' or 'pitch', got {mode!r}")
     road = sine_sweep(amplitude_m=amplitude_m, f0=f0, f1=f1, rate_oct_s=rate_oct_s)
-    s = road.sample(dt)
+    s = road.sample(_step(dt), values_per_step=limits.FULL_CAR_VALUES)
     sign = np.array([1.0, 1.0, 1.0, 1.0]) if mode == "heave" else np.array([1.0, 1.0, -1.0, -1.0])
     meta = dict(road.meta, test="bsst", mode=mode)
     return Maneuver(f"bsst_{mode}", dt, np.outer(s.z, sign), np.outer(s.zdot, sign), 0.0,
@@ -122,12 +150,10 @@ def dlc(dt: float = 1e-3, speed_kmh: float = 120.0, width_m: float = VEHICLE_WID
     """The ISO 3888-1 double lane change on a flat road, driven by the runtime's preview driver
     along iso3888_path; starts DLC_RUN_IN_M before the entry lane (the runtime's x_pos = 0 there,
     meta["start_x_m"] in the lanes' frame), ends half of DLC_RUN_OUT_M after it."""
-    if not (speed_kmh > 0 and math.isfinite(speed_kmh)):
-        raise RoadError(f"speed must be > 0 km/h, got {speed_kmh}")
-    speed = speed_kmh / 3.6
+    speed = _speed(speed_kmh) / 3.6
     lanes = iso3888_lanes(width_m)
     length = DLC_RUN_IN_M + lanes[-1]["x1"] + DLC_RUN_OUT_M * 0.5
-    n = int(length / speed / dt) + 1
+    n = _steps(length, speed, _step(dt), "the lane change")
     x, y = iso3888_path(width_m)
     # the runtime's X starts at 0 where the run starts: the path in that frame
     x = x + DLC_RUN_IN_M
@@ -145,14 +171,13 @@ def rough_road(dt: float = 1e-3, speed_kmh: float = 60.0, profile: str = "thesis
     wheelbase later (the profiles are periodic, so the delay wraps)."""
     if not 0.0 <= coherence <= 1.0:
         raise RoadError(f"track coherence must be in [0, 1], got {coherence}")
-    if not speed_kmh > 0:
-        raise RoadError(f"speed must be > 0 km/h, got {speed_kmh}")
+    speed = _speed(speed_kmh) / 3.6
+    dt = _step(dt)
     make = (lambda s: thesis_rough_road(seed=s)) if profile == "thesis" else (lambda s: iso8608(profile, seed=s))
     left, other = make(seed), make(seed + 1)
     right_z = coherence * left.z + math.sqrt(1.0 - coherence**2) * other.z
-    speed = speed_kmh / 3.6
     length = left.length
-    n = int(length / speed / dt) + 1
+    n = _steps(length, speed, dt, f"the {profile} road")
     t = np.arange(n) * dt
     xf = left.x[0] + speed * t
     xr = left.x[0] + np.mod(speed * t - wheelbase_m, length)

@@ -12,6 +12,7 @@ its `step(dt, ...)` requires (so its runs use one damper evaluation per step).
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass, field
 from typing import Any
@@ -66,20 +67,46 @@ def truth_spec(effects=(), name: str = "truth") -> DamperSpec:
 
 
 def linear_spec(c: float, name: str = "linear") -> DamperSpec:
-    return DamperSpec(name, "linear", float(c))
+    """A linear damper F = c v; c [N s/m] finite and >= 0 (LoopError otherwise: negative damping
+    feeds energy into the car, a runaway)."""
+    v = float(c)
+    if not (math.isfinite(v) and v >= 0):
+        raise LoopError(f"linear damper: expected a damping coefficient c, a finite number >= 0 [N s/m], got {c!r}")
+    return DamperSpec(name, "linear", v)
+
+
+def _damping_coefficient(text: str) -> float:
+    """C of a MODEL string 'linear:C'; LoopError naming the field and what it expects."""
+    field = text.split(":", 1)[1]
+    try:
+        c = float(field)
+    except ValueError:
+        c = math.nan
+    if not (math.isfinite(c) and c >= 0):
+        raise LoopError(f"{text!r}: expected linear:C with C the damping coefficient, a finite number "
+                        f">= 0 [N s/m], got {field!r}")
+    return c
 
 
 def load_spec(text: str) -> DamperSpec:
     """A DamperSpec from a command line's MODEL: a model directory or model.json, a
-    lookup-table JSON, 'truth' or 'truth:EFFECT,...', or 'linear:C' [N s/m]."""
+    lookup-table JSON, 'truth' or 'truth:EFFECT,...', or 'linear:C' [N s/m]; LoopError or
+    ModelError (one line, naming the field) otherwise."""
+    if not isinstance(text, str) or not text.isprintable():   # a control character: no path, no field
+        raise LoopError(f"MODEL {text!r}: expected a model directory or file, 'truth[:EFFECT,...]' or "
+                        "'linear:C' [N s/m]")
     if text == "truth" or text.startswith("truth:"):
         eff = [e for e in text.split(":", 1)[1].split(",") if e] if ":" in text else []
+        from dampnet.rig.effects import get_effect
+
+        try:
+            for e in eff:
+                get_effect(e)
+        except ValueError as e:
+            raise LoopError(f"{text!r}: the truth's effects: {e}") from None
         return truth_spec(eff)
     if text.startswith("linear:"):
-        try:
-            return linear_spec(float(text.split(":", 1)[1]))
-        except ValueError:
-            raise LoopError(f"{text}: expected linear:C with C the damping [N s/m]") from None
+        return linear_spec(_damping_coefficient(text))
     from dampnet import schema
     from dampnet.model import MlpModel, ModelError
 

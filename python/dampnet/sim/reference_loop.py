@@ -293,6 +293,20 @@ def solve_acceleration(force_of_a, a_explicit: float, f_last: float, k: float, f
 
 # ---- the loop ----------------------------------------------------------------------------------
 
+_BOUNDS = {k: v for k, (v, _doc) in _core.PLAUSIBLE_BOUNDS.items()}
+
+
+def implausible(travel: float, wheel_road: float, damper_speed: float) -> str | None:
+    """Which of the runtime's physical bounds (dampnet.h DN_PLAUSIBLE_LIST) a corner's new state
+    leaves, in words, or None: the runtime's plausible_corner (loop.hpp)."""
+    for name, value, key in (("suspension travel", travel, "DN_PLAUSIBLE_TRAVEL_M"),
+                             ("wheel to road", wheel_road, "DN_PLAUSIBLE_WHEEL_ROAD_M"),
+                             ("damper velocity", damper_speed, "DN_PLAUSIBLE_DAMPER_SPEED_M_S")):
+        if not abs(value) <= _BOUNDS[key]:
+            return f"{name} {value:.4g} beyond {_BOUNDS[key]:g} ({key})"
+    return None
+
+
 def run(damper, z_r, v_r, vehicle: Vehicle | None = None, controller: Controller | None = None) -> dict:
     """Run the loop over road samples z_r [m], v_r [m/s] at t = k dt; arrays at each step's start.
 
@@ -386,5 +400,9 @@ def run(damper, z_r, v_r, vehicle: Vehicle | None = None, controller: Controller
         f_last = f
         if not (math.isfinite(zs) and math.isfinite(vs) and math.isfinite(zus) and math.isfinite(vus)):
             raise LoopError(f"the loop diverged at t = {(k + 1) * h:.6g} s (reduce dt?)")
+        beyond = implausible(zs - zus, zus - zr1, vs - vus)
+        if beyond:
+            raise LoopError(f"the loop left physical plausibility at t = {(k + 1) * h:.6g} s: {beyond} "
+                            "(the runtime's DN_E_DIVERGED)")
     out["f_static"] = f_static
     return out

@@ -175,6 +175,25 @@ int main(int argc, char** argv) {
     EXPECT(dn_damper_add_term(d, "gas", NULL, 0) == DN_E_UNKNOWN_NAME);
     dn_damper_destroy(d);
     EXPECT(dn_damper_create_linear(NAN, &d) == DN_E_NONFINITE_PARAM && d == NULL);
+    /* negative damping feeds energy in (issue 29: it was DN_OK and ran away to 1e18) */
+    EXPECT(dn_damper_create_linear(-2000.0, &d) == DN_E_PARAM && d == NULL);
+    EXPECT(dn_damper_create_linear(-1e-300, &d) == DN_E_PARAM && d == NULL);
+    EXPECT(dn_damper_create_linear(0.0, &d) == DN_OK);
+    dn_damper_destroy(d);
+    d = NULL;
+    /* a step beyond the stability limit (DN_STABLE_WDT_RK4: 20 ms for Table 5) is refused */
+    EXPECT(dn_damper_create_linear(1500.0, &d) == DN_OK);
+    dn_vehicle_default(&veh);
+    veh.dt = 0.1;
+    EXPECT(dn_loop_model_create(&veh, d, NULL, &m) == DN_E_PARAM && m == NULL);
+    veh.dt = 0.02;
+    EXPECT(dn_loop_model_create(&veh, d, NULL, &m) == DN_OK);
+    dn_loop_model_destroy(m);
+    m = NULL;
+    veh.integrator = DN_INT_SEMI_EULER;
+    EXPECT(dn_loop_model_create(&veh, d, NULL, &m) == DN_E_PARAM && m == NULL);
+    dn_damper_destroy(d);
+    d = NULL;
     EXPECT(dn_mlp_create(&desc, &mlp) == DN_OK);
     EXPECT(dn_damper_create_neural(mlp, bad_names, 3, NULL, NULL, 0, 0, &d) == DN_E_UNKNOWN_NAME);
     EXPECT(dn_damper_create_neural(mlp, bad_names, 2, NULL, NULL, 0, 0, &d) == DN_E_MISMATCH);

@@ -135,14 +135,25 @@ class Road:
             return self.length
         return self.length / _positive("speed [m/s]", speed)
 
-    def sample(self, dt: float, speed: float | None = None) -> RoadSample:
-        """The road displacement at t = 0, dt, ... up to the road's end (linear interpolation)."""
+    def sample(self, dt: float, speed: float | None = None, values_per_step: int | None = None) -> RoadSample:
+        """The road displacement at t = 0, dt, ... up to the road's end (linear interpolation).
+        A run of it may hold at most dampnet.sim.limits.MAX_RUN_VALUES values: steps x
+        values_per_step (default a quarter-car run's); RoadError naming speed and dt beyond it."""
+        from dampnet.sim import limits
+
         dt = _positive("time step dt [s]", dt)
         if self.kind == "spatial":
             if speed is None:
                 raise RoadError(f"road {self.name!r} is a distance profile: give a speed [m/s]")
             speed = _positive("speed [m/s]", speed)
         dur = self.duration(speed)
+        at = f" at {speed:.6g} m/s" if self.kind == "spatial" else ""
+        try:
+            limits.check_run_size(dur / dt + 1.0, values_per_step or limits.QUARTER_CAR_VALUES,
+                                  f"road {self.name!r} ({dur:.6g} s{at}) in steps of dt = {dt:.6g} s",
+                                  "raise the speed or the step (--speed, --dt)" if at else "raise the step (--dt)")
+        except ValueError as e:
+            raise RoadError(str(e)) from None
         n = int(math.floor(dur / dt + 1e-9)) + 1
         if n < 2:
             raise RoadError(f"road {self.name!r} lasts {dur:.6g} s, shorter than one time step "

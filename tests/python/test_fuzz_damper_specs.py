@@ -1,0 +1,52 @@
+"""The CI-sized run of the atheris harness over the damper spec strings (MODEL of `dampnet
+simulate` / `vehicle`: fuzz/python/fuzz_damper_specs.py): its fixed seed corpus plus a few
+thousand mutations with a fixed seed; only a damper with finite forces or the project's own
+one-line errors (LoopError, ModelError), no other exception, no input slower than 10 s."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+HARNESS = REPO / "fuzz" / "python" / "fuzz_damper_specs.py"
+CORPUS = REPO / "fuzz" / "python" / "corpus_damper_specs"
+sys.path.insert(0, str(HARNESS.parent))
+
+
+def test_the_corpus_strings_each_give_a_damper_or_a_one_line_error(tmp_path, monkeypatch):
+    import fuzz_damper_specs as h
+
+    monkeypatch.setenv("DAMPNET_FUZZ_WORK", str(tmp_path / "w"))
+    (tmp_path / "w").mkdir()
+    monkeypatch.chdir(h.make_workdir())
+    for p in sorted(CORPUS.iterdir()):
+        h.test_one_input(p.read_bytes())
+    # the issue's string is an error naming the field, not a damper that runs away
+    from dampnet.sim.vehicle import LoopError
+
+    with pytest.raises(LoopError, match=r"'linear:-1000': expected linear:C with C the damping coefficient"):
+        h.load_spec("linear:-1000")
+    with pytest.raises(LoopError, match=r"MODEL 'linear:1\\n2': expected a model directory"):
+        h.load_spec("linear:1\n2")   # a control character: no path, no field; said in one line
+
+
+def test_atheris_ci_run_over_the_damper_specs(tmp_path):
+    corpus = tmp_path / "corpus"
+    shutil.copytree(CORPUS, corpus)  # libFuzzer adds what it finds to the first corpus directory
+    work = tmp_path / "work"
+    work.mkdir()
+    proc = subprocess.run(
+        [sys.executable, str(HARNESS), str(corpus), "-runs=3000", "-seed=1", "-max_len=256",
+         "-timeout=10", f"-artifact_prefix={tmp_path}/", "-print_final_stats=1"],
+        capture_output=True, text=True, timeout=600, cwd=tmp_path,
+        env={**os.environ, "DAMPNET_FUZZ_WORK": str(work)})
+    tail = "\n".join(proc.stderr.splitlines()[-30:])
+    assert proc.returncode == 0, tail
+    assert "Done 3000 runs" in proc.stderr, tail
+    assert not list(tmp_path.glob("crash-*")) and not list(tmp_path.glob("timeout-*"))
