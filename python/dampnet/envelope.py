@@ -229,7 +229,7 @@ def validate_envelope(env: Envelope, source: Any = None) -> Envelope:
         back = (pts - env.in_ymin) * inverse + env.in_offset
     if not (np.all(np.isfinite(pts)) and np.all(np.isfinite(back))):
         row = int(np.argmin(np.all(np.isfinite(pts) & np.isfinite(back), axis=1)))
-        raise bad(f"{npz}: points", f"expected finite scaled samples, got {schema.show(pts[row].tolist())} "
+        raise bad(f"{npz}: points", f"expected finite scaled samples, got [{', '.join(f'{v:.6g}' for v in pts[row])}] "
                   f"in row {row}")
     env.points = pts
     env.threshold = _scalar(env.threshold, f"{npz}: threshold")

@@ -107,7 +107,7 @@ DAMAGES = {  # name: (damage, the file named, what the message says)
     "lo NaN": (_npz(lo=_set(0, None, np.nan)), ENVELOPE_NPZ, "lo: expected finite numbers"),
     "lo above hi": (_npz(lo=lambda a: a + 100.0), ENVELOPE_NPZ, "lo, hi: expected lo <= hi"),
     "hi short": (_npz(hi=lambda a: a[:2]), ENVELOPE_NPZ, "hi: expected 3 values"),
-    "point NaN": (_npz(points=_set(5, 0, np.nan)), ENVELOPE_NPZ, "points: expected finite scaled samples"),
+    "point NaN": (_npz(points=_set(5, 0, np.nan)), ENVELOPE_NPZ, "points: expected finite scaled samples, got [nan, "),
     "point Inf": (_npz(points=_set(0, 2, -np.inf)), ENVELOPE_NPZ, "points: expected finite"),
     "no points": (_npz(points=np.zeros((0, 3))), ENVELOPE_NPZ, "points: expected [m >= 1"),
     "points 2 wide": (_npz(points=lambda a: a[:, :2]), ENVELOPE_NPZ, "points: expected [m >= 1"),
@@ -141,8 +141,10 @@ def test_export_refuses_a_damaged_envelope(model_dir, tmp_path, capsys, name):
 
 
 @pytest.mark.parametrize("name", ["empty npz", "truncated npz", "json []", "threshold NaN", "threshold negative",
-                                  "in_gain 0", "no points", "json missing"])
+                                  "in_gain 0", "no points", "json missing", "point NaN"])
 def test_coverage_falls_back_to_the_ranges_with_a_warning(model_dir, capsys, name):
+    """Before: tracebacks, or (a NaN stored point) "data must be finite, check for nan or inf values"
+    from scipy's k-d tree with no file named."""
     damage, file, says = DAMAGES[name]
     damage(model_dir)
     env, note = load_envelope(model_dir, default_model())
