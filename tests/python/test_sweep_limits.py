@@ -16,16 +16,7 @@ for _module in ("dask.distributed", "pandas", "pyarrow"):
 from dampnet.cli import main  # noqa: E402
 from dampnet.sweep import SpecError, parse_spec  # noqa: E402
 from dampnet.sweep.grid import MAX_CELLS, MAX_CELLS_CEILING, expand  # noqa: E402
-
-
-def one_line_error(capsys, argv, *fragments) -> str:
-    capsys.readouterr()
-    rc = main(argv)
-    err = capsys.readouterr().err
-    assert rc == 2 and err.startswith("dampnet: error: ") and err.count("\n") == 1, (rc, err)
-    for f in fragments:
-        assert f in err, (f, err)
-    return err
+from test_sweep import one_line_error  # noqa: E402  (exit 2, one line, the fragments in it)
 
 
 def test_an_output_inside_an_input_dataset_is_refused(tmp_path, capsys):
