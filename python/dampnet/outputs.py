@@ -149,6 +149,31 @@ def check_output_file(path: str | os.PathLike, inputs: Iterable[str | os.PathLik
     return p
 
 
+def check_output_files(outputs: dict[str, str | os.PathLike | None], inputs: Iterable[str | os.PathLike] = (),
+                       force: bool = False) -> dict[str, Path]:
+    """All the output files of one command ({option: path}, None: not asked for), checked together
+    before anything is written: none is an input (`check_output_file`), no two name the same file,
+    each is absent or `force`. {option: Path} of those given; OutputError (one line) otherwise."""
+    inputs = [i for i in inputs if i is not None]
+    out: dict[str, Path] = {}
+    seen: dict[Path, str] = {}
+    for option, path in outputs.items():
+        if not path:
+            continue
+        try:
+            p = check_output_file(path, inputs)
+        except OutputError as e:
+            raise OutputError(f"{option} {e}") from None
+        real = p.resolve()
+        if real in seen:
+            raise OutputError(f"{seen[real]} and {option} name the same file {path}: give each output its own")
+        if os.path.lexists(p) and not force:
+            raise OutputError(f"{option} {path}: exists; refusing to overwrite (use --force)")
+        seen[real] = option
+        out[option] = p
+    return out
+
+
 def check_report_dir(out: str | os.PathLike, inputs: Iterable[str | os.PathLike] = ()) -> Path:
     """`out` as a Path if a report (index.html, pictures, JSON) may be written into it.
 
