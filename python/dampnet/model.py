@@ -268,9 +268,7 @@ class MlpModel:
         except ModelError as e:
             msg = str(e)
             raise ModelError(msg if msg.startswith(source) else f"{source}: {msg}") from None
-        from dampnet.export import check_runtime_accepts  # the runtime's own loader, the field named
-
-        return check_runtime_accepts(model, source)
+        return check_runtime_accepts(model, source)  # the runtime's own loader, the field named
 
     def save(self, path: str | os.PathLike, overwrite: bool = False) -> Path:
         """Write model.json atomically; refuses to replace a file unless overwrite."""
@@ -301,3 +299,135 @@ def _check_meta(meta: Any, where: str) -> dict:
                 raise ModelError(f"{where}.data.acceleration_window_s: expected a positive window [s], "
                                  f"got {schema.show(w)}")
     return meta
+
+
+# -- what the runtime's loader does with a model: its folding, and why it refuses one --------
+
+def _folded_double(model: MlpModel) -> dict:
+    """The runtime load()'s folded parameters in double, before its one rounding to float32
+    (cpp/include/dampnet/mlp.hpp: the same double operations in the same order)."""
+    w1 = np.asarray(model.w1, np.float64)
+    h1, ni = w1.shape
+    w2 = None if model.w2 is None else np.asarray(model.w2, np.float64)
+    h2 = 0 if w2 is None else w2.shape[0]
+    wo = np.asarray(model.w_out, np.float64).ravel()
+    off = [float(v) for v in model.in_offset]
+    gain = [float(v) for v in model.in_gain]
+    lo = [float(v) for v in model.sat_lo]
+    hi = [float(v) for v in model.sat_hi]
+    ymin, og, oy = float(model.in_ymin), float(model.out_gain), float(model.out_ymin)
+    sig = model.activation == "sigmoid"
+    zs, alpha, beta = (0.5, 0.5, 0.5) if sig else (1.0, 1.0, 0.0)
+    # Python floats are IEEE doubles and `a * b + c` is never fused: load()'s arithmetic
+    fold_off = all(abs(off[i]) <= hi[i] - lo[i] for i in range(ni))
+    f1, fb1 = np.zeros((h1, ni)), np.zeros(h1)
+    for j in range(h1):
+        b = float(model.b1[j])
+        for i in range(ni):
+            w = float(w1[j, i]) * gain[i]
+            f1[j, i] = zs * w
+            b += ymin * float(w1[j, i])
+            if fold_off:
+                b -= w * off[i]
+        fb1[j] = zs * b
+    f2 = fb2 = None
+    if h2:
+        f2, fb2 = np.zeros((h2, h1)), np.zeros(h2)
+        for k in range(h2):
+            b = float(model.b2[k])
+            for j in range(h1):
+                f2[k, j] = zs * alpha * float(w2[k, j])
+                b += beta * float(w2[k, j])
+            fb2[k] = zs * b
+    c = float(model.b_out)
+    fo = np.zeros(wo.size)
+    for j in range(wo.size):
+        fo[j] = alpha * float(wo[j]) / og
+        c += beta * float(wo[j])
+    return {"n_inputs": ni, "n_hidden1": h1, "n_hidden2": h2, "offsets_folded": int(fold_off),
+            "w1": f1, "b1": fb1, "w2": f2, "b2": fb2, "w_out": fo, "b_out": (c - oy) / og + float(model.out_offset),
+            "out_offset": float(model.out_offset), "in_offset": np.array(off), "sat_lo": np.array(lo),
+            "sat_hi": np.array(hi), "sat_mid": np.array([0.5 * (a + b) for a, b in zip(lo, hi)])}
+
+
+_SIZES = ("n_inputs", "n_hidden1", "n_hidden2", "offsets_folded")
+
+
+def folded_float(model: MlpModel) -> dict | None:
+    """The model as a dn_mlp_folded_f (dampnet.h): the scalings folded into the weights exactly
+    as the runtime's load() folds them (_folded_double, then one rounding to float32), so that
+    dn_mlp_init_folded on these values holds what dn_mlp_init on the double description holds,
+    bit for bit (tests/cpp and tests/python/test_embedded.py compare). None when a folded value
+    overflows float (the runtime refuses such a model: DN_E_PARAM; runtime_refusal says which).
+    Arrays in the description's [out][in] layout."""
+    with np.errstate(over="ignore"):
+        out = {k: v if k in _SIZES or v is None else
+               (np.float32(v) if np.ndim(v) == 0 else np.asarray(v).astype(np.float32))
+               for k, v in _folded_double(model).items()}
+    finite = all(np.all(np.isfinite(v)) for k, v in out.items() if k not in _SIZES and v is not None)
+    return out if finite else None
+
+
+#: each folded parameter (the plain copies first): the model file's field it is blamed on, and
+#: what it is made of (runtime_refusal blames w1 or w_out/b_out instead where they are the large factor)
+_FOLDED_FROM = {
+    "out_offset": ("out_offset", "out_offset"), "in_offset": ("in_offset", "in_offset"),
+    "sat_lo": ("sat_lo", "sat_lo"), "sat_hi": ("sat_hi", "sat_hi"),
+    "sat_mid": ("sat_lo", "(sat_lo + sat_hi) / 2: the middle of the saturation range"),
+    "w1": ("in_gain", "w1 x in_gain: the first layer's weights on the raw inputs"),
+    "b1": ("b1", "b1 + in_ymin w1 - in_offset in_gain w1: the first layer's bias"),
+    "w2": ("w2", "w2"), "b2": ("b2", "b2 + w2 / 2"),
+    "w_out": ("out_gain", "w_out / out_gain: the output weights in newtons"),
+    "b_out": ("out_gain", "(b_out - out_ymin) / out_gain + out_offset: the output bias in newtons"),
+}
+_FLOAT_MAX = float(np.finfo(np.float32).max)
+_PER_INPUT = ("w1", "in_offset", "sat_lo", "sat_hi", "sat_mid")
+
+
+def runtime_refusal(model: MlpModel) -> str | None:
+    """Why the runtime's loader (dn_mlp_create; in Python dampnet._core.Mlp) refuses `model`,
+    naming the model file's field (and the input), or None if it accepts it. The runtime says
+    only DN_E_PARAM: a folded parameter (weights and scalings multiplied together, rounded to
+    float once) beyond float's range; this finds which, from the same folding in double."""
+    try:
+        model.core()
+        return None
+    except ValueError as e:
+        status = str(e)
+    folded = _folded_double(model)
+    for key, (name, made_of) in _FOLDED_FROM.items():
+        if folded.get(key) is None:
+            continue
+        a = np.atleast_1d(np.asarray(folded[key], dtype=np.float64))
+        big = ~(np.abs(a) <= _FLOAT_MAX)
+        if not big.any():
+            continue
+        at = np.unravel_index(int(np.argmax(big)), a.shape)
+        where = ""
+        if key in _PER_INPUT:
+            i = int(at[-1])
+            if key == "w1" and not abs(model.in_gain[i]) >= np.max(np.abs(model.w1[:, i])):
+                name = "w1"
+            where = f" (input {model.features[i]})"
+        elif key in ("w_out", "b_out") and abs(model.out_gain) >= 1:
+            name = key  # a gain of 1 or more only shrinks: the weight or bias itself is the large factor
+        return (f"field {name!r}{where}: the runtime folds it into {made_of} = {a[at]:.4g}, beyond float's range "
+                f"(3.4e38), and refuses the model ({status})")
+    # every folded value fits float: the vector kernels' coefficients (activation.hpp's tanh
+    # polynomial, up to ~56 x each output weight) are what overflow
+    w = float(np.max(np.abs(folded["w_out"])))
+    name = "out_gain" if abs(model.out_gain) < 1 else "w_out"
+    return (f"field {name!r}: the runtime folds it into w_out / out_gain (the output weights in newtons), up to "
+            f"{w:.4g}, and its vector kernel's coefficients (a multiple of them) exceed float's range (3.4e38): "
+            f"it refuses the model ({status})")
+
+
+def check_runtime_accepts(model: MlpModel, source: str = "model") -> MlpModel:
+    """`model` if the runtime's loader accepts it; ModelError naming `source` and the field
+    (runtime_refusal) otherwise. Every model file read goes through this (MlpModel.from_dict), so
+    an export, a simulation or a vehicle run refuses it at once with the file named, instead of an
+    ONNX graph giving NaN, an FMU failing at instantiation or "Mlp: DN_E_PARAM" mid-run."""
+    why = runtime_refusal(model)
+    if why is not None:
+        raise ModelError(f"{source}: {why}")
+    return model

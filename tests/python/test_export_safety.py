@@ -15,7 +15,8 @@ import pytest
 
 from dampnet.cli import main
 from dampnet.envelope import build_envelope
-from dampnet.export import runtime_refusal, write_header, write_onnx
+from dampnet.export import write_header, write_onnx
+from dampnet.model import runtime_refusal
 from dampnet.model import MlpModel, ModelError
 from dampnet.modeldir import default_model, save_model_dir
 
