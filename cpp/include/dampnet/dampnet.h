@@ -718,8 +718,8 @@ typedef enum dn_accel_feature { DN_ACCEL_FEATURE_LIST(DN_ENUM_ROW_) } dn_accel_f
  * dt = 13.6 ms): such a run stops with DN_E_DIVERGED (DN_PLAUSIBLE_LIST). */
 #define DN_STABLE_WDT_RK4 1.5
 #define DN_STABLE_WDT_SEMI_EULER 1.0
-#define DN_STR_(x) #x
-#define DN_XSTR_(x) DN_STR_(x)
+#define DN_DOC_STR_(x) #x
+#define DN_DOC_XSTR_(x) DN_DOC_STR_(x)
 
 /* Vehicle and loop parameters (thesis Table 5 defaults): X(type, name, default, doc).
  * Equations (z from static equilibrium, up positive; F_a = F - f_static):
@@ -732,8 +732,8 @@ typedef enum dn_accel_feature { DN_ACCEL_FEATURE_LIST(DN_ENUM_ROW_) } dn_accel_f
   X(dn_real, k_t, 200000.0, "tyre stiffness [N/m], > 0")                                    \
   X(dn_real, c_t, 0.0, "tyre damping [N s/m], >= 0")                                        \
   X(dn_real, dt, 0.001,                                                                    \
-    "step [s], 1e-9 <= dt <= 0.1; stable: dt w_hop <= " DN_XSTR_(DN_STABLE_WDT_RK4) " with rk4 " \
-    "and " DN_XSTR_(DN_STABLE_WDT_SEMI_EULER) " with semi_euler, w_hop^2 = k_s/m_s + "          \
+    "step [s], 1e-9 <= dt <= 0.1; stable: dt w_hop <= " DN_DOC_XSTR_(DN_STABLE_WDT_RK4) " with rk4 " \
+    "and " DN_DOC_XSTR_(DN_STABLE_WDT_SEMI_EULER) " with semi_euler, w_hop^2 = k_s/m_s + "          \
     "k_s/m_us + k_t/m_us: 20 ms with rk4 for Table 5")                                       \
   X(int, integrator, DN_INT_RK4, "dn_integrator")                                          \
   X(int, damper_eval, DN_EVAL_DEFAULT, "dn_damper_eval (RK4 only)")                      \
@@ -961,7 +961,7 @@ typedef enum dn_steer_mode { DN_STEER_MODE_LIST(DN_ENUM_ROW_) } dn_steer_mode;
   X(double, driver_gain, 1.0, "driver gain on the pure-pursuit angle [-], > 0")                \
   X(double, driver_tau_s, 0.05, "steering lag time constant [s], >= 0 (0: none)")              \
   X(double, dt, 0.001,                                                                         \
-    "step [s], 1e-9 <= dt <= 0.1; stable: dt w_hop <= " DN_XSTR_(DN_STABLE_WDT_RK4) " with "     \
+    "step [s], 1e-9 <= dt <= 0.1; stable: dt w_hop <= " DN_DOC_XSTR_(DN_STABLE_WDT_RK4) " with "     \
     "w_hop^2 = k/m_us of the stiffer axle, k = k_s + 2 k_arb + k_t: 17.5 ms for the defaults")  \
   X(int, damper_eval, DN_EVAL_PER_STAGE, "dn_damper_eval")                                     \
   X(int, accel_feature, DN_ACCEL_LINEAR, "dn_accel_feature (neural dampers reading a)")        \
