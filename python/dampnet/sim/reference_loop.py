@@ -42,6 +42,7 @@ import numpy as np
 
 from dampnet import _core, features
 from dampnet.reference import forward_of
+from dampnet.sim.limits import PLAUSIBLE
 from dampnet.sim.vehicle import Controller, LoopError, Vehicle
 from dampnet.terms import terms_force
 
@@ -293,7 +294,7 @@ def solve_acceleration(force_of_a, a_explicit: float, f_last: float, k: float, f
 
 # ---- the loop ----------------------------------------------------------------------------------
 
-_BOUNDS = {k: v for k, (v, _doc) in _core.PLAUSIBLE_BOUNDS.items()}
+_BOUNDS = {k: v for k, (v, _doc) in PLAUSIBLE.items()}
 
 
 def implausible(travel: float, wheel_road: float, damper_speed: float) -> str | None:
