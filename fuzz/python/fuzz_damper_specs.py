@@ -28,6 +28,9 @@ from dampnet.model import ModelError
 from dampnet.sim.dampers import load_spec, runtime_damper, steady_forces
 from dampnet.sim.vehicle import LoopError
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from fuzz_readers import _instrument_dampnet  # noqa: E402  (the same instrumentation as the readers')
+
 REPO = Path(__file__).resolve().parents[2]
 EXPECTED = (LoopError, ModelError)
 TABLE = {"velocities": [-1.0, 0.0, 1.0], "voltages": [0.0, 5.0],
@@ -40,7 +43,7 @@ def make_workdir() -> Path:
     base = "/dev/shm" if os.path.isdir("/dev/shm") and os.access("/dev/shm", os.W_OK) else None
     given = os.environ.get("DAMPNET_FUZZ_WORK")
     work = Path(given) if given else Path(tempfile.mkdtemp(prefix="dampnet-fuzz-specs-", dir=base))
-    (work / "m").mkdir()
+    (work / "m").mkdir(exist_ok=True)
     shutil.copy(REPO / "export" / "dn_model_default.json", work / "m" / "model.json")
     (work / "t.json").write_text(json.dumps(TABLE))
     (work / "bad.json").write_text('{"velocities": [1, 0], "forces": "x"}')
@@ -67,8 +70,11 @@ def test_one_input(data: bytes) -> None:
 
 
 def main() -> None:
+    # the corpus directories as given, before the harness moves into its folder
+    argv = [a if a.startswith("-") or i == 0 else os.path.abspath(a) for i, a in enumerate(sys.argv)]
     os.chdir(make_workdir())
-    atheris.Setup(sys.argv, test_one_input)
+    _instrument_dampnet()
+    atheris.Setup(argv, test_one_input)
     atheris.Fuzz()
 
 
