@@ -127,6 +127,12 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       if (want_out) check_out(out, call, st);
       if (fwd && std::memcmp(after, before, sizeof before) != 0)
         dn_fuzz::fail("dn_loop_forward changed the state", call, st);
+      // a step taken leaves a state within the physical bounds (DN_PLAUSIBLE_LIST; set_state
+      // may put one beyond them, and forward does not move it)
+      if (!fwd && !(std::fabs(after[1] - after[3]) <= DN_PLAUSIBLE_TRAVEL_M &&
+                    std::fabs(after[3] - after[5]) <= DN_PLAUSIBLE_WHEEL_ROAD_M &&
+                    std::fabs(after[2] - after[4]) <= DN_PLAUSIBLE_DAMPER_SPEED_M_S))
+        dn_fuzz::fail("a successful step left the physical bounds", call, st);
     } else {
       if (st != DN_E_NONFINITE_INPUT && st != DN_E_DIVERGED && st != DN_E_NONFINITE_OUTPUT)
         dn_fuzz::fail("unexpected error", call, st);
