@@ -53,6 +53,14 @@ def test_a_bad_linear_spec_string_names_the_field(text):
     assert msg.startswith(repr(text)) and "linear:C" in msg and ">= 0 [N s/m]" in msg and "\n" not in msg
 
 
+def test_a_truth_spec_names_its_unknown_or_repeated_effect():
+    with pytest.raises(LoopError, match=r"'truth:foo': the truth's effects: unknown effect 'foo': expected one of"):
+        load_spec("truth:foo")
+    with pytest.raises(LoopError, match=r"'truth:friction,friction': the truth's effects: friction given more than once"):
+        load_spec("truth:friction,friction")
+    assert load_spec("truth:friction,bump_stop").obj == ["friction", "bump_stop"]
+
+
 def test_zero_damping_is_a_damper():
     assert load_spec("linear:0").obj == 0.0
     _core.Damper.linear(0.0)

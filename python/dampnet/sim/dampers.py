@@ -104,6 +104,9 @@ def load_spec(text: str) -> DamperSpec:
                 get_effect(e)
         except ValueError as e:
             raise LoopError(f"{text!r}: the truth's effects: {e}") from None
+        twice = sorted({e for e in eff if eff.count(e) > 1})
+        if twice:
+            raise LoopError(f"{text!r}: the truth's effects: {', '.join(twice)} given more than once")
         return truth_spec(eff)
     if text.startswith("linear:"):
         return linear_spec(_damping_coefficient(text))
