@@ -88,11 +88,11 @@ def test_dampnet_bench_exit_code_is_the_go_no_go_verdict(tmp_path):
     assert bad.returncode == 2 and bad.stderr.startswith("dampnet: error: --budget-ns")
 
 
-def test_hard_input_check_catches_force_spikes_and_divergence():
+def test_hard_input_check_catches_force_spikes_and_divergence(monkeypatch):
     """The check itself on the two failures it exists for, with the budget case's
     configuration: an MLP whose output reaches 40 kN on saturated inputs (range 4.2 kN)
-    is caught as out of range, a step that fails (dt = 0.1 s on a stiff tyre diverges)
-    as a step error; the shipped model passes with its peak within 2.7 kN."""
+    is caught as out of range, a configuration the runtime refuses as a set-up error, a run that
+    diverges as a step error; the shipped model passes with its peak within 2.7 kN."""
     import dampnet.latency.harness as bm
     from dampnet.modeldir import default_model
 
@@ -104,8 +104,18 @@ def test_hard_input_check_catches_force_spikes_and_divergence():
     res = bm.hil_hard_input_check(spiky)
     assert not res["passed"] and any("outside" in f for f in res["failures"])
 
+    # a step beyond the integrator's stability (dt = 0.02 s on a stiff tyre) is refused at set-up
     res = bm.hil_hard_input_check(dt=0.02, vehicle=dict(bm.HIL_VEHICLE, k_t=2e7))
-    assert not res["passed"] and any("DN_E_DIVERGED" in f for f in res["failures"])
+    assert not res["passed"] and all("set-up error" in f and "k_t" in f for f in res["failures"])
+
+    # a run that leaves the physical bounds: 8 cm at 12 Hz held for a second (the wheel hop,
+    # undamped by the saturated model) stops with DN_E_DIVERGED, reported as a step error
+    def long_sine(dt):
+        t = np.arange(0.0, 1.0, dt)
+        return {"sine_1s": (0.08 * np.sin(2 * np.pi * 12 * t), 0.08 * 2 * np.pi * 12 * np.cos(2 * np.pi * 12 * t))}
+    monkeypatch.setattr(bm, "hard_inputs", long_sine)
+    res = bm.hil_hard_input_check()
+    assert not res["passed"] and any("step error" in f and "DN_E_DIVERGED" in f for f in res["failures"])
 
 
 def test_every_timed_loop_configuration_is_checked_on_the_hard_inputs():

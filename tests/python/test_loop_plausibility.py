@@ -223,3 +223,23 @@ def test_vehicle_with_an_energy_feeding_damper_is_refused(tmp_path, capsys):
         err = capsys.readouterr().err
         assert err.startswith("dampnet: error: 'linear:-1000': expected linear:C") and err.count("\n") == 1
 
+
+
+def test_a_saturated_damper_at_wheel_hop_runs_away_and_stops():
+    """The bench's hard input `saturated_12hz_and_step` drove 8 cm at 12 Hz for a whole second:
+    the default model saturates (a constant force, no damping) and the wheel, forced at its hop
+    frequency (11 Hz), runs away until its damper speed passes the bound at ~0.31 s. The runtime
+    stops there with DN_E_DIVERGED; the bench now holds the sine 0.15 s (latency/harness.py)."""
+    from dampnet.latency.harness import HIL_CONTROLLER, HIL_VEHICLE, hard_inputs
+    from dampnet.modeldir import default_model
+
+    dt, w = 1e-3, 2 * np.pi * 12.0
+    t = np.arange(0.0, 1.0, dt)
+    car = QuarterCar(damper_from_model(default_model(), single=True), dict(HIL_VEHICLE, dt=dt), HIL_CONTROLLER)
+    with pytest.raises(ValueError, match=r"sample 3[01]\d: DN_E_DIVERGED"):
+        car.simulate(0.08 * np.sin(w * t), 0.08 * w * np.cos(w * t))
+    z, zd = hard_inputs(dt)["saturated_12hz_and_step"]
+    res = car.simulate(z, zd)
+    v = np.abs(res["v"])
+    assert v.max() < B["DN_PLAUSIBLE_DAMPER_SPEED_M_S"] / 1.5      # inside the bounds with margin
+    assert v.max() > 20 * max(abs(x) for x in default_model().sat_hi[:1])  # still far beyond saturation

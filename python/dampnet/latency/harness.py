@@ -192,11 +192,16 @@ def hard_inputs(dt: float = 1e-3) -> dict:
     rough = thesis_rough_road().sample(dt, speed=20.0)
     out["thesis_rough_20ms"] = (rough.z, rough.zdot)
     # far outside the model's training box: 8 cm at 12 Hz (road rate 6 m/s, damper speeds
-    # and accelerations beyond every saturation limit), then a 10 cm step held
+    # and accelerations beyond every saturation limit: ~26 m/s, 50x the velocity's), then a
+    # 10 cm step held. 0.15 s of it: 12 Hz is at the wheel hop (11 Hz), and a saturated damper
+    # (a constant force) does not damp it, so a longer sine drives the wheel past the physical
+    # bounds (45 m/s at 0.31 s), where the loop stops with DN_E_DIVERGED as it should
+    # (tests/python/test_loop_plausibility.py): a test of the bounds, not of the kernel's inputs.
     ts = np.arange(0.0, 1.5, dt)
     w = 2 * np.pi * 12.0
-    z = np.where(ts < 1.0, 0.08 * np.sin(w * ts), 0.10)
-    zd = np.where(ts < 1.0, 0.08 * w * np.cos(w * ts), 0.0)
+    sine = ts < 0.15
+    z = np.where(sine, 0.08 * np.sin(w * ts), 0.10)
+    zd = np.where(sine, 0.08 * w * np.cos(w * ts), 0.0)
     out["saturated_12hz_and_step"] = (z, zd)
     return out
 
@@ -217,9 +222,14 @@ def hil_hard_input_check(model=None, margin: float = HIL_FORCE_MARGIN, dt: float
     tol = margin * (hi - lo)
     rows, failures = {}, []
     for name, (z, zd) in hard_inputs(dt).items():
-        car = QuarterCar(damper_from_model(model, single=True), dict(vehicle, dt=dt),
-                         HIL_CONTROLLER)
         row = {"steps": int(z.size)}
+        try:
+            car = QuarterCar(damper_from_model(model, single=True), dict(vehicle, dt=dt), HIL_CONTROLLER)
+        except ValueError as e:  # a configuration the runtime refuses (a step beyond its stability)
+            row.update(ok=False, why=f"set-up error: {e}")
+            rows[name] = row
+            failures.append(f"{name}: {row['why']}")
+            continue
         try:
             res = car.simulate(z, zd)
         except ValueError as e:  # an error status: DN_E_DIVERGED and the like
