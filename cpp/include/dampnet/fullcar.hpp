@@ -143,8 +143,8 @@ inline int check_fullcar(const dn_fullcar_params& s) noexcept {
       !(p.driver_gain > 0) || p.driver_tau_s < 0)
     return DN_E_PARAM;
   if (!(p.dt >= kMinDt) || p.dt > 0.1) return DN_E_PARAM;
-  if (!detail::stable_step(p.dt, (p.k_s_f + 2 * p.k_arb_f + p.k_t) / p.m_us_f, DN_STABLE_WDT_RK4) ||
-      !detail::stable_step(p.dt, (p.k_s_r + 2 * p.k_arb_r + p.k_t) / p.m_us_r, DN_STABLE_WDT_RK4))
+  if (!detail::stable_step<double>(p.dt, (p.k_s_f + 2 * p.k_arb_f + p.k_t) / p.m_us_f, DN_STABLE_WDT_RK4) ||
+      !detail::stable_step<double>(p.dt, (p.k_s_r + 2 * p.k_arb_r + p.k_t) / p.m_us_r, DN_STABLE_WDT_RK4))
     return DN_E_PARAM;
   if (!detail::is_tyre_model(p.tyre_model) || !detail::is_steer_mode(p.steer_mode) ||
       !detail::is_damper_eval(p.damper_eval) || !detail::is_accel_feature(p.accel_feature))

@@ -151,8 +151,11 @@ inline bool is_controller_kind(int x) noexcept {
 constexpr real kMinDt = R(1e-9);
 
 namespace detail {
-// dt w <= limit with w^2 = w2 (dampnet.h DN_STABLE_WDT_*); in double (a float dt^2 w^2 may underflow).
-inline bool stable_step(double dt, double w2, double limit) noexcept {
+// dt w <= limit with w^2 = w2 (dampnet.h DN_STABLE_WDT_*), in the caller's type: the loop's real
+// (float on a microcontroller, whose FPU has no double). A product that underflows to 0 is a tiny
+// dt w: stable, the right answer; one that overflows (or a NaN) is refused.
+template <class T>
+inline bool stable_step(T dt, T w2, T limit) noexcept {
   return dt * dt * w2 <= limit * limit;
 }
 
@@ -180,8 +183,8 @@ inline int check_vehicle(const dn_vehicle& s) noexcept {
     return DN_E_PARAM;
   // a subnormal mass (1e-320 kg) is > 0 but its reciprocal overflows
   if (!std::isfinite(1 / v.m_s) || !std::isfinite(1 / v.m_us)) return DN_E_PARAM;
-  if (!detail::stable_step(v.dt, v.k_s / v.m_s + (v.k_s + v.k_t) / v.m_us,
-                           v.integrator == DN_INT_SEMI_EULER ? DN_STABLE_WDT_SEMI_EULER : DN_STABLE_WDT_RK4))
+  if (!detail::stable_step<real>(v.dt, v.k_s / v.m_s + (v.k_s + v.k_t) / v.m_us,
+                                 R(v.integrator == DN_INT_SEMI_EULER ? DN_STABLE_WDT_SEMI_EULER : DN_STABLE_WDT_RK4)))
     return DN_E_PARAM;
   if (!detail::is_integrator(v.integrator) || !detail::is_damper_eval(v.damper_eval) ||
       !detail::is_accel_feature(v.accel_feature) || !((DN_ACCEL_FEATURES >> v.accel_feature) & 1) ||
