@@ -11,6 +11,8 @@ import subprocess
 
 import numpy as np
 import pytest
+
+import fmi2_callbacks
 from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.fmi2 import FMU2Slave
 
@@ -227,7 +229,8 @@ def _drive_flags(path, x, v, a, u):
     fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(path)),
                     modelIdentifier=md.coSimulation.modelIdentifier, instanceName="damper")
     vr = {sv.name: sv.valueReference for sv in md.modelVariables}
-    fmu.instantiate()
+    cb = fmi2_callbacks.callbacks()  # not FMPy's defaults (fmi2_callbacks); alive until freed
+    fmu.instantiate(callbacks=cb)
     fmu.setupExperiment(startTime=0.0)
     fmu.enterInitializationMode()
     fmu.exitInitializationMode()

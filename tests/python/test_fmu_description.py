@@ -12,6 +12,8 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
+
+import fmi2_callbacks
 from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.fmi2 import FMU2Slave
 from fmpy.fmi3 import FMU3Slave
@@ -149,7 +151,8 @@ def test_the_damper_status_codes_documented_are_the_real_ones(tmp_path):
     status = next(v for v in md.modelVariables if v.name == "status")
     assert documented_codes(status.description) == {0, 1, -10, -7}, status.description
     fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(path)), modelIdentifier="dampnet_damper")
-    fmu.instantiate()
+    cb = fmi2_callbacks.callbacks()  # not FMPy's defaults (fmi2_callbacks); alive until freed
+    fmu.instantiate(callbacks=cb)
     fmu.setupExperiment(startTime=0.0)
     fmu.enterInitializationMode()
     fmu.exitInitializationMode()
