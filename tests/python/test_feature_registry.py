@@ -229,9 +229,11 @@ def test_the_reference_loop_feeds_it_as_the_runtime_feeds_velocity_lag(new_featu
     from dampnet.sim.runs import simulate
     from dampnet.sim.vehicle import Controller, Vehicle
 
-    twin = random_model(["velocity", "velocity_lag", "voltage"], seed=5, force_range=800.0,
+    # seed 6: a random network that keeps the car on the road (seed 5's feeds energy in and leaves
+    # the physical bounds at 8.4 s: DN_E_DIVERGED, as it should)
+    twin = random_model(["velocity", "velocity_lag", "voltage"], seed=6, force_range=800.0,
                         feature_params={"velocity_lag_tau_s": TAU_S})
-    model = random_model(["velocity", "velocity_lag", "voltage"], seed=5, force_range=800.0,
+    model = random_model(["velocity", "velocity_lag", "voltage"], seed=6, force_range=800.0,
                          feature_params={NEW_PARAM: TAU_S})
     model.features[1] = NEW
     road, ctrl, veh = thesis_rough_road(), Controller(kind="skyhook_onoff"), Vehicle(accel_feature="explicit")
