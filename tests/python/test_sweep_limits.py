@@ -42,12 +42,25 @@ BAD_RANDOM = [
     ("speed = {loguniform = [1, inf]}", "simulation.random.speed: loguniform: expected two finite numbers"),
     ("speed = {normal = [10, -inf]}", "simulation.random.speed: normal: expected two finite numbers"),
     ("speed = {uniform = [-1e308, 1e308]}", "simulation.random.speed: uniform = [-1e+308, 1e+308]: the range is too wide"),
-    ("speed = {uniform = [-5, 5]}", "simulation.random.speed: uniform = [lo, hi]: lo: expected a number > 0, got -5"),
-    ("speeds = {normal = [-3, 1]}", "simulation.random.speeds: normal = [mean, sd]: mean: expected a number > 0"),
+    ("speed = {uniform = [-5, 5]}", "simulation.random.speed: uniform = [lo, hi]: lo: expected a number in (0, 100] m/s, got -5"),
+    ("speeds = {normal = [-3, 1]}", "simulation.random.speeds: normal = [mean, sd]: mean: expected a number in (0, 100] m/s"),
     ("road_seed = {integers = [-3, 4]}", "simulation.random.road_seed: integers = [lo, hi]: lo: expected an integer >= 0"),
     ("speed = {normal = [10, 5]}", "simulation.random.speed: sample 24 of the normal distribution is out of the "
-                                   "parameter's range (expected a number > 0, got -3.5"),
+                                   "parameter's range (expected a number in (0, 100] m/s, got -3.5"),
 ]
+
+
+@pytest.mark.parametrize("table, line, fragment", [
+    ("simulation", "speeds = [1000]", "simulation.speeds[0]: expected a number in (0, 100] m/s, got 1000"),
+    ("fullcar", "speeds_kmh = [0]", "fullcar.speeds_kmh[0]: expected a number in (0, 360] km/h, got 0"),
+    ("fullcar", "dt = 0.02", "fullcar.dt: expected a number in [1e-06, 0.01] s, got 0.02"),
+])
+def test_speeds_and_steps_have_the_commands_ranges(tmp_path, capsys, table, line, fragment):
+    """A spec's speeds and step take the ranges `dampnet simulate` / `vehicle` check
+    (dampnet.sim.limits), not a copy: what a command refuses, a sweep refuses."""
+    spec = tmp_path / "s.toml"
+    spec.write_text(f"[{table}]\n{line}\n")
+    one_line_error(capsys, ["sweep", str(spec), "--out", str(tmp_path / "o")], f"{spec}: line 2: {fragment}")
 
 
 @pytest.mark.parametrize("line, fragment", BAD_RANDOM)
@@ -74,7 +87,7 @@ def test_specs_beyond_the_cell_limit_are_refused_before_any_cell_is_listed(tmp_p
                    f"{spec}: line 4: simulation.random.n: 1,000,000,000 random samples, more than the limit of "
                    f"{MAX_CELLS:,} cells", "--max-cells N raises it")
     seeds = list(range(1000))
-    spec.write_text(f"[simulation]\nroads = ['rough']\nroad_seeds = {seeds}\nspeeds = {list(range(1, 1001))}\n")
+    spec.write_text(f"[simulation]\nroads = ['rough']\nroad_seeds = {seeds}\nspeeds = {[0.1 * k for k in range(1, 1001)]}\n")
     one_line_error(capsys, ["sweep", str(spec), "--out", str(tmp_path / "o")],
                    "the spec makes up to 1,000,000 cells (simulation 1,000,000 (1000 road_seed x 1000 speed))",
                    f"more than the limit of {MAX_CELLS:,} cells")

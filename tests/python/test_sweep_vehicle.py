@@ -146,7 +146,7 @@ def test_the_readme_fullcar_spec_is_valid(repo_root):
                                                "bsst, dlc, road"]),
     ("[fullcar]\ndamping = 'medium'\n", ["line 2", "fullcar.damping", "low, high, skyhook"]),
     ("[fullcar]\nspeeds = [100.0]\n", ["line 2", "fullcar.speeds", "unknown key", "speeds_kmh"]),
-    ("[fullcar]\ndt = 0.5\n", ["line 2", "fullcar.dt", "(0, 0.01]"]),
+    ("[fullcar]\ndt = 0.5\n", ["line 2", "fullcar.dt", "[1e-06, 0.01] s"]),
     ("[fullcar]\n[fullcar.vehicle]\ntyre_model = 'pacejka'\n", ["fullcar.vehicle.tyre_model", "magic_formula"]),
     ("[fullcar]\n[fullcar.random]\nn = 2\nseed = 0\n[fullcar.random.vehicle]\nmass = {normal = [1, 2]}\n",
      ["line 6", "fullcar.random.vehicle.mass", "unknown key"]),

@@ -59,6 +59,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
+from dampnet.sim import limits
 from dampnet.sweep.metrics import objectives
 
 try:
@@ -272,12 +273,18 @@ def _vehicle_params() -> list[Param]:
     return out
 
 
-def _step(v) -> float:
-    """A full-vehicle run's step [s]: (0, 0.01], as `dampnet vehicle --dt`."""
-    dt = _float(positive=True)(v)
-    if dt > 0.01:
-        raise _Bad(f"expected a step in (0, 0.01] s, got {_show(v)}")
-    return dt
+def _in(rng: limits.Range) -> Callable[[Any], float]:
+    """A number within one of dampnet.sim.limits' ranges: the ones `dampnet simulate` and
+    `dampnet vehicle` check (--dt, --speed), so a spec accepts what the commands accept."""
+    number = _float()
+
+    def norm(v):
+        x = number(v)
+        try:
+            return limits.check_number("", x, rng)
+        except ValueError:
+            raise _Bad(f"expected a number in {rng.text()}, got {_show(v)}") from None
+    return norm
 
 
 def _fullcar_params() -> list[Param]:
@@ -334,7 +341,8 @@ SIMULATION_PARAMS = [
     Param("road_seed", "road_seeds", _int(0), 0, axis=True, kind="int", help="seed of rough and iso roads"),
     Param("road_length_m", "road_length_m", _float(positive=True), 200.0, kind="float",
           help="length of iso roads [m]"),
-    Param("speed", "speeds", _float(positive=True), 10.0, axis=True, kind="float", help="[m/s]"),
+    Param("speed", "speeds", _in(limits.SPEED_M_S), 10.0, axis=True, kind="float",
+          help=f"{limits.SPEED_M_S.text()}"),
     Param("controller", "controllers", _choice(CONTROLLERS, "a controller"), "passive_high", axis=True),
 ]
 
@@ -345,14 +353,14 @@ FULLCAR_PARAMS = [
           help="bsst (bounce sine sweep), dlc (ISO 3888-1 double lane change), road (two rough tracks)"),
     Param("damping", "damping", _choice(FULLCAR_DAMPING, "a full-vehicle damping setting"), "low", axis=True,
           help="every corner passive at the damper's low or high setting, or on-off skyhook"),
-    Param("speed_kmh", "speeds_kmh", _float(positive=True), None, axis=True, kind="float",
+    Param("speed_kmh", "speeds_kmh", _in(limits.SPEED_KMH), None, axis=True, kind="float",
           help="[km/h] of dlc and road (default: the test's, 120 and 60)"),
     Param("mode", "modes", _choice(FULLCAR_MODES, "a bsst mode"), "heave", axis=True,
           help="bsst: all wheels in phase (heave) or the rear against the front (pitch)"),
     Param("profile", "profiles", _choice(FULLCAR_PROFILES, "a road profile"), "thesis", axis=True,
           help="road: the thesis's rough road or an ISO 8608 class A..H"),
     Param("road_seed", "road_seeds", _int(0), 0, axis=True, kind="int", help="seed of the road test's tracks"),
-    Param("dt", "dt", _step, 1e-3, kind="float", help="step [s], (0, 0.01]"),
+    Param("dt", "dt", _in(limits.STEP_S), 1e-3, kind="float", help=f"step, {limits.STEP_S.text()}"),
     Param("bsst_amplitude_m", "bsst_amplitude_m", _float(positive=True), 0.005, kind="float", help="[m]"),
     Param("bsst_f0_hz", "bsst_f0_hz", _float(positive=True), 0.5, kind="float", help="sweep start [Hz]"),
     Param("bsst_f1_hz", "bsst_f1_hz", _float(positive=True), 20.0, kind="float", help="sweep end [Hz]"),
