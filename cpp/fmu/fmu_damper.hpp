@@ -8,24 +8,21 @@
 //   8 envelope_flags (0 inside the training envelope, else DN_ENV_OUTSIDE_* bits)  output (Integer)
 //   10 + k   the model's k-th feature constant (names sorted, as in the header)   parameters
 //   100 + 10 i + j   parameter j of physics term i                               parameters
-//   40 u_lag [u]  41 v_lag [m/s]  42 z_fric [-]   the derived features' states (those the model uses)
-//   50, 51, 52    their time derivatives (model exchange)
+//   40 + k   the damper's state k (dampnet.h DN_DAMPER_STATE_LIST: u_lag, v_lag, z_fric, ...;
+//            those the model reads)
+//   50 + k   its time derivative (model exchange)
 //
-// The states follow dampnet's quarter-car loop (cpp/include/dampnet/loop.hpp) exactly.
-// Co-simulation: between two communication points t0 and t0 + h the control is held at its
-// value at t0 and the velocity and displacement move as a ramp to the values set at t0 + h,
-// so the states at time t (t0 <= t) with the inputs currently set are, T = t - t0:
-//   u_lag = u0 + (u_lag0 - u0) exp(-T/tau_u)
-//   v_lag = A v_lag0 + (1 - A) v0 + (v - v0) (1 - tau_v (1 - A) / T),  A = exp(-T/tau_v)
-//   z_fric = s + (z_fric0 - s) exp(-|x - x0| / x_c),  s = sgn(x - x0)  (unchanged when x = x0)
-// and fmi2DoStep / fmi3DoStep commits them at the communication point before advancing the
-// time. So the force read at a communication point, after setting that point's inputs, is
-// the force the runtime loop computes there; a force read after a step before new inputs are
-// set has the inputs held over the step.
-// Model exchange: the states are continuous states, du_lag/dt = (u - u_lag)/tau_u,
-// dv_lag/dt = (v - v_lag)/tau_v, dz/dt = (v - |v| z)/x_c (Dahl along the travel).
-// Initial states (both interfaces): u_lag = u, v_lag = v (steady state at the initial inputs,
-// as dampnet.features' training columns start), z_fric = 0.
+// The states are the damper's own (damper_state.hpp), updated by the damper exactly as in
+// dampnet's quarter-car loop. Co-simulation: between two communication points t0 and t0 + h
+// the control is held at its value at t0 and the velocity and displacement move as a ramp to
+// the values set at t0 + h, so the states at time t (t0 <= t) with the inputs currently set
+// are the damper's advance over T = t - t0 from those at t0; fmi2DoStep / fmi3DoStep commits
+// them at the communication point before advancing the time. So the force read at a
+// communication point, after setting that point's inputs, is the force the runtime loop
+// computes there; a force read after a step before new inputs are set has the inputs held
+// over the step. Model exchange: the states are continuous states with the damper's rates.
+// Initial states (both interfaces): the damper's rest at the initial inputs (a lag at its
+// source, as dampnet.features' training columns start; the Dahl state 0).
 // The Integer outputs status, clamped_mask and envelope_flags are discrete variables: in
 // co-simulation they are evaluated at the communication point with the inputs set there; in
 // model exchange they change only at events (FMI: a discrete variable changes only at an event
@@ -52,7 +49,8 @@ class DamperModel {
     VR_X = 0, VR_V, VR_A, VR_U, VR_TEMP, VR_FORCE, VR_STATUS, VR_MASK, VR_ENVELOPE,
     VR_STATE = 40, VR_DERIV = 50  // the parameters: DamperParams (10 + k, 100 + 10 i + j)
   };
-  enum State { ST_ULAG, ST_VLAG, ST_ZFRIC, ST_N };
+  static constexpr int ST_N = DN_DAMPER_STATE_SIZE;
+  static_assert(VR_STATE + ST_N <= VR_DERIV && VR_DERIV + ST_N <= 100, "the damper's states outgrew their value references");
 
   Message message;
 
@@ -66,13 +64,7 @@ class DamperModel {
     reset();
     st = params_.build(damper_, message);  // the defaults are the trained model's: a failure here is a broken header
     if (st < 0) return st;
-    for (int s = 0; s < ST_N; ++s) used_[s] = false;
-    for (int i = 0; i < FMU_MODEL_N_INPUTS; ++i) {
-      const int f = damper_.feat[i];
-      if (f == DN_FEAT_VOLTAGE_LAG || f == DN_FEAT_CURRENT_LAG) used_[ST_ULAG] = true;
-      if (f == DN_FEAT_VELOCITY_LAG) used_[ST_VLAG] = true;
-      if (f == DN_FEAT_FRICTION_STATE) used_[ST_ZFRIC] = true;
-    }
+    for (int s = 0; s < ST_N; ++s) used_[s] = damper_.state_read(s);
     n_states_ = 0;
     for (int s = 0; s < ST_N; ++s)
       if (used_[s]) slot_[n_states_++] = s;
@@ -94,9 +86,7 @@ class DamperModel {
     me_ = model_exchange;
     const int st = params_.build(damper_, message);
     if (st < 0) return st;
-    x_[ST_ULAG] = in_[VR_U];
-    x_[ST_VLAG] = in_[VR_V];
-    x_[ST_ZFRIC] = 0.0;
+    dampnet::Damper::rest(input(in_)).store(x_);
     snapshot();
     if (me_) update_discrete();
     return DN_OK;
@@ -171,7 +161,7 @@ class DamperModel {
     double st[ST_N];
     states_now(st);
     for (int s = 0; s < ST_N; ++s)
-      if (!std::isfinite(st[s]))
+      if (used_[s] && !std::isfinite(st[s]))
         return message.fail(DN_E_NONFINITE_INPUT, "a state is not finite at t = %g s (an input is NaN or infinite)",
                             t);
     for (int s = 0; s < ST_N; ++s) x_[s] = st[s];
@@ -227,36 +217,36 @@ class DamperModel {
     for (int i = 0; i < 5; ++i) start_in_[i] = in_[i];
   }
 
+  // The damper's input for inputs in (x, v, a, u, temperature), its states not filled.
+  dn_damper_input input(const double* in) const noexcept {
+    dn_damper_input d{};
+    d.x = in[VR_X];
+    d.v = in[VR_V];
+    d.a = in[VR_A];
+    d.u = in[VR_U];
+    d.temperature = in[VR_TEMP];
+    d.t = time_;
+    d.dt = 0.0;
+    d.stage = 0;
+    return d;
+  }
+
   // The states at the current time with the current inputs (see the file comment).
   void states_now(double* s) const noexcept {
     for (int i = 0; i < ST_N; ++i) s[i] = x_[i];
     if (me_) return;
     const double T = time_ - t0_;
     if (!(T > 0)) return;
-    if (used_[ST_ULAG]) {
-      const double u0 = start_in_[VR_U];
-      s[ST_ULAG] = u0 + (x_[ST_ULAG] - u0) * std::exp(-T / damper_.lag_tau());
-    }
-    if (used_[ST_VLAG]) {
-      const double tau = damper_.velocity_lag_tau(), v0 = start_in_[VR_V];
-      const double one_minus_a = -std::expm1(-T / tau);
-      s[ST_VLAG] = (1.0 - one_minus_a) * x_[ST_VLAG] + one_minus_a * v0 +
-                   (in_[VR_V] - v0) * (1.0 - tau * one_minus_a / T);
-    }
-    if (used_[ST_ZFRIC]) {
-      const double dx = in_[VR_X] - start_in_[VR_X];
-      if (dx != 0.0) {
-        const double sg = dx > 0.0 ? 1.0 : -1.0;
-        s[ST_ZFRIC] = sg + (x_[ST_ZFRIC] - sg) * std::exp(-std::fabs(dx) / damper_.presliding());
-      }
-    }
+    dampnet::DamperState now;
+    damper_.advance(damper_.span(T), dampnet::DamperState::load(x_), input(start_in_), input(in_), now);
+    for (int i = 0; i < ST_N; ++i)
+      if (used_[i]) s[i] = now.s[i];
   }
 
   void rates(const double* s, double* r) const noexcept {
-    for (int i = 0; i < ST_N; ++i) r[i] = 0.0;
-    if (used_[ST_ULAG]) r[ST_ULAG] = (in_[VR_U] - s[ST_ULAG]) / damper_.lag_tau();
-    if (used_[ST_VLAG]) r[ST_VLAG] = (in_[VR_V] - s[ST_VLAG]) / damper_.velocity_lag_tau();
-    if (used_[ST_ZFRIC]) r[ST_ZFRIC] = (in_[VR_V] - std::fabs(in_[VR_V]) * s[ST_ZFRIC]) / damper_.presliding();
+    dampnet::DamperState ds;
+    damper_.rates(dampnet::DamperState::load(s), input(in_), ds);
+    for (int i = 0; i < ST_N; ++i) r[i] = used_[i] ? ds.s[i] : 0.0;
   }
 
   Discrete discrete_now() const noexcept {
@@ -270,18 +260,9 @@ class DamperModel {
   int evaluate(double* force, uint32_t* mask, uint32_t* env = nullptr) const noexcept {
     double s[ST_N];
     states_now(s);
-    dn_damper_input d{};
-    d.x = in_[VR_X];
-    d.v = in_[VR_V];
-    d.a = in_[VR_A];
-    d.u = in_[VR_U];
-    d.temperature = in_[VR_TEMP];
-    d.t = time_;
-    d.dt = 0.0;
-    d.stage = 0;
-    d.u_lag = used_[ST_ULAG] ? s[ST_ULAG] : in_[VR_U];
-    d.v_lag = used_[ST_VLAG] ? s[ST_VLAG] : in_[VR_V];
-    d.z_fric = s[ST_ZFRIC];
+    dn_damper_input d = input(in_);
+    dampnet::DamperState now = dampnet::DamperState::load(s);
+    dampnet::Damper::fill(now, d);
     double feat[DN_MAX_INPUTS] = {};
     const int st = damper_.force(d, force, env ? feat : nullptr, mask);
     // a failed evaluation (a non-finite input) has no network inputs: outside, as in the quarter car

@@ -417,6 +417,9 @@ void bind_fullcar(py::module_& mod) {
 #define DNPY_CNAME_(k, name, doc) names.append(std::string(#name) + "_" + kCornerNames[i]);
       DN_FULLCAR_CORNER_STATE_LIST(DNPY_CNAME_)
 #undef DNPY_CNAME_
+#define DNPY_DSNAME_(id, name, unit, dyn, source, param, doc) names.append(std::string(#name) + "_" + kCornerNames[i]);
+      DN_DAMPER_STATE_LIST(DNPY_DSNAME_)  // the corner damper's block
+#undef DNPY_DSNAME_
     }
     mod.attr("FULLCAR_STATE_NAMES") = py::tuple(names);
     py::dict corner_out, out;

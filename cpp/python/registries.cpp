@@ -6,6 +6,7 @@
 #include <pybind11/stl.h>
 
 #include <initializer_list>
+#include <string>
 #include <tuple>
 #include <type_traits>
 #include <vector>
@@ -68,6 +69,21 @@ void add_registries(py::module_& mod) {
   mod.attr("FEATURE_INPUTS") = inputs;
   mod.attr("FEATURE_PARAMS") = params;
   mod.attr("FEATURE_PARAM_NAMES") = param_docs;
+
+  // the damper's states: {name: (unit, dynamics, source field, parameter, doc)} in block order,
+  // and the kinds of dynamics {name: (value, doc)}
+  py::dict dyn_names;
+  const char* dyn_of[8] = {};
+#define DNPY_DYN_(id, value, name, doc) dyn_names[name] = py::make_tuple(int(value), doc), dyn_of[value] = name;
+  DN_STATE_DYNAMICS_LIST(DNPY_DYN_)
+#undef DNPY_DYN_
+  mod.attr("STATE_DYNAMICS") = dyn_names;
+  py::dict damper_states;
+#define DNPY_DSTATE_(id, name, unit, dyn, source, param, doc) \
+  damper_states[#name] = py::make_tuple(unit, dyn_of[dyn], #source, param_names[(param)], doc);
+  DN_DAMPER_STATE_LIST(DNPY_DSTATE_)
+#undef DNPY_DSTATE_
+  mod.attr("DAMPER_STATES") = damper_states;
 
   py::dict damper_input;
 #define DNPY_INPUT_(type, name, role, doc) damper_input[#name] = doc;
@@ -140,10 +156,20 @@ void bind_registries(py::module_& mod) {
   // ---- registries ----
   {
     py::list names;
-#define DN_SNAME_(i, name, doc) names.append(#name);
+    py::dict state_docs, out_docs;
+#define DN_SNAME_(i, name, doc) names.append(#name), state_docs[#name] = doc;
     DN_LOOP_STATE_LIST(DN_SNAME_)
 #undef DN_SNAME_
+#define DN_DSNAME_(id, name, unit, dyn, source, param, doc) \
+  names.append(#name), state_docs[#name] = std::string("damper state: ") + doc + " [" + unit + "]";
+    DN_DAMPER_STATE_LIST(DN_DSNAME_)  // the damper's block, at DN_LOOP_DAMPER_BASE
+#undef DN_DSNAME_
     mod.attr("STATE_NAMES") = py::tuple(names);
+    mod.attr("STATE_DOCS") = state_docs;  // name -> meaning [unit], in state order
+#define DN_ONAME_(name, doc) out_docs[#name] = doc;
+    DN_LOOP_OUT_LIST(DN_ONAME_)
+#undef DN_ONAME_
+    mod.attr("LOOP_OUT_FIELDS") = out_docs;  // dn_loop_out's scalars: name -> meaning [unit]
     py::list feats;
 #define DN_FNAME_(id, name, field, param) feats.append(name);
     DN_FEATURE_LIST(DN_FNAME_)

@@ -15,7 +15,7 @@ static_assert(offsetof(dn_damper_input, v_lag) > offsetof(dn_damper_input, stage
 static_assert(offsetof(dn_controller, c_max) == 9 * sizeof(dn_real), "dn_controller 0.2 layout");
 static_assert(offsetof(dn_controller, u_tau_s) == 10 * sizeof(dn_real), "0.3 field appended");
 #define DN_STATE_COUNT_(i, name, doc) +1
-static_assert(DN_LOOP_STATE_SIZE == 0 DN_LOOP_STATE_LIST(DN_STATE_COUNT_), "DN_LOOP_STATE_SIZE");
+static_assert(DN_LOOP_DAMPER_BASE == 0 DN_LOOP_STATE_LIST(DN_STATE_COUNT_), "the damper block follows the loop's states");
 #undef DN_STATE_COUNT_
 
 namespace {

@@ -12,6 +12,7 @@
 #include <cstring>
 #include <type_traits>
 
+#include "dampnet/damper_state.hpp"
 #include "dampnet/dampnet.h"
 #include "dampnet/mlp.hpp"
 #include "dampnet/real.hpp"
@@ -107,12 +108,78 @@ class Damper {
 
   // A feature parameter's value, 0 when not set (every parameter is > 0 when set).
   real fparam(int id) const noexcept { return fparam_set[id] ? fparams[id] : real(0); }
-  // The control-lag time constant [s] (0: no lag feature, u_lag follows u).
-  real lag_tau() const noexcept { return fparam(DN_FPARAM_CONTROL_LAG_TAU_S); }
-  // The velocity-lag time constant [s] (0: v_lag follows v).
-  real velocity_lag_tau() const noexcept { return fparam(DN_FPARAM_VELOCITY_LAG_TAU_S); }
-  // The Dahl pre-sliding travel [m] (0: no friction_state; z_fric stays 0).
-  real presliding() const noexcept { return fparam(DN_FPARAM_FRICTION_PRESLIDING_M); }
+
+  // ---- its state (DN_DAMPER_STATE_LIST; the formulas in damper_state.hpp) ----
+  // A state moves by its dynamics when the model sets its parameter; otherwise a lag follows
+  // its source and a Dahl state stays at rest.
+  bool state_on(int k) const noexcept {
+    switch (k) {
+#define DN_DS_ON_(id, name, unit, dyn, source, param, doc) \
+  case id:                                                 \
+    return fparam_set[param];
+      DN_DAMPER_STATE_LIST(DN_DS_ON_)
+#undef DN_DS_ON_
+      default:
+        return false;
+    }
+  }
+  // Whether the model reads state k (a neural feature reads its field).
+  bool state_read(int k) const noexcept {
+    const features::Info* t = features::table();
+    for (int i = 0; i < n_feat && kind == DN_DAMPER_NEURAL; ++i) {
+      switch (k) {
+#define DN_DS_READ_(id, name, unit, dyn, source, param, doc) \
+  case id:                                                   \
+    if (t[feat[i]].field == &dn_damper_input::name) return true; \
+    break;
+        DN_DAMPER_STATE_LIST(DN_DS_READ_)
+#undef DN_DS_READ_
+        default:
+          break;
+      }
+    }
+    return false;
+  }
+  // The coefficients of an interval of T > 0 seconds (a fixed-step host prepares dt / 2 and dt).
+  DamperSpan span(real T) const noexcept {
+    DamperSpan sp;
+#define DN_DS_SPAN_(id, name, unit, dyn, source, param, doc) \
+  if (fparam_set[param]) dynamics::Rule<dyn>::coefficients(fparams[param], T, sp.keep[id], sp.gain[id]);
+    DN_DAMPER_STATE_LIST(DN_DS_SPAN_)
+#undef DN_DS_SPAN_
+    return sp;
+  }
+  // [RT] The states T after an interval's start (T of sp), from s0 there where the input was in0,
+  // to the input in now (its sources x, v, u set).
+  void advance(const DamperSpan& sp, const DamperState& s0, const dn_damper_input& in0,
+               const dn_damper_input& in, DamperState& s) const noexcept {
+#define DN_DS_ADVANCE_(id, name, unit, dyn, source, param, doc)                                  \
+  s.s[id] = dynamics::Rule<dyn>::advance(fparam_set[param], s0.s[id], in0.source, in.source, \
+                                         sp.keep[id], sp.gain[id]);
+    DN_DAMPER_STATE_LIST(DN_DS_ADVANCE_)
+#undef DN_DS_ADVANCE_
+  }
+  // [RT] Write the states into the input fields of their names.
+  static void fill(const DamperState& s, dn_damper_input& in) noexcept {
+#define DN_DS_FILL_(id, name, unit, dyn, source, param, doc) in.name = s.s[id];
+    DN_DAMPER_STATE_LIST(DN_DS_FILL_)
+#undef DN_DS_FILL_
+  }
+  // [RT] The states at rest with the input `at` (its sources): a lag at its source, Dahl 0.
+  static DamperState rest(const dn_damper_input& at) noexcept {
+    DamperState s;
+#define DN_DS_REST_(id, name, unit, dyn, source, param, doc) s.s[id] = dynamics::Rule<dyn>::rest(at.source);
+    DN_DAMPER_STATE_LIST(DN_DS_REST_)
+#undef DN_DS_REST_
+    return s;
+  }
+  // [RT] The states' time derivatives at input in (model exchange); 0 for a state that is off.
+  void rates(const DamperState& s, const dn_damper_input& in, DamperState& ds) const noexcept {
+#define DN_DS_RATE_(id, name, unit, dyn, source, param, doc) \
+  ds.s[id] = fparam_set[param] ? dynamics::Rule<dyn>::rate(s.s[id], in.source, in.v, fparams[param]) : real(0);
+    DN_DAMPER_STATE_LIST(DN_DS_RATE_)
+#undef DN_DS_RATE_
+  }
 
   // ---- set-up ----
   int set_linear(double c) noexcept {

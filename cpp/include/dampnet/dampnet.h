@@ -58,7 +58,7 @@ extern "C" {
 /*---- Version ----*/
 
 #define DN_VERSION_MAJOR 0
-#define DN_VERSION_MINOR 4 /* 0.4: the full vehicle dn_fullcar_* (0.3: dn_controller.u_tau_s, 13 loop states; 0.2: dn_damper_input.v_lag/z_fric) */
+#define DN_VERSION_MINOR 5 /* 0.5: the damper owns its state (DN_DAMPER_STATE_LIST; the loop and full-car states keep it as one block); 0.4: the full vehicle dn_fullcar_* (0.3: dn_controller.u_tau_s, 13 loop states; 0.2: dn_damper_input.v_lag/z_fric) */
 #define DN_VERSION_PATCH 0
 /* Version of this header as major*10000 + minor*100 + patch. */
 #define DN_VERSION_HEADER (DN_VERSION_MAJOR * 10000 + DN_VERSION_MINOR * 100 + DN_VERSION_PATCH)
@@ -375,6 +375,21 @@ DN_API int dn_envelope_check_f(const dn_envelope* e, const float* x, uint32_t* f
  * unsprung move apart); the force F is positive when it resists extension
  * (tension). In the quarter car: x = z_s - z_us + x_static, v = dz_s - dz_us. */
 
+/* Rows a test build appends to the feature lists (tests/python/test_state_recipe.py proves the
+ * recipe below with them); empty otherwise. */
+#ifndef DN_EXTRA_FEATURE_PARAMS
+#define DN_EXTRA_FEATURE_PARAMS(X)
+#endif
+#ifndef DN_EXTRA_INPUT_FIELDS
+#define DN_EXTRA_INPUT_FIELDS(X)
+#endif
+#ifndef DN_EXTRA_FEATURES
+#define DN_EXTRA_FEATURES(X)
+#endif
+#ifndef DN_EXTRA_DAMPER_STATES
+#define DN_EXTRA_DAMPER_STATES(X)
+#endif
+
 /* Constants of derived features (MlpModel.feature_params), by name:
  * X(id, "name", meaning). Unknown names are refused (DN_E_UNKNOWN_NAME). */
 #define DN_FEATURE_PARAM_LIST(X)                                                                   \
@@ -382,7 +397,8 @@ DN_API int dn_envelope_check_f(const dn_envelope* e, const float* x, uint32_t* f
     "time constant of voltage_lag / current_lag [s], > 0")                                         \
   X(DN_FPARAM_VELOCITY_LAG_TAU_S, "velocity_lag_tau_s", "time constant of velocity_lag [s], > 0") \
   X(DN_FPARAM_FRICTION_PRESLIDING_M, "friction_presliding_m",                                       \
-    "pre-sliding travel of friction_state [m], > 0")
+    "pre-sliding travel of friction_state [m], > 0")                                               \
+  DN_EXTRA_FEATURE_PARAMS(X)
 
 #define DN_FPARAM_ENUM_(id, name, text) id,
 /* DN_FPARAM_NONE: a feature that needs no parameter (DN_FEATURE_LIST's last column). */
@@ -413,7 +429,8 @@ typedef enum dn_feature_param {
     "velocity after a first-order lag of the model's velocity_lag_tau_s [m/s]")             \
   X(dn_real, z_fric, QTY_OPT,                                                                 \
     "Dahl friction state in [-1, 1]: follows sgn(v) over a travel of a few "                \
-    "friction_presliding_m after each reversal [-]")
+    "friction_presliding_m after each reversal [-]")                                        \
+  DN_EXTRA_INPUT_FIELDS(X)
 
 #define DN_INPUT_DECL_(type, name, role, doc) type name;
 typedef struct dn_damper_input { DN_DAMPER_INPUT_FIELDS(DN_INPUT_DECL_) } dn_damper_input;
@@ -423,33 +440,27 @@ typedef struct dn_damper_input { DN_DAMPER_INPUT_FIELDS(DN_INPUT_DECL_) } dn_dam
  * dn_damper_input it reads, dn_feature_param it needs or DN_FPARAM_NONE). Values are
  * positions in the list (ABI: append only).
  *
- * Recipe: adding a lagged feature (like velocity_lag) touches this header and the loop's
- * state update only, on the C/C++ side: the C ABI, damper.hpp, the Python module
- * dampnet._core (its registries, DamperInput, Damper.forces's arguments, Loop.state and
- * Loop.simulate's columns) are expanded from these lists, and the C/C++ tests need no edit.
- * Here:
+ * Recipe: a new stateful feature (a lag, a friction or valve state) touches four places, all
+ * in this header, and nothing else: every host (the quarter-car loop, the full car, the damper
+ * and quarter-car FMUs in co-simulation and model exchange, the Cortex-M firmware), the C ABI's
+ * state lists, dampnet._core's registries, DamperInput and Damper.forces, and Python's feature
+ * registry, reference loop and training columns are expanded from these lists.
  *  1. DN_FEATURE_PARAM_LIST: its constant, e.g.
  *       X(DN_FPARAM_DISPLACEMENT_LAG_TAU_S, "displacement_lag_tau_s",
  *         "time constant of displacement_lag [s], > 0")
  *  2. DN_DAMPER_INPUT_FIELDS: append the field holding its value (role QTY_OPT: appended
  *     fields keep the ABI, and Damper.forces gets it as an argument defaulting to NaN), e.g.
- *       X(double, x_lag, QTY_OPT, "relative displacement after a first-order lag [m]")
+ *       X(dn_real, x_lag, QTY_OPT, "relative displacement after a first-order lag [m]")
  *  3. DN_FEATURE_LIST: append its line (field and parameter from steps 1-2), e.g.
  *       X(DN_FEAT_DISPLACEMENT_LAG, "displacement_lag", x_lag, DN_FPARAM_DISPLACEMENT_LAG_TAU_S)
- *  4. DN_LOOP_STATE_LIST: append its state slot and raise DN_LOOP_STATE_SIZE (a static_assert
- *     checks the count), e.g.  X(13, x_lag, "relative displacement after displacement_lag's lag [m]")
- *  5. cpp/include/dampnet/loop.hpp, the state update: its coefficients in LoopModel::init
- *     (from damper.fparam(DN_FPARAM_DISPLACEMENT_LAG_TAU_S); 0 when the model does not use it),
- *     its value at each damper evaluation (detail::damper_input, fed like v_lag through
- *     detail::motion_lag or the step-start state; a field left out there reaches the model as
- *     NaN and the step fails with DN_E_DIVERGED), its end-of-step value ns[S_x_lag] in step()
- *     (and in the finiteness check there), and its rest value in reset() (0 unless set).
- * A lag of x, v or u (known at the step start) is also mirrored exactly by the Python reference
- * loop from its features.py declaration; a lag of the acceleration would not be.
- * Python side: its training formula in the package's feature registry, and one attribute line
- * for the new DamperInput field in python/dampnet/_core.pyi (tests/python/test_core_stub.py
- * names it until it is there). Tried with such a dummy feature: the library, _core and
- * tests/cpp built and passed with no other edit. */
+ *  4. DN_DAMPER_STATE_LIST: append its state (named as its field; its dynamics one of
+ *     DN_STATE_DYNAMICS_LIST, its source x, v or u), e.g.
+ *       X(DN_DS_X_LAG, x_lag, "m", DN_DYN_LAG_RAMP, x, DN_FPARAM_DISPLACEMENT_LAG_TAU_S,
+ *         "relative displacement after displacement_lag's lag")
+ * A new kind of dynamics is a row of DN_STATE_DYNAMICS_LIST and its three formulas in
+ * cpp/include/dampnet/damper_state.hpp (and python/dampnet/features.py's twin).
+ * tests/python/test_state_recipe.py proves the recipe: it adds such a feature through the
+ * DN_EXTRA_* hooks below (a test build only) and runs it through every host. */
 #define DN_FEATURE_LIST(X)                                                                \
   X(DN_FEAT_VELOCITY, "velocity", v, DN_FPARAM_NONE)                                      \
   X(DN_FEAT_ACCELERATION, "acceleration", a, DN_FPARAM_NONE)                              \
@@ -460,11 +471,47 @@ typedef struct dn_damper_input { DN_DAMPER_INPUT_FIELDS(DN_INPUT_DECL_) } dn_dam
   X(DN_FEAT_CURRENT_LAG, "current_lag", u_lag, DN_FPARAM_CONTROL_LAG_TAU_S)               \
   X(DN_FEAT_TEMPERATURE, "temperature", temperature, DN_FPARAM_NONE)                      \
   X(DN_FEAT_VELOCITY_LAG, "velocity_lag", v_lag, DN_FPARAM_VELOCITY_LAG_TAU_S)            \
-  X(DN_FEAT_FRICTION_STATE, "friction_state", z_fric, DN_FPARAM_FRICTION_PRESLIDING_M)
+  X(DN_FEAT_FRICTION_STATE, "friction_state", z_fric, DN_FPARAM_FRICTION_PRESLIDING_M)  \
+  DN_EXTRA_FEATURES(X)
 
 #define DN_FEATURE_ENUM_(id, name, field, param) id,
 typedef enum dn_feature { DN_FEATURE_LIST(DN_FEATURE_ENUM_) DN_N_FEATURES } dn_feature;
 #undef DN_FEATURE_ENUM_
+
+/* How a damper state moves: X(id, value, "name", meaning). A host steps the state over an
+ * interval of T seconds from a start where the source was src0 to now (src), holding it for
+ * DN_DYN_LAG_HELD; cpp/include/dampnet/damper_state.hpp has the formulas. */
+#define DN_STATE_DYNAMICS_LIST(X)                                                                \
+  X(DN_DYN_LAG_HELD, 0, "lag_held",                                                              \
+    "first-order lag of a source held over each step (the control): s = src0 + (s0 - src0) "    \
+    "exp(-T/tau); ds/dt = (src - s) / tau; without its parameter s = src")                     \
+  X(DN_DYN_LAG_RAMP, 1, "lag_ramp",                                                              \
+    "first-order lag of a source moving as a ramp over each step (a motion quantity), exact: "  \
+    "s = A s0 + (1 - A) src0 + (src - src0) (1 - tau (1 - A) / T), A = exp(-T/tau); "          \
+    "ds/dt = (src - s) / tau; without its parameter s = src")                                  \
+  X(DN_DYN_DAHL, 2, "dahl",                                                                      \
+    "Dahl state along the source's travel dx = src - src0 (the step's net travel): s = sg + "   \
+    "(s0 - sg) exp(-|dx| / x_c), sg = sgn(dx); ds/dt = (v - |v| s) / x_c; without its "         \
+    "parameter s stays")
+typedef enum dn_state_dynamics { DN_STATE_DYNAMICS_LIST(DN_ENUM_ROW_) } dn_state_dynamics;
+
+/* The damper's own states: X(id, name, unit, dynamics, source, parameter, meaning). Each
+ * state fills the dn_damper_input field of its name; its source (x, v or u: what every host
+ * knows over a step) and parameter (dn_feature_param: a time constant or a length) drive its
+ * dynamics; a state whose parameter the model does not set follows its dynamics' default
+ * (a lag: its source). The damper owns the update (Damper::span, advance, fill, rest, rates in
+ * damper_state.hpp); a host only keeps the block of DN_DAMPER_STATE_SIZE values. */
+#define DN_DAMPER_STATE_LIST(X)                                                                 \
+  X(DN_DS_U_LAG, u_lag, "V", DN_DYN_LAG_HELD, u, DN_FPARAM_CONTROL_LAG_TAU_S,              \
+    "control after the control lag (voltage_lag / current_lag; the model's control unit)")                                \
+  X(DN_DS_V_LAG, v_lag, "m/s", DN_DYN_LAG_RAMP, v, DN_FPARAM_VELOCITY_LAG_TAU_S,                \
+    "relative velocity after the velocity_lag feature's lag")                                   \
+  X(DN_DS_Z_FRIC, z_fric, "-", DN_DYN_DAHL, x, DN_FPARAM_FRICTION_PRESLIDING_M,                 \
+    "Dahl friction state of the friction_state feature, in [-1, 1]")                            \
+  DN_EXTRA_DAMPER_STATES(X)
+#define DN_DS_ENUM_(id, name, unit, dyn, source, param, doc) id,
+typedef enum dn_damper_state { DN_DAMPER_STATE_LIST(DN_DS_ENUM_) DN_DAMPER_STATE_SIZE } dn_damper_state;
+#undef DN_DS_ENUM_
 
 /* Physics terms added to any damper model's force (hybrid = neural + terms):
  * X(id, value, "kind" (MlpModel.terms[i]["kind"]), number of params, formula).
@@ -776,7 +823,8 @@ DN_API void dn_controller_default(dn_controller* c, int kind);
 DN_API int dn_vehicle_check(const dn_vehicle* v);
 DN_API int dn_controller_check(const dn_controller* c);
 
-/* The loop's state, a flat array of dn_real: X(index, name, doc). */
+/* The loop's state, a flat array of dn_real: the loop's own X(index, name, doc), then the
+ * damper's state block (DN_DAMPER_STATE_LIST) at DN_LOOP_DAMPER_BASE + its id. */
 #define DN_LOOP_STATE_LIST(X)                                                         \
   X(0, t, "time [s]")                                                                 \
   X(1, z_s, "sprung-mass displacement from static equilibrium [m]")                   \
@@ -785,13 +833,11 @@ DN_API int dn_controller_check(const dn_controller* c);
   X(4, v_us, "unsprung-mass velocity [m/s]")                                          \
   X(5, z_r, "road displacement at t [m]")                                             \
   X(6, v_r, "road rate at t [m/s]")                                                   \
-  X(7, u_lag, "control after the first-order lag [V]")                                \
-  X(8, f_last, "force of the most recent damper evaluation [N] (acceleration start value)") \
-  X(9, temperature, "damper temperature [degC]")                                      \
-  X(10, v_lag, "relative velocity after the velocity_lag feature's lag [m/s]")        \
-  X(11, z_fric, "Dahl friction state of the friction_state feature [-]")                \
-  X(12, u_cmd, "control applied over the last step, after the command filter [V]")
-#define DN_LOOP_STATE_SIZE 13
+  X(7, f_last, "force of the most recent damper evaluation [N] (acceleration start value)") \
+  X(8, temperature, "damper temperature [degC]")                                      \
+  X(9, u_cmd, "control applied over the last step, after the command filter [V]")
+#define DN_LOOP_DAMPER_BASE 10
+#define DN_LOOP_STATE_SIZE (DN_LOOP_DAMPER_BASE + DN_DAMPER_STATE_SIZE)
 
 /* Per step input: the road at the END of the step (t + dt) and an external control. */
 typedef struct dn_loop_input {
@@ -979,7 +1025,7 @@ DN_API void dn_fullcar_default(dn_fullcar_params* p);
  * out of its documented range, an unknown enum value), DN_E_NULL. */
 DN_API int dn_fullcar_check(const dn_fullcar_params* p);
 /* The state, a flat array of doubles: the vehicle's X(index, name, doc), then per corner
- * i = 0..3 the corner's X(offset, name, doc) at DN_FULLCAR_CORNER_BASE + i *
+ * i = 0..3 the corner's X(offset, name, doc) and its damper's state block at DN_FULLCAR_CORNER_BASE + i *
  * DN_FULLCAR_CORNER_SIZE + offset (Python names: name + "_fl" / "_fr" / "_rl" / "_rr"). */
 #define DN_FULLCAR_STATE_LIST(X)                                                    \
   X(0, t, "time [s]")                                                               \
@@ -1001,14 +1047,13 @@ DN_API int dn_fullcar_check(const dn_fullcar_params* p);
   X(1, v_us, "wheel velocity [m/s]")                                                     \
   X(2, z_r, "road under the wheel at t [m]")                                             \
   X(3, v_r, "road rate under the wheel at t [m/s]")                                      \
-  X(4, u_lag, "control after the first-order lag [V]")                                   \
-  X(5, f_last, "force of the most recent damper evaluation [N]")                         \
-  X(6, v_lag, "relative velocity after the velocity_lag feature's lag [m/s]")            \
-  X(7, z_fric, "Dahl friction state of the friction_state feature [-]")                  \
-  X(8, u_cmd, "control applied over the last step, after the command filter [V]")        \
-  X(9, temperature, "damper temperature [degC]")
-#define DN_FULLCAR_CORNER_SIZE 10
-#define DN_FULLCAR_STATE_SIZE 53
+  X(4, f_last, "force of the most recent damper evaluation [N]")                         \
+  X(5, u_cmd, "control applied over the last step, after the command filter [V]")        \
+  X(6, temperature, "damper temperature [degC]")
+/* then the corner's damper state block (DN_DAMPER_STATE_LIST) at offset DN_FULLCAR_CORNER_DAMPER */
+#define DN_FULLCAR_CORNER_DAMPER 7
+#define DN_FULLCAR_CORNER_SIZE (DN_FULLCAR_CORNER_DAMPER + DN_DAMPER_STATE_SIZE)
+#define DN_FULLCAR_STATE_SIZE (DN_FULLCAR_CORNER_BASE + DN_FULLCAR_CORNERS * DN_FULLCAR_CORNER_SIZE)
 /* Per step input, at the END of the step (t + dt). */
 typedef struct dn_fullcar_input {
   double z_r[DN_FULLCAR_CORNERS]; /* road under each wheel [m] */

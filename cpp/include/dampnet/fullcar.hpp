@@ -1,8 +1,9 @@
 // The full vehicle: a ride-and-handling model with four dampers (the thesis's chapter 5.2),
 // beside the quarter-car loop and built like it (loop.hpp):
 //
-//   FullCarModel   constant: parameters, per corner a LoopModel (its damper copy, controller
-//                  and derived coefficients), the corner-mobility matrix, the driver's path.
+//   FullCarModel   constant: parameters, per corner a Corner (loop.hpp: its damper copy with the
+//                  damper state's step coefficients, its controller), the corner-mobility
+//                  matrix, the driver's path.
 //   FullCarData    mutable: the flat state (DN_FULLCAR_STATE_LIST + corners) and a counter.
 //   step(m, d, in, out)   one step; forward(m, d, in, out) reports without advancing.
 //
@@ -94,7 +95,7 @@ enum FullCarCornerIndex {
 };
 #define DN_FC_COUNT_(i, name, doc) +1
 static_assert(DN_FULLCAR_CORNER_BASE == 0 DN_FULLCAR_STATE_LIST(DN_FC_COUNT_), "corner base");
-static_assert(DN_FULLCAR_CORNER_SIZE == 0 DN_FULLCAR_CORNER_STATE_LIST(DN_FC_COUNT_), "corner size");
+static_assert(DN_FULLCAR_CORNER_DAMPER == 0 DN_FULLCAR_CORNER_STATE_LIST(DN_FC_COUNT_), "corner damper block");
 #undef DN_FC_COUNT_
 static_assert(DN_FULLCAR_STATE_SIZE == DN_FULLCAR_CORNER_BASE + kCorners * DN_FULLCAR_CORNER_SIZE,
               "DN_FULLCAR_STATE_SIZE");
@@ -169,8 +170,9 @@ inline void corner_mobility(const dn_fullcar_params& p, double K[kCorners][kCorn
 
 struct FullCarModel {
   dn_fullcar_params p = default_fullcar();
-  LoopModel corner[kCorners];  // damper copy, controller, lag coefficients (m_s = 1 / G_ii)
+  Corner corner[kCorners];  // damper copy with its state's coefficients, controller
   double xc[kCorners] = {}, yc[kCorners] = {};  // corner positions [m]
+  double xs[kCorners] = {};  // x_static per corner: the damper's x at static equilibrium [m]
   double ks[kCorners] = {}, inv_mus[kCorners] = {}, n0[kCorners] = {}, k_lin[kCorners] = {};
   double fs[kCorners] = {};  // f_static per corner [N]
   double karb[2] = {}, geo[2] = {};  // per axle: ARB rate, h_rc / t
@@ -228,25 +230,10 @@ struct FullCarModel {
     any_implicit = false;
     for (int i = 0; i < kCorners; ++i) {
       if (!dampers[i]) return DN_E_NULL;
-      // The corner as a quarter car: its sprung mass is the body's mobility at the corner
-      // (1 / G_ii), so the corner's LoopModel derives k_rel = K_ii and every lag coefficient.
-      dn_vehicle qv = default_vehicle();
-      const bool front = i < 2;
-      qv.m_s = 1.0 / (K[i][i] - inv_mus[i]);
-      qv.m_us = front ? v.m_us_f : v.m_us_r;
-      qv.k_s = ks[i];
-      qv.k_t = v.k_t;
-      qv.c_t = v.c_t;
-      qv.dt = v.dt;
-      qv.integrator = DN_INT_RK4;
-      qv.damper_eval = v.damper_eval;
-      qv.x_static = front ? v.x_static_f : v.x_static_r;
-      qv.f_static = fs[i];
-      qv.temperature = v.temperature;
-      qv.accel_feature = v.accel_feature;
       dn_controller c = ctrls ? ctrls[i] : default_controller(DN_CTRL_PASSIVE);
       if (!ctrls) c.u_passive = 0.0;
-      st = corner[i].init(qv, *dampers[i], c);
+      xs[i] = i < 2 ? v.x_static_f : v.x_static_r;
+      st = corner[i].init(*dampers[i], c, v.dt, v.accel_feature);
       if (st != DN_OK) return st;
       if (corner[i].implicit_a) any_implicit = true;
     }
@@ -497,7 +484,7 @@ inline int evaluate_corners(const FullCarModel& m, dn_damper_input* in, const do
   };
   if (!m.any_implicit) {
     for (int i = 0; i < kCorners; ++i) {
-      const LoopModel& c = m.corner[i];
+      const Corner& c = m.corner[i];
       merge(diverged_if_overflow(c, c.damper.force(in[i], &F[i],
                                                    feat_out ? feat_out + i * DN_MAX_INPUTS : nullptr,
                                                    mask ? &mask[i] : nullptr)));
@@ -537,7 +524,7 @@ inline int evaluate_corners(const FullCarModel& m, dn_damper_input* in, const do
       *n_evals += kCorners;
     }
     for (int i = 0; i < kCorners && !m.batch4; ++i) {
-      const LoopModel& c = m.corner[i];
+      const Corner& c = m.corner[i];
       D[i] = 0.0;
       int st;
       if (c.implicit_a) st = diverged_if_overflow(c, c.damper.force_da(in[i], &f0[i], &D[i], &mk[i]));
@@ -622,29 +609,31 @@ inline int evaluate_corners(const FullCarModel& m, dn_damper_input* in, const do
   return done ? best_status : (best_status | DN_W_ACCEL_UNCONVERGED);
 }
 
-// The damper inputs at one evaluation point (a from the explicit forces f_last).
+// The damper inputs at one evaluation point (a from the explicit forces f_last), their states
+// not yet filled (Damper::advance / fill).
 inline void corner_inputs(const FullCarModel& m, const FcMotion& y, const FcFree& f,
-                          const double* f_last, const double* u, const double* ul,
-                          const MotionLag* lag, const double* temp, double t, int stage,
-                          dn_damper_input* in) noexcept {
+                          const double* f_last, const double* u, const double* temp, double t,
+                          int stage, dn_damper_input* in) noexcept {
   double dF[kCorners], arel[kCorners];
   for (int i = 0; i < kCorners; ++i) dF[i] = f_last[i] - m.fs[i];
   relative_accel(m, accelerations(m, y, f, dF), arel);
   for (int i = 0; i < kCorners; ++i) {
     dn_damper_input d = unfilled_input();
-    d.x = f.dfl[i] + m.corner[i].veh.x_static;
+    d.x = f.dfl[i] + m.xs[i];
     d.v = f.vb[i] - y.vus[i];
     d.a = arel[i];
     d.u = u[i];
-    d.u_lag = ul[i];
-    d.v_lag = lag[i].v_lag;
-    d.z_fric = lag[i].z_fric;
     d.temperature = temp[i];
     d.t = t;
     d.dt = m.p.dt;
     d.stage = stage;
     in[i] = d;
   }
+}
+
+// Corner i's damper state block in the flat state.
+inline DamperState corner_damper_state(const double* s, int i) noexcept {
+  return DamperState::load(s + fc_corner(i, DN_FULLCAR_CORNER_DAMPER));
 }
 
 inline FcMotion motion_of(const double* s) noexcept {
@@ -708,6 +697,7 @@ inline double steer_for_step(const FullCarModel& m, const double* s, double stee
 // Everything at the step start: controls, steering, first evaluation, report.
 struct FcStart {
   double u[kCorners], F[kCorners], delta, cos_delta;
+  dn_damper_input in[kCorners];  // the dampers' inputs at the step start
   FcFree f;
   FcAccel acc;
   int status;
@@ -718,26 +708,20 @@ inline FcStart fc_start(const FullCarModel& m, const double* s, const dn_fullcar
   FcStart r;
   const FcMotion y = motion_of(s);
   r.delta = steer_for_step(m, s, in.steer);
-  double zr[kCorners], vr[kCorners], ul[kCorners], fl[kCorners], temp[kCorners];
-  MotionLag lag[kCorners];
+  double zr[kCorners], vr[kCorners], fl[kCorners], temp[kCorners];
   for (int i = 0; i < kCorners; ++i) {
-    const LoopModel& c = m.corner[i];
     zr[i] = s[fc_corner(i, FCC_z_r)];
     vr[i] = s[fc_corner(i, FCC_v_r)];
-    ul[i] = s[fc_corner(i, FCC_u_lag)];
     fl[i] = s[fc_corner(i, FCC_f_last)];
     temp[i] = s[fc_corner(i, FCC_temperature)];
-    lag[i] = {s[fc_corner(i, FCC_v_lag)], s[fc_corner(i, FCC_z_fric)]};
     const double vb = y.vz + m.yc[i] * y.p - m.xc[i] * y.q;
-    double u = control_law(c.ctrl, vb, y.vus[i], in.u[i]);
-    if (c.cmd_keep > 0.0)
-      u = clamp(u + (s[fc_corner(i, FCC_u_cmd)] - u) * c.cmd_keep, c.ctrl.u_min, c.ctrl.u_max);
-    r.u[i] = u;
+    r.u[i] = m.corner[i].command(vb, y.vus[i], in.u[i], s[fc_corner(i, FCC_u_cmd)]);
   }
   r.cos_delta = std::cos(r.delta);
   r.f = free_forces(m, y, zr, vr, r.delta, r.cos_delta);
-  dn_damper_input di[kCorners];
-  corner_inputs(m, y, r.f, fl, r.u, ul, lag, temp, s[FC_t], 0, di);
+  dn_damper_input* di = r.in;
+  corner_inputs(m, y, r.f, fl, r.u, temp, s[FC_t], 0, di);
+  for (int i = 0; i < kCorners; ++i) Damper::fill(corner_damper_state(s, i), di[i]);
   double feat[kCorners * DN_MAX_INPUTS];
   uint32_t mask[kCorners] = {};
   r.status = evaluate_corners(m, di, fl, r.F, out ? feat : nullptr, mask, n_evals);
@@ -788,12 +772,12 @@ inline bool finite_input(const FullCarModel& m, const dn_fullcar_input& in, bool
 inline void reset(const FullCarModel& m, FullCarData& d) noexcept {
   for (double& x : d.s) x = 0.0;
   for (int i = 0; i < kCorners; ++i) {
-    const LoopModel& c = m.corner[i];
-    const double u0 = c.ctrl.kind == DN_CTRL_EXTERNAL ? 0.0 : control_law(c.ctrl, 0.0, 0.0, 0.0);
-    d.s[fc_corner(i, FCC_u_lag)] = u0;
+    const Corner& c = m.corner[i];
+    const double u0 = c.command_at_rest();
     d.s[fc_corner(i, FCC_u_cmd)] = u0;
     d.s[fc_corner(i, FCC_f_last)] = m.fs[i];
     d.s[fc_corner(i, FCC_temperature)] = m.p.temperature;
+    c.rest_state(m.xs[i], u0).store(d.s + fc_corner(i, DN_FULLCAR_CORNER_DAMPER));
   }
 }
 
@@ -818,45 +802,36 @@ DN_REALTIME inline int step(const FullCarModel& m, FullCarData& d, const dn_full
 
   const double t0 = s[FC_t];
   const FcMotion y0 = motion_of(s);
-  double ul0[kCorners], ul_mid[kCorners], ul_end[kCorners], temp[kCorners];
+  double temp[kCorners];
   double zr0[kCorners], vr0[kCorners], zrm[kCorners], vrm[kCorners];
-  double vrel0[kCorners], xrel0[kCorners], f_last[kCorners];
-  MotionLag lag0[kCorners];
+  double f_last[kCorners];
+  DamperState ds0[kCorners];
   for (int i = 0; i < kCorners; ++i) {
-    const LoopModel& c = m.corner[i];
-    const double u = r.u[i];
-    ul0[i] = s[fc_corner(i, FCC_u_lag)];
-    const bool has_lag = c.lag_full > 0.0;
-    ul_mid[i] = has_lag ? u + (ul0[i] - u) * c.lag_half : u;
-    ul_end[i] = has_lag ? u + (ul0[i] - u) * c.lag_full : u;
     temp[i] = s[fc_corner(i, FCC_temperature)];
     zr0[i] = s[fc_corner(i, FCC_z_r)];
     vr0[i] = s[fc_corner(i, FCC_v_r)];
     // road at mid-step: cubic Hermite of (zr0, vr0) -> (zr1, vr1), as the quarter car
     zrm[i] = 0.5 * (zr0[i] + in.z_r[i]) + 0.125 * h * (vr0[i] - in.v_r[i]);
     vrm[i] = 1.5 * (in.z_r[i] - zr0[i]) / h - 0.25 * (vr0[i] + in.v_r[i]);
-    lag0[i] = {s[fc_corner(i, FCC_v_lag)], s[fc_corner(i, FCC_z_fric)]};
-    vrel0[i] = r.f.vb[i] - y0.vus[i];
-    xrel0[i] = r.f.dfl[i];
+    ds0[i] = corner_damper_state(s, i);
     f_last[i] = r.F[i];
   }
   const bool per_stage = m.p.damper_eval == DN_EVAL_PER_STAGE;
   const Heading hd{y0.psi, std::sin(y0.psi), std::cos(y0.psi)};
   // The derivative at a stage point: dampers evaluated (per_stage) or held (per_step).
-  auto stage_deriv = [&](const FcMotion& y, const double* zr, const double* vr,
-                         const double* ul, double t, int stage) noexcept -> FcMotion {
+  auto stage_deriv = [&](const FcMotion& y, const double* zr, const double* vr, double t,
+                         int stage) noexcept -> FcMotion {
     const FcFree f = free_forces(m, y, zr, vr, r.delta, r.cos_delta, per_stage ? nullptr : &r.f);
     double F[kCorners];
     if (per_stage) {
-      const bool half = stage < 3;
-      MotionLag lag[kCorners];
-      for (int i = 0; i < kCorners; ++i) {
-        const LoopModel& c = m.corner[i];
-        lag[i] = motion_lag(c, lag0[i], vrel0[i], xrel0[i], f.vb[i] - y.vus[i], f.dfl[i],
-                            half ? c.vlag_a_half : c.vlag_a_full, half ? c.vlag_g_half : c.vlag_g_full);
-      }
       dn_damper_input di[kCorners];
-      corner_inputs(m, y, f, f_last, r.u, ul, lag, temp, t, stage, di);
+      corner_inputs(m, y, f, f_last, r.u, temp, t, stage, di);
+      for (int i = 0; i < kCorners; ++i) {
+        const Corner& c = m.corner[i];
+        DamperState ds;
+        c.damper.advance(stage < 3 ? c.half : c.full, ds0[i], r.in[i], di[i], ds);
+        Damper::fill(ds, di[i]);
+      }
       const int st = evaluate_corners(m, di, f_last, F, nullptr, nullptr, &d.n_evals);
       if (st < 0) status = st;
       else if (status >= 0) status |= st;
@@ -878,11 +853,11 @@ DN_REALTIME inline int step(const FullCarModel& m, FullCarData& d, const dn_full
   };
   const FcMotion k1 = derivative(m, y0, r.f, r.acc, hd);
   const FcMotion y1 = axpy(y0, 0.5 * h, k1);
-  const FcMotion k2 = stage_deriv(y1, zrm, vrm, ul_mid, t0 + 0.5 * h, 1);
+  const FcMotion k2 = stage_deriv(y1, zrm, vrm, t0 + 0.5 * h, 1);
   const FcMotion y2 = axpy(y0, 0.5 * h, k2);
-  const FcMotion k3 = stage_deriv(y2, zrm, vrm, ul_mid, t0 + 0.5 * h, 2);
+  const FcMotion k3 = stage_deriv(y2, zrm, vrm, t0 + 0.5 * h, 2);
   const FcMotion y3 = axpy(y0, h, k3);
-  const FcMotion k4 = stage_deriv(y3, in.z_r, in.v_r, ul_end, t0 + h, 3);
+  const FcMotion k4 = stage_deriv(y3, in.z_r, in.v_r, t0 + h, 3);
   if (status < 0) return status;
   FcMotion y;
   {
@@ -899,23 +874,21 @@ DN_REALTIME inline int step(const FullCarModel& m, FullCarData& d, const dn_full
   double check = 0.0;
   for (int j = 0; j < kFcMotion; ++j) check += vec(y)[j];
   for (int i = 0; i < kCorners; ++i) {
-    const LoopModel& c = m.corner[i];
+    const Corner& c = m.corner[i];
     ns[fc_corner(i, FCC_z_r)] = in.z_r[i];
     ns[fc_corner(i, FCC_v_r)] = in.v_r[i];
-    ns[fc_corner(i, FCC_u_lag)] = ul_end[i];
     ns[fc_corner(i, FCC_u_cmd)] = r.u[i];
     ns[fc_corner(i, FCC_f_last)] = f_last[i];
+    // the damper's states at the step's end: its motion there, the control held
     const double zb = y.z + m.yc[i] * y.phi - m.xc[i] * y.theta;
     const double vb = y.vz + m.yc[i] * y.p - m.xc[i] * y.q;
-    if (c.has_vlag || c.inv_presliding > 0) {
-      const MotionLag l1 = motion_lag(c, lag0[i], vrel0[i], xrel0[i], vb - y.vus[i],
-                                      zb - y.zus[i], c.vlag_a_full, c.vlag_g_full);
-      ns[fc_corner(i, FCC_v_lag)] = l1.v_lag;
-      ns[fc_corner(i, FCC_z_fric)] = l1.z_fric;
-    } else {
-      ns[fc_corner(i, FCC_v_lag)] = vb - y.vus[i];
-    }
-    check += ns[fc_corner(i, FCC_v_lag)] + ns[fc_corner(i, FCC_z_fric)];
+    dn_damper_input end = r.in[i];
+    end.x = zb - y.zus[i] + m.xs[i];
+    end.v = vb - y.vus[i];
+    DamperState ds1;
+    c.damper.advance(c.full, ds0[i], r.in[i], end, ds1);
+    ds1.store(ns + fc_corner(i, DN_FULLCAR_CORNER_DAMPER));
+    for (int k = 0; k < DN_DAMPER_STATE_SIZE; ++k) check += ds1.s[k];
   }
   if (!std::isfinite(check)) return DN_E_DIVERGED;
   // a runaway: beyond any car (dampnet.h DN_PLAUSIBLE_LIST)

@@ -17,18 +17,11 @@
 // (z_r, v_r) at the step's start (in the state) and end (the step input); the
 // lagged control follows its exact first-order response to the held u.
 //
-// Derived features of the damper's motion, each with one state:
-//   v_lag   velocity_lag: dv_lag/dt = (v - v_lag) / tau. Within a step, v is
-//           taken as the ramp from the step-start v to the evaluation's v, for
-//           which the first-order-hold update is exact:
-//             v_lag(T) = A v_lag0 + (1 - A) v0 + (v_T - v0) (1 - tau (1 - A) / T),
-//           A = exp(-T/tau), T the time since the step start.
-//   z_fric  friction_state (Dahl): dz/ds = (sgn(v) - z) / x_c along the travel s,
-//           so over a displacement change dx of one sign
-//             z = sgn(dx) + (z0 - sgn(dx)) exp(-|dx| / x_c),
-//           with dx from the step start (a reversal inside one step counts only
-//           its net travel). Both match the training features of
-//           python/dampnet/features.py as the sample time goes to 0.
+// The damper's own states (dampnet.h DN_DAMPER_STATE_LIST: control lag, velocity lag, Dahl
+// friction state, ...) are its business (damper_state.hpp): the loop keeps their block at
+// DN_LOOP_DAMPER_BASE and, at each evaluation, has the damper advance it from the step start
+// over the time since then (half a step for RK4's middle stages) with the control held and the
+// motion a ramp from the step start's.
 //
 // The acceleration feature: the relative acceleration a = a_s - a_us depends on
 // the damper force being computed: a = a_free - k (F(a) - f_static), with
@@ -205,53 +198,69 @@ inline int check_controller(const dn_controller& s) noexcept {
 }
 #undef DN_CHECK_FINITE_
 
-struct LoopModel {
-  dn_vehicle veh = default_vehicle();
-  dn_controller ctrl = default_controller();
-  // derived (before the damper: the step's parameters stay within a load's immediate offset)
-  real inv_ms = 0, inv_mus = 0;
-  real lag_half = 0, lag_full = 0;  // exp(-dt/2/tau), exp(-dt/tau); 0 without a lag
-  // velocity_lag over T = dt/2 and dt: A = exp(-T/tau), ramp gain 1 - tau (1 - A) / T
-  real vlag_a_half = 1, vlag_g_half = 0, vlag_a_full = 1, vlag_g_full = 0;
-  bool has_vlag = false;
-  real inv_presliding = 0;  // 1 / friction_presliding_m; 0 without friction_state
-  real cmd_keep = 0;        // exp(-dt / u_tau_s): the command filter; 0 = unfiltered
-  real k_rel = 0;                   // 1/m_s + 1/m_us: da/dF of the relative acceleration
-  bool implicit_a = false;            // solve the acceleration coupling (see dn_accel_feature)
-  bool linear_a = false;              // ... by one linearised Newton step (DN_ACCEL_LINEAR)
-  real f_eps = R(1e-12);               // relative force rounding of the MLP (convergence test)
+// A damper as a fixed-step host runs it, with its controller: the quarter car's one corner, and
+// each of the full car's four. Constant after init.
+struct Corner {
   Damper damper;
+  dn_controller ctrl = default_controller();
+  DamperSpan half, full;    // the damper state's update over dt / 2 and dt
+  real cmd_keep = 0;        // exp(-dt / u_tau_s): the command filter; 0 = unfiltered
+  bool implicit_a = false;  // solve the acceleration coupling (see dn_accel_feature)
+  bool linear_a = false;    // ... by one linearised Newton step (DN_ACCEL_LINEAR)
+  real f_eps = R(1e-12);    // relative force rounding of the MLP (convergence test)
+
+  // Validate the controller and derive; DN_OK or a DN_E_* error. dt checked by the host.
+  int init(const Damper& d, const dn_controller& c, real dt, int accel_feature) noexcept {
+    const int st = check_controller(c);
+    if (st != DN_OK) return st;
+    ctrl = c;
+    if (&d != &damper) damper = d;  // dn_loop_model_init_neural builds it in place
+    half = d.span(R(0.5) * dt);
+    full = d.span(dt);
+    cmd_keep = c.u_tau_s > 0 && c.kind != DN_CTRL_EXTERNAL ? std::exp(-dt / c.u_tau_s) : 0;
+    // a neural damper reading the acceleration (Damper::accel_input) couples it to the force
+    implicit_a = accel_feature != DN_ACCEL_EXPLICIT && d.kind == DN_DAMPER_NEURAL && d.accel_input >= 0;
+    linear_a = accel_feature == DN_ACCEL_LINEAR;
+    f_eps = d.precision == DN_PRECISION_FLOAT ? R(1e-5) : R(1e-12);
+    return DN_OK;
+  }
+
+  // [RT] The control over a step starting with absolute velocities v_s, v_us: the law, then the
+  // command filter from u_cmd (the last step's), clamped again because a caller's set_state
+  // may put u_cmd out of range.
+  real command(real v_s, real v_us, real u_ext, real u_cmd) const noexcept {
+    const real u = control_law(ctrl, v_s, v_us, u_ext);
+    return cmd_keep > 0 ? detail::clamp(u + (u_cmd - u) * cmd_keep, ctrl.u_min, ctrl.u_max) : u;
+  }
+  // The control at rest (the reset's: a filtered law starts settled; an external one at 0).
+  real command_at_rest() const noexcept {
+    return ctrl.kind == DN_CTRL_EXTERNAL ? 0 : control_law(ctrl, 0, 0, 0);
+  }
+  // [RT] The damper's states at rest with control u0 (x_static: the mid position's x).
+  DamperState rest_state(real x_static, real u0) const noexcept {
+    dn_damper_input at{};
+    at.x = x_static;
+    at.u = u0;
+    return Damper::rest(at);
+  }
+};
+
+// The quarter car: the vehicle around one corner.
+struct LoopModel : Corner {
+  dn_vehicle veh = default_vehicle();
+  real inv_ms = 0, inv_mus = 0;
+  real k_rel = 0;  // 1/m_s + 1/m_us: da/dF of the relative acceleration
 
   // Validate and derive; DN_OK or a DN_E_* error.
   int init(const dn_vehicle& v, const Damper& d, const dn_controller& c) noexcept {
     int st = check_vehicle(v);
     if (st != DN_OK) return st;
-    st = check_controller(c);
+    st = Corner::init(d, c, v.dt, v.accel_feature);
     if (st != DN_OK) return st;
     veh = v;
-    ctrl = c;
-    if (&d != &damper) damper = d;  // dn_loop_model_init_neural builds it in place
     inv_ms = 1 / v.m_s;
     inv_mus = 1 / v.m_us;
-    const real tau = d.lag_tau();
-    lag_half = tau > 0 ? std::exp(-R(0.5) * v.dt / tau) : 0;
-    lag_full = tau > 0 ? std::exp(-v.dt / tau) : 0;
-    const real tv = d.velocity_lag_tau();
-    has_vlag = tv > 0;
-    if (has_vlag) {
-      const real c_half = -std::expm1(-R(0.5) * v.dt / tv), c_full = -std::expm1(-v.dt / tv);
-      vlag_a_half = 1 - c_half;  // 1 - A from expm1: exact also for tau >> dt
-      vlag_g_half = 1 - tv * c_half / (R(0.5) * v.dt);
-      vlag_a_full = 1 - c_full;
-      vlag_g_full = 1 - tv * c_full / v.dt;
-    }
-    inv_presliding = d.presliding() > 0 ? 1 / d.presliding() : 0;
-    cmd_keep = c.u_tau_s > 0 && c.kind != DN_CTRL_EXTERNAL ? std::exp(-v.dt / c.u_tau_s) : 0;
     k_rel = inv_ms + inv_mus;
-    // a neural damper reading the acceleration (Damper::accel_input) couples it to the force
-    implicit_a = v.accel_feature != DN_ACCEL_EXPLICIT && d.kind == DN_DAMPER_NEURAL && d.accel_input >= 0;
-    linear_a = v.accel_feature == DN_ACCEL_LINEAR;
-    f_eps = d.precision == DN_PRECISION_FLOAT ? R(1e-5) : R(1e-12);
     return DN_OK;
   }
 };
@@ -279,28 +288,6 @@ inline Accel accel(const LoopModel& m, const Body& b, real zr, real vr, real F) 
           (fs + fa - p.k_t * (b.zus - zr) - p.c_t * (b.vus - vr)) * m.inv_mus};
 }
 
-// The motion-derived feature states at one evaluation (see the file comment).
-struct MotionLag {
-  real v_lag, z_fric;
-};
-
-// [RT] The derived states at relative velocity v and displacement x, from the
-// step-start values (v0, x0, lag0); a_lag/g_lag: the velocity-lag coefficients
-// of the time since the step start (A = 1, g = 0 at the start itself).
-inline MotionLag motion_lag(const LoopModel& m, const MotionLag& lag0, real v0, real x0,
-                            real v, real x, real a_lag, real g_lag) noexcept {
-  MotionLag r = lag0;
-  r.v_lag = m.has_vlag ? a_lag * lag0.v_lag + (1 - a_lag) * v0 + (v - v0) * g_lag : v;
-  if (m.inv_presliding > 0) {
-    const real dx = x - x0;
-    if (dx != 0) {
-      const real sg = dx > 0 ? 1 : -1;
-      r.z_fric = sg + (lag0.z_fric - sg) * std::exp(-std::fabs(dx) * m.inv_presliding);
-    }
-  }
-  return r;
-}
-
 // A damper input with every real field NaN (ints 0) before damper_input fills its own: a
 // field appended to DN_DAMPER_INPUT_FIELDS for a new feature but not filled below reaches the
 // model as NaN, so the step fails (DN_E_DIVERGED) instead of reading stack garbage. The
@@ -318,19 +305,16 @@ inline dn_damper_input unfilled_input() noexcept {
   return in;
 }
 
-// The damper's input at one evaluation (the acceleration feature from f_last).
+// The damper's input at one evaluation (the acceleration feature from f_last), its states
+// not yet filled (see Damper::advance / fill).
 inline dn_damper_input damper_input(const LoopModel& m, const Body& b, real zr, real vr,
-                                    real u, real u_lag, const MotionLag& lag, real f_last,
-                                    real temperature, real t, int stage) noexcept {
+                                    real u, real f_last, real temperature, real t, int stage) noexcept {
   const Accel a = accel(m, b, zr, vr, f_last);
   dn_damper_input in = unfilled_input();
   in.x = b.zs - b.zus + m.veh.x_static;
   in.v = b.vs - b.vus;
   in.a = a.as - a.aus;
   in.u = u;
-  in.u_lag = u_lag;
-  in.v_lag = lag.v_lag;
-  in.z_fric = lag.z_fric;
   in.temperature = temperature;
   in.t = t;
   in.dt = m.veh.dt;
@@ -344,7 +328,7 @@ inline dn_damper_input damper_input(const LoopModel& m, const Body& b, real zr, 
 // road's rate overflows, an unstable stiff step). So is a model force overflowing on
 // finite inputs. Both are DN_E_DIVERGED, not an input error of the caller's (a
 // callback's non-finite force is the callback's error and stays one).
-inline int diverged_if_overflow(const LoopModel& m, int st) noexcept {
+inline int diverged_if_overflow(const Corner& m, int st) noexcept {
   if (st == DN_E_NONFINITE_INPUT) return DN_E_DIVERGED;
   return (st == DN_E_NONFINITE_OUTPUT && m.damper.kind != DN_DAMPER_CALLBACK) ? int(DN_E_DIVERGED)
                                                                                : st;
@@ -472,13 +456,10 @@ struct Start {
 inline Start start(const LoopModel& m, const real* s, real u_ext, dn_loop_out* out,
                    uint32_t* mask, int64_t* n_evals) noexcept {
   Start r;
-  r.u = control_law(m.ctrl, s[S_v_s], s[S_v_us], u_ext);
-  // Command filter; clamped again because a caller's set_state may put u_cmd out of range.
-  if (m.cmd_keep > 0)
-    r.u = detail::clamp(r.u + (s[S_u_cmd] - r.u) * m.cmd_keep, m.ctrl.u_min, m.ctrl.u_max);
+  r.u = m.command(s[S_v_s], s[S_v_us], u_ext, s[S_u_cmd]);
   const Body b{s[S_z_s], s[S_v_s], s[S_z_us], s[S_v_us]};
-  r.in = damper_input(m, b, s[S_z_r], s[S_v_r], r.u, s[S_u_lag], {s[S_v_lag], s[S_z_fric]},
-                      s[S_f_last], s[S_temperature], s[S_t], 0);
+  r.in = damper_input(m, b, s[S_z_r], s[S_v_r], r.u, s[S_f_last], s[S_temperature], s[S_t], 0);
+  Damper::fill(DamperState::load(s + DN_LOOP_DAMPER_BASE), r.in);
   real* feat = nullptr;
   if (out) {
     feat = out->features;
@@ -510,10 +491,10 @@ inline Start start(const LoopModel& m, const real* s, real u_ext, dn_loop_out* o
 // [RT] Reset to rest (see dn_loop_reset).
 inline void reset(const LoopModel& m, LoopData& d) noexcept {
   for (real& x : d.s) x = 0;
-  d.s[S_u_lag] = m.ctrl.kind == DN_CTRL_EXTERNAL ? 0 : control_law(m.ctrl, 0, 0, 0);
-  d.s[S_u_cmd] = d.s[S_u_lag];  // the control at rest: a filtered law starts settled
+  d.s[S_u_cmd] = m.command_at_rest();
   d.s[S_f_last] = m.veh.f_static;
   d.s[S_temperature] = m.veh.temperature;
+  m.rest_state(m.veh.x_static, d.s[S_u_cmd]).store(d.s + DN_LOOP_DAMPER_BASE);
 }
 
 // [RT] What step() would report, without advancing.
@@ -540,15 +521,11 @@ DN_REALTIME inline int step(const LoopModel& m, LoopData& d, const dn_loop_input
   int status = r.status;
   if (status < 0) return status;
 
-  const real u = r.u, ul0 = s[S_u_lag], t0 = s[S_t];
+  const real u = r.u, t0 = s[S_t];
   const real temp = s[S_temperature];
-  const bool has_lag = m.lag_full > 0;
-  const real ul_mid = has_lag ? u + (ul0 - u) * m.lag_half : u;
-  const real ul_end = has_lag ? u + (ul0 - u) * m.lag_full : u;
   const real zr0 = s[S_z_r], vr0 = s[S_v_r], zr1 = in.z_r, vr1 = in.v_r;
   const Body b0{s[S_z_s], s[S_v_s], s[S_z_us], s[S_v_us]};
-  const detail::MotionLag lag0{s[S_v_lag], s[S_z_fric]};
-  const real vrel0 = b0.vs - b0.vus, xrel0 = b0.zs - b0.zus;
+  const DamperState ds0 = DamperState::load(s + DN_LOOP_DAMPER_BASE);
   real ns[DN_LOOP_STATE_SIZE];
   for (int i = 0; i < DN_LOOP_STATE_SIZE; ++i) ns[i] = s[i];
   real f_last = r.force;
@@ -565,14 +542,11 @@ DN_REALTIME inline int step(const LoopModel& m, LoopData& d, const dn_loop_input
     const bool per_stage = ((DN_DAMPER_EVALS >> DN_EVAL_PER_STAGE) & 1) && m.veh.damper_eval == DN_EVAL_PER_STAGE;
     // A stage's force: evaluated per stage, else the step start's (tested at the call sites, so
     // a per-step loop makes no call: the Cortex-M4F build keeps the lambda out of line).
-    auto force_at = [&](const Body& b, real zr, real vr, real ul, real t,
-                        int stage) noexcept -> real {
-      const bool half = stage < 3;
-      const detail::MotionLag lag = detail::motion_lag(
-          m, lag0, vrel0, xrel0, b.vs - b.vus, b.zs - b.zus, half ? m.vlag_a_half : m.vlag_a_full,
-          half ? m.vlag_g_half : m.vlag_g_full);
-      dn_damper_input di =
-          detail::damper_input(m, b, zr, vr, u, ul, lag, f_last, temp, t, stage);
+    auto force_at = [&](const Body& b, real zr, real vr, real t, int stage) noexcept -> real {
+      dn_damper_input di = detail::damper_input(m, b, zr, vr, u, f_last, temp, t, stage);
+      DamperState ds;
+      m.damper.advance(stage < 3 ? m.half : m.full, ds0, r.in, di, ds);
+      Damper::fill(ds, di);
       real f = 0;
       const int st = detail::evaluate(m, di, f_last, &f, nullptr, nullptr, &d.n_evals);
       if (st < 0) status = st;
@@ -583,12 +557,12 @@ DN_REALTIME inline int step(const LoopModel& m, LoopData& d, const dn_loop_input
     const Accel& k1 = r.acc;
     const Body b1{b0.zs + R(0.5) * h * b0.vs, b0.vs + R(0.5) * h * k1.as, b0.zus + R(0.5) * h * b0.vus,
                   b0.vus + R(0.5) * h * k1.aus};
-    const Accel k2 = detail::accel(m, b1, zrm, vrm, per_stage ? force_at(b1, zrm, vrm, ul_mid, t0 + R(0.5) * h, 1) : r.force);
+    const Accel k2 = detail::accel(m, b1, zrm, vrm, per_stage ? force_at(b1, zrm, vrm, t0 + R(0.5) * h, 1) : r.force);
     const Body b2{b0.zs + R(0.5) * h * b1.vs, b0.vs + R(0.5) * h * k2.as, b0.zus + R(0.5) * h * b1.vus,
                   b0.vus + R(0.5) * h * k2.aus};
-    const Accel k3 = detail::accel(m, b2, zrm, vrm, per_stage ? force_at(b2, zrm, vrm, ul_mid, t0 + R(0.5) * h, 2) : r.force);
+    const Accel k3 = detail::accel(m, b2, zrm, vrm, per_stage ? force_at(b2, zrm, vrm, t0 + R(0.5) * h, 2) : r.force);
     const Body b3{b0.zs + h * b2.vs, b0.vs + h * k3.as, b0.zus + h * b2.vus, b0.vus + h * k3.aus};
-    const Accel k4 = detail::accel(m, b3, zr1, vr1, per_stage ? force_at(b3, zr1, vr1, ul_end, t0 + h, 3) : r.force);
+    const Accel k4 = detail::accel(m, b3, zr1, vr1, per_stage ? force_at(b3, zr1, vr1, t0 + h, 3) : r.force);
     if (status < 0) return status;
     const real h6 = h / 6;
     ns[S_z_s] = b0.zs + h6 * (b0.vs + 2 * b1.vs + 2 * b2.vs + b3.vs);
@@ -599,22 +573,20 @@ DN_REALTIME inline int step(const LoopModel& m, LoopData& d, const dn_loop_input
   ns[S_t] = t0 + h;
   ns[S_z_r] = zr1;
   ns[S_v_r] = vr1;
-  ns[S_u_lag] = ul_end;
   ns[S_u_cmd] = u;
   ns[S_f_last] = f_last;
-  if (m.has_vlag || m.inv_presliding > 0) {
-    const detail::MotionLag lag1 =
-        detail::motion_lag(m, lag0, vrel0, xrel0, ns[S_v_s] - ns[S_v_us], ns[S_z_s] - ns[S_z_us],
-                           m.vlag_a_full, m.vlag_g_full);
-    ns[S_v_lag] = lag1.v_lag;
-    ns[S_z_fric] = lag1.z_fric;
-  } else {
-    ns[S_v_lag] = ns[S_v_s] - ns[S_v_us];  // no lag: follows v (motion_lag's convention)
-  }
+  // The damper's states at the step's end: its motion there, the control held.
+  dn_damper_input end = r.in;
+  end.x = ns[S_z_s] - ns[S_z_us] + m.veh.x_static;
+  end.v = ns[S_v_s] - ns[S_v_us];
+  DamperState ds1;
+  m.damper.advance(m.full, ds0, r.in, end, ds1);
+  ds1.store(ns + DN_LOOP_DAMPER_BASE);
   // Only the integrated states can run away (time, road, control and force are finite
   // here); a sum is non-finite when any term is (or when it overflows: diverged too).
-  if (!std::isfinite(ns[S_z_s] + ns[S_v_s] + ns[S_z_us] + ns[S_v_us] + ns[S_v_lag] + ns[S_z_fric]))
-    return DN_E_DIVERGED;
+  real check = ns[S_z_s] + ns[S_v_s] + ns[S_z_us] + ns[S_v_us];
+  for (int k = 0; k < DN_DAMPER_STATE_SIZE; ++k) check += ds1.s[k];
+  if (!std::isfinite(check)) return DN_E_DIVERGED;
   if (!detail::plausible_corner(ns[S_z_s] - ns[S_z_us], ns[S_z_us] - zr1, ns[S_v_s] - ns[S_v_us]))
     return DN_E_DIVERGED;  // a runaway: beyond any car (dampnet.h DN_PLAUSIBLE_LIST)
   for (int i = 0; i < DN_LOOP_STATE_SIZE; ++i) d.s[i] = ns[i];

@@ -24,8 +24,8 @@ experiment takes 16 dt), and with dt itself and the road fed one sample ahead to
 QuarterCar.simulate's run exactly (see tests/python/test_export_fmu_quarter_car.py). The vehicle's f_static starts at the runtime's
 0 N: for a damper with a force at rest (a gas force), set it to that force.
 
-The state and step-report names and docs are read from the runtime's dampnet.h (the X-macro
-lists the C++ side generates its tables from), the parameters' from dampnet._core; the
+The state and step-report names and docs, like the parameters', are dampnet._core's (expanded
+from dampnet.h's X-macro lists, as the C++ side's tables are); the
 parameters' start values are compiled into the binary (fmu_config.h: DNFMU_VEHICLE_START,
 DNFMU_CONTROLLER_START), and non-default ones give the FMU its own GUID.
 """
@@ -36,7 +36,7 @@ import hashlib
 import re
 from pathlib import Path
 
-from dampnet import _core, paths
+from dampnet import _core
 from dampnet.export import _package_version
 from dampnet.fmu.damper import (FmuError, check_model, control_unit, damper_variables, data_label, envelope_doc,
                                 status_doc, term_names_config)
@@ -61,32 +61,14 @@ LOOP_STATUSES = ("DN_OK", "DN_W_SATURATED", "DN_W_ACCEL_UNCONVERGED", "DN_W_ACCE
 DEFAULT_STOP_S, DEFAULT_STOP_STEPS = 10.0, 10_000
 
 
-def _x_macro(name: str, pattern: str) -> list[tuple[str, ...]]:
-    """The rows of one of dampnet.h's X-macro lists (the installed runtime's header)."""
-    lines = (Path(paths.include_dirs()[0]) / "dampnet" / "dampnet.h").read_text().splitlines()
-    start = next((i for i, line in enumerate(lines) if line.startswith(f"#define {name}(X)")), None)
-    if start is None:
-        raise FmuError(f"dampnet.h: {name} not found (a runtime older than this package?)")
-    block = []
-    for line in lines[start:]:
-        block.append(line.rstrip().rstrip("\\"))
-        if not line.rstrip().endswith("\\"):
-            break
-    return re.findall(pattern, " ".join(block))
-
-
 def loop_states() -> list[tuple[str, str]]:
-    """DN_LOOP_STATE_LIST: (name, doc) in state order."""
-    rows = _x_macro("DN_LOOP_STATE_LIST", r'X\(\s*(\d+)\s*,\s*(\w+)\s*,\s*"([^"]*)"\s*\)')
-    states = [(name, doc) for _, name, doc in sorted(rows, key=lambda r: int(r[0]))]
-    if tuple(n for n, _ in states) != tuple(_core.STATE_NAMES):
-        raise FmuError("dampnet.h's DN_LOOP_STATE_LIST differs from dampnet._core.STATE_NAMES: rebuild (python/env.sh)")
-    return states
+    """The loop's state (DN_LOOP_STATE_LIST, then the damper's DN_DAMPER_STATE_LIST): (name, doc) in order."""
+    return list(_core.STATE_DOCS.items())
 
 
 def loop_outputs() -> list[tuple[str, str]]:
     """DN_LOOP_OUT_LIST: (name, doc) in dn_loop_out order."""
-    return _x_macro("DN_LOOP_OUT_LIST", r'X\(\s*(\w+)\s*,\s*"([^"]*)"\s*\)')
+    return list(_core.LOOP_OUT_FIELDS.items())
 
 
 def _enum_table(doc: str) -> dict | None:
