@@ -114,6 +114,12 @@ def run(args) -> int:
         print(f"full vehicle: {fc['case']} p50 {fc['p50_ns']:.0f} ns (target <= {fc['p50_target_ns']:.0f}), "
               f"p99.9 {fc['p999_ns']:.0f} ns (target <= {fc['p999_target_ns']:.0f}) -> "
               f"{'met' if fc['within_target'] else 'MISSED'}")
+    if fc.get("cold_reps"):
+        print(f"full vehicle cold-cache step (median / p99 of {fc['cold_reps']} single steps, each after an "
+              f"eviction): code sweep {fc['cold_code_p50_ns']:.0f} / {fc['cold_code_p99_ns']:.0f} ns, "
+              f"4 MB data + code {fc['cold_4mb_p50_ns']:.0f} / {fc['cold_4mb_p99_ns']:.0f} ns, "
+              f"64 MB data + code {fc['cold_64mb_p50_ns']:.0f} / {fc['cold_64mb_p99_ns']:.0f} ns "
+              f"(warm p50 {fc['p50_ns']:.0f} ns; code sweep: {fc['code_sweep_bytes'] / 1024:.0f} KB of distinct code)")
     lo, hi = hard["bounds_n"]
     print(f"hard inputs through the HIL configuration ({', '.join(f'{k} {v}' for k, v in hard['vehicle'].items())}, "
           f"{hard['controller']['kind']}): forces must stay within the model's range "
