@@ -99,6 +99,10 @@ def test_dampnet_bench_quick_runs_and_reports_the_budget(tmp_path):
         p50, p99 = fc[f"cold_{e}_p50_ns"], fc[f"cold_{e}_p99_ns"]
         assert np.isfinite([p50, p99]).all() and 0 < p50 <= p99, (e, p50, p99)
     assert "full vehicle cold-cache step (median / p99 of 100 single steps" in proc.stdout
+    # and the code one step can touch (dampnet.latency.footprint; tests/python/test_bench_footprint.py)
+    fp = res["footprint"]
+    assert fp["dn_fullcar_step_bytes"] > fp["dn_loop_step_bytes"] > 0, fp
+    assert f"full-car step {fp['dn_fullcar_step_bytes']} B" in proc.stdout
 
 
 def _bench(*args, harness_dir, timeout=600):
