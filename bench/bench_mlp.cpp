@@ -257,9 +257,28 @@ int main(int argc, char** argv) {
         return 1;
       for (int k = 0; k < 2000; ++k) step_errors += dn_fullcar_step(fm, fd, &froad[k & 4095], nullptr) < 0;
       dn_fullcar_get_state(fd, fsaved);
-      dn_bench::print_json(fc.name, dn_bench::measure(
+      const dn_bench::Stats warm_stats = dn_bench::measure(
           [&](long i) { step_errors += dn_fullcar_step(fm, fd, &froad[i & 4095], nullptr) < 0; },
-          [&] { dn_fullcar_set_state(fd, fsaved); }, n, warm, 1000));
+          [&] { dn_fullcar_set_state(fd, fsaved); }, n, warm, 1000);
+      // FULLCAR_CASE only: its cold-cache cost (latency.hpp, CacheEvictor), single steps each
+      // right after a code sweep alone, 4 MB of data + the code sweep, 64 MB + the code sweep
+      char cold[512] = "";
+      if (&fc == &fc_cases[0]) {
+        static dn_bench::CacheEvictor<> ev(size_t(64) << 20);
+        const long reps = std::min(1000L, std::max(100L, n / 1000));
+        const auto step1 = [&](long r) { step_errors += dn_fullcar_step(fm, fd, &froad[(7 * r) & 4095], nullptr) < 0; };
+        const auto restore = [&] { dn_fullcar_set_state(fd, fsaved); };
+        const dn_bench::ColdStats c0 = dn_bench::measure_cold(step1, restore, ev, 0, reps);
+        const dn_bench::ColdStats c4 = dn_bench::measure_cold(step1, restore, ev, size_t(4) << 20, reps);
+        const dn_bench::ColdStats c64 = dn_bench::measure_cold(step1, restore, ev, size_t(64) << 20, reps);
+        std::snprintf(cold, sizeof cold,
+                      ", \"cold_reps\": %ld, \"code_sweep_bytes\": %zu, "
+                      "\"cold_code_p50_ns\": %.1f, \"cold_code_p99_ns\": %.1f, "
+                      "\"cold_4mb_p50_ns\": %.1f, \"cold_4mb_p99_ns\": %.1f, "
+                      "\"cold_64mb_p50_ns\": %.1f, \"cold_64mb_p99_ns\": %.1f",
+                      reps, ev.code_sweep_bytes(), c0.p50, c0.p99, c4.p50, c4.p99, c64.p50, c64.p99);
+      }
+      dn_bench::print_json(fc.name, warm_stats, cold);
       // plausible output after the timed steps: a finite state, a body that moved
       double s[DN_FULLCAR_STATE_SIZE];
       dn_fullcar_get_state(fd, s);

@@ -7,7 +7,9 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <iterator>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace dn_bench {
@@ -108,6 +110,89 @@ inline Stats clock_overhead(long n) {
     ns[static_cast<size_t>(i)] = ns_between(t0, t1);
   }
   return summarise(std::move(ns), 0.0);
+}
+
+// ---- cold-cache cost: a call right after other work evicted the caches -----------------
+//
+// What a loaded machine does to a real-time step between two calls, made repeatable: before
+// each timed call, (1) a data sweep reads one byte of every 64-byte line of a buffer of the
+// given size (4 MB: more than a core's L2, so the shared L2/L3 lose the step's code and data;
+// 64 MB: more than the L3 of most machines, and 16k pages through the TLB), then (2) a code
+// sweep runs kCodeSweepFns distinct functions once each through a table of pointers (about
+// 100 KB of code, several times a core's L1i, and as many indirect branches: the L1i, the
+// micro-op cache and the branch predictor lose the step's code). The code sweep alone (no
+// data sweep) is the "code" case: the step's data stay cached, its code does not.
+// A template, so that the sweep's functions are only compiled where it is used.
+template <int kCodeSweepFns = 2048>
+class CacheEvictor {
+ public:
+  explicit CacheEvictor(size_t max_data_bytes) : buf_(max_data_bytes, 1) {}
+
+  // Reads one byte of every 64-byte line of the first `bytes` of the buffer.
+  void evict_data(size_t bytes) {
+    unsigned sum = 0;
+    for (size_t i = 0, e = std::min(bytes, buf_.size()); i < e; i += 64) sum += buf_[i];
+    sink_ = sink_ + sum;
+  }
+
+  // Runs every function of the code sweep once, in address order.
+  void evict_code() { sink_ = sink_ + run(unsigned(sink_), std::make_integer_sequence<int, kCodeSweepFns>{}); }
+
+  // The span of the code sweep's functions [bytes]: the highest function address minus the
+  // lowest, plus one function's (the functions are laid out together).
+  static size_t code_sweep_bytes() { return span(std::make_integer_sequence<int, kCodeSweepFns>{}); }
+
+ private:
+  // Distinct arithmetic per function (distinct constants), so no two are folded into one.
+  template <int I>
+  [[gnu::noinline]] static unsigned fn(unsigned x) {
+    x = x * (2u * unsigned(I) + 1u) + unsigned(I) * 2654435761u;
+    x ^= x >> (1 + I % 13);
+    x = x * 0x9e3779b1u + unsigned(I * 7 + 3);
+    x ^= x << (1 + I % 11);
+    return x + unsigned(I) * 40503u;
+  }
+  using Fn = unsigned (*)(unsigned);
+  template <int... I>
+  static unsigned run(unsigned x, std::integer_sequence<int, I...>) {
+    static constexpr Fn table[] = {&fn<I>...};
+    for (Fn f : table) x = f(x);
+    return x;
+  }
+  template <int... I>
+  static size_t span(std::integer_sequence<int, I...>) {
+    const uintptr_t a[] = {reinterpret_cast<uintptr_t>(&fn<I>)...};
+    const auto mm = std::minmax_element(std::begin(a), std::end(a));
+    const uintptr_t one = a[1] > a[0] ? a[1] - a[0] : a[0] - a[1];
+    return size_t(*mm.second - *mm.first + one);
+  }
+
+  std::vector<unsigned char> buf_;
+  volatile unsigned sink_ = 0;
+};
+
+struct ColdStats {
+  double p50, p99;  // [ns]
+  long n;
+};
+
+// `reps` single calls, each timed alone after restore() (outside the timed region, before
+// the eviction, so it does not warm what the eviction evicted), a data sweep of `data_bytes`
+// (0: none) and the code sweep. Percentiles by nearest rank, as summarise.
+template <class Call, class Restore, class Evictor>
+ColdStats measure_cold(Call&& call, Restore&& restore, Evictor& ev, size_t data_bytes, long reps) {
+  std::vector<double> ns(static_cast<size_t>(reps));
+  for (long r = 0; r < reps; ++r) {
+    restore();
+    if (data_bytes) ev.evict_data(data_bytes);
+    ev.evict_code();
+    const auto t0 = Clock::now();
+    call(r);
+    const auto t1 = Clock::now();
+    ns[static_cast<size_t>(r)] = ns_between(t0, t1);
+  }
+  std::sort(ns.begin(), ns.end());
+  return {percentile(ns, 0.50), percentile(ns, 0.99), reps};
 }
 
 inline void print_json(const std::string& name, const Stats& s, const char* extra = "") {

@@ -37,6 +37,38 @@ int main() {
     assert s[4] == values.max() and abs(s[5] - values.mean()) < 1e-9 * values.mean() and s[6] == len(values)
 
 
+def test_cold_measurement_restores_evicts_then_times_one_call(tmp_path):
+    """measure_cold: every repetition restores, then evicts (data sweep of the asked size, then
+    the code sweep), then makes exactly one call; the code sweep spans more code than a core's
+    L1i; the percentiles are the nearest-rank ones of the repetitions (p50 <= p99)."""
+    src = tmp_path / "cold.cpp"
+    src.write_text("""
+#include <cstdio>
+#include <string>
+#include "latency.hpp"
+struct Spy {
+  dn_bench::CacheEvictor<>* ev;
+  std::string* log;
+  void evict_data(size_t b) { *log += b == 4096 ? 'D' : '?'; ev->evict_data(b); }
+  void evict_code() { *log += 'C'; ev->evict_code(); }
+};
+int main() {
+  dn_bench::CacheEvictor<> ev(1 << 20);
+  std::string log;
+  Spy spy{&ev, &log};
+  long calls = 0;
+  auto s = dn_bench::measure_cold([&](long r) { log += r == calls++ ? 'x' : '!'; }, [&] { log += 'R'; }, spy, 4096, 5);
+  auto c = dn_bench::measure_cold([&](long) { log += 'x'; }, [&] { log += 'R'; }, spy, 0, 2);
+  std::printf("%s %ld %ld %d %d %zu\\n", log.c_str(), s.n, c.n, s.p50 > 0 && s.p50 <= s.p99, c.p50 <= c.p99,
+              dn_bench::CacheEvictor<>::code_sweep_bytes());
+}
+""")
+    exe = compile_program([src], tmp_path / "cold", cxx=True, include_dirs=[ROOT / "bench"])
+    log, n, nc, ordered, ordered_c, sweep = run([exe]).stdout.split()
+    assert log == "RDCx" * 5 + "RCx" * 2 and (n, nc, ordered, ordered_c) == ("5", "2", "1", "1")
+    assert int(sweep) >= 64 * 1024
+
+
 def test_dampnet_bench_quick_runs_and_reports_the_budget(tmp_path):
     out = tmp_path / "bench.json"
     proc = subprocess.run([sys.executable, "-m", "dampnet.cli", "bench", "--calls", "20000", "--json", str(out)],
@@ -56,6 +88,21 @@ def test_dampnet_bench_quick_runs_and_reports_the_budget(tmp_path):
     fc = res["fullcar"]  # the full vehicle's step against its targets, reported beside the budget
     assert fc["p50_ns"] == res["results"][fc["case"]]["p50_ns"] and fc["p999_target_ns"] == 2000.0
     assert "full vehicle: " in proc.stdout
+    # its cold-cache cost beside p50/p99.9: every field there, finite and positive, p50 <= p99
+    # (no times compared: whether a cold step is slower is a measurement, not a test)
+    from dampnet.latency.harness import COLD_EVICTIONS, COLD_FIELDS
+
+    assert set(COLD_FIELDS) <= set(fc) and set(COLD_FIELDS) <= set(res["results"][fc["case"]])
+    assert fc["cold_reps"] == 100  # max(100, 20000 / 1000)
+    assert fc["code_sweep_bytes"] >= 64 * 1024  # more code than a core's L1i
+    for e in COLD_EVICTIONS:
+        p50, p99 = fc[f"cold_{e}_p50_ns"], fc[f"cold_{e}_p99_ns"]
+        assert np.isfinite([p50, p99]).all() and 0 < p50 <= p99, (e, p50, p99)
+    assert "full vehicle cold-cache step (median / p99 of 100 single steps" in proc.stdout
+    # and the code one step can touch (dampnet.latency.footprint; tests/python/test_bench_footprint.py)
+    fp = res["footprint"]
+    assert fp["dn_fullcar_step_bytes"] > fp["dn_loop_step_bytes"] > 0, fp
+    assert f"full-car step {fp['dn_fullcar_step_bytes']} B" in proc.stdout
 
 
 def _bench(*args, harness_dir, timeout=600):

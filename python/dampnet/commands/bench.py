@@ -37,6 +37,7 @@ def add_parser(subparsers):
 
 
 def run(args) -> int:
+    from dampnet.latency import footprint
     from dampnet.latency import python_bench as bench_python
     from dampnet.latency.harness import (
         HIL_FORCE_MARGIN,
@@ -75,6 +76,10 @@ def run(args) -> int:
             res["python"]["header_model_id"] = bench_python.header_model_id()
     except (RuntimeError, FileNotFoundError) as e:
         return error(str(e))
+    try:  # the code one step can touch (issue 30: <= 16 KB for the full car); needs binutils
+        res["footprint"] = footprint.summary(footprint.measure())
+    except (RuntimeError, OSError) as e:
+        res["footprint"] = {"unavailable": str(e)}
     res["table"] = bench_python.table(res)
     m = res["machine"]
     print(f"machine: {m.get('cpu')} ({m.get('simd')}), gcc {m.get('compiler')}, flags '{m.get('flags')}', "
@@ -114,6 +119,19 @@ def run(args) -> int:
         print(f"full vehicle: {fc['case']} p50 {fc['p50_ns']:.0f} ns (target <= {fc['p50_target_ns']:.0f}), "
               f"p99.9 {fc['p999_ns']:.0f} ns (target <= {fc['p999_target_ns']:.0f}) -> "
               f"{'met' if fc['within_target'] else 'MISSED'}")
+    if fc.get("cold_reps"):
+        print(f"full vehicle cold-cache step (median / p99 of {fc['cold_reps']} single steps, each after an "
+              f"eviction): code sweep {fc['cold_code_p50_ns']:.0f} / {fc['cold_code_p99_ns']:.0f} ns, "
+              f"4 MB data + code {fc['cold_4mb_p50_ns']:.0f} / {fc['cold_4mb_p99_ns']:.0f} ns, "
+              f"64 MB data + code {fc['cold_64mb_p50_ns']:.0f} / {fc['cold_64mb_p99_ns']:.0f} ns "
+              f"(warm p50 {fc['p50_ns']:.0f} ns; code sweep: {fc['code_sweep_bytes'] / 1024:.0f} KB of distinct code)")
+    fp = res["footprint"]
+    if "unavailable" in fp:
+        print(f"hot-path code footprint: unavailable ({fp['unavailable']})")
+    else:
+        print(f"hot-path code footprint (bytes of the functions the step's static call graph reaches, "
+              f"python -m dampnet.latency.footprint): full-car step {fp['dn_fullcar_step_bytes']} B "
+              f"(target <= {footprint.FULLCAR_STEP_CEILING_BYTES} B), quarter-car step {fp['dn_loop_step_bytes']} B")
     lo, hi = hard["bounds_n"]
     print(f"hard inputs through the HIL configuration ({', '.join(f'{k} {v}' for k, v in hard['vehicle'].items())}, "
           f"{hard['controller']['kind']}): forces must stay within the model's range "

@@ -1,0 +1,13 @@
+"""The hot-path code footprint of dn_fullcar_step and dn_loop_step (bytes of the functions
+their static call graph reaches, from the built libdampnet.so's symbols and disassembly):
+a thin front for dampnet.latency.footprint, whose docstring says what is counted.
+
+    python bench/footprint.py [LIBRARY] [--entry SYMBOL ...] [--json FILE]
+"""
+
+import sys
+
+from dampnet.latency.footprint import main
+
+if __name__ == "__main__":
+    sys.exit(main())

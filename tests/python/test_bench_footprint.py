@@ -1,0 +1,67 @@
+"""The hot-path footprint tool (dampnet.latency.footprint, bench/footprint.py) on the built
+library: the walk from dn_fullcar_step and dn_loop_step is sound (it reaches what the steps
+are known to call) and its arithmetic is the symbol sizes'. No ceiling here: issue 30's
+16 KB (footprint.FULLCAR_STEP_CEILING_BYTES) is the damper refactor's to assert."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from cbuild import ROOT
+from dampnet.latency import footprint
+
+
+@pytest.fixture(scope="module")
+def measured():
+    return footprint.measure()
+
+
+def _names(r):
+    return [row["function"] for row in r["functions"]]
+
+
+def test_the_walk_reaches_what_the_steps_call(measured):
+    fc, loop = measured["entries"]["dn_fullcar_step"], measured["entries"]["dn_loop_step"]
+    for r, step in ((fc, "dampnet::step(dampnet::FullCarModel const&"), (loop, "dampnet::step(dampnet::LoopModel const&")):
+        names = _names(r)
+        assert r["functions"][-1]["bytes"] > 0 and r["entry_bytes"] > 0
+        assert r["total_bytes"] >= r["entry_bytes"] and r["total_bytes"] == sum(x["bytes"] for x in r["functions"])
+        assert r["hot_bytes"] + r["cold_bytes"] == r["total_bytes"]
+        assert any(n.startswith(step) for n in names), names  # the C ABI entry tail-calls the step
+        assert any("Damper::force" in n for n in names), names  # the damper
+        assert any("forward" in n and "MlpParams" in n for n in names), names  # the MLP kernel
+        # reached only through the additive terms' table of function pointers
+        assert any("terms::force_DN_TERM_BUMP_STOP" in n for n in names), names
+        assert "tanh" in r["external_calls"] or "exp" in r["external_calls"]
+        assert len(set(n["address"] for n in r["functions"])) == r["n_functions"]
+    # the full car's step evaluates the corners' dampers four at a time: its own code on top
+    assert any("forward_batch" in n for n in _names(fc)) and not any("forward_batch" in n for n in _names(loop))
+    assert fc["total_bytes"] > loop["total_bytes"]
+
+
+def test_sizes_are_the_symbol_tables(measured):
+    """Each row's bytes are nm's size of that symbol at that address in the library read (a
+    local function can have copies of one name, one per translation unit)."""
+    lib = measured["library"]
+    nm = subprocess.run(["nm", "-S", "--defined-only", lib], capture_output=True, text=True, check=True).stdout
+    sizes = {(p[3], int(p[0], 16)): int(p[1], 16) for p in (line.split() for line in nm.splitlines()) if len(p) == 4}
+    for row in measured["entries"]["dn_fullcar_step"]["functions"]:
+        assert sizes[row["symbol"], int(row["address"], 16)] == row["bytes"], row
+
+
+def test_script_prints_the_table_and_writes_json(tmp_path):
+    out = tmp_path / "fp.json"
+    proc = subprocess.run([sys.executable, str(ROOT / "bench" / "footprint.py"), "--entry", "dn_loop_step",
+                           "--json", str(out)], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    res = json.loads(out.read_text())
+    assert list(res["entries"]) == ["dn_loop_step"]
+    total = res["entries"]["dn_loop_step"]["total_bytes"]
+    assert f"dn_loop_step: {total} bytes in " in proc.stdout and f"  {total:>7}  total" in proc.stdout
+    bad = subprocess.run([sys.executable, str(ROOT / "bench" / "footprint.py"), "--entry", "no_such_fn"],
+                         capture_output=True, text=True, timeout=300)
+    assert bad.returncode == 2 and "no_such_fn is not a function of the library" in bad.stderr
