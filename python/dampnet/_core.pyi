@@ -70,7 +70,13 @@ FEATURE_INPUTS: Final[dict[str, str]]  # feature -> the DAMPER_INPUT_FIELDS fiel
 FEATURE_PARAMS: Final[dict[str, str | None]]  # feature -> the FEATURE_PARAM_NAMES it needs
 FEATURE_PARAM_NAMES: Final[dict[str, str]]  # feature parameter -> doc with unit and range
 TERM_KINDS: Final[dict[str, tuple[int, str]]]  # term kind -> (number of params, formula)
-STATE_NAMES: Final[tuple[str, ...]]  # Loop.state's columns
+STATE_NAMES: Final[tuple[str, ...]]  # Loop.state's columns: the loop's own, then DAMPER_STATES
+STATE_DOCS: Final[dict[str, str]]  # Loop.state's column -> meaning [unit], in STATE_NAMES order
+#: dampnet.h DN_DAMPER_STATE_LIST, the damper's own states in block order:
+#: {name (its DAMPER_INPUT_FIELDS field): (unit, STATE_DYNAMICS name, source field, FEATURE_PARAM_NAMES parameter, doc)}
+DAMPER_STATES: Final[dict[str, tuple[str, str, str, str, str]]]
+STATE_DYNAMICS: Final[dict[str, tuple[int, str]]]  # DN_STATE_DYNAMICS_LIST: {name: (value, doc)}
+LOOP_OUT_FIELDS: Final[dict[str, str]]  # dn_loop_out's scalars: name -> meaning [unit]
 VEHICLE_FIELDS: Final[dict[str, tuple[float | int, str]]]  # field -> (default, doc)
 CONTROLLER_FIELDS: Final[dict[str, tuple[float | int, str]]]  # field -> (default, doc)
 DAMPER_INPUT_FIELDS: Final[dict[str, str]]  # DamperInput field -> doc with unit

@@ -396,8 +396,9 @@ def host_loop(model, road: np.ndarray, every: int = PRINT_EVERY):
     return states, np.array(loop.state), loop.damper_evals
 
 
-#: the loop-state columns the firmware-vs-host comparison reads (z_s, v_s, z_us, v_us, u_cmd)
-COMPARED_STATES = {"z_s": 1, "v_s": 2, "z_us": 3, "v_us": 4, "u_cmd": 12}
+#: the loop-state columns the firmware-vs-host comparison reads, by name (found in STATE_NAMES:
+#: the firmware's loop state is built from the same dampnet.h)
+COMPARED_STATES = ("z_s", "v_s", "z_us", "v_us", "u_cmd")
 #: the firmware's state may differ from the host's double loop by this share of each state's peak
 #: (the float loop's rounding: measured 1.2e-6 on the M4F)
 HOST_TOLERANCE = 1e-4
@@ -407,8 +408,10 @@ def loop_vs_host(model, road: np.ndarray, out) -> dict:
     """The firmware run `out` (parse_output) against host_loop on the same road: {error_over_peak
     {state: max |fw - host| / peak}, peak, final_error_over_peak, evals (firmware, host), within
     (every error <= HOST_TOLERANCE of its peak, the same step indices and evaluation count)}."""
+    from dampnet import _core
+
     states, final, evals = host_loop(model, road)
-    idx = list(COMPARED_STATES.values())
+    idx = [_core.STATE_NAMES.index(name) for name in COMPARED_STATES]
     fw = np.array([s for _, s, _ in out.states])
     host = np.array([s for _, s in states])
     same_steps = [k for k, _, _ in out.states] == [k for k, _ in states] and fw.shape == host.shape

@@ -20,8 +20,8 @@ training formula (on the dyno's samples) and its update in the Python reference 
 On the dyno's samples a lag is the exact discretisation for an input held over a
 sample, y[k] = a y[k-1] + (1 - a) u[k], a = exp(-dt/tau), y[0] = u[0] (steady state at
 the first sample); the Dahl state advances by each sample's travel |v| dt. In a loop the
-states have the runtime's exact updates (cpp/include/dampnet/loop.hpp: the control held
-over a step, the velocity a ramp over a step, the Dahl state by the step's net travel),
+states have the runtime's exact updates (cpp/include/dampnet/damper_state.hpp: the control
+held over a step, the velocity a ramp over a step, the Dahl state by the step's net travel),
 used by dampnet.sim.reference_loop.NeuralLoopDamper; the two agree as the sample time
 goes to 0 (tests/python/test_loop_derived_features.py).
 
@@ -30,12 +30,23 @@ the zero-force points (dampnet.training.fit): kinematic quantities are 0 at
 rest, while control and state inputs can take any value at rest (None), so
 zero points copy them from measured samples.
 
-Adding a lagged feature: dampnet.h (its parameter, its dn_damper_input field, its
-DN_FEATURE_LIST line, its state slot: the recipe above DN_FEATURE_LIST), the loop's state
-update in loop.hpp, one `_PYTHON_SIDE` line here, e.g.
-"displacement_lag": ("m", Lag("displacement"), None), and the new DamperInput attribute in
-_core.pyi. Training, export, the runtime's Damper, the reference loop and the diagnosis
-then take it with no other edit.
+The derived features come from the runtime too: a runtime feature whose dn_damper_input
+field is one of the damper's states (dampnet.h DN_DAMPER_STATE_LIST, read here from
+`_core.DAMPER_STATES`: unit, dynamics, source field, parameter) gets its State from that
+state's dynamics (`DYNAMICS`: lag_held -> Lag(held=True), lag_ramp -> Lag, dahl -> Dahl).
+A Lag's base feature is the base feature reading the state's source field, and where
+several do (the control u: voltage and current) the one whose name the derived feature's
+starts with (voltage_lag -> voltage, current_lag -> current; `base_feature`). A lag takes
+its unit and value at rest from its base feature (voltage_lag V, current_lag A: the
+control's unit; velocity_lag m/s and 0 at rest), a Dahl state its unit from the state
+(at rest: None). `_PYTHON_SIDE` holds only the base features (the channels).
+
+Adding a stateful feature: four places, all in dampnet.h (the recipe above DN_FEATURE_LIST:
+its parameter, its dn_damper_input field, its DN_FEATURE_LIST line, its
+DN_DAMPER_STATE_LIST row); nothing here. Training, export, the runtime's Damper, the
+reference loop and the diagnosis then take it with no other edit. A new kind of dynamics
+(a row of DN_STATE_DYNAMICS_LIST) needs its Python twin: a State class and its `DYNAMICS`
+entry here. A new base feature (a new channel) needs its `_PYTHON_SIDE` line.
 A Python-only feature (training, export, reference loop and diagnosis, but refused by
 the runtime, which does not know its name) can be added at run time with
 `register_feature`.
@@ -102,8 +113,8 @@ class Lag:
     """A first-order lag of the base feature `source`; its parameter is the time constant [s].
 
     held: the loop holds `source` over each step (the control), so the lag's update is
-    exact for a step input; otherwise `source` ramps between step starts (a motion
-    quantity, loop.hpp `motion_lag`).
+    exact for a step input (dynamics lag_held); otherwise `source` ramps between step starts
+    (a motion quantity: lag_ramp; cpp/include/dampnet/damper_state.hpp).
     """
     source: str
     held: bool = False
@@ -136,13 +147,19 @@ class Lag:
         one_minus_a = -math.expm1(-dt / tau_s)  # a ramp from u0 to u1 over the step: exact
         return (1.0 - one_minus_a) * y + one_minus_a * u0 + (u1 - u0) * (1.0 - tau_s * one_minus_a / dt)
 
+    def off(self, y: float, q0: LoopQuantities, q1: LoopQuantities) -> float:
+        """The state at the next step start without its parameter (the runtime's default): its
+        source over the step, the held value q0's (the control) or the ramp's end q1's."""
+        return float((q0 if self.held else q1)[self.loop_input])
+
 
 @dataclass(frozen=True)
 class Dahl:
     """The Dahl friction state z in [-1, 1]; its parameter is the pre-sliding travel x_c [m].
 
     On the dyno it advances by each sample's travel |v| dt; in the loop by each step's
-    net travel x1 - x0 (loop.hpp `motion_lag`). The loop starts it at 0 (the runtime's reset).
+    net travel x1 - x0 (dynamics dahl, cpp/include/dampnet/damper_state.hpp). The loop starts
+    it at 0 (the runtime's reset).
     """
 
     channel = "velocity"
@@ -164,8 +181,21 @@ class Dahl:
         sg = 1.0 if dx > 0 else -1.0
         return sg + (z - sg) * math.exp(-abs(dx) / presliding_m)
 
+    def off(self, z: float, q0: LoopQuantities, q1: LoopQuantities) -> float:
+        """The state at the next step start without its parameter (the runtime's default): it stays."""
+        return z
+
 
 State = Lag | Dahl
+
+#: Python's twin of each kind of damper-state dynamics (dampnet.h DN_STATE_DYNAMICS_LIST,
+#: `_core.STATE_DYNAMICS`): dynamics name -> (State class, Lag's `held`). A Lag follows a base
+#: feature (`base_feature`); a Dahl state none.
+DYNAMICS: dict[str, tuple[type, bool | None]] = {
+    "lag_held": (Lag, True),
+    "lag_ramp": (Lag, False),
+    "dahl": (Dahl, None),
+}
 
 
 # -- the registry ------------------------------------------------------------------------
@@ -173,7 +203,9 @@ State = Lag | Dahl
 @dataclass(frozen=True)
 class Feature:
     """One input feature. name, field and param come from the runtime's registry (dampnet.h)
-    for the features it knows; unit, source and at_rest are Python's."""
+    for the features it knows, and so do a derived feature's State, unit and at_rest (its
+    damper state's, `derived_feature`); a base feature's unit, channel and at_rest are
+    Python's (`_PYTHON_SIDE`)."""
     name: str
     unit: str  # SI unit of the feature
     source: str | State  # the test channel it is, or the derived state it is computed as
@@ -201,32 +233,83 @@ class Feature:
         return np.asarray(self.source.column(test, float(feature_params[self.param])), dtype=np.float64).ravel()
 
 
-#: What Python adds to each runtime feature: name -> (unit, test channel or state, value at rest).
-_PYTHON_SIDE: dict[str, tuple[str, str | State, float | None]] = {
+#: What Python adds to each runtime base feature (a test channel): name -> (unit, test
+#: channel, value at rest). The derived features come from the runtime's damper states
+#: (`_core.DAMPER_STATES`, `derived_feature`): no line here.
+_PYTHON_SIDE: dict[str, tuple[str, str, float | None]] = {
     "velocity": ("m/s", "velocity", 0.0),
     "acceleration": ("m/s^2", "acceleration", 0.0),
     "displacement": ("m", "displacement", None),
     "voltage": ("V", "voltage", None),
     "current": ("A", "current", None),
-    "voltage_lag": ("V", Lag("voltage", held=True), None),
-    "current_lag": ("A", Lag("current", held=True), None),
     "temperature": ("degC", "temperature", None),
-    "velocity_lag": ("m/s", Lag("velocity"), 0.0),
-    "friction_state": ("1", Dahl(), None),
 }
 
 #: Feature parameters the runtime does not know, registered with Python-only features: name -> doc.
 _PYTHON_PARAMS: dict[str, str] = {}
 
 
+def base_feature(name: str, source_field: str) -> str:
+    """The base feature (a test channel, `_PYTHON_SIDE`) that derived feature `name` follows
+    through its damper state's source field (x, v or u): the one base feature reading that
+    field, and where several do (u: voltage and current) the one whose name `name` starts with
+    (voltage_lag -> voltage, current_lag -> current). ValueError when none or several fit."""
+    readers = [b for b in _PYTHON_SIDE if _core.FEATURE_INPUTS.get(b) == source_field]
+    fit = readers if len(readers) == 1 else [b for b in readers if name.startswith(b)]
+    if len(fit) != 1:
+        raise ValueError(f"derived feature {name!r}: its state follows field {source_field!r}, read by the base "
+                         f"feature(s) {readers or 'none'}; " + ("none" if not fit else "several") + " of them "
+                         "starts its name (a derived feature of a field several base features read is named "
+                         "after its base feature: <base>_...)")
+    return fit[0]
+
+
+def derived_feature(name: str) -> tuple[str, State, float | None]:
+    """(unit, State, value at rest) of a runtime feature whose dn_damper_input field is a damper
+    state (`_core.DAMPER_STATES`): the State of the state's dynamics (`DYNAMICS`) on its source;
+    a lag's unit and value at rest its base feature's (`base_feature`: the control's unit
+    follows voltage or current), a Dahl state's unit the state's and at rest None."""
+    unit, dynamics, source, _param, _doc = _core.DAMPER_STATES[_core.FEATURE_INPUTS[name]]
+    try:
+        kind, held = DYNAMICS[dynamics]
+    except KeyError:
+        raise ValueError(f"derived feature {name!r}: dynamics {dynamics!r} (dampnet.h DN_STATE_DYNAMICS_LIST) "
+                         "has no Python twin in dampnet.features.DYNAMICS") from None
+    if kind is Lag:
+        base = base_feature(name, source)
+        base_unit, _channel, at_rest = _PYTHON_SIDE[base]
+        return base_unit, Lag(base, held=bool(held)), at_rest
+    state = kind()
+    if state.loop_input != source:
+        raise ValueError(f"derived feature {name!r}: its {dynamics} state follows {source!r}, Python's "
+                         f"{kind.__name__} follows {state.loop_input!r}")
+    return unit, state, None
+
+
 def _runtime_feature(name: str) -> Feature:
-    unit, source, at_rest = _PYTHON_SIDE[name]
+    if _core.FEATURE_INPUTS[name] in _core.DAMPER_STATES:
+        unit, source, at_rest = derived_feature(name)
+    else:
+        unit, source, at_rest = _PYTHON_SIDE[name]
     return Feature(name, unit, source, at_rest, _core.FEATURE_INPUTS[name], _core.FEATURE_PARAMS[name])
 
 
-#: name -> Feature, in the runtime's order (DN_FEATURE_LIST), then Python-only ones
+#: name -> Feature, in the runtime's order (DN_FEATURE_LIST), then Python-only ones (a runtime
+#: base feature without its `_PYTHON_SIDE` line is left out: tests/python/test_feature_registry.py)
 FEATURES: dict[str, Feature] = {name: _runtime_feature(name) for name in _core.FEATURE_NAMES
-                                if name in _PYTHON_SIDE}
+                                if name in _PYTHON_SIDE or _core.FEATURE_INPUTS[name] in _core.DAMPER_STATES}
+
+
+def damper_states() -> dict[str, tuple[State, str]]:
+    """The runtime's damper states (dampnet.h DN_DAMPER_STATE_LIST) in block order: field ->
+    (its State, as the runtime features reading it have it; its feature parameter)."""
+    out = {}
+    for field, (_unit, _dyn, _source, param, _doc) in _core.DAMPER_STATES.items():
+        state = next((f.state for f in FEATURES.values() if f.field == field and f.state is not None), None)
+        if state is None:
+            raise ValueError(f"damper state {field!r}: no runtime feature reads it (dampnet.h DN_FEATURE_LIST)")
+        out[field] = (state, param)
+    return out
 
 
 def register_feature(name: str, unit: str, source: str | State, at_rest: float | None = None,
@@ -237,7 +320,8 @@ def register_feature(name: str, unit: str, source: str | State, at_rest: float |
     Returns the Feature; remove it with `unregister_feature`."""
     if name in _core.FEATURE_NAMES:
         raise ValueError(f"feature {name!r} is the runtime's (dampnet.h DN_FEATURE_LIST); "
-                         "its Python side is features._PYTHON_SIDE")
+                         "its Python side comes from the runtime's registry (features._PYTHON_SIDE for a "
+                         "channel, _core.DAMPER_STATES for a derived one)")
     if isinstance(source, str) != (param is None):
         raise ValueError(f"feature {name!r}: a channel takes no parameter, a derived state needs one")
     if param is not None and param not in _core.FEATURE_PARAM_NAMES:
@@ -305,11 +389,11 @@ def check_runtime(names: Sequence[str], feature_params: Mapping[str, float] | No
 
 
 def steady_inputs(x, v, u) -> dict[str, Any]:
-    """The runtime's derived dn_damper_input fields (u_lag, v_lag, z_fric, ...) in steady state
-    at displacement x [m], velocity v [m/s] and control u (scalars or arrays): the keyword
-    arguments of `_core.Damper.forces` for a damper held at (x, v, u), e.g. at rest."""
+    """The runtime's derived dn_damper_input fields (its damper states, _core.DAMPER_STATES) in
+    steady state at displacement x [m], velocity v [m/s] and control u (scalars or arrays): the
+    keyword arguments of `_core.Damper.forces` for a damper held at (x, v, u), e.g. at rest."""
     q = {"x": x, "v": v, "u": u}
-    return {f.field: f.state.steady(q) for f in FEATURES.values() if f.state is not None and f.name in _core.FEATURE_NAMES}
+    return {field: state.steady(q) for field, (state, _param) in damper_states().items()}
 
 
 def target_vector(tests: Sequence[Any], channel: str = "force") -> np.ndarray:

@@ -119,8 +119,9 @@ def _case_runs(model, spec_obj, text: str) -> list[RunInputs]:
 
 
 def _npz_inputs(model, arrays: dict, path: Path) -> np.ndarray:
-    """A quarter-car run's inputs from its run.npz: each feature's runtime field (x, v, a, u,
-    u_lag, ...: the step outputs and the loop state), else the recorded `features` columns
+    """A quarter-car run's inputs from its run.npz: each feature's runtime field (x, v, a, u
+    and the damper's states, _core.DAMPER_STATES: the step outputs and the loop state's columns,
+    by name), else the recorded `features` columns
     (a neural damper's inputs) when they are the model's count."""
     from dampnet.features import feature
 
@@ -158,7 +159,10 @@ def _dir_runs(model, path: Path) -> list[RunInputs]:
     if "t" in arrays:
         t = np.asarray(arrays["t"], dtype=np.float64)
     elif "state" in arrays:
-        t = np.asarray(arrays["state"], dtype=np.float64)[:, 0]
+        from dampnet import _core
+
+        names = _core.FULLCAR_STATE_NAMES if schema.startswith("dampnet.vehicle/") else _core.STATE_NAMES
+        t = np.asarray(arrays["state"], dtype=np.float64)[:, list(names).index("t")]
     else:
         raise PlanError(f"{path / 'run.npz'}: no time column")
     dt = float(np.median(np.diff(t))) if t.size > 1 else 1e-3

@@ -1,8 +1,9 @@
 """The feature registry: the runtime's (dampnet.h via _core) plus Python's side (dampnet.features).
 
 (a) Each derived feature and feature parameter is named, in code, only where the recipe
-    says a feature lives: dampnet.h (the registry), loop.hpp (the state update) and
-    features.py (the Python side). Everything else finds them in the registry.
+    says a feature lives: dampnet.h (the registry: its feature, parameter and damper-state
+    rows). Everything else, features.py included (its derived features come from the damper
+    states, _core.DAMPER_STATES), finds them in the registry.
 (b) A feature defined only in features.py's registry (a second lag of velocity with its own
     time constant, registered here) reaches training, the C header, the reference loop and
     the diagnosis; the runtime, which reads its feature names from dampnet.h, refuses it
@@ -31,7 +32,10 @@ ROOT = Path(__file__).resolve().parents[2]
 
 def test_python_registry_is_the_runtimes():
     assert list(FEATURES) == list(_core.FEATURE_NAMES)
-    assert set(features._PYTHON_SIDE) == set(_core.FEATURE_NAMES)  # no stale Python-side line
+    # Python's side lists the base features (channels) only, no stale line; the derived ones are
+    # the features reading a damper state (tests/python/test_damper_state_registry.py)
+    base = {f for f in _core.FEATURE_NAMES if _core.FEATURE_INPUTS[f] not in _core.DAMPER_STATES}
+    assert set(features._PYTHON_SIDE) == base
     for name, f in FEATURES.items():
         assert (f.state is None) == (f.param is None), name  # a state needs its parameter
     assert features.feature_param_names() == dict(_core.FEATURE_PARAM_NAMES)
@@ -79,9 +83,7 @@ def test_steady_inputs_are_the_derived_fields_the_runtime_damper_takes():
 
 #: where a derived feature's or a feature parameter's name may be written in code
 ALLOWED = {
-    "cpp/include/dampnet/dampnet.h",  # the registry: DN_FEATURE_LIST, DN_FEATURE_PARAM_LIST
-    "cpp/include/dampnet/loop.hpp",  # the state update
-    "python/dampnet/features.py",  # Python's side: unit, training formula, value at rest
+    "cpp/include/dampnet/dampnet.h",  # the registry: DN_FEATURE_LIST, DN_FEATURE_PARAM_LIST, DN_DAMPER_STATE_LIST
 }
 #: not scanned: tests, the fuzzers' corpora (model files), the default model's files, data
 SKIP_DIRS = {".git", ".venv", "build", "tests", "corpus", ".pytest_cache", ".benchmarks", "__pycache__"}
@@ -139,7 +141,7 @@ def test_derived_features_and_their_parameters_are_named_only_in_the_registry():
         hits = sorted({m.group(1) for s in _code_strings(path) for m in pattern.finditer(s)})
         if hits:
             found[rel] = hits
-    assert "cpp/include/dampnet/dampnet.h" in found and "python/dampnet/features.py" in found  # the scan works
+    assert "cpp/include/dampnet/dampnet.h" in found  # the scan works
     outside = {rel: hits for rel, hits in found.items() if rel not in ALLOWED}
     assert not outside, f"derived-feature names written outside the registry: {outside}"
 

@@ -116,7 +116,7 @@ def test_derived_feature_without_a_valid_parameter_fails_at_creation(feature, pa
 def test_exported_model_runs_through_the_c_abi(tmp_path):
     """The exported header carries the feature parameters; the demo's C program (dn_ C ABI)
     gives Python's force from the same inputs."""
-    from dampnet.demo.cprogram import compile_controller, run_controller
+    from dampnet.demo.cprogram import ROW_FIELDS, compile_controller, run_controller
 
     model = _model()
     write_header(model, tmp_path / "model" / "model.h")
@@ -128,7 +128,9 @@ def test_exported_model_runs_through_the_c_abi(tmp_path):
     n = 400
     v, v_lag, z, u = (rng.uniform(-1, 1, n), rng.uniform(-1, 1, n), rng.uniform(-1, 1, n),
                       rng.uniform(0, 5, n))
-    # controller.c reads dn_damper_input's fields: x v a u u_lag temperature v_lag z_fric
-    rows = np.column_stack([np.zeros(n), v, np.zeros(n), u, u, np.full(n, 20.0), v_lag, z])
+    # controller.c reads dn_damper_input's quantities (ROW_FIELDS), by name here
+    by_field = {"x": np.zeros(n), "v": v, "a": np.zeros(n), "u": u, "u_lag": u, "temperature": np.full(n, 20.0),
+                "v_lag": v_lag, "z_fric": z}
+    rows = np.column_stack([by_field.get(f, np.zeros(n)) for f in ROW_FIELDS])  # another: unread
     ref = numpy_forward(model, np.column_stack([v, v_lag, z, u]))
     np.testing.assert_allclose(run_controller(exe, rows), ref, rtol=0, atol=1e-9)

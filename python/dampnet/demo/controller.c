@@ -1,13 +1,29 @@
 /* A small C controller-side program: the exported model (generated header) run
  * through the dampnet C library as a damper, one force per input line.
- * stdin: lines "x v a u u_lag temperature v_lag z_fric" (m, m/s, m/s^2, V, V, degC,
- * m/s, -), the fields of dn_damper_input;
+ * stdin: lines of the quantities of dn_damper_input a model may read, in struct order
+ * (DN_DAMPER_INPUT_FIELDS' roles QTY and QTY_OPT: x v a u u_lag temperature v_lag z_fric ...,
+ * in m, m/s, m/s^2, V, V, degC, m/s, - ...; dampnet.demo.cprogram.ROW_FIELDS);
  * stdout: the force [N] per line. Built by `dampnet demo` with
  *   cc -std=c99 -I<dampnet include> -I<model dir> controller.c -ldampnet */
 #include <stdio.h>
 
 #include "dampnet/dampnet.h"
 #include "model.h"
+
+/* One line of quantities into `in`: 1 when every one was read. */
+static int read_line(dn_damper_input* in) {
+  int want = 0, got = 0;
+#define CTRL_READ_(name) \
+  ++want;                \
+  if (got + 1 == want && scanf("%lf", &in->name) == 1) ++got;
+#define CTRL_ROLE_QTY(name) CTRL_READ_(name)
+#define CTRL_ROLE_QTY_OPT(name) CTRL_READ_(name)
+#define CTRL_ROLE_CTX(name)
+#define CTRL_FIELD_(type, name, role, doc) CTRL_ROLE_##role(name)
+  DN_DAMPER_INPUT_FIELDS(CTRL_FIELD_)
+#undef CTRL_FIELD_
+  return want > 0 && got == want;
+}
 
 int main(void) {
   dn_mlp_desc desc = DN_MODEL_DESC_INIT;
@@ -40,8 +56,7 @@ int main(void) {
     fprintf(stderr, "controller: %s\n", dn_status_str(st));
     return 1;
   }
-  while (scanf("%lf %lf %lf %lf %lf %lf %lf %lf", &in.x, &in.v, &in.a, &in.u, &in.u_lag,
-               &in.temperature, &in.v_lag, &in.z_fric) == 8) {
+  while (read_line(&in)) {
     st = dn_damper_force(damper, &in, &force, NULL);
     if (st < 0) {
       fprintf(stderr, "controller: %s\n", dn_status_str(st));

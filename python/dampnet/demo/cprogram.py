@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dampnet import paths
+from dampnet import _core, paths
 from dampnet.data import DynoTest
 
 SOURCE = Path(__file__).resolve().parent / "controller.c"
@@ -35,16 +35,19 @@ def compile_controller(model_dir: Path, out_dir: Path) -> Path:
     return exe
 
 
-#: the fields of dn_damper_input controller.c reads per line, in order
-ROW_FIELDS = ("x", "v", "a", "u", "u_lag", "temperature", "v_lag", "z_fric")
+#: the fields of dn_damper_input controller.c reads per line, in struct order: the quantities a
+#: model may read (DN_DAMPER_INPUT_FIELDS' roles QTY and QTY_OPT: the fields the runtime's
+#: features read, the damper's states among them; x v a u u_lag temperature v_lag z_fric ...)
+ROW_FIELDS = tuple(f for f in _core.DAMPER_INPUT_FIELDS if f in set(_core.FEATURE_INPUTS.values()))
 
 
 def controller_inputs(model, test: DynoTest, n: int) -> np.ndarray:
-    """Rows x v a u u_lag T v_lag z_fric (dn_damper_input's fields) for the first n samples of a
-    test, as the loop would feed them: each field from the model's feature that reads it
-    (dampnet.features' registry), else its base feature; a derived state the model does not
-    use takes its steady value (a lag its source, the Dahl state sgn(v))."""
-    from dampnet.features import FEATURES, Lag, feature_matrix
+    """Rows of ROW_FIELDS (dn_damper_input's quantities) for the first n samples of a test, as
+    the loop would feed them: each field from the model's feature that reads it
+    (dampnet.features' registry), else its base feature; a damper state the model does not
+    use takes its steady value (dampnet.features.damper_states: a lag its source, the Dahl
+    state sgn(v))."""
+    from dampnet.features import FEATURES, damper_states, feature_matrix
 
     base = {f.field: f.name for f in FEATURES.values() if f.state is None}
     base["u"] = test.control_name  # voltage or current
@@ -62,8 +65,8 @@ def controller_inputs(model, test: DynoTest, n: int) -> np.ndarray:
         if used:
             cols[fld] = column(used[0])
         else:  # not used by the model: the state's steady value
-            state = next(f.state for f in FEATURES.values() if f.field == fld)
-            cols[fld] = cols[state.loop_input] if isinstance(state, Lag) else np.sign(cols["v"])
+            state, _param = damper_states()[fld]
+            cols[fld] = np.asarray(state.steady(cols), dtype=np.float64)
     return np.column_stack([cols[fld] for fld in ROW_FIELDS])[:n]
 
 

@@ -41,7 +41,7 @@ def rig_signals(model, test: DynoTest, window_s: float = WINDOW_S) -> dict[str, 
 
 
 def _states(model, sig: dict[str, np.ndarray]) -> tuple[dict, dict, np.ndarray]:
-    """(loop, held, prev): the derived features' states (u_lag, v_lag, z_fric) [n] as dampnet's
+    """(loop, held, prev): the damper's states (_core.DAMPER_STATES, by name) [n] as dampnet's
     loop commits them at each sample, as FMPy reads them (held over its late step), and the
     sample whose inputs FMPy's output at each sample has (k - 1; the first its own).
 
@@ -52,8 +52,10 @@ def _states(model, sig: dict[str, np.ndarray]) -> tuple[dict, dict, np.ndarray]:
     t, n = sig["t"], sig["t"].size
     dt = float(t[1] - t[0])
     q = [{"x": sig["x"][k], "v": sig["v"][k], "u": sig["u"][k]} for k in range(n)]
-    # a state the model does not use gets its steady value (not read by the network)
-    loop = {"u_lag": sig["u"], "v_lag": sig["v"], "z_fric": np.zeros(n)}
+    # a state the model does not use gets its value at rest (a lag its source, the Dahl state 0;
+    # not read by the network)
+    loop = {field: np.array([state.first(qk) for qk in q])
+            for field, (state, _param) in features.damper_states().items()}
     held = dict(loop)
     for name in model.features:
         f = features.feature(name)
@@ -79,10 +81,10 @@ def runtime_forces(model, sig: dict[str, np.ndarray]) -> tuple[np.ndarray, np.nd
 
     loop, held, prev = _states(model, sig)
     damper = damper_from_model(model)
-    f_loop = damper.forces(sig["x"], sig["v"], sig["a"], sig["u"], loop["u_lag"], sig["temperature"],
-                           loop["v_lag"], loop["z_fric"])[0]
-    f_fmpy, status, _ = damper.forces(sig["x"][prev], sig["v"][prev], sig["a"][prev], sig["u"][prev],
-                                      held["u_lag"], sig["temperature"][prev], held["v_lag"], held["z_fric"])
+    f_loop = damper.forces(x=sig["x"], v=sig["v"], a=sig["a"], u=sig["u"], temperature=sig["temperature"],
+                           **loop)[0]
+    f_fmpy, status, _ = damper.forces(x=sig["x"][prev], v=sig["v"][prev], a=sig["a"][prev], u=sig["u"][prev],
+                                      temperature=sig["temperature"][prev], **held)
     return f_loop, f_fmpy, status
 
 

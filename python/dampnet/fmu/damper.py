@@ -2,8 +2,9 @@
 
 Inputs x [m], v [m/s], a [m/s2], u (the model's control unit), temperature [degC]; outputs
 force [N], status, clamped_mask, envelope_flags; parameters: the model's feature constants (lags, pre-sliding
-travel) and its physics terms' parameters, settable before initialisation; the derived
-features' states (u_lag, v_lag, z_fric) as local variables, continuous states in model exchange.
+travel) and its physics terms' parameters, settable before initialisation; the damper's states
+the model reads (dampnet.h DN_DAMPER_STATE_LIST, `_core.DAMPER_STATES`: value reference 40 + k
+for state k, its derivative 50 + k) as local variables, continuous states in model exchange.
 """
 
 from __future__ import annotations
@@ -22,11 +23,16 @@ MODEL_IDENTIFIER = "dampnet_damper"
 #: states it keeps for the derived ones)
 FMU_FEATURES = tuple(_core.FEATURE_NAMES)
 VR_FPARAM, VR_TERM, VR_STATE, VR_DERIV, VR_TIME, VR_ENVELOPE = 10, 100, 40, 50, 9, 8
-#: the derived features' states, by the dn_damper_input field a feature reads (the runtime's
-#: registry, _core.FEATURE_INPUTS): (field, slot in fmu_damper.hpp, description)
-STATES = (("u_lag", 0, "control after the model's first-order lag"),
-          ("v_lag", 1, "velocity after the model's first-order lag"),
-          ("z_fric", 2, "Dahl friction state, in [-1, 1]"))
+#: the damper's states (the runtime's registry, _core.DAMPER_STATES, in block order), by the
+#: dn_damper_input field a feature reads: (field, k: value references VR_STATE + k and
+#: VR_DERIV + k in fmu_damper.hpp, description)
+STATES = tuple((name, k, doc) for k, (name, (_unit, _dyn, _source, _param, doc))
+               in enumerate(_core.DAMPER_STATES.items()))
+if VR_STATE + len(STATES) > VR_DERIV or VR_DERIV + len(STATES) > VR_TERM:  # fmu_damper.hpp's static_assert
+    raise ImportError(f"the damper's {len(STATES)} states outgrew their value references "
+                      f"({VR_STATE}.., {VR_DERIV}..: fmu_damper.hpp)")
+#: the dn_damper_input fields that carry the control: u and the damper states of source u
+CONTROL_FIELDS = ("u", *(name for name, (_u, _d, source, _p, _doc) in _core.DAMPER_STATES.items() if source == "u"))
 
 
 def _fields(model: MlpModel) -> set[str]:
@@ -46,11 +52,19 @@ def check_model(model: MlpModel) -> None:
 
 
 def control_unit(model: MlpModel) -> str | None:
-    """The unit of the model's control feature (the first reading u or u_lag), V by default."""
+    """The unit of the model's control feature (the first reading u or a state of it,
+    CONTROL_FIELDS), V by default."""
     for name, unit in zip(model.features, model.units):
-        if _core.FEATURE_INPUTS.get(name) in ("u", "u_lag"):
+        if _core.FEATURE_INPUTS.get(name) in CONTROL_FIELDS:
             return fmi_unit(unit) or "V"
     return "V"
+
+
+def state_unit(name: str, u_unit: str | None) -> str | None:
+    """The FMI unit of damper state `name` (_core.DAMPER_STATES): a state of the control (source
+    u) in the model's control unit u_unit, another in the registry's unit (None: dimensionless)."""
+    unit, _dyn, source, _param, _doc = _core.DAMPER_STATES[name]
+    return u_unit if source == "u" else fmi_unit(unit)
 
 
 def data_label(model: MlpModel) -> str:
@@ -138,8 +152,8 @@ def damper_variables(model: MlpModel, with_grid: bool = False) -> list[Variable]
     used = _fields(model)
     for name, slot, doc in STATES:
         if name in used:
-            unit = u_unit if name == "u_lag" else ("m/s" if name == "v_lag" else None)
-            d_unit = {"V": "V/s", "A": "A/s", "m/s": "m/s2", None: "1/s"}.get(unit)
+            unit = state_unit(name, u_unit)
+            d_unit = {"V": "V/s", "A": "A/s", "m": "m/s", "m/s": "m/s2", None: "1/s"}.get(unit)
             v.append(Variable(name, VR_STATE + slot, "Real", "local", "continuous", doc, unit,
                               initial="calculated", state=True))
             v.append(Variable(f"der({name})", VR_DERIV + slot, "Real", "local", "continuous",

@@ -101,11 +101,15 @@ class NeuralLoopDamper:
     Each feature is fed from the dn_damper_input field the feature registry names
     (dampnet.features: x, v, a, u, temperature, and the derived features' states);
     temperature is constant, `temperature_c` (the runtime's default vehicle temperature).
-    The derived features' states (dampnet.features.Lag, Dahl) advance by
-    `advance(x, v, u, dt)`, which the loop calls once at each step start, with the
-    runtime's exact updates (loop.hpp: the control lag over the previous step's held
-    control, `motion_lag`), so that this loop and the runtime's per-step loop give the
-    same trajectories; `force` may be called any number of times in between (the implicit
+    The damper's states are the runtime's block, by name (dampnet.h DN_DAMPER_STATE_LIST via
+    dampnet.features.damper_states: every one, as the runtime keeps them, each moving by its
+    dynamics when the model sets its parameter, else by the dynamics' default: a lag follows
+    its source, a Dahl state stays), plus the states of Python-only derived features. They
+    advance by `advance(x, v, u, dt)`, which the loop calls once at each step start, with the
+    runtime's exact updates (damper_state.hpp: a lag of the control held over the previous
+    step, a lag of a motion quantity as a ramp, the Dahl state by the net travel), so that
+    this loop and the runtime's per-step loop give the same trajectories; `states` gives them
+    (after an `advance`). `force` may be called any number of times in between (the implicit
     acceleration solve) and, before any `advance`, sees the steady state of its own inputs.
     The network is dampnet.reference's numpy forward (the kernel's function).
     """
@@ -116,8 +120,13 @@ class NeuralLoopDamper:
     STATE_SOURCES = ("x", "v", "u")
 
     def __init__(self, model, temperature_c: float = 20.0):
-        # derived states by dn_damper_input field (the control lags share the runtime's u_lag)
-        self._states: dict[str, tuple[features.State, float]] = {}
+        # states by dn_damper_input field: the runtime's block (parameter None: not set by the
+        # model, the dynamics' default), then the model's derived features (voltage_lag and
+        # current_lag share the runtime's control lag)
+        fp = model.feature_params
+        self._states: dict[str, tuple[features.State, float | None]] = {
+            field: (state, float(fp[param]) if param in fp else None)
+            for field, (state, param) in features.damper_states().items()}
         for name in model.features:
             try:
                 f = features.feature(name)
@@ -141,7 +150,7 @@ class NeuralLoopDamper:
         self.reset()
 
     def reset(self) -> None:
-        self._state: dict[str, float] | None = None  # derived states after the last advance()
+        self._state: dict[str, float] | None = None  # states after the last advance(), by field
         self._prev: dict[str, float] | None = None   # loop quantities of the previous step start
 
     def forward(self, x: np.ndarray) -> np.ndarray:
@@ -151,16 +160,27 @@ class NeuralLoopDamper:
     def advance(self, x: float, v: float, u: float, dt: float) -> None:
         """The derived states at this step start (displacement x [m], velocity v [m/s], control u).
 
-        As the runtime (loop.hpp): the first step is the state at rest (lags equal their
-        input, the Dahl state 0); then each state takes its exact update over the step
-        (dampnet.features.Lag.step, Dahl.step).
+        As the runtime (loop.hpp, damper_state.hpp): the first step is the state at rest (lags
+        equal their input, the Dahl state 0); then each state takes its exact update over the
+        step (dampnet.features.Lag.step, Dahl.step), or without its parameter its default
+        (Lag.off, Dahl.off).
         """
         q = {"x": x, "v": v, "u": u}
         if self._state is None or self._prev is None:
             self._state = {k: s.first(q) for k, (s, _) in self._states.items()}
         else:
-            self._state = {k: s.step(self._state[k], self._prev, q, dt, p) for k, (s, p) in self._states.items()}
+            y, q0 = self._state, self._prev
+            self._state = {k: s.step(y[k], q0, q, dt, p) if p is not None else s.off(y[k], q0, q)
+                           for k, (s, p) in self._states.items()}
         self._prev = q
+
+    @property
+    def states(self) -> dict[str, float]:
+        """The damper's states at the last `advance` by name, the runtime's block in its order
+        (_core.DAMPER_STATES: the loop's state columns of those names); {} before any."""
+        if self._state is None:
+            return {}
+        return {k: self._state[k] for k in _core.DAMPER_STATES}
 
     def force(self, x, v, a, u, dt) -> float:
         """Force [N] (MLP plus terms) at the derived features' current states."""
@@ -313,7 +333,9 @@ def run(damper, z_r, v_r, vehicle: Vehicle | None = None, controller: Controller
 
     Returns t, z_s, v_s, z_us, v_us, z_r, acc_s, acc_us, force, u, x, v, a (n = len(z_r) - 1
     steps; the last road sample is the end of the last step); with the implicit acceleration
-    feature also accel_evals and accel_converged per step.
+    feature also accel_evals and accel_converged per step; with a damper that keeps the
+    runtime's damper states (NeuralLoopDamper.states) each of them by its name (u_lag, ...:
+    _core.DAMPER_STATES, the runtime loop's state columns of the same names).
     """
     veh = vehicle or Vehicle()
     ctrl = controller or Controller()
@@ -352,6 +374,8 @@ def run(damper, z_r, v_r, vehicle: Vehicle | None = None, controller: Controller
     inv_ms, inv_mus = 1.0 / ms, 1.0 / mus
     ia = getattr(damper, "acceleration_input", None) if veh.accel_feature == "implicit" else None
     advance = getattr(damper, "advance", None)  # derived-feature states, once per step
+    if advance is not None and hasattr(damper, "states"):
+        out.update({name: np.empty(n) for name in _core.DAMPER_STATES})
     if ia is not None:
         a_lo, a_hi = float(damper.model.sat_lo[ia]), float(damper.model.sat_hi[ia])
         out["accel_evals"] = np.ones(n, dtype=np.int64)
@@ -372,6 +396,8 @@ def run(damper, z_r, v_r, vehicle: Vehicle | None = None, controller: Controller
         x, v, a = zs - zus + veh.x_static, vs - vus, as_l - aus_l
         if advance is not None:
             advance(x, v, u, h)
+            for name, value in damper.states.items():
+                out[name][k] = value
         if ia is not None:
             a, f, ok, ne, _ = solve_acceleration(lambda aa: damper.force(x, v, aa, u, h), a, f_last,
                                                  inv_ms + inv_mus, f_static, a_lo, a_hi)
