@@ -24,7 +24,7 @@ experiment takes 16 dt), and with dt itself and the road fed one sample ahead to
 QuarterCar.simulate's run exactly (see tests/python/test_export_fmu_quarter_car.py). The vehicle's f_static starts at the runtime's
 0 N: for a damper with a force at rest (a gas force), set it to that force.
 
-The state and step-report names and docs are read from the runtime's dampnet.h (the X-macro
+The state and step-report names and docs are read from the runtime's dn_xmacro.h (the X-macro
 lists the C++ side generates its tables from), the parameters' from dampnet._core; the
 parameters' start values are compiled into the binary (fmu_config.h: DNFMU_VEHICLE_START,
 DNFMU_CONTROLLER_START), and non-default ones give the FMU its own GUID.
@@ -62,11 +62,15 @@ DEFAULT_STOP_S, DEFAULT_STOP_STEPS = 10.0, 10_000
 
 
 def _x_macro(name: str, pattern: str) -> list[tuple[str, ...]]:
-    """The rows of one of dampnet.h's X-macro lists (the installed runtime's header)."""
-    lines = (Path(paths.include_dirs()[0]) / "dampnet" / "dampnet.h").read_text().splitlines()
+    """The rows of one of the C ABI's X-macro lists (the installed runtime's dampnet/dn_xmacro.h,
+    which dampnet.h includes)."""
+    header = Path(paths.include_dirs()[0]) / "dampnet" / "dn_xmacro.h"
+    if not header.is_file():
+        raise FmuError(f"{header}: not found (a runtime older than this package? rebuild: python/env.sh)")
+    lines = header.read_text().splitlines()
     start = next((i for i, line in enumerate(lines) if line.startswith(f"#define {name}(X)")), None)
     if start is None:
-        raise FmuError(f"dampnet.h: {name} not found (a runtime older than this package?)")
+        raise FmuError(f"dn_xmacro.h: {name} not found (a runtime older than this package?)")
     block = []
     for line in lines[start:]:
         block.append(line.rstrip().rstrip("\\"))
@@ -80,7 +84,7 @@ def loop_states() -> list[tuple[str, str]]:
     rows = _x_macro("DN_LOOP_STATE_LIST", r'X\(\s*(\d+)\s*,\s*(\w+)\s*,\s*"([^"]*)"\s*\)')
     states = [(name, doc) for _, name, doc in sorted(rows, key=lambda r: int(r[0]))]
     if tuple(n for n, _ in states) != tuple(_core.STATE_NAMES):
-        raise FmuError("dampnet.h's DN_LOOP_STATE_LIST differs from dampnet._core.STATE_NAMES: rebuild (python/env.sh)")
+        raise FmuError("dn_xmacro.h's DN_LOOP_STATE_LIST differs from dampnet._core.STATE_NAMES: rebuild (python/env.sh)")
     return states
 
 
