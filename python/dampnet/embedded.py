@@ -519,7 +519,7 @@ Written by `dampnet export {model_name} --target {cpu}` (dampnet {version}). Mod
 | path | what |
 | --- | --- |
 | `model.h` | the model (weights, scalings, saturation limits, feature names): `DN_MODEL_DESC_INIT` (double), `DN_MODEL_FOLDED_INIT` (float weights with the scalings folded in) |
-| `include/dampnet/` | the C ABI (`dampnet.h`) and the header-only C++ runtime it is built from |
+| `include/dampnet/` | the C ABI (`dampnet.h`: the functions; it includes `dn_config.h`, the build options this folder's CMakeLists.txt sets, `dn_types.h` and `dn_xmacro.h`) and the header-only C++ runtime it is built from |
 | `src/` | the library's {n_sources} sources ({source_list}) and its private header `internal.hpp` |
 | `CMakeLists.txt` | the static library `dampnet` with this model's capacities: {caps} |
 | `cmake/arm-none-eabi.cmake` | the toolchain file (`DAMPNET_ARM_CPU` = cortex-m4 or cortex-m7) |

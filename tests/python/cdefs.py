@@ -1,7 +1,7 @@
 """cffi declarations of the C ABI (dampnet.h), shared by the tests that load the shared library.
 
 cffi cannot parse the header's macros, so the declarations the tests use are written out
-here once; test_cdefs_match_the_header checks the struct fields against dampnet.h."""
+here once; test_cdefs_match_the_header checks the struct fields against dampnet.h's (dn_types.h)."""
 
 MLP_CDEF = """
 typedef struct dn_mlp_desc {

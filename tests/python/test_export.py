@@ -129,7 +129,7 @@ def test_cdefs_match_the_header(repo_root):
     """The tests' cffi declaration of dn_mlp_desc has the header's fields in the header's order."""
     from cdefs import MLP_CDEF
 
-    header = (repo_root / "cpp" / "include" / "dampnet" / "dampnet.h").read_text()
+    header = (repo_root / "cpp" / "include" / "dampnet" / "dn_types.h").read_text()  # dampnet.h's types
     body = re.search(r"typedef struct dn_mlp_desc \{(.*?)\} dn_mlp_desc;", header, re.S).group(1)
     fields = re.findall(r"(\w+);", re.sub(r"/\*.*?\*/", "", body, flags=re.S))
     cdef_body = re.search(r"typedef struct dn_mlp_desc \{(.*?)\} dn_mlp_desc;", MLP_CDEF, re.S).group(1)

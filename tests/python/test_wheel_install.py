@@ -64,7 +64,8 @@ def test_the_wheel_carries_the_package_and_every_runtime_file(wheel):
     assert {"dampnet/_core.pyi", "dampnet/py.typed"} <= names
     # what CMake installs for the C side: `dampnet info`'s headers and library, `dampnet bench`'s
     # harness sources and the default model (header and model.json), the demo's C program
-    for f in ("include/dampnet/dampnet.h", "include/dampnet/mlp.hpp", "include/dampnet/loop.hpp",
+    for f in ("include/dampnet/dampnet.h", "include/dampnet/dn_config.h", "include/dampnet/dn_xmacro.h",
+              "include/dampnet/dn_types.h", "include/dampnet/mlp.hpp", "include/dampnet/loop.hpp",
               "include/dampnet/fullcar.hpp",
               "include/dn_model_default.h", "include/dn_model_default.json", "lib/libdampnet.so",
               "bench/bench_mlp.cpp", "bench/latency.hpp", "demo/controller.c",

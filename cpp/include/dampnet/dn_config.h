@@ -1,0 +1,108 @@
+/* dampnet build options: the limits, this build's capacities and its configuration macros.
+ *
+ * Part of the C ABI; include "dampnet/dampnet.h", which includes this. C99 and C++. The
+ * defaults below are what a build without compile definitions gets; a build for a small target
+ * (the Cortex-M presets of CMakePresets.json, CMake's DAMPNET_* options) overrides them. */
+#ifndef DAMPNET_DN_CONFIG_H
+#define DAMPNET_DN_CONFIG_H
+
+/*---- The MLP ----*/
+
+#define DN_MAX_INPUTS 8        /* inputs per model */
+#define DN_MAX_HIDDEN 64       /* neurons per hidden layer */
+#define DN_MAX_HIDDEN_LAYERS 2 /* hidden layers */
+
+/* Capacities of this build of the library: what its fixed-size objects hold. The defaults are
+ * the limits above; a build for a small target lowers them (compile definitions of the library
+ * and of every C++ file including its headers: the Cortex-M presets of CMakePresets.json set
+ * them from the DAMPNET_CAP_* cache options) so that the objects, dn_*_size() and RAM shrink.
+ * Set-up refuses a model beyond them with DN_E_SIZE. C code sees the objects only through
+ * pointers, so a C program needs no definitions of its own.
+ *   DN_CAP_INPUTS   inputs of an MLP, 1..DN_MAX_INPUTS
+ *   DN_CAP_HIDDEN   neurons of hidden layer 1, 1..DN_MAX_HIDDEN
+ *   DN_CAP_HIDDEN2  neurons of hidden layer 2, 0 (one hidden layer only)..DN_MAX_HIDDEN
+ *   DN_CAP_TABLE_V, DN_CAP_TABLE_U  lookup-table velocities (2..) and controls (1..)
+ *   DN_CAP_TERMS    physics terms per damper, 0..DN_MAX_TERMS
+ *   DN_DOUBLE_KERNEL  1: the double-precision MLP kernel; 0: none (float-only targets:
+ *                   DN_PRECISION_DOUBLE and dn_mlp_forward give DN_E_PARAM)
+ *   DN_KERNEL_SMALL   1: flash before speed on scalar cores (CMake DAMPNET_KERNEL_SMALL; the
+ *                   Cortex-M presets): the one-hidden-layer float forward is compiled once, for
+ *                   exactly DN_CAP_INPUTS inputs (set-up refuses another input count with
+ *                   DN_E_SIZE), and set-up code is optimised for size; 0 (default): also a
+ *                   forward for any input count. No effect on x86's SIMD kernels.
+ *   DN_KERNEL_UNROLL  neurons per pass of the scalar float forward, 1, 2, 4 or 8 (CMake
+ *                   DAMPNET_KERNEL_UNROLL; default 2 with DN_KERNEL_SMALL, else 8): more is
+ *                   more flash and fewer instructions; the result is the same bits for any. */
+#ifndef DN_CAP_INPUTS
+#define DN_CAP_INPUTS DN_MAX_INPUTS
+#endif
+#ifndef DN_CAP_HIDDEN
+#define DN_CAP_HIDDEN DN_MAX_HIDDEN
+#endif
+#ifndef DN_CAP_HIDDEN2
+#define DN_CAP_HIDDEN2 DN_MAX_HIDDEN
+#endif
+#ifndef DN_DOUBLE_KERNEL
+#define DN_DOUBLE_KERNEL 1
+#endif
+
+/* The loop's real type. DN_LOOP_FLOAT 1 (CMake DAMPNET_LOOP_FLOAT; the cortex-m4 preset) makes
+ * dn_real float: the quarter-car loop's state and arithmetic, the damper models, the vehicle
+ * and controller parameters, dn_damper_input, dn_loop_input / dn_loop_out and the flat state
+ * are single precision, for cores whose FPU has no double (Cortex-M4F: every double operation
+ * there is a library routine of ~20-100 cycles). Default 0: double, the host's. The MLP's
+ * own API (dn_mlp_*) and the set-up arrays (tables, feature and term parameters) keep double;
+ * the full vehicle (dn_fullcar_*) exists only with double. */
+#ifndef DN_LOOP_FLOAT
+#define DN_LOOP_FLOAT 0
+#endif
+#if DN_LOOP_FLOAT
+typedef float dn_real;
+#else
+typedef double dn_real;
+#endif
+
+/* The damper kinds this build evaluates, a bit mask (bit k: dn_damper_kind k; CMake
+ * DAMPNET_DAMPER_KINDS, a list of kind names). Default: all. A kind left out is not linked
+ * (a microcontroller's flash: the Cortex-M presets keep only "neural"); creating a damper of
+ * it gives DN_E_PARAM. */
+#ifndef DN_DAMPER_KINDS
+#define DN_DAMPER_KINDS 0x1f
+#endif
+
+/* The acceleration-feature schemes this build has, a bit mask (bit k: dn_accel_feature k; CMake
+ * DAMPNET_ACCEL_FEATURES, a list of names). Default: all. A scheme left out is not linked (the
+ * Cortex-M presets keep "linear" and "explicit": not the implicit solve's iteration); a vehicle
+ * asking for it is refused (dn_vehicle_check: DN_E_PARAM), and
+ * dn_vehicle_default gives DN_ACCEL_LINEAR when DN_ACCEL_IMPLICIT is out. */
+#ifndef DN_ACCEL_FEATURES
+#define DN_ACCEL_FEATURES 0x7
+#endif
+
+/* The damper-evaluation schemes this build has, a bit mask (bit k: dn_damper_eval k; CMake
+ * DAMPNET_DAMPER_EVALS, names). Default: both. The Cortex-M presets keep "per_step" (one
+ * evaluation per step, the real-time choice): the per-stage path is not
+ * linked, a vehicle asking for it is refused (DN_E_PARAM) and dn_vehicle_default asks for
+ * DN_EVAL_PER_STEP. */
+#ifndef DN_DAMPER_EVALS
+#define DN_DAMPER_EVALS 0x3
+#endif
+
+/*---- Damper models ----*/
+
+#define DN_MAX_TERMS 8        /* physics terms per damper */
+#define DN_MAX_TERM_PARAMS 8  /* parameters per term */
+#define DN_MAX_TABLE_V 64     /* velocity points of a lookup table */
+#define DN_MAX_TABLE_U 16     /* control points of a lookup table */
+/* This build's capacities of a damper (see DN_CAP_INPUTS above). */
+#ifndef DN_CAP_TERMS
+#define DN_CAP_TERMS DN_MAX_TERMS
+#endif
+#ifndef DN_CAP_TABLE_V
+#define DN_CAP_TABLE_V DN_MAX_TABLE_V
+#endif
+#ifndef DN_CAP_TABLE_U
+#define DN_CAP_TABLE_U DN_MAX_TABLE_U
+#endif
+
+#endif /* DAMPNET_DN_CONFIG_H */
