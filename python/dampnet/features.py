@@ -41,7 +41,7 @@ its unit and value at rest from its base feature (voltage_lag V, current_lag A: 
 control's unit; velocity_lag m/s and 0 at rest), a Dahl state its unit from the state
 (at rest: None). `_PYTHON_SIDE` holds only the base features (the channels).
 
-Adding a stateful feature: four places, all in dampnet.h (the recipe above DN_FEATURE_LIST:
+Adding a stateful feature: four places, all lists in dn_xmacro.h, which dampnet.h includes (the recipe above DN_FEATURE_LIST:
 its parameter, its dn_damper_input field, its DN_FEATURE_LIST line, its
 DN_DAMPER_STATE_LIST row); nothing here. Training, export, the runtime's Damper, the
 reference loop and the diagnosis then take it with no other edit. A new kind of dynamics

@@ -256,10 +256,10 @@ DN_API int dn_loop_model_init_neural(const dn_vehicle* veh, const dn_controller*
                                      const double* param_values, int n_params, void* mem,
                                      size_t bytes, dn_loop_model** out);
 
-/* [RT] Reset to rest: zero displacements, velocities, road and time; u_lag and
- * u_cmd = the control the controller gives at rest (external: 0); f_last = f_static;
- * temperature from the vehicle; v_lag = 0 and z_fric = 0 (at rest, no friction
- * direction). */
+/* [RT] Reset to rest: zero displacements, velocities, road and time; u_cmd = the control
+ * the controller gives at rest (external: 0); f_last = f_static; temperature from the
+ * vehicle; the damper's states at their rest with that control (a lag at its source: the
+ * control lag at u_cmd, the velocity lag at 0; the Dahl state 0, no friction direction). */
 DN_API int dn_loop_reset(const dn_loop_model* m, dn_loop_data* d);
 
 /* Number of dn_real in the flat state (DN_LOOP_STATE_SIZE). */
