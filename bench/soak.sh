@@ -10,7 +10,7 @@ out="$root/build/soak"
 mkdir -p "$out"
 cxx="${CXX:-g++}"
 isa=""
-if grep -qw avx2 /proc/cpuinfo && grep -qw fma /proc/cpuinfo; then isa="-mavx2 -mfma -ffp-contract=off"; fi
+if grep -qw avx2 /proc/cpuinfo && grep -qw fma /proc/cpuinfo; then isa="-mavx2 -mfma -ffp-contract=off -DDN_KERNEL_BACKEND=avx2"; fi
 # shellcheck disable=SC2086
 "$cxx" -std=c++17 -O3 -DNDEBUG -DDN_STATIC $isa -I"$root/cpp/include" -I"$root/export" \
   "$root/bench/soak.cpp" "$root"/cpp/src/*.cpp -o "$out/dn_soak"

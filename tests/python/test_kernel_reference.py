@@ -192,13 +192,16 @@ def _cpu_flags() -> set[str]:
     return set()
 
 
-# Every SIMD path of the header-only kernel, compiled here with its flags (whatever the
-# installed runtime was built with): the CMake options DAMPNET_AVX512, DAMPNET_AVX2 and OFF.
+# Every backend of the header-only kernel (cpp/include/dampnet/kernel/backend.hpp), compiled here
+# with its flags and DN_KERNEL_BACKEND (whatever the installed runtime was built with): what the
+# CMake options DAMPNET_AVX512, DAMPNET_AVX2 and OFF select, and the scalar backend of
+# microcontrollers on this host. "sse" passes no macro: the header's default on x86.
 SIMD_PATHS = {
-    "avx512": (["-mavx2", "-mfma", "-mavx512f", "-mavx512vl", "-mavx512dq", "-ffp-contract=off"],
-               {"avx2", "fma", "avx512f", "avx512vl", "avx512dq"}),
-    "avx2+fma": (["-mavx2", "-mfma", "-ffp-contract=off"], {"avx2", "fma"}),
+    "avx512": (["-mavx2", "-mfma", "-mavx512f", "-mavx512vl", "-mavx512dq", "-ffp-contract=off",
+                "-DDN_KERNEL_BACKEND=avx512"], {"avx2", "fma", "avx512f", "avx512vl", "avx512dq"}),
+    "avx2+fma": (["-mavx2", "-mfma", "-ffp-contract=off", "-DDN_KERNEL_BACKEND=avx2"], {"avx2", "fma"}),
     "sse": ([], set()),
+    "scalar": (["-DDN_KERNEL_BACKEND=scalar"], set()),
 }
 
 

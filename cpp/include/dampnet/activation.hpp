@@ -4,11 +4,13 @@
 // so the double kernel meets its 1e-12 relative contract against a float64 reference.
 // float (scalar and SSE paths): a 13/6-degree odd/even rational interpolant of tanh
 // on [-9, 9] (the same form Eigen uses), branch-free so the compiler vectorises the
-// hidden layer; the AVX2 and AVX-512 kernels use a 15/4 rational (below, fast_tanh8)
-// in the last hidden layer (an AVX-512 two-layer model's first layer keeps the 13/6
-// form, fast_tanh16). The 13/6 form's worst absolute error against std::tanh, measured over
-// [-10, 10] by tests/cpp/unit/test_activation.cpp, is 3.2e-7 (bound checked: 5e-7;
-// about 5 float ulps, near |tanh| = 1); the sigmoid's is 1.7e-7 (bound 3e-7).
+// hidden layer; the AVX2 and AVX-512 kernels use a 15/4 rational (below) in the last
+// hidden layer (an AVX-512 two-layer model's first layer keeps the 13/6 form). Their vector
+// forms live with those backends (kernel/simd_x86.hpp fast_tanh8, kernel/dense_avx512.hpp
+// fast_tanh16): this file keys on no compiler flag. The 13/6 form's worst absolute error
+// against std::tanh, measured over [-10, 10] by tests/cpp/unit/test_activation.cpp, is
+// 3.2e-7 (bound checked: 5e-7; about 5 float ulps, near |tanh| = 1); the sigmoid's is
+// 1.7e-7 (bound 3e-7).
 // The logistic sigmoid is evaluated through the identity
 // sigmoid(x) = 0.5 + 0.5 * tanh(x / 2), so both activations share one
 // approximation and one error bound (halved for the sigmoid).
@@ -17,14 +19,6 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
-
-#if defined(__AVX2__) && defined(__FMA__)
-#include <immintrin.h>
-#define DN_TANH8_AVX2 1
-#if defined(__AVX512F__) && defined(__AVX512VL__) && defined(__AVX512DQ__) && !defined(DN_NO_AVX512_KERNEL)
-#define DN_TANH16_AVX512 1
-#endif
-#endif
 
 #include "dampnet/dampnet.h"
 
@@ -71,7 +65,7 @@ inline float fast_tanh(float a) noexcept { return tanh_rational(clamp_tanh_arg(a
 // one FMA: a shorter chain to the division than the 13/6 form's three FMAs. Fitted by
 // bench/experiments/fit_tanh_rational.py (linearised minimax over [0, kTanhClamp] with an allowance
 // for float rounding; 2.1e-7 from tanh in exact arithmetic, clamp included). Used with
-// each neuron's output weight folded into P's coefficients by the MLP kernel (mlp.hpp,
+// each neuron's output weight folded into P's coefficients by the MLP kernel (kernel/simd_x86.hpp,
 // tanh_folded). Measured worst error of the float evaluation: 3.1e-7 over every float in
 // [-10, 10] (fast_tanh8; 2.9e-7 every 128th float, the test's walk).
 constexpr int kTanhPTerms = 8;
@@ -81,80 +75,6 @@ constexpr double kTanhP[kTanhPTerms] = {
     1.9402772002528185e-10,  -5.1804715822882512e-13};
 constexpr double kTanhQ0 = 56.013765804633906, kTanhQ1 = 25.168260707120925;
 constexpr float kTanhClamp = 8.125f, kTanhClampSq = 66.015625f;  // both exact
-
-#ifdef DN_TANH8_AVX2
-// The 15/4 rational on 8 floats with FMA, in the MLP kernel's order of operations:
-// y = min(z^2, kTanhClampSq) equals x^2 for the clamped x one operation sooner (NaN: z^2
-// is NaN and minps returns its second operand; x = kTanhClamp), P by Estrin in y, and
-// t = (x / q) P. Worst absolute error against std::tanh over [-10, 10]: 3.1e-7
-// (tests/cpp/unit/test_activation.cpp checks < 5e-7); +-Inf and NaN give +-(1 - 1.2e-7) and
-// +(1 - 1.2e-7), the rational's value at the clamp.
-inline __m256 fast_tanh8(__m256 z) noexcept {
-  const __m256 x = _mm256_max_ps(_mm256_min_ps(z, _mm256_set1_ps(kTanhClamp)), _mm256_set1_ps(-kTanhClamp));
-  const __m256 y = _mm256_min_ps(_mm256_mul_ps(z, z), _mm256_set1_ps(kTanhClampSq));
-  const __m256 y2 = _mm256_mul_ps(y, y), y4 = _mm256_mul_ps(y2, y2);
-  auto c = [](int k) { return _mm256_set1_ps(static_cast<float>(kTanhP[k])); };
-  const __m256 c01 = _mm256_fmadd_ps(c(1), y, c(0)), c23 = _mm256_fmadd_ps(c(3), y, c(2));
-  const __m256 c45 = _mm256_fmadd_ps(c(5), y, c(4)), c67 = _mm256_fmadd_ps(c(7), y, c(6));
-  const __m256 p = _mm256_fmadd_ps(_mm256_fmadd_ps(c67, y2, c45), y4, _mm256_fmadd_ps(c23, y2, c01));
-  const __m256 q = _mm256_fmadd_ps(y, _mm256_add_ps(y, _mm256_set1_ps(static_cast<float>(kTanhQ1))),
-                                   _mm256_set1_ps(static_cast<float>(kTanhQ0)));
-  return _mm256_mul_ps(_mm256_div_ps(x, q), p);
-}
-#endif
-
-#ifdef DN_TANH16_AVX512
-// GCC 12's AVX-512 intrinsics (_mm512_min_ps, _mm512_rcp14_ps, _mm512_castps512_ps256,
-// ...) pass a self-initialised "undefined" vector that -Wuninitialized reports.
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wuninitialized"
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#endif
-// The same rational on 16 floats (the AVX-512 kernel's activation), with a shorter
-// chain than fast_tanh8: y = z^2 unclamped (no min on the chain; lanes with |z| > 9
-// or NaN, found by a compare beside it, are replaced by +-1 through write masks,
-// which cost nothing), and 1/q by vrcp14ps (relative error < 2^-14) and one
-// Newton step folded into x / q, shorter than a 512-bit division.
-// Worst absolute error against std::tanh over [-10, 10] (tests/cpp/unit/test_activation.cpp):
-// 3.0e-7 (checked < 5e-7, the float bound); |z| > 9 and +-Inf give exactly +-1, NaN +1.
-// tanh(z) = r * p as two factors (p = 1 where saturated).
-inline void fast_tanh16_factors(__m512 z, __m512& r, __m512& p) noexcept {
-  const __m512 one = _mm512_set1_ps(1.f);
-  const __m512 x = _mm512_max_ps(_mm512_min_ps(z, _mm512_set1_ps(9.f)), _mm512_set1_ps(-9.f));
-  // |z| <= 9 (false for NaN): the rational's lanes; the others take x / 9 = +-1 (NaN: x = 9).
-  const __mmask16 in = _mm512_cmp_ps_mask(_mm512_abs_ps(z), _mm512_set1_ps(9.f), _CMP_LE_OQ);
-  const __m512 sat = _mm512_mul_ps(x, _mm512_set1_ps(1.f / 9.f));  // exactly +-1
-  const __m512 y = _mm512_mul_ps(z, z);
-  const __m512 y2 = _mm512_mul_ps(y, y), y4 = _mm512_mul_ps(y2, y2);
-  const __m512 e01 = _mm512_fmadd_ps(_mm512_set1_ps(6.37261928875436e-04f), y, _mm512_set1_ps(4.89352455891786e-03f));
-  const __m512 e23 = _mm512_fmadd_ps(_mm512_set1_ps(5.12229709037114e-08f), y, _mm512_set1_ps(1.48572235717979e-05f));
-  const __m512 e45 = _mm512_fmadd_ps(_mm512_set1_ps(2.00018790482477e-13f), y, _mm512_set1_ps(-8.60467152213735e-11f));
-  const __m512 lo = _mm512_mask_blend_ps(in, one, _mm512_fmadd_ps(e23, y2, e01));  // 1 where saturated
-  const __m512 hi = _mm512_fmadd_ps(_mm512_set1_ps(-2.76076847742355e-16f), y2, e45);
-  p = _mm512_mask3_fmadd_ps(hi, y4, lo, in);  // hi y4 + lo; where saturated, lo = 1
-  const __m512 q01 = _mm512_fmadd_ps(_mm512_set1_ps(2.26843463243900e-03f), y, _mm512_set1_ps(4.89352518554385e-03f));
-  const __m512 q23 = _mm512_fmadd_ps(_mm512_set1_ps(1.19825839466702e-06f), y, _mm512_set1_ps(1.18534705686654e-04f));
-  const __m512 q = _mm512_fmadd_ps(q23, y2, q01);
-#ifdef DN_TANH16_DIV
-  r = _mm512_mask_div_ps(sat, in, x, q);
-#else
-  // x / q = x r0 (1 + e) + O(e^2), r0 = rcp14(q), e = 1 - q r0.
-  const __m512 r0 = _mm512_rcp14_ps(q);
-  const __m512 e = _mm512_maskz_fnmadd_ps(in, q, r0, one);  // 0 where saturated
-  const __m512 xr0 = _mm512_mask_mul_ps(sat, in, x, r0);     // sat where saturated
-  r = _mm512_fmadd_ps(xr0, e, xr0);
-#endif
-}
-inline __m512 fast_tanh16(__m512 z) noexcept {
-  __m512 r, p;
-  fast_tanh16_factors(z, r, p);
-  return _mm512_mul_ps(r, p);
-}
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic pop
-#endif
-#endif
 
 // double: tanh(z) = sign(z) e / (e + 2) with e = expm1(2 |z|), for |z| <= 20 (the
 // caller clamps: clamp_tanh_arg; tanh(20) rounds to 1). expm1(t) = 2^k (p(r) + 1) - 1

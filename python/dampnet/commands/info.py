@@ -24,7 +24,7 @@ def run(args) -> int:
     print(f"shared library: {library}")
     info = getattr(_core, "BUILD_INFO", None)
     if info:
-        print(f"MLP kernel:     {info['kernel_isa']} SIMD path{' (Eigen dense layers)' if info.get('eigen') else ''}; "
+        print(f"MLP kernel:     {info['kernel_isa']} backend (cpp/include/dampnet/kernel/); "
               f"built with {info['compiler']}, flags '{info['flags']}'")
-        print("                (CMake options DAMPNET_AVX2=AUTO|ON|OFF, DAMPNET_AVX512=OFF|AUTO|ON select it)")
+        print("                (CMake options DAMPNET_AVX2=AUTO|ON|OFF, DAMPNET_AVX512=OFF|AUTO|ON set DN_KERNEL_BACKEND)")
     return 0
