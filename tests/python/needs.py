@@ -29,6 +29,7 @@ TOOLS = {
     "arm-none-eabi-gcc": "gcc-arm-none-eabi", "arm-none-eabi-g++": "gcc-arm-none-eabi",
     "arm-none-eabi-nm": "binutils-arm-none-eabi", "arm-none-eabi-objdump": "binutils-arm-none-eabi",
     "qemu-system-arm": "qemu-system-arm",
+    "valgrind": "valgrind",
 }
 #: programs that come from PyPI with the build tools python/env.sh installs into .venv
 PYPI_TOOLS = {"cmake": "cmake", "ctest": "cmake", "ninja": "ninja"}
