@@ -594,9 +594,10 @@ inline T forward_fused1(const P& p, const T* xs, const T* col, T* dys) noexcept 
 #define DN_KERNEL_FUSED1 1
 #endif
 
-// A flash-lean build keeps each forward one function (not inlined into every caller: the
-// damper's and the loop's several call sites would each get a copy, and its stack).
-#if DN_KERNEL_SMALL && defined(__GNUC__)
+// Each forward is one function (not inlined into every caller: the damper's and the loop's
+// several call sites would each get a copy, and its stack; a flash-lean build's flash, the
+// host's L1i: issue 30).
+#if defined(__GNUC__)
 #define DN_KERNEL_OUTLINE __attribute__((noinline, noclone))
 #else
 #define DN_KERNEL_OUTLINE
@@ -715,7 +716,7 @@ DN_KERNEL_OUTLINE DN_REALTIME inline int forward(const P& p, const T* x, T* y, u
 // layer go through forward_simd_batch (the weights loaded once per block for all samples);
 // the others are kB forward() calls. Returns the samples' statuses in status[b].
 template <typename T, int kIn, int kH1, class P, bool kGrad, int kB>
-DN_REALTIME inline void forward_batch(const P& p, const T* const* x, T* y, uint32_t* clamped_mask,
+DN_KERNEL_OUTLINE DN_REALTIME inline void forward_batch(const P& p, const T* const* x, T* y, uint32_t* clamped_mask,
                                       int grad_input, T* dy_dxi, int* status) noexcept {
 #if DN_KERNEL_AVX2 || DN_KERNEL_AVX512
   if constexpr (std::is_same<T, float>::value) {
