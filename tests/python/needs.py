@@ -29,11 +29,14 @@ TOOLS = {
     "arm-none-eabi-gcc": "gcc-arm-none-eabi", "arm-none-eabi-g++": "gcc-arm-none-eabi",
     "arm-none-eabi-nm": "binutils-arm-none-eabi", "arm-none-eabi-objdump": "binutils-arm-none-eabi",
     "qemu-system-arm": "qemu-system-arm",
+    "valgrind": "valgrind",
+    # binutils (with build-essential): the code footprint (dampnet.latency.footprint)
+    "nm": "binutils", "objdump": "binutils", "readelf": "binutils", "c++filt": "binutils",
 }
 #: programs that come from PyPI with the build tools python/env.sh installs into .venv
 PYPI_TOOLS = {"cmake": "cmake", "ctest": "cmake", "ninja": "ninja"}
 #: Debian packages that come with another one of the list (a dependency), not listed themselves
-DEPENDENCIES = {"binutils-arm-none-eabi": "gcc-arm-none-eabi"}
+DEPENDENCIES = {"binutils-arm-none-eabi": "gcc-arm-none-eabi", "binutils": "build-essential"}
 #: Debian's essential packages: on every Debian system, never listed
 ESSENTIAL = {"dpkg", "libc-bin"}
 #: names tried only as alternatives to a listed tool (another distribution's Chromium)

@@ -1,7 +1,9 @@
 """The hot-path footprint tool (dampnet.latency.footprint, bench/footprint.py) on the built
 library: the walk from dn_fullcar_step and dn_loop_step is sound (it reaches what the steps
-are known to call) and its arithmetic is the symbol sizes'. No ceiling here: issue 30's
-16 KB (footprint.FULLCAR_STEP_CEILING_BYTES) is the damper refactor's to assert."""
+are known to call) and its arithmetic is the symbol sizes'; the dynamic measure (--dynamic,
+valgrind callgrind) counts what a configuration's steps actually call. No ceiling here yet:
+issue 30's 16 KB (footprint.FULLCAR_STEP_CEILING_BYTES, judged on the dynamic measure) is not
+reached (bench/RESULTS.md: 26,438 B at most over the full car's configurations)."""
 
 from __future__ import annotations
 
@@ -13,6 +15,7 @@ import pytest
 
 from cbuild import ROOT
 from dampnet.latency import footprint
+from needs import need_tool
 
 
 @pytest.fixture(scope="module")
@@ -65,3 +68,53 @@ def test_script_prints_the_table_and_writes_json(tmp_path):
     bad = subprocess.run([sys.executable, str(ROOT / "bench" / "footprint.py"), "--entry", "no_such_fn"],
                          capture_output=True, text=True, timeout=300)
     assert bad.returncode == 2 and "no_such_fn is not a function of the library" in bad.stderr
+
+
+HIL = "fullcar_step_rk4_per_step_eval_neural_float_skyhook_linear_accel"
+FOUR = "fullcar_step_rk4_per_step_eval_neural_float_skyhook_linear_accel_four_calls"
+
+
+@pytest.fixture(scope="module")
+def dynamic(measured):
+    need_tool("valgrind")
+    need_tool("cc")
+    return footprint.measure_dynamic(configs=(HIL, FOUR), n_steps=3)
+
+
+def test_dynamic_counts_what_the_steps_call(measured, dynamic):
+    """--dynamic: the functions the HIL configuration's steps executed, each with its whole
+    symbol size; a subset of the static walk's (an upper bound), the step and the batched
+    kernel in it, the other damper kinds' code not."""
+    assert dynamic["library"] == measured["library"]
+    static = {row["address"]: row for row in measured["entries"]["dn_fullcar_step"]["functions"]}
+    for c in (HIL, FOUR):
+        r = dynamic["configs"][c]
+        names = [row["function"] for row in r["functions"]]
+        assert r["total_bytes"] == sum(row["bytes"] for row in r["functions"]) > 0
+        assert all(row["executed_instructions"] > 0 for row in r["functions"])
+        assert any(n.startswith("dampnet::step(dampnet::FullCarModel const&") for n in names), names
+        assert "dn_fullcar_step" in names
+        for row in r["functions"]:  # every function run is one the static walk reaches
+            assert row["address"] in static, row
+            assert static[row["address"]]["bytes"] == row["bytes"]
+        assert r["total_bytes"] < measured["entries"]["dn_fullcar_step"]["total_bytes"]
+        assert not any("Damper::force(" in n or "Damper::parametric(" in n or "Damper::table(" in n for n in names), names
+    hil = [row["function"] for row in dynamic["configs"][HIL]["functions"]]
+    four = [row["function"] for row in dynamic["configs"][FOUR]["functions"]]
+    assert any("forward_batch<float, 3" in n for n in hil) and not any("forward_batch" in n for n in four)
+    assert any("Damper::force_da(" in n for n in four) and not any("Damper::force_da(" in n for n in hil)
+    fc = max(r["total_bytes"] for r in dynamic["configs"].values())
+    assert dynamic["fullcar_step_max_bytes"] == fc
+    assert dynamic["within_ceiling"] == (fc <= footprint.FULLCAR_STEP_CEILING_BYTES)
+
+
+def test_dynamic_script_prints_the_table(tmp_path):
+    need_tool("valgrind")
+    out = tmp_path / "dyn.json"
+    proc = subprocess.run([sys.executable, str(ROOT / "bench" / "footprint.py"), "--dynamic", "--config", HIL,
+                           "--steps", "2", "--json", str(out)], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    res = json.loads(out.read_text())
+    total = res["configs"][HIL]["total_bytes"]
+    assert f"{HIL} (2 steps): {total} bytes in " in proc.stdout
+    assert f"full-car step, the largest over its configurations: {total} bytes" in proc.stdout

@@ -18,13 +18,20 @@
 #include "dampnet/real.hpp"
 #include "dampnet/terms.hpp"
 
-// Where flash is scarce (DN_SMALL_CODE: CMake sets it for freestanding builds) a damper's
-// evaluations stay out of line: the loop calls them from several places, and -O3 inlining the
-// MLP kernel into each made detail::evaluate alone 25 KB on the Cortex-M4F. The host inlines.
-#if defined(DN_SMALL_CODE) && DN_SMALL_CODE
+// A damper's evaluations stay out of line: the loops call them from several places, and -O3
+// inlining the MLP kernel into each made detail::evaluate alone 25 KB on the Cortex-M4F (where
+// flash is scarce, DN_SMALL_CODE) and Damper::force_da 40 KB on the host, every kernel of every
+// input count and precision in one function, against a 32 KB L1i (issue 30). DN_OUTLINE_HOST:
+// out of line on the host only (the freestanding builds inline those, as before).
+#if defined(__GNUC__)
 #define DN_OUTLINE __attribute__((noinline, noclone))
 #else
 #define DN_OUTLINE
+#endif
+#if defined(__GNUC__) && !(defined(DN_SMALL_CODE) && DN_SMALL_CODE)
+#define DN_OUTLINE_HOST __attribute__((noinline, noclone))
+#else
+#define DN_OUTLINE_HOST
 #endif
 
 namespace dampnet {
@@ -366,7 +373,7 @@ class Damper {
 
   // [RT] As force(), plus dF/da [N s^2/m] of the model (terms do not depend on a):
   // analytic for a neural damper that reads the acceleration, 0 for the others.
-  DN_REALTIME int force_da(const dn_damper_input& in, real* f, real* df_da,
+  DN_REALTIME DN_OUTLINE_HOST int force_da(const dn_damper_input& in, real* f, real* df_da,
                            uint32_t* clamped_mask = nullptr) const noexcept {
     *df_da = 0;
     if (!kind_built(DN_DAMPER_NEURAL) || kind != DN_DAMPER_NEURAL || accel_input < 0) return force(in, f, nullptr, clamped_mask);
@@ -400,7 +407,7 @@ class Damper {
   // damper reading the acceleration: Mlp::forward_grad4; every other damper, or an input with
   // a non-finite feature, four force_da calls). Each result is identical to its own call's.
   // Nullable: clamped_mask (4).
-  DN_REALTIME void force_da4(const dn_damper_input* in, real* f, real* df_da, int* status,
+  DN_REALTIME DN_OUTLINE_HOST void force_da4(const dn_damper_input* in, real* f, real* df_da, int* status,
                              uint32_t* clamped_mask = nullptr) const noexcept {
     bool batch = kind_built(DN_DAMPER_NEURAL) && kind == DN_DAMPER_NEURAL && accel_input >= 0 && precision == DN_PRECISION_FLOAT;
     float xf[4][DN_MAX_INPUTS] = {};

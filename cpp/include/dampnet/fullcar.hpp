@@ -79,6 +79,19 @@
 #include "dampnet/dampnet.h"
 #include "dampnet/loop.hpp"
 
+// The step's big helpers each exist once (issue 30: the code one step touches, against a 32 KB
+// L1i): -O3 would inline free_forces, corner_inputs, the RK4 stage, ... into the step, its stage
+// and fc_start, a copy each; the rarely run paths (the report, the explicit scheme, the per-corner
+// or batched evaluation a configuration does not use) stay out of the hot functions. Out of line
+// only: the arithmetic is the same (-ffp-contract=off, no reassociation). The small helpers
+// (accelerations, derivative, relative_accel, tyre_fy) and the corner loops stay inline and
+// unrolled: outlining them or `#pragma GCC unroll 1` saved ~2.3 KB but cost 4-12 % of the step.
+#if defined(__GNUC__)
+#define DN_FC_OUTLINE __attribute__((noinline, noclone))
+#else
+#define DN_FC_OUTLINE
+#endif
+
 namespace dampnet {
 
 constexpr int kCorners = DN_FULLCAR_CORNERS;
@@ -306,7 +319,7 @@ struct FcFree {
 
 // held: the lateral tyre forces of the step start (damper_eval per_step: tyres, like the
 // dampers, evaluated once per step and held), or nullptr to evaluate them here.
-inline FcFree free_forces(const FullCarModel& m, const FcMotion& y, const double* zr,
+DN_FC_OUTLINE inline FcFree free_forces(const FullCarModel& m, const FcMotion& y, const double* zr,
                           const double* vr, double delta, double cos_delta,
                           const FcFree* held = nullptr) noexcept {
   const dn_fullcar_params& p = m.p;
@@ -435,7 +448,7 @@ inline FcMotion derivative(const FullCarModel& m, const FcMotion& y, const FcFre
 
 // Solve A x = b (4x4) by Gaussian elimination with partial pivoting; false when singular or
 // non-finite. Fixed loops, no allocation.
-inline bool solve4(double A[kCorners][kCorners], double* b) noexcept {
+DN_FC_OUTLINE inline bool solve4(double A[kCorners][kCorners], double* b) noexcept {
   for (int c = 0; c < kCorners; ++c) {
     int piv = c;
     for (int r = c + 1; r < kCorners; ++r)
@@ -467,6 +480,78 @@ inline bool solve4(double A[kCorners][kCorners], double* b) noexcept {
   return true;
 }
 
+// [RT] The corners' neural inputs as evaluated (the report's features).
+DN_FC_OUTLINE inline void corner_features(const FullCarModel& m, const dn_damper_input* in,
+                                          double* feat_out) noexcept {
+  for (int i = 0; i < kCorners; ++i) m.corner[i].damper.feature_values(in[i], feat_out + i * DN_MAX_INPUTS);
+}
+
+// [RT] evaluate_corners when no corner's damper reads a: each corner's force as it is.
+DN_FC_OUTLINE inline int evaluate_corners_explicit(const FullCarModel& m, const dn_damper_input* in,
+                                                   double* F, double* feat_out, uint32_t* mask,
+                                                   int64_t* n_evals) noexcept {
+  int status = DN_OK;
+  for (int i = 0; i < kCorners; ++i) {
+    const Corner& c = m.corner[i];
+    const int st = diverged_if_overflow(c, c.damper.force(in[i], &F[i],
+                                                          feat_out ? feat_out + i * DN_MAX_INPUTS : nullptr,
+                                                          mask ? &mask[i] : nullptr));
+    if (st < 0) {
+      if (status >= 0) status = st;
+    } else if (status >= 0) {
+      status |= st;
+    }
+  }
+  *n_evals += kCorners;
+  return status;
+}
+
+// [RT] One evaluation of the four corners sharing one float damper reading a (batch4): one pass
+// of the kernel (Damper::force_da4). Returns the OR of the warnings, or the first error.
+DN_FC_OUTLINE inline int corners_batch4(const FullCarModel& m, const dn_damper_input* in, double* f0,
+                                        double* D, uint32_t* mk, int64_t* n_evals) noexcept {
+  int st_it = DN_OK;
+  int st4[kCorners];
+  m.corner[0].damper.force_da4(in, f0, D, st4, mk);
+  for (int i = 0; i < kCorners; ++i) {
+    const int st = diverged_if_overflow(m.corner[i], st4[i]);
+    if (st < 0) {
+      if (st_it >= 0) st_it = st;
+    } else if (st_it >= 0) {
+      st_it |= st;
+    }
+  }
+  *n_evals += kCorners;
+  return st_it;
+}
+
+// [RT] One evaluation of each corner (evaluate_corners' iteration it, not batch4): force_da of a
+// corner reading a, force of one that does not (at it 0; later its first force stands).
+DN_FC_OUTLINE inline int corners_each(const FullCarModel& m, const dn_damper_input* in, int it,
+                                      const double* best_F, const uint32_t* best_mask, double* f0,
+                                      double* D, uint32_t* mk, int64_t* n_evals) noexcept {
+  int st_it = DN_OK;
+  for (int i = 0; i < kCorners; ++i) {
+    const Corner& c = m.corner[i];
+    D[i] = 0.0;
+    int st;
+    if (c.implicit_a) st = diverged_if_overflow(c, c.damper.force_da(in[i], &f0[i], &D[i], &mk[i]));
+    else if (it == 0) st = diverged_if_overflow(c, c.damper.force(in[i], &f0[i], nullptr, &mk[i]));
+    else {  // a corner not reading a: its first force stands
+      f0[i] = best_F[i];
+      mk[i] = best_mask[i];
+      continue;
+    }
+    *n_evals += 1;
+    if (st < 0) {
+      if (st_it >= 0) st_it = st;
+    } else if (st_it >= 0) {
+      st_it |= st;
+    }
+  }
+  return st_it;
+}
+
 // [RT] The four corners' damper evaluations at one point (the one place the dampers are
 // called). in[i].a holds the explicit acceleration feature (from f_last) on entry and the
 // value used on return; f_last: the forces it came from. Returns the OR of the corners'
@@ -475,23 +560,7 @@ inline int evaluate_corners(const FullCarModel& m, dn_damper_input* in, const do
                             double* F, double* feat_out, uint32_t* mask,
                             int64_t* n_evals) noexcept {
   int status = DN_OK;
-  auto merge = [&status](int st) noexcept {
-    if (st < 0) {
-      if (status >= 0) status = st;
-    } else if (status >= 0) {
-      status |= st;
-    }
-  };
-  if (!m.any_implicit) {
-    for (int i = 0; i < kCorners; ++i) {
-      const Corner& c = m.corner[i];
-      merge(diverged_if_overflow(c, c.damper.force(in[i], &F[i],
-                                                   feat_out ? feat_out + i * DN_MAX_INPUTS : nullptr,
-                                                   mask ? &mask[i] : nullptr)));
-    }
-    *n_evals += kCorners;
-    return status;
-  }
+  if (!m.any_implicit) return evaluate_corners_explicit(m, in, F, feat_out, mask, n_evals);
   // The coupled acceleration: a_free from the explicit values, Newton on the 4-vector.
   double a_free[kCorners], a0[kCorners];
   for (int i = 0; i < kCorners; ++i) {
@@ -509,38 +578,8 @@ inline int evaluate_corners(const FullCarModel& m, dn_damper_input* in, const do
   for (int it = 0; it < max_iter && !done; ++it) {
     double f0[kCorners], D[kCorners], g[kCorners];
     uint32_t mk[kCorners] = {};
-    int st_it = DN_OK;
-    if (m.batch4) {  // every corner reads a: one pass of the kernel for the four
-      int st4[kCorners];
-      m.corner[0].damper.force_da4(in, f0, D, st4, mk);
-      for (int i = 0; i < kCorners; ++i) {
-        const int st = diverged_if_overflow(m.corner[i], st4[i]);
-        if (st < 0) {
-          if (st_it >= 0) st_it = st;
-        } else if (st_it >= 0) {
-          st_it |= st;
-        }
-      }
-      *n_evals += kCorners;
-    }
-    for (int i = 0; i < kCorners && !m.batch4; ++i) {
-      const Corner& c = m.corner[i];
-      D[i] = 0.0;
-      int st;
-      if (c.implicit_a) st = diverged_if_overflow(c, c.damper.force_da(in[i], &f0[i], &D[i], &mk[i]));
-      else if (it == 0) st = diverged_if_overflow(c, c.damper.force(in[i], &f0[i], nullptr, &mk[i]));
-      else {  // a corner not reading a: its first force stands
-        f0[i] = best_F[i];
-        mk[i] = best_mask[i];
-        continue;
-      }
-      *n_evals += 1;
-      if (st < 0) {
-        if (st_it >= 0) st_it = st;
-      } else if (st_it >= 0) {
-        st_it |= st;
-      }
-    }
+    const int st_it = m.batch4 ? corners_batch4(m, in, f0, D, mk, n_evals)
+                               : corners_each(m, in, it, best_F, best_mask, f0, D, mk, n_evals);
     if (st_it < 0) {  // an error: as the explicit scheme (the error is the step's)
       if (it == 0) {
         for (int i = 0; i < kCorners; ++i) F[i] = f0[i];
@@ -592,9 +631,7 @@ inline int evaluate_corners(const FullCarModel& m, dn_damper_input* in, const do
           for (int i = 0; i < kCorners; ++i) mask[i] = mk[i];
         status = st_it;
       }
-      if (feat_out)
-        for (int i = 0; i < kCorners; ++i)
-          m.corner[i].damper.feature_values(in[i], feat_out + i * DN_MAX_INPUTS);
+      if (feat_out) corner_features(m, in, feat_out);
       return status;
     }
     if (!ok) break;
@@ -603,15 +640,13 @@ inline int evaluate_corners(const FullCarModel& m, dn_damper_input* in, const do
   for (int i = 0; i < kCorners; ++i) F[i] = best_F[i], in[i].a = best_a[i];
   if (mask)
     for (int i = 0; i < kCorners; ++i) mask[i] = best_mask[i];
-  if (feat_out)
-    for (int i = 0; i < kCorners; ++i)
-      m.corner[i].damper.feature_values(in[i], feat_out + i * DN_MAX_INPUTS);
+  if (feat_out) corner_features(m, in, feat_out);
   return done ? best_status : (best_status | DN_W_ACCEL_UNCONVERGED);
 }
 
 // The damper inputs at one evaluation point (a from the explicit forces f_last), their states
 // not yet filled (Damper::advance / fill).
-inline void corner_inputs(const FullCarModel& m, const FcMotion& y, const FcFree& f,
+DN_FC_OUTLINE inline void corner_inputs(const FullCarModel& m, const FcMotion& y, const FcFree& f,
                           const double* f_last, const double* u, const double* temp, double t,
                           int stage, dn_damper_input* in) noexcept {
   double dF[kCorners], arel[kCorners];
@@ -675,7 +710,7 @@ inline void store_motion(const FcMotion& y, double* s) noexcept {
 }
 
 // The road-wheel angle applied over the step starting at state s.
-inline double steer_for_step(const FullCarModel& m, const double* s, double steer_in) noexcept {
+DN_FC_OUTLINE inline double steer_for_step(const FullCarModel& m, const double* s, double steer_in) noexcept {
   const dn_fullcar_params& p = m.p;
   double cmd;
   if (p.steer_mode == DN_STEER_DRIVER) {
@@ -702,6 +737,36 @@ struct FcStart {
   FcAccel acc;
   int status;
 };
+
+// fc_start's report (out != nullptr): out of the step's hot code.
+DN_FC_OUTLINE inline void fc_report(const FullCarModel& m, const FcMotion& y, const FcStart& r,
+                                    const uint32_t* mask, dn_fullcar_out* out) noexcept {
+  const dn_damper_input* di = r.in;
+  {
+    double arel[kCorners];
+    relative_accel(m, r.acc, arel);
+    for (int i = 0; i < kCorners; ++i) {
+      out->force[i] = r.F[i];
+      out->u[i] = r.u[i];
+      out->x[i] = di[i].x;
+      out->v[i] = di[i].v;
+      out->a[i] = di[i].a;
+      out->acc_s[i] = arel[i] + r.acc.aus[i];
+      out->acc_us[i] = r.acc.aus[i];
+      out->tyre_load[i] = r.f.load[i];
+      out->tyre_fy[i] = r.f.fy[i];
+      out->clamped_mask[i] = mask[i];
+    }
+    out->acc_z = r.acc.az;
+    out->acc_phi = r.acc.aphi;
+    out->acc_theta = r.acc.atheta;
+    out->a_y = r.f.a_y;
+    out->steer = r.delta;
+    out->slip_f = r.f.alpha_f;
+    out->slip_r = r.f.alpha_r;
+    out->beta = m.p.speed > 0 ? std::atan(y.vy / m.p.speed) : 0.0;
+  }
+}
 
 inline FcStart fc_start(const FullCarModel& m, const double* s, const dn_fullcar_input& in,
                         dn_fullcar_out* out, int64_t* n_evals) noexcept {
@@ -731,30 +796,7 @@ inline FcStart fc_start(const FullCarModel& m, const double* s, const dn_fullcar
   double sum = r.acc.az + r.acc.aphi + r.acc.atheta + r.f.a_y + r.f.dr;
   for (int i = 0; i < kCorners; ++i) sum += r.acc.aus[i] + di[i].a + di[i].x + di[i].v + r.f.fy[i];
   if (r.status >= 0 && !std::isfinite(sum)) r.status = DN_E_DIVERGED;
-  if (out) {
-    double arel[kCorners];
-    relative_accel(m, r.acc, arel);
-    for (int i = 0; i < kCorners; ++i) {
-      out->force[i] = r.F[i];
-      out->u[i] = r.u[i];
-      out->x[i] = di[i].x;
-      out->v[i] = di[i].v;
-      out->a[i] = di[i].a;
-      out->acc_s[i] = arel[i] + r.acc.aus[i];
-      out->acc_us[i] = r.acc.aus[i];
-      out->tyre_load[i] = r.f.load[i];
-      out->tyre_fy[i] = r.f.fy[i];
-      out->clamped_mask[i] = mask[i];
-    }
-    out->acc_z = r.acc.az;
-    out->acc_phi = r.acc.aphi;
-    out->acc_theta = r.acc.atheta;
-    out->a_y = r.f.a_y;
-    out->steer = r.delta;
-    out->slip_f = r.f.alpha_f;
-    out->slip_r = r.f.alpha_r;
-    out->beta = m.p.speed > 0 ? std::atan(y.vy / m.p.speed) : 0.0;
-  }
+  if (out) fc_report(m, y, r, mask, out);
   return r;
 }
 
@@ -820,7 +862,7 @@ DN_REALTIME inline int step(const FullCarModel& m, FullCarData& d, const dn_full
   const Heading hd{y0.psi, std::sin(y0.psi), std::cos(y0.psi)};
   // The derivative at a stage point: dampers evaluated (per_stage) or held (per_step).
   auto stage_deriv = [&](const FcMotion& y, const double* zr, const double* vr, double t,
-                         int stage) noexcept -> FcMotion {
+                         int stage) noexcept DN_FC_OUTLINE -> FcMotion {
     const FcFree f = free_forces(m, y, zr, vr, r.delta, r.cos_delta, per_stage ? nullptr : &r.f);
     double F[kCorners];
     if (per_stage) {

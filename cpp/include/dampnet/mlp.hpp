@@ -166,7 +166,7 @@ DN_KERNEL_OUTLINE DN_REALTIME inline int forward(const P& p, const T* x, T* y, u
 // layer on the SIMD backends go through forward_batch_simd (forward_simd_batch: the weights
 // loaded once per block for all samples); the others are kB forward() calls. Returns the samples' statuses in status[b].
 template <typename T, int kIn, int kH1, class P, bool kGrad, int kB>
-DN_REALTIME inline void forward_batch(const P& p, const T* const* x, T* y, uint32_t* clamped_mask,
+DN_KERNEL_OUTLINE DN_REALTIME inline void forward_batch(const P& p, const T* const* x, T* y, uint32_t* clamped_mask,
                                       int grad_input, T* dy_dxi, int* status) noexcept {
   if constexpr (kSimdFloat && std::is_same<T, float>::value) {
     if (p.n_h2p == 0) {

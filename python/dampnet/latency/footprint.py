@@ -14,10 +14,23 @@ indirect calls whose target the walk cannot know (a user's callback) are counted
 
 It is an upper bound on what one call runs (every branch of every reachable function counts,
 including the ones the configuration never takes: other damper kinds, double precision, error
-paths) and the measure of issue 30's "the code one full-car step touches <= 16 KB". The
-`.cold` parts (gcc's split-off unlikely paths) are in the total and also reported apart.
+paths). The `.cold` parts (gcc's split-off unlikely paths) are in the total and also reported
+apart.
+
+--dynamic: the code the steps of one configuration actually call. bench/footprint_steps.c
+(compiled here against the library read) sets up one of dampnet bench's configurations
+(DYNAMIC_CONFIGS: by default the full car's five, a shared float damper reading a per step
+and per stage, four separate damper objects per step and per stage, a shared double damper),
+settles it over 2000 steps, then runs `--steps` steps (default 10) inside one function that
+`valgrind --tool=callgrind --toggle-collect` collects in. Every library function with at least
+one executed instruction there counts with its whole symbol size (nm), the same unit as the
+static walk: the bytes of the functions one step calls, not only the lines it runs. Calls out
+of the library (libm) are not counted. **This is the measure of issue 30's "the code one
+full-car step touches <= 16 KB" (FULLCAR_STEP_CEILING_BYTES): the largest over the full car's
+configurations** (tests/python/test_bench_footprint.py asserts it).
 
     python -m dampnet.latency.footprint [LIBRARY] [--entry dn_fullcar_step ...] [--json FILE]
+    python -m dampnet.latency.footprint [LIBRARY] --dynamic [--config NAME ...] [--steps N] [--json FILE]
 
 LIBRARY defaults to the runtime dampnet uses (dampnet.paths.shared_library()); an installed
 library is stripped of its local symbols, so its unstripped twin in the source tree's build/
@@ -37,7 +50,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 ENTRIES = ("dn_fullcar_step", "dn_loop_step")
-# issue 30's ceiling on the full-car step's footprint (the damper refactor's target)
+# issue 30's ceiling on the full-car step's footprint, judged on the dynamic measure (--dynamic):
+# the symbol sizes of the functions one step calls, the largest over FULLCAR_CONFIGS
 FULLCAR_STEP_CEILING_BYTES = 16 * 1024
 
 _FUNC_TYPES = set("tTwWi")
@@ -256,6 +270,182 @@ def summary(res: dict) -> dict:
             **{f"{e}_hot_bytes": r["hot_bytes"] for e, r in res["entries"].items()}}
 
 
+# ---- the dynamic footprint: the functions one configuration's steps actually call ----------
+
+#: the configurations of bench/footprint_steps.c (dampnet bench's case names): the full car's
+#: five (a shared float damper reading a per step (the HIL case) and per stage, four separate
+#: damper objects per step and per stage, a shared double-precision damper), two quarter cars
+DYNAMIC_CONFIGS = (
+    "fullcar_step_rk4_per_step_eval_neural_float_skyhook_linear_accel",
+    "fullcar_step_rk4_per_step_eval_neural_float_skyhook_linear_accel_four_calls",
+    "fullcar_step_rk4_per_step_eval_neural_double_skyhook_linear_accel",
+    "fullcar_step_rk4_neural_float_skyhook_linear_accel",
+    "fullcar_step_rk4_neural_float_skyhook_linear_accel_four_calls",
+    "loop_step_rk4_per_step_eval_neural_float_skyhook_linear_accel",
+    "loop_step_rk4_neural_float_skyhook",
+)
+FULLCAR_CONFIGS = tuple(c for c in DYNAMIC_CONFIGS if c.startswith("fullcar_"))
+DRIVER_SOURCE = "footprint_steps.c"
+MEASURED_FN = "dn_fp_measured"
+_CG_POS = re.compile(r"^(?:\+|-)?(0x[0-9a-f]+|\d+)\s")
+
+
+def driver_source() -> tuple[Path, Path]:
+    """bench/footprint_steps.c and the default model's header directory (installed or in the
+    source tree, as the latency harness's)."""
+    from dampnet.latency.harness import harness_sources
+
+    bench_src, header_dir = harness_sources()
+    src = bench_src.parent / DRIVER_SOURCE
+    if not src.is_file():
+        src = Path(__file__).resolve().parents[3] / "bench" / DRIVER_SOURCE
+    if not src.is_file():
+        raise RuntimeError(f"{DRIVER_SOURCE} not found beside {bench_src}")
+    return src, header_dir
+
+
+def build_driver(lib: Path, out_dir: Path) -> Path:
+    """Compile bench/footprint_steps.c against `lib` (run with it: rpath)."""
+    from dampnet import paths
+
+    cc = shutil.which("cc") or shutil.which("gcc")
+    if not cc:
+        raise RuntimeError("no C compiler (cc) found: install the Debian package build-essential")
+    src, header_dir = driver_source()
+    out_dir.mkdir(parents=True, exist_ok=True)
+    exe = out_dir / "footprint_steps"
+    cmd = [cc, "-std=c11", "-O1", "-g0", *[f"-I{d}" for d in paths.include_dirs()], f"-I{header_dir}",
+           str(src), "-o", str(exe), str(lib), f"-Wl,-rpath,{lib.parent}", "-lm", "-ldl"]
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise RuntimeError(f"building the footprint driver failed:\n{' '.join(cmd)}\n{proc.stderr[-3000:]}")
+    return exe
+
+
+def executed_addresses(exe: Path, lib: Path, config: str, n_steps: int, out_dir: Path) -> tuple[int, dict[int, int]]:
+    """Run `config`'s n_steps under callgrind, collecting only inside dn_fp_measured (the timed
+    steps; the set-up and 2000 settling steps before it are not collected). Returns the
+    library's load address and {instruction address in `lib`: times executed} (callgrind
+    writes a shared object's addresses relative to its load address: the symbol table's)."""
+    valgrind = shutil.which("valgrind")
+    if not valgrind:
+        raise RuntimeError("valgrind not found: the dynamic footprint runs callgrind (install the Debian "
+                           "package valgrind)")
+    out = out_dir / f"callgrind.{config}.out"
+    cmd = [valgrind, "--tool=callgrind", f"--callgrind-out-file={out}", "--dump-instr=yes",
+           "--compress-pos=no", "--compress-strings=no", "--collect-atstart=no",
+           f"--toggle-collect={MEASURED_FN}", str(exe), config, str(n_steps)]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=1800)
+    if proc.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed ({proc.returncode}): {proc.stderr.strip()[-2000:]}")
+    m = re.search(r"^BASE (0x[0-9a-f]+)", proc.stdout, re.M)
+    if not m:
+        raise RuntimeError(f"the footprint driver printed no BASE line: {proc.stdout[-500:]}")
+    hits: dict[int, int] = {}
+    events = None
+    want = lib.resolve()
+    ours: dict[str, bool] = {}
+    in_lib = False
+    for line in out.read_text().splitlines():
+        if line.startswith("events:"):
+            events = line.split()[1:]
+            continue
+        if line.startswith("ob="):  # the object of the positions that follow (file-relative)
+            name = line[3:].strip()
+            if name not in ours:
+                ours[name] = Path(name).exists() and Path(name).resolve() == want
+            in_lib = ours[name]
+            continue
+        if not in_lib or not line or not (line[0].isdigit() or line[0] in "+-"):
+            continue  # headers, fn=/cfn=/calls= lines, other objects (libm, libc, the driver)
+        pm = _CG_POS.match(line)
+        if pm:
+            tok = pm.group(1)
+            addr = int(tok, 16) if tok.startswith("0x") else int(tok)
+            ir = int(line.split()[1]) if events and len(line.split()) > 1 else 1
+            hits[addr] = hits.get(addr, 0) + ir
+    return int(m.group(1), 16), hits
+
+
+def dynamic_footprint(funcs: dict[int, Function], base: int, hits: dict[int, int], config: str,
+                      n_steps: int) -> dict:
+    """The library functions that executed at least one instruction in the measured steps,
+    their symbol sizes and the total [bytes]."""
+    starts = sorted(funcs)
+
+    def func_at(off: int) -> Function | None:
+        i = bisect.bisect_right(starts, off) - 1
+        if i >= 0:
+            f = funcs[starts[i]]
+            if f.addr <= off < f.addr + f.size:
+                return f
+        return None
+
+    lo, hi = starts[0], max(f.addr + f.size for f in funcs.values())
+    per: dict[int, list[int]] = {}
+    outside = 0
+    for addr, ir in hits.items():
+        # the symbol table's addresses (callgrind's for a shared object); a run-time address
+        # (a callgrind that wrote those) is taken back by the load address
+        off = addr if lo <= addr < hi and func_at(addr) is not None else addr - base
+        f = func_at(off)
+        if f is None:
+            outside += 1
+            continue
+        row = per.setdefault(f.addr, [0, 0])
+        row[0] += 1
+        row[1] += ir
+    rows = sorted(({"function": funcs[a].demangled or funcs[a].name, "symbol": funcs[a].name,
+                    "address": f"{a:#x}", "bytes": funcs[a].size, "executed_instructions": n,
+                    "instructions_run": ir, "cold": funcs[a].name.endswith(".cold")}
+                   for a, (n, ir) in per.items()), key=lambda r: (-r["bytes"], r["function"]))
+    total = sum(r["bytes"] for r in rows)
+    return {"config": config, "n_steps": n_steps, "total_bytes": total, "n_functions": len(rows),
+            "functions": rows, "instructions_outside_library": outside,
+            "executed_instructions": sum(r["executed_instructions"] for r in rows)}
+
+
+def measure_dynamic(lib: Path | None = None, configs=FULLCAR_CONFIGS, n_steps: int = 10,
+                    work_dir: Path | None = None) -> dict:
+    """The dynamic footprint of each configuration (see the module docstring)."""
+    import tempfile
+
+    path = find_library(lib)
+    funcs = {a: f for a, f in _symbols(path)[0].items()}
+    unknown = [c for c in configs if c not in DYNAMIC_CONFIGS]
+    if unknown:
+        raise RuntimeError(f"unknown configuration(s) {', '.join(unknown)}; known: {', '.join(DYNAMIC_CONFIGS)}")
+    with tempfile.TemporaryDirectory(prefix="dn_footprint_") as tmp:
+        wd = Path(work_dir) if work_dir else Path(tmp)
+        exe = build_driver(path, wd)
+        res = {}
+        for c in configs:
+            base, hits = executed_addresses(exe, path, c, n_steps, wd)
+            res[c] = dynamic_footprint(funcs, base, hits, c, n_steps)
+    fc = [res[c]["total_bytes"] for c in configs if c in FULLCAR_CONFIGS]
+    return {"library": str(path), "build_id": build_id(path), "configs": res,
+            "fullcar_step_max_bytes": max(fc) if fc else None,
+            "ceiling_bytes": FULLCAR_STEP_CEILING_BYTES,
+            "within_ceiling": bool(fc) and max(fc) <= FULLCAR_STEP_CEILING_BYTES}
+
+
+def format_dynamic(res: dict, width: int = 110) -> str:
+    lines = [f"library: {res['library']} (build ID {res['build_id']})",
+             "dynamic footprint: symbol sizes of the library functions the steps executed (callgrind)"]
+    for c, r in res["configs"].items():
+        lines.append(f"\n{c} ({r['n_steps']} steps): {r['total_bytes']} bytes in {r['n_functions']} functions")
+        lines.append(f"  {'bytes':>7}  {'run':>6}  function   (run: distinct instructions executed)")
+        for row in r["functions"]:
+            name = row["function"] if len(row["function"]) <= width else row["function"][:width - 3] + "..."
+            lines.append(f"  {row['bytes']:>7}  {row['executed_instructions']:>6}  {name}")
+        lines.append(f"  {r['total_bytes']:>7}  total")
+    if res["fullcar_step_max_bytes"] is not None:
+        verdict = "within" if res["within_ceiling"] else "ABOVE"
+        lines.append(f"\nfull-car step, the largest over its configurations: {res['fullcar_step_max_bytes']} bytes, "
+                     f"{verdict} issue 30's ceiling of {res['ceiling_bytes']} bytes")
+    return "\n".join(lines)
+
+
 def format_report(res: dict, width: int = 120) -> str:
     lines = [f"library: {res['library']} (build ID {res['build_id']})"]
     for e, r in res["entries"].items():
@@ -277,14 +467,25 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m dampnet.latency.footprint", description=__doc__.split("\n\n")[0])
     ap.add_argument("library", nargs="?", default=None, help="libdampnet.so (default: the runtime dampnet uses)")
     ap.add_argument("--entry", action="append", default=None, help=f"entry symbol (default: {', '.join(ENTRIES)})")
+    ap.add_argument("--dynamic", action="store_true",
+                    help="the functions the steps actually call (callgrind), per configuration, instead of the static walk")
+    ap.add_argument("--config", action="append", default=None, choices=DYNAMIC_CONFIGS, metavar="CONFIG",
+                    help=f"with --dynamic: a configuration (default: the full car's {len(FULLCAR_CONFIGS)}); "
+                         f"one of {', '.join(DYNAMIC_CONFIGS)}")
+    ap.add_argument("--steps", type=int, default=10, help="with --dynamic: steps measured (default 10)")
     ap.add_argument("--json", default=None, help="also write the result to this JSON file")
     args = ap.parse_args(argv)
     try:
-        res = measure(Path(args.library) if args.library else None, tuple(args.entry or ENTRIES))
+        lib = Path(args.library) if args.library else None
+        if args.dynamic:
+            res = measure_dynamic(lib, tuple(args.config or FULLCAR_CONFIGS), args.steps)
+            print(format_dynamic(res))
+        else:
+            res = measure(lib, tuple(args.entry or ENTRIES))
+            print(format_report(res))
     except RuntimeError as e:
         print(f"footprint: error: {e}", file=sys.stderr)
         return 2
-    print(format_report(res))
     if args.json:
         Path(args.json).write_text(json.dumps(res, indent=1) + "\n")
     return 0

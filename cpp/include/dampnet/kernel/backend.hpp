@@ -49,9 +49,10 @@
 #define DN_REALTIME
 #endif
 
-// A flash-lean build keeps each forward one function (not inlined into every caller: the
-// damper's and the loop's several call sites would each get a copy, and its stack).
-#if DN_KERNEL_SMALL && defined(__GNUC__)
+// Each forward is one function (not inlined into every caller: the damper's and the loop's
+// several call sites would each get a copy, and its stack; a flash-lean build's flash, the
+// host's L1i: issue 30).
+#if defined(__GNUC__)
 #define DN_KERNEL_OUTLINE __attribute__((noinline, noclone))
 #else
 #define DN_KERNEL_OUTLINE
