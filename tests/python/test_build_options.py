@@ -127,8 +127,8 @@ def test_the_float_loop_build_on_the_host(tmp_path):
     fw = np.array([[float(x) for x in line.split()[2:]] for line in lines if line.startswith("s ")])
     states, _, _ = emb.host_loop(model, road)
     host = np.array([s for _, s in states])
-    assert fw.shape == host.shape == (20, 13)
-    idx = [1, 2, 3, 4, 12]  # z_s, v_s, z_us, v_us, u_cmd
+    assert fw.shape == host.shape == (20, len(_core.STATE_NAMES))
+    idx = [_core.STATE_NAMES.index(n) for n in ("z_s", "v_s", "z_us", "v_us", "u_cmd")]
     peak = np.abs(host[:, idx]).max(axis=0)
     err = np.abs(fw[:, idx] - host[:, idx]).max(axis=0)
     print("float loop vs host double loop, error / peak (z_s, v_s, z_us, v_us, u_cmd):", err / peak)
