@@ -32,13 +32,15 @@ TOOLS = {
     "valgrind": "valgrind",
     # binutils (with build-essential): the code footprint (dampnet.latency.footprint)
     "nm": "binutils", "objdump": "binutils", "readelf": "binutils", "c++filt": "binutils",
+    # bench/compare_speed.py: which commit each side is, and each tree's set-up
+    "git": "git", "bash": "bash",
 }
 #: programs that come from PyPI with the build tools python/env.sh installs into .venv
 PYPI_TOOLS = {"cmake": "cmake", "ctest": "cmake", "ninja": "ninja"}
 #: Debian packages that come with another one of the list (a dependency), not listed themselves
 DEPENDENCIES = {"binutils-arm-none-eabi": "gcc-arm-none-eabi", "binutils": "build-essential"}
 #: Debian's essential packages: on every Debian system, never listed
-ESSENTIAL = {"dpkg", "libc-bin"}
+ESSENTIAL = {"dpkg", "libc-bin", "bash"}
 #: names tried only as alternatives to a listed tool (another distribution's Chromium)
 ALTERNATIVES = {"chromium-browser": "chromium", "google-chrome": "chromium"}
 
