@@ -23,13 +23,15 @@
 // flash is scarce, DN_SMALL_CODE) and Damper::force_da 40 KB on the host, every kernel of every
 // input count and precision in one function, against a 32 KB L1i (issue 30). DN_OUTLINE_HOST:
 // out of line on the host only (the freestanding builds inline those, as before).
-#if defined(__GNUC__)
+#if defined(__clang__)
+#define DN_OUTLINE __attribute__((noinline))  // (clang has no noclone)
+#elif defined(__GNUC__)
 #define DN_OUTLINE __attribute__((noinline, noclone))
 #else
 #define DN_OUTLINE
 #endif
 #if defined(__GNUC__) && !(defined(DN_SMALL_CODE) && DN_SMALL_CODE)
-#define DN_OUTLINE_HOST __attribute__((noinline, noclone))
+#define DN_OUTLINE_HOST DN_OUTLINE
 #else
 #define DN_OUTLINE_HOST
 #endif

@@ -86,10 +86,15 @@
 // only: the arithmetic is the same (-ffp-contract=off, no reassociation). The small helpers
 // (accelerations, derivative, relative_accel, tyre_fy) and the corner loops stay inline and
 // unrolled: outlining them or `#pragma GCC unroll 1` saved ~2.3 KB but cost 4-12 % of the step.
-#if defined(__GNUC__)
+#if defined(__clang__)
+#define DN_FC_OUTLINE __attribute__((noinline))
+#define DN_FC_OUTLINE_LAMBDA  // (clang takes no attribute after a lambda's noexcept; it keeps it out of line)
+#elif defined(__GNUC__)
 #define DN_FC_OUTLINE __attribute__((noinline, noclone))
+#define DN_FC_OUTLINE_LAMBDA DN_FC_OUTLINE
 #else
 #define DN_FC_OUTLINE
+#define DN_FC_OUTLINE_LAMBDA
 #endif
 
 namespace dampnet {
@@ -862,7 +867,7 @@ DN_REALTIME inline int step(const FullCarModel& m, FullCarData& d, const dn_full
   const Heading hd{y0.psi, std::sin(y0.psi), std::cos(y0.psi)};
   // The derivative at a stage point: dampers evaluated (per_stage) or held (per_step).
   auto stage_deriv = [&](const FcMotion& y, const double* zr, const double* vr, double t,
-                         int stage) noexcept DN_FC_OUTLINE -> FcMotion {
+                         int stage) noexcept DN_FC_OUTLINE_LAMBDA -> FcMotion {
     const FcFree f = free_forces(m, y, zr, vr, r.delta, r.cos_delta, per_stage ? nullptr : &r.f);
     double F[kCorners];
     if (per_stage) {

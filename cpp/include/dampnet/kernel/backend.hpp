@@ -52,7 +52,9 @@
 // Each forward is one function (not inlined into every caller: the damper's and the loop's
 // several call sites would each get a copy, and its stack; a flash-lean build's flash, the
 // host's L1i: issue 30).
-#if defined(__GNUC__)
+#if defined(__clang__)
+#define DN_KERNEL_OUTLINE __attribute__((noinline))  // (clang has no noclone)
+#elif defined(__GNUC__)
 #define DN_KERNEL_OUTLINE __attribute__((noinline, noclone))
 #else
 #define DN_KERNEL_OUTLINE
