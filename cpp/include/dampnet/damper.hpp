@@ -121,17 +121,6 @@ class Damper {
   // ---- its state (DN_DAMPER_STATE_LIST; the formulas in damper_state.hpp) ----
   // A state moves by its dynamics when the model sets its parameter; otherwise a lag follows
   // its source and a Dahl state stays at rest.
-  bool state_on(int k) const noexcept {
-    switch (k) {
-#define DN_DS_ON_(id, name, unit, dyn, source, param, doc) \
-  case id:                                                 \
-    return fparam_set[param];
-      DN_DAMPER_STATE_LIST(DN_DS_ON_)
-#undef DN_DS_ON_
-      default:
-        return false;
-    }
-  }
   // Whether the model reads state k (a neural feature reads its field).
   bool state_read(int k) const noexcept {
     const features::Info* t = features::table();

@@ -74,6 +74,16 @@ class Function:
     indirect_calls: int = 0  # call *... sites (jump tables' jmp * are inside the function)
 
 
+
+def _function_at(funcs: dict[int, Function], starts: list[int], addr: int) -> Function | None:
+    """The function whose code holds address addr (starts: the functions' sorted start addresses)."""
+    i = bisect.bisect_right(starts, addr) - 1
+    if i >= 0:
+        f = funcs[starts[i]]
+        if f.addr <= addr < f.addr + f.size:
+            return f
+    return None
+
 def _tool(name: str) -> str:
     path = shutil.which(name)
     if not path:
@@ -162,12 +172,7 @@ def analyse(lib: Path) -> dict[int, Function]:
     data_starts = [a for a, _, _ in data]
 
     def func_at(addr: int) -> Function | None:
-        i = bisect.bisect_right(starts, addr) - 1
-        if i >= 0:
-            f = funcs[starts[i]]
-            if f.addr <= addr < f.addr + f.size:
-                return f
-        return None
+        return _function_at(funcs, starts, addr)
 
     def table_targets(addr: int) -> list[int]:
         i = bisect.bisect_right(data_starts, addr) - 1
@@ -374,12 +379,7 @@ def dynamic_footprint(funcs: dict[int, Function], base: int, hits: dict[int, int
     starts = sorted(funcs)
 
     def func_at(off: int) -> Function | None:
-        i = bisect.bisect_right(starts, off) - 1
-        if i >= 0:
-            f = funcs[starts[i]]
-            if f.addr <= off < f.addr + f.size:
-                return f
-        return None
+        return _function_at(funcs, starts, off)
 
     lo, hi = starts[0], max(f.addr + f.size for f in funcs.values())
     per: dict[int, list[int]] = {}

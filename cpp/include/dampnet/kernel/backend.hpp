@@ -111,7 +111,6 @@
 #define DN_KERNEL_HEADER "dampnet/kernel/dense_avx2.hpp"
 #define DN_KERNEL_ISA "avx2+fma"
 #define DN_KERNEL_NS isa_avx2_fma
-#define DN_KERNEL_AVX2 1
 #if defined(__AVX2__) && defined(__FMA__)
 #define DN_KERNEL_FLAGS_OK true
 #endif
@@ -119,7 +118,6 @@
 #define DN_KERNEL_HEADER "dampnet/kernel/dense_avx512.hpp"
 #define DN_KERNEL_ISA "avx512"
 #define DN_KERNEL_NS isa_avx512
-#define DN_KERNEL_AVX512 1
 #define DN_KERNEL_ALIGN 64
 #define DN_KERNEL_PAD 16
 #if defined(__AVX2__) && defined(__FMA__) && defined(__AVX512F__) && defined(__AVX512VL__) && defined(__AVX512DQ__)
