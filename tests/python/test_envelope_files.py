@@ -2,7 +2,7 @@
 like a model (issue 29): `read_envelope` refuses it in one line naming the file and the field,
 `dampnet export` refuses to export with it, and the commands that report coverage (vehicle,
 simulate, study, plan-tests) fall back to the per-input training ranges with a one-line warning
-naming the file and the field, as README ("The envelope") says. Before, these gave BadZipFile /
+naming the file and the field, as docs/coverage.md ("The envelope") says. Before, these gave BadZipFile /
 EOFError / AttributeError tracebacks, an IndexError, or silently wrong coverage (a NaN threshold:
 0 % outside; a negative one: 100 %). The default model and an envelope from synthetic samples."""
 

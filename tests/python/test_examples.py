@@ -79,14 +79,19 @@ def test_examples_agree_with_the_c_example(results, lang):
         assert other[key] == c[key], (lang, key)
 
 
+def python_blocks(path):
+    return re.findall(r"^```python\n(.*?)^```$", path.read_text(), re.MULTILINE | re.DOTALL)
+
+
 def test_readme_python_snippet_runs_and_agrees(results):
     """The README's Python door (its first ```python block) runs as printed, from the repository
-    root, and its loop ends where the C example's does; every later ```python block (the full
-    vehicle's) runs as printed too."""
-    readme = (ROOT / "README.md").read_text()
-    blocks = re.findall(r"^```python\n(.*?)^```$", readme, re.MULTILINE | re.DOTALL)
+    root, and its loop ends where the C example's does; every later ```python block of the README
+    and the full vehicle's (docs/full-vehicle.md) runs as printed too."""
+    blocks = python_blocks(ROOT / "README.md")
     assert blocks, "the README's Python door has a snippet"
-    for block in blocks[1:]:
+    fullcar = python_blocks(ROOT / "docs" / "full-vehicle.md")
+    assert fullcar, "docs/full-vehicle.md has its Python example"
+    for block in blocks[1:] + fullcar:
         proc = subprocess.run([sys.executable, "-c", block], cwd=ROOT, capture_output=True, text=True, timeout=300)
         assert proc.returncode == 0, block + proc.stdout + proc.stderr
     proc = subprocess.run([sys.executable, "-c", blocks[0]], cwd=ROOT, capture_output=True,

@@ -377,13 +377,13 @@ def test_a_cluster_address_runs_the_same_sweep(client, tmp_path, capsys, monkeyp
     assert not (tmp_path / "x").exists()
 
 
-def test_the_readme_spec_is_valid(repo_root):
+def test_the_documented_spec_is_valid(repo_root):
     from dampnet.sweep import parse_spec
     from dampnet.sweep.grid import expand
 
-    text = (repo_root / "README.md").read_text()
-    block = text[text.index("### Sweeps on Dask"):]
+    text = (repo_root / "docs" / "sweeps.md").read_text()
+    block = text[text.index("# Sweeps on Dask"):]
     block = block[block.index("```toml\n") + 8:]
-    spec = parse_spec(block[:block.index("```")], source="README.md", base=repo_root)
+    spec = parse_spec(block[:block.index("```")], source="docs/sweeps.md", base=repo_root)
     cells = expand(spec)
     assert sum(c.kind == "training" for c in cells) == 8 and sum(c.kind == "simulation" for c in cells) == 64

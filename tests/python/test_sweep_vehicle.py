@@ -3,7 +3,7 @@ equals dampnet.fullcar.runs.run cell by cell (exactly: the same runtime on the s
 metrics through the cell's JSON record, which keeps a float's every bit); random samples of the
 full car's fields are numpy's draws; a cell with a bad vehicle value is an error row naming the
 field; --resume reuses the finished cells; the grid drops what a test does not use; bad specs are
-one-line errors (exit 2); the README's [fullcar] example is a valid spec.
+one-line errors (exit 2); docs/sweeps.md's [fullcar] example is a valid spec.
 
 Short tests: a 2 -> 4 Hz bounce sweep at 1 octave/s (5 s simulated), the lane change at 100 km/h,
 an ISO C road, all at a 2 ms step."""
@@ -130,11 +130,11 @@ def test_the_grid_drops_what_a_test_does_not_use():
     assert parse_spec({"fullcar": {"tests": "dlc"}}).sections["fullcar"].objective == "roll_peak_deg"
 
 
-def test_the_readme_fullcar_spec_is_valid(repo_root):
-    text = (repo_root / "README.md").read_text()
-    block = text[text.index("### Sweeps on Dask"):]
+def test_the_documented_fullcar_spec_is_valid(repo_root):
+    text = (repo_root / "docs" / "sweeps.md").read_text()
+    block = text[text.index("# Sweeps on Dask"):]
     block = block[block.index("```toml\n[fullcar]") + 8:]
-    cells = expand(parse_spec(block[:block.index("```")], source="README.md", base=repo_root))
+    cells = expand(parse_spec(block[:block.index("```")], source="docs/sweeps.md", base=repo_root))
     assert len(cells) == 16 and {c.kind for c in cells} == {"fullcar"}
 
 
