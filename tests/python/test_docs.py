@@ -95,3 +95,38 @@ def test_the_quick_start_commands_are_the_ones_ci_runs():
     ci = [line.strip() for line in (ROOT / ".ci" / "run").read_text().splitlines()
           if line.strip() and not line.startswith(("#", "set ", "cd "))]
     assert ci == ["bash python/env.sh pytest"]
+
+
+def documented_commands() -> list[tuple[str, str]]:
+    """Every `dampnet ...` line of a shell block in README.md and docs/*.md, its comment dropped and
+    an optional part's brackets removed (`[--mode pitch]`); lines with alternatives (`a|b`) or
+    elisions (`...`) are templates, not command lines, and are left out."""
+    found = []
+    for path in doc_files():
+        for block in re.findall(r"^```(?:sh|bash)\n(.*?)^```", path.read_text(), re.MULTILINE | re.DOTALL):
+            for line in block.splitlines():
+                cmd = re.sub(r"^bash python/env\.sh ", "", line.strip()).split(" #")[0].strip()
+                cmd = re.sub(r"\[([^\[\]|]*)\]", r"\1", cmd)
+                if cmd.startswith("dampnet ") and not any(s in cmd for s in ("|", "...", "[", "&&")):
+                    found.append((path.name, cmd))
+    return found
+
+
+def test_every_documented_command_line_parses():
+    """Each command line the README and docs/ print is one `dampnet` accepts: the command exists and
+    takes those options (argparse only: nothing runs)."""
+    import shlex
+
+    from dampnet.cli import build_parser
+
+    commands = documented_commands()
+    assert len(commands) >= 30 and {c.split()[1] for _, c in commands} >= {
+        "train", "evaluate", "diagnose", "simulate", "vehicle", "export", "plan-tests", "sweep", "bench"}
+    refused = []
+    for name, cmd in commands:
+        try:
+            build_parser().parse_args(shlex.split(cmd)[1:])
+        except SystemExit as e:
+            if e.code:
+                refused.append(f"{name}: {cmd}")
+    assert refused == []
