@@ -107,6 +107,14 @@ def unregister(name: str) -> None:
             OPTIONS.pop(flag, None)
 
 
+def get(name: str) -> ExportTarget:
+    """The target `name` (ValueError listing the registered ones)."""
+    try:
+        return TARGETS[name]
+    except KeyError:
+        raise ValueError(f"{name!r} is not an export target; valid: {', '.join(TARGETS)}") from None
+
+
 def applies_to(flag: str) -> list[str]:
     """The targets an option applies to."""
     return [t.name for t in TARGETS.values() if flag in t.options]
