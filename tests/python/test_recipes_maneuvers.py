@@ -150,7 +150,7 @@ def test_the_bounce_sweep_settings_work_from_the_command_line(tmp_path, capsys):
     meta = cli["maneuver"]
     assert (meta["f0_hz"], meta["f1_hz"], meta["amplitude_m"], meta["mode"]) == (2.0, 4.0, 0.002, "pitch")
     t = np.load(tmp_path / "b" / "run.npz")["t"]
-    assert t[-1] < 3.0                  # one octave at 1 octave/s, not the default 0.5-20 Hz at 0.1 octave/s
+    assert t[-1] == meta["pre_s"] + 1.0 + meta["post_s"]   # one octave at 1 octave/s (not 53 s: 0.5-20 Hz at 0.1)
     # the same as the sweep's cell builds it from the same settings (dampnet.sweep.fullcar_cell)
     from dampnet.sweep.fullcar_cell import maneuver
 
