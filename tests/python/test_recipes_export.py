@@ -105,7 +105,8 @@ def test_options_are_refused_for_targets_they_do_not_apply_to(forces_target, mod
                                                         "add --out DIR"),
         (["--target", "cortex-m4"], "--target alone selects nothing to export; it applies to mcu: add --out DIR"),
         (["--out", "fw"], "--out is the microcontroller folder: give --target cortex-m4|cortex-m7"),
-        (["--force"], "nothing to export: give --fmu OUT.fmu, --onnx OUT.onnx, --header OUT.h, --out DIR, "
+        (["--force"], "nothing to export: give --fmu OUT.fmu, --onnx OUT.onnx, --header OUT.h, "
+                      "--target cortex-m4|cortex-m7 --out DIR, "
                       "--forces-csv OUT.csv"),
     ]
     for args, message in cases:

@@ -52,7 +52,8 @@ class ExportTarget:
     `file_output` is False: the writer checks that one itself); `when`: other options' values
     that select it among targets sharing the output; `options`: the flags that apply to it
     (its output and `when` included); `check(args)`: before anything is written (ValueError);
-    `write(job) -> str`: writes, returns the line the command prints; `envelope`: reads the
+    `write(job) -> str`: writes, returns the line the command prints; `output_text`: its output
+    in help and messages when it needs more than the output option; `envelope`: reads the
     model's training envelope (dampnet.envelope) before writing (a broken one refuses the export,
     as `dampnet export` always did for its file targets)."""
 
@@ -65,11 +66,15 @@ class ExportTarget:
     check: Callable[[argparse.Namespace], None] | None = None
     file_output: bool = True
     envelope: bool = True
+    output_text: str = ""
+
+    def output_usage(self) -> str:
+        """Its output on a command line ("--header OUT.h"; `output_text` when it needs more)."""
+        return self.output_text or f"{self.output} {OPTIONS[self.output].kwargs.get('metavar', 'OUT')}"
 
     def usage(self) -> str:
         """How a command line selects it: its output option and `when`."""
-        metavar = OPTIONS[self.output].kwargs.get("metavar", "OUT")
-        return " ".join([f"{self.output} {metavar}", *(f"{k} {v}" for k, v in self.when.items())])
+        return " ".join([self.output_usage(), *(f"{k} {v}" for k, v in self.when.items())])
 
 
 #: every option of `dampnet export`, in the order its help lists them
@@ -163,7 +168,7 @@ def check_options(args: argparse.Namespace) -> list[ExportTarget]:
         where = f"does not apply to {', '.join(names)}" if names else "alone selects nothing to export"
         raise ValueError(f"{flag} {where}; it applies to {', '.join(to) or 'no target'}" + (f": add {add}" if add else ""))
     if not targets:
-        outs = dict.fromkeys(f"{t.output} {OPTIONS[t.output].kwargs.get('metavar', 'OUT')}" for t in TARGETS.values())
+        outs = dict.fromkeys(t.output_usage() for t in TARGETS.values())
         raise ValueError("nothing to export: give " + ", ".join(outs) + " (dampnet export --help lists the targets)")
     for o in OPTIONS.values():
         if getattr(args, o.dest, None) is None:
@@ -307,7 +312,7 @@ register(ExportTarget("header", "the C/C++ header `dampnet train` writes (dampne
                       ("--header", "--prefix", "--force"), _write_header, check=_check_header))
 register(ExportTarget("mcu", "a ready-to-build microcontroller folder (dampnet.embedded.export_target)", "--out",
                       ("--target", "--out", "--force"), _write_mcu, check=_check_mcu, file_output=False,
-                      envelope=False))
+                      envelope=False, output_text="--target cortex-m4|cortex-m7 --out DIR"))
 
 #: the built-in options (unregister keeps them)
 BUILTIN_OPTIONS = tuple(OPTIONS)

@@ -89,11 +89,12 @@ RESERVED_SWEEP = ("models", "tests", "damping", "dt", "objective", "random", "ve
 setting(Setting("speed_kmh", "km/h", "forward speed", range=limits.SPEED_KMH, cli="--speed", metavar="KMH",
                 sweep_key="speeds_kmh", axis=True))
 setting(Setting("mode", "", "all wheels in phase (heave) or the rear against the front (pitch)", kind="choice",
-                choices=("heave", "pitch"), choices_text="'heave' or 'pitch'", sweep_key="modes", axis=True))
+                choices=("heave", "pitch"), choices_text="'heave' or 'pitch'", metavar="{heave,pitch}", sweep_key="modes",
+                axis=True))
 setting(Setting("profile", "", "the thesis's rough road or an ISO 8608 class A..H", kind="choice",
                 choices=("thesis", *"ABCDEFGH"), choices_text="'thesis' or an ISO 8608 class A..H",
                 sweep_key="profiles", axis=True))
-setting(Setting("road_seed", "", "seed of the road's random tracks", kind="int", cli="--seed",
+setting(Setting("road_seed", "", "seed of the road's random tracks", kind="int", cli="--seed", metavar="SEED",
                 sweep_key="road_seeds", axis=True))
 setting(Setting("bsst_amplitude_m", "m", "sweep amplitude", cli="--bsst-amplitude", metavar="M"))
 setting(Setting("bsst_f0_hz", "Hz", "sweep start frequency", cli="--bsst-f0", metavar="HZ"))
@@ -299,7 +300,7 @@ register(ManeuverRecipe(
      "steer_rms_deg", "cones_hit", "cones", "passed", "tyre_load_min_n"), "roll_peak_deg",
     line=_dlc_line))
 register(ManeuverRecipe(
-    "road", "two correlated tracks of a rough road (the rear wheels a wheelbase later)",
+    "road", "two correlated tracks of a rough road, the rear wheels a wheelbase after the front",
     _road, _lazy("dampnet.fullcar.metrics", "road_metrics"), _lazy("dampnet.fullcar.plots", "plot_road"),
     dict(speed_kmh=60.0, profile="thesis", road_seed=0),
     ("acc_rms_m_s2", "acc_wk_rms_m_s2", "roll_rate_rms_deg_s"),
