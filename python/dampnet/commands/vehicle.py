@@ -40,7 +40,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 #: how argparse reads a setting of each kind (dampnet.recipes.maneuvers.Setting.kind)
-_TYPES = {"float": float, "int": int, "choice": str}
+_TYPES = {"float": float, "int": int, "seed": int, "choice": str}
 
 
 def check_options(args) -> None:

@@ -24,7 +24,8 @@ from dampnet.sim import limits
 class Setting:
     """One setting a manoeuvre's builder takes: `name` (the builder's keyword, the sweep cell's
     column), its `unit` ("" for a word or a count), what it means; its values: `kind` "float"
-    (within `range`, or any number > 0 when None), "int" (>= 0) or "choice" (one of `choices`,
+    (within `range`, or any number > 0 when None), "int" (>= 0), "seed" (a seed,
+    dampnet.sim.limits.SEED) or "choice" (one of `choices`,
     described in messages as `choices_text`); its spellings: `cli` (`dampnet vehicle` option),
     `sweep_key` ([fullcar] key; `axis`: a list of values is a grid axis)."""
 
@@ -46,8 +47,10 @@ class Setting:
             if value not in self.choices:
                 raise ValueError(f"{where}: expected {self.choices_text or ', '.join(self.choices)}, got {value!r}")
             return value
+        if self.kind == "seed":
+            return limits.check_seed(where, value)
         if self.kind == "int":
-            return limits.check_seed(where, value) if self.name.endswith("seed") else _int(where, value)
+            return _int(where, value)
         if self.range is not None:
             return limits.check_number(where, value, self.range)
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0 or value == float("inf"):
@@ -94,7 +97,7 @@ setting(Setting("mode", "", "all wheels in phase (heave) or the rear against the
 setting(Setting("profile", "", "the thesis's rough road or an ISO 8608 class A..H", kind="choice",
                 choices=("thesis", *"ABCDEFGH"), choices_text="'thesis' or an ISO 8608 class A..H",
                 sweep_key="profiles", axis=True))
-setting(Setting("road_seed", "", "seed of the road's random tracks", kind="int", cli="--seed", metavar="SEED",
+setting(Setting("road_seed", "", "seed of the road's random tracks", kind="seed", cli="--seed", metavar="SEED",
                 sweep_key="road_seeds", axis=True))
 setting(Setting("bsst_amplitude_m", "m", "sweep amplitude", cli="--bsst-amplitude", metavar="M"))
 setting(Setting("bsst_f0_hz", "Hz", "sweep start frequency", cli="--bsst-f0", metavar="HZ"))
@@ -222,7 +225,10 @@ def plot(runs: dict, path, title: str = "", test: str | None = None) -> None:
     """The test's plot of runs (label -> run; the test: `test`, or the runs' own)."""
     first = next(iter(runs.values()))
     m = get(test or first["maneuver"]["test"])
-    m.plot(runs, path, title) if title else m.plot(runs, path)
+    if title:
+        m.plot(runs, path, title)
+    else:
+        m.plot(runs, path)         # the plot's own default title
 
 
 def metric_columns() -> tuple[str, ...]:

@@ -357,7 +357,7 @@ def _setting_param(st) -> Param:
 
     if st.kind == "choice":
         norm, kind = _choice(st.choices, f"a {st.name}"), "any"
-    elif st.kind == "int":
+    elif st.kind in ("int", "seed"):
         norm, kind = _int(0), "int"
     else:
         norm, kind = (_in(st.range) if st.range is not None else _float(positive=True)), "float"
