@@ -4,8 +4,8 @@ Training (dampnet.sweep.train_cell): NRMSE = RMSE / the force range of the data 
 on (the hold-out tests, the training subsets), errors in N, times in s. Simulation
 (dampnet.sweep.sim_cell): dampnet.sim.ride.ride_metrics in SI units (m/s^2, m, N), the static
 damper force f_static_n [N], the transmissibility peak of sine-sweep roads. Full vehicle
-(dampnet.sweep.fullcar_cell): dampnet.fullcar.metrics of the cell's test, as `dampnet vehicle`
-reports them (units in the names: m_s2 = m/s^2, rad_s2, deg, deg_s = deg/s, n = N; counts:
+(dampnet.sweep.fullcar_cell): the metrics of the cell's test (its entry's columns in
+dampnet.recipes.maneuvers, every test's in registry order), as `dampnet vehicle` reports them (units in the names: m_s2 = m/s^2, rad_s2, deg, deg_s = deg/s, n = N; counts:
 cones_hit, cones; passed: no cone hit), the road test's dynamic tyre load RMS one column per
 wheel (fl, fr, rl, rr), the damper's force at rest f_static_n [N] and the run's duration_s [s];
 a metric the cell's test does not measure is empty.
