@@ -39,7 +39,7 @@ def client():
 
 def api_metrics(model: str, man, damping: str, vehicle: dict) -> dict:
     """The cell computed one by one through the fullcar API: its metrics as the table's columns."""
-    from dampnet.fullcar.runs import run as run_test
+    from dampnet.recipes.maneuvers import run as run_test   # dampnet.fullcar.runs.run with the test's metrics
     from dampnet.sim.dampers import load_spec
 
     r = run_test(load_spec(model), man, damping, vehicle)

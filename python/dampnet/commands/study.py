@@ -117,9 +117,8 @@ def _worst_run(res: dict, name: str) -> str:
 def _vehicle_study(specs, args) -> dict:
     """The full-vehicle comparison (dampnet.fullcar.study) of the study's models: BSST (a 4x
     faster sweep with --quick) and the lane change, low / high damping and on-off skyhook."""
-    from dampnet.fullcar import maneuvers
-    from dampnet.fullcar.study import run_study as run_vehicle
+    from dampnet.recipes import maneuvers
 
-    tests = {"bsst_heave": maneuvers.bsst(args.dt, rate_oct_s=1.0 if args.quick else 0.25),
-             "dlc": maneuvers.dlc(args.dt)}
-    return run_vehicle(specs, tests, progress=lambda s: print(f"  vehicle {s}", file=sys.stderr))
+    tests = {"bsst_heave": maneuvers.build("bsst", args.dt, {"bsst_rate_oct_s": 1.0 if args.quick else 0.25}),
+             "dlc": maneuvers.build("dlc", args.dt)}
+    return maneuvers.run_study(specs, tests, progress=lambda s: print(f"  vehicle {s}", file=sys.stderr))

@@ -1,5 +1,6 @@
-"""`dampnet vehicle MODEL --test bsst|dlc|road`: one full-vehicle test (the thesis's chapter 5.2)
-with the damper model at all four corners, in the runtime's FullCar."""
+"""`dampnet vehicle MODEL --test NAME`: one full-vehicle test (the thesis's chapter 5.2: bsst, dlc,
+road; every test of dampnet.recipes.maneuvers) with the damper model at all four corners, in the
+runtime's FullCar."""
 
 from __future__ import annotations
 
@@ -9,61 +10,61 @@ import sys
 RUN_SCHEMA = "dampnet.vehicle/1"
 #: the files of a run (metrics.json is its marker: a JSON object with "schema": RUN_SCHEMA)
 RUN_FILES = ("run.npz", "metrics.json", "vehicle.png", "coverage.png")
-TESTS = ("bsst", "dlc", "road")
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
+    from dampnet.recipes import maneuvers
+
+    tests = "; ".join(f"{m.name} ({m.doc})" for m in maneuvers.MANEUVERS.values())
     p = subparsers.add_parser(
-        "vehicle", help="run a damper model in the full vehicle: bounce sweep, lane change, rough road",
+        "vehicle", help="run a damper model in the full vehicle: " + ", ".join(maneuvers.names()),
         description="Run MODEL (a model directory or model.json, a lookup-table JSON, 'truth' or "
                     "'truth:EFFECT,...', or 'linear:C' [N s/m]) at all four corners of the full vehicle "
                     "(a compact pickup; see README) and write metrics.json, run.npz and vehicle.png. "
-                    "Tests: bsst (bounce sine sweep 0.5-20 Hz on a four-post rig), dlc (ISO 3888-1 "
-                    "double lane change driven by the preview driver), road (two correlated tracks of "
-                    "a rough road).")
+                    f"Tests: {tests}. A test's settings are the options below it names; another test's "
+                    "setting is refused.")
     p.add_argument("model")
-    p.add_argument("--test", choices=TESTS, default="dlc", help="the test (default dlc)")
-    p.add_argument("--mode", choices=("heave", "pitch"), default="heave",
-                   help="bsst: all wheels in phase (heave) or the rear against the front (pitch)")
-    p.add_argument("--speed", type=float, default=None, metavar="KMH",
-                   help="speed [km/h] of dlc (default 120, the thesis's) and road (default 60)")
-    p.add_argument("--profile", default="thesis", help="road: 'thesis' (the thesis's rough road) or an ISO "
-                   "8608 class A..H")
+    p.add_argument("--test", choices=maneuvers.names(), default="dlc", help="the test (default dlc)")
+    for s in maneuvers.SETTINGS.values():
+        by = ", ".join(f"{m.name} (default {m.defaults[s.name]})" for m in maneuvers.MANEUVERS.values()
+                       if s.name in m.defaults)
+        p.add_argument(s.cli, dest=s.name, type=_TYPES[s.kind], default=None, metavar=s.metavar,
+                       help=f"{s.text()}; of {by or 'no test'}")
     p.add_argument("--damping", choices=("low", "high", "skyhook"), default="low",
                    help="passive at the damper's low or high setting, or on-off skyhook at every corner")
     p.add_argument("--dt", type=float, default=1e-3, help="step [s]")
-    p.add_argument("--seed", type=int, default=0, help="seed of the rough road")
     p.add_argument("--out", default="vehicle_out", help="output directory")
     p.add_argument("--force", action="store_true", help="replace an existing run in --out")
     p.set_defaults(handler=run)
     return p
 
 
+#: how argparse reads a setting of each kind (dampnet.recipes.maneuvers.Setting.kind)
+_TYPES = {"float": float, "int": int, "seed": int, "choice": str}
+
+
 def check_options(args) -> None:
-    """Every numeric option within its range (dampnet.sim.limits), before anything runs."""
+    """Every option within its range (dampnet.sim.limits; the test's settings as
+    dampnet.recipes.maneuvers checks them, another test's refused), before anything runs."""
+    from dampnet.recipes import maneuvers
     from dampnet.sim import limits
 
     limits.check_number("--dt", args.dt, limits.STEP_S)
-    if args.speed is not None:
-        limits.check_number("--speed", args.speed, limits.SPEED_KMH)
-    limits.check_seed("--seed", args.seed)
+    maneuvers.settings_of(args.test, _given(args))
+
+
+def _given(args) -> dict:
+    """The manoeuvre settings given on the command line (None: not given)."""
+    from dampnet.recipes import maneuvers
+
+    return {name: getattr(args, name, None) for name in maneuvers.SETTINGS}
 
 
 def _maneuver(args):
-    from dampnet.fullcar import maneuvers
-    from dampnet.fullcar.runs import DEFAULT_SPEED_KMH
-    from dampnet.sim.roads import RoadError
+    """The test's Maneuver (dampnet.recipes.maneuvers: its settings from the options given)."""
+    from dampnet.recipes import maneuvers
 
-    if args.speed is not None and args.test == "bsst":
-        raise RoadError("--speed: the bounce sine sweep runs at rest on a four-post rig; drop --speed")
-    speed = DEFAULT_SPEED_KMH.get(args.test) if args.speed is None else args.speed
-    if args.test == "bsst":
-        return maneuvers.bsst(args.dt, args.mode)
-    if args.test == "dlc":
-        return maneuvers.dlc(args.dt, speed)
-    if args.profile != "thesis" and args.profile not in tuple("ABCDEFGH"):
-        raise RoadError(f"--profile: expected 'thesis' or an ISO 8608 class A..H, got {args.profile!r}")
-    return maneuvers.rough_road(args.dt, speed, args.profile, args.seed)
+    return maneuvers.build(args.test, args.dt, _given(args))
 
 
 def run(args) -> int:
@@ -72,9 +73,8 @@ def run(args) -> int:
 
     import numpy as np
 
-    from dampnet.fullcar.plots import plot_test
-    from dampnet.fullcar.runs import run as run_test
     from dampnet.model import ModelError
+    from dampnet.recipes import maneuvers
     from dampnet.outputs import check_run_dir, json_text, staged_files
     from dampnet.sim.dampers import load_spec
     from dampnet.sim.roads import RoadError
@@ -89,7 +89,7 @@ def run(args) -> int:
         man = _maneuver(args)
         print(f"running {man.name} ({man.road.shape[0] * man.dt:.1f} s simulated, "
               f"{man.road.shape[0]} steps) with {spec.name}, {args.damping} damping ...", flush=True)
-        res = run_test(spec, man, args.damping)
+        res = maneuvers.run(spec, man, args.damping)
     except (RoadError, LoopError, ModelError, ValueError, OSError, KeyError) as e:
         print(f"dampnet: error: {e}", file=sys.stderr)
         return 2
@@ -100,7 +100,7 @@ def run(args) -> int:
     try:
         with staged_files(out) as tmp:
             np.savez_compressed(tmp / "run.npz", **res["arrays"])
-            plot_test(args.test, {spec.name: res}, tmp / "vehicle.png", title)
+            maneuvers.plot({spec.name: res}, tmp / "vehicle.png", title)
             if "coverage" in res:
                 from dampnet.coverage import fullcar_inputs
                 from dampnet.coverage_plot import plot_coverage
@@ -114,17 +114,7 @@ def run(args) -> int:
     except OSError as e:
         print(f"dampnet: error: {out}: cannot write the run ({e.strerror or e})", file=sys.stderr)
         return 2
-    m = res["metrics"]
-    if args.test == "dlc":
-        line = (f"a_y peak {m['a_y_peak_m_s2']:.2f} m/s^2, roll peak {m['roll_peak_deg']:.2f} deg, roll rate peak "
-                f"{m['roll_rate_peak_deg_s']:.1f} deg/s, yaw rate peak {m['yaw_rate_peak_deg_s']:.1f} deg/s, "
-                f"side-slip peak {m['side_slip_peak_deg']:.2f} deg, cones hit {m['cones_hit']} of {m['cones']} "
-                f"({'passed' if m['passed'] else 'failed'})")
-    elif args.test == "bsst":
-        line = f"body acc RMS {m['acc_rms_m_s2']:.4f} m/s^2, peak {m['acc_peak_m_s2']:.3f} m/s^2"
-    else:
-        line = (f"body acc RMS {m['acc_rms_m_s2']:.4f} m/s^2, Wk RMS {m['acc_wk_rms_m_s2']:.4f} m/s^2, "
-                f"roll rate RMS {m['roll_rate_rms_deg_s']:.2f} deg/s")
+    line = maneuvers.get(args.test).summary(res["metrics"])
     print(f"{title}: {line} -> {out}")
     if "coverage" in res:
         from dampnet.coverage import summary_line

@@ -334,17 +334,18 @@ def _vehicle(model, lookup, fig_dir: Path, quick: bool, log, envelope=None) -> d
     """The thesis's full-vehicle comparison: the improved model, the lookup table and the truth
     damper at all four corners, low and high damping and on-off skyhook, in the bounce sine
     sweep and the double lane change at 120 km/h (quick: a 4x faster sweep)."""
-    from dampnet.fullcar import maneuvers, study
-    from dampnet.fullcar.plots import plot_test
+    from dampnet.fullcar import study
+    from dampnet.recipes import maneuvers
     from dampnet.sim.dampers import lookup_spec, neural_spec, truth_spec
 
     fig_dir.mkdir(parents=True, exist_ok=True)
     specs = [neural_spec(model, "neural", envelope=envelope), lookup_spec(lookup, "lookup"), truth_spec([HIDDEN_EFFECT], "truth")]
-    tests = {"bsst_heave": maneuvers.bsst(rate_oct_s=1.0 if quick else 0.25), "dlc": maneuvers.dlc()}
-    res = study.run_study(specs, tests, damping=("low", "high", "skyhook"), keep_runs=True)
+    tests = {"bsst_heave": maneuvers.build("bsst", 1e-3, {"bsst_rate_oct_s": 1.0 if quick else 0.25}),
+             "dlc": maneuvers.build("dlc", 1e-3)}
+    res = maneuvers.run_study(specs, tests, damping=("low", "high", "skyhook"), keep_runs=True)
     for test, by_d in res.pop("runs").items():
         for d, runs in by_d.items():
-            plot_test(test.split("_")[0], runs, fig_dir / f"{test}_{d}.png", f"{test.replace('_', ' ')}, {d} damping")
+            maneuvers.plot(runs, fig_dir / f"{test}_{d}.png", f"{test.replace('_', ' ')}, {d} damping")
     res["text"] = study.text_table(res)
     worst = {name: max(abs(row["acc_rms_m_s2"]) for row in (res["errors"]["bsst_heave"][d][name]
                                                             for d in ("low", "high", "skyhook")))

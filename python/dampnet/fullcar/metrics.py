@@ -6,6 +6,9 @@
          none is)
   road   body acceleration RMS and its ISO 2631-1 Wk-weighted RMS, roll and pitch rate RMS,
          dynamic tyre load RMS per wheel
+
+Each takes (arrays, maneuver, the run's full-car params); which one a test uses is its entry in
+dampnet.recipes.maneuvers.
 """
 
 from __future__ import annotations
@@ -31,7 +34,7 @@ def spectrum(x: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     return f, np.sqrt(p)
 
 
-def bsst_metrics(res: dict, man: Maneuver) -> dict:
+def bsst_metrics(res: dict, man: Maneuver, params: dict | None = None) -> dict:
     acc = res["acc_z"]
     return {"acc_rms_m_s2": rms(acc), "acc_peak_m_s2": float(np.max(np.abs(acc))),
             "pitch_acc_rms_rad_s2": rms(res["acc_theta"]),
@@ -78,7 +81,7 @@ def dlc_metrics(res: dict, man: Maneuver, params: dict) -> dict:
     return out
 
 
-def road_metrics(res: dict, man: Maneuver) -> dict:
+def road_metrics(res: dict, man: Maneuver, params: dict | None = None) -> dict:
     acc = res["acc_z"]
     load = res["tyre_load"]
     return {"acc_rms_m_s2": rms(acc), "acc_wk_rms_m_s2": rms(wk_weighted(acc, 1.0 / man.dt)),
@@ -86,13 +89,3 @@ def road_metrics(res: dict, man: Maneuver) -> dict:
             "pitch_rate_rms_deg_s": rms(np.degrees(column(res, "q"))),
             "tyre_load_dyn_rms_n": [rms(load[:, i] - np.mean(load[:, i])) for i in range(4)],
             "tyre_load_min_n": float(np.min(load))}
-
-
-def metrics_of(res: dict, man: Maneuver, params: dict) -> dict:
-    """The metrics of the run's test (man.meta["test"])."""
-    test = man.meta["test"]
-    if test == "bsst":
-        return bsst_metrics(res, man)
-    if test == "dlc":
-        return dlc_metrics(res, man, params)
-    return road_metrics(res, man)

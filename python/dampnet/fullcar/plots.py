@@ -1,5 +1,6 @@
 """Plots of full-vehicle runs (PNG, matplotlib Agg): several runs of one test overlaid
-(label -> run, as dampnet.fullcar.runs.run returns)."""
+(label -> run, as dampnet.fullcar.runs.run returns); which one a test draws is its entry
+in dampnet.recipes.maneuvers."""
 
 from __future__ import annotations
 
@@ -88,11 +89,3 @@ def plot_road(runs: dict, path: str | Path, title: str = "Rough road") -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
-
-
-PLOTS = {"bsst": plot_bsst, "dlc": plot_dlc, "road": plot_road}
-
-
-def plot_test(test: str, runs: dict, path: str | Path, title: str = "") -> None:
-    """The plot of a test ('bsst', 'dlc', 'road') for runs (label -> run)."""
-    PLOTS[test](runs, path, title or PLOTS[test].__defaults__[0])

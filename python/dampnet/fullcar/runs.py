@@ -4,11 +4,12 @@ through the runtime's FullCar, with the test's metrics."""
 
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 
 from dampnet import _core
 from dampnet.fullcar.maneuvers import Maneuver
-from dampnet.fullcar.metrics import metrics_of
 from dampnet.fullcar.params import RUN_SCHEME, check, defaults
 from dampnet.sim.calibration import damping_levels, semi_active
 from dampnet.sim.dampers import DamperSpec, force_at_rest, runtime_damper
@@ -16,8 +17,6 @@ from dampnet.sim.vehicle import Controller, LoopError, Vehicle
 
 #: the damping settings of a run: passive at the damper's low / high setting, or skyhook
 DAMPING = ("low", "high", "skyhook")
-#: the speed [km/h] each moving test runs at unless told (dampnet vehicle --speed, sweep speeds_kmh)
-DEFAULT_SPEED_KMH = {"dlc": 120.0, "road": 60.0}
 #: the corners, in the runtime's order (FullCarModel's dampers, the [n, 4] columns)
 CORNERS = ("fl", "fr", "rl", "rr")
 
@@ -35,10 +34,12 @@ def controller_for(spec: DamperSpec, damping: str, levels: dict | None = None) -
     return ctrl
 
 
-def run(spec: DamperSpec, man: Maneuver, damping: str = "low", params: dict | None = None) -> dict:
-    """{'arrays': FullCar.simulate's arrays, 'metrics': ..., 'params', 'controller', ...,
-    'coverage' (neural and hybrid dampers: `run_coverage`)}.
+def run(spec: DamperSpec, man: Maneuver, damping: str = "low", params: dict | None = None, *,
+        metrics: Callable[[dict, Maneuver, dict], dict]) -> dict:
+    """{'arrays': FullCar.simulate's arrays, 'metrics': metrics(arrays, man, params), 'params',
+    'controller', ..., 'coverage' (neural and hybrid dampers: `run_coverage`)}.
 
+    metrics: the test's (dampnet.recipes.maneuvers: `recipes.maneuvers.run` passes it).
     params: full-car fields over the defaults (speed, dt and the steering mode come from the
     maneuver; damper_eval per_step as every Python-side run, RUN_SCHEME)."""
     ctrl = controller_for(spec, damping)
@@ -60,7 +61,7 @@ def run(spec: DamperSpec, man: Maneuver, damping: str = "low", params: dict | No
     res = _core.FullCar(model).simulate(man.road, man.road_rate,
                                         steer=None if man.path is not None else man.steer)
     res["t"] = np.arange(man.road.shape[0]) * man.dt
-    out = dict(arrays=res, metrics=metrics_of(res, man, p), params=p, controller=ctrl.to_dict(),
+    out = dict(arrays=res, metrics=metrics(res, man, p), params=p, controller=ctrl.to_dict(),
                damper=spec.name, damping=damping, test=man.name, f_static_n=f_static,
                maneuver=man.meta)
     cov = run_coverage(spec, res)

@@ -5,24 +5,23 @@ model's difference from the truth damper."""
 
 from __future__ import annotations
 
-from typing import Callable
+from typing import Any, Callable, Mapping
 
 from dampnet.fullcar.maneuvers import Maneuver
 from dampnet.fullcar.runs import DAMPING, run
 from dampnet.sim.dampers import DamperSpec
 
-#: the metric of each test that the table shows first, and the others it shows
-HEADLINE = {"bsst": ("acc_rms_m_s2", "acc_peak_m_s2"),
-            "dlc": ("a_y_peak_m_s2", "roll_peak_deg", "roll_rate_peak_deg_s", "yaw_rate_peak_deg_s",
-                    "side_slip_peak_deg", "cones_hit"),
-            "road": ("acc_rms_m_s2", "acc_wk_rms_m_s2", "roll_rate_rms_deg_s")}
-
 
 def run_study(specs: list[DamperSpec], tests: dict[str, Maneuver], damping=DAMPING,
-              progress: Callable[[str], None] | None = None, keep_runs: bool = False) -> dict:
+              progress: Callable[[str], None] | None = None, keep_runs: bool = False, *,
+              recipes: Mapping[str, Any]) -> dict:
     """{'results': {test: {damping: {model: metrics}}}, 'errors': ... vs the model named
     'truth' when there is one (relative, per headline metric), 'coverage': {test: {damping:
-    {model: dampnet.coverage result}}} for neural models, 'runs' (with keep_runs)}."""
+    {model: dampnet.coverage result}}} for neural models, 'headline_metrics': {test: the metrics the
+    table shows, the first one first}, 'runs' (with keep_runs)}.
+
+    recipes: each test's entry of dampnet.recipes.maneuvers (its .metrics and .headline;
+    `recipes.maneuvers.run_study` passes them)."""
     results: dict = {}
     coverage: dict = {}
     runs: dict = {}
@@ -31,24 +30,25 @@ def run_study(specs: list[DamperSpec], tests: dict[str, Maneuver], damping=DAMPI
             for spec in specs:
                 if progress:
                     progress(f"{test} {d}: {spec.name}")
-                r = run(spec, man, d)
+                r = run(spec, man, d, metrics=recipes[test].metrics)
                 results.setdefault(test, {}).setdefault(d, {})[spec.name] = r["metrics"]
                 if "coverage" in r:
                     coverage.setdefault(test, {}).setdefault(d, {})[spec.name] = r["coverage"]
                 if keep_runs:
                     runs.setdefault(test, {}).setdefault(d, {})[spec.name] = r
-    out = {"results": results, "errors": relative_errors(results), "coverage": coverage,
-           "tests": {t: m.meta.get("test") for t, m in tests.items()}}
+    headline = {t: tuple(recipes[t].headline) for t in tests}
+    out = {"results": results, "errors": relative_errors(results, headline), "coverage": coverage,
+           "tests": {t: m.meta.get("test") for t, m in tests.items()}, "headline_metrics": headline}
     if keep_runs:
         out["runs"] = runs
     return out
 
 
-def relative_errors(results: dict, reference: str = "truth") -> dict:
-    """(model - truth) / truth of each headline metric (cones: the difference in count)."""
+def relative_errors(results: dict, headline: dict, reference: str = "truth") -> dict:
+    """(model - truth) / truth of each headline metric (headline: test -> its metrics; counts,
+    such as cones hit: the difference)."""
     errs: dict = {}
     for test, by_d in results.items():
-        kind = test.split("_")[0]
         for d, by_model in by_d.items():
             ref = by_model.get(reference)
             if ref is None:
@@ -57,8 +57,8 @@ def relative_errors(results: dict, reference: str = "truth") -> dict:
                 if name == reference:
                     continue
                 row = {}
-                for k in HEADLINE.get(kind, ()):
-                    if k == "cones_hit":
+                for k in headline.get(test, ()):
+                    if isinstance(m[k], int) and not isinstance(m[k], bool):
                         row[k] = m[k] - ref[k]
                     elif ref.get(k):
                         row[k] = (m[k] - ref[k]) / abs(ref[k])
@@ -70,7 +70,7 @@ def text_table(study: dict) -> str:
     """The results as text: per test and damping, one row per model."""
     lines = []
     for test, by_d in study["results"].items():
-        keys = HEADLINE.get(test.split("_")[0], ())
+        keys = study["headline_metrics"].get(test, ())
         lines.append(f"{test}: " + ", ".join(keys))
         for d, by_model in by_d.items():
             for name, m in by_model.items():

@@ -5,9 +5,10 @@ parameters in, the test's metrics out.
 The run is `dampnet.fullcar.runs.run` (the runtime's FullCar, as `dampnet vehicle`): the same
 damper spec at every corner, passive at its low or high damping setting or on-off skyhook per
 corner, its force at rest as the static force; [fullcar.vehicle] fields over the runtime's
-defaults. The test is built as `dampnet vehicle` builds it (dampnet.fullcar.maneuvers) at the
-cell's dt, with the cell's speed [km/h], bsst mode and sweep, road profile and seed; the road
-test's rear wheels follow the front ones by the cell's wheelbase (a + b).
+defaults. The test is built as `dampnet vehicle` builds it (dampnet.recipes.maneuvers) at the
+cell's dt, with the cell's settings (its entry's: speed [km/h], bsst mode and sweep, road
+profile and seed, ...); the road test's rear wheels follow the front ones by the cell's
+wheelbase (a + b).
 """
 
 from __future__ import annotations
@@ -23,18 +24,11 @@ def vehicle(params: dict[str, Any]) -> dict[str, Any]:
 
 
 def maneuver(params: dict[str, Any]):
-    """The cell's test (a dampnet.fullcar.maneuvers.Maneuver)."""
-    from dampnet.fullcar import maneuvers
-    from dampnet.fullcar.params import wheelbase
+    """The cell's test (a dampnet.fullcar.maneuvers.Maneuver, built by dampnet.recipes.maneuvers)."""
+    from dampnet.recipes import maneuvers
 
-    test, dt = params["test"], params["dt"]
-    if test == "bsst":
-        return maneuvers.bsst(dt, params["mode"], amplitude_m=params["bsst_amplitude_m"], f0=params["bsst_f0_hz"],
-                              f1=params["bsst_f1_hz"], rate_oct_s=params["bsst_rate_oct_s"])
-    if test == "dlc":
-        return maneuvers.dlc(dt, params["speed_kmh"])
-    return maneuvers.rough_road(dt, params["speed_kmh"], params["profile"], params["road_seed"],
-                                wheelbase_m=wheelbase(vehicle(params)))
+    m = maneuvers.get(params["test"])
+    return maneuvers.build(m.name, params["dt"], {k: params[k] for k in m.defaults}, vehicle(params))
 
 
 def flat_metrics(metrics: dict[str, Any]) -> dict[str, Any]:
@@ -51,7 +45,7 @@ def flat_metrics(metrics: dict[str, Any]) -> dict[str, Any]:
 
 def run(params: dict[str, Any], inputs: dict[str, Any]) -> dict[str, Any]:
     """{"metrics": the test's metrics, f_static_n and duration_s, "controller_settings": the law's fields}."""
-    from dampnet.fullcar.runs import run as run_test
+    from dampnet.recipes.maneuvers import run as run_test
     from dampnet.sweep.sim_cell import damper
 
     spec = damper(params, inputs["model"])

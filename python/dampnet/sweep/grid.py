@@ -5,9 +5,9 @@
 A parameter that does not apply to a cell is None there and does not make cells differ: a
 dataset read from a path has no data_seed or rig_effects, a time profile (impulse, sweep)
 no speed, a road that is not random no road_seed, a road that is not iso:X no road_length_m; a
-full-vehicle cell's bounce sweep (bsst) no speed, lane change (dlc) no profile or road_seed, and
-only a bsst has a mode and the bsst_* settings. A full-vehicle dlc or road cell without a speed
-gets its test's (dlc 120, road 60 km/h, as `dampnet vehicle`).
+full-vehicle cell has only its test's settings (dampnet.recipes.maneuvers: a bounce sweep (bsst)
+no speed, a lane change (dlc) no profile or road_seed, only a bsst a mode and the bsst_*
+settings), each its test's default unless set (dlc 120, road 60 km/h, as `dampnet vehicle`).
 Cells with equal parameters are one cell.
 
 Size: a spec may make at most MAX_CELLS cells (counted before equal cells merge: the grid's
@@ -166,19 +166,11 @@ def applicable(kind: str, params: dict[str, Any]) -> dict[str, Any]:
         if not str(p["dataset"]).startswith("rig:"):
             p["data_seed"] = p["rig_effects"] = None
     elif kind == "fullcar":
-        from dampnet.fullcar.runs import DEFAULT_SPEED_KMH
+        from dampnet.recipes.maneuvers import SETTINGS, get
 
-        test = p["test"]
-        if test != "bsst":
-            p["mode"] = None
-            for k in ("bsst_amplitude_m", "bsst_f0_hz", "bsst_f1_hz", "bsst_rate_oct_s"):
-                p[k] = None
-        if test == "bsst":
-            p["speed_kmh"] = None
-        elif p["speed_kmh"] is None:
-            p["speed_kmh"] = DEFAULT_SPEED_KMH[test]
-        if test != "road":
-            p["profile"] = p["road_seed"] = None
+        defaults = get(p["test"]).defaults
+        for name in SETTINGS:      # the test's settings (its default when not set), others empty
+            p[name] = (defaults[name] if p.get(name) is None else p[name]) if name in defaults else None
     else:
         road = str(p["road"]).lower()
         if road in TEMPORAL_ROADS:

@@ -4,8 +4,8 @@ Training (dampnet.sweep.train_cell): NRMSE = RMSE / the force range of the data 
 on (the hold-out tests, the training subsets), errors in N, times in s. Simulation
 (dampnet.sweep.sim_cell): dampnet.sim.ride.ride_metrics in SI units (m/s^2, m, N), the static
 damper force f_static_n [N], the transmissibility peak of sine-sweep roads. Full vehicle
-(dampnet.sweep.fullcar_cell): dampnet.fullcar.metrics of the cell's test, as `dampnet vehicle`
-reports them (units in the names: m_s2 = m/s^2, rad_s2, deg, deg_s = deg/s, n = N; counts:
+(dampnet.sweep.fullcar_cell): the metrics of the cell's test (its entry's columns in
+dampnet.recipes.maneuvers, every test's in registry order), as `dampnet vehicle` reports them (units in the names: m_s2 = m/s^2, rad_s2, deg, deg_s = deg/s, n = N; counts:
 cones_hit, cones; passed: no cone hit), the road test's dynamic tyre load RMS one column per
 wheel (fl, fr, rl, rr), the damper's force at rest f_static_n [N] and the run's duration_s [s];
 a metric the cell's test does not measure is empty.
@@ -23,17 +23,20 @@ TRAINING = ("holdout_nrmse", "holdout_rmse_n", "holdout_max_abs_error_n", "looku
 SIMULATION = ("acc_rms_m_s2", "acc_wk_rms_m_s2", "acc_peak_m_s2", "disp_rms_m", "disp_peak_to_rms",
               "travel_rms_m", "travel_max_m", "tyre_load_rms_n", "tyre_load_rms_rel", "duration_s", "dt_s",
               "f_static_n", "transmissibility_peak", "transmissibility_peak_hz") + COVERAGE
-#: bsst and road (ride), dlc (handling), all tests
-FULLCAR = ("acc_rms_m_s2", "acc_wk_rms_m_s2", "acc_peak_m_s2", "pitch_acc_rms_rad_s2", "roll_rate_rms_deg_s",
-           "pitch_rate_rms_deg_s", "tyre_load_dyn_rms_fl_n", "tyre_load_dyn_rms_fr_n", "tyre_load_dyn_rms_rl_n",
-           "tyre_load_dyn_rms_rr_n",
-           "a_y_peak_m_s2", "a_y_rms_m_s2", "roll_peak_deg", "roll_rms_deg", "roll_rate_peak_deg_s",
-           "yaw_rate_peak_deg_s", "yaw_rate_rms_deg_s", "side_slip_peak_deg", "side_slip_rms_deg", "steer_peak_deg",
-           "steer_rms_deg", "cones_hit", "cones", "passed",
-           "tyre_load_min_n", "f_static_n", "duration_s") + COVERAGE
 #: the wheels of per-wheel full-car metrics (FL, FR, RL, RR: the runtime's corner order)
 WHEELS = ("fl", "fr", "rl", "rr")
-BY_KIND = {"training": TRAINING, "simulation": SIMULATION, "fullcar": FULLCAR}
+
+
+def fullcar() -> tuple[str, ...]:
+    """A full-vehicle cell's columns: every test's metrics (dampnet.recipes.maneuvers, read now: a
+    test registered later counts), then the damper's force at rest, the run's duration, coverage."""
+    from dampnet.recipes.maneuvers import metric_columns
+
+    return metric_columns() + ("f_static_n", "duration_s") + COVERAGE
+
+
+#: each kind's metric columns, in order
+BY_KIND = {"training": lambda: TRAINING, "simulation": lambda: SIMULATION, "fullcar": fullcar}
 #: metrics that are not numbers (never an objective)
 TEXT = ("stop_reason", "features_used", "model_id", "passed", "extrapolated")
 
@@ -49,4 +52,4 @@ def coverage_columns(res: dict) -> dict:
 
 def objectives(kind: str) -> list[str]:
     """The metrics of `kind` a spec may name as its objective (numbers; lower is better)."""
-    return [m for m in BY_KIND[kind] if m not in TEXT]
+    return [m for m in BY_KIND[kind]() if m not in TEXT]

@@ -18,14 +18,16 @@ A spec has up to four tables:
                 [simulation.vehicle] and [simulation.controller]: the quarter car's and the
                 control law's fields (a value or a list); objective
   [fullcar]     full-vehicle cells (dampnet.fullcar.runs.run, as `dampnet vehicle`): models (as
-                [simulation]), tests (bsst, dlc, road), damping (low, high, skyhook: every
+                [simulation]), tests (dampnet.recipes.maneuvers: bsst, dlc, road), damping (low, high, skyhook: every
                 corner), speeds_kmh [km/h] (dlc, road; default the test's: 120, 60), modes
                 (bsst: heave, pitch), profiles (road: thesis or an ISO 8608 class A..H),
                 road_seeds (road), dt [s], bsst_amplitude_m, bsst_f0_hz, bsst_f1_hz,
                 bsst_rate_oct_s (the bounce sweep); [fullcar.vehicle]: the full car's fields
                 (dampnet._core.FULLCAR_FIELDS, SI; enums by name: tyre_model, damper_eval,
                 accel_feature) except those the test sets (speed, dt, steer_mode, f_static_f,
-                f_static_r); objective (default acc_rms_m_s2; roll_peak_deg when every test is dlc).
+                f_static_r); objective (default: the tests' own when they share one, roll_peak_deg for
+                dlc, acc_rms_m_s2 for bsst and road; else acc_rms_m_s2). A test's settings and
+                their defaults are its entry's in dampnet.recipes.maneuvers; another test's are empty.
                 E.g. [fullcar] models = ["default", "truth"], tests = ["dlc", "bsst"],
                 damping = ["low", "skyhook"] and [fullcar.vehicle] m_s = [2400.0, 2800.0]: 16 cells
 
@@ -78,15 +80,11 @@ TEMPORAL_ROADS = ("impulse", "sweep")         # time profiles: no speed
 SEEDED_ROADS = ("rough",)                      # and iso:X: random profiles, with a seed
 DISTRIBUTIONS = ("uniform", "loguniform", "normal", "integers", "choice")
 DEFAULT_OBJECTIVE = {"training": "holdout_nrmse", "simulation": "acc_wk_rms_m_s2", "fullcar": "acc_rms_m_s2"}
-#: the objective of a [fullcar] section whose every test is the lane change (no ride metric there)
-DLC_OBJECTIVE = "roll_peak_deg"
 #: the sections (tables) that make cells, in the table's order
 KINDS = ("training", "simulation", "fullcar")
-#: full-vehicle tests (dampnet vehicle --test), damping settings (--damping), bsst modes, road profiles
-FULLCAR_TESTS = ("bsst", "dlc", "road")
+#: full-vehicle damping settings (dampnet vehicle --damping); the tests and their settings:
+#: dampnet.recipes.maneuvers (read when a spec is parsed: `fullcar_params`)
 FULLCAR_DAMPING = ("low", "high", "skyhook")
-FULLCAR_MODES = ("heave", "pitch")
-FULLCAR_PROFILES = ("thesis", *"ABCDEFGH")
 #: full-car fields a cell sets from its test (not [fullcar.vehicle] keys): why, for the error
 FULLCAR_SET_BY_TEST = {
     "speed": "set by the test: use [fullcar] speeds_kmh [km/h]",
@@ -346,29 +344,48 @@ SIMULATION_PARAMS = [
     Param("controller", "controllers", _choice(CONTROLLERS, "a controller"), "passive_high", axis=True),
 ]
 
-FULLCAR_PARAMS = [
-    Param("model", "models", _text, "default", axis=True, input="model",
-          help="as [simulation] models: the damper at all four corners"),
-    Param("test", "tests", _choice(FULLCAR_TESTS, "a full-vehicle test"), "dlc", axis=True,
-          help="bsst (bounce sine sweep), dlc (ISO 3888-1 double lane change), road (two rough tracks)"),
-    Param("damping", "damping", _choice(FULLCAR_DAMPING, "a full-vehicle damping setting"), "low", axis=True,
-          help="every corner passive at the damper's low or high setting, or on-off skyhook"),
-    Param("speed_kmh", "speeds_kmh", _in(limits.SPEED_KMH), None, axis=True, kind="float",
-          help="[km/h] of dlc and road (default: the test's, 120 and 60)"),
-    Param("mode", "modes", _choice(FULLCAR_MODES, "a bsst mode"), "heave", axis=True,
-          help="bsst: all wheels in phase (heave) or the rear against the front (pitch)"),
-    Param("profile", "profiles", _choice(FULLCAR_PROFILES, "a road profile"), "thesis", axis=True,
-          help="road: the thesis's rough road or an ISO 8608 class A..H"),
-    Param("road_seed", "road_seeds", _int(0), 0, axis=True, kind="int", help="seed of the road test's tracks"),
-    Param("dt", "dt", _in(limits.STEP_S), 1e-3, kind="float", help=f"step, {limits.STEP_S.text()}"),
-    Param("bsst_amplitude_m", "bsst_amplitude_m", _float(positive=True), 0.005, kind="float", help="[m]"),
-    Param("bsst_f0_hz", "bsst_f0_hz", _float(positive=True), 0.5, kind="float", help="sweep start [Hz]"),
-    Param("bsst_f1_hz", "bsst_f1_hz", _float(positive=True), 20.0, kind="float", help="sweep end [Hz]"),
-    Param("bsst_rate_oct_s", "bsst_rate_oct_s", _float(positive=True), 0.1, kind="float",
-          help="sweep rate [octave/s]"),
-]
+def _maneuver_tests() -> tuple[str, ...]:
+    from dampnet.recipes.maneuvers import names
 
-SECTION_PARAMS = {"training": TRAINING_PARAMS, "simulation": SIMULATION_PARAMS, "fullcar": FULLCAR_PARAMS}
+    return names()
+
+
+def _setting_param(st) -> Param:
+    """A manoeuvre setting (dampnet.recipes.maneuvers.Setting) as a [fullcar] key: None by
+    default (the grid gives each test its own default, dampnet.sweep.grid.applicable)."""
+    from dampnet.recipes.maneuvers import MANEUVERS
+
+    if st.kind == "choice":
+        norm, kind = _choice(st.choices, f"a {st.name}"), "any"
+    elif st.kind in ("int", "seed"):
+        norm, kind = _int(0), "int"
+    else:
+        norm, kind = (_in(st.range) if st.range is not None else _float(positive=True)), "float"
+    by = ", ".join(f"{m.name} {m.defaults[st.name]}" for m in MANEUVERS.values() if st.name in m.defaults)
+    return Param(st.name, st.sweep_key, norm, None, axis=st.axis, kind=kind, help=f"{st.text()} (default: {by})")
+
+
+def fullcar_params() -> list[Param]:
+    """[fullcar]'s own keys: the model, the test, the damping, the dt and every manoeuvre's
+    settings, read from dampnet.recipes.maneuvers now (a manoeuvre registered later counts)."""
+    from dampnet.recipes.maneuvers import SETTINGS
+
+    settings = [_setting_param(st) for st in SETTINGS.values()]
+    return [
+        Param("model", "models", _text, "default", axis=True, input="model",
+              help="as [simulation] models: the damper at all four corners"),
+        Param("test", "tests", _choice(_maneuver_tests, "a full-vehicle test"), "dlc", axis=True,
+              help="a full-vehicle test of dampnet.recipes.maneuvers (bsst, dlc, road, ...)"),
+        Param("damping", "damping", _choice(FULLCAR_DAMPING, "a full-vehicle damping setting"), "low", axis=True,
+              help="every corner passive at the damper's low or high setting, or on-off skyhook"),
+        *[p for p in settings if p.axis],
+        Param("dt", "dt", _in(limits.STEP_S), 1e-3, kind="float", help=f"step, {limits.STEP_S.text()}"),
+        *[p for p in settings if not p.axis],
+    ]
+
+
+SECTION_PARAMS = {"training": lambda: TRAINING_PARAMS, "simulation": lambda: SIMULATION_PARAMS,
+                  "fullcar": fullcar_params}
 SUBTABLES = {"simulation": {"vehicle": _vehicle_params, "controller": _controller_params},
              "fullcar": {"vehicle": _fullcar_params}}
 #: why a key is not in a sub-table (instead of "unknown key"): {(section, sub-table): {key: reason}}
@@ -377,7 +394,7 @@ SUBTABLE_HINTS = {("fullcar", "vehicle"): FULLCAR_SET_BY_TEST}
 
 def section_params(kind: str) -> list[Param]:
     """Every parameter of a section's cells, in table order (sub-table fields last)."""
-    out = list(SECTION_PARAMS[kind])
+    out = list(SECTION_PARAMS[kind]())
     for make in SUBTABLES.get(kind, {}).values():
         out += make()
     return out
@@ -489,7 +506,7 @@ class _Parser:
         return out
 
     def section(self, kind: str, d: dict) -> Section:
-        params = {p.key: p for p in SECTION_PARAMS[kind]}
+        params = {p.key: p for p in SECTION_PARAMS[kind]()}
         subtables = SUBTABLES.get(kind, {})
         axes: dict[str, list] = {}
         given: set[str] = set()
@@ -532,9 +549,10 @@ class _Parser:
                                 f"is also set in [{kind}]: a parameter is either swept on the grid or "
                                 "drawn at random")
         if kind == "fullcar" and not objective_given:
+            from dampnet.recipes.maneuvers import default_objective
+
             tests = random.dists["test"][1] if random is not None and "test" in random.dists else axes["test"]
-            if set(tests) == {"dlc"}:
-                objective = DLC_OBJECTIVE
+            objective = default_objective(tests) or objective
         return Section(kind, axes, random, objective, given)
 
     def values(self, p: Param, v: Any, table: str) -> list:
@@ -560,7 +578,7 @@ class _Parser:
     def random(self, kind: str, d: dict) -> RandomSpec:
         table = f"{kind}.random"
         by_name = {p.name: p for p in section_params(kind)}
-        by_key = {p.key: p for p in SECTION_PARAMS[kind]}
+        by_key = {p.key: p for p in SECTION_PARAMS[kind]()}
         n = seed = None
         dists: dict[str, tuple[str, list]] = {}
         entries: list[tuple[str, str, Any]] = []

@@ -54,7 +54,7 @@ def columns(kinds: list[str], rows: list[dict[str, Any]]) -> list[str]:
     for kind in kinds:
         cols += [p.name for p in section_params(kind) if p.name not in cols]
     for kind in kinds:
-        cols += [m for m in METRICS[kind] if m not in cols]
+        cols += [m for m in METRICS[kind]() if m not in cols]
     seen = set(cols) | set(TAIL)
     extra = []
     for r in rows:

@@ -1,0 +1,319 @@
+"""The full-vehicle manoeuvres (`dampnet vehicle --test NAME`, a sweep's [fullcar] tests, the
+full-car study): one entry each, with its settings (units, defaults), its builder (a
+dampnet.fullcar.maneuvers.Maneuver), its metrics, its plot and its headline metrics.
+
+The physics stays in dampnet.fullcar (maneuvers, metrics, plots); this module is the vocabulary
+and the wiring: the CLI's options and help, the sweep's allowed keys and values, the grid's
+defaults and the table's metric columns are all read from MANEUVERS and SETTINGS.
+
+Adding a manoeuvre (docs/recipes.md, "Manoeuvres"): `setting(...)` for each new setting, then
+`register(ManeuverRecipe(...))`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+from dampnet.sim import limits
+
+# -- settings -------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One setting a manoeuvre's builder takes: `name` (the builder's keyword, the sweep cell's
+    column), its `unit` ("" for a word or a count), what it means; its values: `kind` "float"
+    (within `range`, or any number > 0 when None), "int" (>= 0), "seed" (a seed,
+    dampnet.sim.limits.SEED) or "choice" (one of `choices`,
+    described in messages as `choices_text`); its spellings: `cli` (`dampnet vehicle` option),
+    `sweep_key` ([fullcar] key; `axis`: a list of values is a grid axis)."""
+
+    name: str
+    unit: str
+    doc: str
+    kind: str = "float"
+    range: limits.Range | None = None
+    choices: tuple[str, ...] = ()
+    choices_text: str = ""
+    cli: str = ""
+    metavar: str | None = None
+    sweep_key: str = ""
+    axis: bool = False
+
+    def check(self, value: Any, where: str) -> Any:
+        """The value, checked (ValueError naming `where` and what was expected)."""
+        if self.kind == "choice":
+            if value not in self.choices:
+                raise ValueError(f"{where}: expected {self.choices_text or ', '.join(self.choices)}, got {value!r}")
+            return value
+        if self.kind == "seed":
+            return limits.check_seed(where, value)
+        if self.kind == "int":
+            return _int(where, value)
+        if self.range is not None:
+            return limits.check_number(where, value, self.range)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0 or value == float("inf"):
+            raise ValueError(f"{where}: expected a finite number > 0 [{self.unit}], got {value!r}")
+        return float(value)
+
+    def text(self) -> str:
+        """The setting in words, for help texts: its meaning and unit."""
+        return f"{self.doc}" + (f" [{self.unit}]" if self.unit else "")
+
+
+def _int(where: str, value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+        raise ValueError(f"{where}: expected an integer >= 0, got {value!r}")
+    return int(value)
+
+
+#: every manoeuvre setting by name, in the order the sweep's table shows them
+SETTINGS: dict[str, Setting] = {}
+
+
+def setting(s: Setting) -> Setting:
+    """Register a setting (its cli and sweep_key default to the name); refused when the name or a
+    spelling is taken by another one."""
+    s = Setting(**{**s.__dict__, "cli": s.cli or "--" + s.name.replace("_", "-"), "sweep_key": s.sweep_key or s.name})
+    for other in SETTINGS.values():
+        if s.name == other.name or s.cli == other.cli or s.sweep_key == other.sweep_key:
+            raise ValueError(f"manoeuvre setting {s.name!r} ({s.cli}, {s.sweep_key}): taken by {other.name!r}")
+    if s.cli in RESERVED_CLI:
+        raise ValueError(f"manoeuvre setting {s.name!r}: {s.cli} is an option of `dampnet vehicle` itself")
+    SETTINGS[s.name] = s
+    return s
+
+
+#: `dampnet vehicle`'s own options (a setting may not take one); the sweep's own [fullcar] keys
+RESERVED_CLI = ("--test", "--damping", "--dt", "--out", "--force", "--help")
+RESERVED_SWEEP = ("models", "tests", "damping", "dt", "objective", "random", "vehicle")
+
+setting(Setting("speed_kmh", "km/h", "forward speed", range=limits.SPEED_KMH, cli="--speed", metavar="KMH",
+                sweep_key="speeds_kmh", axis=True))
+setting(Setting("mode", "", "all wheels in phase (heave) or the rear against the front (pitch)", kind="choice",
+                choices=("heave", "pitch"), choices_text="'heave' or 'pitch'", metavar="{heave,pitch}", sweep_key="modes",
+                axis=True))
+setting(Setting("profile", "", "the thesis's rough road or an ISO 8608 class A..H", kind="choice",
+                choices=("thesis", *"ABCDEFGH"), choices_text="'thesis' or an ISO 8608 class A..H",
+                sweep_key="profiles", axis=True))
+setting(Setting("road_seed", "", "seed of the road's random tracks", kind="seed", cli="--seed", metavar="SEED",
+                sweep_key="road_seeds", axis=True))
+setting(Setting("bsst_amplitude_m", "m", "sweep amplitude", cli="--bsst-amplitude", metavar="M"))
+setting(Setting("bsst_f0_hz", "Hz", "sweep start frequency", cli="--bsst-f0", metavar="HZ"))
+setting(Setting("bsst_f1_hz", "Hz", "sweep end frequency", cli="--bsst-f1", metavar="HZ"))
+setting(Setting("bsst_rate_oct_s", "octave/s", "sweep rate", cli="--bsst-rate", metavar="OCT_S"))
+
+
+# -- manoeuvres -----------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ManeuverRecipe:
+    """A full-vehicle manoeuvre.
+
+    build(dt [s], vehicle: the full car's fields set (SI; dampnet.fullcar.params), **settings) ->
+    a dampnet.fullcar.maneuvers.Maneuver; metrics(arrays, man, params) -> {metric: value} (units
+    in the names); plot(runs, path, title) draws runs (label -> dampnet.fullcar.runs.run's result);
+    defaults: the settings it takes and their default values; headline: the metrics a summary
+    line and the study's table show; columns: every metric it reports as the sweep's table columns
+    (a per-wheel list as one column per wheel); objective: what a sweep of this test alone ranks by;
+    refuse: why a setting of another test is not one of this test (for the CLI's message)."""
+
+    name: str
+    doc: str
+    build: Callable[..., Any]
+    metrics: Callable[[dict, Any, dict], dict]
+    plot: Callable[..., None]
+    defaults: dict[str, Any]
+    headline: tuple[str, ...]
+    columns: tuple[str, ...]
+    objective: str
+    line: Callable[[dict], str] | None = None
+    refuse: dict[str, str] = field(default_factory=dict)
+
+    def summary(self, m: dict) -> str:
+        """The one-line result `dampnet vehicle` prints (the headline metrics unless `line`)."""
+        if self.line is not None:
+            return self.line(m)
+        return ", ".join(f"{k} {m[k]:.4g}" if not isinstance(m[k], (int, bool)) else f"{k} {m[k]}"
+                         for k in self.headline)
+
+
+#: every manoeuvre by name, in the order help texts list them
+MANEUVERS: dict[str, ManeuverRecipe] = {}
+
+
+def register(m: ManeuverRecipe) -> ManeuverRecipe:
+    """Add a manoeuvre; refused when its name is taken or it names a setting not in SETTINGS."""
+    if m.name in MANEUVERS:
+        raise ValueError(f"manoeuvre {m.name!r} is already registered")
+    unknown = [k for k in m.defaults if k not in SETTINGS]
+    if unknown:
+        raise ValueError(f"manoeuvre {m.name!r}: setting {unknown[0]!r} is not registered (recipes.maneuvers.setting)")
+    for k, v in m.defaults.items():
+        SETTINGS[k].check(v, f"manoeuvre {m.name!r} default {k}")
+    MANEUVERS[m.name] = m
+    return m
+
+
+def unregister(name: str) -> None:
+    """Remove a manoeuvre (a test's own), and the settings no other manoeuvre takes."""
+    m = MANEUVERS.pop(name)
+    for k in m.defaults:
+        if k not in BUILTIN_SETTINGS and not any(k in o.defaults for o in MANEUVERS.values()):
+            SETTINGS.pop(k, None)
+
+
+def get(name: str) -> ManeuverRecipe:
+    """The manoeuvre `name` (ValueError listing the registered ones)."""
+    try:
+        return MANEUVERS[name]
+    except KeyError:
+        raise ValueError(f"{name!r} is not a full-vehicle test; valid: {', '.join(MANEUVERS)}") from None
+
+
+def names() -> tuple[str, ...]:
+    return tuple(MANEUVERS)
+
+
+def takes(setting_name: str) -> list[str]:
+    """The manoeuvres that take a setting."""
+    return [m.name for m in MANEUVERS.values() if setting_name in m.defaults]
+
+
+def settings_of(name: str, given: dict[str, Any]) -> dict[str, Any]:
+    """A manoeuvre's settings: its defaults, with `given` (setting -> value, None: not given) over
+    them; ValueError naming a given setting it does not take (and the manoeuvres that do)."""
+    m = get(name)
+    out = dict(m.defaults)
+    for k, v in given.items():
+        if v is None:
+            continue
+        s = SETTINGS[k]
+        if k not in m.defaults:
+            why = m.refuse.get(k) or f"{name} does not take it (it applies to {', '.join(takes(k)) or 'no test'})"
+            raise ValueError(f"{s.cli}: {why}; drop {s.cli}")
+        out[k] = s.check(v, s.cli)
+    return out
+
+
+def build(name: str, dt: float, settings: dict[str, Any] | None = None, vehicle: dict | None = None):
+    """The manoeuvre's dampnet.fullcar.maneuvers.Maneuver at step dt [s] (settings over its
+    defaults, checked; vehicle: the full car's fields set). meta["test"] is the manoeuvre's name."""
+    m = get(name)
+    man = m.build(dt, dict(vehicle or {}), **settings_of(name, settings or {}))
+    man.meta["test"] = name
+    return man
+
+
+def run(spec, man, damping: str = "low", params: dict | None = None) -> dict:
+    """dampnet.fullcar.runs.run of a built manoeuvre (its metrics: the one its meta["test"] names)."""
+    from dampnet.fullcar.runs import run as run_test
+
+    return run_test(spec, man, damping, params, metrics=get(man.meta["test"]).metrics)
+
+
+def run_study(specs, tests: dict, **kw) -> dict:
+    """dampnet.fullcar.study.run_study with each test's metrics and headline from the registry."""
+    from dampnet.fullcar.study import run_study as study
+
+    return study(specs, tests, recipes={t: get(man.meta["test"]) for t, man in tests.items()}, **kw)
+
+
+def plot(runs: dict, path, title: str = "", test: str | None = None) -> None:
+    """The test's plot of runs (label -> run; the test: `test`, or the runs' own)."""
+    first = next(iter(runs.values()))
+    m = get(test or first["maneuver"]["test"])
+    if title:
+        m.plot(runs, path, title)
+    else:
+        m.plot(runs, path)         # the plot's own default title
+
+
+def metric_columns() -> tuple[str, ...]:
+    """Every manoeuvre's metric columns, each once, in registry order."""
+    out: list[str] = []
+    for m in MANEUVERS.values():
+        out += [c for c in m.columns if c not in out]
+    return tuple(out)
+
+
+def default_objective(tests) -> str | None:
+    """What a sweep of these tests ranks by when the spec does not say: their common objective,
+    or None when they differ."""
+    objs = {get(t).objective for t in tests}
+    return objs.pop() if len(objs) == 1 else None
+
+
+# -- the built-in manoeuvres ----------------------------------------------------------------
+
+
+def _bsst(dt, vehicle, mode, bsst_amplitude_m, bsst_f0_hz, bsst_f1_hz, bsst_rate_oct_s):
+    from dampnet.fullcar.maneuvers import bsst
+
+    return bsst(dt, mode, amplitude_m=bsst_amplitude_m, f0=bsst_f0_hz, f1=bsst_f1_hz, rate_oct_s=bsst_rate_oct_s)
+
+
+def _dlc(dt, vehicle, speed_kmh):
+    from dampnet.fullcar.maneuvers import dlc
+
+    return dlc(dt, speed_kmh)
+
+
+def _road(dt, vehicle, speed_kmh, profile, road_seed):
+    from dampnet.fullcar.maneuvers import rough_road
+    from dampnet.fullcar.params import wheelbase
+
+    return rough_road(dt, speed_kmh, profile, road_seed, wheelbase_m=wheelbase(vehicle))
+
+
+def _lazy(module: str, name: str) -> Callable:
+    """A function of a dampnet.fullcar module, imported when first called (matplotlib, scipy)."""
+    def call(*a, **kw):
+        import importlib
+
+        return getattr(importlib.import_module(module), name)(*a, **kw)
+    call.__name__ = name
+    return call
+
+
+def _dlc_line(m: dict) -> str:
+    return (f"a_y peak {m['a_y_peak_m_s2']:.2f} m/s^2, roll peak {m['roll_peak_deg']:.2f} deg, roll rate peak "
+            f"{m['roll_rate_peak_deg_s']:.1f} deg/s, yaw rate peak {m['yaw_rate_peak_deg_s']:.1f} deg/s, "
+            f"side-slip peak {m['side_slip_peak_deg']:.2f} deg, cones hit {m['cones_hit']} of {m['cones']} "
+            f"({'passed' if m['passed'] else 'failed'})")
+
+
+_WHEEL_LOADS = tuple(f"tyre_load_dyn_rms_{w}_n" for w in ("fl", "fr", "rl", "rr"))
+
+register(ManeuverRecipe(
+    "bsst", "Bounce Sine Sweep Test: a vertical log sweep under all four wheels at rest on a four-post rig",
+    _bsst, _lazy("dampnet.fullcar.metrics", "bsst_metrics"), _lazy("dampnet.fullcar.plots", "plot_bsst"),
+    dict(mode="heave", bsst_amplitude_m=0.005, bsst_f0_hz=0.5, bsst_f1_hz=20.0, bsst_rate_oct_s=0.1),
+    ("acc_rms_m_s2", "acc_peak_m_s2"),
+    ("acc_rms_m_s2", "acc_peak_m_s2", "pitch_acc_rms_rad_s2", "tyre_load_min_n"), "acc_rms_m_s2",
+    line=lambda m: f"body acc RMS {m['acc_rms_m_s2']:.4f} m/s^2, peak {m['acc_peak_m_s2']:.3f} m/s^2",
+    refuse={"speed_kmh": "the bounce sine sweep runs at rest on a four-post rig"}))
+register(ManeuverRecipe(
+    "dlc", "ISO 3888-1 double lane change driven by the preview driver",
+    _dlc, _lazy("dampnet.fullcar.metrics", "dlc_metrics"), _lazy("dampnet.fullcar.plots", "plot_dlc"),
+    dict(speed_kmh=120.0),
+    ("a_y_peak_m_s2", "roll_peak_deg", "roll_rate_peak_deg_s", "yaw_rate_peak_deg_s", "side_slip_peak_deg",
+     "cones_hit"),
+    ("a_y_peak_m_s2", "a_y_rms_m_s2", "roll_peak_deg", "roll_rms_deg", "roll_rate_peak_deg_s", "roll_rate_rms_deg_s",
+     "yaw_rate_peak_deg_s", "yaw_rate_rms_deg_s", "side_slip_peak_deg", "side_slip_rms_deg", "steer_peak_deg",
+     "steer_rms_deg", "cones_hit", "cones", "passed", "tyre_load_min_n"), "roll_peak_deg",
+    line=_dlc_line))
+register(ManeuverRecipe(
+    "road", "two correlated tracks of a rough road, the rear wheels a wheelbase after the front",
+    _road, _lazy("dampnet.fullcar.metrics", "road_metrics"), _lazy("dampnet.fullcar.plots", "plot_road"),
+    dict(speed_kmh=60.0, profile="thesis", road_seed=0),
+    ("acc_rms_m_s2", "acc_wk_rms_m_s2", "roll_rate_rms_deg_s"),
+    ("acc_rms_m_s2", "acc_wk_rms_m_s2", "roll_rate_rms_deg_s", "pitch_rate_rms_deg_s", *_WHEEL_LOADS,
+     "tyre_load_min_n"), "acc_rms_m_s2",
+    line=lambda m: (f"body acc RMS {m['acc_rms_m_s2']:.4f} m/s^2, Wk RMS {m['acc_wk_rms_m_s2']:.4f} m/s^2, "
+                    f"roll rate RMS {m['roll_rate_rms_deg_s']:.2f} deg/s")))
+
+#: the settings of the built-in manoeuvres (unregister keeps them)
+BUILTIN_SETTINGS = tuple(SETTINGS)
