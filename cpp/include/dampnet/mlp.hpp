@@ -61,6 +61,15 @@ inline void tanh_all(T* h, int n) noexcept {
   for (int j = 0; j < nn; ++j) h[j] = tanh_rational(h[j]);
 }
 
+// prepare_inputs out of forward()'s line (DN_KERNEL_OUTLINE): forward calls it only when an
+// input is out of its range or the offsets could not be folded (load()); one copy per input
+// count and variant instead of one inside each forward. (forward_batch keeps its own inline:
+// outlined there it saved less than the function's size.)
+template <typename T, int kIn, bool kSub, class P>
+DN_KERNEL_OUTLINE inline int prepare_inputs_outline(const P& p, const T* x, T* xs, uint32_t& mask) noexcept {
+  return prepare_inputs<T, kIn, kSub>(p, x, xs, mask);
+}
+
 // The forward pass shared by Mlp and StaticMlp. kH2 == 0: one hidden layer.
 // Sizes used here are the padded ones (pad()). With kGrad, *dy_dxi also receives
 // dy/dx[grad_input] (output units per input unit) by forward-mode differentiation;
@@ -95,10 +104,10 @@ DN_KERNEL_OUTLINE DN_REALTIME inline int forward(const P& p, const T* x, T* y, u
     }
   } else {
     if (!p.in_offset_folded) {
-      status = prepare_inputs<T, kIn, true>(p, x, xs_buf, mask);
+      status = prepare_inputs_outline<T, kIn, true>(p, x, xs_buf, mask);
       xs = xs_buf;
     } else if (!inputs_in_range<T, kIn>(p, x)) {
-      status = prepare_inputs<T, kIn, false>(p, x, xs_buf, mask);
+      status = prepare_inputs_outline<T, kIn, false>(p, x, xs_buf, mask);
       xs = xs_buf;
     }
   }
@@ -120,8 +129,11 @@ DN_KERNEL_OUTLINE DN_REALTIME inline int forward(const P& p, const T* x, T* y, u
     // Forward mode: t1 = d(a1)/dx_i = (1 - a1^2) * W1[:, i] (gain and sigmoid scale folded in).
     alignas(DN_KERNEL_ALIGN) T t1[kGrad ? cap_h1 : kPad] = {};
     if constexpr (kGrad) {
-      if (col)
-        for (int j = 0; j < h1; ++j) t1[j] = (T(1) - a1[j] * a1[j]) * col[j];
+      if (col) {  // h1 a multiple of kPad: blocks of kPad (no remainder loop), not peeled
+#pragma GCC unroll 1
+        for (int j0 = 0; j0 < h1; j0 += kPad)
+          for (int j = j0; j < j0 + kPad; ++j) t1[j] = (T(1) - a1[j] * a1[j]) * col[j];
+      }
     }
 
     int n_last = h1;
