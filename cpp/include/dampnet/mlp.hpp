@@ -56,15 +56,14 @@ namespace detail {
 // h is 32-byte aligned and n a multiple of 8 (padded layers).
 template <typename T, int kN>
 inline void tanh_all(T* h, int n) noexcept {
-  const int nn = kN > 0 ? kN : n;
+  const int nn = kN > 0 ? kN : (n & ~(kPad - 1));  // (the mask: the compiler knows it, no remainder loop)
   clamp_tanh_args(h, nn);
   for (int j = 0; j < nn; ++j) h[j] = tanh_rational(h[j]);
 }
 
-// prepare_inputs out of forward()'s line (DN_KERNEL_OUTLINE): forward calls it only when an
-// input is out of its range or the offsets could not be folded (load()); one copy per input
-// count and variant instead of one inside each forward. (forward_batch keeps its own inline:
-// outlined there it saved less than the function's size.)
+// prepare_inputs out of the kernels' line (DN_KERNEL_OUTLINE): forward and forward_batch call
+// it only when an input is out of its range or the offsets could not be folded (load()); one
+// copy per input count and variant instead of one inside each kernel (and each sample).
 template <typename T, int kIn, bool kSub, class P>
 DN_KERNEL_OUTLINE inline int prepare_inputs_outline(const P& p, const T* x, T* xs, uint32_t& mask) noexcept {
   return prepare_inputs<T, kIn, kSub>(p, x, xs, mask);
@@ -189,21 +188,23 @@ DN_KERNEL_OUTLINE DN_REALTIME inline void forward_batch(const P& p, const T* con
       const T* xs[kB];
       const T* col[kB];
       uint32_t mask[kB];
-      for (int b = 0; b < kB; ++b) {  // forward()'s input handling, per sample
+#pragma GCC unroll 1
+      for (int b = 0; b < kB; ++b) {  // forward()'s input handling, per sample (rolled: one copy)
         mask[b] = 0;
         xs[b] = x[b];
         status[b] = DN_OK;
         if (!p.in_offset_folded) {
-          status[b] = prepare_inputs<T, kIn, true>(p, x[b], xs_buf[b], mask[b]);
+          status[b] = prepare_inputs_outline<T, kIn, true>(p, x[b], xs_buf[b], mask[b]);
           xs[b] = xs_buf[b];
         } else if (!inputs_in_range<T, kIn>(p, x[b])) {
-          status[b] = prepare_inputs<T, kIn, false>(p, x[b], xs_buf[b], mask[b]);
+          status[b] = prepare_inputs_outline<T, kIn, false>(p, x[b], xs_buf[b], mask[b]);
           xs[b] = xs_buf[b];
         }
         col[b] = (kGrad && !((mask[b] >> grad_input) & 1u)) ? p.w1t.data() + grad_input * h1 : nullptr;
       }
       T sums[kB], dys[kB] = {};
       forward_batch_simd<kIn, kH1, kGrad, kB>(p, xs, col, sums, dys);
+#pragma GCC unroll 1
       for (int b = 0; b < kB; ++b) {
         T out = sums[b];
         if (!std::isfinite(out)) {
