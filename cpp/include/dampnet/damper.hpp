@@ -405,7 +405,8 @@ class Damper {
                              uint32_t* clamped_mask = nullptr) const noexcept {
     bool batch = kind_built(DN_DAMPER_NEURAL) && kind == DN_DAMPER_NEURAL && accel_input >= 0 && precision == DN_PRECISION_FLOAT;
     float xf[4][DN_MAX_INPUTS] = {};
-    for (int b = 0; b < 4 && batch; ++b) {
+#pragma GCC unroll 1
+    for (int b = 0; b < 4 && batch; ++b) {  // rolled: one copy of the features' gathering
       real x[DN_MAX_INPUTS];
       feature_values(in[b], x);
       for (int i = 0; i < n_feat; ++i) {

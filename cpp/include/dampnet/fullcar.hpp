@@ -89,12 +89,15 @@
 #if defined(__clang__)
 #define DN_FC_OUTLINE __attribute__((noinline))
 #define DN_FC_OUTLINE_LAMBDA  // (clang takes no attribute after a lambda's noexcept; it keeps it out of line)
+#define DN_FC_COLD __attribute__((noinline, cold))
 #elif defined(__GNUC__)
-#define DN_FC_OUTLINE __attribute__((noinline, noclone))
+#define DN_FC_OUTLINE __attribute__((noinline, noclone, optimize("O2")))
 #define DN_FC_OUTLINE_LAMBDA DN_FC_OUTLINE
+#define DN_FC_COLD __attribute__((noinline, noclone, cold))
 #else
 #define DN_FC_OUTLINE
 #define DN_FC_OUTLINE_LAMBDA
+#define DN_FC_COLD
 #endif
 
 namespace dampnet {
@@ -869,7 +872,7 @@ DN_FC_OUTLINE inline void fc_report(const FullCarModel& m, const FcMotion& y, co
   }
 }
 
-inline FcStart fc_start(const FullCarModel& m, const double* s, const dn_fullcar_input& in,
+DN_FC_OUTLINE inline FcStart fc_start(const FullCarModel& m, const double* s, const dn_fullcar_input& in,
                         dn_fullcar_out* out, int64_t* n_evals) noexcept {
   FcStart r;
   const FcMotion y = motion_of(s);
@@ -903,6 +906,7 @@ inline FcStart fc_start(const FullCarModel& m, const double* s, const dn_fullcar
 }
 
 inline bool finite_input(const FullCarModel& m, const dn_fullcar_input& in, bool road) noexcept {
+#pragma GCC unroll 1
   for (int i = 0; i < kCorners; ++i) {
     if (road && (!std::isfinite(in.z_r[i]) || !std::isfinite(in.v_r[i]))) return false;
     if (m.corner[i].ctrl.kind == DN_CTRL_EXTERNAL && !std::isfinite(in.u[i])) return false;
