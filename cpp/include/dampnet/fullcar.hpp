@@ -79,25 +79,30 @@
 #include "dampnet/dampnet.h"
 #include "dampnet/loop.hpp"
 
-// The step's big helpers each exist once (issue 30: the code one step touches, against a 32 KB
-// L1i): -O3 would inline free_forces, corner_inputs, the RK4 stage, ... into the step, its stage
-// and fc_start, a copy each; the rarely run paths (the report, the explicit scheme, the per-corner
-// or batched evaluation a configuration does not use) stay out of the hot functions. Out of line
-// only: the arithmetic is the same (-ffp-contract=off, no reassociation). The small helpers
-// (accelerations, derivative, relative_accel, tyre_fy) and the corner loops stay inline and
-// unrolled: outlining them or `#pragma GCC unroll 1` saved ~2.3 KB but cost 4-12 % of the step.
+// The step's big helpers each exist once (issue 30: the code one step touches <= 16 KB, against a
+// 32 KB L1i; bench/RESULTS.md "The code one full-car step calls"): -O3 would inline free_forces,
+// corner_inputs, the RK4 stage, ... into the step, its stage and fc_start, a copy each; the rarely
+// run paths (the report, the explicit scheme, the per-corner or batched evaluation, the Newton
+// iteration a configuration does not use, the preview driver) stay out of the hot functions.
+// DN_FC_OUTLINE: out of line and, under GCC, compiled at -O2 (the helpers run a few times per
+// step; -O3's vectorised and peeled copies of their short corner loops were ~3 KB more for no
+// measured speed). The arithmetic is the same: no reassociation, and no contraction, checked
+// (tests/python/test_bench_footprint.py: no FMA instruction outside the MLP kernels; the bits by
+// the full car's tests). DN_FC_NOINLINE: out of line at the translation unit's -O3 (derivative,
+// called by the step and by the -O2 stage; GCC 12 at -O2 fused its heading's multiply-adds into
+// a vfmaddsub despite -ffp-contract=off, so it stays at -O3 where it does not).
 #if defined(__clang__)
 #define DN_FC_OUTLINE __attribute__((noinline))
+#define DN_FC_NOINLINE __attribute__((noinline))
 #define DN_FC_OUTLINE_LAMBDA  // (clang takes no attribute after a lambda's noexcept; it keeps it out of line)
-#define DN_FC_COLD __attribute__((noinline, cold))
 #elif defined(__GNUC__)
 #define DN_FC_OUTLINE __attribute__((noinline, noclone, optimize("O2")))
+#define DN_FC_NOINLINE __attribute__((noinline, noclone))
 #define DN_FC_OUTLINE_LAMBDA DN_FC_OUTLINE
-#define DN_FC_COLD __attribute__((noinline, noclone, cold))
 #else
 #define DN_FC_OUTLINE
+#define DN_FC_NOINLINE
 #define DN_FC_OUTLINE_LAMBDA
-#define DN_FC_COLD
 #endif
 
 namespace dampnet {
@@ -428,7 +433,7 @@ inline void heading_at(const Heading& h, double psi, double* sn, double* cs) noe
   }
 }
 
-inline FcMotion derivative(const FullCarModel& m, const FcMotion& y, const FcFree& f,
+DN_FC_NOINLINE inline FcMotion derivative(const FullCarModel& m, const FcMotion& y, const FcFree& f,
                            const FcAccel& a, const Heading& hd) noexcept {
   FcMotion d;
   const double U = m.p.speed;
