@@ -94,14 +94,17 @@
 #if defined(__clang__)
 #define DN_FC_OUTLINE __attribute__((noinline))
 #define DN_FC_NOINLINE __attribute__((noinline))
+#define DN_FC_INLINE __attribute__((always_inline))
 #define DN_FC_OUTLINE_LAMBDA  // (clang takes no attribute after a lambda's noexcept; it keeps it out of line)
 #elif defined(__GNUC__)
 #define DN_FC_OUTLINE __attribute__((noinline, noclone, optimize("O2")))
 #define DN_FC_NOINLINE __attribute__((noinline, noclone))
+#define DN_FC_INLINE __attribute__((always_inline))
 #define DN_FC_OUTLINE_LAMBDA DN_FC_OUTLINE
 #else
 #define DN_FC_OUTLINE
 #define DN_FC_NOINLINE
+#define DN_FC_INLINE
 #define DN_FC_OUTLINE_LAMBDA
 #endif
 
@@ -276,7 +279,7 @@ struct FullCarModel {
   }
 
   // [RT] Lateral tyre force [N] at slip angle alpha [rad] and load n >= 0 [N], of wheel i.
-  double tyre_fy(int i, double alpha, double n) const noexcept {
+  DN_FC_INLINE double tyre_fy(int i, double alpha, double n) const noexcept {
     if (!(n > 0)) return 0.0;
     if (p.tyre_model == DN_TYRE_LINEAR) return k_lin[i] * alpha;
     const double dfz = (n - p.tyre_fz0) / p.tyre_fz0;
@@ -386,7 +389,7 @@ struct FcAccel {
   double az, aphi, atheta, aus[kCorners];
 };
 
-inline FcAccel accelerations(const FullCarModel& m, const FcMotion& y, const FcFree& f,
+DN_FC_INLINE inline FcAccel accelerations(const FullCarModel& m, const FcMotion& y, const FcFree& f,
                              const double* dF) noexcept {
   FcAccel a;
   double sz = 0, sth = 0, sph = 0;
@@ -406,7 +409,7 @@ inline FcAccel accelerations(const FullCarModel& m, const FcMotion& y, const FcF
 }
 
 // Relative (damper) accelerations a_i = z_b,i'' - z_us,i''.
-inline void relative_accel(const FullCarModel& m, const FcAccel& a, double* out) noexcept {
+DN_FC_INLINE inline void relative_accel(const FullCarModel& m, const FcAccel& a, double* out) noexcept {
   for (int i = 0; i < kCorners; ++i)
     out[i] = a.az + m.yc[i] * a.aphi - m.xc[i] * a.atheta - a.aus[i];
 }
