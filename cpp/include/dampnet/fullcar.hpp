@@ -335,7 +335,7 @@ struct FcFree {
 
 // held: the lateral tyre forces of the step start (damper_eval per_step: tyres, like the
 // dampers, evaluated once per step and held), or nullptr to evaluate them here.
-DN_FC_OUTLINE inline FcFree free_forces(const FullCarModel& m, const FcMotion& y, const double* zr,
+DN_FC_NOINLINE inline FcFree free_forces(const FullCarModel& m, const FcMotion& y, const double* zr,
                           const double* vr, double delta, double cos_delta,
                           const FcFree* held = nullptr) noexcept {
   const dn_fullcar_params& p = m.p;
@@ -791,7 +791,7 @@ DN_FC_OUTLINE inline double steer_for_step(const FullCarModel& m, const double* 
 // the stage point (y, f; a from f_last), their states advanced from the step start (ds0, where
 // the inputs were in0) over half a step (stages 1, 2) or a step (3), the four evaluations into F.
 // Returns the OR of the corners' warnings, or the first error.
-DN_FC_OUTLINE inline int stage_dampers(const FullCarModel& m, const FcMotion& y, const FcFree& f,
+DN_FC_NOINLINE inline int stage_dampers(const FullCarModel& m, const FcMotion& y, const FcFree& f,
                                        const double* f_last, const double* u, const dn_damper_input* in0,
                                        const double* temp, double t, int stage, const DamperState* ds0,
                                        double* F, int64_t* n_evals) noexcept {
