@@ -84,20 +84,19 @@
 // corner_inputs, the RK4 stage, ... into the step, its stage and fc_start, a copy each; the rarely
 // run paths (the report, the explicit scheme, the per-corner or batched evaluation, the Newton
 // iteration a configuration does not use, the preview driver) stay out of the hot functions.
-// DN_FC_OUTLINE: out of line and, under GCC, compiled at -O2 (the helpers run a few times per
-// step; -O3's vectorised and peeled copies of their short corner loops were ~3 KB more for no
-// measured speed). The arithmetic is the same: no reassociation, and no contraction, checked
-// (tests/python/test_bench_footprint.py: no FMA instruction outside the MLP kernels; the bits by
-// the full car's tests). DN_FC_NOINLINE: out of line at the translation unit's -O3 (derivative,
-// called by the step and by the -O2 stage; GCC 12 at -O2 fused its heading's multiply-adds into
-// a vfmaddsub despite -ffp-contract=off, so it stays at -O3 where it does not).
+// DN_FC_OUTLINE / DN_FC_NOINLINE: out of line at the translation unit's -O3. (Tried, 2026-11-27:
+// the outlined helpers at -O2 by an optimize attribute bring the step's code to 15,978 B, within
+// the 16 KB, but cost the per-stage step ~3-4 % (bench/RESULTS.md); and GCC 12 at -O2 fused
+// derivative's multiply-adds into a vfmaddsub despite -ffp-contract=off: tests/python/
+// test_bench_footprint.py checks that no FMA appears outside the MLP kernels.) DN_FC_INLINE: the
+// small helpers every caller inlines.
 #if defined(__clang__)
 #define DN_FC_OUTLINE __attribute__((noinline))
 #define DN_FC_NOINLINE __attribute__((noinline))
 #define DN_FC_INLINE __attribute__((always_inline))
 #define DN_FC_OUTLINE_LAMBDA  // (clang takes no attribute after a lambda's noexcept; it keeps it out of line)
 #elif defined(__GNUC__)
-#define DN_FC_OUTLINE __attribute__((noinline, noclone, optimize("O2")))
+#define DN_FC_OUTLINE __attribute__((noinline, noclone))
 #define DN_FC_NOINLINE __attribute__((noinline, noclone))
 #define DN_FC_INLINE __attribute__((always_inline))
 #define DN_FC_OUTLINE_LAMBDA DN_FC_OUTLINE
