@@ -1,13 +1,18 @@
 """The hot-path footprint tool (dampnet.latency.footprint, bench/footprint.py) on the built
 library: the walk from dn_fullcar_step and dn_loop_step is sound (it reaches what the steps
 are known to call) and its arithmetic is the symbol sizes'; the dynamic measure (--dynamic,
-valgrind callgrind) counts what a configuration's steps actually call. No ceiling here yet:
-issue 30's 16 KB (footprint.FULLCAR_STEP_CEILING_BYTES, judged on the dynamic measure) is not
-reached (bench/RESULTS.md: 26,438 B at most over the full car's configurations)."""
+valgrind callgrind) counts what a configuration's steps actually call. No ceiling here: issue
+30's 16 KB (footprint.FULLCAR_STEP_CEILING_BYTES, judged on the dynamic measure) is not reached
+at -O3 (bench/RESULTS.md: 18,732 B at most over the full car's configurations; 15,978 B with the
+full car's helpers at -O2, not kept: the per-stage step ~3-4 % slower). The arithmetic must stay
+-ffp-contract=off's: no multiply-add is fused outside the MLP kernels (whose FMAs are their own
+intrinsics)"""
 
 from __future__ import annotations
 
 import json
+import platform
+import re
 import subprocess
 import sys
 
@@ -118,3 +123,28 @@ def test_dynamic_script_prints_the_table(tmp_path):
     total = res["configs"][HIL]["total_bytes"]
     assert f"{HIL} (2 steps): {total} bytes in " in proc.stdout
     assert f"full-car step, the largest over its configurations: {total} bytes" in proc.stdout
+
+
+_FMA = re.compile(r"\bv?f(?:n?m(?:add|sub)|maddsub|msubadd)\w*\s")
+
+
+def test_no_fused_multiply_add_outside_the_mlp_kernels(measured):
+    """-ffp-contract=off holds in every function of the library but the MLP kernels' (forward,
+    forward_simd, forward_batch: their FMAs are intrinsics, the arithmetic they are tested for):
+    no function attribute or pragma may let GCC fuse a multiply-add (GCC 12 did, in an -O2
+    copy of the full car's derivative made by optimize("O2"): a vfmaddsub)."""
+    if platform.machine() not in ("x86_64", "AMD64"):
+        pytest.skip("x86 disassembly")
+    need_tool("objdump")
+    dis = subprocess.run(["objdump", "-d", "-C", "--no-show-raw-insn", measured["library"]],
+                         capture_output=True, text=True, check=True).stdout
+    fused, fn = {}, None
+    for line in dis.splitlines():
+        m = re.match(r"^[0-9a-f]+ <(.*)>:$", line)
+        if m:
+            fn = m.group(1)
+        elif fn and _FMA.search(line.split("\t")[-1] + " "):
+            fused[fn] = fused.get(fn, 0) + 1
+    assert fused, "no FMA at all: the kernels' intrinsics should show (is this the AVX2 build?)"
+    outside = {f: n for f, n in fused.items() if not re.search(r"::forward(_simd|_batch)?<", f)}
+    assert not outside, outside

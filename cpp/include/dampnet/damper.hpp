@@ -141,8 +141,11 @@ class Damper {
   // The coefficients of an interval of T > 0 seconds (a fixed-step host prepares dt / 2 and dt).
   DamperSpan span(real T) const noexcept {
     DamperSpan sp;
-#define DN_DS_SPAN_(id, name, unit, dyn, source, param, doc) \
-  if (fparam_set[param]) dynamics::Rule<dyn>::coefficients(fparams[param], T, sp.keep[id], sp.gain[id]);
+    real spare_keep = 0, spare_gain = 0;  // a coefficient the state's dynamics does not use
+#define DN_DS_SPAN_(id, name, unit, dyn, source, param, doc)                          \
+  if (fparam_set[param])                                                              \
+    dynamics::Rule<dyn>::coefficients(fparams[param], T, sp.keep_slot<id>(spare_keep), \
+                                      sp.gain_slot<id>(spare_gain));
     DN_DAMPER_STATE_LIST(DN_DS_SPAN_)
 #undef DN_DS_SPAN_
     return sp;
@@ -153,7 +156,7 @@ class Damper {
                const dn_damper_input& in, DamperState& s) const noexcept {
 #define DN_DS_ADVANCE_(id, name, unit, dyn, source, param, doc)                                  \
   s.s[id] = dynamics::Rule<dyn>::advance(fparam_set[param], s0.s[id], in0.source, in.source, \
-                                         sp.keep[id], sp.gain[id]);
+                                         sp.keep<id>(), sp.gain<id>());
     DN_DAMPER_STATE_LIST(DN_DS_ADVANCE_)
 #undef DN_DS_ADVANCE_
   }
@@ -402,7 +405,8 @@ class Damper {
                              uint32_t* clamped_mask = nullptr) const noexcept {
     bool batch = kind_built(DN_DAMPER_NEURAL) && kind == DN_DAMPER_NEURAL && accel_input >= 0 && precision == DN_PRECISION_FLOAT;
     float xf[4][DN_MAX_INPUTS] = {};
-    for (int b = 0; b < 4 && batch; ++b) {
+#pragma GCC unroll 1
+    for (int b = 0; b < 4 && batch; ++b) {  // rolled: one copy of the features' gathering
       real x[DN_MAX_INPUTS];
       feature_values(in[b], x);
       for (int i = 0; i < n_feat; ++i) {

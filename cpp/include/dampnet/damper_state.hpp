@@ -43,13 +43,6 @@ struct DamperState {
   }
 };
 
-// The coefficients of the states' update over an interval of T seconds (Damper::span): a host
-// with a fixed step prepares its intervals (dt / 2 and dt) once.
-struct DamperSpan {
-  real keep[DN_DAMPER_STATE_SIZE] = {};  // lags: A = exp(-T/tau) (0 without the lag)
-  real gain[DN_DAMPER_STATE_SIZE] = {};  // lag_ramp: 1 - tau (1 - A) / T; dahl: 1 / x_c
-};
-
 namespace dynamics {
 
 // One kind of dynamics: its coefficients over T (p > 0 its parameter), its update from s0, its
@@ -59,6 +52,7 @@ struct Rule;
 
 template <>
 struct Rule<DN_DYN_LAG_HELD> {
+  static constexpr bool kKeep = true, kGain = false;  // the coefficients it uses
   static void coefficients(real p, real T, real& keep, real&) noexcept { keep = std::exp(-T / p); }
   static real advance(bool on, real s0, real src0, real, real keep, real) noexcept {
     return on ? src0 + (s0 - src0) * keep : src0;
@@ -69,6 +63,7 @@ struct Rule<DN_DYN_LAG_HELD> {
 
 template <>
 struct Rule<DN_DYN_LAG_RAMP> {
+  static constexpr bool kKeep = true, kGain = true;
   static void coefficients(real p, real T, real& keep, real& gain) noexcept {
     const real c = -std::expm1(-T / p);  // 1 - A from expm1: exact also for tau >> T
     keep = 1 - c;
@@ -83,6 +78,7 @@ struct Rule<DN_DYN_LAG_RAMP> {
 
 template <>
 struct Rule<DN_DYN_DAHL> {
+  static constexpr bool kKeep = false, kGain = true;
   static void coefficients(real p, real, real&, real& gain) noexcept { gain = 1 / p; }
   static real advance(bool on, real s0, real src0, real src, real, real inv_p) noexcept {
     if (!on) return s0;
@@ -96,4 +92,59 @@ struct Rule<DN_DYN_DAHL> {
 };
 
 }  // namespace dynamics
+
+// Where state id's coefficients sit in a DamperSpan: only those its dynamics uses (a lag_held
+// state has a keep, a lag_ramp a keep and a gain, a dahl state a gain), packed in the states'
+// order, so that the span is as small as the old named coefficients (the firmware's RAM).
+namespace span_layout {
+constexpr bool kUsesKeep[] = {
+#define DN_DS_USES_KEEP_(id, name, unit, dyn, source, param, doc) dynamics::Rule<dyn>::kKeep,
+    DN_DAMPER_STATE_LIST(DN_DS_USES_KEEP_)
+#undef DN_DS_USES_KEEP_
+};
+constexpr bool kUsesGain[] = {
+#define DN_DS_USES_GAIN_(id, name, unit, dyn, source, param, doc) dynamics::Rule<dyn>::kGain,
+    DN_DAMPER_STATE_LIST(DN_DS_USES_GAIN_)
+#undef DN_DS_USES_GAIN_
+};
+constexpr int start(int id) noexcept {
+  int n = 0;
+  for (int k = 0; k < id; ++k) n += int(kUsesKeep[k]) + int(kUsesGain[k]);
+  return n;
+}
+constexpr int keep_at(int id) noexcept { return kUsesKeep[id] ? start(id) : -1; }
+constexpr int gain_at(int id) noexcept { return kUsesGain[id] ? start(id) + int(kUsesKeep[id]) : -1; }
+constexpr int kSize = start(DN_DAMPER_STATE_SIZE);
+}  // namespace span_layout
+
+// The coefficients of the states' update over an interval of T seconds (Damper::span): a host
+// with a fixed step prepares its intervals (dt / 2 and dt) once. keep: a lag's A = exp(-T/tau)
+// (0 without the lag); gain: lag_ramp's 1 - tau (1 - A) / T, dahl's 1 / x_c; a coefficient the
+// state's dynamics does not use is not stored (reads 0).
+struct DamperSpan {
+  real c[span_layout::kSize > 0 ? span_layout::kSize : 1] = {};
+
+  template <int id>
+  real keep() const noexcept {
+    if constexpr (span_layout::keep_at(id) >= 0) return c[span_layout::keep_at(id)];
+    else return real(0);
+  }
+  template <int id>
+  real gain() const noexcept {
+    if constexpr (span_layout::gain_at(id) >= 0) return c[span_layout::gain_at(id)];
+    else return real(0);
+  }
+  // The slot of state id's keep / gain, or `spare` when its dynamics has none.
+  template <int id>
+  real& keep_slot(real& spare) noexcept {
+    if constexpr (span_layout::keep_at(id) >= 0) return c[span_layout::keep_at(id)];
+    else return spare;
+  }
+  template <int id>
+  real& gain_slot(real& spare) noexcept {
+    if constexpr (span_layout::gain_at(id) >= 0) return c[span_layout::gain_at(id)];
+    else return spare;
+  }
+};
+
 }  // namespace dampnet

@@ -79,21 +79,31 @@
 #include "dampnet/dampnet.h"
 #include "dampnet/loop.hpp"
 
-// The step's big helpers each exist once (issue 30: the code one step touches, against a 32 KB
-// L1i): -O3 would inline free_forces, corner_inputs, the RK4 stage, ... into the step, its stage
-// and fc_start, a copy each; the rarely run paths (the report, the explicit scheme, the per-corner
-// or batched evaluation a configuration does not use) stay out of the hot functions. Out of line
-// only: the arithmetic is the same (-ffp-contract=off, no reassociation). The small helpers
-// (accelerations, derivative, relative_accel, tyre_fy) and the corner loops stay inline and
-// unrolled: outlining them or `#pragma GCC unroll 1` saved ~2.3 KB but cost 4-12 % of the step.
+// The step's big helpers each exist once (issue 30: the code one step touches <= 16 KB, against a
+// 32 KB L1i; bench/RESULTS.md "The code one full-car step calls"): -O3 would inline free_forces,
+// corner_inputs, the RK4 stage, ... into the step, its stage and fc_start, a copy each; the rarely
+// run paths (the report, the explicit scheme, the per-corner or batched evaluation, the Newton
+// iteration a configuration does not use, the preview driver) stay out of the hot functions.
+// DN_FC_OUTLINE / DN_FC_NOINLINE: out of line at the translation unit's -O3. (Tried, 2026-11-27:
+// the outlined helpers at -O2 by an optimize attribute bring the step's code to 15,978 B, within
+// the 16 KB, but cost the per-stage step ~3-4 % (bench/RESULTS.md); and GCC 12 at -O2 fused
+// derivative's multiply-adds into a vfmaddsub despite -ffp-contract=off: tests/python/
+// test_bench_footprint.py checks that no FMA appears outside the MLP kernels.) DN_FC_INLINE: the
+// small helpers every caller inlines.
 #if defined(__clang__)
 #define DN_FC_OUTLINE __attribute__((noinline))
+#define DN_FC_NOINLINE __attribute__((noinline))
+#define DN_FC_INLINE __attribute__((always_inline))
 #define DN_FC_OUTLINE_LAMBDA  // (clang takes no attribute after a lambda's noexcept; it keeps it out of line)
 #elif defined(__GNUC__)
 #define DN_FC_OUTLINE __attribute__((noinline, noclone))
+#define DN_FC_NOINLINE __attribute__((noinline, noclone))
+#define DN_FC_INLINE __attribute__((always_inline))
 #define DN_FC_OUTLINE_LAMBDA DN_FC_OUTLINE
 #else
 #define DN_FC_OUTLINE
+#define DN_FC_NOINLINE
+#define DN_FC_INLINE
 #define DN_FC_OUTLINE_LAMBDA
 #endif
 
@@ -268,7 +278,7 @@ struct FullCarModel {
   }
 
   // [RT] Lateral tyre force [N] at slip angle alpha [rad] and load n >= 0 [N], of wheel i.
-  double tyre_fy(int i, double alpha, double n) const noexcept {
+  DN_FC_INLINE double tyre_fy(int i, double alpha, double n) const noexcept {
     if (!(n > 0)) return 0.0;
     if (p.tyre_model == DN_TYRE_LINEAR) return k_lin[i] * alpha;
     const double dfz = (n - p.tyre_fz0) / p.tyre_fz0;
@@ -324,7 +334,7 @@ struct FcFree {
 
 // held: the lateral tyre forces of the step start (damper_eval per_step: tyres, like the
 // dampers, evaluated once per step and held), or nullptr to evaluate them here.
-DN_FC_OUTLINE inline FcFree free_forces(const FullCarModel& m, const FcMotion& y, const double* zr,
+DN_FC_NOINLINE inline FcFree free_forces(const FullCarModel& m, const FcMotion& y, const double* zr,
                           const double* vr, double delta, double cos_delta,
                           const FcFree* held = nullptr) noexcept {
   const dn_fullcar_params& p = m.p;
@@ -355,7 +365,9 @@ DN_FC_OUTLINE inline FcFree free_forces(const FullCarModel& m, const FcMotion& y
   } else if (U > 0) {
     f.alpha_f = delta - std::atan((y.vy + p.a * y.r) / U);
     f.alpha_r = -std::atan((y.vy - p.b * y.r) / U);
-    for (int i = 0; i < kCorners; ++i) f.fy[i] = m.tyre_fy(i, i < 2 ? f.alpha_f : f.alpha_r, f.load[i]);
+#pragma GCC unroll 1
+    for (int i = 0; i < kCorners; ++i)  // rolled: one copy of the tyre model (libm calls inside)
+      f.fy[i] = m.tyre_fy(i, i < 2 ? f.alpha_f : f.alpha_r, f.load[i]);
     const double fyf = (f.fy[0] + f.fy[1]) * cos_delta, fyr = f.fy[2] + f.fy[3];
     f.a_y = (fyf + fyr) * m.inv_m;
     f.dvy = f.a_y - U * y.r;
@@ -376,7 +388,7 @@ struct FcAccel {
   double az, aphi, atheta, aus[kCorners];
 };
 
-inline FcAccel accelerations(const FullCarModel& m, const FcMotion& y, const FcFree& f,
+DN_FC_INLINE inline FcAccel accelerations(const FullCarModel& m, const FcMotion& y, const FcFree& f,
                              const double* dF) noexcept {
   FcAccel a;
   double sz = 0, sth = 0, sph = 0;
@@ -396,7 +408,7 @@ inline FcAccel accelerations(const FullCarModel& m, const FcMotion& y, const FcF
 }
 
 // Relative (damper) accelerations a_i = z_b,i'' - z_us,i''.
-inline void relative_accel(const FullCarModel& m, const FcAccel& a, double* out) noexcept {
+DN_FC_INLINE inline void relative_accel(const FullCarModel& m, const FcAccel& a, double* out) noexcept {
   for (int i = 0; i < kCorners; ++i)
     out[i] = a.az + m.yc[i] * a.aphi - m.xc[i] * a.atheta - a.aus[i];
 }
@@ -423,7 +435,7 @@ inline void heading_at(const Heading& h, double psi, double* sn, double* cs) noe
   }
 }
 
-inline FcMotion derivative(const FullCarModel& m, const FcMotion& y, const FcFree& f,
+DN_FC_NOINLINE inline FcMotion derivative(const FullCarModel& m, const FcMotion& y, const FcFree& f,
                            const FcAccel& a, const Heading& hd) noexcept {
   FcMotion d;
   const double U = m.p.speed;
@@ -557,16 +569,12 @@ DN_FC_OUTLINE inline int corners_each(const FullCarModel& m, const dn_damper_inp
   return st_it;
 }
 
-// [RT] The four corners' damper evaluations at one point (the one place the dampers are
-// called). in[i].a holds the explicit acceleration feature (from f_last) on entry and the
-// value used on return; f_last: the forces it came from. Returns the OR of the corners'
-// warnings, or the first error.
-inline int evaluate_corners(const FullCarModel& m, dn_damper_input* in, const double* f_last,
-                            double* F, double* feat_out, uint32_t* mask,
-                            int64_t* n_evals) noexcept {
-  int status = DN_OK;
-  if (!m.any_implicit) return evaluate_corners_explicit(m, in, F, feat_out, mask, n_evals);
-  // The coupled acceleration: a_free from the explicit values, Newton on the 4-vector.
+// [RT] evaluate_corners for DN_ACCEL_LINEAR: one evaluation with the slopes, one linearised
+// Newton step on the 4-vector (evaluate_corners_newton's first iteration with linear set,
+// without the convergence bookkeeping it never reads).
+DN_FC_OUTLINE inline int evaluate_corners_linear(const FullCarModel& m, dn_damper_input* in,
+                                                 const double* f_last, double* F, double* feat_out,
+                                                 uint32_t* mask, int64_t* n_evals) noexcept {
   double a_free[kCorners], a0[kCorners];
   for (int i = 0; i < kCorners; ++i) {
     double s = 0;
@@ -574,8 +582,57 @@ inline int evaluate_corners(const FullCarModel& m, dn_damper_input* in, const do
     a0[i] = in[i].a;
     a_free[i] = in[i].a + s;
   }
-  const bool linear = m.p.accel_feature == DN_ACCEL_LINEAR;
-  const int max_iter = linear ? 1 : DN_ACCEL_MAX_EVALS;
+  double f0[kCorners], D[kCorners], g[kCorners];
+  uint32_t mk[kCorners] = {};
+  const int st_it = m.batch4 ? corners_batch4(m, in, f0, D, mk, n_evals)
+                             : corners_each(m, in, 0, nullptr, nullptr, f0, D, mk, n_evals);
+  if (st_it < 0) {  // an error: as the explicit scheme (the error is the step's)
+    for (int i = 0; i < kCorners; ++i) F[i] = f0[i];
+    return st_it;
+  }
+  for (int i = 0; i < kCorners; ++i) {
+    double s = 0;
+    for (int j = 0; j < kCorners; ++j) s += m.K[i][j] * (f0[j] - m.fs[j]);
+    g[i] = in[i].a - a_free[i] + s;
+  }
+  // Newton step: (I + K D) da = -g
+  double A[kCorners][kCorners], da[kCorners];
+  bool ok = true;
+  for (int i = 0; i < kCorners; ++i) {
+    for (int j = 0; j < kCorners; ++j) A[i][j] = (i == j ? 1.0 : 0.0) + m.K[i][j] * D[j];
+    if (!(A[i][i] >= DN_ACCEL_LINEAR_MIN_SLOPE)) ok = false;
+    da[i] = -g[i];
+  }
+  ok = ok && solve4(A, da);
+  int status;
+  if (!ok) {
+    for (int i = 0; i < kCorners; ++i) F[i] = f0[i], in[i].a = a0[i];
+    status = st_it | DN_W_ACCEL_FALLBACK;
+  } else {
+    for (int i = 0; i < kCorners; ++i) {
+      F[i] = f0[i] + D[i] * da[i];
+      in[i].a = a0[i] + da[i];
+    }
+    status = st_it;
+  }
+  if (mask)
+    for (int i = 0; i < kCorners; ++i) mask[i] = mk[i];
+  if (feat_out) corner_features(m, in, feat_out);
+  return status;
+}
+
+// [RT] evaluate_corners for DN_ACCEL_IMPLICIT: Newton on the 4-vector until converged.
+DN_FC_OUTLINE inline int evaluate_corners_newton(const FullCarModel& m, dn_damper_input* in,
+                                                 const double* f_last, double* F, double* feat_out,
+                                                 uint32_t* mask, int64_t* n_evals) noexcept {
+  // The coupled acceleration: a_free from the explicit values, Newton on the 4-vector.
+  double a_free[kCorners];
+  for (int i = 0; i < kCorners; ++i) {
+    double s = 0;
+    for (int j = 0; j < kCorners; ++j) s += m.K[i][j] * (f_last[j] - m.fs[j]);
+    a_free[i] = in[i].a + s;
+  }
+  const int max_iter = DN_ACCEL_MAX_EVALS;
   double best_F[kCorners], best_a[kCorners], best_g = INFINITY;
   uint32_t best_mask[kCorners] = {};
   int best_status = DN_OK;
@@ -608,7 +665,7 @@ inline int evaluate_corners(const FullCarModel& m, dn_damper_input* in, const do
       best_status = st_it;
       for (int i = 0; i < kCorners; ++i) best_F[i] = f0[i], best_a[i] = in[i].a, best_mask[i] = mk[i];
     }
-    if (!linear && gmax <= 1.0) {
+    if (gmax <= 1.0) {
       done = true;
       break;
     }
@@ -617,28 +674,9 @@ inline int evaluate_corners(const FullCarModel& m, dn_damper_input* in, const do
     bool ok = true;
     for (int i = 0; i < kCorners; ++i) {
       for (int j = 0; j < kCorners; ++j) A[i][j] = (i == j ? 1.0 : 0.0) + m.K[i][j] * D[j];
-      if (linear && !(A[i][i] >= DN_ACCEL_LINEAR_MIN_SLOPE)) ok = false;
       da[i] = -g[i];
     }
     ok = ok && solve4(A, da);
-    if (linear) {
-      if (!ok) {
-        for (int i = 0; i < kCorners; ++i) F[i] = f0[i], in[i].a = a0[i];
-        if (mask)
-          for (int i = 0; i < kCorners; ++i) mask[i] = mk[i];
-        status = st_it | DN_W_ACCEL_FALLBACK;
-      } else {
-        for (int i = 0; i < kCorners; ++i) {
-          F[i] = f0[i] + D[i] * da[i];
-          in[i].a = a0[i] + da[i];
-        }
-        if (mask)
-          for (int i = 0; i < kCorners; ++i) mask[i] = mk[i];
-        status = st_it;
-      }
-      if (feat_out) corner_features(m, in, feat_out);
-      return status;
-    }
     if (!ok) break;
     for (int i = 0; i < kCorners; ++i) in[i].a += da[i];
   }
@@ -649,6 +687,18 @@ inline int evaluate_corners(const FullCarModel& m, dn_damper_input* in, const do
   return done ? best_status : (best_status | DN_W_ACCEL_UNCONVERGED);
 }
 
+// [RT] The four corners' damper evaluations at one point (the one place the dampers are
+// called). in[i].a holds the explicit acceleration feature (from f_last) on entry and the
+// value used on return; f_last: the forces it came from. Returns the OR of the corners'
+// warnings, or the first error.
+inline int evaluate_corners(const FullCarModel& m, dn_damper_input* in, const double* f_last,
+                            double* F, double* feat_out, uint32_t* mask,
+                            int64_t* n_evals) noexcept {
+  if (!m.any_implicit) return evaluate_corners_explicit(m, in, F, feat_out, mask, n_evals);
+  if (m.p.accel_feature == DN_ACCEL_LINEAR) return evaluate_corners_linear(m, in, f_last, F, feat_out, mask, n_evals);
+  return evaluate_corners_newton(m, in, f_last, F, feat_out, mask, n_evals);
+}
+
 // The damper inputs at one evaluation point (a from the explicit forces f_last), their states
 // not yet filled (Damper::advance / fill).
 DN_FC_OUTLINE inline void corner_inputs(const FullCarModel& m, const FcMotion& y, const FcFree& f,
@@ -657,7 +707,8 @@ DN_FC_OUTLINE inline void corner_inputs(const FullCarModel& m, const FcMotion& y
   double dF[kCorners], arel[kCorners];
   for (int i = 0; i < kCorners; ++i) dF[i] = f_last[i] - m.fs[i];
   relative_accel(m, accelerations(m, y, f, dF), arel);
-  for (int i = 0; i < kCorners; ++i) {
+#pragma GCC unroll 1
+  for (int i = 0; i < kCorners; ++i) {  // rolled: one copy of the input's fields
     dn_damper_input d = unfilled_input();
     d.x = f.dfl[i] + m.xs[i];
     d.v = f.vb[i] - y.vus[i];
@@ -714,24 +765,79 @@ inline void store_motion(const FcMotion& y, double* s) noexcept {
   }
 }
 
+// The preview driver's command at state s (steer_mode driver): out of the open loop's code.
+DN_FC_OUTLINE inline double driver_steer(const FullCarModel& m, const double* s) noexcept {
+  const dn_fullcar_params& p = m.p;
+  const double U = p.speed;
+  double l = p.driver_preview_s * U;
+  if (l < p.driver_preview_min_m) l = p.driver_preview_min_m;
+  const double px = s[FC_x_pos] + l * std::cos(s[FC_psi]);
+  const double py = s[FC_y_pos] + l * std::sin(s[FC_psi]);
+  const double e = m.path_at(px) - py;
+  return p.driver_gain * 2.0 * (p.a + p.b) * e / (l * l);
+}
+
 // The road-wheel angle applied over the step starting at state s.
 DN_FC_OUTLINE inline double steer_for_step(const FullCarModel& m, const double* s, double steer_in) noexcept {
   const dn_fullcar_params& p = m.p;
-  double cmd;
-  if (p.steer_mode == DN_STEER_DRIVER) {
-    const double U = p.speed;
-    double l = p.driver_preview_s * U;
-    if (l < p.driver_preview_min_m) l = p.driver_preview_min_m;
-    const double px = s[FC_x_pos] + l * std::cos(s[FC_psi]);
-    const double py = s[FC_y_pos] + l * std::sin(s[FC_psi]);
-    const double e = m.path_at(px) - py;
-    cmd = p.driver_gain * 2.0 * (p.a + p.b) * e / (l * l);
-  } else {
-    cmd = steer_in;
-  }
+  double cmd = p.steer_mode == DN_STEER_DRIVER ? driver_steer(m, s) : steer_in;
   cmd = clamp(cmd, -p.steer_max, p.steer_max);
   if (m.steer_keep > 0.0) cmd = cmd + (s[FC_steer] - cmd) * m.steer_keep;
   return clamp(cmd, -p.steer_max, p.steer_max);  // a set_state steer may be out of range
+}
+
+// [RT] The dampers of one RK4 stage evaluated per stage (damper_eval per_stage): their inputs at
+// the stage point (y, f; a from f_last), their states advanced from the step start (ds0, where
+// the inputs were in0) over half a step (stages 1, 2) or a step (3), the four evaluations into F.
+// Returns the OR of the corners' warnings, or the first error.
+DN_FC_NOINLINE inline int stage_dampers(const FullCarModel& m, const FcMotion& y, const FcFree& f,
+                                       const double* f_last, const double* u, const dn_damper_input* in0,
+                                       const double* temp, double t, int stage, const DamperState* ds0,
+                                       double* F, int64_t* n_evals) noexcept {
+  dn_damper_input di[kCorners];
+  corner_inputs(m, y, f, f_last, u, temp, t, stage, di);
+#pragma GCC unroll 1
+  for (int i = 0; i < kCorners; ++i) {  // rolled: one copy of the states' update
+    const Corner& c = m.corner[i];
+    DamperState ds;
+    c.damper.advance(stage < 3 ? c.half : c.full, ds0[i], in0[i], di[i], ds);
+    Damper::fill(ds, di[i]);
+  }
+  return evaluate_corners(m, di, f_last, F, nullptr, nullptr, n_evals);
+}
+
+// [RT] Corner i at the step's end into the new state ns: its road (z_r, v_r), control u and last
+// force f_last, and its damper's states there (its motion at y, the control held; from ds0 at
+// the step start, where its input was in0), their sum added to check. Returns whether the
+// corner's motion is plausible (dampnet.h DN_PLAUSIBLE_LIST; false: a runaway).
+DN_FC_OUTLINE inline bool corner_end(const FullCarModel& m, int i, const FcMotion& y, double z_r, double v_r,
+                                     double u, double f_last, const dn_damper_input& in0,
+                                     const DamperState& ds0, double* ns, double& check) noexcept {
+  const Corner& c = m.corner[i];
+  ns[fc_corner(i, FCC_z_r)] = z_r;
+  ns[fc_corner(i, FCC_v_r)] = v_r;
+  ns[fc_corner(i, FCC_u_cmd)] = u;
+  ns[fc_corner(i, FCC_f_last)] = f_last;
+  const double zb = y.z + m.yc[i] * y.phi - m.xc[i] * y.theta;
+  const double vb = y.vz + m.yc[i] * y.p - m.xc[i] * y.q;
+  dn_damper_input end = in0;
+  end.x = zb - y.zus[i] + m.xs[i];
+  end.v = vb - y.vus[i];
+  DamperState ds1;
+  c.damper.advance(c.full, ds0, in0, end, ds1);
+  ds1.store(ns + fc_corner(i, DN_FULLCAR_CORNER_DAMPER));
+  for (int k = 0; k < DN_DAMPER_STATE_SIZE; ++k) check += ds1.s[k];
+  return plausible_corner(zb - y.zus[i], y.zus[i] - z_r, vb - y.vus[i]);
+}
+
+// RK4's stage point y + c k (one copy for the three stages).
+DN_FC_OUTLINE inline FcMotion axpy(const FcMotion& y, double c, const FcMotion& k) noexcept {
+  FcMotion o;
+  const double* a = vec(y);
+  const double* b = vec(k);
+  double* w = vec(o);
+  for (int j = 0; j < kFcMotion; ++j) w[j] = a[j] + c * b[j];
+  return o;
 }
 
 // Everything at the step start: controls, steering, first evaluation, report.
@@ -773,13 +879,14 @@ DN_FC_OUTLINE inline void fc_report(const FullCarModel& m, const FcMotion& y, co
   }
 }
 
-inline FcStart fc_start(const FullCarModel& m, const double* s, const dn_fullcar_input& in,
+DN_FC_OUTLINE inline FcStart fc_start(const FullCarModel& m, const double* s, const dn_fullcar_input& in,
                         dn_fullcar_out* out, int64_t* n_evals) noexcept {
   FcStart r;
   const FcMotion y = motion_of(s);
   r.delta = steer_for_step(m, s, in.steer);
   double zr[kCorners], vr[kCorners], fl[kCorners], temp[kCorners];
-  for (int i = 0; i < kCorners; ++i) {
+#pragma GCC unroll 1
+  for (int i = 0; i < kCorners; ++i) {  // rolled: one copy of the control law
     zr[i] = s[fc_corner(i, FCC_z_r)];
     vr[i] = s[fc_corner(i, FCC_v_r)];
     fl[i] = s[fc_corner(i, FCC_f_last)];
@@ -806,6 +913,7 @@ inline FcStart fc_start(const FullCarModel& m, const double* s, const dn_fullcar
 }
 
 inline bool finite_input(const FullCarModel& m, const dn_fullcar_input& in, bool road) noexcept {
+#pragma GCC unroll 1
   for (int i = 0; i < kCorners; ++i) {
     if (road && (!std::isfinite(in.z_r[i]) || !std::isfinite(in.v_r[i]))) return false;
     if (m.corner[i].ctrl.kind == DN_CTRL_EXTERNAL && !std::isfinite(in.u[i])) return false;
@@ -871,15 +979,7 @@ DN_REALTIME inline int step(const FullCarModel& m, FullCarData& d, const dn_full
     const FcFree f = free_forces(m, y, zr, vr, r.delta, r.cos_delta, per_stage ? nullptr : &r.f);
     double F[kCorners];
     if (per_stage) {
-      dn_damper_input di[kCorners];
-      corner_inputs(m, y, f, f_last, r.u, temp, t, stage, di);
-      for (int i = 0; i < kCorners; ++i) {
-        const Corner& c = m.corner[i];
-        DamperState ds;
-        c.damper.advance(stage < 3 ? c.half : c.full, ds0[i], r.in[i], di[i], ds);
-        Damper::fill(ds, di[i]);
-      }
-      const int st = evaluate_corners(m, di, f_last, F, nullptr, nullptr, &d.n_evals);
+      const int st = stage_dampers(m, y, f, f_last, r.u, r.in, temp, t, stage, ds0, F, &d.n_evals);
       if (st < 0) status = st;
       else if (status >= 0) status |= st;
       for (int i = 0; i < kCorners; ++i) f_last[i] = F[i];
@@ -889,14 +989,6 @@ DN_REALTIME inline int step(const FullCarModel& m, FullCarData& d, const dn_full
     double dF[kCorners];
     for (int i = 0; i < kCorners; ++i) dF[i] = F[i] - m.fs[i];
     return derivative(m, y, f, accelerations(m, y, f, dF), hd);
-  };
-  auto axpy = [](const FcMotion& y, double c, const FcMotion& k) noexcept {
-    FcMotion o;
-    const double* a = vec(y);
-    const double* b = vec(k);
-    double* w = vec(o);
-    for (int j = 0; j < kFcMotion; ++j) w[j] = a[j] + c * b[j];
-    return o;
   };
   const FcMotion k1 = derivative(m, y0, r.f, r.acc, hd);
   const FcMotion y1 = axpy(y0, 0.5 * h, k1);
@@ -911,6 +1003,7 @@ DN_REALTIME inline int step(const FullCarModel& m, FullCarData& d, const dn_full
     const double h6 = h / 6.0;
     const double *a = vec(y0), *b1 = vec(k1), *b2 = vec(k2), *b3 = vec(k3), *b4 = vec(k4);
     double* w = vec(y);
+#pragma GCC unroll 1
     for (int j = 0; j < kFcMotion; ++j) w[j] = a[j] + h6 * (b1[j] + 2 * b2[j] + 2 * b3[j] + b4[j]);
   }
   double ns[DN_FULLCAR_STATE_SIZE];
@@ -919,33 +1012,17 @@ DN_REALTIME inline int step(const FullCarModel& m, FullCarData& d, const dn_full
   ns[FC_t] = t0 + h;
   ns[FC_steer] = r.delta;
   double check = 0.0;
+#pragma GCC unroll 1
   for (int j = 0; j < kFcMotion; ++j) check += vec(y)[j];
-  for (int i = 0; i < kCorners; ++i) {
-    const Corner& c = m.corner[i];
-    ns[fc_corner(i, FCC_z_r)] = in.z_r[i];
-    ns[fc_corner(i, FCC_v_r)] = in.v_r[i];
-    ns[fc_corner(i, FCC_u_cmd)] = r.u[i];
-    ns[fc_corner(i, FCC_f_last)] = f_last[i];
-    // the damper's states at the step's end: its motion there, the control held
-    const double zb = y.z + m.yc[i] * y.phi - m.xc[i] * y.theta;
-    const double vb = y.vz + m.yc[i] * y.p - m.xc[i] * y.q;
-    dn_damper_input end = r.in[i];
-    end.x = zb - y.zus[i] + m.xs[i];
-    end.v = vb - y.vus[i];
-    DamperState ds1;
-    c.damper.advance(c.full, ds0[i], r.in[i], end, ds1);
-    ds1.store(ns + fc_corner(i, DN_FULLCAR_CORNER_DAMPER));
-    for (int k = 0; k < DN_DAMPER_STATE_SIZE; ++k) check += ds1.s[k];
-  }
+  bool plausible = true;  // every corner called (each writes its part of ns)
+  for (int i = 0; i < kCorners; ++i)
+    if (!corner_end(m, i, y, in.z_r[i], in.v_r[i], r.u[i], f_last[i], r.in[i], ds0[i], ns, check))
+      plausible = false;
   if (!std::isfinite(check)) return DN_E_DIVERGED;
   // a runaway: beyond any car (dampnet.h DN_PLAUSIBLE_LIST)
   if (!(std::fabs(y.phi) <= DN_PLAUSIBLE_ANGLE_RAD) || !(std::fabs(y.theta) <= DN_PLAUSIBLE_ANGLE_RAD))
     return DN_E_DIVERGED;
-  for (int i = 0; i < kCorners; ++i) {
-    const double zb = y.z + m.yc[i] * y.phi - m.xc[i] * y.theta;
-    const double vb = y.vz + m.yc[i] * y.p - m.xc[i] * y.q;
-    if (!plausible_corner(zb - y.zus[i], y.zus[i] - in.z_r[i], vb - y.vus[i])) return DN_E_DIVERGED;
-  }
+  if (!plausible) return DN_E_DIVERGED;
   for (int j = 0; j < DN_FULLCAR_STATE_SIZE; ++j) d.s[j] = ns[j];
   return status;
 }

@@ -56,9 +56,18 @@ namespace detail {
 // h is 32-byte aligned and n a multiple of 8 (padded layers).
 template <typename T, int kN>
 inline void tanh_all(T* h, int n) noexcept {
-  const int nn = kN > 0 ? kN : n;
+  const int nn = kN > 0 ? kN : (n & ~(kPad - 1));  // (the mask: the compiler knows it, no remainder loop)
   clamp_tanh_args(h, nn);
   for (int j = 0; j < nn; ++j) h[j] = tanh_rational(h[j]);
+}
+
+// prepare_inputs out of forward_batch's line (DN_KERNEL_OUTLINE): it calls it only when an
+// input is out of its range or the offsets could not be folded (load()); one copy per input
+// count and variant instead of one per sample. (forward() keeps its own inline: outlined, its
+// common path pays for the buffer the call needs, +3 ns of a 30 ns float forward.)
+template <typename T, int kIn, bool kSub, class P>
+DN_KERNEL_OUTLINE inline int prepare_inputs_outline(const P& p, const T* x, T* xs, uint32_t& mask) noexcept {
+  return prepare_inputs<T, kIn, kSub>(p, x, xs, mask);
 }
 
 // The forward pass shared by Mlp and StaticMlp. kH2 == 0: one hidden layer.
@@ -120,8 +129,11 @@ DN_KERNEL_OUTLINE DN_REALTIME inline int forward(const P& p, const T* x, T* y, u
     // Forward mode: t1 = d(a1)/dx_i = (1 - a1^2) * W1[:, i] (gain and sigmoid scale folded in).
     alignas(DN_KERNEL_ALIGN) T t1[kGrad ? cap_h1 : kPad] = {};
     if constexpr (kGrad) {
-      if (col)
-        for (int j = 0; j < h1; ++j) t1[j] = (T(1) - a1[j] * a1[j]) * col[j];
+      if (col) {  // h1 a multiple of kPad: blocks of kPad (no remainder loop), not peeled
+#pragma GCC unroll 1
+        for (int j0 = 0; j0 < h1; j0 += kPad)
+          for (int j = j0; j < j0 + kPad; ++j) t1[j] = (T(1) - a1[j] * a1[j]) * col[j];
+      }
     }
 
     int n_last = h1;
@@ -177,21 +189,23 @@ DN_KERNEL_OUTLINE DN_REALTIME inline void forward_batch(const P& p, const T* con
       const T* xs[kB];
       const T* col[kB];
       uint32_t mask[kB];
-      for (int b = 0; b < kB; ++b) {  // forward()'s input handling, per sample
+#pragma GCC unroll 1
+      for (int b = 0; b < kB; ++b) {  // forward()'s input handling, per sample (rolled: one copy)
         mask[b] = 0;
         xs[b] = x[b];
         status[b] = DN_OK;
         if (!p.in_offset_folded) {
-          status[b] = prepare_inputs<T, kIn, true>(p, x[b], xs_buf[b], mask[b]);
+          status[b] = prepare_inputs_outline<T, kIn, true>(p, x[b], xs_buf[b], mask[b]);
           xs[b] = xs_buf[b];
         } else if (!inputs_in_range<T, kIn>(p, x[b])) {
-          status[b] = prepare_inputs<T, kIn, false>(p, x[b], xs_buf[b], mask[b]);
+          status[b] = prepare_inputs_outline<T, kIn, false>(p, x[b], xs_buf[b], mask[b]);
           xs[b] = xs_buf[b];
         }
         col[b] = (kGrad && !((mask[b] >> grad_input) & 1u)) ? p.w1t.data() + grad_input * h1 : nullptr;
       }
       T sums[kB], dys[kB] = {};
       forward_batch_simd<kIn, kH1, kGrad, kB>(p, xs, col, sums, dys);
+#pragma GCC unroll 1
       for (int b = 0; b < kB; ++b) {
         T out = sums[b];
         if (!std::isfinite(out)) {
@@ -549,7 +563,8 @@ class Mlp {
   DN_REALTIME void forward_grad4(const T* const x[4], T y[4], int i, T dy_dxi[4], int status[4],
                                  uint32_t* clamped_mask = nullptr) const noexcept {
     using P = decltype(p_);
-    if (i < 0 || i >= p_.n_in) {
+    if (i < 0 || i >= p_.n_in) {  // (no such input: never from a damper; rolled)
+#pragma GCC unroll 1
       for (int b = 0; b < 4; ++b) {
         dy_dxi[b] = T(0);
         status[b] = forward(x[b], &y[b], clamped_mask ? &clamped_mask[b] : nullptr);

@@ -45,11 +45,12 @@ inline bool all_finite(const double* p, int n) noexcept {
 // declarations (no call of their own in between).
 namespace loops {
 
-// y = W^T x for the transposed storage wt[n_in][n_out] (+ bias), n_out outputs.
+// y = W^T x for the transposed storage wt[n_in][n_out] (+ bias), n_out outputs (a padded
+// layer: a multiple of kPad, which the mask tells the compiler: no remainder loops).
 template <typename T, int kIn, int kOut>
 inline void dense_t(const T* wt, const T* b, const T* x, T* y, int n_in, int n_out) noexcept {
   const int ni = kIn > 0 ? kIn : n_in;
-  const int no = kOut > 0 ? kOut : n_out;
+  const int no = kOut > 0 ? kOut : (n_out & ~(kPad - 1));
   for (int j = 0; j < no; ++j) y[j] = b[j];
   for (int i = 0; i < ni; ++i) {
     const T xi = x[i];
