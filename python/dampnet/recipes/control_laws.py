@@ -22,12 +22,13 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping
+from typing import TYPE_CHECKING, Any, Callable, Mapping
 
 from dampnet import _core
-from dampnet.sim.calibration import SKYHOOK_COMMAND_TAU_S, continuous_skyhook, damping_levels, semi_active
-from dampnet.sim.dampers import DamperSpec
 from dampnet.sim.vehicle import Controller, LoopError, Vehicle
+
+if TYPE_CHECKING:    # the calibration (numpy, the dampers) is imported when a law is made: help texts stay light
+    from dampnet.sim.dampers import DamperSpec
 
 #: the law whose control is the caller's (not a law a run can be asked for by name)
 EXTERNAL = "external"
@@ -42,7 +43,7 @@ class LawContext:
     spec: DamperSpec
     levels: Mapping[str, float]
     vehicle: Vehicle
-    u_tau_s: float = SKYHOOK_COMMAND_TAU_S
+    u_tau_s: float
     damping: str = "high"
     u: float | None = None
 
@@ -99,6 +100,8 @@ def make(name: str, spec: DamperSpec, vehicle: Vehicle | None = None, *, u_tau_s
          damping: str = "high", u: float | None = None, fields: Mapping[str, Any] | None = None) -> Controller:
     """The Controller of law `name` calibrated on `spec` (see the module docstring); `fields`:
     Controller fields set over the calibrated ones. LoopError (one line) on a bad name or value."""
+    from dampnet.sim.calibration import SKYHOOK_COMMAND_TAU_S, damping_levels
+
     law = get(name)
     veh = vehicle or Vehicle()
     if damping not in ("low", "high"):
@@ -137,16 +140,30 @@ register(ControlLaw("passive_low", "passive at the damper's low damping control"
                     {"u_passive": _LEVEL}))
 register(ControlLaw("passive_high", "passive at the damper's high damping control", _passive("high"),
                     {"u_passive": _LEVEL}))
+def _skyhook_continuous(ctx: LawContext) -> Controller:
+    from dampnet.sim.calibration import continuous_skyhook
+
+    return continuous_skyhook(ctx.spec, dict(ctx.levels), ctx.vehicle, u_tau_s=ctx.u_tau_s)
+
+
+def _switching(kind: str) -> Callable[[LawContext], Controller]:
+    def build(ctx: LawContext) -> Controller:
+        from dampnet.sim.calibration import semi_active
+
+        return semi_active(kind, dict(ctx.levels), ctx.u_tau_s)
+    return build
+
+
 for _kind in _core.CONTROLLER_KINDS:
     if _kind in ("passive", EXTERNAL):
         continue
     if _kind == "skyhook_continuous":
         register(ControlLaw(_kind, "the runtime's continuous skyhook, c_sky / c_min / c_max calibrated on the "
                             "damper and the vehicle as in `dampnet study`",
-                            lambda ctx: continuous_skyhook(ctx.spec, dict(ctx.levels), ctx.vehicle, u_tau_s=ctx.u_tau_s),
+                            _skyhook_continuous,
                             {"u_soft, u_hard": _LEVEL, "c_sky, c_min, c_max": "N s/m: calibrated",
                              "u_tau_s": "s: command filter"}))
     else:
         register(ControlLaw(_kind, f"the runtime's {_kind} between the damper's low and high damping",
-                            lambda ctx, k=_kind: semi_active(k, dict(ctx.levels), ctx.u_tau_s),
+                            _switching(_kind),
                             {"u_soft, u_hard": _LEVEL, "u_tau_s": "s: command filter"}))
