@@ -86,14 +86,27 @@ def _case_road(text: str):
     when `text` names no road of the registry."""
     from dampnet.recipes import roads
 
-    head, sep, level = text.rpartition(":")
-    road, level = (head, level) if sep and level in ("low", "high") else (text, "")
+    head, sep, tail = text.rpartition(":")
+    road, level = (head, tail) if sep and tail in ("low", "high") else (text, "")
     if not roads.is_named(road):
         return None
     try:
         return roads.parse(road), level
     except ValueError as e:
+        head_req = _parsed(head) if sep and "=" not in tail else None
+        if head_req is not None and (head_req.kind.positional is None or ":" in head):   # ROAD:medium: a damping
+            raise PlanError(f"RUN {text!r}: damping {tail!r}: expected {head}:low or {head}:high") from None
         raise PlanError(f"RUN {text!r}: {e}") from None
+
+
+def _parsed(road: str):
+    """The road request of `road`, or None when it is none."""
+    from dampnet.recipes import roads
+
+    try:
+        return roads.parse(road) if roads.is_named(road) else None
+    except ValueError:
+        return None
 
 
 class PlanError(ValueError):

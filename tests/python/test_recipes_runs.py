@@ -188,8 +188,10 @@ def test_plan_tests_cases_are_registry_roads():
     assert req.kind.name == "iso" and req.params()["class"] == "C" and level == "high"
     assert _case_road("sine-sweep")[0].profile == "temporal"
     assert _case_road("no-such-dir") is None
-    with pytest.raises(PlanError, match="iso"):
+    with pytest.raises(PlanError, match="class: expected ISO 8608 class"):
         _case_road("iso:Z")
+    with pytest.raises(PlanError, match=r"damping 'medium': expected iso:C:low or iso:C:high"):
+        _case_road("iso:C:medium")
 
 
 # -- the default model --------------------------------------------------------------------------
