@@ -165,6 +165,8 @@ def applicable(kind: str, params: dict[str, Any]) -> dict[str, Any]:
     if kind == "training":
         if not str(p["dataset"]).startswith("rig:"):
             p["data_seed"] = p["rig_effects"] = None
+        if p.get("restarts") == 1:      # one training: nothing to rank
+            p["restart_score"] = None
     elif kind == "fullcar":
         from dampnet.fullcar.runs import DEFAULT_SPEED_KMH
 
