@@ -25,6 +25,7 @@ tests/python/test_layers.py with a check for import cycles):
   rig                                 the virtual shock dyno (a plant)
   evaluation, training, diagnosis     error tables; the training pipeline; missing physics
   sim                                 the quarter-car loop, dampers, roads, the study
+  recipes                             the vocabulary of runs: roads, control laws, training requests
   latency                             the latency benchmarks
   commands, demo, cli                 the command line
 """
@@ -44,7 +45,7 @@ _API: dict[str, tuple[str, str | None]] = {
     "load_model": ("dampnet.modeldir", "load_model"),
     "save_model_dir": ("dampnet.modeldir", "save_model_dir"),
     "load_dataset": ("dampnet.data", "load_dataset"),
-    "train": ("dampnet.training.pipeline", "train_dataset"),
+    "train": ("dampnet.recipes.training", "train"),
     "evaluate": ("dampnet.evaluation.report", "evaluate"),
     "diagnose": ("dampnet.diagnosis.run", "diagnose"),
     "predict_force": ("dampnet.predict", "predict_force"),

@@ -5,8 +5,9 @@
   required   the damper inputs of the runs the model must serve (a `dampnet simulate` or
              `dampnet vehicle` output directory: its run.npz keeps every step's inputs; a
              `dampnet study` directory: its inputs.npz, every run of the model; or a
-             built-in case run on the spot with the model: `impulse`, `sine-sweep`,
-             `rough-road`, each optionally `:low` / `:high` damping), kept where they are
+             built-in case run on the spot with the model: a road by name,
+             dampnet.recipes.roads, e.g. `impulse`, `sine-sweep`, `rough-road`, each
+             optionally `:low` / `:high` damping), kept where they are
              outside the model's training envelope (dampnet.envelope: beyond a training range
              or farther than the threshold from every training sample), and
   covered    the envelope's training samples,
@@ -68,9 +69,44 @@ CYCLE_POINTS = 400
 SAMPLE_RATE_HZ = 5000.0
 MIN_SAMPLES = 2500
 MIN_CYCLES = 3.0
-#: built-in cases: name -> road
+#: built-in cases: a road by name (dampnet.recipes.roads; the cases' old names are its aliases),
+#: a distance profile at the road's case speeds (the rough road's: the thesis's 10 and 20 m/s)
 CASES = ("impulse", "sine-sweep", "rough-road")
-ROUGH_SPEEDS_M_S = (10.0, 20.0)
+
+
+def case_names() -> str:
+    """The built-in cases as the help and the errors name them: every road of the registry."""
+    from dampnet.recipes import roads
+
+    return ", ".join(k.usage() for k in map(roads.get, roads.names()))
+
+
+def _case_road(text: str):
+    """(the road request, the damping level or "") of a built-in case ROAD[:low|:high], or None
+    when `text` names no road of the registry."""
+    from dampnet.recipes import roads
+
+    head, sep, tail = text.rpartition(":")
+    road, level = (head, tail) if sep and tail in ("low", "high") else (text, "")
+    if not roads.is_named(road):
+        return None
+    try:
+        return roads.parse(road), level
+    except ValueError as e:
+        head_req = _parsed(head) if sep and "=" not in tail else None
+        if head_req is not None and (head_req.kind.positional is None or ":" in head):   # ROAD:medium: a damping
+            raise PlanError(f"RUN {text!r}: damping {tail!r}: expected {head}:low or {head}:high") from None
+        raise PlanError(f"RUN {text!r}: {e}") from None
+
+
+def _parsed(road: str):
+    """The road request of `road`, or None when it is none."""
+    from dampnet.recipes import roads
+
+    try:
+        return roads.parse(road) if roads.is_named(road) else None
+    except ValueError:
+        return None
 
 
 class PlanError(ValueError):
@@ -93,17 +129,15 @@ class RunInputs:
 def _case_runs(model, spec_obj, text: str) -> list[RunInputs]:
     from dampnet.coverage import quarter_car_inputs
     from dampnet.sim.calibration import damping_levels
-    from dampnet.sim.roads import impulse, sine_sweep, thesis_rough_road
     from dampnet.sim.runs import simulate
     from dampnet.sim.vehicle import Controller
 
-    name, _, level = text.partition(":")
-    if level not in ("", "low", "high"):
-        raise PlanError(f"RUN {text!r}: damping {level!r}: expected {name}:low or {name}:high")
+    req, level = _case_road(text)
+    name = text[:len(text) - len(level) - 1] if level else text
     levels = ("low", "high") if level == "" else (level,)
     lv = damping_levels(spec_obj)
-    road = dict(impulse=impulse, **{"sine-sweep": sine_sweep, "rough-road": thesis_rough_road})[name]()
-    speeds = ROUGH_SPEEDS_M_S if name == "rough-road" else (None,)
+    road = req.build()
+    speeds = req.kind.case_speeds_m_s if req.profile == "spatial" else (None,)
     out = []
     for lvl in levels:
         for v in speeds:
@@ -219,11 +253,11 @@ def load_runs(model, envelope, runs: Sequence[str], note: str | None = None) -> 
         p = Path(r)
         if p.is_dir():
             out += _dir_runs(model, p)
-        elif r.partition(":")[0] in CASES:
+        elif _case_road(r) is not None:
             out += _case_runs(model, spec_obj, r)
         else:
             raise PlanError(f"RUN {r!r}: expected a dampnet simulate or vehicle output directory or a built-in "
-                            f"case ({', '.join(CASES)}, each optionally :low or :high)")
+                            f"case (a road: {case_names()}; each optionally :low or :high)")
     return out
 
 

@@ -14,7 +14,7 @@ EXPECTED = {
     "load_model": "dampnet.modeldir.load_model",
     "save_model_dir": "dampnet.modeldir.save_model_dir",
     "load_dataset": "dampnet.data.readers.load_dataset",
-    "train": "dampnet.training.pipeline.train_dataset",
+    "train": "dampnet.recipes.training.train",   # the one training path (issue 31): returns the envelope too
     "evaluate": "dampnet.evaluation.report.evaluate",
     "diagnose": "dampnet.diagnosis.run.diagnose",
     "predict_force": "dampnet.predict.predict_force",

@@ -9,8 +9,9 @@ import pytest
 from scipy.signal import welch
 
 from dampnet.sim.roads import (ISO_BAND, ISO_CLASSES, Road, RoadError, bump, impulse, iso8608,
-                           iso_band_variance, iso_class_bounds, make_road, read_profile_csv, sine_sweep,
+                           iso_band_variance, iso_class_bounds, read_profile_csv, sine_sweep,
                            sweep_frequency, thesis_rough_road)
+from dampnet.recipes.roads import build as make_road   # roads by name (the registry)
 
 # Tolerance for the Welch-estimated PSD level: the fitted Gd(n0) within 15 % of the class value.
 # (Deterministic amplitudes make the estimate's scatter small: what remains is Hann leakage and

@@ -221,12 +221,19 @@ def test_simulation_sweep_equals_quarter_car_simulate(client, trained, tmp_path)
         m = ride_metrics(st["t"], st["z_s"], st["z_us"], st["z_r"], res["acc_s"][:n], veh.k_t, veh.m_s, veh.m_us)
         for k in ("acc_rms_m_s2", "acc_wk_rms_m_s2", "travel_rms_m", "travel_max_m", "tyre_load_rms_n"):
             assert row[k] == m[k], (row["model"], row["road"], row["controller"], k)
-        # coverage (no envelope file beside these models: the training ranges): the share of the
-        # run's steps with an input outside them, counted directly from the loop's recorded inputs
+        # coverage: the share of the run's steps with an input outside the training ranges or, for
+        # the sweep's trained model (its cell saved the envelope, as `dampnet train` does), farther
+        # than the joint envelope's threshold from every training sample, counted directly from the
+        # loop's recorded inputs (the default model has no envelope file: its ranges alone)
+        from dampnet.envelope import read_envelope
         from dampnet.sim.loop import columns
 
         X = columns(res)["features"][:n]
         outside = np.any((X < model.sat_lo) | (X > model.sat_hi), axis=1)
+        env = read_envelope(path, model)
+        assert (env is not None) == (row["model"] != "default")
+        if env is not None:
+            outside |= env.nearest(X)[0] > env.threshold
         assert row["time_outside_training_data"] == pytest.approx(outside.mean(), abs=1e-9)
         assert row["extrapolated"] in ("yes", "no")
     assert pd.isna(df.loc[df["road"] == "impulse", "speed"]).all()        # a time profile has no speed

@@ -246,7 +246,7 @@ def test_model_improved_for_friction_and_compressibility_runs_in_the_runtime_loo
     from dampnet.sim.dampers import neural_spec
     from dampnet.sim.reference_loop import reference_damper
     from dampnet.sim.reference_loop import run as reference_loop
-    from dampnet.sim.roads import make_road
+    from dampnet.recipes.roads import build as make_road
     from dampnet.sim.vehicle import Controller, Vehicle
 
     road, veh = make_road("bump", seed=0), Vehicle(dt=1e-3)

@@ -30,8 +30,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("model", help="model directory (with envelope.npz: the joint envelope) or model.json")
     p.add_argument("runs", nargs="+", metavar="RUN",
                    help="a `dampnet simulate` or `dampnet vehicle` output directory (run.npz keeps each step's "
-                        f"damper inputs), or a built-in case run with MODEL on the quarter car: {', '.join(P.CASES)} "
-                        "(both damping levels; NAME:low or NAME:high for one; rough-road at 10 and 20 m/s)")
+                        f"damper inputs), or a built-in case run with MODEL on the quarter car: a road, {P.case_names()}, "
+                        f"e.g. {', '.join(P.CASES)} (both damping levels; NAME:low or NAME:high for one; "
+                        "distance profiles such as rough-road at 10 and 20 m/s)")
     p.add_argument("--budget", type=int, required=True, help="number of tests to propose")
     p.add_argument("--out", help="write the plan (JSON) the rig reads: dampnet rig DATA --plan PLAN.json")
     p.add_argument("--table", help="write the operator's table (CSV)")

@@ -15,31 +15,33 @@ COMMAND_TAU_S = 0.005  # = dampnet.sim.calibration.SKYHOOK_COMMAND_TAU_S (not im
 
 
 def control_laws() -> tuple[str, ...]:
-    """The laws --control takes: the runtime's (dampnet._core.CONTROLLER_KINDS) but
-    "external", whose control comes from the caller (QuarterCar.simulate(u=...))."""
-    from dampnet import _core
+    """The laws --control takes: the control-law registry's (dampnet.recipes.control_laws: the
+    runtime's laws but "external", and passive_low / passive_high)."""
+    from dampnet.recipes import control_laws as laws
 
-    return tuple(k for k in _core.CONTROLLER_KINDS if k != "external")
+    return laws.names()
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
         "simulate", help="run a damper model in the quarter-car loop over a road",
-        description="Run MODEL (a model directory or model.json, a lookup-table JSON, 'truth' or "
+        description="Run MODEL (a model directory or model.json, 'default' for the embedded default model, "
+                    "a lookup-table JSON, 'truth' or "
                     "'truth:EFFECT,...' for the rig's damper, or 'linear:C' [N s/m]) in the quarter-car "
                     "loop (thesis Table 5 vehicle) and write run.npz, metrics.json and PNG plots.")
     p.add_argument("model")
     p.add_argument("--road", default="rough",
-                   help="impulse, bump, sweep, rough (thesis), iso:A..iso:H, or a CSV distance_m,elevation_m")
+                   help=f"a road: {_roads().usage()} (default rough, the thesis's; dampnet.recipes.roads)")
     p.add_argument("--speed", type=float, default=10.0, help="speed [m/s] for distance profiles")
     p.add_argument("--control", default="passive", metavar="LAW",
-                   help=f"control law: {', '.join(control_laws())} (the runtime's names); "
-                        "skyhook_continuous is calibrated on the damper as in `dampnet study`")
+                   help=f"control law: {', '.join(control_laws())} (the runtime's names, and passive at one "
+                        "level); each is calibrated on the damper as in `dampnet study` (dampnet.recipes.control_laws)")
     p.add_argument("--command-tau", type=float, default=None, metavar="S",
                    help="command filter time constant of the switching laws [s] (default: the study's "
                         f"{1e3 * COMMAND_TAU_S:g} ms; 0 = unfiltered)")
     p.add_argument("--damping", choices=("low", "high"), default="high",
-                   help="passive control level (found from the model's control range)")
+                   help="passive control level (found from the model's control range; passive_low / "
+                        "passive_high name one)")
     p.add_argument("--u", type=float, default=None, help="passive control [V] (overrides --damping)")
     p.add_argument("--dt", type=float, default=1e-3, help="loop step [s]")
     p.add_argument("--seed", type=int, default=0, help="seed of random roads")
@@ -55,35 +57,27 @@ def run(args) -> int:
     import numpy as np
 
     from dampnet.outputs import check_run_dir
-    from dampnet.sim.calibration import continuous_skyhook, damping_levels, semi_active
+    from dampnet.recipes import control_laws as laws
     from dampnet.sim.dampers import load_spec
     from dampnet.sim.plots import plot_run, plot_transmissibility
-    from dampnet.sim.roads import RoadError, make_road
+    from dampnet.sim.roads import RoadError
     from dampnet.sim.runs import simulate
-    from dampnet.sim.vehicle import Controller, LoopError, Vehicle
+    from dampnet.sim.vehicle import LoopError, Vehicle
 
     out = Path(args.out)
-    tau = COMMAND_TAU_S if args.command_tau is None else args.command_tau
     try:
         check_options(args)
-        laws = control_laws()
-        if args.control not in laws:
-            what = ("takes its control from the caller (QuarterCar.simulate(u=...)), not from this command"
-                    if args.control == "external" else "is not a control law")
-            raise LoopError(f"--control: {args.control!r} {what}; valid: " + ", ".join(repr(k) for k in laws))
+        try:
+            laws.get(args.control)
+        except LoopError as e:
+            raise LoopError(f"--control: {e}") from None
         check_run_dir(out, RUN_FILES, "metrics.json", RUN_SCHEMA.split("/")[0] + "/", _model_inputs(args.model, args.road),
                       args.force)
         spec = load_spec(args.model)
-        road = make_road(args.road, seed=args.seed)
+        road = _roads().build(args.road, seed=args.seed)
         veh = Vehicle(dt=args.dt)
         veh.validate()
-        lv = damping_levels(spec, args.dt)
-        if args.control == "passive":
-            ctrl = Controller(kind="passive", u_passive=lv[args.damping] if args.u is None else args.u)
-        elif args.control == "skyhook_continuous":
-            ctrl = continuous_skyhook(spec, lv, veh, u_tau_s=tau)
-        else:
-            ctrl = semi_active(args.control, lv, tau)
+        ctrl = laws.make(args.control, spec, veh, u_tau_s=args.command_tau, damping=args.damping, u=args.u)
         res = simulate(spec, road, args.speed if road.kind == "spatial" else None, ctrl, veh)
     except (RoadError, LoopError, ValueError, OSError, KeyError) as e:
         print(f"dampnet: error: {e}", file=sys.stderr)
@@ -128,6 +122,12 @@ def run(args) -> int:
 
         print(summary_line(spec.name, res["coverage"]))
     return 0
+
+
+def _roads():
+    from dampnet.recipes import roads
+
+    return roads
 
 
 def check_options(args) -> None:

@@ -11,13 +11,7 @@ import sys
 import time
 
 from dampnet.commands.common import error
-from dampnet.commands.training_options import (
-    ADD_RULE,
-    Progress,
-    add_effects,
-    add_training_options,
-    option_kwargs,
-)
+from dampnet.commands.training_options import ADD_RULE, Progress, add_training_options, training_request, whole
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -59,98 +53,56 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    """Train and write MODEL_DIR; 0 on success, 2 (one-line message) on bad input."""
+    """Train and write MODEL_DIR; 0 on success, 2 (one-line message) on bad input.
+    The request and the training are dampnet.recipes.training's (as the sweep's and dampnet.train)."""
     from pathlib import Path
 
     from dampnet.data import DataError, load_dataset, merge_datasets
     from dampnet.model import ModelError
-    from dampnet.modeldir import save_model_dir
     from dampnet.outputs import check_output_dir
-    from dampnet.training.pipeline import model_metrics
+    from dampnet.recipes.training import plan
 
     out = Path(args.out)
     inputs = [*args.data, *([args.diagnosis] if args.diagnosis else [])]
     bar = None
     try:
         check_output_dir(out, "model", inputs, args.force)  # before the work, again when writing
-        kw = option_kwargs(args)
-        check_options(args, kw)  # every option and setting before the data are loaded
+        req = training_request(args)
+        req.check()  # every option and setting before the data are loaded
+        workers = check_workers(args)
         ds = merge_datasets([load_dataset(d) for d in args.data])
-        kw, added = add_effects(args, ds, kw)
-        restarts, workers, note = restart_options(args, ds, kw)
-        if restarts > 1:
+        todo = plan(ds, req)
+        if todo.restarts > 1:
             bar = RestartProgress(not args.quiet)
         else:
-            bar = Progress(kw["max_epochs"], f"train {args.algorithm}", not args.quiet)
-        from dampnet.training.pipeline import train_dataset
-
+            bar = Progress(req.max_epochs, f"train {args.algorithm}", not args.quiet)
         t0 = time.perf_counter()
-        model, info, split = train_dataset(ds, algorithm=args.algorithm, progress=bar, restarts=restarts,
-                                           workers=workers, restart_score=args.restart_score,
-                                           average=args.average, **kw)
+        trained = todo.run(progress=bar, workers=workers)
         bar.close()
         t_train = time.perf_counter() - t0
-        metrics = model_metrics(model, info, split)
-        from dampnet.envelope import envelope_of
-
-        save_model_dir(model, metrics, out, force=args.force, prefix=args.prefix, inputs=inputs,
-                       envelope=envelope_of(model, split))
+        trained.save(out, force=args.force, prefix=args.prefix, inputs=inputs)
     except (DataError, ModelError, FileExistsError, ValueError, OSError) as e:
         if bar is not None:
             bar.close()
         return error(str(e))
     if not args.quiet:
-        for a in added:
+        for a in trained.added:
             print(f"added {a['effect']}: features {', '.join(a['features'])}"
                   + "".join(f", {k} = {v:.4g}" for k, v in a["feature_params"].items())
                   + f" (parameters: {a['parameters_from']})")
-        print_summary(model, info, split, metrics, out, t_train)
-        if note:
-            print(f"restarts: 1 ({note})")
+        print_summary(trained.model, trained.info, trained.split, trained.metrics, out, t_train)
+        if trained.restarts_note:
+            print(f"restarts: 1 ({trained.restarts_note})")
     return 0
 
 
-def check_options(args, kw) -> None:
-    """The training layer's checks (dampnet.training.settings; train_dataset repeats them) of every
-    option and --settings, before any data are loaded: ValueError of one line naming the option."""
-    from dampnet.training.restarts import check_average, check_restarts
-    from dampnet.training.settings import check_request, train_settings
+def check_workers(args) -> int | None:
+    """--workers as a whole number in its range (None when not given)."""
+    from dampnet.training.settings import option
 
-    check_request(algorithm=args.algorithm, settings=train_settings(args.algorithm, kw["settings"]),
-                  hidden=kw["hidden"], features=kw["features"], max_epochs=kw["max_epochs"], seed=kw["seed"],
-                  decimate=kw["decimate"], holdout_voltage=kw["holdout_voltage"])
-    restarts, workers = given_restarts(args)
-    check_restarts(1 if restarts is None else restarts, workers, args.restart_score)
-    # with --restarts auto the count is known with the data: its relation to --average is checked then
-    check_average(args.average, args.average if restarts is None else restarts, kw["hidden"], args.restart_score)
-
-
-def given_restarts(args) -> tuple[int | None, int | None]:
-    """(--restarts, None for 'auto'; --workers, None when not given) as whole numbers; their ranges are
-    check_restarts's. ValueError (exit 2, one line) for anything else."""
-
-    def whole(text: str, name: str) -> int:
-        try:
-            return int(str(text).strip())
-        except ValueError:
-            raise ValueError(f"--{name}: expected a whole number{' or auto' if name == 'restarts' else ''}, "
-                             f"got {text!r}") from None
-
-    workers = None if args.workers is None else whole(args.workers, "workers")
-    if str(args.restarts).strip().lower() == "auto":
-        return None, workers
-    return whole(args.restarts, "restarts"), workers
-
-
-def restart_options(args, ds, kw) -> tuple[int, int | None, str | None]:
-    """(restarts, workers, why 'auto' trained once or None) from --restarts and --workers."""
-    from dampnet.training.restarts import auto_restarts
-
-    restarts, workers = given_restarts(args)
-    if restarts is None:
-        n, note = auto_restarts(ds, kw["holdout_voltage"], kw["holdout_tests"], kw["features"], args.restart_score)
-        return n, workers, note
-    return restarts, workers, None
+    if args.workers is None:
+        return None
+    return option("workers", whole(args.workers, "workers"))
 
 
 class RestartProgress(Progress):

@@ -56,18 +56,31 @@ def add_training_options(p: argparse.ArgumentParser, algorithm: bool = True) -> 
 
 
 def training_kwargs(args, ds) -> tuple[dict, list[dict]]:
-    """(train_dataset keyword arguments, what each --add added) from the parsed options.
+    """(train_dataset keyword arguments, what each --add added) from the parsed options, for
+    `compare-algorithms` (each algorithm checks its own settings when it trains).
 
-    --add EFFECT goes through dampnet.training.pipeline.apply_additions, as the demo's
-    improve stage does: with --diagnosis FILE the diagnosis's parameters, else parameters
+    --add EFFECT goes through dampnet.recipes.training.plan (apply_additions, as the demo's
+    improve stage does): with --diagnosis FILE the diagnosis's parameters, else parameters
     estimated from the data (dampnet.diagnosis.estimate). ValueError on bad options.
     """
-    return add_effects(args, ds, option_kwargs(args))
+    from dampnet.recipes.training import plan
+
+    p = plan(ds, training_request(args), check=False)
+    return p.kw, p.added
 
 
 def option_kwargs(args) -> dict:
     """train_dataset keyword arguments from the parsed options, before any --add (no data needed);
     ValueError on options that do not parse (their ranges are the training layer's to check)."""
+    return training_request(args).kwargs()
+
+
+def training_request(args):
+    """The dampnet.recipes.training.TrainingRequest of the parsed options (`train`'s and
+    `compare-algorithms`'); ValueError on options that do not parse (their ranges are the
+    request's check, dampnet.training.settings). --diagnosis FILE is read here."""
+    from dampnet.recipes.training import AUTO, TrainingRequest
+
     features = [f.strip() for f in args.features.split(",") if f.strip()] if args.features else None
     terms = json_arg(args.terms, "terms", list) or []
     for t in terms:
@@ -87,37 +100,30 @@ def option_kwargs(args) -> dict:
         decimate = None if dec == "auto" else int(dec)
     except ValueError:
         raise ValueError(f"--decimate: expected a positive integer or 'auto', got {args.decimate!r}") from None
-    kw = dict(features=features, hidden=hidden, activation=args.activation,
-              holdout_voltage=holdout_voltage,
-              holdout_tests=[s.strip() for s in args.holdout_tests.split(",") if s.strip()],
-              decimate=decimate, terms=terms, feature_params=None, seed=args.seed,
-              zero_points=not args.no_zero_points, max_epochs=args.max_epochs,
-              settings=json_arg(args.settings, "settings", dict))
-    return kw
-
-
-def add_effects(args, ds, kw: dict) -> tuple[dict, list[dict]]:
-    """(`kw` with what each --add EFFECT adds, the additions): see training_kwargs."""
-    from dampnet.diagnosis.estimate import estimate_parameters
-    from dampnet.effects import effect
-    from dampnet.training.pipeline import apply_additions
-
     diagnosis = None
     if args.diagnosis is not None:
         if not args.add:
             raise ValueError("--diagnosis: name the effect(s) to add with --add EFFECT (e.g. the diagnosis's verdict)")
         diagnosis = read_json_file(args.diagnosis, "the diagnosis JSON of `dampnet diagnose --json`")
-    added = []
-    for name in args.add:
-        try:
-            effect(name)
-            params = None if diagnosis is not None else estimate_parameters(name, ds)
-            kw, add = apply_additions(kw, ds, name, diagnosis=diagnosis, params=params)
-        except ValueError as e:
-            where = f" (from {args.diagnosis})" if diagnosis is not None else ""
-            raise ValueError(f"--add {name}{where}: {e}") from None
-        added.append({"effect": name, **add})
-    return kw, added
+    restarts = 1
+    if getattr(args, "restarts", None) is not None:
+        restarts = AUTO if str(args.restarts).strip().lower() == AUTO else whole(args.restarts, "restarts")
+    return TrainingRequest.of(
+        features=features, algorithm=getattr(args, "algorithm", "lm"), hidden=hidden, activation=args.activation,
+        holdout_voltage=holdout_voltage, holdout_tests=[s.strip() for s in args.holdout_tests.split(",") if s.strip()],
+        decimate=decimate, terms=terms, seed=args.seed, zero_points=not args.no_zero_points,
+        max_epochs=args.max_epochs, settings=json_arg(args.settings, "settings", dict), add=list(args.add),
+        diagnosis=diagnosis, diagnosis_source=args.diagnosis, restarts=restarts,
+        restart_score=getattr(args, "restart_score", "interpolation"), average=getattr(args, "average", 1))
+
+
+def whole(text: str, name: str) -> int:
+    """--NAME's value as a whole number; ValueError (exit 2, one line) otherwise."""
+    try:
+        return int(str(text).strip())
+    except ValueError:
+        raise ValueError(f"--{name}: expected a whole number{' or auto' if name == 'restarts' else ''}, "
+                         f"got {text!r}") from None
 
 
 class Progress:

@@ -88,13 +88,22 @@ def _damping_coefficient(text: str) -> float:
     return c
 
 
+#: the MODEL word for the embedded default model (every front end: the CLI, the sweep's specs)
+DEFAULT_MODEL = "default"
+
+
 def load_spec(text: str) -> DamperSpec:
-    """A DamperSpec from a command line's MODEL: a model directory or model.json, a
-    lookup-table JSON, 'truth' or 'truth:EFFECT,...', or 'linear:C' [N s/m]; LoopError or
-    ModelError (one line, naming the field) otherwise."""
+    """A DamperSpec from a command line's MODEL: a model directory or model.json, 'default' (the
+    embedded default model, dampnet.modeldir.default_model_path, as a sweep spec's "default"; a
+    directory named so is ./default), a lookup-table JSON, 'truth' or 'truth:EFFECT,...', or
+    'linear:C' [N s/m]; LoopError or ModelError (one line, naming the field) otherwise."""
     if not isinstance(text, str) or not text.isprintable():   # a control character: no path, no field
-        raise LoopError(f"MODEL {text!r}: expected a model directory or file, 'truth[:EFFECT,...]' or "
+        raise LoopError(f"MODEL {text!r}: expected a model directory or file, 'default', 'truth[:EFFECT,...]' or "
                         "'linear:C' [N s/m]")
+    if text == DEFAULT_MODEL:
+        from dampnet.modeldir import default_model_path
+
+        text = str(default_model_path())
     if text == "truth" or text.startswith("truth:"):
         eff = [e for e in text.split(":", 1)[1].split(",") if e] if ":" in text else []
         from dampnet.rig.effects import get_effect

@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from dampnet.sweep.spec import (KINDS, SEEDED_ROADS, TEMPORAL_ROADS, RandomSpec, Section, Spec, SpecError, _Bad,
+from dampnet.sweep.spec import (KINDS, RandomSpec, Section, Spec, SpecError, _Bad,
                                 _line_of, section_params)
 
 #: the most cells a spec may make by default (see the module docstring)
@@ -165,6 +165,8 @@ def applicable(kind: str, params: dict[str, Any]) -> dict[str, Any]:
     if kind == "training":
         if not str(p["dataset"]).startswith("rig:"):
             p["data_seed"] = p["rig_effects"] = None
+        if p.get("restarts") == 1:      # one training: nothing to rank
+            p["restart_score"] = None
     elif kind == "fullcar":
         from dampnet.recipes.maneuvers import SETTINGS, get
 
@@ -172,11 +174,13 @@ def applicable(kind: str, params: dict[str, Any]) -> dict[str, Any]:
         for name in SETTINGS:      # the test's settings (its default when not set), others empty
             p[name] = (defaults[name] if p.get(name) is None else p[name]) if name in defaults else None
     else:
-        road = str(p["road"]).lower()
-        if road in TEMPORAL_ROADS:
+        from dampnet.recipes import roads
+
+        req = roads.parse(p["road"]) if roads.is_named(p["road"]) else None   # else a CSV distance profile
+        if req is not None and req.profile == "temporal":
             p["speed"] = None
-        if road not in SEEDED_ROADS and not road.startswith("iso:"):
+        if req is None or not req.takes("seed"):
             p["road_seed"] = None
-        if not road.startswith("iso:"):
+        if req is None or not req.takes("length_m"):
             p["road_length_m"] = None
     return p

@@ -27,7 +27,8 @@ from typing import Any
 
 from dampnet.sweep.grid import Cell
 from dampnet.sweep.hashing import cell_key, content_digest, file_digest, text_digest
-from dampnet.sweep.spec import ROAD_NAMES, Spec, resolve, section_params
+from dampnet.recipes import roads
+from dampnet.sweep.spec import Spec, resolve, section_params
 
 _CACHE_SIZE = 8
 
@@ -75,7 +76,7 @@ def reference(role: str, text: str, spec: Spec) -> InputRef:
         p = resolve(text, spec.base)
         p = p / "model.json" if p.is_dir() else p
         return InputRef(role, text, str(p.resolve()), file_digest(p))
-    if role == "road" and (text.lower() in ROAD_NAMES or text.lower().startswith("iso:")):
+    if role == "road" and roads.is_named(text):
         return InputRef(role, text, None, text_digest(text.lower()))
     p = resolve(text, spec.base).resolve()
     return InputRef(role, text, str(p), content_digest(p))

@@ -2,16 +2,13 @@
 in, the run's ride metrics out.
 
 The run is `dampnet.sim.runs.simulate` (the runtime's C++ loop through QuarterCar, as
-`dampnet simulate`). Controllers are calibrated on the cell's damper as `dampnet simulate`
-calibrates them: passive_low / passive_high (passive = high) at the damper's own low / high
-damping control (`damping_levels`), the on-off laws between them with the study's 5 ms
-command filter, skyhook_continuous with c_sky, c_min, c_max from the vehicle and the damper
-(`continuous_skyhook`). [simulation.controller] fields then replace the calibrated ones.
+`dampnet simulate`). Roads and controllers come from the registries `dampnet simulate` reads
+(dampnet.recipes.roads, dampnet.recipes.control_laws): a controller is calibrated on the cell's
+damper (passive = passive_high), then [simulation.controller] fields replace the calibrated ones.
 """
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any
 
 
@@ -37,22 +34,14 @@ def damper(params: dict[str, Any], value: Any):
 
 
 def road(params: dict[str, Any], value: Any):
-    """The cell's Road: shipped or loaded (a CSV profile), or built from its name and seed."""
-    from dampnet.sim import roads
+    """The cell's Road: shipped or loaded (a CSV profile), or built by name (dampnet.recipes.roads)
+    with the cell's road_seed and road_length_m as the road's seed and length_m."""
+    from dampnet.recipes import roads
     from dampnet.sweep.inputs import InputRef
 
     if not isinstance(value, InputRef):
         return value
-    name = value.text.lower()
-    if name == "impulse":
-        return roads.impulse()
-    if name == "bump":
-        return roads.bump()
-    if name == "sweep":
-        return roads.sine_sweep()
-    if name == "rough":
-        return roads.thesis_rough_road(seed=params["road_seed"])
-    return roads.iso8608(value.text[4:].upper(), length_m=params["road_length_m"], seed=params["road_seed"])
+    return roads.parse(value.text).build(seed=params["road_seed"], length_m=params["road_length_m"])
 
 
 def vehicle(params: dict[str, Any]):
@@ -64,23 +53,12 @@ def vehicle(params: dict[str, Any]):
 
 
 def controller(params: dict[str, Any], spec, veh):
-    """The cell's Controller, calibrated on the damper, with the spec's fields on top."""
-    from dampnet.sim.calibration import SKYHOOK_COMMAND_TAU_S, continuous_skyhook, damping_levels, semi_active
-    from dampnet.sim.vehicle import Controller
+    """The cell's Controller (dampnet.recipes.control_laws: calibrated on the damper), with the
+    spec's [simulation.controller] fields on top (u_tau_s also the calibration's command filter)."""
+    from dampnet.recipes import control_laws
 
     set_ = {k[11:]: v for k, v in params.items() if k.startswith("controller.") and v is not None}
-    tau = set_.get("u_tau_s", SKYHOOK_COMMAND_TAU_S)
-    levels = damping_levels(spec, veh.dt)
-    name = params["controller"]
-    if name.startswith("passive"):
-        ctrl = Controller(kind="passive", u_passive=levels["low" if name == "passive_low" else "high"])
-    elif name == "skyhook_continuous":
-        ctrl = continuous_skyhook(spec, levels, veh, u_tau_s=tau)
-    else:
-        ctrl = semi_active(name, levels, tau)
-    ctrl = dataclasses.replace(ctrl, **set_)
-    ctrl.validate()
-    return ctrl
+    return control_laws.make(params["controller"], spec, veh, u_tau_s=set_.get("u_tau_s"), fields=set_)
 
 
 def run(params: dict[str, Any], inputs: dict[str, Any]) -> dict[str, Any]:

@@ -10,11 +10,14 @@ A spec has up to four tables:
   [training]    axes (a list: one value per item, every combination of the axes is a cell; a
                 single value: a one-value axis) over datasets, data_seeds, rig_effects,
                 algorithms, add, features, seeds, hidden, decimate, max_epochs, max_fail,
-                holdout_voltage, activation; objective (the metric the summary ranks, lower is
+                holdout_voltage, activation, restarts (a number or "auto"; default 1), average,
+                restart_score (a cell is a dampnet.recipes.training.TrainingRequest, trained as
+                `dampnet train` trains); objective (the metric the summary ranks, lower is
                 better). Where a value is itself a list, the axis is a list of them:
                 hidden = [30, [20, 10]], rig_effects = [[], ["gas_spring", "thermal"]],
                 features = [["velocity", "acceleration", "voltage", "displacement"]]
-  [simulation]  models, roads, road_seeds, road_length_m, speeds [m/s], controllers;
+  [simulation]  models, roads, road_seeds, road_length_m, speeds [m/s], controllers (roads and
+                controllers by name: dampnet.recipes.roads, dampnet.recipes.control_laws);
                 [simulation.vehicle] and [simulation.controller]: the quarter car's and the
                 control law's fields (a value or a list); objective
   [fullcar]     full-vehicle cells (dampnet.fullcar.runs.run, as `dampnet vehicle`): models (as
@@ -70,14 +73,6 @@ except ModuleNotFoundError:  # Python 3.10: the same parser as the package tomli
     import tomli as tomllib  # type: ignore[no-redef]
 
 DATA_MODES = ("shared", "ship")
-#: controllers of a simulation cell: passive at the damper's low or high damping (passive = high,
-#: or u_passive when [simulation.controller] sets it), and the runtime's semi-active laws
-CONTROLLERS = ("passive", "passive_low", "passive_high", "skyhook_onoff", "skyhook_continuous",
-               "groundhook_onoff", "groundhook_continuous")
-#: roads by name (dampnet.sim.roads); a CSV file distance_m,elevation_m is also a road
-ROAD_NAMES = ("impulse", "bump", "sweep", "rough")
-TEMPORAL_ROADS = ("impulse", "sweep")         # time profiles: no speed
-SEEDED_ROADS = ("rough",)                      # and iso:X: random profiles, with a seed
 DISTRIBUTIONS = ("uniform", "loguniform", "normal", "integers", "choice")
 DEFAULT_OBJECTIVE = {"training": "holdout_nrmse", "simulation": "acc_wk_rms_m_s2", "fullcar": "acc_rms_m_s2"}
 #: the sections (tables) that make cells, in the table's order
@@ -228,12 +223,41 @@ def _training(name: str, none: str | None = None) -> Callable[[Any], Any]:
     return norm
 
 
+def _restarts(v) -> int | str:
+    """'auto' (as `dampnet train` without --restarts) or a number of restarts."""
+    from dampnet.recipes.training import AUTO
+
+    if isinstance(v, str) and v.strip().lower() == AUTO:
+        return AUTO
+    return _training("restarts")(v)
+
+
+def _restart_scores() -> tuple[str, ...]:
+    from dampnet.training.restarts import SCORES
+
+    return tuple(SCORES)
+
+
+def _request_help(name: str) -> str:
+    """A training parameter's help: the training request's (dampnet.recipes.training.FIELDS)."""
+    from dampnet.recipes.training import FIELDS
+
+    return FIELDS[name].help()
+
+
 def _objective(kind: str, v) -> str:
     """A numeric metric of the section's cells (what the summary ranks, lower is better)."""
     valid = objectives(kind)
     if v not in valid:
         raise _Bad(f"{_show(v)} is not a {kind} metric; valid: {', '.join(valid)}")
     return v
+
+
+def _control_laws() -> tuple[str, ...]:
+    """A simulation cell's controllers: the control-law registry's names (dampnet.recipes.control_laws)."""
+    from dampnet.recipes import control_laws
+
+    return control_laws.names()
 
 
 def _algorithms() -> tuple[str, ...]:
@@ -328,6 +352,10 @@ TRAINING_PARAMS = [
     Param("holdout_voltage", "holdout_voltage", _training("holdout_voltage", none="none"), 2.25, kind="float",
           help="[V], or 'none'"),
     Param("activation", "activation", _choice(("tanh", "sigmoid"), "an activation"), "tanh"),
+    Param("restarts", "restarts", _restarts, 1, help=_request_help("restarts") + "; default 1, one training"),
+    Param("average", "average", _training("average"), 1, kind="int", help=_request_help("average")),
+    Param("restart_score", "restart_score", _choice(_restart_scores, "a restart score"), "interpolation",
+          help=_request_help("restart_score")),
 ]
 
 SIMULATION_PARAMS = [
@@ -335,13 +363,15 @@ SIMULATION_PARAMS = [
           help="'default', a model directory or model.json, a lookup-table JSON, 'truth', "
                "'truth:EFFECT,...', 'linear:C' [N s/m]"),
     Param("road", "roads", _text, None, axis=True, input="road",
-          help="impulse, bump, sweep, rough, iso:A..iso:H, or a CSV distance_m,elevation_m"),
-    Param("road_seed", "road_seeds", _int(0), 0, axis=True, kind="int", help="seed of rough and iso roads"),
+          help="a road by name (dampnet.recipes.roads), or a CSV distance_m,elevation_m"),
+    Param("road_seed", "road_seeds", _int(0), 0, axis=True, kind="int",
+          help="seed of the random roads (a road's seed parameter: rough, iso)"),
     Param("road_length_m", "road_length_m", _float(positive=True), 200.0, kind="float",
-          help="length of iso roads [m]"),
+          help="length of the roads that take one [m] (a road's length_m parameter: iso)"),
     Param("speed", "speeds", _in(limits.SPEED_M_S), 10.0, axis=True, kind="float",
           help=f"{limits.SPEED_M_S.text()}"),
-    Param("controller", "controllers", _choice(CONTROLLERS, "a controller"), "passive_high", axis=True),
+    Param("controller", "controllers", _choice(_control_laws, "a controller"), "passive_high", axis=True,
+          help="a control law by name (dampnet.recipes.control_laws)"),
 ]
 
 def _maneuver_tests() -> tuple[str, ...]:
@@ -548,12 +578,28 @@ class _Parser:
                 raise self.fail(f"{kind}.random", both[0].split(".")[-1],
                                 f"is also set in [{kind}]: a parameter is either swept on the grid or "
                                 "drawn at random")
+        if kind == "training":
+            self.check_averages(axes)
         if kind == "fullcar" and not objective_given:
             from dampnet.recipes.maneuvers import default_objective
 
             tests = random.dists["test"][1] if random is not None and "test" in random.dists else axes["test"]
             objective = default_objective(tests) or objective
         return Section(kind, axes, random, objective, given)
+
+    def check_averages(self, axes: dict[str, list]) -> None:
+        """Each grid point's average within its restarts and the runtime's width (as `dampnet train`
+        checks --average), when the spec is read; 'auto' restarts are known with the data."""
+        from dampnet.training.restarts import check_average
+
+        for r in axes["restarts"]:
+            for a in axes["average"]:
+                for h in axes["hidden"]:
+                    for score in axes["restart_score"]:
+                        try:
+                            check_average(a, a if isinstance(r, str) else r, h, score)
+                        except ValueError as e:
+                            raise self.fail("training", "average", str(e)) from None
 
     def values(self, p: Param, v: Any, table: str) -> list:
         """A key's values: each item of a list, or the one value."""
@@ -699,17 +745,17 @@ def check_input(role: str, value: str, base: Path) -> None:
                        "'default', 'truth', 'truth:EFFECT,...' or 'linear:C')")
         if p.is_dir() and not (p / "model.json").is_file():
             raise _Bad(f"{_show(value)}: a directory without model.json: not a model directory")
-    elif role == "road":
-        key = value.lower()
-        if key in ROAD_NAMES:
-            return
-        if key.startswith("iso:"):
-            if value[4:].upper() not in "ABCDEFGH" or len(value) != 5:
-                raise _Bad(f"{_show(value)}: iso:CLASS takes a class A to H")
+    elif role == "road":     # a road by name (dampnet.recipes.roads) or a CSV distance profile
+        from dampnet.recipes import roads
+
+        if roads.is_named(value):
+            try:
+                roads.parse(value)
+            except ValueError as e:
+                raise _Bad(str(e)) from None
             return
         if not os.path.isfile(resolve(value, base)):
-            raise _Bad(f"{_show(value)}: not a road: use {', '.join(ROAD_NAMES)}, iso:A..iso:H or a CSV file "
-                       "distance_m,elevation_m")
+            raise _Bad(f"{_show(value)}: not a road: use {roads.usage()}")
 
 
 def resolve(value: str, base: Path) -> Path:

@@ -4,7 +4,8 @@
                              complete, cells done and failed (rewritten as the sweep runs)
     DIR/cells/<key>.json     one finished cell (parameters, input hashes, status, error, metrics),
                              written atomically (temporary file + rename) when it completes
-    DIR/models/<key>/        a training cell's model directory (model.json, metrics.json, model.h),
+    DIR/models/<key>/        a training cell's model directory (model.json, metrics.json, model.h,
+                             envelope.npz and envelope.json: the files `dampnet train` writes),
                              written before its cell file (dampnet.modeldir.save_model_dir)
     DIR/results.parquet, results.csv, summary.json, summary.txt, sensitivity_*.png
                              the table, the summary and the plots, written at the end
@@ -126,7 +127,7 @@ class Store:
 
             rel = f"{MODELS_DIR}/{cell.key}"
             save_model_dir(MlpModel.from_dict(model, f"cell {cell.key}"), result.get("metrics_json"),
-                           self.root / rel, force=True)
+                           self.root / rel, force=True, envelope=result.get("envelope"))
             rec["model_dir"] = rel
         write_json(self.cell_path(cell.key), rec, overwrite=True)
         return rec

@@ -1,10 +1,12 @@
 """One training cell, on a worker: a dataset in, a trained model and its metrics out.
 
-The same steps as `dampnet train DATA --add EFFECT ...`: each added effect goes through
-`dampnet.training.pipeline.apply_additions` with its parameters estimated from the data
-(dampnet.diagnosis.estimate), then `train_dataset` and `model_metrics`. Torch runs one thread
-(torch.set_num_threads(1) and threads=1): N workers use N cores, and a cell's result does not
-depend on the machine's core count.
+The same training as `dampnet train DATA --add EFFECT ...` and `dampnet.train`: the cell's
+parameters are a dampnet.recipes.training.TrainingRequest (each added effect with its parameters
+estimated from the data; restarts, average, restart_score), trained by its `plan(...).run`, which
+returns the model with its envelope: the cell's model directory holds what `dampnet train`'s does.
+Torch runs one thread and the restarts run one after another in the cell's process
+(torch.set_num_threads(1), threads=1, workers=1): N workers use N cores, and a cell's result does
+not depend on the machine's core count.
 """
 
 from __future__ import annotations
@@ -27,25 +29,29 @@ def dataset(params: dict[str, Any], value: Any):
 
 
 def run(params: dict[str, Any], inputs: dict[str, Any]) -> dict[str, Any]:
-    """{"metrics": the row's metrics, "model": model.json's dict, "metrics_json": metrics.json's}."""
+    """{"metrics": the row's metrics, "model": model.json's dict, "metrics_json": metrics.json's,
+    "envelope": the model's training envelope (the model directory's envelope.npz / .json)}."""
     import torch
 
-    from dampnet.diagnosis.estimate import estimate_parameters
-    from dampnet.training.pipeline import apply_additions, model_metrics, train_dataset
+    from dampnet.recipes.training import plan
 
     torch.set_num_threads(1)
     ds = dataset(params, inputs["dataset"])
-    kw: dict[str, Any] = {}
-    if params["features"]:
-        kw["features"] = list(params["features"])
-    for effect in params["add"]:
-        kw, _ = apply_additions(kw, ds, effect, params=estimate_parameters(effect, ds))
-    model, info, split = train_dataset(
-        ds, algorithm=params["algorithm"], hidden=tuple(params["hidden"]), activation=params["activation"],
-        holdout_voltage=params["holdout_voltage"], decimate=params["decimate"], seed=params["seed"],
-        max_epochs=params["max_epochs"], max_fail=params["max_fail"], threads=1, **kw)
-    metrics = model_metrics(model, info, split)
-    return {"metrics": row_metrics(model, info, metrics), "model": model.to_dict(), "metrics_json": metrics}
+    trained = plan(ds, request(params)).run(threads=1, workers=1)
+    metrics = trained.metrics
+    return {"metrics": row_metrics(trained.model, trained.info, metrics), "model": trained.model.to_dict(),
+            "metrics_json": metrics, "envelope": trained.envelope}
+
+
+def request(params: dict[str, Any]):
+    """The cell's dampnet.recipes.training.TrainingRequest (its [training] parameters)."""
+    from dampnet.recipes.training import TrainingRequest
+
+    return TrainingRequest.of(
+        features=params["features"] or None, algorithm=params["algorithm"], hidden=tuple(params["hidden"]),
+        activation=params["activation"], holdout_voltage=params["holdout_voltage"], decimate=params["decimate"],
+        seed=params["seed"], max_epochs=params["max_epochs"], max_fail=params["max_fail"], add=params["add"],
+        restarts=params["restarts"], average=params["average"], restart_score=params["restart_score"] or "interpolation")
 
 
 def row_metrics(model, info, metrics: dict[str, Any]) -> dict[str, Any]:

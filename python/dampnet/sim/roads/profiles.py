@@ -398,22 +398,3 @@ def read_profile_csv(path: str | os.PathLike) -> Road:
     return Road(os.path.basename(path), "spatial", np.array(xs), np.array(zs),
                 meta=dict(input="csv", path=path))
 
-
-def make_road(spec: str, seed: int = 0) -> Road:
-    """A road from a command-line spec: impulse, bump, sweep, rough, iso:C, or a CSV path."""
-    s = spec.strip()
-    key = s.lower()
-    if key == "impulse":
-        return impulse()
-    if key == "bump":
-        return bump()
-    if key in ("sweep", "sine_sweep", "sine-sweep"):
-        return sine_sweep()
-    if key in ("rough", "thesis_rough", "thesis-rough"):
-        return thesis_rough_road(seed=seed)
-    if key.startswith("iso:") or key.startswith("iso8608:"):
-        return iso8608(s.split(":", 1)[1], seed=seed)
-    if os.path.exists(s) or key.endswith(".csv"):
-        return read_profile_csv(s)
-    raise RoadError(f"unknown road {spec!r}: use impulse, bump, sweep, rough, iso:A..iso:H or a CSV "
-                    f"file with columns distance_m,elevation_m")

@@ -1,0 +1,169 @@
+"""Control laws by name: the one vocabulary `dampnet simulate --control` and the sweep's
+[simulation] controllers read.
+
+Each law is calibrated on the damper it controls, as `dampnet study` calibrates them: passive at
+the damper's own low or high damping control (`damping_levels`), the switching laws between
+those two with the study's command filter (u_tau_s, default 5 ms), skyhook_continuous with
+c_sky, c_min, c_max from the vehicle and the damper (`continuous_skyhook`). Fields a front end
+sets itself (the sweep's [simulation.controller], e.g. u_passive) then replace the calibrated
+ones, and the Controller is checked by the runtime (`Controller.validate`).
+
+    ctrl = make("skyhook_onoff", spec, vehicle)            # dampnet.sim.vehicle.Controller
+    ctrl = make("passive", spec, vehicle, damping="low")   # the --damping / --u options
+    names()                                                # the laws, for help texts and specs
+
+The runtime's laws (`_core.CONTROLLER_KINDS`, but "external": its control comes from the
+caller, QuarterCar.simulate(u=...)) are registered from the runtime's list, so a law added
+there is a law here; passive_low / passive_high name the passive law at one level.
+Adding a law: `register(ControlLaw(...))` (docs/recipes.md, "Control laws").
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Callable, Mapping
+
+from dampnet import _core
+from dampnet.sim.vehicle import Controller, LoopError, Vehicle
+
+if TYPE_CHECKING:    # the calibration (numpy, the dampers) is imported when a law is made: help texts stay light
+    from dampnet.sim.dampers import DamperSpec
+
+#: the law whose control is the caller's (not a law a run can be asked for by name)
+EXTERNAL = "external"
+
+
+@dataclass(frozen=True)
+class LawContext:
+    """What a law is calibrated on: the damper (`spec`) and its `levels` ({"low", "high"}: its
+    low / high damping control [V or A]), the vehicle, the command filter `u_tau_s` [s], and the
+    passive law's options `damping` ("low" | "high") and `u` [V or A] (None: the level's)."""
+
+    spec: DamperSpec
+    levels: Mapping[str, float]
+    vehicle: Vehicle
+    u_tau_s: float
+    damping: str = "high"
+    u: float | None = None
+
+
+@dataclass(frozen=True)
+class ControlLaw:
+    """A registry entry: `name`, a doc line, the settings it takes from its context or
+    calibrates ({name: "unit: meaning"}), and `build(ctx)` -> Controller."""
+
+    name: str
+    doc: str
+    build: Callable[[LawContext], Controller]
+    params: Mapping[str, str] = dataclasses.field(default_factory=dict)
+    aliases: tuple[str, ...] = ()
+
+
+_REGISTRY: dict[str, ControlLaw] = {}
+_ALIASES: dict[str, str] = {}
+
+
+def register(law: ControlLaw) -> ControlLaw:
+    """Add a law to the vocabulary (its name and aliases must be new)."""
+    for n in (law.name, *law.aliases):
+        if n in _ALIASES or n == EXTERNAL:
+            raise ValueError(f"control law {n!r} is already registered")
+    _REGISTRY[law.name] = law
+    for n in (law.name, *law.aliases):
+        _ALIASES[n] = law.name
+    return law
+
+
+def unregister(name: str) -> None:
+    """Remove a law (tests register their own and remove them after)."""
+    law = _REGISTRY.pop(_ALIASES[name])
+    for n in (law.name, *law.aliases):
+        _ALIASES.pop(n, None)
+
+
+def names() -> tuple[str, ...]:
+    """The laws' names, in registration order."""
+    return tuple(_REGISTRY)
+
+
+def get(name: str) -> ControlLaw:
+    """The law of a name or alias; LoopError naming it and listing the laws otherwise."""
+    if isinstance(name, str) and name in _ALIASES:
+        return _REGISTRY[_ALIASES[name]]
+    why = ("takes its control from the caller (QuarterCar.simulate(u=...)), not from a control law by name"
+           if name == EXTERNAL else "is not a control law")
+    raise LoopError(f"{name!r} {why}; valid: " + ", ".join(repr(k) for k in _REGISTRY))
+
+
+def make(name: str, spec: DamperSpec, vehicle: Vehicle | None = None, *, u_tau_s: float | None = None,
+         damping: str = "high", u: float | None = None, fields: Mapping[str, Any] | None = None) -> Controller:
+    """The Controller of law `name` calibrated on `spec` (see the module docstring); `fields`:
+    Controller fields set over the calibrated ones. LoopError (one line) on a bad name or value."""
+    from dampnet.sim.calibration import SKYHOOK_COMMAND_TAU_S, damping_levels
+
+    law = get(name)
+    veh = vehicle or Vehicle()
+    if damping not in ("low", "high"):
+        raise LoopError(f"damping: expected 'low' or 'high', got {damping!r}")
+    ctx = LawContext(spec, damping_levels(spec, veh.dt), veh,
+                     SKYHOOK_COMMAND_TAU_S if u_tau_s is None else u_tau_s, damping, u)
+    ctrl = law.build(ctx)
+    settable = {f.name for f in dataclasses.fields(Controller)} - {"kind"}
+    unknown = sorted(set(fields or {}) - settable)
+    if unknown:
+        raise LoopError(f"control law {name!r}: {unknown[0]!r} is not a controller field to set")
+    ctrl = dataclasses.replace(ctrl, **dict(fields or {}))
+    ctrl.validate()
+    return ctrl
+
+
+def help_text() -> str:
+    """The laws, each with its doc line (for --help and docs)."""
+    return "; ".join(f"{law.name}: {law.doc}" for law in _REGISTRY.values())
+
+
+# -- the built-in laws ------------------------------------------------------------------------
+
+def _passive(level: str | None) -> Callable[[LawContext], Controller]:
+    def build(ctx: LawContext) -> Controller:
+        if level is None and ctx.u is not None:
+            return Controller(kind="passive", u_passive=ctx.u)
+        return Controller(kind="passive", u_passive=ctx.levels[level or ctx.damping])
+    return build
+
+
+_LEVEL = "V or A: the damper's own low / high damping control (damping_levels)"
+register(ControlLaw("passive", "a constant control: the damper's level --damping (low, high; default high), or --u",
+                    _passive(None), {"damping": "low | high", "u_passive": f"{_LEVEL}, or --u"}))
+register(ControlLaw("passive_low", "passive at the damper's low damping control", _passive("low"),
+                    {"u_passive": _LEVEL}))
+register(ControlLaw("passive_high", "passive at the damper's high damping control", _passive("high"),
+                    {"u_passive": _LEVEL}))
+def _skyhook_continuous(ctx: LawContext) -> Controller:
+    from dampnet.sim.calibration import continuous_skyhook
+
+    return continuous_skyhook(ctx.spec, dict(ctx.levels), ctx.vehicle, u_tau_s=ctx.u_tau_s)
+
+
+def _switching(kind: str) -> Callable[[LawContext], Controller]:
+    def build(ctx: LawContext) -> Controller:
+        from dampnet.sim.calibration import semi_active
+
+        return semi_active(kind, dict(ctx.levels), ctx.u_tau_s)
+    return build
+
+
+for _kind in _core.CONTROLLER_KINDS:
+    if _kind in ("passive", EXTERNAL):
+        continue
+    if _kind == "skyhook_continuous":
+        register(ControlLaw(_kind, "the runtime's continuous skyhook, c_sky / c_min / c_max calibrated on the "
+                            "damper and the vehicle as in `dampnet study`",
+                            _skyhook_continuous,
+                            {"u_soft, u_hard": _LEVEL, "c_sky, c_min, c_max": "N s/m: calibrated",
+                             "u_tau_s": "s: command filter"}))
+    else:
+        register(ControlLaw(_kind, f"the runtime's {_kind} between the damper's low and high damping",
+                            _switching(_kind),
+                            {"u_soft, u_hard": _LEVEL, "u_tau_s": "s: command filter"}))

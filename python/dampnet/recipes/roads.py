@@ -1,0 +1,263 @@
+"""Road profiles by name: the one vocabulary `dampnet simulate --road`, the sweep's [simulation]
+roads and `dampnet plan-tests`'s built-in cases read.
+
+A road is named as `NAME` or `NAME:ARGS`, ARGS a comma-separated list of `key=value` (a
+parameter of the road, in its unit) or one bare value for the road's positional parameter:
+
+    impulse             bump:height_m=0.08          sweep            rough
+    iso:C               iso:class=E,length_m=100    rough:seed=3     a CSV file distance_m,elevation_m
+
+Names are case-insensitive and each road keeps its older spellings as aliases (sine_sweep,
+sine-sweep; thesis_rough, rough-road; iso8608:C). The numbers live in
+dampnet.sim.roads.profiles; an entry here only names a profile, lists its parameters (unit,
+default, meaning) and builds it. Parameters a front end sets from its own options (`seed` from
+--seed or the sweep's road_seeds; `length_m` from the sweep's road_length_m) are passed as
+`context`; a value written in the name wins over the context's.
+
+    req = parse("iso:E")          # RoadRequest; RoadError naming the registry's roads otherwise
+    road = req.build(seed=2)      # the dampnet.sim.roads.Road
+    road = build("rough", seed=1) # parse + build, or a CSV profile for a path
+
+Adding a road: `register(RoadKind(...))` (docs/recipes.md, "Roads"); every front end then
+takes it: the CLI's help, the sweep's allowed values and plan-tests' cases come from here.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from typing import Any, Callable, Mapping
+
+from dampnet.sim.roads.profiles import (ISO_CLASSES, Road, RoadError, bump, impulse, iso8608, read_profile_csv,
+                                        sine_sweep, thesis_rough_road)
+
+#: the speeds [m/s] plan-tests runs a distance profile at (the thesis's rough road: 10 and 20 m/s)
+CASE_SPEEDS_M_S = (10.0, 20.0)
+
+
+@dataclass(frozen=True)
+class RoadParam:
+    """One parameter of a road: its name, unit (SI; "" for none), default, meaning and the type
+    a value written in a road's name is read as (float, int or str)."""
+
+    name: str
+    unit: str
+    default: Any
+    doc: str
+    kind: type = float
+
+    def read(self, value: Any, road: str) -> Any:
+        """`value` (text from a name, or a front end's value) as this parameter's type."""
+        try:
+            if self.kind is int:
+                if isinstance(value, bool) or (isinstance(value, float) and not value.is_integer()):
+                    raise ValueError
+                return int(value)
+            return self.kind(value.strip() if isinstance(value, str) else value)
+        except (TypeError, ValueError):
+            what = {float: "a number", int: "a whole number"}.get(self.kind, self.doc)
+            unit = f" [{self.unit}]" if self.unit else ""
+            raise RoadError(f"road {road!r}: {self.name}: expected {what}{unit}, got {value!r}") from None
+
+    def text(self) -> str:
+        unit = f" [{self.unit}]" if self.unit else ""
+        return f"{self.name}{unit} (default {self.default}): {self.doc}"
+
+
+@dataclass(frozen=True)
+class RoadKind:
+    """A registry entry: `name`, older spellings (`aliases`), `profile` "spatial" (elevation over
+    distance: a speed applies) or "temporal" (displacement over time), its parameters, a doc
+    line, `positional` (the parameter a bare NAME:VALUE sets) and `build(params)` -> Road, params
+    every parameter by name (the defaults filled in)."""
+
+    name: str
+    doc: str
+    profile: str
+    build: Callable[[Mapping[str, Any]], Road]
+    params: tuple[RoadParam, ...] = ()
+    aliases: tuple[str, ...] = ()
+    positional: str | None = None
+    case_speeds_m_s: tuple[float, ...] = CASE_SPEEDS_M_S
+
+    def __post_init__(self) -> None:
+        if self.profile not in ("spatial", "temporal"):
+            raise RoadError(f"road {self.name!r}: profile must be 'spatial' or 'temporal', got {self.profile!r}")
+        if self.positional is not None and self.positional not in self.param_names():
+            raise RoadError(f"road {self.name!r}: positional {self.positional!r} is not one of its parameters")
+
+    def param_names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.params)
+
+    def usage(self) -> str:
+        """How the road is written, e.g. 'iso:CLASS'."""
+        return f"{self.name}:{self.positional.upper()}" if self.positional else self.name
+
+
+@dataclass(frozen=True)
+class RoadRequest:
+    """A parsed road name: the entry, the parameters written in the name and the text itself."""
+
+    kind: RoadKind
+    given: Mapping[str, Any]
+    text: str
+
+    @property
+    def profile(self) -> str:
+        return self.kind.profile
+
+    def takes(self, param: str) -> bool:
+        return param in self.kind.param_names()
+
+    def params(self, **context: Any) -> dict[str, Any]:
+        """Every parameter: the name's, else the context's (those the road has), else the default."""
+        out = {}
+        for p in self.kind.params:
+            if p.name in self.given:
+                out[p.name] = self.given[p.name]
+            elif context.get(p.name) is not None:
+                out[p.name] = p.read(context[p.name], self.text)
+            else:
+                out[p.name] = p.default
+        return out
+
+    def build(self, **context: Any) -> Road:
+        return self.kind.build(self.params(**context))
+
+
+_REGISTRY: dict[str, RoadKind] = {}
+_ALIASES: dict[str, str] = {}
+
+
+def register(kind: RoadKind) -> RoadKind:
+    """Add a road to the vocabulary (its name and aliases must be new)."""
+    for n in (kind.name, *kind.aliases):
+        if n.lower() in _ALIASES:
+            raise ValueError(f"road {n!r} is already registered (as {_ALIASES[n.lower()]!r})")
+        if ":" in n or "," in n or "=" in n:
+            raise ValueError(f"road name {n!r}: no ':', ',' or '=' in a name")
+    _REGISTRY[kind.name] = kind
+    for n in (kind.name, *kind.aliases):
+        _ALIASES[n.lower()] = kind.name
+    return kind
+
+
+def unregister(name: str) -> None:
+    """Remove a road (tests register their own and remove them after)."""
+    kind = _REGISTRY.pop(_ALIASES[name.lower()])
+    for n in (kind.name, *kind.aliases):
+        _ALIASES.pop(n.lower(), None)
+
+
+def names() -> tuple[str, ...]:
+    """The registered roads' names (not the aliases), in registration order."""
+    return tuple(_REGISTRY)
+
+
+def get(name: str) -> RoadKind:
+    """The entry of a name or alias (case-insensitive); RoadError listing the roads otherwise."""
+    key = name.strip().lower()
+    if key not in _ALIASES:
+        raise RoadError(f"unknown road {name!r}: use {usage()}")
+    return _REGISTRY[_ALIASES[key]]
+
+
+def usage() -> str:
+    """The roads as a help text writes them, and the CSV alternative."""
+    return (", ".join(k.usage() for k in _REGISTRY.values())
+            + " (NAME:key=value,... sets a parameter), or a CSV file with columns distance_m,elevation_m")
+
+
+def is_named(text: str) -> bool:
+    """True when `text` names a registered road (whether its parameters are right or not)."""
+    return isinstance(text, str) and text.partition(":")[0].strip().lower() in _ALIASES
+
+
+def parse(text: str) -> RoadRequest:
+    """A road name (with its parameters) as a RoadRequest; RoadError naming what is wrong."""
+    if not isinstance(text, str):
+        raise RoadError(f"road: expected a name, got {text!r}")
+    head, colon, args = text.strip().partition(":")
+    kind = get(head)
+    given: dict[str, Any] = {}
+    params = {p.name: p for p in kind.params}
+    for item in (args.split(",") if colon else ()):
+        key, eq, value = item.partition("=")
+        if not eq:
+            if kind.positional is None or kind.positional in given:
+                raise RoadError(f"road {text!r}: {item!r}: expected key=value; {_param_list(kind)}")
+            key, value = kind.positional, item
+        key = key.strip()
+        if key not in params:
+            raise RoadError(f"road {text!r}: unknown parameter {key!r}; {_param_list(kind)}")
+        try:
+            given[key] = params[key].read(value, text)
+        except RoadError as e:
+            raise RoadError(f"{e} (write {kind.usage()} or {kind.name}:key=value,...)") from None
+    return RoadRequest(kind, given, text.strip())
+
+
+def _param_list(kind: RoadKind) -> str:
+    if not kind.params:
+        return f"{kind.name} takes no parameters"
+    return f"{kind.name}'s parameters: " + "; ".join(p.text() for p in kind.params)
+
+
+def build(text: str, **context: Any) -> Road:
+    """The Road `text` names (parse + build with `context`, e.g. seed=...), or the CSV profile at
+    the path `text` (a file that exists or a name ending in .csv); RoadError otherwise."""
+    if is_named(text):
+        return parse(text).build(**context)
+    s = text.strip() if isinstance(text, str) else text
+    if isinstance(s, str) and (os.path.exists(s) or s.lower().endswith(".csv")):
+        return read_profile_csv(s)
+    raise RoadError(f"unknown road {text!r}: use {usage()}")
+
+
+def help_text() -> str:
+    """Every road with its doc line and parameters (for --help texts and docs)."""
+    lines = []
+    for k in _REGISTRY.values():
+        also = f" (also {', '.join(k.aliases)})" if k.aliases else ""
+        lines.append(f"{k.usage()}{also}: {k.doc}" + (f"; {_param_list(k)}" if k.params else ""))
+    return "\n".join(lines)
+
+
+# -- the built-in roads (dampnet.sim.roads.profiles) ------------------------------------------
+
+_SEED = RoadParam("seed", "", 0, "seed of the random profile (--seed, the sweep's road_seeds)", int)
+
+
+def _iso_class(text: Any) -> str:
+    c = str(text).strip().upper()
+    if c not in ISO_CLASSES:
+        raise ValueError(c)
+    return c
+
+
+register(RoadKind(
+    "impulse", "the thesis's impulse: a raised-cosine pulse in time", "temporal",
+    lambda p: impulse(height_m=p["height_m"], duration_s=p["duration_s"]),
+    (RoadParam("height_m", "m", 0.05, "pulse height"), RoadParam("duration_s", "s", 0.05, "pulse duration"))))
+register(RoadKind(
+    "bump", "a raised-cosine bump along the road (its duration depends on the speed)", "spatial",
+    lambda p: bump(height_m=p["height_m"], length_m=p["width_m"]),
+    (RoadParam("height_m", "m", 0.05, "bump height"), RoadParam("width_m", "m", 0.5, "bump length"))))
+register(RoadKind(
+    "sweep", "the bounce sine sweep: a log sweep of constant displacement amplitude", "temporal",
+    lambda p: sine_sweep(amplitude_m=p["amplitude_m"], f0=p["f0_hz"], f1=p["f1_hz"], rate_oct_s=p["rate_oct_s"]),
+    (RoadParam("amplitude_m", "m", 0.005, "displacement amplitude"),
+     RoadParam("f0_hz", "Hz", 0.5, "start frequency"), RoadParam("f1_hz", "Hz", 20.0, "end frequency"),
+     RoadParam("rate_oct_s", "octave/s", 0.1, "sweep rate")),
+    aliases=("sine_sweep", "sine-sweep")))
+register(RoadKind(
+    "rough", "the thesis's rough road: RMS 0.016 m, 184 m (an ISO 8608 shape)", "spatial",
+    lambda p: thesis_rough_road(seed=p["seed"], rms_m=p["rms_m"]),
+    (_SEED, RoadParam("rms_m", "m", 0.016, "displacement RMS")),
+    aliases=("thesis_rough", "thesis-rough", "rough-road")))
+register(RoadKind(
+    "iso", "a random ISO 8608 profile of class A..H", "spatial",
+    lambda p: iso8608(p["class"], length_m=p["length_m"], seed=p["seed"]),
+    (RoadParam("class", "", "C", "ISO 8608 class A..H", _iso_class),
+     RoadParam("length_m", "m", 200.0, "profile length (the sweep's road_length_m)"), _SEED),
+    aliases=("iso8608",), positional="class"))
