@@ -33,10 +33,10 @@ import atheris
 import numpy as np
 
 from dampnet import schema  # noqa: F401  (loaded, so _instrument_dampnet covers it)
-from dampnet.coverage import coverage
+from dampnet.envelope.coverage import coverage
 from dampnet.envelope import (ENVELOPE_JSON, ENVELOPE_NPZ, EnvelopeError, build_envelope, load_envelope,
                               read_envelope, save_envelope)
-from dampnet.envelope_grid import grid_cells, runtime_flags
+from dampnet.envelope.grid import grid_cells, runtime_flags
 from dampnet.export import header_text
 from dampnet.modeldir import default_model
 

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from dampnet import paths
-from dampnet.export import write_header
+from dampnet.export.header import write_header
 from dampnet.model import MlpModel
 from dampnet.outputs import check_output_dir, staged_dir, write_json
 

@@ -41,7 +41,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true",
                    help="replace existing output files (never the model, its envelope or another file of its "
                         "directory; all outputs are checked before the first is written)")
-    # a microcontroller: dampnet.embedded (README: On a microcontroller)
+    # a microcontroller: dampnet.export.mcu (README: On a microcontroller)
     p.add_argument("--target", choices=("cortex-m4", "cortex-m7"), default=None,
                    help="a ready-to-build folder for this core (with --out DIR): model.h, the library's sources, "
                         "a CMakeLists.txt with the model's capacities, the toolchain file, an example firmware")
@@ -129,10 +129,10 @@ def _fmu_start_values(args) -> tuple[dict, dict]:
 
 
 def _export_fmu(model, args, envelope, carries: str) -> None:
-    from dampnet.fmu import build_fmu
-    from dampnet.fmu.damper import MODEL_IDENTIFIER as DAMPER
-    from dampnet.fmu.description import PLATFORM
-    from dampnet.fmu.quarter_car import MODEL_IDENTIFIER as QUARTER_CAR
+    from dampnet.export.fmu import build_fmu
+    from dampnet.export.fmu.damper import MODEL_IDENTIFIER as DAMPER
+    from dampnet.export.fmu.description import PLATFORM
+    from dampnet.export.fmu.quarter_car import MODEL_IDENTIFIER as QUARTER_CAR
 
     vehicle, controller = _fmu_start_values(args)
     interface = args.interface or ("both" if args.what == "damper" else "cs")
@@ -147,8 +147,8 @@ def _export_fmu(model, args, envelope, carries: str) -> None:
 
 
 def _export_target(args) -> int:
-    """--target CPU --out DIR: dampnet.embedded.export_target."""
-    from dampnet.embedded import capacities_for, export_target
+    """--target CPU --out DIR: dampnet.export.mcu.export_target."""
+    from dampnet.export.mcu import capacities_for, export_target
     from dampnet.model import ModelError
     from dampnet.modeldir import load_model
 

@@ -37,8 +37,8 @@ def run(args) -> int:
     from dampnet.outputs import check_run_dir
     from dampnet.sim.dampers import load_spec, lookup_spec, truth_spec
     from dampnet.sim.plots import write_plots
-    from dampnet.sim.report import text_tables, without_arrays
-    from dampnet.sim.study import INPUTS_FILE, neural_inputs, run_study
+    from dampnet.sim.quarter_car.report import text_tables, without_arrays
+    from dampnet.sim.quarter_car.study import INPUTS_FILE, neural_inputs, run_study
 
     out = Path(args.out)
     try:
@@ -72,7 +72,7 @@ def run(args) -> int:
 
     table = text_tables(res)
     if vehicle is not None:
-        from dampnet.fullcar.study import text_table
+        from dampnet.sim.full_car.study import text_table
 
         table += "\n\nfull vehicle (chapter 5.2)\n" + text_table(vehicle)
     try:
@@ -115,10 +115,10 @@ def _worst_run(res: dict, name: str) -> str:
 
 
 def _vehicle_study(specs, args) -> dict:
-    """The full-vehicle comparison (dampnet.fullcar.study) of the study's models: BSST (a 4x
+    """The full-vehicle comparison (dampnet.sim.full_car.study) of the study's models: BSST (a 4x
     faster sweep with --quick) and the lane change, low / high damping and on-off skyhook."""
-    from dampnet.fullcar import maneuvers
-    from dampnet.fullcar.study import run_study as run_vehicle
+    from dampnet.sim.full_car import maneuvers
+    from dampnet.sim.full_car.study import run_study as run_vehicle
 
     tests = {"bsst_heave": maneuvers.bsst(args.dt, rate_oct_s=1.0 if args.quick else 0.25),
              "dlc": maneuvers.dlc(args.dt)}

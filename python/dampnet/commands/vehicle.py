@@ -50,8 +50,8 @@ def check_options(args) -> None:
 
 
 def _maneuver(args):
-    from dampnet.fullcar import maneuvers
-    from dampnet.fullcar.runs import DEFAULT_SPEED_KMH
+    from dampnet.sim.full_car import maneuvers
+    from dampnet.sim.full_car.runs import DEFAULT_SPEED_KMH
     from dampnet.sim.roads import RoadError
 
     if args.speed is not None and args.test == "bsst":
@@ -72,8 +72,8 @@ def run(args) -> int:
 
     import numpy as np
 
-    from dampnet.fullcar.plots import plot_test
-    from dampnet.fullcar.runs import run as run_test
+    from dampnet.sim.full_car.plots import plot_test
+    from dampnet.sim.full_car.runs import run as run_test
     from dampnet.model import ModelError
     from dampnet.outputs import check_run_dir, json_text, staged_files
     from dampnet.sim.dampers import load_spec
@@ -94,7 +94,7 @@ def run(args) -> int:
         print(f"dampnet: error: {e}", file=sys.stderr)
         return 2
     meta = {"schema": RUN_SCHEMA, **{k: v for k, v in res.items() if k != "arrays"}}
-    if "coverage" in res:   # a neural model: the verdict at the top (dampnet.coverage)
+    if "coverage" in res:   # a neural model: the verdict at the top (dampnet.envelope.coverage)
         meta["extrapolated"] = res["coverage"]["extrapolated"]
     title = f"{spec.name}, {args.damping} damping: {man.name}"
     try:
@@ -102,8 +102,8 @@ def run(args) -> int:
             np.savez_compressed(tmp / "run.npz", **res["arrays"])
             plot_test(args.test, {spec.name: res}, tmp / "vehicle.png", title)
             if "coverage" in res:
-                from dampnet.coverage import fullcar_inputs
-                from dampnet.coverage_plot import plot_coverage
+                from dampnet.envelope.coverage import fullcar_inputs
+                from dampnet.envelope.plot import plot_coverage
 
                 per = fullcar_inputs(spec.obj, res["arrays"])
                 plot_coverage(spec.obj, {f"{spec.name} {c}": X for c, X in zip(("FL", "FR", "RL", "RR"), per)},
@@ -127,7 +127,7 @@ def run(args) -> int:
                 f"roll rate RMS {m['roll_rate_rms_deg_s']:.2f} deg/s")
     print(f"{title}: {line} -> {out}")
     if "coverage" in res:
-        from dampnet.coverage import summary_line
+        from dampnet.envelope.coverage import summary_line
 
         print(summary_line(spec.name, res["coverage"]) + " (the four corners together)")
     return 0

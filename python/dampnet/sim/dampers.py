@@ -22,7 +22,7 @@ import numpy as np
 from dampnet import _core
 from dampnet.features import steady_inputs
 from dampnet.rig.truth import TruthDamper
-from dampnet.sim.loop import damper_from_model, truth_damper
+from dampnet.sim.quarter_car.loop import damper_from_model, truth_damper
 from dampnet.sim.vehicle import LoopError, Vehicle
 
 SPEC_KINDS = ("truth", "neural", "hybrid", "lookup", "linear")

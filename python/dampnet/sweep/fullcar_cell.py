@@ -2,10 +2,10 @@
 sweep, ISO 3888-1 double lane change, rough road), a damping setting and the full car's
 parameters in, the test's metrics out.
 
-The run is `dampnet.fullcar.runs.run` (the runtime's FullCar, as `dampnet vehicle`): the same
+The run is `dampnet.sim.full_car.runs.run` (the runtime's FullCar, as `dampnet vehicle`): the same
 damper spec at every corner, passive at its low or high damping setting or on-off skyhook per
 corner, its force at rest as the static force; [fullcar.vehicle] fields over the runtime's
-defaults. The test is built as `dampnet vehicle` builds it (dampnet.fullcar.maneuvers) at the
+defaults. The test is built as `dampnet vehicle` builds it (dampnet.sim.full_car.maneuvers) at the
 cell's dt, with the cell's speed [km/h], bsst mode and sweep, road profile and seed; the road
 test's rear wheels follow the front ones by the cell's wheelbase (a + b).
 """
@@ -23,9 +23,9 @@ def vehicle(params: dict[str, Any]) -> dict[str, Any]:
 
 
 def maneuver(params: dict[str, Any]):
-    """The cell's test (a dampnet.fullcar.maneuvers.Maneuver)."""
-    from dampnet.fullcar import maneuvers
-    from dampnet.fullcar.params import wheelbase
+    """The cell's test (a dampnet.sim.full_car.maneuvers.Maneuver)."""
+    from dampnet.sim.full_car import maneuvers
+    from dampnet.sim.full_car.params import wheelbase
 
     test, dt = params["test"], params["dt"]
     if test == "bsst":
@@ -51,7 +51,7 @@ def flat_metrics(metrics: dict[str, Any]) -> dict[str, Any]:
 
 def run(params: dict[str, Any], inputs: dict[str, Any]) -> dict[str, Any]:
     """{"metrics": the test's metrics, f_static_n and duration_s, "controller_settings": the law's fields}."""
-    from dampnet.fullcar.runs import run as run_test
+    from dampnet.sim.full_car.runs import run as run_test
     from dampnet.sweep.sim_cell import damper
 
     spec = damper(params, inputs["model"])

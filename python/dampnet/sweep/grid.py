@@ -166,7 +166,7 @@ def applicable(kind: str, params: dict[str, Any]) -> dict[str, Any]:
         if not str(p["dataset"]).startswith("rig:"):
             p["data_seed"] = p["rig_effects"] = None
     elif kind == "fullcar":
-        from dampnet.fullcar.runs import DEFAULT_SPEED_KMH
+        from dampnet.sim.full_car.runs import DEFAULT_SPEED_KMH
 
         test = p["test"]
         if test != "bsst":

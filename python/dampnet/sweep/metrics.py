@@ -4,17 +4,17 @@ Training (dampnet.sweep.train_cell): NRMSE = RMSE / the force range of the data 
 on (the hold-out tests, the training subsets), errors in N, times in s. Simulation
 (dampnet.sweep.sim_cell): dampnet.sim.ride.ride_metrics in SI units (m/s^2, m, N), the static
 damper force f_static_n [N], the transmissibility peak of sine-sweep roads. Full vehicle
-(dampnet.sweep.fullcar_cell): dampnet.fullcar.metrics of the cell's test, as `dampnet vehicle`
+(dampnet.sweep.fullcar_cell): dampnet.sim.full_car.metrics of the cell's test, as `dampnet vehicle`
 reports them (units in the names: m_s2 = m/s^2, rad_s2, deg, deg_s = deg/s, n = N; counts:
 cones_hit, cones; passed: no cone hit), the road test's dynamic tyre load RMS one column per
 wheel (fl, fr, rl, rr), the damper's force at rest f_static_n [N] and the run's duration_s [s];
 a metric the cell's test does not measure is empty.
-Both simulation kinds, for a neural or hybrid model (dampnet.coverage): time_outside_training_data,
+Both simulation kinds, for a neural or hybrid model (dampnet.envelope.coverage): time_outside_training_data,
 the share [0-1] of the run's time its damper inputs spent outside the model's training envelope,
 and extrapolated, the verdict "yes" or "no" (both empty for the truth, lookup and linear dampers).
 """
 
-#: coverage columns of the simulation kinds (dampnet.coverage; empty for non-neural dampers)
+#: coverage columns of the simulation kinds (dampnet.envelope.coverage; empty for non-neural dampers)
 COVERAGE = ("time_outside_training_data", "extrapolated")
 
 TRAINING = ("holdout_nrmse", "holdout_rmse_n", "holdout_max_abs_error_n", "lookup_holdout_nrmse",
@@ -39,7 +39,7 @@ TEXT = ("stop_reason", "features_used", "model_id", "passed", "extrapolated")
 
 
 def coverage_columns(res: dict) -> dict:
-    """The COVERAGE cells of a simulation result (dampnet.sim.runs.simulate, dampnet.fullcar.runs.run)."""
+    """The COVERAGE cells of a simulation result (dampnet.sim.quarter_car.runs.simulate, dampnet.sim.full_car.runs.run)."""
     cov = res.get("coverage")
     if cov is None:
         return {}

@@ -1,7 +1,7 @@
 """One simulation cell, on a worker: a damper model, a road, a speed, a controller and a quarter car
 in, the run's ride metrics out.
 
-The run is `dampnet.sim.runs.simulate` (the runtime's C++ loop through QuarterCar, as
+The run is `dampnet.sim.quarter_car.runs.simulate` (the runtime's C++ loop through QuarterCar, as
 `dampnet simulate`). Controllers are calibrated on the cell's damper as `dampnet simulate`
 calibrates them: passive_low / passive_high (passive = high) at the damper's own low / high
 damping control (`damping_levels`), the on-off laws between them with the study's 5 ms
@@ -85,7 +85,7 @@ def controller(params: dict[str, Any], spec, veh):
 
 def run(params: dict[str, Any], inputs: dict[str, Any]) -> dict[str, Any]:
     """{"metrics": ride metrics and f_static_n, "controller_settings": the law's fields}."""
-    from dampnet.sim.runs import simulate
+    from dampnet.sim.quarter_car.runs import simulate
 
     spec = damper(params, inputs["model"])
     prof = road(params, inputs["road"])

@@ -17,7 +17,7 @@ A spec has up to four tables:
   [simulation]  models, roads, road_seeds, road_length_m, speeds [m/s], controllers;
                 [simulation.vehicle] and [simulation.controller]: the quarter car's and the
                 control law's fields (a value or a list); objective
-  [fullcar]     full-vehicle cells (dampnet.fullcar.runs.run, as `dampnet vehicle`): models (as
+  [fullcar]     full-vehicle cells (dampnet.sim.full_car.runs.run, as `dampnet vehicle`): models (as
                 [simulation]), tests (bsst, dlc, road), damping (low, high, skyhook: every
                 corner), speeds_kmh [km/h] (dlc, road; default the test's: 120, 60), modes
                 (bsst: heave, pitch), profiles (road: thesis or an ISO 8608 class A..H),

@@ -95,7 +95,7 @@ class Envelope:
     threshold: float  # joint distance beyond which a point is outside [scaled units]
     params: dict[str, Any] = field(default_factory=dict)
     _tree: Any = field(default=None, repr=False, compare=False)
-    _runtime: Any = field(default=None, repr=False, compare=False)  # dampnet.envelope_grid's check, built once
+    _runtime: Any = field(default=None, repr=False, compare=False)  # dampnet.envelope.grid's check, built once
     #: where the arrays and the parameters came from, for messages: a name, or (npz, json) file names
     source: InitVar[Any] = None
 

@@ -7,8 +7,8 @@ from __future__ import annotations
 
 from typing import Callable
 
-from dampnet.fullcar.maneuvers import Maneuver
-from dampnet.fullcar.runs import DAMPING, run
+from dampnet.sim.full_car.maneuvers import Maneuver
+from dampnet.sim.full_car.runs import DAMPING, run
 from dampnet.sim.dampers import DamperSpec
 
 #: the metric of each test that the table shows first, and the others it shows
@@ -22,7 +22,7 @@ def run_study(specs: list[DamperSpec], tests: dict[str, Maneuver], damping=DAMPI
               progress: Callable[[str], None] | None = None, keep_runs: bool = False) -> dict:
     """{'results': {test: {damping: {model: metrics}}}, 'errors': ... vs the model named
     'truth' when there is one (relative, per headline metric), 'coverage': {test: {damping:
-    {model: dampnet.coverage result}}} for neural models, 'runs' (with keep_runs)}."""
+    {model: dampnet.envelope.coverage result}}} for neural models, 'runs' (with keep_runs)}."""
     results: dict = {}
     coverage: dict = {}
     runs: dict = {}
