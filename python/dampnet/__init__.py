@@ -52,7 +52,7 @@ _API: dict[str, tuple[str, str | None]] = {
     "evaluate": ("dampnet.evaluation.report", "evaluate"),
     "diagnose": ("dampnet.diagnosis.run", "diagnose"),
     "predict_force": ("dampnet.predict", "predict_force"),
-    "export_header": ("dampnet.export", "write_header"),
+    "export_header": ("dampnet.export.header", "write_header"),
     "QuarterCar": ("dampnet.sim.quarter_car.loop", "QuarterCar"),
     "damper_from_model": ("dampnet.sim.quarter_car.loop", "damper_from_model"),
     "rig": ("dampnet.rig", None),

@@ -18,7 +18,7 @@ EXPECTED = {
     "evaluate": "dampnet.evaluation.report.evaluate",
     "diagnose": "dampnet.diagnosis.run.diagnose",
     "predict_force": "dampnet.predict.predict_force",
-    "export_header": "dampnet.export.write_header",
+    "export_header": "dampnet.export.header.write_header",
     "QuarterCar": "dampnet.sim.quarter_car.loop.QuarterCar",
     "damper_from_model": "dampnet.sim.quarter_car.loop.damper_from_model",
     "MlpModel": "dampnet.model.MlpModel",
