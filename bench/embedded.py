@@ -9,7 +9,7 @@ beside emlearn's C for the same 3-30-1 network (bench/RESULTS.md, "On a microcon
                                                 # flash against instructions, DN_KERNEL_UNROLL 1/2/4/8
 
 What it does, per core (cortex-m4: mps2-an386, cortex-m7: mps2-an500), with the presets'
-configuration (python/dampnet/embedded.py: DEFAULT_CAPS, DEFAULT_KERNEL, -O3, -ffp-contract=off);
+configuration (bench/firmware_lab.py: DEFAULT_CAPS; python/dampnet/export/mcu.py: DEFAULT_KERNEL; -O3, -ffp-contract=off);
 builds go to --out-dir (default build/bench-embedded), so that runs with different options or
 from different checkouts need not share one:
 

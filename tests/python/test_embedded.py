@@ -262,7 +262,7 @@ def test_widening_without_double_arithmetic_is_exact_on_the_m4f(vectors, tmp_pat
 
 
 def test_exported_folded_floats_are_the_librarys_folding(vectors, model, tmp_path):
-    """P_FOLDED_INIT (python/dampnet/export.py folds in Python) holds what the C library's
+    """P_FOLDED_INIT (python/dampnet/export/header.py folds in Python) holds what the C library's
     load() makes of P_DESC_INIT, bit for bit: a host program loads both into Mlp<float> and
     compares every parameter, for the default model and random ones (tanh and sigmoid, one and
     two hidden layers, offsets folded into layer 1 or not)."""

@@ -345,7 +345,7 @@
  * overturned), so only a runaway reaches them: a damper that feeds energy in (a negative-slope
  * table, a callback), a step beyond the stability limit, a road far beyond ISO 8608 class H's at
  * speed. The quarter car and the full car check them at every step (and the Python reference
- * loop, dampnet.sim.reference_loop). */
+ * loop, dampnet.sim.quarter_car.reference_loop). */
 #define DN_PLAUSIBLE_TRAVEL_M 2.0
 #define DN_PLAUSIBLE_WHEEL_ROAD_M 5.0
 #define DN_PLAUSIBLE_DAMPER_SPEED_M_S 50.0
