@@ -33,7 +33,7 @@ import sys
 import numpy as np
 from dampnet import _core
 from dampnet.model import MlpModel
-from dampnet.sim.loop import QuarterCar, STATE_NAMES, damper_from_model
+from dampnet.sim.quarter_car.loop import QuarterCar, STATE_NAMES, damper_from_model
 
 FEATURES = ["velocity", "velocity_lag", "friction_state", "voltage_lag", "voltage"]
 RANGES = {"velocity": (-2.0, 2.0), "velocity_lag": (-2.0, 2.0), "friction_state": (-1.0, 1.0),

@@ -9,7 +9,7 @@ beside emlearn's C for the same 3-30-1 network (bench/RESULTS.md, "On a microcon
                                                 # flash against instructions, DN_KERNEL_UNROLL 1/2/4/8
 
 What it does, per core (cortex-m4: mps2-an386, cortex-m7: mps2-an500), with the presets'
-configuration (python/dampnet/embedded.py: DEFAULT_CAPS, DEFAULT_KERNEL, -O3, -ffp-contract=off);
+configuration (bench/firmware_lab.py: DEFAULT_CAPS; python/dampnet/export/mcu.py: DEFAULT_KERNEL; -O3, -ffp-contract=off);
 builds go to --out-dir (default build/bench-embedded), so that runs with different options or
 from different checkouts need not share one:
 
@@ -61,7 +61,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "python"))
 
-from dampnet import embedded as emb  # noqa: E402
+import firmware_lab as emb  # noqa: E402  (bench/, this script's folder)
 from dampnet.modeldir import load_model  # noqa: E402
 
 OUT_DEFAULT = ROOT / "build" / "bench-embedded"
@@ -309,7 +309,7 @@ def worst_steps(cpu: str, roads: dict[str, tuple[Path, object]], model, out: Pat
 
 def measure(cpu: str, vectors: Path, tiny: Path, model, out: Path, fp_contract: str = "off",
             loop_float: int | None = None, roads: dict | None = None) -> dict:
-    """loop_float None: the core's preset (dampnet.embedded.LOOP_FLOAT). roads: name -> (vectors
+    """loop_float None: the core's preset (dampnet.export.mcu.LOOP_FLOAT). roads: name -> (vectors
     header, Vectors) of the roads the worst step is looked for on (the first: `vectors`'s)."""
     tag = "" if loop_float is None else f"-loopfloat{int(loop_float)}"
     bdir = emb.build(cpu, out / f"{cpu}-{fp_contract}{tag}", vectors=vectors, fp_contract=fp_contract,
@@ -409,8 +409,8 @@ def main(argv=None) -> int:
     if why:
         print(f"bench/embedded.py: {why}", file=sys.stderr)
         return 2
-    if emb.ROOT != ROOT:  # an editable install of another checkout shadows this one's python/
-        print(f"bench/embedded.py: dampnet is imported from {emb.ROOT}, not {ROOT}: its sources would be built",
+    if emb.mcu.ROOT != ROOT:  # an editable install of another checkout shadows this one's python/
+        print(f"bench/embedded.py: dampnet is imported from {emb.mcu.ROOT}, not {ROOT}: its sources would be built",
               file=sys.stderr)
         return 2
     out = Path(a.out_dir).resolve()

@@ -21,7 +21,7 @@ from dampnet.rig import generate
 from dampnet.sim.calibration import damping_levels
 from dampnet.sim.dampers import neural_spec, truth_spec
 from dampnet.sim.roads import impulse
-from dampnet.sim.runs import simulate
+from dampnet.sim.quarter_car.runs import simulate
 from dampnet.sim.vehicle import Controller
 from dampnet.training.pipeline import train_dataset
 

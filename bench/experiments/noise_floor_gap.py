@@ -155,7 +155,7 @@ def distill(name: str, teachers: int, student_hidden: int, seeds: int, cache: st
     from pathlib import Path
 
     from dampnet.demo.run import HIDDEN_EFFECT, QUICK_PLAN
-    from dampnet.ensemble import average_networks
+    from dampnet.training.ensemble import average_networks
     from dampnet.evaluation.metrics import evaluate_predictions
     from dampnet.features import default_features
     from dampnet.model import MlpModel
@@ -194,7 +194,7 @@ def distill(name: str, teachers: int, student_hidden: int, seeds: int, cache: st
     ens, ens_pf = ratio([np.mean(ps, axis=0) for ps in zip(*t_preds)])
     print(f"teachers ({name}), seeds 0-{teachers - 1}: alone {np.median(alone):.2f} ({min(alone):.2f}-{max(alone):.2f}), "
           f"their mean {ens:.2f} ({' / '.join(f'{x:.1f}' for x in ens_pf)})", flush=True)
-    # groups of teachers as one network each (dampnet.ensemble: e.g. two of 30 hidden, one of 60)
+    # groups of teachers as one network each (dampnet.training.ensemble: e.g. two of 30 hidden, one of 60)
     group_ratios = []
     for g in range(teachers // groups if groups else 0):
         merged = average_networks(models[g * groups:(g + 1) * groups])

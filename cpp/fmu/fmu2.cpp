@@ -1,6 +1,6 @@
 // dampnet's FMU behind the FMI 2.0 C API, co-simulation and model exchange: the model of
 // fmu_select.hpp (the damper or the quarter car, with the generated model header), built by
-// python/dampnet/fmu/ into binaries/linux64/ and shipped in sources/ so an importer elsewhere
+// python/dampnet/export/fmu/ into binaries/linux64/ and shipped in sources/ so an importer elsewhere
 // can rebuild it (this file is the only source to compile; include path: sources/).
 // No exceptions, RTTI or operator new: the binary depends on libc and libm only.
 #define DN_STATIC 1  // header-only dampnet: no import/export decoration

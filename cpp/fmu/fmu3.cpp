@@ -1,6 +1,6 @@
 // dampnet's FMU behind the FMI 3.0 C API, co-simulation and model exchange: the model of
 // fmu_select.hpp (the damper or the quarter car, with the generated model header), built by
-// python/dampnet/fmu/ into binaries/x86_64-linux/ and shipped in sources/ with
+// python/dampnet/export/fmu/ into binaries/x86_64-linux/ and shipped in sources/ with
 // buildDescription.xml (this file is the only source to compile; include path: sources/).
 // Float64, Int32 and Enumeration (Int64 access) variables only; no clocks, no event indicators
 // (model exchange: step events when the discrete outputs change), no FMU state, no scheduled

@@ -1,7 +1,7 @@
 // The damper FMU's model: dampnet's damper (the MLP of the generated header "fmu_model.h",
 // prefix fmu_model, plus its physics terms) with the derived features' states.
 //
-// Value references (python/dampnet/fmu/damper.py writes the same in modelDescription.xml):
+// Value references (python/dampnet/export/fmu/damper.py writes the same in modelDescription.xml):
 //   0 x [m]  1 v [m/s]  2 a [m/s2]  3 u [control unit]  4 temperature [degC]      inputs
 //   5 force [N]                                                                   output (Real)
 //   6 status (dampnet status)  7 clamped_mask (bit i: input i clamped)            outputs (Integer)

@@ -3,7 +3,7 @@
 // the generated header "fmu_model.h" (prefix fmu_model, double precision, plus its physics
 // terms) and every vehicle and controller parameter.
 //
-// Value references (python/dampnet/fmu/quarter_car.py writes the same in modelDescription.xml):
+// Value references (python/dampnet/export/fmu/quarter_car.py writes the same in modelDescription.xml):
 //   0 z_r [m]  1 v_r [m/s]   the road at the END of the coming step (t + h), as dn_loop_input
 //   2 u [V]                  the control over the coming step (the 'external' law only)
 //   9 time                   FMI 3's independent variable (the wrapper answers it)

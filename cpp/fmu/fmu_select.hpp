@@ -1,4 +1,4 @@
-// Which model an FMU carries: "fmu_config.h", written by python/dampnet/fmu/ next to the
+// Which model an FMU carries: "fmu_config.h", written by python/dampnet/export/fmu/ next to the
 // model's header, defines DNFMU_GUID (the instantiation token of modelDescription.xml) and
 // DNFMU_QUARTER_CAR (1: the quarter car, 0: the damper).
 #pragma once

@@ -11,7 +11,7 @@ The first byte picks what the rest of the input is (one harness, one corpus):
      points, every value a float that may be NaN, Inf, 0, negative or huge, and now and then a
      wrong shape or an array left out), written as a valid .npz beside a matching envelope.json
 
-An envelope that loads must work: its k-d tree distance, its runtime grid (envelope_grid: the C++
+An envelope that loads must work: its k-d tree distance, its runtime grid (envelope.grid: the C++
 check), and, for the default model's (targets 0 and 1), coverage and the exported header.
 
 Run (from the repository root, in the project's venv with the `fuzz` extra):
@@ -33,10 +33,10 @@ import atheris
 import numpy as np
 
 from dampnet import schema  # noqa: F401  (loaded, so _instrument_dampnet covers it)
-from dampnet.coverage import coverage
+from dampnet.envelope.coverage import coverage
 from dampnet.envelope import (ENVELOPE_JSON, ENVELOPE_NPZ, EnvelopeError, build_envelope, load_envelope,
                               read_envelope, save_envelope)
-from dampnet.envelope_grid import grid_cells, runtime_flags
+from dampnet.envelope.grid import grid_cells, runtime_flags
 from dampnet.export import header_text
 from dampnet.modeldir import default_model
 

@@ -20,13 +20,17 @@ tests/python/test_layers.py with a check for import cycles):
   data                                dyno measurements: formats, readers, preprocessing
   features, terms                     model inputs (the runtime's registry plus their formulas), physics terms
   effects                             the one catalogue of physical effects (rig and diagnosis share its ids)
-  model, reference, predict           the model file, the one numpy forward, force on a test
-  export, modeldir                    C header, model directory
+  model                               the model file
+  envelope                            the training envelope: where the training data were, a run's coverage
+  reference, predict                  the one numpy forward, force on a test
   rig                                 the virtual shock dyno (a plant)
   evaluation, training, diagnosis     error tables; the training pipeline; missing physics
-  sim                                 the quarter-car loop, dampers, roads, the study
-  recipes                             the vocabulary of runs: roads, control laws, training requests
-  latency                             the latency benchmarks
+  sim                                 the quarter car and the full vehicle: loops, dampers, roads, studies
+  export, modeldir                    what `dampnet export` writes (header, ONNX, FMU, microcontroller
+                                      folder); the model directory
+  recipes                             the vocabulary of runs: roads, control laws, manoeuvres,
+                                      training requests, export targets
+  latency, sweep, planning            the latency benchmarks; sweeps on Dask; dyno tests to plan
   commands, demo, cli                 the command line
 """
 
@@ -49,9 +53,9 @@ _API: dict[str, tuple[str, str | None]] = {
     "evaluate": ("dampnet.evaluation.report", "evaluate"),
     "diagnose": ("dampnet.diagnosis.run", "diagnose"),
     "predict_force": ("dampnet.predict", "predict_force"),
-    "export_header": ("dampnet.export", "write_header"),
-    "QuarterCar": ("dampnet.sim.loop", "QuarterCar"),
-    "damper_from_model": ("dampnet.sim.loop", "damper_from_model"),
+    "export_header": ("dampnet.export.header", "write_header"),
+    "QuarterCar": ("dampnet.sim.quarter_car.loop", "QuarterCar"),
+    "damper_from_model": ("dampnet.sim.quarter_car.loop", "damper_from_model"),
     "rig": ("dampnet.rig", None),
     "roads": ("dampnet.sim.roads", None),
     "sim": ("dampnet.sim", None),

@@ -22,7 +22,7 @@ sample, y[k] = a y[k-1] + (1 - a) u[k], a = exp(-dt/tau), y[0] = u[0] (steady st
 the first sample); the Dahl state advances by each sample's travel |v| dt. In a loop the
 states have the runtime's exact updates (cpp/include/dampnet/damper_state.hpp: the control
 held over a step, the velocity a ramp over a step, the Dahl state by the step's net travel),
-used by dampnet.sim.reference_loop.NeuralLoopDamper; the two agree as the sample time
+used by dampnet.sim.quarter_car.reference_loop.NeuralLoopDamper; the two agree as the sample time
 goes to 0 (tests/python/test_loop_derived_features.py).
 
 `at_rest` is the value the feature takes when the damper is at rest, used for

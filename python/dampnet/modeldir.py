@@ -8,8 +8,8 @@ import os
 from pathlib import Path
 from typing import Any, Sequence
 
-from dampnet import paths
-from dampnet.export import write_header
+from dampnet.paths import default_model_path  # noqa: F401 (its home is dampnet.paths; imported from here too)
+from dampnet.export.header import write_header
 from dampnet.model import MlpModel
 from dampnet.outputs import check_output_dir, staged_dir, write_json
 
@@ -26,21 +26,6 @@ def model_file(path: str | os.PathLike) -> Path:
 def load_model(path: str | os.PathLike) -> MlpModel:
     """The model in `path`: a model.json file or a model directory holding one."""
     return MlpModel.load(model_file(path))
-
-
-def default_model_path() -> Path:
-    """export/dn_model_default.json: installed with the package, or in the source tree."""
-    here = Path(__file__).resolve()
-    candidates = [here.parents[2] / "export" / "dn_model_default.json"]
-    try:
-        candidates.insert(0, paths._installed_root() / "include" / "dn_model_default.json")
-    except Exception:  # the extension not importable: the source tree only
-        pass
-    for p in candidates:
-        if p.is_file():
-            return p
-    raise FileNotFoundError("dn_model_default.json not found (looked in: "
-                            + ", ".join(str(c) for c in candidates) + ")")
 
 
 def default_model() -> MlpModel:

@@ -1,4 +1,5 @@
-"""Where the installed C library and headers are, for compiling C programs against dampnet."""
+"""Where the installed C library, headers and default model are (for compiling C programs against
+dampnet, and for the MODEL spelled "default")."""
 
 from __future__ import annotations
 
@@ -33,3 +34,17 @@ def _installed_root() -> Path:
     from dampnet import _core
 
     return Path(_core.__file__).resolve().parent
+
+
+def default_model_path() -> Path:
+    """export/dn_model_default.json: installed with the package, or in the source tree."""
+    candidates = [_SRC_ROOT / "export" / "dn_model_default.json"]
+    try:
+        candidates.insert(0, _installed_root() / "include" / "dn_model_default.json")
+    except Exception:  # the extension not importable: the source tree only
+        pass
+    for p in candidates:
+        if p.is_file():
+            return p
+    raise FileNotFoundError("dn_model_default.json not found (looked in: "
+                            + ", ".join(str(c) for c in candidates) + ")")

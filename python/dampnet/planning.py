@@ -127,9 +127,9 @@ class RunInputs:
 # -- the runs --------------------------------------------------------------------------------
 
 def _case_runs(model, spec_obj, text: str) -> list[RunInputs]:
-    from dampnet.coverage import quarter_car_inputs
+    from dampnet.envelope.coverage import quarter_car_inputs
     from dampnet.sim.calibration import damping_levels
-    from dampnet.sim.runs import simulate
+    from dampnet.sim.quarter_car.runs import simulate
     from dampnet.sim.vehicle import Controller
 
     req, level = _case_road(text)
@@ -176,7 +176,7 @@ def _npz_inputs(model, arrays: dict, path: Path) -> np.ndarray:
 
 
 def _dir_runs(model, path: Path) -> list[RunInputs]:
-    from dampnet.coverage import fullcar_inputs
+    from dampnet.envelope.coverage import fullcar_inputs
 
     mj, npz = path / "metrics.json", path / "run.npz"
     if (path / "study.json").is_file():
@@ -214,8 +214,8 @@ def _dir_runs(model, path: Path) -> list[RunInputs]:
 
 
 def _study_runs(model, path: Path) -> list[RunInputs]:
-    """Every run of MODEL in a `dampnet study` directory (its inputs.npz, dampnet.sim.study.neural_inputs)."""
-    from dampnet.sim.study import INPUTS_FILE
+    """Every run of MODEL in a `dampnet study` directory (its inputs.npz, dampnet.sim.quarter_car.study.neural_inputs)."""
+    from dampnet.sim.quarter_car.study import INPUTS_FILE
 
     f = path / INPUTS_FILE
     if not f.is_file():

@@ -12,7 +12,7 @@ What dn_mlp_forward does (cpp/include/dampnet/dampnet.h, mlp.hpp `prepare_inputs
     dn_mlp_create refuses) -> out_offset (the kernel's DN_E_NONFINITE_OUTPUT).
 
 So the output is finite for every input. Used by the diagnosis (dampnet.diagnosis.context),
-the Python reference loop (dampnet.sim.reference_loop.NeuralLoopDamper) and the latency
+the Python reference loop (dampnet.sim.quarter_car.reference_loop.NeuralLoopDamper) and the latency
 benchmark's numpy candidate. It agrees with the kernel's double path and with
 dampnet.training.torch_forward to rounding (tests/python/test_reference_forward.py: 1e-9
 relative to the output range). Physics terms are not included (dampnet.predict adds them).

@@ -1,4 +1,4 @@
-"""Every public callable of dampnet._core (and dampnet.sim.loop) called with arbitrary arguments.
+"""Every public callable of dampnet._core (and dampnet.sim.quarter_car.loop) called with arbitrary arguments.
 
 Run as a script (tests/python/test_bindings_fuzz.py starts it in a subprocess, so that a
 crash of the interpreter is a failing test, not a dead pytest):
@@ -45,7 +45,7 @@ from hypothesis import HealthCheck, Phase, given, seed, settings
 from hypothesis import strategies as st
 
 from dampnet import _core
-from dampnet.sim import loop as dloop
+from dampnet.sim.quarter_car import loop as dloop
 
 faulthandler.enable()
 

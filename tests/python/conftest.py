@@ -13,6 +13,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from cbuild import ROOT, cmake_build  # noqa: E402
 
+# the firmware lab (bench/firmware_lab.py: cross builds, QEMU runs), which several tests drive
+sys.path.insert(0, str(ROOT / "bench"))
+
 
 @pytest.fixture(scope="session")
 def repo_root() -> Path:

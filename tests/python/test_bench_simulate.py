@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from dampnet import _core
-from dampnet.sim.loop import QuarterCar
+from dampnet.sim.quarter_car.loop import QuarterCar
 
 
 def _car(neural: bool = False) -> QuarterCar:
@@ -71,7 +71,7 @@ def test_out_misuse_is_refused():
 def test_no_u_means_zero_control_for_the_external_law():
     """simulate without u: the external law's control is 0 (clamped to its limits) for every
     step; before, an empty array stood in for u and was read past its end (garbage or a crash)."""
-    from dampnet.sim.loop import QuarterCar
+    from dampnet.sim.quarter_car.loop import QuarterCar
 
     car = QuarterCar(_core.Damper.linear(1500.0), {}, {"kind": "external", "u_min": -1.0})
     z, v = _road(200_000)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from dampnet import _core
-from dampnet.sim.loop import damper_from_model
+from dampnet.sim.quarter_car.loop import damper_from_model
 from dampnet.model import MlpModel
 
 KEYS = ["force", "u", "x", "v", "a", "acc_s", "acc_us", "features", "clamped_mask", "status"]

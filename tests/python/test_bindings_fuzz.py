@@ -36,7 +36,7 @@ def test_none_for_a_model_or_damper_raises_instead_of_crashing(tmp_path):
     proc = run_python("""
         import numpy as np
         from dampnet import _core
-        from dampnet.sim.loop import QuarterCar
+        from dampnet.sim.quarter_car.loop import QuarterCar
         calls = {
             "QuarterCar(None)": lambda: QuarterCar(None),
             "Loop(None)": lambda: _core.Loop(None),

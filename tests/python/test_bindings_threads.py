@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from dampnet import _core
-from dampnet.sim.loop import QuarterCar, damper_from_model
+from dampnet.sim.quarter_car.loop import QuarterCar, damper_from_model
 from loop_helpers import random_model
 
 BUSY = "already in use"

@@ -1,6 +1,6 @@
 """The compile-time options of a microcontroller build, on the host (no cross toolchain needed):
 a program and the library's sources the firmware links, built with the cortex-m4 preset's
-definitions (dampnet.embedded.target_defines: DN_LOOP_FLOAT 1, DN_DAMPER_KINDS neural only,
+definitions (dampnet.export.mcu.target_defines: DN_LOOP_FLOAT 1, DN_DAMPER_KINDS neural only,
 DN_ACCEL_FEATURES linear and explicit, DN_DAMPER_EVALS per step, DN_DOUBLE_KERNEL 0, the small
 kernel, DN_SMALL_CODE) and compiled with -Wdouble-promotion -Werror.
 
@@ -23,7 +23,7 @@ import numpy as np
 
 from cbuild import ROOT, compile_program
 from dampnet import _core
-from dampnet import embedded as emb
+import firmware_lab as emb  # bench/firmware_lab.py (the conftest puts bench/ on the path)
 from dampnet.modeldir import load_model
 
 PROGRAM = r"""
@@ -94,7 +94,7 @@ int main() {
 }
 """
 
-# the cortex-m4 preset's definitions, as dampnet.embedded gives them to its cross builds
+# the cortex-m4 preset's definitions, as dampnet.export.mcu gives them to its cross builds
 DEFINES = ["-DDN_STATIC"] + [f"-D{d}" for d in emb.target_defines("cortex-m4", emb.DEFAULT_CAPS)]
 
 

@@ -1,4 +1,4 @@
-"""Training-envelope coverage (dampnet.envelope, dampnet.coverage): the joint measure against a
+"""Training-envelope coverage (dampnet.envelope, dampnet.envelope.coverage): the joint measure against a
 brute-force computation, a trajectory inside the training cloud, the quarter-car impulse far
 outside it, per-input shares against a direct count, a model directory without an envelope, and
 the JSON fields of simulate, study and vehicle. Quick plan, few epochs."""
@@ -11,13 +11,13 @@ import numpy as np
 import pytest
 
 from dampnet.cli import main
-from dampnet.coverage import EXTRAPOLATED_SHARE, coverage, quarter_car_inputs
+from dampnet.envelope.coverage import EXTRAPOLATED_SHARE, coverage, quarter_car_inputs
 from dampnet.envelope import ENVELOPE_JSON, ENVELOPE_NPZ, build_envelope, load_envelope, training_samples
 from dampnet.features import feature_matrix
 from dampnet.sim.calibration import damping_levels
 from dampnet.sim.dampers import load_spec, neural_spec
 from dampnet.sim.roads import impulse
-from dampnet.sim.runs import simulate
+from dampnet.sim.quarter_car.runs import simulate
 from dampnet.sim.vehicle import Controller
 
 

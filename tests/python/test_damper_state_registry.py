@@ -115,7 +115,7 @@ def test_a_lag_without_one_base_feature_is_refused_naming_the_rule(name, source,
 
 
 def test_the_loop_state_ends_with_the_damper_block():
-    from dampnet.sim.loop import S, STATE_NAMES
+    from dampnet.sim.quarter_car.loop import S, STATE_NAMES
 
     k = len(_core.DAMPER_STATES)
     assert STATE_NAMES[-k:] == tuple(_core.DAMPER_STATES)
@@ -139,9 +139,9 @@ def test_the_reference_loops_damper_states_are_the_runtimes(names, params):
     from loop_helpers import random_model
 
     from dampnet.sim.dampers import neural_spec
-    from dampnet.sim.reference_loop import NeuralLoopDamper, run
+    from dampnet.sim.quarter_car.reference_loop import NeuralLoopDamper, run
     from dampnet.sim.roads import thesis_rough_road
-    from dampnet.sim.runs import simulate
+    from dampnet.sim.quarter_car.runs import simulate
     from dampnet.sim.vehicle import Controller, Vehicle
 
     model = random_model(names, seed=6, force_range=800.0, feature_params=params)
@@ -175,7 +175,7 @@ def test_the_reference_loops_damper_states_are_the_runtimes(names, params):
 def test_the_damper_fmus_states_are_the_registry_block():
     from loop_helpers import random_model
 
-    from dampnet.fmu.damper import STATES, VR_DERIV, VR_STATE, damper_variables
+    from dampnet.export.fmu.damper import STATES, VR_DERIV, VR_STATE, damper_variables
 
     assert [(name, k) for name, k, _doc in STATES] == [(name, k) for k, name in enumerate(_core.DAMPER_STATES)]
     model = random_model(["velocity", "current_lag", "velocity_lag", "friction_state", "current"],

@@ -57,10 +57,10 @@ def test_stateful_model_matches_fmpy_to_1e9(rig_tests, tmp_path):
 
 def test_envelope_flags_of_the_fmu_equal_the_runtime_check(rig_tests, tmp_path):
     """With the model's envelope (here built from the 1 Hz test's inputs alone), the FMU's
-    envelope_flags on the 3 Hz test equal dampnet.envelope_grid's flags of the inputs FMPy's
+    envelope_flags on the 3 Hz test equal dampnet.envelope.grid's flags of the inputs FMPy's
     record has (states held over its late step), with samples both inside and outside."""
     from dampnet.envelope import build_envelope
-    from dampnet.envelope_grid import runtime_flags
+    from dampnet.envelope.grid import runtime_flags
     from dampnet.features import feature_matrix
 
     model = random_model(STATEFUL, hidden=9, seed=4, feature_params=PARAMS)

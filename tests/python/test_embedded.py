@@ -36,7 +36,7 @@ import pytest
 import needs
 
 from cbuild import BUILD, ROOT, compile_program, run
-from dampnet import embedded as emb
+import firmware_lab as emb  # bench/firmware_lab.py (the conftest puts bench/ on the path)
 from dampnet.modeldir import load_model
 
 CPUS = sorted(emb.CPUS)
@@ -53,8 +53,8 @@ def vectors(model):
     why = emb.toolchain_missing()
     if why:
         pytest.fail(why, pytrace=False)
-    # the dampnet package imported is this checkout's (its builds use emb.ROOT's sources)
-    assert emb.ROOT == ROOT, f"dampnet imported from {emb.ROOT}, the tests are {ROOT}'s"
+    # the dampnet package imported is this checkout's (its export folders use emb.mcu.ROOT's sources)
+    assert emb.mcu.ROOT == ROOT, f"dampnet imported from {emb.mcu.ROOT}, the tests are {ROOT}'s"
     TEST_DIR.mkdir(parents=True, exist_ok=True)
     path = TEST_DIR / "dn_fw_vectors.h"
     v = emb.make_vectors(model)
@@ -262,7 +262,7 @@ def test_widening_without_double_arithmetic_is_exact_on_the_m4f(vectors, tmp_pat
 
 
 def test_exported_folded_floats_are_the_librarys_folding(vectors, model, tmp_path):
-    """P_FOLDED_INIT (python/dampnet/export.py folds in Python) holds what the C library's
+    """P_FOLDED_INIT (python/dampnet/export/header.py folds in Python) holds what the C library's
     load() makes of P_DESC_INIT, bit for bit: a host program loads both into Mlp<float> and
     compares every parameter, for the default model and random ones (tanh and sigmoid, one and
     two hidden layers, offsets folded into layer 1 or not)."""

@@ -1,4 +1,4 @@
-"""dampnet.ensemble.average_networks: K one-hidden-layer networks as one, whose output is their
+"""dampnet.training.ensemble.average_networks: K one-hidden-layer networks as one, whose output is their
 mean: checked against the members' own outputs in numpy (dampnet.reference) and in the C++
 runtime, with physics terms, and refused (naming the field) for members that cannot add up."""
 
@@ -9,10 +9,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from dampnet.ensemble import average_networks
+from dampnet.training.ensemble import average_networks
 from dampnet.model import ModelError
 from dampnet.predict import predict_force
-from dampnet.sim.loop import damper_from_model
+from dampnet.sim.quarter_car.loop import damper_from_model
 from loop_helpers import numpy_forward, random_model
 
 FEATURES = ["velocity", "acceleration", "voltage"]

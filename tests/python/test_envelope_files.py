@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 
 from dampnet.cli import main
-from dampnet.coverage import coverage
+from dampnet.envelope.coverage import coverage
 from dampnet.envelope import (ENVELOPE_JSON, ENVELOPE_NPZ, MAX_NPZ_BYTES, Envelope, EnvelopeError, build_envelope,
                               load_envelope, read_envelope, save_envelope)
-from dampnet.envelope_grid import grid_cells
+from dampnet.envelope.grid import grid_cells
 from dampnet.modeldir import default_model, save_model_dir
 from dampnet.sim.dampers import load_spec
 

@@ -1,5 +1,5 @@
 """The training envelope's bounded-time check (dampnet.h "Training envelope", dampnet::Envelope,
-dampnet.envelope_grid): the C++ check against a numpy reference written here from the header's
+dampnet.envelope.grid): the C++ check against a numpy reference written here from the header's
 definition, the grid of a quick-plan model against the k-d tree measure (training data inside,
 the held-out control level and the quarter-car impulse outside), refusals, a C program built from
 the exported header, and the FMUs' envelope_flags output against the runtime's flags."""
@@ -20,15 +20,15 @@ from cbuild import compile_program
 from dampnet import _core, paths
 from dampnet.cli import main
 from dampnet.envelope import Envelope, build_envelope
-from dampnet.envelope_grid import grid_cells, pairs, runtime_flags
+from dampnet.envelope.grid import grid_cells, pairs, runtime_flags
 from dampnet.export import write_header
 from dampnet.features import feature_matrix
 from dampnet.modeldir import save_model_dir
 from dampnet.sim.calibration import damping_levels
 from dampnet.sim.dampers import neural_spec
-from dampnet.sim.loop import QuarterCar, damper_from_model
+from dampnet.sim.quarter_car.loop import QuarterCar, damper_from_model
 from dampnet.sim.roads import impulse
-from dampnet.sim.runs import simulate
+from dampnet.sim.quarter_car.runs import simulate
 from dampnet.sim.vehicle import Controller
 from loop_helpers import random_model
 

@@ -21,10 +21,10 @@ from fmpy.validation import validate_fmu
 
 from dampnet import features
 from dampnet.cli import main
-from dampnet.fmu import FmuError, build_damper_fmu, build_fmu
+from dampnet.export.fmu import FmuError, build_damper_fmu, build_fmu
 from dampnet.modeldir import default_model, save_model_dir
 from dampnet.rig import generate
-from dampnet.sim.loop import damper_from_model
+from dampnet.sim.quarter_car.loop import damper_from_model
 from loop_helpers import random_model
 
 HYBRID_FEATURES = ["velocity", "acceleration", "voltage_lag", "velocity_lag", "friction_state", "displacement"]

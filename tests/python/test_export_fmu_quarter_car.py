@@ -15,9 +15,9 @@ import pytest
 from fmpy import read_model_description, simulate_fmu
 from fmpy.validation import validate_fmu
 
-from dampnet.fmu import FmuError, build_fmu
+from dampnet.export.fmu import FmuError, build_fmu
 from dampnet.modeldir import default_model
-from dampnet.sim.loop import QuarterCar, damper_from_model
+from dampnet.sim.quarter_car.loop import QuarterCar, damper_from_model
 from dampnet.sim.roads import thesis_rough_road
 from loop_helpers import random_model
 

@@ -64,7 +64,7 @@ def test_steady_inputs_are_the_derived_fields_the_runtime_damper_takes():
     state sgn(v)), usable as Damper.forces's keyword arguments."""
     from loop_helpers import random_model
 
-    from dampnet.sim.loop import damper_from_model
+    from dampnet.sim.quarter_car.loop import damper_from_model
 
     x, v, u = np.array([0.01, -0.02, 0.0]), np.array([0.3, -0.5, 0.0]), np.array([1.0, 2.0, 3.0])
     got = features.steady_inputs(x, v, u)
@@ -210,7 +210,7 @@ def test_the_header_carries_the_new_feature(trained):
 def test_the_runtime_refuses_the_new_feature_naming_it(trained):
     """The runtime reads feature names from dampnet.h only: a name it lacks is DN_E_UNKNOWN_NAME,
     reported with the name and the runtime's features."""
-    from dampnet.sim.loop import damper_from_model
+    from dampnet.sim.quarter_car.loop import damper_from_model
 
     with pytest.raises(ValueError, match=rf"{NEW}.*velocity_lag"):
         damper_from_model(trained[0])
@@ -228,9 +228,9 @@ def test_the_reference_loop_feeds_it_as_the_runtime_feeds_velocity_lag(new_featu
     from loop_helpers import random_model
 
     from dampnet.sim.dampers import neural_spec
-    from dampnet.sim.reference_loop import NeuralLoopDamper, run
+    from dampnet.sim.quarter_car.reference_loop import NeuralLoopDamper, run
     from dampnet.sim.roads import thesis_rough_road
-    from dampnet.sim.runs import simulate
+    from dampnet.sim.quarter_car.runs import simulate
     from dampnet.sim.vehicle import Controller, Vehicle
 
     # seed 6: a random network that keeps the car on the road (seed 5's feeds energy in and leaves

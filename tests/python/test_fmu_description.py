@@ -19,10 +19,10 @@ from fmpy.fmi2 import FMU2Slave
 from fmpy.fmi3 import FMU3Slave
 
 from dampnet import _core
-from dampnet.fmu import build_fmu
-from dampnet.fmu.damper import damper_description
-from dampnet.fmu.description import model_description
-from dampnet.fmu.quarter_car import quarter_car_description
+from dampnet.export.fmu import build_fmu
+from dampnet.export.fmu.damper import damper_description
+from dampnet.export.fmu.description import model_description
+from dampnet.export.fmu.quarter_car import quarter_car_description
 from dampnet.modeldir import default_model
 from test_export_fmu import hybrid_model
 

@@ -1,4 +1,4 @@
-"""The full vehicle's tests (dampnet.fullcar.maneuvers, metrics, runs, study) and `dampnet vehicle`:
+"""The full vehicle's tests (dampnet.sim.full_car.maneuvers, metrics, runs, study) and `dampnet vehicle`:
 the ISO 3888-1 geometry against the standard's numbers, the sweep, the rear wheels' delay, the
 tracks' coherence, cone counting on constructed paths, one run of each test, the CLI."""
 
@@ -9,7 +9,7 @@ import pytest
 
 from dampnet import _core
 from dampnet.cli import main
-from dampnet.fullcar import maneuvers, metrics, runs, study
+from dampnet.sim.full_car import maneuvers, metrics, runs, study
 from dampnet.recipes import maneuvers as recipes
 from dampnet.sim.dampers import linear_spec, lookup_spec
 from dampnet.sim.roads import RoadError, sweep_frequency

@@ -11,7 +11,7 @@ import pytest
 
 from dampnet import _core
 from dampnet.modeldir import default_model
-from dampnet.sim.loop import damper_from_model
+from dampnet.sim.quarter_car.loop import damper_from_model
 
 DT = 1e-3
 M_S_CORNER = 700.0  # the quarter car's sprung mass (thesis Table 5)

@@ -1,5 +1,5 @@
 """The runtime's full vehicle (dampnet._core.FullCar) against independent references:
-the linear model's matrices (dampnet.fullcar.linear, derived from energies) with scipy.linalg for
+the linear model's matrices (dampnet.sim.full_car.linear, derived from energies) with scipy.linalg for
 the modes and frequency responses, the linear bicycle model and the analytic roll gradient for
 steady cornering, and energy conservation of the undamped car under RK4."""
 
@@ -8,7 +8,7 @@ import pytest
 import scipy.linalg
 
 from dampnet import _core
-from dampnet.fullcar import linear
+from dampnet.sim.full_car import linear
 
 NAMES = _core.FULLCAR_STATE_NAMES
 Q_IDX = [NAMES.index(n) for n in linear.COORDINATES]

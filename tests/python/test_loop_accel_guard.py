@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from dampnet import _core
-from dampnet.sim.loop import S, QuarterCar, damper_from_model
+from dampnet.sim.quarter_car.loop import S, QuarterCar, damper_from_model
 from dampnet.model import MlpModel
 from test_loop_control import MS, MUS, added_mass_run, linear_mlp
 from test_loop_quarter_car import random_road

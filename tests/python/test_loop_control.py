@@ -11,7 +11,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from dampnet import _core
-from dampnet.sim.loop import S, QuarterCar, damper_from_model, truth_damper
+from dampnet.sim.quarter_car.loop import S, QuarterCar, damper_from_model, truth_damper
 from dampnet.model import MlpModel
 from loop_helpers import numpy_forward, random_model
 from test_loop_quarter_car import random_road

@@ -10,7 +10,7 @@ import pytest
 from scipy.interpolate import RegularGridInterpolator
 
 from dampnet import _core, terms as T
-from dampnet.sim.loop import add_terms, damper_from_model
+from dampnet.sim.quarter_car.loop import add_terms, damper_from_model
 from loop_helpers import numpy_forward, random_model
 
 rng = np.random.default_rng(42)

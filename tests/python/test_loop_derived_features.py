@@ -16,7 +16,7 @@ from scipy.interpolate import CubicSpline
 
 from dampnet.features import dahl_state, first_order_lag
 from dampnet.export import write_header
-from dampnet.sim.loop import QuarterCar, S, damper_from_model
+from dampnet.sim.quarter_car.loop import QuarterCar, S, damper_from_model
 from loop_helpers import numpy_forward, random_model
 
 FEATURES = ["velocity", "velocity_lag", "friction_state", "voltage"]

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from dampnet import _core
-from dampnet.sim.loop import QuarterCar, damper_from_model
+from dampnet.sim.quarter_car.loop import QuarterCar, damper_from_model
 from dampnet.model import MlpModel
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -14,7 +14,7 @@ import needs
 from cbuild import ROOT, compile_program
 from cdefs import MLP_CDEF
 from dampnet import paths
-from dampnet.sim.loop import S, QuarterCar, add_terms, damper_from_model
+from dampnet.sim.quarter_car.loop import S, QuarterCar, add_terms, damper_from_model
 from dampnet.model import MlpModel
 from test_loop_quarter_car import random_road
 

@@ -14,9 +14,9 @@ import pytest
 
 from dampnet import _core
 from dampnet.model import MlpModel
-from dampnet.sim import reference_loop
+from dampnet.sim.quarter_car import reference_loop
 from dampnet.sim.dampers import linear_spec, load_spec
-from dampnet.sim.loop import QuarterCar, damper_from_model
+from dampnet.sim.quarter_car.loop import QuarterCar, damper_from_model
 from dampnet.sim.vehicle import LoopError, Vehicle
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -127,7 +127,7 @@ def test_legitimate_runs_stay_far_inside_the_bounds():
     at 20 m/s) with the default model: well inside every bound (no false alarm)."""
     from dampnet.sim.dampers import neural_spec
     from dampnet.sim.roads import bump, thesis_rough_road
-    from dampnet.sim.runs import simulate
+    from dampnet.sim.quarter_car.runs import simulate
 
     spec = neural_spec(MlpModel.load(ROOT / "export" / "dn_model_default.json"))
     for road, speed in ((bump(), 10.0), (thesis_rough_road(), 20.0)):

@@ -13,7 +13,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from dampnet import _core
-from dampnet.sim.loop import S, QuarterCar
+from dampnet.sim.quarter_car.loop import S, QuarterCar
 
 MS, MUS, KS, KT = 700.0, 40.0, 15000.0, 200000.0
 C = 1500.0

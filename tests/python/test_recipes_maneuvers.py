@@ -24,8 +24,8 @@ SHORT_BSST = {"bsst_f0_hz": 2.0, "bsst_f1_hz": 4.0, "bsst_rate_oct_s": 1.0}
 def build_hump(dt, vehicle, speed_kmh, hump_height_m):
     """A half-cosine hump 2 m long, hump_height_m high, 5 m ahead of the front wheels, under
     both tracks; the rear wheels meet it a wheelbase later; 2 s at speed_kmh."""
-    from dampnet.fullcar.maneuvers import Maneuver
-    from dampnet.fullcar.params import wheelbase
+    from dampnet.sim.full_car.maneuvers import Maneuver
+    from dampnet.sim.full_car.params import wheelbase
 
     v = speed_kmh / 3.6
     t = np.arange(int(2.0 / dt) + 1) * dt
@@ -41,7 +41,7 @@ def build_hump(dt, vehicle, speed_kmh, hump_height_m):
 
 
 def hump_metrics(res, man, params):
-    from dampnet.fullcar.metrics import column
+    from dampnet.sim.full_car.metrics import column
 
     return {"hump_acc_peak_m_s2": float(np.max(np.abs(res["acc_z"]))),
             "hump_pitch_rate_peak_deg_s": float(np.max(np.abs(np.degrees(column(res, "q")))))}
@@ -50,7 +50,7 @@ def hump_metrics(res, man, params):
 @pytest.fixture
 def hump():
     """The test's manoeuvre, registered for one test: the recipe's two calls."""
-    from dampnet.fullcar.plots import plot_road
+    from dampnet.sim.full_car.plots import plot_road
 
     maneuvers.setting(maneuvers.Setting("hump_height_m", "m", "height of the hump", cli="--hump-height",
                                         metavar="M", sweep_key="hump_heights_m", axis=True))

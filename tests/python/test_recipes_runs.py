@@ -62,7 +62,7 @@ def _one_line_error(capsys, argv) -> str:
 def _direct(model: str, road_text: str, law: str, speed: float = 10.0) -> dict:
     """The run's metrics computed here from the registries' objects (not through a front end)."""
     from dampnet.sim.dampers import load_spec
-    from dampnet.sim.runs import simulate
+    from dampnet.sim.quarter_car.runs import simulate
     from dampnet.sim.vehicle import Vehicle
 
     spec, veh = load_spec(model), Vehicle()

@@ -14,7 +14,7 @@ from dampnet.diagnosis.context import model_force
 from dampnet.latency.python_bench import numpy_forward
 from dampnet.model import MlpModel
 from dampnet.reference import forward_of, mlp_forward
-from dampnet.sim.reference_loop import NeuralLoopDamper
+from dampnet.sim.quarter_car.reference_loop import NeuralLoopDamper
 from dampnet.training import torch_forward
 
 TOL = 1e-12  # of the output range

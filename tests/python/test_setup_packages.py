@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 import needs
-from dampnet import embedded
+import firmware_lab as embedded  # bench/firmware_lab.py
 
 ROOT = needs.ROOT
 #: where programs are called from: the package, the tests, the benchmarks, the examples, the fuzzers

@@ -22,9 +22,9 @@ from dampnet import _core
 from dampnet.cli import main
 from dampnet.sim.calibration import semi_active
 from dampnet.sim.dampers import linear_spec
-from dampnet.sim.loop import QuarterCar
+from dampnet.sim.quarter_car.loop import QuarterCar
 from dampnet.sim.roads import impulse
-from dampnet.sim.runs import simulate
+from dampnet.sim.quarter_car.runs import simulate
 from dampnet.sim.vehicle import VEHICLE_FIELDS_NOT_HERE, Controller, LoopError, Vehicle
 
 LAWS = list(_core.CONTROLLER_KINDS)
@@ -150,7 +150,7 @@ def _imports(path: Path) -> set[str]:
 
 def test_the_reference_loop_is_used_by_tests_only():
     users = [p.relative_to(PACKAGE) for p in PACKAGE.rglob("*.py")
-             if p.name != "reference_loop.py" and any(m.startswith("dampnet.sim.reference_loop")
+             if p.name != "reference_loop.py" and any(m.startswith("dampnet.sim.quarter_car.reference_loop")
                                                        for m in _imports(p))]
     assert users == []
 
@@ -166,7 +166,7 @@ def test_only_sim_loop_drives_the_runtime_loop_and_commands_do_not_import_each_o
 
 
 def test_the_reference_loop_refuses_what_it_does_not_mirror():
-    from dampnet.sim.reference_loop import LinearDamper, run
+    from dampnet.sim.quarter_car.reference_loop import LinearDamper, run
 
     z = np.zeros(3)
     with pytest.raises(LoopError, match="accel_feature 'implicit' and 'explicit', not 'linear'"):

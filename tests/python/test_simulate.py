@@ -11,9 +11,9 @@ import pytest
 from scipy.signal import lsim
 
 from dampnet.sim.dampers import DamperSpec, lookup_spec, neural_spec, truth_spec
-from dampnet.sim.reference_loop import LinearDamper, reference_damper, run
+from dampnet.sim.quarter_car.reference_loop import LinearDamper, reference_damper, run
 from dampnet.sim.roads import RoadError, Road, iso8608, thesis_rough_road
-from dampnet.sim.runs import simulate
+from dampnet.sim.quarter_car.runs import simulate
 from dampnet.sim.vehicle import Controller, LoopError, Vehicle
 
 
@@ -164,7 +164,7 @@ def test_skyhook_lowers_acceleration_against_passive_high(rough_runs, name, spee
 @pytest.mark.parametrize("name", ["truth", "neural"])
 @pytest.mark.parametrize("speed", [10.0, 20.0])
 def test_continuous_skyhook_lowers_acceleration_against_passive_low(rough_runs, name, speed):
-    """Against passive *low* damping (5 V) the continuous law helps, a little (dampnet.sim.study's
+    """Against passive *low* damping (5 V) the continuous law helps, a little (dampnet.sim.quarter_car.study's
     docstring: the soft setting is already above the best passive damping for acceleration RMS
     and a semi-active law can only add damping). On-off skyhook is above passive low.
 

@@ -10,7 +10,7 @@ import sys
 
 import pytest
 
-from dampnet.fullcar import maneuvers
+from dampnet.sim.full_car import maneuvers
 from dampnet.sim import limits
 from dampnet.sim.roads import RoadError, thesis_rough_road
 

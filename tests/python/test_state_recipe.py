@@ -18,7 +18,7 @@ fixed weights (tau = 20 ms); its force depends on the lag (a lagged spring of ~1
 2. Full car (dn_fullcar_*, four corners on different roads): the same per corner, x_lag read
    at each corner's block end (DN_FULLCAR_CORNER_DAMPER + DN_DS_X_LAG).
 3. Damper FMU (FMI 2, cpp/fmu/fmu2.cpp compiled with the same -include through
-   dampnet.fmu.build's extra_flags; modelDescription.xml from dampnet.fmu.damper with the
+   dampnet.export.fmu.build's extra_flags; modelDescription.xml from dampnet.export.fmu.damper with the
    Python registries mirroring extra_feature.h for the build only): co-simulation equals the
    recursion and the MLP; model exchange, integrated here by RK4 through
    fmi2SetContinuousStates / fmi2GetDerivatives, equals the ODE's closed-form solution.
@@ -30,7 +30,7 @@ Tolerances (each with its reason at its assert): x_lag 1e-12 of its peak (the sa
 double, only the coefficients' last-bit rounding differs), force 1e-9 of its peak (the runtime
 folds the mapminmax scalings into the weights: a different rounding order, ~1e-15), model
 exchange 1e-9 (RK4 at h = dt / 10 = tau / 200: global error ~ (h / tau)^4 ~ 6e-10), firmware
-dampnet.embedded.HOST_TOLERANCE = 1e-4 of each state's peak (float loop; test_embedded's).
+dampnet.export.mcu.HOST_TOLERANCE = 1e-4 of each state's peak (float loop; test_embedded's).
 Builds go to build/tests-recipe/ (the firmware's CMake build is cached there)."""
 
 from __future__ import annotations
@@ -293,7 +293,7 @@ def recipe_fmu(tmp_path_factory):
     -include extra_feature.h. Python's registries do not know the test feature (dampnet._core is
     built without the hooks), so for the build only they mirror extra_feature.h: the feature is
     registered in Python (dampnet.features.register_feature), _core's registries get its rows, and
-    dampnet.fmu.damper (which derives its variables from _core at import) is reloaded; all of it is
+    dampnet.export.fmu.damper (which derives its variables from _core at import) is reloaded; all of it is
     undone before the FMU is run."""
     needs.need_module("fmpy")
     needs.need_tool("g++")
@@ -301,8 +301,8 @@ def recipe_fmu(tmp_path_factory):
 
     from dampnet import _core
     from dampnet import features as feats
-    from dampnet.fmu import build as fmu_build
-    from dampnet.fmu import damper as fmu_damper
+    from dampnet.export.fmu import build as fmu_build
+    from dampnet.export.fmu import damper as fmu_damper
     from dampnet.model import MlpModel
 
     reg = extra_registry()
@@ -490,17 +490,17 @@ def _write_if_changed(path: Path, text: str) -> None:
 
 @pytest.fixture(scope="module")
 def firmware():
-    """cpp/embedded's firmware for the Cortex-M4F (dampnet.embedded's configuration: float loop,
+    """cpp/embedded's firmware for the Cortex-M4F (dampnet.export.mcu's configuration: float loop,
     float MLP, one evaluation per step) with the recipe's model, every translation unit compiled
     with -include extra_feature.h (CMAKE_C_FLAGS / CMAKE_CXX_FLAGS, after the core's flags that
     the toolchain file would otherwise give), C files also with -include recipe_model.h (the
     firmware's model macros, DN_FW_*). Run in QEMU (mps2-an386)."""
-    from dampnet import embedded as emb
+    import firmware_lab as emb
 
     why = emb.toolchain_missing()
     if why:
         pytest.fail(why, pytrace=False)
-    assert emb.ROOT == ROOT, f"dampnet imported from {emb.ROOT}, the tests are {ROOT}'s"
+    assert emb.mcu.ROOT == ROOT, f"dampnet imported from {emb.mcu.ROOT}, the tests are {ROOT}'s"
     WORK.mkdir(parents=True, exist_ok=True)
     _write_if_changed(WORK / "recipe_model.h", model_header())
     x = np.array([[0.1, 0.01], [-0.3, -0.02], [0.5, 0.0], [-1.5, 0.05], [0.0, -0.07]], np.float32)
@@ -513,7 +513,7 @@ def firmware():
              f"-DCMAKE_CXX_FLAGS={core} -include {EXTRA}"]
     gen = ["-G", "Ninja"] if shutil.which("ninja") and not (bdir / "CMakeCache.txt").is_file() else []
     # capacities for this 2-input model (the lean float kernel is compiled for exactly its
-    # capacity's input count, as `dampnet export --target` sets it: embedded.capacities_for)
+    # capacity's input count, as `dampnet export --target` sets it: dampnet.export.mcu.capacities_for)
     caps = {**emb.DEFAULT_CAPS, "INPUTS": len(FEATURES)}
     emb._run(["cmake", "-S", ROOT, "-B", bdir, *gen, *emb.cmake_args(FW_CPU, vec, caps=caps), *flags])
     emb._run(["cmake", "--build", bdir, "--parallel", "2", "--target", "dn_firmware"])
@@ -525,11 +525,11 @@ def test_firmware_runs_the_feature(firmware, hosts):
     """The firmware's loop state (every 100 steps and at the end), now ending with x_lag, equals
     the host quarter car in the same configuration (recipe_hosts fwloop: float MLP, one
     evaluation per step, linearised acceleration feature, on-off skyhook through a 5 ms filter)
-    within dampnet.embedded.HOST_TOLERANCE of each state's peak (the float loop's rounding; the
+    within dampnet.export.mcu.HOST_TOLERANCE of each state's peak (the float loop's rounding; the
     tolerance test_embedded uses), and x_lag there is not x; the MLP part's float forces equal
     the numpy MLP within 1e-5 of the force range (test_embedded's float-kernel tolerance)."""
     from dampnet import _core
-    from dampnet import embedded as emb
+    import firmware_lab as emb
 
     x_in, out = firmware
     assert out.errors == 0 and out.cpu == FW_CPU

@@ -9,11 +9,11 @@ import pytest
 from dampnet.sim.roads import impulse, sine_sweep, thesis_rough_road
 from dampnet.sim.dampers import DamperSpec
 from dampnet.sim.plots import write_plots
-from dampnet.sim.report import without_arrays, text_tables
-from dampnet.sim.study import run_study
+from dampnet.sim.quarter_car.report import without_arrays, text_tables
+from dampnet.sim.quarter_car.study import run_study
 
 KEYS = {"schema", "models", "truth", "settings", "impulse", "sine_sweep", "rough_road", "skyhook", "errors",
-        "coverage", "extrapolated"}  # dampnet.coverage: neural models only (empty for linear dampers)
+        "coverage", "extrapolated"}  # dampnet.envelope.coverage: neural models only (empty for linear dampers)
 
 
 def test_study_structure_and_tables(tmp_path):

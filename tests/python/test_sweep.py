@@ -188,7 +188,7 @@ def test_simulation_sweep_equals_quarter_car_simulate(client, trained, tmp_path)
     from dampnet.model import MlpModel
     from dampnet.sim.calibration import damping_levels
     from dampnet.sim.dampers import force_at_rest, neural_spec
-    from dampnet.sim.loop import QuarterCar, damper_from_model
+    from dampnet.sim.quarter_car.loop import QuarterCar, damper_from_model
     from dampnet.sim.ride import ride_metrics
     from dampnet.sim.roads import impulse, iso8608
     from dampnet.sim.vehicle import Vehicle
@@ -226,7 +226,7 @@ def test_simulation_sweep_equals_quarter_car_simulate(client, trained, tmp_path)
         # than the joint envelope's threshold from every training sample, counted directly from the
         # loop's recorded inputs (the default model has no envelope file: its ranges alone)
         from dampnet.envelope import read_envelope
-        from dampnet.sim.loop import columns
+        from dampnet.sim.quarter_car.loop import columns
 
         X = columns(res)["features"][:n]
         outside = np.any((X < model.sat_lo) | (X > model.sat_hi), axis=1)

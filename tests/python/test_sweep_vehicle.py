@@ -1,5 +1,5 @@
 """`dampnet sweep` full-vehicle cells ([fullcar]): a sweep on a LocalCluster of 2 worker processes
-equals dampnet.fullcar.runs.run cell by cell (exactly: the same runtime on the same inputs, the
+equals dampnet.sim.full_car.runs.run cell by cell (exactly: the same runtime on the same inputs, the
 metrics through the cell's JSON record, which keeps a float's every bit); random samples of the
 full car's fields are numpy's draws; a cell with a bad vehicle value is an error row naming the
 field; --resume reuses the finished cells; the grid drops what a test does not use; bad specs are
@@ -39,7 +39,7 @@ def client():
 
 def api_metrics(model: str, man, damping: str, vehicle: dict) -> dict:
     """The cell computed one by one through the fullcar API: its metrics as the table's columns."""
-    from dampnet.recipes.maneuvers import run as run_test   # dampnet.fullcar.runs.run with the test's metrics
+    from dampnet.recipes.maneuvers import run as run_test   # dampnet.sim.full_car.runs.run with the test's metrics
     from dampnet.sim.dampers import load_spec
 
     r = run_test(load_spec(model), man, damping, vehicle)
@@ -62,7 +62,7 @@ def assert_row_is(row, mine: dict, what) -> None:
 
 def test_fullcar_sweep_equals_fullcar_runs_one_by_one(client, tmp_path):
     from dampnet.evaluation.lookup import LookupTable
-    from dampnet.fullcar import maneuvers
+    from dampnet.sim.full_car import maneuvers
 
     lookup = tmp_path / "lookup.json"
     lookup.write_text(LookupTable(velocities=[-1.0, -0.1, 0.0, 0.1, 1.0], voltages=[0.0, 5.0],
@@ -91,7 +91,7 @@ def test_fullcar_sweep_equals_fullcar_runs_one_by_one(client, tmp_path):
 
 
 def test_random_vehicle_samples_errors_and_resume(client, tmp_path):
-    from dampnet.fullcar import maneuvers
+    from dampnet.sim.full_car import maneuvers
 
     spec = {"fullcar": {"models": ["linear:1500"], "tests": ["road"], "profiles": ["C"], "dt": DT,
                         "vehicle": {"k_t": [200000.0, -1.0]},

@@ -244,8 +244,8 @@ def test_model_improved_for_friction_and_compressibility_runs_in_the_runtime_loo
     assert np.all(np.isfinite(run["force"])) and np.ptp(run["force"]) > 100.0
     # the Python reference loop (the test oracle, its own feature-state updates) agrees
     from dampnet.sim.dampers import neural_spec
-    from dampnet.sim.reference_loop import reference_damper
-    from dampnet.sim.reference_loop import run as reference_loop
+    from dampnet.sim.quarter_car.reference_loop import reference_damper
+    from dampnet.sim.quarter_car.reference_loop import run as reference_loop
     from dampnet.recipes.roads import build as make_road
     from dampnet.sim.vehicle import Controller, Vehicle
 

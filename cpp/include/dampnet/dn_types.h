@@ -93,7 +93,7 @@ typedef struct dn_mlp_folded_f {
 
 /*---- Training envelope: a bounded-time "is the model guessing here?" flag ----*/
 
-/* The coarse joint envelope of a model's training data (dampnet.envelope_grid writes it; a
+/* The coarse joint envelope of a model's training data (dampnet.envelope.grid writes it; a
  * generated header's P_ENVELOPE_DESC_INIT when the model was exported with its envelope).
  * Every input's training range [lo, hi] is cut into DN_ENVELOPE_CELLS cells (one cell for a
  * constant input, hi = lo); for every pair of inputs (i < j, in the order (0,1), (0,2), ..,

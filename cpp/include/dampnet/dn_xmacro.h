@@ -345,7 +345,7 @@
  * overturned), so only a runaway reaches them: a damper that feeds energy in (a negative-slope
  * table, a callback), a step beyond the stability limit, a road far beyond ISO 8608 class H's at
  * speed. The quarter car and the full car check them at every step (and the Python reference
- * loop, dampnet.sim.reference_loop). */
+ * loop, dampnet.sim.quarter_car.reference_loop). */
 #define DN_PLAUSIBLE_TRAVEL_M 2.0
 #define DN_PLAUSIBLE_WHEEL_ROAD_M 5.0
 #define DN_PLAUSIBLE_DAMPER_SPEED_M_S 50.0
@@ -396,7 +396,7 @@
   X(DN_STEER_DRIVER, 1, "driver", "preview driver following the model's path")
 /* Full-vehicle parameters: X(type, name, default, doc). Defaults: a compact-pickup-class
  * vehicle whose front corner is the thesis's Table 5 quarter car (700 kg sprung, 40 kg
- * unsprung, 15 kN/m, 200 kN/m); sources of the other figures in the README. */
+ * unsprung, 15 kN/m, 200 kN/m); sources of the other figures in docs/full-vehicle.md. */
 #define DN_FULLCAR_FIELDS(X)                                                                   \
   X(double, m_s, 2600.0, "sprung mass [kg], > 0")                                              \
   X(double, i_xx, 900.0, "sprung-mass roll inertia about the roll axis [kg m^2], > 0")          \

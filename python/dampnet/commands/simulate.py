@@ -61,7 +61,7 @@ def run(args) -> int:
     from dampnet.sim.dampers import load_spec
     from dampnet.sim.plots import plot_run, plot_transmissibility
     from dampnet.sim.roads import RoadError
-    from dampnet.sim.runs import simulate
+    from dampnet.sim.quarter_car.runs import simulate
     from dampnet.sim.vehicle import LoopError, Vehicle
 
     out = Path(args.out)
@@ -87,7 +87,7 @@ def run(args) -> int:
         for k in ("f_hz", "magnitude", "phase_rad"):
             arrays[f"transmissibility_{k}"] = res["transmissibility"][k]
     meta = {"schema": RUN_SCHEMA, **{k: v for k, v in res.items() if k not in ("arrays", "transmissibility")}}
-    if "coverage" in res:   # a neural model: the verdict at the top (dampnet.coverage)
+    if "coverage" in res:   # a neural model: the verdict at the top (dampnet.envelope.coverage)
         meta["extrapolated"] = res["coverage"]["extrapolated"]
     writers = {"run.npz": lambda f: np.savez_compressed(f, **arrays),
                "time_history.png": lambda f: plot_run(res, f, f"{spec.name} on {road.name}, {ctrl.kind}"),
@@ -97,8 +97,8 @@ def run(args) -> int:
     elif (out / "transmissibility.png").exists():   # --force over a sweep run: not this run's
         (out / "transmissibility.png").unlink()
     if "coverage" in res:   # a neural model: its inputs over its training data
-        from dampnet.coverage import quarter_car_inputs
-        from dampnet.coverage_plot import plot_coverage
+        from dampnet.envelope.coverage import quarter_car_inputs
+        from dampnet.envelope.plot import plot_coverage
 
         writers["coverage.png"] = lambda f: plot_coverage(
             spec.obj, {road.name: quarter_car_inputs(spec.obj, res["arrays"])}, f, spec.meta.get("envelope"),
@@ -118,7 +118,7 @@ def run(args) -> int:
           f"{1e3 * m['travel_rms_m']:.2f} mm (max {1e3 * m['travel_max_m']:.2f}), tyre load RMS "
           f"{m['tyre_load_rms_n']:.1f} N -> {out}")
     if "coverage" in res:
-        from dampnet.coverage import summary_line
+        from dampnet.envelope.coverage import summary_line
 
         print(summary_line(spec.name, res["coverage"]))
     return 0

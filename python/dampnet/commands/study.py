@@ -37,8 +37,8 @@ def run(args) -> int:
     from dampnet.outputs import check_run_dir
     from dampnet.sim.dampers import load_spec, lookup_spec, truth_spec
     from dampnet.sim.plots import write_plots
-    from dampnet.sim.report import text_tables, without_arrays
-    from dampnet.sim.study import INPUTS_FILE, neural_inputs, run_study
+    from dampnet.sim.quarter_car.report import text_tables, without_arrays
+    from dampnet.sim.quarter_car.study import INPUTS_FILE, neural_inputs, run_study
 
     out = Path(args.out)
     try:
@@ -46,7 +46,7 @@ def run(args) -> int:
 
         limits.check_number("--dt", args.dt, limits.STEP_S)
         limits.check_seed("--seed", args.seed)
-        check_run_dir(out, ("study.json", "study.txt", "inputs.npz"), "study.json", "dampnet.sim.study/",
+        check_run_dir(out, ("study.json", "study.txt", "inputs.npz"), "study.json", "dampnet.sim.quarter_car.study/",
                       [p for p in (args.model, args.data) if p and Path(p).exists()], args.force)
         from dampnet.sim.roads import sine_sweep, thesis_rough_road
 
@@ -72,7 +72,7 @@ def run(args) -> int:
 
     table = text_tables(res)
     if vehicle is not None:
-        from dampnet.fullcar.study import text_table
+        from dampnet.sim.full_car.study import text_table
 
         table += "\n\nfull vehicle (chapter 5.2)\n" + text_table(vehicle)
     try:
@@ -115,7 +115,7 @@ def _worst_run(res: dict, name: str) -> str:
 
 
 def _vehicle_study(specs, args) -> dict:
-    """The full-vehicle comparison (dampnet.fullcar.study) of the study's models: BSST (a 4x
+    """The full-vehicle comparison (dampnet.sim.full_car.study) of the study's models: BSST (a 4x
     faster sweep with --quick) and the lane change, low / high damping and on-off skyhook."""
     from dampnet.recipes import maneuvers
 

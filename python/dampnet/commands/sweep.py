@@ -14,7 +14,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                     "summary.json and summary.txt (the best cells), sensitivity_*.png, one model directory per training cell, "
                     "and each cell's result as it finishes (DIR/cells), so --resume continues an interrupted "
                     "sweep. Progress (cells done, errors, time left) goes to stderr.")
-    p.add_argument("spec", metavar="SPEC.toml", help="the sweep's spec (TOML; README: dampnet sweep)")
+    p.add_argument("spec", metavar="SPEC.toml", help="the sweep's spec (TOML; docs/sweeps.md)")
     p.add_argument("--out", default="sweep_out", metavar="DIR", help="the sweep directory (default sweep_out)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS|FILE",
                    help="an existing Dask cluster: its scheduler's address, e.g. tcp://host:8786, or the scheduler "

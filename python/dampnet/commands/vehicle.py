@@ -20,7 +20,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "vehicle", help="run a damper model in the full vehicle: " + ", ".join(maneuvers.names()),
         description="Run MODEL (a model directory or model.json, a lookup-table JSON, 'truth' or "
                     "'truth:EFFECT,...', or 'linear:C' [N s/m]) at all four corners of the full vehicle "
-                    "(a compact pickup; see README) and write metrics.json, run.npz and vehicle.png. "
+                    "(a compact pickup; see docs/full-vehicle.md) and write metrics.json, run.npz and vehicle.png. "
                     f"Tests: {tests}. A test's settings are the options below it names; another test's "
                     "setting is refused.")
     p.add_argument("model")
@@ -94,7 +94,7 @@ def run(args) -> int:
         print(f"dampnet: error: {e}", file=sys.stderr)
         return 2
     meta = {"schema": RUN_SCHEMA, **{k: v for k, v in res.items() if k != "arrays"}}
-    if "coverage" in res:   # a neural model: the verdict at the top (dampnet.coverage)
+    if "coverage" in res:   # a neural model: the verdict at the top (dampnet.envelope.coverage)
         meta["extrapolated"] = res["coverage"]["extrapolated"]
     title = f"{spec.name}, {args.damping} damping: {man.name}"
     try:
@@ -102,8 +102,8 @@ def run(args) -> int:
             np.savez_compressed(tmp / "run.npz", **res["arrays"])
             maneuvers.plot({spec.name: res}, tmp / "vehicle.png", title)
             if "coverage" in res:
-                from dampnet.coverage import fullcar_inputs
-                from dampnet.coverage_plot import plot_coverage
+                from dampnet.envelope.coverage import fullcar_inputs
+                from dampnet.envelope.plot import plot_coverage
 
                 per = fullcar_inputs(spec.obj, res["arrays"])
                 plot_coverage(spec.obj, {f"{spec.name} {c}": X for c, X in zip(("FL", "FR", "RL", "RR"), per)},
@@ -117,7 +117,7 @@ def run(args) -> int:
     line = maneuvers.get(args.test).summary(res["metrics"])
     print(f"{title}: {line} -> {out}")
     if "coverage" in res:
-        from dampnet.coverage import summary_line
+        from dampnet.envelope.coverage import summary_line
 
         print(summary_line(spec.name, res["coverage"]) + " (the four corners together)")
     return 0

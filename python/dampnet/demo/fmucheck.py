@@ -73,11 +73,11 @@ def _states(model, sig: dict[str, np.ndarray]) -> tuple[dict, dict, np.ndarray]:
 
 
 def runtime_forces(model, sig: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(loop, as_fmpy, status): the runtime damper's (dampnet.sim.loop.damper_from_model) force
+    """(loop, as_fmpy, status): the runtime damper's (dampnet.sim.quarter_car.loop.damper_from_model) force
     [N] at each sample with the states dampnet's loop keeps (_states), and the force FMPy's
     co-simulation should record at each sample (one step late, see the module docstring);
     status of the latter."""
-    from dampnet.sim.loop import damper_from_model
+    from dampnet.sim.quarter_car.loop import damper_from_model
 
     loop, held, prev = _states(model, sig)
     damper = damper_from_model(model)
@@ -120,7 +120,7 @@ def simulate(path: Path, sig: dict[str, np.ndarray]) -> tuple[np.ndarray, np.nda
 def _flags_check(model, envelope, sig: dict, flags: np.ndarray) -> dict:
     """The FMU's envelope_flags against the runtime check's on the inputs FMPy's record has."""
     from dampnet import _core
-    from dampnet.envelope_grid import ranges_check, runtime_envelope
+    from dampnet.envelope.grid import ranges_check, runtime_envelope
 
     check = runtime_envelope(envelope) if envelope is not None else ranges_check(model.sat_lo, model.sat_hi)
     expected = check.check(fmpy_inputs(model, sig))
@@ -138,7 +138,7 @@ def plot(sig: dict, f_loop: np.ndarray, f_fmu: np.ndarray, diff: np.ndarray, pat
 
     t = sig["t"]
     fig, ax = plt.subplots(2, 1, figsize=(9, 5), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
-    ax[0].plot(t, f_loop, lw=2.5, color="#9ab", label="runtime (dampnet.sim.loop damper)")
+    ax[0].plot(t, f_loop, lw=2.5, color="#9ab", label="runtime (dampnet.sim.quarter_car.loop damper)")
     ax[0].plot(t[:-1], f_fmu[1:], lw=0.9, ls="--", color="#a00", label="FMU run by FMPy (one step late, shifted back)")
     ax[0].set_ylabel("damper force [N]")
     ax[0].legend(loc="best", fontsize=8, framealpha=0.9)
@@ -165,7 +165,7 @@ def check_fmu(model, tests: Sequence[DynoTest], out_fmu: Path, fig_path: Path,
     runtime check's on the same inputs; ranges only without an envelope); when the check cannot run,
     {skipped: why} (the FMU refuses the model or no compiler: FmuError's message; no fmpy),
     with path and fmi_version if the FMU was built."""
-    from dampnet.fmu import FmuError, build_damper_fmu
+    from dampnet.export.fmu import FmuError, build_damper_fmu
 
     t0 = time.perf_counter()
     try:

@@ -79,7 +79,7 @@ def _plan_section(plan: dict | None) -> str:
 
 def _coverage_section(study: dict) -> str:
     """How much of each quarter-car run the neural models spent outside their training data
-    (dampnet.coverage): the runs whose verdict is 'extrapolated' are the ones not to trust."""
+    (dampnet.envelope.coverage): the runs whose verdict is 'extrapolated' are the ones not to trust."""
     cov = study.get("coverage") or {}
     if not cov:
         return ""
@@ -97,7 +97,7 @@ def _coverage_section(study: dict) -> str:
     return ("<h3 id='coverage'>Where the models were guessing: coverage of their training data</h3>"
             "<p>Each run's damper inputs (velocity, acceleration, control, and the added features) against "
             "the model's training envelope: outside a training range, or farther from every training "
-            "sample than the data's own spacing allows (dampnet.coverage). A run outside it for more than "
+            "sample than the data's own spacing allows (dampnet.envelope.coverage). A run outside it for more than "
             "5 % of its time, or beyond a range by more than one range's width, is marked "
             f"<b>extrapolated</b>: its error against the truth is the model guessing. {words}.</p>"
             + _table(["run", "model", "time outside the training data [%]",

@@ -225,10 +225,10 @@ PLAN_BUDGET = 6
 
 
 def _impulse(spec) -> dict:
-    """The study's impulse at the spec's low and high damping: {level: dampnet.sim.runs.simulate's result}."""
+    """The study's impulse at the spec's low and high damping: {level: dampnet.sim.quarter_car.runs.simulate's result}."""
     from dampnet.sim.calibration import damping_levels
     from dampnet.sim.roads import impulse
-    from dampnet.sim.runs import simulate
+    from dampnet.sim.quarter_car.runs import simulate
     from dampnet.sim.vehicle import Controller
 
     lv = damping_levels(spec)
@@ -288,10 +288,10 @@ def _plan(model1, env1, ds, train_kw: dict, seed: int, out: Path, log) -> dict:
 
 
 def _study(model0, model1, lookup, fig_dir: Path, quick: bool, env0=None, env1=None) -> dict:
-    from dampnet.sim import study
+    from dampnet.sim.quarter_car import study
     from dampnet.sim.dampers import lookup_spec, neural_spec, truth_spec
     from dampnet.sim.plots import write_plots
-    from dampnet.sim.report import without_arrays, text_tables
+    from dampnet.sim.quarter_car.report import without_arrays, text_tables
     from dampnet.sim.roads import thesis_rough_road
 
     specs = [neural_spec(model1, "improved", envelope=env1), neural_spec(model0, "original", envelope=env0),
@@ -334,7 +334,7 @@ def _vehicle(model, lookup, fig_dir: Path, quick: bool, log, envelope=None) -> d
     """The thesis's full-vehicle comparison: the improved model, the lookup table and the truth
     damper at all four corners, low and high damping and on-off skyhook, in the bounce sine
     sweep and the double lane change at 120 km/h (quick: a 4x faster sweep)."""
-    from dampnet.fullcar import study
+    from dampnet.sim.full_car import study
     from dampnet.recipes import maneuvers
     from dampnet.sim.dampers import lookup_spec, neural_spec, truth_spec
 

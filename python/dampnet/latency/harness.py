@@ -225,7 +225,7 @@ def hil_hard_input_check(model=None, margin: float = HIL_FORCE_MARGIN, dt: float
     verdict."""
     from dampnet import _core
     from dampnet.modeldir import default_model
-    from dampnet.sim.loop import QuarterCar, damper_from_model
+    from dampnet.sim.quarter_car.loop import QuarterCar, damper_from_model
 
     model = model or default_model()
     vehicle = HIL_VEHICLE if vehicle is None else vehicle
@@ -286,7 +286,7 @@ def fullcar_hard_input_check(model=None, margin: float = HIL_FORCE_MARGIN, dt: f
     name -> {"passed", "failures", "inputs": {input: row}}."""
     from dampnet import _core
     from dampnet.modeldir import default_model
-    from dampnet.sim.loop import damper_from_model
+    from dampnet.sim.quarter_car.loop import damper_from_model
 
     model = model or default_model()
     lo = model.out_offset

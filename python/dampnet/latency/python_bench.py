@@ -320,7 +320,7 @@ def harness_road(dt: float, n: int) -> tuple[np.ndarray, np.ndarray]:
 def _loops(model: MlpModel):
     from dampnet import _core
     from dampnet.latency.harness import HIL_CONTROLLER, HIL_VEHICLE
-    from dampnet.sim.loop import damper_from_model
+    from dampnet.sim.quarter_car.loop import damper_from_model
 
     ctrl = HIL_CONTROLLER
     hil = HIL_VEHICLE  # the configuration of dampnet.latency.harness.BUDGET_CASE

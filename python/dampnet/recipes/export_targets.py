@@ -5,8 +5,8 @@ TARGETS: an option given to targets it does not apply to is refused naming the t
 
 A command line selects a target by its output option (--header OUT.h, --onnx OUT.onnx,
 --fmu OUT.fmu, --out DIR) and, where two targets share one, the options in `when`
-(--what quarter-car). The writers stay where they are (dampnet.export, dampnet.fmu,
-dampnet.embedded); this module is the vocabulary and the wiring.
+(--what quarter-car). The writers stay where they are (dampnet.export, dampnet.export.fmu,
+dampnet.export.mcu); this module is the vocabulary and the wiring.
 
 Adding a target (docs/recipes.md, "Export targets"): `option(...)` for each new option, then
 `register(ExportTarget(...))`.
@@ -233,10 +233,10 @@ def _fmu_start_values(args) -> tuple[dict, dict]:
 
 
 def _write_fmu(job: Job) -> str:
-    from dampnet.fmu import build_fmu
-    from dampnet.fmu.damper import MODEL_IDENTIFIER as DAMPER
-    from dampnet.fmu.description import PLATFORM
-    from dampnet.fmu.quarter_car import MODEL_IDENTIFIER as QUARTER_CAR
+    from dampnet.export.fmu import build_fmu
+    from dampnet.export.fmu.damper import MODEL_IDENTIFIER as DAMPER
+    from dampnet.export.fmu.description import PLATFORM
+    from dampnet.export.fmu.quarter_car import MODEL_IDENTIFIER as QUARTER_CAR
 
     args = job.args
     vehicle, controller = _fmu_start_values(args)
@@ -291,7 +291,7 @@ def _check_mcu(args) -> None:
 
 
 def _write_mcu(job: Job) -> str:
-    from dampnet.embedded import capacities_for, export_target
+    from dampnet.export.mcu import capacities_for, export_target
 
     args = job.args
     out = export_target(job.model, args.target, args.out, overwrite=args.force, model_name=args.model,
@@ -302,7 +302,7 @@ def _write_mcu(job: Job) -> str:
 
 
 _FMU = ("--fmu", "--fmi", "--interface", "--what", "--force")
-register(ExportTarget("fmu-damper", "an FMI 2.0/3.0 FMU of the damper (dampnet.fmu)", "--fmu", _FMU, _write_fmu,
+register(ExportTarget("fmu-damper", "an FMI 2.0/3.0 FMU of the damper (dampnet.export.fmu)", "--fmu", _FMU, _write_fmu,
                       when={"--what": "damper"}))
 register(ExportTarget("fmu-quarter-car", "an FMI 2.0/3.0 co-simulation FMU of the quarter car with this damper",
                       "--fmu", (*_FMU, "--controller", "--set"), _write_fmu, when={"--what": "quarter-car"}))
@@ -310,7 +310,7 @@ register(ExportTarget("onnx", "the network as one ONNX graph (dampnet.export.wri
                       ("--onnx", "--force"), _write_onnx, check=_check_onnx))
 register(ExportTarget("header", "the C/C++ header `dampnet train` writes (dampnet.export.write_header)", "--header",
                       ("--header", "--prefix", "--force"), _write_header, check=_check_header))
-register(ExportTarget("mcu", "a ready-to-build microcontroller folder (dampnet.embedded.export_target)", "--out",
+register(ExportTarget("mcu", "a ready-to-build microcontroller folder (dampnet.export.mcu.export_target)", "--out",
                       ("--target", "--out", "--force"), _write_mcu, check=_check_mcu, file_output=False,
                       envelope=False, output_text="--target cortex-m4|cortex-m7 --out DIR"))
 

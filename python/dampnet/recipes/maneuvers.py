@@ -1,8 +1,8 @@
 """The full-vehicle manoeuvres (`dampnet vehicle --test NAME`, a sweep's [fullcar] tests, the
 full-car study): one entry each, with its settings (units, defaults), its builder (a
-dampnet.fullcar.maneuvers.Maneuver), its metrics, its plot and its headline metrics.
+dampnet.sim.full_car.maneuvers.Maneuver), its metrics, its plot and its headline metrics.
 
-The physics stays in dampnet.fullcar (maneuvers, metrics, plots); this module is the vocabulary
+The physics stays in dampnet.sim.full_car (maneuvers, metrics, plots); this module is the vocabulary
 and the wiring: the CLI's options and help, the sweep's allowed keys and values, the grid's
 defaults and the table's metric columns are all read from MANEUVERS and SETTINGS.
 
@@ -112,9 +112,9 @@ setting(Setting("bsst_rate_oct_s", "octave/s", "sweep rate", cli="--bsst-rate", 
 class ManeuverRecipe:
     """A full-vehicle manoeuvre.
 
-    build(dt [s], vehicle: the full car's fields set (SI; dampnet.fullcar.params), **settings) ->
-    a dampnet.fullcar.maneuvers.Maneuver; metrics(arrays, man, params) -> {metric: value} (units
-    in the names); plot(runs, path, title) draws runs (label -> dampnet.fullcar.runs.run's result);
+    build(dt [s], vehicle: the full car's fields set (SI; dampnet.sim.full_car.params), **settings) ->
+    a dampnet.sim.full_car.maneuvers.Maneuver; metrics(arrays, man, params) -> {metric: value} (units
+    in the names); plot(runs, path, title) draws runs (label -> dampnet.sim.full_car.runs.run's result);
     defaults: the settings it takes and their default values; headline: the metrics a summary
     line and the study's table show; columns: every metric it reports as the sweep's table columns
     (a per-wheel list as one column per wheel); objective: what a sweep of this test alone ranks by;
@@ -199,7 +199,7 @@ def settings_of(name: str, given: dict[str, Any]) -> dict[str, Any]:
 
 
 def build(name: str, dt: float, settings: dict[str, Any] | None = None, vehicle: dict | None = None):
-    """The manoeuvre's dampnet.fullcar.maneuvers.Maneuver at step dt [s] (settings over its
+    """The manoeuvre's dampnet.sim.full_car.maneuvers.Maneuver at step dt [s] (settings over its
     defaults, checked; vehicle: the full car's fields set). meta["test"] is the manoeuvre's name."""
     m = get(name)
     man = m.build(dt, dict(vehicle or {}), **settings_of(name, settings or {}))
@@ -208,15 +208,15 @@ def build(name: str, dt: float, settings: dict[str, Any] | None = None, vehicle:
 
 
 def run(spec, man, damping: str = "low", params: dict | None = None) -> dict:
-    """dampnet.fullcar.runs.run of a built manoeuvre (its metrics: the one its meta["test"] names)."""
-    from dampnet.fullcar.runs import run as run_test
+    """dampnet.sim.full_car.runs.run of a built manoeuvre (its metrics: the one its meta["test"] names)."""
+    from dampnet.sim.full_car.runs import run as run_test
 
     return run_test(spec, man, damping, params, metrics=get(man.meta["test"]).metrics)
 
 
 def run_study(specs, tests: dict, **kw) -> dict:
-    """dampnet.fullcar.study.run_study with each test's metrics and headline from the registry."""
-    from dampnet.fullcar.study import run_study as study
+    """dampnet.sim.full_car.study.run_study with each test's metrics and headline from the registry."""
+    from dampnet.sim.full_car.study import run_study as study
 
     return study(specs, tests, recipes={t: get(man.meta["test"]) for t, man in tests.items()}, **kw)
 
@@ -250,26 +250,26 @@ def default_objective(tests) -> str | None:
 
 
 def _bsst(dt, vehicle, mode, bsst_amplitude_m, bsst_f0_hz, bsst_f1_hz, bsst_rate_oct_s):
-    from dampnet.fullcar.maneuvers import bsst
+    from dampnet.sim.full_car.maneuvers import bsst
 
     return bsst(dt, mode, amplitude_m=bsst_amplitude_m, f0=bsst_f0_hz, f1=bsst_f1_hz, rate_oct_s=bsst_rate_oct_s)
 
 
 def _dlc(dt, vehicle, speed_kmh):
-    from dampnet.fullcar.maneuvers import dlc
+    from dampnet.sim.full_car.maneuvers import dlc
 
     return dlc(dt, speed_kmh)
 
 
 def _road(dt, vehicle, speed_kmh, profile, road_seed):
-    from dampnet.fullcar.maneuvers import rough_road
-    from dampnet.fullcar.params import wheelbase
+    from dampnet.sim.full_car.maneuvers import rough_road
+    from dampnet.sim.full_car.params import wheelbase
 
     return rough_road(dt, speed_kmh, profile, road_seed, wheelbase_m=wheelbase(vehicle))
 
 
 def _lazy(module: str, name: str) -> Callable:
-    """A function of a dampnet.fullcar module, imported when first called (matplotlib, scipy)."""
+    """A function of a dampnet.sim.full_car module, imported when first called (matplotlib, scipy)."""
     def call(*a, **kw):
         import importlib
 
@@ -289,7 +289,7 @@ _WHEEL_LOADS = tuple(f"tyre_load_dyn_rms_{w}_n" for w in ("fl", "fr", "rl", "rr"
 
 register(ManeuverRecipe(
     "bsst", "Bounce Sine Sweep Test: a vertical log sweep under all four wheels at rest on a four-post rig",
-    _bsst, _lazy("dampnet.fullcar.metrics", "bsst_metrics"), _lazy("dampnet.fullcar.plots", "plot_bsst"),
+    _bsst, _lazy("dampnet.sim.full_car.metrics", "bsst_metrics"), _lazy("dampnet.sim.full_car.plots", "plot_bsst"),
     dict(mode="heave", bsst_amplitude_m=0.005, bsst_f0_hz=0.5, bsst_f1_hz=20.0, bsst_rate_oct_s=0.1),
     ("acc_rms_m_s2", "acc_peak_m_s2"),
     ("acc_rms_m_s2", "acc_peak_m_s2", "pitch_acc_rms_rad_s2", "tyre_load_min_n"), "acc_rms_m_s2",
@@ -297,7 +297,7 @@ register(ManeuverRecipe(
     refuse={"speed_kmh": "the bounce sine sweep runs at rest on a four-post rig"}))
 register(ManeuverRecipe(
     "dlc", "ISO 3888-1 double lane change driven by the preview driver",
-    _dlc, _lazy("dampnet.fullcar.metrics", "dlc_metrics"), _lazy("dampnet.fullcar.plots", "plot_dlc"),
+    _dlc, _lazy("dampnet.sim.full_car.metrics", "dlc_metrics"), _lazy("dampnet.sim.full_car.plots", "plot_dlc"),
     dict(speed_kmh=120.0),
     ("a_y_peak_m_s2", "roll_peak_deg", "roll_rate_peak_deg_s", "yaw_rate_peak_deg_s", "side_slip_peak_deg",
      "cones_hit"),
@@ -307,7 +307,7 @@ register(ManeuverRecipe(
     line=_dlc_line))
 register(ManeuverRecipe(
     "road", "two correlated tracks of a rough road, the rear wheels a wheelbase after the front",
-    _road, _lazy("dampnet.fullcar.metrics", "road_metrics"), _lazy("dampnet.fullcar.plots", "plot_road"),
+    _road, _lazy("dampnet.sim.full_car.metrics", "road_metrics"), _lazy("dampnet.sim.full_car.plots", "plot_road"),
     dict(speed_kmh=60.0, profile="thesis", road_seed=0),
     ("acc_rms_m_s2", "acc_wk_rms_m_s2", "roll_rate_rms_deg_s"),
     ("acc_rms_m_s2", "acc_wk_rms_m_s2", "roll_rate_rms_deg_s", "pitch_rate_rms_deg_s", *_WHEEL_LOADS,

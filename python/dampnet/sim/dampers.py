@@ -22,7 +22,7 @@ import numpy as np
 from dampnet import _core
 from dampnet.features import steady_inputs
 from dampnet.rig.truth import TruthDamper
-from dampnet.sim.loop import damper_from_model, truth_damper
+from dampnet.sim.quarter_car.loop import damper_from_model, truth_damper
 from dampnet.sim.vehicle import LoopError, Vehicle
 
 SPEC_KINDS = ("truth", "neural", "hybrid", "lookup", "linear")
@@ -101,7 +101,7 @@ def load_spec(text: str) -> DamperSpec:
         raise LoopError(f"MODEL {text!r}: expected a model directory or file, 'default', 'truth[:EFFECT,...]' or "
                         "'linear:C' [N s/m]")
     if text == DEFAULT_MODEL:
-        from dampnet.modeldir import default_model_path
+        from dampnet.paths import default_model_path
 
         text = str(default_model_path())
     if text == "truth" or text.startswith("truth:"):

@@ -87,9 +87,9 @@ def write_plots(res: dict, out_dir) -> list:
 
 def write_coverage_plots(res: dict, out_dir) -> list:
     """coverage_<model>.png for each neural model of a study run with keep_runs=True: the damper
-    inputs of each section's first case over the model's training data (dampnet.coverage_plot)."""
-    from dampnet.coverage import quarter_car_inputs
-    from dampnet.coverage_plot import plot_coverage
+    inputs of each section's first case over the model's training data (dampnet.envelope.plot)."""
+    from dampnet.envelope.coverage import quarter_car_inputs
+    from dampnet.envelope.plot import plot_coverage
 
     written = []
     runs, specs = res.get("_runs", {}), res.get("_specs", {})

@@ -6,7 +6,7 @@ Defaults, names and validation are the runtime's own (`dampnet._core.VEHICLE_FIE
 `check_controller`): nothing here retypes a range or a law name. What differs, and why:
 
 * `Vehicle.f_static` may be None: the damper's force at rest with the control at rest
-  (`dampnet.sim.runs` computes it; the runtime's default is 0 N).
+  (`dampnet.sim.quarter_car.runs` computes it; the runtime's default is 0 N).
 * `Vehicle` has no `integrator` / `damper_eval`: these runs always use RK4 with one damper
   evaluation per step (`LOOP_SCHEME`), so that every model of a study is run like for like
   and the rig's stateful truth damper is stepped once per step.

@@ -11,8 +11,8 @@ One job per module, each importing only the ones above it:
   hashing.py     content hashes of input files, dampnet's source hash, each cell's key
   inputs.py      a cell's inputs (datasets, models, road files): by path (shared filesystem) or shipped
   train_cell.py  one training cell (on a worker): train_dataset, model_metrics
-  sim_cell.py    one simulation cell (on a worker): dampnet.sim.runs.simulate and its ride metrics
-  fullcar_cell.py  one full-vehicle cell (on a worker): dampnet.fullcar.runs.run and its test's metrics
+  sim_cell.py    one simulation cell (on a worker): dampnet.sim.quarter_car.runs.simulate and its ride metrics
+  fullcar_cell.py  one full-vehicle cell (on a worker): dampnet.sim.full_car.runs.run and its test's metrics
   tasks.py       what a worker runs: one cell, its error recorded, its time measured
   store.py       the sweep directory: state, each cell saved atomically as it completes, model directories
   table.py       the results table (pandas; Parquet, CSV)

@@ -2,7 +2,7 @@
 sweep, ISO 3888-1 double lane change, rough road), a damping setting and the full car's
 parameters in, the test's metrics out.
 
-The run is `dampnet.fullcar.runs.run` (the runtime's FullCar, as `dampnet vehicle`): the same
+The run is `dampnet.sim.full_car.runs.run` (the runtime's FullCar, as `dampnet vehicle`): the same
 damper spec at every corner, passive at its low or high damping setting or on-off skyhook per
 corner, its force at rest as the static force; [fullcar.vehicle] fields over the runtime's
 defaults. The test is built as `dampnet vehicle` builds it (dampnet.recipes.maneuvers) at the
@@ -24,7 +24,7 @@ def vehicle(params: dict[str, Any]) -> dict[str, Any]:
 
 
 def maneuver(params: dict[str, Any]):
-    """The cell's test (a dampnet.fullcar.maneuvers.Maneuver, built by dampnet.recipes.maneuvers)."""
+    """The cell's test (a dampnet.sim.full_car.maneuvers.Maneuver, built by dampnet.recipes.maneuvers)."""
     from dampnet.recipes import maneuvers
 
     m = maneuvers.get(params["test"])

@@ -9,12 +9,12 @@ dampnet.recipes.maneuvers, every test's in registry order), as `dampnet vehicle`
 cones_hit, cones; passed: no cone hit), the road test's dynamic tyre load RMS one column per
 wheel (fl, fr, rl, rr), the damper's force at rest f_static_n [N] and the run's duration_s [s];
 a metric the cell's test does not measure is empty.
-Both simulation kinds, for a neural or hybrid model (dampnet.coverage): time_outside_training_data,
+Both simulation kinds, for a neural or hybrid model (dampnet.envelope.coverage): time_outside_training_data,
 the share [0-1] of the run's time its damper inputs spent outside the model's training envelope,
 and extrapolated, the verdict "yes" or "no" (both empty for the truth, lookup and linear dampers).
 """
 
-#: coverage columns of the simulation kinds (dampnet.coverage; empty for non-neural dampers)
+#: coverage columns of the simulation kinds (dampnet.envelope.coverage; empty for non-neural dampers)
 COVERAGE = ("time_outside_training_data", "extrapolated")
 
 TRAINING = ("holdout_nrmse", "holdout_rmse_n", "holdout_max_abs_error_n", "lookup_holdout_nrmse",
@@ -42,7 +42,7 @@ TEXT = ("stop_reason", "features_used", "model_id", "passed", "extrapolated")
 
 
 def coverage_columns(res: dict) -> dict:
-    """The COVERAGE cells of a simulation result (dampnet.sim.runs.simulate, dampnet.fullcar.runs.run)."""
+    """The COVERAGE cells of a simulation result (dampnet.sim.quarter_car.runs.simulate, dampnet.sim.full_car.runs.run)."""
     cov = res.get("coverage")
     if cov is None:
         return {}

@@ -1,7 +1,7 @@
 """One simulation cell, on a worker: a damper model, a road, a speed, a controller and a quarter car
 in, the run's ride metrics out.
 
-The run is `dampnet.sim.runs.simulate` (the runtime's C++ loop through QuarterCar, as
+The run is `dampnet.sim.quarter_car.runs.simulate` (the runtime's C++ loop through QuarterCar, as
 `dampnet simulate`). Roads and controllers come from the registries `dampnet simulate` reads
 (dampnet.recipes.roads, dampnet.recipes.control_laws): a controller is calibrated on the cell's
 damper (passive = passive_high), then [simulation.controller] fields replace the calibrated ones.
@@ -63,7 +63,7 @@ def controller(params: dict[str, Any], spec, veh):
 
 def run(params: dict[str, Any], inputs: dict[str, Any]) -> dict[str, Any]:
     """{"metrics": ride metrics and f_static_n, "controller_settings": the law's fields}."""
-    from dampnet.sim.runs import simulate
+    from dampnet.sim.quarter_car.runs import simulate
 
     spec = damper(params, inputs["model"])
     prof = road(params, inputs["road"])

@@ -20,7 +20,7 @@ A spec has up to four tables:
                 controllers by name: dampnet.recipes.roads, dampnet.recipes.control_laws);
                 [simulation.vehicle] and [simulation.controller]: the quarter car's and the
                 control law's fields (a value or a list); objective
-  [fullcar]     full-vehicle cells (dampnet.fullcar.runs.run, as `dampnet vehicle`): models (as
+  [fullcar]     full-vehicle cells (dampnet.sim.full_car.runs.run, as `dampnet vehicle`): models (as
                 [simulation]), tests (dampnet.recipes.maneuvers: bsst, dlc, road), damping (low, high, skyhook: every
                 corner), speeds_kmh [km/h] (dlc, road; default the test's: 120, 60), modes
                 (bsst: heave, pitch), profiles (road: thesis or an ISO 8608 class A..H),

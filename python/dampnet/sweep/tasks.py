@@ -87,9 +87,9 @@ def warm(kinds: list[str]) -> int:
 
         torch.set_num_threads(1)
     if "simulation" in kinds:
-        import dampnet.sim.runs  # noqa: F401
+        import dampnet.sim.quarter_car.runs  # noqa: F401
         import dampnet.sweep.sim_cell  # noqa: F401
     if "fullcar" in kinds:
-        import dampnet.fullcar.runs  # noqa: F401
+        import dampnet.sim.full_car.runs  # noqa: F401
         import dampnet.sweep.fullcar_cell  # noqa: F401
     return os.getpid()

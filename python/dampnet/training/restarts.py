@@ -19,7 +19,7 @@ What a restart run does (`train_restarts`, `train_dataset(..., restarts=N)`):
     records every restart's seed, score and per-gap or per-level scores, and which was kept.
     The kept model is bit for bit `train_dataset(..., seed=its seed, restarts=1, threads=1)`.
  4. With `average` = K > 1 (interpolation score only), the K lowest-scored restarts are kept and
-    averaged into one network of K times the width (dampnet.ensemble.average_networks: their
+    averaged into one network of K times the width (dampnet.training.ensemble.average_networks: their
     mean output, exactly); meta["restarts"]["averaged"] lists them. Why: seeds scatter, and their
     mean less: on the demo's data (BR, 30 hidden) pairs of seeds are 2.17x the noise floor on the
     hold-out against 2.41x for one seed, and a single 60-hidden network 2.77x (bench/RESULTS.md
@@ -85,7 +85,7 @@ SMALL_RESTARTS = 1_000_000
 def check_average(average: Any, restarts: int, hidden, score: str = "interpolation") -> int:
     """`average` (restarts averaged into one network) as an int in 1..restarts whose averaged
     width fits the runtime; ValueError naming the field otherwise."""
-    from dampnet.ensemble import check_width
+    from dampnet.training.ensemble import check_width
     from dampnet.training.settings import option
 
     average = option("average", average)
@@ -408,11 +408,11 @@ def train_restarts(prep, fit_prepared: Callable, restarts: int, seed: int = 0, *
 
 
 def _averaged(prep, models: list, info):
-    """The models averaged into one network (dampnet.ensemble), with info.metrics re-measured for
+    """The models averaged into one network (dampnet.training.ensemble), with info.metrics re-measured for
     it: NRMSE on all training rows only. Each member drew its own train / validation / test split
     (its seed), so a row one member never saw another trained on: the averaged network has no
     held-out rows of its own (its hold-out is the held-out tests, as for any model)."""
-    from dampnet.ensemble import average_networks
+    from dampnet.training.ensemble import average_networks
     from dampnet.training.metrics import nrmse
     from dampnet.predict import predict_force
 

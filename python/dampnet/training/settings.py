@@ -317,7 +317,7 @@ def check_request(*, algorithm: Any = _UNSET, settings: Any = _UNSET, hidden: An
 
 
 def settings_help(overrides: Mapping[str, Mapping[str, Any]] | None = None) -> str:
-    """Every algorithm's settings with their ranges and defaults (the --settings help, the README);
+    """Every algorithm's settings with their ranges and defaults (the --settings help, docs/training.md);
     `overrides` {algorithm: {name: value}}: defaults a front end uses instead (train_dataset's)."""
     parts = []
     for algo, table in ALGORITHM_TABLES.items():

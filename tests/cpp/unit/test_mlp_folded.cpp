@@ -1,6 +1,6 @@
 // The folded float description (dn_mlp_folded_f, Mlp::load_folded, dn_mlp_init_folded): what
 // load() makes of a dn_mlp_desc, given back as floats, loads into the same parameters bit for
-// bit and gives the same forward; the exported header's P_FOLDED_INIT (python/dampnet/export.py
+// bit and gives the same forward; the exported header's P_FOLDED_INIT (python/dampnet/export/header.py
 // folds in Python) equals the library's own folding of its P_DESC_INIT; validation in float.
 #include <cmath>
 #include <cstdio>

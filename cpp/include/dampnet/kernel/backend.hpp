@@ -11,7 +11,7 @@
 //   eigen               dense_eigen.hpp      Eigen 3 (<Eigen/Core>)           "eigen"
 //
 // The build says which one with -DDN_KERNEL_BACKEND=NAME; CMake derives it from its options
-// (DAMPNET_AVX2, DAMPNET_AVX512, DAMPNET_NATIVE, DAMPNET_USE_EIGEN: README, "Build options")
+// (DAMPNET_AVX2, DAMPNET_AVX512, DAMPNET_NATIVE, DAMPNET_USE_EIGEN: docs/build-options.md)
 // and passes it to everything it compiles. Unset, the backend is eigen where DAMPNET_USE_EIGEN
 // is defined (its older spelling), else sse on a target with SSE and scalar on any other (a
 // microcontroller): never a wider one because the compiler flags happen to allow it

@@ -1,8 +1,8 @@
-"""A study's result (dampnet.sim.study.run_study) as text: tables, and the dict for JSON."""
+"""A study's result (dampnet.sim.quarter_car.study.run_study) as text: tables, and the dict for JSON."""
 
 from __future__ import annotations
 
-from dampnet.sim.study import SKYHOOK_LAWS
+from dampnet.sim.quarter_car.study import SKYHOOK_LAWS
 
 
 def text_tables(res: dict) -> str:
@@ -56,7 +56,7 @@ def text_tables(res: dict) -> str:
 
 
 def coverage_lines(res: dict) -> list[str]:
-    """The coverage table (dampnet.coverage): per case and neural model, the share of the run's
+    """The coverage table (dampnet.envelope.coverage): per case and neural model, the share of the run's
     time outside the training envelope, '*' when the run is extrapolated; then each model's verdict."""
     cov = res.get("coverage") or {}
     names = list(res.get("extrapolated") or {})

@@ -1,5 +1,5 @@
 """Plots of full-vehicle runs (PNG, matplotlib Agg): several runs of one test overlaid
-(label -> run, as dampnet.fullcar.runs.run returns); which one a test draws is its entry
+(label -> run, as dampnet.sim.full_car.runs.run returns); which one a test draws is its entry
 in dampnet.recipes.maneuvers."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dampnet.fullcar.metrics import column, spectrum
+from dampnet.sim.full_car.metrics import column, spectrum
 from dampnet.sim.plots import _pyplot
 
 

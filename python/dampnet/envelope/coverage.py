@@ -13,7 +13,7 @@ by the runtime's feature registry), `coverage` reports:
   joint            (with an envelope) the share of steps / time farther than the threshold from
                    every stored training sample (scaled space), the largest and 95th-percentile
                    distance
-  runtime_flag     (with an envelope) what the runtime's bounded-time check (dampnet.envelope_grid,
+  runtime_flag     (with an envelope) what the runtime's bounded-time check (dampnet.envelope.grid,
                    the FMU's envelope_flags) says of the same steps: its share of steps / time
                    flagged, and the share of steps where it agrees with `outside` below
   outside          the envelope's share: outside any range OR (with an envelope) outside the joint
@@ -34,7 +34,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from dampnet.envelope import Envelope
+from dampnet.envelope.samples import Envelope
 
 #: a run with more than this share of its time outside the envelope is "extrapolated"
 #: (5 %: the impulse's pulse is 50 ms of a ~3 s run, about 2 %; a run that leaves the data for
@@ -164,7 +164,7 @@ def coverage(model, X: np.ndarray, envelope: Envelope | None = None, t: np.ndarr
 def _runtime_flag(envelope: Envelope, X: np.ndarray, w: np.ndarray, outside: np.ndarray) -> dict[str, Any]:
     """The runtime check's flags of the steps X against the offline measure's `outside`."""
     from dampnet import _core
-    from dampnet.envelope_grid import runtime_flags
+    from dampnet.envelope.grid import runtime_flags
 
     flags = runtime_flags(envelope, X)
     flagged = flags != 0
@@ -197,7 +197,7 @@ def verdict(cov: Mapping[str, Any]) -> str:
 
 
 def quarter_car_inputs(model, arrays: Mapping[str, np.ndarray]) -> np.ndarray:
-    """The damper inputs of each step of a quarter-car run (dampnet.sim.runs arrays: the loop's
+    """The damper inputs of each step of a quarter-car run (dampnet.sim.quarter_car.runs arrays: the loop's
     recorded `features`, a neural damper's inputs before saturation, in the model's order)."""
     f = np.asarray(arrays["features"], dtype=np.float64)
     if f.ndim != 2 or f.shape[1] != model.n_inputs:

@@ -1,7 +1,7 @@
 """The quarter-car loop from Python: a thin layer over `dampnet._core`.
 
 The loop itself (equations, signs, integrators, the acceleration feature,
-controller laws, status codes) is documented in README.md ("The quarter-car
+controller laws, status codes) is documented in docs/simulation.md ("The quarter-car
 loop") and in `cpp/include/dampnet/dampnet.h`; everything runs in C++.
 
     car = QuarterCar(damper_from_model(model), controller={"kind": "skyhook_onoff"})
@@ -13,7 +13,7 @@ hybrid), and `truth_damper(TruthDamper)` (the rig's truth model as a Python
 callback: the slow path, for studies; it holds the GIL per call and runs with
 one damper evaluation per step, because the truth damper is stateful).
 `columns(result)` names a `simulate` result's state columns and step outputs.
-Every Python-side run (dampnet.sim.runs: the study, `dampnet simulate`) goes through
+Every Python-side run (dampnet.sim.quarter_car.runs: the study, `dampnet simulate`) goes through
 QuarterCar: this module is the one driver of `_core.Loop`.
 
 Threading: the model side (`_core.Mlp`, `_core.Damper`, `_core.LoopModel`) is immutable

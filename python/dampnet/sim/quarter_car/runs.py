@@ -1,6 +1,6 @@
 """One quarter-car run of a damper spec over a road, with its ride metrics.
 
-The run goes through `dampnet.sim.loop.QuarterCar` (the runtime's C++ loop) with the
+The run goes through `dampnet.sim.quarter_car.loop.QuarterCar` (the runtime's C++ loop) with the
 Vehicle's loop scheme (RK4, one damper evaluation per step: `vehicle.LOOP_SCHEME`), so the
 models of a study are compared like for like and the rig's truth damper (a callback) is
 stepped once per step.
@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from dampnet.coverage import coverage, quarter_car_inputs
+from dampnet.envelope.coverage import coverage, quarter_car_inputs
 from dampnet.sim.dampers import DamperSpec, force_at_rest, runtime_damper
-from dampnet.sim.loop import QuarterCar, columns
+from dampnet.sim.quarter_car.loop import QuarterCar, columns
 from dampnet.sim.ride import ride_metrics, transmissibility
 from dampnet.sim.roads import Road
 from dampnet.sim.vehicle import Controller, Vehicle
@@ -39,7 +39,7 @@ def loop_arrays(spec: DamperSpec, z_r, v_r, vehicle: Vehicle, controller: Contro
 
 
 def spec_coverage(spec: DamperSpec, arrays: dict) -> dict | None:
-    """The coverage (dampnet.coverage) of a quarter-car run of a neural or hybrid spec against
+    """The coverage (dampnet.envelope.coverage) of a quarter-car run of a neural or hybrid spec against
     its model's training envelope (spec.meta["envelope"], or its ranges only); None for others."""
     if spec.kind not in ("neural", "hybrid"):
         return None
@@ -50,7 +50,7 @@ def spec_coverage(spec: DamperSpec, arrays: dict) -> dict | None:
 def simulate(spec: DamperSpec, road: Road, speed: float | None = None, controller: Controller | None = None,
              vehicle: Vehicle | None = None, transfer: bool | None = None) -> dict:
     """One run: {'arrays': {...}, 'metrics': {...}, 'transmissibility': {...} (sweeps), ...,
-    'coverage': {...} (neural and hybrid dampers: dampnet.coverage, against the training envelope)}.
+    'coverage': {...} (neural and hybrid dampers: dampnet.envelope.coverage, against the training envelope)}.
 
     A wrong vehicle or controller setting (an unknown law name among them) raises LoopError
     naming the field and the valid range or names.

@@ -1,7 +1,7 @@
 """The thesis's chapter 5 study (Tables 6 and 7, skyhook), as a dict with stable keys.
 
 For each damper spec (`dampnet.sim.dampers`; and the truth damper, when known), every run
-through the runtime's loop (`dampnet.sim.runs.simulate`, RK4 with one damper evaluation per
+through the runtime's loop (`dampnet.sim.quarter_car.runs.simulate`, RK4 with one damper evaluation per
 step, the same dt for all, so the models are compared like for like):
   impulse      - raised-cosine pulse (50 mm, 50 ms), passive at low and high damping
   sine_sweep   - bounce sine sweep 0.5-20 Hz (5 mm, 0.1 octave/s), low and high, with transmissibility
@@ -11,11 +11,11 @@ step, the same dt for all, so the models are compared like for like):
                  "10_skyhook_continuous", the runtime's law names) against passive at the same
                  damper's low and high settings ("<v>_passive_low", "<v>_passive_high")
 and `errors`: per model and case, (model - truth) / truth of every metric; for each neural or
-hybrid model, `coverage` (section -> case -> model: dampnet.coverage's result, the run against
+hybrid model, `coverage` (section -> case -> model: dampnet.envelope.coverage's result, the run against
 the model's training envelope) and `extrapolated` (model -> {any, runs, extrapolated: the
 "section case" runs whose verdict is extrapolated}). The damping
 levels and the controllers' calibration: `dampnet.sim.calibration`. Tables and plots of a
-result: `dampnet.sim.report`, `dampnet.sim.plots`.
+result: `dampnet.sim.quarter_car.report`, `dampnet.sim.plots`.
 
 One continuous skyhook controller is calibrated on the truth damper when known (else on the
 first model) and used for every model, so the models are compared under the same control; it
@@ -45,11 +45,11 @@ from dampnet.sim.calibration import (SKYHOOK_V_RMS_M_S, SKYHOOK_ZETA, continuous
                                      semi_active)
 from dampnet.sim.dampers import DamperSpec
 from dampnet.sim.roads import Road, impulse, sine_sweep, thesis_rough_road
-from dampnet.sim.runs import simulate
+from dampnet.sim.quarter_car.runs import simulate
 from dampnet.sim.vehicle import Controller, Vehicle
 
 # /2: the on-off skyhook case is "<v>_skyhook_onoff" (was "<v>_skyhook"), settings.backends is gone
-SCHEMA = "dampnet.sim.study/2"
+SCHEMA = "dampnet.sim.quarter_car.study/2"
 SPEEDS = (10.0, 20.0)
 #: the semi-active laws of the skyhook section, by their runtime names (_core.CONTROLLER_KINDS)
 SKYHOOK_LAWS = ("skyhook_onoff", "skyhook_continuous")

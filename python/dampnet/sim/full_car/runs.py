@@ -9,8 +9,8 @@ from typing import Callable
 import numpy as np
 
 from dampnet import _core
-from dampnet.fullcar.maneuvers import Maneuver
-from dampnet.fullcar.params import RUN_SCHEME, check, defaults
+from dampnet.sim.full_car.maneuvers import Maneuver
+from dampnet.sim.full_car.params import RUN_SCHEME, check, defaults
 from dampnet.sim.calibration import damping_levels, semi_active
 from dampnet.sim.dampers import DamperSpec, force_at_rest, runtime_damper
 from dampnet.sim.vehicle import Controller, LoopError, Vehicle
@@ -76,12 +76,12 @@ def man_dt(arrays: dict) -> float | None:
 
 
 def run_coverage(spec: DamperSpec, arrays: dict) -> dict | None:
-    """The coverage (dampnet.coverage) of a full-vehicle run of a neural or hybrid spec: the four
+    """The coverage (dampnet.envelope.coverage) of a full-vehicle run of a neural or hybrid spec: the four
     corners' damper inputs together (one row per corner and step), and per corner the share of
     time outside the envelope; None for other dampers."""
     if spec.kind not in ("neural", "hybrid"):
         return None
-    from dampnet.coverage import coverage, fullcar_inputs, step_durations
+    from dampnet.envelope.coverage import coverage, fullcar_inputs, step_durations
 
     env, note = spec.meta.get("envelope"), spec.meta.get("envelope_note")
     per = fullcar_inputs(spec.obj, arrays)

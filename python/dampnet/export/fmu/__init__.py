@@ -10,7 +10,7 @@ for FMI 3) so an importer elsewhere can rebuild it. The binary depends on libc a
 
 - what="damper" (damper.py): inputs x [m], v [m/s], a [m/s2], u, temperature [degC]; outputs
   force [N], status, clamped_mask, envelope_flags (with `envelope`, the training envelope's
-  bounded-time check, dampnet.envelope_grid; without, the training ranges only); parameters the feature constants and physics terms; the
+  bounded-time check, dampnet.envelope.grid; without, the training ranges only); parameters the feature constants and physics terms; the
   derived features' states advance exactly as in dampnet's loop (cpp/fmu/fmu_damper.hpp).
 - what="quarter-car" (quarter_car.py): co-simulation only; road in, the quarter car's motion out.
 """
@@ -20,7 +20,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from dampnet.fmu.damper import FMU_FEATURES, MODEL_IDENTIFIER, FmuError, check_model, damper_description
+from dampnet.export.fmu.damper import FMU_FEATURES, MODEL_IDENTIFIER, FmuError, check_model, damper_description
 from dampnet.model import MlpModel
 
 WHATS = ("damper", "quarter-car")
@@ -37,7 +37,7 @@ def build_fmu(model: MlpModel, out: str | os.PathLike, fmi: int = 2, interface: 
     (default: both for the damper, cs for the quarter car). vehicle / controller: the quarter
     car's parameter start values (dampnet.sim.vehicle field names; defaults Table 5, passive).
     envelope: the model's dampnet.envelope.Envelope, for the envelope_flags output's grid."""
-    from dampnet.fmu.build import package
+    from dampnet.export.fmu.build import package
 
     if what == "damper":
         if vehicle or controller:
@@ -45,7 +45,7 @@ def build_fmu(model: MlpModel, out: str | os.PathLike, fmi: int = 2, interface: 
         return package(model, damper_description(model, envelope is not None), out, fmi, interface, False,
                        overwrite, envelope)
     if what == "quarter-car":
-        from dampnet.fmu.quarter_car import quarter_car_description
+        from dampnet.export.fmu.quarter_car import quarter_car_description
 
         return package(model, quarter_car_description(model, vehicle, controller, envelope is not None), out, fmi,
                        interface, True, overwrite, envelope)

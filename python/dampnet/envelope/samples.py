@@ -95,7 +95,7 @@ class Envelope:
     threshold: float  # joint distance beyond which a point is outside [scaled units]
     params: dict[str, Any] = field(default_factory=dict)
     _tree: Any = field(default=None, repr=False, compare=False)
-    _runtime: Any = field(default=None, repr=False, compare=False)  # dampnet.envelope_grid's check, built once
+    _runtime: Any = field(default=None, repr=False, compare=False)  # dampnet.envelope.grid's check, built once
     #: where the arrays and the parameters came from, for messages: a name, or (npz, json) file names
     source: InitVar[Any] = None
 
@@ -411,7 +411,7 @@ def read_envelope(model_path: str | os.PathLike, model=None) -> Envelope | None:
 def load_envelope(model_path: str | os.PathLike, model=None) -> tuple[Envelope | None, str]:
     """(the envelope beside a model, a note) for a run's coverage: read_envelope, falling back to
     the per-input training ranges (None, why) when there is none, or, with a one-line warning on
-    stderr naming the file and the field, when it is damaged or another model's (README: "The
+    stderr naming the file and the field, when it is damaged or another model's (docs/coverage.md, "The
     envelope"). `dampnet export` uses read_envelope: a damaged envelope is an error there."""
     try:
         env = read_envelope(model_path, model)

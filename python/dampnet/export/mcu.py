@@ -1,34 +1,26 @@
-"""dampnet on a Cortex-M microcontroller: the cross build, the QEMU firmware and its output.
+"""dampnet on a Cortex-M microcontroller: the ready-to-build folder of `dampnet export MODEL
+--target cortex-m4|cortex-m7 --out DIR` (``export_target``), and the firmware's stored inputs and
+road (``write_vectors``; ``python -m dampnet.export.mcu vectors OUT.h``, which the source tree's
+cpp/embedded/CMakeLists.txt runs).
 
-The C library builds freestanding for ``arm-none-eabi`` (``cmake/arm-none-eabi.cmake``,
-``CMakePresets.json``: presets ``cortex-m4`` and ``cortex-m7``); ``cpp/embedded/`` holds a small
-firmware (``firmware.c``, ``startup.c``, ``mps2.ld``) that QEMU runs on its MPS2 boards
-(``mps2-an386``: Cortex-M4F, ``mps2-an500``: Cortex-M7) with semihosting output. This module
-
-* writes the firmware's stored inputs and road (``write_vectors``; ``python -m dampnet.embedded
-  vectors OUT.h``),
-* configures and builds it (``build``), runs it in QEMU (``run``) and parses what it prints
-  (``parse_output``),
-* and writes the ready-to-build folder of ``dampnet export MODEL --target cortex-m4|cortex-m7
-  --out DIR`` (``export_target``).
-
-tests/python/test_embedded.py compares the firmware with the host runtime; bench/embedded.py
-measures flash, RAM and instructions (bench/RESULTS.md).
+The folder holds the model's header, the library's sources with the model's capacities and the
+core's build options (``target_defines``), the toolchain file and an example firmware for QEMU's
+MPS2 boards (``mps2-an386``: Cortex-M4F, ``mps2-an500``: Cortex-M7). Building and running
+firmware under QEMU is a lab tool, not part of the installed package: bench/firmware_lab.py
+(tests/python/test_embedded.py compares the firmware with the host runtime; bench/embedded.py
+measures flash, RAM and instructions, bench/RESULTS.md).
 """
 
 from __future__ import annotations
 
-import os
 import shutil
-import struct
-import subprocess
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[2]  # the source tree, when dampnet runs from one
+ROOT = Path(__file__).resolve().parents[3]  # the source tree, when dampnet runs from one
 
 
 def source_tree() -> bool:
@@ -45,12 +37,6 @@ CPUS = {
                   "fpu": "double-precision (FPv5-D16)"},
 }
 
-# The library's capacities for the firmware (dampnet.h "Capacities"; the presets' values): the
-# thesis's 3-30-1 network (hidden layers hold multiples of 8 neurons), one hidden layer, no
-# physics terms, no lookup table to speak of, and no double kernel (the damper runs the float
-# MLP). `dampnet export --target` sets them from the model instead (capacities_for).
-DEFAULT_CAPS = {"INPUTS": 3, "HIDDEN": 32, "HIDDEN2": 0, "TERMS": 0, "TABLE_V": 2, "TABLE_U": 1}
-DEFAULT_DOUBLE_KERNEL = 0
 # The float kernel for flash (dampnet.h DN_KERNEL_SMALL, DN_KERNEL_UNROLL; the presets' values):
 # one forward, compiled for the capacity's input count, two neurons per pass
 # (bench/RESULTS.md, "On a microcontroller": the trade-off measured).
@@ -107,45 +93,6 @@ N_INPUTS_DEFAULT = 1000
 PRINT_EVERY = 100      # the firmware prints the state every this many steps
 
 
-class EmbeddedError(RuntimeError):
-    """A cross build or a QEMU run failed (the message holds the tool's output)."""
-
-
-def toolchain_missing() -> str | None:
-    """Why the cross build cannot run here (None: it can), naming the Debian packages of
-    python/debian-packages.txt that python/env.sh installs: the cross compiler, newlib, the cross
-    C++ headers (compiling ``#include <cstdint>``), QEMU and cmake."""
-    need = {"arm-none-eabi-gcc": "gcc-arm-none-eabi", "arm-none-eabi-g++": "gcc-arm-none-eabi",
-            "qemu-system-arm": "qemu-system-arm", "cmake": "cmake (PyPI)"}
-    missing = [f"{tool} (Debian package {pkg})" for tool, pkg in need.items() if not shutil.which(tool)]
-    if not missing and not _newlib_present():
-        missing.append("newlib (Debian package libnewlib-arm-none-eabi)")
-    if not missing and not _cross_cxx_headers_present():
-        missing.append("the cross C++ headers: arm-none-eabi-g++ cannot compile #include <cstdint> "
-                       "(Debian package libstdc++-arm-none-eabi-dev)")
-    return ", ".join(missing) + " not installed; python/env.sh installs them" if missing else None
-
-
-def _newlib_present() -> bool:
-    try:
-        out = subprocess.run(["arm-none-eabi-gcc", "--specs=nano.specs", "-print-file-name=libc_nano.a"],
-                             capture_output=True, text=True, timeout=30).stdout.strip()
-    except (OSError, subprocess.SubprocessError):
-        return False
-    return os.path.isabs(out) and os.path.isfile(out)
-
-
-def _cross_cxx_headers_present() -> bool:
-    """True if arm-none-eabi-g++ preprocesses <cstdint> and <cmath> (the runtime's C++ headers)."""
-    try:
-        proc = subprocess.run(["arm-none-eabi-g++", "-x", "c++", "-std=c++17", "-E", "-o", os.devnull, "-"],
-                              input="#include <cstdint>\n#include <cmath>\n", capture_output=True,
-                              text=True, timeout=60)
-    except (OSError, subprocess.SubprocessError):
-        return False
-    return proc.returncode == 0
-
-
 # ---- the stored inputs and road ----
 
 @dataclass
@@ -191,7 +138,7 @@ def write_vectors(path, vectors: Vectors | None = None, model=None) -> Vectors:
     n, k = vectors.x.shape
     bits = vectors.x.view(np.uint32)
     ctrl = _core.CONTROLLER_KINDS[LOOP_CONFIG["controller"]][0]
-    lines = ["/* Generated by dampnet.embedded.write_vectors: the firmware's inputs and road. */",
+    lines = ["/* Generated by dampnet.export.mcu.write_vectors: the firmware's inputs and road. */",
              "#ifndef DN_FW_VECTORS_H_", "#define DN_FW_VECTORS_H_", "#include <stdint.h>",
              '#include "dampnet/dampnet.h"',
              f"#define DN_FW_N_X {n}", f"#define DN_FW_N_STEPS {len(vectors.road)}",
@@ -207,223 +154,6 @@ def write_vectors(path, vectors: Vectors | None = None, model=None) -> Vectors:
     lines += ["};", "#endif", ""]
     Path(path).write_text("\n".join(lines))
     return vectors
-
-
-# ---- build and run ----
-
-def cmake_args(cpu: str, vectors: Path | None = None, build_type: str = "Release",
-               caps: dict | None = None, double_kernel: int = DEFAULT_DOUBLE_KERNEL,
-               fp_contract: str = "off", kernel: dict | None = None, loop_float: int | None = None,
-               damper_kinds=DEFAULT_DAMPER_KINDS) -> list[str]:
-    """The configure options of a firmware build (what the presets of CMakePresets.json set);
-    loop_float None: the core's default (LOOP_FLOAT)."""
-    if cpu not in CPUS:
-        raise ValueError(f"unknown core {cpu!r}; known: {', '.join(CPUS)}")
-    loop_float = LOOP_FLOAT[cpu] if loop_float is None else int(loop_float)
-    args = [f"--toolchain={ROOT / 'cmake' / 'arm-none-eabi.cmake'}", f"-DDAMPNET_ARM_CPU={cpu}",
-            f"-DCMAKE_BUILD_TYPE={build_type}", f"-DDAMPNET_DOUBLE_KERNEL={double_kernel}",
-            f"-DDAMPNET_FP_CONTRACT={fp_contract}", f"-DDAMPNET_LOOP_FLOAT={loop_float}",
-            f"-DDAMPNET_DAMPER_KINDS={';'.join(damper_kinds)}",
-            f"-DDAMPNET_ACCEL_FEATURES={';'.join(DEFAULT_ACCEL_FEATURES)}",
-            f"-DDAMPNET_DAMPER_EVALS={';'.join(DEFAULT_DAMPER_EVALS)}"]
-    args += [f"-DDAMPNET_CAP_{k}={v}" for k, v in (caps or DEFAULT_CAPS).items()]
-    args += [f"-DDAMPNET_KERNEL_{k}={v}" for k, v in (DEFAULT_KERNEL if kernel is None else kernel).items()]
-    if vectors is not None:
-        args.append(f"-DDAMPNET_FIRMWARE_VECTORS={Path(vectors).resolve()}")
-    else:  # CMake writes them with this interpreter (python -m dampnet.embedded vectors)
-        args.append(f"-DPython3_EXECUTABLE={sys.executable}")
-    return args
-
-
-def build(cpu: str, build_dir, vectors: Path | None = None, targets=("dn_firmware",), **options) -> Path:
-    """Configure (once) and build the firmware for a core into build_dir; returns build_dir.
-
-    From an installed wheel (no source tree) only the default firmware builds: the folder
-    `dampnet export default --target CPU` writes, with the stored inputs and road of a source
-    build (build_from_folder); other targets and options need the source tree."""
-    build_dir = Path(build_dir)
-    if not source_tree():
-        return build_from_folder(cpu, build_dir, vectors, targets, **options)
-    # an existing build keeps its generator (e.g. one of `cmake --preset cortex-m4`'s, which
-    # CMake would refuse to switch)
-    gen = ["-G", "Ninja"] if shutil.which("ninja") and not (build_dir / "CMakeCache.txt").is_file() else []
-    _run(["cmake", "-S", ROOT, "-B", build_dir, *gen, *cmake_args(cpu, vectors, **options)])
-    _run(["cmake", "--build", build_dir, "--parallel", str(os.cpu_count() or 2), "--target", *targets])
-    return build_dir
-
-
-def build_from_folder(cpu: str, build_dir: Path, vectors: Path | None = None, targets=("dn_firmware",),
-                      **options) -> Path:
-    """The default firmware without the source tree: the default model's export folder
-    (export_target, with make_vectors' inputs and road) in build_dir/folder, built into build_dir."""
-    from dampnet.modeldir import default_model
-
-    if tuple(targets) != ("dn_firmware",) or vectors is not None or options:
-        raise EmbeddedError(f"building {', '.join(targets)} with options {sorted(options) or 'none'} and "
-                            f"vectors {vectors or 'default'} needs dampnet's source tree (this dampnet is installed "
-                            f"at {Path(__file__).parent}): clone it and run bash python/env.sh, or export a folder "
-                            "with `dampnet export MODEL --target CPU --out DIR` and build that")
-    model = default_model()
-    build_dir = build_dir.resolve()  # the toolchain file's path is read from the build directory
-    folder = build_dir / "folder"
-    export_target(model, cpu, folder, overwrite=True, model_name="default", vectors=make_vectors(model))
-    gen = ["-G", "Ninja"] if shutil.which("ninja") and not (build_dir / "CMakeCache.txt").is_file() else []
-    _run(["cmake", "-S", folder, "-B", build_dir, *gen, f"--toolchain={folder / 'cmake' / 'arm-none-eabi.cmake'}",
-          f"-DDAMPNET_ARM_CPU={cpu}"])
-    _run(["cmake", "--build", build_dir, "--parallel", str(os.cpu_count() or 2)])
-    return build_dir
-
-
-def firmware_path(build_dir, name: str = "dn_firmware") -> Path:
-    """The firmware `name` of a build: build_dir/cpp/embedded/NAME.elf of a source build, or the
-    example firmware (build_dir/firmware.elf) of an export folder's build (build_from_folder)."""
-    path = Path(build_dir) / "cpp" / "embedded" / f"{name}.elf"
-    folder_fw = Path(build_dir) / "firmware.elf"
-    return folder_fw if name == "dn_firmware" and not path.is_file() and folder_fw.is_file() else path
-
-
-def run(elf, cpu: str, icount: bool = True, timeout: float = 120) -> str:
-    """Run a firmware in QEMU on the core's board; returns what it printed. -icount shift=0:
-    one instruction per nanosecond of virtual time, so SysTick counts instructions (the
-    firmware's "calib" line gives how many per tick) and every run prints the same."""
-    cmd = ["qemu-system-arm", "-M", CPUS[cpu]["machine"], "-nographic", "-monitor", "none",
-           "-serial", "none", "-semihosting-config", "enable=on,target=native", "-kernel", str(elf)]
-    if icount:
-        cmd += ["-icount", "shift=0"]
-    proc = _run(cmd, timeout=timeout)
-    return proc.stdout + proc.stderr  # QEMU writes semihosting output to stderr with -nographic
-
-
-def _run(cmd, timeout: float = 900) -> subprocess.CompletedProcess:
-    try:
-        proc = subprocess.run([str(c) for c in cmd], capture_output=True, text=True, timeout=timeout)
-    except subprocess.TimeoutExpired as e:
-        raise EmbeddedError(f"timed out after {timeout} s: {' '.join(map(str, cmd))}") from e
-    if proc.returncode != 0:
-        raise EmbeddedError(f"command failed ({proc.returncode}): {' '.join(map(str, cmd))}\n"
-                            f"--- stdout\n{proc.stdout[-4000:]}\n--- stderr\n{proc.stderr[-4000:]}")
-    return proc
-
-
-# ---- the firmware's output ----
-
-@dataclass
-class FirmwareOutput:
-    cpu: str = ""
-    part: int = 0
-    sizes: dict = field(default_factory=dict)       # bytes of the C ABI objects (dn_sizes.h)
-    instructions_per_tick: float = 0.0              # from the calibration loop
-    forces: np.ndarray | None = None                # float32 forces of the stored inputs
-    status: np.ndarray | None = None
-    mask: np.ndarray | None = None
-    time: dict = field(default_factory=dict)        # name -> (ticks, stub ticks, n)
-    stack: dict = field(default_factory=dict)       # name -> peak bytes below main's frame
-    states: list = field(default_factory=list)      # (step, state[13], force) every PRINT_EVERY steps
-    final: np.ndarray | None = None
-    evals: int = 0
-    status_or: int = 0
-    errors: int = -1
-
-    def instructions(self, name: str) -> float:
-        """Instructions per call of a timed loop, its empty-stub loop subtracted."""
-        ticks, stub, n = self.time[name]
-        return (ticks - stub) * self.instructions_per_tick / n
-
-
-def _f64(h: str) -> float:
-    """A printed real's bits: 16 hex digits a double, 8 a float (a DN_LOOP_FLOAT build's state)."""
-    return struct.unpack(">d" if len(h) == 16 else ">f", bytes.fromhex(h))[0]
-
-
-def parse_output(text: str) -> FirmwareOutput:
-    out = FirmwareOutput()
-    forces, status, mask = [], [], []
-    for line in text.splitlines():
-        f = line.split()
-        if not f:
-            continue
-        if f[0] == "dn_fw":
-            out.cpu, out.part = f[2], int(f[4])
-            out.sizes = {f[i]: int(f[i + 1]) for i in range(6, len(f) - 1, 2)}
-        elif f[0] == "calib":
-            out.instructions_per_tick = int(f[3]) / int(f[1])
-        elif f[0] == "x":
-            forces.append(struct.unpack(">f", bytes.fromhex(f[2]))[0])
-            status.append(int(f[3]))
-            mask.append(int(f[4]))
-        elif f[0] == "time":
-            out.time[f[1]] = (int(f[2]), int(f[4]), int(f[6]))
-        elif f[0] == "stack":
-            out.stack[f[1]] = int(f[2])
-        elif f[0] in ("s", "final"):
-            vals = np.array([_f64(h) for h in f[2:]])
-            if f[0] == "s":
-                out.states.append((int(f[1]), vals[:-1], vals[-1]))
-            else:
-                out.final = vals[:-1]
-        elif f[0] == "loop":
-            out.evals, out.status_or = int(f[2]), int(f[4])
-        elif f[0] == "done":
-            out.errors = int(f[2])
-    if forces:
-        out.forces = np.array(forces, dtype=np.float32)
-        out.status, out.mask = np.array(status), np.array(mask, dtype=np.uint32)
-    return out
-
-
-# ---- the host's side of the comparison ----
-
-def host_forces(model, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The host runtime's float forward (dampnet._core, the kernel the host was built with)."""
-    y, st, _ = model.core().predict(np.asarray(x, np.float32).astype(np.float64), single=True)
-    return y, st
-
-
-def host_loop(model, road: np.ndarray, every: int = PRINT_EVERY):
-    """The host loop in the firmware's configuration (float MLP, double state) over the road:
-    the state after every `every` steps, the final state and the damper evaluations."""
-    from dampnet import _core
-    from dampnet.sim.loop import damper_from_model
-
-    vehicle = {k: LOOP_CONFIG[k] for k in ("damper_eval", "accel_feature")}
-    controller = {"kind": LOOP_CONFIG["controller"], "u_tau_s": LOOP_CONFIG["u_tau_s"]}
-    loop = _core.Loop(_core.LoopModel(damper_from_model(model, single=True), vehicle, controller))
-    states = []
-    for k, (z, v) in enumerate(road.tolist(), start=1):
-        loop.step(z, v)
-        if k % every == 0 or k == len(road):
-            states.append((k, np.array(loop.state)))
-    return states, np.array(loop.state), loop.damper_evals
-
-
-#: the loop-state columns the firmware-vs-host comparison reads, by name (found in STATE_NAMES:
-#: the firmware's loop state is built from the same dampnet.h)
-COMPARED_STATES = ("z_s", "v_s", "z_us", "v_us", "u_cmd")
-#: the firmware's state may differ from the host's double loop by this share of each state's peak
-#: (the float loop's rounding: measured 1.2e-6 on the M4F)
-HOST_TOLERANCE = 1e-4
-
-
-def loop_vs_host(model, road: np.ndarray, out) -> dict:
-    """The firmware run `out` (parse_output) against host_loop on the same road: {error_over_peak
-    {state: max |fw - host| / peak}, peak, final_error_over_peak, evals (firmware, host), within
-    (every error <= HOST_TOLERANCE of its peak, the same step indices and evaluation count)}."""
-    from dampnet import _core
-
-    states, final, evals = host_loop(model, road)
-    idx = [_core.STATE_NAMES.index(name) for name in COMPARED_STATES]
-    fw = np.array([s for _, s, _ in out.states])
-    host = np.array([s for _, s in states])
-    same_steps = [k for k, _, _ in out.states] == [k for k, _ in states] and fw.shape == host.shape
-    peak = np.abs(host[:, idx]).max(axis=0)
-    err = np.abs(fw[:, idx] - host[:, idx]).max(axis=0) if same_steps else np.full(len(idx), np.inf)
-    final_err = np.abs(np.asarray(out.final)[idx] - final[idx]) / peak
-    ratio = err / peak
-    return {"error_over_peak": dict(zip(COMPARED_STATES, ratio.tolist())), "peak": dict(zip(COMPARED_STATES, peak.tolist())),
-            "final_error_over_peak": dict(zip(COMPARED_STATES, final_err.tolist())),
-            "evals": (int(out.evals), int(evals)),
-            "within": bool(same_steps and np.all(peak > 0) and np.all(ratio <= HOST_TOLERANCE)
-                           and np.all(final_err <= HOST_TOLERANCE) and out.evals == evals)}
 
 
 # ---- dampnet export MODEL --target cortex-m4|cortex-m7 --out DIR ----
@@ -589,7 +319,7 @@ def _folder_sources() -> tuple[Path, Path, Path]:
     cmake/, embedded/)."""
     if source_tree():
         return ROOT / "cpp", ROOT / "cmake", ROOT / "cpp" / "embedded"
-    pkg = Path(__file__).resolve().parent
+    pkg = Path(__file__).resolve().parents[1]  # the package root (dampnet/), where CMake installs them
     return pkg, pkg / "cmake", pkg / "embedded"
 
 
@@ -604,7 +334,7 @@ def export_target(model, target: str, out_dir, overwrite: bool = False, model_na
     never if it is or holds one of `inputs` (the model's path); the folder is built in a staging
     directory and swapped in (outputs.staged_dir), so a kill leaves the old folder or the new."""
     import dampnet
-    from dampnet.export import header_text
+    from dampnet.export.header import header_text
     from dampnet.outputs import check_output_dir, json_text, staged_dir
 
     if target not in CPUS:
@@ -657,38 +387,15 @@ def export_target(model, target: str, out_dir, overwrite: bool = False, model_na
     return out
 
 
-
 def main(argv=None) -> int:
     import argparse
 
-    p = argparse.ArgumentParser(prog="python -m dampnet.embedded", description=__doc__.split("\n\n")[0])
+    p = argparse.ArgumentParser(prog="python -m dampnet.export.mcu", description=__doc__.split("\n\n")[0])
     sub = p.add_subparsers(dest="cmd", required=True)
     v = sub.add_parser("vectors", help="write the firmware's inputs and road header")
     v.add_argument("out")
-    b = sub.add_parser("build", help="build the firmware for a core")
-    b.add_argument("--cpu", choices=sorted(CPUS), default="cortex-m4")
-    b.add_argument("--dir", default=None, help="build directory (default: the source tree's build/CPU; "
-                                                "installed: ./build/dampnet-CPU)")
-    r = sub.add_parser("run", help="build and run the firmware in QEMU, print its output")
-    r.add_argument("--cpu", choices=sorted(CPUS), default="cortex-m4")
-    r.add_argument("--dir", default=None)
     a = p.parse_args(argv)
-    if a.cmd == "vectors":
-        write_vectors(a.out)
-        return 0
-    why = toolchain_missing()
-    if why:
-        print(f"dampnet: error: {why}", file=sys.stderr)
-        return 2
-    # the source tree's build/CPU, or for an installed dampnet ./build/dampnet-CPU
-    bdir = Path(a.dir or (ROOT / "build" / a.cpu if source_tree() else Path("build") / f"dampnet-{a.cpu}"))
-    try:
-        build(a.cpu, bdir)
-        if a.cmd == "run":
-            sys.stdout.write(run(firmware_path(bdir), a.cpu))
-    except (EmbeddedError, OSError, ValueError) as e:
-        print(f"dampnet: error: {e}", file=sys.stderr)
-        return 2
+    write_vectors(a.out)
     return 0
 
 

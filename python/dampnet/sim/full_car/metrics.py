@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.signal
 
-from dampnet.fullcar.maneuvers import OVERHANG_FRONT_M, OVERHANG_REAR_M, Maneuver
+from dampnet.sim.full_car.maneuvers import OVERHANG_FRONT_M, OVERHANG_REAR_M, Maneuver
 from dampnet.sim.ride import rms, wk_weighted
 
 

@@ -1,6 +1,6 @@
 """The quarter-car loop in Python: the TEST ORACLE of the runtime's loop, used by tests only.
 
-Nothing in the package runs it (every run goes through `dampnet.sim.loop.QuarterCar`, the
+Nothing in the package runs it (every run goes through `dampnet.sim.quarter_car.loop.QuarterCar`, the
 runtime's C++ loop); tests/python compare the runtime with it, so the two must agree to
 rounding. It integrates exactly the runtime's equations (cpp/include/dampnet/loop.hpp,
 thesis eq. 13-14) with the runtime's scheme for one damper evaluation per step

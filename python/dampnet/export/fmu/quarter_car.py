@@ -37,10 +37,10 @@ import re
 from pathlib import Path
 
 from dampnet import _core
-from dampnet.export import _package_version
-from dampnet.fmu.damper import (FmuError, check_model, control_unit, damper_variables, data_label, envelope_doc,
+from dampnet.export.header import _package_version
+from dampnet.export.fmu.damper import (FmuError, check_model, control_unit, damper_variables, data_label, envelope_doc,
                                 status_doc, term_names_config)
-from dampnet.fmu.description import Description, Variable, range_in, unit_in
+from dampnet.export.fmu.description import Description, Variable, range_in, unit_in
 from dampnet.model import MlpModel
 
 MODEL_IDENTIFIER = "dampnet_quarter_car"

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from dampnet.envelope import Envelope
+from dampnet.envelope.samples import Envelope
 
 #: cells a training sample marks around its own in each direction (1: a 3 x 3 block)
 DILATE_CELLS = 1

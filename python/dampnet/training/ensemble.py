@@ -72,7 +72,7 @@ def average_networks(models: Sequence[MlpModel]) -> MlpModel:
     meta["seeds"] = [m.meta.get("seed") for m in models]
     meta["ensemble"] = {"members": k, "hidden_each": [int(m.w1.shape[0]) for m in models],
                         "member_ids": [m.model_id() for m in models],
-                        "what": "the mean of the members' outputs as one network (dampnet.ensemble)"}
+                        "what": "the mean of the members' outputs as one network (dampnet.training.ensemble)"}
     return MlpModel(w1=np.vstack([m.w1 for m in models]), b1=np.concatenate([m.b1 for m in models]),
                     w_out=np.concatenate([m.w_out for m in models]) / k,
                     b_out=float(np.mean([m.b_out for m in models])),

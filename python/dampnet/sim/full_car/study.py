@@ -7,8 +7,8 @@ from __future__ import annotations
 
 from typing import Any, Callable, Mapping
 
-from dampnet.fullcar.maneuvers import Maneuver
-from dampnet.fullcar.runs import DAMPING, run
+from dampnet.sim.full_car.maneuvers import Maneuver
+from dampnet.sim.full_car.runs import DAMPING, run
 from dampnet.sim.dampers import DamperSpec
 
 
@@ -17,7 +17,7 @@ def run_study(specs: list[DamperSpec], tests: dict[str, Maneuver], damping=DAMPI
               recipes: Mapping[str, Any]) -> dict:
     """{'results': {test: {damping: {model: metrics}}}, 'errors': ... vs the model named
     'truth' when there is one (relative, per headline metric), 'coverage': {test: {damping:
-    {model: dampnet.coverage result}}} for neural models, 'headline_metrics': {test: the metrics the
+    {model: dampnet.envelope.coverage result}}} for neural models, 'headline_metrics': {test: the metrics the
     table shows, the first one first}, 'runs' (with keep_runs)}.
 
     recipes: each test's entry of dampnet.recipes.maneuvers (its .metrics and .headline;

@@ -12,9 +12,9 @@ from __future__ import annotations
 import json
 
 from dampnet import _core
-from dampnet.export import _package_version
+from dampnet.export.header import _package_version
 from dampnet.features import param_doc
-from dampnet.fmu.description import Description, FmuError, Variable, fmi_unit, range_in, unit_in
+from dampnet.export.fmu.description import Description, FmuError, Variable, fmi_unit, range_in, unit_in
 from dampnet.model import MlpModel
 from dampnet.terms import KINDS
 

@@ -3,7 +3,7 @@
 Two panels, (velocity, acceleration) and (velocity, control), in feature units: grey dots (drawn over
 the runs), the envelope's stored training samples (without an envelope file: none); dashed, the training range
 of each input (the model's saturation limits); each run's trajectory a thin line, its steps
-outside the envelope (dampnet.coverage: outside a range, or farther than the joint threshold
+outside the envelope (dampnet.envelope.coverage: outside a range, or farther than the joint threshold
 from every training sample) marked with dots of the same colour.
 """
 
@@ -49,7 +49,7 @@ def outside_mask(model, X: np.ndarray, envelope=None) -> np.ndarray:
 
 def plot_coverage(model, runs: Mapping[str, np.ndarray], path, envelope=None, title: str = "",
                   max_points: int = 20000) -> None:
-    """runs: label -> the run's inputs [n, n_inputs] (feature units, dampnet.coverage's
+    """runs: label -> the run's inputs [n, n_inputs] (feature units, dampnet.envelope.coverage's
     quarter_car_inputs / fullcar_inputs); at most max_points steps of each are drawn."""
     import matplotlib
 
