@@ -63,6 +63,40 @@ _API: dict[str, tuple[str, str | None]] = {
 
 __all__ = sorted([*_API, "__version__"])
 
+# modules that moved (issue 31's package families): importing an old name is refused with the new
+# one, rather than a bare "No module named"
+MOVED_MODULES: dict[str, str] = {
+    "dampnet.coverage": "dampnet.envelope.coverage",
+    "dampnet.coverage_plot": "dampnet.envelope.plot",
+    "dampnet.envelope_grid": "dampnet.envelope.grid",
+    "dampnet.ensemble": "dampnet.training.ensemble",
+    "dampnet.fmu": "dampnet.export.fmu",
+    "dampnet.embedded": "dampnet.export.mcu (the QEMU build/run lab: bench/firmware_lab.py in a source checkout)",
+    "dampnet.fullcar": "dampnet.sim.full_car",
+    "dampnet.sim.loop": "dampnet.sim.quarter_car.loop",
+    "dampnet.sim.reference_loop": "dampnet.sim.quarter_car.reference_loop",
+    "dampnet.sim.report": "dampnet.sim.quarter_car.report",
+    "dampnet.sim.runs": "dampnet.sim.quarter_car.runs",
+    "dampnet.sim.study": "dampnet.sim.quarter_car.study",
+}
+
+
+class _MovedModuleFinder:
+    """A sys.meta_path finder that refuses a moved module's old name (and its submodules), naming
+    where it lives now; every other name falls through to the normal finders."""
+
+    @staticmethod
+    def find_spec(fullname: str, path: Any = None, target: Any = None) -> None:
+        for old, new in MOVED_MODULES.items():
+            if fullname == old or fullname.startswith(old + "."):
+                raise ModuleNotFoundError(f"{fullname} moved: it is {new}{fullname[len(old):]} now",
+                                          name=fullname)
+        return None
+
+
+if not any(isinstance(f, _MovedModuleFinder) for f in __import__("sys").meta_path):
+    __import__("sys").meta_path.insert(0, _MovedModuleFinder())
+
 try:
     from importlib.metadata import version as _version
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 
@@ -64,3 +65,23 @@ def test_the_api_snippet_runs(tmp_path):
     s = road.sample(car.dt)
     out = car.simulate(s.z, s.zdot)
     assert out["state"].shape[0] == len(s.z) and np.all(np.isfinite(out["force"]))
+
+
+def test_a_moved_module_is_refused_naming_its_new_home():
+    """Issue 31 moved modules into package families; the old dotted names are refused with the new
+    one (never a bare "No module named"), and every new home imports."""
+    import importlib
+
+    assert len(dampnet.MOVED_MODULES) >= 12
+    for old, new in dampnet.MOVED_MODULES.items():
+        with pytest.raises(ModuleNotFoundError, match=rf"^{re.escape(old)} moved: it is {re.escape(new)} now$"):
+            importlib.import_module(old)
+        importlib.import_module(new.split(" ", 1)[0])
+    with pytest.raises(ModuleNotFoundError, match=r"dampnet\.fullcar moved: it is dampnet\.sim\.full_car now"):
+        importlib.import_module("dampnet.fullcar.runs")
+    # names that only share a prefix with a moved one are untouched
+    importlib.import_module("dampnet.sim.quarter_car.runs")
+    importlib.import_module("dampnet.envelope")
+    # the old command line (python -m) gets the same message
+    r = subprocess.run([sys.executable, "-m", "dampnet.embedded", "run"], capture_output=True, text=True)
+    assert r.returncode != 0 and "dampnet.embedded moved: it is dampnet.export.mcu" in r.stderr
