@@ -161,3 +161,36 @@ def test_the_bounce_sweep_settings_work_from_the_command_line(tmp_path, capsys):
     assert "--bsst-f1: expected a finite number > 0 [Hz], got 0.0" in capsys.readouterr().err
     assert main(["vehicle", "linear:2500", "--test", "dlc", "--bsst-rate", "1", "--out", str(tmp_path / "x")]) == 2
     assert "--bsst-rate: dlc does not take it (it applies to bsst); drop --bsst-rate" in capsys.readouterr().err
+
+
+def test_the_vehicle_damping_settings_are_control_laws(hump, tmp_path, monkeypatch, capsys):
+    """`dampnet vehicle --damping`, the sweep's [fullcar] damping and the full-car study name laws
+    of dampnet.recipes.control_laws (VEHICLE_DAMPING): a law and a setting registered here run
+    through `dampnet vehicle`; each built-in one is its law, limited to the damper's levels."""
+    from dampnet.recipes import control_laws
+    from dampnet.sim.calibration import damping_levels
+    from dampnet.sim.vehicle import Controller
+
+    spec = load_spec("linear:2500")
+    # the built-in settings: the registry's law, calibrated on the damper, with the levels as limits
+    lv = damping_levels(load_spec("default"))
+    for damping, law in control_laws.VEHICLE_DAMPING.items():
+        ctrl = control_laws.vehicle_controller(load_spec("default"), damping)
+        assert ctrl.to_dict() == {**control_laws.make(law, load_spec("default")).to_dict(),
+                                  "u_min": min(lv.values()), "u_max": max(lv.values())}
+    with pytest.raises(Exception, match="damping must be one of low, high, skyhook, got 'mid'"):
+        control_laws.vehicle_controller(spec, "mid")
+
+    def mid(ctx):
+        return Controller(kind="passive", u_passive=0.5 * (ctx.levels["low"] + ctx.levels["high"]))
+
+    control_laws.register(control_laws.ControlLaw("passive_mid_test", "passive halfway between the levels", mid))
+    monkeypatch.setitem(control_laws.VEHICLE_DAMPING, "mid", "passive_mid_test")
+    try:
+        res = vehicle_run(tmp_path, "mid", "--test", "hump", "--damping", "mid")
+    finally:
+        control_laws.unregister("passive_mid_test")
+    lv = damping_levels(spec)
+    assert res["damping"] == "mid"
+    assert res["controller"]["u_passive"] == pytest.approx(0.5 * (lv["low"] + lv["high"]), abs=0)
+    assert (res["controller"]["u_min"], res["controller"]["u_max"]) == (min(lv.values()), max(lv.values()))

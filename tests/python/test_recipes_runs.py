@@ -221,9 +221,12 @@ def test_every_request_field_is_spelled_where_fields_says():
     parser = train.add_parser(argparse.ArgumentParser().add_subparsers())
     options = {o for a in parser._actions for o in a.option_strings}
     sweep_keys = {p.key: p for p in TRAINING_PARAMS}
+    helps = {o: a.help for a in parser._actions for o in a.option_strings}
     for f in recipe.FIELDS.values():
         assert f.cli is None or f.cli in options, f.name
         assert f.sweep is None or f.sweep in sweep_keys, f.name
+        # the option's help says what FIELDS says first (then only how the command line spells it)
+        assert f.cli is None or helps[f.cli].startswith(f.help()), (f.name, helps[f.cli])
     for key in ("restarts", "average", "restart_score"):
         assert sweep_keys[key].help.startswith(recipe.FIELDS[key].doc)
 

@@ -11,7 +11,7 @@ import sys
 import time
 
 from dampnet.commands.common import error
-from dampnet.commands.training_options import ADD_RULE, Progress, add_training_options, training_request, whole
+from dampnet.commands.training_options import ADD_RULE, Progress, add_training_options, field_help, training_request, whole
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -29,20 +29,18 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="model directory to write (must not exist unless --force)")
     add_training_options(p)
     p.add_argument("--restarts", default="auto", metavar="N",
-                   help="train N times from different seeds (--seed first) and keep the model that interpolates "
-                        "best between the training control levels, never looking at the hold-out (default "
-                        "'auto': 6 when the training tests have two control levels or more, else 1; 1: train "
-                        "once, exactly as before). model.json records every restart (meta.restarts)")
+                   help=field_help("restarts", "N (--seed first), never looking at the hold-out; default 'auto'; "
+                                              "1: train once. model.json records every restart (meta.restarts)"))
     p.add_argument("--restart-score", default="interpolation", choices=["interpolation", "lolo"],
-                   help="how restarts are ranked: interpolation (default: how far each model strays between "
-                        "adjacent levels from the smooth curve through its own predictions at them) or lolo "
-                        "(leave-one-level-out refits on interior levels; costs about 2x more and selects worse, "
-                        "bench/RESULTS.md)")
+                   help=field_help("restart_score", "interpolation (default: how far each model strays between "
+                                                   "adjacent levels from the smooth curve through its own predictions "
+                                                   "at them) or lolo (leave-one-level-out refits on interior levels; "
+                                                   "about 2x the cost and selects worse, bench/RESULTS.md)"))
     p.add_argument("--average", type=int, default=1, metavar="K",
-                   help="keep the K best restarts and average them into one network K times as wide (their mean "
-                        "output, exactly; the width must fit the runtime's 64 neurons, e.g. 2 x 30 hidden): lower "
-                        "held-out error than one seed or one wide network (bench/RESULTS.md 'Inside the "
-                        "envelope'); default 1, the best restart alone")
+                   help=field_help("average", "K, into one network K times as wide (their mean output, exactly; "
+                                             "the width must fit the runtime's 64 neurons, e.g. 2 x 30 hidden): lower "
+                                             "held-out error than one seed or one wide network (bench/RESULTS.md "
+                                             "'Inside the envelope'); default 1, the best restart alone"))
     p.add_argument("--workers", default=None, metavar="N",
                    help="processes the restarts run in, one torch thread each (default: the local cores)")
     p.add_argument("--prefix", default="dn_model", help="C identifier prefix in model.h (default dn_model)")

@@ -13,6 +13,14 @@ ADD_RULE = ("its parameters (a lag's time constant, a pre-sliding length) are th
             "(dampnet.diagnosis.estimate) and the others take the catalogue's defaults")
 
 
+def field_help(name: str, spelling: str = "") -> str:
+    """An option's help: what the request field means (dampnet.recipes.training.FIELDS, the
+    one text the sweep's keys share), then how the command line spells it."""
+    from dampnet.recipes.training import FIELDS
+
+    return FIELDS[name].help() + (f"; {spelling}" if spelling else "")
+
+
 def add_training_options(p: argparse.ArgumentParser, algorithm: bool = True) -> None:
     """Options shared by `train` and `compare-algorithms`."""
     from dampnet.effects import CATALOGUE
@@ -20,39 +28,39 @@ def add_training_options(p: argparse.ArgumentParser, algorithm: bool = True) -> 
 
     addable = ", ".join(k for k, e in CATALOGUE.items() if e.adds is not None)
     p.add_argument("--features", default=None,
-                   help="comma-separated input features in order (default: velocity,acceleration and "
-                        "the data's control, voltage or current); e.g. velocity,acceleration,voltage,temperature")
+                   help=field_help("features", "comma-separated, e.g. velocity,acceleration,voltage,temperature"))
     p.add_argument("--terms", default=None,
-                   help='physics terms as JSON, e.g. \'[{"kind": "position_poly"}]\'; terms without '
-                        '"params" are fitted by least squares, the MLP learns the rest')
+                   help=field_help("terms", 'JSON, e.g. \'[{"kind": "position_poly"}]\'; terms without "params" are '
+                                            "fitted by least squares, the MLP learns the rest"))
     p.add_argument("--add", action="append", default=[], metavar="EFFECT",
-                   help=f"add the features and terms that capture a physical effect (repeatable; the effect "
-                        f"catalogue dampnet.effects: {addable}; `dampnet rig --list-effects`): {ADD_RULE}")
+                   help=field_help("add", f"repeatable; the effect catalogue: {addable}; `dampnet rig "
+                                          f"--list-effects`; {ADD_RULE}"))
     p.add_argument("--diagnosis", default=None, metavar="FILE",
-                   help="the JSON of `dampnet diagnose --json FILE`: every --add EFFECT takes the parameters "
-                        "this diagnosis estimated (the same additions as the demo's improve stage)")
+                   help=field_help("diagnosis", "the JSON of `dampnet diagnose --json FILE` (the same additions as "
+                                                "the demo's improve stage)"))
     if algorithm:
         p.add_argument("--algorithm", default="lm", choices=sorted(ALGORITHMS),
-                       help="lm (Levenberg-Marquardt, default), br (Bayesian regularisation), "
-                            "scg (scaled conjugate gradient), adam")
-    p.add_argument("--hidden", default="30", help="hidden layer sizes, e.g. 30 or 20,10 (default 30)")
+                       help=field_help("algorithm", "lm Levenberg-Marquardt (default), br Bayesian "
+                                                    "regularisation, scg scaled conjugate gradient or adam"))
+    p.add_argument("--hidden", default="30", help=field_help("hidden", "e.g. 30 or 20,10 (default 30)"))
     p.add_argument("--activation", default="tanh", choices=["tanh", "sigmoid"],
-                   help="hidden activation (default tanh, MATLAB's tansig)")
+                   help=field_help("activation", "default tanh, MATLAB's tansig"))
     p.add_argument("--holdout-voltage", default="2.25",
-                   help="hold out every test at this nominal control value (default 2.25; 'none' for none)")
-    p.add_argument("--holdout-tests", default="", help="comma-separated test ids to hold out as well")
+                   help=field_help("holdout_voltage", "every test at this nominal control value; default 2.25, "
+                                                          "'none' for none"))
+    p.add_argument("--holdout-tests", default="", help=field_help("holdout_tests", "comma-separated"))
     p.add_argument("--decimate", default="auto",
-                   help="keep every N-th training sample ('auto': about 200 Hz, 25 at 5 kHz)")
+                   help=field_help("decimate", "N, or 'auto' (default): about 200 Hz, 25 at 5 kHz"))
     p.add_argument("--no-zero-points", action="store_true",
-                   help="do not add the zero-input, zero-force training points")
+                   help=field_help("zero_points", "given: do not add them"))
     from dampnet.training.settings import MAX_EPOCHS, MAX_SEED, TRAIN_DEFAULTS, settings_help
 
-    p.add_argument("--max-epochs", type=int, default=1000, help=f"epoch limit, 1..{MAX_EPOCHS} (default 1000)")
+    p.add_argument("--max-epochs", type=int, default=1000, help=field_help("max_epochs", f"1..{MAX_EPOCHS} (default 1000)"))
     p.add_argument("--seed", type=int, default=0,
-                   help=f"random seed (split, initial weights), 0..{MAX_SEED} (default 0)")
+                   help=field_help("seed", f"0..{MAX_SEED} (default 0)"))
     p.add_argument("--settings", default=None,
-                   help='algorithm settings as JSON, e.g. \'{"mu_max": 1e8}\' or \'{"lr": 0.01}\'; each with its '
-                        f"range (dampnet.training.settings): {settings_help(TRAIN_DEFAULTS)}")
+                   help=field_help("settings", 'JSON, e.g. \'{"mu_max": 1e8}\' or \'{"lr": 0.01}\'; each with its '
+                                               f"range: {settings_help(TRAIN_DEFAULTS)}"))
 
 
 def training_kwargs(args, ds) -> tuple[dict, list[dict]]:

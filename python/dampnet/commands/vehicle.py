@@ -14,6 +14,7 @@ RUN_FILES = ("run.npz", "metrics.json", "vehicle.png", "coverage.png")
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     from dampnet.recipes import maneuvers
+    from dampnet.recipes.control_laws import VEHICLE_DAMPING
 
     tests = "; ".join(f"{m.name} ({m.doc})" for m in maneuvers.MANEUVERS.values())
     p = subparsers.add_parser(
@@ -30,8 +31,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                        if s.name in m.defaults)
         p.add_argument(s.cli, dest=s.name, type=_TYPES[s.kind], default=None, metavar=s.metavar,
                        help=f"{s.text()}; of {by or 'no test'}")
-    p.add_argument("--damping", choices=("low", "high", "skyhook"), default="low",
-                   help="passive at the damper's low or high setting, or on-off skyhook at every corner")
+    p.add_argument("--damping", choices=tuple(VEHICLE_DAMPING), default="low",
+                   help="every corner's control law (dampnet.recipes.control_laws): "
+                        + ", ".join(f"{k} = {v}" for k, v in VEHICLE_DAMPING.items())
+                        + ", each limited to the damper's low..high levels")
     p.add_argument("--dt", type=float, default=1e-3, help="step [s]")
     p.add_argument("--out", default="vehicle_out", help="output directory")
     p.add_argument("--force", action="store_true", help="replace an existing run in --out")

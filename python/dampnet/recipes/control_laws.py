@@ -97,9 +97,12 @@ def get(name: str) -> ControlLaw:
 
 
 def make(name: str, spec: DamperSpec, vehicle: Vehicle | None = None, *, u_tau_s: float | None = None,
-         damping: str = "high", u: float | None = None, fields: Mapping[str, Any] | None = None) -> Controller:
+         damping: str = "high", u: float | None = None, fields: Mapping[str, Any] | None = None,
+         limit_to_levels: bool = False) -> Controller:
     """The Controller of law `name` calibrated on `spec` (see the module docstring); `fields`:
-    Controller fields set over the calibrated ones. LoopError (one line) on a bad name or value."""
+    Controller fields set over the calibrated ones; `limit_to_levels`: the command limited to the
+    damper's low..high levels (u_min, u_max), as the full vehicle runs every law. LoopError (one
+    line) on a bad name or value."""
     from dampnet.sim.calibration import SKYHOOK_COMMAND_TAU_S, damping_levels
 
     law = get(name)
@@ -109,6 +112,8 @@ def make(name: str, spec: DamperSpec, vehicle: Vehicle | None = None, *, u_tau_s
     ctx = LawContext(spec, damping_levels(spec, veh.dt), veh,
                      SKYHOOK_COMMAND_TAU_S if u_tau_s is None else u_tau_s, damping, u)
     ctrl = law.build(ctx)
+    if limit_to_levels:
+        ctrl = dataclasses.replace(ctrl, u_min=min(ctx.levels.values()), u_max=max(ctx.levels.values()))
     settable = {f.name for f in dataclasses.fields(Controller)} - {"kind"}
     unknown = sorted(set(fields or {}) - settable)
     if unknown:
@@ -116,6 +121,19 @@ def make(name: str, spec: DamperSpec, vehicle: Vehicle | None = None, *, u_tau_s
     ctrl = dataclasses.replace(ctrl, **dict(fields or {}))
     ctrl.validate()
     return ctrl
+
+
+#: the full vehicle's damping settings (`dampnet vehicle --damping`, the sweep's [fullcar] damping,
+#: the full-car study): each is a law of this registry at every corner, limited to the damper's levels
+VEHICLE_DAMPING: dict[str, str] = {"low": "passive_low", "high": "passive_high", "skyhook": "skyhook_onoff"}
+
+
+def vehicle_controller(spec: DamperSpec, damping: str) -> Controller:
+    """Every corner's controller for a full-vehicle damping setting (VEHICLE_DAMPING), calibrated
+    on `spec`; LoopError naming the settings otherwise."""
+    if damping not in VEHICLE_DAMPING:
+        raise LoopError(f"damping must be one of {', '.join(VEHICLE_DAMPING)}, got {damping!r}")
+    return make(VEHICLE_DAMPING[damping], spec, limit_to_levels=True)
 
 
 def help_text() -> str:

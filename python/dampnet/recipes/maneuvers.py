@@ -209,16 +209,23 @@ def build(name: str, dt: float, settings: dict[str, Any] | None = None, vehicle:
 
 def run(spec, man, damping: str = "low", params: dict | None = None) -> dict:
     """dampnet.sim.full_car.runs.run of a built manoeuvre (its metrics: the one its meta["test"] names)."""
+    from dampnet.recipes.control_laws import vehicle_controller
     from dampnet.sim.full_car.runs import run as run_test
 
-    return run_test(spec, man, damping, params, metrics=get(man.meta["test"]).metrics)
+    return run_test(spec, man, damping, params, metrics=get(man.meta["test"]).metrics,
+                    controller=vehicle_controller(spec, damping))
 
 
-def run_study(specs, tests: dict, **kw) -> dict:
-    """dampnet.sim.full_car.study.run_study with each test's metrics and headline from the registry."""
+def run_study(specs, tests: dict, damping: tuple[str, ...] | None = None, **kw) -> dict:
+    """dampnet.sim.full_car.study.run_study with each test's metrics and headline from the registry
+    and the controllers from dampnet.recipes.control_laws (damping: its VEHICLE_DAMPING names,
+    default all)."""
+    from dampnet.recipes.control_laws import VEHICLE_DAMPING, vehicle_controller
     from dampnet.sim.full_car.study import run_study as study
 
-    return study(specs, tests, recipes={t: get(man.meta["test"]) for t, man in tests.items()}, **kw)
+    return study(specs, tests, tuple(VEHICLE_DAMPING) if damping is None else tuple(damping),
+                 recipes={t: get(man.meta["test"]) for t, man in tests.items()},
+                 controller=vehicle_controller, **kw)
 
 
 def plot(runs: dict, path, title: str = "", test: str | None = None) -> None:

@@ -48,24 +48,24 @@ class RequestField:
 
 
 FIELDS: dict[str, RequestField] = {f.name: f for f in (
-    RequestField("features", "--features", "features", "", "input features in order (None: velocity, "
-                 "acceleration and the data's control)"),
-    RequestField("algorithm", "--algorithm", "algorithms", "", "lm, br, scg or adam"),
+    RequestField("features", "--features", "features", "", "the input features, in order (default: "
+                 "velocity, acceleration and the data's control)"),
+    RequestField("algorithm", "--algorithm", "algorithms", "", "the training algorithm"),
     RequestField("hidden", "--hidden", "hidden", "", "hidden layer sizes"),
-    RequestField("activation", "--activation", "activation", "", "tanh or sigmoid"),
+    RequestField("activation", "--activation", "activation", "", "the hidden layers' activation"),
     RequestField("holdout_voltage", "--holdout-voltage", "holdout_voltage", "V or A",
-                 "the control level held out (None: none)"),
+                 "the control level whose tests are held out"),
     RequestField("holdout_tests", "--holdout-tests", None, "", "test ids held out as well"),
-    RequestField("decimate", "--decimate", "decimate", "", "every N-th training sample (None: about 200 Hz)"),
-    RequestField("zero_points", "--no-zero-points", None, "", "add the zero-input, zero-force points"),
+    RequestField("decimate", "--decimate", "decimate", "", "every N-th training sample is kept (default: about 200 Hz)"),
+    RequestField("zero_points", "--no-zero-points", None, "", "the zero-input, zero-force training points added"),
     RequestField("max_epochs", "--max-epochs", "max_epochs", "", "the epoch limit"),
     RequestField("max_fail", None, "max_fail", "", "epochs of rising validation error that stop training"),
     RequestField("seed", "--seed", "seeds", "", "the seed of the split, zero points and weights (restarts: the first)"),
     RequestField("settings", "--settings", None, "", "the algorithm's settings (dampnet.training.settings)"),
     RequestField("terms", "--terms", None, "", "physics terms (dampnet.terms)"),
     RequestField("add", "--add", "add", "", "effects whose features and terms are added (dampnet.effects)"),
-    RequestField("diagnosis", "--diagnosis", None, "", "a diagnosis (dampnet diagnose --json) the added "
-                 "effects take their parameters from (None: estimated from the data)"),
+    RequestField("diagnosis", "--diagnosis", None, "", "a diagnosis whose estimated parameters the "
+                 "added effects take (default: estimated from the data)"),
     RequestField("restarts", "--restarts", "restarts", "", "trainings from different seeds, the best kept "
                  "('auto': 6 with two control levels or more, else 1)"),
     RequestField("restart_score", "--restart-score", "restart_score", "", "how restarts are ranked: "

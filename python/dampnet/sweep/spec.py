@@ -79,7 +79,6 @@ DEFAULT_OBJECTIVE = {"training": "holdout_nrmse", "simulation": "acc_wk_rms_m_s2
 KINDS = ("training", "simulation", "fullcar")
 #: full-vehicle damping settings (dampnet vehicle --damping); the tests and their settings:
 #: dampnet.recipes.maneuvers (read when a spec is parsed: `fullcar_params`)
-FULLCAR_DAMPING = ("low", "high", "skyhook")
 #: full-car fields a cell sets from its test (not [fullcar.vehicle] keys): why, for the error
 FULLCAR_SET_BY_TEST = {
     "speed": "set by the test: use [fullcar] speeds_kmh [km/h]",
@@ -253,6 +252,13 @@ def _objective(kind: str, v) -> str:
     return v
 
 
+def _vehicle_damping() -> tuple[str, ...]:
+    """A full-vehicle cell's damping settings (dampnet.recipes.control_laws.VEHICLE_DAMPING)."""
+    from dampnet.recipes.control_laws import VEHICLE_DAMPING
+
+    return tuple(VEHICLE_DAMPING)
+
+
 def _control_laws() -> tuple[str, ...]:
     """A simulation cell's controllers: the control-law registry's names (dampnet.recipes.control_laws)."""
     from dampnet.recipes import control_laws
@@ -406,7 +412,7 @@ def fullcar_params() -> list[Param]:
               help="as [simulation] models: the damper at all four corners"),
         Param("test", "tests", _choice(_maneuver_tests, "a full-vehicle test"), "dlc", axis=True,
               help="a full-vehicle test of dampnet.recipes.maneuvers (bsst, dlc, road, ...)"),
-        Param("damping", "damping", _choice(FULLCAR_DAMPING, "a full-vehicle damping setting"), "low", axis=True,
+        Param("damping", "damping", _choice(_vehicle_damping, "a full-vehicle damping setting"), "low", axis=True,
               help="every corner passive at the damper's low or high setting, or on-off skyhook"),
         *[p for p in settings if p.axis],
         Param("dt", "dt", _in(limits.STEP_S), 1e-3, kind="float", help=f"step, {limits.STEP_S.text()}"),

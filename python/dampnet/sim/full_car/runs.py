@@ -16,33 +16,20 @@ from dampnet.sim.dampers import DamperSpec, force_at_rest, runtime_damper
 from dampnet.sim.vehicle import Controller, LoopError, Vehicle
 
 #: the damping settings of a run: passive at the damper's low / high setting, or skyhook
-DAMPING = ("low", "high", "skyhook")
 #: the corners, in the runtime's order (FullCarModel's dampers, the [n, 4] columns)
 CORNERS = ("fl", "fr", "rl", "rr")
 
 
-def controller_for(spec: DamperSpec, damping: str, levels: dict | None = None) -> Controller:
-    """Every corner's controller: passive at the low / high setting, or on-off skyhook between
-    them with the quarter car's command filter."""
-    if damping not in DAMPING:
-        raise LoopError(f"damping must be one of {', '.join(DAMPING)}, got {damping!r}")
-    lv = levels or damping_levels(spec)
-    if damping == "skyhook":
-        return semi_active("skyhook_onoff", lv)
-    ctrl = Controller(kind="passive", u_passive=lv[damping], u_min=min(lv.values()), u_max=max(lv.values()))
-    ctrl.validate()
-    return ctrl
-
-
 def run(spec: DamperSpec, man: Maneuver, damping: str = "low", params: dict | None = None, *,
-        metrics: Callable[[dict, Maneuver, dict], dict]) -> dict:
+        metrics: Callable[[dict, Maneuver, dict], dict], controller: Controller) -> dict:
     """{'arrays': FullCar.simulate's arrays, 'metrics': metrics(arrays, man, params), 'params',
     'controller', ..., 'coverage' (neural and hybrid dampers: `run_coverage`)}.
 
-    metrics: the test's (dampnet.recipes.maneuvers: `recipes.maneuvers.run` passes it).
+    metrics: the test's; controller: every corner's, for the setting named `damping`
+    (dampnet.recipes: `recipes.maneuvers.run` passes both).
     params: full-car fields over the defaults (speed, dt and the steering mode come from the
     maneuver; damper_eval per_step as every Python-side run, RUN_SCHEME)."""
-    ctrl = controller_for(spec, damping)
+    ctrl = controller
     u_rest = ctrl.u_soft if ctrl.kind != "passive" else ctrl.u_passive
     veh = Vehicle()
     veh.dt = man.dt

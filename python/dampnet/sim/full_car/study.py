@@ -8,20 +8,21 @@ from __future__ import annotations
 from typing import Any, Callable, Mapping
 
 from dampnet.sim.full_car.maneuvers import Maneuver
-from dampnet.sim.full_car.runs import DAMPING, run
+from dampnet.sim.full_car.runs import run
 from dampnet.sim.dampers import DamperSpec
 
 
-def run_study(specs: list[DamperSpec], tests: dict[str, Maneuver], damping=DAMPING,
+def run_study(specs: list[DamperSpec], tests: dict[str, Maneuver], damping: tuple[str, ...],
               progress: Callable[[str], None] | None = None, keep_runs: bool = False, *,
-              recipes: Mapping[str, Any]) -> dict:
+              recipes: Mapping[str, Any], controller: Callable[[DamperSpec, str], Any]) -> dict:
     """{'results': {test: {damping: {model: metrics}}}, 'errors': ... vs the model named
     'truth' when there is one (relative, per headline metric), 'coverage': {test: {damping:
     {model: dampnet.envelope.coverage result}}} for neural models, 'headline_metrics': {test: the metrics the
     table shows, the first one first}, 'runs' (with keep_runs)}.
 
-    recipes: each test's entry of dampnet.recipes.maneuvers (its .metrics and .headline;
-    `recipes.maneuvers.run_study` passes them)."""
+    recipes: each test's entry of dampnet.recipes.maneuvers (its .metrics and .headline);
+    controller(spec, damping): every corner's controller (dampnet.recipes.control_laws.
+    vehicle_controller); `recipes.maneuvers.run_study` passes both."""
     results: dict = {}
     coverage: dict = {}
     runs: dict = {}
@@ -30,7 +31,7 @@ def run_study(specs: list[DamperSpec], tests: dict[str, Maneuver], damping=DAMPI
             for spec in specs:
                 if progress:
                     progress(f"{test} {d}: {spec.name}")
-                r = run(spec, man, d, metrics=recipes[test].metrics)
+                r = run(spec, man, d, metrics=recipes[test].metrics, controller=controller(spec, d))
                 results.setdefault(test, {}).setdefault(d, {})[spec.name] = r["metrics"]
                 if "coverage" in r:
                     coverage.setdefault(test, {}).setdefault(d, {})[spec.name] = r["coverage"]
