@@ -1,6 +1,6 @@
 """The diagnose -> add effect -> retrain step has one home, dampnet.training.pipeline.apply_additions:
-`dampnet train --add EFFECT --diagnosis FILE` and the demo's improve stage give the same
-training settings for the same diagnosis (its parameters, not re-estimated ones); `--add`
+`dampnet train --add EFFECT --diagnosis FILE` and the demo's improve stage (its request,
+dampnet.demo.run.improved_request) give the same training settings for the same diagnosis (its parameters, not re-estimated ones); `--add`
 alone estimates the parameters from the data; bad diagnosis input is a one-line error."""
 
 from __future__ import annotations
@@ -12,11 +12,12 @@ import pytest
 from dampnet.cli import build_parser, main
 from dampnet.commands.training_options import training_kwargs
 from dampnet.data import load_dataset, write_dataset
-from dampnet.demo.run import improved_settings
+from dampnet.demo.run import improved_request
 from dampnet.diagnosis.estimate import estimate_parameters
 from dampnet.diagnosis.run import diagnose
 from dampnet.model import MlpModel
 from dampnet.rig import generate
+from dampnet.recipes.training import plan
 from dampnet.training.pipeline import apply_additions, train_dataset
 
 PLAN = {"name": "tiny", "frequencies_hz": [0.5, 2.0, 3.0], "amplitudes_m": [0.0254],
@@ -50,7 +51,8 @@ def _param(diag, effect):
 def test_cli_and_demo_give_the_same_additions_for_the_same_diagnosis(case, effect):
     root, ds, model, diag = case
     kw, added = _cli_settings(root, ds, "--add", effect, "--diagnosis", str(root / "d.json"))
-    demo, adds = improved_settings(model, ds, diag, effect)
+    demo_plan = plan(ds, improved_request(model, diag, effect, seed=0))   # the demo's improve stage
+    demo, adds = demo_plan.kw, demo_plan.added[0]
     for key in ("features", "terms", "feature_params"):
         assert kw[key] == demo[key], key
     assert kw["features"] == [*model.features, *adds["features"]]

@@ -89,9 +89,8 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
     from dampnet.diagnosis.run import diagnose
     from dampnet.evaluation.lookup import LookupTable
     from dampnet.evaluation.report import write_plots
-    from dampnet.training.pipeline import model_metrics, train_dataset
-    from dampnet.modeldir import save_model_dir
-    from dampnet.envelope import envelope_of
+    from dampnet.recipes.training import TrainingRequest, train
+    from dampnet.recipes.training import plan as plan_training
 
     from dampnet.outputs import check_output_dir, json_text, staged_dir
 
@@ -116,11 +115,11 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
 
         settings = {"max_epochs": 150 if quick else 400}
         with stage("train", "training the thesis's 3-30-1 MLP (velocity, acceleration, voltage) with LM"):
-            model0, info0, split0 = train_dataset(ds, algorithm="lm", seed=seed, progress=_train_progress(log),
-                                                  restarts=DEMO_RESTARTS, **settings)
-            metrics0 = model_metrics(model0, info0, split0)
-            env0 = envelope_of(model0, split0)
-            save_model_dir(model0, metrics0, work / "model_original", envelope=env0)
+            trained0 = train(ds, request=TrainingRequest.of(algorithm="lm", seed=seed, restarts=DEMO_RESTARTS,
+                                                            **settings), progress=_train_progress(log))
+            model0, info0, split0 = trained0
+            metrics0, env0 = trained0.metrics, trained0.envelope
+            trained0.save(work / "model_original")
             lookup = LookupTable.from_dict(metrics0["lookup_table"])
             write_plots(model0, split0.holdout.tests, metrics0["holdout"], figs / "original", lookup=lookup)
             log(f"      held-out (2.25 V) NRMSE {metrics0['holdout']['overall']['nrmse']:.4f} "
@@ -135,13 +134,12 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
                 raise DemoError("the diagnosis found no significant missing effect, so there is nothing to add")
 
         with stage("improve", f"adding '{verdict}', retraining, diagnosing again"):
-            settings1, adds = improved_settings(model0, ds, diag0, verdict)
-            model1, info1, split1 = train_dataset(ds, **settings1, algorithm="lm", seed=seed,
-                                                  progress=_train_progress(log), restarts=DEMO_RESTARTS,
-                                                  **settings)
-            metrics1 = model_metrics(model1, info1, split1)
-            env1 = envelope_of(model1, split1)
-            save_model_dir(model1, metrics1, work / "model_improved", envelope=env1)
+            plan1 = plan_training(ds, improved_request(model0, diag0, verdict, seed, **settings))
+            trained1 = plan1.run(progress=_train_progress(log))
+            model1, info1, split1 = trained1
+            adds = plan1.added[0]
+            metrics1, env1 = trained1.metrics, trained1.envelope
+            trained1.save(work / "model_improved")
             write_plots(model1, split1.holdout.tests, metrics1["holdout"], figs / "improved", lookup=lookup)
             diag1 = diagnose(model1, ds, seed=seed, dataset_label="DATA")
             n0 = metrics0["holdout"]["overall"]["nrmse"]
@@ -181,7 +179,7 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
             log("      " + study_res["headline"])
 
         with stage("plan", "the impulse is outside the training data: planning dyno tests, running them, retraining"):
-            plan_res = _plan(model1, env1, ds, {**settings1, **settings}, seed, work / "plan", log)
+            plan_res = _plan(model1, env1, ds, plan1, seed, work / "plan", log)
             summary["plan"] = plan_res
             log("      " + plan_res["headline"])
 
@@ -211,13 +209,14 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
     return summary
 
 
-def improved_settings(model0, ds, diagnosis: dict, effect: str) -> tuple[dict, dict]:
-    """The improve stage's training settings: the original model's features with what captures
-    `effect` added, its parameters the diagnosis's (dampnet.training.pipeline.apply_additions,
-    as `dampnet train DATA --add EFFECT --diagnosis FILE`). Returns (settings, additions)."""
-    from dampnet.training.pipeline import apply_additions
+def improved_request(model0, diagnosis: dict, effect: str, seed: int, **settings):
+    """The improve stage's training request (dampnet.recipes.training), as `dampnet train DATA --add
+    EFFECT --diagnosis FILE`: the original model's features with what captures `effect` added, its
+    parameters the diagnosis's; LM with the demo's restarts."""
+    from dampnet.recipes.training import TrainingRequest
 
-    return apply_additions({"features": list(model0.features)}, ds, effect, diagnosis=diagnosis)
+    return TrainingRequest.of(features=model0.features, add=(effect,), diagnosis=diagnosis, algorithm="lm",
+                              seed=seed, restarts=DEMO_RESTARTS, **settings)
 
 
 #: tests the demo's planning stage asks for (dampnet plan-tests --budget)
@@ -243,18 +242,19 @@ def _impulse_vs_truth(spec, truth: dict) -> tuple[dict, dict]:
             {k: r["coverage"]["outside"]["share_time"] for k, r in runs.items() if "coverage" in r})
 
 
-def _plan(model1, env1, ds, train_kw: dict, seed: int, out: Path, log) -> dict:
+def _plan(model1, env1, ds, plan1, seed: int, out: Path, log) -> dict:
     """Issue 20's story: the improved model is guessing on the quarter-car impulse (far beyond the
     1-inch sines); dampnet plan-tests proposes PLAN_BUDGET dyno sines that cover what the impulse
     needs; the rig runs them, the model is retrained on all the data, and the impulse is run again
-    against the truth damper."""
+    against the truth damper. plan1: the improve stage's training (dampnet.recipes.training.Plan),
+    run again on the data with the planned tests added."""
+    import dataclasses
+
     from dampnet.data.types import Dataset
-    from dampnet.envelope import envelope_of
     from dampnet.outputs import json_text
     from dampnet.planning import csv_text, format_table, load_runs, plan_tests, rig_plan
     from dampnet.rig import generate
     from dampnet.sim.dampers import neural_spec, truth_spec
-    from dampnet.training.pipeline import train_dataset
 
     truth = _impulse(truth_spec([HIDDEN_EFFECT]))
     before, out_before = _impulse_vs_truth(neural_spec(model1, envelope=env1), truth)
@@ -272,8 +272,8 @@ def _plan(model1, env1, ds, train_kw: dict, seed: int, out: Path, log) -> dict:
             t.test_id = "P" + t.test_id
     both = Dataset(tests=ds.tests + extra.tests, source=f"{ds.source} + {len(extra.tests)} planned tests",
                    meta=ds.meta)
-    model2, _, split2 = train_dataset(both, algorithm="lm", seed=seed, restarts=DEMO_RESTARTS, **train_kw)
-    after, out_after = _impulse_vs_truth(neural_spec(model2, envelope=envelope_of(model2, split2)), truth)
+    trained2 = dataclasses.replace(plan1, dataset=both).run()
+    after, out_after = _impulse_vs_truth(neural_spec(trained2.model, envelope=trained2.envelope), truth)
     worst_b, worst_a = max(abs(v) for v in before.values()), max(abs(v) for v in after.values())
     return {"budget": PLAN_BUDGET, "tests": res["tests"], "share_covered_by_training": res["share_covered_by_training"],
             "share_covered": res["share_covered"], "plan": "plan/plan.json", "table": "plan/plan.csv",
