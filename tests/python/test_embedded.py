@@ -494,8 +494,9 @@ def test_the_per_step_trace_counts_what_systick_counts(model, vectors):
     """bench/embedded.py's worst step comes from a QEMU execution trace that counts each step's
     instructions (per_call_instructions). On 300 steps of the rough road its mean is the
     firmware's SysTick mean (the timed loop minus the same loop calling an empty function: an
-    independent count) plus the call's own few instructions: within 0 .. +24, 1 % of a step
-    (measured +10, +17 since the step checks the physical bounds; counting blocks past QEMU's
+    independent count) plus the call's own few instructions: within 0 .. 1.5 % of a step (34
+    instructions; measured +10, +17 since the step checks the physical bounds, +24.0 of 2,251
+    since issue 30 moved more of the step into functions of its own; counting blocks past QEMU's
     1 KB page boundaries, as the trace did, gave +259)."""
     import importlib.util
 
@@ -510,5 +511,5 @@ def test_the_per_step_trace_counts_what_systick_counts(model, vectors):
     systick = emb.parse_output(emb.run(elf, "cortex-m4")).instructions("step")
     steps = bench.per_call_instructions(elf, "cortex-m4", "dn_loop_step", TEST_DIR / "trace.log")
     assert len(steps) == len(v.road) == 300
-    assert 0 <= steps.mean() - systick <= 24, (steps.mean(), systick)
+    assert 0 <= steps.mean() - systick <= 0.015 * systick, (steps.mean(), systick)
     assert steps.max() > steps.mean() > steps.min() > 0.9 * systick
