@@ -301,7 +301,8 @@ class Damper {
   // [RT] The neural inputs for an evaluation (unsaturated), into x[n_feat].
   void feature_values(const dn_damper_input& in, real* x) const noexcept {
     const features::Info* t = features::table();
-    for (int i = 0; i < n_feat; ++i) x[i] = in.*(t[feat[i]].field);
+#pragma GCC unroll 1
+    for (int i = 0; i < n_feat; ++i) x[i] = in.*(t[feat[i]].field);  // (rolled: 1-4 inputs)
   }
 
   // [RT] Force [N] of the model plus its terms. feat_out (nullable) receives the
@@ -378,15 +379,8 @@ class Damper {
       if (!std::isfinite(x[i])) return fail(f, DN_E_NONFINITE_INPUT);
     real y = 0;
     int st;
-    if (precision == DN_PRECISION_FLOAT) {
-      float xf[DN_MAX_INPUTS], yf = 0.0f, gf = 0.0f;
-      for (int i = 0; i < n_feat; ++i) xf[i] = static_cast<float>(x[i]);
-      st = mf.forward_grad(xf, &yf, accel_input, &gf, clamped_mask);
-      y = yf;
-      *df_da = gf;
-    } else {
-      st = double_forward_grad(md, x, &y, accel_input, df_da, clamped_mask);
-    }
+    if (precision == DN_PRECISION_FLOAT) st = float_forward_grad(mf, x, n_feat, &y, accel_input, df_da, clamped_mask);
+    else st = double_forward_grad(md, x, &y, accel_input, df_da, clamped_mask);
     if (st < 0) return fail(f, st);
     if (DN_CAP_TERMS > 0 && n_terms > 0) {
       if (!std::isfinite(in.x)) return fail(f, DN_E_NONFINITE_INPUT);
@@ -395,6 +389,14 @@ class Damper {
     if (!std::isfinite(y)) return fail(f, DN_E_NONFINITE_OUTPUT);
     *f = y;
     return st;
+  }
+
+  // force_da4 as four force_da calls (not a float neural damper reading the acceleration, or
+  // an input with a non-finite feature): out of force_da4's batched code on the host.
+  DN_OUTLINE_HOST void force_da_each(const dn_damper_input* in, real* f, real* df_da, int* status,
+                                     uint32_t* clamped_mask) const noexcept {
+    for (int b = 0; b < 4; ++b)
+      status[b] = force_da(in[b], &f[b], &df_da[b], clamped_mask ? &clamped_mask[b] : nullptr);
   }
 
   // [RT] force_da of four inputs to this damper in one pass of the MLP kernel (a float neural
@@ -415,11 +417,7 @@ class Damper {
       }
       if (DN_CAP_TERMS > 0 && n_terms > 0 && !std::isfinite(in[b].x)) batch = false;
     }
-    if (!batch) {
-      for (int b = 0; b < 4; ++b)
-        status[b] = force_da(in[b], &f[b], &df_da[b], clamped_mask ? &clamped_mask[b] : nullptr);
-      return;
-    }
+    if (!batch) return force_da_each(in, f, df_da, status, clamped_mask);
     const float* xp[4] = {xf[0], xf[1], xf[2], xf[3]};
     float yf[4], gf[4];
     mf.forward_grad4(xp, yf, accel_input, gf, status, clamped_mask);
@@ -493,12 +491,23 @@ class Damper {
     *y = static_cast<float>(yd);
     return st;
   }
-  static int double_forward_grad(const MlpDouble& m, const double* x, double* y, int i, double* g,
-                                 uint32_t* mask) noexcept {
+  // force_da's model calls, each out of line on the host (DN_OUTLINE_HOST): a damper runs one
+  // precision, so the other's kernel dispatch stays out of the code its step touches.
+  DN_OUTLINE_HOST static int float_forward_grad(const Mlp<float>& m, const real* x, int n, real* y, int i,
+                                                real* g, uint32_t* mask) noexcept {
+    float xf[DN_MAX_INPUTS], yf = 0.0f, gf = 0.0f;
+    for (int k = 0; k < n; ++k) xf[k] = static_cast<float>(x[k]);
+    const int st = m.forward_grad(xf, &yf, i, &gf, mask);
+    *y = yf;
+    *g = gf;
+    return st;
+  }
+  DN_OUTLINE_HOST static int double_forward_grad(const MlpDouble& m, const double* x, double* y, int i, double* g,
+                                                 uint32_t* mask) noexcept {
     return m.forward_grad(x, y, i, g, mask);
   }
-  static int double_forward_grad(const MlpDouble& m, const float* x, float* y, int i, float* g,
-                                 uint32_t* mask) noexcept {
+  DN_OUTLINE_HOST static int double_forward_grad(const MlpDouble& m, const float* x, float* y, int i, float* g,
+                                                 uint32_t* mask) noexcept {
     double xd[DN_MAX_INPUTS], yd = 0, gd = 0;
     for (int k = 0; k < m.n_inputs(); ++k) xd[k] = x[k];
     const int st = m.forward_grad(xd, &yd, i, &gd, mask);

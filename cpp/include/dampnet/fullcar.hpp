@@ -83,28 +83,35 @@
 // 32 KB L1i; bench/RESULTS.md "The code one full-car step calls"): -O3 would inline free_forces,
 // corner_inputs, the RK4 stage, ... into the step, its stage and fc_start, a copy each; the rarely
 // run paths (the report, the explicit scheme, the per-corner or batched evaluation, the Newton
-// iteration a configuration does not use, the preview driver) stay out of the hot functions.
-// DN_FC_OUTLINE / DN_FC_NOINLINE: out of line at the translation unit's -O3. (Tried, 2026-11-27:
-// the outlined helpers at -O2 by an optimize attribute bring the step's code to 15,978 B, within
-// the 16 KB, but cost the per-stage step ~3-4 % (bench/RESULTS.md); and GCC 12 at -O2 fused
-// derivative's multiply-adds into a vfmaddsub despite -ffp-contract=off: tests/python/
-// test_bench_footprint.py checks that no FMA appears outside the MLP kernels.) DN_FC_INLINE: the
+// iteration a configuration does not use, the preview driver, the linear scheme's fallback and
+// solve4's row exchange: DN_FC_COLD) stay out of the hot functions; loops over the corners whose
+// unrolled copies cost more bytes than their rolled form costs time are rolled (#pragma GCC
+// unroll 1), each row of K (f - fs) once (mobility_times). With the batched kernel's samples
+// rolled too (simd_x86.hpp) and each damper precision's kernel call out of line (damper.hpp),
+// 16,127 B at most at -O3 (bench/RESULTS.md "Under 16 KB"). DN_FC_OUTLINE / DN_FC_NOINLINE: out
+// of line at the translation unit's -O3. (Tried: the helpers at -O2 by an optimize attribute cost
+// the per-stage step ~3-4 %, and GCC 12 at -O2 fused derivative's multiply-adds into a vfmaddsub
+// despite -ffp-contract=off: tests/python/test_bench_footprint.py checks that no FMA appears
+// outside the MLP kernels.) DN_FC_INLINE: the
 // small helpers every caller inlines.
 #if defined(__clang__)
 #define DN_FC_OUTLINE __attribute__((noinline))
 #define DN_FC_NOINLINE __attribute__((noinline))
 #define DN_FC_INLINE __attribute__((always_inline))
 #define DN_FC_OUTLINE_LAMBDA  // (clang takes no attribute after a lambda's noexcept; it keeps it out of line)
+#define DN_FC_COLD __attribute__((noinline, cold))
 #elif defined(__GNUC__)
 #define DN_FC_OUTLINE __attribute__((noinline, noclone))
 #define DN_FC_NOINLINE __attribute__((noinline, noclone))
 #define DN_FC_INLINE __attribute__((always_inline))
 #define DN_FC_OUTLINE_LAMBDA DN_FC_OUTLINE
+#define DN_FC_COLD __attribute__((noinline, noclone, cold))
 #else
 #define DN_FC_OUTLINE
 #define DN_FC_NOINLINE
 #define DN_FC_INLINE
 #define DN_FC_OUTLINE_LAMBDA
+#define DN_FC_COLD
 #endif
 
 namespace dampnet {
@@ -463,6 +470,18 @@ DN_FC_NOINLINE inline FcMotion derivative(const FullCarModel& m, const FcMotion&
   return d;
 }
 
+// solve4's row exchange: out of its hot code (the vehicles' systems I + K D rarely pivot).
+DN_FC_COLD inline void swap_rows(double A[kCorners][kCorners], double* b, int c, int piv) noexcept {
+  for (int k = 0; k < kCorners; ++k) {
+    const double t = A[c][k];
+    A[c][k] = A[piv][k];
+    A[piv][k] = t;
+  }
+  const double t = b[c];
+  b[c] = b[piv];
+  b[piv] = t;
+}
+
 // Solve A x = b (4x4) by Gaussian elimination with partial pivoting; false when singular or
 // non-finite. Fixed loops, no allocation.
 DN_FC_OUTLINE inline bool solve4(double A[kCorners][kCorners], double* b) noexcept {
@@ -471,16 +490,7 @@ DN_FC_OUTLINE inline bool solve4(double A[kCorners][kCorners], double* b) noexce
     for (int r = c + 1; r < kCorners; ++r)
       if (std::fabs(A[r][c]) > std::fabs(A[piv][c])) piv = r;
     if (!(std::fabs(A[piv][c]) > 1e-300)) return false;
-    if (piv != c) {
-      for (int k = 0; k < kCorners; ++k) {
-        const double t = A[c][k];
-        A[c][k] = A[piv][k];
-        A[piv][k] = t;
-      }
-      const double t = b[c];
-      b[c] = b[piv];
-      b[piv] = t;
-    }
+    if (piv != c) swap_rows(A, b, c, piv);
     for (int r = c + 1; r < kCorners; ++r) {
       const double f = A[r][c] / A[c][c];
       for (int k = c; k < kCorners; ++k) A[r][k] -= f * A[c][k];
@@ -569,18 +579,38 @@ DN_FC_OUTLINE inline int corners_each(const FullCarModel& m, const dn_damper_inp
   return st_it;
 }
 
+// out = K (f - fs): the corners' accelerations from the forces f [N] beyond static (K the
+// corner mobility, 1/kg), each row summed in column order; rolled, one row's code.
+DN_FC_INLINE inline void mobility_times(const FullCarModel& m, const double* f, double* out) noexcept {
+  double df[kCorners];
+  for (int j = 0; j < kCorners; ++j) df[j] = f[j] - m.fs[j];
+#pragma GCC unroll 1
+  for (int i = 0; i < kCorners; ++i) {
+    double s = 0;
+    for (int j = 0; j < kCorners; ++j) s += m.K[i][j] * df[j];
+    out[i] = s;
+  }
+}
+
+// evaluate_corners_linear's fallback when its Newton system is singular (the explicit
+// scheme's forces; the inputs' a restored): out of its hot code.
+DN_FC_COLD inline int linear_fallback(const double* f0, const double* a0, int st_it, double* F,
+                                      dn_damper_input* in) noexcept {
+  for (int i = 0; i < kCorners; ++i) F[i] = f0[i], in[i].a = a0[i];
+  return st_it | DN_W_ACCEL_FALLBACK;
+}
+
 // [RT] evaluate_corners for DN_ACCEL_LINEAR: one evaluation with the slopes, one linearised
 // Newton step on the 4-vector (evaluate_corners_newton's first iteration with linear set,
 // without the convergence bookkeeping it never reads).
 DN_FC_OUTLINE inline int evaluate_corners_linear(const FullCarModel& m, dn_damper_input* in,
                                                  const double* f_last, double* F, double* feat_out,
                                                  uint32_t* mask, int64_t* n_evals) noexcept {
-  double a_free[kCorners], a0[kCorners];
+  double a_free[kCorners], a0[kCorners], ka[kCorners];
+  mobility_times(m, f_last, ka);
   for (int i = 0; i < kCorners; ++i) {
-    double s = 0;
-    for (int j = 0; j < kCorners; ++j) s += m.K[i][j] * (f_last[j] - m.fs[j]);
     a0[i] = in[i].a;
-    a_free[i] = in[i].a + s;
+    a_free[i] = in[i].a + ka[i];
   }
   double f0[kCorners], D[kCorners], g[kCorners];
   uint32_t mk[kCorners] = {};
@@ -590,24 +620,22 @@ DN_FC_OUTLINE inline int evaluate_corners_linear(const FullCarModel& m, dn_dampe
     for (int i = 0; i < kCorners; ++i) F[i] = f0[i];
     return st_it;
   }
-  for (int i = 0; i < kCorners; ++i) {
-    double s = 0;
-    for (int j = 0; j < kCorners; ++j) s += m.K[i][j] * (f0[j] - m.fs[j]);
-    g[i] = in[i].a - a_free[i] + s;
-  }
+  mobility_times(m, f0, ka);
+  for (int i = 0; i < kCorners; ++i) g[i] = in[i].a - a_free[i] + ka[i];
   // Newton step: (I + K D) da = -g
   double A[kCorners][kCorners], da[kCorners];
   bool ok = true;
+#pragma GCC unroll 1
   for (int i = 0; i < kCorners; ++i) {
-    for (int j = 0; j < kCorners; ++j) A[i][j] = (i == j ? 1.0 : 0.0) + m.K[i][j] * D[j];
+    for (int j = 0; j < kCorners; ++j) A[i][j] = 0.0 + m.K[i][j] * D[j];
+    A[i][i] = 1.0 + m.K[i][i] * D[i];
     if (!(A[i][i] >= DN_ACCEL_LINEAR_MIN_SLOPE)) ok = false;
     da[i] = -g[i];
   }
   ok = ok && solve4(A, da);
   int status;
   if (!ok) {
-    for (int i = 0; i < kCorners; ++i) F[i] = f0[i], in[i].a = a0[i];
-    status = st_it | DN_W_ACCEL_FALLBACK;
+    status = linear_fallback(f0, a0, st_it, F, in);
   } else {
     for (int i = 0; i < kCorners; ++i) {
       F[i] = f0[i] + D[i] * da[i];
@@ -898,6 +926,7 @@ DN_FC_OUTLINE inline FcStart fc_start(const FullCarModel& m, const double* s, co
   r.f = free_forces(m, y, zr, vr, r.delta, r.cos_delta);
   dn_damper_input* di = r.in;
   corner_inputs(m, y, r.f, fl, r.u, temp, s[FC_t], 0, di);
+#pragma GCC unroll 1
   for (int i = 0; i < kCorners; ++i) Damper::fill(corner_damper_state(s, i), di[i]);
   double feat[kCorners * DN_MAX_INPUTS];
   uint32_t mask[kCorners] = {};
@@ -906,6 +935,7 @@ DN_FC_OUTLINE inline FcStart fc_start(const FullCarModel& m, const double* s, co
   for (int i = 0; i < kCorners; ++i) dF[i] = r.F[i] - m.fs[i];
   r.acc = accelerations(m, y, r.f, dF);
   double sum = r.acc.az + r.acc.aphi + r.acc.atheta + r.f.a_y + r.f.dr;
+#pragma GCC unroll 1
   for (int i = 0; i < kCorners; ++i) sum += r.acc.aus[i] + di[i].a + di[i].x + di[i].v + r.f.fy[i];
   if (r.status >= 0 && !std::isfinite(sum)) r.status = DN_E_DIVERGED;
   if (out) fc_report(m, y, r, mask, out);
@@ -961,7 +991,8 @@ DN_REALTIME inline int step(const FullCarModel& m, FullCarData& d, const dn_full
   double zr0[kCorners], vr0[kCorners], zrm[kCorners], vrm[kCorners];
   double f_last[kCorners];
   DamperState ds0[kCorners];
-  for (int i = 0; i < kCorners; ++i) {
+#pragma GCC unroll 1
+  for (int i = 0; i < kCorners; ++i) {  // rolled: one copy of the mid-step road
     temp[i] = s[fc_corner(i, FCC_temperature)];
     zr0[i] = s[fc_corner(i, FCC_z_r)];
     vr0[i] = s[fc_corner(i, FCC_v_r)];

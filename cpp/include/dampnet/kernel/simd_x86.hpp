@@ -226,6 +226,7 @@ inline void forward_simd_batch(const P& p, const float* const* xs, const float* 
   V acc[kB], dacc[kB];
   for (int b = 0; b < kB; ++b) acc[b] = S::lane0(p.b_out), dacc[b] = S::zero();
   for (int j = 0; j < h1; j += kW) {
+#pragma GCC unroll 1
     for (int b = 0; b < kB; ++b) {
       const V z = dense_block<S, kIn>(S::load(p.b1.data() + j), p.w1t.data() + j, xs[b], ni, h1);
       V r, pw;
