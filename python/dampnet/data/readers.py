@@ -4,6 +4,8 @@
 
   directory with manifest.csv     the dataset format (`dampnet.data.fileformat`)
   *.mat                           `read_mat`, needs `mapping` (variable -> channel)
+  *.tdms, *.mf4/.mdf, *.rsp/.drv  lab files through their own libraries (dampnet.data.lab), with a
+  (or a folder of them)           channel map (dampnet-channels.toml beside the data, or channel_map=)
   any other file                  `read_text`: CSV (',', ';', tab) or whitespace text
                                   whose header names carry units (force_lbf, mm/s, kN, ...)
 
@@ -191,22 +193,37 @@ def read_mat(path: str | os.PathLike, mapping: dict[str, str] | None = None, **o
     return build_test(str(path), chans, colnames, header_lines=0, dt=dt, **options)
 
 
-def load_dataset(path: str | os.PathLike, **options) -> Dataset:
-    """A Dataset from a dataset directory or a single file (format detected).
+def load_dataset(path: str | os.PathLike, channel_map=None, **options) -> Dataset:
+    """A Dataset from a dataset directory, a folder of lab files or a single file (format detected).
 
-    Directories need manifest.csv; `.mat` files need `mapping=`; other files
-    are text tables. A single file gives a one-test dataset.
+    Directories need manifest.csv, or hold lab files (TDMS, MDF, RPC III: dampnet.data.lab; a
+    manifest is derived, nothing written). Lab files take `channel_map=` (a TOML path, a dict,
+    a ChannelMap; default: dampnet-channels.toml beside the data). `.mat` files need
+    `mapping=`; other files are text tables. A single file gives its test(s).
     """
     p = Path(path)
     if p.is_dir():
         if not is_dataset_dir(p):
+            from dampnet.data.lab import LAB_SUFFIXES, read_lab_folder
+            from dampnet.data.lab.assemble import lab_files
+
+            if lab_files(p):
+                return read_lab_folder(p, channel_map, **options)
             raise DataError(f"{p}: a directory without manifest.csv: expected a dataset directory "
-                            "(manifest.csv + one CSV per test)")
-        if options:
-            raise DataError(f"{p}: options {sorted(options)} apply to single files, not dataset directories")
+                            f"(manifest.csv + one CSV per test), or lab files ({', '.join(LAB_SUFFIXES)})")
+        if options or channel_map is not None:
+            raise DataError(f"{p}: options {sorted(options) + (['channel_map'] if channel_map is not None else [])} "
+                            "apply to single files and lab files, not dataset directories")
         return read_dataset_dir(p)
     if not p.exists():
         raise DataError(f"{p}: not found: expected a dataset directory or a data file")
+    from dampnet.data.lab import is_lab_file, read_lab_file
+
+    if is_lab_file(p):
+        return Dataset(tests=read_lab_file(p, channel_map, **options), source=str(p), meta={"reader": "lab"})
+    if channel_map is not None:
+        raise DataError(f"{p}: channel_map applies to lab files (TDMS, MDF, RPC III); for a text file name "
+                        "the columns with their units, for a .mat file pass mapping=")
     if p.suffix.lower() == ".mat":
         test = read_mat(p, **options)
     else:
