@@ -231,3 +231,57 @@ def test_a_missing_library_names_the_pip_extra(rig, tmp_path, monkeypatch):
     with pytest.raises(DataError, match=r"a\.tdms: reading it needs the Python package nptdms: "
                                         r"pip install 'dampnet\[lab\]'"):
         load_dataset(p)
+
+
+# --- dampnet train on each format ------------------------------------------------------------
+
+TRAIN = ["--quiet", "--restarts", "1", "--max-epochs", "10", "--decimate", "20"]
+
+
+def test_dampnet_train_on_a_tdms_folder_holds_out_2_25_v(rig, tmp_path, capsys):
+    from dampnet.cli import main
+    from dampnet.model import MlpModel
+
+    folder = tmp_path / "tdms"
+    folder.mkdir()
+    for t in rig.tests:
+        write_tdms(folder / f"{t.test_id}.tdms", {"Measured Data": imperial(t)}, t.dt)
+    (folder / MAP_FILE).write_text(MAP)
+    assert main(["train", str(folder), "--out", str(tmp_path / "m"), *TRAIN]) == 0, capsys.readouterr().err
+    data = MlpModel.load(tmp_path / "m").meta["data"]
+    assert set(data["holdout_tests"]) == {t.test_id for t in rig.tests if t.control_nominal == 2.25}
+    assert sorted(p.name for p in folder.iterdir()) == sorted([f"{t.test_id}.tdms" for t in rig.tests] + [MAP_FILE])
+
+
+@pytest.fixture(scope="module")
+def stepped():
+    """One 1 Hz test whose control steps through 0, 2.25 and 5 V every 0.5 s (a whole campaign in one file)."""
+    import dampnet
+
+    plan = {"name": "steps", "frequencies_hz": [1.0], "amplitudes_m": [0.0254], "voltages_v": [0.0, 2.25, 5.0],
+            "samples": 12000, "control": {"waveform": "steps", "period_s": 0.5}}
+    return dampnet.rig.generate(plan, seed=1).tests[0]
+
+
+@pytest.mark.parametrize("fmt", ["mf4", "rsp"])
+def test_dampnet_train_on_one_mdf4_or_rpc3_file_with_a_channel_map(stepped, tmp_path, capsys, fmt):
+    from dampnet.cli import main
+
+    chans = imperial(stepped)
+    p = tmp_path / f"campaign.{fmt}"
+    if fmt == "mf4":
+        write_mdf(p, [(stepped.time, chans)])
+    else:
+        write_rpc(p, chans, stepped.dt)
+    (tmp_path / "map.toml").write_text(MAP)
+    rc = main(["train", str(p), "--channel-map", str(tmp_path / "map.toml"), "--out", str(tmp_path / "m"),
+               "--holdout-voltage", "none", *TRAIN])
+    assert rc == 0, capsys.readouterr().err
+    assert (tmp_path / "m" / "model.json").is_file()
+    # the same file through evaluate and diagnose's loader, and a wrong map is one line naming the file
+    capsys.readouterr()
+    (tmp_path / "bad.toml").write_text("[channels]\nforce = 'Forse'\ndisplacement = 'Disp'\nvoltage = 'Command'\n")
+    assert main(["evaluate", str(tmp_path / "m"), str(p), "--channel-map", str(tmp_path / "bad.toml"),
+                 "--no-lookup"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and str(p) in err and "'Forse' (force) not found" in err

@@ -15,7 +15,8 @@ Steps, each with a one-line DataError naming the file and the channel:
   5. signs (the map's [convention]), control (a channel, or a constant), velocity
      differentiated from displacement when not recorded (smoothed over 20 ms, as the
      acceleration is); then the usual checks (check_test).
-The derived manifest: a test whose displacement is a sine (dampnet.data.excitation) gets its
+The derived manifest: the nominal control is the control channel's median rounded to 10 mV
+(1 mA), so tests group by level (and the 2.25 V hold-out finds them); a test whose displacement is a sine (dampnet.data.excitation) gets its
 frequency and amplitude; any other (a replayed road, random) none: random content.
 """
 
@@ -31,13 +32,15 @@ from dampnet.data.excitation import sine_or_none
 from dampnet.data.lab.channelmap import MAP_CHANNELS, MAP_FILE, ChannelMap, resolve_channel_map
 from dampnet.data.lab.raw import LAB_SUFFIXES, RawChannel, RawFile, is_lab_file, read_raw
 from dampnet.data.preprocess import DEFAULT_WINDOW_S, moving_average
-from dampnet.data.readers import build_test
+from dampnet.data.testbuild import build_test
 from dampnet.data.types import CONTROL_NAMES, DataError, Dataset, DynoTest
 from dampnet.data.units import quantity_of_name, unit_to_si
 from dampnet.schema import show
 
 #: where each format keeps a channel's unit (for messages)
 UNIT_FIELD = {"tdms": "unit_string property", "mdf": "channel unit", "rpc": "UNITS.CHAN_n header entry"}
+#: decimals the nominal control (the median of a control channel) is rounded to: 10 mV, 1 mA
+NOMINAL_DECIMALS = {"voltage": 2, "current": 3}
 #: relative tolerance for two time bases to count as the same
 SAME_TIME = 1e-9
 
@@ -227,6 +230,8 @@ def read_lab_file(path: str | os.PathLike, channel_map=None, **options) -> list[
         if group is not None:
             meta["group"] = group
         test = build_test(str(path), {"time": t, **cols}, colnames, header_lines=0, test_id=tid, meta=meta, **opts)
+        if any(c in cols for c in CONTROL_NAMES):   # the level a test is grouped (and held out) by
+            test.control_nominal = round(test.control_nominal, NOMINAL_DECIMALS[test.control_name])
         if test.frequency_hz is None:
             f, a = sine_or_none(test.channels["displacement"], test.dt)
             test.frequency_hz, test.amplitude_m = f, a
