@@ -11,7 +11,8 @@ import numpy as np
 
 #: share of the displacement's (mean-removed, Hann-windowed) spectral energy within +-2 bins of
 #: its peak above which a test counts as a sine; a replayed road or random test has far less
-#: (measured: a rig sine 0.99+, an ISO class C replay at 20 m/s below 0.3)
+#: (measured: the quick plan's sines above it; replays of the rough road and of ISO class C at
+#: 20 m/s under skyhook, 0.54)
 SINE_PURITY = 0.9
 
 
@@ -33,9 +34,19 @@ def estimate_sine(x: np.ndarray, dt: float) -> tuple[float, float, float]:
     return float(f[k]), float((hi - lo) / 2), purity
 
 
+#: a sine test holds its amplitude: the RMS of each quarter of the displacement within this
+#: ratio of each other (a bump's decaying ring-out at the body mode is pure but not steady)
+STEADY_RATIO = 1.25
+
+
 def sine_or_none(x: np.ndarray, dt: float) -> tuple[float | None, float | None]:
-    """(frequency_hz, amplitude_m) if `x` is a sine (purity >= SINE_PURITY), else (None, None)."""
+    """(frequency_hz, amplitude_m) if `x` is a sine (purity >= SINE_PURITY, amplitude steady
+    within STEADY_RATIO over the test's quarters), else (None, None)."""
     freq, amp, purity = estimate_sine(x, dt)
     if purity < SINE_PURITY or freq <= 0:
+        return None, None
+    x0 = np.asarray(x, dtype=np.float64) - np.mean(x)
+    rms = [float(np.sqrt(np.mean(q * q))) for q in np.array_split(x0, 4) if q.size]
+    if min(rms) <= 0 or max(rms) / min(rms) > STEADY_RATIO:
         return None, None
     return freq, amp

@@ -75,8 +75,13 @@ def play_drive(drive: Drive, effects=(), seed: int = 0, *, params: TruthParams |
     if t0 is not None:
         meta["initial_temperature_c"] = t0
     return DynoTest(test_id=test_id or drive.name, time=quantise(t, RESOLUTION["time"]), channels=ch,
-                    frequency_hz=None, amplitude_m=None, control_nominal=float(np.median(drive.u)),
+                    frequency_hz=None, amplitude_m=None, control_nominal=_nominal(drive.u),
                     control_name="voltage", meta=meta)
+
+
+def _nominal(u: np.ndarray) -> float | None:
+    """A constant control's level [V]; None for a control law's varying command (no one level)."""
+    return float(u[0]) if np.ptp(u) <= 1e-9 else None
 
 
 def replay_dataset(tests: list[DynoTest], effects=(), seed: int = 0, params: TruthParams | None = None,

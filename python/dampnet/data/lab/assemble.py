@@ -16,7 +16,8 @@ Steps, each with a one-line DataError naming the file and the channel:
      differentiated from displacement when not recorded (smoothed over 20 ms, as the
      acceleration is); then the usual checks (check_test).
 The derived manifest: the nominal control is the control channel's median rounded to 10 mV
-(1 mA), so tests group by level (and the 2.25 V hold-out finds them); a test whose displacement is a sine (dampnet.data.excitation) gets its
+(1 mA), so tests group by level (and the 2.25 V hold-out finds them), or none when the channel
+varies (NOMINAL_SPREAD: a control law's command, stepped levels); a test whose displacement is a sine (dampnet.data.excitation) gets its
 frequency and amplitude; any other (a replayed road, random) none: random content.
 """
 
@@ -41,6 +42,9 @@ from dampnet.schema import show
 UNIT_FIELD = {"tdms": "unit_string property", "mdf": "channel unit", "rpc": "UNITS.CHAN_n header entry"}
 #: decimals the nominal control (the median of a control channel) is rounded to: 10 mV, 1 mA
 NOMINAL_DECIMALS = {"voltage": 2, "current": 3}
+#: a control channel whose 1-99 % range is wider has no nominal level (a control law's command,
+#: a stepped campaign): 0.1 V, 10 mA
+NOMINAL_SPREAD = {"voltage": 0.1, "current": 0.01}
 #: relative tolerance for two time bases to count as the same
 SAME_TIME = 1e-9
 
@@ -231,7 +235,10 @@ def read_lab_file(path: str | os.PathLike, channel_map=None, **options) -> list[
             meta["group"] = group
         test = build_test(str(path), {"time": t, **cols}, colnames, header_lines=0, test_id=tid, meta=meta, **opts)
         if any(c in cols for c in CONTROL_NAMES):   # the level a test is grouped (and held out) by
-            test.control_nominal = round(test.control_nominal, NOMINAL_DECIMALS[test.control_name])
+            u = test.channels[test.control_name]
+            lo, hi = np.percentile(u, [1, 99])
+            steady = hi - lo <= NOMINAL_SPREAD[test.control_name]
+            test.control_nominal = round(test.control_nominal, NOMINAL_DECIMALS[test.control_name]) if steady else None
         if test.frequency_hz is None:
             f, a = sine_or_none(test.channels["displacement"], test.dt)
             test.frequency_hz, test.amplitude_m = f, a

@@ -72,10 +72,10 @@ class RawFile:
         return list(dict.fromkeys(c.group for c in self.channels))
 
 
-def require(module: str, package: str, path: Path) -> None:
+def require(module: str, package: str, path, doing: str = "reading it") -> None:
     """DataError naming the pip extra unless `module` can be imported (checked before forking)."""
     if importlib.util.find_spec(module) is None:
-        raise DataError(f"{path}: reading it needs the Python package {package}: "
+        raise DataError(f"{path}: {doing} needs the Python package {package}: "
                         f"pip install 'dampnet[{EXTRA}]'")
 
 
