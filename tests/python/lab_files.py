@@ -82,10 +82,12 @@ def write_mdf(path: Path, groups: list[tuple[np.ndarray, dict[str, tuple[np.ndar
     return path
 
 
-def write_rpc(path: Path, chans: dict[str, tuple[np.ndarray, str]], dt: float) -> Path:
-    """An RPC III file (32-bit floats) through rpc3-file's own writer."""
+def write_rpc(path: Path, chans: dict[str, tuple[np.ndarray, str]], dt: float, pts_per_group: int = 2048) -> Path:
+    """An RPC III file (32-bit floats) through rpc3-file's own writer (`pts_per_group`: its frame
+    groups' length, a power of two; the last group is padded to it)."""
     rpc3 = need_module("rpc3", "lab")
     rpc3.rpc3.progressbar = False   # its tqdm bar (a global of the module rpc3.rpc3)
     rpc3.write(str(path), [rpc3.Channel(name=k, unit=u, dt=dt, data=np.asarray(d, np.float64))
-                           for k, (d, u) in chans.items()], datatype=float, overwrite=True)
+                           for k, (d, u) in chans.items()], datatype=float, overwrite=True,
+               pts_per_group=pts_per_group)
     return path

@@ -49,6 +49,7 @@ def run_isolated(fn: Reader, path: Path, where: str, reader: str) -> tuple[dict[
         try:
             os.close(r)
             _quiet_crash()
+            _quiet_output()
             payload = io.BytesIO()
             try:
                 arrays, head = fn(str(path))
@@ -90,6 +91,15 @@ def _quiet_crash() -> None:
     faulthandler.disable()
     for sig in (signal.SIGSEGV, signal.SIGBUS, signal.SIGFPE, signal.SIGILL, signal.SIGABRT):
         signal.signal(sig, signal.SIG_DFL)
+
+
+def _quiet_output() -> None:
+    """In the child: the libraries' own logging and prints (asammdf's "ERROR - Expected ##FH block",
+    nptdms's warnings) go nowhere; what went wrong comes back as the one-line DataError."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, 1)
+    os.dup2(devnull, 2)
+    os.close(devnull)
 
 
 def _read_all(fd: int, pid: int) -> tuple[bytes, bool]:
