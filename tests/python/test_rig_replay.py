@@ -120,3 +120,38 @@ def test_dampnet_rig_replay_then_train_evaluate_diagnose(tmp_path, capsys):
     assert [r["frequency_hz"] for r in rows] == [None, None] and all(r["nrmse"] > 0 for r in rows)
     assert main(["diagnose", str(tmp_path / "m"), str(out), "--surrogates", "5", "--json",
                  str(tmp_path / "d.json")]) == 0, capsys.readouterr().err
+
+
+def test_a_road_file_is_replayed_and_a_bad_road_is_one_line(tmp_path, capsys):
+    # a 40 m profile: a 2 cm step-up ramp at 15 m (what a lab's measured road file looks like)
+    s = np.arange(0, 40.0, 0.01)
+    z = 0.02 * np.clip((s - 15.0) / 0.5, 0, 1)
+    road = tmp_path / "ramp.csv"
+    np.savetxt(road, np.column_stack([s, z]), delimiter=",", header="distance_m,elevation_m", comments="")
+    drive = road_drive(str(road), speed_m_s=10.0, duration_s=1.5)
+    assert drive.name == "replay-ramp-csv-10mps-passive"
+    # the car meets the ramp 1.5 s in (1.0 s into the drive, after 0.5 s of settling): before it, at rest
+    k = int(0.95 * RATE_HZ)
+    assert np.ptp(drive.x[:k]) < 1e-6 and np.ptp(drive.x[k:]) > 5e-3
+    assert main(["rig", str(tmp_path / "out"), "--replay", "iso:Q", "--duration", "0.5"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("dampnet: error: --replay: ") and err.count("\n") == 1 and "iso" in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_story_example_quick(tmp_path):
+    """examples/python/sines_to_road_replay.py --quick: planned sines put more of the replays
+    inside the retrained model's envelope (about 10 s)."""
+    import importlib.util
+    import json
+
+    from cbuild import ROOT
+
+    spec = importlib.util.spec_from_file_location("story", ROOT / "examples" / "python" / "sines_to_road_replay.py")
+    story = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(story)
+    assert story.main(["--quick", "--out", str(tmp_path / "r.json")]) == 0
+    r = json.loads((tmp_path / "r.json").read_text())
+    assert len(r["planned_tests"]) == 6
+    for k, before in r["before"].items():
+        assert r["after"][k]["share_time_outside"] < 0.7 * before["share_time_outside"], k
