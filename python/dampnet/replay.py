@@ -12,6 +12,11 @@ rig (dampnet.rig.replay.play_drive) with its sensors and effects, at the car's s
 
     drive = road_drive("iso:C", speed_m_s=20, law="skyhook_onoff", duration_s=4)
     test = play_drive(drive, effects=["gas_spring"], seed=0)
+
+A full-car corner instead (`corner_drive`, `dampnet rig --replay ROAD --corner fl`): the full
+vehicle (the `road` manoeuvre of dampnet.recipes.maneuvers: two correlated tracks, the rear a
+wheelbase later) with the truth damper at each corner, under its damping setting (low, high,
+skyhook), and the stroke of the corner asked for.
 """
 
 from __future__ import annotations
@@ -86,6 +91,72 @@ def upsample(car: dict[str, np.ndarray], rate_hz: float) -> dict[str, np.ndarray
     return {"t": tr, "x": spline(tr), "v": spline(tr, 1), "a": spline(tr, 2), "u": car["u"][k]}
 
 
+#: the full vehicle's corners (the runtime's order)
+CORNERS = ("fl", "fr", "rl", "rr")
+
+
+def vehicle_damping(law: str) -> str:
+    """The full vehicle's damping setting (recipes.control_laws.VEHICLE_DAMPING: low, high, skyhook)
+    for `law`, given as a setting or as its law's name (passive: high, as the quarter car's)."""
+    from dampnet.recipes.control_laws import VEHICLE_DAMPING
+
+    if law in VEHICLE_DAMPING:
+        return law
+    by_law = {v: k for k, v in VEHICLE_DAMPING.items()}
+    if law in by_law:
+        return by_law[law]
+    if law == "passive":
+        return "high"
+    raise ValueError(f"replay: control {law!r}: the full vehicle runs {', '.join(VEHICLE_DAMPING)} "
+                     f"(or the laws {', '.join(VEHICLE_DAMPING.values())})")
+
+
+def full_car_profile(road: str, seed: int) -> tuple[str, int]:
+    """The full vehicle's road profile ('thesis' or an ISO 8608 class letter) of a road name, and
+    its seed (the name's, else `seed`). The profile's other parameters are the manoeuvre's."""
+    from dampnet.recipes import roads
+
+    req = roads.parse(road)
+    seed = int(req.params(seed=seed).get("seed", seed))
+    if req.kind.name == "rough":
+        return "thesis", seed
+    if req.kind.name == "iso":
+        return str(req.params()["class"]).upper(), seed
+    raise ValueError(f"replay: road {road!r}: a full-car corner drives two tracks of the thesis's rough road "
+                     "or an ISO 8608 class (rough, iso:C)")
+
+
+def corner_drive(road: str = "rough", speed_m_s: float = SPEED_M_S, law: str = "skyhook", corner: str = "fl",
+                 effects=(), seed: int = 0, duration_s: float = DURATION_S, rate_hz: float = RATE_HZ) -> Drive:
+    """The damper stroke and control of one corner of the full vehicle (the truth damper with
+    `effects` at all four corners; two correlated tracks of the road, the rear a wheelbase later:
+    the `road` manoeuvre of recipes.maneuvers) at `speed_m_s`, damping setting or law `law`."""
+    import dataclasses
+
+    from dampnet.recipes import maneuvers
+    from dampnet.sim.dampers import truth_spec
+
+    if corner not in CORNERS:
+        raise ValueError(f"replay: corner {corner!r}: expected one of {', '.join(CORNERS)}")
+    damping = vehicle_damping(law)
+    profile, seed = full_car_profile(road, seed)
+    if not (isinstance(speed_m_s, (int, float)) and 0 < speed_m_s <= 100):
+        raise ValueError(f"replay: speed {speed_m_s!r}: expected a speed in (0, 100] m/s")
+    man = maneuvers.build("road", CAR_DT_S, {"speed_kmh": 3.6 * speed_m_s, "profile": profile, "road_seed": seed})
+    n = min(man.road.shape[0], int(round((SETTLE_S + duration_s) / CAR_DT_S)) + 2)
+    man = dataclasses.replace(man, road=man.road[:n], road_rate=man.road_rate[:n], steer=man.steer[:n])
+    arr = maneuvers.run(truth_spec(list(effects)), man, damping)["arrays"]
+    k0, j = int(round(SETTLE_S / CAR_DT_S)), CORNERS.index(corner)
+    a = upsample({"t": np.asarray(arr["t"][k0:]), "x": np.asarray(arr["x"][k0:, j]), "v": np.asarray(arr["v"][k0:, j]),
+                  "u": np.asarray(arr["u"][k0:, j])}, rate_hz)
+    name = _drive_name(road, speed_m_s, f"{damping}-{corner}")
+    about = {"road": f"{man.name} ({road})", "road_text": road, "speed_m_s": speed_m_s, "control_law": damping,
+             "vehicle": "full car", "corner": corner, "rate_hz": rate_hz, "settle_s": SETTLE_S, "seed": int(seed),
+             "car_dt_s": CAR_DT_S, "stroke_rms_m": float(np.sqrt(np.mean(a["x"] ** 2))),
+             "velocity_rms_m_s": float(np.sqrt(np.mean(a["v"] ** 2)))}
+    return Drive(name=name, time=a["t"], x=a["x"], v=a["v"], a=a["a"], u=a["u"], meta=about)
+
+
 def _drive_name(road: str, speed: float | None, law: str) -> str:
     import re
 
@@ -95,14 +166,20 @@ def _drive_name(road: str, speed: float | None, law: str) -> str:
 
 def replay_tests(roads_: list[str], speed_m_s: float = SPEED_M_S, law: str = "passive", effects=(), seed: int = 0,
                  duration_s: float = DURATION_S, rate_hz: float = RATE_HZ, damping: str = "high",
-                 truth_channels: bool = False):
-    """A rig dataset of one replay test per road (the same car, law, speed and rig effects)."""
+                 truth_channels: bool = False, corner: str | None = None):
+    """A rig dataset of one replay test per road (the same car, law, speed and rig effects); with
+    `corner` (fl, fr, rl, rr) the stroke of that corner of the full vehicle instead of the quarter car."""
     tests = []
     for i, road in enumerate(roads_):
-        drive = road_drive(road, speed_m_s, law, effects, seed + i, duration_s, rate_hz, damping)
+        if corner is None:
+            drive = road_drive(road, speed_m_s, law, effects, seed + i, duration_s, rate_hz, damping)
+        else:
+            drive = corner_drive(road, speed_m_s, law, corner, effects, seed + i, duration_s, rate_hz)
         tests.append(play_drive(drive, effects, seed + i, truth_channels=truth_channels))
     ids = [t.test_id for t in tests]
     if len(set(ids)) != len(ids):
         raise ValueError(f"replay: roads {roads_}: each road once")
     return replay_dataset(tests, effects, seed, about={"roads": list(roads_), "speed_m_s": speed_m_s,
-                                                       "control_law": law, "duration_s": duration_s})
+                                                       "control_law": law, "duration_s": duration_s,
+                                                       "vehicle": "quarter car" if corner is None else
+                                                       f"full car, corner {corner}"})

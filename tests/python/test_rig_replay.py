@@ -155,3 +155,29 @@ def test_the_story_example_quick(tmp_path):
     assert len(r["planned_tests"]) == 6
     for k, before in r["before"].items():
         assert r["after"][k]["share_time_outside"] < 0.7 * before["share_time_outside"], k
+
+
+def test_a_full_car_corner_is_replayed(tmp_path, capsys):
+    from dampnet.recipes import maneuvers
+    from dampnet.replay import corner_drive
+    from dampnet.sim.dampers import truth_spec
+    import dataclasses
+
+    rl = corner_drive("iso:C", speed_m_s=20.0, law="skyhook", corner="rl", duration_s=0.5, seed=2)
+    # the rear-left stroke of the full vehicle's own run (recipes.maneuvers), at the car's steps
+    man = maneuvers.build("road", CAR_DT_S, {"speed_kmh": 72.0, "profile": "C", "road_seed": 2})
+    n = int(round(1.0 / CAR_DT_S)) + 2
+    man = dataclasses.replace(man, road=man.road[:n], road_rate=man.road_rate[:n], steer=man.steer[:n])
+    arr = maneuvers.run(truth_spec(), man, "skyhook")["arrays"]
+    k0, step = int(round(0.5 / CAR_DT_S)), int(round(RATE_HZ * CAR_DT_S))
+    m = len(rl.x[::step])
+    np.testing.assert_allclose(rl.x[::step], arr["x"][k0:k0 + m, 2], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(rl.u[::step], arr["u"][k0:k0 + m, 2], rtol=0, atol=0)
+    assert rl.meta["corner"] == "rl" and rl.meta["vehicle"] == "full car"
+    assert np.sqrt(np.mean(rl.x ** 2)) > 1e-3                  # the corner moves over the road
+    # only roads the full vehicle drives, only its damping settings: one line each
+    assert main(["rig", str(tmp_path / "o"), "--replay", "bump", "--corner", "fl", "--duration", "0.5"]) == 2
+    assert "a full-car corner drives two tracks" in capsys.readouterr().err
+    assert main(["rig", str(tmp_path / "o"), "--replay", "rough", "--corner", "fl", "--control",
+                 "groundhook_onoff", "--duration", "0.5"]) == 2
+    assert "the full vehicle runs low, high, skyhook" in capsys.readouterr().err

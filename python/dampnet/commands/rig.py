@@ -38,6 +38,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="--replay: the car's control law (dampnet.recipes.control_laws, e.g. passive, "
                         "skyhook_onoff; default passive at high damping)")
     p.add_argument("--duration", type=float, default=6.0, help="--replay: seconds of each road kept (default 6)")
+    p.add_argument("--corner", default=None, choices=["fl", "fr", "rl", "rr"],
+                   help="--replay: the stroke of this corner of the full vehicle (two tracks of rough or iso:CLASS; "
+                        "--control low, high or skyhook) instead of the quarter car")
     p.add_argument("--truth-channels", action="store_true",
                    help="also write noise-free true_force and true_acceleration columns")
     p.add_argument("--force", action="store_true", help="replace OUT if it exists")
@@ -102,7 +105,7 @@ def replay(args, effects):
     roads = [r.strip() for r in args.replay.split(";") if r.strip()]
     try:
         ds = replay_tests(roads, speed_m_s=args.speed, law=args.control, effects=effects, seed=args.seed,
-                          duration_s=args.duration, truth_channels=args.truth_channels)
+                          duration_s=args.duration, truth_channels=args.truth_channels, corner=args.corner)
     except (RoadError, LoopError) as e:
         raise ValueError(f"--replay: {e}") from None
     return ds, {f"{t.test_id}.rsp": (lambda path, t=t: write_test(path, t)) for t in ds.tests}
