@@ -285,3 +285,13 @@ def test_dampnet_train_on_one_mdf4_or_rpc3_file_with_a_channel_map(stepped, tmp_
                  "--no-lookup"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and str(p) in err and "'Forse' (force) not found" in err
+
+
+@pytest.mark.parametrize("dt", [0.0, -1e-3, float("nan")])
+def test_a_bad_sample_interval_names_the_channel(rig, tmp_path, dt):
+    chans = imperial(rig.tests[0])
+    p = write_tdms(tmp_path / "dt.tdms", {"G": chans}, rig.tests[0].dt, properties={"Force": {"wf_increment": dt}})
+    with pytest.raises(DataError) as e:
+        read_lab_file(p, {"channels": {"displacement": "Disp", "force": "Force", "voltage": "Command"}})
+    msg = _one_line(e)
+    assert str(p) in msg and "'G/Force' (force): sample interval" in msg and "positive, finite" in msg

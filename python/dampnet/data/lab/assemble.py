@@ -132,6 +132,11 @@ def _time_base(path: Path, picked: dict[str, RawChannel], cols: dict[str, np.nda
         return t, cols, {}
     times = {}
     for ch in cols:
+        dt = picked[ch].dt
+        if picked[ch].time is None and dt is not None and not (np.isfinite(dt) and dt > 0 and np.isfinite(picked[ch].t0)):
+            raise DataError(f"{path}: channel {show(picked[ch].label)} ({ch}): sample interval {show(float(dt))} s, "
+                            f"start {show(float(picked[ch].t0))} s: expected a positive, finite interval "
+                            "(TDMS wf_increment, RPC DELTA_T)")
         tc = picked[ch].times()
         if tc is None:
             raise DataError(f"{path}: channel {show(picked[ch].label)} ({ch}): no time base in the file "
