@@ -295,3 +295,22 @@ def test_a_bad_sample_interval_names_the_channel(rig, tmp_path, dt):
         read_lab_file(p, {"channels": {"displacement": "Disp", "force": "Force", "voltage": "Command"}})
     msg = _one_line(e)
     assert str(p) in msg and "'G/Force' (force): sample interval" in msg and "positive, finite" in msg
+
+
+@pytest.mark.parametrize("n", [0, 1, 5])
+def test_too_few_samples_is_one_line(tmp_path, n):
+    """(Found by fuzz/python/fuzz_lab.py: a one-sample file reached the velocity's derivative.)"""
+    chans = {"Disp": (np.zeros(n), "mm"), "Force": (np.zeros(n), "N"), "Command": (np.zeros(n), "V")}
+    p = write_tdms(tmp_path / "few.tdms", {"G": chans}, 1e-3)
+    with pytest.raises(DataError) as e:
+        read_lab_file(p, {"channels": {"displacement": "Disp", "force": "Force", "voltage": "Command"}})
+    msg = _one_line(e)
+    assert str(p) in msg and f"{n} samples" in msg and "expected at least 10" in msg
+
+
+def test_groups_that_do_not_overlap_in_time_are_one_line(tmp_path):
+    t = np.arange(100) * 1e-3
+    p = write_mdf(tmp_path / "apart.mf4", [(t, {"Disp": (np.sin(t), "mm"), "Force": (np.cos(t), "N")}),
+                                            (t + 5.0, {"Command": (np.ones(100), "V")})])
+    with pytest.raises(DataError, match=r"\(force\): 0 samples in the span every channel covers"):
+        read_lab_file(p, {"channels": {"displacement": "Disp", "force": "Force", "voltage": "Command"}})

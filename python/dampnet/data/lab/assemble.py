@@ -34,7 +34,7 @@ from dampnet.data.lab.channelmap import MAP_CHANNELS, MAP_FILE, ChannelMap, reso
 from dampnet.data.lab.raw import LAB_SUFFIXES, RawChannel, RawFile, is_lab_file, read_raw
 from dampnet.data.preprocess import DEFAULT_WINDOW_S, moving_average
 from dampnet.data.testbuild import build_test
-from dampnet.data.types import CONTROL_NAMES, DataError, Dataset, DynoTest
+from dampnet.data.types import CONTROL_NAMES, MIN_SAMPLES, DataError, Dataset, DynoTest
 from dampnet.data.units import quantity_of_name, unit_to_si
 from dampnet.schema import show
 
@@ -218,6 +218,10 @@ def read_lab_file(path: str | os.PathLike, channel_map=None, **options) -> list[
     for group, picked in _select(raw, spec):
         cols = {ch: _si(path, raw.format, ch, c, cmap) for ch, c in picked.items()}
         t, cols, note = _time_base(path, picked, cols)
+        if t.size < MIN_SAMPLES:   # before differentiating anything
+            raise DataError(f"{path}: channel {show(picked['force'].label)} (force): {t.size} samples"
+                            + (" in the span every channel covers" if note else "")
+                            + f": expected at least {MIN_SAMPLES}")
         _check_time(path, picked.get("time", picked["force"]).label, t)
         colnames = {ch: picked[ch].label for ch in cols}
         if "velocity" not in cols:
