@@ -55,7 +55,7 @@ if [ ! -f "$stamp" ]; then
 fi
 dn_log "building the C++ core and installing dampnet with its dependencies (first run: a few minutes)"
 # pip's "Location ... is ignored" lines are about this machine's optional local mirrors: noise.
-python -m pip install -q --no-build-isolation -e ".[train,test,bench]" 2> >(grep -v "^WARNING: Location" >&2)
+python -m pip install -q --no-build-isolation -e ".[train,test,bench,lab]" 2> >(grep -v "^WARNING: Location" >&2)
 
 if (($#)); then
   exec "$@"

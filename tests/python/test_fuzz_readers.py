@@ -38,3 +38,19 @@ def test_atheris_ci_run_over_the_envelope_reader(tmp_path):
     """npz bytes, json bytes and fuzzed arrays: an envelope that every user of one accepts, or the
     reader's one-line EnvelopeError; load_envelope never raises."""
     atheris_ci_run(ENVELOPE_HARNESS, ENVELOPE_CORPUS, tmp_path, runs=3000, max_len=8192)
+
+
+# -- the lab-file readers (fuzz/python/fuzz_lab.py: TDMS, MDF, RPC III, the channel map) ----------
+
+LAB_HARNESS = REPO / "fuzz" / "python" / "fuzz_lab.py"
+LAB_CORPUS = REPO / "fuzz" / "python" / "corpus_lab"
+
+
+def test_lab_seed_corpus_covers_every_target():
+    assert {p.read_bytes()[0] % 4 for p in LAB_CORPUS.iterdir()} == {0, 1, 2, 3}
+
+
+def test_atheris_ci_run_over_the_lab_readers(tmp_path):
+    """Mutated TDMS, MDF4 and RPC III files and channel maps: checked tests or one-line DataErrors
+    (each library reads in a child process, about 50 inputs a second)."""
+    atheris_ci_run(LAB_HARNESS, LAB_CORPUS, tmp_path, runs=300, max_len=16384)

@@ -45,11 +45,25 @@ def read_json_file(path: str, what: str) -> dict:
     return v
 
 
-def load_data(path: str):
-    """A dataset from a path (directory, CSV/text or .mat file) or a bundled real dataset's name."""
+#: what DATA may be, for the commands' help texts
+DATA_HELP = ("a dataset directory, a CSV/text or .mat file, or lab files (TDMS .tdms, MDF .mf4/.mdf, RPC III "
+             ".rsp/.drv, or a folder of them, with a channel map: dampnet-channels.toml beside them or --channel-map)")
+
+
+def add_channel_map_option(p) -> None:
+    """--channel-map TOML: which channel of a lab file is which (dampnet.data.lab.channelmap)."""
+    p.add_argument("--channel-map", default=None, metavar="TOML",
+                   help="for lab files (TDMS, MDF, RPC III): the channel map saying which channel is displacement, "
+                        "velocity, force, control, temperature, their units where the file has none and the sign "
+                        "conventions (default: dampnet-channels.toml beside the data; docs/data-formats.md)")
+
+
+def load_data(path: str, channel_map: str | None = None):
+    """A dataset from a path (directory, CSV/text, .mat or lab file, a folder of lab files) or a
+    bundled real dataset's name; `channel_map` a TOML file for lab files (None: the one beside them)."""
     from dampnet.data import load_dataset
     from dampnet.data.real import load_real
 
     if path in REAL_DATASETS:
         return load_real(path)
-    return load_dataset(path)
+    return load_dataset(path, **({"channel_map": channel_map} if channel_map is not None else {}))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from dampnet.commands.common import error, load_data
+from dampnet.commands.common import DATA_HELP, add_channel_map_option, error, load_data
 from dampnet.outputs import json_text
 
 
@@ -18,7 +18,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                     "`dampnet train DATA --add EFFECT --diagnosis FILE` adds an effect with the parameters "
                     "estimated here. The effects are the catalogue's (`dampnet rig --list-effects`).")
     p.add_argument("model", help="model directory (or its model.json)")
-    p.add_argument("data", help="dataset (directory, CSV/text or .mat file; 'utfsm' or 'labcontrol' for the real data)")
+    p.add_argument("data", help=f"dataset: {DATA_HELP}; 'utfsm' or 'labcontrol' for the real data")
+    add_channel_map_option(p)
     p.add_argument("--json", metavar="FILE", help="write the diagnosis as JSON to FILE ('-' for stdout)")
     p.add_argument("--report", metavar="DIR", help="write an HTML report with pictures to DIR")
     p.add_argument("--surrogates", type=int, default=49, help="null surrogates (default 49)")
@@ -66,7 +67,7 @@ def run(args) -> int:
         if args.report:
             check_report_dir(args.report, [args.model, args.data])
         model = MlpModel.load(args.model)
-        ds = load_data(args.data)
+        ds = load_data(args.data, args.channel_map)
         ctx = build_context(model, ds)
         d = diagnose(model, ds, ctx=ctx, n_surrogates=args.surrogates, seed=args.seed, dataset_label=args.data)
     except (DataError, ModelError, ValueError, OSError) as e:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import argparse
 
-from dampnet.commands.common import error
+from dampnet.commands.common import DATA_HELP, add_channel_map_option, error, load_data
 from dampnet.outputs import json_text
 
 
@@ -23,7 +23,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                     "%% error, overall, per test and per frequency, and the same for the industry's "
                     "lookup-table model.")
     p.add_argument("model", help="model directory (or its model.json)")
-    p.add_argument("data", help="dataset: a directory, CSV/text file or .mat file")
+    p.add_argument("data", help=f"dataset: {DATA_HELP}")
+    add_channel_map_option(p)
     p.add_argument("--holdout", action="store_true", help="only the tests the model held out in training")
     p.add_argument("--json", metavar="FILE", help="write the report as JSON to FILE ('-' for stdout)")
     p.add_argument("--plots", metavar="DIR", help="write PNG figures to DIR")
@@ -36,7 +37,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    from dampnet.data import DataError, load_dataset
+    from dampnet.data import DataError
     from dampnet.evaluation.metrics import format_table
     from dampnet.evaluation.report import evaluation, lookup_for, write_plots
     from dampnet.features import check_features
@@ -48,7 +49,7 @@ def run(args) -> int:
         if args.json and args.json != "-":
             check_output_file(args.json, [args.model, args.data])
         model = MlpModel.load(args.model)
-        ds = load_dataset(args.data)
+        ds = load_data(args.data, args.channel_map)
         held = model.meta.get("data", {}).get("holdout_tests", [])
         tests = ds.tests
         if args.holdout:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 
@@ -27,6 +28,19 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="list the effect catalogue (dampnet.effects): each effect, its role in the rig, the "
                         "diagnosis candidate that detects it and what `dampnet train --add` adds; then exit")
     p.add_argument("--seed", type=int, default=0, help="random seed (noise, temperatures)")
+    p.add_argument("--replay", default=None, metavar="ROAD[;ROAD...]",
+                   help="track replay instead of the plan: one test per road (dampnet.recipes.roads, e.g. rough, "
+                        "iso:C, or a CSV profile), whose displacement is a quarter car's damper stroke over it "
+                        "(the truth damper in the car) at --speed under --control, played on the rig like a drive "
+                        "file; each test is written as RPC III (<test>.rsp) beside its CSV (dampnet.replay)")
+    p.add_argument("--speed", type=float, default=20.0, help="--replay: speed over the road [m/s] (default 20)")
+    p.add_argument("--control", default="passive",
+                   help="--replay: the car's control law (dampnet.recipes.control_laws, e.g. passive, "
+                        "skyhook_onoff; default passive at high damping)")
+    p.add_argument("--duration", type=float, default=6.0, help="--replay: seconds of each road kept (default 6)")
+    p.add_argument("--corner", default=None, choices=["fl", "fr", "rl", "rr"],
+                   help="--replay: the stroke of this corner of the full vehicle (two tracks of rough or iso:CLASS; "
+                        "--control low, high or skyhook) instead of the quarter car")
     p.add_argument("--truth-channels", action="store_true",
                    help="also write noise-free true_force and true_acceleration columns")
     p.add_argument("--force", action="store_true", help="replace OUT if it exists")
@@ -49,21 +63,52 @@ def run(args) -> int:
     effects = [e.strip() for e in args.effects.split(",") if e.strip()]
     progress = not args.no_progress and sys.stderr.isatty()
     inputs = [] if args.plan in ("thesis", "quick") else [args.plan]
+    if args.replay:   # road CSV profiles are inputs too
+        inputs = [r.strip() for r in args.replay.split(";") if os.path.exists(r.strip())]
     try:
         check_output_dir(args.out, "dataset", inputs, args.force)  # before the work, again when writing
         t0 = time.perf_counter()
-        ds = generate(args.plan, effects=effects, seed=args.seed, progress=not args.no_progress,
-                      truth_channels=args.truth_channels)
+        extras = {}
+        if args.replay:
+            ds, extras = replay(args, effects)
+        else:
+            ds = generate(args.plan, effects=effects, seed=args.seed, progress=not args.no_progress,
+                          truth_channels=args.truth_channels)
         t1 = time.perf_counter()
-        out = write_dataset(ds, args.out, overwrite=args.force, progress=progress, inputs=inputs)
+        out = write_dataset(ds, args.out, overwrite=args.force, progress=progress, inputs=inputs, extras=extras)
         t2 = time.perf_counter()
     except (DataError, ValueError, FileExistsError, OSError) as e:
         return error(str(e))
+    if args.replay:
+        for t in ds.tests:
+            m = t.meta
+            print(f"{out / (t.test_id + '.csv')} (and .rsp): {m['road']}"
+                  + (f" at {m['speed_m_s']:g} m/s" if m.get("speed_m_s") else "") + f", {m['control_law']}, "
+                  f"{len(t)} samples over {t.time[-1]:.2f} s, stroke RMS {1e3 * m['stroke_rms_m']:.1f} mm, "
+                  f"velocity RMS {m['velocity_rms_m_s']:.3f} m/s")
     n = sum(len(t) for t in ds.tests)
     print(f"{out}: {len(ds.tests)} tests, {n} samples, plan {ds.meta['plan']['name']}, effects "
           f"{','.join(effects) or 'none'}, seed {args.seed}; generated in {t1 - t0:.1f} s, written in "
           f"{t2 - t1:.1f} s; noise-floor NRMSE {noise_floor_nrmse(ds):.4f}")
     return 0
+
+
+def replay(args, effects):
+    """The replay dataset of --replay and its RPC III copies ({file name: writer}) for write_dataset."""
+    from dampnet.data.lab.raw import require
+    from dampnet.data.lab.rpc import write_test
+    from dampnet.replay import replay_tests
+    from dampnet.sim.roads import RoadError
+    from dampnet.sim.vehicle import LoopError
+
+    require("rpc3", "rpc3-file", args.out, "writing the replay tests as RPC III")   # before the simulation
+    roads = [r.strip() for r in args.replay.split(";") if r.strip()]
+    try:
+        ds = replay_tests(roads, speed_m_s=args.speed, law=args.control, effects=effects, seed=args.seed,
+                          duration_s=args.duration, truth_channels=args.truth_channels, corner=args.corner)
+    except (RoadError, LoopError) as e:
+        raise ValueError(f"--replay: {e}") from None
+    return ds, {f"{t.test_id}.rsp": (lambda path, t=t: write_test(path, t)) for t in ds.tests}
 
 
 def effect_list() -> str:

@@ -10,7 +10,7 @@ import argparse
 import sys
 import time
 
-from dampnet.commands.common import error
+from dampnet.commands.common import DATA_HELP, add_channel_map_option, error, load_data
 from dampnet.commands.training_options import ADD_RULE, Progress, add_training_options, field_help, training_request, whole
 
 
@@ -24,9 +24,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                     f"effect the diagnosis named: {ADD_RULE}, e.g. `dampnet diagnose MODEL DATA --json d.json` "
                     "then `dampnet train DATA --out MODEL2 --add valve_lag --diagnosis d.json`.")
     p.add_argument("data", nargs="+", metavar="DATA",
-                   help="dataset: a directory, CSV/text file or .mat file (see dampnet rig); several are trained on "
+                   help=f"dataset: {DATA_HELP} (see dampnet rig); several are trained on "
                         "as one (e.g. a campaign and the tests dampnet plan-tests proposed; test ids must be unique)")
     p.add_argument("--out", required=True, help="model directory to write (must not exist unless --force)")
+    add_channel_map_option(p)
     add_training_options(p)
     p.add_argument("--restarts", default="auto", metavar="N",
                    help=field_help("restarts", "N (--seed first), never looking at the hold-out; default 'auto'; "
@@ -55,20 +56,20 @@ def run(args) -> int:
     The request and the training are dampnet.recipes.training's (as the sweep's and dampnet.train)."""
     from pathlib import Path
 
-    from dampnet.data import DataError, load_dataset, merge_datasets
+    from dampnet.data import DataError, merge_datasets
     from dampnet.model import ModelError
     from dampnet.outputs import check_output_dir
     from dampnet.recipes.training import plan
 
     out = Path(args.out)
-    inputs = [*args.data, *([args.diagnosis] if args.diagnosis else [])]
+    inputs = [*args.data, *([args.diagnosis] if args.diagnosis else []), *([args.channel_map] if args.channel_map else [])]
     bar = None
     try:
         check_output_dir(out, "model", inputs, args.force)  # before the work, again when writing
         req = training_request(args)
         req.check()  # every option and setting before the data are loaded
         workers = check_workers(args)
-        ds = merge_datasets([load_dataset(d) for d in args.data])
+        ds = merge_datasets([load_data(d, args.channel_map) for d in args.data])
         todo = plan(ds, req)
         if todo.restarts > 1:
             bar = RestartProgress(not args.quiet)

@@ -5,7 +5,11 @@
   table.py       numeric text tables with cell-level error messages
   validate.py    checks on a loaded test (time, NaN, samples)
   fileformat.py  the dataset directory (manifest.csv + one CSV per test): read, write
-  readers.py     load_dataset: directories, single CSV/text files, .mat files
+  testbuild.py   build_test: SI channel arrays -> a checked DynoTest (control, signs, time)
+  readers.py     load_dataset: directories, single CSV/text files, .mat files, lab files
+  child.py       a file-format library's reader run in a child process (crash-safe)
+  excitation.py  a sine's frequency and amplitude estimated from the displacement (or not a sine)
+  lab/           TDMS, MDF 3/4, RPC III through their own libraries, with a channel map
   real.py        the two real MR-damper data sets in ../shared/data
   preprocess.py  acceleration, decimation, hold-out and by-test splits
   merge.py       several datasets as one (merge_datasets)

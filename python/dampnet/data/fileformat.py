@@ -238,7 +238,7 @@ def _num(v: float | None) -> str:
 
 
 def write_dataset(ds: Dataset, out_dir: str | os.PathLike, overwrite: bool = False,
-                  progress: bool = False, inputs=()) -> Path:
+                  progress: bool = False, inputs=(), extras=None) -> Path:
     """Write `ds` as a dataset directory, atomically; refuse to replace an existing one.
 
     The directory is built in a staging directory beside `out_dir` and swapped into
@@ -246,7 +246,8 @@ def write_dataset(ds: Dataset, out_dir: str | os.PathLike, overwrite: bool = Fal
     kill leaves the old or the new one. With `overwrite`, only a dataset dampnet wrote
     (manifest.csv + meta.json naming a dampnet generator) that is not one of `inputs`,
     `.` or a parent is replaced. Values are written at the resolutions of
-    COLUMN_FORMATS. `meta` goes to meta.json.
+    COLUMN_FORMATS. `meta` goes to meta.json. `extras` ({file name: writer(path)}) are further
+    files written into the same staged directory (e.g. the RPC III copies of replay tests).
     """
     from dampnet.outputs import check_output_dir, json_text, staged_dir
 
@@ -272,6 +273,8 @@ def write_dataset(ds: Dataset, out_dir: str | os.PathLike, overwrite: bool = Fal
         _write_tests(ds.tests, tmp, progress)
         (tmp / MANIFEST).write_text("\n".join(rows) + "\n")
         (tmp / META_FILE).write_text(json_text(ds.meta, default=str))
+        for name, write in (extras or {}).items():
+            write(tmp / name)
     return out
 
 

@@ -4,6 +4,8 @@
 
   directory with manifest.csv     the dataset format (`dampnet.data.fileformat`)
   *.mat                           `read_mat`, needs `mapping` (variable -> channel)
+  *.tdms, *.mf4/.mdf, *.rsp/.drv  lab files through their own libraries (dampnet.data.lab), with a
+  (or a folder of them)           channel map (dampnet-channels.toml beside the data, or channel_map=)
   any other file                  `read_text`: CSV (',', ';', tab) or whitespace text
                                   whose header names carry units (force_lbf, mm/s, kN, ...)
 
@@ -25,76 +27,10 @@ import numpy as np
 from dampnet.data.fileformat import is_dataset_dir, read_dataset_dir
 from dampnet.data.matfile import NonNumeric
 from dampnet.data.table import read_table
-from dampnet.data.types import CONTROL_NAMES, DataError, Dataset, DynoTest
+from dampnet.data.testbuild import apply_convention, build_test  # noqa: F401  (apply_convention: its old home)
+from dampnet.data.types import DataError, Dataset, DynoTest
 from dampnet.data.units import parse_column
-from dampnet.data.validate import check_test
 from dampnet.schema import read_text as read_text_file, show
-
-_SIGNED_MOTION = ("displacement", "velocity", "acceleration")
-_CONVENTIONS = ("extension", "compression")
-
-
-def _sign(value: str, what: str) -> float:
-    if value not in _CONVENTIONS:
-        raise DataError(f"{what}={show(value)}: expected 'extension' or 'compression'")
-    return 1.0 if value == "extension" else -1.0
-
-
-def apply_convention(channels: dict[str, np.ndarray], motion_positive: str = "extension",
-                     force_positive: str = "extension") -> dict[str, np.ndarray]:
-    """Flip signs so motion is positive in extension and force positive resisting extension."""
-    sm = _sign(motion_positive, "motion_positive")
-    sf = _sign(force_positive, "force_positive")
-    for k in list(channels):
-        if k in _SIGNED_MOTION and sm < 0:
-            channels[k] = -channels[k]
-        if k == "force" and sf < 0:
-            channels[k] = -channels[k]
-    return channels
-
-
-def build_test(where: str, columns: dict[str, np.ndarray], colnames: dict[str, str], *,
-               header_lines: int = 1, lines: np.ndarray | None = None, test_id: str | None = None, voltage: float | None = None,
-               current: float | None = None, dt: float | None = None, t0: float = 0.0,
-               motion_positive: str = "extension", force_positive: str = "extension",
-               frequency_hz: float | None = None, amplitude_m: float | None = None,
-               derive_velocity: bool = False, meta: dict | None = None) -> DynoTest:
-    """A checked DynoTest from SI channel arrays (one of them may be 'time')."""
-    columns = dict(columns)
-    n = len(next(iter(columns.values())))
-    if "time" in columns:
-        time = columns.pop("time")
-    elif dt is not None:
-        if not dt > 0:
-            raise DataError(f"{where}: dt={show(dt)}: expected a positive sample interval [s]")
-        time = t0 + dt * np.arange(n)
-    else:
-        raise DataError(f"{where}: missing a time column (time_s, time_ms, ...): expected one, "
-                        "or pass dt= the sample interval [s]")
-    if derive_velocity and "velocity" not in columns and "displacement" in columns and n > 2:
-        columns["velocity"] = np.gradient(columns["displacement"], time)
-        colnames["velocity"] = "(derived from displacement)"
-    present = [c for c in CONTROL_NAMES if c in columns]
-    if voltage is not None and current is not None:
-        raise DataError(f"{where}: both voltage= and current= given: expected one control")
-    if len(present) == 2:
-        raise DataError(f"{where}: both voltage and current columns: expected one control column")
-    if present:
-        control_name = present[0]
-        nominal = float(np.median(columns[control_name]))
-    elif voltage is not None or current is not None:
-        control_name = "voltage" if voltage is not None else "current"
-        nominal = float(voltage if voltage is not None else current)
-        columns[control_name] = np.full(n, nominal)
-    else:
-        raise DataError(f"{where}: missing control column: expected voltage_v or current_a "
-                        "(any unit), or pass voltage= or current= for a constant control")
-    columns = apply_convention(columns, motion_positive, force_positive)
-    test = DynoTest(test_id=test_id or Path(where).stem, time=np.asarray(time, np.float64),
-                    channels={k: np.asarray(v, np.float64) for k, v in columns.items()},
-                    frequency_hz=frequency_hz, amplitude_m=amplitude_m, control_nominal=nominal,
-                    control_name=control_name, meta=dict(meta or {}))
-    return check_test(test, where, header_lines=header_lines, column_names=colnames, lines=lines)
 
 
 def read_text(path: str | os.PathLike, *, skip_lines: int = 0, columns: list[str] | None = None,
@@ -191,22 +127,37 @@ def read_mat(path: str | os.PathLike, mapping: dict[str, str] | None = None, **o
     return build_test(str(path), chans, colnames, header_lines=0, dt=dt, **options)
 
 
-def load_dataset(path: str | os.PathLike, **options) -> Dataset:
-    """A Dataset from a dataset directory or a single file (format detected).
+def load_dataset(path: str | os.PathLike, channel_map=None, **options) -> Dataset:
+    """A Dataset from a dataset directory, a folder of lab files or a single file (format detected).
 
-    Directories need manifest.csv; `.mat` files need `mapping=`; other files
-    are text tables. A single file gives a one-test dataset.
+    Directories need manifest.csv, or hold lab files (TDMS, MDF, RPC III: dampnet.data.lab; a
+    manifest is derived, nothing written). Lab files take `channel_map=` (a TOML path, a dict,
+    a ChannelMap; default: dampnet-channels.toml beside the data). `.mat` files need
+    `mapping=`; other files are text tables. A single file gives its test(s).
     """
     p = Path(path)
     if p.is_dir():
         if not is_dataset_dir(p):
+            from dampnet.data.lab import LAB_SUFFIXES, read_lab_folder
+            from dampnet.data.lab.assemble import lab_files
+
+            if lab_files(p):
+                return read_lab_folder(p, channel_map, **options)
             raise DataError(f"{p}: a directory without manifest.csv: expected a dataset directory "
-                            "(manifest.csv + one CSV per test)")
-        if options:
-            raise DataError(f"{p}: options {sorted(options)} apply to single files, not dataset directories")
+                            f"(manifest.csv + one CSV per test), or lab files ({', '.join(LAB_SUFFIXES)})")
+        if options or channel_map is not None:
+            raise DataError(f"{p}: options {sorted(options) + (['channel_map'] if channel_map is not None else [])} "
+                            "apply to single files and lab files, not dataset directories")
         return read_dataset_dir(p)
     if not p.exists():
         raise DataError(f"{p}: not found: expected a dataset directory or a data file")
+    from dampnet.data.lab import is_lab_file, read_lab_file
+
+    if is_lab_file(p):
+        return Dataset(tests=read_lab_file(p, channel_map, **options), source=str(p), meta={"reader": "lab"})
+    if channel_map is not None:
+        raise DataError(f"{p}: channel_map applies to lab files (TDMS, MDF, RPC III); for a text file name "
+                        "the columns with their units, for a .mat file pass mapping=")
     if p.suffix.lower() == ".mat":
         test = read_mat(p, **options)
     else:

@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dampnet.data.excitation import estimate_sine
 from dampnet.data.readers import read_mat, read_text
 from dampnet.data.types import DataError, Dataset, DynoTest
 
@@ -82,12 +83,8 @@ def load_utfsm(root=None, **options) -> Dataset:
 
 
 def _estimate_sine(t: DynoTest) -> tuple[float, float]:
-    x = t.channels["displacement"] - np.mean(t.channels["displacement"])
-    spec = np.abs(np.fft.rfft(x * np.hanning(len(x))))
-    f = np.fft.rfftfreq(len(x), t.dt)
-    k = 1 + int(np.argmax(spec[1:]))
-    lo, hi = np.percentile(t.channels["displacement"], [1, 99])
-    return float(f[k]), float((hi - lo) / 2)
+    f, amp, _ = estimate_sine(t.channels["displacement"], t.dt)
+    return f, amp
 
 
 def labcontrol_voltage(stem: str) -> float | None:

@@ -143,3 +143,38 @@ def parse_column(name: str, where: str = "") -> tuple[str, float, float]:
     raise DataError(f"{prefix}column {show(name)}: expected a quantity with a known unit, such as "
                     "'force_n', 'force_lbf', 'displacement_mm', 'velocity_in_s', 'time_s', "
                     "'voltage_v', 'current_a', 'temperature_c', or a bare unit such as 'mm/s' or 'kN'")
+
+
+def unit_to_si(unit: str, channel: str, where: str = "") -> tuple[float, float]:
+    """(scale, offset) to SI of a unit string as a logger stores it ('lbf', 'in/s', 'mm', 'kN',
+    '°F', 'mA') for `channel`; DataError naming `where` if the unit is unknown or of another
+    dimension (a force channel in 'mm')."""
+    prefix = f"{where}: " if where else ""
+    if len(unit) > MAX_COLUMN_NAME:
+        raise DataError(f"{prefix}unit {show(unit)}: expected a unit of at most {MAX_COLUMN_NAME} characters")
+    dim = CHANNEL_DIMENSION.get(channel)
+    if dim is None:
+        raise DataError(f"{prefix}channel {show(channel)}: expected one of {', '.join(CHANNEL_DIMENSION)}")
+    u = _norm_unit(unit, dim)
+    if u is None:
+        raise DataError(f"{prefix}unit {show(unit)}: not a known unit of {channel} ({dim}), expected e.g. "
+                        f"{_EXAMPLES[dim]}")
+    if u[0] != dim:
+        raise DataError(f"{prefix}unit {show(unit)} is a {u[0]} unit: expected a {dim} unit for {channel}, "
+                        f"e.g. {_EXAMPLES[dim]}")
+    return u[1], u[2]
+
+
+def quantity_of_name(name: str) -> str | None:
+    """The channel a logger's channel name says it is ('Force' -> force, 'Disp' -> displacement,
+    'Oil Temp' -> temperature), from its words; None when no word, or words of two channels."""
+    words = [w for w in re.split(r"[^a-z]+", name.lower()) if w]
+    found = {_QUANTITIES[w] for w in words if w in _QUANTITIES and len(w) > 1}
+    return found.pop() if len(found) == 1 else None
+
+
+_EXAMPLES = {
+    "time": "'s', 'ms'", "length": "'m', 'mm', 'in'", "velocity": "'m/s', 'mm/s', 'in/s'",
+    "force": "'N', 'kN', 'lbf'", "voltage": "'V', 'mV'", "current": "'A', 'mA'",
+    "temperature": "'degC', '°F', 'K'", "acceleration": "'m/s^2', 'g'",
+}

@@ -32,23 +32,15 @@ def figures(ctx, diag: dict, out: Path, tag: str = "") -> list[tuple[str, str]]:
     plt = _plt()
     out.mkdir(parents=True, exist_ok=True)
     figs = []
-    # heat map: RMS residual per test, frequency x control
+    # heat map: RMS residual per test, frequency x control (replay / random tests in their own row)
     rows = diag["localisation"]["per_test_rms_n"]
-    fr = sorted({r["frequency_hz"] for r in rows if r["frequency_hz"] is not None})
-    cl = sorted({r["control"] for r in rows if r["control"] is not None})
-    if fr and cl:
-        grid = np.full((len(cl), len(fr)), np.nan)
-        for r in rows:
-            if r["frequency_hz"] is not None and r["control"] is not None:
-                grid[cl.index(r["control"]), fr.index(r["frequency_hz"])] = r["rms_n"]
-        fig, ax = plt.subplots(figsize=(6, 4))
-        im = ax.imshow(grid, origin="lower", aspect="auto", cmap="viridis")
-        ax.set_xticks(range(len(fr)), [f"{f:g}" for f in fr])
-        ax.set_yticks(range(len(cl)), [f"{c:g}" for c in cl])
-        ax.set_xlabel("frequency [Hz]")
-        ax.set_ylabel(ctx.control_name)
-        fig.colorbar(im, ax=ax, label="RMS residual [N]")
-        figs.append((_save(fig, out / f"{tag}heatmap.png"), "RMS residual per test (frequency x control)"))
+    if len(rows) > 1:
+        from dampnet.evaluation.plots import test_heatmap
+
+        test_heatmap(rows, "rms_n", out / f"{tag}heatmap.png", "RMS residual [N]",
+                     "RMS residual per test", ctx.control_name)
+        figs.append((f"{tag}heatmap.png", "RMS residual per test (frequency x control; replay and random "
+                                          "tests in their own row)"))
     # loops of the worst tests
     worst = [w["test_id"] for w in diag["worst_tests"][:3]]
     for td in ctx.tests:

@@ -3,7 +3,9 @@
   error_histogram(errors, path)            distribution of force errors (thesis Fig. 35)
   test_figure(test, pred, path, ...)       predicted vs measured force over time, force-velocity
                                            and force-displacement loops of one test (Figs. 36-39)
-  error_heatmap(report, path, key)         an error measure against frequency and control (heat map)
+  error_heatmap(report, path, key)         an error measure against frequency and control (heat map),
+                                           replay / random tests in their own row
+  test_heatmap(rows, key, path, ...)       the same for any per-test value (the diagnosis's residual)
   lookup_figure(table, path)               the lookup table's force-velocity curves (Fig. 43)
 
 Each function writes one PNG and returns its path; units are SI (forces in N).
@@ -25,10 +27,11 @@ import matplotlib.pyplot as plt  # noqa: E402
 DPI = 120
 
 
-def _save(fig, path) -> Path:
+def _save(fig, path, tight: bool = True) -> Path:
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    fig.tight_layout()
+    if tight:   # not for a figure made with layout="constrained" (a colorbar shared by several axes)
+        fig.tight_layout()
     fig.savefig(p, dpi=DPI)
     plt.close(fig)
     return p
@@ -103,28 +106,65 @@ def test_figure(test, pred: np.ndarray | dict[str, np.ndarray], path: str | os.P
 def error_heatmap(report: dict[str, Any], path: str | os.PathLike, key: str = "nrmse",
                   title: str | None = None) -> Path:
     """Heat map of `key` (e.g. nrmse, max_abs_error_n, mean_pct_error) against frequency and control,
-    from a report's per_test rows (dampnet.evaluation.metrics.evaluate_predictions)."""
-    rows = [r for r in report["per_test"] if r["frequency_hz"] is not None and r["control"] is not None]
-    freqs = sorted({r["frequency_hz"] for r in rows})
-    ctrls = sorted({r["control"] for r in rows})
+    from a report's per_test rows (dampnet.evaluation.metrics.evaluate_predictions); tests without
+    a frequency (track replay, random) in their own row below (`test_heatmap`)."""
+    units = {"nrmse": "NRMSE [-]", "rmse_n": "RMSE [N]", "max_abs_error_n": "maximum |error| [N]",
+             "mean_abs_error_n": "mean |error| [N]", "mean_pct_error": "average error [%]"}
+    rows = report["per_test"]
+    name = next((r["control_name"] for r in rows if r.get("control_name")), "voltage")
+    return test_heatmap(rows, key, path, units.get(key, key), title or f"{units.get(key, key)} per test", name)
+
+
+def test_heatmap(rows: Sequence[dict], key: str, path: str | os.PathLike, label: str, title: str,
+                 control_name: str = "voltage") -> Path:
+    """One value per test: sines as a grid (frequency x nominal control, tests of one cell
+    averaged), tests without a frequency or a nominal control (track replay, random content) in
+    their own row beneath, one cell per test named by its id; one colour scale for both."""
+    grid_rows = [r for r in rows if r["frequency_hz"] is not None and r["control"] is not None]
+    other = [r for r in rows if r["frequency_hz"] is None or r["control"] is None]
+    freqs = sorted({r["frequency_hz"] for r in grid_rows})
+    ctrls = sorted({r["control"] for r in grid_rows})
     grid = np.full((len(ctrls), len(freqs)), np.nan)
     acc: dict[tuple[int, int], list[float]] = {}
-    for r in rows:
+    for r in grid_rows:
         acc.setdefault((ctrls.index(r["control"]), freqs.index(r["frequency_hz"])), []).append(r[key])
     for (i, j), vals in acc.items():
         grid[i, j] = float(np.mean(vals))
-    units = {"nrmse": "NRMSE [-]", "rmse_n": "RMSE [N]", "max_abs_error_n": "maximum |error| [N]",
-             "mean_abs_error_n": "mean |error| [N]", "mean_pct_error": "average error [%]"}
-    fig, ax = plt.subplots(figsize=(1.0 + 0.6 * max(len(freqs), 4), 1.5 + 0.35 * max(len(ctrls), 4)))
-    im = ax.imshow(grid if grid.size else np.zeros((1, 1)), origin="lower", aspect="auto", cmap="viridis")
-    ax.set_xticks(range(len(freqs)), [f"{f:g}" for f in freqs], rotation=45)
-    ax.set_yticks(range(len(ctrls)), [f"{c:g}" for c in ctrls])
-    name = rows[0]["control_name"] if rows else "voltage"
-    ax.set_xlabel("test frequency [Hz]")
-    ax.set_ylabel(f"{name} [{'A' if name == 'current' else 'V'}]")
-    fig.colorbar(im, ax=ax, label=units.get(key, key))
-    ax.set_title(title or f"{units.get(key, key)} per test")
-    return _save(fig, path)
+    vals = [float(r[key]) for r in rows if r[key] is not None and np.isfinite(r[key])]
+    vmin, vmax = (min(vals), max(vals)) if vals else (0.0, 1.0)
+    unit = "A" if control_name == "current" else "V"
+    width = max(7.0, 1.5 + 0.6 * len(freqs), 1.5 + 1.6 * len(other))
+    axes_h = [1.5 + 0.35 * max(len(ctrls), 4)] if grid_rows else []
+    if other:
+        axes_h.append(1.6)
+    fig, axs = plt.subplots(len(axes_h), 1, figsize=(width, sum(axes_h) + 1.0 * len(axes_h)),
+                            gridspec_kw={"height_ratios": axes_h}, squeeze=False, layout="constrained")
+    axs = list(axs[:, 0])
+    im = None
+    if grid_rows:
+        ax = axs.pop(0)
+        im = ax.imshow(grid, origin="lower", aspect="auto", cmap="viridis", vmin=vmin, vmax=vmax)
+        ax.set_xticks(range(len(freqs)), [f"{f:g}" for f in freqs], rotation=45)
+        ax.set_yticks(range(len(ctrls)), [f"{c:g}" for c in ctrls])
+        ax.set_xlabel("test frequency [Hz]")
+        ax.set_ylabel(f"{control_name} [{unit}]")
+        ax.set_title(title)
+    if other:
+        ax = axs.pop(0)
+        strip = np.array([[float(r[key]) if r[key] is not None else np.nan for r in other]])
+        im = ax.imshow(strip, aspect="auto", cmap="viridis", vmin=vmin, vmax=vmax)
+        ax.set_xticks(range(len(other)), [r["test_id"] for r in other], rotation=20, ha="right", fontsize="small")
+        ax.set_yticks([0], ["replay /\nrandom"])
+        mid = 0.5 * (vmin + vmax)
+        for j, r in enumerate(other):
+            if r[key] is not None and np.isfinite(r[key]):
+                ax.text(j, 0, f"{r[key]:.3g}", ha="center", va="center", fontsize="small",
+                        color="k" if r[key] > mid else "w")
+        if not grid_rows:
+            ax.set_title(title)
+        ax.set_xlabel("tests without one frequency (track replay, random content)")
+    fig.colorbar(im, ax=fig.axes, label=label)
+    return _save(fig, path, tight=False)   # constrained layout: the colorbar beside both axes
 
 
 def lookup_figure(table, path: str | os.PathLike, voltages: Sequence[float] | None = None,

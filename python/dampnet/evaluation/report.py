@@ -95,7 +95,7 @@ def write_plots(model, tests: Sequence[Any], report: dict[str, Any], out_dir: st
     if lookup is not None:
         errs["lookup table"] = np.concatenate([lookup.predict_test(t) - t.channels["force"] for t in tests])
     paths.append(plots.error_histogram(errs, out / "error_histogram.png"))
-    if len({(r["frequency_hz"], r["control"]) for r in report["per_test"]}) > 1:
+    if len(report["per_test"]) > 1:
         paths.append(plots.error_heatmap(report, out / "error_heatmap_nrmse.png", "nrmse",
                                          "MLP: NRMSE per test (frequency x control)"))
         paths.append(plots.error_heatmap(report, out / "error_heatmap_max_error.png", "max_abs_error_n",

@@ -62,6 +62,7 @@ def generate(plan="thesis", effects=(), seed: int = 0, progress: bool = False, *
     if progress:
         from tqdm import tqdm
         bar = tqdm(total=len(specs), desc=f"rig {plan.name}", unit="test")
+    thermal = [e for e in effs if e.records_temperature]
     tests: list[DynoTest | None] = [None] * len(specs)
     groups: dict[int, list[int]] = {}
     for i, s in enumerate(specs):
@@ -87,27 +88,10 @@ def generate(plan="thesis", effects=(), seed: int = 0, progress: bool = False, *
             for e in effs:
                 t0 = e.initial_temperature(rng) if t0 is None else t0
             X.append(x), V.append(v), A.append(a), U.append(u), T0.append(t0)
-        X, V, A, U = (np.array(z) for z in (X, V, A, U))
-        thermal = [e for e in effs if e.records_temperature]
-        temp = None
-        if thermal:
-            t0 = np.array(T0, dtype=np.float64)
-            temp = np.repeat(t0[:, None], n, axis=1)
-            _, parts = truth_force(X, V, U, temp, dt=dt, params=p, effects=effs, return_parts=True)
-            power = parts["hydraulic"] * V          # [W] dissipated by the hydraulics
-            temp = thermal[0].heating(t, power, t0)
-        F = truth_force(X, V, U, temp, dt=dt, params=p, effects=effs)
-        for row, (i, rng) in enumerate(zip(idx, rngs)):
+        recorded = play(t, np.array(X), np.array(V), np.array(A), np.array(U), T0, effs, p, noise, rngs,
+                        truth_channels)
+        for i, ch in zip(idx, recorded):
             s = specs[i]
-            ch = {"displacement": measure("displacement", X[row], noise, rng),
-                  "velocity": measure("velocity", V[row], noise, rng),
-                  "force": measure("force", F[row], noise, rng),
-                  "voltage": measure("voltage", U[row], noise, rng)}
-            if temp is not None:
-                ch["temperature"] = measure("temperature", temp[row], noise, rng)
-            if truth_channels:
-                ch["true_force"] = F[row].copy()
-                ch["true_acceleration"] = A[row].copy()
             tests[i] = DynoTest(test_id=s["test_id"], time=quantise(t, RESOLUTION["time"]), channels=ch,
                                 frequency_hz=s["frequency_hz"], amplitude_m=s["amplitude_m"],
                                 control_nominal=s["voltage_v"], control_name="voltage",
@@ -127,6 +111,38 @@ def generate(plan="thesis", effects=(), seed: int = 0, progress: bool = False, *
     }
     return Dataset(tests=list(tests), source=f"dampnet rig: plan {plan.name}, effects "
                    f"{','.join(names) or 'none'}, seed {seed}", meta=meta)
+
+
+def play(t: np.ndarray, X: np.ndarray, V: np.ndarray, A: np.ndarray, U: np.ndarray, T0: list, effs: list,
+         p: TruthParams, noise: SensorNoise, rngs: list, truth_channels: bool = False) -> list[dict]:
+    """The rig's recording of motions X [m], V [m/s], A [m/s^2] at controls U [V] (rows: tests, all
+    at times `t` [s]) on the truth damper with `effs`: one channel dict per row (sensor noise from
+    that row's `rngs`; temperature when an effect heats the oil from T0 [degC]). What `generate`
+    and a replayed drive (dampnet.rig.replay) share."""
+    dt = float(t[1] - t[0])
+    n = t.shape[0]
+    thermal = [e for e in effs if e.records_temperature]
+    temp = None
+    if thermal:
+        t0 = np.array(T0, dtype=np.float64)
+        temp = np.repeat(t0[:, None], n, axis=1)
+        _, parts = truth_force(X, V, U, temp, dt=dt, params=p, effects=effs, return_parts=True)
+        power = parts["hydraulic"] * V          # [W] dissipated by the hydraulics
+        temp = thermal[0].heating(t, power, t0)
+    F = truth_force(X, V, U, temp, dt=dt, params=p, effects=effs)
+    out = []
+    for row, rng in enumerate(rngs):
+        ch = {"displacement": measure("displacement", X[row], noise, rng),
+              "velocity": measure("velocity", V[row], noise, rng),
+              "force": measure("force", F[row], noise, rng),
+              "voltage": measure("voltage", U[row], noise, rng)}
+        if temp is not None:
+            ch["temperature"] = measure("temperature", temp[row], noise, rng)
+        if truth_channels:
+            ch["true_force"] = F[row].copy()
+            ch["true_acceleration"] = A[row].copy()
+        out.append(ch)
+    return out
 
 
 def noise_floor_nrmse(ds: Dataset) -> float:

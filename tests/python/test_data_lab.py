@@ -1,0 +1,316 @@
+"""Lab files through their own libraries (TDMS, MDF4, RPC III): each written with its library,
+read back through dampnet and compared with the same numbers read from a CSV with unit columns."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dampnet.data import DataError, load_dataset
+from dampnet.data.lab import MAP_FILE, read_lab_file
+from lab_files import LBF, MAP, csv_of, imperial, write_mdf, write_rpc, write_tdms
+
+
+@pytest.fixture(scope="module")
+def rig():
+    import dampnet
+
+    return dampnet.rig.generate("quick", seed=0)
+
+
+def _same(a, b, rtol=1e-12):
+    """Two DynoTests hold the same channels (time, motion, force, control, temperature)."""
+    np.testing.assert_allclose(a.time, b.time, rtol=rtol, atol=1e-12)
+    for ch in ("displacement", "velocity", "force", "voltage", "temperature"):
+        np.testing.assert_allclose(a.channels[ch], b.channels[ch], rtol=rtol, atol=1e-9 * np.ptp(b.channels[ch]),
+                                   err_msg=ch)
+    assert a.control_name == b.control_name == "voltage"
+
+
+def test_tdms_labview_layout_equals_the_csv(rig, tmp_path):
+    test = rig.tests[0]
+    chans = imperial(test)
+    p = write_tdms(tmp_path / "run1.tdms", {"Measured Data": chans}, test.dt)
+    (tmp_path / MAP_FILE).write_text(MAP)
+    got = load_dataset(p).tests[0]
+    ref = load_dataset(csv_of(tmp_path / "run1.csv", test.time - test.time[0], chans)).tests[0]
+    _same(got, ref)
+    # the units were the file's: lbf -> N exactly, degF -> degC
+    np.testing.assert_allclose(got.channels["force"], chans["Force"][0] * LBF, rtol=1e-15)
+    assert got.meta["units"]["force"] == "lbf" and got.meta["format"] == "tdms"
+    # a 0.25 Hz sine: the derived manifest names its frequency
+    assert got.frequency_hz == pytest.approx(0.25, rel=0.02) and got.amplitude_m == pytest.approx(0.0254, rel=0.02)
+
+
+def test_tdms_folder_one_group_per_run_gives_one_test_per_group(rig, tmp_path):
+    groups = {f"Run {i}": imperial(t) for i, t in enumerate(rig.tests[:3], start=1)}
+    write_tdms(tmp_path / "campaign.tdms", groups, rig.tests[0].dt)
+    write_tdms(tmp_path / "single.tdms", {"Measured Data": imperial(rig.tests[3])}, rig.tests[3].dt)
+    (tmp_path / MAP_FILE).write_text(MAP)
+    before = sorted(p.name for p in tmp_path.iterdir())
+    ds = load_dataset(tmp_path)
+    assert ds.test_ids == ["campaign_Run_1", "campaign_Run_2", "campaign_Run_3", "single"]
+    for got, want in zip(ds.tests, rig.tests[:4]):
+        np.testing.assert_allclose(got.channels["force"], want.channels["force"], rtol=1e-12, atol=1e-9)
+        assert got.control_nominal == pytest.approx(want.control_nominal, abs=0.01)
+    assert sorted(p.name for p in tmp_path.iterdir()) == before   # nothing written into the data folder
+    assert ds.meta["manifest"].startswith("derived")
+
+
+def test_mdf4_groups_at_different_rates_are_resampled_onto_the_force_channel(rig, tmp_path):
+    test = rig.tests[4]
+    chans = imperial(test)
+    t = test.time - test.time[0]
+    fast = {k: chans[k] for k in ("Force", "Disp", "Vel")}
+    t_cmd, t_temp = t[::10] + 1e-4, t[::50]          # 500 Hz command, 100 Hz temperature
+    cmd = 2.0 + 0.5 * np.sin(2 * np.pi * 0.7 * t_cmd)
+    temp = 100.0 + 5 * t_temp
+    p = write_mdf(tmp_path / "bench.mf4", [(t, fast), (t_cmd, {"Command": (cmd, "V")}),
+                                            (t_temp, {"Oil Temp": (temp, "degF")})])
+    (tmp_path / "elsewhere.toml").write_text(MAP)     # a map passed by path (the CLI's --channel-map)
+    got = load_dataset(p, channel_map=tmp_path / "elsewhere.toml").tests[0]
+    # the time base is the force channel's, cut to the span every group covers
+    keep = (t >= t_cmd[0]) & (t <= min(t_cmd[-1], t_temp[-1]))
+    np.testing.assert_allclose(got.time, t[keep], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(got.channels["force"], chans["Force"][0][keep] * LBF, rtol=1e-12)
+    # slower groups: numpy's linear interpolation onto those stamps, then SI
+    np.testing.assert_allclose(got.channels["voltage"], np.interp(t[keep], t_cmd, cmd), rtol=1e-12)
+    np.testing.assert_allclose(got.channels["temperature"], (np.interp(t[keep], t_temp, temp) - 32) * 5 / 9,
+                               rtol=1e-12)
+    assert got.meta["resampled"]["onto"].endswith("Force")
+    assert got.meta["resampled"]["method"].startswith("linear")
+
+
+def test_mdf3_single_rate_equals_the_csv(rig, tmp_path):
+    test = rig.tests[2]
+    chans = imperial(test)
+    t = test.time - test.time[0]
+    p = write_mdf(tmp_path / "logger.mdf", [(t, chans)], version="3.30")
+    (tmp_path / MAP_FILE).write_text(MAP)
+    _same(load_dataset(p).tests[0], load_dataset(csv_of(tmp_path / "logger.csv", t, chans)).tests[0])
+
+
+def test_rpc3_written_by_its_library_equals_the_csv(rig, tmp_path):
+    test = rig.tests[8]
+    # RPC III stores 32-bit floats: the CSV gets the same float32 numbers
+    chans = {k: (np.asarray(v, np.float32).astype(np.float64), u) for k, (v, u) in imperial(test).items()}
+    p = write_rpc(tmp_path / "road.rsp", chans, test.dt)
+    (tmp_path / MAP_FILE).write_text(MAP)
+    got = load_dataset(p).tests[0]
+    ref = load_dataset(csv_of(tmp_path / "road.csv", test.time - test.time[0], chans)).tests[0]
+    _same(got, ref, rtol=1e-9)
+    assert got.meta["format"] == "rpc"
+
+
+def test_without_a_map_channels_are_matched_by_their_names(rig, tmp_path):
+    test = rig.tests[1]
+    chans = imperial(test)
+    chans["Voltage"] = chans.pop("Command")
+    got = load_dataset(write_tdms(tmp_path / "named.tdms", {"Data": chans}, test.dt)).tests[0]
+    np.testing.assert_allclose(got.channels["displacement"], test.channels["displacement"], rtol=1e-12, atol=1e-15)
+    assert got.meta["channel_map"] == "(from the channel names)"
+
+
+def test_map_fills_a_missing_unit_and_sets_signs_and_a_constant_control(rig, tmp_path):
+    test = rig.tests[0]
+    chans = imperial(test)
+    del chans["Command"]
+    chans["Force"] = (-chans["Force"][0], "")       # no unit in the file, compression positive
+    p = write_tdms(tmp_path / "r.tdms", {"G": chans}, test.dt)
+    cmap = {"channels": {"displacement": "Disp", "force": "Force"}, "units": {"force": "lbf"},
+            "convention": {"force_positive": "compression"}, "control": {"voltage": 1.5}}
+    got = read_lab_file(p, cmap)[0]
+    np.testing.assert_allclose(got.channels["force"], test.channels["force"], rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(got.channels["voltage"], 1.5)
+    # velocity not mapped: differentiated from displacement and smoothed over 20 ms; within 2 mm/s
+    # RMS of the rig's velocity channel (which carries 1 mm/s of sensor noise itself); unsmoothed, 88 mm/s
+    v = test.channels["velocity"]
+    assert np.sqrt(np.mean((got.channels["velocity"] - v) ** 2)) < 0.002
+    assert got.meta["channels"].get("velocity") is None
+
+
+# --- bad files: one line naming the file and the channel ------------------------------------
+
+def _one_line(e) -> str:
+    msg = str(e.value)
+    assert "\n" not in msg
+    return msg
+
+
+@pytest.mark.parametrize("fmt", ["tdms", "mf4", "rsp"])
+def test_truncated_files_are_one_line_errors(rig, tmp_path, fmt):
+    test = rig.tests[0]
+    chans = imperial(test)
+    p = tmp_path / f"cut.{fmt}"
+    if fmt == "tdms":
+        write_tdms(p, {"G": chans}, test.dt)
+    elif fmt == "mf4":
+        write_mdf(p, [(test.time, chans)])
+    else:
+        write_rpc(p, chans, test.dt)
+    data = p.read_bytes()
+    p.write_bytes(data[: len(data) // 3])
+    (tmp_path / MAP_FILE).write_text(MAP)
+    with pytest.raises(DataError) as e:
+        load_dataset(p)
+    assert str(p) in _one_line(e)
+
+
+def test_wrong_channel_name_lists_the_file_channels(rig, tmp_path):
+    p = write_tdms(tmp_path / "a.tdms", {"G": imperial(rig.tests[0])}, rig.tests[0].dt)
+    with pytest.raises(DataError) as e:
+        read_lab_file(p, {"channels": {"displacement": "Disp", "force": "Forse", "voltage": "Command"}})
+    msg = _one_line(e)
+    assert str(p) in msg and "'Forse' (force) not found" in msg and "'G/Force'" in msg
+
+
+def test_missing_unit_names_the_channel(rig, tmp_path):
+    chans = imperial(rig.tests[0])
+    chans["Disp"] = (chans["Disp"][0], "")
+    p = write_tdms(tmp_path / "a.tdms", {"G": chans}, rig.tests[0].dt)
+    with pytest.raises(DataError) as e:
+        read_lab_file(p, {"channels": {"displacement": "Disp", "force": "Force", "voltage": "Command"}})
+    msg = _one_line(e)
+    assert str(p) in msg and "'G/Disp' (displacement)" in msg and "no unit" in msg and "[units]" in msg
+
+
+def test_a_unit_of_the_wrong_dimension_is_refused(rig, tmp_path):
+    chans = imperial(rig.tests[0])
+    chans["Force"] = (chans["Force"][0], "mm")
+    p = write_tdms(tmp_path / "a.tdms", {"G": chans}, rig.tests[0].dt)
+    with pytest.raises(DataError, match=r"'G/Force' \(force\): unit 'mm' is a length unit: expected a force unit"):
+        read_lab_file(p, {"channels": {"displacement": "Disp", "force": "Force", "voltage": "Command"}})
+
+
+def test_nan_block_names_channel_and_sample(rig, tmp_path):
+    chans = imperial(rig.tests[0])
+    f = chans["Force"][0].copy()
+    f[700:750] = np.nan
+    chans["Force"] = (f, "lbf")
+    p = write_rpc(tmp_path / "nan.rsp", chans, rig.tests[0].dt)
+    with pytest.raises(DataError) as e:
+        read_lab_file(p, {"channels": {"displacement": "Disp", "force": "Force", "voltage": "Command"}})
+    msg = _one_line(e)
+    assert str(p) in msg and "'Force' (force): sample 700" in msg and "50 non-finite samples" in msg
+
+
+def test_unequal_lengths_name_the_channel(rig, tmp_path):
+    chans = imperial(rig.tests[0])
+    chans["Vel"] = (chans["Vel"][0][:-100], "in/s")
+    p = write_tdms(tmp_path / "short.tdms", {"G": chans}, rig.tests[0].dt)
+    with pytest.raises(DataError) as e:
+        read_lab_file(p, {"channels": {"displacement": "Disp", "velocity": "Vel", "force": "Force",
+                                       "voltage": "Command"}})
+    msg = _one_line(e)
+    assert str(p) in msg and "'G/Vel' (velocity)" in msg and "expected equal lengths" in msg
+
+
+@pytest.mark.parametrize("text, words", [
+    ("[chanels]\nforce = 'F'\n", ["unknown table(s) 'chanels'"]),
+    ("[channels]\nforse = 'F'\n", ["[channels]", "unknown key 'forse'"]),
+    ("[channels]\nforce = 3\n", ["[channels] force", "non-empty string"]),
+    ("[convention]\nforce_positive = 'up'\n", ["force_positive", "'extension' or 'compression'"]),
+    ("[control]\nvoltage = 'high'\n", ["[control] voltage", "finite number"]),
+    ("[channels\n", ["not a valid TOML channel map"]),
+])
+def test_bad_channel_maps_name_the_file_and_key(rig, tmp_path, text, words):
+    p = write_tdms(tmp_path / "a.tdms", {"G": imperial(rig.tests[0])}, rig.tests[0].dt)
+    (tmp_path / MAP_FILE).write_text(text)
+    with pytest.raises(DataError) as e:
+        load_dataset(p)
+    msg = _one_line(e)
+    assert MAP_FILE in msg and all(w in msg for w in words), msg
+
+
+def test_a_missing_library_names_the_pip_extra(rig, tmp_path, monkeypatch):
+    import importlib.util
+
+    p = write_tdms(tmp_path / "a.tdms", {"G": imperial(rig.tests[0])}, rig.tests[0].dt)
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "nptdms" else real(name, *a))
+    with pytest.raises(DataError, match=r"a\.tdms: reading it needs the Python package nptdms: "
+                                        r"pip install 'dampnet\[lab\]'"):
+        load_dataset(p)
+
+
+# --- dampnet train on each format ------------------------------------------------------------
+
+TRAIN = ["--quiet", "--restarts", "1", "--max-epochs", "10", "--decimate", "20"]
+
+
+def test_dampnet_train_on_a_tdms_folder_holds_out_2_25_v(rig, tmp_path, capsys):
+    from dampnet.cli import main
+    from dampnet.model import MlpModel
+
+    folder = tmp_path / "tdms"
+    folder.mkdir()
+    for t in rig.tests:
+        write_tdms(folder / f"{t.test_id}.tdms", {"Measured Data": imperial(t)}, t.dt)
+    (folder / MAP_FILE).write_text(MAP)
+    assert main(["train", str(folder), "--out", str(tmp_path / "m"), *TRAIN]) == 0, capsys.readouterr().err
+    data = MlpModel.load(tmp_path / "m").meta["data"]
+    assert set(data["holdout_tests"]) == {t.test_id for t in rig.tests if t.control_nominal == 2.25}
+    assert sorted(p.name for p in folder.iterdir()) == sorted([f"{t.test_id}.tdms" for t in rig.tests] + [MAP_FILE])
+
+
+@pytest.fixture(scope="module")
+def stepped():
+    """One 1 Hz test whose control steps through 0, 2.25 and 5 V every 0.5 s (a whole campaign in one file)."""
+    import dampnet
+
+    plan = {"name": "steps", "frequencies_hz": [1.0], "amplitudes_m": [0.0254], "voltages_v": [0.0, 2.25, 5.0],
+            "samples": 12000, "control": {"waveform": "steps", "period_s": 0.5}}
+    return dampnet.rig.generate(plan, seed=1).tests[0]
+
+
+@pytest.mark.parametrize("fmt", ["mf4", "rsp"])
+def test_dampnet_train_on_one_mdf4_or_rpc3_file_with_a_channel_map(stepped, tmp_path, capsys, fmt):
+    from dampnet.cli import main
+
+    chans = imperial(stepped)
+    p = tmp_path / f"campaign.{fmt}"
+    if fmt == "mf4":
+        write_mdf(p, [(stepped.time, chans)])
+    else:
+        write_rpc(p, chans, stepped.dt)
+    (tmp_path / "map.toml").write_text(MAP)
+    rc = main(["train", str(p), "--channel-map", str(tmp_path / "map.toml"), "--out", str(tmp_path / "m"),
+               "--holdout-voltage", "none", *TRAIN])
+    assert rc == 0, capsys.readouterr().err
+    assert (tmp_path / "m" / "model.json").is_file()
+    # the same file through evaluate and diagnose's loader, and a wrong map is one line naming the file
+    capsys.readouterr()
+    (tmp_path / "bad.toml").write_text("[channels]\nforce = 'Forse'\ndisplacement = 'Disp'\nvoltage = 'Command'\n")
+    assert main(["evaluate", str(tmp_path / "m"), str(p), "--channel-map", str(tmp_path / "bad.toml"),
+                 "--no-lookup"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and str(p) in err and "'Forse' (force) not found" in err
+
+
+@pytest.mark.parametrize("dt", [0.0, -1e-3, float("nan")])
+def test_a_bad_sample_interval_names_the_channel(rig, tmp_path, dt):
+    chans = imperial(rig.tests[0])
+    p = write_tdms(tmp_path / "dt.tdms", {"G": chans}, rig.tests[0].dt, properties={"Force": {"wf_increment": dt}})
+    with pytest.raises(DataError) as e:
+        read_lab_file(p, {"channels": {"displacement": "Disp", "force": "Force", "voltage": "Command"}})
+    msg = _one_line(e)
+    assert str(p) in msg and "'G/Force' (force): sample interval" in msg and "positive, finite" in msg
+
+
+@pytest.mark.parametrize("n", [0, 1, 5])
+def test_too_few_samples_is_one_line(tmp_path, n):
+    """(Found by fuzz/python/fuzz_lab.py: a one-sample file reached the velocity's derivative.)"""
+    chans = {"Disp": (np.zeros(n), "mm"), "Force": (np.zeros(n), "N"), "Command": (np.zeros(n), "V")}
+    p = write_tdms(tmp_path / "few.tdms", {"G": chans}, 1e-3)
+    with pytest.raises(DataError) as e:
+        read_lab_file(p, {"channels": {"displacement": "Disp", "force": "Force", "voltage": "Command"}})
+    msg = _one_line(e)
+    assert str(p) in msg and f"{n} samples" in msg and "expected at least 10" in msg
+
+
+def test_groups_that_do_not_overlap_in_time_are_one_line(tmp_path):
+    t = np.arange(100) * 1e-3
+    p = write_mdf(tmp_path / "apart.mf4", [(t, {"Disp": (np.sin(t), "mm"), "Force": (np.cos(t), "N")}),
+                                            (t + 5.0, {"Command": (np.ones(100), "V")})])
+    with pytest.raises(DataError, match=r"\(force\): 0 samples in the span every channel covers"):
+        read_lab_file(p, {"channels": {"displacement": "Disp", "force": "Force", "voltage": "Command"}})
