@@ -151,3 +151,31 @@ def roll_gradient(params: dict | None = None) -> float:
         num += Ks / (Ks + Kt) * m * share * h_rc
         den += Ks * Kt / (Ks + Kt)
     return num / den
+
+
+#: the road patterns of the bounce sine sweep (FL, FR, RL, RR): all in phase, rear against front
+ROAD_PATTERNS = {"heave": np.array([1.0, 1.0, 1.0, 1.0]), "pitch": np.array([1.0, 1.0, -1.0, -1.0])}
+
+
+def road_response(freqs: np.ndarray, params: dict | None = None, damping: float | np.ndarray = 0.0,
+                  pattern: str = "heave") -> dict:
+    """Frequency responses [per metre of road] of the linear vertical model to the road under the
+    four wheels in `pattern` (ROAD_PATTERNS), at freqs [Hz]: {"z": heave at the CG [m/m], "phi",
+    "theta" [rad/m], "wheel": the four wheels' mean height [m/m] (front and rear with the
+    pattern's sign)}, complex. H(jw) = C (jw I - A)^-1 B u by a complex solve (c_t = 0 assumed
+    by state_space; with c_t > 0 its road-rate input is added)."""
+    p = full_params(params)
+    vm = vertical_model(p, damping)
+    n = vm.M.shape[0]
+    Minv = np.linalg.inv(vm.M)
+    A = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ vm.K, -Minv @ vm.C]])
+    u = ROAD_PATTERNS[pattern]
+    out = {k: np.zeros(len(freqs), dtype=complex) for k in ("z", "phi", "theta", "wheel")}
+    for j, f in enumerate(np.asarray(freqs, dtype=float)):
+        jw = 2j * np.pi * f
+        rhs = np.concatenate([np.zeros(n), Minv @ (vm.Bz + jw * vm.Bv) @ u])
+        x = np.linalg.solve(jw * np.eye(2 * n) - A, rhs)
+        out["z"][j], out["phi"][j], out["theta"][j] = x[0], x[1], x[2]
+        out["wheel"][j] = np.mean(x[3:7] * u)
+    return out
+

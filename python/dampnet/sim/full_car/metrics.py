@@ -1,9 +1,14 @@
 """What each full-vehicle test measures, from a run's arrays (FullCar.simulate's, in SI).
 
-  bsst   body vertical acceleration (at the CG): RMS, peak, its spectrum (Welch)
+  bsst   the transmissibility of the body (heave at the CG per road height; the pitch mode:
+         pitch per road height) and of the wheels, an H1 estimate over 1/48-octave bands of the
+         whole record's Fourier transforms; its body-mode and wheel-hop peaks (frequency,
+         gain), the same of the linear model (dampnet.sim.full_car.linear) with the run's
+         equivalent viscous damping beside them; body vertical acceleration RMS and peak
   dlc    lateral acceleration, roll angle and rate, yaw rate, side-slip (peak and RMS, in
          deg and deg/s where angles), steering, cones hit (ISO 3888-1: the test is passed when
-         none is)
+         none is), the smallest cone clearance (negative: how deep the footprint went over a
+         cone), the time the car takes to settle after the exit gate
   road   body acceleration RMS and its ISO 2631-1 Wk-weighted RMS, roll and pitch rate RMS,
          dynamic tyre load RMS per wheel
 
@@ -34,34 +39,148 @@ def spectrum(x: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     return f, np.sqrt(p)
 
 
+#: the transmissibility's bands per octave, and the split between the body modes and wheel hop [Hz]
+BANDS_PER_OCTAVE = 48
+BODY_WHEEL_SPLIT_HZ = 4.0
+
+
+def transmissibility(x: np.ndarray, y: np.ndarray, dt: float, f0: float, f1: float,
+                     bands_per_octave: int = BANDS_PER_OCTAVE) -> tuple[np.ndarray, np.ndarray]:
+    """The frequency response y / x of a sweep run [y's unit per x's] at band centres [Hz]
+    within [f0, f1]: H1 = sum Y X* / sum |X|^2 over the record's Fourier bins in each band (the
+    whole record: the sweep's input and the response both start at rest; the response to the
+    sweep's last cycles rings on past the record's end only at the top frequency)."""
+    n = len(x)
+    X, Y = np.fft.rfft(x), np.fft.rfft(y)
+    f = np.fft.rfftfreq(n, dt)
+    edges = f0 * 2.0 ** (np.arange(0, np.log2(f1 / f0) * bands_per_octave + 1) / bands_per_octave)
+    centres, H = [], []
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        m = (f >= lo) & (f < hi)
+        sxx = np.sum(np.abs(X[m]) ** 2)
+        if not m.any() or sxx == 0:
+            continue
+        centres.append(np.sqrt(lo * hi))
+        H.append(np.sum(Y[m] * np.conj(X[m])) / sxx)
+    return np.array(centres), np.array(H)
+
+
+def _peak(f: np.ndarray, g: np.ndarray, lo: float, hi: float) -> tuple[float, float]:
+    """(frequency [Hz], gain) of the largest |g| within [lo, hi], refined by a parabola in log f."""
+    m = np.flatnonzero((f >= lo) & (f <= hi))
+    if m.size == 0:
+        return float("nan"), float("nan")
+    k = m[int(np.argmax(np.abs(g[m])))]
+    a = np.abs(g)
+    if 0 < k < len(f) - 1 and k - 1 in m and k + 1 in m:
+        l0, l1, l2 = np.log(f[k - 1 : k + 2])
+        y0, y1, y2 = a[k - 1 : k + 2]
+        den = (y0 - 2 * y1 + y2)
+        if den < 0 and abs(l2 - l0) > 0:
+            d = 0.5 * (y0 - y2) / den  # in units of one band (the bands are equal in log f)
+            return float(np.exp(l1 + d * (l2 - l0) / 2)), float(y1 - 0.25 * (y0 - y2) * d)
+    return float(f[k]), float(a[k])
+
+
+def equivalent_damping(res: dict, f_static: float = 0.0) -> float:
+    """The run's equivalent viscous damping [N s/m]: the least-squares c of F - f_static = c v
+    over the four corners' damper forces and velocities."""
+    F, v = np.asarray(res["force"]) - f_static, np.asarray(res["v"])
+    vv = float(np.sum(v * v))
+    return float(np.sum(F * v) / vv) if vv > 0 else 0.0
+
+
+def bsst_response(res: dict, man: Maneuver, params: dict) -> dict:
+    """The sweep's transmissibilities (see the module comment): {"f_hz", "body", "wheel" (complex
+    arrays), "body_unit", "f_lin_hz", "body_lin", "wheel_lin", "c_equivalent_n_s_m"}."""
+    from dampnet.sim.full_car import linear
+
+    mode = man.meta.get("mode", "heave")
+    f0, f1 = man.meta.get("f0_hz", 0.5), man.meta.get("f1_hz", 20.0)
+    x = man.road[:, 0]
+    body = column(res, "z" if mode == "heave" else "theta")
+    sign = linear.ROAD_PATTERNS[mode]
+    wheel = np.mean([column(res, f"z_us_{c}") * sign[i] for i, c in enumerate(("fl", "fr", "rl", "rr"))], axis=0)
+    f, hb = transmissibility(x, body, man.dt, f0, f1)
+    _, hw = transmissibility(x, wheel, man.dt, f0, f1)
+    c_eq = equivalent_damping(res, params.get("f_static_f", 0.0))
+    fl = f0 * 2.0 ** (np.arange(0, np.log2(f1 / f0) * 200 + 1) / 200)  # 1/200 octave
+    lin = linear.road_response(fl, params, c_eq, mode)
+    return {"f_hz": f, "body": hb, "wheel": hw, "body_unit": "m/m" if mode == "heave" else "rad/m",
+            "f_lin_hz": fl, "body_lin": lin["z" if mode == "heave" else "theta"], "wheel_lin": lin["wheel"],
+            "c_equivalent_n_s_m": c_eq}
+
+
 def bsst_metrics(res: dict, man: Maneuver, params: dict | None = None) -> dict:
     acc = res["acc_z"]
-    return {"acc_rms_m_s2": rms(acc), "acc_peak_m_s2": float(np.max(np.abs(acc))),
-            "pitch_acc_rms_rad_s2": rms(res["acc_theta"]),
-            "tyre_load_min_n": float(np.min(res["tyre_load"]))}
+    out = {"acc_rms_m_s2": rms(acc), "acc_peak_m_s2": float(np.max(np.abs(acc))),
+           "pitch_acc_rms_rad_s2": rms(res["acc_theta"]),
+           "tyre_load_min_n": float(np.min(res["tyre_load"]))}
+    r = bsst_response(res, man, params or {})
+    split = BODY_WHEEL_SPLIT_HZ
+    for key, (f, h), (fl, hl) in (("body", (r["f_hz"], r["body"]), (r["f_lin_hz"], r["body_lin"])),
+                                  ("wheel_hop", (r["f_hz"], r["wheel"]), (r["f_lin_hz"], r["wheel_lin"]))):
+        lo, hi = (0.0, split) if key == "body" else (split, np.inf)
+        out[f"{key}_peak_hz"], out[f"{key}_peak_gain"] = _peak(f, h, lo, hi)
+        out[f"{key}_peak_hz_linear"], out[f"{key}_peak_gain_linear"] = _peak(fl, hl, lo, hi)
+    out["body_gain_unit"] = r["body_unit"]
+    out["c_equivalent_n_s_m"] = r["c_equivalent_n_s_m"]
+    return out
 
 
-def cones_hit(res: dict, man: Maneuver, params: dict) -> list[int]:
-    """Indices of the cones (man.meta['cones']) the vehicle's footprint passed over: a rectangle
-    of the overall width, from the rear overhang behind the rear axle to the front overhang
-    ahead of the front axle, at the CG's position and heading."""
+def cone_clearance(res: dict, man: Maneuver, params: dict) -> np.ndarray:
+    """Per cone (man.meta['cones']) the smallest distance [m] between it and the vehicle's
+    footprint over the run: a rectangle of the overall width, from the rear overhang behind the
+    rear axle to the front overhang ahead of the front axle, at the CG's position and heading.
+    Negative: the cone was inside the footprint (hit), by that depth to the nearest edge."""
     cones = np.asarray(man.meta["cones"])
     X = column(res, "x_pos") + man.meta.get("start_x_m", 0.0)
     Y, psi = column(res, "y_pos"), column(res, "psi")
     front, rear = params["a"] + OVERHANG_FRONT_M, params["b"] + OVERHANG_REAR_M
     half = man.meta["vehicle_width_m"] / 2
-    hit = []
+    out = np.full(len(cones), np.inf)
     c, s = np.cos(psi), np.sin(psi)
     for i, (cx, cy) in enumerate(cones):
-        near = np.abs(X - cx) < front + rear
+        near = np.abs(X - cx) < front + rear + 5.0
         if not np.any(near):
             continue
         dx, dy = cx - X[near], cy - Y[near]
         xb = dx * c[near] + dy * s[near]
-        yb = -dx * s[near] + dy * c[near]
-        if np.any((xb <= front) & (xb >= -rear) & (np.abs(yb) <= half)):
-            hit.append(i)
-    return hit
+        yb = np.abs(-dx * s[near] + dy * c[near])
+        ox = np.maximum(np.maximum(xb - front, -rear - xb), 0.0)
+        oy = np.maximum(yb - half, 0.0)
+        inside = (ox == 0) & (oy == 0)
+        d = np.where(inside, -np.minimum(np.minimum(front - xb, xb + rear), half - yb), np.hypot(ox, oy))
+        out[i] = float(np.min(d))
+    return out
+
+
+def cones_hit(res: dict, man: Maneuver, params: dict) -> list[int]:
+    """Indices of the cones the vehicle's footprint passed over (cone_clearance <= 0)."""
+    return [int(i) for i in np.flatnonzero(cone_clearance(res, man, params) <= 0.0)]
+
+
+#: the car has settled after the exit gate once |a_y| stays below this [m/s^2] ...
+SETTLED_A_Y_M_S2 = 0.3
+#: ... and |yaw rate| below this [deg/s]
+SETTLED_YAW_RATE_DEG_S = 1.0
+
+
+def settle_time(res: dict, man: Maneuver) -> float:
+    """Seconds from the CG passing the exit gate (the exit lane's end) until |a_y| and |yaw rate|
+    stay below SETTLED_A_Y_M_S2 and SETTLED_YAW_RATE_DEG_S to the run's end; inf when they do
+    not (the run too short)."""
+    X = column(res, "x_pos") + man.meta.get("start_x_m", 0.0)
+    t = np.asarray(res["t"]) if "t" in res else np.arange(len(X)) * man.dt
+    gate = int(np.searchsorted(X, man.meta["lanes"][-1]["x1"]))
+    if gate >= len(X):
+        return float("inf")
+    moving = (np.abs(res["a_y"]) >= SETTLED_A_Y_M_S2) | (np.abs(np.degrees(column(res, "r"))) >= SETTLED_YAW_RATE_DEG_S)
+    after = np.flatnonzero(moving[gate:])
+    if after.size == 0:
+        return 0.0
+    last = gate + after[-1] + 1
+    return float(t[last] - t[gate]) if last < len(X) else float("inf")
 
 
 def dlc_metrics(res: dict, man: Maneuver, params: dict) -> dict:
@@ -73,10 +192,12 @@ def dlc_metrics(res: dict, man: Maneuver, params: dict) -> dict:
                            ("side_slip", deg(res["beta"]), "deg"), ("steer", deg(res["steer"]), "deg")):
         out[f"{key}_peak_{unit}"] = float(np.max(np.abs(arr)))
         out[f"{key}_rms_{unit}"] = rms(arr)
-    hit = cones_hit(res, man, params)
-    out["cones_hit"] = len(hit)
+    clear = cone_clearance(res, man, params)
+    out["cones_hit"] = int(np.sum(clear <= 0.0))
     out["cones"] = len(man.meta["cones"])
-    out["passed"] = not hit
+    out["passed"] = out["cones_hit"] == 0
+    out["clearance_min_m"] = float(np.min(clear))
+    out["settle_after_exit_s"] = settle_time(res, man)
     out["tyre_load_min_n"] = float(np.min(res["tyre_load"]))
     return out
 
