@@ -375,15 +375,25 @@ def _max_speed_text(m: dict) -> str:
     return f"; highest pass found at {lo:.1f} km/h (fails at {hi:.1f} km/h)"
 
 
+def _peak_text(m: dict, key: str) -> str:
+    if m[f"{key}_peak_hz"] is None:
+        return "outside the sweep"
+    return (f"{m[f'{key}_peak_hz']:.2f} Hz x{m[f'{key}_peak_gain']:.3g} (linear model "
+            f"{m[f'{key}_peak_hz_linear']:.2f} Hz x{m[f'{key}_peak_gain_linear']:.3g})")
+
+
 _WHEEL_LOADS = tuple(f"tyre_load_dyn_rms_{w}_n" for w in ("fl", "fr", "rl", "rr"))
 
 register(ManeuverRecipe(
     "bsst", "Bounce Sine Sweep Test: a vertical log sweep under all four wheels at rest on a four-post rig",
     _bsst, _lazy("dampnet.sim.full_car.metrics", "bsst_metrics"), _lazy("dampnet.sim.full_car.plots", "plot_bsst"),
     dict(mode="heave", bsst_amplitude_m=0.005, bsst_f0_hz=0.5, bsst_f1_hz=20.0, bsst_rate_oct_s=0.1),
-    ("acc_rms_m_s2", "acc_peak_m_s2"),
-    ("acc_rms_m_s2", "acc_peak_m_s2", "pitch_acc_rms_rad_s2", "tyre_load_min_n"), "acc_rms_m_s2",
-    line=lambda m: f"body acc RMS {m['acc_rms_m_s2']:.4f} m/s^2, peak {m['acc_peak_m_s2']:.3f} m/s^2",
+    ("acc_rms_m_s2", "acc_peak_m_s2", "body_peak_hz", "body_peak_gain", "wheel_hop_peak_hz", "wheel_hop_peak_gain"),
+    ("acc_rms_m_s2", "acc_peak_m_s2", "pitch_acc_rms_rad_s2", "body_peak_hz", "body_peak_gain", "body_peak_hz_linear",
+     "body_peak_gain_linear", "wheel_hop_peak_hz", "wheel_hop_peak_gain", "wheel_hop_peak_hz_linear",
+     "wheel_hop_peak_gain_linear", "tyre_load_min_n"), "acc_rms_m_s2",
+    line=lambda m: (f"body peak {_peak_text(m, 'body')}, wheel hop {_peak_text(m, 'wheel_hop')}; body acc RMS "
+                    f"{m['acc_rms_m_s2']:.4f} m/s^2, pitch acc RMS {m['pitch_acc_rms_rad_s2']:.3f} rad/s^2"),
     refuse={"speed_kmh": "the bounce sine sweep runs at rest on a four-post rig"}))
 register(ManeuverRecipe(
     "dlc", "ISO 3888-1 double lane change driven by the preview driver",

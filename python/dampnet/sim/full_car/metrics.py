@@ -65,11 +65,12 @@ def transmissibility(x: np.ndarray, y: np.ndarray, dt: float, f0: float, f1: flo
     return np.array(centres), np.array(H)
 
 
-def _peak(f: np.ndarray, g: np.ndarray, lo: float, hi: float) -> tuple[float, float]:
-    """(frequency [Hz], gain) of the largest |g| within [lo, hi], refined by a parabola in log f."""
+def _peak(f: np.ndarray, g: np.ndarray, lo: float, hi: float) -> tuple[float | None, float | None]:
+    """(frequency [Hz], gain) of the largest |g| within [lo, hi], refined by a parabola in log f;
+    (None, None) when the sweep did not cover [lo, hi]."""
     m = np.flatnonzero((f >= lo) & (f <= hi))
     if m.size == 0:
-        return float("nan"), float("nan")
+        return None, None
     k = m[int(np.argmax(np.abs(g[m])))]
     a = np.abs(g)
     if 0 < k < len(f) - 1 and k - 1 in m and k + 1 in m:
@@ -90,9 +91,47 @@ def equivalent_damping(res: dict, f_static: float = 0.0) -> float:
     return float(np.sum(F * v) / vv) if vv > 0 else 0.0
 
 
+def sweep_element(res: dict, man: Maneuver, freqs: np.ndarray, params: dict,
+                  half_band_oct: float = 1 / 24, cycles: float = 3.0) -> np.ndarray:
+    """[len(freqs), 2]: each corner's damper as an equivalent linear element, F - f_static =
+    k (x - x_static) + c v (dynamic stiffness [N/m]: the force in phase with the stroke, an
+    acceleration term's -w^2 b included; damping [N s/m]; least squares over the four corners),
+    fitted over the part of a sweep run when the sweep's frequency was within half_band_oct
+    octaves of each of freqs [Hz], or within the octaves it sweeps in `cycles` cycles there (the sweep's law f(t) = f0 2^(rate (t - pre)); man.meta of
+    dampnet.sim.roads.sine_sweep): a nonlinear damper's equivalent linearisation at each
+    frequency (its describing function). A linear damper: (0, c) at all."""
+    meta = man.meta
+    t = np.arange(man.road.shape[0]) * man.dt
+    ts = t - meta.get("pre_s", 0.0)
+    f_t = np.where((ts >= 0) & (ts <= meta.get("sweep_s", np.inf)),
+                   meta.get("f0_hz", 0.5) * 2.0 ** (meta.get("rate_octave_s", 0.1) * ts), np.nan)
+    F = np.asarray(res["force"]) - params.get("f_static_f", 0.0)
+    R = np.stack([np.asarray(res["x"]) - params.get("x_static_f", 0.0), np.asarray(res["v"])], axis=2)
+    scale = np.sqrt(np.mean(R**2, axis=(0, 1))) + 1e-300  # columns of equal size: a conditioned fit
+    R = R / scale
+    RR = np.einsum("nci,ncj->nij", R, R)
+    RF = np.einsum("nci,nc->ni", R, F)
+    order = np.argsort(np.where(np.isfinite(f_t), f_t, np.inf))
+    fs = f_t[order]
+    cRR = np.concatenate([np.zeros((1, 2, 2)), np.cumsum(RR[order], axis=0)])
+    cRF = np.concatenate([np.zeros((1, 2)), np.cumsum(RF[order], axis=0)])
+    freqs = np.asarray(freqs, dtype=float)
+    half = np.maximum(half_band_oct, meta.get("rate_octave_s", 0.1) * cycles / freqs)
+    lo = np.searchsorted(fs, freqs * 2.0 ** -half)
+    hi = np.searchsorted(fs, freqs * 2.0 ** half)
+    out = np.zeros((len(freqs), 2))
+    for j, (a, b) in enumerate(zip(lo, hi)):
+        A, y = cRR[b] - cRR[a], cRF[b] - cRF[a]
+        if b > a:
+            out[j] = np.linalg.lstsq(A, y, rcond=1e-12)[0] / scale
+    return out
+
+
 def bsst_response(res: dict, man: Maneuver, params: dict) -> dict:
     """The sweep's transmissibilities (see the module comment): {"f_hz", "body", "wheel" (complex
-    arrays), "body_unit", "f_lin_hz", "body_lin", "wheel_lin", "c_equivalent_n_s_m"}."""
+    arrays), "body_unit", "f_lin_hz", "body_lin", "wheel_lin" (the linear model's, at each
+    frequency with the dampers' equivalent linear element there: sweep_element), "element"
+    ([len(f_lin_hz), 2]: k [N/m], c [N s/m]), "c_equivalent_n_s_m" (over the whole run)}."""
     from dampnet.sim.full_car import linear
 
     mode = man.meta.get("mode", "heave")
@@ -103,16 +142,21 @@ def bsst_response(res: dict, man: Maneuver, params: dict) -> dict:
     wheel = np.mean([column(res, f"z_us_{c}") * sign[i] for i, c in enumerate(("fl", "fr", "rl", "rr"))], axis=0)
     f, hb = transmissibility(x, body, man.dt, f0, f1)
     _, hw = transmissibility(x, wheel, man.dt, f0, f1)
-    c_eq = equivalent_damping(res, params.get("f_static_f", 0.0))
-    fl = f0 * 2.0 ** (np.arange(0, np.log2(f1 / f0) * 200 + 1) / 200)  # 1/200 octave
-    lin = linear.road_response(fl, params, c_eq, mode)
+    fs = params.get("f_static_f", 0.0)
+    c_eq = equivalent_damping(res, fs)
+    fl = f0 * 2.0 ** (np.arange(0, np.log2(f1 / f0) * 100 + 1) / 100)  # 1/100 octave
+    el = sweep_element(res, man, fl, params)
+    bl, wl = np.zeros(fl.size, complex), np.zeros(fl.size, complex)
+    for j, (fj, (kj, cj)) in enumerate(zip(fl, el)):
+        lin = linear.road_response(np.array([fj]), params, cj, mode, stiffness=kj)
+        bl[j], wl[j] = lin["z" if mode == "heave" else "theta"][0], lin["wheel"][0]
     return {"f_hz": f, "body": hb, "wheel": hw, "body_unit": "m/m" if mode == "heave" else "rad/m",
-            "f_lin_hz": fl, "body_lin": lin["z" if mode == "heave" else "theta"], "wheel_lin": lin["wheel"],
-            "c_equivalent_n_s_m": c_eq}
+            "f_lin_hz": fl, "body_lin": bl, "wheel_lin": wl, "element": el, "c_equivalent_n_s_m": c_eq}
 
 
 def bsst_metrics(res: dict, man: Maneuver, params: dict | None = None) -> dict:
     acc = res["acc_z"]
+    # body_peak_gain: heave at the CG per road height [m/m], or (mode pitch) pitch per road height [rad/m]
     out = {"acc_rms_m_s2": rms(acc), "acc_peak_m_s2": float(np.max(np.abs(acc))),
            "pitch_acc_rms_rad_s2": rms(res["acc_theta"]),
            "tyre_load_min_n": float(np.min(res["tyre_load"]))}
@@ -123,7 +167,9 @@ def bsst_metrics(res: dict, man: Maneuver, params: dict | None = None) -> dict:
         lo, hi = (0.0, split) if key == "body" else (split, np.inf)
         out[f"{key}_peak_hz"], out[f"{key}_peak_gain"] = _peak(f, h, lo, hi)
         out[f"{key}_peak_hz_linear"], out[f"{key}_peak_gain_linear"] = _peak(fl, hl, lo, hi)
-    out["body_gain_unit"] = r["body_unit"]
+        for i, (name, unit) in enumerate((("stiffness", "n_m"), ("damping", "n_s_m"))):
+            out[f"{key}_equivalent_{name}_{unit}"] = (None if out[f"{key}_peak_hz"] is None else float(
+                np.interp(out[f"{key}_peak_hz"], r["f_lin_hz"], r["element"][:, i])))
     out["c_equivalent_n_s_m"] = r["c_equivalent_n_s_m"]
     return out
 

@@ -47,17 +47,21 @@ def plot_bsst(runs: dict, path: str | Path, title: str = "Bounce sine sweep") ->
         col = f"C{n}"
         for k, (key, peak) in enumerate((("body", "body"), ("wheel", "wheel_hop"))):
             ax[k].loglog(resp["f_hz"], np.abs(resp[key]), color=col, lw=1.2, label=label)
+            at = (f" (at the peak: c {m[f'{peak}_equivalent_damping_n_s_m']:.0f} N s/m, "
+                  f"k {m[f'{peak}_equivalent_stiffness_n_m']:.0f} N/m)" if m[f"{peak}_peak_hz"] is not None else "")
             ax[k].loglog(resp["f_lin_hz"], np.abs(resp[f"{key}_lin"]), color=col, lw=0.9, ls="--",
-                         label=f"linear model, c = {resp['c_equivalent_n_s_m']:.0f} N s/m (the run's equivalent)")
+                         label="linear model, the dampers linearised at each frequency" + at)
             for suffix, mk in (("", "o"), ("_linear", "x")):
                 f_pk, g_pk = m[f"{peak}_peak_hz{suffix}"], m[f"{peak}_peak_gain{suffix}"]
-                if np.isfinite(f_pk):
+                if f_pk is not None:
                     ax[k].plot([f_pk], [g_pk], mk, color=col, ms=7, mfc="none" if mk == "o" else None)
             f_pk, g_pk = m[f"{peak}_peak_hz"], m[f"{peak}_peak_gain"]
+            if f_pk is None:
+                continue
             what = ("heave" if mode == "heave" else "pitch") if key == "body" else "wheel hop"
             ax[k].annotate(f"{what} {f_pk:.2f} Hz, {g_pk:.3g}\n(linear {m[f'{peak}_peak_hz_linear']:.2f} Hz, "
                            f"{m[f'{peak}_peak_gain_linear']:.3g})", (f_pk, g_pk), textcoords="offset points",
-                           xytext=(12, 8 - 30 * n), fontsize=8, color=col,
+                           xytext=(15 if key == "body" else -150, -30 - 30 * n), fontsize=8, color=col,
                            arrowprops=dict(arrowstyle="-", color=col, lw=0.6))
         a = r["arrays"]
         body = column(a, "z" if mode == "heave" else "theta")
@@ -108,8 +112,8 @@ def plot_dlc(runs: dict, path: str | Path, title: str = "ISO 3888-1 double lane 
     from dampnet.sim.full_car.metrics import cone_clearance
 
     plt = _pyplot()
-    fig = plt.figure(figsize=(12, 15))
-    gs = fig.add_gridspec(7, 1, height_ratios=[1.35, 1.35, 1, 1, 1, 1, 1])
+    fig = plt.figure(figsize=(12, 14))
+    gs = fig.add_gridspec(7, 1, height_ratios=[0.85, 0.85, 1, 1, 1, 1, 1])
     first = next(iter(runs.values()))
     man = first["maneuver"]
     cones = np.asarray(man["cones"])
