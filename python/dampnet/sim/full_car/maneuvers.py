@@ -36,6 +36,7 @@ ISO3888_OFFSET_M = 3.5
 VEHICLE_WIDTH_M = 1.9
 OVERHANG_FRONT_M = 0.9
 OVERHANG_REAR_M = 1.2
+BSST_POST_S = 8.0     # rest after the bounce sweep [s]
 DLC_RUN_IN_M = 60.0   # straight road before the entry lane: the driver settles
 DLC_RUN_OUT_M = 60.0  # straight road after the exit lane, at least (the path straightens within it)
 DLC_SETTLE_S = 3.0    # the run goes on this long after the exit gate (or DLC_RUN_OUT_M, the longer)
@@ -105,7 +106,9 @@ def bsst(dt: float = 1e-3, mode: str = "heave", amplitude_m: float = 0.005, f0: 
     under all four wheels, in phase (mode "heave") or the rear against the front ("pitch")."""
     if mode not in ("heave", "pitch"):
         raise RoadError(f"bsst mode must be 'heave' or 'pitch', got {mode!r}")
-    road = sine_sweep(amplitude_m=amplitude_m, f0=f0, f1=f1, rate_oct_s=rate_oct_s)
+    # 8 s at rest after the sweep: the body modes (~0.7-1 Hz) ring out, so the record holds the
+    # whole response and its transform over the road's is the transmissibility (metrics.transmissibility)
+    road = sine_sweep(amplitude_m=amplitude_m, f0=f0, f1=f1, rate_oct_s=rate_oct_s, post_s=BSST_POST_S)
     s = road.sample(_step(dt), values_per_step=limits.FULL_CAR_VALUES)
     sign = np.array([1.0, 1.0, 1.0, 1.0]) if mode == "heave" else np.array([1.0, 1.0, -1.0, -1.0])
     meta = dict(road.meta, test="bsst", mode=mode)

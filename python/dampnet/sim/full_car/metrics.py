@@ -42,25 +42,31 @@ def spectrum(x: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
 #: the transmissibility's bands per octave, and the split between the body modes and wheel hop [Hz]
 BANDS_PER_OCTAVE = 48
 BODY_WHEEL_SPLIT_HZ = 4.0
+MIN_BINS = 1  # a band spans at least this many of the record's Fourier bins
 
 
 def transmissibility(x: np.ndarray, y: np.ndarray, dt: float, f0: float, f1: float,
                      bands_per_octave: int = BANDS_PER_OCTAVE) -> tuple[np.ndarray, np.ndarray]:
-    """The frequency response y / x of a sweep run [y's unit per x's] at band centres [Hz]
-    within [f0, f1]: H1 = sum Y X* / sum |X|^2 over the record's Fourier bins in each band (the
+    """The frequency response y / x of a sweep run [y's unit per x's] at band centres [Hz] (each
+    band's |X|^2-weighted mean frequency: a one-bin band's estimate is exact at its bin)
+    within [f0, f1]: H1 = sum Y X* / sum |X|^2 over the record's Fourier bins in each band
+    (1/bands_per_octave octave, at least MIN_BINS bins; the
     whole record: the sweep's input and the response both start at rest; the response to the
     sweep's last cycles rings on past the record's end only at the top frequency)."""
     n = len(x)
     X, Y = np.fft.rfft(x), np.fft.rfft(y)
     f = np.fft.rfftfreq(n, dt)
-    edges = f0 * 2.0 ** (np.arange(0, np.log2(f1 / f0) * bands_per_octave + 1) / bands_per_octave)
+    df = 1.0 / (n * dt)
+    edges = [f0]
+    while edges[-1] < f1:   # 1/bands_per_octave octave, at least MIN_BINS bins
+        edges.append(min(f1, max(edges[-1] * 2.0 ** (1.0 / bands_per_octave), edges[-1] + MIN_BINS * df)))
     centres, H = [], []
     for lo, hi in zip(edges[:-1], edges[1:]):
         m = (f >= lo) & (f < hi)
         sxx = np.sum(np.abs(X[m]) ** 2)
         if not m.any() or sxx == 0:
             continue
-        centres.append(np.sqrt(lo * hi))
+        centres.append(np.sum(f[m] * np.abs(X[m]) ** 2) / sxx)   # the band's |X|^2-weighted frequency
         H.append(np.sum(Y[m] * np.conj(X[m])) / sxx)
     return np.array(centres), np.array(H)
 
