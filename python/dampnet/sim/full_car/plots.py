@@ -119,7 +119,8 @@ def plot_dlc(runs: dict, path: str | Path, title: str = "ISO 3888-1 double lane 
     cones = np.asarray(man["cones"])
     lanes = man["lanes"]
     x_end = lanes[-1]["x1"]
-    halves = ((-12.0, 0.5 * x_end + 3.0), (0.5 * x_end - 3.0, x_end + 18.0))
+    span = 0.5 * (x_end + 30.0) + 3.0   # two halves of equal length (the same scale), overlapping 6 m
+    halves = ((-12.0, -12.0 + span), (x_end + 18.0 - span, x_end + 18.0))
     tops = [fig.add_subplot(gs[k, 0]) for k in (0, 1)]
     hits = {}
     for label, r in runs.items():
