@@ -361,7 +361,8 @@ def _dlc_line(m: dict) -> str:
             f"{m['roll_rate_peak_deg_s']:.1f} deg/s, yaw rate peak {m['yaw_rate_peak_deg_s']:.1f} deg/s, "
             f"side-slip peak {m['side_slip_peak_deg']:.2f} deg, cones hit {m['cones_hit']} of {m['cones']} "
             f"({'passed' if m['passed'] else 'failed'}; smallest cone clearance "
-            f"{100 * m['clearance_min_m']:+.1f} cm)" + _max_speed_text(m))
+            f"{100 * m['clearance_min_m']:+.1f} cm" + ("; the car spun" if m["lost_control"] else "") + ")"
+            + _max_speed_text(m))
 
 
 def _max_speed_text(m: dict) -> str:
@@ -403,7 +404,7 @@ register(ManeuverRecipe(
      "cones_hit"),
     ("a_y_peak_m_s2", "a_y_rms_m_s2", "roll_peak_deg", "roll_rms_deg", "roll_rate_peak_deg_s", "roll_rate_rms_deg_s",
      "yaw_rate_peak_deg_s", "yaw_rate_rms_deg_s", "side_slip_peak_deg", "side_slip_rms_deg", "steer_peak_deg",
-     "steer_rms_deg", "cones_hit", "cones", "passed", "clearance_min_m", "settle_after_exit_s", "tyre_load_min_n"),
+     "steer_rms_deg", "cones_hit", "cones", "passed", "clearance_min_m", "settle_after_exit_s", "lost_control", "tyre_load_min_n"),
     "roll_peak_deg",
     line=_dlc_line))
 register(ManeuverRecipe(

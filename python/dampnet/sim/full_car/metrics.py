@@ -212,6 +212,8 @@ def cones_hit(res: dict, man: Maneuver, params: dict) -> list[int]:
     return [int(i) for i in np.flatnonzero(cone_clearance(res, man, params) <= 0.0)]
 
 
+#: a side-slip beyond this [deg]: the car spun (no driver recovers it in a lane change)
+LOST_CONTROL_SIDE_SLIP_DEG = 15.0
 #: the car has settled after the exit gate once |a_y| stays below this [m/s^2] ...
 SETTLED_A_Y_M_S2 = 0.3
 #: ... and |yaw rate| below this [deg/s]
@@ -250,6 +252,7 @@ def dlc_metrics(res: dict, man: Maneuver, params: dict) -> dict:
     out["passed"] = out["cones_hit"] == 0
     out["clearance_min_m"] = float(np.min(clear))
     out["settle_after_exit_s"] = settle_time(res, man)
+    out["lost_control"] = out["side_slip_peak_deg"] > LOST_CONTROL_SIDE_SLIP_DEG
     out["tyre_load_min_n"] = float(np.min(res["tyre_load"]))
     return out
 
