@@ -31,9 +31,22 @@ def test_iso3888_lanes_follow_the_standard():
     assert cones.shape == (6 * maneuvers.CONES_PER_LINE, 2)
     x, y = maneuvers.iso3888_path(w)
     assert len(x) <= 256 and np.all(np.diff(x) > 0)
-    for sec in (lanes[0], lanes[2], lanes[4]):  # the path runs along each lane's centre
+    half = w / 2 + maneuvers.DLC_PATH_MARGIN_M
+    for sec in (lanes[0], lanes[2], lanes[4]):  # the car's width and the margin inside each lane
         inside = (x >= sec["x0"]) & (x <= sec["x1"])
-        np.testing.assert_allclose(y[inside], sec["y_centre"], atol=1e-12)
+        assert np.all(y[inside] - half >= sec["y_right"] - 1e-7), sec["name"]
+        assert np.all(y[inside] + half <= sec["y_left"] + 1e-7), sec["name"]
+    np.testing.assert_allclose(y[x <= -maneuvers.DLC_RUN_IN_M / 2], lanes[0]["y_centre"], atol=1e-7)
+    np.testing.assert_allclose(y[-3:], y[-1], atol=1e-9)   # straight at the end
+    kappa = maneuvers.path_curvature(x, y)
+    assert np.max(np.abs(np.diff(kappa[1:-1]) / np.diff(x[1:-1]))) <= maneuvers.DLC_PATH_CURVATURE_RATE * (1 + 1e-6)
+    # a path through the lanes needs far less than the half-cosine ramps over the 30 m and 25 m
+    # gaps between the lanes' centres (peak pi^2 D / (2 L^2): 3.5 m over 25 m, 0.0276 1/m); and
+    # any path with the car in the entry lane at 15 m and in the offset lane at 45 m shifts
+    # D >= (y_right,offset + half) - (y_left,entry - half) in at most 30 m + both lanes:
+    # kappa >= 4 D / (15 + 30 + 25)^2 (bang-bang over the whole 70 m, a loose lower bound)
+    D = (lanes[2]["y_right"] + half) - (lanes[0]["y_left"] - half)
+    assert 4 * D / 70.0**2 < np.max(np.abs(kappa)) < 0.3 * np.pi**2 * 3.5 / (2 * 25.0**2)
     with pytest.raises(RoadError, match="vehicle width"):
         maneuvers.iso3888_lanes(0.0)
 

@@ -156,7 +156,10 @@ def test_the_bounce_sweep_settings_work_from_the_command_line(tmp_path, capsys):
 
     man = maneuver({"test": "bsst", "dt": DT, "mode": "pitch", "bsst_amplitude_m": 0.002, **SHORT_BSST})
     api = maneuvers.run(load_spec("linear:2500"), man, "low")
-    assert cli["metrics"] == pytest.approx(api["metrics"], rel=1e-12)
+    # a 2-4 Hz sweep has no wheel hop: its peak metrics are None (the same in both)
+    assert {k for k, v in cli["metrics"].items() if v is None} == {k for k, v in api["metrics"].items() if v is None}
+    assert {k: v for k, v in cli["metrics"].items() if v is not None} == pytest.approx(
+        {k: v for k, v in api["metrics"].items() if v is not None}, rel=1e-12)
     assert main(["vehicle", "linear:2500", "--test", "bsst", "--bsst-f1", "0", "--out", str(tmp_path / "x")]) == 2
     assert "--bsst-f1: expected a finite number > 0 [Hz], got 0.0" in capsys.readouterr().err
     assert main(["vehicle", "linear:2500", "--test", "dlc", "--bsst-rate", "1", "--out", str(tmp_path / "x")]) == 2

@@ -57,6 +57,9 @@ def api_metrics(model: str, man, damping: str, vehicle: dict) -> dict:
 def assert_row_is(row, mine: dict, what) -> None:
     for k, v in mine.items():
         got = row[k]
+        if v is None:   # a metric the run has not (a sweep that misses the wheel hop): an empty cell
+            assert got is None or got != got, (what, k, got, v)
+            continue
         assert (got == v) if not isinstance(v, bool) else (bool(got) is v), (what, k, got, v)
 
 

@@ -434,10 +434,14 @@
   X(double, g, 9.81, "gravity [m/s^2], >= 0")                                                  \
   X(int, steer_mode, DN_STEER_OPEN_LOOP, "dn_steer_mode")                                      \
   X(double, steer_max, 0.5, "road-wheel angle limit [rad], > 0")                               \
-  X(double, driver_preview_s, 0.6, "driver preview time [s], > 0")                             \
+  X(double, driver_preview_s, 0.5, "driver preview time T [s], > 0")                           \
   X(double, driver_preview_min_m, 5.0, "driver shortest preview distance [m], > 0")            \
-  X(double, driver_gain, 1.0, "driver gain on the pure-pursuit angle [-], > 0")                \
+  X(double, driver_gain, 1.0,                                                                  \
+    "driver gain on the optimal-preview command [-], > 0 (1: the preview point reached)")      \
   X(double, driver_tau_s, 0.05, "steering lag time constant [s], >= 0 (0: none)")              \
+  X(double, driver_rate_max, 1.0,                                                              \
+    "driver's road-wheel steering rate limit [rad/s], > 0 (1 rad/s: ~1000 deg/s at the "       \
+    "steering wheel with a 17:1 ratio)")                                                       \
   X(double, dt, 0.001,                                                                         \
     "step [s], 1e-9 <= dt <= 0.1; stable: dt w_hop <= " DN_DOC_XSTR_(DN_STABLE_WDT_RK4) " with "     \
     "w_hop^2 = k/m_us of the stiffer axle, k = k_s + 2 k_arb + k_t: 17.5 ms for the defaults")  \

@@ -61,11 +61,25 @@
 // the step start), steering held (driver or input, then its lag), road per corner the cubic
 // Hermite interpolant between the step's start and end, RK4 (damper_eval per_stage: four
 // evaluations per corner; per_step: one, forces held, and the tyres' lateral forces too:
-// the real-time configuration, first order in the forces). Driver (steer_mode driver): preview
-// distance l = max(driver_preview_s U, driver_preview_min_m), preview point P = (X + l cos
-// psi, Y + l sin psi), e = Y_path(P_x) - P_y, delta_cmd = clamp(driver_gain 2 L e / l^2,
-// +-steer_max) (pure pursuit); the applied angle follows delta_cmd through a first-order lag
-// driver_tau_s sampled per step: delta = delta_cmd + (delta_prev - delta_cmd) exp(-dt/tau).
+// the real-time configuration, first order in the forces). Open loop: the input's angle,
+// clamped to +-steer_max, through a first-order lag driver_tau_s sampled per step:
+// delta = delta_cmd + (delta_prev - delta_cmd) exp(-dt/tau).
+// Driver (steer_mode driver): MacAdam's optimal preview control (IEEE Trans. SMC-11(6), 1981;
+// CarSim's driver), discrete preview form: the command held over the preview window that
+// minimises the squared lateral path error at kDriverPoints points t_j = j T / kDriverPoints,
+// j = 1..kDriverPoints, equally weighted. Its internal model, built at init: the linear single
+// track at speed U (mass m, i_zz, axle cornering stiffnesses C_f = K(N0_0) + K(N0_1), C_r
+// likewise) with the steering lag, state w = (y, psi, vy, r, delta) in the frame of the current
+// heading, input delta_cmd held:
+//   y' = U psi + vy, psi' = r, m (vy' + U r) = C_f alpha_f + C_r alpha_r,
+//   i_zz r' = a C_f alpha_f - b C_r alpha_r, delta' = (delta_cmd - delta) / tau
+// (linear slips). T = max(driver_preview_s, driver_preview_min_m / U). At t_j the predicted
+// lateral offset is y_j = c_j . (vy, r, delta) + g_j delta_cmd (exp of the augmented 6 x 6
+// matrix [[A, B], [0, 0]] t_j). Per step: preview points P_j = (X + U t_j cos psi, Y + U t_j
+// sin psi), e_j = cos psi (Y_path(P_j,x) - P_j,y) the path's offset there across the heading;
+// least squares: delta_cmd = driver_gain sum_j g_j (e_j - c_j . w) / sum_j g_j^2, i.e.
+// sum_j k_j e_j - kc . (vy, r, delta_prev) with k_j, kc precomputed; clamped to +-steer_max;
+// then the lag as above, then the rate limit |delta - delta_prev| <= driver_rate_max dt.
 //
 // Limits: small angles in the suspension kinematics; no longitudinal dynamics (constant
 // speed, no pitch from braking); the roll centres are fixed; slip per axle, not per wheel;
@@ -176,7 +190,7 @@ inline int check_fullcar(const dn_fullcar_params& s) noexcept {
     return DN_E_PARAM;
   if (p.speed < 0 || p.speed > 100 || p.g < 0) return DN_E_PARAM;
   if (!(p.steer_max > 0) || !(p.driver_preview_s > 0) || !(p.driver_preview_min_m > 0) ||
-      !(p.driver_gain > 0) || p.driver_tau_s < 0)
+      !(p.driver_gain > 0) || p.driver_tau_s < 0 || !(p.driver_rate_max > 0))
     return DN_E_PARAM;
   if (!(p.dt >= kMinDt) || p.dt > 0.1) return DN_E_PARAM;
   if (!detail::stable_step<double>(p.dt, (p.k_s_f + 2 * p.k_arb_f + p.k_t) / p.m_us_f, DN_STABLE_WDT_RK4) ||
@@ -215,6 +229,14 @@ struct FullCarModel {
   double inv_ms = 0, inv_ixx = 0, inv_iyy = 0, inv_izz = 0, inv_m = 0;
   double h_roll = 0;  // CG height above the roll axis [m]
   double steer_keep = 0;  // exp(-dt / driver_tau_s); 0 = no lag
+  // The preview driver (steer_mode driver, speed > 0; see the file comment), set at init:
+  static constexpr int kDriverPoints = 8;
+  double drv_l[kDriverPoints] = {};  // preview distances U t_j [m]
+  double drv_k[kDriverPoints] = {};  // command per path offset at each point [rad/m]
+  double drv_kc[3] = {};  // command per vy [rad s/m], r [s], delta [-]
+  double drv_step = 0;    // driver_rate_max dt: the largest change of the angle in a step [rad]
+  double drv_alpha = 0;   // the front tyres' slip angle of peak force at the static load [rad]
+                          // (Magic Formula; 0: no limit, the linear tyre)
   bool any_implicit = false;  // some corner's damper reads a and accel_feature != explicit
   // The four corners share one damper object (the same dn_damper / Damper passed four times)
   // whose model is a float MLP reading a: its four evaluations go through the kernel in one
@@ -262,6 +284,7 @@ struct FullCarModel {
       k_lin[i] = cornering_stiffness(n0[i]);
     }
     corner_mobility(v, K);
+    preview_gains();
     any_implicit = false;
     for (int i = 0; i < kCorners; ++i) {
       if (!dampers[i]) return DN_E_NULL;
@@ -275,6 +298,110 @@ struct FullCarModel {
     batch4 = dampers[1] == dampers[0] && dampers[2] == dampers[0] && dampers[3] == dampers[0] &&
              corner[0].implicit_a && corner[0].damper.precision == DN_PRECISION_FLOAT;
     return DN_OK;
+  }
+
+  // The preview driver's prediction over T (the file comment): drv_l, drv_c, drv_inv_g.
+  // Init only (not real-time); with speed 0 or another steer mode the driver is off.
+  void preview_gains() noexcept {
+    for (int j = 0; j < kDriverPoints; ++j) drv_l[j] = drv_k[j] = 0;
+    for (double& c : drv_kc) c = 0;
+    drv_step = p.driver_rate_max * p.dt;
+    drv_alpha = 0;
+    if (p.tyre_model == DN_TYRE_MAGIC_FORMULA) {
+      // the peak of D sin(C atan(phi)): phi(x) = x - E (x - atan x) = tan(pi / (2 C)), x = B alpha,
+      // phi increasing in x for E <= 1: bisection
+      const double target = std::tan(1.5707963267948966 / p.tyre_c);
+      double lo = 0, hi = 1;
+      auto phi = [&](double x) { return x - p.tyre_e * (x - std::atan(x)); };
+      for (int k = 0; k < 60 && phi(hi) < target; ++k) hi *= 2;
+      for (int k = 0; k < 100; ++k) {
+        const double mid = 0.5 * (lo + hi);
+        (phi(mid) < target ? lo : hi) = mid;
+      }
+      const double n = n0[0], dfz = (n - p.tyre_fz0) / p.tyre_fz0;
+      double mu = p.tyre_mu0 * (1.0 + p.tyre_pdy2 * dfz);
+      if (mu < 0.05 * p.tyre_mu0) mu = 0.05 * p.tyre_mu0;
+      const double B = cornering_stiffness(n) / (p.tyre_c * mu * n);
+      drv_alpha = 0.5 * (lo + hi) / B;
+    }
+    const double U = p.speed;
+    if (p.steer_mode != DN_STEER_DRIVER || !(U > 0)) return;
+    double T = p.driver_preview_s;
+    if (T * U < p.driver_preview_min_m) T = p.driver_preview_min_m / U;
+    const double m = 1.0 / inv_m, cf = k_lin[0] + k_lin[1], cr = k_lin[2] + k_lin[3];
+    const double a = p.a, b = p.b;
+    // M = [[A, B], [0, 0]] T, rows/columns (y, psi, vy, r, delta, delta_cmd)
+    double M[6][6] = {};
+    M[0][1] = U;
+    M[0][2] = 1.0;
+    M[1][3] = 1.0;
+    M[2][2] = -(cf + cr) / (m * U);
+    M[2][3] = -(a * cf - b * cr) / (m * U) - U;
+    M[3][2] = -(a * cf - b * cr) / (p.i_zz * U);
+    M[3][3] = -(a * a * cf + b * b * cr) / (p.i_zz * U);
+    const int in = p.driver_tau_s > 0 ? 4 : 5;  // no lag: the command steers directly
+    M[2][in] = cf / m;
+    M[3][in] = a * cf / p.i_zz;
+    if (p.driver_tau_s > 0) {
+      M[4][4] = -1.0 / p.driver_tau_s;
+      M[4][5] = 1.0 / p.driver_tau_s;
+    }
+    double g[kDriverPoints], c[kDriverPoints][3], gg = 0;
+    for (int j = 0; j < kDriverPoints; ++j) {
+      const double tj = T * (j + 1) / kDriverPoints;
+      double E[6][6];
+      detail_expm6(M, tj, E);
+      drv_l[j] = U * tj;
+      c[j][0] = E[0][2];
+      c[j][1] = E[0][3];
+      c[j][2] = p.driver_tau_s > 0 ? E[0][4] : 0.0;
+      g[j] = E[0][5];
+      gg += g[j] * g[j];
+    }
+    if (!std::isfinite(gg) || !(gg > 1e-24)) return;  // no steering authority: the driver holds 0
+    for (int j = 0; j < kDriverPoints; ++j) {
+      drv_k[j] = p.driver_gain * g[j] / gg;
+      for (int k = 0; k < 3; ++k) drv_kc[k] += drv_k[j] * c[j][k];
+    }
+  }
+
+  // E = exp(M T) (6 x 6) by scaling and squaring of the Taylor series (init only).
+  static void detail_expm6(const double M[6][6], double T, double E[6][6]) noexcept {
+    double nrm = 0;
+    for (int i = 0; i < 6; ++i) {
+      double r = 0;
+      for (int j = 0; j < 6; ++j) r += std::fabs(M[i][j] * T);
+      if (r > nrm) nrm = r;
+    }
+    int sq = 0;
+    double scale = T;
+    while (nrm > 0.25 && sq < 60) nrm *= 0.5, scale *= 0.5, ++sq;
+    double A[6][6], term[6][6], tmp[6][6];
+    for (int i = 0; i < 6; ++i)
+      for (int j = 0; j < 6; ++j) {
+        A[i][j] = M[i][j] * scale;
+        E[i][j] = term[i][j] = i == j ? 1.0 : 0.0;
+      }
+    for (int k = 1; k <= 18; ++k) {  // |A| <= 1/4: 18 terms reach 4^-18 / 18! << 1e-16
+      for (int i = 0; i < 6; ++i)
+        for (int j = 0; j < 6; ++j) {
+          double acc = 0;
+          for (int l = 0; l < 6; ++l) acc += term[i][l] * A[l][j];
+          tmp[i][j] = acc / k;
+        }
+      for (int i = 0; i < 6; ++i)
+        for (int j = 0; j < 6; ++j) term[i][j] = tmp[i][j], E[i][j] += tmp[i][j];
+    }
+    for (int s = 0; s < sq; ++s) {
+      for (int i = 0; i < 6; ++i)
+        for (int j = 0; j < 6; ++j) {
+          double acc = 0;
+          for (int l = 0; l < 6; ++l) acc += E[i][l] * E[l][j];
+          tmp[i][j] = acc;
+        }
+      for (int i = 0; i < 6; ++i)
+        for (int j = 0; j < 6; ++j) E[i][j] = tmp[i][j];
+    }
   }
 
   // K(N) of the Magic Formula [N/rad].
@@ -793,23 +920,33 @@ inline void store_motion(const FcMotion& y, double* s) noexcept {
   }
 }
 
-// The preview driver's command at state s (steer_mode driver): out of the open loop's code.
+// The preview driver's road-wheel angle over the step starting at state s (steer_mode driver;
+// see the file comment): command, lag, rate limit. Out of the open loop's code.
 DN_FC_OUTLINE inline double driver_steer(const FullCarModel& m, const double* s) noexcept {
   const dn_fullcar_params& p = m.p;
-  const double U = p.speed;
-  double l = p.driver_preview_s * U;
-  if (l < p.driver_preview_min_m) l = p.driver_preview_min_m;
-  const double px = s[FC_x_pos] + l * std::cos(s[FC_psi]);
-  const double py = s[FC_y_pos] + l * std::sin(s[FC_psi]);
-  const double e = m.path_at(px) - py;
-  return p.driver_gain * 2.0 * (p.a + p.b) * e / (l * l);
+  const double prev = clamp(s[FC_steer], -p.steer_max, p.steer_max);  // a set_state steer may be out of range
+  const double c = std::cos(s[FC_psi]), sn = std::sin(s[FC_psi]);
+  double cmd = -(m.drv_kc[0] * s[FC_vy] + m.drv_kc[1] * s[FC_r] + m.drv_kc[2] * prev);
+  for (int j = 0; j < FullCarModel::kDriverPoints; ++j) {
+    const double px = s[FC_x_pos] + m.drv_l[j] * c;
+    const double py = s[FC_y_pos] + m.drv_l[j] * sn;
+    cmd += m.drv_k[j] * c * (m.path_at(px) - py);
+  }
+  if (!std::isfinite(cmd)) cmd = 0.0;
+  if (m.drv_alpha > 0.0 && p.speed > 0.0) {  // no more front slip than the tyres' peak: beyond it, only less force
+    const double a0 = std::atan((s[FC_vy] + p.a * s[FC_r]) / p.speed);
+    cmd = clamp(cmd, a0 - m.drv_alpha, a0 + m.drv_alpha);
+  }
+  cmd = clamp(cmd, -p.steer_max, p.steer_max);
+  if (m.steer_keep > 0.0) cmd = cmd + (prev - cmd) * m.steer_keep;
+  return clamp(cmd, prev - m.drv_step, prev + m.drv_step);
 }
 
 // The road-wheel angle applied over the step starting at state s.
 DN_FC_OUTLINE inline double steer_for_step(const FullCarModel& m, const double* s, double steer_in) noexcept {
   const dn_fullcar_params& p = m.p;
-  double cmd = p.steer_mode == DN_STEER_DRIVER ? driver_steer(m, s) : steer_in;
-  cmd = clamp(cmd, -p.steer_max, p.steer_max);
+  if (p.steer_mode == DN_STEER_DRIVER) return driver_steer(m, s);
+  double cmd = clamp(steer_in, -p.steer_max, p.steer_max);
   if (m.steer_keep > 0.0) cmd = cmd + (s[FC_steer] - cmd) * m.steer_keep;
   return clamp(cmd, -p.steer_max, p.steer_max);  // a set_state steer may be out of range
 }

@@ -29,8 +29,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     for s in maneuvers.SETTINGS.values():
         by = ", ".join(f"{m.name} (default {m.defaults[s.name]})" for m in maneuvers.MANEUVERS.values()
                        if s.name in m.defaults)
-        p.add_argument(s.cli, dest=s.name, type=_TYPES[s.kind], default=None, metavar=s.metavar,
-                       help=f"{s.text()}; of {by or 'no test'}")
+        if s.kind == "flag":
+            p.add_argument(s.cli, dest=s.name, action="store_true", default=None,
+                           help=f"{s.text()}; of {by or 'no test'}")
+        else:
+            p.add_argument(s.cli, dest=s.name, type=_TYPES[s.kind], default=None, metavar=s.metavar,
+                           help=f"{s.text()}; of {by or 'no test'}")
     p.add_argument("--damping", choices=tuple(VEHICLE_DAMPING), default="low",
                    help="every corner's control law (dampnet.recipes.control_laws): "
                         + ", ".join(f"{k} = {v}" for k, v in VEHICLE_DAMPING.items())

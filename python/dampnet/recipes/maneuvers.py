@@ -25,7 +25,7 @@ class Setting:
     """One setting a manoeuvre's builder takes: `name` (the builder's keyword, the sweep cell's
     column), its `unit` ("" for a word or a count), what it means; its values: `kind` "float"
     (within `range`, or any number > 0 when None), "int" (>= 0), "seed" (a seed,
-    dampnet.sim.limits.SEED) or "choice" (one of `choices`,
+    dampnet.sim.limits.SEED), "flag" (true or false; an option without a value) or "choice" (one of `choices`,
     described in messages as `choices_text`); its spellings: `cli` (`dampnet vehicle` option),
     `sweep_key` ([fullcar] key; `axis`: a list of values is a grid axis)."""
 
@@ -49,6 +49,10 @@ class Setting:
             return value
         if self.kind == "seed":
             return limits.check_seed(where, value)
+        if self.kind == "flag":
+            if not isinstance(value, bool):
+                raise ValueError(f"{where}: expected true or false, got {value!r}")
+            return value
         if self.kind == "int":
             return _int(where, value)
         if self.range is not None:
@@ -99,6 +103,8 @@ setting(Setting("profile", "", "the thesis's rough road or an ISO 8608 class A..
                 sweep_key="profiles", axis=True))
 setting(Setting("road_seed", "", "seed of the road's random tracks", kind="seed", cli="--seed", metavar="SEED",
                 sweep_key="road_seeds", axis=True))
+setting(Setting("max_speed", "", "also find the highest speed at which the test passes (bisection on speed "
+                "within 40-160 km/h to 0.5 km/h, each run as this one)", kind="flag"))
 setting(Setting("bsst_amplitude_m", "m", "sweep amplitude", cli="--bsst-amplitude", metavar="M"))
 setting(Setting("bsst_f0_hz", "Hz", "sweep start frequency", cli="--bsst-f0", metavar="HZ"))
 setting(Setting("bsst_f1_hz", "Hz", "sweep end frequency", cli="--bsst-f1", metavar="HZ"))
@@ -202,8 +208,10 @@ def build(name: str, dt: float, settings: dict[str, Any] | None = None, vehicle:
     """The manoeuvre's dampnet.sim.full_car.maneuvers.Maneuver at step dt [s] (settings over its
     defaults, checked; vehicle: the full car's fields set). meta["test"] is the manoeuvre's name."""
     m = get(name)
-    man = m.build(dt, dict(vehicle or {}), **settings_of(name, settings or {}))
+    chosen = settings_of(name, settings or {})
+    man = m.build(dt, dict(vehicle or {}), **chosen)
     man.meta["test"] = name
+    man.meta["settings"] = chosen
     return man
 
 
@@ -212,8 +220,71 @@ def run(spec, man, damping: str = "low", params: dict | None = None) -> dict:
     from dampnet.recipes.control_laws import vehicle_controller
     from dampnet.sim.full_car.runs import run as run_test
 
-    return run_test(spec, man, damping, params, metrics=get(man.meta["test"]).metrics,
-                    controller=vehicle_controller(spec, damping))
+    recipe = get(man.meta["test"])
+    res = run_test(spec, man, damping, params, metrics=recipe.metrics,
+                   controller=vehicle_controller(spec, damping))
+    if man.meta.get("settings", {}).get("max_speed"):
+        res["metrics"].update(max_speed(spec, man, damping, params, res["metrics"]))
+    return res
+
+
+#: --max-speed: the bracket searched [km/h] and the bisection's resolution [km/h]
+MAX_SPEED_RANGE_KMH = (40.0, 160.0)
+MAX_SPEED_TOL_KMH = 0.5
+
+
+def max_speed(spec, man, damping: str = "low", params: dict | None = None, first: dict | None = None,
+              progress: Callable[[str], None] | None = print) -> dict:
+    """The highest speed [km/h] at which a pass/fail test (its metrics' "passed") passes, by
+    bisection on speed_kmh within MAX_SPEED_RANGE_KMH to MAX_SPEED_TOL_KMH, the test rebuilt at
+    each speed with its other settings as in `man` (its meta["settings"]). first: the metrics
+    of the run at man's own speed (one run saved). Returns {"max_speed_kmh": the highest
+    passing speed found (None: none in the bracket; the bracket's top when that passes),
+    "max_speed_bracket_kmh": [highest pass, lowest fail above it], "max_speed_runs": [[speed,
+    passed, clearance_min_m], ...]}. Pass/fail need not be monotonic in speed: the bisection
+    finds one edge of a passing region, the one next to the lowest failing speed it tried."""
+    from dampnet.recipes.control_laws import vehicle_controller
+    from dampnet.sim.full_car.runs import run as run_test
+
+    recipe = get(man.meta["test"])
+    settings = {k: v for k, v in man.meta["settings"].items() if k != "max_speed"}
+    runs: list[list] = []
+
+    def passes(kmh: float) -> bool:
+        if first is not None and abs(kmh - settings["speed_kmh"]) < 1e-9:
+            m = first
+        else:
+            m2 = build(recipe.name, man.dt, {**settings, "speed_kmh": kmh})
+            m = run_test(spec, m2, damping, params, metrics=recipe.metrics,
+                         controller=vehicle_controller(spec, damping))["metrics"]
+        runs.append([kmh, bool(m["passed"]), m.get("clearance_min_m")])
+        if progress:
+            progress(f"  max speed search: {kmh:.2f} km/h {'passes' if m['passed'] else 'fails'}"
+                     + (f", smallest cone clearance {100 * m['clearance_min_m']:+.1f} cm"
+                        if "clearance_min_m" in m else ""))
+        return bool(m["passed"])
+
+    lo, hi = MAX_SPEED_RANGE_KMH
+    own = settings.get("speed_kmh")
+    lo_ok = None
+    if own is not None and lo < own < hi:   # the run at the test's own speed splits the bracket
+        if passes(own):
+            lo_ok, lo = True, own
+        else:
+            hi = own
+    if lo_ok is None:
+        lo_ok = passes(lo)
+    if not lo_ok:
+        return {"max_speed_kmh": None, "max_speed_bracket_kmh": [None, lo], "max_speed_runs": runs}
+    if hi == MAX_SPEED_RANGE_KMH[1] and passes(hi):
+        return {"max_speed_kmh": hi, "max_speed_bracket_kmh": [hi, None], "max_speed_runs": runs}
+    while hi - lo > MAX_SPEED_TOL_KMH:
+        mid = 0.5 * (lo + hi)
+        if passes(mid):
+            lo = mid
+        else:
+            hi = mid
+    return {"max_speed_kmh": lo, "max_speed_bracket_kmh": [lo, hi], "max_speed_runs": runs}
 
 
 def run_study(specs, tests: dict, damping: tuple[str, ...] | None = None, **kw) -> dict:
@@ -262,7 +333,7 @@ def _bsst(dt, vehicle, mode, bsst_amplitude_m, bsst_f0_hz, bsst_f1_hz, bsst_rate
     return bsst(dt, mode, amplitude_m=bsst_amplitude_m, f0=bsst_f0_hz, f1=bsst_f1_hz, rate_oct_s=bsst_rate_oct_s)
 
 
-def _dlc(dt, vehicle, speed_kmh):
+def _dlc(dt, vehicle, speed_kmh, max_speed):
     from dampnet.sim.full_car.maneuvers import dlc
 
     return dlc(dt, speed_kmh)
@@ -289,7 +360,27 @@ def _dlc_line(m: dict) -> str:
     return (f"a_y peak {m['a_y_peak_m_s2']:.2f} m/s^2, roll peak {m['roll_peak_deg']:.2f} deg, roll rate peak "
             f"{m['roll_rate_peak_deg_s']:.1f} deg/s, yaw rate peak {m['yaw_rate_peak_deg_s']:.1f} deg/s, "
             f"side-slip peak {m['side_slip_peak_deg']:.2f} deg, cones hit {m['cones_hit']} of {m['cones']} "
-            f"({'passed' if m['passed'] else 'failed'})")
+            f"({'passed' if m['passed'] else 'failed'}; smallest cone clearance "
+            f"{100 * m['clearance_min_m']:+.1f} cm" + ("; the car spun" if m["lost_control"] else "") + ")"
+            + _max_speed_text(m))
+
+
+def _max_speed_text(m: dict) -> str:
+    if "max_speed_kmh" not in m:
+        return ""
+    if m["max_speed_kmh"] is None:
+        return f"; fails already at {m['max_speed_bracket_kmh'][1]:.0f} km/h"
+    if m["max_speed_bracket_kmh"][1] is None:
+        return f"; passes up to {m['max_speed_kmh']:.0f} km/h (the search's top) at least"
+    lo, hi = m["max_speed_bracket_kmh"]
+    return f"; highest pass found at {lo:.1f} km/h (fails at {hi:.1f} km/h)"
+
+
+def _peak_text(m: dict, key: str) -> str:
+    if m[f"{key}_peak_hz"] is None:
+        return "outside the sweep"
+    return (f"{m[f'{key}_peak_hz']:.2f} Hz x{m[f'{key}_peak_gain']:.3g} (linear model "
+            f"{m[f'{key}_peak_hz_linear']:.2f} Hz x{m[f'{key}_peak_gain_linear']:.3g})")
 
 
 _WHEEL_LOADS = tuple(f"tyre_load_dyn_rms_{w}_n" for w in ("fl", "fr", "rl", "rr"))
@@ -298,19 +389,23 @@ register(ManeuverRecipe(
     "bsst", "Bounce Sine Sweep Test: a vertical log sweep under all four wheels at rest on a four-post rig",
     _bsst, _lazy("dampnet.sim.full_car.metrics", "bsst_metrics"), _lazy("dampnet.sim.full_car.plots", "plot_bsst"),
     dict(mode="heave", bsst_amplitude_m=0.005, bsst_f0_hz=0.5, bsst_f1_hz=20.0, bsst_rate_oct_s=0.1),
-    ("acc_rms_m_s2", "acc_peak_m_s2"),
-    ("acc_rms_m_s2", "acc_peak_m_s2", "pitch_acc_rms_rad_s2", "tyre_load_min_n"), "acc_rms_m_s2",
-    line=lambda m: f"body acc RMS {m['acc_rms_m_s2']:.4f} m/s^2, peak {m['acc_peak_m_s2']:.3f} m/s^2",
+    ("acc_rms_m_s2", "acc_peak_m_s2", "body_peak_hz", "body_peak_gain", "wheel_hop_peak_hz", "wheel_hop_peak_gain"),
+    ("acc_rms_m_s2", "acc_peak_m_s2", "pitch_acc_rms_rad_s2", "body_peak_hz", "body_peak_gain", "body_peak_hz_linear",
+     "body_peak_gain_linear", "wheel_hop_peak_hz", "wheel_hop_peak_gain", "wheel_hop_peak_hz_linear",
+     "wheel_hop_peak_gain_linear", "tyre_load_min_n"), "acc_rms_m_s2",
+    line=lambda m: (f"body peak {_peak_text(m, 'body')}, wheel hop {_peak_text(m, 'wheel_hop')}; body acc RMS "
+                    f"{m['acc_rms_m_s2']:.4f} m/s^2, pitch acc RMS {m['pitch_acc_rms_rad_s2']:.3f} rad/s^2"),
     refuse={"speed_kmh": "the bounce sine sweep runs at rest on a four-post rig"}))
 register(ManeuverRecipe(
     "dlc", "ISO 3888-1 double lane change driven by the preview driver",
     _dlc, _lazy("dampnet.sim.full_car.metrics", "dlc_metrics"), _lazy("dampnet.sim.full_car.plots", "plot_dlc"),
-    dict(speed_kmh=120.0),
+    dict(speed_kmh=120.0, max_speed=False),
     ("a_y_peak_m_s2", "roll_peak_deg", "roll_rate_peak_deg_s", "yaw_rate_peak_deg_s", "side_slip_peak_deg",
      "cones_hit"),
     ("a_y_peak_m_s2", "a_y_rms_m_s2", "roll_peak_deg", "roll_rms_deg", "roll_rate_peak_deg_s", "roll_rate_rms_deg_s",
      "yaw_rate_peak_deg_s", "yaw_rate_rms_deg_s", "side_slip_peak_deg", "side_slip_rms_deg", "steer_peak_deg",
-     "steer_rms_deg", "cones_hit", "cones", "passed", "tyre_load_min_n"), "roll_peak_deg",
+     "steer_rms_deg", "cones_hit", "cones", "passed", "clearance_min_m", "settle_after_exit_s", "lost_control", "tyre_load_min_n"),
+    "roll_peak_deg",
     line=_dlc_line))
 register(ManeuverRecipe(
     "road", "two correlated tracks of a rough road, the rear wheels a wheelbase after the front",

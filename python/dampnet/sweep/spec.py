@@ -132,6 +132,12 @@ def _float(positive: bool = False, allow_none: str | None = None) -> Callable[[A
     return norm
 
 
+def _flag(v):
+    if not isinstance(v, bool):
+        raise _Bad(f"expected true or false, got {_show(v)}")
+    return v
+
+
 def _choice(valid: tuple[str, ...] | Callable[[], tuple[str, ...]], what: str) -> Callable[[Any], str]:
     def norm(v):
         names = valid() if callable(valid) else valid
@@ -393,6 +399,8 @@ def _setting_param(st) -> Param:
 
     if st.kind == "choice":
         norm, kind = _choice(st.choices, f"a {st.name}"), "any"
+    elif st.kind == "flag":
+        norm, kind = _flag, "any"
     elif st.kind in ("int", "seed"):
         norm, kind = _int(0), "int"
     else:

@@ -124,6 +124,7 @@ int main() {
         {"steer_mode = -1", [](dn_fullcar_params& p) { p.steer_mode = -1; }, DN_E_PARAM},
         {"accel_feature = 9", [](dn_fullcar_params& p) { p.accel_feature = 9; }, DN_E_PARAM},
         {"driver_tau_s < 0", [](dn_fullcar_params& p) { p.driver_tau_s = -0.1; }, DN_E_PARAM},
+        {"driver_rate_max = 0", [](dn_fullcar_params& p) { p.driver_rate_max = 0; }, DN_E_PARAM},
         {"m_us_r subnormal", [](dn_fullcar_params& p) { p.m_us_r = 1e-320; }, DN_E_PARAM},
     };
     for (const Bad& b : bad) {

@@ -80,9 +80,11 @@ class VerticalModel:
         return 0.5 * np.einsum("ni,ij,nj->n", qd, self.M, qd) + 0.5 * np.einsum("ni,ij,nj->n", q, self.K, q)
 
 
-def vertical_model(params: dict | None = None, damping: float | np.ndarray = 0.0) -> VerticalModel:
+def vertical_model(params: dict | None = None, damping: float | np.ndarray = 0.0,
+                   stiffness: float | np.ndarray = 0.0, inertance: float | np.ndarray = 0.0) -> VerticalModel:
     """The matrices for the parameters (defaults: the runtime's) and linear dampers of
-    damping [N s/m] (one value, or one per corner)."""
+    damping [N s/m] (one value, or one per corner); a damper's equivalent linear element may also
+    carry a stiffness [N/m] and an inertance [kg] (force per relative acceleration) in parallel."""
     p = full_params(params)
     x, y = corner_positions(p)
     c = np.broadcast_to(np.asarray(damping, dtype=float), (4,))
@@ -94,6 +96,9 @@ def vertical_model(params: dict | None = None, damping: float | np.ndarray = 0.0
         J[i, 3 + i] = -1.0
     K = sum(ks[i] * np.outer(J[i], J[i]) for i in range(4))
     C = sum(c[i] * np.outer(J[i], J[i]) for i in range(4))
+    kd = np.broadcast_to(np.asarray(stiffness, dtype=float), (4,))
+    bd = np.broadcast_to(np.asarray(inertance, dtype=float), (4,))
+    K = K + sum(kd[i] * np.outer(J[i], J[i]) for i in range(4))
     for axle, k_arb in ((0, p["k_arb_f"]), (1, p["k_arb_r"])):
         Jd = J[2 * axle] - J[2 * axle + 1]
         K = K + k_arb * np.outer(Jd, Jd)
@@ -102,7 +107,7 @@ def vertical_model(params: dict | None = None, damping: float | np.ndarray = 0.0
     K = K + p["k_t"] * W.T @ W
     C = C + p["c_t"] * W.T @ W
     K[1, 1] -= p["m_s"] * p["g"] * roll_arm(p)
-    M = np.diag([p["m_s"], p["i_xx"], p["i_yy"], *m_us])
+    M = np.diag([p["m_s"], p["i_xx"], p["i_yy"], *m_us]) + sum(bd[i] * np.outer(J[i], J[i]) for i in range(4))
     return VerticalModel(M=M, C=C, K=K, Bz=p["k_t"] * W.T, Bv=p["c_t"] * W.T)
 
 
@@ -151,3 +156,32 @@ def roll_gradient(params: dict | None = None) -> float:
         num += Ks / (Ks + Kt) * m * share * h_rc
         den += Ks * Kt / (Ks + Kt)
     return num / den
+
+
+#: the road patterns of the bounce sine sweep (FL, FR, RL, RR): all in phase, rear against front
+ROAD_PATTERNS = {"heave": np.array([1.0, 1.0, 1.0, 1.0]), "pitch": np.array([1.0, 1.0, -1.0, -1.0])}
+
+
+def road_response(freqs: np.ndarray, params: dict | None = None, damping: float | np.ndarray = 0.0,
+                  pattern: str = "heave", stiffness: float = 0.0, inertance: float = 0.0) -> dict:
+    """Frequency responses [per metre of road] of the linear vertical model to the road under the
+    four wheels in `pattern` (ROAD_PATTERNS), at freqs [Hz]: {"z": heave at the CG [m/m], "phi",
+    "theta" [rad/m], "wheel": the four wheels' mean height [m/m] (front and rear with the
+    pattern's sign)}, complex. H(jw) = C (jw I - A)^-1 B u by a complex solve (c_t = 0 assumed
+    by state_space; with c_t > 0 its road-rate input is added). stiffness, inertance: of each
+    damper's equivalent linear element (vertical_model)."""
+    p = full_params(params)
+    vm = vertical_model(p, damping, stiffness, inertance)
+    n = vm.M.shape[0]
+    Minv = np.linalg.inv(vm.M)
+    A = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ vm.K, -Minv @ vm.C]])
+    u = ROAD_PATTERNS[pattern]
+    out = {k: np.zeros(len(freqs), dtype=complex) for k in ("z", "phi", "theta", "wheel")}
+    for j, f in enumerate(np.asarray(freqs, dtype=float)):
+        jw = 2j * np.pi * f
+        rhs = np.concatenate([np.zeros(n), Minv @ (vm.Bz + jw * vm.Bv) @ u])
+        x = np.linalg.solve(jw * np.eye(2 * n) - A, rhs)
+        out["z"][j], out["phi"][j], out["theta"][j] = x[0], x[1], x[2]
+        out["wheel"][j] = np.mean(x[3:7] * u)
+    return out
+

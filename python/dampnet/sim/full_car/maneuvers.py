@@ -3,8 +3,10 @@ the steering see, sampled at the run's step.
 
   bsst         Bounce Sine Sweep Test: a vertical log sweep 0.5-20 Hz under all four wheels
                at rest (a four-post rig), in phase ("heave") or front against rear ("pitch").
-  dlc          ISO 3888-1 double lane change: the lanes and cones from the vehicle's width, a
-               centreline path for the runtime's preview driver, at 120 km/h by default.
+  dlc          ISO 3888-1 double lane change: the lanes and cones from the vehicle's width, the
+               path of least peak lateral acceleration through them (iso3888_path) for the
+               runtime's preview driver, at 120 km/h by default; the run goes on DLC_SETTLE_S
+               after the exit gate (at least DLC_RUN_OUT_M) so the car settles.
   rough_road   two correlated wheel tracks (left, right) of the thesis's rough road or an ISO
                8608 class; the rear wheels see the front's road a wheelbase later.
 
@@ -34,8 +36,20 @@ ISO3888_OFFSET_M = 3.5
 VEHICLE_WIDTH_M = 1.9
 OVERHANG_FRONT_M = 0.9
 OVERHANG_REAR_M = 1.2
+BSST_POST_S = 8.0     # rest after the bounce sweep [s]
 DLC_RUN_IN_M = 60.0   # straight road before the entry lane: the driver settles
-DLC_RUN_OUT_M = 60.0
+DLC_RUN_OUT_M = 60.0  # straight road after the exit lane, at least (the path straightens within it)
+DLC_SETTLE_S = 3.0    # the run goes on this long after the exit gate (or DLC_RUN_OUT_M, the longer)
+#: the path keeps the vehicle's body this far inside every cone line [m] (the driver's room; the
+#: entry lane leaves 0.22 m a side to the 1.9 m car). 0.1 m: the path's peak curvature 6.1e-3 1/m
+#: (3.0 m/s^2 at 80 km/h, 6.8 m/s^2 at 120 km/h); 0: 5.6e-3 1/m (see iso3888_path)
+DLC_PATH_MARGIN_M = 0.1
+#: the path's curvature changes at most this fast along it [1/m^2]: no curvature step the steering
+#: could not follow (costs ~2 % of peak curvature over an unbounded rate)
+DLC_PATH_CURVATURE_RATE = 1e-3
+#: the path may curve this much more than the least peak curvature to keep further from the cones
+DLC_PATH_KAPPA_SLACK = 0.03
+DLC_PATH_STEP_M = 1.0  # the path table's spacing [m] (the runtime's table holds at most 256 points)
 CONES_PER_LINE = 5     # cones on each lane line of each lane section, ends included
 TRACK_COHERENCE = 0.6  # correlation of the left and right wheel tracks (a constant: see rough_road)
 
@@ -92,7 +106,9 @@ def bsst(dt: float = 1e-3, mode: str = "heave", amplitude_m: float = 0.005, f0: 
     under all four wheels, in phase (mode "heave") or the rear against the front ("pitch")."""
     if mode not in ("heave", "pitch"):
         raise RoadError(f"bsst mode must be 'heave' or 'pitch', got {mode!r}")
-    road = sine_sweep(amplitude_m=amplitude_m, f0=f0, f1=f1, rate_oct_s=rate_oct_s)
+    # 8 s at rest after the sweep: the body modes (~0.7-1 Hz) ring out, so the record holds the
+    # whole response and its transform over the road's is the transmissibility (metrics.transmissibility)
+    road = sine_sweep(amplitude_m=amplitude_m, f0=f0, f1=f1, rate_oct_s=rate_oct_s, post_s=BSST_POST_S)
     s = road.sample(_step(dt), values_per_step=limits.FULL_CAR_VALUES)
     sign = np.array([1.0, 1.0, 1.0, 1.0]) if mode == "heave" else np.array([1.0, 1.0, -1.0, -1.0])
     meta = dict(road.meta, test="bsst", mode=mode)
@@ -131,34 +147,103 @@ def iso3888_cones(width_m: float = VEHICLE_WIDTH_M) -> np.ndarray:
     return np.array(rows)
 
 
-def iso3888_path(width_m: float = VEHICLE_WIDTH_M, points: int = 240) -> tuple[np.ndarray, np.ndarray]:
-    """The driver's path: each lane's centreline, joined across the lane changes by half-cosine
-    ramps; from the run-in to the run-out (at most 256 points, the runtime's limit)."""
+def iso3888_path(width_m: float = VEHICLE_WIDTH_M, margin_m: float = DLC_PATH_MARGIN_M,
+                 step_m: float = DLC_PATH_STEP_M) -> tuple[np.ndarray, np.ndarray]:
+    """The driver's path (x, y) [m] through the lanes: the line of least peak curvature (so of
+    least peak lateral acceleration U^2 kappa at any speed) keeping the car's width plus margin_m
+    inside every cone line, its curvature changing at most DLC_PATH_CURVATURE_RATE per metre;
+    straight on the run-in and at the end; then, its peak curvature allowed DLC_PATH_KAPPA_SLACK
+    more, the line of the most room to the cone lines (their sum over the lanes' points). A linear programme on y at step_m spacing (curvature
+    by second differences; scipy's HiGHS), from DLC_RUN_IN_M before the entry lane to
+    DLC_RUN_OUT_M after the exit lane; the run-in and run-out keep the entry's and exit's lane,
+    the run-in's first half on the entry lane's centreline (where the car starts).
+    The car's body is straight while the path curves: at its ends (2.4 m ahead of the CG,
+    2.95 m behind) it lies up to kappa l^2 / 2 = 0.03 m inside the path's offset, within the
+    margin. RoadError when no such path exists (a margin too wide for the entry lane)."""
+    import scipy.optimize
+    import scipy.sparse as sp
+
     lanes = iso3888_lanes(width_m)
-    x = np.linspace(-DLC_RUN_IN_M, lanes[-1]["x1"] + DLC_RUN_OUT_M, points)
-    y = np.full(x.shape, lanes[0]["y_centre"])
-    for k in (1, 3):  # the transitions
-        a, b = lanes[k - 1]["y_centre"], lanes[k + 1]["y_centre"]
-        x0, x1 = lanes[k]["x0"], lanes[k]["x1"]
-        ramp = np.clip((x - x0) / (x1 - x0), 0.0, 1.0)
-        y = np.where(x >= x0, a + (b - a) * 0.5 * (1 - np.cos(np.pi * ramp)), y)
-    y = np.where(x > lanes[4]["x0"], lanes[4]["y_centre"], y)
-    return x, y
+    if not 0.0 <= margin_m < 0.5 * (lanes[0]["width"] - width_m) + 1e-12:
+        raise RoadError(f"path margin must be in [0, {0.5 * (lanes[0]['width'] - width_m):.3f}) m for a "
+                        f"{width_m} m wide car, got {margin_m}")
+    x = np.arange(-DLC_RUN_IN_M, lanes[-1]["x1"] + DLC_RUN_OUT_M + step_m / 2, step_m)
+    n = x.size
+    half = width_m / 2 + margin_m
+    lo, hi = np.full(n, -np.inf), np.full(n, np.inf)
+    for k, sec in enumerate(lanes):
+        if "y_right" not in sec:
+            continue
+        inside = (x >= sec["x0"] - 1e-9) & (x <= sec["x1"] + 1e-9)
+        if k == 0:
+            inside |= x < sec["x0"]
+        if k == len(lanes) - 1:
+            inside |= x > sec["x1"]
+        lo[inside] = np.maximum(lo[inside], sec["y_right"] + half)
+        hi[inside] = np.minimum(hi[inside], sec["y_left"] - half)
+    start = x <= -DLC_RUN_IN_M / 2   # the run starts on the entry lane's centreline (the runtime's Y = 0)
+    lo[start] = hi[start] = lanes[0]["y_centre"]
+    # variables: y (n), s (the peak |curvature|); minimise s
+    D = sp.diags([np.ones(n - 2), -2 * np.ones(n - 2), np.ones(n - 2)], [0, 1, 2], shape=(n - 2, n)) / step_m**2
+    J = (sp.diags([-np.ones(n - 3), np.ones(n - 3)], [0, 1], shape=(n - 3, n - 2)) / step_m) @ D
+    one, none = sp.csr_matrix(np.ones((n - 2, 1))), sp.csr_matrix((n - 3, 1))
+    A = sp.vstack([sp.hstack([D, -one]), sp.hstack([-D, -one]), sp.hstack([J, none]), sp.hstack([-J, none])])
+    b = np.r_[np.zeros(2 * (n - 2)), np.full(2 * (n - 3), DLC_PATH_CURVATURE_RATE)]
+    eq = sp.lil_matrix((4, n + 1))
+    for row, (i, j) in enumerate(((0, 1), (1, 2), (n - 1, n - 2), (n - 2, n - 3))):  # straight ends
+        eq[row, i], eq[row, j] = 1.0, -1.0
+    c = np.zeros(n + 1)
+    c[n] = 1.0
+    bounds = [(a if np.isfinite(a) else None, z if np.isfinite(z) else None) for a, z in zip(lo, hi)]
+    res = scipy.optimize.linprog(c, A_ub=A.tocsr(), b_ub=b, A_eq=eq.tocsr(), b_eq=np.zeros(4),
+                                 bounds=bounds + [(0.0, None)], method="highs")
+    if res.status != 0:
+        raise RoadError(f"no path through the ISO 3888-1 lanes for a {width_m} m car with {margin_m} m "
+                        f"margin ({res.message})")
+    # second: the most room to the cone lines (sum over the lanes' points of the smaller side's
+    # room t_k) with the peak curvature at most (1 + DLC_PATH_KAPPA_SLACK) of the least
+    cap = res.x[n] * (1.0 + DLC_PATH_KAPPA_SLACK)
+    lane = np.flatnonzero(np.isfinite(lo) & np.isfinite(hi) & (x >= lanes[0]["x0"]) & (x <= lanes[-1]["x1"]))
+    nt = lane.size
+    pick = sp.csr_matrix((np.ones(nt), (np.arange(nt), lane)), shape=(nt, n))
+    eye = sp.eye(nt)
+    A2 = sp.vstack([sp.hstack([D, sp.csr_matrix((n - 2, nt))]), sp.hstack([-D, sp.csr_matrix((n - 2, nt))]),
+                    sp.hstack([J, sp.csr_matrix((n - 3, nt))]), sp.hstack([-J, sp.csr_matrix((n - 3, nt))]),
+                    sp.hstack([-pick, eye]), sp.hstack([pick, eye])])
+    b2 = np.r_[np.full(2 * (n - 2), cap), np.full(2 * (n - 3), DLC_PATH_CURVATURE_RATE), -lo[lane], hi[lane]]
+    eq2 = sp.hstack([eq[:, :n], sp.csr_matrix((4, nt))])
+    c2 = np.r_[np.zeros(n), -np.ones(nt)]
+    res2 = scipy.optimize.linprog(c2, A_ub=A2.tocsr(), b_ub=b2, A_eq=eq2.tocsr(), b_eq=np.zeros(4),
+                                  bounds=bounds + [(0.0, None)] * nt, method="highs")
+    return x, np.asarray((res2.x if res2.status == 0 else res.x)[:n])
+
+
+def path_curvature(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The curvature [1/m] of a path table (second differences; ends 0), at its points."""
+    k = np.zeros_like(np.asarray(y, dtype=float))
+    h = np.diff(x)
+    k[1:-1] = 2 * (h[:-1] * y[2:] - (h[:-1] + h[1:]) * y[1:-1] + h[1:] * y[:-2]) / (h[:-1] * h[1:] * (h[:-1] + h[1:]))
+    return k
 
 
 def dlc(dt: float = 1e-3, speed_kmh: float = 120.0, width_m: float = VEHICLE_WIDTH_M) -> Maneuver:
     """The ISO 3888-1 double lane change on a flat road, driven by the runtime's preview driver
     along iso3888_path; starts DLC_RUN_IN_M before the entry lane (the runtime's x_pos = 0 there,
-    meta["start_x_m"] in the lanes' frame), ends half of DLC_RUN_OUT_M after it."""
+    meta["start_x_m"] in the lanes' frame), ends DLC_SETTLE_S (at least DLC_RUN_OUT_M) after
+    the exit lane."""
     speed = _speed(speed_kmh) / 3.6
     lanes = iso3888_lanes(width_m)
-    length = DLC_RUN_IN_M + lanes[-1]["x1"] + DLC_RUN_OUT_M * 0.5
+    out = max(DLC_RUN_OUT_M, DLC_SETTLE_S * speed)
+    length = DLC_RUN_IN_M + lanes[-1]["x1"] + out
     n = _steps(length, speed, _step(dt), "the lane change")
     x, y = iso3888_path(width_m)
+    kappa = float(np.max(np.abs(path_curvature(x, y))))
     # the runtime's X starts at 0 where the run starts: the path in that frame
     x = x + DLC_RUN_IN_M
     meta = dict(test="dlc", standard="ISO 3888-1:2018", speed_kmh=speed_kmh, vehicle_width_m=width_m,
-                lanes=lanes, cones=iso3888_cones(width_m).tolist(), start_x_m=-DLC_RUN_IN_M)
+                lanes=lanes, cones=iso3888_cones(width_m).tolist(), start_x_m=-DLC_RUN_IN_M,
+                exit_x_m=lanes[-1]["x1"], path_margin_m=DLC_PATH_MARGIN_M, path_kappa_peak_1_m=kappa,
+                path_a_y_peak_m_s2=kappa * speed**2, path_x=x.tolist(), path_y=y.tolist())
     return Maneuver("dlc", dt, np.zeros((n, 4)), np.zeros((n, 4)), speed, path=(x, y), meta=meta)
 
 

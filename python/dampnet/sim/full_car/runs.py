@@ -10,7 +10,7 @@ import numpy as np
 
 from dampnet import _core
 from dampnet.sim.full_car.maneuvers import Maneuver
-from dampnet.sim.full_car.params import RUN_SCHEME, check, defaults
+from dampnet.sim.full_car.params import RUN_SCHEME, TRUTH_SCHEME, check, defaults
 from dampnet.sim.calibration import damping_levels, semi_active
 from dampnet.sim.dampers import DamperSpec, force_at_rest, runtime_damper
 from dampnet.sim.vehicle import Controller, LoopError, Vehicle
@@ -28,13 +28,13 @@ def run(spec: DamperSpec, man: Maneuver, damping: str = "low", params: dict | No
     metrics: the test's; controller: every corner's, for the setting named `damping`
     (dampnet.recipes: `recipes.maneuvers.run` passes both).
     params: full-car fields over the defaults (speed, dt and the steering mode come from the
-    maneuver; damper_eval per_step as every Python-side run, RUN_SCHEME)."""
+    maneuver; damper_eval per_stage, RUN_SCHEME, the truth damper per_step, TRUTH_SCHEME)."""
     ctrl = controller
     u_rest = ctrl.u_soft if ctrl.kind != "passive" else ctrl.u_passive
     veh = Vehicle()
     veh.dt = man.dt
     f_static = force_at_rest(spec, u_rest, veh)
-    p = {**defaults(), **RUN_SCHEME, **(params or {})}
+    p = {**defaults(), **(TRUTH_SCHEME if spec.kind == "truth" else RUN_SCHEME), **(params or {})}
     p.update(speed=man.speed, dt=man.dt, steer_mode="driver" if man.path is not None else "open_loop",
              f_static_f=f_static, f_static_r=f_static)
     check(p)
@@ -48,12 +48,31 @@ def run(spec: DamperSpec, man: Maneuver, damping: str = "low", params: dict | No
     res = _core.FullCar(model).simulate(man.road, man.road_rate,
                                         steer=None if man.path is not None else man.steer)
     res["t"] = np.arange(man.road.shape[0]) * man.dt
+    res["road"] = man.road
     out = dict(arrays=res, metrics=metrics(res, man, p), params=p, controller=ctrl.to_dict(),
                damper=spec.name, damping=damping, test=man.name, f_static_n=f_static,
                maneuver=man.meta)
     cov = run_coverage(spec, res)
     if cov is not None:
         out["coverage"] = cov
+        res["outside"] = outside_mask(spec, res)
+    return out
+
+
+def outside_mask(spec: DamperSpec, arrays: dict) -> np.ndarray:
+    """[n] bool: at that step some corner's damper inputs were outside the neural model's
+    training ranges or its joint envelope (dampnet.envelope.coverage's measure), for the plots."""
+    from dampnet.envelope.coverage import fullcar_inputs
+
+    env = spec.meta.get("envelope")
+    m = spec.obj
+    out = np.zeros(len(arrays["t"]), dtype=bool)
+    for X in fullcar_inputs(m, arrays):
+        bad = np.any((X < m.sat_lo) | (X > m.sat_hi) | ~np.isfinite(X), axis=1)
+        if env is not None:
+            d, _ = env.nearest(X)
+            bad |= d > env.threshold
+        out |= bad
     return out
 
 
