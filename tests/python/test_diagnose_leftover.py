@@ -174,3 +174,40 @@ def test_campaign_warming_without_temperature_is_the_run_order_artefact():
     a = next(a for a in d["artefacts"] if a["artefact"] == "run_order_drift")
     assert a["force_change_percent"] < 0 and not a["temperature_channel"], a   # hotter oil, less force
     assert "no temperature channel" in a["sentence"]
+
+
+@pytest.fixture(scope="module")
+def clean_model():
+    ds = generate(PLAN, seed=1)
+    m, _, _ = train_dataset(ds, decimate=8, max_epochs=20)
+    return ds, m
+
+
+SLIPS = {  # artefact, channel, test index, recorder parameters, what the check must report
+    "velocity sign": ("sign_slip", "velocity", 3, {}, None),
+    "force sign": ("sign_slip", "force", 5, {}, None),
+    "displacement in mm": ("unit_slip", "displacement", 7, {"factor": 1000.0}, ("factor", 1e-3)),
+    "force in lbf": ("unit_slip", "force", 9, {"factor": 1 / 4.4482216}, ("factor", 4.4482216)),
+    "displacement zero 3 mm off": ("sensor_offset", "displacement", 11, {"offset": 0.003}, ("offset", 0.003)),
+    "load cell zero 60 N off": ("sensor_offset", "force", 13, {"offset": 60.0}, ("offset", 60.0)),
+}
+
+
+@pytest.mark.parametrize("case", sorted(SLIPS))
+def test_channel_slips_are_found_in_their_test_and_channel(clean_model, case):
+    """Each slip put into one test is found there, in that channel, and nothing else is flagged;
+    the fix factor is the unit's (snapped to a known conversion), an offset within 5 %."""
+    from dampnet.diagnosis.artefacts import channel_checks
+
+    ds, m = clean_model
+    aid, channel, i, kw, expect = SLIPS[case]
+    tid = ds.test_ids[i]
+    slipped = record_artefact(ds, aid, channel, [tid], **kw)
+    found = [a for a in channel_checks(build_context(m, slipped), 4.45) if a["detected"]]
+    assert [a["artefact"] for a in found] == [aid], found
+    (hit,) = found[0]["tests"]
+    assert (hit["test_id"], hit["channel"]) == (tid, channel), hit
+    if expect:
+        assert hit[expect[0]] == pytest.approx(expect[1], rel=0.05), hit
+    # and the clean data raise nothing
+    assert not any(a["detected"] for a in channel_checks(build_context(m, ds), 4.45))

@@ -5,7 +5,7 @@ same reference residual and with the same cross-validation over tests and the sa
 phase-randomised null (score.py), whether the residual is predictable at all from the model's
 inputs and their history, beyond the baseline basis of the inputs themselves:
 
-  position      Legendre polynomials 1-3 of the displacement
+  position      Legendre polynomials 1-5 of the displacement and end-of-travel hinges
   turning points  the travel since the last velocity reversal, saturating over 0.1, 0.5, 2
                 and 8 mm (Dahl states), alone and times the control
   velocity history  a lagged velocity minus the velocity (2, 6, 20 ms), alone and times its sign
@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dampnet.diagnosis import score as S
+from dampnet.diagnosis.catalogue import gas_columns_of
 from dampnet.features import dahl_state, first_order_lag
 
 VELOCITY_LAGS_S = (0.002, 0.006, 0.020)
@@ -59,10 +60,6 @@ class Leftover:
 
     def columns(self, ctx, theta):
         return history_columns(ctx)
-
-
-def _legendre(z):
-    return [z, 0.5 * (3 * z ** 2 - 1), 0.5 * (5 * z ** 3 - 3 * z)]
 
 
 def run_order(ctx) -> np.ndarray:
@@ -104,8 +101,8 @@ def history_columns(ctx) -> list[np.ndarray]:
         sg = np.tanh(zv / 0.05)
         fn = td.pred[rows] / fs
         cols = []
-        if has_x:
-            cols += _legendre(np.clip((t.channels["displacement"][rows] - xc) / xh, -1.5, 1.5))
+        if has_x:  # the gas spring's polynomials and end-of-travel hinges: any position-dependent force
+            cols += list(gas_columns_of(t.channels["displacement"][rows], xc, xh).T)
         for travel in TRAVELS_M:
             z = dahl_state(v, t.dt, travel)[rows]
             cols += [z] + ([z * (us[i][rows] - uc) / uh] if has_u else [])

@@ -95,7 +95,7 @@ def diagnose(model, ds, *, candidates=None, n_surrogates: int = S.N_SURROGATES, 
     results, first, baseline_share, folds = score_pass(accepted)
     noise = noise_floor(ctx)
     left0 = leftover(ctx, first[0], folds, first[1], noise)  # before any catalogue effect
-    found = find_artefacts(ctx, folds, n_surrogates, seed)
+    found = find_artefacts(ctx, folds, n_surrogates, seed, noise["rms_n"])
     last = first
     while len(accepted) < MAX_ACCEPTED:
         testable = {c: r for c, r in results.items() if r["testable"]}
