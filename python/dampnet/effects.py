@@ -17,6 +17,14 @@ tests/python/test_effects_catalogue.py checks both sides against this list.
     compressibility  rig: always on (TruthParams.compressibility_tau_s, 2 ms: every real
                      damper has it, so switching it off would change every dataset)
                      diagnosis: compressibility
+    mount_hysteresis rig: switchable   diagnosis: none (no candidate: the diagnosis must say
+                                       "structure left, not a known effect", dampnet.diagnosis.leftover)
+    campaign_warming rig: switchable   diagnosis: none (thermal without a temperature channel: found as
+                                       the run-order artefact, dampnet.artefacts)
+
+The last two are there so that the diagnosis meets what a lab meets and no catalogue names.
+Measurement artefacts (a channel delay, a sign or unit slip, a sensor offset, a drift over the
+run order) are not physics: their family is dampnet.artefacts.
 
 Add your own effect here first (`register_effect`), then its rig physics
 (dampnet.rig.effects.register) and/or its diagnosis candidate
@@ -213,3 +221,19 @@ register_effect(EffectInfo(
     adds=Additions(features=(LagOf("velocity"),), how="feature", estimate=Estimate("tau_s", 0.002),
                    why="the velocity after a first-order lag as an extra MLP input: the network "
                        "learns how much of the force follows the lagged flow")))
+
+register_effect(EffectInfo(
+    id="mount_hysteresis", title="top-mount (bushing) rubber hysteresis in the load path",
+    physics="The rubber of a top mount or eye bushing between the damper and the load cell has a "
+            "rate-independent hysteresis (Bouc-Wen): a force that builds up over millimetres of travel "
+            "after each reversal and saturates, the same at every frequency and control. No catalogue "
+            "candidate models it: the diagnosis must find it as structure left that no known effect explains.",
+    rig="switchable", diagnosed_by=None, adds=None))
+
+register_effect(EffectInfo(
+    id="campaign_warming", title="oil warming over the test campaign, no temperature logged",
+    physics="The oil warms from test to test through a campaign (run order) while the rig logs no "
+            "temperature: the viscous force falls along the run order. The thermal candidate needs a "
+            "temperature channel to see differences between tests; without one the diagnosis finds it "
+            "as a drift over the run order (dampnet.artefacts: run_order_drift).",
+    rig="switchable", diagnosed_by=None, adds=None))

@@ -36,6 +36,10 @@ def test_demo_tells_the_whole_story(demo_out):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["diagnosis"]["named_hidden_effect"], summary["diagnosis"]
     assert summary["diagnosis"]["hidden_effect"] not in summary["diagnosis"]["significant_after"]
+    # issue 35: the three-way verdict, a catalogue effect before the effect is added, in the report too
+    assert summary["diagnosis"]["finding"]["kind"] == "known_effect", summary["diagnosis"]["finding"]
+    assert summary["diagnosis"]["finding_after"]["kind"] in ("nothing_left", "unknown_structure", "known_effect")
+    assert "Three-way verdict" in (out / "report.html").read_text()
     assert summary["error_fell"] and summary["holdout_nrmse"]["improved"] < summary["holdout_nrmse"]["original"]
     hv = summary["holdout_nrmse"]["improved_vs_noise_floor"]
     assert hv["ratio"] > 1.0 and len(hv["per_frequency"]) == 4

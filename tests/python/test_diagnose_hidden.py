@@ -62,6 +62,7 @@ def test_hidden_effect_found_added_and_gone(hidden):
     top = r["d"]["candidates"][0]
     assert top["effect"] == family and top["significant"], r["d"]["candidates"][:2]
     assert r["d"]["verdict"] == family
+    assert r["d"]["finding"]["kind"] == "known_effect" and r["d"]["finding"]["effects"][0] == family, r["d"]["finding"]
     fall = 1 - r["after"] / r["before"]
     print(f"{effect}: held-out NRMSE {r['before']:.5f} -> {r['after']:.5f} ({-100 * fall:+.0f} %)")
     assert fall >= 0.40, (r["before"], r["after"])
@@ -83,6 +84,11 @@ def test_nothing_missing_nothing_significant():
     r = _run([], None)
     assert r["d"]["verdict"] is None
     assert not any(c["significant"] for c in r["d"]["candidates"])
+    # issue 35: and the catalogue-independent test finds nothing above the noise floor either
+    f, left = r["d"]["finding"], r["d"]["leftover"]["before_effects"]
+    assert f["kind"] == "nothing_left" and not left["significant"], (f, left)
+    assert left["noise_floor_rms_n"] == pytest.approx(4.45, rel=0.01)    # the rig's load cell
+    assert not any(a["detected"] for a in r["d"]["artefacts"]), r["d"]["artefacts"]
 
 
 def test_two_effects_top_two():
@@ -119,7 +125,7 @@ def test_stick_slip_friction_is_found():
     r = _run(["friction"], None)
     top = r["d"]["candidates"][0]
     assert top["effect"] == "friction" and top["significant"], r["d"]["candidates"][:3]
-    assert r["d"]["verdict"] == "friction"
+    assert r["d"]["verdict"] == "friction" and r["d"]["finding"]["kind"] == "known_effect", r["d"]["finding"]
     p = top["parameters"]
     assert 0.05 < p["presliding_length_mm"] < 0.25, p
     assert 40.0 / 2 < p["friction_force_n"] < 110.0, p

@@ -67,3 +67,20 @@ def load_data(path: str, channel_map: str | None = None):
     if path in REAL_DATASETS:
         return load_real(path)
     return load_dataset(path, **({"channel_map": channel_map} if channel_map is not None else {}))
+
+
+def add_data_fix_options(p) -> None:
+    """The data fixes of dampnet.artefacts a command can apply to its data after loading."""
+    p.add_argument("--align-force-s", type=float, default=None, metavar="SECONDS",
+                   help="move the force channel SECONDS earlier against the motion channels (undo a force "
+                        "recorded late: the time_offset artefact `dampnet diagnose` estimates); the data "
+                        "files are not changed")
+
+
+def apply_data_fixes(ds, args):
+    """`ds` with the data fixes the options ask for (a new Dataset; files untouched)."""
+    from dampnet.artefacts import align_force
+
+    if getattr(args, "align_force_s", None):
+        ds = align_force(ds, args.align_force_s)
+    return ds

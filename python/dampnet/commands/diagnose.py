@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from dampnet.commands.common import DATA_HELP, add_channel_map_option, error, load_data
+from dampnet.commands.common import DATA_HELP, add_channel_map_option, add_data_fix_options, apply_data_fixes, error, load_data
 from dampnet.outputs import json_text
 
 
@@ -13,8 +13,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "diagnose", help="find which physical effect a model is missing",
         description="Compare a model with measured data, localise its error (by test, within the cycle), "
                     "and test a catalogue of candidate physical effects against the residual "
-                    "(cross-validation over tests, a phase-randomised null). Prints a summary; "
-                    "--json writes overall, worst_tests, candidates (most likely first) and verdict; "
+                    "(cross-validation over tests, a phase-randomised null); test, without the catalogue, whether "
+                    "structure is left in the residual at all, and for measurement artefacts (a force channel "
+                    "recorded late, a drift over the run order). Prints a summary and a three-way verdict "
+                    "(a catalogue effect explains it / structure left that no known effect explains / nothing "
+                    "above the noise floor; or an artefact and its data fix); --json writes overall, worst_tests, "
+                    "candidates (most likely first), leftover, artefacts, finding and verdict; "
                     "`dampnet train DATA --add EFFECT --diagnosis FILE` adds an effect with the parameters "
                     "estimated here. The effects are the catalogue's (`dampnet rig --list-effects`).")
     p.add_argument("model", help="model directory (or its model.json)")
@@ -24,6 +28,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--report", metavar="DIR", help="write an HTML report with pictures to DIR")
     p.add_argument("--surrogates", type=int, default=49, help="null surrogates (default 49)")
     p.add_argument("--seed", type=int, default=0)
+    add_data_fix_options(p)
     p.set_defaults(handler=run)
     return p
 
@@ -48,8 +53,29 @@ def summary(d: dict, diagnosis_file: str | None = None) -> str:
         if c["significant"]:
             lines.append(f"    {c['evidence']}")
             lines.append(f"    add it: {c['add_command']}" + (f" --diagnosis {diagnosis_file}" if diagnosis_file else ""))
-    lines.append(f"verdict: {d['verdict'] or 'no candidate effect is significant: nothing detectable is missing'}")
+    lines += leftover_lines(d)
+    f = d["finding"]
+    lines.append(f"verdict ({f['kind'].replace('_', ' ')}): {f['sentence']}")
     return "\n".join(lines)
+
+
+def leftover_lines(d: dict) -> list[str]:
+    """The catalogue-independent test's answer and the artefact tests, in words."""
+    lines = []
+    for when, left in (("before the catalogue's effects", d["leftover"]["before_effects"]),
+                       ("after the accepted effects", d["leftover"]["after_effects"])):
+        if left is None:
+            continue
+        w = left["where"]
+        lines.append(f"structure left {when}: {'YES' if left['significant'] else 'no'}, "
+                     f"{left['structure_rms_n']:.1f} N RMS ({100 * left['score']:.1f} % of the residual's variance "
+                     f"held out, z {left['z']:.1f}); model residual {left['model_residual_rms_n']:.1f} N RMS, noise "
+                     f"floor {left['noise_floor_rms_n']:.2f} N RMS" + (f"; most uneven by {w['most_uneven'].replace('_', ' ')}"
+                                                                    if w.get("most_uneven") else ""))
+    for a in d["artefacts"]:
+        if a.get("detected"):
+            lines.append(f"ARTEFACT {a['artefact']}: {a['sentence']}")
+    return lines
 
 
 def run(args) -> int:
@@ -67,7 +93,7 @@ def run(args) -> int:
         if args.report:
             check_report_dir(args.report, [args.model, args.data])
         model = MlpModel.load(args.model)
-        ds = load_data(args.data, args.channel_map)
+        ds = apply_data_fixes(load_data(args.data, args.channel_map), args)
         ctx = build_context(model, ds)
         d = diagnose(model, ds, ctx=ctx, n_surrogates=args.surrogates, seed=args.seed, dataset_label=args.data)
     except (DataError, ModelError, ValueError, OSError) as e:

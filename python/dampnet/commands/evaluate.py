@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import argparse
 
-from dampnet.commands.common import DATA_HELP, add_channel_map_option, error, load_data
+from dampnet.commands.common import DATA_HELP, add_channel_map_option, add_data_fix_options, apply_data_fixes, error, load_data
 from dampnet.outputs import json_text
 
 
@@ -32,6 +32,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--no-lookup", action="store_true", help="skip the lookup-table baseline")
     p.add_argument("--lbf", action="store_true", help="print forces in lbf (as the thesis's Table 4)")
     p.add_argument("--force", action="store_true", help="replace the JSON file if it exists")
+    add_data_fix_options(p)
     p.set_defaults(handler=run)
     return p
 
@@ -49,7 +50,7 @@ def run(args) -> int:
         if args.json and args.json != "-":
             check_output_file(args.json, [args.model, args.data])
         model = MlpModel.load(args.model)
-        ds = load_data(args.data, args.channel_map)
+        ds = apply_data_fixes(load_data(args.data, args.channel_map), args)
         held = model.meta.get("data", {}).get("holdout_tests", [])
         tests = ds.tests
         if args.holdout:

@@ -10,7 +10,7 @@ import argparse
 import sys
 import time
 
-from dampnet.commands.common import DATA_HELP, add_channel_map_option, error, load_data
+from dampnet.commands.common import DATA_HELP, add_channel_map_option, add_data_fix_options, apply_data_fixes, error, load_data
 from dampnet.commands.training_options import ADD_RULE, Progress, add_training_options, field_help, training_request, whole
 
 
@@ -45,6 +45,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--workers", default=None, metavar="N",
                    help="processes the restarts run in, one torch thread each (default: the local cores)")
     p.add_argument("--prefix", default="dn_model", help="C identifier prefix in model.h (default dn_model)")
+    add_data_fix_options(p)
     p.add_argument("--force", action="store_true", help="replace MODEL_DIR if it exists")
     p.add_argument("--quiet", action="store_true", help="no progress bar and no summary (for scripts)")
     p.set_defaults(handler=run)
@@ -69,7 +70,7 @@ def run(args) -> int:
         req = training_request(args)
         req.check()  # every option and setting before the data are loaded
         workers = check_workers(args)
-        ds = merge_datasets([load_data(d, args.channel_map) for d in args.data])
+        ds = apply_data_fixes(merge_datasets([load_data(d, args.channel_map) for d in args.data]), args)
         todo = plan(ds, req)
         if todo.restarts > 1:
             bar = RestartProgress(not args.quiet)

@@ -159,6 +159,36 @@ def _per_frequency(rep: dict) -> list[list[Any]]:
     return rows
 
 
+THREE_WAY = {"known_effect": "a catalogue effect explains it",
+             "unknown_structure": "structure left that no catalogue effect explains",
+             "nothing_left": "nothing above the noise floor",
+             "artefact": "a measurement artefact"}
+
+
+def _three_way(dg: dict) -> str:
+    """The diagnosis's three-way verdict before and after the effect is added (issue 35)."""
+    rows = []
+    for label, f in (("original model", dg.get("finding")), ("improved model", dg.get("finding_after"))):
+        if not f:
+            continue
+        rows.append([label, THREE_WAY.get(f["kind"], f["kind"]), "yes" if f["structure_left"] else "no",
+                     f["structure_rms_n"], 100.0 * f["structure_share"], f["model_residual_rms_n"],
+                     f["noise_floor_rms_n"]])
+    if not rows:
+        return ""
+    return ("<p>Three-way verdict: besides ranking the catalogue's effects, the diagnosis tests, without the "
+            "catalogue, whether the residual is predictable at all from the inputs and their history (held out, "
+            "against a null), so it can say <i>a catalogue effect explains it</i>, <i>structure is left that no "
+            "catalogue effect explains</i> (not a known effect: how much and where) or <i>nothing above the noise "
+            "floor</i>; measurement artefacts (a force channel recorded late, a drift along the run order) are "
+            "named as such.</p>"
+            + _table(["diagnosis of", "verdict", "structure left", "its RMS [N]", "share of the residual [%]",
+                      "model residual RMS [N]", "noise floor RMS [N]"], rows)
+            + "".join(f"<p>{html.escape(label)}: {html.escape(f['sentence'])}</p>"
+                      for label, f in (("Original", dg.get("finding")), ("Improved", dg.get("finding_after")))
+                      if f))
+
+
 def write(work: Path, summary: dict, m0: dict, m1: dict, d0: dict, d1: dict, study: dict, bench: dict,
           vehicle: dict) -> Path:
     figs = work / "figures"
@@ -203,6 +233,8 @@ def write(work: Path, summary: dict, m0: dict, m1: dict, d0: dict, d1: dict, stu
                  f"<b>{dg['hidden_effect']}</b>: the diagnosis "
                  f"<span class='{'ok' if dg['named_hidden_effect'] else 'bad'}'>"
                  f"{'named it' if dg['named_hidden_effect'] else 'did not name it'}</span>.</p>")
+
+    parts.append(_three_way(dg))
 
     parts.append("<h2>4. The effect added: the error falls</h2>")
     o1 = m1["holdout"]["overall"]

@@ -387,6 +387,16 @@ def _restarts_summary(metrics: dict) -> dict | None:
                      for x in r["runs"]]}
 
 
+def _finding(diag: dict) -> dict:
+    """The diagnosis's three-way verdict and the leftover test's numbers, for the summary."""
+    f = diag["finding"]
+    left = diag["leftover"]["after_effects"] or diag["leftover"]["before_effects"]
+    return {"kind": f["kind"], "sentence": f["sentence"], "structure_left": left["significant"],
+            "structure_rms_n": left["structure_rms_n"], "structure_share": left["score"],
+            "model_residual_rms_n": left["model_residual_rms_n"], "noise_floor_rms_n": left["noise_floor_rms_n"],
+            "artefacts": f["artefacts"]}
+
+
 def _headline(metrics0, metrics1, diag0, diag1, verdict, adds, cres, study_res, bench) -> dict:
     o0, o1 = metrics0["holdout"]["overall"], metrics1["holdout"]["overall"]
     lk = metrics0.get("holdout_lookup", {}).get("overall", {})
@@ -402,7 +412,9 @@ def _headline(metrics0, metrics1, diag0, diag1, verdict, adds, cres, study_res, 
                       "named_hidden_effect": verdict == HIDDEN_EFFECT,
                       "ranking": [c["effect"] for c in diag0["candidates"]],
                       "added_as": adds.get("how"), "why": adds.get("why"),
-                      "significant_after": still, "verdict_after": diag1.get("verdict")},
+                      "significant_after": still, "verdict_after": diag1.get("verdict"),
+                      # the three-way verdict (dampnet.diagnosis.verdict), before and after the effect is added
+                      "finding": _finding(diag0), "finding_after": _finding(diag1)},
         "c_program": cres,
         "study": {**{k: study_res[k] for k in ("worst_acc_rms_error_vs_truth", "worst_case_vs_truth",
                                                "worst_rough_road_error_vs_truth")},

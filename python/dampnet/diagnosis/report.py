@@ -85,6 +85,9 @@ def figures(ctx, diag: dict, out: Path, tag: str = "") -> list[tuple[str, str]]:
     axs[0][0].set_ylabel("residual [N] (mean, RMS bar)")
     figs.append((_save(fig, out / f"{tag}residual_vs_channels.png"),
                  "residual against displacement, velocity, acceleration, control, temperature and time in the test"))
+    left = _leftover_figure(ctx, diag, out, tag, plt)
+    if left:
+        figs.append(left)
     # residual against each candidate's fitted effect
     fits = ctx.notes.get("candidate_effects", {})
     if fits:
@@ -100,8 +103,73 @@ def figures(ctx, diag: dict, out: Path, tag: str = "") -> list[tuple[str, str]]:
     return figs
 
 
+def _leftover_figure(ctx, diag, out, tag, plt):
+    """What the structure the leftover test found looks like: its force-displacement loops, and where
+    it is along the run order and the cycle (None when the diagnosis kept no fit of it)."""
+    part = ctx.notes.get("leftover_part")
+    fd = diag.get("leftover") or {}
+    left = fd.get("after_effects") or fd.get("before_effects")
+    if part is None or left is None:
+        return None
+    fig, axs = plt.subplots(1, 3, figsize=(13, 3.8))
+    rms = [float(np.sqrt(np.mean(p * p))) for p in part]
+    show = sorted(range(len(part)), key=lambda i: -rms[i])[:3]
+    for i in show:
+        td = ctx.tests[i]
+        x = td.test.channels.get("displacement")
+        if x is None:
+            continue
+        o = np.argsort(td.test.time[td.rows])
+        axs[0].plot(1000 * x[td.rows][o], part[i][o], lw=1,
+                    label=f"{td.test.test_id}: {td.test.frequency_hz} Hz, {td.test.control_nominal} {ctx.control_name}")
+    axs[0].set_xlabel("displacement [mm]")
+    axs[0].set_ylabel("structure left (fitted) [N]")
+    axs[0].set_title("force-displacement loop of the structure left", fontsize=9)
+    axs[0].legend(fontsize=7)
+    r = [float(np.mean(td.resid)) for td in ctx.tests]
+    axs[1].bar(range(len(rms)), rms, color="tab:orange", label="structure left, RMS [N]")
+    axs[1].plot(range(len(r)), r, "k.", ms=4, label="model residual, mean [N]")
+    axs[1].axhline(0, color="k", lw=0.5)
+    axs[1].set_xlabel("test in run order (dataset order)")
+    axs[1].set_ylabel("[N]")
+    axs[1].set_title("along the run order", fontsize=9)
+    axs[1].legend(fontsize=7)
+    ph = left["where"].get("by_phase_deg", [])
+    if ph:
+        axs[2].bar([b["phase_deg"] for b in ph], [b["rms_n"] for b in ph], width=40, color="tab:green")
+        axs[2].set_xticks([0, 90, 180, 270, 360])
+    axs[2].set_xlabel("phase of the cycle [deg] (0: mid-stroke extending, 90: full extension)")
+    axs[2].set_ylabel("structure left, RMS [N]")
+    axs[2].set_title(f"noise floor {left['noise_floor_rms_n']:.2f} N RMS", fontsize=9)
+    fig.suptitle(f"structure left: {'significant' if left['significant'] else 'not significant'}, "
+                 f"{left['structure_rms_n']:.1f} N RMS ({100 * left['score']:.1f} % of the residual held out)", fontsize=10)
+    return (_save(fig, out / f"{tag}structure_left.png"),
+            "the catalogue-independent fit of the residual on the inputs and their history: its "
+            "force-displacement loops in the three tests where it is largest, its size along the run "
+            "order (with each test's mean residual) and over the phase of the cycle")
+
+
 def _pct(x):
     return "" if x is None else f"{100 * x:.2f} %"
+
+
+def _leftover_table(diag: dict) -> str:
+    rows = []
+    for when, left in (("before the catalogue's effects", diag["leftover"]["before_effects"]),
+                       ("after the accepted effects", diag["leftover"]["after_effects"])):
+        if left is None:
+            continue
+        rows.append(f"<tr><td>{when}</td><td>{'yes' if left['significant'] else 'no'}</td>"
+                    f"<td>{left['structure_rms_n']:.2f}</td><td>{_pct(left['score'])}</td><td>{left['z']:.1f}</td>"
+                    f"<td>{left['model_residual_rms_n']:.2f}</td><td>{left['noise_floor_rms_n']:.2f}</td>"
+                    f"<td>{html.escape(str(left['where'].get('most_uneven')))}</td></tr>")
+    arts = "".join(f"<li><b>{html.escape(a['artefact'])}</b>: {html.escape(a['sentence'])}</li>"
+                   for a in diag["artefacts"] if a.get("detected"))
+    return ("<table><tr><th>structure left</th><th>significant</th><th>RMS [N]</th><th>share of the residual "
+            "(held out)</th><th>z</th><th>model residual RMS [N]</th><th>noise floor RMS [N]</th>"
+            "<th>most uneven by</th></tr>" + "".join(rows) + "</table>"
+            + (f"<p>Measurement artefacts found:</p><ul>{arts}</ul>" if arts else
+               "<p>Measurement artefacts tested (force channel time offset, drift over the run order): none found.</p>"))
 
 
 def write_report(ctx, diag: dict, out_dir, title: str = "dampnet diagnose") -> Path:
@@ -128,10 +196,13 @@ table{{border-collapse:collapse}}img{{max-width:100%}}</style></head><body>
 <h2>Compare</h2><p>Overall NRMSE {ov['nrmse']:.5f}, RMSE {ov['rmse_n']:.2f} N, max |error| {ov['max_abs_error_n']:.1f} N.
 Worst tests: {worst}.</p>
 <h2>Which physical effect is missing</h2>
-<p>Verdict: <b>{diag['verdict'] or 'no candidate is significant'}</b>. Score = held-out share of residual variance
+<p>Catalogue verdict: <b>{diag['verdict'] or 'no catalogue effect named'}</b>. Score = held-out share of residual variance
 the effect explains beyond a flexible function of the model's inputs (cross-validation over tests);
 significant = above every phase-randomised surrogate, z &ge; {diag['method']['z_min']}, score &ge; {diag['method']['min_score']}.</p>
 <table><tr><th>#</th><th>effect</th><th>score</th><th>significant</th><th>parameters</th><th>evidence</th><th>add</th></tr>{rows}</table>
+<h2>Is anything left? (without the catalogue)</h2>
+<p><b>{html.escape(diag['finding']['kind'].replace('_', ' '))}</b>: {html.escape(diag['finding']['sentence'])}</p>
+{_leftover_table(diag)}
 <h2>Where it fails</h2><table><tr><th>region</th><th>RMS residual [N]</th><th>ratio to overall</th></tr>{regions}</table>
 {imgs}</body></html>"""
     (out / "index.html").write_text(page)

@@ -6,7 +6,10 @@ import numpy as np
 
 from dampnet.diagnosis import score as S
 from dampnet.diagnosis.catalogue import CANDIDATES
+from dampnet.diagnosis.artefacts import find_artefacts
 from dampnet.diagnosis.context import ROWS_PER_TEST, build_context
+from dampnet.diagnosis.leftover import leftover, noise_floor
+from dampnet.diagnosis.verdict import three_way
 from dampnet.effects import additions
 from dampnet.outputs import jsonable
 
@@ -81,7 +84,7 @@ def diagnose(model, ds, *, candidates=None, n_surrogates: int = S.N_SURROGATES, 
         share = float((ss_tot - base_cv[0][:, 0].sum()) / ss_tot) if ss_tot > 0 else 0.0
         results = {cid: S.score_candidate(ctx, CANDIDATES[cid], Y, folds, base_cv)
                    for cid in cids if cid not in included and cid not in accepted}
-        return results, {}, share, folds
+        return results, (Y, base_cv), share, folds
 
     # Forward selection: the most likely effect is accepted into the baseline and the
     # others are scored again given it, so that an effect which only partly mimics the
@@ -89,7 +92,11 @@ def diagnose(model, ds, *, candidates=None, n_surrogates: int = S.N_SURROGATES, 
     # on what it adds. Each accepted effect keeps the score it had when it was accepted.
     accepted: dict = {}
     accepted_results: dict = {}
-    results, _, baseline_share, folds = score_pass(accepted)
+    results, first, baseline_share, folds = score_pass(accepted)
+    noise = noise_floor(ctx)
+    left0 = leftover(ctx, first[0], folds, first[1], noise)  # before any catalogue effect
+    found = find_artefacts(ctx, folds, n_surrogates, seed, noise["rms_n"])
+    last = first
     while len(accepted) < MAX_ACCEPTED:
         testable = {c: r for c, r in results.items() if r["testable"]}
         if not testable:
@@ -99,8 +106,9 @@ def diagnose(model, ds, *, candidates=None, n_surrogates: int = S.N_SURROGATES, 
             break
         accepted[best] = testable[best]["theta"]
         accepted_results[best] = testable[best]
-        results, _, _, folds = score_pass(accepted)
+        results, last, _, folds = score_pass(accepted)
     results = {**results, **accepted_results}
+    left1 = leftover(ctx, last[0], folds, last[1], noise) if accepted else None
 
     out = []
     for cid in cids:
@@ -141,8 +149,8 @@ def diagnose(model, ds, *, candidates=None, n_surrogates: int = S.N_SURROGATES, 
     out.sort(key=lambda e: (e["effect"] not in order, order.get(e["effect"], 0), not e["testable"],
                             -(e["score"] if e["score"] is not None else -1e9)))
 
-    sig = [e for e in out if e["significant"]]
-    verdict = sig[0]["effect"] if sig else None
+    finding = three_way(accepted_results, left0, left1, found, ctx)
+    verdict = finding["effects"][0] if finding["effects"] else None
     return jsonable({
         "model": {"id": model.model_id(), "features": model.features, "terms": [t.get("kind") for t in model.terms],
                   "feature_params": model.feature_params},
@@ -162,5 +170,8 @@ def diagnose(model, ds, *, candidates=None, n_surrogates: int = S.N_SURROGATES, 
                                 "scored again, up to %d effects" % MAX_ACCEPTED,
                    "accepted": list(accepted)},
         "candidates": out,
+        "leftover": {"before_effects": left0, "after_effects": left1},
+        "artefacts": found,
+        "finding": finding,
         "verdict": verdict,
     })

@@ -197,7 +197,10 @@ def score_candidate(ctx, cand, Y: list[np.ndarray], folds, base_cv) -> dict:
             "z": float(z), "p_value": p, "significant": significant,
             "theta": theta_hat if theta_hat is not None else per_theta[j][0], "theta_grid": per_theta[j][0],
             "fold_thetas": fold_thetas, "beta": bc, "effect_rows": effect_rows, "fold_betas": fold_betas,
-            "per_test_gain": per_test_gain, "columns": per_theta[j][1]}
+            "per_test_gain": per_test_gain, "columns": per_theta[j][1],
+            # the full-data choice is the grid's largest value: the effect wants more than its
+            # physical range allows (it may stand in for something else)
+            "at_grid_top": bool(len(grid) > 1 and per_theta[j][0] == max(g for g in grid if g is not None))}
 
 
 def _full_fit(D: Design):

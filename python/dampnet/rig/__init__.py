@@ -5,17 +5,17 @@
   effects.py  the switchable effects' physics (EFFECTS: gas_spring, thermal, valve_lag, friction,
               bump_stop), keyed by the effect catalogue dampnet.effects
   plans.py    test plans (thesis, quick, JSON files)
-  sensors.py  noise and recording resolution
-  generate.py the rig itself (generate, noise_floor_nrmse)
+  sensors.py  noise, recording resolution, and recording artefacts (record_artefact)
+  generate.py the rig itself (generate, noise_floor_nrmse, noise_floor_rmse_n)
 """
 
 from dampnet.rig.effects import EFFECTS, Effect, register
-from dampnet.rig.generate import generate, noise_floor_nrmse
+from dampnet.rig.generate import generate, noise_floor_nrmse, noise_floor_rmse_n
 from dampnet.rig.plans import Plan, load_plan, quick_plan, thesis_plan
 from dampnet.rig.sensors import RESOLUTION, SensorNoise
 from dampnet.rig.truth import (TruthDamper, TruthParams, controller_current, truth_force,
                                     valve_opening)
 
-__all__ = ["EFFECTS", "Effect", "register", "generate", "noise_floor_nrmse", "Plan", "load_plan",
+__all__ = ["EFFECTS", "Effect", "register", "generate", "noise_floor_nrmse", "noise_floor_rmse_n", "Plan", "load_plan",
            "quick_plan", "thesis_plan", "RESOLUTION", "SensorNoise", "TruthDamper", "TruthParams",
            "controller_current", "truth_force", "valve_opening"]

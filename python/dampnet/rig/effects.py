@@ -6,6 +6,8 @@ effect catalogue (dampnet.effects: ids, titles, what a model needs to capture ea
   valve_lag   the solenoid valve's ~40 ms response; the rig steps the control voltage within tests
   friction    stick-slip seal friction (LuGre), replacing the smooth Coulomb seal friction
   bump_stop   elastomer bump stop in the last 8 mm of compression travel
+  mount_hysteresis  Bouc-Wen rubber hysteresis of a top mount in the load path (no candidate knows it)
+  campaign_warming  the oil warms along the run order, no temperature channel (no candidate knows it)
 
 (compressibility is in the catalogue too, always on in the truth damper's base physics:
 TruthParams.compressibility_tau_s.)
@@ -39,7 +41,8 @@ class Effect:
     """Base class: an effect that does nothing."""
 
     name = "base"
-    records_temperature = False
+    varies_temperature = False   # (rig) the effect sets the oil temperature of each test
+    records_temperature = False  # (rig) ... and the rig logs it as the temperature channel
 
     def params(self) -> dict:
         return asdict(self) if hasattr(self, "__dataclass_fields__") else {}
@@ -65,10 +68,16 @@ class Effect:
         """The control voltage [V] the rig applies during a test."""
         return voltage
 
-    def initial_temperature(self, rng) -> float | None:
+    def initial_temperature(self, rng, run: float = 0.0) -> float | None:
+        """The oil temperature [degC] at the start of a test; `run` in [0, 1] is its place in the run order."""
         return None
 
     def heating(self, t: np.ndarray, power_w: np.ndarray, t0_c: float):
+        return None
+
+    def run_order(self, n_tests: int, seed: int):
+        """(rig) The order the plan's tests are run in (a permutation), None: the plan's order.
+        The dataset lists its tests in run order."""
         return None
 
 
@@ -145,6 +154,7 @@ class Thermal(Effect):
     """
 
     name = "thermal"
+    varies_temperature = True
     records_temperature = True
     t_min_c: float = 25.0
     t_max_c: float = 65.0
@@ -152,7 +162,7 @@ class Thermal(Effect):
     loss_w_k: float = 2.0
     ambient_c: float = 25.0
 
-    def initial_temperature(self, rng):
+    def initial_temperature(self, rng, run: float = 0.0):
         return float(rng.uniform(self.t_min_c, self.t_max_c))
 
     def heating(self, t, power_w, t0_c):
@@ -282,3 +292,71 @@ class BumpStop(Effect):
         engage = -(ctx.params.stroke_m / 2.0 - self.travel_m)
         d = np.maximum(engage - ctx.x, 0.0)
         return -self.stiffness_n_m2 * d * d * np.maximum(1.0 - self.damping_s_m * ctx.v, 0.0)
+
+
+@register
+@dataclass
+class MountHysteresis(Effect):
+    """Bouc-Wen hysteresis of a rubber top mount (or eye bushing) in the load path.
+
+    F = F_y z / x_y with dz/dx = 1 - |z / x_y|^n (1/2 + 1/2 sgn(dx z)) (Bouc-Wen, A = 1,
+    beta = gamma): after a reversal z follows the travel one to one until it crosses zero, then
+    saturates at +-x_y. Yield force F_y = 150 N, yield travel x_y = 4 mm, n = 2. Rate-independent:
+    the same loop at every frequency and control, a function of the displacement history, not of
+    velocity. Integrated exactly for the travel of each sample in a few sub-steps (explicit, the
+    step is far below x_y). An additive element: a simplification of a mount in series (whose
+    compliance would also delay the force); it keeps the rig's force a sum of parts.
+    """
+
+    name = "mount_hysteresis"
+    yield_force_n: float = 150.0
+    yield_travel_m: float = 0.004
+    exponent: float = 2.0
+    substeps: int = 4
+
+    def _advance(self, z, dx):
+        h = dx / self.substeps
+        for _ in range(self.substeps):
+            r = np.abs(z / self.yield_travel_m) ** self.exponent
+            z = z + h * (1.0 - r * 0.5 * (1.0 + np.sign(h * z)))
+        return z
+
+    def force(self, ctx):
+        x = np.atleast_2d(ctx.x)
+        z = np.zeros(x.shape[:-1])
+        out = np.empty_like(x)
+        out[..., 0] = 0.0
+        for k in range(1, x.shape[-1]):
+            z = self._advance(z, x[..., k] - x[..., k - 1])
+            out[..., k] = z
+        return (self.yield_force_n / self.yield_travel_m * out).reshape(np.shape(ctx.x))
+
+    def force_step(self, ctx, state):
+        x = float(ctx.x[0])
+        z = 0.0 if state is None else float(self._advance(state[0], x - state[1]))
+        return np.array([self.yield_force_n / self.yield_travel_m * z]), (z, x)
+
+
+@register
+@dataclass
+class CampaignWarming(Thermal):
+    """The oil warms along the campaign's run order, and the rig logs no temperature.
+
+    The campaign runs the plan in a random order (seeded by the rig's seed, as a lab that randomises
+    its run order does; the dataset lists the tests in run order). The k-th test of N run starts at
+    t_min_c + (t_max_c - t_min_c) k / (N - 1) (25 -> 65 degC over the campaign: the damper is run
+    hot test after test), then heats within the test as `thermal`. No temperature channel is
+    recorded: the thermal candidate cannot see differences between tests, so the diagnosis must
+    find the drift over the run order. (Run in the plan's order, the warming would be a function of
+    frequency and control, which a model learns and no test can tell from physics: only a random
+    order or a repeated reference test reveals a drift.)
+    """
+
+    name = "campaign_warming"
+    records_temperature = False
+
+    def initial_temperature(self, rng, run: float = 0.0):
+        return float(self.t_min_c + (self.t_max_c - self.t_min_c) * run)
+
+    def run_order(self, n_tests, seed):
+        return np.random.default_rng([int(seed), 7919]).permutation(n_tests)

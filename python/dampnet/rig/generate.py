@@ -62,8 +62,10 @@ def generate(plan="thesis", effects=(), seed: int = 0, progress: bool = False, *
     if progress:
         from tqdm import tqdm
         bar = tqdm(total=len(specs), desc=f"rig {plan.name}", unit="test")
-    thermal = [e for e in effs if e.records_temperature]
+    thermal = [e for e in effs if e.varies_temperature]  # the tests carry their starting oil temperature
     tests: list[DynoTest | None] = [None] * len(specs)
+    order = next((o for o in (e.run_order(len(specs), seed) for e in effs) if o is not None), None)
+    place = np.argsort(order) if order is not None else np.arange(len(specs))  # spec -> run position
     groups: dict[int, list[int]] = {}
     for i, s in enumerate(specs):
         groups.setdefault(s["n"], []).append(i)
@@ -85,8 +87,9 @@ def generate(plan="thesis", effects=(), seed: int = 0, progress: bool = False, *
             for e in effs:
                 u = e.control(t, u, levels, rng)
             t0 = None
+            run = place[i] / max(len(specs) - 1, 1)  # the test's place in the run order, 0..1
             for e in effs:
-                t0 = e.initial_temperature(rng) if t0 is None else t0
+                t0 = e.initial_temperature(rng, run) if t0 is None else t0
             X.append(x), V.append(v), A.append(a), U.append(u), T0.append(t0)
         recorded = play(t, np.array(X), np.array(V), np.array(A), np.array(U), T0, effs, p, noise, rngs,
                         truth_channels)
@@ -109,6 +112,8 @@ def generate(plan="thesis", effects=(), seed: int = 0, progress: bool = False, *
         "truth_channels": bool(truth_channels),
         "generation_s": round(_time.perf_counter() - t_start, 3),
     }
+    if order is not None:  # the dataset lists the tests in the order they were run
+        tests = [tests[j] for j in order]
     return Dataset(tests=list(tests), source=f"dampnet rig: plan {plan.name}, effects "
                    f"{','.join(names) or 'none'}, seed {seed}", meta=meta)
 
@@ -121,7 +126,8 @@ def play(t: np.ndarray, X: np.ndarray, V: np.ndarray, A: np.ndarray, U: np.ndarr
     and a replayed drive (dampnet.rig.replay) share."""
     dt = float(t[1] - t[0])
     n = t.shape[0]
-    thermal = [e for e in effs if e.records_temperature]
+    thermal = [e for e in effs if e.varies_temperature]
+    logged = any(e.records_temperature for e in effs)  # a campaign's warming may go unlogged
     temp = None
     if thermal:
         t0 = np.array(T0, dtype=np.float64)
@@ -136,7 +142,7 @@ def play(t: np.ndarray, X: np.ndarray, V: np.ndarray, A: np.ndarray, U: np.ndarr
               "velocity": measure("velocity", V[row], noise, rng),
               "force": measure("force", F[row], noise, rng),
               "voltage": measure("voltage", U[row], noise, rng)}
-        if temp is not None:
+        if temp is not None and logged:
             ch["temperature"] = measure("temperature", temp[row], noise, rng)
         if truth_channels:
             ch["true_force"] = F[row].copy()
@@ -145,20 +151,27 @@ def play(t: np.ndarray, X: np.ndarray, V: np.ndarray, A: np.ndarray, U: np.ndarr
     return out
 
 
+def noise_floor_rmse_n(ds: Dataset) -> float:
+    """The RMS [N] of what the rig's force channel adds to the true force: load-cell noise plus
+    the channel's rounding, sqrt(sigma_F^2 + res^2 / 12). ValueError without the rig's meta."""
+    try:
+        sigma = float(ds.meta["noise"]["force_n"])
+        res = float(ds.meta.get("resolution", {}).get("force", 0.0))
+    except (KeyError, TypeError, ValueError):
+        raise ValueError(f"{ds.source}: no rig noise record in meta['noise']: expected a dataset "
+                         "made by dampnet.rig.generate") from None
+    return float(np.sqrt(sigma ** 2 + res ** 2 / 12.0))
+
+
 def noise_floor_nrmse(ds: Dataset) -> float:
     """The NRMSE a perfect model would score on `ds` because of load-cell noise alone.
 
     NRMSE = RMS(error) / std(measured force) over all samples of all tests (the
     definition dampnet reports); here error = load-cell noise plus the force
-    channel's rounding: sqrt(sigma_F^2 + res^2 / 12). Needs the rig's meta.
+    channel's rounding (noise_floor_rmse_n). Needs the rig's meta.
     Noise on the inputs (velocity, displacement) adds to what a model really
     scores; this is the floor set by the force measurement itself.
     """
-    try:
-        sigma = float(ds.meta["noise"]["force_n"])
-        res = float(ds.meta.get("resolution", {}).get("force", 0.0))
-    except (KeyError, TypeError):
-        raise ValueError(f"{ds.source}: no rig noise record in meta['noise']: expected a dataset "
-                         "made by dampnet.rig.generate") from None
+    rms = noise_floor_rmse_n(ds)
     f = ds.concat("force")
-    return float(np.sqrt(sigma ** 2 + res ** 2 / 12.0) / np.std(f))
+    return float(rms / np.std(f))

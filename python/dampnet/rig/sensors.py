@@ -58,3 +58,37 @@ def measure(channel: str, x: np.ndarray, noise: SensorNoise, rng) -> np.ndarray:
     s = noise.sigma(channel)
     y = x + rng.normal(0.0, s, size=np.shape(x)) if s > 0 else np.array(x, dtype=np.float64)
     return quantise(y, RESOLUTION.get(channel, 1e-9))
+
+
+# -- recording artefacts (dampnet.artefacts): faults of the acquisition, put into rig data ---------
+
+def record_artefact(ds, artefact_id: str, channel: str = "force", tests=None, *, delay_s: float = 0.010,
+                    factor: float = -1.0, offset: float = 0.0):
+    """A copy of the rig's dataset `ds` recorded with an artefact of dampnet.artefacts:
+
+      time_offset    `channel` recorded `delay_s` [s] late (to the nearest sample)
+      sign_slip      `channel` times -1 in `tests` (ids; None: every test)
+      unit_slip      `channel` times `factor` in `tests` (e.g. 1000: displacement in mm)
+      sensor_offset  `channel` plus `offset` (its SI unit) in `tests`
+
+    run_order_drift has its physics in the rig (the campaign_warming effect). The artefact and its
+    parameters are recorded in meta["artefacts"]; ValueError for an artefact the rig cannot record.
+    """
+    from dampnet.artefacts import artefact, flip_sign, remove_offset, rescale, shift_channel
+
+    artefact(artefact_id)  # ValueError for an unknown id
+    if artefact_id == "time_offset":
+        out = shift_channel(ds, channel, float(delay_s), f"rig: {channel} recorded {delay_s:g} s late")
+        params = {"channel": channel, "delay_s": float(delay_s)}
+    elif artefact_id == "sign_slip":
+        out, params = flip_sign(ds, channel, tests), {"channel": channel, "tests": tests}
+    elif artefact_id == "unit_slip":
+        out, params = rescale(ds, channel, factor, tests), {"channel": channel, "factor": factor, "tests": tests}
+    elif artefact_id == "sensor_offset":
+        out, params = remove_offset(ds, channel, -offset, tests), {"channel": channel, "offset": offset, "tests": tests}
+    else:
+        raise ValueError(f"artefact {artefact_id!r} has no recorder in the rig (run_order_drift: switch on the "
+                         "campaign_warming effect)")
+    out.meta["artefacts"] = {**out.meta.get("artefacts", {}), artefact_id: params}
+    out.source = f"{ds.source}, artefact {artefact_id}"
+    return out

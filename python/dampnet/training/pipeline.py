@@ -55,7 +55,7 @@ from dampnet.evaluation.metrics import evaluate_model
 from dampnet.features import default_features, feature_matrix
 from dampnet.model import MlpModel, ModelError
 from dampnet.predict import predict_force
-from dampnet.rig import noise_floor_nrmse
+from dampnet.rig import noise_floor_nrmse, noise_floor_rmse_n
 from dampnet.terms import fit_terms, terms_force
 from dampnet.training.fit import fit
 from dampnet.training.metrics import nrmse
@@ -457,8 +457,6 @@ def noise_floors(ds: Dataset) -> dict[str, float] | None:
     """The rig's noise floor on `ds` in both definitions (None for data not from the rig)."""
     if ds.meta.get("generator") != RIG_GENERATOR:
         return None
-    sigma = float(ds.meta["noise"]["force_n"])
-    res = float(ds.meta.get("resolution", {}).get("force", 0.0))
     f = ds.concat("force")
-    rms = float(np.sqrt(sigma ** 2 + res ** 2 / 12.0))
+    rms = noise_floor_rmse_n(ds)
     return {"nrmse_range": rms / float(np.ptp(f)), "nrmse_std": noise_floor_nrmse(ds), "rmse_n": rms}

@@ -1,0 +1,295 @@
+"""Tests for the measurement artefacts of dampnet.artefacts: each says whether the artefact is there,
+how big it is, and the data fix it implies (a data fix, not a model term).
+
+  time_offset      the force's time shift against the motion: the shift s at which a static
+                   function of the motion now (hydraulics on a lagged velocity, the seal friction's
+                   sign on the velocity itself, position, control) fits the force at t + s best
+                   (a cross-correlation generalised to a nonlinear damper). The seal friction
+                   flips with the velocity itself in every damper, with no hydraulic lag; so a
+                   shift that moves that flip is a recording delay, not compressibility, which
+                   the lagged velocity absorbs. Found when the shift is at least MIN_OFFSET_S and
+                   SHIFT_Z jackknife spreads (over groups of tests) from zero, and realigning cuts the fit's RMS
+                   by MIN_FALL.
+  run_order_drift  a regression of the residual on the run order (alone, times the predicted
+                   force, times velocity), scored like a candidate (held out, against the null)
+                   beyond the motion's history (the leftover test's other columns join the
+                   baseline: a hysteresis larger at slow tests is not a drift); found when significant.
+  sign_slip, unit_slip, sensor_offset  per-test consistency of the channels (channel_checks):
+                   velocity against the displacement's derivative, the force's work and gain, and
+                   each test's mean displacement and its force at the velocity reversals
+                   against the other tests'. With a temperature channel the thermal candidate
+                   tests it instead.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dampnet.artefacts import artefact
+from dampnet.diagnosis import score as S
+from dampnet.diagnosis.basis import SIGN_WIDTHS
+from dampnet.diagnosis.catalogue import _x_frame, gas_columns_of
+from dampnet.diagnosis.leftover import history_columns, run_order
+from dampnet.features import first_order_lag
+
+MAX_OFFSET_S = 0.030
+HYDRAULIC_LAGS_S = (0.0, 0.001, 0.002, 0.003, 0.004, 0.006, 0.008, 0.012)
+MIN_OFFSET_S = 0.001
+MIN_FALL = 0.03   # realigning must cut the static fit's RMS by this share
+ROWS_PER_TEST = 1000  # rows of each test the time offset is fitted on (the friction flip needs dense rows)
+SHIFT_Z = 4.0
+GROUPS = 5
+
+
+def _per_test_sse(ctx, k_max: int, max_rows: int = ROWS_PER_TEST) -> np.ndarray:
+    """SSE [test, hydraulic lag, shift] of a per-test least-squares fit of the force at t + k samples
+    (k = -k_max..k_max) on the motion at t: hydraulics as a piecewise-linear function of the lagged
+    velocity (each test has its own control level, so a fit per test needs no control terms), the seal
+    friction's sign of the velocity itself, and position."""
+    vmax = max(float(np.max(np.abs(np.concatenate(ctx.at_rows("velocity"))))), 1e-12)
+    knots = np.linspace(-0.9, 0.9, 19)
+    xs = ctx.at_rows("displacement")
+    x_frame = _x_frame(ctx) if all(x is not None for x in xs) else None
+    out = np.zeros((ctx.n_tests, len(HYDRAULIC_LAGS_S), 2 * k_max + 1))
+    for i, td in enumerate(ctx.tests):
+        t = td.test
+        n = len(t)
+        rows = np.arange(k_max, n - k_max, max(1, (n - 2 * k_max) // max_rows))
+        v = t.channels["velocity"]
+        Y = t.channels["force"][rows[:, None] + np.arange(-k_max, k_max + 1)[None, :]]
+        fixed = [np.ones(len(rows))] + [np.tanh(v[rows] / vmax / e) for e in SIGN_WIDTHS]
+        x = t.channels.get("displacement")
+        P = None
+        if x is not None:  # position: the gas spring's polynomials and end-of-travel hinges (bump stops)
+            P = gas_columns_of(x[rows], *x_frame)
+            fixed += list(P.T)
+        for j, tau in enumerate(HYDRAULIC_LAGS_S):
+            vh = (first_order_lag(v, t.dt, tau) if tau > 0 else v)[rows] / vmax
+            cols = fixed + [vh] + [np.maximum(vh - k, 0.0) for k in knots]
+            if P is not None:  # a stop stiffer while compressing than releasing
+                cols += list((P[:, 5:] * vh[:, None]).T)
+            X = np.stack(cols, axis=1)
+            X = X / np.maximum(np.sqrt(np.mean(X * X, axis=0)), 1e-12)
+            G = X.T @ X
+            G += 1e-9 * np.trace(G) / G.shape[0] * np.eye(G.shape[0])
+            H = X.T @ Y
+            B = np.linalg.solve(G, H)
+            out[i, j] = np.sum(Y * Y, axis=0) - np.sum(B * H, axis=0)
+    return out
+
+
+def _best(sse_by_tau: np.ndarray, k_max: int) -> tuple[float, int]:
+    """(shift [samples, parabola-refined], index of the best lag) of the smallest SSE."""
+    j, k = np.unravel_index(int(np.argmin(sse_by_tau)), sse_by_tau.shape)
+    row = sse_by_tau[j]
+    shift = float(k)
+    if 0 < k < len(row) - 1:
+        a, b, c = row[k - 1], row[k], row[k + 1]
+        den = a - 2 * b + c
+        if den > 0:
+            shift = k + 0.5 * (a - c) / den
+    return shift - k_max, int(j)
+
+
+def time_offset(ctx) -> dict:
+    """The force's time offset against the motion (see the module doc), with its jackknife spread."""
+    dt = min(td.test.dt for td in ctx.tests)
+    k_max = max(1, int(round(MAX_OFFSET_S / dt)))
+    if any(len(td.test) < 4 * k_max for td in ctx.tests):
+        return {"artefact": "time_offset", "testable": False, "detected": False,
+                "note": f"tests shorter than {4 * k_max} samples"}
+    per_test = _per_test_sse(ctx, k_max)
+    n = ctx.n_tests
+    sse = per_test.sum(0)                                    # [lag, shift]
+    shift, j = _best(sse, k_max)
+    g = min(GROUPS, n)
+    loo = np.asarray([_best(per_test[[i for i in range(n) if i % g != k]].sum(0), k_max)[0] for k in range(g)])
+    spread = float(np.sqrt((g - 1) / g * np.sum((loo - loo.mean()) ** 2))) if g >= 2 else 0.0
+    offset_s = shift * dt
+    spread_s = max(spread * dt, 0.25 * dt)  # below a quarter sample: the rounding of the shift
+    n_rows = sum(int(np.ceil((len(td.test) - 2 * k_max) / max(1, (len(td.test) - 2 * k_max) // ROWS_PER_TEST)))
+                 for td in ctx.tests)
+    rms_at_zero = float(np.sqrt(max(np.min(sse[:, k_max]), 0.0) / n_rows))
+    rms_aligned = float(np.sqrt(max(np.min(sse), 0.0) / n_rows))
+    fall = 1.0 - rms_aligned / rms_at_zero if rms_at_zero > 0 else 0.0
+    detected = bool(abs(offset_s) >= MIN_OFFSET_S and abs(offset_s) >= SHIFT_Z * spread_s and fall >= MIN_FALL)
+    late = "late" if offset_s > 0 else "early"
+    sentence = (f"the force channel is recorded {1000 * abs(offset_s):.1f} +- {1000 * spread_s:.1f} ms {late} "
+                f"against the motion (the seal friction's flip at velocity reversals moves with it, which no "
+                f"hydraulic lag does); realigned, a static fit of the force per test falls from {rms_at_zero:.1f} to "
+                f"{rms_aligned:.1f} N RMS ({100 * fall:.0f} %). Fix: {artefact('time_offset').fix} "
+                f"(--align-force-s {offset_s:.4g})")
+    return {"artefact": "time_offset", "testable": True, "detected": detected, "offset_s": offset_s,
+            "uncertainty_s": spread_s, "hydraulic_lag_s": HYDRAULIC_LAGS_S[j],
+            "static_fit_rms_n": {"as_recorded": rms_at_zero, "realigned": rms_aligned, "fall": fall},
+            "fix": {"option": "--align-force-s", "value": offset_s}, "sentence": sentence}
+
+
+class _RunOrder:
+    id = "run_order_drift"
+    theta_name = None
+
+    def grid(self, ctx):
+        return [None]
+
+    def testable(self, ctx):
+        return (ctx.n_tests >= 3, "" if ctx.n_tests >= 3 else "fewer than 3 tests")
+
+    def columns(self, ctx, theta):
+        order = run_order(ctx)
+        fs = max(float(np.std(np.concatenate(ctx.pred_rows()))), 1e-9)
+        vmax = max(float(np.max(np.abs(np.concatenate(ctx.at_rows("velocity"))))), 1e-12)
+        out = []
+        for i, td in enumerate(ctx.tests):
+            r = np.full(len(td.rows), order[i])
+            out.append(np.stack([r, r * td.pred[td.rows] / fs, r * td.test.channels["velocity"][td.rows] / vmax], axis=1))
+        ctx.notes["run_order_scale"] = fs
+        return out
+
+
+class _History:
+    """The leftover test's columns without the run order: the motion's history joins the baseline,
+    so a drift is credited to the run order only beyond what the history explains."""
+
+    def columns(self, ctx, theta):
+        drop = set(ctx.notes["leftover_run_order_columns"])
+        return [c[:, [j for j in range(c.shape[1]) if j not in drop]] for c in history_columns(ctx)]
+
+
+def run_order_drift(ctx, folds, n_surrogates: int, seed: int) -> dict:
+    """A drift of the force along the run order that no channel explains (see the module doc)."""
+    has_t = all(t is not None for t in ctx.at_rows("temperature"))
+    saved = list(ctx.notes.get("included", []))
+    ctx.notes["included"] = saved + [(_History(), None)]
+    ctx.notes.pop("baseline", None)
+    ctx.notes.pop("baseline_products", None)
+    try:
+        resid = S.reference_residual(ctx)
+        Y = [np.column_stack([r, s]) for r, s in zip(resid, S.surrogates(resid, n_surrogates, seed))]
+        res = S.score_candidate(ctx, _RunOrder(), Y, folds, S.baseline_cv(ctx, Y, folds))
+    finally:
+        ctx.notes["included"] = saved
+        ctx.notes.pop("baseline", None)
+        ctx.notes.pop("baseline_products", None)
+    if not res["testable"]:
+        return {"artefact": "run_order_drift", "testable": False, "detected": False, "note": res["note"]}
+    fs = ctx.notes["run_order_scale"]
+    gain_pct = float(200.0 * res["beta"][1] / fs)   # the force's change from the first test to the last
+    detected = bool(res["significant"]) and not has_t
+    sentence = (f"the force drifts along the run order: {gain_pct:+.1f} % from the first test to the last "
+                f"(held out {100 * res['score']:.1f} % of the residual's variance beyond the motion's history, "
+                f"z {res['z']:.1f}); no channel the model has explains it (thermal, but no temperature channel: "
+                f"add one). Fix: {artefact('run_order_drift').fix}")
+    return {"artefact": "run_order_drift", "testable": True, "detected": detected,
+            "significant": bool(res["significant"]), "score": float(res["score"]), "z": float(res["z"]),
+            "force_change_percent": gain_pct, "temperature_channel": has_t, "sentence": sentence}
+
+
+#: unit conversions a slipped channel is likely in (factor to SI): mm, in, lbf, kgf and their inverses
+UNIT_FACTORS = (1e-3, 0.0254, 4.4482216, 9.80665, 1e3, 1 / 0.0254, 1 / 4.4482216, 1 / 9.80665)
+
+
+def _unit(factor: float) -> float:
+    """The known unit conversion within 15 % of an estimated factor, else the estimate."""
+    best = min(UNIT_FACTORS, key=lambda u: abs(np.log(abs(factor) / u)) if factor else np.inf)
+    return float(best) if factor and abs(np.log(abs(factor) / best)) < np.log(1.15) else float(factor)
+
+
+def _robust_outliers(values: np.ndarray, floor: float, z: float = 6.0) -> np.ndarray:
+    """Indices whose value is more than z robust spreads (1.4826 MAD, at least `floor`) from the median."""
+    med = float(np.median(values))
+    spread = max(1.4826 * float(np.median(np.abs(values - med))), floor)
+    return np.flatnonzero(np.abs(values - med) > z * spread)
+
+
+def _result(aid: str, hits: list[dict], what: str) -> dict:
+    ids = [h["test_id"] for h in hits]
+    sentence = (f"{what} in {len(ids)} test(s): " + "; ".join(h["words"] for h in hits[:5])
+                + ("; ..." if len(hits) > 5 else "") + f". Fix: {artefact(aid).fix}") if hits else ""
+    return {"artefact": aid, "testable": True, "detected": bool(hits), "tests": hits, "sentence": sentence}
+
+
+def channel_checks(ctx, noise_rms_n: float) -> list[dict]:
+    """sign_slip, unit_slip and sensor_offset, per test, from the channels' consistency:
+    the velocity against the displacement's derivative (slope 1: -1 is a sign slip, 1000 a unit slip,
+    and the force's work decides which channel slipped: a damper only dissipates, so F v > 0 on
+    average), the force's gain against the model's prediction (a test in lbf: 1 / 4.448) and a
+    test's mean displacement, or its force at the velocity reversals (the static force: gas and
+    friction both ways), far from the other tests' of the same stroke (a moved sensor zero)."""
+    signs, units, offsets = [], [], []
+    has_x = all("displacement" in td.test.channels for td in ctx.tests)
+    gains, means_x, means_r = [], [], []
+    for td in ctx.tests:
+        t = td.test
+        f, v = t.channels["force"], t.channels["velocity"]
+        wv = float(np.mean(f * v))
+        pred = td.pred
+        gains.append(float(np.dot(f - f.mean(), pred - pred.mean()) / max(np.dot(pred - pred.mean(), pred - pred.mean()), 1e-30)))
+        # the force at the velocity reversals (both directions): the damper's static part (gas force
+        # at the ends of the stroke, friction cancelling), the same in every test of the same stroke
+        rest = np.abs(v) < 0.03 * max(float(np.max(np.abs(v))), 1e-12)
+        means_r.append(float(np.mean(f[rest])) if np.any(rest) else float(np.mean(f)))
+        if not has_x:
+            continue
+        x = t.channels["displacement"]
+        means_x.append(float(np.mean(x)))
+        # the displacement the velocity integrates to (detrended: robust to noise, unlike dx/dt)
+        xv = np.concatenate(([0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t.time))))
+        tt = t.time - t.time.mean()
+        detrend = lambda y: y - y.mean() - tt * np.dot(tt, y) / max(np.dot(tt, tt), 1e-30)  # noqa: E731
+        xv, xc = detrend(xv), detrend(x)
+        k = float(np.dot(xv, xc) / max(np.dot(xc, xc), 1e-30))  # 1: consistent
+        xd = np.gradient(x, t.dt)
+        wx = float(np.mean(f * xd))
+        if k < -0.5:
+            ch = "velocity" if wv < 0 < wx else "displacement" if wx < 0 < wv else "velocity or displacement"
+            signs.append({"test_id": t.test_id, "channel": ch, "words": f"{t.test_id}: {ch} (the velocity integrates to {k:.2f} x the displacement)"})
+        elif k > 0 and abs(np.log10(k)) > 1.5:
+            ch = "velocity" if k > 1 else "displacement"   # which one reads 10^n too large
+            factor = _unit(1.0 / k if ch == "velocity" else k)
+            units.append({"test_id": t.test_id, "channel": ch, "factor": factor,
+                          "words": f"{t.test_id}: {ch} (the velocity integrates to {k:.4g} x the displacement; "
+                                   f"fix factor {factor:.4g})"})
+        if wv < 0 and wx < 0:
+            signs.append({"test_id": t.test_id, "channel": "force",
+                          "words": f"{t.test_id}: force (the damper would generate {-wv:.1f} W: a damper dissipates)"})
+    g = np.asarray(gains)
+    med = float(np.median(g))
+    for i in np.flatnonzero(np.abs(np.log(np.maximum(np.abs(g), 1e-12) / max(abs(med), 1e-12))) > np.log(2.0)):
+        tid = ctx.tests[i].test.test_id
+        if g[i] < 0 or any(h["test_id"] == tid and h["channel"] == "force" for h in signs):
+            continue  # a sign slip, not a unit
+        factor = _unit(med / g[i])
+        units.append({"test_id": tid, "channel": "force", "factor": factor,
+                      "words": f"{tid}: force (gain {g[i] / med:.3g} of the other tests'; fix factor {factor:.4g})"})
+    slipped = {h["test_id"] for h in signs + units}
+    if has_x:
+        amp = np.median([np.std(td.test.channels["displacement"]) for td in ctx.tests])
+        for i in _robust_outliers(np.asarray(means_x), floor=0.02 * amp):
+            tid = ctx.tests[i].test.test_id
+            if tid not in slipped:
+                d = means_x[i] - float(np.median(means_x))
+                offsets.append({"test_id": tid, "channel": "displacement", "offset": d,
+                                "words": f"{tid}: displacement zero {1000 * d:+.2f} mm from the other tests'"})
+    strokes: dict = {}
+    for i, td in enumerate(ctx.tests):
+        strokes.setdefault(td.test.amplitude_m, []).append(i)
+    for group in strokes.values():
+        if len(group) < 5:
+            continue
+        rest = np.asarray([means_r[i] for i in group])
+        for j in _robust_outliers(rest, floor=max(noise_rms_n, 1e-9)):
+            tid = ctx.tests[group[j]].test.test_id
+            if tid not in slipped:
+                d = float(rest[j] - np.median(rest))
+                offsets.append({"test_id": tid, "channel": "force", "offset": d,
+                                "words": f"{tid}: force zero {d:+.1f} N from the other tests' (force at the "
+                                         "velocity reversals)"})
+    return [_result("sign_slip", signs, "a channel's sign slipped"),
+            _result("unit_slip", units, "a channel is in another unit"),
+            _result("sensor_offset", offsets, "a sensor's zero moved")]
+
+
+def find_artefacts(ctx, folds, n_surrogates: int, seed: int, noise_rms_n: float) -> list[dict]:
+    """Every artefact test's result (JSON-ready), in the catalogue's order."""
+    return [time_offset(ctx), run_order_drift(ctx, folds, n_surrogates, seed), *channel_checks(ctx, noise_rms_n)]

@@ -1,0 +1,213 @@
+"""Issue 35: the diagnosis is honest about what its catalogue does not know.
+
+Hidden in rig data, each must get the right one of the verdict's kinds (never a confident wrong
+physical name): a Bouc-Wen top-mount hysteresis -> "structure left, not a known effect"; a force
+channel recorded 10 ms late -> the time_offset artefact, its delay within 20 %, the error falling
+once realigned; oil warming over a randomly ordered campaign without a temperature channel -> the
+run_order_drift artefact. (The catalogue effects and the `none` case are asserted in
+test_diagnose_hidden.py, whose runs already pay for a diagnosis.) Same plan and training as there.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dampnet.artefacts import ARTEFACTS, align_force, flip_sign, remove_offset, rescale
+from dampnet.data import DataError
+from dampnet.diagnosis.artefacts import time_offset
+from dampnet.diagnosis.context import build_context
+from dampnet.diagnosis.run import diagnose
+from dampnet.evaluation.metrics import evaluate_predictions
+from dampnet.predict import predict_force
+from dampnet.rig import EFFECTS, generate, truth_force
+from dampnet.rig.sensors import record_artefact
+from dampnet.training.pipeline import train_dataset
+
+PLAN = {"name": "diag", "frequencies_hz": [0.25, 0.5, 1.0, 2.0, 3.0], "amplitudes_m": [0.0254],
+        "voltages_v": [0.0, 0.5, 1.0, 1.5, 2.25, 3.0, 4.0, 5.0], "sample_rate_hz": 1000.0,
+        "samples": 2000, "min_cycles": 2}
+TRAIN = {"decimate": 4, "max_epochs": 120}
+N_SUR = 29
+DELAY_S = 0.010
+
+
+def _holdout_nrmse(m, split):
+    tests = split.holdout.tests
+    return evaluate_predictions(tests, [predict_force(m, t) for t in tests])["overall"]["nrmse"]
+
+
+# -- the rig's new hidden effects and artefacts -----------------------------------------------
+
+def test_mount_hysteresis_is_a_rate_independent_bouc_wen_loop():
+    """The loop's force after a reversal: dz/dx = 1 while z has the old sign, then (z / x_y)^2
+    saturation; so at the top of a long stroke z -> x_y (F -> F_y), and the loop is the same at
+    two frequencies (rate independence). Checked against scipy's ODE solver on dz/dx."""
+    from scipy.integrate import solve_ivp
+
+    eff = EFFECTS["mount_hysteresis"]
+    fs, amp = 5000.0, 0.0254
+    for f in (0.5, 3.0):
+        t = np.arange(int(fs / f) + 1) / fs          # one cycle, from mid-stroke extending
+        x = amp * np.sin(2 * np.pi * f * t)
+        v = amp * 2 * np.pi * f * np.cos(2 * np.pi * f * t)
+        u = np.zeros_like(t)
+        part = truth_force(x, v, u, dt=1 / fs, effects=["mount_hysteresis"]) - truth_force(x, v, u, dt=1 / fs)
+        # independent: integrate dz/dx over the first quarter (x: 0 -> amp) with z(0) = 0
+        xy = eff.yield_travel_m
+        sol = solve_ivp(lambda s, z: [1 - (abs(z[0]) / xy) ** eff.exponent * (z[0] > 0)], (0, amp), [0.0],
+                        rtol=1e-10, atol=1e-12, dense_output=True)
+        q = t <= 0.25 / f
+        expect = eff.yield_force_n / xy * sol.sol(x[q])[0]
+        np.testing.assert_allclose(part[q], expect, atol=0.01 * eff.yield_force_n)
+        assert part[q][-1] == pytest.approx(eff.yield_force_n, rel=0.01)
+        # on the way back the force falls through zero after the rod has moved one yield travel
+        back = (t > 0.25 / f) & (t < 0.5 / f)
+        cross = x[back][np.argmin(np.abs(part[back]))]
+        assert cross == pytest.approx(amp - xy, abs=0.2e-3)
+
+
+def test_campaign_warming_runs_a_random_order_and_logs_no_temperature():
+    ds = generate("quick", effects=["campaign_warming"], seed=2)
+    assert "temperature" not in ds.tests[0].channels
+    ids = [t.test_id for t in ds.tests]
+    assert sorted(ids) == sorted(generate("quick", seed=2).test_ids) and ids != sorted(ids)
+    starts = [t.meta["initial_temperature_c"] for t in ds.tests]       # in run order: 25 -> 65 degC
+    np.testing.assert_allclose(starts, np.linspace(25.0, 65.0, len(ds.tests)), atol=1e-9)
+
+
+def test_record_artefact_delays_the_force_by_whole_samples():
+    ds = generate("quick", seed=0)
+    late = record_artefact(ds, "time_offset", delay_s=0.004)
+    t0, t1 = ds.tests[0], late.tests[0]
+    k = int(round(0.004 / t0.dt))
+    assert len(t1) == len(t0) - k and late.meta["artefacts"]["time_offset"]["delay_s"] == 0.004
+    np.testing.assert_array_equal(t1.channels["force"], t0.channels["force"][:-k])
+    np.testing.assert_array_equal(t1.channels["velocity"], t0.channels["velocity"][k:])
+    # the fix undoes it exactly (on the samples both keep)
+    back = align_force(late, 0.004)
+    np.testing.assert_array_equal(back.tests[0].channels["force"], t0.channels["force"][k:-k])
+    np.testing.assert_array_equal(back.tests[0].channels["velocity"], t0.channels["velocity"][k:-k])
+
+
+def test_data_fixes_return_new_data_and_name_what_is_wrong():
+    ds = generate("quick", seed=0)
+    f0 = ds.tests[1].channels["force"].copy()
+    one = [ds.tests[1].test_id]
+    np.testing.assert_array_equal(flip_sign(ds, "force", one).tests[1].channels["force"], -f0)
+    np.testing.assert_allclose(rescale(ds, "force", 4.448, one).tests[1].channels["force"], 4.448 * f0)
+    np.testing.assert_allclose(remove_offset(ds, "force", 10.0, one).tests[1].channels["force"], f0 - 10.0)
+    np.testing.assert_array_equal(ds.tests[1].channels["force"], f0)           # the input is untouched
+    with pytest.raises(DataError, match="no test 'nope'"):
+        flip_sign(ds, "force", ["nope"])
+    with pytest.raises(DataError, match="no 'current' channel"):
+        rescale(ds, "current", 2.0)
+    with pytest.raises(ValueError, match="finite, non-zero factor"):
+        rescale(ds, "force", 0.0)
+    with pytest.raises(DataError, match="much shorter than the test"):
+        align_force(ds, 1e3)
+    with pytest.raises(ValueError, match="finite time"):
+        align_force(ds, float("nan"))
+    with pytest.raises(ValueError, match="unknown artefact"):
+        record_artefact(ds, "gremlins")
+    assert {"time_offset", "run_order_drift", "sign_slip", "unit_slip", "sensor_offset"} <= set(ARTEFACTS)
+
+
+@pytest.mark.parametrize("delay_s", [0.0, 0.003, DELAY_S])
+def test_time_offset_estimate(delay_s):
+    """The offset is estimated within 20 % (and 0.5 ms) and found only when there is one; the model
+    hardly matters (the test fits the force on the motion), so a 5-epoch model will do."""
+    ds = generate(PLAN, seed=1)
+    if delay_s:
+        ds = record_artefact(ds, "time_offset", delay_s=delay_s)
+    m, _, _ = train_dataset(ds, decimate=8, max_epochs=5)
+    r = time_offset(build_context(m, ds))
+    assert r["detected"] == (delay_s > 0), r
+    assert abs(r["offset_s"] - delay_s) <= max(0.2 * delay_s, 0.0005), r
+    assert r["hydraulic_lag_s"] == pytest.approx(0.002)     # the rig's compressibility, not the delay
+
+
+# -- the diagnosis on them ----------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def delayed():
+    ds = record_artefact(generate(PLAN, seed=1), "time_offset", delay_s=DELAY_S)
+    m, _, split = train_dataset(ds, **TRAIN)
+    return ds, m, split, diagnose(m, ds, n_surrogates=N_SUR)
+
+
+def test_a_late_force_channel_is_the_time_offset_artefact_not_compressibility(delayed):
+    ds, m, split, d = delayed
+    f = d["finding"]
+    assert f["kind"] == "artefact" and f["artefacts"] == ["time_offset"], f
+    assert "compressibility" not in f["effects"] and d["verdict"] is None, f
+    a = next(a for a in d["artefacts"] if a["artefact"] == "time_offset")
+    assert a["offset_s"] == pytest.approx(DELAY_S, rel=0.2)
+    assert a["static_fit_rms_n"]["realigned"] < a["static_fit_rms_n"]["as_recorded"]
+    # the fix: realigned by the estimate, a model trained on the same recipe errs less held out
+    fixed = align_force(ds, a["fix"]["value"])
+    m2, _, split2 = train_dataset(fixed, **TRAIN)
+    before, after = _holdout_nrmse(m, split), _holdout_nrmse(m2, split2)
+    print(f"delay {1000 * DELAY_S:g} ms, estimated {1000 * a['offset_s']:.2f} ms; held-out NRMSE "
+          f"{before:.5f} -> {after:.5f} realigned")
+    assert after < 0.9 * before, (before, after)
+
+
+def test_mount_hysteresis_is_structure_left_not_a_known_effect():
+    ds = generate(PLAN, effects=["mount_hysteresis"], seed=1)
+    m, _, _ = train_dataset(ds, **TRAIN)
+    d = diagnose(m, ds, n_surrogates=N_SUR)
+    f = d["finding"]
+    assert f["kind"] == "unknown_structure" and f["effects"] == [] and d["verdict"] is None, f
+    left = d["leftover"]["before_effects"]
+    assert left["significant"] and left["structure_rms_n"] > 5 * left["noise_floor_rms_n"], left
+    assert left["where"]["most_uneven"] is not None and "not a known effect" in f["sentence"]
+    assert not any(a["detected"] for a in d["artefacts"]), d["artefacts"]
+
+
+def test_campaign_warming_without_temperature_is_the_run_order_artefact():
+    ds = generate(PLAN, effects=["campaign_warming"], seed=1)
+    m, _, _ = train_dataset(ds, **TRAIN)
+    d = diagnose(m, ds, n_surrogates=N_SUR)
+    f = d["finding"]
+    assert f["kind"] == "artefact" and f["artefacts"] == ["run_order_drift"], f
+    a = next(a for a in d["artefacts"] if a["artefact"] == "run_order_drift")
+    assert a["force_change_percent"] < 0 and not a["temperature_channel"], a   # hotter oil, less force
+    assert "no temperature channel" in a["sentence"]
+
+
+@pytest.fixture(scope="module")
+def clean_model():
+    ds = generate(PLAN, seed=1)
+    m, _, _ = train_dataset(ds, decimate=8, max_epochs=20)
+    return ds, m
+
+
+SLIPS = {  # artefact, channel, test index, recorder parameters, what the check must report
+    "velocity sign": ("sign_slip", "velocity", 3, {}, None),
+    "force sign": ("sign_slip", "force", 5, {}, None),
+    "displacement in mm": ("unit_slip", "displacement", 7, {"factor": 1000.0}, ("factor", 1e-3)),
+    "force in lbf": ("unit_slip", "force", 9, {"factor": 1 / 4.4482216}, ("factor", 4.4482216)),
+    "displacement zero 3 mm off": ("sensor_offset", "displacement", 11, {"offset": 0.003}, ("offset", 0.003)),
+    "load cell zero 60 N off": ("sensor_offset", "force", 13, {"offset": 60.0}, ("offset", 60.0)),
+}
+
+
+@pytest.mark.parametrize("case", sorted(SLIPS))
+def test_channel_slips_are_found_in_their_test_and_channel(clean_model, case):
+    """Each slip put into one test is found there, in that channel, and nothing else is flagged;
+    the fix factor is the unit's (snapped to a known conversion), an offset within 5 %."""
+    from dampnet.diagnosis.artefacts import channel_checks
+
+    ds, m = clean_model
+    aid, channel, i, kw, expect = SLIPS[case]
+    tid = ds.test_ids[i]
+    slipped = record_artefact(ds, aid, channel, [tid], **kw)
+    found = [a for a in channel_checks(build_context(m, slipped), 4.45) if a["detected"]]
+    assert [a["artefact"] for a in found] == [aid], found
+    (hit,) = found[0]["tests"]
+    assert (hit["test_id"], hit["channel"]) == (tid, channel), hit
+    if expect:
+        assert hit[expect[0]] == pytest.approx(expect[1], rel=0.05), hit
+    # and the clean data raise nothing
+    assert not any(a["detected"] for a in channel_checks(build_context(m, ds), 4.45))
