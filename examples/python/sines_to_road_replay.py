@@ -20,7 +20,6 @@ the 180 thesis tests (several minutes on 2 cores). Numbers: RESULTS.md, "Sines t
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 

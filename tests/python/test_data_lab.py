@@ -314,3 +314,24 @@ def test_groups_that_do_not_overlap_in_time_are_one_line(tmp_path):
                                             (t + 5.0, {"Command": (np.ones(100), "V")})])
     with pytest.raises(DataError, match=r"\(force\): 0 samples in the span every channel covers"):
         read_lab_file(p, {"channels": {"displacement": "Disp", "force": "Force", "voltage": "Command"}})
+
+
+def test_a_file_the_library_spins_on_is_a_one_line_error_in_bounded_time(tmp_path, monkeypatch):
+    """fuzz_lab found a 2.4 kB mutated MDF4 file asammdf 8.8 reads for more than 60 s (kept in
+    fuzz/python/found_lab/, not the corpus: it would time the CI fuzz run out); the child reading
+    it is killed after READ_SECONDS_BASE + READ_SECONDS_PER_MB x size (here the base lowered to 2 s)."""
+    import time
+
+    from cbuild import ROOT
+    from dampnet.data.lab import raw
+
+    p = tmp_path / "spin.mf4"
+    p.write_bytes((ROOT / "fuzz" / "python" / "found_lab" / "mdf_asammdf_hang").read_bytes()[1:])
+    (tmp_path / MAP_FILE).write_text(MAP)
+    monkeypatch.setattr(raw, "READ_SECONDS_BASE", 2.0)
+    t0 = time.monotonic()
+    with pytest.raises(DataError) as e:
+        load_dataset(p)
+    assert time.monotonic() - t0 < 10
+    msg = _one_line(e)
+    assert str(p) in msg and "the MDF reader (asammdf) took longer than 2" in msg

@@ -181,3 +181,9 @@ def test_a_full_car_corner_is_replayed(tmp_path, capsys):
     assert main(["rig", str(tmp_path / "o"), "--replay", "rough", "--corner", "fl", "--control",
                  "groundhook_onoff", "--duration", "0.5"]) == 2
     assert "the full vehicle runs low, high, skyhook" in capsys.readouterr().err
+
+
+def test_replay_and_plan_together_are_refused(tmp_path, capsys):
+    assert main(["rig", str(tmp_path / "o"), "--replay", "rough", "--plan", "quick"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--replay and --plan" in err and not (tmp_path / "o").exists()

@@ -19,7 +19,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         description="Run a test plan on the physical truth damper and write a dataset directory "
                     "(manifest.csv + one CSV per test, SI units).")
     p.add_argument("out", nargs="?", help="output dataset directory (must not exist unless --force)")
-    p.add_argument("--plan", default="thesis",
+    p.add_argument("--plan", default=None,
                    help="'thesis' (Table 2: 12 frequencies x 15 voltages), 'quick', or a JSON plan file")
     p.add_argument("--effects", default="",
                    help=f"comma-separated effects to switch on: {', '.join(sorted(EFFECTS))} "
@@ -62,7 +62,10 @@ def run(args) -> int:
         return error("rig: the output dataset directory OUT is required (or --list-effects)")
     effects = [e.strip() for e in args.effects.split(",") if e.strip()]
     progress = not args.no_progress and sys.stderr.isatty()
-    inputs = [] if args.plan in ("thesis", "quick") else [args.plan]
+    if args.replay and args.plan is not None:
+        return error("rig: --replay and --plan: a replay runs roads, not a plan; give one of them")
+    plan = args.plan or "thesis"
+    inputs = [] if plan in ("thesis", "quick") else [plan]
     if args.replay:   # road CSV profiles are inputs too
         inputs = [r.strip() for r in args.replay.split(";") if os.path.exists(r.strip())]
     try:
@@ -72,7 +75,7 @@ def run(args) -> int:
         if args.replay:
             ds, extras = replay(args, effects)
         else:
-            ds = generate(args.plan, effects=effects, seed=args.seed, progress=not args.no_progress,
+            ds = generate(plan, effects=effects, seed=args.seed, progress=not args.no_progress,
                           truth_channels=args.truth_channels)
         t1 = time.perf_counter()
         out = write_dataset(ds, args.out, overwrite=args.force, progress=progress, inputs=inputs, extras=extras)

@@ -31,11 +31,13 @@ MAX_SECONDS = 60.0
 Reader = Callable[[str], "tuple[dict[str, np.ndarray], dict]"]
 
 
-def run_isolated(fn: Reader, path: Path, where: str, reader: str) -> tuple[dict[str, np.ndarray], dict]:
+def run_isolated(fn: Reader, path: Path, where: str, reader: str,
+                 max_seconds: float = MAX_SECONDS) -> tuple[dict[str, np.ndarray], dict]:
     """(arrays, head) of `fn(str(path))`, run in a child process; DataError '`where`: ...' otherwise.
 
     `fn` raises any exception for a bad file; its message (at most MAX_ECHO characters) follows
-    `where`. `reader` names the library in messages ("the MATLAB reader (scipy)").
+    `where`. `reader` names the library in messages ("the MATLAB reader (scipy)"); a child still
+    reading after `max_seconds` is killed.
     """
     if not hasattr(os, "fork"):
         try:
@@ -65,10 +67,10 @@ def run_isolated(fn: Reader, path: Path, where: str, reader: str) -> tuple[dict[
         finally:
             os._exit(code)
     os.close(w)
-    data, timed_out = _read_all(r, pid)
+    data, timed_out = _read_all(r, pid, max_seconds)
     status = os.waitpid(pid, 0)[1]
     if timed_out:
-        raise DataError(f"{where}: {reader} took longer than {MAX_SECONDS:g} s on it")
+        raise DataError(f"{where}: {reader} took longer than {max_seconds:g} s on it")
     if os.WIFSIGNALED(status):
         raise DataError(f"{where}: {reader} crashed on it (signal {os.WTERMSIG(status)})")
     try:
@@ -102,9 +104,9 @@ def _quiet_output() -> None:
     os.close(devnull)
 
 
-def _read_all(fd: int, pid: int) -> tuple[bytes, bool]:
-    """Everything the child writes to `fd` until it exits; (data, True) after killing it at MAX_SECONDS."""
-    chunks, deadline = [], time.monotonic() + MAX_SECONDS
+def _read_all(fd: int, pid: int, max_seconds: float) -> tuple[bytes, bool]:
+    """Everything the child writes to `fd` until it exits; (data, True) after killing it at max_seconds."""
+    chunks, deadline = [], time.monotonic() + max_seconds
     try:
         while True:
             left = deadline - time.monotonic()

@@ -23,8 +23,9 @@ def estimate_sine(x: np.ndarray, dt: float) -> tuple[float, float, float]:
     spikes); purity: the share of spectral energy within +-2 bins of the peak.
     """
     x = np.asarray(x, dtype=np.float64)
-    x0 = x - np.mean(x)
-    spec = np.abs(np.fft.rfft(x0 * np.hanning(len(x0)))) ** 2
+    with np.errstate(all="ignore"):   # absurd values (a corrupt file) give inf, refused below
+        x0 = x - np.mean(x)
+        spec = np.abs(np.fft.rfft(x0 * np.hanning(len(x0)))) ** 2
     f = np.fft.rfftfreq(len(x0), dt)
     if spec.size < 3 or not np.isfinite(spec).all() or spec[1:].sum() <= 0:
         return 0.0, 0.0, 0.0

@@ -26,8 +26,6 @@ import os
 import re
 from pathlib import Path
 
-import numpy as np
-
 from dampnet.data.excitation import estimate_sine
 from dampnet.data.readers import read_mat, read_text
 from dampnet.data.types import DataError, Dataset, DynoTest

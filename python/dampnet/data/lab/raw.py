@@ -30,6 +30,11 @@ FORMATS = {
 LAB_SUFFIXES = tuple(FORMATS)
 #: the pip extra that installs every lab-file library
 EXTRA = "lab"
+#: longest a lab file may take to read [s]: BASE + PER_MB per megabyte. asammdf spins on some
+#: malformed files (a 2.4 kB mutated MDF4 found by fuzz_lab ran past 60 s); a real file reads
+#: far faster than 2 s/MB
+READ_SECONDS_BASE = 15.0
+READ_SECONDS_PER_MB = 2.0
 
 
 def is_lab_file(path: Path) -> bool:
@@ -89,10 +94,12 @@ def read_raw(path: Path) -> RawFile:
         raise DataError(f"{path}: file not found")
     fmt, module, package, reader = FORMATS[suffix]
     require(module, package, path)
+    importlib.import_module(module)   # once, here: each child inherits it instead of importing it
     from dampnet.data.lab import mdf, rpc, tdms
 
     fn = {"tdms": tdms.read, "mdf": mdf.read, "rpc": rpc.read}[fmt]
-    arrays, head = run_isolated(fn, path, f"{path}: not a readable {fmt.upper()} file", reader)
+    limit = READ_SECONDS_BASE + READ_SECONDS_PER_MB * path.stat().st_size / 1e6
+    arrays, head = run_isolated(fn, path, f"{path}: not a readable {fmt.upper()} file", reader, limit)
     chans = []
     for c in head["channels"]:
         chans.append(RawChannel(name=str(c["name"]), group=str(c.get("group", "")), unit=str(c.get("unit", "")),
