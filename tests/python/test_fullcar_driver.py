@@ -82,9 +82,11 @@ def test_max_speed_bisection_brackets_the_pass_fail_edge():
     fails when run again on its own, 0.5 km/h apart."""
     spec = load_spec("linear:2500")
     man = recipes.build("dlc", 2e-3, {"speed_kmh": 120.0, "max_speed": True})
-    m = recipes.run(spec, man, "high")["metrics"]
-    lo, hi = m["max_speed_bracket_kmh"]
-    assert m["max_speed_kmh"] == lo and 0 < hi - lo <= recipes.MAX_SPEED_TOL_KMH
+    res = recipes.run(spec, man, "high")
+    m = res["metrics"]
+    lo, hi = m["max_speed_kmh"], m["max_speed_fails_kmh"]
+    assert 0 < hi - lo <= recipes.MAX_SPEED_TOL_KMH
+    assert [120.0, False] == res["max_speed_runs"][0][:2]   # the run itself is the first try
     for kmh, passes in ((lo, True), (hi, False)):
         again = recipes.run(spec, recipes.build("dlc", 2e-3, {"speed_kmh": kmh}), "high")["metrics"]
         assert again["passed"] is passes, kmh

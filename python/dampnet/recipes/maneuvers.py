@@ -224,7 +224,9 @@ def run(spec, man, damping: str = "low", params: dict | None = None) -> dict:
     res = run_test(spec, man, damping, params, metrics=recipe.metrics,
                    controller=vehicle_controller(spec, damping))
     if man.meta.get("settings", {}).get("max_speed"):
-        res["metrics"].update(max_speed(spec, man, damping, params, res["metrics"]))
+        found = max_speed(spec, man, damping, params, res["metrics"])
+        res["max_speed_runs"] = found.pop("max_speed_runs")
+        res["metrics"].update(found)
     return res
 
 
@@ -240,8 +242,9 @@ def max_speed(spec, man, damping: str = "low", params: dict | None = None, first
     each speed with its other settings as in `man` (its meta["settings"]). first: the metrics
     of the run at man's own speed (one run saved). Returns {"max_speed_kmh": the highest
     passing speed found (None: none in the bracket; the bracket's top when that passes),
-    "max_speed_bracket_kmh": [highest pass, lowest fail above it], "max_speed_runs": [[speed,
-    passed, clearance_min_m], ...]}. Pass/fail need not be monotonic in speed: the bisection
+    "max_speed_fails_kmh": the lowest failing speed tried above it (None: none),
+    "max_speed_runs": [[speed, passed, clearance_min_m], ...]} (`run` puts the runs beside the
+    metrics). Pass/fail need not be monotonic in speed: the bisection
     finds one edge of a passing region, the one next to the lowest failing speed it tried."""
     from dampnet.recipes.control_laws import vehicle_controller
     from dampnet.sim.full_car.runs import run as run_test
@@ -275,16 +278,16 @@ def max_speed(spec, man, damping: str = "low", params: dict | None = None, first
     if lo_ok is None:
         lo_ok = passes(lo)
     if not lo_ok:
-        return {"max_speed_kmh": None, "max_speed_bracket_kmh": [None, lo], "max_speed_runs": runs}
+        return {"max_speed_kmh": None, "max_speed_fails_kmh": lo, "max_speed_runs": runs}
     if hi == MAX_SPEED_RANGE_KMH[1] and passes(hi):
-        return {"max_speed_kmh": hi, "max_speed_bracket_kmh": [hi, None], "max_speed_runs": runs}
+        return {"max_speed_kmh": hi, "max_speed_fails_kmh": None, "max_speed_runs": runs}
     while hi - lo > MAX_SPEED_TOL_KMH:
         mid = 0.5 * (lo + hi)
         if passes(mid):
             lo = mid
         else:
             hi = mid
-    return {"max_speed_kmh": lo, "max_speed_bracket_kmh": [lo, hi], "max_speed_runs": runs}
+    return {"max_speed_kmh": lo, "max_speed_fails_kmh": hi, "max_speed_runs": runs}
 
 
 def run_study(specs, tests: dict, damping: tuple[str, ...] | None = None, **kw) -> dict:
@@ -369,11 +372,10 @@ def _max_speed_text(m: dict) -> str:
     if "max_speed_kmh" not in m:
         return ""
     if m["max_speed_kmh"] is None:
-        return f"; fails already at {m['max_speed_bracket_kmh'][1]:.0f} km/h"
-    if m["max_speed_bracket_kmh"][1] is None:
+        return f"; fails already at {m['max_speed_fails_kmh']:.0f} km/h"
+    if m["max_speed_fails_kmh"] is None:
         return f"; passes up to {m['max_speed_kmh']:.0f} km/h (the search's top) at least"
-    lo, hi = m["max_speed_bracket_kmh"]
-    return f"; highest pass found at {lo:.1f} km/h (fails at {hi:.1f} km/h)"
+    return f"; highest pass found at {m['max_speed_kmh']:.1f} km/h (fails at {m['max_speed_fails_kmh']:.1f} km/h)"
 
 
 def _peak_text(m: dict, key: str) -> str:

@@ -59,10 +59,10 @@ def plot_bsst(runs: dict, path: str | Path, title: str = "Bounce sine sweep") ->
             if f_pk is None:
                 continue
             what = ("heave" if mode == "heave" else "pitch") if key == "body" else "wheel hop"
-            ax[k].annotate(f"{what} {f_pk:.2f} Hz, {g_pk:.3g}\n(linear {m[f'{peak}_peak_hz_linear']:.2f} Hz, "
-                           f"{m[f'{peak}_peak_gain_linear']:.3g})", (f_pk, g_pk), textcoords="offset points",
-                           xytext=(15 if key == "body" else -150, -30 - 30 * n), fontsize=8, color=col,
-                           arrowprops=dict(arrowstyle="-", color=col, lw=0.6))
+            ax[k].text(0.99 if key == "body" else 0.01, 0.97 - 0.08 * n,
+                       f"{label}: {what} {f_pk:.2f} Hz, x{g_pk:.3g} (linear {m[f'{peak}_peak_hz_linear']:.2f} Hz, "
+                       f"x{m[f'{peak}_peak_gain_linear']:.3g})", transform=ax[k].transAxes, fontsize=8, color=col,
+                       ha="right" if key == "body" else "left", va="top")
         a = r["arrays"]
         body = column(a, "z" if mode == "heave" else "theta")
         ax[2].plot(a["t"], body * (1e3 if mode == "heave" else np.degrees(1.0)), lw=0.5, color=col, label=label)
