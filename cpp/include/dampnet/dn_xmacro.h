@@ -402,8 +402,8 @@
   X(double, i_xx, 900.0, "sprung-mass roll inertia about the roll axis [kg m^2], > 0")          \
   X(double, i_yy, 3900.0, "sprung-mass pitch inertia [kg m^2], > 0")                           \
   X(double, i_zz, 4800.0, "vehicle yaw inertia [kg m^2], > 0")                                 \
-  X(double, a, 1.5, "CG to front axle [m], > 0")                                               \
-  X(double, b, 1.75, "CG to rear axle [m], > 0")                                               \
+  X(double, a, 1.5, "sprung-mass CG to front axle [m], > 0")                                   \
+  X(double, b, 1.75, "sprung-mass CG to rear axle [m], > 0")                                   \
   X(double, t_f, 1.6, "front track [m], > 0")                                                  \
   X(double, t_r, 1.6, "rear track [m], > 0")                                                   \
   X(double, h_cg, 0.75, "sprung-mass CG height above the road [m], > 0")                      \

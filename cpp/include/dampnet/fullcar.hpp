@@ -21,15 +21,19 @@
 //   F_tz,i  = max(-k_t (z_us,i - z_r,i) - c_t (v_us,i - v_r,i), -N0_i)   upward on wheel i
 //   N_i     = N0_i + F_tz,i >= 0   (lift-off), N0_i = g (m_s c_i + m_us,i) the static load,
 //             c_i = b / (2 L) front, a / (2 L) rear, L = a + b
-// Lateral tyre force per wheel, from the axle's slip angle (track effect on slip ignored):
-//   alpha_f = delta - atan((vy + a r) / U),   alpha_r = -atan((vy - b r) / U)
+// Lateral tyre force per wheel, from the axle's slip angle (alpha_f, alpha_r below; track effect
+// on slip ignored):
 //   magic_formula: K(N) = pky1 Fz0 sin(2 atan(N / (pky2 Fz0))), D = mu0 (1 + pdy2 dfz) N,
 //     dfz = (N - Fz0) / Fz0, B = K / (C D), Fy = D sin(C atan(B alpha - E (B alpha -
 //     atan(B alpha)))); Fy = 0 when N = 0
 //   linear: Fy = K(N0_i) alpha (0 when N = 0)
-// Lateral and yaw at the constant forward speed U (m = m_s + sum m_us):
+// Lateral and yaw at the constant forward speed U of the whole car (m = m_s + sum m_us, its CG
+// a_h = a - x_m behind the front axle and b_h = b + x_m ahead of the rear one, x_m = 2 (m_us_f a -
+// m_us_r b) / m: the unsprung masses at the axles, as the static loads N0_i put them; vy, r, X,
+// Y, psi and a_y are that point's; i_zz about it):
+//   alpha_f = delta - atan((vy + a_h r) / U),   alpha_r = -atan((vy - b_h r) / U)
 //   Fy_f = (Fy_0 + Fy_1) cos delta,  Fy_r = Fy_2 + Fy_3
-//   m (vy' + U r) = Fy_f + Fy_r,  a_y = vy' + U r,  i_zz r' = a Fy_f - b Fy_r
+//   m (vy' + U r) = Fy_f + Fy_r,  a_y = vy' + U r,  i_zz r' = a_h Fy_f - b_h Fy_r
 //   psi' = r,  X' = U cos psi - vy sin psi,  Y' = U sin psi + vy cos psi
 //   With U = 0 these are frozen (Fy = 0, all their rates 0).
 // Sprung mass, roll about the roll axis (the lateral forces act at the roll centres: the
@@ -72,7 +76,7 @@
 // likewise) with the steering lag, state w = (y, psi, vy, r, delta) in the frame of the current
 // heading, input delta_cmd held:
 //   y' = U psi + vy, psi' = r, m (vy' + U r) = C_f alpha_f + C_r alpha_r,
-//   i_zz r' = a C_f alpha_f - b C_r alpha_r, delta' = (delta_cmd - delta) / tau
+//   i_zz r' = a_h C_f alpha_f - b_h C_r alpha_r, delta' = (delta_cmd - delta) / tau
 // (linear slips). T = max(driver_preview_s, driver_preview_min_m / U). At t_j the predicted
 // lateral offset is y_j = c_j . (vy, r, delta) + g_j delta_cmd (exp of the augmented 6 x 6
 // matrix [[A, B], [0, 0]] t_j). Per step: preview points P_j = (X + U t_j cos psi, Y + U t_j
@@ -228,6 +232,7 @@ struct FullCarModel {
   double K[kCorners][kCorners] = {};  // corner mobility [1/kg]
   double inv_ms = 0, inv_ixx = 0, inv_iyy = 0, inv_izz = 0, inv_m = 0;
   double h_roll = 0;  // CG height above the roll axis [m]
+  double a_h = 0, b_h = 0;  // the whole car's CG (unsprung masses included) to the axles [m]
   double steer_keep = 0;  // exp(-dt / driver_tau_s); 0 = no lag
   // The preview driver (steer_mode driver, speed > 0; see the file comment), set at init:
   static constexpr int kDriverPoints = 8;
@@ -266,6 +271,9 @@ struct FullCarModel {
     inv_iyy = 1.0 / v.i_yy;
     inv_izz = 1.0 / v.i_zz;
     inv_m = 1.0 / (v.m_s + 2 * v.m_us_f + 2 * v.m_us_r);
+    const double x_m = 2 * (v.m_us_f * v.a - v.m_us_r * v.b) * inv_m;  // the whole car's CG ahead of the sprung mass's
+    a_h = v.a - x_m;
+    b_h = v.b + x_m;
     h_roll = v.h_cg - (v.b * v.h_rc_f + v.a * v.h_rc_r) / L;
     karb[0] = v.k_arb_f;
     karb[1] = v.k_arb_r;
@@ -329,7 +337,7 @@ struct FullCarModel {
     double T = p.driver_preview_s;
     if (T * U < p.driver_preview_min_m) T = p.driver_preview_min_m / U;
     const double m = 1.0 / inv_m, cf = k_lin[0] + k_lin[1], cr = k_lin[2] + k_lin[3];
-    const double a = p.a, b = p.b;
+    const double a = a_h, b = b_h;
     // M = [[A, B], [0, 0]] T, rows/columns (y, psi, vy, r, delta, delta_cmd)
     double M[6][6] = {};
     M[0][1] = U;
@@ -497,15 +505,15 @@ DN_FC_NOINLINE inline FcFree free_forces(const FullCarModel& m, const FcMotion& 
     f.dr = held->dr;
     f.dvy = f.a_y - U * y.r;
   } else if (U > 0) {
-    f.alpha_f = delta - std::atan((y.vy + p.a * y.r) / U);
-    f.alpha_r = -std::atan((y.vy - p.b * y.r) / U);
+    f.alpha_f = delta - std::atan((y.vy + m.a_h * y.r) / U);
+    f.alpha_r = -std::atan((y.vy - m.b_h * y.r) / U);
 #pragma GCC unroll 1
     for (int i = 0; i < kCorners; ++i)  // rolled: one copy of the tyre model (libm calls inside)
       f.fy[i] = m.tyre_fy(i, i < 2 ? f.alpha_f : f.alpha_r, f.load[i]);
     const double fyf = (f.fy[0] + f.fy[1]) * cos_delta, fyr = f.fy[2] + f.fy[3];
     f.a_y = (fyf + fyr) * m.inv_m;
     f.dvy = f.a_y - U * y.r;
-    f.dr = (p.a * fyf - p.b * fyr) * m.inv_izz;
+    f.dr = (m.a_h * fyf - m.b_h * fyr) * m.inv_izz;
     f.fgeo[0] = fyf * m.geo[0];
     f.fgeo[1] = -f.fgeo[0];
     f.fgeo[2] = fyr * m.geo[1];
@@ -934,7 +942,7 @@ DN_FC_OUTLINE inline double driver_steer(const FullCarModel& m, const double* s)
   }
   if (!std::isfinite(cmd)) cmd = 0.0;
   if (m.drv_alpha > 0.0 && p.speed > 0.0) {  // no more front slip than the tyres' peak: beyond it, only less force
-    const double a0 = std::atan((s[FC_vy] + p.a * s[FC_r]) / p.speed);
+    const double a0 = std::atan((s[FC_vy] + m.a_h * s[FC_r]) / p.speed);
     cmd = clamp(cmd, a0 - m.drv_alpha, a0 + m.drv_alpha);
   }
   cmd = clamp(cmd, -p.steer_max, p.steer_max);

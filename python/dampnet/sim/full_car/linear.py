@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dampnet import _core
+from dampnet.sim.full_car.params import cg_to_axles
 
 #: names of the coordinates q
 COORDINATES = ("z", "phi", "theta", "z_us_fl", "z_us_fr", "z_us_rl", "z_us_rr")
@@ -124,15 +125,18 @@ def tyre_cornering_stiffness(p: dict) -> np.ndarray:
 def bicycle(params: dict | None = None) -> dict:
     """The linear bicycle model's steady state: axle cornering stiffnesses C_f, C_r [N/rad],
     understeer gradient K [rad/(m/s^2)] (delta = L / R + K a_y) and yaw-rate gain r / delta
-    [1/s] at the parameters' speed."""
+    [1/s] at the parameters' speed. The whole car's mass at its CG (a_h, b_h [m] from the axles:
+    the axle loads' split of the weight, unsprung masses at the axles), as the static loads."""
     p = full_params(params)
     ks = tyre_cornering_stiffness(p)
     Cf, Cr = ks[0] + ks[1], ks[2] + ks[3]
     m = p["m_s"] + 2 * p["m_us_f"] + 2 * p["m_us_r"]
     L = p["a"] + p["b"]
-    K = m / L * (p["b"] / Cf - p["a"] / Cr)
+    a_h, b_h = cg_to_axles(p)
+    K = m / L * (b_h / Cf - a_h / Cr)
     U = p["speed"]
-    return {"C_f": Cf, "C_r": Cr, "understeer_gradient": K, "yaw_rate_gain": U / (L + K * U**2)}
+    return {"C_f": Cf, "C_r": Cr, "a_h": a_h, "b_h": b_h, "understeer_gradient": K,
+            "yaw_rate_gain": U / (L + K * U**2)}
 
 
 def roll_gradient(params: dict | None = None) -> float:

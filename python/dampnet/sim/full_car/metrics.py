@@ -22,6 +22,7 @@ import numpy as np
 import scipy.signal
 
 from dampnet.sim.full_car.maneuvers import OVERHANG_FRONT_M, OVERHANG_REAR_M, Maneuver
+from dampnet.sim.full_car.params import cg_to_axles
 from dampnet.sim.ride import rms, wk_weighted
 
 
@@ -188,7 +189,8 @@ def cone_clearance(res: dict, man: Maneuver, params: dict) -> np.ndarray:
     cones = np.asarray(man.meta["cones"])
     X = column(res, "x_pos") + man.meta.get("start_x_m", 0.0)
     Y, psi = column(res, "y_pos"), column(res, "psi")
-    front, rear = params["a"] + OVERHANG_FRONT_M, params["b"] + OVERHANG_REAR_M
+    a_h, b_h = cg_to_axles(params)  # X, Y are the whole car's CG
+    front, rear = a_h + OVERHANG_FRONT_M, b_h + OVERHANG_REAR_M
     half = man.meta["vehicle_width_m"] / 2
     out = np.full(len(cones), np.inf)
     c, s = np.cos(psi), np.sin(psi)

@@ -62,3 +62,14 @@ def check(params: dict) -> dict:
 def wheelbase(params: dict | None = None) -> float:
     p = {**defaults(), **(params or {})}
     return float(p["a"] + p["b"])
+
+
+def cg_to_axles(params: dict | None = None) -> tuple[float, float]:
+    """(a_h, b_h) [m]: the whole car's CG (sprung mass at a, b; the unsprung masses at the axles,
+    as the static loads put them) behind the front axle and ahead of the rear one: the lever
+    arms of the runtime's lateral and yaw equations (fullcar.hpp) and of the car's footprint."""
+    p = {**defaults(), **(params or {})}
+    L = p["a"] + p["b"]
+    m = p["m_s"] + 2 * p["m_us_f"] + 2 * p["m_us_r"]
+    b_h = (p["m_s"] * p["b"] + 2 * p["m_us_f"] * L) / m  # L x the front axle's share of the weight
+    return float(L - b_h), float(b_h)

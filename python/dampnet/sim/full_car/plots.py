@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from dampnet.sim.full_car.metrics import column
+from dampnet.sim.full_car.params import cg_to_axles
 from dampnet.sim.plots import _pyplot
 
 
@@ -137,6 +138,7 @@ def plot_dlc(runs: dict, path: str | Path, title: str = "ISO 3888-1 double lane 
                      label="driver's path")
         for n, (label, r) in enumerate(runs.items()):
             a, p = r["arrays"], r["params"]
+            a_h, b_h = cg_to_axles(p)  # x, y are the whole car's CG
             col = f"C{n}"
             x = column(a, "x_pos") + man["start_x_m"]
             y, psi = column(a, "y_pos"), column(a, "psi")
@@ -146,7 +148,7 @@ def plot_dlc(runs: dict, path: str | Path, title: str = "ISO 3888-1 double lane 
             every = max(1, int(round(0.5 / p["dt"])))
             for k in range(0, len(x), every):
                 if x0 - 5 <= x[k] <= x1 + 5:
-                    _footprint(top, x[k], y[k], psi[k], p["a"] + OVERHANG_FRONT_M, p["b"] + OVERHANG_REAR_M,
+                    _footprint(top, x[k], y[k], psi[k], a_h + OVERHANG_FRONT_M, b_h + OVERHANG_REAR_M,
                                man["vehicle_width_m"] / 2, color=col, lw=0.5, alpha=0.7)
             if hits[label].any():
                 top.plot(cones[hits[label], 0], cones[hits[label], 1], "x", color="tab:red", ms=9, mew=2,
