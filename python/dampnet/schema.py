@@ -69,6 +69,22 @@ def load_json(path: Path, error: type[Exception]) -> Any:
         raise error(f"{path}: not valid JSON ({show(str(e))})") from None
 
 
+def parse_toml(text: str, source: str, error: type[Exception], what: str = "valid TOML") -> dict:
+    """The parsed TOML `text` (from `source`, named in errors); `error` for text that is not
+    TOML or nests too deep to read. tomllib, or on Python 3.10 the package tomli (the same
+    parser; the sweep and lab extras install it)."""
+    try:
+        import tomllib
+    except ModuleNotFoundError:
+        import tomli as tomllib  # type: ignore[no-redef]
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise error(f"{source}: not {what} ({show(str(e))})") from None
+    except RecursionError:
+        raise error(f"{source}: arrays or tables nested too deeply: expected {what}") from None
+
+
 def _max_depth(text: str) -> int:
     """Bracket depth of JSON text, ignoring brackets inside strings (an upper bound is enough)."""
     depth = deepest = 0

@@ -64,13 +64,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
+from dampnet.schema import parse_toml
 from dampnet.sim import limits
 from dampnet.sweep.metrics import objectives
-
-try:
-    import tomllib
-except ModuleNotFoundError:  # Python 3.10: the same parser as the package tomli (the sweep extra)
-    import tomli as tomllib  # type: ignore[no-redef]
 
 DATA_MODES = ("shared", "ship")
 DISTRIBUTIONS = ("uniform", "loguniform", "normal", "integers", "choice")
@@ -491,12 +487,7 @@ def parse_spec(spec: str | dict, source: str = "<spec>", base: str | os.PathLike
     text = None
     if isinstance(spec, str):
         text = spec
-        try:
-            raw = tomllib.loads(spec)
-        except tomllib.TOMLDecodeError as e:
-            raise SpecError(f"{source}: not valid TOML ({e})") from None
-        except RecursionError:
-            raise SpecError(f"{source}: arrays or tables nested too deeply to read") from None
+        raw = parse_toml(spec, source, SpecError)
     elif isinstance(spec, dict):
         raw = spec
     else:

@@ -34,7 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from dampnet.data.types import CONTROL_NAMES, DataError
-from dampnet.schema import read_text, show
+from dampnet.schema import parse_toml, read_text, show
 
 #: the channel map's file name, looked for beside the data
 MAP_FILE = "dampnet-channels.toml"
@@ -106,19 +106,9 @@ def _strings(table: Any, where: str, keys: tuple[str, ...]) -> dict[str, str]:
 
 def load_channel_map(path: str | os.PathLike) -> ChannelMap:
     """The channel map of a TOML file; DataError naming the file (and line) otherwise."""
-    try:
-        import tomllib
-    except ModuleNotFoundError:  # Python 3.10: the same parser as the package tomli (the lab extra)
-        import tomli as tomllib  # type: ignore[no-redef]
-
     path = Path(path)
     text = read_text(path, DataError, "a UTF-8 TOML channel map")
-    try:
-        d = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        raise DataError(f"{path}: not a valid TOML channel map ({show(str(e))})") from None
-    except RecursionError:
-        raise DataError(f"{path}: nested too deep: expected a TOML channel map") from None
+    d = parse_toml(text, str(path), DataError, "a valid TOML channel map")
     return ChannelMap.from_dict(d, str(path))
 
 
