@@ -140,7 +140,8 @@ def noise_floor(ctx) -> dict:
     # small at dyno sampling rates (a 3 Hz sine at 1 kHz: 4e-4 of its amplitude)
     per_test = [float(np.std(np.diff(td.test.channels["force"], 2))) / np.sqrt(6.0) for td in ctx.tests]
     return {"rms_n": float(np.median(per_test)), "source": "estimated from the force's sample-to-sample "
-            "scatter (second differences; an upper bound where the signal changes fast)"}
+            "scatter (second differences: too low if the acquisition filtered the force, too high where the "
+            "signal changes fast)"}
 
 
 def _rms(x) -> float:
