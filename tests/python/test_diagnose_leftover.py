@@ -144,6 +144,11 @@ def test_a_late_force_channel_is_the_time_offset_artefact_not_compressibility(de
     a = next(a for a in d["artefacts"] if a["artefact"] == "time_offset")
     assert a["offset_s"] == pytest.approx(DELAY_S, rel=0.2)
     assert a["static_fit_rms_n"]["realigned"] < a["static_fit_rms_n"]["as_recorded"]
+    from dampnet.commands.diagnose import summary
+
+    text = summary(d)   # what `dampnet diagnose` prints
+    assert "verdict (artefact): measurement artefact: the force channel is recorded" in text
+    assert f"--align-force-s {a['fix']['value']:.4g}" in text
     # the fix: realigned by the estimate, a model trained on the same recipe errs less held out
     fixed = align_force(ds, a["fix"]["value"])
     m2, _, split2 = train_dataset(fixed, **TRAIN)
@@ -211,3 +216,21 @@ def test_channel_slips_are_found_in_their_test_and_channel(clean_model, case):
         assert hit[expect[0]] == pytest.approx(expect[1], rel=0.05), hit
     # and the clean data raise nothing
     assert not any(a["detected"] for a in channel_checks(build_context(m, ds), 4.45))
+
+
+def test_align_force_option_is_on_train_evaluate_and_diagnose():
+    """One option, one fix (dampnet.artefacts.align_force) for every command that reads data."""
+    from types import SimpleNamespace
+
+    from dampnet.cli import build_parser
+    from dampnet.commands.common import apply_data_fixes
+
+    p = build_parser()
+    for argv in (["train", "D", "--out", "M"], ["evaluate", "M", "D"], ["diagnose", "M", "D"]):
+        assert p.parse_args(argv + ["--align-force-s", "0.01"]).align_force_s == 0.01
+        assert p.parse_args(argv).align_force_s is None
+    ds = generate("quick", seed=0)
+    fixed = apply_data_fixes(ds, SimpleNamespace(align_force_s=0.004))
+    k = int(round(0.004 / ds.tests[0].dt))
+    np.testing.assert_array_equal(fixed.tests[0].channels["force"], ds.tests[0].channels["force"][k:])
+    assert apply_data_fixes(ds, SimpleNamespace(align_force_s=None)) is ds

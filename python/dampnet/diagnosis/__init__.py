@@ -7,6 +7,12 @@
   basis.py      the baseline: a flexible function of the model's own inputs
   score.py      cross-validation over tests, phase-randomised null, significance
   localise.py   where the model fails (by test, within the cycle)
+  leftover.py   is structure left at all? a catalogue-independent regression on the inputs'
+                history, scored like a candidate; the noise floor; where the structure is
+  artefacts.py  tests for the measurement artefacts of dampnet.artefacts (time offset, run-order
+                drift, sign/unit slips, sensor offsets)
+  verdict.py    the three-way verdict: known effect / structure left, not a known effect /
+                nothing above the noise floor (or an artefact)
   run.py        diagnose(model, dataset) -> JSON-ready dict
   estimate.py   an effect's parameters from data alone (`dampnet train --add` without --diagnosis)
   report.py     the HTML report with pictures

@@ -209,11 +209,12 @@ def _result(aid: str, hits: list[dict], what: str) -> dict:
     return {"artefact": aid, "testable": True, "detected": bool(hits), "tests": hits, "sentence": sentence}
 
 
-def channel_checks(ctx, noise_rms_n: float) -> list[dict]:
+def channel_checks(ctx, noise_rms_n: float, force_offset_s: float = 0.0) -> list[dict]:
     """sign_slip, unit_slip and sensor_offset, per test, from the channels' consistency:
     the velocity against the displacement's derivative (slope 1: -1 is a sign slip, 1000 a unit slip,
     and the force's work decides which channel slipped: a damper only dissipates, so F v > 0 on
-    average), the force's gain against the model's prediction (a test in lbf: 1 / 4.448) and a
+    average), the force's gain against the model's prediction (a test in lbf: 1 / 4.448; only a
+    gain within 15 % of a known unit conversion counts, the model may simply fit a test badly) and a
     test's mean displacement, or its force at the velocity reversals (the static force: gas and
     friction both ways), far from the other tests' of the same stroke (a moved sensor zero)."""
     signs, units, offsets = [], [], []
@@ -227,8 +228,11 @@ def channel_checks(ctx, noise_rms_n: float) -> list[dict]:
         gains.append(float(np.dot(f - f.mean(), pred - pred.mean()) / max(np.dot(pred - pred.mean(), pred - pred.mean()), 1e-30)))
         # the force at the velocity reversals (both directions): the damper's static part (gas force
         # at the ends of the stroke, friction cancelling), the same in every test of the same stroke
-        rest = np.abs(v) < 0.03 * max(float(np.max(np.abs(v))), 1e-12)
-        means_r.append(float(np.mean(f[rest])) if np.any(rest) else float(np.mean(f)))
+        # (read force_offset_s later: a force recorded late, time_offset, is realigned first)
+        rest = np.flatnonzero(np.abs(v) < 0.03 * max(float(np.max(np.abs(v))), 1e-12))
+        rest = rest[rest + int(round(force_offset_s / t.dt)) < len(f)] + int(round(force_offset_s / t.dt))
+        rest = rest[rest >= 0]
+        means_r.append(float(np.mean(f[rest])) if rest.size else float(np.mean(f)))
         if not has_x:
             continue
         x = t.channels["displacement"]
@@ -247,6 +251,8 @@ def channel_checks(ctx, noise_rms_n: float) -> list[dict]:
         elif k > 0 and abs(np.log10(k)) > 1.5:
             ch = "velocity" if k > 1 else "displacement"   # which one reads 10^n too large
             factor = _unit(1.0 / k if ch == "velocity" else k)
+            if factor not in UNIT_FACTORS:
+                continue  # inconsistent, but by no unit's factor: not a unit slip
             units.append({"test_id": t.test_id, "channel": ch, "factor": factor,
                           "words": f"{t.test_id}: {ch} (the velocity integrates to {k:.4g} x the displacement; "
                                    f"fix factor {factor:.4g})"})
@@ -260,6 +266,8 @@ def channel_checks(ctx, noise_rms_n: float) -> list[dict]:
         if g[i] < 0 or any(h["test_id"] == tid and h["channel"] == "force" for h in signs):
             continue  # a sign slip, not a unit
         factor = _unit(med / g[i])
+        if factor not in UNIT_FACTORS:
+            continue  # a test the model fits badly, not a unit: only a known conversion is a slip
         units.append({"test_id": tid, "channel": "force", "factor": factor,
                       "words": f"{tid}: force (gain {g[i] / med:.3g} of the other tests'; fix factor {factor:.4g})"})
     slipped = {h["test_id"] for h in signs + units}
@@ -292,4 +300,6 @@ def channel_checks(ctx, noise_rms_n: float) -> list[dict]:
 
 def find_artefacts(ctx, folds, n_surrogates: int, seed: int, noise_rms_n: float) -> list[dict]:
     """Every artefact test's result (JSON-ready), in the catalogue's order."""
-    return [time_offset(ctx), run_order_drift(ctx, folds, n_surrogates, seed), *channel_checks(ctx, noise_rms_n)]
+    offset = time_offset(ctx)
+    shift = offset["offset_s"] if offset.get("detected") else 0.0
+    return [offset, run_order_drift(ctx, folds, n_surrogates, seed), *channel_checks(ctx, noise_rms_n, shift)]

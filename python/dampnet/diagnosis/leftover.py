@@ -140,7 +140,8 @@ def noise_floor(ctx) -> dict:
     # small at dyno sampling rates (a 3 Hz sine at 1 kHz: 4e-4 of its amplitude)
     per_test = [float(np.std(np.diff(td.test.channels["force"], 2))) / np.sqrt(6.0) for td in ctx.tests]
     return {"rms_n": float(np.median(per_test)), "source": "estimated from the force's sample-to-sample "
-            "scatter (second differences; an upper bound where the signal changes fast)"}
+            "scatter (second differences: too low if the acquisition filtered the force, too high where the "
+            "signal changes fast)"}
 
 
 def _rms(x) -> float:
@@ -203,7 +204,9 @@ def leftover(ctx, Y, folds, base_cv, noise: dict) -> dict:
     model_rms = _rms(np.concatenate(ctx.resid_rows()))
     held_gain = max(float(res["score"]), 0.0) * float(np.sum(r_all * r_all))
     structure_rms = float(np.sqrt(held_gain / r_all.size))
-    ctx.notes["leftover_part"] = part
+    # the picture shows the first call's fit (before any catalogue effect joins the baseline: the
+    # structure itself, not what is left of it beside collinear effect columns)
+    ctx.notes.setdefault("leftover_part", part)
     return {"significant": bool(res["significant"]), "score": float(res["score"]), "z": float(res["z"]),
             "p_value": float(res["p_value"]),
             "null": {"mean": res["null_mean"], "sd": res["null_sd"], "max": res["null_max"]},

@@ -103,12 +103,16 @@ def figures(ctx, diag: dict, out: Path, tag: str = "") -> list[tuple[str, str]]:
     return figs
 
 
+def _num(x) -> str:
+    return "-" if x is None else f"{x:g}"
+
+
 def _leftover_figure(ctx, diag, out, tag, plt):
     """What the structure the leftover test found looks like: its force-displacement loops, and where
     it is along the run order and the cycle (None when the diagnosis kept no fit of it)."""
     part = ctx.notes.get("leftover_part")
     fd = diag.get("leftover") or {}
-    left = fd.get("after_effects") or fd.get("before_effects")
+    left = fd.get("before_effects")
     if part is None or left is None:
         return None
     fig, axs = plt.subplots(1, 3, figsize=(13, 3.8))
@@ -121,7 +125,7 @@ def _leftover_figure(ctx, diag, out, tag, plt):
             continue
         o = np.argsort(td.test.time[td.rows])
         axs[0].plot(1000 * x[td.rows][o], part[i][o], lw=1,
-                    label=f"{td.test.test_id}: {td.test.frequency_hz} Hz, {td.test.control_nominal} {ctx.control_name}")
+                    label=f"{td.test.test_id}: {_num(td.test.frequency_hz)} Hz, {ctx.control_name} {_num(td.test.control_nominal)}")
     axs[0].set_xlabel("displacement [mm]")
     axs[0].set_ylabel("structure left (fitted) [N]")
     axs[0].set_title("force-displacement loop of the structure left", fontsize=9)
@@ -138,10 +142,10 @@ def _leftover_figure(ctx, diag, out, tag, plt):
     if ph:
         axs[2].bar([b["phase_deg"] for b in ph], [b["rms_n"] for b in ph], width=40, color="tab:green")
         axs[2].set_xticks([0, 90, 180, 270, 360])
-    axs[2].set_xlabel("phase of the cycle [deg] (0: mid-stroke extending, 90: full extension)")
+    axs[2].set_xlabel("phase of the cycle [deg] (90: full extension)")
     axs[2].set_ylabel("structure left, RMS [N]")
     axs[2].set_title(f"noise floor {left['noise_floor_rms_n']:.2f} N RMS", fontsize=9)
-    fig.suptitle(f"structure left: {'significant' if left['significant'] else 'not significant'}, "
+    fig.suptitle(f"structure left before the catalogue's effects: {'significant' if left['significant'] else 'not significant'}, "
                  f"{left['structure_rms_n']:.1f} N RMS ({100 * left['score']:.1f} % of the residual held out)", fontsize=10)
     return (_save(fig, out / f"{tag}structure_left.png"),
             "the catalogue-independent fit of the residual on the inputs and their history: its "
