@@ -6,10 +6,12 @@ zero that moved, a drift over the run order that no logged channel explains): a 
 learn it, the data must be fixed. Each entry says how the diagnosis tests for it
 (dampnet.diagnosis.artefacts), which physical effect it would otherwise be mistaken for, and the
 data fix; the fixes are here (they return a new Dataset and never touch the files) and every front
-end (dampnet train / evaluate / diagnose --align-force-s, the Python API) calls them.
+end (dampnet train / evaluate / diagnose --align-force-s / --run-order-drift-pct, the Python
+API) calls them.
 
     time_offset      a channel recorded late (force vs the motion channels); fix: realign
-    run_order_drift  the force drifts along the run order, no channel explains it; fix: log temperature
+    run_order_drift  the force drifts along the run order, no channel explains it; fix: a run-order
+                     term (each test's force rescaled to the first test's), better: log temperature
     sign_slip        one channel's sign flipped in some tests; fix: flip it back
     unit_slip        one channel in another unit in some tests (mm, lbf); fix: rescale
     sensor_offset    a channel's zero moved in some tests; fix: subtract the offset
@@ -67,8 +69,10 @@ register_artefact(ArtefactInfo(
     what="the force changes steadily from the first test of the campaign to the last (oil warming "
          "without a temperature channel, a load-cell gain drift); the model's inputs cannot see it",
     mistaken_for="thermal",
-    fix="log the oil temperature and add it (`dampnet train --add thermal`), or randomise the run order "
-        "so the drift averages out; until then expect an error of the drift's size"))
+    fix="`--run-order-drift-pct PERCENT` (dampnet train, evaluate, diagnose) rescales each test's force "
+        "to the first test's condition by a run-order term (first order in the drift); better, log the oil "
+        "temperature and add it (`dampnet train --add thermal`), or randomise the run order so the drift "
+        "averages out"))
 
 register_artefact(ArtefactInfo(
     id="sign_slip", title="a channel's sign flipped in some tests",
@@ -127,6 +131,27 @@ def align_force(ds: Dataset, seconds: float) -> Dataset:
     """Undo a force channel recorded `seconds` [s] late: the force moves earlier by that time
     (`--align-force-s`). A new Dataset; the files it came from are not touched."""
     return shift_channel(ds, "force", -float(seconds), f"force realigned by -{float(seconds):g} s (--align-force-s)")
+
+
+def remove_run_order_drift(ds: Dataset, percent: float) -> Dataset:
+    """Undo a force drift along the run order (`--run-order-drift-pct`): the tests, in the
+    dataset's order (the run order), drift linearly by `percent` [%] of the force from the first
+    test to the last (as `dampnet diagnose` estimates it: force_change_percent); test i of n has
+    its force divided by 1 + percent / 100 * i / (n - 1), which brings every test to the first
+    test's condition. A run-order term of first order: a warming's effect on the force is not
+    one gain, so logging the temperature is the better fix. A new Dataset; files untouched."""
+    p = float(percent)
+    if not (np.isfinite(p) and -90.0 < p < 900.0):
+        raise ValueError(f"--run-order-drift-pct = {percent}: expected the force's change from the first test "
+                         "to the last in percent, finite and above -90")
+    n = len(ds.tests)
+    tests = []
+    for i, t in enumerate(ds.tests):
+        if "force" not in t.channels:
+            raise DataError(f"test {t.test_id}: no 'force' channel to correct (channels: {', '.join(sorted(t.channels))})")
+        gain = 1.0 + p / 100.0 * (i / (n - 1) if n > 1 else 0.0)
+        tests.append(t.copy(channels={**t.channels, "force": np.asarray(t.channels["force"]) / gain}))
+    return ds.subset(tests, note=f"force drift along the run order of {p:+g} % removed (--run-order-drift-pct)")
 
 
 def _pick(ds: Dataset, tests) -> list[int]:

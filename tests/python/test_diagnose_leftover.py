@@ -13,9 +13,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dampnet.artefacts import ARTEFACTS, align_force, flip_sign, remove_offset, rescale
+from dampnet.artefacts import ARTEFACTS, align_force, flip_sign, remove_offset, remove_run_order_drift, rescale
 from dampnet.data import DataError
-from dampnet.diagnosis.artefacts import time_offset
+from dampnet.diagnosis.artefacts import run_order_gain_percent, time_offset
 from dampnet.diagnosis.context import build_context
 from dampnet.diagnosis.run import diagnose
 from dampnet.evaluation.metrics import evaluate_predictions
@@ -178,7 +178,29 @@ def test_campaign_warming_without_temperature_is_the_run_order_artefact():
     assert f["kind"] == "artefact" and f["artefacts"] == ["run_order_drift"], f
     a = next(a for a in d["artefacts"] if a["artefact"] == "run_order_drift")
     assert a["force_change_percent"] < 0 and not a["temperature_channel"], a   # hotter oil, less force
-    assert "no temperature channel" in a["sentence"]
+    assert "no temperature channel" in a["sentence"] and "--run-order-drift-pct" in a["sentence"]
+    # the fix at the estimate: the same model sees no drift left along the run order in the fixed
+    # data (the estimate re-run on them), and the tests' force gains over the model line up
+    fixed = remove_run_order_drift(ds, a["fix"]["value"])
+    left = run_order_gain_percent(build_context(m, fixed))
+    print(f"drift {a['force_change_percent']:+.2f} %, after the run-order term {left:+.2f} %")
+    assert abs(left) < 0.1 * abs(a["force_change_percent"]), (a["force_change_percent"], left)
+
+
+def test_run_order_term_rescales_each_test_to_the_first():
+    """remove_run_order_drift divides test i of n's force by 1 + p/100 i/(n-1), other channels
+    kept (numpy reference); a linear drift put in by hand is removed exactly."""
+    ds = generate("quick", seed=0)
+    n = len(ds.tests)
+    drift = ds.subset([t.copy(channels={**t.channels, "force": t.channels["force"] * (1 - 0.04 * i / (n - 1))})
+                       for i, t in enumerate(ds.tests)], note="drift")
+    back = remove_run_order_drift(drift, -4.0)
+    for t0, t1, t2 in zip(ds.tests, drift.tests, back.tests):
+        np.testing.assert_allclose(t2.channels["force"], t0.channels["force"], rtol=1e-12, atol=1e-9)
+        np.testing.assert_array_equal(t2.channels["velocity"], t1.channels["velocity"])
+    assert drift.tests[-1].channels["force"] is not back.tests[-1].channels["force"]
+    with pytest.raises(ValueError, match="run-order-drift-pct"):
+        remove_run_order_drift(ds, float("nan"))
 
 
 @pytest.fixture(scope="module")
@@ -229,8 +251,12 @@ def test_align_force_option_is_on_train_evaluate_and_diagnose():
     for argv in (["train", "D", "--out", "M"], ["evaluate", "M", "D"], ["diagnose", "M", "D"]):
         assert p.parse_args(argv + ["--align-force-s", "0.01"]).align_force_s == 0.01
         assert p.parse_args(argv).align_force_s is None
+        assert p.parse_args(argv + ["--run-order-drift-pct", "-3.5"]).run_order_drift_pct == -3.5
+        assert p.parse_args(argv).run_order_drift_pct is None
     ds = generate("quick", seed=0)
     fixed = apply_data_fixes(ds, SimpleNamespace(align_force_s=0.004))
     k = int(round(0.004 / ds.tests[0].dt))
     np.testing.assert_array_equal(fixed.tests[0].channels["force"], ds.tests[0].channels["force"][k:])
     assert apply_data_fixes(ds, SimpleNamespace(align_force_s=None)) is ds
+    both = apply_data_fixes(ds, SimpleNamespace(align_force_s=0.004, run_order_drift_pct=10.0))
+    np.testing.assert_allclose(both.tests[-1].channels["force"], fixed.tests[-1].channels["force"] / 1.1)

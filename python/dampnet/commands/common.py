@@ -75,12 +75,18 @@ def add_data_fix_options(p) -> None:
                    help="move the force channel SECONDS earlier against the motion channels (undo a force "
                         "recorded late: the time_offset artefact `dampnet diagnose` estimates); the data "
                         "files are not changed")
+    p.add_argument("--run-order-drift-pct", type=float, default=None, metavar="PERCENT",
+                   help="the force drifts by PERCENT %% from the first test to the last in the data's (run) order "
+                        "(the run_order_drift artefact `dampnet diagnose` estimates): each test's force is "
+                        "rescaled to the first test's condition; the data files are not changed")
 
 
 def apply_data_fixes(ds, args):
     """`ds` with the data fixes the options ask for (a new Dataset; files untouched)."""
-    from dampnet.artefacts import align_force
+    from dampnet.artefacts import align_force, remove_run_order_drift
 
     if getattr(args, "align_force_s", None):
         ds = align_force(ds, args.align_force_s)
+    if getattr(args, "run_order_drift_pct", None):
+        ds = remove_run_order_drift(ds, args.run_order_drift_pct)
     return ds

@@ -156,6 +156,23 @@ class _History:
         return [c[:, [j for j in range(c.shape[1]) if j not in drop]] for c in history_columns(ctx)]
 
 
+def run_order_gain_percent(ctx) -> float:
+    """The drift in the fix's own terms (dampnet.artefacts.remove_run_order_drift): each test's
+    gain g_i = <F, pred> / <pred, pred> of its measured force over the model's, a line g_0 (1 +
+    p/100 i/(n-1)) fitted over the run order; returns p [%], the force's change from the first test
+    to the last (0 for fewer than 2 tests)."""
+    n = ctx.n_tests
+    if n < 2:
+        return 0.0
+    gains = []
+    for td in ctx.tests:
+        pred, f = td.pred[td.rows], td.test.channels["force"][td.rows]
+        gains.append(float(f @ pred / max(float(pred @ pred), 1e-300)))
+    pos = np.arange(n) / (n - 1)
+    slope, start = np.polyfit(pos, np.asarray(gains), 1)
+    return float(100.0 * slope / start) if start > 0 else 0.0
+
+
 def run_order_drift(ctx, folds, n_surrogates: int, seed: int) -> dict:
     """A drift of the force along the run order that no channel explains (see the module doc)."""
     has_t = all(t is not None for t in ctx.at_rows("temperature"))
@@ -173,16 +190,16 @@ def run_order_drift(ctx, folds, n_surrogates: int, seed: int) -> dict:
         ctx.notes.pop("baseline_products", None)
     if not res["testable"]:
         return {"artefact": "run_order_drift", "testable": False, "detected": False, "note": res["note"]}
-    fs = ctx.notes["run_order_scale"]
-    gain_pct = float(200.0 * res["beta"][1] / fs)   # the force's change from the first test to the last
+    gain_pct = run_order_gain_percent(ctx)   # the force's change from the first test to the last
     detected = bool(res["significant"]) and not has_t
     sentence = (f"the force drifts along the run order: {gain_pct:+.1f} % from the first test to the last "
                 f"(held out {100 * res['score']:.1f} % of the residual's variance beyond the motion's history, "
                 f"z {res['z']:.1f}); no channel the model has explains it (thermal, but no temperature channel: "
-                f"add one). Fix: {artefact('run_order_drift').fix}")
+                f"add one). Fix: {artefact('run_order_drift').fix} (here --run-order-drift-pct {gain_pct:.3g})")
     return {"artefact": "run_order_drift", "testable": True, "detected": detected,
             "significant": bool(res["significant"]), "score": float(res["score"]), "z": float(res["z"]),
-            "force_change_percent": gain_pct, "temperature_channel": has_t, "sentence": sentence}
+            "force_change_percent": gain_pct, "temperature_channel": has_t,
+            "fix": {"option": "--run-order-drift-pct", "value": gain_pct}, "sentence": sentence}
 
 
 #: unit conversions a slipped channel is likely in (factor to SI): mm, in, lbf, kgf and their inverses
