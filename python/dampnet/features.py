@@ -364,6 +364,21 @@ def param_of(name: str) -> str | None:
     return feature(name).param
 
 
+#: the runtime's fields (dn_damper_input) that hold the control: u as commanded, u_lag after the lag
+CONTROL_FIELDS = ("u", "u_lag")
+
+
+def control_columns(features: Sequence[str]) -> list[int]:
+    """Indices of the features that carry the control (those kept in field u or u_lag: e.g.
+    voltage and voltage_lag); in a constant-level test each is at the level's value."""
+    return [j for j, f in enumerate(features) if f in FEATURES and FEATURES[f].field in CONTROL_FIELDS]
+
+
+def velocity_column(features: Sequence[str]) -> int | None:
+    """Index of the feature the runtime keeps in field v (the velocity), or None."""
+    return next((j for j, f in enumerate(features) if f in FEATURES and FEATURES[f].field == "v"), None)
+
+
 def lags_of(source: str) -> list[str]:
     """The features that are first-order lags of base feature `source` (e.g. velocity -> velocity_lag)."""
     return [f.name for f in FEATURES.values() if isinstance(f.state, Lag) and f.state.source == source]

@@ -31,7 +31,8 @@ from dampnet.training.restarts import restart_seeds
 SPARSE_PLAN = {"name": "sparse-5x8", "frequencies_hz": [0.25, 0.5, 1.0, 2.0, 3.0], "amplitudes_m": [0.0254],
                "voltages_v": [0.0, 0.5, 1.0, 1.5, 2.25, 3.0, 4.0, 5.0], "sample_rate_hz": 1000.0,
                "samples": 2000, "min_cycles": 2}
-SPARSE_TRAIN = {"decimate": 4, "max_epochs": 120}
+# Without the control prior (the default since issue 33), which removes the wiggle by itself.
+SPARSE_TRAIN = {"decimate": 4, "max_epochs": 120, "control_prior": 0.0}
 # Small and quick for the bookkeeping tests: 3 voltages, 2 of them for training.
 TINY = {"decimate": 50, "max_epochs": 40}
 
@@ -60,6 +61,8 @@ def test_selection_keeps_the_restart_that_interpolates_the_held_out_level():
     today, _, split = train_dataset(ds, seed=3, **SPARSE_TRAIN)
     bad = _holdout(today, split)
     assert bad > 0.05  # the failure this case is built on (measured 0.117)
+    prior, _, split1 = train_dataset(ds, seed=3, **{**SPARSE_TRAIN, "control_prior": 1.0})
+    assert _holdout(prior, split1) < 0.1 * bad  # the control prior alone (measured 0.0075)
     kept, _, split2 = train_dataset(ds, seed=3, restarts=2, workers=2, **SPARSE_TRAIN)
     r = kept.meta["restarts"]
     assert r["kept"] == 1 and r["kept_seed"] == restart_seeds(3, 2)[1]
@@ -104,13 +107,15 @@ def test_model_json_records_every_restart(quick_dir, tmp_path):
 
 def test_restarts_1_is_the_training_as_it_was(quick):
     """restarts=1 is the plain fit: no restart record, and the same weights as fit() on the
-    samples the pipeline's docstring describes (hold-out removed, features decimated by 50)."""
+    samples the pipeline's docstring describes (hold-out removed, features decimated by 50, the
+    control prior between the tests' nominal levels)."""
     model, info, split = train_dataset(quick, seed=2, restarts=1, **TINY)
     assert "restarts" not in model.meta
     train = [t for t in quick.tests if abs(t.control_nominal - 2.25) > 1e-9]
     X = np.concatenate([feature_matrix([t], model.features, None, 0.02)[::50] for t in train])
     y = np.concatenate([t.channels["force"][::50] for t in train])
-    ref, _ = fit(X, y, features=model.features, seed=2, max_epochs=40)
+    levels = np.concatenate([np.full(len(t.channels["force"][::50]), t.control_nominal) for t in train])
+    ref, _ = fit(X, y, features=model.features, seed=2, max_epochs=40, control_prior=1.0, levels=levels)
     for name in ("w1", "b1", "w_out", "in_offset", "in_gain", "sat_lo", "sat_hi"):
         np.testing.assert_array_equal(getattr(model, name), getattr(ref, name), err_msg=name)
     assert model.b_out == ref.b_out and model.out_gain == ref.out_gain

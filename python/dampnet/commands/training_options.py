@@ -58,6 +58,12 @@ def add_training_options(p: argparse.ArgumentParser, algorithm: bool = True) -> 
     p.add_argument("--max-epochs", type=int, default=1000, help=field_help("max_epochs", f"1..{MAX_EPOCHS} (default 1000)"))
     p.add_argument("--seed", type=int, default=0,
                    help=field_help("seed", f"0..{MAX_SEED} (default 0)"))
+    from dampnet.training.settings import OPTIONS
+
+    prior = OPTIONS["control_prior"]
+    p.add_argument("--control-prior", type=float, default=prior.default, metavar="W",
+                   help=field_help("control_prior", f"W in {prior.range_text()} (default {prior.default:g}; "
+                                                    "dampnet.training.control_prior; bench/RESULTS.md 'Few dyno tests')"))
     p.add_argument("--settings", default=None,
                    help=field_help("settings", 'JSON, e.g. \'{"mu_max": 1e8}\' or \'{"lr": 0.01}\'; each with its '
                                                f"range: {settings_help(TRAIN_DEFAULTS)}"))
@@ -122,7 +128,8 @@ def training_request(args):
         decimate=decimate, terms=terms, seed=args.seed, zero_points=not args.no_zero_points,
         max_epochs=args.max_epochs, settings=json_arg(args.settings, "settings", dict), add=list(args.add),
         diagnosis=diagnosis, diagnosis_source=args.diagnosis, restarts=restarts,
-        restart_score=getattr(args, "restart_score", "interpolation"), average=getattr(args, "average", 1))
+        restart_score=getattr(args, "restart_score", "interpolation"), average=getattr(args, "average", 1),
+        control_prior=args.control_prior)
 
 
 def whole(text: str, name: str) -> int:

@@ -71,9 +71,19 @@ FIELDS: dict[str, RequestField] = {f.name: f for f in (
     RequestField("restart_score", "--restart-score", "restart_score", "", "how restarts are ranked: "
                  "interpolation or lolo"),
     RequestField("average", "--average", "average", "", "the best restarts averaged into one network"),
+    RequestField("control_prior", "--control-prior", "control_prior", "", "the weight of the prior that the "
+                 "force between two tested control levels is the straight-line mix of theirs, at the same "
+                 "motion, as a lookup table interpolates; against the data's squared error, per row; 0: off"),
     RequestField("feature_params", None, None, "", "feature parameters (a lag's time constant [s], ...)"),
     RequestField("acceleration_window", None, None, "s", "the derived acceleration's smoothing window"),
 )}
+
+
+def _option_default(name: str) -> Any:
+    """A request option's default, from its one home (dampnet.training.settings.OPTIONS)."""
+    from dampnet.training.settings import OPTIONS
+
+    return OPTIONS[name].default
 
 
 @dataclass(frozen=True)
@@ -101,6 +111,7 @@ class TrainingRequest:
     restarts: int | str = 1
     restart_score: str = "interpolation"
     average: int = 1
+    control_prior: float = _option_default("control_prior")
     feature_params: Mapping[str, float] | None = None
     acceleration_window: float | None = None
 
@@ -128,7 +139,7 @@ class TrainingRequest:
                       hidden=self.hidden, activation=self.activation, features=self.features,
                       max_epochs=self.max_epochs, max_fail=self.max_fail, seed=self.seed,
                       decimate=self.decimate, holdout_voltage=self.holdout_voltage,
-                      acceleration_window=self.acceleration_window)
+                      acceleration_window=self.acceleration_window, control_prior=self.control_prior)
         for t in self.terms:
             if not isinstance(t, Mapping) or "kind" not in t:
                 raise ValueError(f"terms (--terms): each term must be an object with a 'kind', got {t!r}")
@@ -147,7 +158,7 @@ class TrainingRequest:
                     terms=[dict(t) for t in self.terms], feature_params=dict(self.feature_params or {}) or None,
                     seed=self.seed, zero_points=self.zero_points, max_epochs=self.max_epochs,
                     max_fail=self.max_fail, settings=dict(self.settings) if self.settings is not None else None,
-                    acceleration_window=self.acceleration_window)
+                    acceleration_window=self.acceleration_window, control_prior=self.control_prior)
 
 
 @dataclass

@@ -224,6 +224,13 @@ def _training(name: str, none: str | None = None) -> Callable[[Any], Any]:
     return norm
 
 
+def _training_default(name: str) -> Any:
+    """A training option's default from its one home (dampnet.training.settings.OPTIONS)."""
+    from dampnet.training.settings import OPTIONS
+
+    return OPTIONS[name].default
+
+
 def _restarts(v) -> int | str:
     """'auto' (as `dampnet train` without --restarts) or a number of restarts."""
     from dampnet.recipes.training import AUTO
@@ -364,6 +371,8 @@ TRAINING_PARAMS = [
     Param("average", "average", _training("average"), 1, kind="int", help=_request_help("average")),
     Param("restart_score", "restart_score", _choice(_restart_scores, "a restart score"), "interpolation",
           help=_request_help("restart_score")),
+    Param("control_prior", "control_prior", _training("control_prior"), _training_default("control_prior"),
+          kind="float", help=_request_help("control_prior")),
 ]
 
 SIMULATION_PARAMS = [

@@ -45,7 +45,8 @@ from dampnet.model import MlpModel, mapminmax_settings
 from dampnet.outputs import jsonable
 from dampnet.training.adam import Adam
 from dampnet.training.br import BayesianRegularization
-from dampnet.features import FEATURES, units_of
+from dampnet.training.control_prior import level_values, prior_rows
+from dampnet.features import FEATURES, control_columns, units_of
 from dampnet.training.lm import LevenbergMarquardt
 from dampnet.training.loop import run
 from dampnet.training.metrics import nrmse
@@ -180,13 +181,39 @@ def warm_start_weights(model: MlpModel, layout: Layout, features: Sequence[str],
     return layout.pack({k: torch.as_tensor(v, dtype=DTYPE) for k, v in p.items()})
 
 
+def _control_prior(X: np.ndarray, levels: np.ndarray | None, tr: np.ndarray, features: Sequence[str],
+                   weight: float, in_off: np.ndarray, in_gain: np.ndarray, rng: np.random.Generator):
+    """(the prior's rows or None, what model.meta["control_prior"] records)."""
+    meta: dict[str, Any] = {"weight": weight}
+    columns = control_columns(features)
+    if weight <= 0:
+        return None, meta
+    if levels is None or not columns:
+        meta["off"] = "no control input" if not columns else "no control levels given"
+        return None, meta
+    levels = np.asarray(levels, dtype=np.float64).ravel()
+    if len(levels) != len(X):
+        raise ValueError(f"levels: one nominal control level per row expected, got {len(levels)} for {len(X)} rows")
+    nominal, values = level_values(X[tr], levels[tr], columns)
+    meta["levels"] = [float(v) for v in nominal]
+    if len(nominal) < 2:
+        meta["off"] = "fewer than two control levels"
+        return None, meta
+    scaled = (values - in_off[columns]) * in_gain[columns] - 1.0
+    xs = torch.as_tensor((X[tr] - in_off) * in_gain - 1.0, dtype=DTYPE)
+    rows = prior_rows(xs, columns, scaled, weight, rng)
+    meta["points"] = len(rows) if rows is not None else 0
+    return rows, meta
+
+
 def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequence[str] | None = None,
         hidden: Sequence[int] = (30,), activation: str = "tanh", algorithm: str = "lm", seed: int = 0,
         split: Sequence[float] = (0.7, 0.15, 0.15), max_epochs: int = 1000, max_fail: int = 6,
         zero_points: bool = True, zero_fraction: float = 0.01,
         settings: dict[str, Any] | None = None, progress: Callable[[dict], Any] | None = None,
         threads: int | None = None, data: Any = None,
-        init: MlpModel | None = None) -> tuple[MlpModel, TrainInfo]:
+        init: MlpModel | None = None, control_prior: float = 0.0,
+        levels: np.ndarray | None = None) -> tuple[MlpModel, TrainInfo]:
     """Train an MLP force model on X [n, k] (feature units) and y [n] (force [N]).
 
     `settings` overrides the algorithm's defaults (e.g. {"mu_max": 1e8} for lm,
@@ -197,6 +224,9 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
     `init`: start from this model's weights (same features, hidden sizes and activation; its
     function carried over exactly into this fit's scaling) instead of Nguyen-Widrow; the seed
     still draws the split and the zero points (a warm start: dampnet.training.restarts).
+    `control_prior`: the weight of the control-interpolation prior (dampnet.training.control_prior;
+    0: off) between the nominal control `levels` [n] of the rows (NaN: a row of no level), which
+    it needs; it is off without two levels or a control input (model.meta["control_prior"] says).
     The same inputs and seed give bit-identical weights on the same machine.
     Every option and setting is checked first (dampnet.training.settings.check_request: a
     one-line ValueError naming it and its range); a training that stops before its first epoch
@@ -205,7 +235,7 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
     checked = check_request(algorithm=algorithm, settings=settings, hidden=hidden, activation=activation,
                             features=list(features),
                             max_epochs=max_epochs, max_fail=max_fail, seed=seed, zero_fraction=zero_fraction,
-                            threads=threads)
+                            threads=threads, control_prior=control_prior)
     X = np.asarray(X, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64).ravel()
     if X.ndim == 1:
@@ -236,8 +266,9 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
     def scale_y(a):
         return torch.as_tensor((a - out_off) * out_gain - 1.0, dtype=DTYPE)
 
+    prior, prior_meta = _control_prior(X, levels, tr, features, checked["control_prior"], in_off, in_gain, rng)
     problem = MlpProblem(layout, scale_x(np.vstack([X[tr], Z])), scale_y(np.concatenate([y[tr], np.zeros(len(Z))])),
-                         scale_x(X[va]), scale_y(y[va]))
+                         scale_x(X[va]), scale_y(y[va]), prior=prior)
     gen = torch.Generator().manual_seed(seed)
     x0 = layout.init(gen)
     if init is not None:
@@ -286,6 +317,7 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
         "best_epoch": res.best_epoch,
         "stop_reason": res.stop_reason,
         "samples": {"train": len(tr), "val": len(va), "test": len(te), "zero_points": len(Z)},
+        "control_prior": prior_meta,
         "metrics": {k: round(v, 6) for k, v in metrics.items()},
         **({"stats": jsonable(stats)} if stats else {}),
         **({"data": data} if data is not None else {}),

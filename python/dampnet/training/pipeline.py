@@ -52,6 +52,7 @@ from dampnet.data.types import RIG_GENERATOR
 from dampnet.effects import additions as effect_additions, effect as catalogue_effect
 from dampnet.evaluation.lookup import fit_lookup
 from dampnet.evaluation.metrics import evaluate_model
+from dampnet.evaluation.structure import structure
 from dampnet.features import default_features, feature_matrix
 from dampnet.model import MlpModel, ModelError
 from dampnet.predict import predict_force
@@ -59,11 +60,12 @@ from dampnet.rig import noise_floor_nrmse, noise_floor_rmse_n
 from dampnet.terms import fit_terms, terms_force
 from dampnet.training.fit import fit
 from dampnet.training.metrics import nrmse
-from dampnet.training.settings import check_request, train_settings
+from dampnet.training.settings import OPTIONS as TRAINING_OPTIONS, check_request, train_settings
 
 #: Decimated sample rate aimed for when decimate=None [Hz] (see the module docstring).
 DECIMATE_TARGET_HZ = 200.0
 DEFAULT_HOLDOUT_VOLTAGE = 2.25
+DEFAULT_CONTROL_PRIOR = TRAINING_OPTIONS["control_prior"].default
 # the algorithm settings train_dataset uses unless `settings` overrides them, and every setting's
 # range: dampnet.training.settings (TRAIN_DEFAULTS, check_request)
 
@@ -123,7 +125,8 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
                   threads: int | None = None,
                   acceleration_window: float | None = None,
                   init: MlpModel | None = None, restarts: int = 1, workers: int | None = None,
-                  restart_score: str = "interpolation", average: int = 1) -> tuple[MlpModel, Any, Split]:
+                  restart_score: str = "interpolation", average: int = 1,
+                  control_prior: float = DEFAULT_CONTROL_PRIOR) -> tuple[MlpModel, Any, Split]:
     """Train a (hybrid) MLP damper model on a dataset; see the module docstring for the steps.
 
     Returns (model, info, split): `info` is dampnet.train.TrainInfo (its subset indices
@@ -139,6 +142,8 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
     then receives one record per finished fit instead of one per epoch. restarts=1 (the
     default) is exactly the single training it always was. `average` > 1 keeps the best `average`
     restarts instead and averages them into one network (dampnet.training.restarts, step 4).
+    `control_prior` weighs the prior that the force between two training control levels is the
+    straight-line mix of theirs (dampnet.training.control_prior; 0: off).
     """
     from dampnet.training.restarts import check_average, check_restarts, train_restarts
 
@@ -147,7 +152,7 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
                   hidden=hidden, activation=activation, features=features, max_epochs=max_epochs,
                   max_fail=max_fail, seed=seed,
                   decimate=decimate, holdout_voltage=holdout_voltage, threads=threads,
-                  acceleration_window=acceleration_window)
+                  acceleration_window=acceleration_window, control_prior=control_prior)
     restarts = check_restarts(restarts, workers, restart_score)
     check_average(average, restarts, hidden, restart_score)
     if restarts > 1 and init is not None:
@@ -156,7 +161,8 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
                             holdout_voltage=holdout_voltage, holdout_tests=holdout_tests,
                             decimate=decimate, terms=terms, feature_params=feature_params,
                             zero_points=zero_points, max_epochs=max_epochs, max_fail=max_fail,
-                            settings=settings, acceleration_window=acceleration_window)
+                            settings=settings, acceleration_window=acceleration_window,
+                            control_prior=control_prior)
     if restarts == 1:
         model, info = fit_prepared(prep, seed, progress=progress, threads=threads, init=init)
     else:
@@ -202,7 +208,8 @@ def prepare_training(ds: Dataset, features: Sequence[str] | None = None, algorit
                      terms: Sequence[dict[str, Any]] | None = None,
                      feature_params: dict[str, float] | None = None, zero_points: bool = True,
                      max_epochs: int = 1000, max_fail: int = 6, settings: dict[str, Any] | None = None,
-                     acceleration_window: float | None = None) -> Prepared:
+                     acceleration_window: float | None = None,
+                     control_prior: float = DEFAULT_CONTROL_PRIOR) -> Prepared:
     """Steps 1-3 of the module docstring: acceleration, hold-out, decimation, the feature matrix."""
     if not ds.tests:
         raise DataError(f"{ds.source}: no tests")
@@ -252,7 +259,8 @@ def prepare_training(ds: Dataset, features: Sequence[str] | None = None, algorit
                     feature_params=dict(feature_params or {}),
                     fit_kwargs=dict(hidden=hidden, activation=activation, algorithm=algorithm,
                                     max_epochs=max_epochs, max_fail=max_fail, zero_points=zero_points,
-                                    settings=train_settings(algorithm, settings)),
+                                    settings=train_settings(algorithm, settings),
+                                    control_prior=float(control_prior)),
                     provenance=_data_provenance(ds, split, features, window), split=split)
 
 
@@ -261,10 +269,10 @@ def fit_prepared(prep: Prepared, seed: int, *, rows: np.ndarray | None = None,
                  init: MlpModel | None = None) -> tuple[MlpModel, Any]:
     """Steps 4-5 of the module docstring on the prepared samples (all, or the boolean mask
     `rows`: a restart's leave-one-level-out fit): (model, info)."""
-    X, y = prep.X, prep.force
+    X, y, level = prep.X, prep.force, prep.level
     xd, v, u = prep.xd, prep.v, prep.u
     if rows is not None:
-        X, y = X[rows], y[rows]
+        X, y, level = X[rows], y[rows], level[rows]
         if xd is not None:
             xd, v, u = xd[rows], v[rows], u[rows]
     terms = list(prep.terms)
@@ -280,7 +288,8 @@ def fit_prepared(prep: Prepared, seed: int, *, rows: np.ndarray | None = None,
         model, info = fit(X, y, features=prep.features, hidden=fk["hidden"], activation=fk["activation"],
                           algorithm=fk["algorithm"], seed=seed, max_epochs=fk["max_epochs"],
                           max_fail=fk["max_fail"], zero_points=fk["zero_points"], settings=fk["settings"],
-                          progress=progress, threads=threads, data=prep.provenance, init=init)
+                          progress=progress, threads=threads, data=prep.provenance, init=init,
+                          control_prior=fk["control_prior"], levels=level)
     except ValueError as e:
         raise DataError(str(e)) from None
     model.terms = terms
@@ -391,7 +400,9 @@ def model_metrics(model: MlpModel, info, split: Split, lookup: bool = True) -> d
     Keys: model_id, training {algorithm, time_s, epochs, best_epoch, stop_reason, nrmse {train,
     val, test, all}, samples, history}, holdout_tests, holdout and holdout_lookup (tables of
     dampnet.evaluate.metrics), lookup_table (the baseline fitted on the training tests,
-    LookupTable.to_dict), noise_floor {nrmse_range, nrmse_std, rmse_n} for rig data.
+    LookupTable.to_dict), noise_floor {nrmse_range, nrmse_std, rmse_n} for rig data, structure (is
+    the force rising with velocity, and straight between the training control levels:
+    dampnet.evaluation.structure).
     """
     out: dict[str, Any] = {
         "model_id": model.model_id(),
@@ -418,6 +429,7 @@ def model_metrics(model: MlpModel, info, split: Split, lookup: bool = True) -> d
                 out["holdout_lookup"] = evaluate_model(table.predict_test, split.holdout.tests)
             except (DataError, ValueError) as e:
                 out["holdout_lookup"] = {"error": str(e)}
+    out["structure"] = structure(model, split.train.tests)
     nf = noise_floors(split.holdout or split.train)
     if nf:
         out["noise_floor"] = nf

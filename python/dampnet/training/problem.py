@@ -8,12 +8,17 @@ linear least squares and quadratics with known answers, see tests):
   residual_jacobian(x)   -> (r, J) with J = dr/dx [n_train, n_params]
   loss_grad(x, idx=None) -> (mean squared error, its gradient)   (SCG; Adam on batches idx)
   val_mse(x)             -> validation MSE, or None without a validation set
+
+With a prior (dampnet.training.control_prior) its rows follow the data rows in r and J, and
+loss/loss_grad add their squares over n_train: the objective is the data's squared error plus
+the prior's. n_train counts the data rows only (BR's evidence and the reported MSE use it).
 """
 
 from __future__ import annotations
 
 import torch
 
+from dampnet.training.control_prior import PriorRows
 from dampnet.training.net import DTYPE, Layout
 
 
@@ -21,8 +26,10 @@ class MlpProblem:
     """Squared error of an MLP (flat weights x) on scaled training/validation data."""
 
     def __init__(self, layout: Layout, x_train: torch.Tensor, t_train: torch.Tensor,
-                 x_val: torch.Tensor | None = None, t_val: torch.Tensor | None = None):
+                 x_val: torch.Tensor | None = None, t_val: torch.Tensor | None = None,
+                 prior: PriorRows | None = None):
         self.layout = layout
+        self.prior = prior
         self.xs, self.t = x_train.to(DTYPE), t_train.to(DTYPE)
         self.xv = None if x_val is None or len(x_val) == 0 else x_val.to(DTYPE)
         self.tv = None if self.xv is None else t_val.to(DTYPE)
@@ -32,14 +39,18 @@ class MlpProblem:
 
     def residual(self, x: torch.Tensor) -> torch.Tensor:
         with torch.no_grad():
-            return self.layout.forward(x, self.xs) - self.t
+            r = self.layout.forward(x, self.xs) - self.t
+            return r if self.prior is None else torch.cat([r, self.prior.residual(self.layout, x)])
 
     def residual_jacobian(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         if self._jbuf is None:
             self._jbuf = torch.empty(self.n_params, self.n_train, dtype=DTYPE)
         with torch.no_grad():
             y, J = self.layout.jacobian(x, self.xs, out=self._jbuf)
-        return y - self.t, J
+            if self.prior is None:
+                return y - self.t, J
+            rp, jp = self.prior.residual_jacobian(self.layout, x)
+        return torch.cat([y - self.t, rp]), torch.cat([J, jp])
 
     def loss(self, x: torch.Tensor) -> float:
         r = self.residual(x)
@@ -51,6 +62,9 @@ class MlpProblem:
         xg = x.detach().clone().requires_grad_(True)
         r = self.layout.forward(xg, xs) - t
         e = (r @ r) / len(t)
+        if self.prior is not None:  # the whole prior on every batch, as one share of the objective
+            rp = self.prior.residual(self.layout, xg)
+            e = e + (rp @ rp) / self.n_train
         (g,) = torch.autograd.grad(e, xg)
         return float(e.detach()), g
 

@@ -442,6 +442,7 @@ def summary_line(meta: dict[str, Any]) -> str:
                  f"{kept} (shown after the fact; the choice never saw it)")
     if len(r.get("levels", [])) == 2:
         line += (f"\n  note: only two training control levels ({r['levels'][0]:g}, {r['levels'][1]:g}): between "
-                 "them the data do not determine the model, and the restarts keep the one closest to a straight "
-                 "line; test intermediate levels to know it")
+                 "them the data do not determine the model: the control prior (--control-prior, unless 0) holds it "
+                 "near the straight line between them, as a lookup table interpolates, and the restarts keep the "
+                 "one closest to it; test intermediate levels to know it")
     return line

@@ -1,0 +1,119 @@
+"""Accuracy from few dyno tests (issue 33): dampnet's default training against the lookup table,
+over training seeds, on plans from 9 to 180 tests. Prints the table bench/RESULTS.md quotes
+("Few dyno tests") and writes every number as JSON.
+
+For each plan (the virtual rig's data, data seed fixed per plan) and each hold-out level, trains
+with `dampnet.train` exactly as `dampnet train` does by default (restarts 'auto', the default
+control prior) once per seed, and scores the held-out tests' NRMSE (RMSE over the force range)
+beside the lookup table fitted on the same training tests and the rig's noise floor on them (the
+NRMSE a perfect model would score: the load cell's noise RMS over the held-out force range).
+
+    python bench/few_tests.py                        # quick, 5x8 and 6x8, seeds 0-9, 2.25 V held out
+    python bench/few_tests.py --plans thesis --holdouts 2.25,0.75,4 --seeds 10
+    python bench/few_tests.py --plans 5x8 --seeds 4 --set control_prior=0 --set restarts=1   # a variant
+
+Plans: quick (the rig's: 0.25, 1, 3 Hz x 0, 2.25, 5 V), 5x8 (0.25-3 Hz x 8 levels at 1 kHz,
+2,000 samples: issue 18's sparse plan), 6x8 (the same with 1.5 Hz added), thesis (the rig's
+Table 2 plan: 12 frequencies x 15 levels at 5 kHz).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import time
+
+import numpy as np
+
+LEVELS_8 = [0.0, 0.5, 1.0, 1.5, 2.25, 3.0, 4.0, 5.0]
+PLANS = {
+    "quick": ("quick", 0),
+    "5x8": ({"name": "sparse-5x8", "frequencies_hz": [0.25, 0.5, 1.0, 2.0, 3.0], "amplitudes_m": [0.0254],
+             "voltages_v": LEVELS_8, "sample_rate_hz": 1000.0, "samples": 2000, "min_cycles": 2}, 1),
+    "6x8": ({"name": "sparse-6x8", "frequencies_hz": [0.25, 0.5, 1.0, 1.5, 2.0, 3.0], "amplitudes_m": [0.0254],
+             "voltages_v": LEVELS_8, "sample_rate_hz": 1000.0, "samples": 2000, "min_cycles": 2}, 1),
+    "thesis": ("thesis", 0),
+}
+
+
+def nrmse_of(predict, tests) -> float:
+    from dampnet.evaluation.metrics import evaluate_model
+
+    return float(evaluate_model(predict, tests)["overall"]["nrmse"])
+
+
+def run_plan(name: str, holdout: float, seeds: int, options: dict, workers: int) -> dict:
+    import dampnet
+    from dampnet.predict import predict_force
+    from dampnet.rig import generate
+
+    plan, data_seed = PLANS[name]
+    ds = generate(plan, seed=data_seed)
+    rows = []
+    for seed in range(seeds):
+        t0 = time.perf_counter()
+        trained = dampnet.train(ds, seed=seed, holdout_voltage=holdout, workers=workers,
+                                **{"restarts": "auto", **options})
+        dt = time.perf_counter() - t0
+        model, _, split = trained
+        hold = split.holdout.tests
+        rows.append({"seed": seed, "nrmse": nrmse_of(lambda t: predict_force(model, t), hold), "time_s": dt})
+        print(f"{name:6s} {holdout:g} V  seed {seed}: {rows[-1]['nrmse']:.4f} in {dt:.1f} s", file=sys.stderr, flush=True)
+    lookup = trained.metrics["holdout_lookup"]["overall"]["nrmse"]
+    floor = trained.metrics.get("noise_floor", {}).get("holdout_vs_floor", {}).get("floor_nrmse")
+    h = np.array([r["nrmse"] for r in rows])
+    return {"plan": name, "tests": len(ds.tests), "holdout": holdout, "options": options, "rows": rows,
+            "lookup": lookup, "noise_floor": floor, "median": float(np.median(h)), "max": float(h.max()),
+            "min": float(h.min()), "time_median_s": float(np.median([r["time_s"] for r in rows]))}
+
+
+def table(results: list[dict]) -> str:
+    out = ["| plan (tests) | held out | lookup table | dampnet: median, max | median / max over the lookup table "
+           "| max/min over seeds | noise floor | time per training, median [s] |", "|---|---|---|---|---|---|---|---|"]
+    for r in results:
+        floor = f"{r['noise_floor']:.4f}" if r["noise_floor"] is not None else "-"
+        out.append(f"| {r['plan']} ({r['tests']}) | {r['holdout']:g} V | {r['lookup']:.4f} | {r['median']:.4f}, "
+                   f"{r['max']:.4f} | {r['median'] / r['lookup']:.2f} / {r['max'] / r['lookup']:.2f} | "
+                   f"{r['max'] / r['min']:.2f} | {floor} | {r['time_median_s']:.1f} |")
+    return "\n".join(out)
+
+
+def parse_set(items: list[str]) -> dict:
+    out = {}
+    for item in items:
+        key, _, value = item.partition("=")
+        try:
+            out[key] = json.loads(value)
+        except json.JSONDecodeError:
+            out[key] = value
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--plans", default="quick,5x8,6x8", help=f"comma-separated, of {', '.join(PLANS)}")
+    ap.add_argument("--holdouts", default="2.25", help="held-out levels [V], comma-separated")
+    ap.add_argument("--seeds", type=int, default=10, help="training seeds 0..N-1 (default 10)")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="a training option other than the default (dampnet.train's names; JSON values)")
+    ap.add_argument("--workers", type=int, default=2, help="processes restarts run in (default 2)")
+    ap.add_argument("--json", default=None, help="write every number here")
+    args = ap.parse_args()
+    options = parse_set(args.set)
+    t0 = time.time()
+    results = [run_plan(p, float(h), args.seeds, options, args.workers)
+               for p in args.plans.split(",") for h in args.holdouts.split(",")]
+    print(f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime(t0))}, {platform.machine()}, {os.cpu_count()} cores, "
+          f"load average {os.getloadavg()[0]:.1f} at the end; training options: "
+          f"{options or 'the defaults'}; seeds 0-{args.seeds - 1}\n")
+    print(table(results))
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(results, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()
