@@ -14,6 +14,7 @@ import json
 import numpy as np
 import pytest
 import torch
+from scipy.interpolate import CubicSpline
 
 import dampnet
 from dampnet.evaluation.metrics import evaluate_model
@@ -22,7 +23,7 @@ from dampnet.model import MlpModel
 from dampnet.predict import predict_force
 from dampnet.rig import generate
 from dampnet.sim.quarter_car.loop import damper_from_model
-from dampnet.training.control_prior import prior_rows
+from dampnet.training.control_prior import prior_rows, spline_weights
 from dampnet.training.net import DTYPE, Layout
 from dampnet.training.problem import MlpProblem
 
@@ -32,15 +33,19 @@ def test_the_prior_rows_jacobian_is_the_autograd_one():
     x = layout.init(torch.Generator().manual_seed(3))
     rng = np.random.default_rng(0)
     xs = torch.as_tensor(rng.uniform(-1, 1, (40, 3)), dtype=DTYPE)
-    levels = np.array([[-1.0], [-0.2], [1.0]])  # three levels of the control, column 2
+    levels = np.array([[-1.0], [-0.2], [0.3], [1.0]])  # four levels of the control, column 2
     rows = prior_rows(xs, [2], levels, weight=2.0, rng=rng)
     assert len(rows) == 10  # a quarter of the rows
-    # the middle point lies on the segment between its levels, every other input kept
-    lam = rows.lam.numpy()
-    assert np.all((lam >= 0.1) & (lam <= 0.9))
-    np.testing.assert_allclose(rows.x_mid[:, 2], (1 - rows.lam) * rows.x_lo[:, 2] + rows.lam * rows.x_hi[:, 2])
-    np.testing.assert_array_equal(rows.x_mid[:, :2], rows.x_lo[:, :2])
-    assert set(np.round(rows.x_lo[:, 2].numpy(), 9)) <= {-1.0, -0.2}
+    # every point lies between two adjacent levels, every other input kept
+    mid = rows.x_mid[:, 2].numpy()
+    assert np.all((mid > -1.0) & (mid < 1.0)) and not np.any(np.isin(np.round(mid, 12), levels.ravel()))
+    for lv in range(4):
+        np.testing.assert_array_equal(rows.x_level[lv][:, :2], rows.x_mid[:, :2])
+        assert np.all(rows.x_level[lv][:, 2].numpy() == levels[lv, 0])
+    # the weights are the natural cubic spline's (scipy's CubicSpline through each point's values)
+    values = rng.normal(size=4)
+    ref = CubicSpline(levels[:, 0], values, bc_type="natural")(mid)
+    np.testing.assert_allclose(rows.w.numpy() @ values, ref, rtol=1e-12, atol=1e-12)
     r, jac = rows.residual_jacobian(layout, x)
     auto = torch.autograd.functional.jacobian(lambda w: rows.residual(layout, w), x)
     np.testing.assert_allclose(jac.numpy(), auto.numpy(), rtol=1e-10, atol=1e-12)
@@ -53,6 +58,11 @@ def test_the_prior_rows_jacobian_is_the_autograd_one():
     loss, grad = p.loss_grad(x)
     assert loss == pytest.approx(float(r_all @ r_all) / 40, rel=1e-12)
     np.testing.assert_allclose(grad.numpy(), (2 * j_all.T @ r_all / 40).numpy(), rtol=1e-9, atol=1e-12)
+
+
+def test_two_levels_give_a_straight_line():
+    w = spline_weights(np.array([-1.0, 1.0]), np.array([-0.5, 0.0, 0.8]))
+    np.testing.assert_allclose(w, [[0.75, 0.25], [0.5, 0.5], [0.1, 0.9]], rtol=1e-15)
 
 
 def test_no_prior_without_two_levels_or_a_weight():

@@ -1,5 +1,6 @@
-"""The control-interpolation prior: between two tested control levels the force is the
-straight-line mix of the two levels' forces at the same motion (what a lookup table assumes).
+"""The control-interpolation prior: between the tested control levels the force follows the
+smooth curve through the levels' forces at the same motion (what a lookup table assumes, with a
+straight line; here the natural cubic spline through every level, a straight line for two).
 
 Why: a dyno plan tests a few control levels (voltages or currents). Between them the data say
 nothing, and a network fitted to two or three levels bends there wherever its seed puts it:
@@ -7,21 +8,25 @@ on the rig's quick plan (0 and 5 V trained, 2.25 V held out) plain training gave
 NRMSE of 0.11-1.7 over seeds against the lookup table's 0.029 (bench/RESULTS.md, "Few dyno
 tests"). The prior adds soft residual rows to the least-squares problem,
 
-    r_prior = s * (f(k, u_m) - (1 - lam) f(k, u_lo) - lam f(k, u_hi)),  u_m = u_lo + lam (u_hi - u_lo),
+    r_prior = s * (f(k, u_m) - sum_l w_l(u_m) f(k, u_l)),  u_m = u_lo + lam (u_hi - u_lo),
 
 at motion rows k drawn from the training rows (every input but the control kept), a gap
-(u_lo, u_hi) between adjacent training levels and lam in [0.1, 0.9]. f is the network's scaled
-output, so the rows are linear in the output scaling. `weight` is the prior's share against the
-data: the prior rows' summed squares count `weight` times as much, per row, as the data rows'
-(s = sqrt(weight * n_data / n_points)). With many levels the adjacent levels lie close and the
-straight line between them is close to any smooth truth, so the prior costs little accuracy; with
-two it makes the model the lookup table's interpolation of what it learned at each level.
+(u_lo, u_hi) between adjacent training levels u_l and lam in [0.1, 0.9]; w_l(u) are the natural
+cubic spline's cardinal functions (the spline through values F_l at the levels is sum_l w_l F_l).
+f is the network's scaled output, so the rows are linear in the output scaling. `weight` is the
+prior's share against the data: the prior rows' summed squares count `weight` times as much, per
+row, as the data rows' (s = sqrt(weight * n_data / n_points)). With two levels the reference is
+the straight line and the model becomes the lookup table's interpolation of what it learned at
+each level; with more, the spline follows the valve's curvature across levels, which a straight
+line between adjacent levels would flatten (on the 5 x 8 plan: held-out 0.0053-0.0064 against
+0.0069-0.0087 with straight lines, seeds 0-2).
 
 The control columns are the features the runtime reads from the control
-(dampnet.features.control_columns: field u or u_lag, e.g. voltage and voltage_lag); each takes the level's value (a lag is at
-its steady state in a constant-level test). The levels are the tests' nominal control levels;
-each level's value in a column is the column's mean over that level's rows (a measured control
-channel carries the driver's offset, e.g. -0.0078 V for 0 V on the thesis data).
+(dampnet.features.control_columns: field u or u_lag, e.g. voltage and voltage_lag); each takes
+the level's value (a lag is at its steady state in a constant-level test). The levels are the
+tests' nominal control levels; each level's value in a column is the column's mean over that
+level's rows (a measured control channel carries the driver's offset, e.g. -0.0078 V for 0 V on
+the thesis data).
 """
 
 from __future__ import annotations
@@ -40,7 +45,7 @@ from dampnet.training.settings import OPTIONS
 #: default weight of the prior (dampnet train --control-prior; 0 turns it off; its one home is the
 #: option's Setting): chosen on the rig's quick and 5 x 8 plans (bench/RESULTS.md, "Few dyno tests").
 DEFAULT_WEIGHT = OPTIONS["control_prior"].default
-#: prior points per training row
+#: prior points per training row, at most (with L levels, 1/L: the work per point grows with L)
 POINTS_PER_ROW = 0.25
 def level_values(X: np.ndarray, levels: np.ndarray, columns: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
     """(the distinct nominal levels, sorted [L]; each level's mean value in each control column [L, C])."""
@@ -53,50 +58,67 @@ def level_values(X: np.ndarray, levels: np.ndarray, columns: Sequence[int]) -> t
 
 @dataclass
 class PriorRows:
-    """The prior's inputs (scaled, [M, n_in] each) and mixing weights lam [M]; `scale` is s."""
+    """The prior's rows: scaled inputs at the point between levels `x_mid` [M, n_in], the same
+    motion at every training level `x_level` [L, M, n_in], the reference's weights `w` [M, L]
+    (the natural cubic spline through the levels, evaluated at the point) and the scale s."""
 
-    x_lo: torch.Tensor
-    x_hi: torch.Tensor
     x_mid: torch.Tensor
-    lam: torch.Tensor
+    x_level: torch.Tensor
+    w: torch.Tensor
     scale: float
 
     def __len__(self) -> int:
-        return int(self.lam.shape[0])
+        return int(self.x_mid.shape[0])
 
     def residual(self, layout: Layout, x: torch.Tensor) -> torch.Tensor:
         """r_prior [M], differentiable in the weights x."""
-        f = layout.forward
-        return self.scale * (f(x, self.x_mid) - (1 - self.lam) * f(x, self.x_lo) - self.lam * f(x, self.x_hi))
+        r = layout.forward(x, self.x_mid)
+        for lv, xl in enumerate(self.x_level):
+            r = r - self.w[:, lv] * layout.forward(x, xl)
+        return self.scale * r
 
     def residual_jacobian(self, layout: Layout, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """(r_prior [M], its Jacobian [M, n_params]) by the network's hand-written backprop."""
-        y_mid, j = layout.jacobian(x, self.x_mid)
-        y_lo, j_lo = layout.jacobian(x, self.x_lo)
-        y_hi, j_hi = layout.jacobian(x, self.x_hi)
-        lam = self.lam.unsqueeze(1)
-        jac = (j - (1 - lam) * j_lo - lam * j_hi).mul_(self.scale)
-        r = self.scale * (y_mid - (1 - self.lam) * y_lo - self.lam * y_hi)
-        return r, jac
+        r, jac = layout.jacobian(x, self.x_mid)
+        jac = jac.contiguous()
+        for lv, xl in enumerate(self.x_level):
+            y, j = layout.jacobian(x, xl)
+            r = r - self.w[:, lv] * y
+            jac -= self.w[:, lv:lv + 1] * j
+        return self.scale * r, jac.mul_(self.scale)
+
+
+def spline_weights(levels: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """[len(at), L]: the natural cubic spline through values at `levels` (sorted, L >= 2),
+    evaluated at `at`, is these weights times the values (a straight line for two levels)."""
+    if len(levels) == 2:
+        lam = (at - levels[0]) / (levels[1] - levels[0])
+        return np.stack([1 - lam, lam], axis=1)
+    from scipy.interpolate import CubicSpline
+
+    return CubicSpline(levels, np.eye(len(levels)), bc_type="natural")(at)
 
 
 def prior_rows(xs: torch.Tensor, columns: Sequence[int], level_scaled: np.ndarray, weight: float,
-               rng: np.random.Generator, points_per_row: float = POINTS_PER_ROW) -> PriorRows | None:
+               rng: np.random.Generator) -> PriorRows | None:
     """The prior's rows for scaled training inputs `xs` [N, n_in] (data rows only), the control
-    `columns` and each level's scaled value per column `level_scaled` [L, C]; None when the prior
-    is off (weight 0, no control input, fewer than two levels)."""
-    n = int(xs.shape[0])
-    if weight <= 0 or not columns or len(level_scaled) < 2 or n == 0:
+    `columns` and each level's scaled value per column `level_scaled` [L, C] (sorted by level);
+    None when the prior is off (weight 0, no control input, fewer than two levels)."""
+    n, n_levels = int(xs.shape[0]), len(level_scaled)
+    if weight <= 0 or not columns or n_levels < 2 or n == 0:
         return None
-    m = max(1, int(math.ceil(points_per_row * n)))
+    m = max(1, int(math.ceil(min(POINTS_PER_ROW, 1.0 / n_levels) * n)))
     k = rng.integers(0, n, size=m)
-    gap = rng.integers(0, len(level_scaled) - 1, size=m)
+    gap = rng.integers(0, n_levels - 1, size=m)
     lam = 0.1 + 0.8 * rng.random(m)
     lo, hi = level_scaled[gap], level_scaled[gap + 1]  # [M, C]
-    base = xs[torch.as_tensor(k)].clone()
-    x_lo, x_hi, x_mid = base.clone(), base.clone(), base
+    base = xs[torch.as_tensor(k)]
     cols = list(columns)
-    x_lo[:, cols] = torch.as_tensor(lo, dtype=DTYPE)
-    x_hi[:, cols] = torch.as_tensor(hi, dtype=DTYPE)
+    x_level = base.unsqueeze(0).repeat(n_levels, 1, 1)
+    x_level[:, :, cols] = torch.as_tensor(level_scaled, dtype=DTYPE).unsqueeze(1)
+    x_mid = base.clone()
     x_mid[:, cols] = torch.as_tensor(lo + lam[:, None] * (hi - lo), dtype=DTYPE)
-    return PriorRows(x_lo, x_hi, x_mid, torch.as_tensor(lam, dtype=DTYPE), math.sqrt(weight * n / m))
+    # the reference along the first control column (the others are its lags: the same values)
+    t = level_scaled[:, 0]
+    w = spline_weights(t, t[gap] + lam * (t[gap + 1] - t[gap]))
+    return PriorRows(x_mid, x_level, torch.as_tensor(w, dtype=DTYPE), math.sqrt(weight * n / m))
