@@ -18,6 +18,7 @@ from dampnet.data import DataError
 from dampnet.diagnosis.artefacts import run_order_gain_percent, time_offset
 from dampnet.diagnosis.context import build_context
 from dampnet.diagnosis.run import diagnose
+from dampnet.diagnosis.verdict import three_way
 from dampnet.evaluation.metrics import evaluate_predictions
 from dampnet.predict import predict_force
 from dampnet.rig import EFFECTS, generate, truth_force
@@ -214,6 +215,19 @@ def test_run_order_term_rescales_each_test_to_the_first():
     assert drift.tests[-1].channels["force"] is not back.tests[-1].channels["force"]
     with pytest.raises(ValueError, match="run-order-drift-pct"):
         remove_run_order_drift(ds, float("nan"))
+
+
+@pytest.mark.parametrize("dim,key,words", [("frequency", "frequency_hz", "in tests without a frequency"),
+                                             ("control", "control", "in tests without a nominal control")])
+def test_verdict_words_a_bin_without_a_key(dim, key, words):
+    """Tests without a frequency (replays, random content) or a nominal control fall in a None bin: the
+    verdict words it instead of failing on a format of None."""
+    left = {"significant": True, "score": 0.2, "structure_rms_n": 12.0, "null": {"mean": 0.001, "sd": 0.002},
+            "z": 30.0, "where": {"most_uneven": dim, f"by_{dim}": [{key: 2.0, "rms_n": 3.0},
+                                                                  {key: None, "rms_n": 15.0}]}}
+    f = three_way({}, left, None, [])
+    assert f["kind"] == "unknown_structure", f
+    assert f"most uneven by {dim}: 15.0 N RMS {words} against 3.0 N at 2" in f["sentence"], f["sentence"]
 
 
 @pytest.fixture(scope="module")
