@@ -37,6 +37,17 @@ SPEED_M_S = 20.0
 SETTLE_S = 0.5
 
 
+def _check_run(speed_m_s, duration_s, rate_hz) -> None:
+    """The speed, duration and rate of a replay (quarter car or full-car corner): ValueError if any
+    is out of range."""
+    if not (isinstance(speed_m_s, (int, float)) and 0 < speed_m_s <= 100):
+        raise ValueError(f"replay: speed {speed_m_s!r}: expected a speed in (0, 100] m/s")
+    if not (isinstance(duration_s, (int, float)) and 0.1 <= duration_s <= 600):
+        raise ValueError(f"replay: duration {duration_s!r}: expected 0.1 to 600 s")
+    if not (isinstance(rate_hz, (int, float)) and 100 <= rate_hz <= 20000):
+        raise ValueError(f"replay: rate {rate_hz!r}: expected 100 to 20000 Hz")
+
+
 def road_drive(road: str = "rough", speed_m_s: float = SPEED_M_S, law: str = "passive",
                effects=(), seed: int = 0, duration_s: float = DURATION_S, rate_hz: float = RATE_HZ,
                damping: str = "high") -> Drive:
@@ -49,12 +60,7 @@ def road_drive(road: str = "rough", speed_m_s: float = SPEED_M_S, law: str = "pa
     from dampnet.sim.quarter_car.runs import loop_arrays
     from dampnet.sim.vehicle import Vehicle
 
-    if not (isinstance(speed_m_s, (int, float)) and 0 < speed_m_s <= 100):
-        raise ValueError(f"replay: speed {speed_m_s!r}: expected a speed in (0, 100] m/s")
-    if not (isinstance(duration_s, (int, float)) and 0.1 <= duration_s <= 600):
-        raise ValueError(f"replay: duration {duration_s!r}: expected 0.1 to 600 s")
-    if not (isinstance(rate_hz, (int, float)) and 100 <= rate_hz <= 20000):
-        raise ValueError(f"replay: rate {rate_hz!r}: expected 100 to 20000 Hz")
+    _check_run(speed_m_s, duration_s, rate_hz)
     spec = truth_spec(list(effects))
     veh = Vehicle(dt=CAR_DT_S)
     veh.validate()
@@ -138,10 +144,9 @@ def corner_drive(road: str = "rough", speed_m_s: float = SPEED_M_S, law: str = "
 
     if corner not in CORNERS:
         raise ValueError(f"replay: corner {corner!r}: expected one of {', '.join(CORNERS)}")
+    _check_run(speed_m_s, duration_s, rate_hz)
     damping = vehicle_damping(law)
     profile, seed = full_car_profile(road, seed)
-    if not (isinstance(speed_m_s, (int, float)) and 0 < speed_m_s <= 100):
-        raise ValueError(f"replay: speed {speed_m_s!r}: expected a speed in (0, 100] m/s")
     man = maneuvers.build("road", CAR_DT_S, {"speed_kmh": 3.6 * speed_m_s, "profile": profile, "road_seed": seed})
     n = min(man.road.shape[0], int(round((SETTLE_S + duration_s) / CAR_DT_S)) + 2)
     man = dataclasses.replace(man, road=man.road[:n], road_rate=man.road_rate[:n], steer=man.steer[:n])

@@ -183,6 +183,16 @@ def test_a_full_car_corner_is_replayed(tmp_path, capsys):
     assert "the full vehicle runs low, high, skyhook" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("opt,value,words", [("--duration", "-1", "duration -1.0: expected 0.1 to 600 s"),
+                                             ("--speed", "0", "speed 0.0: expected a speed in (0, 100] m/s")])
+def test_a_full_car_corner_checks_its_duration_and_speed(tmp_path, capsys, opt, value, words):
+    """The corner replay refuses what the quarter car's refuses (it once replayed the wrong span)."""
+    assert main(["rig", str(tmp_path / "o"), "--replay", "rough", "--corner", "fl", opt, value]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("dampnet: error: replay: ") and err.count("\n") == 1 and words in err, err
+    assert not (tmp_path / "o").exists()
+
+
 def test_replay_and_plan_together_are_refused(tmp_path, capsys):
     assert main(["rig", str(tmp_path / "o"), "--replay", "rough", "--plan", "quick"]) == 2
     err = capsys.readouterr().err
