@@ -23,10 +23,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from dampnet.rig.plans import RATE_HZ  # the rig's sample rate [Hz]: the drive is upsampled to it
 from dampnet.rig.replay import Drive, play_drive, replay_dataset
+from dampnet.sim.full_car.runs import CORNERS  # the full vehicle's corners, in the runtime's order
 
-#: the rig's sample rate [Hz] (the drive is upsampled to it)
-RATE_HZ = 5000.0
 #: the quarter car's step [s] (the loop's default)
 CAR_DT_S = 1e-3
 #: default replay length [s] (a rig test, not a whole road)
@@ -95,10 +95,6 @@ def upsample(car: dict[str, np.ndarray], rate_hz: float) -> dict[str, np.ndarray
     steps = tr * (len(t) - 1) / t[-1]   # in car steps (uniform); rounding kept off the step edges
     k = np.minimum(np.floor(steps + 1e-6).astype(int), len(t) - 1)
     return {"t": tr, "x": spline(tr), "v": spline(tr, 1), "a": spline(tr, 2), "u": car["u"][k]}
-
-
-#: the full vehicle's corners (the runtime's order)
-CORNERS = ("fl", "fr", "rl", "rr")
 
 
 def vehicle_damping(law: str) -> str:
