@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dampnet.sim import limits
+from dampnet.sim.full_car.linear import ROAD_PATTERNS
 from dampnet.sim.roads import RoadError, iso8608, sine_sweep, thesis_rough_road
 
 #: ISO 3888-1:2018 lane change: (section, length [m], lane width as (factor, add) of the
@@ -104,13 +105,13 @@ def bsst(dt: float = 1e-3, mode: str = "heave", amplitude_m: float = 0.005, f0: 
          f1: float = 20.0, rate_oct_s: float = 0.1) -> Maneuver:
     """The bounce sine sweep at rest: the quarter car's sweep (dampnet.sim.roads.sine_sweep)
     under all four wheels, in phase (mode "heave") or the rear against the front ("pitch")."""
-    if mode not in ("heave", "pitch"):
+    if mode not in ROAD_PATTERNS:
         raise RoadError(f"bsst mode must be 'heave' or 'pitch', got {mode!r}")
     # 8 s at rest after the sweep: the body modes (~0.7-1 Hz) ring out, so the record holds the
     # whole response and its transform over the road's is the transmissibility (metrics.transmissibility)
     road = sine_sweep(amplitude_m=amplitude_m, f0=f0, f1=f1, rate_oct_s=rate_oct_s, post_s=BSST_POST_S)
     s = road.sample(_step(dt), values_per_step=limits.FULL_CAR_VALUES)
-    sign = np.array([1.0, 1.0, 1.0, 1.0]) if mode == "heave" else np.array([1.0, 1.0, -1.0, -1.0])
+    sign = ROAD_PATTERNS[mode]
     meta = dict(road.meta, test="bsst", mode=mode)
     return Maneuver(f"bsst_{mode}", dt, np.outer(s.z, sign), np.outer(s.zdot, sign), 0.0,
                     steer=np.zeros(s.t.size), meta=meta)
