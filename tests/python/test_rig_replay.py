@@ -117,9 +117,19 @@ def test_dampnet_rig_replay_then_train_evaluate_diagnose(tmp_path, capsys):
     import json
 
     rows = json.loads((tmp_path / "e.json").read_text())["per_test"]
-    assert [r["frequency_hz"] for r in rows] == [None, None] and all(r["nrmse"] > 0 for r in rows)
+    assert [r["frequency_hz"] for r in rows] == [None, None] and [r["test_id"] for r in rows] == ds.test_ids
+    # the 10-epoch model learns the replays: it errs less than the force's own spread (the error of
+    # predicting its mean; measured 55 N against 87 N on the bump, 79 N against 624 N on iso:C) and
+    # within 0.3 NRMSE (0.15, 0.03)
+    for r, t in zip(rows, ds.tests):
+        assert 0 < r["rmse_n"] < np.std(t.channels["force"]) and r["nrmse"] < 0.3, (r, float(np.std(t.channels["force"])))
     assert main(["diagnose", str(tmp_path / "m"), str(out), "--surrogates", "5", "--json",
                  str(tmp_path / "d.json")]) == 0, capsys.readouterr().err
+    # random-content tests: the time-offset test does not run (it needs sines), and finds nothing
+    d = json.loads((tmp_path / "d.json").read_text())
+    t_off = next(a for a in d["artefacts"] if a["artefact"] == "time_offset")
+    assert t_off["testable"] is False and t_off["detected"] is False and "needs sine tests" in t_off["note"], t_off
+    assert "time_offset" not in d["finding"]["artefacts"], d["finding"]
 
 
 def test_a_road_file_is_replayed_and_a_bad_road_is_one_line(tmp_path, capsys):
