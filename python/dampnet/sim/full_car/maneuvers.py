@@ -42,8 +42,8 @@ DLC_RUN_IN_M = 60.0   # straight road before the entry lane: the driver settles
 DLC_RUN_OUT_M = 60.0  # straight road after the exit lane, at least (the path straightens within it)
 DLC_SETTLE_S = 3.0    # the run goes on this long after the exit gate (or DLC_RUN_OUT_M, the longer)
 #: the path keeps the vehicle's body this far inside every cone line [m] (the driver's room; the
-#: entry lane leaves 0.22 m a side to the 1.9 m car). 0.1 m: the path's peak curvature 6.1e-3 1/m
-#: (3.0 m/s^2 at 80 km/h, 6.8 m/s^2 at 120 km/h); 0: 5.6e-3 1/m (see iso3888_path)
+#: entry lane leaves 0.22 m a side to the 1.9 m car). 0.1 m: the path's peak curvature 6.3e-3 1/m
+#: (3.1 m/s^2 at 80 km/h, 7.0 m/s^2 at 120 km/h); 0: 5.3e-3 1/m (see iso3888_path)
 DLC_PATH_MARGIN_M = 0.1
 #: the path's curvature changes at most this fast along it [1/m^2]: no curvature step the steering
 #: could not follow (costs ~2 % of peak curvature over an unbounded rate)
