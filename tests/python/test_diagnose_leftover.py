@@ -219,8 +219,9 @@ def test_run_order_term_rescales_each_test_to_the_first():
         np.testing.assert_allclose(t2.channels["force"], t0.channels["force"], rtol=1e-12, atol=1e-9)
         np.testing.assert_array_equal(t2.channels["velocity"], t1.channels["velocity"])
         np.testing.assert_array_equal(t1.channels["force"], f1)     # the input dataset is untouched
-    with pytest.raises(ValueError, match="run-order-drift-pct"):
-        remove_run_order_drift(ds, float("nan"))
+    for bad in (float("nan"), -90.0, 900.0):    # the message states the range the code takes
+        with pytest.raises(ValueError, match="run-order-drift-pct.*between -90 and 900"):
+            remove_run_order_drift(ds, bad)
 
 
 @pytest.mark.parametrize("dim,key,words", [("frequency", "frequency_hz", "in tests without a frequency"),
