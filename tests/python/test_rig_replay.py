@@ -160,6 +160,10 @@ def test_the_story_example_quick(tmp_path):
     spec = importlib.util.spec_from_file_location("story", ROOT / "examples" / "python" / "sines_to_road_replay.py")
     story = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(story)
+    (tmp_path / "old.json").write_text("{}")     # an existing --out is refused before the work, kept
+    with pytest.raises(SystemExit) as e:
+        story.main(["--quick", "--out", str(tmp_path / "old.json")])
+    assert e.value.code == 2 and (tmp_path / "old.json").read_text() == "{}"
     assert story.main(["--quick", "--out", str(tmp_path / "r.json")]) == 0
     r = json.loads((tmp_path / "r.json").read_text())
     assert len(r["planned_tests"]) == 6
