@@ -62,8 +62,21 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="the quick plan and short replays (about a minute)")
     ap.add_argument("--budget", type=int, default=6, help="dyno tests to plan (default 6)")
-    ap.add_argument("--out", default=None, help="write the numbers as JSON to this file")
+    ap.add_argument("--out", default=None, help="write the numbers as JSON to this file (a new file unless --force)")
+    ap.add_argument("--force", action="store_true", help="replace --out if it exists")
     args = ap.parse_args(argv)
+    if args.out:   # before the minutes of work, not after
+        import os
+        from pathlib import Path
+
+        out = Path(args.out)
+        parent = out.parent
+        if out.is_dir():
+            ap.error(f"--out {args.out}: is a directory: expected a file name")
+        if out.exists() and not args.force:
+            ap.error(f"--out {args.out}: exists; give --force to replace it")
+        if not parent.is_dir() or not os.access(parent, os.W_OK):
+            ap.error(f"--out {args.out}: cannot write into {parent} (not a writable directory)")
     t0 = time.perf_counter()
     plan = "quick" if args.quick else "thesis"
     duration = 2.0 if args.quick else 6.0
@@ -102,7 +115,7 @@ def main(argv=None) -> int:
     if args.out:
         from dampnet.outputs import write_json
 
-        write_json(args.out, result)
+        write_json(args.out, result, overwrite=args.force)
     return 0
 
 

@@ -143,7 +143,7 @@ def remove_run_order_drift(ds: Dataset, percent: float) -> Dataset:
     p = float(percent)
     if not (np.isfinite(p) and -90.0 < p < 900.0):
         raise ValueError(f"--run-order-drift-pct = {percent}: expected the force's change from the first test "
-                         "to the last in percent, finite and above -90")
+                         "to the last in percent, finite, between -90 and 900 (exclusive)")
     n = len(ds.tests)
     tests = []
     for i, t in enumerate(ds.tests):

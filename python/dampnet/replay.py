@@ -23,10 +23,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from dampnet.rig.plans import RATE_HZ  # the rig's sample rate [Hz]: the drive is upsampled to it
 from dampnet.rig.replay import Drive, play_drive, replay_dataset
+from dampnet.sim.full_car.runs import CORNERS  # the full vehicle's corners, in the runtime's order
 
-#: the rig's sample rate [Hz] (the drive is upsampled to it)
-RATE_HZ = 5000.0
 #: the quarter car's step [s] (the loop's default)
 CAR_DT_S = 1e-3
 #: default replay length [s] (a rig test, not a whole road)
@@ -35,6 +35,17 @@ DURATION_S = 6.0
 SPEED_M_S = 20.0
 #: seconds at the start of a run dropped from the drive: the car settles from rest onto the road
 SETTLE_S = 0.5
+
+
+def _check_run(speed_m_s, duration_s, rate_hz) -> None:
+    """The speed, duration and rate of a replay (quarter car or full-car corner): ValueError if any
+    is out of range."""
+    if not (isinstance(speed_m_s, (int, float)) and 0 < speed_m_s <= 100):
+        raise ValueError(f"replay: speed {speed_m_s!r}: expected a speed in (0, 100] m/s")
+    if not (isinstance(duration_s, (int, float)) and 0.1 <= duration_s <= 600):
+        raise ValueError(f"replay: duration {duration_s!r}: expected 0.1 to 600 s")
+    if not (isinstance(rate_hz, (int, float)) and 100 <= rate_hz <= 20000):
+        raise ValueError(f"replay: rate {rate_hz!r}: expected 100 to 20000 Hz")
 
 
 def road_drive(road: str = "rough", speed_m_s: float = SPEED_M_S, law: str = "passive",
@@ -49,12 +60,7 @@ def road_drive(road: str = "rough", speed_m_s: float = SPEED_M_S, law: str = "pa
     from dampnet.sim.quarter_car.runs import loop_arrays
     from dampnet.sim.vehicle import Vehicle
 
-    if not (isinstance(speed_m_s, (int, float)) and 0 < speed_m_s <= 100):
-        raise ValueError(f"replay: speed {speed_m_s!r}: expected a speed in (0, 100] m/s")
-    if not (isinstance(duration_s, (int, float)) and 0.1 <= duration_s <= 600):
-        raise ValueError(f"replay: duration {duration_s!r}: expected 0.1 to 600 s")
-    if not (isinstance(rate_hz, (int, float)) and 100 <= rate_hz <= 20000):
-        raise ValueError(f"replay: rate {rate_hz!r}: expected 100 to 20000 Hz")
+    _check_run(speed_m_s, duration_s, rate_hz)
     spec = truth_spec(list(effects))
     veh = Vehicle(dt=CAR_DT_S)
     veh.validate()
@@ -89,10 +95,6 @@ def upsample(car: dict[str, np.ndarray], rate_hz: float) -> dict[str, np.ndarray
     steps = tr * (len(t) - 1) / t[-1]   # in car steps (uniform); rounding kept off the step edges
     k = np.minimum(np.floor(steps + 1e-6).astype(int), len(t) - 1)
     return {"t": tr, "x": spline(tr), "v": spline(tr, 1), "a": spline(tr, 2), "u": car["u"][k]}
-
-
-#: the full vehicle's corners (the runtime's order)
-CORNERS = ("fl", "fr", "rl", "rr")
 
 
 def vehicle_damping(law: str) -> str:
@@ -138,10 +140,9 @@ def corner_drive(road: str = "rough", speed_m_s: float = SPEED_M_S, law: str = "
 
     if corner not in CORNERS:
         raise ValueError(f"replay: corner {corner!r}: expected one of {', '.join(CORNERS)}")
+    _check_run(speed_m_s, duration_s, rate_hz)
     damping = vehicle_damping(law)
     profile, seed = full_car_profile(road, seed)
-    if not (isinstance(speed_m_s, (int, float)) and 0 < speed_m_s <= 100):
-        raise ValueError(f"replay: speed {speed_m_s!r}: expected a speed in (0, 100] m/s")
     man = maneuvers.build("road", CAR_DT_S, {"speed_kmh": 3.6 * speed_m_s, "profile": profile, "road_seed": seed})
     n = min(man.road.shape[0], int(round((SETTLE_S + duration_s) / CAR_DT_S)) + 2)
     man = dataclasses.replace(man, road=man.road[:n], road_rate=man.road_rate[:n], steer=man.steer[:n])

@@ -76,7 +76,11 @@ def parse_toml(text: str, source: str, error: type[Exception], what: str = "vali
     try:
         import tomllib
     except ModuleNotFoundError:
-        import tomli as tomllib  # type: ignore[no-redef]
+        try:
+            import tomli as tomllib  # type: ignore[no-redef]
+        except ImportError:
+            raise error(f"{source}: reading TOML on Python < 3.11 needs the package tomli: pip install "
+                        "'dampnet[lab]' (or 'dampnet[sweep]', which install it)") from None
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:

@@ -335,3 +335,25 @@ def test_a_file_the_library_spins_on_is_a_one_line_error_in_bounded_time(tmp_pat
     assert time.monotonic() - t0 < 10
     msg = _one_line(e)
     assert str(p) in msg and "the MDF reader (asammdf) took longer than 2" in msg
+
+
+def test_a_channel_map_goes_to_the_lab_files_among_the_data_arguments(rig, tmp_path, capsys):
+    """`dampnet train sines/ lab.tdms --channel-map m.toml`: the map is the lab file's, the dataset
+    directory is read as it is; a map no DATA argument can take is one line."""
+    from dampnet.cli import main
+    from dampnet.commands.common import load_all
+    from dampnet.data import write_dataset
+
+    sines = tmp_path / "sines"
+    write_dataset(rig.subset(rig.tests[:2], note="two"), sines)
+    (tmp_path / "lab").mkdir()
+    lab = write_tdms(tmp_path / "lab" / "run.tdms", {"Measured Data": imperial(rig.tests[3])}, rig.tests[3].dt)
+    (tmp_path / "map.toml").write_text(MAP)             # not beside the lab file: only --channel-map finds it
+    ds = load_all([str(sines), str(lab)], str(tmp_path / "map.toml"))
+    assert ds.test_ids == [t.test_id for t in rig.tests[:2]] + ["run"]
+    np.testing.assert_allclose(ds.tests[2].channels["force"], rig.tests[3].channels["force"], rtol=1e-12, atol=1e-9)
+    assert main(["train", str(sines), "--channel-map", str(tmp_path / "map.toml"),
+                 "--out", str(tmp_path / "m"), *TRAIN]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--channel-map" in err and "no DATA argument is one" in err, err
+    assert not (tmp_path / "m").exists()

@@ -8,6 +8,7 @@ model's frequency response."""
 import numpy as np
 import pytest
 
+from cbuild import ROOT
 from dampnet import _core
 from dampnet.recipes import maneuvers as recipes
 from dampnet.sim.dampers import load_spec
@@ -15,7 +16,7 @@ from dampnet.sim.full_car import linear
 from dampnet.sim.full_car.metrics import bsst_response
 
 NAMES = _core.FULLCAR_STATE_NAMES
-MODEL = "export/dn_model_default.json"
+MODEL = str(ROOT / "export" / "dn_model_default.json")   # the repository's, wherever pytest runs
 
 
 def _drive(params: dict, px, py, seconds: float) -> dict:

@@ -69,6 +69,21 @@ def load_data(path: str, channel_map: str | None = None):
     return load_dataset(path, **({"channel_map": channel_map} if channel_map is not None else {}))
 
 
+def load_all(paths: list[str], channel_map: str | None = None):
+    """The datasets of several DATA arguments merged into one. `channel_map` goes to those that take
+    one (lab files, folders of lab files: dampnet.data.takes_channel_map), not to dataset directories,
+    text files or bundled datasets trained on beside them; DataError if none of them takes it."""
+    from dampnet.data import DataError, merge_datasets, takes_channel_map
+
+    if channel_map is None:
+        return merge_datasets([load_data(p) for p in paths])
+    takes = [p not in REAL_DATASETS and takes_channel_map(p) for p in paths]
+    if not any(takes):
+        raise DataError(f"--channel-map {channel_map}: applies to lab files (TDMS, MDF, RPC III) or folders of "
+                        f"them, and no DATA argument is one ({', '.join(paths)})")
+    return merge_datasets([load_data(p, channel_map if t else None) for p, t in zip(paths, takes)])
+
+
 def add_data_fix_options(p) -> None:
     """The data fixes of dampnet.artefacts a command can apply to its data after loading."""
     p.add_argument("--align-force-s", type=float, default=None, metavar="SECONDS",

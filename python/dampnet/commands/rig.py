@@ -38,9 +38,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="--replay: the car's control law (dampnet.recipes.control_laws, e.g. passive, "
                         "skyhook_onoff; default passive at high damping)")
     p.add_argument("--duration", type=float, default=6.0, help="--replay: seconds of each road kept (default 6)")
-    p.add_argument("--corner", default=None, choices=["fl", "fr", "rl", "rr"],
-                   help="--replay: the stroke of this corner of the full vehicle (two tracks of rough or iso:CLASS; "
-                        "--control low, high or skyhook) instead of the quarter car")
+    p.add_argument("--corner", default=None, metavar="CORNER",
+                   help="--replay: the stroke of this corner of the full vehicle (front/rear left/right: "
+                        "dampnet.sim.full_car.runs.CORNERS; two tracks of rough or iso:CLASS; --control low, high "
+                        "or skyhook) instead of the quarter car")
     p.add_argument("--truth-channels", action="store_true",
                    help="also write noise-free true_force and true_acceleration columns")
     p.add_argument("--force", action="store_true", help="replace OUT if it exists")
@@ -64,6 +65,8 @@ def run(args) -> int:
     progress = not args.no_progress and sys.stderr.isatty()
     if args.replay and args.plan is not None:
         return error("rig: --replay and --plan: a replay runs roads, not a plan; give one of them")
+    if args.corner is not None and not args.replay:
+        return error("rig: --corner: the corner of a full-car replay; give --replay ROAD too")
     plan = args.plan or "thesis"
     inputs = [] if plan in ("thesis", "quick") else [plan]
     if args.replay:   # road CSV profiles are inputs too

@@ -10,7 +10,7 @@ import argparse
 import sys
 import time
 
-from dampnet.commands.common import DATA_HELP, add_channel_map_option, add_data_fix_options, apply_data_fixes, error, load_data
+from dampnet.commands.common import DATA_HELP, add_channel_map_option, add_data_fix_options, apply_data_fixes, error, load_all
 from dampnet.commands.training_options import ADD_RULE, Progress, add_training_options, field_help, training_request, whole
 
 
@@ -57,7 +57,7 @@ def run(args) -> int:
     The request and the training are dampnet.recipes.training's (as the sweep's and dampnet.train)."""
     from pathlib import Path
 
-    from dampnet.data import DataError, merge_datasets
+    from dampnet.data import DataError
     from dampnet.model import ModelError
     from dampnet.outputs import check_output_dir
     from dampnet.recipes.training import plan
@@ -70,7 +70,7 @@ def run(args) -> int:
         req = training_request(args)
         req.check()  # every option and setting before the data are loaded
         workers = check_workers(args)
-        ds = apply_data_fixes(merge_datasets([load_data(d, args.channel_map) for d in args.data]), args)
+        ds = apply_data_fixes(load_all(args.data, args.channel_map), args)
         todo = plan(ds, req)
         if todo.restarts > 1:
             bar = RestartProgress(not args.quiet)

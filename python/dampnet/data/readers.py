@@ -127,6 +127,21 @@ def read_mat(path: str | os.PathLike, mapping: dict[str, str] | None = None, **o
     return build_test(str(path), chans, colnames, header_lines=0, dt=dt, **options)
 
 
+def takes_channel_map(path: str | os.PathLike) -> bool:
+    """Whether load_dataset(path) can take a channel map: a lab file (TDMS, MDF, RPC III) or a folder
+    of them (not a dataset directory, a text or .mat file, or a path that does not exist)."""
+    from dampnet.data.lab import is_lab_file
+
+    p = Path(path)
+    if p.is_dir():
+        if is_dataset_dir(p):
+            return False
+        from dampnet.data.lab.assemble import lab_files
+
+        return bool(lab_files(p))
+    return p.is_file() and is_lab_file(p)
+
+
 def load_dataset(path: str | os.PathLike, channel_map=None, **options) -> Dataset:
     """A Dataset from a dataset directory, a folder of lab files or a single file (format detected).
 

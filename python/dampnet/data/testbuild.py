@@ -15,11 +15,12 @@ from dampnet.data.validate import check_test
 from dampnet.schema import show
 
 _SIGNED_MOTION = ("displacement", "velocity", "acceleration")
-_CONVENTIONS = ("extension", "compression")
+#: the sign conventions of motion and force: positive in extension or in compression
+CONVENTIONS = ("extension", "compression")
 
 
 def _sign(value: str, what: str) -> float:
-    if value not in _CONVENTIONS:
+    if value not in CONVENTIONS:
         raise DataError(f"{what}={show(value)}: expected 'extension' or 'compression'")
     return 1.0 if value == "extension" else -1.0
 

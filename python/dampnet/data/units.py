@@ -16,9 +16,10 @@ from dampnet.schema import show
 #: longest column name parsed (a header cell is a quantity and a unit, never an essay)
 MAX_COLUMN_NAME = 100
 
-_IN = 0.0254
-_LBF = 4.4482216152605
-_G = 9.80665
+#: an inch [m], a pound-force [N] (exact by definition), standard gravity [m/s^2]
+INCH = 0.0254
+LBF = 4.4482216152605
+G = 9.80665
 
 # unit spelling (normalised: lower case, '/' and '_' and ' ' removed, '^' dropped) -> (dimension, scale, offset)
 _UNITS: dict[str, tuple[str, float, float]] = {}
@@ -37,22 +38,22 @@ _add("length", "m meter meters metre", 1.0)
 _add("length", "mm", 1e-3)
 _add("length", "cm", 1e-2)
 _add("length", "um micron", 1e-6)
-_add("length", "in inch inches", _IN)
+_add("length", "in inch inches", INCH)
 _add("length", "ft", 0.3048)
 _add("velocity", "mps", 1.0)
 _add("velocity", "mms", 1e-3)
 _add("velocity", "cms", 1e-2)
-_add("velocity", "ins ips inps inpers", _IN)
+_add("velocity", "ins ips inps inpers", INCH)
 _add("velocity", "fts", 0.3048)
 _add("acceleration", "ms2 mss", 1.0)
 _add("acceleration", "mms2", 1e-3)
-_add("acceleration", "ins2", _IN)
-_add("acceleration", "g", _G)
+_add("acceleration", "ins2", INCH)
+_add("acceleration", "g", G)
 _add("force", "n newton newtons", 1.0)
 _add("force", "kn", 1e3)
-_add("force", "lbf lb lbs", _LBF)
-_add("force", "kgf", _G)
-_add("force", "kip", 1e3 * _LBF)
+_add("force", "lbf lb lbs", LBF)
+_add("force", "kgf", G)
+_add("force", "kip", 1e3 * LBF)
 _add("voltage", "v volt volts", 1.0)
 _add("voltage", "mv", 1e-3)
 _add("current", "a amp amps ampere", 1.0)

@@ -31,6 +31,7 @@ from dampnet.diagnosis import score as S
 from dampnet.diagnosis.basis import SIGN_WIDTHS
 from dampnet.diagnosis.catalogue import _x_frame, gas_columns_of
 from dampnet.diagnosis.leftover import history_columns, run_order
+from dampnet.data.units import G, INCH, LBF
 from dampnet.features import first_order_lag
 
 MAX_OFFSET_S = 0.030
@@ -210,7 +211,7 @@ def run_order_drift(ctx, folds, n_surrogates: int, seed: int) -> dict:
 
 
 #: unit conversions a slipped channel is likely in (factor to SI): mm, in, lbf, kgf and their inverses
-UNIT_FACTORS = (1e-3, 0.0254, 4.4482216, 9.80665, 1e3, 1 / 0.0254, 1 / 4.4482216, 1 / 9.80665)
+UNIT_FACTORS = (1e-3, INCH, LBF, G, 1e3, 1 / INCH, 1 / LBF, 1 / G)
 
 
 def _unit(factor: float) -> float:

@@ -17,9 +17,21 @@ from __future__ import annotations
 
 from dampnet.artefacts import artefact
 from dampnet.diagnosis.leftover import MIN_EXPLAINED
+from dampnet.diagnosis.report import _num
 
 KINDS = ("known_effect", "unknown_structure", "nothing_left", "artefact")
 PER_TEST = ("sign_slip", "unit_slip", "sensor_offset")  # artefacts found test by test
+
+
+# a bin whose key is None holds the tests without that key (replays and random-content tests have no
+# frequency; a dataset may have no nominal control)
+_NO_KEY = {"frequency": "tests without a frequency", "control": "tests without a nominal control"}
+
+
+def _bin_words(dim: str, value, unit: str) -> str:
+    if value is None:
+        return "in " + _NO_KEY.get(dim, "tests without one")
+    return f"at {_num(value)}{unit}"
 
 
 def _where_words(left: dict) -> str:
@@ -34,10 +46,11 @@ def _where_words(left: dict) -> str:
     unit = {"frequency": " Hz", "control": "", "phase_deg": " deg of the cycle", "run_order": ""}[dim]
     label = {"frequency": "frequency", "control": "control", "phase_deg": "phase of the cycle",
              "run_order": "run order"}[dim]
-    return (f"most uneven by {label}: {top['rms_n']:.1f} N RMS at {top[key]:g}{unit} against "
-            f"{low['rms_n']:.1f} N at {low[key]:g}{unit}" if not isinstance(top[key], str) else
-            f"most uneven by {label}: {top['rms_n']:.1f} N RMS in tests {top[key]} against "
-            f"{low['rms_n']:.1f} N in tests {low[key]}")
+    if isinstance(top[key], str):
+        return (f"most uneven by {label}: {top['rms_n']:.1f} N RMS in tests {top[key]} against "
+                f"{low['rms_n']:.1f} N in tests {low[key]}")
+    return (f"most uneven by {label}: {top['rms_n']:.1f} N RMS {_bin_words(dim, top[key], unit)} against "
+            f"{low['rms_n']:.1f} N {_bin_words(dim, low[key], unit)}")
 
 
 def _amount(left: dict) -> str:

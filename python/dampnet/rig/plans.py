@@ -39,6 +39,8 @@ from pathlib import Path
 
 from dampnet.rig.truth import INCH, TABLE2_VOLTAGE_V
 
+#: the rig's sample rate [Hz] (a plan's default; track replays are upsampled to it)
+RATE_HZ = 5000.0
 THESIS_FREQUENCIES_HZ = tuple(0.25 * k for k in range(1, 13))
 
 
@@ -50,7 +52,7 @@ class Plan:
     frequencies_hz: list[float] = field(default_factory=list)
     amplitudes_m: list[float] = field(default_factory=list)
     voltages_v: list[float] = field(default_factory=list)
-    sample_rate_hz: float = 5000.0
+    sample_rate_hz: float = RATE_HZ
     samples: int = 10000
     min_cycles: float = 2.0
     excitation: str = "sine"

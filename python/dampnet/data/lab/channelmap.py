@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from dampnet.data.testbuild import CONVENTIONS
 from dampnet.data.types import CONTROL_NAMES, DataError
 from dampnet.schema import parse_toml, read_text, show
 
@@ -41,7 +42,6 @@ MAP_FILE = "dampnet-channels.toml"
 #: dampnet channels a map may name
 MAP_CHANNELS = ("time", "displacement", "velocity", "force", "voltage", "current", "temperature")
 TABLES = ("channels", "units", "convention", "control")
-_CONVENTIONS = ("extension", "compression")
 
 
 @dataclass
@@ -68,7 +68,7 @@ class ChannelMap:
         units = _strings(d.get("units", {}), f"{source}: [units]", MAP_CHANNELS)
         conv = _strings(d.get("convention", {}), f"{source}: [convention]", ("motion_positive", "force_positive"))
         for k, v in conv.items():
-            if v not in _CONVENTIONS:
+            if v not in CONVENTIONS:
                 raise DataError(f"{source}: [convention] {k} = {show(v)}: expected 'extension' or 'compression'")
         control = d.get("control", {})
         if not isinstance(control, dict):

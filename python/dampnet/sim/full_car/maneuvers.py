@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dampnet.sim import limits
+from dampnet.sim.full_car.linear import ROAD_PATTERNS
 from dampnet.sim.roads import RoadError, iso8608, sine_sweep, thesis_rough_road
 
 #: ISO 3888-1:2018 lane change: (section, length [m], lane width as (factor, add) of the
@@ -41,8 +42,8 @@ DLC_RUN_IN_M = 60.0   # straight road before the entry lane: the driver settles
 DLC_RUN_OUT_M = 60.0  # straight road after the exit lane, at least (the path straightens within it)
 DLC_SETTLE_S = 3.0    # the run goes on this long after the exit gate (or DLC_RUN_OUT_M, the longer)
 #: the path keeps the vehicle's body this far inside every cone line [m] (the driver's room; the
-#: entry lane leaves 0.22 m a side to the 1.9 m car). 0.1 m: the path's peak curvature 6.1e-3 1/m
-#: (3.0 m/s^2 at 80 km/h, 6.8 m/s^2 at 120 km/h); 0: 5.6e-3 1/m (see iso3888_path)
+#: entry lane leaves 0.22 m a side to the 1.9 m car). 0.1 m: the path's peak curvature 6.3e-3 1/m
+#: (3.1 m/s^2 at 80 km/h, 7.0 m/s^2 at 120 km/h); 0: 5.3e-3 1/m (see iso3888_path)
 DLC_PATH_MARGIN_M = 0.1
 #: the path's curvature changes at most this fast along it [1/m^2]: no curvature step the steering
 #: could not follow (costs ~2 % of peak curvature over an unbounded rate)
@@ -104,13 +105,13 @@ def bsst(dt: float = 1e-3, mode: str = "heave", amplitude_m: float = 0.005, f0: 
          f1: float = 20.0, rate_oct_s: float = 0.1) -> Maneuver:
     """The bounce sine sweep at rest: the quarter car's sweep (dampnet.sim.roads.sine_sweep)
     under all four wheels, in phase (mode "heave") or the rear against the front ("pitch")."""
-    if mode not in ("heave", "pitch"):
+    if mode not in ROAD_PATTERNS:
         raise RoadError(f"bsst mode must be 'heave' or 'pitch', got {mode!r}")
     # 8 s at rest after the sweep: the body modes (~0.7-1 Hz) ring out, so the record holds the
     # whole response and its transform over the road's is the transmissibility (metrics.transmissibility)
     road = sine_sweep(amplitude_m=amplitude_m, f0=f0, f1=f1, rate_oct_s=rate_oct_s, post_s=BSST_POST_S)
     s = road.sample(_step(dt), values_per_step=limits.FULL_CAR_VALUES)
-    sign = np.array([1.0, 1.0, 1.0, 1.0]) if mode == "heave" else np.array([1.0, 1.0, -1.0, -1.0])
+    sign = ROAD_PATTERNS[mode]
     meta = dict(road.meta, test="bsst", mode=mode)
     return Maneuver(f"bsst_{mode}", dt, np.outer(s.z, sign), np.outer(s.zdot, sign), 0.0,
                     steer=np.zeros(s.t.size), meta=meta)

@@ -23,6 +23,7 @@ import scipy.signal
 
 from dampnet.sim.full_car.maneuvers import OVERHANG_FRONT_M, OVERHANG_REAR_M, Maneuver
 from dampnet.sim.full_car.params import cg_to_axles
+from dampnet.sim.full_car.runs import CORNERS
 from dampnet.sim.ride import rms, wk_weighted
 
 
@@ -146,7 +147,7 @@ def bsst_response(res: dict, man: Maneuver, params: dict) -> dict:
     x = man.road[:, 0]
     body = column(res, "z" if mode == "heave" else "theta")
     sign = linear.ROAD_PATTERNS[mode]
-    wheel = np.mean([column(res, f"z_us_{c}") * sign[i] for i, c in enumerate(("fl", "fr", "rl", "rr"))], axis=0)
+    wheel = np.mean([column(res, f"z_us_{c}") * sign[i] for i, c in enumerate(CORNERS)], axis=0)
     f, hb = transmissibility(x, body, man.dt, f0, f1)
     _, hw = transmissibility(x, wheel, man.dt, f0, f1)
     fs = params.get("f_static_f", 0.0)
