@@ -139,3 +139,21 @@ def test_the_exported_model_rises_with_velocity_and_stays_between_the_levels(qui
         # and 5 % at worst (measured 0.2 % and 2.2 % at most); without it seed 1 bends by 10-40 %
         bend = force(5.0 * lam) - ((1 - lam) * lo + lam * hi)
         assert np.sqrt(np.mean(bend ** 2)) < 0.01 * span and np.max(np.abs(bend)) < 0.05 * span
+
+
+def test_the_command_takes_the_weight_and_reports_the_structure(quick, tmp_path, capsys):
+    from dampnet.cli import main
+    from dampnet.data import write_dataset
+
+    data = tmp_path / "quick"
+    write_dataset(quick, data)
+    base = ["train", str(data), "--restarts", "1", "--decimate", "50", "--max-epochs", "40"]
+    assert main([*base, "--out", str(tmp_path / "bad"), "--control-prior", "-1"]) == 2
+    err = capsys.readouterr().err
+    assert "--control-prior" in err and "[0, 1e+06]" in err and not (tmp_path / "bad").exists()
+    assert main([*base, "--out", str(tmp_path / "m"), "--control-prior", "0.5"]) == 0
+    out = capsys.readouterr().out
+    line = next(s for s in out.splitlines() if s.startswith("structure: "))
+    assert "control prior 0.5" in line and "half-way between adjacent control levels" in line
+    model = MlpModel.load(tmp_path / "m" / "model.json")
+    assert model.meta["control_prior"]["weight"] == 0.5 and model.meta["control_prior"]["levels"] == [0.0, 5.0]

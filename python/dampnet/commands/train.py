@@ -123,6 +123,21 @@ class RestartProgress(Progress):
         return None
 
 
+def structure_line(model, st: dict) -> str:
+    """One line of metrics.json's "structure" and the control prior (dampnet.evaluation.structure)."""
+    parts = []
+    if "velocity_falling_share" in st:
+        parts.append(f"force falls with velocity at {100 * st['velocity_falling_share']:.1f} % of the training samples")
+    if "control_bend_nrmse" in st:
+        parts.append(f"half-way between adjacent control levels {100 * st['control_bend_nrmse']:.1f} % of the force "
+                     f"range (RMS) off their straight line, outside both levels' forces at "
+                     f"{100 * st['control_reversal_share']:.1f} %")
+    prior = model.meta.get("control_prior", {})
+    if prior.get("weight"):
+        parts.append(f"control prior {prior['weight']:g}" + (f" (off: {prior['off']})" if "off" in prior else ""))
+    return ("structure: " + "; ".join(parts)) if parts else ""
+
+
 def print_summary(model, info, split, metrics, out, t_train) -> None:
     from dampnet.evaluation.metrics import format_table
 
@@ -144,6 +159,9 @@ def print_summary(model, info, split, metrics, out, t_train) -> None:
         lk = metrics.get("holdout_lookup", {})
         if "overall" in lk:
             print(f"lookup-table baseline on the hold-out: NRMSE {lk['overall']['nrmse']:.4f}")
+    line = structure_line(model, metrics.get("structure", {}))
+    if line:
+        print(line)
     if "restarts" in metrics["training"]:
         from dampnet.training.restarts import summary_line
 
