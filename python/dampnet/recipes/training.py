@@ -72,8 +72,9 @@ FIELDS: dict[str, RequestField] = {f.name: f for f in (
                  "interpolation or lolo"),
     RequestField("average", "--average", "average", "", "the best restarts averaged into one network"),
     RequestField("control_prior", "--control-prior", "control_prior", "", "the weight of the prior that the "
-                 "force between two tested control levels is the straight-line mix of theirs, at the same "
-                 "motion, as a lookup table interpolates; against the data's squared error, per row; 0: off"),
+                 "force between the tested control levels follows the natural cubic spline through theirs at "
+                 "the same motion (a straight line between two, as a lookup table interpolates); against the "
+                 "data's squared error, per row; 0: off"),
     RequestField("feature_params", None, None, "", "feature parameters (a lag's time constant [s], ...)"),
     RequestField("acceleration_window", None, None, "s", "the derived acceleration's smoothing window"),
 )}

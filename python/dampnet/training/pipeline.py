@@ -142,8 +142,9 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
     then receives one record per finished fit instead of one per epoch. restarts=1 (the
     default) is exactly the single training it always was. `average` > 1 keeps the best `average`
     restarts instead and averages them into one network (dampnet.training.restarts, step 4).
-    `control_prior` weighs the prior that the force between two training control levels is the
-    straight-line mix of theirs (dampnet.training.control_prior; 0: off).
+    `control_prior` weighs the prior that the force between the training control levels follows
+    the natural cubic spline through theirs, a straight line for two (dampnet.training.control_prior;
+    0: off).
     """
     from dampnet.training.restarts import check_average, check_restarts, train_restarts
 

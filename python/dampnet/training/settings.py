@@ -243,8 +243,8 @@ OPTIONS = _table(
     Setting("zero_fraction", "real", 0, 1, 0.01, "zero-force points added, as a fraction of the training samples"),
     Setting("holdout_voltage", "real", -1e15, 1e15, 2.25, "the control level held out [V or A]",
             none="hold nothing out by level", cli="--holdout-voltage"),
-    Setting("control_prior", "real", 0, 1e6, 1.0, "the weight of the prior that the force between two tested "
-            "control levels is the straight-line mix of theirs (dampnet.training.control_prior); 0: off",
+    Setting("control_prior", "real", 0, 1e6, 1.0, "the weight of the prior that the force between the tested "
+            "control levels follows the smooth curve through theirs (dampnet.training.control_prior); 0: off",
             cli="--control-prior"),
     Setting("acceleration_window", "real", 0, 10, None, "the smoothing window of the derived acceleration [s]",
             open_low=True, none="20 ms"),
