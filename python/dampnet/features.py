@@ -364,12 +364,14 @@ def param_of(name: str) -> str | None:
     return feature(name).param
 
 
-#: the runtime's fields (dn_damper_input) that hold the control: u as commanded, u_lag after the lag
-CONTROL_FIELDS = ("u", "u_lag")
+#: the runtime's dn_damper_input fields that hold the control: u as commanded, and every damper
+#: state whose source is u (its lag; _core.DAMPER_STATES)
+CONTROL_FIELDS = ("u", *(name for name, (_unit, _dyn, source, _param, _doc) in _core.DAMPER_STATES.items()
+                         if source == "u"))
 
 
 def control_columns(features: Sequence[str]) -> list[int]:
-    """Indices of the features that carry the control (those kept in field u or u_lag: e.g.
+    """Indices of the features that carry the control (those kept in a CONTROL_FIELDS field, e.g.
     voltage and voltage_lag); in a constant-level test each is at the level's value."""
     return [j for j, f in enumerate(features) if f in FEATURES and FEATURES[f].field in CONTROL_FIELDS]
 

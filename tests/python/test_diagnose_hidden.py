@@ -23,7 +23,11 @@ from dampnet.training.pipeline import train_dataset
 PLAN = {"name": "diag", "frequencies_hz": [0.25, 0.5, 1.0, 2.0, 3.0], "amplitudes_m": [0.0254],
         "voltages_v": [0.0, 0.5, 1.0, 1.5, 2.25, 3.0, 4.0, 5.0], "sample_rate_hz": 1000.0,
         "samples": 2000, "min_cycles": 2}
-TRAIN = {"decimate": 4, "max_epochs": 120}
+# The training this file was built on: without the control prior (the default since issue 33). With
+# the prior the thermal case's model is already at 0.0089-0.010 held out (0.043 without), and adding
+# temperature, the remedy, makes it worse (0.0147 at the default epochs, seed 0: the temperature input
+# is as free between the tests' temperatures as the control was between levels); issue 33's note.
+TRAIN = {"decimate": 4, "max_epochs": 120, "control_prior": 0.0}
 N_SUR = 29
 
 

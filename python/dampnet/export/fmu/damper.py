@@ -13,7 +13,7 @@ import json
 
 from dampnet import _core
 from dampnet.export.header import _package_version
-from dampnet.features import param_doc
+from dampnet.features import CONTROL_FIELDS, param_doc
 from dampnet.export.fmu.description import Description, FmuError, Variable, fmi_unit, range_in, unit_in
 from dampnet.model import MlpModel
 from dampnet.terms import KINDS
@@ -31,8 +31,6 @@ STATES = tuple((name, k, doc) for k, (name, (_unit, _dyn, _source, _param, doc))
 if VR_STATE + len(STATES) > VR_DERIV or VR_DERIV + len(STATES) > VR_TERM:  # fmu_damper.hpp's static_assert
     raise ImportError(f"the damper's {len(STATES)} states outgrew their value references "
                       f"({VR_STATE}.., {VR_DERIV}..: fmu_damper.hpp)")
-#: the dn_damper_input fields that carry the control: u and the damper states of source u
-CONTROL_FIELDS = ("u", *(name for name, (_u, _d, source, _p, _doc) in _core.DAMPER_STATES.items() if source == "u"))
 
 
 def _fields(model: MlpModel) -> set[str]:
