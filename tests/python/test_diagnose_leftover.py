@@ -28,7 +28,11 @@ from dampnet.training.pipeline import train_dataset
 PLAN = {"name": "diag", "frequencies_hz": [0.25, 0.5, 1.0, 2.0, 3.0], "amplitudes_m": [0.0254],
         "voltages_v": [0.0, 0.5, 1.0, 1.5, 2.25, 3.0, 4.0, 5.0], "sample_rate_hz": 1000.0,
         "samples": 2000, "min_cycles": 2}
-TRAIN = {"decimate": 4, "max_epochs": 120}
+# test_diagnose_hidden's training, without the control prior (see there): with it the models are
+# better, and one training's seed scatter (0.0043-0.0089 on this plan) exceeds what a 10 ms late force
+# channel costs held out (0.0060 as recorded, 0.0090 realigned, seed 0), so a single before/after
+# comparison no longer shows the fix.
+TRAIN = {"decimate": 4, "max_epochs": 120, "control_prior": 0.0}
 N_SUR = 29
 DELAY_S = 0.010
 
