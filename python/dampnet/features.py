@@ -370,6 +370,29 @@ CONTROL_FIELDS = ("u", *(name for name, (_unit, _dyn, source, _param, _doc) in _
                          if source == "u"))
 
 
+#: control_levels: a gap of this share of the control's range separates two levels, and a level
+#: holds at least this share of the rows (values the control only passes through are not levels)
+LEVEL_GAP_SHARE = 0.02
+LEVEL_MIN_SHARE = 0.01
+
+
+def control_levels(X: np.ndarray, columns: Sequence[int]) -> np.ndarray:
+    """The control levels the rows of X were recorded at, [L, len(columns)], sorted: clusters of the
+    first control column's values (split where consecutive values are more than LEVEL_GAP_SHARE of
+    its range apart; at least LEVEL_MIN_SHARE of the rows each), each the mean of every control
+    column over its rows. From the data, not the tests' nominal levels: a measured control carries
+    the driver's offset, and a test may step among levels (the rig's valve_lag effect)."""
+    if not columns or len(X) == 0:
+        return np.zeros((0, len(columns)))
+    v = X[:, columns[0]]
+    order = np.argsort(v, kind="stable")
+    sv = v[order]
+    span = float(sv[-1] - sv[0])
+    cuts = np.flatnonzero(np.diff(sv) > LEVEL_GAP_SHARE * span) + 1 if span > 0 else np.zeros(0, dtype=int)
+    groups = [g for g in np.split(order, cuts) if len(g) >= LEVEL_MIN_SHARE * len(X)]
+    return np.array([[X[g, j].mean() for j in columns] for g in groups]).reshape(len(groups), len(columns))
+
+
 def control_columns(features: Sequence[str]) -> list[int]:
     """Indices of the features that carry the control (those kept in a CONTROL_FIELDS field, e.g.
     voltage and voltage_lag); in a constant-level test each is at the level's value."""

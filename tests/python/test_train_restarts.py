@@ -108,14 +108,13 @@ def test_model_json_records_every_restart(quick_dir, tmp_path):
 def test_restarts_1_is_the_training_as_it_was(quick):
     """restarts=1 is the plain fit: no restart record, and the same weights as fit() on the
     samples the pipeline's docstring describes (hold-out removed, features decimated by 50, the
-    control prior between the tests' nominal levels)."""
+    control prior on)."""
     model, info, split = train_dataset(quick, seed=2, restarts=1, **TINY)
     assert "restarts" not in model.meta
     train = [t for t in quick.tests if abs(t.control_nominal - 2.25) > 1e-9]
     X = np.concatenate([feature_matrix([t], model.features, None, 0.02)[::50] for t in train])
     y = np.concatenate([t.channels["force"][::50] for t in train])
-    levels = np.concatenate([np.full(len(t.channels["force"][::50]), t.control_nominal) for t in train])
-    ref, _ = fit(X, y, features=model.features, seed=2, max_epochs=40, control_prior=1.0, levels=levels)
+    ref, _ = fit(X, y, features=model.features, seed=2, max_epochs=40, control_prior=1.0)
     for name in ("w1", "b1", "w_out", "in_offset", "in_gain", "sat_lo", "sat_hi"):
         np.testing.assert_array_equal(getattr(model, name), getattr(ref, name), err_msg=name)
     assert model.b_out == ref.b_out and model.out_gain == ref.out_gain

@@ -18,7 +18,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from dampnet.features import control_columns, feature_matrix, velocity_column
+from dampnet.features import control_columns, control_levels, feature_matrix, velocity_column
 from dampnet.model import MlpModel
 from dampnet.reference import mlp_forward
 
@@ -35,10 +35,8 @@ def structure(model: MlpModel, tests: Sequence[Any]) -> dict[str, Any]:
     (no velocity input; fewer than two control levels)."""
     X = feature_matrix(list(tests), model.features, model.feature_params,
                        model.meta.get("data", {}).get("acceleration_window_s"))
-    level = np.concatenate([np.full(len(t), np.nan if t.control_nominal is None else float(t.control_nominal))
-                            for t in tests])
     stride = max(1, len(X) // MAX_ROWS)
-    X, level = X[::stride], level[::stride]
+    X = X[::stride]
     f0 = mlp_forward(model, X)
     span = float(np.ptp(f0)) or 1.0
     out: dict[str, Any] = {"rows": len(X)}
@@ -51,9 +49,8 @@ def structure(model: MlpModel, tests: Sequence[Any]) -> dict[str, Any]:
         out["velocity_falling_share"] = float(np.mean(mlp_forward(model, up) - mlp_forward(model, down)
                                                       < -FLAT_SHARE * span))
     cols = control_columns(model.features)
-    nominal = np.unique(level[np.isfinite(level)])
-    if cols and len(nominal) >= 2:
-        values = np.array([[X[level == lv, j].mean() for j in cols] for lv in nominal])
+    values = control_levels(X, cols)
+    if len(values) >= 2:
         bends, reversals = [], []
         for lo, hi in zip(values[:-1], values[1:]):
             f = []
@@ -66,5 +63,5 @@ def structure(model: MlpModel, tests: Sequence[Any]) -> dict[str, Any]:
             reversals.append((f[1] < below - FLAT_SHARE * span) | (f[1] > above + FLAT_SHARE * span))
         out["control_bend_nrmse"] = float(np.sqrt(np.mean(np.concatenate(bends) ** 2)) / span)
         out["control_reversal_share"] = float(np.mean(np.concatenate(reversals)))
-        out["control_levels"] = [float(v) for v in nominal]
+        out["control_levels"] = [round(float(v), 6) for v in values[:, 0]]
     return out

@@ -23,10 +23,10 @@ line between adjacent levels would flatten (on the 5 x 8 plan: held-out 0.0053-0
 
 The control columns are the features the runtime reads from the control
 (dampnet.features.control_columns: field u or u_lag, e.g. voltage and voltage_lag); each takes
-the level's value (a lag is at its steady state in a constant-level test). The levels are the
-tests' nominal control levels; each level's value in a column is the column's mean over that
-level's rows (a measured control channel carries the driver's offset, e.g. -0.0078 V for 0 V on
-the thesis data).
+the level's value (a lag is at its steady state at a held level). The levels are found in the
+training rows (dampnet.features.control_levels: clusters of the control's values, each the
+columns' mean over it), not taken from the tests' nominal levels: a measured control carries the
+driver's offset (-0.0078 V for 0 V on the thesis data), and a test may step among levels.
 """
 
 from __future__ import annotations
@@ -47,15 +47,6 @@ from dampnet.training.settings import OPTIONS
 DEFAULT_WEIGHT = OPTIONS["control_prior"].default
 #: prior points per training row, at most (with L levels, 1/L: the work per point grows with L)
 POINTS_PER_ROW = 0.25
-def level_values(X: np.ndarray, levels: np.ndarray, columns: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
-    """(the distinct nominal levels, sorted [L]; each level's mean value in each control column [L, C])."""
-    levels = np.asarray(levels, dtype=np.float64)
-    nominal = np.unique(levels[np.isfinite(levels)])
-    values = np.array([[X[levels == lv, j].mean() for j in columns] for lv in nominal]).reshape(len(nominal),
-                                                                                                len(columns))
-    return nominal, values
-
-
 @dataclass
 class PriorRows:
     """The prior's rows: scaled inputs at the point between levels `x_mid` [M, n_in], the same

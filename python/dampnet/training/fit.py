@@ -45,8 +45,8 @@ from dampnet.model import MlpModel, mapminmax_settings
 from dampnet.outputs import jsonable
 from dampnet.training.adam import Adam
 from dampnet.training.br import BayesianRegularization
-from dampnet.training.control_prior import level_values, prior_rows
-from dampnet.features import FEATURES, control_columns, units_of
+from dampnet.training.control_prior import prior_rows
+from dampnet.features import FEATURES, control_columns, control_levels, units_of
 from dampnet.training.lm import LevenbergMarquardt
 from dampnet.training.loop import run
 from dampnet.training.metrics import nrmse
@@ -181,26 +181,23 @@ def warm_start_weights(model: MlpModel, layout: Layout, features: Sequence[str],
     return layout.pack({k: torch.as_tensor(v, dtype=DTYPE) for k, v in p.items()})
 
 
-def _control_prior(X: np.ndarray, levels: np.ndarray | None, tr: np.ndarray, features: Sequence[str],
-                   weight: float, in_off: np.ndarray, in_gain: np.ndarray, rng: np.random.Generator):
+def _control_prior(X_train: np.ndarray, features: Sequence[str], weight: float, in_off: np.ndarray,
+                   in_gain: np.ndarray, rng: np.random.Generator):
     """(the prior's rows or None, what model.meta["control_prior"] records)."""
     meta: dict[str, Any] = {"weight": weight}
     columns = control_columns(features)
     if weight <= 0:
         return None, meta
-    if levels is None or not columns:
-        meta["off"] = "no control input" if not columns else "no control levels given"
+    if not columns:
+        meta["off"] = "no control input"
         return None, meta
-    levels = np.asarray(levels, dtype=np.float64).ravel()
-    if len(levels) != len(X):
-        raise ValueError(f"levels: one nominal control level per row expected, got {len(levels)} for {len(X)} rows")
-    nominal, values = level_values(X[tr], levels[tr], columns)
-    meta["levels"] = [float(v) for v in nominal]
-    if len(nominal) < 2:
+    values = control_levels(X_train, columns)
+    meta["levels"] = [round(float(v), 6) for v in values[:, 0]]
+    if len(values) < 2:
         meta["off"] = "fewer than two control levels"
         return None, meta
     scaled = (values - in_off[columns]) * in_gain[columns] - 1.0
-    xs = torch.as_tensor((X[tr] - in_off) * in_gain - 1.0, dtype=DTYPE)
+    xs = torch.as_tensor((X_train - in_off) * in_gain - 1.0, dtype=DTYPE)
     rows = prior_rows(xs, columns, scaled, weight, rng)
     meta["points"] = len(rows) if rows is not None else 0
     return rows, meta
@@ -212,8 +209,7 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
         zero_points: bool = True, zero_fraction: float = 0.01,
         settings: dict[str, Any] | None = None, progress: Callable[[dict], Any] | None = None,
         threads: int | None = None, data: Any = None,
-        init: MlpModel | None = None, control_prior: float = 0.0,
-        levels: np.ndarray | None = None) -> tuple[MlpModel, TrainInfo]:
+        init: MlpModel | None = None, control_prior: float = 0.0) -> tuple[MlpModel, TrainInfo]:
     """Train an MLP force model on X [n, k] (feature units) and y [n] (force [N]).
 
     `settings` overrides the algorithm's defaults (e.g. {"mu_max": 1e8} for lm,
@@ -225,8 +221,8 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
     function carried over exactly into this fit's scaling) instead of Nguyen-Widrow; the seed
     still draws the split and the zero points (a warm start: dampnet.training.restarts).
     `control_prior`: the weight of the control-interpolation prior (dampnet.training.control_prior;
-    0: off) between the nominal control `levels` [n] of the rows (NaN: a row of no level), which
-    it needs; it is off without two levels or a control input (model.meta["control_prior"] says).
+    0: off) between the control levels of the training rows; it is off without two levels or a
+    control input (model.meta["control_prior"] says).
     The same inputs and seed give bit-identical weights on the same machine.
     Every option and setting is checked first (dampnet.training.settings.check_request: a
     one-line ValueError naming it and its range); a training that stops before its first epoch
@@ -266,7 +262,7 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
     def scale_y(a):
         return torch.as_tensor((a - out_off) * out_gain - 1.0, dtype=DTYPE)
 
-    prior, prior_meta = _control_prior(X, levels, tr, features, checked["control_prior"], in_off, in_gain, rng)
+    prior, prior_meta = _control_prior(X[tr], features, checked["control_prior"], in_off, in_gain, rng)
     problem = MlpProblem(layout, scale_x(np.vstack([X[tr], Z])), scale_y(np.concatenate([y[tr], np.zeros(len(Z))])),
                          scale_x(X[va]), scale_y(y[va]), prior=prior)
     gen = torch.Generator().manual_seed(seed)

@@ -270,10 +270,10 @@ def fit_prepared(prep: Prepared, seed: int, *, rows: np.ndarray | None = None,
                  init: MlpModel | None = None) -> tuple[MlpModel, Any]:
     """Steps 4-5 of the module docstring on the prepared samples (all, or the boolean mask
     `rows`: a restart's leave-one-level-out fit): (model, info)."""
-    X, y, level = prep.X, prep.force, prep.level
+    X, y = prep.X, prep.force
     xd, v, u = prep.xd, prep.v, prep.u
     if rows is not None:
-        X, y, level = X[rows], y[rows], level[rows]
+        X, y = X[rows], y[rows]
         if xd is not None:
             xd, v, u = xd[rows], v[rows], u[rows]
     terms = list(prep.terms)
@@ -290,7 +290,7 @@ def fit_prepared(prep: Prepared, seed: int, *, rows: np.ndarray | None = None,
                           algorithm=fk["algorithm"], seed=seed, max_epochs=fk["max_epochs"],
                           max_fail=fk["max_fail"], zero_points=fk["zero_points"], settings=fk["settings"],
                           progress=progress, threads=threads, data=prep.provenance, init=init,
-                          control_prior=fk["control_prior"], levels=level)
+                          control_prior=fk["control_prior"])
     except ValueError as e:
         raise DataError(str(e)) from None
     model.terms = terms
