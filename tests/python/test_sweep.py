@@ -342,8 +342,12 @@ def test_ctrl_c_leaves_finished_cells_and_resume_completes(client, tmp_path):
                     "road_length_m = 150.0\nspeeds = [5.0, 7.0, 9.0]\ncontrollers = ['passive_low', 'skyhook_onoff']\n")
     out = tmp_path / "o"
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    # started as a terminal starts a job: SIGINT at its default. A child inherits an ignored SIGINT, and
+    # Python then installs no KeyboardInterrupt handler: in two full runs of the suite something before
+    # this test left the pytest process ignoring it, and the sweep ran to its end (exit 0, no message).
     p = subprocess.Popen([sys.executable, "-m", "dampnet.cli", "sweep", str(spec), "--out", str(out), "--workers", "2"],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True, env=env)
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True, env=env,
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         deadline = time.monotonic() + 60
         while not (out / "cells").is_dir() or len(list((out / "cells").glob("*.json"))) < 3:
