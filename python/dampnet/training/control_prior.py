@@ -18,8 +18,8 @@ prior's share against the data: the prior rows' summed squares count `weight` ti
 row, as the data rows' (s = sqrt(weight * n_data / n_points)). With two levels the reference is
 the straight line and the model becomes the lookup table's interpolation of what it learned at
 each level; with more, the spline follows the valve's curvature across levels, which a straight
-line between adjacent levels would flatten (on the 5 x 8 plan: held-out 0.0053-0.0064 against
-0.0069-0.0087 with straight lines, seeds 0-2).
+line between adjacent levels would flatten (bench/RESULTS.md "Few dyno tests": 5 x 8 plan, seeds
+0-3, median 0.0061 against 0.0075 with straight lines, measured with a prototype of these rows).
 
 The control columns are the features the runtime reads from the control
 (dampnet.features.control_columns: field u or u_lag, e.g. voltage and voltage_lag); each takes
@@ -38,15 +38,12 @@ from typing import Sequence
 import numpy as np
 import torch
 
-from dampnet.features import control_columns  # noqa: F401  (re-exported: the prior's columns)
 from dampnet.training.net import DTYPE, Layout
-from dampnet.training.settings import OPTIONS
 
-#: default weight of the prior (dampnet train --control-prior; 0 turns it off; its one home is the
-#: option's Setting): chosen on the rig's quick and 5 x 8 plans (bench/RESULTS.md, "Few dyno tests").
-DEFAULT_WEIGHT = OPTIONS["control_prior"].default
 #: prior points per training row, at most (with L levels, 1/L: the work per point grows with L)
 POINTS_PER_ROW = 0.25
+
+
 @dataclass
 class PriorRows:
     """The prior's rows: scaled inputs at the point between levels `x_mid` [M, n_in], the same
