@@ -122,7 +122,7 @@ struct MlpDescBuf {
     // before reading them (ASan reports any read past them).
     auto cap = [](int n, int max) { return n < 0 ? 0 : (n > max ? 1 : n); };
     const int ni = cap(d.n_inputs, DN_MAX_INPUTS), h1 = cap(d.n_hidden1, DN_MAX_HIDDEN),
-              h2 = cap(d.n_hidden2, DN_MAX_HIDDEN);
+              h2 = cap(d.n_hidden2, DN_MAX_HIDDEN2);
     const int n_last = d.n_hidden2 > 0 ? h2 : h1;
     // Weights: mostly ordinary (scaled into a typical trained range), sometimes anything.
     const bool wild = f.ConsumeIntegralInRange<int>(0, 3) == 0;

@@ -34,9 +34,9 @@ class PyMlp {
     if (!w2.is_none()) {
       w2a = DArray::ensure(w2);
       b2a = DArray::ensure(b2);
-      if (!w2a || w2a.ndim() != 2 || w2a.shape(1) != d.n_hidden1 || w2a.shape(0) > DN_MAX_HIDDEN)
+      if (!w2a || w2a.ndim() != 2 || w2a.shape(1) != d.n_hidden1 || w2a.shape(0) > DN_MAX_HIDDEN2)
         throw py::value_error("w2 must be 2-D [n_hidden2, n_hidden1] with n_hidden2 <= " +
-                              std::to_string(DN_MAX_HIDDEN) + " (" + dn_status_str(DN_E_SIZE) + ")");
+                              std::to_string(DN_MAX_HIDDEN2) + " (" + dn_status_str(DN_E_SIZE) + ")");
       if (!b2a) throw py::value_error("b2 must be an array of n_hidden2 numbers when w2 is given");
       d.n_hidden2 = static_cast<int>(w2a.shape(0));
       expect(b2a, d.n_hidden2, "b2");

@@ -136,7 +136,9 @@ void bind_registries(py::module_& mod) {
     mod.attr("BUILD_INFO") = info;
   }
   mod.attr("MAX_INPUTS") = DN_MAX_INPUTS;
-  mod.attr("MAX_HIDDEN") = DN_MAX_HIDDEN;
+  mod.attr("MAX_HIDDEN") = DN_MAX_HIDDEN;    // hidden layer 1: this build's DN_MAX_HIDDEN
+  mod.attr("MAX_HIDDEN2") = DN_MAX_HIDDEN2;  // hidden layer 2
+  mod.attr("MAX_HIDDEN_DEFAULT") = DN_MAX_HIDDEN_DEFAULT;  // layer 1 in a build that does not raise it
   mod.attr("DN_ACCEL_MAX_EVALS") = DN_ACCEL_MAX_EVALS;
   {  // the physical bounds of a step's state and the step's stability limits (dampnet.h)
     py::dict bounds;

@@ -28,6 +28,8 @@ def status_str(status: int, /) -> str:
 BUILD_INFO: Final[dict[str, str | bool]]  # kernel_isa, flags, isa_flags, eigen, compiler
 MAX_INPUTS: Final[int]
 MAX_HIDDEN: Final[int]
+MAX_HIDDEN2: Final[int]
+MAX_HIDDEN_DEFAULT: Final[int]
 DN_ACCEL_MAX_EVALS: Final[int]
 #: dampnet.h DN_PLAUSIBLE_LIST: {name: (bound [SI unit], doc)}; a step beyond one is DN_E_DIVERGED
 PLAUSIBLE_BOUNDS: Final[dict[str, tuple[float, str]]]

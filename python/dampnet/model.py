@@ -116,14 +116,21 @@ class MlpModel:
         h1, n_in = self.w1.shape
         if not 1 <= n_in <= 8:
             raise ModelError(f"w1: 1..8 inputs supported, got {n_in}")
-        if not 1 <= h1 <= 64:
-            raise ModelError(f"w1: 1..64 neurons per hidden layer supported, got {h1}")
+        # the runtime's limits (dn_config.h): layer 1 DN_MAX_HIDDEN, 384 in the Python module's
+        # build so that an averaged network fits; layer 2 DN_MAX_HIDDEN2 (64)
+        from dampnet import _core
+
+        cap1, cap2 = int(_core.MAX_HIDDEN), int(_core.MAX_HIDDEN2)
+        if not 1 <= h1 <= cap1:
+            raise ModelError(f"w1: 1..{cap1} neurons in hidden layer 1 supported (the runtime's DN_MAX_HIDDEN), "
+                             f"got {h1}")
         if self.activation not in ACTIVATIONS:
             raise ModelError(f"activation: expected one of {', '.join(ACTIVATIONS)}, got {schema.show(self.activation)}")
         n_last = h1
         if self.w2 is not None:
-            if self.w2.ndim != 2 or self.w2.shape[1] != h1 or not 1 <= self.w2.shape[0] <= 64:
-                raise ModelError(f"w2: expected [1..64, {h1}], got {self.w2.shape}")
+            if self.w2.ndim != 2 or self.w2.shape[1] != h1 or not 1 <= self.w2.shape[0] <= cap2:
+                raise ModelError(f"w2: expected [1..{cap2}, {h1}] (hidden layer 2: the runtime's DN_MAX_HIDDEN2), "
+                                 f"got {self.w2.shape}")
             n_last = self.w2.shape[0]
             if self.b2 is None or self.b2.shape != (n_last,):
                 raise ModelError(f"b2: expected {n_last} values")

@@ -359,6 +359,31 @@ def test_export_target_folder_builds_and_runs(vectors, model, tmp_path):
     np.testing.assert_array_equal(fw.status, status)
 
 
+def test_export_target_folder_sizes_itself_for_a_wide_averaged_network(vectors, tmp_path):
+    """Capacity from the model (issue 33): three 30-neuron restarts averaged into one 90-neuron
+    network, wider than the library's default 64: the exported folder raises DN_MAX_HIDDEN to 90
+    itself, builds, and its firmware gives the host's float forces."""
+    import shutil
+
+    import dampnet
+    from dampnet.rig import generate
+
+    wide = dampnet.train(generate("quick", seed=0), seed=0, restarts=3, average=3, workers=1, max_epochs=30).model
+    assert wide.hidden == (90,)
+    out = emb.export_target(wide, "cortex-m4", tmp_path / "m4")
+    assert "DN_MAX_HIDDEN=90 DN_CAP_INPUTS=3 DN_CAP_HIDDEN=90" in (out / "CMakeLists.txt").read_text()
+    gen = ["-G", "Ninja"] if shutil.which("ninja") else []
+    subprocess.run(["cmake", "-S", out, "-B", out / "build", *gen, "--toolchain",
+                    out / "cmake" / "arm-none-eabi.cmake"], check=True, capture_output=True)
+    subprocess.run(["cmake", "--build", out / "build"], check=True, capture_output=True)
+    fw = emb.parse_output(emb.run(out / "build" / "firmware.elf", "cortex-m4", icount=False))
+    assert fw.errors == 0 and fw.evals == 1000
+    x = emb.make_vectors(wide, n_x=16, seconds=1.0).x
+    y, status = emb.host_forces(wide, x)
+    assert np.max(np.abs(fw.forces - y)) <= 1e-5 * 2.0 / wide.out_gain
+    np.testing.assert_array_equal(fw.status, status)
+
+
 # ---- the exported folder: what --force may replace, crash safety, its README (issue 29) ----
 
 DEFAULT_JSON = ROOT / "export" / "dn_model_default.json"

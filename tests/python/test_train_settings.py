@@ -132,9 +132,9 @@ def test_every_request_option_is_named_with_its_range(name, no_training):
     (["--restarts", "99999999999999999999"], f"restarts (--restarts, trainings from different seeds, the best "
                                              f"kept): expected a whole number in [1, {MAX_RESTARTS}], got 99999999999999999999"),
     (["--restarts", "0"], f"in [1, {MAX_RESTARTS}]"),
-    (["--hidden", "1000"], f"each a whole number in [1, {_core.MAX_HIDDEN}] (the runtime's limit"),
+    (["--hidden", "1000"], f"layer 1 in [1, {_core.MAX_HIDDEN}], layer 2 in [1, {_core.MAX_HIDDEN2}] (the runtime's limits"),
     (["--hidden", str(_core.MAX_HIDDEN + 1)], f"got [{_core.MAX_HIDDEN + 1}]"),
-    (["--hidden", f"20,{_core.MAX_HIDDEN + 1}"], f"[1, {_core.MAX_HIDDEN}]"),
+    (["--hidden", f"20,{_core.MAX_HIDDEN2 + 1}"], f"got [20, {_core.MAX_HIDDEN2 + 1}]"),
     (["--hidden", "30,20,10"], "one or two layer sizes"),
     (["--hidden", str(_core.MAX_HIDDEN // 2 + 1), "--average", "2", "--restarts", "2"],
      f"make a layer of {2 * (_core.MAX_HIDDEN // 2 + 1)}; dampnet's models hold at most {_core.MAX_HIDDEN}"),
@@ -169,8 +169,13 @@ def test_limits_are_the_runtime_s(no_training):
     names = list(_core.FEATURE_NAMES)
     check_request(features=names[:_core.MAX_INPUTS])
     X = np.random.default_rng(0).uniform(-1, 1, (40, _core.MAX_INPUTS + 1))
-    with pytest.raises(ValueError, match=rf"\[1, {_core.MAX_HIDDEN}\] \(the runtime's limit, DN_MAX_HIDDEN\)"):
+    with pytest.raises(ValueError, match=rf"layer 1 in \[1, {_core.MAX_HIDDEN}\].*DN_MAX_HIDDEN and DN_MAX_HIDDEN2"):
         fit(X[:, :1], X[:, 0], features=["velocity"], hidden=(_core.MAX_HIDDEN + 1,))
+    # layer 2 has its own, smaller limit (its storage is [layer 2][layer 1])
+    assert _core.MAX_HIDDEN2 <= _core.MAX_HIDDEN
+    check_request(hidden=[2, _core.MAX_HIDDEN2])
+    with pytest.raises(ValueError, match=rf"layer 2 in \[1, {_core.MAX_HIDDEN2}\]"):
+        check_request(hidden=[2, _core.MAX_HIDDEN2 + 1])
     with pytest.raises(ValueError, match=rf"at most {_core.MAX_INPUTS} inputs \(DN_MAX_INPUTS\)"):
         fit(X, X[:, 0], features=(names * 2)[:_core.MAX_INPUTS + 1], hidden=(3,))
 

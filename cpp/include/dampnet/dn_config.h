@@ -9,8 +9,26 @@
 /*---- The MLP ----*/
 
 #define DN_MAX_INPUTS 8        /* inputs per model */
-#define DN_MAX_HIDDEN 64       /* neurons per hidden layer */
 #define DN_MAX_HIDDEN_LAYERS 2 /* hidden layers */
+/* Neurons of hidden layer 1: 64 unless the build raises it (CMake DAMPNET_MAX_HIDDEN, up to
+ * DN_MAX_HIDDEN_LIMIT), to hold an averaged network: the mean of k networks of n neurons is one
+ * network of k*n (`dampnet train --average k`). Raising it enlarges every MLP object (its layer-1
+ * storage), so the default stays small; the Python module is built with 384 (pyproject.toml), and
+ * `dampnet export` sizes an FMU's or a firmware's build from the model. Layer 2 keeps at most
+ * DN_MAX_HIDDEN2 neurons, so its [H2][H1] storage grows only linearly with DN_MAX_HIDDEN. */
+#define DN_MAX_HIDDEN_LIMIT 1024
+#define DN_MAX_HIDDEN_DEFAULT 64
+#ifndef DN_MAX_HIDDEN
+#define DN_MAX_HIDDEN DN_MAX_HIDDEN_DEFAULT
+#endif
+#if DN_MAX_HIDDEN < 1 || DN_MAX_HIDDEN > DN_MAX_HIDDEN_LIMIT
+#error "DN_MAX_HIDDEN: neurons of hidden layer 1, 1..DN_MAX_HIDDEN_LIMIT (1024)"
+#endif
+#if DN_MAX_HIDDEN < 64
+#define DN_MAX_HIDDEN2 DN_MAX_HIDDEN /* neurons of hidden layer 2 */
+#else
+#define DN_MAX_HIDDEN2 64
+#endif
 
 /* Capacities of this build of the library: what its fixed-size objects hold. The defaults are
  * the limits above; a build for a small target lowers them (compile definitions of the library
@@ -20,7 +38,7 @@
  * pointers, so a C program needs no definitions of its own.
  *   DN_CAP_INPUTS   inputs of an MLP, 1..DN_MAX_INPUTS
  *   DN_CAP_HIDDEN   neurons of hidden layer 1, 1..DN_MAX_HIDDEN
- *   DN_CAP_HIDDEN2  neurons of hidden layer 2, 0 (one hidden layer only)..DN_MAX_HIDDEN
+ *   DN_CAP_HIDDEN2  neurons of hidden layer 2, 0 (one hidden layer only)..DN_MAX_HIDDEN2
  *   DN_CAP_TABLE_V, DN_CAP_TABLE_U  lookup-table velocities (2..) and controls (1..)
  *   DN_CAP_TERMS    physics terms per damper, 0..DN_MAX_TERMS
  *   DN_DOUBLE_KERNEL  1: the double-precision MLP kernel; 0: none (float-only targets:
@@ -40,7 +58,7 @@
 #define DN_CAP_HIDDEN DN_MAX_HIDDEN
 #endif
 #ifndef DN_CAP_HIDDEN2
-#define DN_CAP_HIDDEN2 DN_MAX_HIDDEN
+#define DN_CAP_HIDDEN2 DN_MAX_HIDDEN2
 #endif
 #ifndef DN_DOUBLE_KERNEL
 #define DN_DOUBLE_KERNEL 1

@@ -37,7 +37,7 @@ typedef enum dn_activation { DN_ACTIVATION_LIST(DN_ENUM_ROW_) } dn_activation;
 typedef struct dn_mlp_desc {
   int n_inputs;            /* inputs, 1..DN_MAX_INPUTS */
   int n_hidden1;           /* neurons in hidden layer 1, 1..DN_MAX_HIDDEN */
-  int n_hidden2;           /* neurons in hidden layer 2, 0 (no second layer) or 1..DN_MAX_HIDDEN */
+  int n_hidden2;           /* neurons in hidden layer 2, 0 (no second layer) or 1..DN_MAX_HIDDEN2 */
   int activation;          /* dn_activation of the hidden layers */
   const double* w1;        /* [n_hidden1][n_inputs] */
   const double* b1;        /* [n_hidden1] */
@@ -76,7 +76,7 @@ typedef struct dn_mlp dn_mlp;
 typedef struct dn_mlp_folded_f {
   int n_inputs;            /* inputs, 1..DN_MAX_INPUTS */
   int n_hidden1;           /* neurons in hidden layer 1, 1..DN_MAX_HIDDEN */
-  int n_hidden2;           /* neurons in hidden layer 2, 0 (no second layer) or 1..DN_MAX_HIDDEN */
+  int n_hidden2;           /* neurons in hidden layer 2, 0 (no second layer) or 1..DN_MAX_HIDDEN2 */
   int offsets_folded;      /* 1: b1 includes -w1 in_offset (layer 1 on x'); 0: layer 1 on x' - in_offset */
   const float* w1;         /* [n_hidden1][n_inputs], 1/input unit (mapminmax gain folded in) */
   const float* b1;         /* [n_hidden1] */

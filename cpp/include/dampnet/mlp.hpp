@@ -254,7 +254,7 @@ inline void set_shape(P& p, int ni, int h1, int h2) noexcept {
 // (kDynamic = any) and this object's capacity: DN_OK, DN_E_SIZE or DN_E_MISMATCH.
 template <int kIn, int kH1, int kH2, class P>
 inline int check_sizes(int ni, int h1, int h2) noexcept {
-  if (ni < 1 || ni > DN_MAX_INPUTS || h1 < 1 || h1 > DN_MAX_HIDDEN || h2 < 0 || h2 > DN_MAX_HIDDEN)
+  if (ni < 1 || ni > DN_MAX_INPUTS || h1 < 1 || h1 > DN_MAX_HIDDEN || h2 < 0 || h2 > DN_MAX_HIDDEN2)
     return DN_E_SIZE;
   if ((kIn > 0 && ni != kIn) || (kH1 > 0 && h1 != kH1) || (kH2 >= 0 && h2 != kH2)) return DN_E_MISMATCH;
   // beyond this object's capacity (a build with lowered DN_CAP_*: dampnet.h)
@@ -502,9 +502,12 @@ inline double widen_exact(float f) noexcept {
 template <typename T, int In, int H1, int H2>
 struct MlpParams {
   static_assert(In >= 1 && In <= DN_MAX_INPUTS, "1..8 inputs");
-  static_assert(H1 >= 1 && H1 <= DN_MAX_HIDDEN, "1..64 neurons in hidden layer 1");
-  static_assert(H2 >= 0 && H2 <= DN_MAX_HIDDEN, "0..64 neurons in hidden layer 2");
+  static_assert(H1 >= 1 && H1 <= DN_MAX_HIDDEN, "1..DN_MAX_HIDDEN neurons in hidden layer 1");
+  static_assert(H2 >= 0 && H2 <= DN_MAX_HIDDEN2, "0..DN_MAX_HIDDEN2 neurons in hidden layer 2");
   static constexpr int P1 = pad(H1), P2 = pad(H2);
+  // The last hidden layer's capacity: layer 2's, or layer 1's for a one-layer model, which a
+  // build with both layers also loads (layer 1 may be the wider: DN_MAX_HIDDEN > DN_MAX_HIDDEN2).
+  static constexpr int PL = P1 > P2 ? P1 : P2;
   static constexpr int kCapIn = In, kCapH1 = H1, kCapH2 = H2;
   int n_in = 0, n_h1 = 0, n_h2 = 0;  // real sizes
   int n_h1p = 0, n_h2p = 0;          // padded sizes the loops run over
@@ -513,12 +516,12 @@ struct MlpParams {
   alignas(DN_KERNEL_ALIGN) std::array<T, P1> b1{};
   alignas(DN_KERNEL_ALIGN) std::array<T, (H2 > 0 ? P1 * P2 : 0)> w2t{};  // [h1 padded][h2 padded]
   alignas(DN_KERNEL_ALIGN) std::array<T, P2> b2{};
-  alignas(DN_KERNEL_ALIGN) std::array<T, (H2 > 0 ? P2 : P1)> w_out{};  // output unscaling folded in
+  alignas(DN_KERNEL_ALIGN) std::array<T, PL> w_out{};  // output unscaling folded in
   // float only: the last hidden layer's tanh numerator with the output weight folded in,
   // tw[k * kTw + j] = kTanhP[k] w_out[j] (activation.hpp), and 1 / w_out[j] (0 where
   // w_out[j] is 0 or its reciprocal would not be finite), for the SIMD backends.
   // (Not stored for the other kernels, which never read them.)
-  static constexpr int kTw = detail::kSimdFloat && std::is_same<T, float>::value ? (H2 > 0 ? P2 : P1) : 0;
+  static constexpr int kTw = detail::kSimdFloat && std::is_same<T, float>::value ? PL : 0;
   alignas(DN_KERNEL_ALIGN) std::array<T, kTanhPTerms * kTw> tw{};
   alignas(DN_KERNEL_ALIGN) std::array<T, kTw> inv_w{};
   T b_out{};  // the output for all-zero hidden units, in output units

@@ -4,6 +4,7 @@ One self-contained header per model (C99 and C++17, warning-clean, safe to
 include from several translation units). It holds, for a prefix `p`:
 
   P_ID, P_N_INPUTS, P_N_HIDDEN1, P_N_HIDDEN2, P_ACTIVATION   sizes and kind
+  P_DN_MAX_HIDDEN                                           the library build it needs
   P_IN_YMIN, P_OUT_OFFSET, P_OUT_GAIN, P_OUT_YMIN           output scaling
   p_feature_names[], p_feature_units[]                      ordered inputs
   p_w1[], p_b1[], (p_w2[], p_b2[]), p_w_out[], p_b_out[]    weights, [out][in] row-major
@@ -145,8 +146,25 @@ def _folded_block(p: str, P: str, model: MlpModel) -> list[str]:
     return out
 
 
+def _max_hidden_default() -> int:
+    from dampnet import _core
+
+    return int(_core.MAX_HIDDEN_DEFAULT)
+
+
 def _cstr(s: str) -> str:
     return '"' + s.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def build_defines(model: MlpModel) -> list[str]:
+    """The dn_config.h limits a build of the library must raise to hold `model`, as "NAME=value"
+    compile definitions; none for a network within the defaults. DN_MAX_HIDDEN when a hidden layer
+    is wider than the default 64 (an averaged network: `dampnet train --average`). The FMU's and
+    the firmware folder's builds take them from here."""
+    from dampnet import _core
+
+    need = max(model.hidden)
+    return [f"DN_MAX_HIDDEN={need}"] if need > int(_core.MAX_HIDDEN_DEFAULT) else []
 
 
 def header_text(model: MlpModel, prefix: str = "dn_model", envelope=None) -> str:
@@ -180,6 +198,9 @@ def header_text(model: MlpModel, prefix: str = "dn_model", envelope=None) -> str
         f"#define {P}_N_INPUTS {n_in}",
         f"#define {P}_N_HIDDEN1 {h1}",
         f"#define {P}_N_HIDDEN2 {h2} /* 0: one hidden layer */",
+        f"#define {P}_DN_MAX_HIDDEN {max(h1, h2)} /* the DN_MAX_HIDDEN (dn_config.h) a library holding this "
+        f"network needs: above {_max_hidden_default()}, build it with -DDN_MAX_HIDDEN={max(h1, h2)} (CMake "
+        f"-DDAMPNET_MAX_HIDDEN={max(h1, h2)}) */",
         f"#define {P}_ACTIVATION {_activation_value(model.activation)} "
         f"/* DN_ACT_{model.activation.upper()} */",
         "/* mapminmax: x_scaled = (x - in_offset) * in_gain + IN_YMIN;",

@@ -334,7 +334,7 @@ def export_target(model, target: str, out_dir, overwrite: bool = False, model_na
     never if it is or holds one of `inputs` (the model's path); the folder is built in a staging
     directory and swapped in (outputs.staged_dir), so a kill leaves the old folder or the new."""
     import dampnet
-    from dampnet.export.header import header_text
+    from dampnet.export.header import build_defines, header_text
     from dampnet.outputs import check_output_dir, json_text, staged_dir
 
     if target not in CPUS:
@@ -344,7 +344,7 @@ def export_target(model, target: str, out_dir, overwrite: bool = False, model_na
         vectors = make_vectors(model, n_x=16, seconds=1.0)
     src_root, cmake_dir, fw_dir = _folder_sources()
     caps = capacities_for(model)
-    cap_defs = target_defines(target, caps)
+    cap_defs = build_defines(model) + target_defines(target, caps)  # a wider layer first raises the limit
     header = header_text(model, "dn_model")
     # the float weights with the scalings folded in (set-up without double arithmetic), when the
     # header has them (a model whose folded values overflow float has only DN_MODEL_DESC_INIT)

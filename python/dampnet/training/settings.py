@@ -258,19 +258,22 @@ def option(name: str, value: Any) -> Any:
 
 
 def check_hidden(hidden: Any) -> tuple[int, ...]:
-    """One or two hidden layer sizes, each in 1..the runtime's DN_MAX_HIDDEN; ValueError otherwise."""
+    """One or two hidden layer sizes: layer 1 in 1..the runtime's DN_MAX_HIDDEN, layer 2 in
+    1..DN_MAX_HIDDEN2; ValueError otherwise."""
     from dampnet import _core
 
-    cap = int(_core.MAX_HIDDEN)
+    caps = (int(_core.MAX_HIDDEN), int(_core.MAX_HIDDEN2))
     try:
         sizes = tuple(hidden) if not isinstance(hidden, (str, bytes)) else None
     except TypeError:
         sizes = (hidden,)
     ok = sizes is not None and len(sizes) in (1, 2) and all(
-        isinstance(h, (int, np.integer)) and not isinstance(h, (bool, np.bool_)) and 1 <= h <= cap for h in sizes)
+        isinstance(h, (int, np.integer)) and not isinstance(h, (bool, np.bool_)) and 1 <= h <= cap
+        for h, cap in zip(sizes, caps))
     if not ok:
-        raise ValueError(f"hidden (--hidden): expected one or two layer sizes, each a whole number in [1, {cap}] "
-                         f"(the runtime's limit, DN_MAX_HIDDEN), got {show_value(hidden)}")
+        raise ValueError(f"hidden (--hidden): expected one or two layer sizes, whole numbers: layer 1 in "
+                         f"[1, {caps[0]}], layer 2 in [1, {caps[1]}] (the runtime's limits, DN_MAX_HIDDEN and "
+                         f"DN_MAX_HIDDEN2), got {show_value(hidden)}")
     return tuple(int(h) for h in sizes)
 
 
