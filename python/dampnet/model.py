@@ -131,6 +131,9 @@ class MlpModel:
             if self.w2.ndim != 2 or self.w2.shape[1] != h1 or not 1 <= self.w2.shape[0] <= cap2:
                 raise ModelError(f"w2: expected [1..{cap2}, {h1}] (hidden layer 2: the runtime's DN_MAX_HIDDEN2), "
                                  f"got {self.w2.shape}")
+            if h1 > cap2:
+                raise ModelError(f"w1: {h1} neurons in hidden layer 1 of a two-layer network; the runtime holds "
+                                 f"{cap2} (DN_MAX_HIDDEN2: only a one-layer network's layer may be wider)")
             n_last = self.w2.shape[0]
             if self.b2 is None or self.b2.shape != (n_last,):
                 raise ModelError(f"b2: expected {n_last} values")

@@ -132,7 +132,7 @@ def test_every_request_option_is_named_with_its_range(name, no_training):
     (["--restarts", "99999999999999999999"], f"restarts (--restarts, trainings from different seeds, the best "
                                              f"kept): expected a whole number in [1, {MAX_RESTARTS}], got 99999999999999999999"),
     (["--restarts", "0"], f"in [1, {MAX_RESTARTS}]"),
-    (["--hidden", "1000"], f"layer 1 in [1, {_core.MAX_HIDDEN}], layer 2 in [1, {_core.MAX_HIDDEN2}] (the runtime's limits"),
+    (["--hidden", "1000"], f"layer 1 in [1, {_core.MAX_HIDDEN}], layer 2 in [1, {_core.MAX_HIDDEN2}], both in"),
     (["--hidden", str(_core.MAX_HIDDEN + 1)], f"got [{_core.MAX_HIDDEN + 1}]"),
     (["--hidden", f"20,{_core.MAX_HIDDEN2 + 1}"], f"got [20, {_core.MAX_HIDDEN2 + 1}]"),
     (["--hidden", "30,20,10"], "one or two layer sizes"),
@@ -164,7 +164,7 @@ def test_the_issue_s_options_are_refused_before_the_data_are_read(argv, expect, 
 def test_limits_are_the_runtime_s(no_training):
     """The layer and input limits are read from the runtime (dampnet._core), and checked before any
     epoch: --hidden 65 trained for minutes, then failed when the model was checked."""
-    assert check_request(hidden=[_core.MAX_HIDDEN, 1])["hidden"] == (_core.MAX_HIDDEN, 1)
+    assert check_request(hidden=[_core.MAX_HIDDEN])["hidden"] == (_core.MAX_HIDDEN,)
     assert check_request(hidden=30)["hidden"] == (30,)
     names = list(_core.FEATURE_NAMES)
     check_request(features=names[:_core.MAX_INPUTS])
@@ -176,6 +176,10 @@ def test_limits_are_the_runtime_s(no_training):
     check_request(hidden=[2, _core.MAX_HIDDEN2])
     with pytest.raises(ValueError, match=rf"layer 2 in \[1, {_core.MAX_HIDDEN2}\]"):
         check_request(hidden=[2, _core.MAX_HIDDEN2 + 1])
+    # and so does layer 1 of a two-layer network (the [layer 2][layer 1] weights stay small)
+    check_request(hidden=[_core.MAX_HIDDEN2, 2])
+    with pytest.raises(ValueError, match=r"both in \[1, 64\] when there are two"):
+        check_request(hidden=[_core.MAX_HIDDEN2 + 1, 2])
     with pytest.raises(ValueError, match=rf"at most {_core.MAX_INPUTS} inputs \(DN_MAX_INPUTS\)"):
         fit(X, X[:, 0], features=(names * 2)[:_core.MAX_INPUTS + 1], hidden=(3,))
 

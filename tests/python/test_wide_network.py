@@ -69,6 +69,28 @@ def test_the_runtime_s_kernel_is_numpy_s_forward_up_to_its_width_limit(wide, wid
         assert np.max(np.abs(y - ref)) <= tol * scale * np.sqrt(width), (single, np.max(np.abs(y - ref)))
 
 
+@pytest.mark.parametrize("hidden", [(30, 20), (64, 64)])
+def test_two_layer_networks_keep_to_layer_2_s_limit_in_the_wide_build(wide, hidden):
+    """Two hidden layers: both within DN_MAX_HIDDEN2 (64), so the [H2][H1] weights stay small in
+    a build that raises DN_MAX_HIDDEN; numpy's forward up to it, refused beyond it (DN_E_SIZE)."""
+    rng = np.random.default_rng(sum(hidden))
+    m = copy.deepcopy(wide)
+    h1, h2 = hidden
+    m.w1, m.b1 = rng.normal(size=(h1, m.n_inputs)), rng.normal(size=h1)
+    m.w2, m.b2, m.w_out = rng.normal(size=(h2, h1)) / np.sqrt(h1), rng.normal(size=h2), rng.normal(size=h2) / np.sqrt(h2)
+    m.validate()
+    x = _inputs(m)
+    y, status, _ = m.core().predict(x, single=False)
+    assert np.all(status >= 0)
+    np.testing.assert_allclose(y, numpy_forward(m, x), rtol=0, atol=1e-12 * np.sqrt(h1) / m.out_gain)
+    m.w1, m.b1 = np.zeros((_core.MAX_HIDDEN2 + 1, m.n_inputs)), np.zeros(_core.MAX_HIDDEN2 + 1)
+    m.w2 = np.zeros((h2, _core.MAX_HIDDEN2 + 1))
+    with pytest.raises(Exception, match="two-layer network; the runtime holds 64"):
+        m.validate()
+    with pytest.raises(ValueError, match=r"\(DN_E_SIZE\)|size"):
+        m.core()
+
+
 def test_a_layer_beyond_the_runtime_s_limit_is_refused_by_name(wide):
     m = copy.deepcopy(wide)
     n = _core.MAX_HIDDEN + 1

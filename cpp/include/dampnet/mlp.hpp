@@ -256,9 +256,12 @@ template <int kIn, int kH1, int kH2, class P>
 inline int check_sizes(int ni, int h1, int h2) noexcept {
   if (ni < 1 || ni > DN_MAX_INPUTS || h1 < 1 || h1 > DN_MAX_HIDDEN || h2 < 0 || h2 > DN_MAX_HIDDEN2)
     return DN_E_SIZE;
+  // a network with two hidden layers keeps both within DN_MAX_HIDDEN2 (its [H2][H1] weights stay
+  // small in a build that raises DN_MAX_HIDDEN for one wide layer: an averaged network)
+  if (h2 > 0 && h1 > DN_MAX_HIDDEN2) return DN_E_SIZE;
   if ((kIn > 0 && ni != kIn) || (kH1 > 0 && h1 != kH1) || (kH2 >= 0 && h2 != kH2)) return DN_E_MISMATCH;
   // beyond this object's capacity (a build with lowered DN_CAP_*: dampnet.h)
-  if (ni > P::kCapIn || h1 > P::kCapH1 || h2 > P::kCapH2) return DN_E_SIZE;
+  if (ni > P::kCapIn || h1 > P::kCapH1 || h2 > P::kCapH2 || (h2 > 0 && pad(h1) > P::P1T)) return DN_E_SIZE;
   if (small_refuses<P>(ni)) return DN_E_SIZE;
   return DN_OK;
 }
@@ -508,13 +511,15 @@ struct MlpParams {
   // The last hidden layer's capacity: layer 2's, or layer 1's for a one-layer model, which a
   // build with both layers also loads (layer 1 may be the wider: DN_MAX_HIDDEN > DN_MAX_HIDDEN2).
   static constexpr int PL = P1 > P2 ? P1 : P2;
+  // Layer 1's capacity when there is a layer 2 (both within DN_MAX_HIDDEN2: check_sizes).
+  static constexpr int P1T = H2 > 0 ? (H1 < DN_MAX_HIDDEN2 ? P1 : pad(DN_MAX_HIDDEN2)) : 0;
   static constexpr int kCapIn = In, kCapH1 = H1, kCapH2 = H2;
   int n_in = 0, n_h1 = 0, n_h2 = 0;  // real sizes
   int n_h1p = 0, n_h2p = 0;          // padded sizes the loops run over
   Activation act = Activation::tanh;
   alignas(DN_KERNEL_ALIGN) std::array<T, In * P1> w1t{};  // [in][h1 padded], input gain folded in
   alignas(DN_KERNEL_ALIGN) std::array<T, P1> b1{};
-  alignas(DN_KERNEL_ALIGN) std::array<T, (H2 > 0 ? P1 * P2 : 0)> w2t{};  // [h1 padded][h2 padded]
+  alignas(DN_KERNEL_ALIGN) std::array<T, P1T * P2> w2t{};  // [h1 padded][h2 padded]
   alignas(DN_KERNEL_ALIGN) std::array<T, P2> b2{};
   alignas(DN_KERNEL_ALIGN) std::array<T, PL> w_out{};  // output unscaling folded in
   // float only: the last hidden layer's tanh numerator with the output weight folded in,

@@ -9,8 +9,10 @@ share their input and output scaling is itself one network:
 
 is a network whose hidden layer is the K hidden layers side by side (w1, b1 stacked), with output
 weights w_out_k / K and output bias mean(b_out_k). So the ensemble runs wherever one network runs
-(the C++ runtime, the generated header, the FMU, ONNX) as long as its width fits the 64 neurons a
-layer that dampnet's models and runtime hold (DN_MAX_HIDDEN: two networks of 30, not six).
+(the C++ runtime, the generated header, the FMU, ONNX) as long as its width fits the runtime's
+DN_MAX_HIDDEN: 384 in the Python module's build (twelve networks of 32); a C or C++ build wider
+than its default 64 is built with -DDN_MAX_HIDDEN=N, which the exported FMU and firmware folder
+do themselves (export.header.build_defines).
 
 Training the same data makes the scalings equal bit for bit (mapminmax of the same samples; the
 physics terms fitted by the same least squares); `average_networks` refuses models that differ
@@ -31,7 +33,7 @@ SHARED = ("features", "units", "activation", "in_offset", "in_gain", "in_ymin", 
 
 
 def check_width(hidden_each: Sequence[int]) -> int:
-    """The averaged layer's width; ModelError when it exceeds the 64 neurons a dampnet model holds."""
+    """The averaged layer's width; ModelError when it exceeds the runtime's DN_MAX_HIDDEN."""
     from dampnet import _core
 
     width, cap = int(sum(hidden_each)), int(_core.MAX_HIDDEN)

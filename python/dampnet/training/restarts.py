@@ -23,7 +23,7 @@ What a restart run does (`train_restarts`, `train_dataset(..., restarts=N)`):
     mean output, exactly); meta["restarts"]["averaged"] lists them. Why: seeds scatter, and their
     mean less: on the demo's data (BR, 30 hidden) pairs of seeds are 2.17x the noise floor on the
     hold-out against 2.41x for one seed, and a single 60-hidden network 2.77x (bench/RESULTS.md
-    "Inside the envelope"). The width must fit the runtime's DN_MAX_HIDDEN (64) neurons.
+    "Inside the envelope"). The width must fit the runtime's DN_MAX_HIDDEN (384 in the Python module).
 
 The scores (`restart_score`):
   "interpolation" (default): each restart is the ordinary full fit, scored by how far it strays,

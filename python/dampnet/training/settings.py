@@ -258,8 +258,8 @@ def option(name: str, value: Any) -> Any:
 
 
 def check_hidden(hidden: Any) -> tuple[int, ...]:
-    """One or two hidden layer sizes: layer 1 in 1..the runtime's DN_MAX_HIDDEN, layer 2 in
-    1..DN_MAX_HIDDEN2; ValueError otherwise."""
+    """One or two hidden layer sizes: layer 1 in 1..the runtime's DN_MAX_HIDDEN, or both in
+    1..DN_MAX_HIDDEN2 when there are two; ValueError otherwise."""
     from dampnet import _core
 
     caps = (int(_core.MAX_HIDDEN), int(_core.MAX_HIDDEN2))
@@ -269,11 +269,11 @@ def check_hidden(hidden: Any) -> tuple[int, ...]:
         sizes = (hidden,)
     ok = sizes is not None and len(sizes) in (1, 2) and all(
         isinstance(h, (int, np.integer)) and not isinstance(h, (bool, np.bool_)) and 1 <= h <= cap
-        for h, cap in zip(sizes, caps))
+        for h, cap in zip(sizes, caps)) and (len(sizes) == 1 or sizes[0] <= caps[1])
     if not ok:
         raise ValueError(f"hidden (--hidden): expected one or two layer sizes, whole numbers: layer 1 in "
-                         f"[1, {caps[0]}], layer 2 in [1, {caps[1]}] (the runtime's limits, DN_MAX_HIDDEN and "
-                         f"DN_MAX_HIDDEN2), got {show_value(hidden)}")
+                         f"[1, {caps[0]}], layer 2 in [1, {caps[1]}], both in [1, {caps[1]}] when there are two "
+                         f"(the runtime's limits, DN_MAX_HIDDEN and DN_MAX_HIDDEN2), got {show_value(hidden)}")
     return tuple(int(h) for h in sizes)
 
 
