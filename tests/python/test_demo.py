@@ -16,6 +16,7 @@ import pytest
 import needs
 
 from wheel_env import wheel_env
+from dampnet.training.restarts import DEFAULT_RESTARTS
 
 
 @pytest.fixture(scope="module")
@@ -111,13 +112,15 @@ def test_demo_report_shows_the_fmu_trace(demo_out):
 
 
 def test_demo_trains_with_restarts_and_shows_their_spread(demo_out):
-    """Both trainings keep the best of DEMO_RESTARTS restarts by the interpolation score alone; the
+    """Both trainings keep the best of the default restarts by the interpolation score alone; the
     summary and the report show every restart's held-out NRMSE, the kept one being the model's."""
     out, stdout = demo_out
     summary = json.loads((out / "summary.json").read_text())
     for which in ("original", "improved"):
         r = summary["restarts"][which]
-        assert r["n"] == 6 and len(r["runs"]) == 6 and len({x["seed"] for x in r["runs"]}) == 6
+        # the default's restarts ("auto"): the --quick data are within its row budget
+        assert r["n"] == DEFAULT_RESTARTS and len(r["runs"]) == DEFAULT_RESTARTS
+        assert len({x["seed"] for x in r["runs"]}) == DEFAULT_RESTARTS
         scores = [x["score"] for x in r["runs"]]
         assert r["kept"] == int(np.argmin(scores)) and r["runs"][r["kept"]]["kept"]
         assert r["holdout_nrmse_kept"] == pytest.approx(summary["holdout_nrmse"][which], abs=1e-7)
@@ -128,7 +131,7 @@ def test_demo_trains_with_restarts_and_shows_their_spread(demo_out):
     assert "restarts: hold-out NRMSE" in stdout
     text = (out / "report.html").read_text()
     part = text[text.index("2. The thesis"):text.index("3. Diagnosis")]
-    assert "6 restarts" in part and "held-out NRMSE (not seen)" in part
+    assert f"{DEFAULT_RESTARTS} restarts" in part and "held-out NRMSE (not seen)" in part
     assert part.count("<td>kept</td>") == 2 and 'alt="held-out NRMSE of every restart' in part
 
 

@@ -183,6 +183,31 @@ def test_auto_trains_once_when_there_is_nothing_to_interpolate(quick_dir, tmp_pa
     assert "restarts" not in MlpModel.load(tmp_path / "m").meta
 
 
+@pytest.mark.parametrize("decimate", [None, 7])
+def test_auto_restarts_keep_rows_times_restarts_within_the_budget(quick, quick_dir, tmp_path, capsys,
+                                                                 monkeypatch, decimate):
+    """The automatic restarts count the training rows as the pipeline will fit them (its feature
+    matrix's rows, hold-out and decimation applied) and run fewer than the default when rows x
+    restarts would exceed the budget (the thesis plan: 2), never fewer than 2 nor than --average."""
+    from dampnet.training import restarts as rs
+
+    rows = rs.training_rows(quick, 2.25, (), decimate)
+    assert rows == len(prepare_training(quick, decimate=decimate).X)
+    assert rs.auto_restarts(quick, 2.25, decimate=decimate) == (rs.DEFAULT_RESTARTS, None)
+    monkeypatch.setattr(rs, "RESTART_ROWS_BUDGET", 3 * rows + rows // 2)
+    n, note = rs.auto_restarts(quick, 2.25, decimate=decimate)
+    assert n == 3 and f"{rows:,} training rows" in note
+    assert rs.auto_restarts(quick, 2.25, decimate=decimate, average=4)[0] == 4
+    monkeypatch.setattr(rs, "RESTART_ROWS_BUDGET", rows // 2)
+    assert rs.auto_restarts(quick, 2.25, decimate=decimate)[0] == rs.MIN_AUTO_RESTARTS
+    if decimate is None:  # the command says how many it ran and why
+        monkeypatch.setattr(rs, "RESTART_ROWS_BUDGET", 2 * rows)
+        rc = main(["train", str(quick_dir), "--out", str(tmp_path / "m"), "--max-epochs", "5"])
+        out = capsys.readouterr().out
+        assert rc == 0 and f"restarts: 2 (not {rs.DEFAULT_RESTARTS}: {rows:,} training rows" in out
+        assert len(MlpModel.load(tmp_path / "m").meta["restarts"]["runs"]) == 2
+
+
 def test_average_keeps_the_best_restarts_as_one_network(quick_dir, tmp_path, capsys):
     """--average 2: the two lowest-scored restarts averaged into one network twice as wide, whose
     output is their mean (each restart refitted alone: the plain fit of its seed), with the

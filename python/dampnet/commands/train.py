@@ -92,7 +92,7 @@ def run(args) -> int:
                   + f" (parameters: {a['parameters_from']})")
         print_summary(trained.model, trained.info, trained.split, trained.metrics, out, t_train)
         if trained.restarts_note:
-            print(f"restarts: 1 ({trained.restarts_note})")
+            print(f"restarts: {trained.restarts} ({trained.restarts_note})")
     return 0
 
 

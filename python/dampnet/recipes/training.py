@@ -166,7 +166,7 @@ class TrainingRequest:
 class Plan:
     """A request with what needs the data resolved: `kw` train_dataset's arguments (the added
     effects' features and terms in), `added` what each effect added, `restarts` the count,
-    `note` why "auto" trained once (None otherwise)."""
+    `note` why "auto" ran fewer than the default restarts (None otherwise)."""
 
     dataset: Any
     request: TrainingRequest
@@ -187,7 +187,7 @@ class Plan:
         model, info, split = train_dataset(self.dataset, algorithm=r.algorithm, progress=progress, threads=threads,
                                            init=init, restarts=self.restarts, workers=workers,
                                            restart_score=r.restart_score, average=r.average, **self.kw)
-        return Trained(model, info, split, envelope_of(model, split), self.added, self.note)
+        return Trained(model, info, split, envelope_of(model, split), self.added, self.note, self.restarts)
 
 
 def plan(dataset, request: TrainingRequest, check: bool = True) -> Plan:
@@ -219,7 +219,7 @@ def plan(dataset, request: TrainingRequest, check: bool = True) -> Plan:
         from dampnet.training.restarts import auto_restarts, check_average
 
         restarts, note = auto_restarts(dataset, kw["holdout_voltage"], kw["holdout_tests"], kw["features"],
-                                       request.restart_score)
+                                       request.restart_score, decimate=kw.get("decimate"), average=request.average)
         check_average(request.average, restarts, request.hidden, request.restart_score)
     else:
         restarts = int(request.restarts)
@@ -230,9 +230,11 @@ class Trained:
     """A trained model with everything its model directory holds. Unpacks as (model, info, split),
     dampnet.train's result before it carried the envelope."""
 
-    def __init__(self, model, info, split, envelope, added: Sequence[dict] = (), note: str | None = None):
+    def __init__(self, model, info, split, envelope, added: Sequence[dict] = (), note: str | None = None,
+                 restarts: int = 1):
         self.model, self.info, self.split, self.envelope = model, info, split, envelope
-        self.added, self.restarts_note = list(added), note
+        # restarts_note: why the automatic restarts ran `restarts` and not the default
+        self.added, self.restarts_note, self.restarts = list(added), note, int(restarts)
 
     def __iter__(self):
         return iter((self.model, self.info, self.split))

@@ -68,6 +68,13 @@ from dampnet.data import DataError
 
 #: restarts `dampnet train` runs unless --restarts says otherwise (bench/RESULTS.md "Restarts")
 DEFAULT_RESTARTS = 6
+#: the automatic restarts' budget: training rows (after decimation) times restarts. A plan of up to
+#: 33,000 rows (the 5 x 8 plan: 25,000) gets DEFAULT_RESTARTS; the thesis plan's 91,518 rows get 2,
+#: which keeps its default training near a minute on 2 cores, not 3-7 (issue 33: with the control
+#: prior, its restarts' held-out errors agree to 1.3x, so more restarts buy little there)
+RESTART_ROWS_BUDGET = 200_000
+#: the fewest automatic restarts when the score can run (one to keep, one to compare)
+MIN_AUTO_RESTARTS = 2
 #: how many interior levels the "lolo" score withholds, one per fit
 LOLO_LEVELS = 2
 SCORES = ("interpolation", "lolo")
@@ -139,9 +146,11 @@ def lolo_levels(levels: list[float], k: int = LOLO_LEVELS) -> list[float]:
 
 
 def auto_restarts(ds, holdout_voltage=None, holdout_tests=(), features=None,
-                  score: str = "interpolation") -> tuple[int, str | None]:
-    """(DEFAULT_RESTARTS, None) when `ds`'s training tests allow `score`, else (1, why not):
-    what `dampnet train` runs without --restarts."""
+                  score: str = "interpolation", decimate: int | None = None,
+                  average: int = 1) -> tuple[int, str | None]:
+    """What `dampnet train` runs without --restarts: (1, why not) when `ds`'s training tests do not
+    allow `score`; else DEFAULT_RESTARTS, fewer (not below MIN_AUTO_RESTARTS, nor `average`) when
+    the training rows times the restarts would exceed RESTART_ROWS_BUDGET, with a note saying so."""
     from dampnet.features import FEATURES, default_features
 
     if not ds.tests:
@@ -158,7 +167,27 @@ def auto_restarts(ds, holdout_voltage=None, holdout_tests=(), features=None,
     if len(levels) < need:
         return 1, (f"the training tests have {len(levels)} control level{'s' if len(levels) != 1 else ''} "
                    f"({', '.join(f'{x:g}' for x in levels) or 'none'}); the {score} score needs {need}")
-    return DEFAULT_RESTARTS, None
+    rows = training_rows(ds, holdout_voltage, holdout_tests, decimate)
+    n = max(MIN_AUTO_RESTARTS, min(DEFAULT_RESTARTS, RESTART_ROWS_BUDGET // max(rows, 1)), int(average))
+    if n >= DEFAULT_RESTARTS:
+        return n, None
+    return n, (f"not {DEFAULT_RESTARTS}: {rows:,} training rows, and the automatic restarts keep rows x restarts "
+               f"near {RESTART_ROWS_BUDGET:,}; --restarts N runs N")
+
+
+def training_rows(ds, holdout_voltage=None, holdout_tests=(), decimate: int | None = None) -> int:
+    """The rows a training of `ds` fits: its training tests' samples after the decimation
+    (`decimate`, or the pipeline's automatic one), without building the feature matrix."""
+    from dampnet.training.pipeline import _auto_decimate
+
+    held = set(holdout_tests or ())
+    train = [t for t in ds.tests if t.test_id not in held and not (
+        holdout_voltage is not None and t.control_nominal is not None
+        and abs(t.control_nominal - holdout_voltage) <= 1e-6)]
+    if not train:
+        return 0
+    factor = int(decimate) if decimate else _auto_decimate(ds)
+    return sum(-(-len(t) // factor) for t in train)
 
 
 def _n_params(prep) -> int:
