@@ -128,6 +128,44 @@ int main(int argc, char** argv) {
     float y; rf.forward(&xf[(i & 1023) * kIn], &y); sink = y; }, none, n, warm));
   dn_bench::print_json("dampnet_c_abi_float", dn_bench::measure([&](long i) {
     float y; dn_mlp_forward_f(cm, &xf[(i & 1023) * kIn], &y, nullptr); sink = y; }, none, n, warm));
+  // Averaged networks (issue 33: `dampnet train --average K`, K networks side by side), through
+  // the C ABI: the default network's hidden layer repeated K times with its output weights
+  // divided by K, so each computes the default model's force with K times the neurons (checked
+  // on the 1024 inputs: max_diff_n). A width beyond the library's DN_MAX_HIDDEN (64 unless its
+  // build raises it; 384 in the Python module's) is refused at set-up and reported as such.
+  for (const int k : {2, 6, 12}) {
+    const int h = k * kH;
+    std::vector<double> w1(size_t(h) * kIn), b1(h), wo(h);
+    for (int j = 0; j < h; ++j) {
+      for (int i = 0; i < kIn; ++i) w1[size_t(j) * kIn + i] = d.w1[(j % kH) * kIn + i];
+      b1[j] = d.b1[j % kH];
+      wo[j] = d.w_out[j % kH] / k;
+    }
+    dn_mlp_desc wd = d;
+    wd.n_hidden1 = h;
+    wd.w1 = w1.data();
+    wd.b1 = b1.data();
+    wd.w_out = wo.data();
+    dn_mlp* wide = nullptr;
+    const std::string name = "c_abi_float_averaged_" + std::to_string(h);
+    const int st = dn_mlp_create(&wd, &wide);
+    if (st != DN_OK) {
+      std::printf("{\"name\": \"%s\", \"neurons\": %d, \"refused\": \"%s\"}\n", name.c_str(), h, dn_status_str(st));
+      continue;
+    }
+    double max_diff = 0.0;
+    for (int r = 0; r < 1024; ++r) {
+      float yw, y1;
+      dn_mlp_forward_f(wide, &xf[r * kIn], &yw, nullptr);
+      dn_mlp_forward_f(cm, &xf[r * kIn], &y1, nullptr);
+      max_diff = std::max(max_diff, std::fabs(double(yw) - double(y1)));
+    }
+    char extra[96];
+    std::snprintf(extra, sizeof extra, ", \"neurons\": %d, \"max_diff_n\": %.3g", h, max_diff);
+    dn_bench::print_json(name, dn_bench::measure([&](long i) {
+      float y; dn_mlp_forward_f(wide, &xf[(i & 1023) * kIn], &y, nullptr); sink = y; }, none, n, warm), extra);
+    dn_mlp_destroy(wide);
+  }
   dn_bench::print_json("naive_cpp_std_tanh", dn_bench::measure([&](long i) {
     sink = naive.forward(&xd[(i & 1023) * kIn]); }, none, n, warm));
   // The training envelope's bounded-time check (dn_envelope_check) on the same inputs: every

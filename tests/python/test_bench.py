@@ -11,6 +11,7 @@ import sys
 import numpy as np
 
 from cbuild import ROOT, compile_program, run
+from dampnet.model import MlpModel
 
 
 def test_percentiles_of_the_harness_match_numpy(tmp_path):
@@ -103,6 +104,15 @@ def test_dampnet_bench_quick_runs_and_reports_the_budget(tmp_path):
     fp = res["footprint"]
     assert fp["dn_fullcar_step_bytes"] > fp["dn_loop_step_bytes"] > 0, fp
     assert f"full-car step {fp['dn_fullcar_step_bytes']} B" in proc.stdout
+    # averaged networks (issue 33): the default network repeated 2, 6 and 12 times, which this
+    # package's library holds (DN_MAX_HIDDEN 384), computing the same force (float rounding)
+    av = res["averaged"]
+    assert [r["neurons"] for r in av["widths"]] == [60, 180, 360] and av["refused"] == {}
+    for r in av["widths"]:
+        case = res["results"][f"c_abi_float_averaged_{r['neurons']}"]
+        assert case["n"] == 20000 and 0 < case["p50_ns"] <= case["p999_ns"] and r["p50_ns"] == case["p50_ns"]
+        assert r["max_diff_n"] <= 1e-5 * 2.0 / MlpModel.load(ROOT / "export" / "dn_model_default.json").out_gain, r
+    assert "averaged networks (dampnet train --average" in proc.stdout and "360 neurons p50" in proc.stdout
 
 
 def _bench(*args, harness_dir, timeout=600):

@@ -9,6 +9,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from dampnet import _core
 from dampnet.training.ensemble import average_networks
 from dampnet.model import ModelError
 from dampnet.predict import predict_force
@@ -50,9 +51,9 @@ def test_members_that_cannot_add_up_are_refused():
         average_networks([a, random_model(["velocity", "voltage", "acceleration"], seed=2)])
     with pytest.raises(ModelError, match="model 1's terms differs"):
         average_networks([a, random_model(FEATURES, seed=2, terms=TERMS)])
-    with pytest.raises(ModelError, match="average: 6 networks of 30, 30, 30, 30, 30, 30 hidden neurons make a layer of 180; "
-                                         "dampnet's models hold at most 64"):
-        average_networks([random_model(FEATURES, hidden=30, seed=s) for s in range(6)])
+    with pytest.raises(ModelError, match="average: 13 networks of 30, 30, 30, .* hidden neurons make a layer of 390; "
+                                         f"dampnet's models hold at most {_core.MAX_HIDDEN}"):
+        average_networks([random_model(FEATURES, hidden=30, seed=s) for s in range(13)])
     two = dataclasses.replace(b, w2=np.eye(12), b2=np.zeros(12))
     with pytest.raises(ModelError, match="model 1 has two hidden layers"):
         average_networks([a, two])

@@ -236,7 +236,7 @@ def test_average_keeps_the_best_restarts_as_one_network(quick_dir, tmp_path, cap
 
 @pytest.mark.parametrize("kw, message", [
     ({"restarts": 2, "average": 3}, "only 2 restart"),
-    ({"restarts": 3, "average": 3, "hidden": (30,)}, "a layer of 90; dampnet's models hold at most 64"),
+    ({"restarts": 3, "average": 3, "hidden": (130,)}, "a layer of 390; dampnet's models hold at most 384"),
     ({"restarts": 2, "average": 2, "hidden": (8, 8)}, "only one-hidden-layer networks"),
     ({"restarts": 2, "average": 2, "restart_score": "lolo"}, "use restart_score 'interpolation'"),
     ({"restarts": 2, "average": 0}, r"average \(--average, .*\): expected a whole number in \[1, 1000\], got 0"),

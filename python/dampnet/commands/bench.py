@@ -107,6 +107,13 @@ def run(args) -> int:
           "(latency, not throughput), 100 calls per clock pair, percentiles over the batches' per-call means. "
           "'x kernel p50' = median / the C++ kernel's "
           f"median ({bench_python.KERNEL_CASE}); Python-level calls include the interpreter's call overhead.")
+    av = res.get("averaged", {})
+    if av.get("widths") or av.get("refused"):
+        print("averaged networks (dampnet train --average; C ABI float forward, the default network repeated: "
+              f"the same force): single {av['single_p50_ns']:.0f} ns p50; "
+              + ", ".join(f"{r['neurons']} neurons p50 {r['p50_ns']:.0f} ns (x{r['x_single_p50']:.1f}), "
+                          f"p99.9 {r['p999_ns']:.0f} ns, force off by {r['max_diff_n']:.2g} N" for r in av["widths"])
+              + "".join(f"; {n} neurons refused by this build ({why}: DN_MAX_HIDDEN)" for n, why in av["refused"].items()))
     b, h = res["budget"], res["headroom"]
     source = ("set by --budget-ns" if args.budget_ns is not None
               else f"{100 * b['share']:.0f} % of a {1e6 / b['step_rate_hz']:.0f} us step")

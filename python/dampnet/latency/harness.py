@@ -112,14 +112,33 @@ def run_harness(exe: Path, n_calls: int) -> dict:
     proc = subprocess.run([str(exe), str(int(n_calls))], capture_output=True, text=True, timeout=1800)
     if proc.returncode != 0:
         raise RuntimeError(f"latency harness failed: {proc.stderr.strip()}")
-    machine, results = {}, {}
+    machine, results, refused = {}, {}, {}
     for line in proc.stdout.splitlines():
         rec = json.loads(line)
         if "machine" in rec:
             machine = rec["machine"]
+        elif "refused" in rec:  # a case this build of the library does not hold (a wide network)
+            refused[rec.pop("name")] = rec
         else:
             results[rec.pop("name")] = rec
-    return {"machine": machine, "results": results}
+    return {"machine": machine, "results": results, "refused": refused}
+
+
+#: the harness's averaged-network rows: the default network's layer repeated (issue 33)
+AVERAGED_PREFIX = "c_abi_float_averaged_"
+
+
+def averaged_summary(res: dict) -> dict:
+    """The C ABI float forward of the default network and of its averages of 2, 6 and 12 copies
+    (one network of 60, 180 and 360 neurons computing the same force): per width the p50 and
+    p99.9 [ns], the ratio to the single network's p50, and the largest force difference [N]; the
+    widths the library refused (its DN_MAX_HIDDEN) with the status."""
+    base = res["results"].get("dampnet_c_abi_float", {})
+    rows = [{"neurons": r["neurons"], "p50_ns": r["p50_ns"], "p999_ns": r["p999_ns"], "max_diff_n": r["max_diff_n"],
+             "x_single_p50": r["p50_ns"] / base["p50_ns"] if base.get("p50_ns") else None}
+            for name, r in res["results"].items() if name.startswith(AVERAGED_PREFIX)]
+    return {"single_p50_ns": base.get("p50_ns"), "widths": sorted(rows, key=lambda r: r["neurons"]),
+            "refused": {r["neurons"]: r["refused"] for r in res.get("refused", {}).values()}}
 
 
 def quick_latency(out_dir: str | Path, n_calls: int = 200_000, budget_ns: float | None = None) -> dict:
@@ -137,6 +156,7 @@ def quick_latency(out_dir: str | Path, n_calls: int = 200_000, budget_ns: float 
         if name != "clock_overhead" and not name.endswith("_chained") and clock is not None:
             r["p50_net_ns"] = r["p50_ns"] - clock  # net of the clock's median
     res["runtime"] = dict(zip(("isa_flags", "kernel_isa"), kernel_flags()))
+    res["averaged"] = averaged_summary(res)
     step = res["results"][BUDGET_CASE]
     p999 = step.get("p999_ns")
     res["budget"] = {"step_rate_hz": STEP_RATE_HZ, "share": SHARE, "p999_budget_ns": budget_ns,
