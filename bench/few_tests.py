@@ -11,6 +11,7 @@ NRMSE a perfect model would score: the load cell's noise RMS over the held-out f
     python bench/few_tests.py                        # quick, 5x8 and 6x8, seeds 0-9, 2.25 V held out
     python bench/few_tests.py --plans thesis --holdouts 2.25,0.75,4 --seeds 10
     python bench/few_tests.py --plans 5x8 --seeds 4 --set control_prior=0 --set restarts=1   # a variant
+    python bench/few_tests.py --plans thesis --seeds 6 --set restarts=1 --workers 1 --ensemble 6   # averages
 
 Plans: quick (the rig's: 0.25, 1, 3 Hz x 0, 2.25, 5 V), 5x8 (0.25-3 Hz x 8 levels at 1 kHz,
 2,000 samples: issue 18's sparse plan), 6x8 (the same with 1.5 Hz added), thesis (the rig's
@@ -45,14 +46,14 @@ def nrmse_of(predict, tests) -> float:
     return float(evaluate_model(predict, tests)["overall"]["nrmse"])
 
 
-def run_plan(name: str, holdout: float, seeds: int, options: dict, workers: int) -> dict:
+def run_plan(name: str, holdout: float, seeds: int, options: dict, workers: int, ensemble: int = 1) -> dict:
     import dampnet
     from dampnet.predict import predict_force
     from dampnet.rig import generate
 
     plan, data_seed = PLANS[name]
     ds = generate(plan, seed=data_seed)
-    rows = []
+    rows, preds = [], []
     for seed in range(seeds):
         t0 = time.perf_counter()
         trained = dampnet.train(ds, seed=seed, holdout_voltage=holdout, workers=workers,
@@ -61,13 +62,40 @@ def run_plan(name: str, holdout: float, seeds: int, options: dict, workers: int)
         model, _, split = trained
         hold = split.holdout.tests
         rows.append({"seed": seed, "nrmse": nrmse_of(lambda t: predict_force(model, t), hold), "time_s": dt})
+        if ensemble > 1:
+            preds.append([predict_force(model, t) for t in hold])
         print(f"{name:6s} {holdout:g} V  seed {seed}: {rows[-1]['nrmse']:.4f} in {dt:.1f} s", file=sys.stderr, flush=True)
     lookup = trained.metrics["holdout_lookup"]["overall"]["nrmse"]
     floor = trained.metrics.get("noise_floor", {}).get("holdout_vs_floor", {}).get("floor_nrmse")
     h = np.array([r["nrmse"] for r in rows])
-    return {"plan": name, "tests": len(ds.tests), "holdout": holdout, "options": options, "rows": rows,
-            "lookup": lookup, "noise_floor": floor, "median": float(np.median(h)), "max": float(h.max()),
-            "min": float(h.min()), "time_median_s": float(np.median([r["time_s"] for r in rows]))}
+    out = {"plan": name, "tests": len(ds.tests), "holdout": holdout, "options": options, "rows": rows,
+           "lookup": lookup, "noise_floor": floor, "median": float(np.median(h)), "max": float(h.max()),
+           "min": float(h.min()), "time_median_s": float(np.median([r["time_s"] for r in rows]))}
+    if ensemble > 1:
+        out["ensembles"] = ensembles(preds, hold, ensemble, trained.metrics["noise_floor"]["rmse_n"])
+    return out
+
+
+def ensembles(preds: list, hold, k: int, floor_rmse_n: float) -> list[dict]:
+    """The mean of each group of k consecutive seeds' predictions (what one averaged network of k
+    times the width computes, dampnet.training.ensemble) on the hold-out: its RMSE over the noise
+    floor's RMS, overall and per frequency (training.pipeline.holdout_vs_noise_floor), beside its
+    members' own ratios."""
+    from dampnet.evaluation.metrics import evaluate_predictions
+    from dampnet.training.pipeline import holdout_vs_noise_floor
+
+    def ratio(p):
+        return holdout_vs_noise_floor(evaluate_predictions(hold, p), floor_rmse_n)
+
+    out = []
+    for g in range(len(preds) // k):
+        members = preds[g * k:(g + 1) * k]
+        mean = [np.mean([m[j] for m in members], axis=0) for j in range(len(hold))]
+        hv = ratio(mean)
+        out.append({"seeds": list(range(g * k, (g + 1) * k)), "ratio": hv["ratio"],
+                    "worst_frequency_ratio": max(r["ratio"] for r in hv["per_frequency"]),
+                    "members_ratio": [ratio(m)["ratio"] for m in members]})
+    return out
 
 
 def table(results: list[dict]) -> str:
@@ -100,16 +128,23 @@ def main() -> None:
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="a training option other than the default (dampnet.train's names; JSON values)")
     ap.add_argument("--workers", type=int, default=2, help="processes restarts run in (default 2)")
+    ap.add_argument("--ensemble", type=int, default=1, metavar="K",
+                    help="also the mean of each K consecutive seeds' predictions against the noise floor")
     ap.add_argument("--json", default=None, help="write every number here")
     args = ap.parse_args()
     options = parse_set(args.set)
     t0 = time.time()
-    results = [run_plan(p, float(h), args.seeds, options, args.workers)
+    results = [run_plan(p, float(h), args.seeds, options, args.workers, args.ensemble)
                for p in args.plans.split(",") for h in args.holdouts.split(",")]
     print(f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime(t0))}, {platform.machine()}, {os.cpu_count()} cores, "
           f"load average {os.getloadavg()[0]:.1f} at the end; training options: "
           f"{options or 'the defaults'}; seeds 0-{args.seeds - 1}\n")
     print(table(results))
+    for r in results:
+        for e in r.get("ensembles", []):
+            print(f"{r['plan']} {r['holdout']:g} V, seeds {e['seeds'][0]}-{e['seeds'][-1]} averaged: "
+                  f"{e['ratio']:.2f}x the noise floor (worst frequency {e['worst_frequency_ratio']:.2f}x); "
+                  f"its members {min(e['members_ratio']):.2f}-{max(e['members_ratio']):.2f}x")
     if args.json:
         with open(args.json, "w") as f:
             json.dump(results, f, indent=1)
