@@ -188,7 +188,7 @@ def test_auto_restarts_keep_rows_times_restarts_within_the_budget(quick, quick_d
                                                                  monkeypatch, decimate):
     """The automatic restarts count the training rows as the pipeline will fit them (its feature
     matrix's rows, hold-out and decimation applied) and run fewer than the default when rows x
-    restarts would exceed the budget (the thesis plan: 2), never fewer than 2 nor than --average."""
+    restarts would exceed the budget (the thesis plan: 1), never fewer than --average."""
     from dampnet.training import restarts as rs
 
     rows = rs.training_rows(quick, 2.25, (), decimate)

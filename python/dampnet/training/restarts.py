@@ -69,12 +69,13 @@ from dampnet.data import DataError
 #: restarts `dampnet train` runs unless --restarts says otherwise (bench/RESULTS.md "Restarts")
 DEFAULT_RESTARTS = 6
 #: the automatic restarts' budget: training rows (after decimation) times restarts. A plan of up to
-#: 33,000 rows (the 5 x 8 plan: 25,000) gets DEFAULT_RESTARTS; the thesis plan's 91,518 rows get 2,
-#: which keeps its default training near a minute on 2 cores, not 3-7 (issue 33: with the control
-#: prior, its restarts' held-out errors agree to 1.3x, so more restarts buy little there)
-RESTART_ROWS_BUDGET = 200_000
-#: the fewest automatic restarts when the score can run (one to keep, one to compare)
-MIN_AUTO_RESTARTS = 2
+#: 30,000 rows (the 5 x 8 plan: 25,221; the 6 x 8: 28,021) gets DEFAULT_RESTARTS; the thesis plan's
+#: 91,518 rows get 1, which keeps its default training within 2 minutes on 2 cores (issue 33: 42-108 s
+#: for one training; two restarts in parallel took 152 s, the slower seed's time at one thread each).
+#: With the control prior its seeds' held-out errors agree to 1.3x, so restarts buy little there.
+RESTART_ROWS_BUDGET = 180_000
+#: the fewest automatic restarts when the score can run
+MIN_AUTO_RESTARTS = 1
 #: how many interior levels the "lolo" score withholds, one per fit
 LOLO_LEVELS = 2
 SCORES = ("interpolation", "lolo")
