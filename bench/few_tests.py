@@ -72,6 +72,8 @@ def run_plan(name: str, holdout: float, seeds: int, options: dict, workers: int,
            "lookup": lookup, "noise_floor": floor, "median": float(np.median(h)), "max": float(h.max()),
            "min": float(h.min()), "time_median_s": float(np.median([r["time_s"] for r in rows]))}
     if ensemble > 1:
+        if "noise_floor" not in trained.metrics:
+            raise SystemExit(f"--ensemble: no noise floor for {name}'s data (rig data only)")
         out["ensembles"] = ensembles(preds, hold, ensemble, trained.metrics["noise_floor"]["rmse_n"])
     return out
 

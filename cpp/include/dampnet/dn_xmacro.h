@@ -33,7 +33,9 @@
     "reduced mass m_s m_us / (m_s + m_us)); the explicit value (the force evaluated at the " \
     "explicit acceleration) was used")                                                       \
   X(DN_E_NULL, -1, "a required pointer argument was NULL")                                   \
-  X(DN_E_SIZE, -2, "a size is out of range (inputs 1..8, hidden 1..64, layers 1..2)")        \
+  X(DN_E_SIZE, -2, "a size is out of range (inputs 1..8, layers 1..2, hidden layer 1 up to "   \
+                   "this build's DN_MAX_HIDDEN, 64 by default; layer 2, and layer 1 of a two-layer " \
+                   "network, up to DN_MAX_HIDDEN2 = 64; or beyond this build's DN_CAP_*)")          \
   X(DN_E_NONFINITE_PARAM, -3, "a model parameter is NaN or infinite")                        \
   X(DN_E_PARAM, -4, "a parameter is out of its valid range")                                 \
   X(DN_E_ACTIVATION, -5, "unknown activation (expected DN_ACT_TANH or DN_ACT_SIGMOID)")     \

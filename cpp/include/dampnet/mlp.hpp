@@ -684,6 +684,9 @@ using MlpDouble = NoKernelMlp<double>;
 // A model whose sizes are compile-time constants (H2 = 0: one hidden layer).
 template <typename T, int In, int H1, int H2 = 0>
 class StaticMlp {
+  // a two-layer network keeps layer 1 within DN_MAX_HIDDEN2 too (MlpParams::P1T sizes its weights)
+  static_assert(H2 == 0 || H1 <= DN_MAX_HIDDEN2, "a two-layer network: 1..DN_MAX_HIDDEN2 neurons in layer 1");
+
  public:
   static constexpr int kInputs = In;
   // Validate and copy a description of exactly these sizes (else DN_E_MISMATCH).

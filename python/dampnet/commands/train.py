@@ -39,7 +39,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                                                    "about 2x the cost and selects worse, bench/RESULTS.md)"))
     p.add_argument("--average", type=int, default=1, metavar="K",
                    help=field_help("average", "K, into one network K times as wide (their mean output, exactly; "
-                                             "the width must fit the runtime's 64 neurons, e.g. 2 x 30 hidden): lower "
+                                             "the width must fit the runtime's DN_MAX_HIDDEN, 384 here, e.g. 6 x 30 hidden): lower "
                                              "held-out error than one seed or one wide network (bench/RESULTS.md "
                                              "'Inside the envelope'); default 1, the best restart alone"))
     p.add_argument("--workers", default=None, metavar="N",

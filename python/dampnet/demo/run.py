@@ -18,8 +18,8 @@ QUICK_PLAN = {"name": "demo-quick", "frequencies_hz": [0.25, 1.0, 2.0, 3.0], "am
               "voltages_v": [0.0, 1.0, 1.5, 2.0, 2.25, 2.5, 3.0, 5.0], "samples": 2500}
 
 # Both trainings run dampnet train's default restarts ("auto": 6 on the --quick data, 1 on the
-# thesis plan's 180 tests, training.restarts.RESTART_ROWS_BUDGET; bench/RESULTS.md "Restarts"), and
-# the report shows how far the restarts' held-out errors spread.
+# thesis plan's 180 tests, training.restarts.RESTART_ROWS_BUDGET; bench/RESULTS.md "Restarts"); the
+# report shows how far the restarts' held-out errors spread when there were several.
 DEMO_RESTARTS = "auto"
 
 

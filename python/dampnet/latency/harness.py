@@ -90,7 +90,10 @@ def build_harness(out_dir: Path) -> Path:
     exe = out_dir / "dn_bench_mlp"
     lib = paths.shared_library()
     isa_flags, _ = kernel_flags()
-    flags = " ".join(["-O3 -DNDEBUG", isa_flags]).strip()
+    from dampnet import _core
+
+    # the library's capacity too: the harness's own inline objects are then the library's (pyproject.toml)
+    flags = " ".join(["-O3 -DNDEBUG", isa_flags, f"-DDN_MAX_HIDDEN={int(_core.MAX_HIDDEN)}"]).strip()
     cmd = [cxx, "-std=c++17", *flags.split(), f'-DDN_BENCH_FLAGS="{flags}"',
            *[f"-I{d}" for d in paths.include_dirs()], f"-I{header_dir}", f"-I{src.parent}", str(src),
            "-o", str(exe), str(lib), f"-Wl,-rpath,{lib.parent}"]

@@ -67,7 +67,7 @@ FIELDS: dict[str, RequestField] = {f.name: f for f in (
     RequestField("diagnosis", "--diagnosis", None, "", "a diagnosis whose estimated parameters the "
                  "added effects take (default: estimated from the data)"),
     RequestField("restarts", "--restarts", "restarts", "", "trainings from different seeds, the best kept "
-                 "('auto': 6 with two control levels or more, else 1)"),
+                 "('auto': 6 with two control levels or more, fewer beyond 30,000 training rows, else 1)"),
     RequestField("restart_score", "--restart-score", "restart_score", "", "how restarts are ranked: "
                  "interpolation or lolo"),
     RequestField("average", "--average", "average", "", "the best restarts averaged into one network"),

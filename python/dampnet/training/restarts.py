@@ -170,8 +170,8 @@ def auto_restarts(ds, holdout_voltage=None, holdout_tests=(), features=None,
                    f"({', '.join(f'{x:g}' for x in levels) or 'none'}); the {score} score needs {need}")
     rows = training_rows(ds, holdout_voltage, holdout_tests, decimate)
     n = max(MIN_AUTO_RESTARTS, min(DEFAULT_RESTARTS, RESTART_ROWS_BUDGET // max(rows, 1)), int(average))
-    if n >= DEFAULT_RESTARTS:
-        return n, None
+    if n >= DEFAULT_RESTARTS or n == int(average) > RESTART_ROWS_BUDGET // max(rows, 1):
+        return n, None  # the default, or what --average asks for
     return n, (f"not {DEFAULT_RESTARTS}: {rows:,} training rows, and the automatic restarts keep rows x restarts "
                f"near {RESTART_ROWS_BUDGET:,}; --restarts N runs N")
 
@@ -187,7 +187,8 @@ def training_rows(ds, holdout_voltage=None, holdout_tests=(), decimate: int | No
         and abs(t.control_nominal - holdout_voltage) <= 1e-6)]
     if not train:
         return 0
-    factor = int(decimate) if decimate else _auto_decimate(ds)
+    # the pipeline decimates by its training tests' rate (prepare_training: _auto_decimate(train))
+    factor = int(decimate) if decimate else _auto_decimate(type(ds)(tests=train, source=ds.source))
     return sum(-(-len(t) // factor) for t in train)
 
 
