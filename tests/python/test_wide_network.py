@@ -148,3 +148,31 @@ def test_the_fmu_sizes_its_build_from_the_model(wide, tmp_path, fmi):
     assert np.all(status >= 0) and np.all(res["status"] >= 0) and np.ptp(f) > 100.0
     # FMPy records the output at t_k with the inputs of t_k-1 (test_export_fmu.py)
     np.testing.assert_allclose(res["force"][1:], f[: len(res) - 1], rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("single", [False, True])
+@pytest.mark.parametrize("damper_eval", ["per_stage", "per_step"])
+def test_the_loop_runs_an_average_of_copies_as_the_network_itself(repo_root, single, damper_eval):
+    """The default network repeated 6 times with its output weights divided by 6 (180 neurons: the
+    average `--average 6` of six identical restarts) is the same function: the quarter-car loop with
+    on-off skyhook, whose damper evaluates it through the batched and the single forward, follows
+    the one network's trajectory (to float rounding of the wider sums with `single`)."""
+    from dampnet.training.ensemble import average_networks
+
+    one = MlpModel.load(repo_root / "export" / "dn_model_default.json")
+    six = average_networks([copy.deepcopy(one) for _ in range(6)])
+    assert six.hidden == (180,)
+    t = np.arange(3000) * 1e-3
+    z = 0.03 * np.sin(2 * np.pi * 1.3 * t) + 0.01 * np.sin(2 * np.pi * 11.0 * t)
+    v = np.gradient(z, t)
+    states = []
+    for m in (one, six):
+        loop = _core.Loop(_core.LoopModel(damper_from_model(m, single=single), {"damper_eval": damper_eval},
+                                          {"kind": "skyhook_onoff"}))
+        forces = [loop.step(zk, vk)["force"] for zk, vk in zip(z, v)]
+        states.append((np.array(loop.state), np.array(forces)))
+    (s1, f1), (s6, f6) = states
+    assert np.ptp(f1) > 100.0
+    tol = 1e-4 if single else 1e-9  # of each quantity's range over the run
+    np.testing.assert_allclose(f6, f1, rtol=0, atol=tol * np.ptp(f1))
+    np.testing.assert_allclose(s6, s1, rtol=0, atol=tol * (np.abs(s1).max() + 1e-12))
