@@ -11,7 +11,7 @@ NRMSE a perfect model would score: the load cell's noise RMS over the held-out f
     python bench/few_tests.py                        # quick, 5x8 and 6x8, seeds 0-9, 2.25 V held out
     python bench/few_tests.py --plans thesis --holdouts 2.25,0.75,4 --seeds 10
     python bench/few_tests.py --plans 5x8 --seeds 4 --set control_prior=0 --set restarts=1   # a variant
-    python bench/few_tests.py --plans thesis --seeds 6 --set restarts=1 --workers 1 --ensemble 6   # averages
+    python bench/few_tests.py --plans thesis --seeds 6 --set restarts=1 --workers 1 --ensemble 1,2,3,6  # averages
 
 Plans: quick (the rig's: 0.25, 1, 3 Hz x 0, 2.25, 5 V), 5x8 (0.25-3 Hz x 8 levels at 1 kHz,
 2,000 samples: issue 18's sparse plan), 6x8 (the same with 1.5 Hz added), thesis (the rig's
@@ -46,7 +46,7 @@ def nrmse_of(predict, tests) -> float:
     return float(evaluate_model(predict, tests)["overall"]["nrmse"])
 
 
-def run_plan(name: str, holdout: float, seeds: int, options: dict, workers: int, ensemble: int = 1) -> dict:
+def run_plan(name: str, holdout: float, seeds: int, options: dict, workers: int, ensemble=()) -> dict:
     import dampnet
     from dampnet.predict import predict_force
     from dampnet.rig import generate
@@ -62,7 +62,7 @@ def run_plan(name: str, holdout: float, seeds: int, options: dict, workers: int,
         model, _, split = trained
         hold = split.holdout.tests
         rows.append({"seed": seed, "nrmse": nrmse_of(lambda t: predict_force(model, t), hold), "time_s": dt})
-        if ensemble > 1:
+        if ensemble:
             preds.append([predict_force(model, t) for t in hold])
         print(f"{name:6s} {holdout:g} V  seed {seed}: {rows[-1]['nrmse']:.4f} in {dt:.1f} s", file=sys.stderr, flush=True)
     lookup = trained.metrics["holdout_lookup"]["overall"]["nrmse"]
@@ -71,10 +71,11 @@ def run_plan(name: str, holdout: float, seeds: int, options: dict, workers: int,
     out = {"plan": name, "tests": len(ds.tests), "holdout": holdout, "options": options, "rows": rows,
            "lookup": lookup, "noise_floor": floor, "median": float(np.median(h)), "max": float(h.max()),
            "min": float(h.min()), "time_median_s": float(np.median([r["time_s"] for r in rows]))}
-    if ensemble > 1:
+    if ensemble:
         if "noise_floor" not in trained.metrics:
             raise SystemExit(f"--ensemble: no noise floor for {name}'s data (rig data only)")
-        out["ensembles"] = ensembles(preds, hold, ensemble, trained.metrics["noise_floor"]["rmse_n"])
+        out["ensembles"] = [e for k in ensemble
+                            for e in ensembles(preds, hold, k, trained.metrics["noise_floor"]["rmse_n"])]
     return out
 
 
@@ -130,13 +131,15 @@ def main() -> None:
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="a training option other than the default (dampnet.train's names; JSON values)")
     ap.add_argument("--workers", type=int, default=2, help="processes restarts run in (default 2)")
-    ap.add_argument("--ensemble", type=int, default=1, metavar="K",
-                    help="also the mean of each K consecutive seeds' predictions against the noise floor")
+    ap.add_argument("--ensemble", default="", metavar="K[,K...]",
+                    help="also the mean of each K consecutive seeds' predictions against the noise floor "
+                         "(K = 1: each seed's own ratio)")
     ap.add_argument("--json", default=None, help="write every number here")
     args = ap.parse_args()
     options = parse_set(args.set)
     t0 = time.time()
-    results = [run_plan(p, float(h), args.seeds, options, args.workers, args.ensemble)
+    ensemble = [int(k) for k in args.ensemble.split(",") if k.strip()]
+    results = [run_plan(p, float(h), args.seeds, options, args.workers, ensemble)
                for p in args.plans.split(",") for h in args.holdouts.split(",")]
     print(f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime(t0))}, {platform.machine()}, {os.cpu_count()} cores, "
           f"load average {os.getloadavg()[0]:.1f} at the end; training options: "
