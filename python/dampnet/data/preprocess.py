@@ -109,6 +109,18 @@ def choose_window(tests: list[DynoTest], truth: list[np.ndarray],
     return min(errs, key=errs.get), errs
 
 
+#: training's automatic decimation keeps about this rate [Hz] (training.pipeline's module doc)
+DECIMATE_TARGET_HZ = 200.0
+
+
+def auto_decimate(ds: Dataset) -> int:
+    """Training's automatic decimation factor for `ds`: its first test's rate over DECIMATE_TARGET_HZ."""
+    if not ds.tests:
+        return 1
+    fs = 1.0 / ds.tests[0].dt
+    return max(1, int(round(fs / DECIMATE_TARGET_HZ)))
+
+
 def decimate(ds: Dataset, factor: int) -> Dataset:
     """Keep every `factor`-th sample of every channel (for training speed); a new Dataset.
 

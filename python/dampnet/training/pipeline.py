@@ -13,7 +13,7 @@ What train_dataset does, in order (the thesis's chapter 4 data handling):
     the tests named in `holdout_tests` are set aside for independent evaluation.
     None/None holds nothing out.
  3. Decimation of the training tests (every `decimate`-th sample; None = to about
-    DECIMATE_TARGET_HZ = 200 Hz, i.e. 25 at the dyno's 5 kHz). The highest test
+    dampnet.data.preprocess.DECIMATE_TARGET_HZ = 200 Hz, i.e. 25 at the dyno's 5 kHz). The highest test
     frequency is 3 Hz, so 200 Hz keeps 67 samples per cycle, far more than the
     force waveform needs; the derived acceleration is already smoothed over
     20 ms (100 samples) so decimating it loses nothing. Measured on the full
@@ -47,7 +47,7 @@ import numpy as np
 
 from dampnet.data import DataError, Dataset, add_acceleration, decimate as _decimate
 from dampnet.data import holdout_split
-from dampnet.data.preprocess import DEFAULT_WINDOW_S, window_samples
+from dampnet.data.preprocess import DEFAULT_WINDOW_S, auto_decimate, window_samples
 from dampnet.data.types import RIG_GENERATOR
 from dampnet.effects import additions as effect_additions, effect as catalogue_effect
 from dampnet.evaluation.lookup import fit_lookup
@@ -63,7 +63,6 @@ from dampnet.training.metrics import nrmse
 from dampnet.training.settings import OPTIONS as TRAINING_OPTIONS, check_request, train_settings
 
 #: Decimated sample rate aimed for when decimate=None [Hz] (see the module docstring).
-DECIMATE_TARGET_HZ = 200.0
 DEFAULT_HOLDOUT_VOLTAGE = 2.25
 DEFAULT_CONTROL_PRIOR = TRAINING_OPTIONS["control_prior"].default
 # the algorithm settings train_dataset uses unless `settings` overrides them, and every setting's
@@ -89,13 +88,6 @@ class Split:
 
 
 # -- training -----------------------------------------------------------------------
-
-def _auto_decimate(ds: Dataset) -> int:
-    if not ds.tests:
-        return 1
-    fs = 1.0 / ds.tests[0].dt
-    return max(1, int(round(fs / DECIMATE_TARGET_HZ)))
-
 
 def _data_provenance(ds: Dataset, split: Split, features, window) -> dict[str, Any]:
     d: dict[str, Any] = {
@@ -235,7 +227,7 @@ def prepare_training(ds: Dataset, features: Sequence[str] | None = None, algorit
                             "--holdout-voltage none)") from None
     if not train.tests:
         raise DataError("every test is held out: nothing left to train on")
-    factor = _auto_decimate(train) if decimate is None else int(decimate)
+    factor = auto_decimate(train) if decimate is None else int(decimate)
     used = _decimate(train, factor) if factor > 1 else train
     # Features at the full sample rate, then decimated: a derived feature with a state (a lag of a
     # few ms, the friction state) computed on decimated samples would be a different quantity.

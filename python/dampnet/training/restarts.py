@@ -179,7 +179,7 @@ def auto_restarts(ds, holdout_voltage=None, holdout_tests=(), features=None,
 def training_rows(ds, holdout_voltage=None, holdout_tests=(), decimate: int | None = None) -> int:
     """The rows a training of `ds` fits: its training tests' samples after the decimation
     (`decimate`, or the pipeline's automatic one), without building the feature matrix."""
-    from dampnet.training.pipeline import _auto_decimate
+    from dampnet.data.preprocess import auto_decimate
 
     held = set(holdout_tests or ())
     train = [t for t in ds.tests if t.test_id not in held and not (
@@ -187,8 +187,8 @@ def training_rows(ds, holdout_voltage=None, holdout_tests=(), decimate: int | No
         and abs(t.control_nominal - holdout_voltage) <= 1e-6)]
     if not train:
         return 0
-    # the pipeline decimates by its training tests' rate (prepare_training: _auto_decimate(train))
-    factor = int(decimate) if decimate else _auto_decimate(type(ds)(tests=train, source=ds.source))
+    # the pipeline decimates by its training tests' rate (prepare_training: auto_decimate(train))
+    factor = int(decimate) if decimate else auto_decimate(type(ds)(tests=train, source=ds.source))
     return sum(-(-len(t) // factor) for t in train)
 
 
