@@ -119,8 +119,8 @@ def test_the_help_states_the_limits_the_code_uses(capsys):
     ("max_epochs = 0", "line 3: training.max_epochs: max_epochs (--max-epochs, the epoch limit): expected a whole "
                        "number in [1, 1000000], got 0"),
     ("seeds = [1, -1]", "line 3: training.seeds[1]: seed (--seed"),
-    ("hidden = [30, 65]", "line 3: training.hidden[1]: hidden (--hidden): expected one or two layer sizes, each a "
-                          "whole number in [1, 64]"),
+    ("hidden = [30, 385]", "line 3: training.hidden[1]: hidden (--hidden): expected one or two layer sizes, whole "
+                           "numbers: layer 1 in [1, 384]"),
     ("decimate = 0", "line 3: training.decimate: decimate (--decimate"),
     ("max_fail = 9999999999", "line 3: training.max_fail: max_fail"),
     ("holdout_voltage = 1e300", "line 3: training.holdout_voltage: holdout_voltage (--holdout-voltage"),
