@@ -19,7 +19,7 @@
 #define DN_MODEL_DEFAULT_N_INPUTS 3
 #define DN_MODEL_DEFAULT_N_HIDDEN1 30
 #define DN_MODEL_DEFAULT_N_HIDDEN2 0 /* 0: one hidden layer */
-#define DN_MODEL_DEFAULT_DN_MAX_HIDDEN 30 /* the DN_MAX_HIDDEN (dn_config.h) a library holding this network needs: within the default 64 */
+#define DN_MODEL_DEFAULT_DN_MAX_HIDDEN 30 /* the DN_MAX_HIDDEN (dn_config.h) a library holding this network needs: within the default */
 #define DN_MODEL_DEFAULT_ACTIVATION 0 /* DN_ACT_TANH */
 /* mapminmax: x_scaled = (x - in_offset) * in_gain + IN_YMIN;
    y = (y_scaled - OUT_YMIN) / OUT_GAIN + OUT_OFFSET */

@@ -146,12 +146,6 @@ def _folded_block(p: str, P: str, model: MlpModel) -> list[str]:
     return out
 
 
-def _max_hidden_default() -> int:
-    from dampnet import _core
-
-    return int(_core.MAX_HIDDEN_DEFAULT)
-
-
 def _cstr(s: str) -> str:
     return '"' + s.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
@@ -199,9 +193,8 @@ def header_text(model: MlpModel, prefix: str = "dn_model", envelope=None) -> str
         f"#define {P}_N_HIDDEN1 {h1}",
         f"#define {P}_N_HIDDEN2 {h2} /* 0: one hidden layer */",
         f"#define {P}_DN_MAX_HIDDEN {max(h1, h2)} /* the DN_MAX_HIDDEN (dn_config.h) a library holding this "
-        + (f"network needs: more than the default {_max_hidden_default()}, so build it with -DDN_MAX_HIDDEN="
-           f"{max(h1, h2)} (CMake -DDAMPNET_MAX_HIDDEN={max(h1, h2)}) */" if max(h1, h2) > _max_hidden_default()
-           else f"network needs: within the default {_max_hidden_default()} */"),
+        + (f"network needs: more than the default, so build it with -D{build_defines(model)[0]} (CMake "
+           f"-DDAMPNET_MAX_HIDDEN={max(h1, h2)}) */" if build_defines(model) else "network needs: within the default */"),
         f"#define {P}_ACTIVATION {_activation_value(model.activation)} "
         f"/* DN_ACT_{model.activation.upper()} */",
         "/* mapminmax: x_scaled = (x - in_offset) * in_gain + IN_YMIN;",

@@ -169,8 +169,9 @@ def auto_restarts(ds, holdout_voltage=None, holdout_tests=(), features=None,
         return 1, (f"the training tests have {len(levels)} control level{'s' if len(levels) != 1 else ''} "
                    f"({', '.join(f'{x:g}' for x in levels) or 'none'}); the {score} score needs {need}")
     rows = training_rows(ds, holdout_voltage, holdout_tests, decimate)
-    n = max(MIN_AUTO_RESTARTS, min(DEFAULT_RESTARTS, RESTART_ROWS_BUDGET // max(rows, 1)), int(average))
-    if n >= DEFAULT_RESTARTS or n == int(average) > RESTART_ROWS_BUDGET // max(rows, 1):
+    within = max(MIN_AUTO_RESTARTS, min(DEFAULT_RESTARTS, RESTART_ROWS_BUDGET // max(rows, 1)))
+    n = max(within, int(average))
+    if within >= DEFAULT_RESTARTS or n > within:
         return n, None  # the default, or what --average asks for
     return n, (f"not {DEFAULT_RESTARTS}: {rows:,} training rows, and the automatic restarts keep rows x restarts "
                f"near {RESTART_ROWS_BUDGET:,}; --restarts N runs N")
@@ -179,17 +180,15 @@ def auto_restarts(ds, holdout_voltage=None, holdout_tests=(), features=None,
 def training_rows(ds, holdout_voltage=None, holdout_tests=(), decimate: int | None = None) -> int:
     """The rows a training of `ds` fits: its training tests' samples after the decimation
     (`decimate`, or the pipeline's automatic one), without building the feature matrix."""
-    from dampnet.data.preprocess import auto_decimate
+    from dampnet.data.preprocess import auto_decimate, holdout_split
 
-    held = set(holdout_tests or ())
-    train = [t for t in ds.tests if t.test_id not in held and not (
-        holdout_voltage is not None and t.control_nominal is not None
-        and abs(t.control_nominal - holdout_voltage) <= 1e-6)]
-    if not train:
+    # the pipeline's own split and decimation rule (prepare_training)
+    train = ds if holdout_voltage is None and not holdout_tests else \
+        holdout_split(ds, holdout_voltage, list(holdout_tests or []))[0]
+    if not train.tests:
         return 0
-    # the pipeline decimates by its training tests' rate (prepare_training: auto_decimate(train))
-    factor = int(decimate) if decimate else auto_decimate(type(ds)(tests=train, source=ds.source))
-    return sum(-(-len(t) // factor) for t in train)
+    factor = int(decimate) if decimate else auto_decimate(train)
+    return sum(-(-len(t) // factor) for t in train.tests)
 
 
 def _n_params(prep) -> int:
