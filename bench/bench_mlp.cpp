@@ -131,7 +131,7 @@ int main(int argc, char** argv) {
   // Averaged networks (issue 33: `dampnet train --average K`, K networks side by side), through
   // the C ABI: the default network's hidden layer repeated K times with its output weights
   // divided by K, so each computes the default model's force with K times the neurons (checked
-  // on the 1024 inputs: max_diff_n). A width beyond the library's DN_MAX_HIDDEN (64 unless its
+  // on the 1024 inputs and hard ones: max_diff_n, infinite when a status or finiteness differs). A width beyond the library's DN_MAX_HIDDEN (64 unless its
   // build raises it; 384 in the Python module's) is refused at set-up and reported as such.
   for (const int k : {2, 6, 12}) {
     const int h = k * kH;
@@ -153,13 +153,23 @@ int main(int argc, char** argv) {
       std::printf("{\"name\": \"%s\", \"neurons\": %d, \"refused\": \"%s\"}\n", name.c_str(), h, dn_status_str(st));
       continue;
     }
+    // checked on the timed inputs and on hard ones (each input far beyond its range, NaN, +-Inf):
+    // the same force and status as the one network, finite
+    std::vector<float> hard;
+    for (const float v : {1e6f, -1e6f, NAN, INFINITY, -INFINITY})
+      for (int i = 0; i < kIn; ++i) {
+        hard.insert(hard.end(), xf.begin(), xf.begin() + kIn);
+        hard[hard.size() - kIn + i] = v;
+      }
     double max_diff = 0.0;
-    for (int r = 0; r < 1024; ++r) {
+    const auto compare = [&](const float* x) {
       float yw, y1;
-      dn_mlp_forward_f(wide, &xf[r * kIn], &yw, nullptr);
-      dn_mlp_forward_f(cm, &xf[r * kIn], &y1, nullptr);
-      max_diff = std::max(max_diff, std::fabs(double(yw) - double(y1)));
-    }
+      const int sw = dn_mlp_forward_f(wide, x, &yw, nullptr), s1 = dn_mlp_forward_f(cm, x, &y1, nullptr);
+      const double diff = std::fabs(double(yw) - double(y1));
+      max_diff = std::max(max_diff, sw == s1 && std::isfinite(yw) ? diff : INFINITY);
+    };
+    for (int r = 0; r < 1024; ++r) compare(&xf[r * kIn]);
+    for (size_t r = 0; r < hard.size(); r += kIn) compare(&hard[r]);
     char extra[96];
     std::snprintf(extra, sizeof extra, ", \"neurons\": %d, \"max_diff_n\": %.3g", h, max_diff);
     dn_bench::print_json(name, dn_bench::measure([&](long i) {

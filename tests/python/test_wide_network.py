@@ -27,7 +27,7 @@ from cbuild import compile_program
 from dampnet import _core, paths
 from dampnet.export.fmu import build_fmu
 from dampnet.export.header import build_defines, write_header
-from dampnet.model import MlpModel
+from dampnet.model import MlpModel, ModelError
 from dampnet.rig import generate
 from dampnet.sim.quarter_car.loop import damper_from_model
 from loop_helpers import numpy_forward
@@ -85,7 +85,7 @@ def test_two_layer_networks_keep_to_layer_2_s_limit_in_the_wide_build(wide, hidd
     np.testing.assert_allclose(y, numpy_forward(m, x), rtol=0, atol=1e-12 * np.sqrt(h1) / m.out_gain)
     m.w1, m.b1 = np.zeros((_core.MAX_HIDDEN2 + 1, m.n_inputs)), np.zeros(_core.MAX_HIDDEN2 + 1)
     m.w2 = np.zeros((h2, _core.MAX_HIDDEN2 + 1))
-    with pytest.raises(Exception, match="two-layer network; the runtime holds 64"):
+    with pytest.raises(ModelError, match="two-layer network; the runtime holds 64"):
         m.validate()
     with pytest.raises(ValueError, match=r"layer 1 of a two-layer network, up to DN_MAX_HIDDEN2 = 64"):
         m.core()
@@ -95,7 +95,7 @@ def test_a_layer_beyond_the_runtime_s_limit_is_refused_by_name(wide):
     m = copy.deepcopy(wide)
     n = _core.MAX_HIDDEN + 1
     m.w1, m.b1, m.w_out = np.zeros((n, m.n_inputs)), np.zeros(n), np.zeros(n)
-    with pytest.raises(Exception, match=rf"1..{_core.MAX_HIDDEN} neurons in hidden layer 1 .*DN_MAX_HIDDEN"):
+    with pytest.raises(ModelError, match=rf"1..{_core.MAX_HIDDEN} neurons in hidden layer 1 .*DN_MAX_HIDDEN"):
         m.validate()
 
 
