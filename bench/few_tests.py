@@ -6,7 +6,13 @@ For each plan (the virtual rig's data, data seed fixed per plan) and each hold-o
 with `dampnet.train` exactly as `dampnet train` does by default (restarts 'auto', the default
 control prior) once per seed, and scores the held-out tests' NRMSE (RMSE over the force range)
 beside the lookup table fitted on the same training tests and the rig's noise floor on them (the
-NRMSE a perfect model would score: the load cell's noise RMS over the held-out force range).
+NRMSE a perfect model would score: the load cell's noise RMS over the held-out force range), and
+the interpolation floor: the NRMSE of the rig's own noise-free force at each training level,
+evaluated at the held-out tests' motion and carried to the held-out level by the spline the
+control prior asks for (dampnet.training.control_prior.spline_weights over the training levels).
+It is what a model exact at every tested level, and smooth between them, would score: what the
+tests do not say about the levels between them. No model that interpolates between the levels
+beats it except by chance.
 
     python bench/few_tests.py                        # quick, 5x8 and 6x8, seeds 0-9, 2.25 V held out
     python bench/few_tests.py --plans thesis --holdouts 2.25,0.75,4 --seeds 10
@@ -46,6 +52,23 @@ def nrmse_of(predict, tests) -> float:
     return float(evaluate_model(predict, tests)["overall"]["nrmse"])
 
 
+def interpolation_floor(ds, holdout: float) -> float:
+    """The interpolation floor of `ds` (rig data, no effects) with the `holdout` level held out."""
+    from dampnet.evaluation.metrics import evaluate_model
+    from dampnet.rig.truth import truth_force
+    from dampnet.training.control_prior import spline_weights
+
+    hold = [t for t in ds.tests if abs(t.control_nominal - holdout) <= 1e-6]
+    levels = np.array(sorted({float(t.control_nominal) for t in ds.tests} - {float(t.control_nominal) for t in hold}))
+    w = spline_weights(levels, np.array([holdout]))[0]
+
+    def predict(t):
+        x, v, dt = t.channels["displacement"], t.channels["velocity"], float(np.median(np.diff(t.time)))
+        return sum(wl * truth_force(x, v, np.full_like(v, u), dt=dt) for wl, u in zip(w, levels))
+
+    return float(evaluate_model(predict, hold)["overall"]["nrmse"])
+
+
 def run_plan(name: str, holdout: float, seeds: int, options: dict, workers: int, ensemble=()) -> dict:
     import dampnet
     from dampnet.predict import predict_force
@@ -69,7 +92,7 @@ def run_plan(name: str, holdout: float, seeds: int, options: dict, workers: int,
     floor = trained.metrics.get("noise_floor", {}).get("holdout_vs_floor", {}).get("floor_nrmse")
     h = np.array([r["nrmse"] for r in rows])
     out = {"plan": name, "tests": len(ds.tests), "holdout": holdout, "options": options, "rows": rows,
-           "lookup": lookup, "noise_floor": floor, "median": float(np.median(h)), "max": float(h.max()),
+           "lookup": lookup, "noise_floor": floor, "interpolation_floor": interpolation_floor(ds, holdout), "median": float(np.median(h)), "max": float(h.max()),
            "min": float(h.min()), "time_median_s": float(np.median([r["time_s"] for r in rows]))}
     if ensemble:
         if "noise_floor" not in trained.metrics:
@@ -103,12 +126,14 @@ def ensembles(preds: list, hold, k: int, floor_rmse_n: float) -> list[dict]:
 
 def table(results: list[dict]) -> str:
     out = ["| plan (tests) | held out | lookup table | dampnet: median, max | median / max over the lookup table "
-           "| max/min over seeds | noise floor | time per training, median [s] |", "|---|---|---|---|---|---|---|---|"]
+           "| max/min over seeds | interpolation floor (/ lookup table) | noise floor | time per training, median [s] |",
+           "|---|---|---|---|---|---|---|---|---|"]
     for r in results:
         floor = f"{r['noise_floor']:.4f}" if r["noise_floor"] is not None else "-"
         out.append(f"| {r['plan']} ({r['tests']}) | {r['holdout']:g} V | {r['lookup']:.4f} | {r['median']:.4f}, "
                    f"{r['max']:.4f} | {r['median'] / r['lookup']:.2f} / {r['max'] / r['lookup']:.2f} | "
-                   f"{r['max'] / r['min']:.2f} | {floor} | {r['time_median_s']:.1f} |")
+                   f"{r['max'] / r['min']:.2f} | {r['interpolation_floor']:.4f} "
+                   f"({r['interpolation_floor'] / r['lookup']:.2f}) | {floor} | {r['time_median_s']:.1f} |")
     return "\n".join(out)
 
 

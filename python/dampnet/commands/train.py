@@ -124,17 +124,24 @@ class RestartProgress(Progress):
 
 
 def structure_line(model, st: dict) -> str:
-    """One line of metrics.json's "structure" and the control prior (dampnet.evaluation.structure)."""
+    """One line of metrics.json's "structure" and the priors (dampnet.evaluation.structure)."""
     parts = []
     if "velocity_falling_share" in st:
-        parts.append(f"force falls with velocity at {100 * st['velocity_falling_share']:.1f} % of the training samples")
+        falling = st["velocity_falling_share"]
+        hint = ""
+        if falling > 0 and not model.meta.get("monotone_prior", {}).get("weight"):
+            from dampnet.training.monotone_prior import RECOMMENDED_WEIGHT
+
+            hint = f" (--monotone-prior {RECOMMENDED_WEIGHT:g} asks it to rise)"
+        parts.append(f"force falls with velocity at {100 * falling:.1f} % of the training samples{hint}")
     if "control_bend_nrmse" in st:
         parts.append(f"half-way between adjacent control levels {100 * st['control_bend_nrmse']:.1f} % of the force "
                      f"range (RMS) off their straight line, outside both levels' forces at "
                      f"{100 * st['control_reversal_share']:.1f} %")
-    prior = model.meta.get("control_prior", {})
-    if prior.get("weight"):
-        parts.append(f"control prior {prior['weight']:g}" + (f" (off: {prior['off']})" if "off" in prior else ""))
+    for key, name in (("control_prior", "control prior"), ("monotone_prior", "monotone prior")):
+        prior = model.meta.get(key, {})
+        if prior.get("weight"):
+            parts.append(f"{name} {prior['weight']:g}" + (f" (off: {prior['off']})" if "off" in prior else ""))
     return ("structure: " + "; ".join(parts)) if parts else ""
 
 

@@ -64,6 +64,10 @@ def add_training_options(p: argparse.ArgumentParser, algorithm: bool = True) -> 
     p.add_argument("--control-prior", type=float, default=prior.default, metavar="W",
                    help=field_help("control_prior", f"W in {prior.range_text()} (default {prior.default:g}; "
                                                     "dampnet.training.control_prior; bench/RESULTS.md 'Few dyno tests')"))
+    mono = OPTIONS["monotone_prior"]
+    p.add_argument("--monotone-prior", type=float, default=mono.default, metavar="W",
+                   help=field_help("monotone_prior", f"W in {mono.range_text()} (default {mono.default:g}; "
+                                                     "dampnet.training.monotone_prior)"))
     p.add_argument("--settings", default=None,
                    help=field_help("settings", 'JSON, e.g. \'{"mu_max": 1e8}\' or \'{"lr": 0.01}\'; each with its '
                                                f"range: {settings_help(TRAIN_DEFAULTS)}"))
@@ -129,7 +133,7 @@ def training_request(args):
         max_epochs=args.max_epochs, settings=json_arg(args.settings, "settings", dict), add=list(args.add),
         diagnosis=diagnosis, diagnosis_source=args.diagnosis, restarts=restarts,
         restart_score=getattr(args, "restart_score", "interpolation"), average=getattr(args, "average", 1),
-        control_prior=args.control_prior)
+        control_prior=args.control_prior, monotone_prior=args.monotone_prior)
 
 
 def whole(text: str, name: str) -> int:

@@ -75,6 +75,10 @@ FIELDS: dict[str, RequestField] = {f.name: f for f in (
                  "force between the tested control levels follows the natural cubic spline through theirs at "
                  "the same motion (a straight line between two, as a lookup table interpolates); against the "
                  "data's squared error, per row; 0: off"),
+    RequestField("monotone_prior", "--monotone-prior", "monotone_prior", "", "the weight of the prior that the "
+                 "force rises with velocity, at the training motion with the control anywhere between the lowest "
+                 "and highest tested level (only where it falls does it act); against the data's squared error, "
+                 "per row; 0: off"),
     RequestField("feature_params", None, None, "", "feature parameters (a lag's time constant [s], ...)"),
     RequestField("acceleration_window", None, None, "s", "the derived acceleration's smoothing window"),
 )}
@@ -113,6 +117,7 @@ class TrainingRequest:
     restart_score: str = "interpolation"
     average: int = 1
     control_prior: float = _option_default("control_prior")
+    monotone_prior: float = _option_default("monotone_prior")
     feature_params: Mapping[str, float] | None = None
     acceleration_window: float | None = None
 
@@ -140,7 +145,8 @@ class TrainingRequest:
                       hidden=self.hidden, activation=self.activation, features=self.features,
                       max_epochs=self.max_epochs, max_fail=self.max_fail, seed=self.seed,
                       decimate=self.decimate, holdout_voltage=self.holdout_voltage,
-                      acceleration_window=self.acceleration_window, control_prior=self.control_prior)
+                      acceleration_window=self.acceleration_window, control_prior=self.control_prior,
+                      monotone_prior=self.monotone_prior)
         for t in self.terms:
             if not isinstance(t, Mapping) or "kind" not in t:
                 raise ValueError(f"terms (--terms): each term must be an object with a 'kind', got {t!r}")
@@ -159,7 +165,8 @@ class TrainingRequest:
                     terms=[dict(t) for t in self.terms], feature_params=dict(self.feature_params or {}) or None,
                     seed=self.seed, zero_points=self.zero_points, max_epochs=self.max_epochs,
                     max_fail=self.max_fail, settings=dict(self.settings) if self.settings is not None else None,
-                    acceleration_window=self.acceleration_window, control_prior=self.control_prior)
+                    acceleration_window=self.acceleration_window, control_prior=self.control_prior,
+                    monotone_prior=self.monotone_prior)
 
 
 @dataclass

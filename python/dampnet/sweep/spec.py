@@ -373,6 +373,8 @@ TRAINING_PARAMS = [
           help=_request_help("restart_score")),
     Param("control_prior", "control_prior", _training("control_prior"), _training_default("control_prior"),
           kind="float", help=_request_help("control_prior")),
+    Param("monotone_prior", "monotone_prior", _training("monotone_prior"), _training_default("monotone_prior"),
+          kind="float", help=_request_help("monotone_prior")),
 ]
 
 SIMULATION_PARAMS = [

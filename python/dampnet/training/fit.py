@@ -46,7 +46,8 @@ from dampnet.outputs import jsonable
 from dampnet.training.adam import Adam
 from dampnet.training.br import BayesianRegularization
 from dampnet.training.control_prior import prior_rows
-from dampnet.features import FEATURES, control_columns, control_levels, units_of
+from dampnet.training.monotone_prior import monotone_rows
+from dampnet.features import FEATURES, control_columns, control_levels, units_of, velocity_column
 from dampnet.training.lm import LevenbergMarquardt
 from dampnet.training.loop import run
 from dampnet.training.metrics import nrmse
@@ -203,13 +204,36 @@ def _control_prior(X_train: np.ndarray, features: Sequence[str], weight: float, 
     return rows, meta
 
 
+def _monotone_prior(X_train: np.ndarray, features: Sequence[str], weight: float, in_off: np.ndarray,
+                    in_gain: np.ndarray, rng: np.random.Generator):
+    """(the velocity-monotone prior's rows or None, what model.meta["monotone_prior"] records)."""
+    meta: dict[str, Any] = {"weight": weight}
+    j = velocity_column(features)
+    if weight <= 0:
+        return None, meta
+    if j is None:
+        meta["off"] = "no velocity input"
+        return None, meta
+    columns = control_columns(features)
+    values = control_levels(X_train, columns)
+    span = None
+    if len(values) >= 2:  # between the lowest and highest level; else each row keeps its control
+        ends = (values[[0, -1]] - in_off[columns]) * in_gain[columns] - 1.0
+        span = (ends[0], ends[1])
+    xs = torch.as_tensor((X_train - in_off) * in_gain - 1.0, dtype=DTYPE)
+    rows = monotone_rows(xs, j, columns, span, weight, rng)
+    meta["points"] = len(rows) if rows is not None else 0
+    return rows, meta
+
+
 def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequence[str] | None = None,
         hidden: Sequence[int] = (30,), activation: str = "tanh", algorithm: str = "lm", seed: int = 0,
         split: Sequence[float] = (0.7, 0.15, 0.15), max_epochs: int = 1000, max_fail: int = 6,
         zero_points: bool = True, zero_fraction: float = 0.01,
         settings: dict[str, Any] | None = None, progress: Callable[[dict], Any] | None = None,
         threads: int | None = None, data: Any = None,
-        init: MlpModel | None = None, control_prior: float = 0.0) -> tuple[MlpModel, TrainInfo]:
+        init: MlpModel | None = None, control_prior: float = 0.0,
+        monotone_prior: float = 0.0) -> tuple[MlpModel, TrainInfo]:
     """Train an MLP force model on X [n, k] (feature units) and y [n] (force [N]).
 
     `settings` overrides the algorithm's defaults (e.g. {"mu_max": 1e8} for lm,
@@ -223,6 +247,9 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
     `control_prior`: the weight of the control-interpolation prior (dampnet.training.control_prior;
     0: off) between the control levels of the training rows; it is off without two levels or a
     control input (model.meta["control_prior"] says).
+    `monotone_prior`: the weight of the prior that the force rises with velocity
+    (dampnet.training.monotone_prior; 0: off), between the lowest and highest control level of
+    the training rows; off without a velocity input (model.meta["monotone_prior"] says).
     The same inputs and seed give bit-identical weights on the same machine.
     Every option and setting is checked first (dampnet.training.settings.check_request: a
     one-line ValueError naming it and its range); a training that stops before its first epoch
@@ -231,7 +258,7 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
     checked = check_request(algorithm=algorithm, settings=settings, hidden=hidden, activation=activation,
                             features=list(features),
                             max_epochs=max_epochs, max_fail=max_fail, seed=seed, zero_fraction=zero_fraction,
-                            threads=threads, control_prior=control_prior)
+                            threads=threads, control_prior=control_prior, monotone_prior=monotone_prior)
     X = np.asarray(X, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64).ravel()
     if X.ndim == 1:
@@ -263,8 +290,9 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
         return torch.as_tensor((a - out_off) * out_gain - 1.0, dtype=DTYPE)
 
     prior, prior_meta = _control_prior(X[tr], features, checked["control_prior"], in_off, in_gain, rng)
+    mono, mono_meta = _monotone_prior(X[tr], features, checked["monotone_prior"], in_off, in_gain, rng)
     problem = MlpProblem(layout, scale_x(np.vstack([X[tr], Z])), scale_y(np.concatenate([y[tr], np.zeros(len(Z))])),
-                         scale_x(X[va]), scale_y(y[va]), prior=prior)
+                         scale_x(X[va]), scale_y(y[va]), prior=[prior, mono])
     gen = torch.Generator().manual_seed(seed)
     x0 = layout.init(gen)
     if init is not None:
@@ -314,6 +342,7 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
         "stop_reason": res.stop_reason,
         "samples": {"train": len(tr), "val": len(va), "test": len(te), "zero_points": len(Z)},
         "control_prior": prior_meta,
+        "monotone_prior": mono_meta,
         "metrics": {k: round(v, 6) for k, v in metrics.items()},
         **({"stats": jsonable(stats)} if stats else {}),
         **({"data": data} if data is not None else {}),

@@ -65,6 +65,7 @@ from dampnet.training.settings import OPTIONS as TRAINING_OPTIONS, check_request
 #: Decimated sample rate aimed for when decimate=None [Hz] (see the module docstring).
 DEFAULT_HOLDOUT_VOLTAGE = 2.25
 DEFAULT_CONTROL_PRIOR = TRAINING_OPTIONS["control_prior"].default
+DEFAULT_MONOTONE_PRIOR = TRAINING_OPTIONS["monotone_prior"].default
 # the algorithm settings train_dataset uses unless `settings` overrides them, and every setting's
 # range: dampnet.training.settings (TRAIN_DEFAULTS, check_request)
 
@@ -118,7 +119,8 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
                   acceleration_window: float | None = None,
                   init: MlpModel | None = None, restarts: int = 1, workers: int | None = None,
                   restart_score: str = "interpolation", average: int = 1,
-                  control_prior: float = DEFAULT_CONTROL_PRIOR) -> tuple[MlpModel, Any, Split]:
+                  control_prior: float = DEFAULT_CONTROL_PRIOR,
+                  monotone_prior: float = DEFAULT_MONOTONE_PRIOR) -> tuple[MlpModel, Any, Split]:
     """Train a (hybrid) MLP damper model on a dataset; see the module docstring for the steps.
 
     Returns (model, info, split): `info` is dampnet.train.TrainInfo (its subset indices
@@ -136,7 +138,8 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
     restarts instead and averages them into one network (dampnet.training.restarts, step 4).
     `control_prior` weighs the prior that the force between the training control levels follows
     the natural cubic spline through theirs, a straight line for two (dampnet.training.control_prior;
-    0: off).
+    0: off); `monotone_prior` the prior that the force rises with velocity
+    (dampnet.training.monotone_prior; 0: off).
     """
     from dampnet.training.restarts import check_average, check_restarts, train_restarts
 
@@ -145,7 +148,8 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
                   hidden=hidden, activation=activation, features=features, max_epochs=max_epochs,
                   max_fail=max_fail, seed=seed,
                   decimate=decimate, holdout_voltage=holdout_voltage, threads=threads,
-                  acceleration_window=acceleration_window, control_prior=control_prior)
+                  acceleration_window=acceleration_window, control_prior=control_prior,
+                  monotone_prior=monotone_prior)
     restarts = check_restarts(restarts, workers, restart_score)
     check_average(average, restarts, hidden, restart_score)
     if restarts > 1 and init is not None:
@@ -155,7 +159,7 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
                             decimate=decimate, terms=terms, feature_params=feature_params,
                             zero_points=zero_points, max_epochs=max_epochs, max_fail=max_fail,
                             settings=settings, acceleration_window=acceleration_window,
-                            control_prior=control_prior)
+                            control_prior=control_prior, monotone_prior=monotone_prior)
     if restarts == 1:
         model, info = fit_prepared(prep, seed, progress=progress, threads=threads, init=init)
     else:
@@ -202,7 +206,8 @@ def prepare_training(ds: Dataset, features: Sequence[str] | None = None, algorit
                      feature_params: dict[str, float] | None = None, zero_points: bool = True,
                      max_epochs: int = 1000, max_fail: int = 6, settings: dict[str, Any] | None = None,
                      acceleration_window: float | None = None,
-                     control_prior: float = DEFAULT_CONTROL_PRIOR) -> Prepared:
+                     control_prior: float = DEFAULT_CONTROL_PRIOR,
+                     monotone_prior: float = DEFAULT_MONOTONE_PRIOR) -> Prepared:
     """Steps 1-3 of the module docstring: acceleration, hold-out, decimation, the feature matrix."""
     if not ds.tests:
         raise DataError(f"{ds.source}: no tests")
@@ -253,7 +258,8 @@ def prepare_training(ds: Dataset, features: Sequence[str] | None = None, algorit
                     fit_kwargs=dict(hidden=hidden, activation=activation, algorithm=algorithm,
                                     max_epochs=max_epochs, max_fail=max_fail, zero_points=zero_points,
                                     settings=train_settings(algorithm, settings),
-                                    control_prior=float(control_prior)),
+                                    control_prior=float(control_prior),
+                                    monotone_prior=float(monotone_prior)),
                     provenance=_data_provenance(ds, split, features, window), split=split)
 
 
@@ -282,7 +288,7 @@ def fit_prepared(prep: Prepared, seed: int, *, rows: np.ndarray | None = None,
                           algorithm=fk["algorithm"], seed=seed, max_epochs=fk["max_epochs"],
                           max_fail=fk["max_fail"], zero_points=fk["zero_points"], settings=fk["settings"],
                           progress=progress, threads=threads, data=prep.provenance, init=init,
-                          control_prior=fk["control_prior"])
+                          control_prior=fk["control_prior"], monotone_prior=fk["monotone_prior"])
     except ValueError as e:
         raise DataError(str(e)) from None
     model.terms = terms

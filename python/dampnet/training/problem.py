@@ -9,16 +9,21 @@ linear least squares and quadratics with known answers, see tests):
   loss_grad(x, idx=None) -> (mean squared error, its gradient)   (SCG; Adam on batches idx)
   val_mse(x)             -> validation MSE, or None without a validation set
 
-With a prior (dampnet.training.control_prior) its rows follow the data rows in r and J, and
-loss/loss_grad add their squares over n_train: the objective is the data's squared error plus
-the prior's. n_train counts the data rows only (BR's evidence and the reported MSE use it).
+With priors (dampnet.training.control_prior, dampnet.training.monotone_prior: anything with
+residual(layout, x) and residual_jacobian(layout, x)) their rows follow the data rows in r and J,
+in the order given, and loss/loss_grad add their squares over n_train: the objective is the
+data's squared error plus the priors'. n_train counts the data rows only (BR's evidence and the
+reported MSE use it). A prior's residual_jacobian may leave out rows that are zero there (the
+monotone prior's satisfied rows): the algorithms use only r.r, J'r and J'J, so residual(x) and
+residual_jacobian(x) may differ in length, never in r.r.
 """
 
 from __future__ import annotations
 
 import torch
 
-from dampnet.training.control_prior import PriorRows
+from typing import Any, Sequence
+
 from dampnet.training.net import DTYPE, Layout
 
 
@@ -27,9 +32,10 @@ class MlpProblem:
 
     def __init__(self, layout: Layout, x_train: torch.Tensor, t_train: torch.Tensor,
                  x_val: torch.Tensor | None = None, t_val: torch.Tensor | None = None,
-                 prior: PriorRows | None = None):
+                 prior: Any = None):
         self.layout = layout
-        self.prior = prior
+        # None, one prior's rows, or several (None entries dropped)
+        self.priors: list[Any] = [p for p in (prior if isinstance(prior, Sequence) else [prior]) if p is not None]
         self.xs, self.t = x_train.to(DTYPE), t_train.to(DTYPE)
         self.xv = None if x_val is None or len(x_val) == 0 else x_val.to(DTYPE)
         self.tv = None if self.xv is None else t_val.to(DTYPE)
@@ -40,17 +46,17 @@ class MlpProblem:
     def residual(self, x: torch.Tensor) -> torch.Tensor:
         with torch.no_grad():
             r = self.layout.forward(x, self.xs) - self.t
-            return r if self.prior is None else torch.cat([r, self.prior.residual(self.layout, x)])
+            return torch.cat([r, *(p.residual(self.layout, x) for p in self.priors)]) if self.priors else r
 
     def residual_jacobian(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         if self._jbuf is None:
             self._jbuf = torch.empty(self.n_params, self.n_train, dtype=DTYPE)
         with torch.no_grad():
             y, J = self.layout.jacobian(x, self.xs, out=self._jbuf)
-            if self.prior is None:
+            if not self.priors:
                 return y - self.t, J
-            rp, jp = self.prior.residual_jacobian(self.layout, x)
-        return torch.cat([y - self.t, rp]), torch.cat([J, jp])
+            rows = [p.residual_jacobian(self.layout, x) for p in self.priors]
+        return torch.cat([y - self.t, *(r for r, _ in rows)]), torch.cat([J, *(j for _, j in rows)])
 
     def loss(self, x: torch.Tensor) -> float:
         r = self.residual(x)
@@ -62,8 +68,8 @@ class MlpProblem:
         xg = x.detach().clone().requires_grad_(True)
         r = self.layout.forward(xg, xs) - t
         e = (r @ r) / len(t)
-        if self.prior is not None:  # the whole prior on every batch, as one share of the objective
-            rp = self.prior.residual(self.layout, xg)
+        for p in self.priors:  # the whole prior on every batch, as one share of the objective
+            rp = p.residual(self.layout, xg)
             e = e + (rp @ rp) / self.n_train
         (g,) = torch.autograd.grad(e, xg)
         return float(e.detach()), g

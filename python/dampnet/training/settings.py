@@ -246,6 +246,9 @@ OPTIONS = _table(
     Setting("control_prior", "real", 0, 1e6, 1.0, "the weight of the prior that the force between the tested "
             "control levels follows the smooth curve through theirs (dampnet.training.control_prior); 0: off",
             cli="--control-prior"),
+    Setting("monotone_prior", "real", 0, 1e6, 0.0, "the weight of the prior that the force rises with velocity "
+            "between and at the tested control levels (dampnet.training.monotone_prior); 0: off",
+            cli="--monotone-prior"),
     Setting("acceleration_window", "real", 0, 10, None, "the smoothing window of the derived acceleration [s]",
             open_low=True, none="20 ms"),
 )
