@@ -18,6 +18,8 @@ beats it except by chance.
     python bench/few_tests.py --plans thesis --holdouts 2.25,0.75,4 --seeds 10
     python bench/few_tests.py --plans 5x8 --seeds 4 --set control_prior=0 --set restarts=1   # a variant
     python bench/few_tests.py --plans thesis --seeds 6 --set restarts=1 --workers 1 --ensemble 1,2,3,6  # averages
+    python bench/few_tests.py --plans thesis --seeds 5 --first-seed 5 --json b.json   # half the seeds ...
+    python bench/few_tests.py --merge a.json b.json                                    # ... and both halves' table
 
 Plans: quick (the rig's: 0.25, 1, 3 Hz x 0, 2.25, 5 V), 5x8 (0.25-3 Hz x 8 levels at 1 kHz,
 2,000 samples: issue 18's sparse plan), 6x8 (the same with 1.5 Hz added), thesis (the rig's
@@ -69,7 +71,8 @@ def interpolation_floor(ds, holdout: float) -> float:
     return float(evaluate_model(predict, hold)["overall"]["nrmse"])
 
 
-def run_plan(name: str, holdout: float, seeds: int, options: dict, workers: int, ensemble=()) -> dict:
+def run_plan(name: str, holdout: float, seeds: int, options: dict, workers: int, ensemble=(),
+             first_seed: int = 0) -> dict:
     import dampnet
     from dampnet.predict import predict_force
     from dampnet.rig import generate
@@ -77,7 +80,7 @@ def run_plan(name: str, holdout: float, seeds: int, options: dict, workers: int,
     plan, data_seed = PLANS[name]
     ds = generate(plan, seed=data_seed)
     rows, preds = [], []
-    for seed in range(seeds):
+    for seed in range(first_seed, first_seed + seeds):
         t0 = time.perf_counter()
         trained = dampnet.train(ds, seed=seed, holdout_voltage=holdout, workers=workers,
                                 **{"restarts": "auto", **options})
@@ -100,6 +103,27 @@ def run_plan(name: str, holdout: float, seeds: int, options: dict, workers: int,
         out["ensembles"] = [e for k in ensemble
                             for e in ensembles(preds, hold, k, trained.metrics["noise_floor"]["rmse_n"])]
     return out
+
+
+def summarise(result: dict) -> dict:
+    """`result` with its seeds' median, max, min and median training time."""
+    h = np.array([r["nrmse"] for r in result["rows"]])
+    return {**result, "median": float(np.median(h)), "max": float(h.max()), "min": float(h.min()),
+            "time_median_s": float(np.median([r["time_s"] for r in result["rows"]]))}
+
+
+def merge(files: list[str]) -> list[dict]:
+    """The results of runs over different seeds (--first-seed, --json) as one, per plan and hold-out."""
+    merged: dict = {}
+    for path in files:
+        with open(path) as f:
+            for r in json.load(f):
+                key = (r["plan"], r["holdout"], json.dumps(r["options"], sort_keys=True))
+                if key in merged:
+                    merged[key]["rows"] = merged[key]["rows"] + r["rows"]
+                else:
+                    merged[key] = {k: v for k, v in r.items() if k != "ensembles"}
+    return [summarise({**r, "rows": sorted(r["rows"], key=lambda x: x["seed"])}) for r in merged.values()]
 
 
 def ensembles(preds: list, hold, k: int, floor_rmse_n: float) -> list[dict]:
@@ -130,10 +154,11 @@ def table(results: list[dict]) -> str:
            "|---|---|---|---|---|---|---|---|---|"]
     for r in results:
         floor = f"{r['noise_floor']:.4f}" if r["noise_floor"] is not None else "-"
+        i = r.get("interpolation_floor")  # absent from runs before it was reported
+        interp = f"{i:.4f} ({i / r['lookup']:.2f})" if i is not None else "-"
         out.append(f"| {r['plan']} ({r['tests']}) | {r['holdout']:g} V | {r['lookup']:.4f} | {r['median']:.4f}, "
                    f"{r['max']:.4f} | {r['median'] / r['lookup']:.2f} / {r['max'] / r['lookup']:.2f} | "
-                   f"{r['max'] / r['min']:.2f} | {r['interpolation_floor']:.4f} "
-                   f"({r['interpolation_floor'] / r['lookup']:.2f}) | {floor} | {r['time_median_s']:.1f} |")
+                   f"{r['max'] / r['min']:.2f} | {interp} | {floor} | {r['time_median_s']:.1f} |")
     return "\n".join(out)
 
 
@@ -153,6 +178,9 @@ def main() -> None:
     ap.add_argument("--plans", default="quick,5x8,6x8", help=f"comma-separated, of {', '.join(PLANS)}")
     ap.add_argument("--holdouts", default="2.25", help="held-out levels [V], comma-separated")
     ap.add_argument("--seeds", type=int, default=10, help="training seeds 0..N-1 (default 10)")
+    ap.add_argument("--first-seed", type=int, default=0, help="start the seeds here (two halves in parallel)")
+    ap.add_argument("--merge", nargs="+", default=None, metavar="JSON",
+                    help="print the table of earlier runs' --json files together (e.g. two halves of the seeds)")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="a training option other than the default (dampnet.train's names; JSON values)")
     ap.add_argument("--workers", type=int, default=2, help="processes restarts run in (default 2)")
@@ -162,13 +190,19 @@ def main() -> None:
     ap.add_argument("--json", default=None, help="write every number here")
     args = ap.parse_args()
     options = parse_set(args.set)
+    if args.merge:
+        results = merge(args.merge)
+        print(f"merged: {', '.join(args.merge)}; seeds " + "; ".join(
+            f"{r['plan']} {r['holdout']:g} V {r['rows'][0]['seed']}-{r['rows'][-1]['seed']}" for r in results) + "\n")
+        print(table(results))
+        return
     t0 = time.time()
     ensemble = [int(k) for k in args.ensemble.split(",") if k.strip()]
-    results = [run_plan(p, float(h), args.seeds, options, args.workers, ensemble)
+    results = [run_plan(p, float(h), args.seeds, options, args.workers, ensemble, args.first_seed)
                for p in args.plans.split(",") for h in args.holdouts.split(",")]
     print(f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime(t0))}, {platform.machine()}, {os.cpu_count()} cores, "
           f"load average {os.getloadavg()[0]:.1f} at the end; training options: "
-          f"{options or 'the defaults'}; seeds 0-{args.seeds - 1}\n")
+          f"{options or 'the defaults'}; seeds {args.first_seed}-{args.first_seed + args.seeds - 1}\n")
     print(table(results))
     for r in results:
         for e in r.get("ensembles", []):
