@@ -3,8 +3,8 @@ over training seeds, on plans from 9 to 180 tests. Prints the table bench/RESULT
 ("Few dyno tests") and writes every number as JSON.
 
 For each plan (the virtual rig's data, data seed fixed per plan) and each hold-out level, trains
-with `dampnet.train` exactly as `dampnet train` does by default (restarts 'auto', the default
-control prior) once per seed, and scores the held-out tests' NRMSE (RMSE over the force range)
+with `dampnet.train` exactly as `dampnet train` does by default (algorithm and restarts 'auto',
+the default control prior) once per seed, and scores the held-out tests' NRMSE (RMSE over the force range)
 beside the lookup table fitted on the same training tests and the rig's noise floor on them (the
 NRMSE a perfect model would score: the load cell's noise RMS over the held-out force range), and
 the interpolation floor: the NRMSE of the rig's own noise-free force at each training level,
@@ -83,7 +83,7 @@ def run_plan(name: str, holdout: float, seeds: int, options: dict, workers: int,
     for seed in range(first_seed, first_seed + seeds):
         t0 = time.perf_counter()
         trained = dampnet.train(ds, seed=seed, holdout_voltage=holdout, workers=workers,
-                                **{"restarts": "auto", **options})
+                                **{"algorithm": "auto", "restarts": "auto", **options})
         dt = time.perf_counter() - t0
         model, _, split = trained
         hold = split.holdout.tests

@@ -46,7 +46,8 @@ def test_model_dir_holds_model_metrics_and_header(trained, small_dir):
     meta = model.meta
     for key in ("algorithm", "settings", "training_time_s", "seed", "data", "metrics"):
         assert key in meta
-    assert meta["algorithm"] == "lm" and meta["data"]["decimate"] == 20
+    # the command's automatic algorithm: Bayesian regularisation on data this small
+    assert meta["algorithm"] == "br" and meta["data"]["decimate"] == 20
     assert len(meta["data"]["holdout_tests"]) == 3 and meta["data"]["holdout_voltage"] == 2.25
     assert set(meta["data"]["holdout_tests"]).isdisjoint(meta["data"]["train_tests"])
     header = (trained / "model.h").read_text()

@@ -177,7 +177,7 @@ def test_bad_restarts_option_is_one_line_and_exit_2(quick_dir, tmp_path, capsys,
 def test_auto_trains_once_when_there_is_nothing_to_interpolate(quick_dir, tmp_path, capsys):
     """--restarts auto (the default) on data with one training level trains once and says why."""
     rc = main(["train", str(quick_dir), "--out", str(tmp_path / "m"), "--holdout-tests", "T001,T004,T007",
-               "--holdout-voltage", "5", "--decimate", "50", "--max-epochs", "20"])
+               "--holdout-voltage", "5", "--decimate", "50", "--max-epochs", "20", "--algorithm", "lm"])
     out = capsys.readouterr().out
     assert rc == 0 and "restarts: 1 (the training tests have 1 control level (2.25)" in out
     assert "restarts" not in MlpModel.load(tmp_path / "m").meta
@@ -202,10 +202,41 @@ def test_auto_restarts_keep_rows_times_restarts_within_the_budget(quick, quick_d
     assert rs.auto_restarts(quick, 2.25, decimate=decimate)[0] == rs.MIN_AUTO_RESTARTS
     if decimate is None:  # the command says how many it ran and why
         monkeypatch.setattr(rs, "RESTART_ROWS_BUDGET", 2 * rows)
-        rc = main(["train", str(quick_dir), "--out", str(tmp_path / "m"), "--max-epochs", "5"])
+        rc = main(["train", str(quick_dir), "--out", str(tmp_path / "m"), "--max-epochs", "5", "--algorithm", "lm"])
         out = capsys.readouterr().out
         assert rc == 0 and f"restarts: 2 (not {rs.DEFAULT_RESTARTS}: {rows:,} training rows" in out
         assert len(MlpModel.load(tmp_path / "m").meta["restarts"]["runs"]) == 2
+
+
+def test_auto_algorithm_is_br_on_small_data_and_lm_beyond(quick, quick_dir, tmp_path, capsys, monkeypatch):
+    """`dampnet train`'s default algorithm: Bayesian regularisation up to BR_MAX_ROWS training rows
+    (one training: its seeds agree), Levenberg-Marquardt beyond (with the automatic restarts); the
+    command says which and why, and --settings then needs the algorithm named."""
+    import dampnet
+    from dampnet.training import restarts as rs
+
+    rows = rs.training_rows(quick, 2.25, ())
+    assert rs.auto_algorithm(rows)[0] == "br" and rs.auto_algorithm(rs.BR_MAX_ROWS)[0] == "br"
+    assert rs.auto_algorithm(rs.BR_MAX_ROWS + 1)[0] == "lm"
+    n, note = rs.auto_restarts(quick, 2.25, algorithm="br")
+    assert n == 1 and "Bayesian regularisation" in note
+    assert rs.auto_restarts(quick, 2.25, algorithm="br", average=2) == (rs.DEFAULT_RESTARTS, None)
+    rc = main(["train", str(quick_dir), "--out", str(tmp_path / "br"), "--max-epochs", "5"])
+    out = capsys.readouterr().out
+    assert rc == 0 and f"algorithm: br ({rows:,} training rows, at most {rs.BR_MAX_ROWS:,}" in out
+    assert "restarts: 1 (Bayesian regularisation" in out
+    model = MlpModel.load(tmp_path / "br")
+    assert model.meta["algorithm"] == "br" and "restarts" not in model.meta
+    monkeypatch.setattr(rs, "BR_MAX_ROWS", rows - 1)
+    rc = main(["train", str(quick_dir), "--out", str(tmp_path / "lm"), "--max-epochs", "5", "--restarts", "2"])
+    out = capsys.readouterr().out
+    assert rc == 0 and f"algorithm: lm ({rows:,} training rows, over {rows - 1:,}" in out
+    assert MlpModel.load(tmp_path / "lm").meta["algorithm"] == "lm"
+    # the Python API takes "auto" too (its default stays lm, as its restarts stay 1)
+    assert dampnet.train(quick, algorithm="auto", max_epochs=3).model.meta["algorithm"] == "lm"
+    rc = main(["train", str(quick_dir), "--out", str(tmp_path / "bad"), "--settings", '{"mu_max": 1e8}'])
+    err = capsys.readouterr().err
+    assert rc == 2 and "name it with --algorithm" in err and not (tmp_path / "bad").exists()
 
 
 def test_average_keeps_the_best_restarts_as_one_network(quick_dir, tmp_path, capsys):
@@ -214,7 +245,7 @@ def test_average_keeps_the_best_restarts_as_one_network(quick_dir, tmp_path, cap
     training NRMSE measured for the averaged network and the summary saying so."""
     out = tmp_path / "m"
     rc = main(["train", str(quick_dir), "--out", str(out), "--seed", "7", "--restarts", "3", "--average", "2",
-               "--hidden", "12", "--decimate", "50", "--max-epochs", "40"])
+               "--hidden", "12", "--decimate", "50", "--max-epochs", "40", "--algorithm", "lm"])
     text = capsys.readouterr().out
     assert rc == 0
     model = MlpModel.load(out)

@@ -91,6 +91,8 @@ def run(args) -> int:
                   + "".join(f", {k} = {v:.4g}" for k, v in a["feature_params"].items())
                   + f" (parameters: {a['parameters_from']})")
         print_summary(trained.model, trained.info, trained.split, trained.metrics, out, t_train)
+        if trained.algorithm_note:
+            print(f"algorithm: {trained.model.meta.get('algorithm')} ({trained.algorithm_note})")
         if trained.restarts_note:
             print(f"restarts: {trained.restarts} ({trained.restarts_note})")
     return 0

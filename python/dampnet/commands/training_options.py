@@ -39,9 +39,12 @@ def add_training_options(p: argparse.ArgumentParser, algorithm: bool = True) -> 
                    help=field_help("diagnosis", "the JSON of `dampnet diagnose --json FILE` (the same additions as "
                                                 "the demo's improve stage)"))
     if algorithm:
-        p.add_argument("--algorithm", default="lm", choices=sorted(ALGORITHMS),
-                       help=field_help("algorithm", "lm Levenberg-Marquardt (default), br Bayesian "
-                                                    "regularisation, scg scaled conjugate gradient or adam"))
+        from dampnet.recipes.training import AUTO
+
+        p.add_argument("--algorithm", default=AUTO, choices=[AUTO, *sorted(ALGORITHMS)],
+                       help=field_help("algorithm", "auto (default: br up to 30,000 training rows, lm beyond; "
+                                                    "bench/RESULTS.md 'Few dyno tests'), lm Levenberg-Marquardt, br "
+                                                    "Bayesian regularisation, scg scaled conjugate gradient or adam"))
     p.add_argument("--hidden", default="30", help=field_help("hidden", "e.g. 30 or 20,10 (default 30)"))
     p.add_argument("--activation", default="tanh", choices=["tanh", "sigmoid"],
                    help=field_help("activation", "default tanh, MATLAB's tansig"))

@@ -50,7 +50,8 @@ class RequestField:
 FIELDS: dict[str, RequestField] = {f.name: f for f in (
     RequestField("features", "--features", "features", "", "the input features, in order (default: "
                  "velocity, acceleration and the data's control)"),
-    RequestField("algorithm", "--algorithm", "algorithms", "", "the training algorithm"),
+    RequestField("algorithm", "--algorithm", "algorithms", "", "the training algorithm ('auto': br up to "
+                 "30,000 training rows, lm beyond)"),
     RequestField("hidden", "--hidden", "hidden", "", "hidden layer sizes"),
     RequestField("activation", "--activation", "activation", "", "the hidden layers' activation"),
     RequestField("holdout_voltage", "--holdout-voltage", "holdout_voltage", "V or A",
@@ -67,7 +68,8 @@ FIELDS: dict[str, RequestField] = {f.name: f for f in (
     RequestField("diagnosis", "--diagnosis", None, "", "a diagnosis whose estimated parameters the "
                  "added effects take (default: estimated from the data)"),
     RequestField("restarts", "--restarts", "restarts", "", "trainings from different seeds, the best kept "
-                 "('auto': 6 with two control levels or more, fewer beyond 30,000 training rows, else 1)"),
+                 "('auto': 1 with br; with lm 6 with two control levels or more, fewer beyond 30,000 "
+                 "training rows, else 1)"),
     RequestField("restart_score", "--restart-score", "restart_score", "", "how restarts are ranked: "
                  "interpolation or lolo"),
     RequestField("average", "--average", "average", "", "the best restarts averaged into one network"),
@@ -94,7 +96,8 @@ def _option_default(name: str) -> Any:
 @dataclass(frozen=True)
 class TrainingRequest:
     """Everything that decides a trained model (FIELDS says what each field means). `restarts`
-    AUTO ("auto") lets the data decide; `diagnosis` is the parsed JSON of `dampnet diagnose --json`
+    AUTO ("auto") and `algorithm` AUTO let the data decide (dampnet.training.restarts: auto_restarts,
+    auto_algorithm); `diagnosis` is the parsed JSON of `dampnet diagnose --json`
     and `diagnosis_source` its file (for messages)."""
 
     features: tuple[str, ...] | None = None
@@ -141,8 +144,14 @@ class TrainingRequest:
         from dampnet.training.restarts import check_average, check_restarts
         from dampnet.training.settings import check_request, train_settings
 
-        check_request(algorithm=self.algorithm, settings=train_settings(self.algorithm, self.settings),
-                      hidden=self.hidden, activation=self.activation, features=self.features,
+        algo = {}
+        if self.algorithm == AUTO:
+            if self.settings:
+                raise ValueError("settings (--settings): the settings are one algorithm's; name it with --algorithm "
+                                 "('auto' chooses br or lm by the size of the data)")
+        else:
+            algo = dict(algorithm=self.algorithm, settings=train_settings(self.algorithm, self.settings))
+        check_request(**algo, hidden=self.hidden, activation=self.activation, features=self.features,
                       max_epochs=self.max_epochs, max_fail=self.max_fail, seed=self.seed,
                       decimate=self.decimate, holdout_voltage=self.holdout_voltage,
                       acceleration_window=self.acceleration_window, control_prior=self.control_prior,
@@ -173,7 +182,8 @@ class TrainingRequest:
 class Plan:
     """A request with what needs the data resolved: `kw` train_dataset's arguments (the added
     effects' features and terms in), `added` what each effect added, `restarts` the count,
-    `note` why "auto" ran fewer than the default restarts (None otherwise)."""
+    `note` why "auto" ran fewer than the default restarts (None otherwise), `algorithm` the one
+    trained with and `algorithm_note` why, when the request said "auto" (None otherwise)."""
 
     dataset: Any
     request: TrainingRequest
@@ -181,6 +191,8 @@ class Plan:
     added: list[dict[str, Any]]
     restarts: int
     note: str | None
+    algorithm: str = "lm"
+    algorithm_note: str | None = None
 
     def run(self, progress: Callable[[dict], Any] | None = None, threads: int | None = None,
             workers: int | None = None, init=None) -> "Trained":
@@ -191,10 +203,11 @@ class Plan:
         from dampnet.training.pipeline import train_dataset
 
         r = self.request
-        model, info, split = train_dataset(self.dataset, algorithm=r.algorithm, progress=progress, threads=threads,
+        model, info, split = train_dataset(self.dataset, algorithm=self.algorithm, progress=progress, threads=threads,
                                            init=init, restarts=self.restarts, workers=workers,
                                            restart_score=r.restart_score, average=r.average, **self.kw)
-        return Trained(model, info, split, envelope_of(model, split), self.added, self.note, self.restarts)
+        return Trained(model, info, split, envelope_of(model, split), self.added, self.note, self.restarts,
+                       self.algorithm_note)
 
 
 def plan(dataset, request: TrainingRequest, check: bool = True) -> Plan:
@@ -221,16 +234,23 @@ def plan(dataset, request: TrainingRequest, check: bool = True) -> Plan:
                 where = f" (from {request.diagnosis_source or 'the diagnosis'})" if request.diagnosis is not None else ""
                 raise ValueError(f"--add {name}{where}: {e}") from None
             added.append({"effect": name, **add})
-    note = None
+    note = algorithm_note = None
+    algorithm = request.algorithm
+    if algorithm == AUTO:
+        from dampnet.training.restarts import auto_algorithm, training_rows
+
+        algorithm, algorithm_note = auto_algorithm(training_rows(dataset, kw["holdout_voltage"], kw["holdout_tests"],
+                                                                 kw.get("decimate")))
     if request.restarts == AUTO:
         from dampnet.training.restarts import auto_restarts, check_average
 
         restarts, note = auto_restarts(dataset, kw["holdout_voltage"], kw["holdout_tests"], kw["features"],
-                                       request.restart_score, decimate=kw.get("decimate"), average=request.average)
+                                       request.restart_score, decimate=kw.get("decimate"), average=request.average,
+                                       algorithm=algorithm)
         check_average(request.average, restarts, request.hidden, request.restart_score)
     else:
         restarts = int(request.restarts)
-    return Plan(dataset, request, kw, added, restarts, note)
+    return Plan(dataset, request, kw, added, restarts, note, algorithm, algorithm_note)
 
 
 class Trained:
@@ -238,10 +258,12 @@ class Trained:
     dampnet.train's result before it carried the envelope."""
 
     def __init__(self, model, info, split, envelope, added: Sequence[dict] = (), note: str | None = None,
-                 restarts: int = 1):
+                 restarts: int = 1, algorithm_note: str | None = None):
         self.model, self.info, self.split, self.envelope = model, info, split, envelope
-        # restarts_note: why the automatic restarts ran `restarts` and not the default
+        # restarts_note: why the automatic restarts ran `restarts` and not the default;
+        # algorithm_note: which algorithm "auto" chose and why
         self.added, self.restarts_note, self.restarts = list(added), note, int(restarts)
+        self.algorithm_note = algorithm_note
 
     def __iter__(self):
         return iter((self.model, self.info, self.split))

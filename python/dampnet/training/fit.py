@@ -182,6 +182,11 @@ def warm_start_weights(model: MlpModel, layout: Layout, features: Sequence[str],
     return layout.pack({k: torch.as_tensor(v, dtype=DTYPE) for k, v in p.items()})
 
 
+def _scaled(a: np.ndarray, offset: np.ndarray, gain: np.ndarray) -> np.ndarray:
+    """Values in the network's scaled units (mapminmax: [-1, 1] over the training range)."""
+    return (a - offset) * gain - 1.0
+
+
 def _control_prior(X_train: np.ndarray, features: Sequence[str], weight: float, in_off: np.ndarray,
                    in_gain: np.ndarray, rng: np.random.Generator):
     """(the prior's rows or None, what model.meta["control_prior"] records)."""
@@ -197,9 +202,8 @@ def _control_prior(X_train: np.ndarray, features: Sequence[str], weight: float, 
     if len(values) < 2:
         meta["off"] = "fewer than two control levels"
         return None, meta
-    scaled = (values - in_off[columns]) * in_gain[columns] - 1.0
-    xs = torch.as_tensor((X_train - in_off) * in_gain - 1.0, dtype=DTYPE)
-    rows = prior_rows(xs, columns, scaled, weight, rng)
+    xs = torch.as_tensor(_scaled(X_train, in_off, in_gain), dtype=DTYPE)
+    rows = prior_rows(xs, columns, _scaled(values, in_off[columns], in_gain[columns]), weight, rng)
     meta["points"] = len(rows) if rows is not None else 0
     return rows, meta
 
@@ -218,9 +222,9 @@ def _monotone_prior(X_train: np.ndarray, features: Sequence[str], weight: float,
     values = control_levels(X_train, columns)
     span = None
     if len(values) >= 2:  # between the lowest and highest level; else each row keeps its control
-        ends = (values[[0, -1]] - in_off[columns]) * in_gain[columns] - 1.0
+        ends = _scaled(values[[0, -1]], in_off[columns], in_gain[columns])
         span = (ends[0], ends[1])
-    xs = torch.as_tensor((X_train - in_off) * in_gain - 1.0, dtype=DTYPE)
+    xs = torch.as_tensor(_scaled(X_train, in_off, in_gain), dtype=DTYPE)
     rows = monotone_rows(xs, j, columns, span, weight, rng)
     meta["points"] = len(rows) if rows is not None else 0
     return rows, meta
@@ -284,7 +288,7 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
     (out_off,), (out_gain,) = mapminmax_settings(y_all)
 
     def scale_x(a):
-        return torch.as_tensor((a - in_off) * in_gain - 1.0, dtype=DTYPE)
+        return torch.as_tensor(_scaled(a, in_off, in_gain), dtype=DTYPE)
 
     def scale_y(a):
         return torch.as_tensor((a - out_off) * out_gain - 1.0, dtype=DTYPE)

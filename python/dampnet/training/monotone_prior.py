@@ -18,10 +18,10 @@ the training rows with the control columns set to a value drawn uniformly betwee
 highest training level (the other inputs kept: the motion is the tests'); e_v is the velocity
 column, h = STEP (scaled units: 1 % of the velocity range, the step `evaluation.structure`
 checks with), f the network's scaled output and c = MARGIN a small rise asked for (0.1 % of the
-force range over the step: the rig's damper rises by 0.5 % or more there, its laminar flow alone;
-without it, the force still fell by up to 13 N between the rows the prior saw). Both sets are needed: measured on the quick
-plan (seed 1), points drawn between the levels alone left the force falling at 0.4 % of the
-rows at the 5 V level itself, where no drawn point lies. A row is zero where the force rises,
+force range over the step: the rig's damper rises by 0.5 % or more there, its laminar flow
+alone; without it the force still fell by up to 13 N between the rows the prior saw). Both sets
+are needed: measured on the quick plan (seed 1), points drawn between the levels alone left the
+force falling at 0.4 % of the rows at the 5 V level itself, where no drawn point lies. A row is zero where the force rises,
 so the prior leaves a monotone fit as it is and costs two forward passes per point there (a
 small share of an epoch: the data rows' Jacobian costs about the parameter count in forward
 passes); only violated rows carry a Jacobian. `weight` is its share against the data as the
@@ -32,11 +32,11 @@ give it is large (RECOMMENDED_WEIGHT).
 Why it is off by default (dampnet.training.settings.OPTIONS; issue 33, bench/RESULTS.md "Few dyno
 tests"): where the data are dense they hold the network monotone already, and the prior only
 costs. On the thesis plan (2.25 V held out, seeds 0 and 1) the force fell with velocity at none of
-the training samples without it; with weight 100 the held-out error rose from 2.88x / 3.52x the
-noise floor to 3.32x / 3.89x and a training took 2-3x as long (more epochs before early stopping,
-1.7x the work per epoch). On sparse plans it holds the structure at no cost in accuracy (quick
-plan, seeds 0-9: held-out NRMSE 0.0310-0.0338, at the interpolation floor 0.0316; 5 x 8, seeds 0-9:
-median 0.0064 with it, 0.0067 without) but trains 2-3x as long. `dampnet train` says when the force
+the training samples without it; with weight 100 the held-out NRMSE rose from 0.0037 / 0.0045 to
+0.0042 / 0.0049 (2.88x / 3.52x the noise floor to 3.2x / 3.89x) and a training took 2-3x as long
+(more epochs before early stopping, more work per epoch). On sparse plans it holds the structure
+at no cost in accuracy (quick plan, seeds 0-8: held-out NRMSE 0.0310-0.0338, at the interpolation
+floor 0.0316; 5 x 8, seeds 0-9: median 0.0064 with it, 0.0067 without) but trains 2-3x as long. `dampnet train` says when the force
 falls with velocity anywhere in the training samples and names --monotone-prior.
 
 Its Jacobian is piecewise the difference of two forward Jacobians (checked against torch

@@ -74,6 +74,13 @@ DEFAULT_RESTARTS = 6
 #: for one training; two restarts in parallel took 152 s, the slower seed's time at one thread each).
 #: With the control prior its seeds' held-out errors agree to 1.3x, so restarts buy little there.
 RESTART_ROWS_BUDGET = 180_000
+#: the automatic algorithm (`dampnet train`'s default, `--algorithm auto`): Bayesian regularisation up
+#: to this many training rows, Levenberg-Marquardt beyond. Why (issue 33, bench/RESULTS.md "Few dyno
+#: tests"): on the 5 x 8 and 6 x 8 plans (25,221 and 28,021 rows) one BR training per seed, with the
+#: control prior, was held out at about half the lookup table's error with seeds agreeing to 1.2x,
+#: where LM needed 6 restarts for 0.56x and 1.84x; on the thesis plan (91,518 rows) BR was no better
+#: (seed 0: 3.08x the noise floor against LM's 2.88x) and several times slower.
+BR_MAX_ROWS = RESTART_ROWS_BUDGET // DEFAULT_RESTARTS
 #: the fewest automatic restarts when the score can run
 MIN_AUTO_RESTARTS = 1
 #: how many interior levels the "lolo" score withholds, one per fit
@@ -146,16 +153,27 @@ def lolo_levels(levels: list[float], k: int = LOLO_LEVELS) -> list[float]:
     return [interior[i] for i in idx]
 
 
+def auto_algorithm(rows: int) -> tuple[str, str]:
+    """What `dampnet train` trains with without --algorithm, for `rows` training rows
+    (training_rows): ("br" or "lm", why)."""
+    if rows <= BR_MAX_ROWS:
+        return "br", f"{rows:,} training rows, at most {BR_MAX_ROWS:,}: Bayesian regularisation"
+    return "lm", f"{rows:,} training rows, over {BR_MAX_ROWS:,}: Levenberg-Marquardt"
+
+
 def auto_restarts(ds, holdout_voltage=None, holdout_tests=(), features=None,
                   score: str = "interpolation", decimate: int | None = None,
-                  average: int = 1) -> tuple[int, str | None]:
+                  average: int = 1, algorithm: str = "lm") -> tuple[int, str | None]:
     """What `dampnet train` runs without --restarts: (1, why not) when `ds`'s training tests do not
-    allow `score`; else DEFAULT_RESTARTS, fewer (not below MIN_AUTO_RESTARTS, nor `average`) when
+    allow `score`, or with Bayesian regularisation (its seeds agree: BR_MAX_ROWS) unless `average`
+    asks for more; else DEFAULT_RESTARTS, fewer (not below MIN_AUTO_RESTARTS, nor `average`) when
     the training rows times the restarts would exceed RESTART_ROWS_BUDGET, with a note saying so."""
     from dampnet.features import FEATURES, default_features
 
     if not ds.tests:
         return 1, "no tests"
+    if algorithm == "br" and average <= 1:
+        return 1, "Bayesian regularisation's seeds agree, so one training; --restarts N runs N"
     control = ds.tests[0].control_name
     feats = list(features) if features else default_features(ds)
     held = set(holdout_tests or ())
