@@ -4,26 +4,28 @@ over training seeds, on plans from 9 to 180 tests. Prints the table bench/RESULT
 
 For each plan (the virtual rig's data, data seed fixed per plan) and each hold-out level, trains
 with `dampnet.train` exactly as `dampnet train` does by default (algorithm and restarts 'auto',
-the default control prior) once per seed, and scores the held-out tests' NRMSE (RMSE over the force range)
-beside the lookup table fitted on the same training tests and the rig's noise floor on them (the
+the default control prior) once per seed, and scores the held-out tests' NRMSE (RMSE over the
+force range) beside the lookup table fitted on the same training tests and the rig's noise floor on them (the
 NRMSE a perfect model would score: the load cell's noise RMS over the held-out force range), and
 the interpolation floor: the NRMSE of the rig's own noise-free force at each training level,
 evaluated at the held-out tests' motion and carried to the held-out level by the spline the
 control prior asks for (dampnet.training.control_prior.spline_weights over the training levels).
-It is what a model exact at every tested level, and smooth between them, would score: what the
-tests do not say about the levels between them. No model that interpolates between the levels
-beats it except by chance.
+It is what a model exact at every tested level, and following that spline between them, would
+score: what the tests do not say about the levels between them. A model that follows the spline
+cannot beat it except by chance; the prior is soft, and a smoother model can (Bayesian
+regularisation on the 5 x 8 and 6 x 8 plans, bench/RESULTS.md "Few dyno tests").
 
     python bench/few_tests.py                        # quick, 5x8 and 6x8, seeds 0-9, 2.25 V held out
-    python bench/few_tests.py --plans thesis --holdouts 2.25,0.75,4 --seeds 10
+    python bench/few_tests.py --plans thesis --holdouts 2.25,1,4 --seeds 10
     python bench/few_tests.py --plans 5x8 --seeds 4 --set control_prior=0 --set restarts=1   # a variant
+    python bench/few_tests.py --plans 5x8 --seeds 4 --set algorithm='"lm"'   # LM (restarts 'auto': 6 here)
     python bench/few_tests.py --plans thesis --seeds 6 --set restarts=1 --workers 1 --ensemble 1,2,3,6  # averages
     python bench/few_tests.py --plans thesis --seeds 5 --first-seed 5 --json b.json   # half the seeds ...
     python bench/few_tests.py --merge a.json b.json                                    # ... and both halves' table
 
 Plans: quick (the rig's: 0.25, 1, 3 Hz x 0, 2.25, 5 V), 5x8 (0.25-3 Hz x 8 levels at 1 kHz,
 2,000 samples: issue 18's sparse plan), 6x8 (the same with 1.5 Hz added), thesis (the rig's
-Table 2 plan: 12 frequencies x 15 levels at 5 kHz).
+Table 2 plan: 12 frequencies x 15 levels at 5 kHz: it has no 0.75 V level, so 1 V stands in).
 """
 
 from __future__ import annotations
