@@ -28,7 +28,10 @@ from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any, Callable, Mapping, Sequence
 
-#: restarts: the word for "as many as the data allow" (dampnet.training.restarts.auto_restarts)
+from dampnet.training.restarts import BR_MAX_ROWS, DEFAULT_RESTARTS, RESTART_ROWS_BUDGET
+
+#: restarts and algorithm: the word for "as the data allow" (dampnet.training.restarts: auto_restarts,
+#: auto_algorithm)
 AUTO = "auto"
 
 
@@ -50,8 +53,8 @@ class RequestField:
 FIELDS: dict[str, RequestField] = {f.name: f for f in (
     RequestField("features", "--features", "features", "", "the input features, in order (default: "
                  "velocity, acceleration and the data's control)"),
-    RequestField("algorithm", "--algorithm", "algorithms", "", "the training algorithm ('auto': br up to "
-                 "30,000 training rows, lm beyond)"),
+    RequestField("algorithm", "--algorithm", "algorithms", "", f"the training algorithm ('auto': br up to "
+                 f"{BR_MAX_ROWS:,} training rows, lm beyond)"),
     RequestField("hidden", "--hidden", "hidden", "", "hidden layer sizes"),
     RequestField("activation", "--activation", "activation", "", "the hidden layers' activation"),
     RequestField("holdout_voltage", "--holdout-voltage", "holdout_voltage", "V or A",
@@ -68,8 +71,8 @@ FIELDS: dict[str, RequestField] = {f.name: f for f in (
     RequestField("diagnosis", "--diagnosis", None, "", "a diagnosis whose estimated parameters the "
                  "added effects take (default: estimated from the data)"),
     RequestField("restarts", "--restarts", "restarts", "", "trainings from different seeds, the best kept "
-                 "('auto': 1 with br; with lm 6 with two control levels or more, fewer beyond 30,000 "
-                 "training rows, else 1)"),
+                 f"('auto': 1 with br; with lm {DEFAULT_RESTARTS} with two control levels or more, fewer beyond "
+                 f"{RESTART_ROWS_BUDGET // DEFAULT_RESTARTS:,} training rows, else 1)"),
     RequestField("restart_score", "--restart-score", "restart_score", "", "how restarts are ranked: "
                  "interpolation or lolo"),
     RequestField("average", "--average", "average", "", "the best restarts averaged into one network"),
