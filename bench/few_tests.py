@@ -57,7 +57,8 @@ def nrmse_of(predict, tests) -> float:
 
 
 def interpolation_floor(ds, holdout: float) -> float:
-    """The interpolation floor of `ds` (rig data, no effects) with the `holdout` level held out."""
+    """The interpolation floor of `ds` (rig data, no effects, the rig's default truth parameters)
+    with the `holdout` level held out, on the measured motion (what a model is given)."""
     from dampnet.evaluation.metrics import evaluate_model
     from dampnet.rig.truth import truth_force
     from dampnet.training.control_prior import spline_weights
@@ -95,10 +96,8 @@ def run_plan(name: str, holdout: float, seeds: int, options: dict, workers: int,
         print(f"{name:6s} {holdout:g} V  seed {seed}: {rows[-1]['nrmse']:.4f} in {dt:.1f} s", file=sys.stderr, flush=True)
     lookup = trained.metrics["holdout_lookup"]["overall"]["nrmse"]
     floor = trained.metrics.get("noise_floor", {}).get("holdout_vs_floor", {}).get("floor_nrmse")
-    h = np.array([r["nrmse"] for r in rows])
-    out = {"plan": name, "tests": len(ds.tests), "holdout": holdout, "options": options, "rows": rows,
-           "lookup": lookup, "noise_floor": floor, "interpolation_floor": interpolation_floor(ds, holdout), "median": float(np.median(h)), "max": float(h.max()),
-           "min": float(h.min()), "time_median_s": float(np.median([r["time_s"] for r in rows]))}
+    out = summarise({"plan": name, "tests": len(ds.tests), "holdout": holdout, "options": options, "rows": rows,
+                     "lookup": lookup, "noise_floor": floor, "interpolation_floor": interpolation_floor(ds, holdout)})
     if ensemble:
         if "noise_floor" not in trained.metrics:
             raise SystemExit(f"--ensemble: no noise floor for {name}'s data (rig data only)")
@@ -122,6 +121,9 @@ def merge(files: list[str]) -> list[dict]:
             for r in json.load(f):
                 key = (r["plan"], r["holdout"], json.dumps(r["options"], sort_keys=True))
                 if key in merged:
+                    twice = {x["seed"] for x in merged[key]["rows"]} & {x["seed"] for x in r["rows"]}
+                    if twice:
+                        raise SystemExit(f"--merge: {path} repeats seed(s) {sorted(twice)} of {key[0]} {key[1]:g} V")
                     merged[key]["rows"] = merged[key]["rows"] + r["rows"]
                 else:
                     merged[key] = {k: v for k, v in r.items() if k != "ensembles"}

@@ -170,3 +170,16 @@ def test_the_summary_names_the_option_when_the_force_falls():
     assert "--monotone-prior 100 asks" not in structure_line(off, {"velocity_falling_share": 0.0})
     line = structure_line(on, falls)
     assert "--monotone-prior 100 asks" not in line and "monotone prior 100" in line
+
+
+def test_a_sweep_cell_takes_the_weight_and_checks_it():
+    """The sweep's [training] key reaches the cell's request, range-checked by the spec."""
+    from dampnet.sweep import SpecError, parse_spec
+    from dampnet.sweep.grid import expand
+    from dampnet.sweep.train_cell import request
+
+    cells = expand(parse_spec({"training": {"datasets": "rig:quick", "monotone_prior": [0, 100]}}))
+    assert sorted(request(c.params).monotone_prior for c in cells) == [0.0, 100.0]
+    assert request(expand(parse_spec({"training": {"datasets": "rig:quick"}}))[0].params).monotone_prior == 0.0
+    with pytest.raises(SpecError, match="monotone_prior"):
+        parse_spec({"training": {"datasets": "rig:quick", "monotone_prior": -1}})

@@ -220,7 +220,7 @@ def test_auto_algorithm_is_br_on_small_data_and_lm_beyond(quick, quick_dir, tmp_
     assert rs.auto_algorithm(rs.BR_MAX_ROWS + 1)[0] == "lm"
     n, note = rs.auto_restarts(quick, 2.25, algorithm="br")
     assert n == 1 and "Bayesian regularisation" in note
-    assert rs.auto_restarts(quick, 2.25, algorithm="br", average=2) == (rs.DEFAULT_RESTARTS, None)
+    assert rs.auto_restarts(quick, 2.25, algorithm="br", average=2)[0] == 2  # one BR training per network averaged
     rc = main(["train", str(quick_dir), "--out", str(tmp_path / "br"), "--max-epochs", "5"])
     out = capsys.readouterr().out
     assert rc == 0 and f"algorithm: br ({rows:,} training rows, at most {rs.BR_MAX_ROWS:,}" in out
@@ -234,6 +234,12 @@ def test_auto_algorithm_is_br_on_small_data_and_lm_beyond(quick, quick_dir, tmp_
     assert MlpModel.load(tmp_path / "lm").meta["algorithm"] == "lm"
     # the Python API takes "auto" too (its default stays lm, as its restarts stay 1)
     assert dampnet.train(quick, algorithm="auto", max_epochs=3).model.meta["algorithm"] == "lm"
+    monkeypatch.undo()
+    assert dampnet.train(quick, algorithm="auto", max_epochs=3).model.meta["algorithm"] == "br"
+    assert dampnet.train(quick, max_epochs=3).model.meta["algorithm"] == "lm"
+    # a hold-out that matches nothing: the pipeline's hint, from the row count "auto" needs
+    with pytest.raises(DataError, match="no test at control 9.*choose another --holdout-voltage"):
+        dampnet.train(quick, algorithm="auto", holdout_voltage=9.0, max_epochs=3)
     rc = main(["train", str(quick_dir), "--out", str(tmp_path / "bad"), "--settings", '{"mu_max": 1e8}'])
     err = capsys.readouterr().err
     assert rc == 2 and "name it with --algorithm" in err and not (tmp_path / "bad").exists()

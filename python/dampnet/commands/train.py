@@ -75,7 +75,7 @@ def run(args) -> int:
         if todo.restarts > 1:
             bar = RestartProgress(not args.quiet)
         else:
-            bar = Progress(req.max_epochs, f"train {args.algorithm}", not args.quiet)
+            bar = Progress(req.max_epochs, f"train {todo.algorithm}", not args.quiet)
         t0 = time.perf_counter()
         trained = todo.run(progress=bar, workers=workers)
         bar.close()

@@ -138,6 +138,10 @@ def decimate(ds: Dataset, factor: int) -> Dataset:
     return ds.subset(tests, note=f"decimate({factor})")
 
 
+#: what to do when a hold-out request matches no test (the training pipeline's and restarts' DataError)
+HOLDOUT_HINT = "choose another --holdout-voltage, name --holdout-tests, or --holdout-voltage none"
+
+
 def holdout_split(ds: Dataset, voltage: float | None = 2.25, test_ids=None,
                   atol: float = 1e-6) -> tuple[Dataset, Dataset]:
     """(train, holdout): hold out all tests at nominal `voltage` [V] (the thesis: 2.25 V)

@@ -71,8 +71,8 @@ FIELDS: dict[str, RequestField] = {f.name: f for f in (
     RequestField("diagnosis", "--diagnosis", None, "", "a diagnosis whose estimated parameters the "
                  "added effects take (default: estimated from the data)"),
     RequestField("restarts", "--restarts", "restarts", "", "trainings from different seeds, the best kept "
-                 f"('auto': 1 with br; with lm {DEFAULT_RESTARTS} with two control levels or more, fewer beyond "
-                 f"{RESTART_ROWS_BUDGET // DEFAULT_RESTARTS:,} training rows, else 1)"),
+                 f"('auto': 1 with br, or --average's count; otherwise {DEFAULT_RESTARTS} with two control levels or "
+                 f"more, fewer beyond {RESTART_ROWS_BUDGET // DEFAULT_RESTARTS:,} training rows, else 1)"),
     RequestField("restart_score", "--restart-score", "restart_score", "", "how restarts are ranked: "
                  "interpolation or lolo"),
     RequestField("average", "--average", "average", "", "the best restarts averaged into one network"),
@@ -81,9 +81,9 @@ FIELDS: dict[str, RequestField] = {f.name: f for f in (
                  "the same motion (a straight line between two, as a lookup table interpolates); against the "
                  "data's squared error, per row; 0: off"),
     RequestField("monotone_prior", "--monotone-prior", "monotone_prior", "", "the weight of the prior that the "
-                 "force rises with velocity, at the training motion with the control anywhere between the lowest "
-                 "and highest tested level (only where it falls does it act); against the data's squared error, "
-                 "per row; 0: off"),
+                 "force rises with velocity, at the training rows and at their motion with the control anywhere "
+                 "between the lowest and highest tested level (only where it falls does it act); its mean square "
+                 "against the data's; 0: off (the default; 100 when wanted)"),
     RequestField("feature_params", None, None, "", "feature parameters (a lag's time constant [s], ...)"),
     RequestField("acceleration_window", None, None, "s", "the derived acceleration's smoothing window"),
 )}
@@ -309,7 +309,8 @@ def train(data, features: Sequence[str] | None = None, algorithm: str = "lm", *,
           threads: int | None = None, workers: int | None = None, init=None, **options: Any) -> Trained:
     """Train a damper model (`dampnet.train`): `data` a Dataset, a path or a list of them;
     `request` a TrainingRequest, or its fields as keyword options (features, algorithm, hidden,
-    restarts, average, add, seed, holdout_voltage, ...; restarts 1 unless told). Returns the
+    restarts, average, add, seed, holdout_voltage, ...; algorithm "lm" and restarts 1 unless told,
+    "auto" for either lets the data decide as `dampnet train` does). Returns the
     Trained model with its envelope; `model, info, split = dampnet.train(...)` still unpacks."""
     if request is None:
         request = TrainingRequest.of(features=features, algorithm=algorithm, **options)

@@ -24,10 +24,11 @@ are needed: measured on the quick plan (seed 1), points drawn between the levels
 force falling at 0.4 % of the rows at the 5 V level itself, where no drawn point lies. A row is zero where the force rises,
 so the prior leaves a monotone fit as it is and costs two forward passes per point there (a
 small share of an epoch: the data rows' Jacobian costs about the parameter count in forward
-passes); only violated rows carry a Jacobian. `weight` is its share against the data as the
-control prior's is (s = sqrt(weight * n_data / n_points)): the violated rows' squares count
-`weight` times as much, per row, as the data rows'. Since only violations count, the weight to
-give it is large (RECOMMENDED_WEIGHT).
+passes); only violated rows carry a Jacobian, and residual_jacobian returns those alone.
+`weight` is its share against the data as the control prior's is (s = sqrt(weight * n_data /
+n_points)): the prior's mean square counts `weight` times as much as the data's (with the drawn
+points, 2 n_data of them, each counts weight / 2 times a data row). Since only violations count,
+the weight to give it is large (RECOMMENDED_WEIGHT).
 
 Why it is off by default (dampnet.training.settings.OPTIONS; issue 33, bench/RESULTS.md "Few dyno
 tests"): where the data are dense they hold the network monotone already, and the prior only

@@ -47,7 +47,7 @@ import numpy as np
 
 from dampnet.data import DataError, Dataset, add_acceleration, decimate as _decimate
 from dampnet.data import holdout_split
-from dampnet.data.preprocess import DEFAULT_WINDOW_S, auto_decimate, window_samples
+from dampnet.data.preprocess import DEFAULT_WINDOW_S, HOLDOUT_HINT, auto_decimate, window_samples
 from dampnet.data.types import RIG_GENERATOR
 from dampnet.effects import additions as effect_additions, effect as catalogue_effect
 from dampnet.evaluation.lookup import fit_lookup
@@ -228,8 +228,7 @@ def prepare_training(ds: Dataset, features: Sequence[str] | None = None, algorit
         try:
             train, hold = holdout_split(ds, holdout_voltage, list(holdout_tests or []))
         except ValueError as e:
-            raise DataError(f"{e} (choose another --holdout-voltage, name --holdout-tests, or "
-                            "--holdout-voltage none)") from None
+            raise DataError(f"{e} ({HOLDOUT_HINT})") from None
     if not train.tests:
         raise DataError("every test is held out: nothing left to train on")
     factor = auto_decimate(train) if decimate is None else int(decimate)

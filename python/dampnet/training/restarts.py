@@ -77,10 +77,10 @@ RESTART_ROWS_BUDGET = 180_000
 #: the automatic algorithm (`dampnet train`'s default, `--algorithm auto`): Bayesian regularisation up
 #: to this many training rows, Levenberg-Marquardt beyond. Why (issue 33, bench/RESULTS.md "Few dyno
 #: tests"): on the 5 x 8 and 6 x 8 plans (25,221 and 28,021 rows) one BR training per seed, with the
-#: control prior, was held out at about half the lookup table's error with seeds agreeing to 1.2x,
-#: where LM needed 6 restarts for 0.56x and 1.84x; on the thesis plan (91,518 rows) BR was no better
-#: (seed 0: 3.08x the noise floor against LM's 2.88x) and several times slower.
-BR_MAX_ROWS = RESTART_ROWS_BUDGET // DEFAULT_RESTARTS
+#: control prior, was held out at 0.50x and 0.53x the lookup table's error with seeds agreeing to
+#: 1.32x and 1.17x, where LM needed 6 restarts for 0.56x and 1.84x on 5 x 8; on the thesis plan (91,518
+#: rows) BR was no better (seed 0: 3.08x the noise floor against LM's 2.88x) and several times slower.
+BR_MAX_ROWS = 30_000
 #: the fewest automatic restarts when the score can run
 MIN_AUTO_RESTARTS = 1
 #: how many interior levels the "lolo" score withholds, one per fit
@@ -165,15 +165,16 @@ def auto_restarts(ds, holdout_voltage=None, holdout_tests=(), features=None,
                   score: str = "interpolation", decimate: int | None = None,
                   average: int = 1, algorithm: str = "lm") -> tuple[int, str | None]:
     """What `dampnet train` runs without --restarts: (1, why not) when `ds`'s training tests do not
-    allow `score`, or with Bayesian regularisation (its seeds agree: BR_MAX_ROWS) unless `average`
-    asks for more; else DEFAULT_RESTARTS, fewer (not below MIN_AUTO_RESTARTS, nor `average`) when
+    allow `score`; with Bayesian regularisation `average` (at least 1: its seeds agree, BR_MAX_ROWS);
+    else DEFAULT_RESTARTS, fewer (not below MIN_AUTO_RESTARTS, nor `average`) when
     the training rows times the restarts would exceed RESTART_ROWS_BUDGET, with a note saying so."""
     from dampnet.features import FEATURES, default_features
 
     if not ds.tests:
         return 1, "no tests"
-    if algorithm == "br" and average <= 1:
-        return 1, "Bayesian regularisation's seeds agree, so one training; --restarts N runs N"
+    if algorithm == "br":
+        return max(1, int(average)), ("Bayesian regularisation's seeds agree, so one training per network "
+                                      "averaged; --restarts N runs N")
     control = ds.tests[0].control_name
     feats = list(features) if features else default_features(ds)
     held = set(holdout_tests or ())
@@ -198,11 +199,14 @@ def auto_restarts(ds, holdout_voltage=None, holdout_tests=(), features=None,
 def training_rows(ds, holdout_voltage=None, holdout_tests=(), decimate: int | None = None) -> int:
     """The rows a training of `ds` fits: its training tests' samples after the decimation
     (`decimate`, or the pipeline's automatic one), without building the feature matrix."""
-    from dampnet.data.preprocess import auto_decimate, holdout_split
+    from dampnet.data.preprocess import HOLDOUT_HINT, auto_decimate, holdout_split
 
-    # the pipeline's own split and decimation rule (prepare_training)
-    train = ds if holdout_voltage is None and not holdout_tests else \
-        holdout_split(ds, holdout_voltage, list(holdout_tests or []))[0]
+    # the pipeline's own split and decimation rule (prepare_training), and its error
+    try:
+        train = ds if holdout_voltage is None and not holdout_tests else \
+            holdout_split(ds, holdout_voltage, list(holdout_tests or []))[0]
+    except ValueError as e:
+        raise DataError(f"{e} ({HOLDOUT_HINT})") from None
     if not train.tests:
         return 0
     factor = int(decimate) if decimate else auto_decimate(train)
