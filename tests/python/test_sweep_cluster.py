@@ -11,6 +11,7 @@ Tiny sweeps: linear dampers on short roads (a tenth of a second a cell)."""
 from __future__ import annotations
 
 import json
+import math
 import os
 import signal
 import subprocess
@@ -100,6 +101,46 @@ def test_a_killed_scheduler_interrupts_the_sweep_and_resume_continues(client, tm
     assert df.attrs["sweep"]["reused"] == len(saved) and df.attrs["sweep"]["computed"] == 12 - len(saved)
     assert len(df) == 12 and (df["status"] == "ok").all()
     assert json.loads((out / "sweep.json").read_text())["state"] == "complete"
+
+
+class _Client:
+    """A client that notices its scheduler is gone `after` seconds after the connection broke."""
+
+    def __init__(self, after: float):
+        self.broke, self.after = time.monotonic(), after
+
+    @property
+    def status(self) -> str:
+        return "closed" if time.monotonic() - self.broke >= self.after else "running"
+
+    def nthreads(self):
+        raise ConnectionResetError(104, "Connection reset by peer")
+
+
+class _Future:
+    status = "finished"
+
+    def result(self):
+        raise ConnectionResetError(104, "Connection reset by peer")
+
+
+def test_a_connection_broken_before_the_client_notices_is_the_scheduler_going_away(monkeypatch):
+    """CI once saw the killed scheduler as a ConnectionResetError fetching a finished cell's result:
+    the client had not yet noticed. Such an error waits for the client's notice; a scheduler that
+    stays is a broken connection, said with its error."""
+    import dampnet.sweep.runner as runner
+
+    watch = runner.Watch(_Client(after=0.3), "tcp://here:1", 60.0)
+    with pytest.raises(SweepInterrupted, match=r"^the Dask scheduler \(tcp://here:1\) went away"):
+        runner.outcome(_Future(), 3, watch)
+    watch = runner.Watch(_Client(after=0.3), "tcp://here:1", 60.0)
+    with pytest.raises(SweepInterrupted, match="went away"):
+        watch.check(force=True)
+    monkeypatch.setattr(runner, "LOST_NOTICE_S", 0.2)
+    watch = runner.Watch(_Client(after=math.inf), "tcp://here:1", 60.0)
+    with pytest.raises(SweepInterrupted, match=r"connection to the Dask scheduler \(tcp://here:1\) broke "
+                                               r"\(ConnectionResetError.*Connection reset by peer\)"):
+        runner.outcome(_Future(), 3, watch)
 
 
 def test_a_cluster_without_workers_says_so_and_stops_after_the_timeout(tmp_path, capsys, monkeypatch):

@@ -65,6 +65,9 @@ POLL_S = 0.05
 #: DIR/sweep.json's counts are rewritten at most this often while cells complete [s] (the cells
 #: themselves are saved at once; the counts are written again at the end or on an interruption)
 STATE_EVERY_S = 1.0
+#: after a connection error, how long the client is given to notice that its scheduler is gone
+#: before the error is reported as a broken connection instead [s]
+LOST_NOTICE_S = 10.0
 MISSING = ("dampnet sweep needs dask[distributed], pandas and pyarrow (the sweep extra): "
            "pip install 'dampnet[sweep]'")
 
@@ -277,13 +280,26 @@ class Watch:
         if self.client.status != "running":
             raise SweepInterrupted(f"the Dask scheduler ({self.where}) went away: the sweep stopped")
 
+    def broken(self, error: OSError) -> SweepInterrupted:
+        """The interruption for a connection that broke during a call (fetching a result, counting
+        workers). The client may take a moment to see that its scheduler is gone, so it is given
+        LOST_NOTICE_S; a scheduler still there is a broken connection, said with the error."""
+        deadline = time.monotonic() + LOST_NOTICE_S
+        while time.monotonic() < deadline:
+            try:
+                self.lost()
+            except SweepInterrupted as e:
+                return e
+            time.sleep(0.1)
+        return SweepInterrupted(f"the connection to the Dask scheduler ({self.where}) broke "
+                                f"({one_line(error)}): the sweep stopped")
+
     def workers(self) -> int:
         self.lost()
         try:
             return len(self.client.nthreads())
-        except OSError:                  # the connection broke during the call
-            self.lost()
-            raise
+        except OSError as e:             # the connection broke during the call
+            raise self.broken(e) from None
 
     def check(self, force: bool = False) -> int | None:
         """Count the workers (at most every WATCH_EVERY_S unless `force`): a line on stderr once
@@ -392,7 +408,10 @@ def outcome(f, allowed_failures: int, watch: Watch) -> dict[str, Any]:
     SweepInterrupted for a task the cluster cancelled (the sweep never cancels one it waits for:
     the scheduler went away, or someone cancelled it) and for a worker running another dampnet."""
     if f.status == "finished":
-        result = f.result()
+        try:
+            result = f.result()
+        except OSError as e:             # the result's fetch broke: the scheduler went away meanwhile
+            raise watch.broken(e) from None
         if result.get("status") == "mismatch":
             raise SweepInterrupted(f"worker {result.get('worker')} runs another dampnet than this client (source "
                                    f"hash {str(result.get('source'))[:12]} there, {source_digest()[:12]} here; "
