@@ -26,7 +26,7 @@ used by dampnet.sim.quarter_car.reference_loop.NeuralLoopDamper; the two agree a
 goes to 0 (tests/python/test_loop_derived_features.py).
 
 `at_rest` is the value the feature takes when the damper is at rest, used for
-the zero-force points (dampnet.training.fit): kinematic quantities are 0 at
+the rest points (dampnet.training.rest_points): kinematic quantities are 0 at
 rest, while control and state inputs can take any value at rest (None), so
 zero points copy them from measured samples.
 

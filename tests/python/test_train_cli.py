@@ -170,6 +170,24 @@ def test_zero_points_can_be_switched_off():
     assert on.meta["zero_points"] is True and off.meta["zero_points"] is False
 
 
+def test_rest_points_sit_at_the_rig_damper_s_own_force_at_rest(small_dir, tmp_path, capsys):
+    """The rig's damper pushes its gas force at rest (truth_force at v = 0, x = 0): the rest points'
+    target is that force within 5 N, not the thesis's 0 N, and the command says so."""
+    from dampnet.rig.truth import truth_force
+
+    at_rest = float(truth_force(np.zeros(1), np.zeros(1), np.full(1, 2.25), dt=1e-3)[0])
+    assert at_rest < -100.0       # a gas-charged damper: 0 N would contradict every sample near v = 0
+    out = tmp_path / "m"
+    rc = main(["train", str(small_dir), "--out", str(out), "--decimate", "20", "--hidden", "4",
+               "--max-epochs", "2", "--algorithm", "lm"])
+    printed = capsys.readouterr().out
+    assert rc == 0
+    rest = json.loads((out / "model.json").read_text())["meta"]["rest_force"]
+    assert rest["source"] == "estimated" and abs(rest["force_N"] - at_rest) < 5.0, (rest, at_rest)
+    line = next(ln for ln in printed.splitlines() if ln.startswith("rest points: "))
+    assert f"at {rest['force_N']:.1f} N (the damper's force at rest, estimated from" in line, line
+
+
 def test_hybrid_position_poly_is_fitted_and_added_to_predictions(tmp_path):
     """Gas-spring data: the position polynomial takes the position-dependent force; the model's
     prediction is MLP + terms, and the terms survive model.json."""

@@ -84,26 +84,51 @@ def test_zero_points_are_at_rest_at_measured_voltages():
     _, info = fit(X, y, features=FEATS, hidden=(3,), max_epochs=5, progress=grab)
     assert info.stop_reason == "stopped by caller" and info.epochs == 1
     assert info.n_zero_points == int(np.ceil(0.01 * info.n_train))
-    from dampnet.training.fit import zero_force_points
-    Z = zero_force_points(X, FEATS, 0.01, np.random.default_rng(0))
+    from dampnet.training.rest_points import rest_points
+    Z = rest_points(X, FEATS, 0.01, np.random.default_rng(0))
     assert np.all(Z[:, :2] == 0)  # velocity and acceleration at rest
     assert set(Z[:, 2]) <= set(X[:, 2])  # voltage copied from measured samples
     # Voltage alone has no at-rest value: no zero points.
-    assert len(zero_force_points(X[:, 2:], ["voltage"], 0.01, np.random.default_rng(0))) == 0
+    assert len(rest_points(X[:, 2:], ["voltage"], 0.01, np.random.default_rng(0))) == 0
     _, off = fit(X, y, features=FEATS, hidden=(3,), max_epochs=1, zero_points=False)
     assert off.n_zero_points == 0
 
 
-def test_zero_points_pull_the_rest_force_to_zero():
-    # A target with a 300 N offset at rest: zero points (here 20 %) pull f(0, 0, V) down,
-    # though the measured samples near v = 0 still pull it back towards 300 N.
+def test_the_rest_force_is_estimated_through_friction_and_asymmetric_valves():
+    """Analytic damper: gas force -273 N, a 40 N friction step at v = 0 (tanh over 2 mm/s),
+    rebound slope 4000 N s/m, compression 1500 N s/m, 2 N noise: the estimate is the gas force
+    within 3 N, the friction step within 8 N (its tanh reads
+    as a smaller step)."""
+    from dampnet.training.rest_points import rest_force
+
+    rng = np.random.default_rng(0)
+    v = rng.uniform(-1.0, 1.0, 20_000) * rng.uniform(0, 1, 20_000)   # dense near 0, as sine tests are
+    F = -273.0 + 40.0 * np.tanh(v / 0.002) + np.where(v > 0, 4000.0, 1500.0) * v + rng.normal(0, 2.0, v.size)
+    X = np.column_stack([v, np.zeros_like(v), np.full_like(v, 2.0)])
+    r = rest_force(X, F, FEATS)
+    assert r.source == "estimated" and r.rows > 1000
+    assert abs(r.force_N + 273.0) < 3.0 and abs(r.friction_N - 40.0) < 8.0, r
+    # one common slope (no sign split) would be biased by about (4000 - 1500) / 2 * E|v| (~30 N)
+    near = np.abs(v) <= 0.05
+    b0 = np.linalg.lstsq(np.column_stack([np.ones(near.sum()), v[near], np.sign(v[near])]), F[near], rcond=None)[0][0]
+    assert abs(b0 + 273.0) > 10.0
+    # no velocity input, or too few rows on one side: the thesis's 0 N, said
+    assert rest_force(X[:, 1:], F, FEATS[1:]).force_N == 0.0
+    one_side = rest_force(np.abs(X), F, FEATS)
+    assert one_side.force_N == 0.0 and "fewer than 20" in one_side.source
+
+
+def test_rest_points_hold_the_damper_s_own_force_at_rest():
+    # A target 300 N higher everywhere: the rest points ask for about 300 N at rest, not 0 N.
     X, y = synthetic_dyno(n_tests=60, samples_per_test=30, noise=0.0, seed=4)
     y = y + 300.0
     rest = np.array([[0.0, 0.0, v] for v in np.unique(X[:, 2])])
-    kw = dict(features=FEATS, hidden=(8,), max_epochs=40, seed=1)
-    with_z, _ = fit(X, y, zero_fraction=0.2, **kw)
-    without, _ = fit(X, y, zero_points=False, **kw)
-    assert np.abs(torch_forward(with_z, rest)).mean() < 0.8 * np.abs(torch_forward(without, rest)).mean()
+    model, info = fit(X, y, features=FEATS, hidden=(8,), max_epochs=40, seed=1, zero_fraction=0.2)
+    meta = model.meta["rest_force"]
+    assert meta["source"] == "estimated" and abs(meta["force_N"] - 300.0) < 15.0, meta
+    assert np.abs(torch_forward(model, rest) - 300.0).mean() < 30.0
+    off, _ = fit(X, y, features=FEATS, hidden=(8,), max_epochs=1, seed=1, zero_points=False)
+    assert off.meta["rest_force"]["source"] == "no rest points"
 
 
 def test_validation_early_stopping_returns_the_best_epoch():

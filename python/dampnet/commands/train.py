@@ -163,6 +163,11 @@ def print_summary(model, info, split, metrics, out, t_train) -> None:
         print(f"NRMSE train {m.get('train', float('nan')):.4f}, validation {m.get('val', float('nan')):.4f}, "
               f"test {m.get('test', float('nan')):.4f} ({info.n_train} training samples, decimated by "
               f"{split.decimate})")
+    rest = model.meta.get("rest_force")
+    if rest and info.n_zero_points:
+        how = (f"the damper's force at rest, estimated from {rest['rows']:,} training samples near v = 0"
+               if rest["source"] == "estimated" else rest["source"])
+        print(f"rest points: {info.n_zero_points:,} at {rest['force_N']:.1f} N ({how})")
     if "holdout" in metrics:
         print(format_table(metrics["holdout"], f"hold-out tests ({len(split.holdout_ids)}):"))
         lk = metrics.get("holdout_lookup", {})

@@ -40,11 +40,11 @@ def add_training_options(p: argparse.ArgumentParser, algorithm: bool = True) -> 
                                                 "the demo's improve stage)"))
     if algorithm:
         from dampnet.recipes.training import AUTO
+        from dampnet.training.settings import ALGORITHM_NAMES
 
         p.add_argument("--algorithm", default=AUTO, choices=[AUTO, *sorted(ALGORITHMS)],
-                       help=field_help("algorithm", "auto (the default; bench/RESULTS.md 'Few dyno tests'), lm "
-                                                    "Levenberg-Marquardt, br Bayesian regularisation, scg scaled "
-                                                    "conjugate gradient or adam"))
+                       help=field_help("algorithm", "auto (the default; bench/RESULTS.md 'Few dyno tests'), "
+                                       + ", ".join(f"{k} {v}" for k, v in ALGORITHM_NAMES.items())))
     p.add_argument("--hidden", default="30", help=field_help("hidden", "e.g. 30 or 20,10 (default 30)"))
     p.add_argument("--activation", default="tanh", choices=["tanh", "sigmoid"],
                    help=field_help("activation", "default tanh, MATLAB's tansig"))

@@ -11,6 +11,9 @@ import subprocess
 from pathlib import Path
 from typing import Any
 
+from dampnet.training.restarts import BR_MAX_ROWS
+from dampnet.training.settings import ALGORITHM_NAMES
+
 CSS = """body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222;line-height:1.45}
 table{border-collapse:collapse;margin:.6em 0}td,th{border:1px solid #bbb;padding:3px 8px;text-align:right}
 th{background:#eee}td:first-child,th:first-child{text-align:left}img{max-width:100%;border:1px solid #ddd;margin:4px 0}
@@ -208,12 +211,15 @@ def write(work: Path, summary: dict, m0: dict, m1: dict, d0: dict, d1: dict, stu
                  "sensor noise). One physical effect was switched on that the thesis's inputs cannot "
                  "see; which one is revealed only after the diagnosis below.</p>")
 
-    parts.append("<h2>2. The thesis's model: 3-30-1 MLP trained with Levenberg–Marquardt</h2>")
+    algo = ALGORITHM_NAMES.get(summary.get("algorithm", {}).get("original"), "?")
+    parts.append(f"<h2>2. The thesis's model: 3-30-1 MLP trained with {algo}</h2>"
+                 f"<p>dampnet train's default algorithm: Bayesian regularisation up to {BR_MAX_ROWS:,} training "
+                 "rows, Levenberg–Marquardt beyond (the thesis's full plan).</p>")
     o0 = m0["holdout"]["overall"]
     lk = m0.get("holdout_lookup", {}).get("overall", {})
     parts.append(_table(["model (held-out 2.25 V tests)", "NRMSE", "RMSE [N]", "max |error| [N]",
                          "mean % error", "training time, all restarts [s]"],
-                        [["dampnet MLP (LM)", o0["nrmse"], o0["rmse_n"], o0["max_abs_error_n"],
+                        [[f"dampnet MLP ({algo})", o0["nrmse"], o0["rmse_n"], o0["max_abs_error_n"],
                           o0["mean_pct_error"], summary["training_time_s"]["original"]],
                          ["lookup table (industry baseline)", lk.get("nrmse"), lk.get("rmse_n"),
                           lk.get("max_abs_error_n"), lk.get("mean_pct_error"), None],

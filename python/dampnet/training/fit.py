@@ -3,18 +3,13 @@
 What fit does, in order (MATLAB's fitting-app defaults unless stated):
  1. Random split of the samples into train/validation/test (default 70/15/15),
     seeded (numpy default_rng(seed)).
- 2. Zero-force points (thesis §5, after Burnett et al.): ceil(zero_fraction *
-    n_train) extra training samples (default 1 %) at which the damper is at
-    rest, with target force 0 N. "At rest" means every kinematic feature
-    (registry `at_rest` value, 0 for velocity and acceleration) is set to that
-    value, while non-kinematic inputs (voltage, current, temperature,
-    displacement) keep the values of randomly drawn training samples: a
-    damper at rest gives zero force at *any* valid voltage, and 0 V is itself
-    a valid command, so "zero input" cannot mean all-zero features. If no
-    feature has an at-rest value (e.g. voltage only), no points are added.
-    Zero points join the training set only; validation and test stay measured.
+ 2. Rest points (thesis §5, after Burnett et al.; dampnet.training.rest_points):
+    ceil(zero_fraction * n_train) extra training samples (default 1 %) at which
+    the damper is at rest, at any valid control, with the damper's own force at
+    rest as target (estimated from the training rows near v = 0; the thesis's
+    0 N without a velocity input). They join the training set only.
  3. mapminmax scaling of inputs and force to [-1, 1] over all data given to
-    fit (plus zero points), as MATLAB's process functions do before division;
+    fit (plus rest points), as MATLAB's process functions do before division;
     the same range gives the saturation limits (sat_lo/sat_hi).
  4. Nguyen-Widrow initialisation from torch.Generator().manual_seed(seed).
  5. Training with the chosen algorithm; validation early stopping after
@@ -47,12 +42,13 @@ from dampnet.training.adam import Adam
 from dampnet.training.br import BayesianRegularization
 from dampnet.training.control_prior import prior_rows
 from dampnet.training.monotone_prior import monotone_rows
-from dampnet.features import FEATURES, control_columns, control_levels, units_of, velocity_column
+from dampnet.features import control_columns, control_levels, units_of, velocity_column
 from dampnet.training.lm import LevenbergMarquardt
 from dampnet.training.loop import run
 from dampnet.training.metrics import nrmse
 from dampnet.training.net import DTYPE, Layout
 from dampnet.training.problem import MlpProblem
+from dampnet.training.rest_points import RestForce, rest_force, rest_points
 from dampnet.training.torch_reference import torch_forward
 from dampnet.training.scg import ScaledConjugateGradient
 from dampnet.training.settings import check_request, show_value
@@ -139,20 +135,6 @@ def split_indices(n: int, split: Sequence[float], rng: np.random.Generator):
     n_tr = max(1, min(n_tr, n))
     n_va = min(n_va, n - n_tr)
     return np.sort(perm[:n_tr]), np.sort(perm[n_tr:n_tr + n_va]), np.sort(perm[n_tr + n_va:])
-
-
-def zero_force_points(X_train: np.ndarray, features: Sequence[str], fraction: float,
-                      rng: np.random.Generator) -> np.ndarray:
-    """Rows at which the damper is at rest (see the module docstring); [0, k] if none apply."""
-    rest = [FEATURES[f].at_rest if f in FEATURES else None for f in features]
-    if fraction <= 0 or all(v is None for v in rest) or len(X_train) == 0:
-        return np.empty((0, len(features)))
-    n = math.ceil(fraction * len(X_train))
-    rows = X_train[rng.integers(0, len(X_train), size=n)].copy()
-    for j, v in enumerate(rest):
-        if v is not None:
-            rows[:, j] = v
-    return rows
 
 
 def warm_start_weights(model: MlpModel, layout: Layout, features: Sequence[str], in_off, in_gain,
@@ -281,9 +263,11 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
 
     rng = np.random.default_rng(seed)
     tr, va, te = split_indices(len(X), split, rng)
-    Z = zero_force_points(X[tr], features, zero_fraction, rng) if zero_points else np.empty((0, X.shape[1]))
+    Z = rest_points(X[tr], features, zero_fraction, rng) if zero_points else np.empty((0, X.shape[1]))
+    at_rest = rest_force(X[tr], y[tr], features) if len(Z) else RestForce(0.0, "no rest points")
+    y_Z = np.full(len(Z), at_rest.force_N)
     X_all = np.vstack([X, Z])
-    y_all = np.concatenate([y, np.zeros(len(Z))])
+    y_all = np.concatenate([y, y_Z])
     in_off, in_gain = mapminmax_settings(X_all)
     (out_off,), (out_gain,) = mapminmax_settings(y_all)
 
@@ -295,7 +279,7 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
 
     prior, prior_meta = _control_prior(X[tr], features, checked["control_prior"], in_off, in_gain, rng)
     mono, mono_meta = _monotone_prior(X[tr], features, checked["monotone_prior"], in_off, in_gain, rng)
-    problem = MlpProblem(layout, scale_x(np.vstack([X[tr], Z])), scale_y(np.concatenate([y[tr], np.zeros(len(Z))])),
+    problem = MlpProblem(layout, scale_x(np.vstack([X[tr], Z])), scale_y(np.concatenate([y[tr], y_Z])),
                          scale_x(X[va]), scale_y(y[va]), prior=[prior, mono])
     gen = torch.Generator().manual_seed(seed)
     x0 = layout.init(gen)
@@ -345,6 +329,7 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
         "best_epoch": res.best_epoch,
         "stop_reason": res.stop_reason,
         "samples": {"train": len(tr), "val": len(va), "test": len(te), "zero_points": len(Z)},
+        "rest_force": at_rest.meta(),
         "control_prior": prior_meta,
         "monotone_prior": mono_meta,
         "metrics": {k: round(v, 6) for k, v in metrics.items()},

@@ -410,6 +410,7 @@ def model_metrics(model: MlpModel, info, split: Split, lookup: bool = True) -> d
             "nrmse": dict(info.metrics),
             "samples": {"train": info.n_train, "val": info.n_val, "test": info.n_test,
                         "zero_points": info.n_zero_points},
+            **({"rest_force": model.meta["rest_force"]} if "rest_force" in model.meta else {}),
             "history": info.history,
             **({"restarts": model.meta["restarts"]} if "restarts" in model.meta else {}),
         },

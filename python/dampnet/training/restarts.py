@@ -156,9 +156,11 @@ def lolo_levels(levels: list[float], k: int = LOLO_LEVELS) -> list[float]:
 def auto_algorithm(rows: int) -> tuple[str, str]:
     """What `dampnet train` trains with without --algorithm, for `rows` training rows
     (training_rows): ("br" or "lm", why)."""
+    from dampnet.training.settings import ALGORITHM_NAMES
+
     if rows <= BR_MAX_ROWS:
-        return "br", f"{rows:,} training rows, at most {BR_MAX_ROWS:,}: Bayesian regularisation"
-    return "lm", f"{rows:,} training rows, over {BR_MAX_ROWS:,}: Levenberg-Marquardt"
+        return "br", f"{rows:,} training rows, at most {BR_MAX_ROWS:,}: {ALGORITHM_NAMES['br']}"
+    return "lm", f"{rows:,} training rows, over {BR_MAX_ROWS:,}: {ALGORITHM_NAMES['lm']}"
 
 
 def auto_restarts(ds, holdout_voltage=None, holdout_tests=(), features=None,

@@ -134,6 +134,10 @@ _LM_LIKE = (
     Setting("min_grad", "real", 0, 1, 1e-7, "the gradient norm (scaled MSE per weight) at which training stops"),
 )
 
+#: each algorithm's name in words (help texts, the demo's report, "auto"'s note)
+ALGORITHM_NAMES = {"lm": "Levenberg-Marquardt", "br": "Bayesian regularisation", "scg": "scaled conjugate gradient",
+                   "adam": "Adam"}
+
 ALGORITHM_TABLES: dict[str, dict[str, Setting]] = {
     "lm": _table(Setting("mu", "real", **_MU, default=1e-3, meaning="the initial damping added to JᵀJ's diagonal"),
                  *_LM_LIKE),
