@@ -243,6 +243,10 @@ def test_auto_algorithm_is_br_on_small_data_and_lm_beyond(quick, quick_dir, tmp_
     rc = main(["train", str(quick_dir), "--out", str(tmp_path / "bad"), "--settings", '{"mu_max": 1e8}'])
     err = capsys.readouterr().err
     assert rc == 2 and "name it with --algorithm" in err and not (tmp_path / "bad").exists()
+    # an unknown algorithm names 'auto' among the valid ones, from the API as from the command
+    for bad in ("bogus", 3, ["lm"]):
+        with pytest.raises(ValueError, match=r"^algorithm \(--algorithm\): expected auto or one of lm, br, scg, adam"):
+            dampnet.train(quick, algorithm=bad)
 
 
 def test_average_keeps_the_best_restarts_as_one_network(quick_dir, tmp_path, capsys):

@@ -145,7 +145,7 @@ class TrainingRequest:
         """Every value against dampnet.training.settings (and the restart and average rules),
         before any data: ValueError of one line naming the option and its range."""
         from dampnet.training.restarts import check_average, check_restarts
-        from dampnet.training.settings import check_request, train_settings
+        from dampnet.training.settings import ALGORITHM_TABLES, check_request, train_settings
 
         algo = {}
         if self.algorithm == AUTO:
@@ -153,6 +153,9 @@ class TrainingRequest:
                 raise ValueError("settings (--settings): the settings are one algorithm's; name it with --algorithm "
                                  "('auto' chooses br or lm by the size of the data)")
         else:
+            if not isinstance(self.algorithm, str) or self.algorithm not in ALGORITHM_TABLES:  # 'auto' too
+                raise ValueError(f"algorithm (--algorithm): expected {AUTO} or one of {', '.join(ALGORITHM_TABLES)}, "
+                                 f"got {self.algorithm!r}")
             algo = dict(algorithm=self.algorithm, settings=train_settings(self.algorithm, self.settings))
         check_request(**algo, hidden=self.hidden, activation=self.activation, features=self.features,
                       max_epochs=self.max_epochs, max_fail=self.max_fail, seed=self.seed,
