@@ -285,3 +285,23 @@ def test_average_keeps_the_best_restarts_as_one_network(quick_dir, tmp_path, cap
 def test_bad_average_is_a_clear_error(quick, kw, message):
     with pytest.raises(ValueError, match=message):
         train_dataset(quick, **{**TINY, **kw})
+
+
+def test_a_sweep_takes_the_automatic_algorithm_and_says_which_it_chose():
+    """algorithms = ['auto'] in a sweep spec: the cell trains as `dampnet train` does by default
+    (br on the quick plan's rows) and its row's algorithm_used says so; a named one is kept."""
+    from dampnet.sweep import SpecError, parse_spec
+    from dampnet.sweep.grid import expand
+    from dampnet.sweep.inputs import bind
+    from dampnet.sweep.metrics import objectives
+    from dampnet.sweep.train_cell import run
+
+    spec = parse_spec({"training": {"datasets": "rig:quick", "algorithms": ["auto", "lm"], "decimate": 50,
+                                    "max_epochs": 3}})
+    cells = expand(spec)
+    bind(cells, spec)
+    used = {c.params["algorithm"]: run(c.params, dict(c.inputs))["metrics"]["algorithm_used"] for c in cells}
+    assert used == {"auto": "br", "lm": "lm"}
+    assert "algorithm_used" not in objectives("training")       # text, never an objective
+    with pytest.raises(SpecError, match="'foo' is not a training algorithm; valid: auto, lm"):
+        parse_spec({"training": {"datasets": "rig:quick", "algorithms": ["foo"]}})

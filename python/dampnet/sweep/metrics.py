@@ -1,7 +1,8 @@
 """The metrics a cell reports: the table's metric columns, in order, and which may be an objective.
 
 Training (dampnet.sweep.train_cell): NRMSE = RMSE / the force range of the data it is measured
-on (the hold-out tests, the training subsets), errors in N, times in s. Simulation
+on (the hold-out tests, the training subsets), errors in N, times in s; algorithm_used: the algorithm trained with (the cell's, or what
+'auto' chose). Simulation
 (dampnet.sweep.sim_cell): dampnet.sim.ride.ride_metrics in SI units (m/s^2, m, N), the static
 damper force f_static_n [N], the transmissibility peak of sine-sweep roads. Full vehicle
 (dampnet.sweep.fullcar_cell): the metrics of the cell's test (its entry's columns in
@@ -19,7 +20,7 @@ COVERAGE = ("time_outside_training_data", "extrapolated")
 
 TRAINING = ("holdout_nrmse", "holdout_rmse_n", "holdout_max_abs_error_n", "lookup_holdout_nrmse",
             "train_nrmse", "val_nrmse", "test_nrmse", "noise_floor_nrmse", "epochs", "stop_reason",
-            "train_time_s", "n_inputs", "features_used", "model_id")
+            "algorithm_used", "train_time_s", "n_inputs", "features_used", "model_id")
 SIMULATION = ("acc_rms_m_s2", "acc_wk_rms_m_s2", "acc_peak_m_s2", "disp_rms_m", "disp_peak_to_rms",
               "travel_rms_m", "travel_max_m", "tyre_load_rms_n", "tyre_load_rms_rel", "duration_s", "dt_s",
               "f_static_n", "transmissibility_peak", "transmissibility_peak_hz") + COVERAGE
@@ -38,7 +39,7 @@ def fullcar() -> tuple[str, ...]:
 #: each kind's metric columns, in order
 BY_KIND = {"training": lambda: TRAINING, "simulation": lambda: SIMULATION, "fullcar": fullcar}
 #: metrics that are not numbers (never an objective)
-TEXT = ("stop_reason", "features_used", "model_id", "passed", "extrapolated")
+TEXT = ("stop_reason", "algorithm_used", "features_used", "model_id", "passed", "extrapolated")
 
 
 def coverage_columns(res: dict) -> dict:

@@ -276,9 +276,11 @@ def _control_laws() -> tuple[str, ...]:
 
 
 def _algorithms() -> tuple[str, ...]:
+    """The training algorithms, and 'auto' (dampnet train's default: br or lm by the rows)."""
+    from dampnet.recipes.training import AUTO
     from dampnet.training.fit import ALGORITHMS
 
-    return tuple(ALGORITHMS)
+    return (AUTO, *ALGORITHMS)
 
 
 # -- the parameters ---------------------------------------------------------------------------
@@ -355,7 +357,9 @@ TRAINING_PARAMS = [
           help="a dataset path, or rig:PLAN (thesis, quick, a plan JSON) generated per cell"),
     Param("data_seed", "data_seeds", _int(0), 0, axis=True, kind="int", help="seed of rig:PLAN data"),
     Param("rig_effects", "rig_effects", _effects, [], axis=True, help="effects on in the rig (rig:PLAN)"),
-    Param("algorithm", "algorithms", _choice(_algorithms, "a training algorithm"), "lm", axis=True),
+    Param("algorithm", "algorithms", _choice(_algorithms, "a training algorithm"), "lm", axis=True,
+          help="lm (the default here: a sweep compares what it names), br, scg, adam, or auto (dampnet "
+               "train's default; the column algorithm_used says which)"),
     Param("add", "add", _effects, [], axis=True, help="effects whose features/terms are added"),
     Param("features", "features", _features, None, axis=True, help="'default' or feature names"),
     Param("seed", "seeds", _training("seed"), 0, axis=True, kind="int", help="training seed"),

@@ -70,6 +70,7 @@ def row_metrics(model, info, metrics: dict[str, Any]) -> dict[str, Any]:
         "noise_floor_nrmse": metrics.get("noise_floor", {}).get("nrmse_range"),
         "epochs": info.epochs,
         "stop_reason": info.stop_reason,
+        "algorithm_used": model.meta.get("algorithm", info.algorithm),
         "train_time_s": info.time_s,
         "n_inputs": model.n_inputs,
         "features_used": ",".join(model.features),
