@@ -112,6 +112,18 @@ def test_the_rest_force_is_estimated_through_friction_and_asymmetric_valves():
     near = np.abs(v) <= 0.05
     b0 = np.linalg.lstsq(np.column_stack([np.ones(near.sum()), v[near], np.sign(v[near])]), F[near], rcond=None)[0][0]
     assert abs(b0 + 273.0) > 10.0
+    # a gas spring (the force at rest follows the displacement) and low-speed damping that grows
+    # with the voltage: each rest row's target follows its own displacement, not the voltage
+    x = rng.uniform(-0.02, 0.02, v.size)
+    u = rng.choice([0.0, 2.5, 5.0], v.size)
+    F2 = -273.0 + 4000.0 * x + 40.0 * np.tanh(v / 0.002) + (1500.0 + 800.0 * u) * v + rng.normal(0, 2.0, v.size)
+    feats4 = FEATS + ["displacement"]
+    X4 = np.column_stack([v, np.zeros_like(v), u, x])
+    Z = X4[:50].copy()
+    Z[:, :2] = 0.0
+    r4 = rest_force(X4, F2, feats4, Z)
+    assert np.max(np.abs(r4.targets(Z) - (-273.0 + 4000.0 * Z[:, 3]))) < 3.0
+    assert abs(r4.force_N - np.mean(-273.0 + 4000.0 * Z[:, 3])) < 2.0
     # no velocity input, or too few rows on one side: the thesis's 0 N, said
     assert rest_force(X[:, 1:], F, FEATS[1:]).force_N == 0.0
     one_side = rest_force(np.abs(X), F, FEATS)

@@ -167,7 +167,7 @@ def print_summary(model, info, split, metrics, out, t_train) -> None:
     if rest and info.n_zero_points:
         how = (f"the damper's force at rest, estimated from {rest['rows']:,} training samples near v = 0"
                if rest["source"] == "estimated" else rest["source"])
-        print(f"rest points: {info.n_zero_points:,} at {rest['force_N']:.1f} N ({how})")
+        print(f"rest points: {info.n_zero_points:,} at {rest['force_N']:.1f} N on average ({how})")
     if "holdout" in metrics:
         print(format_table(metrics["holdout"], f"hold-out tests ({len(split.holdout_ids)}):"))
         lk = metrics.get("holdout_lookup", {})

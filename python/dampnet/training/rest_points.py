@@ -12,11 +12,14 @@ pushes its gas force at rest (the synthetic rig's -273 N; any monotube's preload
 at 0 N contradict every measured row near v = 0. On the thesis plan that contradiction was the
 bias the networks shared: with the rows at 0 N the held-out error was 2.9-3.5x the noise floor,
 without them 2.3x (bench/RESULTS.md, issue 33). The force at rest is estimated from the
-training rows near v = 0 as the intercept b0 of the least-squares fit
-    F = b0 + b2 sign(v) + b+ max(v, 0) + b- min(v, 0)
-over the rows with |v| <= LOW_SPEED_FRACTION of the largest |v|: each side of v = 0 a line of
-its own slope (rebound and compression valves differ), b0 the midpoint of their intercepts, so
-the seal friction's step (b2) averages out. With fewer than
+training rows near v = 0 by the least-squares fit
+    F = b0 + b2 sign(v) + (b+ + sum_k d+_k z_k) max(v, 0) + (b- + sum_k d-_k z_k) min(v, 0) + sum_k c_k z_k
+over the rows with |v| <= LOW_SPEED_FRACTION of the largest |v|, z_k being every other input
+(acceleration, control, displacement, ...): each side of v = 0 a line of its own slope (rebound
+and compression valves differ), b0 the midpoint of their intercepts, so the seal friction's step
+(b2) averages out; each rest row's target is the fit at its own inputs (v = 0, the kinematic
+inputs at rest, the others copied), so a gas spring's force follows the copied displacement and
+an offset that differs with the control follows the control. With fewer than
 MIN_ROWS rows on either side of v = 0, or without a velocity input, the target is 0 N, as the
 thesis's.
 """
@@ -39,24 +42,48 @@ MIN_ROWS = 20
 
 @dataclass(frozen=True)
 class RestForce:
-    """The rest points' target force [N] and how it was found (model.meta["rest_force"])."""
+    """The rest points' target force and how it was found (model.meta["rest_force"]).
+
+    `targets(Z)` gives each rest row's force [N]; `force_N` is their mean over the rows it was
+    first asked for (0 N when not estimated)."""
 
     force_N: float
     source: str            # "estimated" or why it is 0 N
     rows: int = 0          # the low-speed rows of the estimate
     friction_N: float = 0.0  # half the step at v = 0 (b2) [N], for the record
+    velocity: int | None = None       # the velocity column
+    coef: tuple[float, ...] = ()      # the fit's coefficients over design()'s columns
+
+    def targets(self, Z: np.ndarray) -> np.ndarray:
+        if not self.coef:
+            return np.full(len(Z), self.force_N)
+        return design(np.asarray(Z, dtype=np.float64), self.velocity) @ np.asarray(self.coef)
 
     def meta(self) -> dict:
         return {"force_N": round(self.force_N, 3), "source": self.source, "rows": self.rows,
                 "friction_N": round(self.friction_N, 3)}
 
 
-def rest_force(X_train: np.ndarray, y_train: np.ndarray, features: Sequence[str]) -> RestForce:
-    """The damper's force at rest estimated from the training rows (see the module docstring)."""
+def design(X: np.ndarray, j: int) -> np.ndarray:
+    """The fit's columns: 1, sign(v), max(v, 0), min(v, 0), every other input z, and each side's
+    slope times each z (the low-speed damping changes with the control: without these its change
+    would leak into z's own coefficient and so into the force at rest)."""
+    v = X[:, j]
+    others = np.delete(X, j, axis=1)
+    up, down = np.maximum(v, 0.0)[:, None], np.minimum(v, 0.0)[:, None]
+    return np.column_stack([np.ones(len(v)), np.sign(v), up, down, others, up * others, down * others])
+
+
+def rest_force(X_train: np.ndarray, y_train: np.ndarray, features: Sequence[str],
+               Z: np.ndarray | None = None) -> RestForce:
+    """The damper's force at rest estimated from the training rows (see the module docstring);
+    force_N is the mean target over the rest rows `Z` (none given: over the training rows with
+    v = 0 put in)."""
     j = velocity_column(features)
     if j is None:
         return RestForce(0.0, "0 N: no velocity input")
-    v = np.asarray(X_train, dtype=np.float64)[:, j]
+    X_train = np.asarray(X_train, dtype=np.float64)
+    v = X_train[:, j]
     y = np.asarray(y_train, dtype=np.float64)
     top = float(np.max(np.abs(v))) if len(v) else 0.0
     near = np.abs(v) <= LOW_SPEED_FRACTION * top
@@ -64,10 +91,17 @@ def rest_force(X_train: np.ndarray, y_train: np.ndarray, features: Sequence[str]
     if top <= 0 or min(n_pos, n_neg) < MIN_ROWS:
         return RestForce(0.0, f"0 N: fewer than {MIN_ROWS} training rows on each side of v = 0 within "
                               f"{LOW_SPEED_FRACTION:g} of the largest speed ({n_neg} below, {n_pos} above)")
-    vn = v[near]
-    A = np.column_stack([np.ones(len(vn)), np.sign(vn), np.maximum(vn, 0.0), np.minimum(vn, 0.0)])
-    (b0, b2, _, _), *_ = np.linalg.lstsq(A, y[near], rcond=None)
-    return RestForce(float(b0), "estimated", int(near.sum()), float(b2))
+    A = design(X_train[near], j)
+    # columns scaled to unit RMS so that lstsq's rank cut treats inputs of every unit alike
+    norm = np.sqrt(np.mean(A * A, axis=0))
+    norm[norm == 0] = 1.0
+    coef = np.linalg.lstsq(A / norm, y[near], rcond=None)[0] / norm
+    if Z is None:
+        Z = X_train.copy()
+        Z[:, j] = 0.0
+    fit = RestForce(0.0, "estimated", int(near.sum()), float(coef[1]), j, tuple(float(c) for c in coef))
+    return RestForce(float(np.mean(fit.targets(Z))) if len(Z) else float(coef[0]), "estimated", fit.rows,
+                     fit.friction_N, j, fit.coef)
 
 
 def rest_points(X_train: np.ndarray, features: Sequence[str], fraction: float,
