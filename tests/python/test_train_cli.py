@@ -171,8 +171,8 @@ def test_zero_points_can_be_switched_off():
 
 
 def test_rest_points_sit_at_the_rig_damper_s_own_force_at_rest(small_dir, tmp_path, capsys):
-    """The rig's damper pushes its gas force at rest (truth_force at v = 0, x = 0): the rest points'
-    target is that force within 5 N, not the thesis's 0 N, and the command says so."""
+    """The rig's damper pushes its gas force at rest (truth_force at v = 0, x = 0): the estimate the
+    command reports (the rest points keep the thesis's 0 N by default) is that force within 5 N."""
     from dampnet.rig.truth import truth_force
 
     at_rest = float(truth_force(np.zeros(1), np.zeros(1), np.full(1, 2.25), dt=1e-3)[0])
@@ -184,8 +184,10 @@ def test_rest_points_sit_at_the_rig_damper_s_own_force_at_rest(small_dir, tmp_pa
     assert rc == 0
     rest = json.loads((out / "model.json").read_text())["meta"]["rest_force"]
     assert rest["source"] == "estimated" and abs(rest["force_N"] - at_rest) < 5.0, (rest, at_rest)
+    assert rest["target"] == "zero" and rest["target_N"] == 0.0
     line = next(ln for ln in printed.splitlines() if ln.startswith("rest points: "))
-    assert f"at {rest['force_N']:.1f} N on average (the damper's force at rest, estimated from" in line, line
+    assert (f"at 0.0 N (the thesis's 0 N; the damper's own force at rest: {rest['force_N']:.1f} N on average, "
+            "estimated from") in line, line
 
 
 def test_hybrid_position_poly_is_fitted_and_added_to_predictions(tmp_path):

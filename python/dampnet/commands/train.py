@@ -165,9 +165,11 @@ def print_summary(model, info, split, metrics, out, t_train) -> None:
               f"{split.decimate})")
     rest = model.meta.get("rest_force")
     if rest and info.n_zero_points:
-        how = (f"the damper's force at rest, estimated from {rest['rows']:,} training samples near v = 0"
-               if rest["source"] == "estimated" else rest["source"])
-        print(f"rest points: {info.n_zero_points:,} at {rest['force_N']:.1f} N on average ({how})")
+        found = (f"{rest['force_N']:.1f} N on average, estimated from {rest['rows']:,} training samples near v = 0"
+                 if rest["source"] == "estimated" else rest["source"])
+        print(f"rest points: {info.n_zero_points:,} at {rest.get('target_N', 0.0):.1f} N "
+              + ("(the thesis's 0 N; " if rest.get("target") == "zero" else "(")
+              + f"the damper's own force at rest: {found})")
     if "holdout" in metrics:
         print(format_table(metrics["holdout"], f"hold-out tests ({len(split.holdout_ids)}):"))
         lk = metrics.get("holdout_lookup", {})

@@ -5,9 +5,9 @@ What fit does, in order (MATLAB's fitting-app defaults unless stated):
     seeded (numpy default_rng(seed)).
  2. Rest points (thesis §5, after Burnett et al.; dampnet.training.rest_points):
     ceil(zero_fraction * n_train) extra training samples (default 1 %) at which
-    the damper is at rest, at any valid control, with the damper's own force at
-    rest as target (estimated from the training rows near v = 0; the thesis's
-    0 N without a velocity input). They join the training set only.
+    the damper is at rest, at any valid control, with target 0 N (the thesis's)
+    or, with rest_target="estimated", the damper's own force at rest. They join
+    the training set only.
  3. mapminmax scaling of inputs and force to [-1, 1] over all data given to
     fit (plus rest points), as MATLAB's process functions do before division;
     the same range gives the saturation limits (sat_lo/sat_hi).
@@ -48,7 +48,7 @@ from dampnet.training.loop import run
 from dampnet.training.metrics import nrmse
 from dampnet.training.net import DTYPE, Layout
 from dampnet.training.problem import MlpProblem
-from dampnet.training.rest_points import RestForce, rest_force, rest_points
+from dampnet.training.rest_points import REST_TARGETS, RestForce, rest_force, rest_points
 from dampnet.training.torch_reference import torch_forward
 from dampnet.training.scg import ScaledConjugateGradient
 from dampnet.training.settings import check_request, show_value
@@ -219,7 +219,7 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
         settings: dict[str, Any] | None = None, progress: Callable[[dict], Any] | None = None,
         threads: int | None = None, data: Any = None,
         init: MlpModel | None = None, control_prior: float = 0.0,
-        monotone_prior: float = 0.0) -> tuple[MlpModel, TrainInfo]:
+        monotone_prior: float = 0.0, rest_target: str = "zero") -> tuple[MlpModel, TrainInfo]:
     """Train an MLP force model on X [n, k] (feature units) and y [n] (force [N]).
 
     `settings` overrides the algorithm's defaults (e.g. {"mu_max": 1e8} for lm,
@@ -233,6 +233,9 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
     `control_prior`: the weight of the control-interpolation prior (dampnet.training.control_prior;
     0: off) between the control levels of the training rows; it is off without two levels or a
     control input (model.meta["control_prior"] says).
+    `rest_target`: the rest points' force: "zero" (the thesis's 0 N, the default) or "estimated"
+    (the damper's own force at rest from the training rows near v = 0, dampnet.training.rest_points;
+    model.meta["rest_force"] records the estimate either way).
     `monotone_prior`: the weight of the prior that the force rises with velocity
     (dampnet.training.monotone_prior; 0: off), between the lowest and highest control level of
     the training rows; off without a velocity input (model.meta["monotone_prior"] says).
@@ -265,7 +268,9 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
     tr, va, te = split_indices(len(X), split, rng)
     Z = rest_points(X[tr], features, zero_fraction, rng) if zero_points else np.empty((0, X.shape[1]))
     at_rest = rest_force(X[tr], y[tr], features, Z) if len(Z) else RestForce(0.0, "no rest points")
-    y_Z = at_rest.targets(Z)
+    if rest_target not in REST_TARGETS:
+        raise ValueError(f"rest_target: expected one of {', '.join(REST_TARGETS)}, got {rest_target!r}")
+    y_Z = at_rest.targets(Z) if rest_target == "estimated" else np.zeros(len(Z))
     X_all = np.vstack([X, Z])
     y_all = np.concatenate([y, y_Z])
     in_off, in_gain = mapminmax_settings(X_all)
@@ -329,7 +334,8 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
         "best_epoch": res.best_epoch,
         "stop_reason": res.stop_reason,
         "samples": {"train": len(tr), "val": len(va), "test": len(te), "zero_points": len(Z)},
-        "rest_force": at_rest.meta(),
+        "rest_force": {**at_rest.meta(), "target": rest_target, "target_N": round(float(np.mean(y_Z)), 3)
+                       if len(Z) else 0.0},
         "control_prior": prior_meta,
         "monotone_prior": mono_meta,
         "metrics": {k: round(v, 6) for k, v in metrics.items()},

@@ -7,11 +7,14 @@ a damper at rest is at rest at *any* valid voltage, and 0 V is itself a valid co
 input" cannot mean all-zero features. Without a feature that has an at-rest value (e.g. voltage
 only) no rows are added. They join the training set only; validation and test stay measured.
 
-Their target is the damper's own force at rest, not 0 N as in the thesis: a gas-charged damper
-pushes its gas force at rest (the synthetic rig's -273 N; any monotube's preload), and rows
-at 0 N contradict every measured row near v = 0. On the thesis plan that contradiction was the
-bias the networks shared: with the rows at 0 N the held-out error was 2.9-3.5x the noise floor,
-without them 2.3x (bench/RESULTS.md, issue 33). The force at rest is estimated from the
+Their target is 0 N by default, as in the thesis, or (fit's rest_target="estimated") the damper's
+own force at rest: a gas-charged damper pushes its gas force at rest (the synthetic rig's
+-273 N; any monotube's preload), which rows at 0 N contradict. The estimate is recorded either
+way (model.meta["rest_force"], `dampnet train`'s summary). It is not the default yet: switching
+changes every trained model (a quarter car's rest, the envelope checks downstream), and its effect
+on accuracy is not settled (bench/RESULTS.md, issue 33: on the thesis plan, at 1,000 epochs,
+seeds 0-2 scored 2.98x, 3.14x and 3.12x the noise floor with rest rows at the estimate, 2.33x,
+2.28x and 3.10x without rest rows). The force at rest is estimated from the
 training rows near v = 0 by the least-squares fit
     F = b0 + b2 sign(v) + (b+ + sum_k d+_k z_k) max(v, 0) + (b- + sum_k d-_k z_k) min(v, 0) + sum_k c_k z_k
 over the rows with |v| <= LOW_SPEED_FRACTION of the largest |v|, z_k being every other input
@@ -34,6 +37,8 @@ import numpy as np
 
 from dampnet.features import FEATURES, velocity_column
 
+#: the rest points' targets fit() offers: the thesis's 0 N (its default) or the estimate below
+REST_TARGETS = ("zero", "estimated")
 #: the rows near rest: |v| up to this fraction of the training rows' largest |v|
 LOW_SPEED_FRACTION = 0.05
 #: at least this many rows on each side of v = 0 for an estimate; else 0 N
