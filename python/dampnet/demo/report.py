@@ -213,8 +213,8 @@ def write(work: Path, summary: dict, m0: dict, m1: dict, d0: dict, d1: dict, stu
 
     algo = ALGORITHM_NAMES.get(summary.get("algorithm", {}).get("original"), "?")
     parts.append(f"<h2>2. The thesis's model: 3-30-1 MLP trained with {algo}</h2>"
-                 f"<p>dampnet train's default algorithm: Bayesian regularisation up to {BR_MAX_ROWS:,} training "
-                 "rows, Levenberg–Marquardt beyond (the thesis's full plan).</p>")
+                 f"<p>dampnet train's default algorithm: {ALGORITHM_NAMES['br']} up to {BR_MAX_ROWS:,} training "
+                 f"rows, {ALGORITHM_NAMES['lm']} beyond (the thesis's full plan).</p>")
     o0 = m0["holdout"]["overall"]
     lk = m0.get("holdout_lookup", {}).get("overall", {})
     parts.append(_table(["model (held-out 2.25 V tests)", "NRMSE", "RMSE [N]", "max |error| [N]",

@@ -61,7 +61,7 @@ FIELDS: dict[str, RequestField] = {f.name: f for f in (
                  "the control level whose tests are held out"),
     RequestField("holdout_tests", "--holdout-tests", None, "", "test ids held out as well"),
     RequestField("decimate", "--decimate", "decimate", "", "every N-th training sample is kept (default: about 200 Hz)"),
-    RequestField("zero_points", "--no-zero-points", None, "", "the rest points added (zero motion, the damper's own force at rest)"),
+    RequestField("zero_points", "--no-zero-points", None, "", "the rest points added (zero motion, 0 N: dampnet.training.rest_points)"),
     RequestField("max_epochs", "--max-epochs", "max_epochs", "", "the epoch limit"),
     RequestField("max_fail", None, "max_fail", "", "epochs of rising validation error that stop training"),
     RequestField("seed", "--seed", "seeds", "", "the seed of the split, zero points and weights (restarts: the first)"),

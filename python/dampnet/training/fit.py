@@ -248,6 +248,8 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
                             features=list(features),
                             max_epochs=max_epochs, max_fail=max_fail, seed=seed, zero_fraction=zero_fraction,
                             threads=threads, control_prior=control_prior, monotone_prior=monotone_prior)
+    if not isinstance(rest_target, str) or rest_target not in REST_TARGETS:
+        raise ValueError(f"rest_target: expected one of {', '.join(REST_TARGETS)}, got {rest_target!r}")
     X = np.asarray(X, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64).ravel()
     if X.ndim == 1:
@@ -268,8 +270,6 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
     tr, va, te = split_indices(len(X), split, rng)
     Z = rest_points(X[tr], features, zero_fraction, rng) if zero_points else np.empty((0, X.shape[1]))
     at_rest = rest_force(X[tr], y[tr], features, Z) if len(Z) else RestForce(0.0, "no rest points")
-    if rest_target not in REST_TARGETS:
-        raise ValueError(f"rest_target: expected one of {', '.join(REST_TARGETS)}, got {rest_target!r}")
     y_Z = at_rest.targets(Z) if rest_target == "estimated" else np.zeros(len(Z))
     X_all = np.vstack([X, Z])
     y_all = np.concatenate([y, y_Z])

@@ -104,9 +104,8 @@ def rest_force(X_train: np.ndarray, y_train: np.ndarray, features: Sequence[str]
     if Z is None:
         Z = X_train.copy()
         Z[:, j] = 0.0
-    fit = RestForce(0.0, "estimated", int(near.sum()), float(coef[1]), j, tuple(float(c) for c in coef))
-    return RestForce(float(np.mean(fit.targets(Z))) if len(Z) else float(coef[0]), "estimated", fit.rows,
-                     fit.friction_N, j, fit.coef)
+    mean = float(np.mean(design(np.asarray(Z, dtype=np.float64), j) @ coef)) if len(Z) else float(coef[0])
+    return RestForce(mean, "estimated", int(near.sum()), float(coef[1]), j, tuple(float(c) for c in coef))
 
 
 def rest_points(X_train: np.ndarray, features: Sequence[str], fraction: float,
