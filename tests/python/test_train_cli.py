@@ -190,6 +190,30 @@ def test_rest_points_sit_at_the_rig_damper_s_own_force_at_rest(small_dir, tmp_pa
             "estimated from") in line, line
 
 
+def test_rest_target_estimated_trains_the_rest_points_to_the_estimate(small_dir, tmp_path, capsys):
+    """--rest-target estimated (the option every front end shares, dampnet.training.settings.OPTIONS):
+    the rest points' target is the damper's own force at rest, within 5 N of the rig's truth, and the
+    command says so; a word that is not a target is refused naming the choices."""
+    from dampnet.rig.truth import truth_force
+
+    at_rest = float(truth_force(np.zeros(1), np.zeros(1), np.full(1, 2.25), dt=1e-3)[0])
+    out = tmp_path / "m"
+    rc = main(["train", str(small_dir), "--out", str(out), "--decimate", "20", "--hidden", "4",
+               "--max-epochs", "2", "--algorithm", "lm", "--rest-target", "estimated"])
+    printed = capsys.readouterr().out
+    assert rc == 0
+    rest = json.loads((out / "model.json").read_text())["meta"]["rest_force"]
+    assert rest["target"] == "estimated" and abs(rest["target_N"] - at_rest) < 5.0, (rest, at_rest)
+    line = next(ln for ln in printed.splitlines() if ln.startswith("rest points: "))
+    assert f"at {rest['target_N']:.1f} N (the damper's own force at rest: " in line, line
+    with pytest.raises(SystemExit) as e:
+        main(["train", str(small_dir), "--out", str(tmp_path / "m2"), "--rest-target", "measured"])
+    assert e.value.code == 2 and "choose from 'zero', 'estimated'" in capsys.readouterr().err
+    with pytest.raises(ValueError, match=r"rest_target \(--rest-target, .*\): expected one of zero, estimated, "
+                                         r"got 'measured'"):
+        train_dataset(generate("quick", seed=0), decimate=50, hidden=(4,), max_epochs=2, rest_target="measured")
+
+
 def test_hybrid_position_poly_is_fitted_and_added_to_predictions(tmp_path):
     """Gas-spring data: the position polynomial takes the position-dependent force; the model's
     prediction is MLP + terms, and the terms survive model.json."""

@@ -305,3 +305,24 @@ def test_a_sweep_takes_the_automatic_algorithm_and_says_which_it_chose():
     assert "algorithm_used" not in objectives("training")       # text, never an objective
     with pytest.raises(SpecError, match="'foo' is not a training algorithm; valid: auto, lm"):
         parse_spec({"training": {"datasets": "rig:quick", "algorithms": ["foo"]}})
+
+
+def test_a_sweep_sets_the_rest_target():
+    """rest_target in a sweep's [training] (the request option dampnet train's --rest-target sets):
+    each cell trains its rest points to its target, recorded in the model; a bad word is refused."""
+    from dampnet.sweep import SpecError, parse_spec
+    from dampnet.sweep.grid import expand
+    from dampnet.sweep.inputs import bind
+    from dampnet.sweep.train_cell import run
+
+    spec = parse_spec({"training": {"datasets": "rig:quick", "algorithms": "lm", "decimate": 50, "max_epochs": 2,
+                                    "hidden": [4], "rest_target": ["zero", "estimated"]}})
+    cells = expand(spec)
+    bind(cells, spec)
+    rest = {c.params["rest_target"]: run(c.params, dict(c.inputs))["model"]["meta"]["rest_force"] for c in cells}
+    assert set(rest) == {"zero", "estimated"}
+    assert rest["zero"]["target"] == "zero" and rest["zero"]["target_N"] == 0.0
+    # the rig's gas force at rest is about -270 N (test_train_cli checks it against the truth)
+    assert rest["estimated"]["target"] == "estimated" and rest["estimated"]["target_N"] < -200.0
+    with pytest.raises(SpecError, match="rest_target.*expected one of zero, estimated"):
+        parse_spec({"training": {"datasets": "rig:quick", "rest_target": "none"}})

@@ -56,13 +56,16 @@ def add_training_options(p: argparse.ArgumentParser, algorithm: bool = True) -> 
                    help=field_help("decimate", "N, or 'auto' (default): about 200 Hz, 25 at 5 kHz"))
     p.add_argument("--no-zero-points", action="store_true",
                    help=field_help("zero_points", "given: do not add them"))
+    from dampnet.training.settings import OPTIONS
+
+    rest = OPTIONS["rest_target"]
+    p.add_argument("--rest-target", default=rest.default, choices=rest.choices,
+                   help=field_help("rest_target", f"default {rest.default}"))
     from dampnet.training.settings import MAX_EPOCHS, MAX_SEED, TRAIN_DEFAULTS, settings_help
 
     p.add_argument("--max-epochs", type=int, default=1000, help=field_help("max_epochs", f"1..{MAX_EPOCHS} (default 1000)"))
     p.add_argument("--seed", type=int, default=0,
                    help=field_help("seed", f"0..{MAX_SEED} (default 0)"))
-    from dampnet.training.settings import OPTIONS
-
     prior = OPTIONS["control_prior"]
     p.add_argument("--control-prior", type=float, default=prior.default, metavar="W",
                    help=field_help("control_prior", f"W in {prior.range_text()} (default {prior.default:g}; "
@@ -133,6 +136,7 @@ def training_request(args):
         features=features, algorithm=getattr(args, "algorithm", "lm"), hidden=hidden, activation=args.activation,
         holdout_voltage=holdout_voltage, holdout_tests=[s.strip() for s in args.holdout_tests.split(",") if s.strip()],
         decimate=decimate, terms=terms, seed=args.seed, zero_points=not args.no_zero_points,
+        rest_target=args.rest_target,
         max_epochs=args.max_epochs, settings=json_arg(args.settings, "settings", dict), add=list(args.add),
         diagnosis=diagnosis, diagnosis_source=args.diagnosis, restarts=restarts,
         restart_score=getattr(args, "restart_score", "interpolation"), average=getattr(args, "average", 1),

@@ -62,6 +62,9 @@ FIELDS: dict[str, RequestField] = {f.name: f for f in (
     RequestField("holdout_tests", "--holdout-tests", None, "", "test ids held out as well"),
     RequestField("decimate", "--decimate", "decimate", "", "every N-th training sample is kept (default: about 200 Hz)"),
     RequestField("zero_points", "--no-zero-points", None, "", "the rest points added (zero motion, 0 N: dampnet.training.rest_points)"),
+    RequestField("rest_target", "--rest-target", "rest_target", "", "the rest points' force: zero (0 N, the "
+                 "thesis's) or estimated (the damper's own force at rest, fitted to the training samples near "
+                 "v = 0: dampnet.training.rest_points)"),
     RequestField("max_epochs", "--max-epochs", "max_epochs", "", "the epoch limit"),
     RequestField("max_fail", None, "max_fail", "", "epochs of rising validation error that stop training"),
     RequestField("seed", "--seed", "seeds", "", "the seed of the split, zero points and weights (restarts: the first)"),
@@ -111,6 +114,7 @@ class TrainingRequest:
     holdout_tests: tuple[str, ...] = ()
     decimate: int | None = None
     zero_points: bool = True
+    rest_target: str = _option_default("rest_target")
     max_epochs: int = 1000
     max_fail: int = 6
     seed: int = 0
@@ -161,7 +165,7 @@ class TrainingRequest:
                       max_epochs=self.max_epochs, max_fail=self.max_fail, seed=self.seed,
                       decimate=self.decimate, holdout_voltage=self.holdout_voltage,
                       acceleration_window=self.acceleration_window, control_prior=self.control_prior,
-                      monotone_prior=self.monotone_prior)
+                      monotone_prior=self.monotone_prior, rest_target=self.rest_target)
         for t in self.terms:
             if not isinstance(t, Mapping) or "kind" not in t:
                 raise ValueError(f"terms (--terms): each term must be an object with a 'kind', got {t!r}")
@@ -181,7 +185,7 @@ class TrainingRequest:
                     seed=self.seed, zero_points=self.zero_points, max_epochs=self.max_epochs,
                     max_fail=self.max_fail, settings=dict(self.settings) if self.settings is not None else None,
                     acceleration_window=self.acceleration_window, control_prior=self.control_prior,
-                    monotone_prior=self.monotone_prior)
+                    monotone_prior=self.monotone_prior, rest_target=self.rest_target)
 
 
 @dataclass

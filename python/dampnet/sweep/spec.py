@@ -379,6 +379,8 @@ TRAINING_PARAMS = [
           kind="float", help=_request_help("control_prior")),
     Param("monotone_prior", "monotone_prior", _training("monotone_prior"), _training_default("monotone_prior"),
           kind="float", help=_request_help("monotone_prior")),
+    Param("rest_target", "rest_target", _training("rest_target"), _training_default("rest_target"),
+          help=_request_help("rest_target")),
 ]
 
 SIMULATION_PARAMS = [

@@ -52,7 +52,8 @@ def request(params: dict[str, Any]):
         activation=params["activation"], holdout_voltage=params["holdout_voltage"], decimate=params["decimate"],
         seed=params["seed"], max_epochs=params["max_epochs"], max_fail=params["max_fail"], add=params["add"],
         restarts=params["restarts"], average=params["average"], restart_score=params["restart_score"] or "interpolation",
-        control_prior=params["control_prior"], monotone_prior=params["monotone_prior"])
+        control_prior=params["control_prior"], monotone_prior=params["monotone_prior"],
+        rest_target=params["rest_target"])
 
 
 def row_metrics(model, info, metrics: dict[str, Any]) -> dict[str, Any]:

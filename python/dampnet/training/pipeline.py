@@ -66,6 +66,7 @@ from dampnet.training.settings import OPTIONS as TRAINING_OPTIONS, check_request
 DEFAULT_HOLDOUT_VOLTAGE = 2.25
 DEFAULT_CONTROL_PRIOR = TRAINING_OPTIONS["control_prior"].default
 DEFAULT_MONOTONE_PRIOR = TRAINING_OPTIONS["monotone_prior"].default
+DEFAULT_REST_TARGET = TRAINING_OPTIONS["rest_target"].default
 # the algorithm settings train_dataset uses unless `settings` overrides them, and every setting's
 # range: dampnet.training.settings (TRAIN_DEFAULTS, check_request)
 
@@ -120,7 +121,8 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
                   init: MlpModel | None = None, restarts: int = 1, workers: int | None = None,
                   restart_score: str = "interpolation", average: int = 1,
                   control_prior: float = DEFAULT_CONTROL_PRIOR,
-                  monotone_prior: float = DEFAULT_MONOTONE_PRIOR) -> tuple[MlpModel, Any, Split]:
+                  monotone_prior: float = DEFAULT_MONOTONE_PRIOR,
+                  rest_target: str = DEFAULT_REST_TARGET) -> tuple[MlpModel, Any, Split]:
     """Train a (hybrid) MLP damper model on a dataset; see the module docstring for the steps.
 
     Returns (model, info, split): `info` is dampnet.train.TrainInfo (its subset indices
@@ -139,7 +141,8 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
     `control_prior` weighs the prior that the force between the training control levels follows
     the natural cubic spline through theirs, a straight line for two (dampnet.training.control_prior;
     0: off); `monotone_prior` the prior that the force rises with velocity
-    (dampnet.training.monotone_prior; 0: off).
+    (dampnet.training.monotone_prior; 0: off); `rest_target` the rest points' force, "zero"
+    (the thesis's 0 N) or "estimated" (dampnet.training.rest_points).
     """
     from dampnet.training.restarts import check_average, check_restarts, train_restarts
 
@@ -149,7 +152,7 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
                   max_fail=max_fail, seed=seed,
                   decimate=decimate, holdout_voltage=holdout_voltage, threads=threads,
                   acceleration_window=acceleration_window, control_prior=control_prior,
-                  monotone_prior=monotone_prior)
+                  monotone_prior=monotone_prior, rest_target=rest_target)
     restarts = check_restarts(restarts, workers, restart_score)
     check_average(average, restarts, hidden, restart_score)
     if restarts > 1 and init is not None:
@@ -159,7 +162,8 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
                             decimate=decimate, terms=terms, feature_params=feature_params,
                             zero_points=zero_points, max_epochs=max_epochs, max_fail=max_fail,
                             settings=settings, acceleration_window=acceleration_window,
-                            control_prior=control_prior, monotone_prior=monotone_prior)
+                            control_prior=control_prior, monotone_prior=monotone_prior,
+                            rest_target=rest_target)
     if restarts == 1:
         model, info = fit_prepared(prep, seed, progress=progress, threads=threads, init=init)
     else:
@@ -189,7 +193,7 @@ class Prepared:
     v: np.ndarray | None
     u: np.ndarray | None
     feature_params: dict[str, float]
-    fit_kwargs: dict[str, Any]  # hidden, activation, algorithm, max_epochs, max_fail, zero_points, settings
+    fit_kwargs: dict[str, Any]  # fit()'s options: hidden, activation, algorithm, ..., rest_target
     provenance: dict[str, Any]
     split: Split | None = None  # not shipped to restart workers (it holds the full-rate tests)
 
@@ -207,7 +211,8 @@ def prepare_training(ds: Dataset, features: Sequence[str] | None = None, algorit
                      max_epochs: int = 1000, max_fail: int = 6, settings: dict[str, Any] | None = None,
                      acceleration_window: float | None = None,
                      control_prior: float = DEFAULT_CONTROL_PRIOR,
-                     monotone_prior: float = DEFAULT_MONOTONE_PRIOR) -> Prepared:
+                     monotone_prior: float = DEFAULT_MONOTONE_PRIOR,
+                     rest_target: str = DEFAULT_REST_TARGET) -> Prepared:
     """Steps 1-3 of the module docstring: acceleration, hold-out, decimation, the feature matrix."""
     if not ds.tests:
         raise DataError(f"{ds.source}: no tests")
@@ -258,7 +263,7 @@ def prepare_training(ds: Dataset, features: Sequence[str] | None = None, algorit
                                     max_epochs=max_epochs, max_fail=max_fail, zero_points=zero_points,
                                     settings=train_settings(algorithm, settings),
                                     control_prior=float(control_prior),
-                                    monotone_prior=float(monotone_prior)),
+                                    monotone_prior=float(monotone_prior), rest_target=rest_target),
                     provenance=_data_provenance(ds, split, features, window), split=split)
 
 
@@ -287,7 +292,8 @@ def fit_prepared(prep: Prepared, seed: int, *, rows: np.ndarray | None = None,
                           algorithm=fk["algorithm"], seed=seed, max_epochs=fk["max_epochs"],
                           max_fail=fk["max_fail"], zero_points=fk["zero_points"], settings=fk["settings"],
                           progress=progress, threads=threads, data=prep.provenance, init=init,
-                          control_prior=fk["control_prior"], monotone_prior=fk["monotone_prior"])
+                          control_prior=fk["control_prior"], monotone_prior=fk["monotone_prior"],
+                          rest_target=fk["rest_target"])
     except ValueError as e:
         raise DataError(str(e)) from None
     model.terms = terms

@@ -7,7 +7,8 @@ a damper at rest is at rest at *any* valid voltage, and 0 V is itself a valid co
 input" cannot mean all-zero features. Without a feature that has an at-rest value (e.g. voltage
 only) no rows are added. They join the training set only; validation and test stay measured.
 
-Their target is 0 N by default, as in the thesis, or (fit's rest_target="estimated") the damper's
+Their target is 0 N by default, as in the thesis, or (the training option rest_target "estimated",
+`dampnet train --rest-target estimated`) the damper's
 own force at rest: a gas-charged damper pushes its gas force at rest (the synthetic rig's
 -273 N; any monotube's preload), which rows at 0 N contradict. The estimate is recorded either
 way (model.meta["rest_force"], `dampnet train`'s summary). It is not the default yet: switching

@@ -29,6 +29,7 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from dampnet.schema import show
+from dampnet.training.rest_points import REST_TARGETS
 
 #: the largest epoch count (max_epochs, max_fail, Adam's cosine_epochs)
 MAX_EPOCHS = 1_000_000
@@ -47,9 +48,9 @@ MAX_COUNT = 10**9
 
 @dataclass(frozen=True)
 class Setting:
-    """One setting: `kind` "real" (a finite number), "whole" (an integer) or "pair" (two reals);
-    its range [low, high] (an end excluded when `open_low` / `open_high`); None allowed when
-    `none` says what None means."""
+    """One setting: `kind` "real" (a finite number), "whole" (an integer), "pair" (two reals) or
+    "choice" (one of the words `choices`; low and high unused); its range [low, high] (an end
+    excluded when `open_low` / `open_high`); None allowed when `none` says what None means."""
 
     name: str
     kind: str
@@ -61,13 +62,18 @@ class Setting:
     open_high: bool = False
     none: str | None = None
     cli: str | None = None  # the command-line option, for a request option that has one
+    choices: tuple[str, ...] = ()  # kind "choice": the words allowed
 
     def range_text(self) -> str:
-        """The range in interval notation, e.g. (0, 1] or [1, 1000000]."""
+        """The range in interval notation, e.g. (0, 1] or [1, 1000000]; a choice's words."""
+        if self.kind == "choice":
+            return ", ".join(self.choices)
         lo, hi = (f"{v:g}" if self.kind != "whole" else str(int(v)) for v in (self.low, self.high))
         return f"{'(' if self.open_low else '['}{lo}, {hi}{')' if self.open_high else ']'}"
 
     def expected(self) -> str:
+        if self.kind == "choice":
+            return f"one of {self.range_text()}"
         what = {"real": "a number", "whole": "a whole number", "pair": "two numbers, each"}[self.kind]
         return f"{what} in {self.range_text()}" + (f" or null ({self.none})" if self.none else "")
 
@@ -100,6 +106,10 @@ class Setting:
         `where` (the setting and its meaning) and the range otherwise."""
         if value is None and self.none:
             return None
+        if self.kind == "choice":
+            if isinstance(value, str) and value in self.choices:
+                return value
+            raise ValueError(f"{where}: expected {self.expected()}, got {show_value(value)}")
         if self.kind == "pair":
             ok = isinstance(value, (list, tuple)) and len(value) == 2
             out = tuple(self._scalar(v) if ok else None for v in (value if ok else ()))
@@ -244,7 +254,9 @@ OPTIONS = _table(
             none="1 for small problems, else the idle cores"),
     Setting("decimate", "whole", 1, MAX_COUNT, None, "keep every N-th training sample", none="about 200 Hz",
             cli="--decimate"),
-    Setting("zero_fraction", "real", 0, 1, 0.01, "zero-force points added, as a fraction of the training samples"),
+    Setting("zero_fraction", "real", 0, 1, 0.01, "rest points added, as a fraction of the training samples"),
+    Setting("rest_target", "choice", 0, 0, "zero", "the rest points' force: zero (0 N, the thesis's) or "
+            "estimated (the damper's own force at rest, dampnet.training.rest_points)", cli="--rest-target", choices=REST_TARGETS),
     Setting("holdout_voltage", "real", -1e15, 1e15, 2.25, "the control level held out [V or A]",
             none="hold nothing out by level", cli="--holdout-voltage"),
     Setting("control_prior", "real", 0, 1e6, 1.0, "the weight of the prior that the force between the tested "
