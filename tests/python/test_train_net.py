@@ -24,6 +24,27 @@ def test_analytic_jacobian_matches_autograd(hidden, activation):
     torch.testing.assert_close(J, J_ref, rtol=1e-12, atol=1e-12)
 
 
+@pytest.mark.parametrize("hidden", [(5,), (4, 3)])
+@pytest.mark.parametrize("activation", ["tanh", "sigmoid"])
+def test_a_combination_s_jacobian_matches_autograd(hidden, activation):
+    """sum_k coef_k f(xs_k) (the priors' rows) and its Jacobian, summed per weight block, against
+    torch.autograd on K separate forward passes."""
+    g = torch.Generator().manual_seed(5)
+    lay = Layout(3, hidden, activation)
+    x = torch.randn(lay.n_params, dtype=DTYPE, generator=g)
+    xs = 2 * torch.rand(4, 11, 3, dtype=DTYPE, generator=g) - 1  # K = 4 inputs per row, 11 rows
+    coef = torch.randn(4, 11, dtype=DTYPE, generator=g)
+
+    def separate(w):
+        return sum(coef[k] * lay.forward(w, xs[k]) for k in range(4))
+
+    y, J = lay.combination_jacobian(x, xs, coef)
+    assert J.shape == (11, lay.n_params)
+    torch.testing.assert_close(y, separate(x), rtol=1e-13, atol=1e-13)
+    torch.testing.assert_close(lay.combination(x, xs, coef), separate(x), rtol=1e-13, atol=1e-13)
+    torch.testing.assert_close(J, torch.autograd.functional.jacobian(separate, x), rtol=1e-12, atol=1e-12)
+
+
 def test_jacobian_reuses_buffer():
     lay = Layout(2, (3,))
     g = torch.Generator().manual_seed(0)

@@ -46,33 +46,40 @@ POINTS_PER_ROW = 0.25
 
 @dataclass
 class PriorRows:
-    """The prior's rows: scaled inputs at the point between levels `x_mid` [M, n_in], the same
-    motion at every training level `x_level` [L, M, n_in], the reference's weights `w` [M, L]
-    (the natural cubic spline through the levels, evaluated at the point) and the scale s."""
+    """The prior's rows: scaled inputs `xs` [L+1, M, n_in] (the point between levels, then the
+    same motion at every training level), their coefficients `coef` [L+1, M] (1 for the point, -w_l
+    for level l: w the natural cubic spline's weights through the levels at the point) and the
+    scale s: r = s * sum_k coef_k f(xs_k) (Layout.combination)."""
 
-    x_mid: torch.Tensor
-    x_level: torch.Tensor
-    w: torch.Tensor
+    xs: torch.Tensor
+    coef: torch.Tensor
     scale: float
 
     def __len__(self) -> int:
-        return int(self.x_mid.shape[0])
+        return int(self.xs.shape[1])
+
+    @property
+    def x_mid(self) -> torch.Tensor:
+        """The points between levels [M, n_in]."""
+        return self.xs[0]
+
+    @property
+    def x_level(self) -> torch.Tensor:
+        """The same motion at every training level [L, M, n_in]."""
+        return self.xs[1:]
+
+    @property
+    def w(self) -> torch.Tensor:
+        """The spline's weights of each level at each point [M, L]."""
+        return -self.coef[1:].T
 
     def residual(self, layout: Layout, x: torch.Tensor) -> torch.Tensor:
         """r_prior [M], differentiable in the weights x."""
-        r = layout.forward(x, self.x_mid)
-        for lv, xl in enumerate(self.x_level):
-            r = r - self.w[:, lv] * layout.forward(x, xl)
-        return self.scale * r
+        return self.scale * layout.combination(x, self.xs, self.coef)
 
     def residual_jacobian(self, layout: Layout, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """(r_prior [M], its Jacobian [M, n_params]) by the network's hand-written backprop."""
-        r, jac = layout.jacobian(x, self.x_mid)
-        jac = jac.contiguous()
-        for lv, xl in enumerate(self.x_level):
-            y, j = layout.jacobian(x, xl)
-            r = r - self.w[:, lv] * y
-            jac -= self.w[:, lv:lv + 1] * j
+        r, jac = layout.combination_jacobian(x, self.xs, self.coef)
         return self.scale * r, jac.mul_(self.scale)
 
 
@@ -108,5 +115,6 @@ def prior_rows(xs: torch.Tensor, columns: Sequence[int], level_scaled: np.ndarra
     x_mid[:, cols] = torch.as_tensor(lo + lam[:, None] * (hi - lo), dtype=DTYPE)
     # the reference along the first control column (the others are its lags: the same values)
     t = level_scaled[:, 0]
-    w = spline_weights(t, t[gap] + lam * (t[gap + 1] - t[gap]))
-    return PriorRows(x_mid, x_level, torch.as_tensor(w, dtype=DTYPE), math.sqrt(weight * n / m))
+    w = torch.as_tensor(spline_weights(t, t[gap] + lam * (t[gap + 1] - t[gap])), dtype=DTYPE)
+    return PriorRows(torch.cat([x_mid.unsqueeze(0), x_level]), torch.cat([torch.ones(1, m, dtype=DTYPE), -w.T]),
+                     math.sqrt(weight * n / m))
