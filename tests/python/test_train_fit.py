@@ -148,7 +148,8 @@ def test_rest_points_hold_the_damper_s_own_force_at_rest_when_asked():
     assert np.abs(torch_forward(zero, rest) - 300.0).mean() > 2 * np.abs(torch_forward(model, rest) - 300.0).mean()
     off, _ = fit(X, y, features=FEATS, hidden=(8,), max_epochs=1, seed=1, zero_points=False)
     assert off.meta["rest_force"]["source"] == "no rest points"
-    with pytest.raises(ValueError, match="rest_target: expected one of zero, estimated"):
+    with pytest.raises(ValueError, match=r"rest_target \(--rest-target, .*\): expected one of zero, "
+                                         r"estimated, got 'gas'"):
         fit(X, y, features=FEATS, hidden=(3,), max_epochs=1, rest_target="gas")
 
 
