@@ -228,6 +228,13 @@ def test_auto_algorithm_is_br_on_small_data_and_lm_beyond(quick, quick_dir, tmp_
     model = MlpModel.load(tmp_path / "br")
     assert model.meta["algorithm"] == "br" and "restarts" not in model.meta
     monkeypatch.setattr(rs, "BR_MAX_ROWS", rows - 1)
+    # both autos (the command's defaults) count the training rows once between them
+    from dampnet.recipes.training import TrainingRequest, plan
+
+    counted, count_rows = [], rs.training_rows
+    monkeypatch.setattr(rs, "training_rows", lambda *a, **k: counted.append(1) or count_rows(*a, **k))
+    both = plan(quick, TrainingRequest(algorithm="auto", restarts="auto"))
+    assert (both.algorithm, both.restarts, len(counted)) == ("lm", rs.DEFAULT_RESTARTS, 1)
     rc = main(["train", str(quick_dir), "--out", str(tmp_path / "lm"), "--max-epochs", "5", "--restarts", "2"])
     out = capsys.readouterr().out
     assert rc == 0 and f"algorithm: lm ({rows:,} training rows, over {rows - 1:,}" in out

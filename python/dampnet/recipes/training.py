@@ -244,19 +244,19 @@ def plan(dataset, request: TrainingRequest, check: bool = True) -> Plan:
                 where = f" (from {request.diagnosis_source or 'the diagnosis'})" if request.diagnosis is not None else ""
                 raise ValueError(f"--add {name}{where}: {e}") from None
             added.append({"effect": name, **add})
-    note = algorithm_note = None
+    note = algorithm_note = rows = None
     algorithm = request.algorithm
     if algorithm == AUTO:
         from dampnet.training.restarts import auto_algorithm, training_rows
 
-        algorithm, algorithm_note = auto_algorithm(training_rows(dataset, kw["holdout_voltage"], kw["holdout_tests"],
-                                                                 kw.get("decimate")))
+        rows = training_rows(dataset, kw["holdout_voltage"], kw["holdout_tests"], kw.get("decimate"))
+        algorithm, algorithm_note = auto_algorithm(rows)
     if request.restarts == AUTO:
         from dampnet.training.restarts import auto_restarts, check_average
 
         restarts, note = auto_restarts(dataset, kw["holdout_voltage"], kw["holdout_tests"], kw["features"],
                                        request.restart_score, decimate=kw.get("decimate"), average=request.average,
-                                       algorithm=algorithm)
+                                       algorithm=algorithm, rows=rows)
         check_average(request.average, restarts, request.hidden, request.restart_score)
     else:
         restarts = int(request.restarts)

@@ -165,11 +165,12 @@ def auto_algorithm(rows: int) -> tuple[str, str]:
 
 def auto_restarts(ds, holdout_voltage=None, holdout_tests=(), features=None,
                   score: str = "interpolation", decimate: int | None = None,
-                  average: int = 1, algorithm: str = "lm") -> tuple[int, str | None]:
+                  average: int = 1, algorithm: str = "lm", rows: int | None = None) -> tuple[int, str | None]:
     """What `dampnet train` runs without --restarts: (1, why not) when `ds`'s training tests do not
     allow `score`; with Bayesian regularisation `average` (at least 1: its seeds agree, BR_MAX_ROWS);
     else DEFAULT_RESTARTS, fewer (not below MIN_AUTO_RESTARTS, nor `average`) when
-    the training rows times the restarts would exceed RESTART_ROWS_BUDGET, with a note saying so."""
+    the training rows times the restarts would exceed RESTART_ROWS_BUDGET, with a note saying so.
+    `rows`: the training rows when the caller has counted them (training_rows), else counted here."""
     from dampnet.features import FEATURES, default_features
 
     if not ds.tests:
@@ -189,7 +190,8 @@ def auto_restarts(ds, holdout_voltage=None, holdout_tests=(), features=None,
     if len(levels) < need:
         return 1, (f"the training tests have {len(levels)} control level{'s' if len(levels) != 1 else ''} "
                    f"({', '.join(f'{x:g}' for x in levels) or 'none'}); the {score} score needs {need}")
-    rows = training_rows(ds, holdout_voltage, holdout_tests, decimate)
+    if rows is None:
+        rows = training_rows(ds, holdout_voltage, holdout_tests, decimate)
     within = max(MIN_AUTO_RESTARTS, min(DEFAULT_RESTARTS, RESTART_ROWS_BUDGET // max(rows, 1)))
     n = max(within, int(average))
     if within >= DEFAULT_RESTARTS or n > within:
