@@ -91,6 +91,10 @@ def run_plan(name: str, holdout: float, seeds: int, options: dict, workers: int,
         model, _, split = trained
         hold = split.holdout.tests
         rows.append({"seed": seed, "nrmse": nrmse_of(lambda t: predict_force(model, t), hold), "time_s": dt})
+        hv = trained.metrics.get("noise_floor", {}).get("holdout_vs_floor")
+        if hv:  # rig data: the held-out RMSE over the load cell's noise RMS, overall and worst frequency
+            rows[-1].update(floor_ratio=hv["ratio"],
+                            worst_frequency_ratio=max((r["ratio"] for r in hv["per_frequency"]), default=None))
         if ensemble:
             preds.append([predict_force(model, t) for t in hold])
         print(f"{name:6s} {holdout:g} V  seed {seed}: {rows[-1]['nrmse']:.4f} in {dt:.1f} s", file=sys.stderr, flush=True)
@@ -152,17 +156,29 @@ def ensembles(preds: list, hold, k: int, floor_rmse_n: float) -> list[dict]:
     return out
 
 
+def floor_ratios(r: dict) -> str:
+    """'median (worst seed); worst frequency' of the seeds' held-out RMSE over the noise RMS, or '-'
+    (runs before the rows carried it, data without a noise floor)."""
+    got = [x for x in r["rows"] if x.get("floor_ratio") is not None]
+    if len(got) != len(r["rows"]) or not got:
+        return "-"
+    ratio = [x["floor_ratio"] for x in got]
+    worst = [x["worst_frequency_ratio"] for x in got if x["worst_frequency_ratio"] is not None]
+    return f"{np.median(ratio):.2f} ({max(ratio):.2f})" + (f"; {max(worst):.2f}" if worst else "")
+
+
 def table(results: list[dict]) -> str:
     out = ["| plan (tests) | held out | lookup table | dampnet: median, max | median / max over the lookup table "
-           "| max/min over seeds | interpolation floor (/ lookup table) | noise floor | time per training, median [s] |",
-           "|---|---|---|---|---|---|---|---|---|"]
+           "| max/min over seeds | interpolation floor (/ lookup table) | noise floor | / noise floor: median (worst "
+           "seed); worst frequency | time per training, median [s] |",
+           "|---|---|---|---|---|---|---|---|---|---|"]
     for r in results:
         floor = f"{r['noise_floor']:.4f}" if r["noise_floor"] is not None else "-"
         i = r.get("interpolation_floor")  # absent from runs before it was reported
         interp = f"{i:.4f} ({i / r['lookup']:.2f})" if i is not None else "-"
         out.append(f"| {r['plan']} ({r['tests']}) | {r['holdout']:g} V | {r['lookup']:.4f} | {r['median']:.4f}, "
                    f"{r['max']:.4f} | {r['median'] / r['lookup']:.2f} / {r['max'] / r['lookup']:.2f} | "
-                   f"{r['max'] / r['min']:.2f} | {interp} | {floor} | {r['time_median_s']:.1f} |")
+                   f"{r['max'] / r['min']:.2f} | {interp} | {floor} | {floor_ratios(r)} | {r['time_median_s']:.1f} |")
     return "\n".join(out)
 
 
