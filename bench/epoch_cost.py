@@ -9,13 +9,16 @@ Two measurements, one torch thread:
 2. Its parts, on the same shapes (N training rows, the prior's M points at K = levels + 1 inputs
    each, the plan's inputs and 30 hidden), repeated and interleaved: the data rows' Jacobian,
    the control prior's rows by `Layout.combination_jacobian` and, as the reference it replaced, by
-   K separate `Layout.jacobian` calls (the same numbers, checked), JᵀJ over all rows, the damped
-   Cholesky solve and one trial's residual.
+   K separate `Layout.jacobian` calls (the same numbers, checked), JᵀJ over all rows on
+   MlpProblem's one [n_params, rows] buffer and, as before it, the copy of the data's and the
+   prior's Jacobians into one [rows, n_params] tensor and JᵀJ on that, the damped Cholesky solve,
+   one trial's residual, and a whole LM epoch (`LevenbergMarquardt.step` from the same start) on
+   `MlpProblem` and on a copy of it that concatenates the Jacobians as it did before.
 
     python bench/epoch_cost.py                      # the thesis plan, 40 epochs x 2 runs each
     python bench/epoch_cost.py --plan quick --epochs 20 --runs 1
 
-Prints a table; bench/RESULTS.md ("Epoch cost") quotes it.
+Prints two tables; bench/RESULTS.md ("An LM epoch's cost on the thesis plan") quotes them.
 """
 
 from __future__ import annotations
@@ -55,7 +58,7 @@ def parts(n_rows: int, n_in: int, n_levels: int, repeats: int) -> dict[str, list
     levels = np.linspace(-1, 1, n_levels)[:, None]
     rows = prior_rows(xs, [n_in - 1], levels, 1.0, np.random.default_rng(0))
     assert len(rows) == int(np.ceil(min(POINTS_PER_ROW, 1 / n_levels) * n_rows))
-    buf = torch.empty(layout.n_params, n_rows, dtype=DTYPE)
+    buf = torch.empty(layout.n_params, n_rows + len(rows), dtype=DTYPE)  # MlpProblem's layout
 
     def separate():  # the reference: K full Jacobians, summed
         r, jac = layout.jacobian(x, rows.xs[0])
@@ -70,18 +73,39 @@ def parts(n_rows: int, n_in: int, n_levels: int, repeats: int) -> dict[str, list
     r_new, j_new = layout.combination_jacobian(x, rows.xs, rows.coef)
     torch.testing.assert_close(j_new, j_sep, rtol=1e-12, atol=1e-12)
     torch.testing.assert_close(r_new, r_sep, rtol=1e-12, atol=1e-12)
-    _, J = layout.jacobian(x, xs, out=buf)
-    J_all = torch.cat([J, j_new])
+    _, J = layout.jacobian(x, xs, out=buf[:, :n_rows])
+    layout.combination_jacobian(x, rows.xs, rows.coef, out=buf[:, n_rows:])
+    J_all = buf.T
     jj = J_all.T @ J_all
     rhs = J_all.T @ torch.randn(J_all.shape[0], dtype=DTYPE, generator=g)
     jobs = {
-        "data rows' Jacobian": lambda: layout.jacobian(x, xs, out=buf),
-        "control prior: combination_jacobian": lambda: layout.combination_jacobian(x, rows.xs, rows.coef),
+        "data rows' Jacobian": lambda: layout.jacobian(x, xs, out=buf[:, :n_rows]),
+        "control prior: combination_jacobian": lambda: layout.combination_jacobian(x, rows.xs, rows.coef,
+                                                                                   out=buf[:, n_rows:]),
         "control prior: K separate Jacobians (before)": separate,
-        "JᵀJ over all rows": lambda: J_all.T @ J_all,
+        "JᵀJ over all rows, on the buffer": lambda: J_all.T @ J_all,
+        "copying both Jacobians into one tensor (before)": lambda: torch.cat([J, j_new]),
+        "the copy, then JᵀJ on it (before)": lambda: (lambda c: c.T @ c)(torch.cat([J, j_new])),
         "damped Cholesky solve": lambda: damped_solve(jj, rhs, 1e-3),
         "a trial's residual (data + prior)": lambda: (layout.forward(x, xs), layout.combination(x, rows.xs, rows.coef)),
     }
+    # one whole LM epoch from the same start, on MlpProblem and on the same problem copying the
+    # Jacobians into one tensor as it did before: the same numbers, so the same trials
+    from dampnet.training.lm import LevenbergMarquardt
+    from dampnet.training.problem import MlpProblem
+
+    class Copying(MlpProblem):
+        def residual_jacobian(self, x):
+            with torch.no_grad():
+                y, J = self.layout.jacobian(x, self.xs)
+                rp, jp = self.priors[0].residual_jacobian(self.layout, x)
+            return torch.cat([y - self.t, rp]), torch.cat([J, jp])
+
+    target = layout.forward(layout.init(g), xs) + 0.01 * torch.randn(n_rows, dtype=DTYPE, generator=g)
+    problems = {"an LM epoch (MlpProblem)": MlpProblem(layout, xs, target, prior=rows),
+                "an LM epoch, the Jacobians copied into one tensor (before)": Copying(layout, xs, target, prior=rows)}
+    for name, problem in problems.items():
+        jobs[name] = (lambda pr: lambda: LevenbergMarquardt(pr, x).step())(problem)
     times: dict[str, list[float]] = {k: [] for k in jobs}
     for _ in range(repeats):  # interleaved: a busy spell hits every part alike
         for name, job in jobs.items():

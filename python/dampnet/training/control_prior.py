@@ -77,9 +77,11 @@ class PriorRows:
         """r_prior [M], differentiable in the weights x."""
         return self.scale * layout.combination(x, self.xs, self.coef)
 
-    def residual_jacobian(self, layout: Layout, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """(r_prior [M], its Jacobian [M, n_params]) by the network's hand-written backprop."""
-        r, jac = layout.combination_jacobian(x, self.xs, self.coef)
+    def residual_jacobian(self, layout: Layout, x: torch.Tensor,
+                          out: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        """(r_prior [M], its Jacobian [M, n_params]) by the network's hand-written backprop; the
+        Jacobian is the transposed view of `out` [n_params, M] when given (MlpProblem's buffer)."""
+        r, jac = layout.combination_jacobian(x, self.xs, self.coef, out=out)
         return self.scale * r, jac.mul_(self.scale)
 
 

@@ -81,17 +81,19 @@ class MonotoneRows:
         """r_mono [M], differentiable in the weights x."""
         return self.scale * torch.relu(layout.forward(x, self.x_lo) - layout.forward(x, self.x_hi) + MARGIN)
 
-    def residual_jacobian(self, layout: Layout, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    def residual_jacobian(self, layout: Layout, x: torch.Tensor,
+                          out: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
         """(r, J) of the violated rows only (r > 0), by the network's hand-written backprop: the
         others are zero rows, which add nothing to r.r, J'r or J'J (all the algorithms use), and
-        most rows are zero once the fit is monotone."""
+        most rows are zero once the fit is monotone. J is the transposed view of the first columns
+        of `out` [n_params, M] when given (MlpProblem's buffer)."""
         drop = layout.forward(x, self.x_lo) - layout.forward(x, self.x_hi) + MARGIN
         active = torch.nonzero(drop > 0).flatten()
         if not len(active):
             return drop[:0], torch.zeros(0, layout.n_params, dtype=DTYPE)
         pair = torch.stack([self.x_lo[active], self.x_hi[active]])
         coef = torch.tensor([[1.0], [-1.0]], dtype=DTYPE).expand(2, len(active))
-        _, jac = layout.combination_jacobian(x, pair, coef)
+        _, jac = layout.combination_jacobian(x, pair, coef, out=None if out is None else out[:, :len(active)])
         return self.scale * drop[active], jac.mul_(self.scale)
 
 

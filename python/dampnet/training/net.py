@@ -118,52 +118,49 @@ class Layout:
         k, m, n_in = xs.shape
         return (self.forward(x, xs.reshape(k * m, n_in)).view(k, m) * coef).sum(0)
 
-    def combination_jacobian(self, x: torch.Tensor, xs: torch.Tensor,
-                             coef: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    def combination_jacobian(self, x: torch.Tensor, xs: torch.Tensor, coef: torch.Tensor,
+                             out: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
         """`combination` [M] and its Jacobian [M, n_params] (the transposed view of a [n_params, M]
-        buffer, as `jacobian`'s), by hand-written backprop over all K*M rows at once.
+        buffer, `out` when given, as `jacobian`'s), by hand-written backprop over all K*M rows at once.
 
         A prior row compares the network at K inputs (the control prior: a point between levels
         and the same motion at every level; the monotone prior: a step below and above in
-        velocity). Its Jacobian is sum_k coef_k J(xs_k); summing per weight block here never
-        builds the K [n_params, M] Jacobians. bench/epoch_cost.py: 0.31x the time of K `jacobian`
-        calls on the quick plan's shapes (K = 3), the same time on the thesis plan's (K = 15),
-        where the K*M forward passes themselves (tanh, its derivative) are most of the cost."""
+        velocity). Its Jacobian is sum_k coef_k J(xs_k); summing it per weight block, input by
+        input, never builds the K [n_params, M] Jacobians (bench/epoch_cost.py times both)."""
         p = self.unpack(x)
         k, m, n_in = xs.shape
-        Jt = torch.empty(self.n_params, m, dtype=DTYPE)
+        Jt = torch.empty(self.n_params, m, dtype=DTYPE) if out is None else out
         rows, i = {}, 0
         for name, shape in self.shapes:
             size = math.prod(shape)
             rows[name] = Jt[i:i + size]
             i += size
-        xt = xs.transpose(1, 2)  # [K, n_in, M]
-        c = coef.unsqueeze(1)  # [K, 1, M]
+        Jt.zero_()
+        y = torch.zeros(m, dtype=DTYPE)
         h1 = self.hidden[0]
-        a1 = act(torch.matmul(p["w1"], xt).add_(p["b1"].view(1, h1, 1)), self.activation)  # [K, h1, M]
-        if "w2" in p:
-            h2 = self.hidden[1]
-            a2 = act(torch.matmul(p["w2"], a1).add_(p["b2"].view(1, h2, 1)), self.activation)  # [K, h2, M]
-            y = ((p["w_out"] @ a2 + p["b_out"]) * coef).sum(0)
-            torch.sum(a2 * c, 0, out=rows["w_out"])
-            d2 = act_deriv(a2, self.activation).mul_(p["w_out"].view(1, h2, 1))  # dy/dz2 per row
-            cd2 = d2 * c
-            torch.sum(cd2, 0, out=rows["b2"])
-            w2 = rows["w2"].view(h2, h1, m)
-            w2.zero_()
-            for kk in range(k):  # K small accumulations: faster than einsum's batched matmuls
-                w2.addcmul_(cd2[kk].unsqueeze(1), a1[kk].unsqueeze(0))
-            cd1 = torch.matmul(p["w2"].T, cd2).mul_(act_deriv(a1, self.activation))  # coef * dy/dz1
-        else:
-            y = ((p["w_out"] @ a1 + p["b_out"]) * coef).sum(0)
-            torch.sum(a1 * c, 0, out=rows["w_out"])
-            cd1 = act_deriv(a1, self.activation).mul_(p["w_out"].view(1, h1, 1)).mul_(c)
-        torch.sum(coef, 0, out=rows["b_out"][0])
-        torch.sum(cd1, 0, out=rows["b1"])
         w1 = rows["w1"].view(h1, n_in, m)
-        w1.zero_()
+        # one input at a time: its [h, M] arrays stay in cache (all K at once ran 1.2x slower than
+        # K full Jacobians on the thesis plan's prior, K = 15)
         for kk in range(k):
-            w1.addcmul_(cd1[kk].unsqueeze(1), xt[kk].unsqueeze(0))
+            c = coef[kk]
+            xt = xs[kk].T  # [n_in, M]
+            a1 = act(torch.addmm(p["b1"].unsqueeze(1), p["w1"], xt), self.activation)  # [h1, M]
+            if "w2" in p:
+                h2 = self.hidden[1]
+                a2 = act(torch.addmm(p["b2"].unsqueeze(1), p["w2"], a1), self.activation)  # [h2, M]
+                y.add_((p["w_out"] @ a2 + p["b_out"]).mul_(c))
+                rows["w_out"].addcmul_(a2, c)
+                cd2 = act_deriv(a2, self.activation).mul_(p["w_out"].unsqueeze(1)).mul_(c)  # coef * dy/dz2
+                rows["b2"].add_(cd2)
+                rows["w2"].view(h2, h1, m).addcmul_(cd2.unsqueeze(1), a1.unsqueeze(0))
+                cd1 = (p["w2"].T @ cd2).mul_(act_deriv(a1, self.activation))  # coef * dy/dz1
+            else:
+                y.add_((p["w_out"] @ a1 + p["b_out"]).mul_(c))
+                rows["w_out"].addcmul_(a1, c)
+                cd1 = act_deriv(a1, self.activation).mul_(p["w_out"].unsqueeze(1)).mul_(c)
+            rows["b1"].add_(cd1)
+            w1.addcmul_(cd1.unsqueeze(1), xt.unsqueeze(0))
+            rows["b_out"][0].add_(c)
         return y, Jt.T
 
     # -- initialisation -------------------------------------------------------
