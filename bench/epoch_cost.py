@@ -79,15 +79,15 @@ def parts(n_rows: int, n_in: int, n_levels: int, repeats: int) -> dict[str, list
     jj = J_all.T @ J_all
     rhs = J_all.T @ torch.randn(J_all.shape[0], dtype=DTYPE, generator=g)
     jobs = {
-        "data rows' Jacobian": lambda: layout.jacobian(x, xs, out=buf[:, :n_rows]),
-        "control prior: combination_jacobian": lambda: layout.combination_jacobian(x, rows.xs, rows.coef,
+        "the data rows' Jacobian": lambda: layout.jacobian(x, xs, out=buf[:, :n_rows]),
+        "the control prior's rows: Layout.combination_jacobian": lambda: layout.combination_jacobian(x, rows.xs, rows.coef,
                                                                                    out=buf[:, n_rows:]),
-        "control prior: K separate Jacobians (before)": separate,
-        "JᵀJ over all rows, on the buffer": lambda: J_all.T @ J_all,
-        "copying both Jacobians into one tensor (before)": lambda: torch.cat([J, j_new]),
-        "the copy, then JᵀJ on it (before)": lambda: (lambda c: c.T @ c)(torch.cat([J, j_new])),
-        "damped Cholesky solve": lambda: damped_solve(jj, rhs, 1e-3),
-        "a trial's residual (data + prior)": lambda: (layout.forward(x, xs), layout.combination(x, rows.xs, rows.coef)),
+        "the same rows as K separate Jacobians, summed (before)": separate,
+        "JᵀJ over all rows, on MlpProblem's one buffer": lambda: J_all.T @ J_all,
+        "copying the data's and the prior's Jacobians into one tensor (before)": lambda: torch.cat([J, j_new]),
+        "that copy, then JᵀJ on it (before)": lambda: (lambda c: c.T @ c)(torch.cat([J, j_new])),
+        "the damped Cholesky solve": lambda: damped_solve(jj, rhs, 1e-3),
+        "one trial's residual (data and prior)": lambda: (layout.forward(x, xs), layout.combination(x, rows.xs, rows.coef)),
     }
     # one whole LM epoch from the same start, on MlpProblem and on the same problem copying the
     # Jacobians into one tensor as it did before: the same numbers, so the same trials
@@ -102,8 +102,8 @@ def parts(n_rows: int, n_in: int, n_levels: int, repeats: int) -> dict[str, list
             return torch.cat([y - self.t, rp]), torch.cat([J, jp])
 
     target = layout.forward(layout.init(g), xs) + 0.01 * torch.randn(n_rows, dtype=DTYPE, generator=g)
-    problems = {"an LM epoch (MlpProblem)": MlpProblem(layout, xs, target, prior=rows),
-                "an LM epoch, the Jacobians copied into one tensor (before)": Copying(layout, xs, target, prior=rows)}
+    problems = {"a whole LM epoch from one start (LevenbergMarquardt.step)": MlpProblem(layout, xs, target, prior=rows),
+                "the same with the Jacobians copied (before; the prior's rows by the new path)": Copying(layout, xs, target, prior=rows)}
     for name, problem in problems.items():
         jobs[name] = (lambda pr: lambda: LevenbergMarquardt(pr, x).step())(problem)
     times: dict[str, list[float]] = {k: [] for k in jobs}
@@ -134,9 +134,9 @@ def main() -> None:
     print(f"plan {a.plan}: {len(prep.X):,} rows x {len(prep.features)} inputs ({', '.join(prep.features)}), "
           f"{n_levels} control levels, 30 hidden; torch {torch.__version__}, 1 thread")
 
-    epochs: dict[str, list[float]] = {"with the control prior (default)": [], "without it": []}
+    epochs: dict[str, list[float]] = {"with the control prior (the default)": [], "without it": []}
     for _ in range(a.runs):
-        epochs["with the control prior (default)"] += whole_epochs(prep, 1.0, a.epochs)
+        epochs["with the control prior (the default)"] += whole_epochs(prep, 1.0, a.epochs)
         epochs["without it"] += whole_epochs(prep, 0.0, a.epochs)
     print("\n| LM epoch | median [ms] | p90 [ms] | epochs |\n|---|---|---|---|")
     for name, t in epochs.items():
@@ -147,8 +147,8 @@ def main() -> None:
     print(f"\n| part ({n_train:,} training rows) | median [ms] | p90 [ms] |\n|---|---|---|")
     for name, t in times.items():
         print(f"| {name} | {1e3 * np.median(t):.1f} | {1e3 * np.percentile(t, 90):.1f} |")
-    ratio = np.median(times["control prior: combination_jacobian"]) / np.median(
-        times["control prior: K separate Jacobians (before)"])
+    ratio = np.median(times["the control prior's rows: Layout.combination_jacobian"]) / np.median(
+        times["the same rows as K separate Jacobians, summed (before)"])
     print(f"\ncontrol prior's rows: combination_jacobian takes {ratio:.2f}x the time of K separate Jacobians "
           "(the same numbers to 1e-12)")
 

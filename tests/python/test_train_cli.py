@@ -212,6 +212,14 @@ def test_rest_target_estimated_trains_the_rest_points_to_the_estimate(small_dir,
     with pytest.raises(ValueError, match=r"rest_target \(--rest-target, .*\): expected one of zero, estimated, "
                                          r"got 'measured'"):
         train_dataset(generate("quick", seed=0), decimate=50, hidden=(4,), max_epochs=2, rest_target="measured")
+    # a target without rest points would be ignored: refused, before any data are read
+    rc = main(["train", str(tmp_path / "absent"), "--out", str(tmp_path / "m3"), "--no-zero-points",
+               "--rest-target", "estimated"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "'estimated' needs the rest points: drop --no-zero-points" in err and err.count("\n") == 1
+    with pytest.raises(ValueError, match="needs the rest points"):
+        train_dataset(generate("quick", seed=0), decimate=50, hidden=(4,), max_epochs=2, zero_points=False,
+                      rest_target="estimated")
 
 
 def test_hybrid_position_poly_is_fitted_and_added_to_predictions(tmp_path):

@@ -61,13 +61,13 @@ FIELDS: dict[str, RequestField] = {f.name: f for f in (
                  "the control level whose tests are held out"),
     RequestField("holdout_tests", "--holdout-tests", None, "", "test ids held out as well"),
     RequestField("decimate", "--decimate", "decimate", "", "every N-th training sample is kept (default: about 200 Hz)"),
-    RequestField("zero_points", "--no-zero-points", None, "", "the rest points added (zero motion, 0 N: dampnet.training.rest_points)"),
+    RequestField("zero_points", "--no-zero-points", None, "", "the rest points added (zero motion; their force: rest_target; dampnet.training.rest_points)"),
     RequestField("rest_target", "--rest-target", "rest_target", "", "the rest points' force: zero (0 N, the "
                  "thesis's) or estimated (the damper's own force at rest, fitted to the training samples near "
                  "v = 0: dampnet.training.rest_points)"),
     RequestField("max_epochs", "--max-epochs", "max_epochs", "", "the epoch limit"),
     RequestField("max_fail", None, "max_fail", "", "epochs of rising validation error that stop training"),
-    RequestField("seed", "--seed", "seeds", "", "the seed of the split, zero points and weights (restarts: the first)"),
+    RequestField("seed", "--seed", "seeds", "", "the seed of the split, rest points and weights (restarts: the first)"),
     RequestField("settings", "--settings", None, "", "the algorithm's settings (dampnet.training.settings)"),
     RequestField("terms", "--terms", None, "", "physics terms (dampnet.terms)"),
     RequestField("add", "--add", "add", "", "effects whose features and terms are added (dampnet.effects)"),
@@ -148,6 +148,7 @@ class TrainingRequest:
     def check(self) -> None:
         """Every value against dampnet.training.settings (and the restart and average rules),
         before any data: ValueError of one line naming the option and its range."""
+        from dampnet.training.rest_points import check_rest
         from dampnet.training.restarts import check_average, check_restarts
         from dampnet.training.settings import ALGORITHM_TABLES, check_request, train_settings
 
@@ -169,6 +170,7 @@ class TrainingRequest:
         for t in self.terms:
             if not isinstance(t, Mapping) or "kind" not in t:
                 raise ValueError(f"terms (--terms): each term must be an object with a 'kind', got {t!r}")
+        check_rest(self.zero_points, self.rest_target)
         if self.diagnosis is not None and not self.add:
             raise ValueError("--diagnosis: name the effect(s) to add with --add EFFECT (e.g. the diagnosis's verdict)")
         auto = self.restarts == AUTO

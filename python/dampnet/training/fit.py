@@ -48,7 +48,7 @@ from dampnet.training.loop import run
 from dampnet.training.metrics import nrmse
 from dampnet.training.net import DTYPE, Layout
 from dampnet.training.problem import MlpProblem
-from dampnet.training.rest_points import RestForce, rest_force, rest_points
+from dampnet.training.rest_points import RestForce, check_rest, rest_force, rest_points
 from dampnet.training.torch_reference import torch_forward
 from dampnet.training.scg import ScaledConjugateGradient
 from dampnet.training.settings import check_request, show_value
@@ -249,6 +249,7 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
                             max_epochs=max_epochs, max_fail=max_fail, seed=seed, zero_fraction=zero_fraction,
                             threads=threads, control_prior=control_prior, monotone_prior=monotone_prior,
                             rest_target=rest_target)
+    check_rest(zero_points, rest_target)
     X = np.asarray(X, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64).ravel()
     if X.ndim == 1:

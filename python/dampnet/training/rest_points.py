@@ -109,6 +109,14 @@ def rest_force(X_train: np.ndarray, y_train: np.ndarray, features: Sequence[str]
     return RestForce(mean, "estimated", int(near.sum()), float(coef[1]), j, tuple(float(c) for c in coef))
 
 
+def check_rest(zero_points: bool, rest_target: str) -> None:
+    """ValueError when a rest target other than 0 N is asked for without rest points (it would
+    be ignored)."""
+    if not zero_points and rest_target != "zero":
+        raise ValueError(f"rest_target (--rest-target) {rest_target!r} needs the rest points: drop "
+                         "--no-zero-points (zero_points=False), or the rest target")
+
+
 def rest_points(X_train: np.ndarray, features: Sequence[str], fraction: float,
                 rng: np.random.Generator) -> np.ndarray:
     """The rest rows' inputs (see the module docstring); [0, k] if none apply."""

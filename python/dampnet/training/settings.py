@@ -243,7 +243,7 @@ def check_settings(algorithm: str, settings: Mapping[str, Any] | None) -> dict[s
 OPTIONS = _table(
     Setting("max_epochs", "whole", 1, MAX_EPOCHS, 1000, "the epoch limit", cli="--max-epochs"),
     Setting("max_fail", "whole", 1, MAX_EPOCHS, 6, "epochs of rising validation error that stop training"),
-    Setting("seed", "whole", 0, MAX_SEED, 0, "the random seed of the split, the zero points and the weights",
+    Setting("seed", "whole", 0, MAX_SEED, 0, "the random seed of the split, the rest points and the weights",
             cli="--seed"),
     Setting("restarts", "whole", 1, MAX_RESTARTS, 1, "trainings from different seeds, the best kept",
             cli="--restarts"),
@@ -356,6 +356,8 @@ def settings_help(overrides: Mapping[str, Mapping[str, Any]] | None = None) -> s
 def _default_text(s: Setting, value: Any) -> str:
     if value is None:
         return f"null, {s.none}"
+    if isinstance(value, str):  # a choice
+        return value
     if isinstance(value, (tuple, list)):
         return "[" + ", ".join(f"{v:g}" for v in value) + "]"
     return f"{value:g}"
