@@ -12,10 +12,10 @@ Their target is 0 N by default, as in the thesis, or (the training option rest_t
 own force at rest: a gas-charged damper pushes its gas force at rest (the synthetic rig's
 -273 N; any monotube's preload), which rows at 0 N contradict. The estimate is recorded either
 way (model.meta["rest_force"], `dampnet train`'s summary). It is not the default yet: switching
-changes every trained model (a quarter car's rest, the envelope checks downstream), and its effect
-on accuracy is not settled (bench/RESULTS.md, issue 33: on the thesis plan, at 1,000 epochs,
-seeds 0-2 scored 2.98x, 3.14x and 3.12x the noise floor with rest rows at the estimate, 2.33x,
-2.28x and 3.10x without rest rows). The force at rest is estimated from the
+changes every trained model (a quarter car's rest, the envelope checks downstream), though it
+measured better (bench/RESULTS.md, "The rest points' target": the 5x8 plan's seeds 0-5 all
+improved, median held-out NRMSE 0.0039 against 0.0048; the quick plan the same). The force at
+rest is estimated from the
 training rows near v = 0 by the least-squares fit
     F = b0 + b2 sign(v) + (b+ + sum_k d+_k z_k) max(v, 0) + (b- + sum_k d-_k z_k) min(v, 0) + sum_k c_k z_k
 over the rows with |v| <= LOW_SPEED_FRACTION of the largest |v|, z_k being every other input
