@@ -13,8 +13,8 @@ own force at rest: a gas-charged damper pushes its gas force at rest (the synthe
 -273 N; any monotube's preload), which rows at 0 N contradict. The estimate is recorded either
 way (model.meta["rest_force"], `dampnet train`'s summary). It is not the default yet: switching
 changes every trained model (a quarter car's rest, the envelope checks downstream), though it
-measured better (bench/RESULTS.md, "The rest points' target": the 5x8 plan's seeds 0-5 all
-improved, median held-out NRMSE 0.0039 against 0.0048; the quick plan the same). The force at
+measured better (bench/RESULTS.md, "The rest points' target": the 5x8 and 6x8 plans' seeds 0-5
+all improved, median held-out NRMSE 0.0039 against 0.0048-0.0050; the quick plan the same). The force at
 rest is estimated from the
 training rows near v = 0 by the least-squares fit
     F = b0 + b2 sign(v) + (b+ + sum_k d+_k z_k) max(v, 0) + (b- + sum_k d-_k z_k) min(v, 0) + sum_k c_k z_k
