@@ -3,7 +3,7 @@
 The rig's default data (thesis plan: 180 tests, 12 frequencies 0.25-3 Hz x 15 voltages,
 2.45 M samples at 5 kHz, no extra effects, seed 0); all 2.25 V tests held out; the
 training tests decimated by each factor; LM with dampnet's defaults (3-30-1, tanh,
-70/15/15 split, early stopping, zero-force points). Reports, per factor: training
+70/15/15 split, early stopping, rest points). Reports, per factor: training
 samples, LM time (algorithm only) and time to the best-validation epoch (the weights
 returned: "final accuracy"), wall time including data preparation, epochs, NRMSE on
 fit()'s random test subset and on the held-out tests, and the noise floor in the same

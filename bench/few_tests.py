@@ -93,7 +93,9 @@ def run_plan(name: str, holdout: float, seeds: int, options: dict, workers: int,
         dt = time.perf_counter() - t0
         model, _, split = trained
         hold = split.holdout.tests
-        rows.append({"seed": seed, "nrmse": nrmse_of(lambda t: predict_force(model, t), hold), "time_s": dt})
+        rows.append({"seed": seed, "nrmse": nrmse_of(lambda t: predict_force(model, t), hold), "time_s": dt,
+                     # epochs and where the validation stop kept the weights: a time's other half
+                     "epochs": model.meta.get("epochs"), "best_epoch": model.meta.get("best_epoch")})
         hv = trained.metrics.get("noise_floor", {}).get("holdout_vs_floor")
         if hv:  # rig data: the held-out RMSE over the load cell's noise RMS, overall and worst frequency
             rows[-1].update(floor_ratio=hv["ratio"],

@@ -28,7 +28,7 @@ goes to 0 (tests/python/test_loop_derived_features.py).
 `at_rest` is the value the feature takes when the damper is at rest, used for
 the rest points (dampnet.training.rest_points): kinematic quantities are 0 at
 rest, while control and state inputs can take any value at rest (None), so
-zero points copy them from measured samples.
+rest points copy them from measured samples.
 
 The derived features come from the runtime too: a runtime feature whose dn_damper_input
 field is one of the damper's states (dampnet.h DN_DAMPER_STATE_LIST, read here from

@@ -121,15 +121,16 @@ def _falling_share(model: MlpModel, trained, rng) -> float:
 
 
 def test_a_trained_model_rises_with_velocity_over_its_envelope(quick, tmp_path):
-    """The rig's quick plan (0 and 5 V train): seed 1 without the prior (the default) lets the force
-    fall with velocity near the top of its range at 5 V; with it (the recommended weight) it does not, anywhere
+    """The rig's quick plan (0 and 5 V train): seed 3 without the prior (the default) lets the force
+    fall with velocity at 1.1 % of the points (seed 1 did, before the rest points' default target
+    became the estimated force at rest; now 0.0 %); with it (the recommended weight) it does not, anywhere
     between 0 and 5 V, as the runtime runs the saved model, beyond one point in a thousand (the
     prior is soft and sees the decimated training rows; the check looks at 10x as many points)."""
     rng = np.random.default_rng(0)
     shares = {}
     for weight in (None, RECOMMENDED_WEIGHT):
         kw = {} if weight is None else {"monotone_prior": weight}
-        trained = dampnet.train(quick, seed=1, threads=1, **kw)
+        trained = dampnet.train(quick, seed=3, threads=1, **kw)
         trained.save(tmp_path / str(weight))
         model = MlpModel.load(tmp_path / str(weight) / "model.json")
         shares[weight] = _falling_share(model, trained, rng)

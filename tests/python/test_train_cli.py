@@ -162,17 +162,19 @@ def test_model_refuses_data_without_its_feature(tmp_path, capsys):
     assert rc == 2 and "temperature" in err and err.count("\n") == 1
 
 
-def test_zero_points_can_be_switched_off():
+def test_rest_points_can_be_switched_off():
     ds = generate("quick", seed=0)
     on, info_on, _ = train_dataset(ds, decimate=50, hidden=(4,), max_epochs=2)
-    off, info_off, _ = train_dataset(ds, decimate=50, hidden=(4,), max_epochs=2, zero_points=False)
-    assert info_on.n_zero_points > 0 and info_off.n_zero_points == 0
-    assert on.meta["zero_points"] is True and off.meta["zero_points"] is False
+    off, info_off, _ = train_dataset(ds, decimate=50, hidden=(4,), max_epochs=2, rest_target="none")
+    assert info_on.n_rest_points == int(np.ceil(0.01 * info_on.n_train)) and info_off.n_rest_points == 0
+    assert on.meta["rest_force"]["target"] == "estimated" and on.meta["samples"]["rest_points"] > 0
+    assert off.meta["rest_force"]["source"] == "no rest points" and off.meta["samples"]["rest_points"] == 0
 
 
 def test_rest_points_sit_at_the_rig_damper_s_own_force_at_rest(small_dir, tmp_path, capsys):
-    """The rig's damper pushes its gas force at rest (truth_force at v = 0, x = 0): the estimate the
-    command reports (the rest points keep the thesis's 0 N by default) is that force within 5 N."""
+    """The rig's damper pushes its gas force at rest (truth_force at v = 0, x = 0): by default the
+    rest points' target is the damper's own force at rest, estimated within 5 N of the rig's truth,
+    and the command says so."""
     from dampnet.rig.truth import truth_force
 
     at_rest = float(truth_force(np.zeros(1), np.zeros(1), np.full(1, 2.25), dt=1e-3)[0])
@@ -184,42 +186,38 @@ def test_rest_points_sit_at_the_rig_damper_s_own_force_at_rest(small_dir, tmp_pa
     assert rc == 0
     rest = json.loads((out / "model.json").read_text())["meta"]["rest_force"]
     assert rest["source"] == "estimated" and abs(rest["force_N"] - at_rest) < 5.0, (rest, at_rest)
-    assert rest["target"] == "zero" and rest["target_N"] == 0.0
-    line = next(ln for ln in printed.splitlines() if ln.startswith("rest points: "))
-    assert (f"at 0.0 N (the thesis's 0 N; the damper's own force at rest: {rest['force_N']:.1f} N on average, "
-            "estimated from") in line, line
-
-
-def test_rest_target_estimated_trains_the_rest_points_to_the_estimate(small_dir, tmp_path, capsys):
-    """--rest-target estimated (the option every front end shares, dampnet.training.settings.OPTIONS):
-    the rest points' target is the damper's own force at rest, within 5 N of the rig's truth, and the
-    command says so; a word that is not a target is refused naming the choices."""
-    from dampnet.rig.truth import truth_force
-
-    at_rest = float(truth_force(np.zeros(1), np.zeros(1), np.full(1, 2.25), dt=1e-3)[0])
-    out = tmp_path / "m"
-    rc = main(["train", str(small_dir), "--out", str(out), "--decimate", "20", "--hidden", "4",
-               "--max-epochs", "2", "--algorithm", "lm", "--rest-target", "estimated"])
-    printed = capsys.readouterr().out
-    assert rc == 0
-    rest = json.loads((out / "model.json").read_text())["meta"]["rest_force"]
     assert rest["target"] == "estimated" and abs(rest["target_N"] - at_rest) < 5.0, (rest, at_rest)
     line = next(ln for ln in printed.splitlines() if ln.startswith("rest points: "))
     assert f"at {rest['target_N']:.1f} N (the damper's own force at rest: " in line, line
+
+
+def test_rest_target_zero_and_none(small_dir, tmp_path, capsys):
+    """--rest-target (the option every front end shares, dampnet.training.settings.OPTIONS): zero
+    trains the rest points to the thesis's 0 N and still reports the estimate; none adds no rest
+    points and prints no rest line; a word that is not a target is refused naming the choices."""
+    from dampnet.rig.truth import truth_force
+
+    at_rest = float(truth_force(np.zeros(1), np.zeros(1), np.full(1, 2.25), dt=1e-3)[0])
+    args = ["--decimate", "20", "--hidden", "4", "--max-epochs", "2", "--algorithm", "lm"]
+    rc = main(["train", str(small_dir), "--out", str(tmp_path / "zero"), *args, "--rest-target", "zero"])
+    printed = capsys.readouterr().out
+    assert rc == 0
+    rest = json.loads((tmp_path / "zero" / "model.json").read_text())["meta"]["rest_force"]
+    assert rest["target"] == "zero" and rest["target_N"] == 0.0 and abs(rest["force_N"] - at_rest) < 5.0
+    line = next(ln for ln in printed.splitlines() if ln.startswith("rest points: "))
+    assert (f"at 0.0 N (the thesis's 0 N; the damper's own force at rest: {rest['force_N']:.1f} N on average, "
+            "estimated from") in line, line
+    rc = main(["train", str(small_dir), "--out", str(tmp_path / "none"), *args, "--rest-target", "none"])
+    printed = capsys.readouterr().out
+    assert rc == 0 and "rest points: " not in printed
+    meta = json.loads((tmp_path / "none" / "model.json").read_text())["meta"]
+    assert meta["rest_force"]["source"] == "no rest points" and meta["samples"]["rest_points"] == 0
     with pytest.raises(SystemExit) as e:
         main(["train", str(small_dir), "--out", str(tmp_path / "m2"), "--rest-target", "measured"])
-    assert e.value.code == 2 and "choose from 'zero', 'estimated'" in capsys.readouterr().err
-    with pytest.raises(ValueError, match=r"rest_target \(--rest-target, .*\): expected one of zero, estimated, "
-                                         r"got 'measured'"):
+    assert e.value.code == 2 and "choose from 'estimated', 'zero', 'none'" in capsys.readouterr().err
+    with pytest.raises(ValueError, match=r"rest_target \(--rest-target, .*\): expected one of estimated, zero, "
+                                         r"none, got 'measured'"):
         train_dataset(generate("quick", seed=0), decimate=50, hidden=(4,), max_epochs=2, rest_target="measured")
-    # a target without rest points would be ignored: refused, before any data are read
-    rc = main(["train", str(tmp_path / "absent"), "--out", str(tmp_path / "m3"), "--no-zero-points",
-               "--rest-target", "estimated"])
-    err = capsys.readouterr().err
-    assert rc == 2 and "'estimated' needs the rest points: drop --no-zero-points" in err and err.count("\n") == 1
-    with pytest.raises(ValueError, match="needs the rest points"):
-        train_dataset(generate("quick", seed=0), decimate=50, hidden=(4,), max_epochs=2, zero_points=False,
-                      rest_target="estimated")
 
 
 def test_hybrid_position_poly_is_fitted_and_added_to_predictions(tmp_path):

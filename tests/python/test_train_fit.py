@@ -1,4 +1,4 @@
-"""fit(): split, zero-force points, scaling and limits, reproducibility, early stopping,
+"""fit(): split, rest points, scaling and limits, reproducibility, early stopping,
 provenance; torch_forward against an independent numpy forward; feature_matrix."""
 
 import json
@@ -43,7 +43,7 @@ def test_split_is_disjoint_and_70_15_15(small):
 
 def test_scaling_and_saturation_cover_the_training_range(small):
     X, y, model, info = small
-    np.testing.assert_array_equal(model.sat_lo, X.min(axis=0))  # 0 lies inside: zero points add nothing
+    np.testing.assert_array_equal(model.sat_lo, X.min(axis=0))  # 0 lies inside: rest points add nothing
     np.testing.assert_array_equal(model.sat_hi, X.max(axis=0))
     scaled = (X - model.in_offset) * model.in_gain - 1
     np.testing.assert_allclose(scaled.min(axis=0)[:2], -1, atol=1e-15)
@@ -76,22 +76,22 @@ def test_same_seed_gives_identical_weights_and_another_seed_does_not():
     assert not np.array_equal(a.w1, c.w1)
 
 
-def test_zero_points_are_at_rest_at_measured_voltages():
+def test_rest_points_are_at_rest_at_measured_voltages():
     X, y = synthetic_dyno(n_tests=60, samples_per_test=20, seed=3)
     def grab(rec):  # stop after one epoch: only the data set-up matters here
         return True
 
     _, info = fit(X, y, features=FEATS, hidden=(3,), max_epochs=5, progress=grab)
     assert info.stop_reason == "stopped by caller" and info.epochs == 1
-    assert info.n_zero_points == int(np.ceil(0.01 * info.n_train))
+    assert info.n_rest_points == int(np.ceil(0.01 * info.n_train))
     from dampnet.training.rest_points import rest_points
     Z = rest_points(X, FEATS, 0.01, np.random.default_rng(0))
     assert np.all(Z[:, :2] == 0)  # velocity and acceleration at rest
     assert set(Z[:, 2]) <= set(X[:, 2])  # voltage copied from measured samples
-    # Voltage alone has no at-rest value: no zero points.
+    # Voltage alone has no at-rest value: no rest points.
     assert len(rest_points(X[:, 2:], ["voltage"], 0.01, np.random.default_rng(0))) == 0
-    _, off = fit(X, y, features=FEATS, hidden=(3,), max_epochs=1, zero_points=False)
-    assert off.n_zero_points == 0
+    _, off = fit(X, y, features=FEATS, hidden=(3,), max_epochs=1, rest_target="none")
+    assert off.n_rest_points == 0
 
 
 def test_the_rest_force_is_estimated_through_friction_and_asymmetric_valves():
@@ -131,8 +131,8 @@ def test_the_rest_force_is_estimated_through_friction_and_asymmetric_valves():
 
 
 def test_rest_points_hold_the_damper_s_own_force_at_rest_when_asked():
-    # A target 300 N higher everywhere: rest_target="estimated" asks for about 300 N at rest; the
-    # default (the thesis's 0 N) still records the estimate and trains as before.
+    # A target 300 N higher everywhere: rest_target="estimated" (the default) asks for about 300 N at
+    # rest; "zero" (the thesis's 0 N) still records the estimate and trains as the thesis did.
     X, y = synthetic_dyno(n_tests=60, samples_per_test=30, noise=0.0, seed=4)
     y = y + 300.0
     rest = np.array([[0.0, 0.0, v] for v in np.unique(X[:, 2])])
@@ -142,14 +142,14 @@ def test_rest_points_hold_the_damper_s_own_force_at_rest_when_asked():
     assert meta["source"] == "estimated" and abs(meta["force_N"] - 300.0) < 15.0, meta
     assert meta["target"] == "estimated" and meta["target_N"] == pytest.approx(meta["force_N"], abs=1e-3)
     assert np.abs(torch_forward(model, rest) - 300.0).mean() < 30.0
-    zero, _ = fit(X, y, **kw)
+    zero, _ = fit(X, y, rest_target="zero", **kw)
     zm = zero.meta["rest_force"]
     assert zm["target"] == "zero" and zm["target_N"] == 0.0 and zm["force_N"] == meta["force_N"]
     assert np.abs(torch_forward(zero, rest) - 300.0).mean() > 2 * np.abs(torch_forward(model, rest) - 300.0).mean()
-    off, _ = fit(X, y, features=FEATS, hidden=(8,), max_epochs=1, seed=1, zero_points=False)
+    off, _ = fit(X, y, features=FEATS, hidden=(8,), max_epochs=1, seed=1, rest_target="none")
     assert off.meta["rest_force"]["source"] == "no rest points"
-    with pytest.raises(ValueError, match=r"rest_target \(--rest-target, .*\): expected one of zero, "
-                                         r"estimated, got 'gas'"):
+    with pytest.raises(ValueError, match=r"rest_target \(--rest-target, .*\): expected one of estimated, "
+                                         r"zero, none, got 'gas'"):
         fit(X, y, features=FEATS, hidden=(3,), max_epochs=1, rest_target="gas")
 
 

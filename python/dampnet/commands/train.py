@@ -164,10 +164,10 @@ def print_summary(model, info, split, metrics, out, t_train) -> None:
               f"test {m.get('test', float('nan')):.4f} ({info.n_train} training samples, decimated by "
               f"{split.decimate})")
     rest = model.meta.get("rest_force")
-    if rest and info.n_zero_points:
+    if rest and info.n_rest_points:
         found = (f"{rest['force_N']:.1f} N on average, estimated from {rest['rows']:,} training samples near v = 0"
                  if rest["source"] == "estimated" else rest["source"])
-        print(f"rest points: {info.n_zero_points:,} at {rest.get('target_N', 0.0):.1f} N "
+        print(f"rest points: {info.n_rest_points:,} at {rest.get('target_N', 0.0):.1f} N "
               + ("(the thesis's 0 N; " if rest.get("target") == "zero" else "(")
               + f"the damper's own force at rest: {found})")
     if "holdout" in metrics:

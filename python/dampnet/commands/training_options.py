@@ -54,8 +54,6 @@ def add_training_options(p: argparse.ArgumentParser, algorithm: bool = True) -> 
     p.add_argument("--holdout-tests", default="", help=field_help("holdout_tests", "comma-separated"))
     p.add_argument("--decimate", default="auto",
                    help=field_help("decimate", "N, or 'auto' (default): about 200 Hz, 25 at 5 kHz"))
-    p.add_argument("--no-zero-points", action="store_true",
-                   help=field_help("zero_points", "given: do not add them"))
     from dampnet.training.settings import OPTIONS
 
     rest = OPTIONS["rest_target"]
@@ -135,7 +133,7 @@ def training_request(args):
     return TrainingRequest.of(
         features=features, algorithm=getattr(args, "algorithm", "lm"), hidden=hidden, activation=args.activation,
         holdout_voltage=holdout_voltage, holdout_tests=[s.strip() for s in args.holdout_tests.split(",") if s.strip()],
-        decimate=decimate, terms=terms, seed=args.seed, zero_points=not args.no_zero_points,
+        decimate=decimate, terms=terms, seed=args.seed,
         rest_target=args.rest_target,
         max_epochs=args.max_epochs, settings=json_arg(args.settings, "settings", dict), add=list(args.add),
         diagnosis=diagnosis, diagnosis_source=args.diagnosis, restarts=restarts,

@@ -23,7 +23,7 @@ Why: on a sine test the samples are a curve, and the nearest-neighbour distance 
 point is the spacing of the stored curve where it is sparsest (the fast middle of a stroke,
 in acceleration; or where two tests cross). A trajectory that follows the training data is
 within half that spacing of a stored point; the 99th percentile ignores the few isolated
-points (zero-force points, a test's ends) and THRESHOLD_FACTOR = 3 accepts points up to
+points (rest points, a test's ends) and THRESHOLD_FACTOR = 3 accepts points up to
 three sparse spacings away from the data (interpolation across a gap that the data
 themselves have) but not across a hole: on the quick plan (0.25, 1, 3 Hz x 0 and 5 V) the
 threshold is a few hundredths of the scaled range (printed by `describe`), while the gap between

@@ -61,10 +61,9 @@ FIELDS: dict[str, RequestField] = {f.name: f for f in (
                  "the control level whose tests are held out"),
     RequestField("holdout_tests", "--holdout-tests", None, "", "test ids held out as well"),
     RequestField("decimate", "--decimate", "decimate", "", "every N-th training sample is kept (default: about 200 Hz)"),
-    RequestField("zero_points", "--no-zero-points", None, "", "the rest points added (zero motion; their force: rest_target; dampnet.training.rest_points)"),
-    RequestField("rest_target", "--rest-target", "rest_target", "", "the rest points' force: zero (0 N, the "
-                 "thesis's) or estimated (the damper's own force at rest, fitted to the training samples near "
-                 "v = 0: dampnet.training.rest_points)"),
+    RequestField("rest_target", "--rest-target", "rest_target", "", "the rest points' force: estimated (the "
+                 "damper's own force at rest, fitted to the training samples near v = 0), zero (0 N, the "
+                 "thesis's) or none (no rest points: dampnet.training.rest_points)"),
     RequestField("max_epochs", "--max-epochs", "max_epochs", "", "the epoch limit"),
     RequestField("max_fail", None, "max_fail", "", "epochs of rising validation error that stop training"),
     RequestField("seed", "--seed", "seeds", "", "the seed of the split, rest points and weights (restarts: the first)"),
@@ -113,7 +112,6 @@ class TrainingRequest:
     holdout_voltage: float | None = 2.25
     holdout_tests: tuple[str, ...] = ()
     decimate: int | None = None
-    zero_points: bool = True
     rest_target: str = _option_default("rest_target")
     max_epochs: int = 1000
     max_fail: int = 6
@@ -148,7 +146,6 @@ class TrainingRequest:
     def check(self) -> None:
         """Every value against dampnet.training.settings (and the restart and average rules),
         before any data: ValueError of one line naming the option and its range."""
-        from dampnet.training.rest_points import check_rest
         from dampnet.training.restarts import check_average, check_restarts
         from dampnet.training.settings import ALGORITHM_TABLES, check_request, train_settings
 
@@ -170,7 +167,6 @@ class TrainingRequest:
         for t in self.terms:
             if not isinstance(t, Mapping) or "kind" not in t:
                 raise ValueError(f"terms (--terms): each term must be an object with a 'kind', got {t!r}")
-        check_rest(self.zero_points, self.rest_target)
         if self.diagnosis is not None and not self.add:
             raise ValueError("--diagnosis: name the effect(s) to add with --add EFFECT (e.g. the diagnosis's verdict)")
         auto = self.restarts == AUTO
@@ -184,7 +180,7 @@ class TrainingRequest:
                     activation=self.activation, holdout_voltage=self.holdout_voltage,
                     holdout_tests=list(self.holdout_tests), decimate=self.decimate,
                     terms=[dict(t) for t in self.terms], feature_params=dict(self.feature_params or {}) or None,
-                    seed=self.seed, zero_points=self.zero_points, max_epochs=self.max_epochs,
+                    seed=self.seed, max_epochs=self.max_epochs,
                     max_fail=self.max_fail, settings=dict(self.settings) if self.settings is not None else None,
                     acceleration_window=self.acceleration_window, control_prior=self.control_prior,
                     monotone_prior=self.monotone_prior, rest_target=self.rest_target)

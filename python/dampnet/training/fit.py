@@ -5,9 +5,9 @@ What fit does, in order (MATLAB's fitting-app defaults unless stated):
     seeded (numpy default_rng(seed)).
  2. Rest points (thesis §5, after Burnett et al.; dampnet.training.rest_points):
     ceil(zero_fraction * n_train) extra training samples (default 1 %) at which
-    the damper is at rest, at any valid control, with target 0 N (the thesis's)
-    or, with rest_target="estimated", the damper's own force at rest. They join
-    the training set only.
+    the damper is at rest, at any valid control, with target the damper's own
+    force at rest (rest_target "estimated", the default), 0 N ("zero", the
+    thesis's) or no rest points ("none"). They join the training set only.
  3. mapminmax scaling of inputs and force to [-1, 1] over all data given to
     fit (plus rest points), as MATLAB's process functions do before division;
     the same range gives the saturation limits (sat_lo/sat_hi).
@@ -48,10 +48,10 @@ from dampnet.training.loop import run
 from dampnet.training.metrics import nrmse
 from dampnet.training.net import DTYPE, Layout
 from dampnet.training.problem import MlpProblem
-from dampnet.training.rest_points import RestForce, check_rest, rest_force, rest_points
+from dampnet.training.rest_points import RestForce, rest_force, rest_points
 from dampnet.training.torch_reference import torch_forward
 from dampnet.training.scg import ScaledConjugateGradient
-from dampnet.training.settings import check_request, show_value
+from dampnet.training.settings import OPTIONS, check_request, show_value
 
 ALGORITHMS = {
     "lm": LevenbergMarquardt,
@@ -78,7 +78,7 @@ class TrainInfo:
     n_train: int
     n_val: int
     n_test: int
-    n_zero_points: int
+    n_rest_points: int  # the rest rows added to the training rows (dampnet.training.rest_points)
     metrics: dict[str, float]  # NRMSE (thesis Table 3 definition) per subset, in force units
     stats: dict[str, Any] = field(default_factory=dict)  # e.g. BR's gamma
     train_idx: np.ndarray | None = None  # indices into X of each subset
@@ -215,11 +215,12 @@ def _monotone_prior(X_train: np.ndarray, features: Sequence[str], weight: float,
 def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequence[str] | None = None,
         hidden: Sequence[int] = (30,), activation: str = "tanh", algorithm: str = "lm", seed: int = 0,
         split: Sequence[float] = (0.7, 0.15, 0.15), max_epochs: int = 1000, max_fail: int = 6,
-        zero_points: bool = True, zero_fraction: float = 0.01,
+        zero_fraction: float = 0.01,
         settings: dict[str, Any] | None = None, progress: Callable[[dict], Any] | None = None,
         threads: int | None = None, data: Any = None,
         init: MlpModel | None = None, control_prior: float = 0.0,
-        monotone_prior: float = 0.0, rest_target: str = "zero") -> tuple[MlpModel, TrainInfo]:
+        monotone_prior: float = 0.0,
+        rest_target: str = OPTIONS["rest_target"].default) -> tuple[MlpModel, TrainInfo]:
     """Train an MLP force model on X [n, k] (feature units) and y [n] (force [N]).
 
     `settings` overrides the algorithm's defaults (e.g. {"mu_max": 1e8} for lm,
@@ -229,13 +230,14 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
     the idle cores, see _auto_threads). `data` is stored in model.meta as provenance.
     `init`: start from this model's weights (same features, hidden sizes and activation; its
     function carried over exactly into this fit's scaling) instead of Nguyen-Widrow; the seed
-    still draws the split and the zero points (a warm start: dampnet.training.restarts).
+    still draws the split and the rest points (a warm start: dampnet.training.restarts).
     `control_prior`: the weight of the control-interpolation prior (dampnet.training.control_prior;
     0: off) between the control levels of the training rows; it is off without two levels or a
     control input (model.meta["control_prior"] says).
-    `rest_target`: the rest points' force: "zero" (the thesis's 0 N, the default) or "estimated"
-    (the damper's own force at rest from the training rows near v = 0, dampnet.training.rest_points;
-    model.meta["rest_force"] records the estimate either way).
+    `rest_target`: the rest points' force: "estimated" (the default: the damper's own force at rest
+    from the training rows near v = 0, dampnet.training.rest_points), "zero" (the thesis's 0 N) or
+    "none" (no rest points); model.meta["rest_force"] records the estimate whenever there are rest
+    points.
     `monotone_prior`: the weight of the prior that the force rises with velocity
     (dampnet.training.monotone_prior; 0: off), between the lowest and highest control level of
     the training rows; off without a velocity input (model.meta["monotone_prior"] says).
@@ -249,7 +251,6 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
                             max_epochs=max_epochs, max_fail=max_fail, seed=seed, zero_fraction=zero_fraction,
                             threads=threads, control_prior=control_prior, monotone_prior=monotone_prior,
                             rest_target=rest_target)
-    check_rest(zero_points, rest_target)
     X = np.asarray(X, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64).ravel()
     if X.ndim == 1:
@@ -268,7 +269,7 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
 
     rng = np.random.default_rng(seed)
     tr, va, te = split_indices(len(X), split, rng)
-    Z = rest_points(X[tr], features, zero_fraction, rng) if zero_points else np.empty((0, X.shape[1]))
+    Z = rest_points(X[tr], features, zero_fraction, rng) if rest_target != "none" else np.empty((0, X.shape[1]))
     at_rest = rest_force(X[tr], y[tr], features, Z) if len(Z) else RestForce(0.0, "no rest points")
     y_Z = at_rest.targets(Z) if rest_target == "estimated" else np.zeros(len(Z))
     X_all = np.vstack([X, Z])
@@ -315,7 +316,7 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
     info = TrainInfo(algorithm=algorithm, settings=dict(algo.settings), history=res.history,
                      epochs=res.epochs, best_epoch=res.best_epoch, stop_reason=res.stop_reason,
                      time_s=res.time_s, n_train=len(tr), n_val=len(va), n_test=len(te),
-                     n_zero_points=len(Z), metrics=metrics, stats=stats,
+                     n_rest_points=len(Z), metrics=metrics, stats=stats,
                      train_idx=tr, val_idx=va, test_idx=te)
     model.meta = {
         "algorithm": algorithm,
@@ -333,7 +334,7 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
         "epochs": res.epochs,
         "best_epoch": res.best_epoch,
         "stop_reason": res.stop_reason,
-        "samples": {"train": len(tr), "val": len(va), "test": len(te), "zero_points": len(Z)},
+        "samples": {"train": len(tr), "val": len(va), "test": len(te), "rest_points": len(Z)},
         "rest_force": {**at_rest.meta(), "target": rest_target, "target_N": round(float(np.mean(y_Z)), 3)
                        if len(Z) else 0.0},
         "control_prior": prior_meta,

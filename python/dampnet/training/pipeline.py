@@ -18,7 +18,7 @@ What train_dataset does, in order (the thesis's chapter 4 data handling):
     force waveform needs; the derived acceleration is already smoothed over
     20 ms (100 samples) so decimating it loses nothing. Measured on the full
     thesis plan (bench/bench_train_thesis.py, RESULTS.md): factor 25 trains LM in
-    ~6 s to a hold-out NRMSE of 0.0037; factor 50 gives 0.0042 (fewer samples per
+    ~6 s to a hold-out NRMSE of 0.0037 (rest points then at 0 N); factor 50 gives 0.0042 (fewer samples per
     weight make early stopping stop sooner); factor 1 would be 25x the work.
     Features are computed at the full rate and then decimated: derived features
     with a state (velocity_lag, voltage_lag, friction_state) are only the
@@ -26,7 +26,7 @@ What train_dataset does, in order (the thesis's chapter 4 data handling):
  4. Physics terms (hybrid model), if any: their parameters are fitted first
     (fit_terms) and the network learns the residual force minus the terms.
  5. `dampnet.training.fit`: mapminmax scaling, random 70/15/15 split with early
-    stopping, zero-force points, saturation limits from the training range.
+    stopping, rest points (at the estimated force at rest), saturation limits from the training range.
  6. With restarts=N > 1, steps 4-5 run N times from different seeds in worker processes
     and the model that interpolates best between the training control levels is kept
     (`dampnet.training.restarts`; `dampnet train` runs 6 by default).
@@ -114,7 +114,7 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
                   holdout_tests: Sequence[str] | None = None, decimate: int | None = None,
                   terms: Sequence[dict[str, Any]] | None = None,
                   feature_params: dict[str, float] | None = None, seed: int = 0,
-                  progress: Callable[[dict], Any] | None = None, zero_points: bool = True,
+                  progress: Callable[[dict], Any] | None = None,
                   max_epochs: int = 1000, max_fail: int = 6, settings: dict[str, Any] | None = None,
                   threads: int | None = None,
                   acceleration_window: float | None = None,
@@ -141,8 +141,8 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
     `control_prior` weighs the prior that the force between the training control levels follows
     the natural cubic spline through theirs, a straight line for two (dampnet.training.control_prior;
     0: off); `monotone_prior` the prior that the force rises with velocity
-    (dampnet.training.monotone_prior; 0: off); `rest_target` the rest points' force, "zero"
-    (the thesis's 0 N) or "estimated" (dampnet.training.rest_points).
+    (dampnet.training.monotone_prior; 0: off); `rest_target` the rest points' force, "estimated"
+    (the default), "zero" (the thesis's 0 N) or "none" (no rest points; dampnet.training.rest_points).
     """
     from dampnet.training.restarts import check_average, check_restarts, train_restarts
 
@@ -160,7 +160,7 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
     prep = prepare_training(ds, features, algorithm, hidden=hidden, activation=activation,
                             holdout_voltage=holdout_voltage, holdout_tests=holdout_tests,
                             decimate=decimate, terms=terms, feature_params=feature_params,
-                            zero_points=zero_points, max_epochs=max_epochs, max_fail=max_fail,
+                            max_epochs=max_epochs, max_fail=max_fail,
                             settings=settings, acceleration_window=acceleration_window,
                             control_prior=control_prior, monotone_prior=monotone_prior,
                             rest_target=rest_target)
@@ -207,7 +207,7 @@ def prepare_training(ds: Dataset, features: Sequence[str] | None = None, algorit
                      holdout_voltage: float | None = DEFAULT_HOLDOUT_VOLTAGE,
                      holdout_tests: Sequence[str] | None = None, decimate: int | None = None,
                      terms: Sequence[dict[str, Any]] | None = None,
-                     feature_params: dict[str, float] | None = None, zero_points: bool = True,
+                     feature_params: dict[str, float] | None = None,
                      max_epochs: int = 1000, max_fail: int = 6, settings: dict[str, Any] | None = None,
                      acceleration_window: float | None = None,
                      control_prior: float = DEFAULT_CONTROL_PRIOR,
@@ -260,7 +260,7 @@ def prepare_training(ds: Dataset, features: Sequence[str] | None = None, algorit
                     control_name=train.tests[0].control_name, terms=terms, xd=xd, v=v, u=u,
                     feature_params=dict(feature_params or {}),
                     fit_kwargs=dict(hidden=hidden, activation=activation, algorithm=algorithm,
-                                    max_epochs=max_epochs, max_fail=max_fail, zero_points=zero_points,
+                                    max_epochs=max_epochs, max_fail=max_fail,
                                     settings=train_settings(algorithm, settings),
                                     control_prior=float(control_prior),
                                     monotone_prior=float(monotone_prior), rest_target=rest_target),
@@ -290,7 +290,7 @@ def fit_prepared(prep: Prepared, seed: int, *, rows: np.ndarray | None = None,
     try:
         model, info = fit(X, y, features=prep.features, hidden=fk["hidden"], activation=fk["activation"],
                           algorithm=fk["algorithm"], seed=seed, max_epochs=fk["max_epochs"],
-                          max_fail=fk["max_fail"], zero_points=fk["zero_points"], settings=fk["settings"],
+                          max_fail=fk["max_fail"], settings=fk["settings"],
                           progress=progress, threads=threads, data=prep.provenance, init=init,
                           control_prior=fk["control_prior"], monotone_prior=fk["monotone_prior"],
                           rest_target=fk["rest_target"])
@@ -298,7 +298,6 @@ def fit_prepared(prep: Prepared, seed: int, *, rows: np.ndarray | None = None,
         raise DataError(str(e)) from None
     model.terms = terms
     model.feature_params = dict(prep.feature_params)
-    model.meta["zero_points"] = bool(fk["zero_points"])
     if terms:
         # fit() measured NRMSE on the residual force; report the hybrid model's.
         y_all = y + terms_force(terms, xd)
@@ -415,7 +414,7 @@ def model_metrics(model: MlpModel, info, split: Split, lookup: bool = True) -> d
             "best_epoch": info.best_epoch, "stop_reason": info.stop_reason,
             "nrmse": dict(info.metrics),
             "samples": {"train": info.n_train, "val": info.n_val, "test": info.n_test,
-                        "zero_points": info.n_zero_points},
+                        "rest_points": info.n_rest_points},
             **({"rest_force": model.meta["rest_force"]} if "rest_force" in model.meta else {}),
             "history": info.history,
             **({"restarts": model.meta["restarts"]} if "restarts" in model.meta else {}),

@@ -7,15 +7,14 @@ a damper at rest is at rest at *any* valid voltage, and 0 V is itself a valid co
 input" cannot mean all-zero features. Without a feature that has an at-rest value (e.g. voltage
 only) no rows are added. They join the training set only; validation and test stay measured.
 
-Their target is 0 N by default, as in the thesis, or (the training option rest_target "estimated",
-`dampnet train --rest-target estimated`) the damper's
-own force at rest: a gas-charged damper pushes its gas force at rest (the synthetic rig's
--273 N; any monotube's preload), which rows at 0 N contradict. The estimate is recorded either
-way (model.meta["rest_force"], `dampnet train`'s summary). It is not the default yet: switching
-changes every trained model (a quarter car's rest, the envelope checks downstream), though it
-measured better (bench/RESULTS.md, "The rest points' target": the 5x8 and 6x8 plans' seeds 0-5
-all improved, median held-out NRMSE 0.0039 against 0.0048-0.0050; the quick plan the same). The force at
-rest is estimated from the
+Their target (the training option rest_target, `dampnet train --rest-target`) is by default the
+damper's own force at rest ("estimated"): a gas-charged damper pushes its gas force at rest (the
+synthetic rig's -273 N; any monotube's preload), which rows at 0 N contradict. "zero" is the
+thesis's 0 N; "none" adds no rest points. The estimate is recorded whenever rest points are added
+(model.meta["rest_force"], `dampnet train`'s summary). The estimate measured better than 0 N
+(bench/RESULTS.md, "The rest points' target": on the 5x8 and 6x8 plans each of seeds 0-5, median
+held-out NRMSE 0.0039 against 0.0048-0.0050; the quick plan the same; the thesis plan at 2.25 V
+0.49x the lookup table against 0.57x, seeds 0-3). The force at rest is estimated from the
 training rows near v = 0 by the least-squares fit
     F = b0 + b2 sign(v) + (b+ + sum_k d+_k z_k) max(v, 0) + (b- + sum_k d-_k z_k) min(v, 0) + sum_k c_k z_k
 over the rows with |v| <= LOW_SPEED_FRACTION of the largest |v|, z_k being every other input
@@ -38,8 +37,9 @@ import numpy as np
 
 from dampnet.features import FEATURES, velocity_column
 
-#: the rest points' targets fit() offers: the thesis's 0 N (its default) or the estimate below
-REST_TARGETS = ("zero", "estimated")
+#: the rest points' targets fit() offers: the estimate below (the default), the thesis's 0 N, or
+#: no rest points at all
+REST_TARGETS = ("estimated", "zero", "none")
 #: the rows near rest: |v| up to this fraction of the training rows' largest |v|
 LOW_SPEED_FRACTION = 0.05
 #: at least this many rows on each side of v = 0 for an estimate; else 0 N
@@ -107,14 +107,6 @@ def rest_force(X_train: np.ndarray, y_train: np.ndarray, features: Sequence[str]
         Z[:, j] = 0.0
     mean = float(np.mean(design(np.asarray(Z, dtype=np.float64), j) @ coef)) if len(Z) else float(coef[0])
     return RestForce(mean, "estimated", int(near.sum()), float(coef[1]), j, tuple(float(c) for c in coef))
-
-
-def check_rest(zero_points: bool, rest_target: str) -> None:
-    """ValueError when a rest target other than 0 N is asked for without rest points (it would
-    be ignored)."""
-    if not zero_points and rest_target != "zero":
-        raise ValueError(f"rest_target (--rest-target) {rest_target!r} needs the rest points: drop "
-                         "--no-zero-points (zero_points=False), or the rest target")
 
 
 def rest_points(X_train: np.ndarray, features: Sequence[str], fraction: float,

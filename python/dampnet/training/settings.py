@@ -255,8 +255,9 @@ OPTIONS = _table(
     Setting("decimate", "whole", 1, MAX_COUNT, None, "keep every N-th training sample", none="about 200 Hz",
             cli="--decimate"),
     Setting("zero_fraction", "real", 0, 1, 0.01, "rest points added, as a fraction of the training samples"),
-    Setting("rest_target", "choice", 0, 0, "zero", "the rest points' force: zero (0 N, the thesis's) or "
-            "estimated (the damper's own force at rest, dampnet.training.rest_points)", cli="--rest-target", choices=REST_TARGETS),
+    Setting("rest_target", "choice", 0, 0, "estimated", "the rest points' force: estimated (the damper's own "
+            "force at rest, dampnet.training.rest_points), zero (0 N, the thesis's), or none (no rest points)",
+            cli="--rest-target", choices=REST_TARGETS),
     Setting("holdout_voltage", "real", -1e15, 1e15, 2.25, "the control level held out [V or A]",
             none="hold nothing out by level", cli="--holdout-voltage"),
     Setting("control_prior", "real", 0, 1e6, 1.0, "the weight of the prior that the force between the tested "
