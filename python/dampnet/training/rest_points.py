@@ -12,9 +12,10 @@ damper's own force at rest ("estimated"): a gas-charged damper pushes its gas fo
 synthetic rig's -273 N; any monotube's preload), which rows at 0 N contradict. "zero" is the
 thesis's 0 N; "none" adds no rest points. The estimate is recorded whenever rest points are added
 (model.meta["rest_force"], `dampnet train`'s summary). The estimate measured better than 0 N
-(bench/RESULTS.md, "The rest points' target": on the 5x8 and 6x8 plans each of seeds 0-5, median
-held-out NRMSE 0.0039 against 0.0048-0.0050; the quick plan the same; the thesis plan at 2.25 V
-0.49x the lookup table against 0.57x, seeds 0-3). The force at rest is estimated from the
+(bench/RESULTS.md, "Issue 33's table with the estimated force at rest", seeds 0-9, median held-out
+NRMSE over the lookup table's: 5x8 and 6x8 plans 0.41x against 0.50x and 0.53x; the thesis plan
+0.48x / 0.37x / 0.63x against 0.59x / 0.50x / 0.75x with 2.25 / 1 / 4 V held out; the quick plan
+the same). The force at rest is estimated from the
 training rows near v = 0 by the least-squares fit
     F = b0 + b2 sign(v) + (b+ + sum_k d+_k z_k) max(v, 0) + (b- + sum_k d-_k z_k) min(v, 0) + sum_k c_k z_k
 over the rows with |v| <= LOW_SPEED_FRACTION of the largest |v|, z_k being every other input

@@ -78,7 +78,8 @@ RESTART_ROWS_BUDGET = 180_000
 #: to this many training rows, Levenberg-Marquardt beyond. Why (issue 33, bench/RESULTS.md "Few dyno
 #: tests"): on the 5 x 8 and 6 x 8 plans (25,221 and 28,021 rows) one BR training per seed, with the
 #: control prior, was held out at 0.50x and 0.53x the lookup table's error with seeds agreeing to
-#: 1.32x and 1.17x, where LM needed 6 restarts for 0.56x and 1.84x on 5 x 8; on the thesis plan (91,518
+#: 1.32x and 1.17x (rest points at 0 N; 0.41x with the estimated force at rest, the default since), where LM
+#: needed 6 restarts for 0.56x and 1.84x on 5 x 8; on the thesis plan (91,518
 #: rows) BR was no better (seed 0: 3.08x the noise floor against LM's 2.88x) and several times slower.
 BR_MAX_ROWS = 30_000
 #: the fewest automatic restarts when the score can run
