@@ -136,7 +136,7 @@ def test_rest_points_hold_the_damper_s_own_force_at_rest_when_asked():
     X, y = synthetic_dyno(n_tests=60, samples_per_test=30, noise=0.0, seed=4)
     y = y + 300.0
     rest = np.array([[0.0, 0.0, v] for v in np.unique(X[:, 2])])
-    kw = dict(features=FEATS, hidden=(8,), max_epochs=40, seed=1, zero_fraction=0.2)
+    kw = dict(features=FEATS, hidden=(8,), max_epochs=40, seed=1, rest_fraction=0.2)
     model, _ = fit(X, y, rest_target="estimated", **kw)
     meta = model.meta["rest_force"]
     assert meta["source"] == "estimated" and abs(meta["force_N"] - 300.0) < 15.0, meta

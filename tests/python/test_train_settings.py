@@ -114,9 +114,9 @@ def test_every_request_option_is_named_with_its_range(name, no_training):
             if name in ("restarts", "workers", "average"):
                 kw = {"restarts": 2, name: value} if name == "workers" else {name: value}
                 dampnet.train(dampnet.Dataset(tests=[], source="none"), **kw)
-            elif name == "zero_fraction":  # fit's own option
+            elif name == "rest_fraction":  # fit's own option
                 X = np.linspace(0, 1, 30)[:, None]
-                fit(X, X[:, 0], features=["velocity"], zero_fraction=value)
+                fit(X, X[:, 0], features=["velocity"], rest_fraction=value)
             else:
                 dampnet.train(dampnet.Dataset(tests=[], source="none"), **{name: value})
         msg = one_line(str(e.value))

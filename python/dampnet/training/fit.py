@@ -4,7 +4,7 @@ What fit does, in order (MATLAB's fitting-app defaults unless stated):
  1. Random split of the samples into train/validation/test (default 70/15/15),
     seeded (numpy default_rng(seed)).
  2. Rest points (thesis §5, after Burnett et al.; dampnet.training.rest_points):
-    ceil(zero_fraction * n_train) extra training samples (default 1 %) at which
+    ceil(rest_fraction * n_train) extra training samples (default 1 %) at which
     the damper is at rest, at any valid control, with target the damper's own
     force at rest (rest_target "estimated", the default), 0 N ("zero", the
     thesis's) or no rest points ("none"). They join the training set only.
@@ -215,7 +215,7 @@ def _monotone_prior(X_train: np.ndarray, features: Sequence[str], weight: float,
 def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequence[str] | None = None,
         hidden: Sequence[int] = (30,), activation: str = "tanh", algorithm: str = "lm", seed: int = 0,
         split: Sequence[float] = (0.7, 0.15, 0.15), max_epochs: int = 1000, max_fail: int = 6,
-        zero_fraction: float = 0.01,
+        rest_fraction: float = OPTIONS["rest_fraction"].default,
         settings: dict[str, Any] | None = None, progress: Callable[[dict], Any] | None = None,
         threads: int | None = None, data: Any = None,
         init: MlpModel | None = None, control_prior: float = 0.0,
@@ -248,7 +248,7 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
     """
     checked = check_request(algorithm=algorithm, settings=settings, hidden=hidden, activation=activation,
                             features=list(features),
-                            max_epochs=max_epochs, max_fail=max_fail, seed=seed, zero_fraction=zero_fraction,
+                            max_epochs=max_epochs, max_fail=max_fail, seed=seed, rest_fraction=rest_fraction,
                             threads=threads, control_prior=control_prior, monotone_prior=monotone_prior,
                             rest_target=rest_target)
     X = np.asarray(X, dtype=np.float64)
@@ -269,7 +269,7 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
 
     rng = np.random.default_rng(seed)
     tr, va, te = split_indices(len(X), split, rng)
-    Z = rest_points(X[tr], features, zero_fraction, rng) if rest_target != "none" else np.empty((0, X.shape[1]))
+    Z = rest_points(X[tr], features, rest_fraction, rng) if rest_target != "none" else np.empty((0, X.shape[1]))
     at_rest = rest_force(X[tr], y[tr], features, Z) if len(Z) else RestForce(0.0, "no rest points")
     y_Z = at_rest.targets(Z) if rest_target == "estimated" else np.zeros(len(Z))
     X_all = np.vstack([X, Z])

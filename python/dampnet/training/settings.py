@@ -254,7 +254,7 @@ OPTIONS = _table(
             none="1 for small problems, else the idle cores"),
     Setting("decimate", "whole", 1, MAX_COUNT, None, "keep every N-th training sample", none="about 200 Hz",
             cli="--decimate"),
-    Setting("zero_fraction", "real", 0, 1, 0.01, "rest points added, as a fraction of the training samples"),
+    Setting("rest_fraction", "real", 0, 1, 0.01, "rest points added, as a fraction of the training samples"),
     Setting("rest_target", "choice", 0, 0, "estimated", "the rest points' force: estimated (the damper's own "
             "force at rest, dampnet.training.rest_points), zero (0 N, the thesis's), or none (no rest points)",
             cli="--rest-target", choices=REST_TARGETS),
