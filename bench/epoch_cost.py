@@ -10,7 +10,8 @@ Two measurements, one torch thread:
    each, the plan's inputs and 30 hidden), repeated and interleaved: the data rows' Jacobian,
    the control prior's rows by `Layout.combination_jacobian` and, as the reference it replaced, by
    K separate `Layout.jacobian` calls (the same numbers, checked), JᵀJ over all rows on
-   MlpProblem's one [n_params, rows] buffer and, as before it, the copy of the data's and the
+   MlpProblem's one [n_params, rows] buffer (by lm.gram, numpy's syrk, and by torch's general product
+   as before) and, as before that, the copy of the data's and the
    prior's Jacobians into one [rows, n_params] tensor and JᵀJ on that, the damped Cholesky solve,
    one trial's residual, and a whole LM epoch (`LevenbergMarquardt.step` from the same start) on
    `MlpProblem` and on a copy of it that concatenates the Jacobians as it did before.
@@ -48,7 +49,7 @@ def whole_epochs(prep, control_prior: float, epochs: int) -> list[float]:
 def parts(n_rows: int, n_in: int, n_levels: int, repeats: int) -> dict[str, list[float]]:
     """Times [s] of an LM epoch's parts on random inputs of the plan's shapes."""
     from dampnet.training.control_prior import POINTS_PER_ROW, prior_rows
-    from dampnet.training.lm import damped_solve
+    from dampnet.training.lm import damped_solve, gram
     from dampnet.training.net import DTYPE, Layout
 
     g = torch.Generator().manual_seed(0)
@@ -77,13 +78,15 @@ def parts(n_rows: int, n_in: int, n_levels: int, repeats: int) -> dict[str, list
     layout.combination_jacobian(x, rows.xs, rows.coef, out=buf[:, n_rows:])
     J_all = buf.T
     jj = J_all.T @ J_all
+    torch.testing.assert_close(gram(J_all), jj, rtol=1e-12, atol=1e-9 * float(jj.abs().max()))
     rhs = J_all.T @ torch.randn(J_all.shape[0], dtype=DTYPE, generator=g)
     jobs = {
         "the data rows' Jacobian": lambda: layout.jacobian(x, xs, out=buf[:, :n_rows]),
         "the control prior's rows: Layout.combination_jacobian": lambda: layout.combination_jacobian(x, rows.xs, rows.coef,
                                                                                    out=buf[:, n_rows:]),
         "the same rows as K separate Jacobians, summed (before)": separate,
-        "JᵀJ over all rows, on MlpProblem's one buffer": lambda: J_all.T @ J_all,
+        "JᵀJ over all rows by lm.gram (numpy's matmul: BLAS syrk, one triangle)": lambda: gram(J_all),
+        "JᵀJ over all rows by torch's product (before: gemm, both triangles)": lambda: J_all.T @ J_all,
         "copying the data's and the prior's Jacobians into one tensor (before)": lambda: torch.cat([J, j_new]),
         "that copy, then JᵀJ on it (before)": lambda: (lambda c: c.T @ c)(torch.cat([J, j_new])),
         "the damped Cholesky solve": lambda: damped_solve(jj, rhs, 1e-3),
@@ -123,6 +126,9 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=15, help="repetitions of each part (default 15)")
     a = ap.parse_args()
     torch.set_num_threads(1)
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(1, user_api="blas")  # numpy's BLAS (lm.gram) at one thread too, as fit runs it
 
     from dampnet.features import control_columns, control_levels
     from dampnet.rig import generate

@@ -241,3 +241,43 @@ def test_algorithms_reject_unknown_settings():
     for cls in (LevenbergMarquardt, BayesianRegularization, ScaledConjugateGradient):
         with pytest.raises(ValueError, match="unknown settings"):
             cls(prob, x0, bogus=1)
+
+
+# -- JᵀJ (LM's and BR's normal matrix) -----------------------------------------------------------
+
+@pytest.mark.parametrize("layout", ["problem buffer", "contiguous rows"])
+def test_gram_is_the_jacobians_transposed_product(layout):
+    """lm.gram (numpy's syrk, one triangle mirrored) against an independent sum of outer products,
+    on the layout MlpProblem hands over (the transposed view of a [P, N] buffer) and a plain [N, P]."""
+    from dampnet.training.lm import gram
+
+    g = torch.Generator().manual_seed(4)
+    n, p = 2_000, 37
+    if layout == "problem buffer":
+        J = torch.randn(p, n, dtype=DTYPE, generator=g).T
+    else:
+        J = torch.randn(n, p, dtype=DTYPE, generator=g)
+    jj = gram(J)
+    ref = np.einsum("ki,kj->ij", J.numpy(), J.numpy())
+    assert jj.dtype == DTYPE and jj.shape == (p, p)
+    np.testing.assert_allclose(jj.numpy(), ref, rtol=1e-12, atol=1e-12 * np.abs(ref).max())
+    assert torch.equal(jj, jj.T)  # both triangles, exactly
+
+
+def test_fit_holds_numpys_blas_to_the_training_threads():
+    """numpy's BLAS computes JᵀJ; inside fit it runs on fit's thread count (a restart worker's one),
+    not one thread per core beside torch's, and its own setting is back afterwards."""
+    from threadpoolctl import threadpool_info
+
+    from dampnet.training import fit
+
+    def blas_threads():
+        return sorted({i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"})
+
+    before = blas_threads()
+    seen = []
+    X, y = teacher_data(200)
+    fit(X.numpy(), y.numpy(), features=["a", "b"], units=["-", "-"], hidden=(3,), max_epochs=3, threads=1,
+        progress=lambda rec: seen.append(blas_threads()))
+    assert seen and all(s == [1] for s in seen), seen
+    assert blas_threads() == before

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import torch
 
-from dampnet.training.lm import damping_trials
+from dampnet.training.lm import damping_trials, gram
 from dampnet.training.loop import Converged
 from dampnet.training.settings import check_settings, defaults
 
@@ -45,7 +45,7 @@ class BayesianRegularization:
         r, J = p.residual_jacobian(self.x)
         sse, ssx = float(r @ r), float(self.x @ self.x)
         perf = self.beta * sse + self.alpha * ssx
-        jj = J.T @ J
+        jj = gram(J)
         g = self.beta * (J.T @ r) + self.alpha * self.x  # half the gradient of F
         grad_norm = 2.0 * float(g.norm()) / p.n_train
         if grad_norm < s["min_grad"]:

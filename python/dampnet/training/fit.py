@@ -94,12 +94,18 @@ class TrainInfo:
 
 
 @contextlib.contextmanager
-def _torch_threads(n: int | None):
+def _training_threads(n: int | None):
+    """torch's threads set to `n` (None: as they are) and numpy's BLAS, which computes LM's JᵀJ
+    (dampnet.training.lm.gram), limited to the same number: by default it would start one thread
+    per core beside torch's, and restart workers run one thread each."""
+    from threadpoolctl import threadpool_limits
+
     old = torch.get_num_threads()
     if n is not None and n != old:
         torch.set_num_threads(n)
     try:
-        yield torch.get_num_threads()
+        with threadpool_limits(limits=torch.get_num_threads(), user_api="blas"):
+            yield torch.get_num_threads()
     finally:
         if torch.get_num_threads() != old:
             torch.set_num_threads(old)
@@ -295,7 +301,7 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
     kwargs = {"generator": gen} if cls is Adam else {}
     if threads is None:
         threads = _auto_threads(problem.n_train * layout.n_params)
-    with _torch_threads(threads) as n_threads:
+    with _training_threads(threads) as n_threads:
         algo = cls(problem, x0, **kwargs, **(settings or {}))
         res = run(algo, problem, max_epochs=max_epochs,
                   max_fail=None if algorithm == "br" else max_fail, progress=progress)
