@@ -13,13 +13,15 @@ What train_dataset does, in order (the thesis's chapter 4 data handling):
     the tests named in `holdout_tests` are set aside for independent evaluation.
     None/None holds nothing out.
  3. Decimation of the training tests (every `decimate`-th sample; None = to about
-    dampnet.data.preprocess.DECIMATE_TARGET_HZ = 200 Hz, i.e. 25 at the dyno's 5 kHz). The highest test
-    frequency is 3 Hz, so 200 Hz keeps 67 samples per cycle, far more than the
-    force waveform needs; the derived acceleration is already smoothed over
-    20 ms (100 samples) so decimating it loses nothing. Measured on the full
-    thesis plan (bench/bench_train_thesis.py, RESULTS.md): factor 25 trains LM in
-    ~6 s to a hold-out NRMSE of 0.0037 (rest points then at 0 N); factor 50 gives 0.0042 (fewer samples per
-    weight make early stopping stop sooner); factor 1 would be 25x the work.
+    dampnet.data.preprocess.DECIMATE_TARGET_HZ = 200 Hz, i.e. 25 at the dyno's 5 kHz, or to
+    about DECIMATE_LARGE_HZ = 100 Hz when 200 Hz would leave more than DECIMATE_MAX_ROWS = 50,000
+    training rows, as on the thesis plan). The highest test frequency is 3 Hz, so 100 Hz keeps 33
+    samples per cycle and 200 Hz 67, more than the force waveform needs; the derived acceleration
+    is already smoothed over 20 ms (100 samples) so decimating it loses nothing. Measured on the
+    full thesis plan (bench/RESULTS.md "The thesis plan at 100 Hz"): with the estimated force at
+    rest LM runs up to its 1,000 epochs either way, and at 100 Hz takes half the time to a held-out
+    error no worse (rest points at 0 N it stopped early, and 200 Hz was the better: 0.0037 against
+    0.0042); factor 1 would be 25x the work.
     Features are computed at the full rate and then decimated: derived features
     with a state (velocity_lag, voltage_lag, friction_state) are only the
     quantities the runtime's loop computes when sampled finely.

@@ -68,12 +68,11 @@ from dampnet.data import DataError
 
 #: restarts `dampnet train` runs unless --restarts says otherwise (bench/RESULTS.md "Restarts")
 DEFAULT_RESTARTS = 6
-#: the automatic restarts' budget: training rows (after decimation) times restarts. A plan of up to
-#: 30,000 rows (the 5 x 8 plan: 25,221; the 6 x 8: 28,021) gets DEFAULT_RESTARTS; the thesis plan's
-#: 91,518 rows get 1, which keeps its default training within 2 minutes on 2 cores (issue 33: 42-108 s
-#: for one training; two restarts in parallel took 152 s, the slower seed's time at one thread each).
-#: With the control prior its seeds' held-out errors agree to 1.3x, so restarts buy little there.
-RESTART_ROWS_BUDGET = 180_000
+#: the automatic restarts' budget: training rows (after decimation) times restarts, for LM (BR trains
+#: once, BR_MAX_ROWS: the plans of up to 30,000 rows). The thesis plan's 45,759 rows (at 100 Hz,
+#: dampnet.data.preprocess.DECIMATE_LARGE_HZ) get 1, which keeps its default training near 2 minutes on
+#: 2 cores (issue 33, bench/RESULTS.md "The thesis plan at 100 Hz"); LM on 30,000-45,000 rows gets 2.
+RESTART_ROWS_BUDGET = 90_000
 #: the automatic algorithm (`dampnet train`'s default, `--algorithm auto`): Bayesian regularisation up
 #: to this many training rows, Levenberg-Marquardt beyond. Why (issue 33, bench/RESULTS.md "Few dyno
 #: tests"): on the 5 x 8 and 6 x 8 plans (25,221 and 28,021 rows) one BR training per seed, with the
