@@ -111,3 +111,31 @@ def test_training_rederives_acceleration_for_another_window(quick_truth):
     kept = measured.channels["acceleration"].copy()
     prepare_training(ds, decimate=50, acceleration_window=0.040)
     np.testing.assert_array_equal(measured.channels["acceleration"], kept)
+
+
+def test_auto_decimation_is_200_hz_and_100_hz_for_large_training_sets():
+    """About DECIMATE_TARGET_HZ (200 Hz: 25 at 5 kHz), and about DECIMATE_LARGE_HZ (100 Hz: 50) once
+    200 Hz would leave more than DECIMATE_MAX_ROWS rows, counted over every test as decimate() keeps
+    them (rounded up per test); 1 kHz data: 5, then 10. The large data's rate is never below 100 Hz."""
+    from dampnet.data import Dataset, DynoTest
+    from dampnet.data.preprocess import DECIMATE_LARGE_HZ, DECIMATE_MAX_ROWS, DECIMATE_TARGET_HZ, auto_decimate
+
+    def dataset(rate_hz, n_tests, samples):
+        t = np.arange(samples) / rate_hz
+        z = np.zeros(samples)
+        return Dataset([DynoTest(f"t{i}", t, {"displacement": z, "velocity": z, "force": z, "voltage": z})
+                        for i in range(n_tests)], "hand-made")
+
+    assert (DECIMATE_TARGET_HZ, DECIMATE_LARGE_HZ) == (200.0, 100.0)
+    rows_per_test = 1_000
+    at_cap = DECIMATE_MAX_ROWS // rows_per_test
+    for rate, small, large in ((5000.0, 25, 50), (1000.0, 5, 10)):
+        samples = rows_per_test * small  # rows_per_test rows each at 200 Hz
+        assert auto_decimate(dataset(rate, at_cap, samples)) == small          # exactly the cap: 200 Hz
+        assert auto_decimate(dataset(rate, at_cap, samples + 1)) == large      # one more row per test
+        assert auto_decimate(dataset(rate, at_cap + 1, samples)) == large
+        assert auto_decimate(dataset(rate, 3, samples)) == small
+    assert auto_decimate(dataset(150.0, 400, 2_000)) == 1  # 75 Hz would be below 100 Hz
+    assert auto_decimate(dataset(250.0, 400, 2_000)) == 2  # 125 Hz
+    assert auto_decimate(dataset(250.0, 4, 2_000)) == 1
+    assert auto_decimate(Dataset([], "empty")) == 1

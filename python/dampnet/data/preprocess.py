@@ -114,7 +114,7 @@ DECIMATE_TARGET_HZ = 200.0
 #: ... or about this one [Hz] when the training rows at DECIMATE_TARGET_HZ would be more than
 #: DECIMATE_MAX_ROWS. Why (issue 33, bench/RESULTS.md "The thesis plan at 100 Hz"): an LM epoch costs
 #: rows x weights^2, and a large plan's extra rows at 200 Hz are more samples of the same cycles. On the
-#: thesis plan (91,518 rows at 200 Hz, 45,759 at 100 Hz) a training at 100 Hz is half as long and no
+#: thesis plan (91,518 rows at 200 Hz, 45,780 at 100 Hz) a training at 100 Hz is half as long and no
 #: less accurate on the held-out level.
 DECIMATE_LARGE_HZ = 100.0
 DECIMATE_MAX_ROWS = 50_000
@@ -122,13 +122,14 @@ DECIMATE_MAX_ROWS = 50_000
 
 def auto_decimate(ds: Dataset) -> int:
     """Training's automatic decimation factor for `ds` (the training tests): its first test's rate over
-    DECIMATE_TARGET_HZ, or over DECIMATE_LARGE_HZ when that would leave more than DECIMATE_MAX_ROWS rows."""
+    DECIMATE_TARGET_HZ (rounded), or over DECIMATE_LARGE_HZ (rounded down: never below that rate) when
+    the first would leave more than DECIMATE_MAX_ROWS rows."""
     if not ds.tests:
         return 1
     fs = 1.0 / ds.tests[0].dt
     factor = max(1, int(round(fs / DECIMATE_TARGET_HZ)))
     if sum(-(-len(t) // factor) for t in ds.tests) > DECIMATE_MAX_ROWS:
-        factor = max(factor, int(round(fs / DECIMATE_LARGE_HZ)))
+        factor = max(factor, int(fs / DECIMATE_LARGE_HZ + 1e-9))
     return factor
 
 

@@ -69,7 +69,7 @@ from dampnet.data import DataError
 #: restarts `dampnet train` runs unless --restarts says otherwise (bench/RESULTS.md "Restarts")
 DEFAULT_RESTARTS = 6
 #: the automatic restarts' budget: training rows (after decimation) times restarts, for LM (BR trains
-#: once, BR_MAX_ROWS: the plans of up to 30,000 rows). The thesis plan's 45,759 rows (at 100 Hz,
+#: once, BR_MAX_ROWS: the plans of up to 30,000 rows). The thesis plan's 45,780 rows (at 100 Hz,
 #: dampnet.data.preprocess.DECIMATE_LARGE_HZ) get 1, which keeps its default training near 2 minutes on
 #: 2 cores (issue 33, bench/RESULTS.md "The thesis plan at 100 Hz"); LM on 30,000-45,000 rows gets 2.
 RESTART_ROWS_BUDGET = 90_000

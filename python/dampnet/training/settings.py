@@ -252,7 +252,7 @@ OPTIONS = _table(
             cli="--workers"),
     Setting("threads", "whole", 1, MAX_PROCESSES, None, "torch threads during training",
             none="1 for small problems, else the idle cores"),
-    Setting("decimate", "whole", 1, MAX_COUNT, None, "keep every N-th training sample", none="about 200 Hz",
+    Setting("decimate", "whole", 1, MAX_COUNT, None, "keep every N-th training sample", none="about 200 Hz, 100 Hz beyond 50,000 rows",
             cli="--decimate"),
     Setting("rest_fraction", "real", 0, 1, 0.01, "rest points added, as a fraction of the training samples"),
     Setting("rest_target", "choice", 0, 0, "estimated", "the rest points' force: estimated (the damper's own "
