@@ -21,7 +21,7 @@ worst frequency of any seed (the issue's shipped-model target: <= 2x, no frequen
     python bench/few_tests.py                        # quick, 5x8 and 6x8, seeds 0-9, 2.25 V held out
     python bench/few_tests.py --plans thesis --holdouts 2.25,1,4 --seeds 10
     python bench/few_tests.py --plans 5x8 --seeds 4 --set control_prior=0 --set restarts=1   # a variant
-    python bench/few_tests.py --plans 5x8 --seeds 4 --set algorithm='"lm"'   # LM (restarts 'auto': 6 here)
+    python bench/few_tests.py --plans 5x8 --seeds 4 --set algorithm='"lm"'   # LM (restarts 'auto': 3 here)
     python bench/few_tests.py --plans thesis --seeds 6 --set restarts=1 --workers 1 --ensemble 1,2,3,6  # averages
     python bench/few_tests.py --plans thesis --seeds 5 --first-seed 5 --json b.json   # half the seeds ...
     python bench/few_tests.py --merge a.json b.json                                    # ... and both halves' table

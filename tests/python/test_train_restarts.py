@@ -185,7 +185,7 @@ def test_auto_trains_once_when_there_is_nothing_to_interpolate(quick_dir, tmp_pa
     assert "restarts" not in MlpModel.load(tmp_path / "m").meta
 
 
-@pytest.mark.parametrize("decimate", [None, 7])
+@pytest.mark.parametrize("decimate", [None, 12])
 def test_auto_restarts_keep_rows_times_restarts_within_the_budget(quick, quick_dir, tmp_path, capsys,
                                                                  monkeypatch, decimate):
     """The automatic restarts count the training rows as the pipeline will fit them (its feature
@@ -209,6 +209,23 @@ def test_auto_restarts_keep_rows_times_restarts_within_the_budget(quick, quick_d
         assert rc == 0 and f"restarts: 2 (not {rs.DEFAULT_RESTARTS}: {rows:,} training rows" in out
         assert len(MlpModel.load(tmp_path / "m").meta["restarts"]["runs"]) == 2
 
+
+
+def test_the_thesis_plan_trains_once_at_100_hz():
+    """The thesis plan's training rows at 200 Hz (91,518) are over DECIMATE_MAX_ROWS, so the default
+    keeps about 100 Hz (every 50th sample at 5 kHz): the rows the pipeline fits, which training_rows
+    counts without building them, within the cap, and LM's restart budget gives it one training."""
+    from dampnet.data.preprocess import DECIMATE_MAX_ROWS
+    from dampnet.training import restarts as rs
+
+    thesis = generate("thesis", seed=0)
+    prep = prepare_training(thesis)
+    assert prep.split.decimate == 50
+    assert rs.training_rows(thesis, 2.25, (), 25) > DECIMATE_MAX_ROWS  # 200 Hz would be over the cap
+    assert len(prep.X) == rs.training_rows(thesis, 2.25) <= DECIMATE_MAX_ROWS
+    assert rs.auto_algorithm(len(prep.X))[0] == "lm"
+    n, note = rs.auto_restarts(thesis, 2.25)
+    assert n == 1 and f"{len(prep.X):,} training rows" in note
 
 def test_auto_algorithm_is_br_on_small_data_and_lm_beyond(quick, quick_dir, tmp_path, capsys, monkeypatch):
     """`dampnet train`'s default algorithm: Bayesian regularisation up to BR_MAX_ROWS training rows

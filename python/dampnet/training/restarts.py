@@ -71,7 +71,8 @@ DEFAULT_RESTARTS = 6
 #: the automatic restarts' budget: training rows (after decimation) times restarts, for LM (BR trains
 #: once, BR_MAX_ROWS: the plans of up to 30,000 rows). The thesis plan's 45,780 rows (at 100 Hz,
 #: dampnet.data.preprocess.DECIMATE_LARGE_HZ) get 1, which keeps its default training near 2 minutes on
-#: 2 cores (issue 33, bench/RESULTS.md "The thesis plan at 100 Hz"); LM on 30,000-45,000 rows gets 2.
+#: 2 cores (issue 33, bench/RESULTS.md "The thesis plan at 100 Hz"); LM asked for on the 5 x 8 plan
+#: (25,221 rows) gets 3, DEFAULT_RESTARTS up to 15,000 rows.
 RESTART_ROWS_BUDGET = 90_000
 #: the automatic algorithm (`dampnet train`'s default, `--algorithm auto`): Bayesian regularisation up
 #: to this many training rows, Levenberg-Marquardt beyond. Why (issue 33, bench/RESULTS.md "Few dyno
