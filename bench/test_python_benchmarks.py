@@ -71,8 +71,9 @@ def test_simulate_throughput(benchmark, loop_models, damper):
 def test_lm_epoch(benchmark, n_tests, samples):
     """One Levenberg-Marquardt epoch (Jacobian, J'J, Cholesky trials until the error drops)
     of the 3-30-1 tanh network on synthetic dyno data, from the same initial weights every
-    round, torch single-threaded."""
+    round, torch and numpy's BLAS (its JᵀJ, lm.gram) single-threaded, as fit runs a restart."""
     import torch
+    from threadpoolctl import threadpool_limits
 
     from dampnet.model import mapminmax_settings
     from dampnet.training.lm import LevenbergMarquardt
@@ -91,9 +92,10 @@ def test_lm_epoch(benchmark, n_tests, samples):
     torch.set_num_threads(1)
     try:
         benchmark.group = "training: one LM epoch, 3-30-1"
-        rec = benchmark.pedantic(lambda algo: algo.step(),
-                                 setup=lambda: ((LevenbergMarquardt(problem, x0.clone()),), {}),
-                                 rounds=20, warmup_rounds=2)
+        with threadpool_limits(1, user_api="blas"):
+            rec = benchmark.pedantic(lambda algo: algo.step(),
+                                     setup=lambda: ((LevenbergMarquardt(problem, x0.clone()),), {}),
+                                     rounds=20, warmup_rounds=2)
     finally:
         torch.set_num_threads(threads)
     assert np.isfinite(rec["train"])

@@ -266,18 +266,21 @@ def test_gram_is_the_jacobians_transposed_product(layout):
 
 def test_fit_holds_numpys_blas_to_the_training_threads():
     """numpy's BLAS computes JᵀJ; inside fit it runs on fit's thread count (a restart worker's one),
-    not one thread per core beside torch's, and its own setting is back afterwards."""
-    from threadpoolctl import threadpool_info
+    not one thread per core beside torch's, and its own setting is back afterwards (two threads
+    outside it, so the test can fail on any machine where OpenBLAS may run two)."""
+    from threadpoolctl import threadpool_info, threadpool_limits
 
     from dampnet.training import fit
 
     def blas_threads():
         return sorted({i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"})
 
-    before = blas_threads()
     seen = []
     X, y = teacher_data(200)
-    fit(X.numpy(), y.numpy(), features=["a", "b"], units=["-", "-"], hidden=(3,), max_epochs=3, threads=1,
-        progress=lambda rec: seen.append(blas_threads()))
+    with threadpool_limits(2, user_api="blas"):
+        before = blas_threads()
+        fit(X.numpy(), y.numpy(), features=["a", "b"], units=["-", "-"], hidden=(3,), max_epochs=3, threads=1,
+            progress=lambda rec: seen.append(blas_threads()))
+        assert blas_threads() == before
+    assert before, "threadpoolctl sees no BLAS in this process (numpy's OpenBLAS expected)"
     assert seen and all(s == [1] for s in seen), seen
-    assert blas_threads() == before

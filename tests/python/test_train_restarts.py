@@ -210,7 +210,6 @@ def test_auto_restarts_keep_rows_times_restarts_within_the_budget(quick, quick_d
         assert len(MlpModel.load(tmp_path / "m").meta["restarts"]["runs"]) == 2
 
 
-
 def test_the_thesis_plan_trains_once_at_100_hz():
     """The thesis plan's training rows at 200 Hz (91,518) are over DECIMATE_MAX_ROWS, so the default
     keeps about 100 Hz (every 50th sample at 5 kHz): the rows the pipeline fits, which training_rows
@@ -226,6 +225,7 @@ def test_the_thesis_plan_trains_once_at_100_hz():
     assert rs.auto_algorithm(len(prep.X))[0] == "lm"
     n, note = rs.auto_restarts(thesis, 2.25)
     assert n == 1 and f"{len(prep.X):,} training rows" in note
+
 
 def test_auto_algorithm_is_br_on_small_data_and_lm_beyond(quick, quick_dir, tmp_path, capsys, monkeypatch):
     """`dampnet train`'s default algorithm: Bayesian regularisation up to BR_MAX_ROWS training rows

@@ -53,7 +53,7 @@ def add_training_options(p: argparse.ArgumentParser, algorithm: bool = True) -> 
                                                           "'none' for none"))
     p.add_argument("--holdout-tests", default="", help=field_help("holdout_tests", "comma-separated"))
     p.add_argument("--decimate", default="auto",
-                   help=field_help("decimate", "N, or 'auto' (default): about 200 Hz, 25 at 5 kHz; 100 Hz beyond 50,000 training rows"))
+                   help=field_help("decimate", "N, or 'auto' (the default; 25 at 5 kHz, 50 on large data)"))
     from dampnet.training.settings import OPTIONS
 
     rest = OPTIONS["rest_target"]

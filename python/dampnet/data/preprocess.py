@@ -128,9 +128,14 @@ def auto_decimate(ds: Dataset) -> int:
         return 1
     fs = 1.0 / ds.tests[0].dt
     factor = max(1, int(round(fs / DECIMATE_TARGET_HZ)))
-    if sum(-(-len(t) // factor) for t in ds.tests) > DECIMATE_MAX_ROWS:
+    if decimated_rows(ds, factor) > DECIMATE_MAX_ROWS:
         factor = max(factor, int(fs / DECIMATE_LARGE_HZ + 1e-9))
     return factor
+
+
+def decimated_rows(ds: Dataset, factor: int) -> int:
+    """The samples decimate(ds, factor) keeps, over every test (each test's first, then every factor-th)."""
+    return sum(-(-len(t) // int(factor)) for t in ds.tests)
 
 
 def decimate(ds: Dataset, factor: int) -> Dataset:

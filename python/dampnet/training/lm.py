@@ -18,12 +18,13 @@ DEFAULTS = defaults("lm")
 
 
 def gram(J: torch.Tensor) -> torch.Tensor:
-    """JᵀJ [P, P] for a Jacobian J [N, P].
+    """JᵀJ [P, P] for a Jacobian J [N, P] (float64, on the CPU).
 
     numpy's matmul of a matrix with its own transpose calls BLAS syrk, which computes one triangle:
-    half the work of the general product torch calls (the thesis plan's 151 x 70,000 Jacobian: 67
-    against 121 ms at one thread, bench/epoch_cost.py). Its threads follow fit's (blas_threads)."""
-    a = J.T.numpy()  # [P, N]: the problem's Jacobian buffer itself, no copy
+    half the work of the general product torch calls (one thread, the thesis plan's 151-weight
+    Jacobians: 24.8 against 46.5 ms at 100 Hz, 59.5 against 108.5 at 200 Hz, bench/epoch_cost.py).
+    numpy's BLAS runs on fit's thread count (fit._training_threads)."""
+    a = J.detach().T.numpy()  # [P, N]: the problem's Jacobian buffer itself, no copy
     return torch.from_numpy(a @ a.T)
 
 

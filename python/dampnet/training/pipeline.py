@@ -64,7 +64,6 @@ from dampnet.training.fit import fit
 from dampnet.training.metrics import nrmse
 from dampnet.training.settings import OPTIONS as TRAINING_OPTIONS, check_request, train_settings
 
-#: Decimated sample rate aimed for when decimate=None [Hz] (see the module docstring).
 DEFAULT_HOLDOUT_VOLTAGE = 2.25
 DEFAULT_CONTROL_PRIOR = TRAINING_OPTIONS["control_prior"].default
 DEFAULT_MONOTONE_PRIOR = TRAINING_OPTIONS["monotone_prior"].default

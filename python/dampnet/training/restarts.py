@@ -204,7 +204,7 @@ def auto_restarts(ds, holdout_voltage=None, holdout_tests=(), features=None,
 def training_rows(ds, holdout_voltage=None, holdout_tests=(), decimate: int | None = None) -> int:
     """The rows a training of `ds` fits: its training tests' samples after the decimation
     (`decimate`, or the pipeline's automatic one), without building the feature matrix."""
-    from dampnet.data.preprocess import HOLDOUT_HINT, auto_decimate, holdout_split
+    from dampnet.data.preprocess import HOLDOUT_HINT, auto_decimate, decimated_rows, holdout_split
 
     # the pipeline's own split and decimation rule (prepare_training), and its error
     try:
@@ -214,8 +214,7 @@ def training_rows(ds, holdout_voltage=None, holdout_tests=(), decimate: int | No
         raise DataError(f"{e} ({HOLDOUT_HINT})") from None
     if not train.tests:
         return 0
-    factor = int(decimate) if decimate else auto_decimate(train)
-    return sum(-(-len(t) // factor) for t in train.tests)
+    return decimated_rows(train, int(decimate) if decimate else auto_decimate(train))
 
 
 def _n_params(prep) -> int:
