@@ -118,6 +118,8 @@ DECIMATE_TARGET_HZ = 200.0
 #: less accurate on the held-out level.
 DECIMATE_LARGE_HZ = 100.0
 DECIMATE_MAX_ROWS = 50_000
+#: what the automatic decimation does, in words (the training option's and the request field's help)
+AUTO_DECIMATE_RULE = f"about {DECIMATE_TARGET_HZ:g} Hz, {DECIMATE_LARGE_HZ:g} Hz beyond {DECIMATE_MAX_ROWS:,} training rows"
 
 
 def auto_decimate(ds: Dataset) -> int:

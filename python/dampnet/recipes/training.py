@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any, Callable, Mapping, Sequence
 
-from dampnet.data.preprocess import DECIMATE_LARGE_HZ, DECIMATE_MAX_ROWS, DECIMATE_TARGET_HZ
+from dampnet.data.preprocess import AUTO_DECIMATE_RULE
 from dampnet.training.restarts import BR_MAX_ROWS, DEFAULT_RESTARTS, RESTART_ROWS_BUDGET
 
 #: restarts and algorithm: the word for "as the data allow" (dampnet.training.restarts: auto_restarts,
@@ -61,8 +61,8 @@ FIELDS: dict[str, RequestField] = {f.name: f for f in (
     RequestField("holdout_voltage", "--holdout-voltage", "holdout_voltage", "V or A",
                  "the control level whose tests are held out"),
     RequestField("holdout_tests", "--holdout-tests", None, "", "test ids held out as well"),
-    RequestField("decimate", "--decimate", "decimate", "", "every N-th training sample is kept (default: about "
-                 f"{DECIMATE_TARGET_HZ:g} Hz, {DECIMATE_LARGE_HZ:g} Hz beyond {DECIMATE_MAX_ROWS:,} training rows)"),
+    RequestField("decimate", "--decimate", "decimate", "", "every N-th training sample is kept (default: "
+                 f"{AUTO_DECIMATE_RULE})"),
     RequestField("rest_target", "--rest-target", "rest_target", "", "the rest points' force: estimated (the "
                  "damper's own force at rest, fitted to the training samples near v = 0), zero (0 N, the "
                  "thesis's) or none (no rest points: dampnet.training.rest_points)"),

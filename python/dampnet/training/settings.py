@@ -28,11 +28,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from dampnet.data.preprocess import DECIMATE_LARGE_HZ, DECIMATE_MAX_ROWS, DECIMATE_TARGET_HZ
-
-#: what decimate=None does (dampnet.data.preprocess.auto_decimate)
-_DECIMATE_AUTO = f"about {DECIMATE_TARGET_HZ:g} Hz, {DECIMATE_LARGE_HZ:g} Hz beyond {DECIMATE_MAX_ROWS:,} rows"
-
+from dampnet.data.preprocess import AUTO_DECIMATE_RULE
 from dampnet.schema import show
 from dampnet.training.rest_points import REST_TARGETS
 
@@ -257,7 +253,7 @@ OPTIONS = _table(
             cli="--workers"),
     Setting("threads", "whole", 1, MAX_PROCESSES, None, "torch's and numpy's BLAS threads during training",
             none="1 for small problems, else the idle cores"),
-    Setting("decimate", "whole", 1, MAX_COUNT, None, "keep every N-th training sample", none=_DECIMATE_AUTO,
+    Setting("decimate", "whole", 1, MAX_COUNT, None, "keep every N-th training sample", none=AUTO_DECIMATE_RULE,
             cli="--decimate"),
     Setting("rest_fraction", "real", 0, 1, 0.01, "rest points added, as a fraction of the training samples"),
     Setting("rest_target", "choice", 0, 0, "estimated", "the rest points' force: estimated (the damper's own "
