@@ -100,9 +100,17 @@ def run_plan(name: str, holdout: float, seeds: int, options: dict, workers: int,
         if hv:  # rig data: the held-out RMSE over the load cell's noise RMS, overall and worst frequency
             rows[-1].update(floor_ratio=hv["ratio"],
                             worst_frequency_ratio=max((r["ratio"] for r in hv["per_frequency"]), default=None))
+        rs = trained.metrics.get("training", {}).get("restarts")
+        if rs:  # every restart's score, validation NRMSE and (after the fact) hold-out NRMSE
+            rows[-1]["restarts"] = [{k: r.get(k) for k in ("seed", "score", "held_back", "interpolation", "val_nrmse",
+                                                          "holdout_nrmse", "epochs", "kept")} for r in rs["runs"]]
         if ensemble:
             preds.append([predict_force(model, t) for t in hold])
-        print(f"{name:6s} {holdout:g} V  seed {seed}: {rows[-1]['nrmse']:.4f} in {dt:.1f} s", file=sys.stderr, flush=True)
+        each = "".join(f"; restart {r['seed']}: score {r['score']:.5f} (held back {r['held_back']:.5f}, interpolation "
+                       f"{r['interpolation']:.5f}), held out {r['holdout_nrmse']:.4f}{' (kept)' if r['kept'] else ''}"
+                       for r in rows[-1].get("restarts", []))
+        print(f"{name:6s} {holdout:g} V  seed {seed}: {rows[-1]['nrmse']:.4f} in {dt:.1f} s{each}", file=sys.stderr,
+              flush=True)
     lookup = trained.metrics["holdout_lookup"]["overall"]["nrmse"]
     floor = trained.metrics.get("noise_floor", {}).get("holdout_vs_floor", {}).get("floor_nrmse")
     out = summarise({"plan": name, "tests": len(ds.tests), "holdout": holdout, "options": options, "rows": rows,

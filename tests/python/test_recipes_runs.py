@@ -275,7 +275,7 @@ def test_a_sweep_cell_trains_with_restarts_and_average_as_dampnet_train(quick, c
     spec = {"training": {"datasets": ["rig:quick"], "restarts": 2, "average": 2, "seeds": [1], **TINY}}
     df = run(spec, client=client, out=tmp_path / "sw", progress=False)
     assert len(df) == 1 and (df["status"] == "ok").all(), df[["status", "error"]]
-    assert df["restart_score"][0] == "interpolation"
+    assert df["restart_score"][0] == "combined"
     cell_dir = tmp_path / "sw" / df["model_dir"][0]
     assert {p.name for p in cell_dir.iterdir()} == MODEL_FILES
     cell_model = MlpModel.load(cell_dir / "model.json")

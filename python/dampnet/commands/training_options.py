@@ -102,6 +102,7 @@ def training_request(args):
     `compare-algorithms`'); ValueError on options that do not parse (their ranges are the
     request's check, dampnet.training.settings). --diagnosis FILE is read here."""
     from dampnet.recipes.training import AUTO, TrainingRequest
+    from dampnet.training.restarts import DEFAULT_SCORE
 
     features = [f.strip() for f in args.features.split(",") if f.strip()] if args.features else None
     terms = json_arg(args.terms, "terms", list) or []
@@ -137,7 +138,7 @@ def training_request(args):
         rest_target=args.rest_target,
         max_epochs=args.max_epochs, settings=json_arg(args.settings, "settings", dict), add=list(args.add),
         diagnosis=diagnosis, diagnosis_source=args.diagnosis, restarts=restarts,
-        restart_score=getattr(args, "restart_score", "interpolation"), average=getattr(args, "average", 1),
+        restart_score=getattr(args, "restart_score", DEFAULT_SCORE), average=getattr(args, "average", 1),
         control_prior=args.control_prior, monotone_prior=args.monotone_prior)
 
 

@@ -114,16 +114,17 @@ def _restarts_section(restarts: dict, fig: Path) -> str:
         return ""
     first = next(iter(runs.values()))
     out = [f"<p>Each training ran <b>{first['n']} restarts</b> from different seeds in "
-           f"{first['workers']} processes and kept the one that interpolates best between the training "
-           "voltages (its <i>interpolation score</i>: how far it strays, between adjacent voltages, from the "
-           "smooth curve through its own forces at them). The score never sees the held-out 2.25 V tests; "
+           f"{first['workers']} processes and kept the one with the lowest score ({html.escape(first['score'])}: "
+           "the root-sum-square of its <i>held-back error</i>, its RMS error on the training rows it did not fit, "
+           "over the force range, and its <i>interpolation score</i>, how far it strays, between adjacent voltages, "
+           "from the smooth curve through its own forces at them). The score never sees the held-out 2.25 V tests; "
            "their NRMSE is shown here after the fact, to show what a single unlucky seed would have cost.</p>"]
     rows = []
     for which, r in runs.items():
         for x in r["runs"]:
-            rows.append([which, x["restart"], x["seed"], x["score"], x.get("val_nrmse"), x["holdout_nrmse"],
-                         "kept" if x["kept"] else ""])
-    out.append(_table(["training", "restart", "seed", "interpolation score", "validation NRMSE",
+            rows.append([which, x["restart"], x["seed"], x["score"], x.get("held_back"), x.get("interpolation"),
+                         x["holdout_nrmse"], "kept" if x["kept"] else ""])
+    out.append(_table(["training", "restart", "seed", "score", "held-back error", "interpolation score",
                        "held-out NRMSE (not seen)", ""], rows))
     try:
         _restarts_figure(runs, fig)

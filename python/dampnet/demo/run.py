@@ -19,8 +19,8 @@ QUICK_PLAN = {"name": "demo-quick", "frequencies_hz": [0.25, 1.0, 2.0, 3.0], "am
 
 # Both trainings run dampnet train's defaults: its algorithm ("auto": Bayesian regularisation,
 # trained once, on the --quick data's rows; Levenberg-Marquardt on the thesis plan's 180 tests,
-# training.restarts.auto_algorithm) and its restarts ("auto": 1 with either here,
-# training.restarts.auto_restarts); the report shows the restarts' spread when there were several.
+# training.restarts.auto_algorithm) and its restarts ("auto": 1 with BR, 2 with LM on the thesis
+# plan's rows, training.restarts.auto_restarts); the report shows the restarts' spread when there were several.
 DEMO_RESTARTS = "auto"
 DEMO_ALGORITHM = "auto"
 
@@ -59,7 +59,7 @@ def _log_restarts(log, metrics: dict) -> None:
     r = metrics["training"].get("restarts")
     if r:
         log(f"      {r['n']} restarts: hold-out NRMSE {r['holdout_nrmse_min']:.4f} to {r['holdout_nrmse_max']:.4f} "
-            f"over their seeds; kept restart {r['kept']} by its interpolation between the training voltages "
+            f"over their seeds; kept restart {r['kept']} by its {r['score']} score "
             f"({r['runs'][r['kept']]['holdout_nrmse']:.4f}), {r['time_s']:.1f} s on {r['workers']} "
             f"process{'es' if r['workers'] != 1 else ''}")
 
@@ -70,7 +70,7 @@ def _train_progress(log):
     def cb(info: dict) -> None:
         if "restart" in info:  # one record per finished restart (dampnet.training.restarts)
             if "score" in info:
-                log(f"      restart {info['restart']} (seed {info['seed']}) done: interpolation score "
+                log(f"      restart {info['restart']} (seed {info['seed']}) done: score "
                     f"{info['score']:.4f} ({info['done']}/{info['total']})")
             return
         now = time.perf_counter()

@@ -29,7 +29,7 @@ from functools import cached_property
 from typing import Any, Callable, Mapping, Sequence
 
 from dampnet.data.preprocess import AUTO_DECIMATE_RULE
-from dampnet.training.restarts import BR_MAX_ROWS, DEFAULT_RESTARTS, RESTART_ROWS_BUDGET
+from dampnet.training.restarts import BR_MAX_ROWS, DEFAULT_RESTARTS, DEFAULT_SCORE, RESTART_ROWS_BUDGET, SCORES
 
 #: restarts and algorithm: the word for "as the data allow" (dampnet.training.restarts: auto_restarts,
 #: auto_algorithm)
@@ -78,7 +78,7 @@ FIELDS: dict[str, RequestField] = {f.name: f for f in (
                  f"('auto': 1 with br, or --average's count; otherwise {DEFAULT_RESTARTS} with two control levels or "
                  f"more, fewer beyond {RESTART_ROWS_BUDGET // DEFAULT_RESTARTS:,} training rows, else 1)"),
     RequestField("restart_score", "--restart-score", "restart_score", "", "how restarts are ranked: "
-                 "interpolation or lolo"),
+                 f"{', '.join(SCORES)} (default {DEFAULT_SCORE})"),
     RequestField("average", "--average", "average", "", "the best restarts averaged into one network"),
     RequestField("control_prior", "--control-prior", "control_prior", "", "the weight of the prior that the "
                  "force between the tested control levels follows the natural cubic spline through theirs at "
@@ -124,7 +124,7 @@ class TrainingRequest:
     diagnosis: Mapping[str, Any] | None = field(default=None, compare=False)
     diagnosis_source: str | None = None
     restarts: int | str = 1
-    restart_score: str = "interpolation"
+    restart_score: str = DEFAULT_SCORE
     average: int = 1
     control_prior: float = _option_default("control_prior")
     monotone_prior: float = _option_default("monotone_prior")

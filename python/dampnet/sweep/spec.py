@@ -246,6 +246,12 @@ def _restart_scores() -> tuple[str, ...]:
     return tuple(SCORES)
 
 
+def _default_restart_score() -> str:
+    from dampnet.training.restarts import DEFAULT_SCORE
+
+    return DEFAULT_SCORE
+
+
 def _request_help(name: str) -> str:
     """A training parameter's help: the training request's (dampnet.recipes.training.FIELDS)."""
     from dampnet.recipes.training import FIELDS
@@ -373,7 +379,7 @@ TRAINING_PARAMS = [
     Param("activation", "activation", _choice(("tanh", "sigmoid"), "an activation"), "tanh"),
     Param("restarts", "restarts", _restarts, 1, help=_request_help("restarts") + "; default 1, one training"),
     Param("average", "average", _training("average"), 1, kind="int", help=_request_help("average")),
-    Param("restart_score", "restart_score", _choice(_restart_scores, "a restart score"), "interpolation",
+    Param("restart_score", "restart_score", _choice(_restart_scores, "a restart score"), _default_restart_score(),
           help=_request_help("restart_score")),
     Param("control_prior", "control_prior", _training("control_prior"), _training_default("control_prior"),
           kind="float", help=_request_help("control_prior")),

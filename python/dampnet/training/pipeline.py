@@ -62,6 +62,7 @@ from dampnet.rig import noise_floor_nrmse, noise_floor_rmse_n
 from dampnet.terms import fit_terms, terms_force
 from dampnet.training.fit import fit
 from dampnet.training.metrics import nrmse
+from dampnet.training.restarts import DEFAULT_SCORE
 from dampnet.training.settings import OPTIONS as TRAINING_OPTIONS, check_request, train_settings
 
 DEFAULT_HOLDOUT_VOLTAGE = 2.25
@@ -120,7 +121,7 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
                   threads: int | None = None,
                   acceleration_window: float | None = None,
                   init: MlpModel | None = None, restarts: int = 1, workers: int | None = None,
-                  restart_score: str = "interpolation", average: int = 1,
+                  restart_score: str = DEFAULT_SCORE, average: int = 1,
                   control_prior: float = DEFAULT_CONTROL_PRIOR,
                   monotone_prior: float = DEFAULT_MONOTONE_PRIOR,
                   rest_target: str = DEFAULT_REST_TARGET) -> tuple[MlpModel, Any, Split]:
@@ -132,8 +133,8 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
     (nothing to hold out, missing feature, no training tests) and ModelError for bad terms.
 
     `restarts` > 1 trains that many times from different seeds (`seed` first) and keeps the
-    model that interpolates best between the training control levels, scored by
-    `restart_score` ("interpolation" or "lolo"), in `workers` processes (None: the local
+    model scored best on the training control levels by `restart_score` (dampnet.training.restarts.SCORES:
+    "combined", "interpolation" or "lolo"), in `workers` processes (None: the local
     cores) with one torch thread each; model.meta["restarts"] records every restart. See
     dampnet.training.restarts for the scores and why the default is what it is; `progress`
     then receives one record per finished fit instead of one per epoch. restarts=1 (the
