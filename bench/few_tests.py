@@ -17,6 +17,8 @@ regularisation on the 5 x 8 and 6 x 8 plans, bench/RESULTS.md "Few dyno tests").
 data each seed's held-out RMSE over the load cell's noise RMS is recorded too, overall and per
 frequency: the table's "/ noise floor" column gives the seeds' median, the worst seed and the
 worst frequency of any seed (the issue's shipped-model target: <= 2x, no frequency over 3x).
+With restarts, each seed's line and JSON row also give every restart's score, its parts (held-back
+error, interpolation score) and its held-out NRMSE, so another ranking can be judged on the same fits.
 
     python bench/few_tests.py                        # quick, 5x8 and 6x8, seeds 0-9, 2.25 V held out
     python bench/few_tests.py --plans thesis --holdouts 2.25,1,4 --seeds 10

@@ -384,12 +384,12 @@ def _restarts_summary(metrics: dict) -> dict | None:
     r = metrics["training"].get("restarts")
     if not r:
         return None
-    return {"n": r["n"], "kept": r["kept"], "kept_seed": r["kept_seed"], "workers": r["workers"],
+    return {"n": r["n"], "score": r["score"], "kept": r["kept"], "kept_seed": r["kept_seed"], "workers": r["workers"],
             "time_s": r["time_s"], "holdout_nrmse_min": r["holdout_nrmse_min"],
             "holdout_nrmse_max": r["holdout_nrmse_max"],
             "holdout_nrmse_kept": r["runs"][r["kept"]]["holdout_nrmse"],
-            "runs": [{k: x[k] for k in ("restart", "seed", "score", "val_nrmse", "holdout_nrmse", "kept")}
-                     for x in r["runs"]]}
+            "runs": [{k: x.get(k) for k in ("restart", "seed", "score", "held_back", "interpolation", "val_nrmse",
+                                            "holdout_nrmse", "kept")} for x in r["runs"]]}
 
 
 def _finding(diag: dict) -> dict:
