@@ -30,8 +30,8 @@ What train_dataset does, in order (the thesis's chapter 4 data handling):
  5. `dampnet.training.fit`: mapminmax scaling, random 70/15/15 split with early
     stopping, rest points (at the estimated force at rest), saturation limits from the training range.
  6. With restarts=N > 1, steps 4-5 run N times from different seeds in worker processes
-    and the model that interpolates best between the training control levels is kept
-    (`dampnet.training.restarts`; `dampnet train` runs 6 by default).
+    and the model that fits the training control levels best and strays least between them is
+    kept (`dampnet.training.restarts`; `dampnet train` runs up to 6 by default).
 
 Steps 1-3 are `prepare_training` (a `Prepared`), steps 4-5 `fit_prepared`.
 

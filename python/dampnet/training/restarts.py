@@ -1,5 +1,5 @@
-"""Restarts: train N times from different seeds, keep the model that interpolates best between
-the control levels (issue 18, robust training).
+"""Restarts: train N times from different seeds, keep the model that fits the control levels best
+and strays least between them (issue 18, robust training; issue 33, the combined score).
 
 Why: a dyno campaign runs each test at one of a few control levels (voltages), so the network
 sees the control input at a handful of values and is free in between. Early stopping watches
