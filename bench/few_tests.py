@@ -108,9 +108,12 @@ def run_plan(name: str, holdout: float, seeds: int, options: dict, workers: int,
                                                           "holdout_nrmse", "epochs", "kept")} for r in rs["runs"]]
         if ensemble:
             preds.append([predict_force(model, t) for t in hold])
-        each = "".join(f"; restart {r['seed']}: score {r['score']:.5f} (held back {r['held_back']:.5f}, interpolation "
-                       f"{r['interpolation']:.5f}), held out {r['holdout_nrmse']:.4f}{' (kept)' if r['kept'] else ''}"
-                       for r in rows[-1].get("restarts", []))
+        # the score's parts exist for the full-fit scores only ("lolo" records per-level scores)
+        each = "".join(f"; restart {r['seed']}: score {r['score']:.5f}"
+                       + (f" (held back {r['held_back']:.5f}, interpolation {r['interpolation']:.5f})"
+                          if r.get("held_back") is not None else "")
+                       + (f", held out {r['holdout_nrmse']:.4f}" if r.get("holdout_nrmse") is not None else "")
+                       + (" (kept)" if r["kept"] else "") for r in rows[-1].get("restarts", []))
         print(f"{name:6s} {holdout:g} V  seed {seed}: {rows[-1]['nrmse']:.4f} in {dt:.1f} s{each}", file=sys.stderr,
               flush=True)
     lookup = trained.metrics["holdout_lookup"]["overall"]["nrmse"]

@@ -16,7 +16,7 @@ from dampnet.commands.training_options import ADD_RULE, Progress, add_training_o
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     """Register the `train` subcommand; its handler is `run`."""
-    from dampnet.training.restarts import DEFAULT_SCORE, SCORES
+    from dampnet.training.restarts import DEFAULT_SCORE, SCORE_HELP, SCORES
 
     p = subparsers.add_parser(
         "train", help="train an MLP damper model from dyno data",
@@ -35,12 +35,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help=field_help("restarts", "N (--seed first), never looking at the hold-out; default 'auto'; "
                                               "1: train once. model.json records every restart (meta.restarts)"))
     p.add_argument("--restart-score", default=DEFAULT_SCORE, choices=list(SCORES),
-                   help=field_help("restart_score", "combined: the root-sum-square of each model's error on the training "
-                                                   "rows it held back and its interpolation score; interpolation: how "
-                                                   "far each model strays between adjacent levels from the smooth "
-                                                   "curve through its own predictions at them; lolo: "
-                                                   "leave-one-level-out refits on interior levels, about 2x the cost "
-                                                   "and selects worse (bench/RESULTS.md)"))
+                   help=field_help("restart_score", "; ".join(f"{k}: {v}" for k, v in SCORE_HELP.items())))
     p.add_argument("--average", type=int, default=1, metavar="K",
                    help=field_help("average", "K, into one network K times as wide (their mean output, exactly; "
                                              "the width must fit the runtime's DN_MAX_HIDDEN, 384 here, e.g. 6 x 30 hidden): lower "

@@ -11,7 +11,7 @@ import subprocess
 from pathlib import Path
 from typing import Any
 
-from dampnet.training.restarts import BR_MAX_ROWS
+from dampnet.training.restarts import BR_MAX_ROWS, SCORE_HELP
 from dampnet.training.settings import ALGORITHM_NAMES
 
 CSS = """body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222;line-height:1.45}
@@ -114,10 +114,8 @@ def _restarts_section(restarts: dict, fig: Path) -> str:
         return ""
     first = next(iter(runs.values()))
     out = [f"<p>Each training ran <b>{first['n']} restarts</b> from different seeds in "
-           f"{first['workers']} processes and kept the one with the lowest score ({html.escape(first['score'])}: "
-           "the root-sum-square of its <i>held-back error</i>, its RMS error on the training rows it did not fit, "
-           "over the force range, and its <i>interpolation score</i>, how far it strays, between adjacent voltages, "
-           "from the smooth curve through its own forces at them). The score never sees the held-out 2.25 V tests; "
+           f"{first['workers']} processes and kept the one with the lowest {html.escape(first['score'])} score "
+           f"({html.escape(SCORE_HELP.get(first['score'], ''))}). The score never sees the held-out 2.25 V tests; "
            "their NRMSE is shown here after the fact, to show what a single unlucky seed would have cost.</p>"]
     rows = []
     for which, r in runs.items():

@@ -318,6 +318,13 @@ def ranking_score(score: str, res: dict) -> float:
 #: what each score ranks by, for the command's summary line
 SCORE_WORDS = {"combined": "held-back error and interpolation between levels",
                "interpolation": "interpolation between levels", "lolo": "leave-one-level-out NRMSE"}
+#: each score in a sentence, for --restart-score's help and the demo's report
+SCORE_HELP = {
+    "combined": "the root-sum-square of each model's error on the training rows it held back (how well it fits "
+                "the tested levels) and its interpolation score",
+    "interpolation": "how far each model strays between adjacent levels from the smooth curve through its own "
+                     "predictions at them",
+    "lolo": "leave-one-level-out refits on interior levels, about 2x the cost and selects worse (bench/RESULTS.md)"}
 
 
 # -- the jobs (run in worker processes or in-process) ---------------------------------------------
