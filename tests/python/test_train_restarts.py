@@ -9,6 +9,9 @@ errors. Heavy measurements (seeds 0-9, several plans): bench/experiments/restart
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -180,6 +183,37 @@ def test_parallel_and_serial_restarts_keep_the_same_model(quick):
     # the kept model is the plain fit of its seed (one thread), bit for bit
     plain, _, _ = train_dataset(quick, seed=par.meta["restarts"]["kept_seed"], threads=1, **TINY)
     assert plain.model_id() == par.model_id()
+
+
+UNGUARDED_SCRIPT = """
+import dampnet
+from dampnet.rig import generate
+
+ds = generate("quick", seed=0)
+dampnet.train(ds, seed=0, holdout_voltage=2.25, restarts=2, workers=2, decimate=50, max_epochs=5)
+print("trained")
+"""
+
+
+def test_a_script_without_a_main_guard_gets_a_clear_error_not_a_hang(tmp_path):
+    """Parallel restarts start fresh Pythons that import the calling script; one that trains at its
+    top level makes them die starting up. That hung for ever (the parent blocked writing the
+    prepared samples to a worker that had died); now the run stops with an error saying what to do,
+    and leaves no handoff file behind."""
+    script = tmp_path / "unguarded.py"
+    script.write_text(UNGUARDED_SCRIPT)
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    env = {**os.environ, "TMPDIR": str(tmp)}
+    try:
+        run = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=240,
+                             env=env, cwd=tmp_path)
+    except subprocess.TimeoutExpired:
+        pytest.fail("a script without a main guard hangs dampnet.train's parallel restarts")
+    assert run.returncode != 0 and "trained" not in run.stdout
+    last = run.stderr.strip().splitlines()[-1]
+    assert last.startswith("RuntimeError: restarts: a worker process") and 'if __name__ == "__main__":' in last
+    assert not list(tmp.glob("dampnet-restarts-*"))
 
 
 def test_leave_one_level_out_score_records_levels_and_needs_an_interior_level(quick):

@@ -79,6 +79,7 @@ import os
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Callable
 
 import numpy as np
@@ -335,11 +336,17 @@ _PREP = None
 _FIT = None
 
 
-def _init_worker(prep, fit, extra_features) -> None:
+def _init_worker(handoff: str) -> None:
+    """Load what every job needs from the file _run wrote (`handoff`: the prepared samples, the fit
+    and the run-time features), once per worker process."""
+    import pickle
+
     import torch
 
     from dampnet.features import FEATURES, register_feature
 
+    with open(handoff, "rb") as f:
+        prep, fit, extra_features = pickle.load(f)
     torch.set_num_threads(1)
     for name, (unit, source, at_rest, param) in extra_features.items():
         if name not in FEATURES:
@@ -415,19 +422,50 @@ def _run(prep, fit, jobs: list[tuple], workers: int, done: Callable[[int, dict],
             _PREP, _FIT = old
         return results  # type: ignore[return-value]
     ctx = multiprocessing.get_context("spawn")  # no fork of a process with torch's threads running
-    with _importable_main(), ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker,
-                             initargs=(lean, fit, _extra_features(prep))) as ex:
+    with _handoff_file(lean, fit, _extra_features(prep)) as handoff, _importable_main(), \
+            ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker,
+                                initargs=(handoff,)) as ex:
         futures = {ex.submit(_job, *job): i for i, job in enumerate(jobs)}
         try:
             for fut in as_completed(futures):
                 i = futures[fut]
                 results[i] = fut.result()
                 done(i, results[i])
+        except BrokenProcessPool as e:
+            raise RuntimeError(WORKER_DIED) from e
         except BaseException:
             for fut in futures:
                 fut.cancel()
             raise
     return results  # type: ignore[return-value]
+
+
+#: why a restart worker process can die before its result, and what to do
+WORKER_DIED = (
+    "restarts: a worker process running the restarts in parallel died before returning its fit. If the "
+    "calling script trains at its top level, put that code under `if __name__ == \"__main__\":` "
+    "(each worker starts a fresh Python that imports the script, and a script that trains at import "
+    "starts workers of its own, which Python refuses); otherwise the process was killed (e.g. out of "
+    "memory). workers=1 runs the restarts in this process")
+
+
+@contextlib.contextmanager
+def _handoff_file(*payload):
+    """A private temporary file holding `payload` pickled, removed afterwards: what the workers load
+    as they start. Handing the prepared samples (megabytes) over the spawn pipe instead blocks the
+    parent until each worker has imported the main script, so the workers start one after another,
+    and for ever when one dies importing it (a script without a main guard)."""
+    import pickle
+    import tempfile
+
+    fd, path = tempfile.mkstemp(prefix="dampnet-restarts-", suffix=".pickle")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            pickle.dump(payload, f, protocol=pickle.HIGHEST_PROTOCOL)
+        yield path
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(path)
 
 
 # -- the run --------------------------------------------------------------------------------------
