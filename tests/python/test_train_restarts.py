@@ -8,10 +8,14 @@ errors. Heavy measurements (seeds 0-9, several plans): bench/experiments/restart
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import signal
 import subprocess
 import sys
+import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -214,6 +218,68 @@ def test_a_script_without_a_main_guard_gets_a_clear_error_not_a_hang(tmp_path):
     last = run.stderr.strip().splitlines()[-1]
     assert last.startswith("RuntimeError: restarts: a worker process") and 'if __name__ == "__main__":' in last
     assert not list(tmp.glob("dampnet-restarts-*"))
+
+
+LONG_PARALLEL_SCRIPT = """
+import dampnet
+from dampnet.rig import generate
+
+if __name__ == "__main__":
+    ds = generate("thesis", seed=0)
+    dampnet.train(ds, seed=0, holdout_voltage=2.25, restarts=2, workers=2, max_epochs=1000)
+"""
+
+
+def _state(pid: int) -> str | None:
+    """The process's state letter from /proc (Z: a zombie, finished), None when it is gone."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except (OSError, IndexError):
+        return None
+
+
+def _restart_workers(parent: int) -> list[int]:
+    """The running restart workers (spawned Pythons) of process `parent`."""
+    found = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+            cmd = (stat.parent / "cmdline").read_bytes()
+        except (OSError, IndexError):
+            continue
+        if int(fields[1]) == parent and fields[0] != "Z" and b"spawn_main" in cmd:
+            found.append(int(stat.parent.name))
+    return found
+
+
+def test_the_workers_stop_when_their_parent_is_killed(tmp_path):
+    """A parent killed outright (SIGKILL: the out-of-memory killer, a notebook kernel restarted) cannot
+    stop its pool; its restart workers used to fit on for minutes (here each had up to 1,000 epochs
+    of the thesis plan, over a minute) and now end within seconds."""
+    script = tmp_path / "long.py"
+    script.write_text(LONG_PARALLEL_SCRIPT)
+    parent = subprocess.Popen([sys.executable, str(script)], cwd=tmp_path, stdout=subprocess.DEVNULL,
+                              stderr=subprocess.PIPE)
+    workers: list[int] = []
+    try:
+        deadline = time.monotonic() + 180
+        while len(workers) < 2 and time.monotonic() < deadline and parent.poll() is None:
+            time.sleep(0.5)
+            workers = _restart_workers(parent.pid)
+        assert len(workers) == 2, f"the restart workers did not start: {parent.stderr.read().decode()[-2000:] if parent.poll() is not None else ''}"
+        time.sleep(8)  # past the workers' start-up, into their fits
+        assert all(_state(w) not in (None, "Z") for w in workers), "a worker ended before its parent was killed"
+        parent.kill()
+        parent.wait()
+        deadline = time.monotonic() + 30
+        while any(_state(w) not in (None, "Z") for w in workers) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert all(_state(w) in (None, "Z") for w in workers), "the workers outlived their killed parent by 30 s"
+    finally:
+        parent.kill()
+        for w in workers:
+            with contextlib.suppress(OSError):
+                os.kill(w, signal.SIGKILL)
 
 
 def test_leave_one_level_out_score_records_levels_and_needs_an_interior_level(quick):

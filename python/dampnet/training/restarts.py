@@ -345,6 +345,7 @@ def _init_worker(handoff: str) -> None:
 
     from dampnet.features import FEATURES, register_feature
 
+    _exit_with_parent()
     with open(handoff, "rb") as f:
         prep, fit, extra_features = pickle.load(f)
     torch.set_num_threads(1)
@@ -353,6 +354,25 @@ def _init_worker(handoff: str) -> None:
             register_feature(name, unit, source, at_rest, param)
     global _PREP, _FIT
     _PREP, _FIT = prep, fit
+
+
+def _exit_with_parent() -> None:
+    """End this worker as soon as the process that started it is gone. A parent killed outright
+    (SIGKILL, the out-of-memory killer, a notebook kernel restarted) cannot stop its pool, and the
+    workers would fit on for minutes for nobody. The parent's end of the pipe it started the worker
+    through closes only when it exits or drops the worker, so a thread waits for that."""
+    import threading
+    from multiprocessing.connection import wait
+
+    parent = multiprocessing.parent_process()
+    if parent is None or parent.sentinel is None:
+        return
+
+    def watch() -> None:
+        wait([parent.sentinel])
+        os._exit(1)
+
+    threading.Thread(target=watch, name="dampnet-restarts-parent-watch", daemon=True).start()
 
 
 def _job(kind: str, seed: int, level: float | None) -> dict[str, Any]:
