@@ -258,15 +258,16 @@ def test_the_workers_stop_when_their_parent_is_killed(tmp_path):
     of the thesis plan, over a minute) and now end within seconds."""
     script = tmp_path / "long.py"
     script.write_text(LONG_PARALLEL_SCRIPT)
-    parent = subprocess.Popen([sys.executable, str(script)], cwd=tmp_path, stdout=subprocess.DEVNULL,
-                              stderr=subprocess.PIPE)
+    log = tmp_path / "stderr.txt"  # a file, not a pipe nobody reads while the parent runs
+    with log.open("w") as err:
+        parent = subprocess.Popen([sys.executable, str(script)], cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=err)
     workers: list[int] = []
     try:
         deadline = time.monotonic() + 180
         while len(workers) < 2 and time.monotonic() < deadline and parent.poll() is None:
             time.sleep(0.5)
             workers = _restart_workers(parent.pid)
-        assert len(workers) == 2, f"the restart workers did not start: {parent.stderr.read().decode()[-2000:] if parent.poll() is not None else ''}"
+        assert len(workers) == 2, f"the restart workers did not start: {log.read_text()[-2000:]}"
         time.sleep(8)  # past the workers' start-up, into their fits
         assert all(_state(w) not in (None, "Z") for w in workers), "a worker ended before its parent was killed"
         parent.kill()

@@ -426,6 +426,15 @@ def _importable_main():
             main.__file__ = path
 
 
+#: why a restart worker process can die before its result, and what to do
+WORKER_DIED = (
+    "restarts: a worker process running the restarts in parallel died before returning its fit. If the "
+    "calling script trains at its top level, put that code under `if __name__ == \"__main__\":` "
+    "(each worker starts a fresh Python that imports the script, and a script that trains at import "
+    "starts workers of its own, which Python refuses); otherwise the process was killed (e.g. out of "
+    "memory). workers=1 runs the restarts in this process")
+
+
 def _run(prep, fit, jobs: list[tuple], workers: int, done: Callable[[int, dict], None]) -> list[dict]:
     """Run `jobs` (argument tuples of _job), in-process when workers == 1; results in job order."""
     results: list[dict | None] = [None] * len(jobs)
@@ -460,15 +469,6 @@ def _run(prep, fit, jobs: list[tuple], workers: int, done: Callable[[int, dict],
     # that imported torch takes ~1.5 s, which waiting for would add to every training's time)
     ex.shutdown(wait=False)
     return results  # type: ignore[return-value]
-
-
-#: why a restart worker process can die before its result, and what to do
-WORKER_DIED = (
-    "restarts: a worker process running the restarts in parallel died before returning its fit. If the "
-    "calling script trains at its top level, put that code under `if __name__ == \"__main__\":` "
-    "(each worker starts a fresh Python that imports the script, and a script that trains at import "
-    "starts workers of its own, which Python refuses); otherwise the process was killed (e.g. out of "
-    "memory). workers=1 runs the restarts in this process")
 
 
 @contextlib.contextmanager
