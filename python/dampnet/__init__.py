@@ -97,15 +97,22 @@ class _MovedModuleFinder:
 if not any(isinstance(f, _MovedModuleFinder) for f in __import__("sys").meta_path):
     __import__("sys").meta_path.insert(0, _MovedModuleFinder())
 
-try:
-    from importlib.metadata import version as _version
 
-    __version__ = _version("dampnet")
-except Exception:  # running from a source tree without installation
-    __version__ = "0.0.0+local"
+
+def _installed_version() -> str:
+    """The installed distribution's version (importlib.metadata costs ~50 ms: read on first use)."""
+    try:
+        from importlib.metadata import version
+
+        return version("dampnet")
+    except Exception:  # running from a source tree without installation
+        return "0.0.0+local"
 
 
 def __getattr__(name: str) -> Any:
+    if name == "__version__":
+        globals()[name] = value = _installed_version()
+        return value
     try:
         module, attr = _API[name]
     except KeyError:
@@ -117,4 +124,4 @@ def __getattr__(name: str) -> Any:
 
 
 def __dir__() -> list[str]:
-    return sorted({*globals(), *_API})
+    return sorted({*globals(), *_API, "__version__"})

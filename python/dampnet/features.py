@@ -59,7 +59,6 @@ from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
 import numpy as np
-from scipy.signal import lfilter
 
 from dampnet import _core
 from dampnet.data import DataError, Dataset, DynoTest
@@ -76,6 +75,8 @@ def first_order_lag(x, dt: float, tau: float) -> np.ndarray:
     if tau <= 0 or x.size == 0:
         return x.copy()
     a = float(np.exp(-dt / tau))
+    from scipy.signal import lfilter  # here, not at import: `dampnet --help` stays free of scipy
+
     y, _ = lfilter([1.0 - a], [1.0, -a], x, axis=-1, zi=a * x[..., :1])
     return y
 

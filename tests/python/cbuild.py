@@ -1,8 +1,14 @@
 """Helpers for tests that build and run C/C++ code: CMake builds of the standalone
-project (cached under build/tests-*), and one-off compiles of small programs."""
+project (cached under build/tests-*), and one-off compiles of small programs.
+
+The suite runs in several processes (pytest-xdist): a build folder that more than one test file
+uses is built under `build_lock`, so that one process builds it and the others wait and then find it
+up to date (CMake's second build of an unchanged tree is a no-op)."""
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import os
 import shutil
 import subprocess
@@ -22,16 +28,31 @@ def run(cmd: list[str], cwd: Path | None = None, timeout: float = 900) -> subpro
     return proc
 
 
+@contextlib.contextmanager
+def build_lock(folder: Path):
+    """Hold an exclusive lock on FOLDER (a file beside it) while building into it: the processes
+    of a parallel test run build a shared folder one at a time. Released when the holder exits,
+    whatever way it ends (flock)."""
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    with open(folder.parent / f".{folder.name}.lock", "w") as f:
+        fcntl.flock(f, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(f, fcntl.LOCK_UN)
+
+
 def cmake_build(name: str, *defines: str, install: bool = False, target: str | None = None) -> Path:
     """Configure and build the standalone project (or one target) into build/tests-NAME."""
     bdir = BUILD / f"tests-{name}"
     gen = ["-G", "Ninja"] if shutil.which("ninja") else []
-    run(["cmake", "-S", ROOT, "-B", bdir, *gen, f"-DCMAKE_INSTALL_PREFIX={bdir / 'prefix'}",
-         *[f"-D{d}" for d in defines]])
-    run(["cmake", "--build", bdir, "--parallel", str(os.cpu_count() or 2),
-         *(["--target", target] if target else [])])
-    if install:
-        run(["cmake", "--install", bdir])
+    with build_lock(bdir):
+        run(["cmake", "-S", ROOT, "-B", bdir, *gen, f"-DCMAKE_INSTALL_PREFIX={bdir / 'prefix'}",
+             *[f"-D{d}" for d in defines]])
+        run(["cmake", "--build", bdir, "--parallel", str(os.cpu_count() or 2),
+             *(["--target", target] if target else [])])
+        if install:
+            run(["cmake", "--install", bdir])
     return bdir
 
 

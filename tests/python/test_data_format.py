@@ -76,3 +76,30 @@ def test_current_controlled_and_non_sine_tests_round_trip(tmp_path):
     assert back.control_name == "current" and back.frequency_hz is None
     np.testing.assert_allclose(back.channels["strain_gauge"], test.channels["strain_gauge"], rtol=1e-9)
     np.testing.assert_allclose(back.channels["force"], test.channels["force"], atol=5e-4)
+
+
+@pytest.mark.parametrize("sep", [",", ";", "\t", " "])
+def test_plain_and_general_table_paths_read_the_same(tmp_path, sep):
+    """read_table reads a plain file (no comment, no blank line) in one pass and anything else line
+    by line; both give the same names, values and file line numbers, and a bad cell is still named
+    by its line (the one-pass path hands it to the general one). Milliseconds."""
+    from dampnet.data.table import _plain_table, read_table
+
+    rows = [[0.0, 1.5, -2.25e-3], [0.001, 1.25, 7.0], [0.002, -3.0, 1e5]]
+    body = "\n".join(sep.join(repr(v) for v in r) for r in rows)
+    plain = tmp_path / "plain.csv"
+    plain.write_text(sep.join(["time_s", "force_n", "velocity_m_s"]) + "\n" + body + "\n")
+    general = tmp_path / "general.csv"
+    general.write_text("# a comment\n" + sep.join(["time_s", "force_n", "velocity_m_s"]) + "\n\n" + body + "\n")
+    assert _plain_table(plain.read_text(), 0, True) is not None
+    assert _plain_table(general.read_text(), 0, True) is None
+    n1, d1, l1 = read_table(plain)
+    n2, d2, l2 = read_table(general)
+    assert n1 == n2 == ["time_s", "force_n", "velocity_m_s"]
+    np.testing.assert_array_equal(d1, np.array(rows))
+    np.testing.assert_array_equal(d2, np.array(rows))
+    assert list(l1) == [2, 3, 4] and list(l2) == [4, 5, 6]
+    bad = tmp_path / "bad.csv"
+    bad.write_text(plain.read_text().replace("1.25", "x1.25"))
+    with pytest.raises(DataError, match=r"bad.csv: line 3, column 'force_n': expected a number"):
+        read_table(bad)

@@ -54,6 +54,33 @@ def test_import_dampnet_is_light():
     assert out.strip() == "[]"
 
 
+HEAVY = ("torch", "scipy", "matplotlib", "pandas", "dask", "onnx", "onnxruntime", "fmpy")
+
+
+def test_help_imports_no_heavy_module():
+    """`dampnet --help` and every `dampnet COMMAND --help` build their parsers without torch, scipy,
+    matplotlib or the sweep's and export's libraries (issue 51: torch and scipy made `--help` take
+    5 s of CPU); a command imports what it needs when it runs. One subprocess, ~1 s."""
+    code = ("import contextlib, io, sys\n"
+            "from dampnet.cli import COMMANDS, main\n"
+            "for argv in [['--help']] + [[c.replace('_', '-'), '--help'] for c in COMMANDS]:\n"
+            "    with contextlib.redirect_stdout(io.StringIO()), contextlib.suppress(SystemExit):\n"
+            "        main(argv)\n"
+            f"print(sorted(m for m in {HEAVY!r} if m in sys.modules))")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "[]", proc.stdout
+
+
+def test_the_parser_offers_every_training_algorithm():
+    """--algorithm's choices come from the algorithms' names in words (no torch to import at parse
+    time); they are the algorithms fit() has."""
+    from dampnet.training import ALGORITHMS
+    from dampnet.training.settings import ALGORITHM_NAMES
+
+    assert set(ALGORITHM_NAMES) == set(ALGORITHMS)
+
+
 def test_the_api_snippet_runs(tmp_path):
     """The package docstring's snippet, on the quick plan."""
     model = dampnet.load_model(dampnet.modeldir.default_model_path())

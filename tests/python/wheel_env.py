@@ -19,7 +19,7 @@ import sysconfig
 from dataclasses import dataclass
 from pathlib import Path
 
-from cbuild import ROOT, run
+from cbuild import BUILD, ROOT, build_lock, run
 
 
 @dataclass(frozen=True)
@@ -54,8 +54,10 @@ def wheel_env(tmp_path_factory) -> WheelEnv:
 def _build(root: Path) -> WheelEnv:
     # No build isolation: the project's build tools, and its CMake build directory
     # (build/{wheel_tag}, shared with the editable install), so the C++ is not recompiled.
-    run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "--no-index",
-         "-q", "-w", root / "dist", ROOT], timeout=1800)
+    # locked: the processes of a parallel run share build/{wheel_tag}
+    with build_lock(BUILD / "wheel"):
+        run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "--no-index",
+             "-q", "-w", root / "dist", ROOT], timeout=1800)
     wheels = sorted((root / "dist").glob("dampnet-*.whl"))
     assert len(wheels) == 1, wheels
     venv = root / "venv"

@@ -24,7 +24,6 @@ def field_help(name: str, spelling: str = "") -> str:
 def add_training_options(p: argparse.ArgumentParser, algorithm: bool = True) -> None:
     """Options shared by `train` and `compare-algorithms`."""
     from dampnet.effects import CATALOGUE
-    from dampnet.training import ALGORITHMS
 
     addable = ", ".join(k for k, e in CATALOGUE.items() if e.adds is not None)
     p.add_argument("--features", default=None,
@@ -42,7 +41,7 @@ def add_training_options(p: argparse.ArgumentParser, algorithm: bool = True) -> 
         from dampnet.recipes.training import AUTO
         from dampnet.training.settings import ALGORITHM_NAMES
 
-        p.add_argument("--algorithm", default=AUTO, choices=[AUTO, *sorted(ALGORITHMS)],
+        p.add_argument("--algorithm", default=AUTO, choices=[AUTO, *sorted(ALGORITHM_NAMES)],
                        help=field_help("algorithm", "auto (the default; bench/RESULTS.md 'Few dyno tests'), "
                                        + ", ".join(f"{k} {v}" for k, v in ALGORITHM_NAMES.items())))
     p.add_argument("--hidden", default="30", help=field_help("hidden", "e.g. 30 or 20,10 (default 30)"))

@@ -38,6 +38,9 @@ def read_table(path: Path, skip_lines: int = 0, has_header: bool = True
     """
     path = Path(path)
     text = read_text(path, DataError, "a text file: expected CSV or whitespace-separated text")
+    fast = _plain_table(text, skip_lines, has_header)
+    if fast is not None:
+        return fast
     numbered = [(i, line) for i, line in enumerate(text.splitlines()[skip_lines:], start=skip_lines + 1)
                 if line.strip() and not line.lstrip().startswith("#")]
     if not numbered:
@@ -79,6 +82,42 @@ def read_table(path: Path, skip_lines: int = 0, has_header: bool = True
                 raise DataError(f"{path}: line {lineno}, column {show(col)}: expected a number, "
                                 f"got {show(c)}") from None
     raise DataError(f"{path}: could not be read as a numeric table")  # pragma: no cover
+
+
+_BLANK_LINE = re.compile(r"^[ \t\f\v]*\r?$", re.M)
+
+
+def _plain_table(text: str, skip_lines: int, has_header: bool
+                 ) -> tuple[list[str], np.ndarray, np.ndarray] | None:
+    """read_table's result for the common file (no comment, no blank line, '\n' line ends, no
+    lines skipped, well formed) read in one pass; None for anything else, which read_table's
+    general path reads and explains. Why: the thesis plan's 180 files (2.4 million lines) took
+    3 s in the line-by-line bookkeeping alone (issue 51)."""
+    if skip_lines or "#" in text or "\r" in text:
+        return None
+    body = text.rstrip("\n")
+    if not body or _BLANK_LINE.search(body):
+        return None
+    head, sep, rows = body.partition("\n")
+    if has_header and not sep:
+        return None
+    delimiter = sniff_delimiter(head)
+    names = split_header(head, delimiter) if has_header else []
+    if has_header and any(not n for n in names):
+        return None
+    table = rows if has_header else body
+    n = table.count("\n") + 1
+    ncol = len(names) if names else len(split_header(table.partition("\n")[0], delimiter))
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            data = np.loadtxt(io.StringIO(table), delimiter=delimiter, ndmin=2, dtype=np.float64, comments=None)
+    except (ValueError, UserWarning):
+        return None
+    if data.shape != (n, ncol):
+        return None
+    first = 2 if has_header else 1
+    return (names or [f"col{k}" for k in range(ncol)]), data, np.arange(first, first + n, dtype=np.int64)
 
 
 _SAFE = re.compile(r"^[A-Za-z0-9_.\-]+$")

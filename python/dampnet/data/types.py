@@ -88,8 +88,14 @@ class DynoTest:
 
     @property
     def dt(self) -> float:
-        """Median sample interval [s]."""
-        return float(np.median(np.diff(self.time)))
+        """Median sample interval [s] (kept with the `time` array it was computed from: the
+        diagnosis asks it thousands of times, and a median of every interval each time cost
+        3 s on the thesis plan)."""
+        cached = self.__dict__.get("_dt_of")
+        if cached is None or cached[0] is not self.time:
+            cached = (self.time, float(np.median(np.diff(self.time))))
+            self.__dict__["_dt_of"] = cached
+        return cached[1]
 
     def copy(self, **changes) -> "DynoTest":
         """A copy with its own arrays (and `changes` applied)."""

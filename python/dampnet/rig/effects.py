@@ -30,7 +30,6 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from scipy.signal import lfilter
 
 from dampnet.effects import CATALOGUE
 from dampnet.features import first_order_lag
@@ -171,6 +170,8 @@ class Thermal(Effect):
         a = np.exp(-self.loss_w_k * dt / self.heat_capacity_j_k)
         target = self.ambient_c + np.asarray(power_w) / self.loss_w_k
         zi = a * np.asarray(t0_c, dtype=np.float64)[..., None]
+        from scipy.signal import lfilter  # here, not at import: `dampnet --help` stays free of scipy
+
         y, _ = lfilter([1.0 - a], [1.0, -a], target, axis=-1, zi=zi)
         return y
 

@@ -33,8 +33,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg import expm
-from scipy.signal import lfilter
 
 from dampnet.sim.roads.profiles import Road, RoadError
 
@@ -69,6 +67,8 @@ def golden_car_response(freq_hz, gc: dict = GOLDEN_CAR) -> np.ndarray:
 def discretise(dx: float, speed: float = IRI_SPEED_M_S, gc: dict = GOLDEN_CAR):
     """(ST, PR) for a profile step dx [m] at `speed` [m/s] (zero-order hold on the input)."""
     a, b = golden_car_matrices(gc)
+    from scipy.linalg import expm  # here, not at import: `dampnet --help` stays free of scipy
+
     dt = dx / speed
     st = expm(a * dt)
     pr = np.linalg.solve(a, (st - np.eye(4)) @ b)
@@ -124,6 +124,8 @@ def iri_steps(elevation, dx: float, gc: dict = GOLDEN_CAR, speed: float = IRI_SP
     x0 = (y[n_init] - y[0]) / (n_init * dx)
     # The recursion x_{i+1} = ST x_i + PR s_i in ST's modal coordinates (distinct eigenvalues):
     # one first-order complex recursion per mode, run by lfilter.
+    from scipy.signal import lfilter
+
     lam, vec = np.linalg.eig(st)
     g = np.linalg.solve(vec, pr.astype(np.complex128))
     q0 = np.linalg.solve(vec, np.array([x0, 0.0, x0, 0.0], dtype=np.complex128))
