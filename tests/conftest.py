@@ -10,3 +10,6 @@ in the environment wins.
 import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+# every test held to a time budget unless marked slow with a reason (tests/time_budget.py)
+from time_budget import pytest_addoption, pytest_collection_modifyitems, pytest_configure  # noqa: E402,F401

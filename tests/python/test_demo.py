@@ -32,6 +32,7 @@ def demo_out(wheel, tmp_path_factory):
     return cwd / "run", proc.stdout
 
 
+@pytest.mark.slow(reason="its setup runs `dampnet demo --quick` from the installed wheel, every stage of the story (about 150 s), shared by this module's tests")
 def test_demo_tells_the_whole_story(demo_out):
     out, stdout = demo_out
     summary = json.loads((out / "summary.json").read_text())

@@ -259,6 +259,7 @@ def test_each_algorithm_beats_a_constant_by_far(algorithm):
     assert info.metrics["test"] < 0.2 * const, (algorithm, info.metrics, const)
 
 
+@pytest.mark.slow(reason="the thesis plan's accuracy (the one check of a full-size training against the thesis and the noise floor): LM on 180 tests, about 150 s")
 def test_thesis_plan_lm_beats_the_thesis_and_approaches_the_noise_floor(record_property):
     """Default rig data (thesis plan, no effects), 2.25 V held out: LM's hold-out NRMSE must be
     at least as good as the thesis's 0.0339. The goal is the noise floor in the same

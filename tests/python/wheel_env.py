@@ -13,6 +13,7 @@ test_wheel_install.py checks this resolution before trusting any command run her
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 import sysconfig
@@ -45,9 +46,21 @@ _CACHE: dict[str, WheelEnv] = {}
 
 
 def wheel_env(tmp_path_factory) -> WheelEnv:
-    """The session's wheel install (built on first use; shared by every test module)."""
+    """The session's wheel install (built on first use; shared by every test module, and by the
+    processes of a parallel run: the first builds it in their common temporary folder under a lock,
+    the others wait for it and use it)."""
     if "env" not in _CACHE:
-        _CACHE["env"] = _build(tmp_path_factory.mktemp("wheel"))
+        if os.environ.get("PYTEST_XDIST_WORKER"):
+            root = tmp_path_factory.getbasetemp().parent / "wheel-shared"
+            with build_lock(root):
+                if not (root / "done").is_file():
+                    shutil.rmtree(root, ignore_errors=True)
+                    _CACHE["env"] = _build(root)
+                    (root / "done").write_text("built\n")
+                else:
+                    _CACHE["env"] = _built(root)
+        else:
+            _CACHE["env"] = _build(tmp_path_factory.mktemp("wheel"))
     return _CACHE["env"]
 
 
@@ -69,6 +82,16 @@ def _build(root: Path) -> WheelEnv:
                 .stdout.strip())
     borrowed = sorted({sysconfig.get_paths()["purelib"], sysconfig.get_paths()["platlib"]})
     (site / "_dampnet_test_borrowed_deps.pth").write_text("\n".join(borrowed) + "\n")
+    return _built(root)
+
+
+def _built(root: Path) -> WheelEnv:
+    """The WheelEnv of a wheel already built and installed under `root` by `_build`."""
+    wheels = sorted((root / "dist").glob("dampnet-*.whl"))
+    venv = root / "venv"
+    python = venv / "bin" / "python"
+    site = Path(run([python, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"])
+                .stdout.strip())
     env = {k: v for k, v in os.environ.items()
            if k not in ("PYTHONPATH", "PYTHONHOME", "PYTHONSTARTUP", "VIRTUAL_ENV")}
     env.update(VIRTUAL_ENV=str(venv), PATH=f"{venv / 'bin'}{os.pathsep}{env.get('PATH', '')}",
