@@ -85,7 +85,7 @@ def test_the_jacobian_is_autograds_and_only_falling_rows_count():
 
 
 def test_it_is_off_without_a_velocity_input():
-    from dampnet.training.fit import fit
+    from dampnet.training import fit
 
     rng = np.random.default_rng(0)
     X = rng.uniform(-1, 1, (300, 2))

@@ -259,13 +259,14 @@ def test_each_algorithm_beats_a_constant_by_far(algorithm):
     assert info.metrics["test"] < 0.2 * const, (algorithm, info.metrics, const)
 
 
-@pytest.mark.slow(reason="the thesis plan's accuracy (the one check of a full-size training against the thesis and the noise floor): LM on 180 tests, about 150 s")
 def test_thesis_plan_lm_beats_the_thesis_and_approaches_the_noise_floor(record_property):
     """Default rig data (thesis plan, no effects), 2.25 V held out: LM's hold-out NRMSE must be
-    at least as good as the thesis's 0.0339. The goal is the noise floor in the same
-    (range) definition; both figures are recorded in the test report."""
+    at least as good as the thesis's 0.0339 and within 5x the noise floor (the same range
+    definition) after 120 epochs; both figures are recorded in the test report. Measured (seed 0,
+    every 25th sample): 0.00487 at 120 epochs (3.8x the floor of 0.00127, 22 s), 0.00376 at the
+    default's 788 (140 s: the full-length training is the demo's and bench/'s, not the suite's)."""
     ds = generate("thesis", seed=0)
-    model, info, split = train_dataset(ds, algorithm="lm", decimate=25, seed=0)
+    model, info, split = train_dataset(ds, algorithm="lm", decimate=25, seed=0, max_epochs=120)
     preds = np.concatenate([predict_force(model, t) for t in split.holdout.tests])
     ho = nrmse(preds, split.holdout.concat("force"))
     floor = noise_floors(split.holdout)["nrmse_range"]
@@ -273,7 +274,7 @@ def test_thesis_plan_lm_beats_the_thesis_and_approaches_the_noise_floor(record_p
     record_property("noise_floor_nrmse_range", floor)
     print(f"thesis plan: LM hold-out NRMSE {ho:.5f}, noise floor {floor:.5f}, time {info.time_s:.1f} s")
     assert ho <= 0.0339
-    assert floor < ho < 10 * floor
+    assert floor < ho < 5 * floor
 
 
 def test_model_improved_for_friction_and_compressibility_runs_in_the_runtime_loop(tmp_path):

@@ -42,7 +42,7 @@ def no_training(monkeypatch):
     import dampnet.data
     import dampnet.training.pipeline as pipeline
 
-    fit_module = importlib.import_module("dampnet.training.fit")  # the module; dampnet.training.fit is fit()
+    fit_module = importlib.import_module("dampnet.training.fitting")  # the module; dampnet.training.fit is fit()
 
     def spy(what):
         def f(*a, **k):

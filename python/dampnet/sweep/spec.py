@@ -284,7 +284,7 @@ def _control_laws() -> tuple[str, ...]:
 def _algorithms() -> tuple[str, ...]:
     """The training algorithms, and 'auto' (dampnet train's default: br or lm by the rows)."""
     from dampnet.recipes.training import AUTO
-    from dampnet.training.fit import ALGORITHMS
+    from dampnet.training.fitting import ALGORITHMS
 
     return (AUTO, *ALGORITHMS)
 

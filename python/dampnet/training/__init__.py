@@ -7,7 +7,8 @@ features are built by dampnet.features.feature_matrix; the dataset-to-model pipe
 
 The names below are imported when first used (PEP 562), not with the package: the command line's
 parser reads the training settings (dampnet.training.settings, restarts' score names) without
-importing torch, so that `dampnet --help` answers at once.
+importing torch, so that `dampnet --help` answers at once. fit() lives in the module `fitting`:
+a submodule named `fit` would take the function's place on the package once imported.
 """
 
 from __future__ import annotations
@@ -17,7 +18,8 @@ from typing import Any
 
 __all__ = ["ALGORITHMS", "TrainInfo", "fit", "nrmse", "torch_forward"]
 
-_HOMES = {"ALGORITHMS": "dampnet.training.fit", "TrainInfo": "dampnet.training.fit", "fit": "dampnet.training.fit",
+_HOMES = {"ALGORITHMS": "dampnet.training.fitting", "TrainInfo": "dampnet.training.fitting",
+          "fit": "dampnet.training.fitting",
           "nrmse": "dampnet.training.metrics", "torch_forward": "dampnet.training.torch_reference"}
 
 

@@ -60,7 +60,7 @@ from dampnet.model import MlpModel, ModelError
 from dampnet.predict import predict_force
 from dampnet.rig import noise_floor_nrmse, noise_floor_rmse_n
 from dampnet.terms import fit_terms, terms_force
-from dampnet.training.fit import fit
+from dampnet.training.fitting import fit
 from dampnet.training.metrics import nrmse
 from dampnet.training.restarts import DEFAULT_SCORE
 from dampnet.training.settings import OPTIONS as TRAINING_OPTIONS, check_request, train_settings
