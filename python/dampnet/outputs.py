@@ -29,6 +29,7 @@ import os
 import re
 import shutil
 import socket
+import stat
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
@@ -129,11 +130,40 @@ def check_output_dir(out: str | os.PathLike, kind: str, inputs: Iterable[str | o
     return out
 
 
+def check_replaceable_file(path: str | os.PathLike) -> None:
+    """OutputError unless what is at `path` (if anything) is a file an output may replace: a regular
+    file, not a symlink, a device, a FIFO or a socket (replacing `/dev/null` by a file, as root,
+    breaks the machine; writing through a link writes where the link points), and not a file of a
+    dataset folder (one holding manifest.csv: its tests and manifest are inputs, issue 49)."""
+    p = Path(path)
+    try:
+        st = os.lstat(p)
+    except FileNotFoundError:
+        return
+    except OSError as e:
+        raise OutputError(f"{path}: cannot be inspected ({e.strerror}): refusing to write it") from None
+    if stat.S_ISLNK(st.st_mode):
+        raise OutputError(f"{path}: is a symbolic link: refusing to replace it or write through it "
+                          "(name the file itself)")
+    if stat.S_ISDIR(st.st_mode):
+        raise OutputError(f"{path}: is a directory: expected a file name")
+    if not stat.S_ISREG(st.st_mode):
+        kind = ("a character device" if stat.S_ISCHR(st.st_mode) else "a block device" if stat.S_ISBLK(st.st_mode)
+                else "a FIFO" if stat.S_ISFIFO(st.st_mode) else "a socket" if stat.S_ISSOCK(st.st_mode)
+                else "not a regular file")
+        raise OutputError(f"{path}: is {kind}: refusing to replace it even with --force (name a regular file)")
+    if (p.parent / "manifest.csv").is_file():
+        raise OutputError(f"{path}: is a file of the dataset folder {p.parent} (it holds manifest.csv): refusing "
+                          "to replace it even with --force (write outputs outside datasets)")
+
+
 def check_output_file(path: str | os.PathLike, inputs: Iterable[str | os.PathLike] = ()) -> Path:
     """`path` as a Path unless writing it would overwrite an input of the command (OutputError).
 
-    Refused: the input itself, or an existing file inside an input directory (e.g.
-    `--json MODEL/model.json`), or a directory.
+    Refused: the input itself, an existing file inside an input directory (e.g.
+    `--json MODEL/model.json`) or beside an input model.json or manifest.csv (the folder is the
+    input), a directory, and anything `check_replaceable_file` refuses (links, devices, FIFOs,
+    sockets, files of a dataset folder).
     """
     p = Path(path)
     real = p.resolve()
@@ -141,11 +171,11 @@ def check_output_file(path: str | os.PathLike, inputs: Iterable[str | os.PathLik
         if inp is None:
             continue
         ip = Path(inp).resolve()
-        if real == ip or (ip.is_dir() and real.is_relative_to(ip) and os.path.lexists(p)):
+        folder = ip if ip.is_dir() else ip.parent if ip.name in ("model.json", "manifest.csv") else None
+        if real == ip or (folder is not None and real.is_relative_to(folder) and os.path.lexists(p)):
             raise OutputError(f"{path}: is an input of this command ({inp}) or a file of one: refusing "
                               "to overwrite it")
-    if p.is_dir():
-        raise OutputError(f"{path}: is a directory: expected a file name")
+    check_replaceable_file(p)
     return p
 
 
@@ -194,11 +224,12 @@ def check_run_dir(out: str | os.PathLike, files: Iterable[str], marker: str, sch
     """For commands that write named `files` into a directory that may hold other things
     (simulate, study): OutputError unless that is allowed.
 
-    `out` must not be an input directory, nor a model directory given as its
-    model.json, and no file of the run may be an input file; a file of this run that
-    exists needs `force`, and `force` replaces only a previous run of the same
-    command, recognised by `marker` (a JSON file of `files`) whose "schema" starts
-    with `schema`.
+    `out` must not be an input directory, nor inside one, nor the folder holding an input file
+    (a model's model.json, a road's CSV), nor a dataset or model folder of any run (it holds
+    manifest.csv or model.json: issue 49 found `simulate --out DATA --force` writing into a
+    dataset); a file of this run that exists needs `force`, and `force` replaces only a
+    previous run of the same command, recognised by `marker` (a JSON file of `files`) whose
+    "schema" starts with `schema`.
     """
     out = Path(out)
     real = out.resolve()
@@ -207,10 +238,14 @@ def check_run_dir(out: str | os.PathLike, files: Iterable[str], marker: str, sch
         if inp is None:
             continue
         ip = Path(inp).resolve()
-        model_dir = ip.is_file() and ip.name == "model.json" and real == ip.parent
-        if real == ip or model_dir or any((real / f) == ip for f in files):
-            raise OutputError(f"{out}: holds an input of this command ({inp}): refusing to write this "
+        holds = real == ip or (ip.is_file() and real == ip.parent) or (ip.is_dir() and real.is_relative_to(ip))
+        if holds or any((real / f) == ip for f in files):
+            raise OutputError(f"{out}: is or holds an input of this command ({inp}): refusing to write this "
                               "run's files there (name another --out)")
+    for marker_file, what in (("manifest.csv", "a dataset"), ("model.json", "a model")):
+        if (out / marker_file).is_file():
+            raise OutputError(f"{out}: is {what} folder (it holds {marker_file}): refusing to write this run's "
+                              "files there even with --force (name another --out)")
     existing = [out / f for f in files if os.path.lexists(out / f)]
     if not existing:
         return out
@@ -391,8 +426,9 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes | Callable[[Any], No
     Refuses (FileExistsError) to replace an existing file unless overwrite.
     """
     p = Path(path)
-    if p.exists() and not overwrite:
+    if os.path.lexists(p) and not overwrite:
         raise FileExistsError(f"{p}: exists; refusing to overwrite (use --force)")
+    check_replaceable_file(p)  # the last line of defence: the commands check before their work
     p.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
     try:

@@ -286,8 +286,21 @@ def _write_header(job: Job) -> str:
 
 
 def _check_mcu(args) -> None:
+    """Before any output is written (issue 49: `--header DIR/model.h --out DIR` wrote the header,
+    then refused DIR): the folder may be written, and no file output lies inside it."""
+    from pathlib import Path
+
+    from dampnet.outputs import OutputError, check_output_dir
+
     if not args.target:
         raise ValueError("--out is the microcontroller folder: give --target cortex-m4|cortex-m7 with it")
+    check_output_dir(args.out, "export-target", [args.model], force=args.force)
+    folder = Path(args.out).resolve()
+    for flag in sorted({t.output for t in TARGETS.values() if t.file_output}):
+        value = getattr(args, OPTIONS[flag].dest, None)
+        if value and Path(value).resolve().is_relative_to(folder):
+            raise OutputError(f"{flag} {value}: is inside the --out folder {args.out}, which the export writes "
+                              "whole: name a file outside it")
 
 
 def _write_mcu(job: Job) -> str:
