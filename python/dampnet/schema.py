@@ -15,6 +15,8 @@ from __future__ import annotations
 import json
 import math
 import numbers
+import os
+import stat
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +26,8 @@ import numpy as np
 MAX_ECHO = 200
 #: nesting depth allowed in a JSON file (model.json's deepest field, w1, has depth 3)
 MAX_JSON_DEPTH = 32
+#: the largest text file read (a dyno test's CSV of hours at kHz is under it; /dev/zero is not a file)
+MAX_TEXT_BYTES = 1 << 30
 
 
 def show(value: Any, limit: int = MAX_ECHO) -> str:
@@ -40,16 +44,36 @@ def show(value: Any, limit: int = MAX_ECHO) -> str:
     return text if len(text) <= limit else text[:limit] + "..."
 
 
-def read_text(path: Path, error: type[Exception], what: str = "UTF-8 text") -> str:
-    """The text of `path` (UTF-8, a leading BOM dropped); `error` naming the file otherwise."""
+def read_text(path: Path, error: type[Exception], what: str = "UTF-8 text", max_bytes: int = MAX_TEXT_BYTES) -> str:
+    """The text of `path` (UTF-8, a leading BOM dropped); `error` naming the file otherwise.
+
+    Only a regular file of at most `max_bytes` is read (issue 49: a channel map given as
+    /dev/zero read until memory ran out, a FIFO blocked for ever): the file is opened without
+    blocking and looked at before a byte is read."""
+    fd = None
     try:
-        data = Path(path).read_bytes()
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+        st = os.fstat(fd)
+        if stat.S_ISDIR(st.st_mode):
+            raise error(f"{path}: is a directory: expected a file")
+        if not stat.S_ISREG(st.st_mode):
+            raise error(f"{path}: is not a regular file (a device, FIFO or socket): expected a file")
+        if st.st_size > max_bytes:
+            raise error(f"{path}: {st.st_size:,} bytes, over the {max_bytes:,} this reader takes: expected {what}")
+        with os.fdopen(fd, "rb") as f:
+            fd = None
+            data = f.read(max_bytes + 1)
+        if len(data) > max_bytes:  # grew while being read
+            raise error(f"{path}: over the {max_bytes:,} bytes this reader takes: expected {what}")
     except FileNotFoundError:
         raise error(f"{path}: file not found") from None
     except IsADirectoryError:
         raise error(f"{path}: is a directory: expected a file") from None
     except OSError as e:
         raise error(f"{path}: cannot be read ({e.strerror})") from None
+    finally:
+        if fd is not None:
+            os.close(fd)
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as e:

@@ -158,3 +158,34 @@ def test_export_checks_its_folder_and_files_before_writing_any(tmp_path, capsys,
                      "--force"]) == 2
         assert "not a dampnet export-target directory" in capsys.readouterr().err
         assert not other.exists() and _listing(out) == before
+
+
+def test_text_inputs_are_regular_files_of_bounded_size(tmp_path):
+    """Issue 49, item 6: a channel map given as /dev/zero read until memory ran out and a FIFO
+    blocked for ever. Every text input (channel maps, dataset CSVs, JSON) goes through
+    schema.read_text, which looks before it reads: run in a subprocess held to 1 GiB of memory and
+    20 s, so that the old behaviour fails instead of taking the machine."""
+    import subprocess
+    import sys
+
+    fifo = tmp_path / "fifo.toml"
+    os.mkfifo(fifo)
+    big = tmp_path / "big.toml"
+    big.write_bytes(b"#" * ((1 << 20) + 1))
+    code = f"""
+import resource
+resource.setrlimit(resource.RLIMIT_AS, (1 << 30, 1 << 30))
+from dampnet.data import DataError
+from dampnet.data.lab.channelmap import load_channel_map
+for path in ("/dev/zero", {str(fifo)!r}, {str(big)!r}):
+    try:
+        load_channel_map(path)
+    except DataError as e:
+        print(e)
+"""
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    lines = proc.stdout.strip().splitlines()
+    assert proc.returncode == 0 and len(lines) == 3, (proc.stdout, proc.stderr[-2000:])
+    assert "/dev/zero: is not a regular file" in lines[0]
+    assert "fifo.toml: is not a regular file" in lines[1]
+    assert "big.toml: 1,048,577 bytes, over the 1,048,576" in lines[2]

@@ -42,6 +42,8 @@ MAP_FILE = "dampnet-channels.toml"
 #: dampnet channels a map may name
 MAP_CHANNELS = ("time", "displacement", "velocity", "force", "voltage", "current", "temperature")
 TABLES = ("channels", "units", "convention", "control")
+#: a channel map is a few lines: a larger file is not one
+MAX_CHANNEL_MAP_BYTES = 1 << 20
 
 
 @dataclass
@@ -107,7 +109,7 @@ def _strings(table: Any, where: str, keys: tuple[str, ...]) -> dict[str, str]:
 def load_channel_map(path: str | os.PathLike) -> ChannelMap:
     """The channel map of a TOML file; DataError naming the file (and line) otherwise."""
     path = Path(path)
-    text = read_text(path, DataError, "a UTF-8 TOML channel map")
+    text = read_text(path, DataError, "a UTF-8 TOML channel map", max_bytes=MAX_CHANNEL_MAP_BYTES)
     d = parse_toml(text, str(path), DataError, "a valid TOML channel map")
     return ChannelMap.from_dict(d, str(path))
 
