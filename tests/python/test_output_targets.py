@@ -189,3 +189,22 @@ for path in ("/dev/zero", {str(fifo)!r}, {str(big)!r}):
     assert "/dev/zero: is not a regular file" in lines[0]
     assert "fifo.toml: is not a regular file" in lines[1]
     assert "big.toml: 1,048,577 bytes, over the 1,048,576" in lines[2]
+
+
+def test_a_lab_folder_refuses_links_that_leave_it(tmp_path, capsys):
+    """Issue 49, item 15: `ln -s /etc/shadow DIR/x.mf4; dampnet evaluate M DIR` printed the target's
+    first bytes. A link leaving the folder is refused unopened; one inside it is read as its file."""
+    secret = tmp_path / "secret.txt"
+    secret.write_text("root:*:20000:0:99999:7:::\n")
+    lab = tmp_path / "lab"
+    lab.mkdir()
+    (lab / "x.mf4").symlink_to(secret)
+    assert main(["evaluate", MODEL, str(lab)]) == 2
+    err = capsys.readouterr().err
+    assert "symbolic link leaving the folder" in err and "root" not in err.replace(str(tmp_path), ""), err
+    from dampnet.data.lab.assemble import lab_files
+
+    (lab / "x.mf4").unlink()
+    (lab / "real.tdms").write_bytes(b"")
+    (lab / "alias.tdms").symlink_to(lab / "real.tdms")
+    assert [p.name for p in lab_files(lab)] == ["alias.tdms", "real.tdms"]

@@ -257,8 +257,26 @@ def read_lab_file(path: str | os.PathLike, channel_map=None, **options) -> list[
 
 
 def lab_files(folder: Path) -> list[Path]:
-    """The lab files of a folder (not its sub-folders), sorted by name."""
-    return sorted(p for p in folder.iterdir() if p.is_file() and is_lab_file(p))
+    """The lab files of a folder (not its sub-folders), sorted by name. A symbolic link that leaves
+    the folder is refused, never opened (the dataset folder's rule, fileformat.test_file_path: a
+    folder must not make dampnet read, and echo, files elsewhere; issue 49)."""
+    base = Path(folder).resolve()
+    out = []
+    for p in Path(folder).iterdir():
+        if not is_lab_file(p):
+            continue
+        if p.is_symlink():
+            try:
+                target = p.resolve()
+                inside = target.is_relative_to(base) and target != base
+            except (OSError, RuntimeError):  # a link loop
+                inside = False
+            if not inside:
+                raise DataError(f"{p}: a symbolic link leaving the folder {folder}: refused, expected the folder's "
+                                "own files (copy the file in)")
+        if p.is_file():
+            out.append(p)
+    return sorted(out)
 
 
 def read_lab_folder(folder: str | os.PathLike, channel_map=None, progress: bool = False, **options) -> Dataset:
