@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -135,3 +136,37 @@ def test_nonsensical_roads_are_refused():
         iso8608("Z")
     with pytest.raises(RoadError, match="unknown road"):
         make_road("cobbles")
+
+
+@pytest.mark.parametrize("road, param", [
+    ("rough:rms_m=1e300", "rms_m"), ("rough:rms_m=1e200", "rms_m"), ("rough:rms_m=nan", "rms_m"),
+    ("sweep:rate_oct_s=1e-7", "rate_oct_s"), ("sweep:rate_oct_s=1e9", "rate_oct_s"),
+    ("iso:length_m=4e6", "length_m"), ("impulse:duration_s=1e-300", "duration_s"),
+    ("bump:width_m=1e-12", "width_m"), ("rough:seed=-1", "seed"),
+])
+def test_a_road_parameter_out_of_range_is_refused_naming_it_before_building(road, param):
+    """Issue 49, items 7, 8, 10, 18: overflow tracebacks, MemoryErrors after minutes, all-zero runs
+    and numpy's bare `expected non-negative integer` become one RoadError naming the road, the
+    parameter, its range and unit, raised by parsing, before any profile is built."""
+    from dampnet.recipes import roads
+
+    with pytest.raises(RoadError, match=rf"road {re.escape(repr(road))}: {param}: expected .* to "):
+        roads.parse(road)
+
+
+@pytest.mark.parametrize("road", ["iso:class=C,class=D", "rough:seed=1,seed=2", "iso:C,class=D"])
+def test_a_road_parameter_given_twice_is_refused(road):
+    """Issue 49, item 13: the last of repeated keys silently won."""
+    from dampnet.recipes import roads
+
+    with pytest.raises(RoadError, match="given twice"):
+        roads.parse(road)
+
+
+def test_every_default_road_parameter_is_in_its_own_range():
+    from dampnet.recipes import roads
+
+    for name in roads.names():
+        kind = roads.get(name)
+        for p in kind.params:
+            assert p.read(p.default, name) == p.default, (name, p.name)

@@ -24,6 +24,7 @@ takes it: the CLI's help, the sweep's allowed values and plan-tests' cases come 
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass
 from typing import Any, Callable, Mapping
@@ -37,31 +38,50 @@ CASE_SPEEDS_M_S = (10.0, 20.0)
 
 @dataclass(frozen=True)
 class RoadParam:
-    """One parameter of a road: its name, unit (SI; "" for none), default, meaning and the type
-    a value written in a road's name is read as (float, int or str)."""
+    """One parameter of a road: its name, unit (SI; "" for none), default, meaning, the type a
+    value written in a road's name is read as (float, int or str), and for numbers the range
+    [lo, hi] a value must lie in: a road whose parameters leave nothing to simulate (a 1e-300 s
+    pulse, a 1e9 octave/s sweep) or more than memory holds (a 1e-7 octave/s sweep: 1.9 TiB),
+    or overflow (rms 1e300) is refused naming the parameter, before anything is built (issue 49)."""
 
     name: str
     unit: str
     default: Any
     doc: str
     kind: type = float
+    lo: float | None = None
+    hi: float | None = None
 
     def read(self, value: Any, road: str) -> Any:
-        """`value` (text from a name, or a front end's value) as this parameter's type."""
+        """`value` (text from a name, or a front end's value) as this parameter's type, in range."""
+        unit = f" [{self.unit}]" if self.unit else ""
         try:
             if self.kind is int:
                 if isinstance(value, bool) or (isinstance(value, float) and not value.is_integer()):
                     raise ValueError
-                return int(value)
-            return self.kind(value.strip() if isinstance(value, str) else value)
-        except (TypeError, ValueError):
+                out = int(value)
+            else:
+                out = self.kind(value.strip() if isinstance(value, str) else value)
+        except (TypeError, ValueError, OverflowError):
             what = {float: "a number", int: "a whole number"}.get(self.kind, self.doc)
-            unit = f" [{self.unit}]" if self.unit else ""
             raise RoadError(f"road {road!r}: {self.name}: expected {what}{unit}, got {value!r}") from None
+        if self.kind in (int, float) and not (math.isfinite(out) and (self.lo is None or out >= self.lo)
+                                              and (self.hi is None or out <= self.hi)):
+            raise RoadError(f"road {road!r}: {self.name}: expected {self.range_text()}{unit}, got {value!r}")
+        return out
+
+    def range_text(self) -> str:
+        num = (lambda x: f"{int(x):d}") if self.kind is int else (lambda x: f"{x:g}")
+        if self.lo is not None and self.hi is not None:
+            return f"{num(self.lo)} to {num(self.hi)}"
+        if self.lo is not None:
+            return f"at least {num(self.lo)}"
+        return "a finite number" if self.hi is None else f"at most {num(self.hi)}"
 
     def text(self) -> str:
         unit = f" [{self.unit}]" if self.unit else ""
-        return f"{self.name}{unit} (default {self.default}): {self.doc}"
+        limits = f", {self.range_text()}" if self.lo is not None or self.hi is not None else ""
+        return f"{self.name}{unit} (default {self.default}{limits}): {self.doc}"
 
 
 @dataclass(frozen=True)
@@ -190,6 +210,8 @@ def parse(text: str) -> RoadRequest:
         key = key.strip()
         if key not in params:
             raise RoadError(f"road {text!r}: unknown parameter {key!r}; {_param_list(kind)}")
+        if key in given:
+            raise RoadError(f"road {text!r}: {key} given twice: give each parameter once")
         try:
             given[key] = params[key].read(value, text)
         except RoadError as e:
@@ -225,7 +247,7 @@ def help_text() -> str:
 
 # -- the built-in roads (dampnet.sim.roads.profiles) ------------------------------------------
 
-_SEED = RoadParam("seed", "", 0, "seed of the random profile (--seed, the sweep's road_seeds)", int)
+_SEED = RoadParam("seed", "", 0, "seed of the random profile (--seed, the sweep's road_seeds)", int, 0, 2**32 - 1)
 
 
 def _iso_class(text: Any) -> str:
@@ -238,26 +260,31 @@ def _iso_class(text: Any) -> str:
 register(RoadKind(
     "impulse", "the thesis's impulse: a raised-cosine pulse in time", "temporal",
     lambda p: impulse(height_m=p["height_m"], duration_s=p["duration_s"]),
-    (RoadParam("height_m", "m", 0.05, "pulse height"), RoadParam("duration_s", "s", 0.05, "pulse duration"))))
+    (RoadParam("height_m", "m", 0.05, "pulse height", float, 1e-6, 1.0),
+     RoadParam("duration_s", "s", 0.05, "pulse duration (at least 1 ms: a shorter pulse has no content at the loops' steps)",
+               float, 1e-3, 60.0))))
 register(RoadKind(
     "bump", "a raised-cosine bump along the road (its duration depends on the speed)", "spatial",
     lambda p: bump(height_m=p["height_m"], length_m=p["width_m"]),
-    (RoadParam("height_m", "m", 0.05, "bump height"), RoadParam("width_m", "m", 0.5, "bump length"))))
+    (RoadParam("height_m", "m", 0.05, "bump height", float, 1e-6, 1.0),
+     RoadParam("width_m", "m", 0.5, "bump length", float, 0.01, 1000.0))))
 register(RoadKind(
     "sweep", "the bounce sine sweep: a log sweep of constant displacement amplitude", "temporal",
     lambda p: sine_sweep(amplitude_m=p["amplitude_m"], f0=p["f0_hz"], f1=p["f1_hz"], rate_oct_s=p["rate_oct_s"]),
-    (RoadParam("amplitude_m", "m", 0.005, "displacement amplitude"),
-     RoadParam("f0_hz", "Hz", 0.5, "start frequency"), RoadParam("f1_hz", "Hz", 20.0, "end frequency"),
-     RoadParam("rate_oct_s", "octave/s", 0.1, "sweep rate")),
+    (RoadParam("amplitude_m", "m", 0.005, "displacement amplitude", float, 1e-6, 1.0),
+     RoadParam("f0_hz", "Hz", 0.5, "start frequency", float, 0.01, 500.0),
+     RoadParam("f1_hz", "Hz", 20.0, "end frequency", float, 0.01, 500.0),
+     RoadParam("rate_oct_s", "octave/s", 0.1, "sweep rate (0.001: over an hour for 5 octaves; 10: a few cycles)",
+               float, 1e-3, 10.0)),
     aliases=("sine_sweep", "sine-sweep")))
 register(RoadKind(
     "rough", "the thesis's rough road: RMS 0.016 m, 184 m (an ISO 8608 shape)", "spatial",
     lambda p: thesis_rough_road(seed=p["seed"], rms_m=p["rms_m"]),
-    (_SEED, RoadParam("rms_m", "m", 0.016, "displacement RMS")),
+    (_SEED, RoadParam("rms_m", "m", 0.016, "displacement RMS", float, 1e-6, 1.0)),
     aliases=("thesis_rough", "thesis-rough", "rough-road")))
 register(RoadKind(
     "iso", "a random ISO 8608 profile of class A..H", "spatial",
     lambda p: iso8608(p["class"], length_m=p["length_m"], seed=p["seed"]),
     (RoadParam("class", "", "C", "ISO 8608 class A..H", _iso_class),
-     RoadParam("length_m", "m", 200.0, "profile length (the sweep's road_length_m)"), _SEED),
+     RoadParam("length_m", "m", 200.0, "profile length (the sweep's road_length_m)", float, 1.0, 100_000.0), _SEED),
     aliases=("iso8608",), positional="class"))
