@@ -119,6 +119,10 @@ def full_car_profile(road: str, seed: int) -> tuple[str, int]:
     from dampnet.recipes import roads
 
     req = roads.parse(road)
+    ignored = sorted(set(req.given) - {"seed", "class"})
+    if req.kind.name in ("rough", "iso") and ignored:  # silently ignored before (issue 49)
+        raise ValueError(f"replay: road {road!r}: a full-car corner takes the road's profile and seed only; "
+                         f"{', '.join(ignored)} would be ignored (the full car's road is the manoeuvre's)")
     seed = int(req.params(seed=seed).get("seed", seed))
     if req.kind.name == "rough":
         return "thesis", seed

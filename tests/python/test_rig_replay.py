@@ -211,3 +211,18 @@ def test_replay_and_plan_together_are_refused(tmp_path, capsys):
     assert main(["rig", str(tmp_path / "o"), "--replay", "rough", "--plan", "quick"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--replay and --plan" in err and not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("replay, extra, words", [
+    ("", [], "expected one or more roads"),
+    (" ; ", [], "expected one or more roads"),
+    ("rough:rms_m=0.5", ["--corner", "fl"], "rms_m would be ignored"),
+    ("iso:C,length_m=50", ["--corner", "rr"], "length_m would be ignored"),
+])
+def test_a_replay_of_nothing_or_an_ignored_parameter_is_refused(tmp_path, capsys, replay, extra, words):
+    """Issue 49, item 11: `rig --replay ''` ran the whole 180-test thesis plan, and a full-car corner
+    ignored the road's rms_m while naming the test after it. One line, before any simulation."""
+    assert main(["rig", str(tmp_path / "out"), "--replay", replay, *extra]) == 2
+    err = capsys.readouterr().err
+    assert words in err and err.count("\n") == 1, err
+    assert not (tmp_path / "out").exists()

@@ -63,19 +63,22 @@ def run(args) -> int:
         return error("rig: the output dataset directory OUT is required (or --list-effects)")
     effects = [e.strip() for e in args.effects.split(",") if e.strip()]
     progress = not args.no_progress and sys.stderr.isatty()
-    if args.replay and args.plan is not None:
+    replaying = args.replay is not None  # `--replay ''` is a replay of nothing, not the thesis plan
+    if replaying and not [r for r in args.replay.split(";") if r.strip()]:
+        return error(f"rig: --replay: expected one or more roads separated by ';', got {args.replay!r}")
+    if replaying and args.plan is not None:
         return error("rig: --replay and --plan: a replay runs roads, not a plan; give one of them")
-    if args.corner is not None and not args.replay:
+    if args.corner is not None and not replaying:
         return error("rig: --corner: the corner of a full-car replay; give --replay ROAD too")
     plan = args.plan or "thesis"
     inputs = [] if plan in ("thesis", "quick") else [plan]
-    if args.replay:   # road CSV profiles are inputs too
+    if replaying:   # road CSV profiles are inputs too
         inputs = [r.strip() for r in args.replay.split(";") if os.path.exists(r.strip())]
     try:
         check_output_dir(args.out, "dataset", inputs, args.force)  # before the work, again when writing
         t0 = time.perf_counter()
         extras = {}
-        if args.replay:
+        if replaying:
             ds, extras = replay(args, effects)
         else:
             ds = generate(plan, effects=effects, seed=args.seed, progress=not args.no_progress,
@@ -85,7 +88,7 @@ def run(args) -> int:
         t2 = time.perf_counter()
     except (DataError, ValueError, FileExistsError, OSError) as e:
         return error(str(e))
-    if args.replay:
+    if replaying:
         for t in ds.tests:
             m = t.meta
             print(f"{out / (t.test_id + '.csv')} (and .rsp): {m['road']}"
