@@ -33,12 +33,40 @@ def build_parser() -> argparse.ArgumentParser:
                 continue  # not built yet
             raise
         module.add_parser(sub)
+    _refuse_repeats(parser)
     return parser
+
+
+def _once(cls: type) -> type:
+    """`cls` (an argparse store action) refusing a second value for its option: argparse keeps
+    the last silently, so `vehicle --speed 80 --speed 90` ran at 90 (issue 49)."""
+
+    class Once(cls):  # type: ignore[misc, valid-type]
+        def __call__(self, parser, namespace, values, option_string=None):
+            seen = namespace.__dict__.setdefault("_options_given", set())
+            if self.dest in seen:
+                raise argparse.ArgumentError(self, "given twice: give it once")
+            seen.add(self.dest)
+            super().__call__(parser, namespace, values, option_string)
+
+    return Once
+
+
+def _refuse_repeats(parser: argparse.ArgumentParser) -> None:
+    """Every option that stores one value, in every command, refuses to be given twice."""
+    once = _once(argparse._StoreAction)
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in set(action.choices.values()):
+                _refuse_repeats(sub)
+        elif type(action) is argparse._StoreAction and action.option_strings:
+            action.__class__ = once
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    vars(args).pop("_options_given", None)
     if args.version:
         from dampnet import __version__
 

@@ -182,3 +182,46 @@ def test_info_without_the_shared_library_is_one_line(capsys, monkeypatch, tmp_pa
 
     monkeypatch.setattr(paths, "_installed_root", lambda: tmp_path)
     one_line_error(capsys, ["info"], "libdampnet")
+
+
+@pytest.mark.parametrize("argv, option", [
+    (["vehicle", "M", "--speed", "80", "--speed", "90"], "--speed"),
+    (["simulate", "M", "--road", "rough", "--road=bump"], "--road"),
+    (["export", "M", "--header", "a.h", "--header", "b.h"], "--header"),
+    (["train", "D", "--hidden", "30", "--hidden", "20"], "--hidden"),
+])
+def test_an_option_given_twice_is_refused(capsys, argv, option):
+    """Issue 49, item 13: argparse kept the last of a repeated option silently (`vehicle --speed 80
+    --speed 90` ran at 90). Every option that takes one value refuses a second, in every command;
+    repeatable options (--add, --set) stay repeatable. Milliseconds."""
+    with pytest.raises(SystemExit) as e:
+        main(argv)
+    assert e.value.code == 2
+    assert f"argument {option}: given twice" in capsys.readouterr().err
+
+
+def test_every_single_value_option_refuses_a_repeat():
+    import argparse
+
+    from dampnet.cli import build_parser
+
+    def walk(parser):
+        for action in parser._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                for sub in action.choices.values():
+                    yield from walk(sub)
+            elif isinstance(action, argparse._StoreAction) and action.option_strings:
+                yield action
+
+    actions = list(walk(build_parser()))
+    assert len(actions) > 100 and all(type(a).__name__ == "Once" for a in actions)
+
+
+def test_export_set_twice_is_refused(tmp_path, capsys):
+    from dampnet.modeldir import default_model_path
+
+    argv = ["export", str(default_model_path()), "--fmu", str(tmp_path / "q.fmu"), "--what", "quarter-car",
+            "--set", "m_s=1", "--set", "m_s=2"]
+    assert main(argv) == 2
+    assert "--set m_s: given twice" in capsys.readouterr().err
+    assert not (tmp_path / "q.fmu").exists()

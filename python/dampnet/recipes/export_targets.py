@@ -222,6 +222,8 @@ def _fmu_start_values(args) -> tuple[dict, dict]:
         if not sep or not name:
             raise ModelError(f"--set {item!r}: expected NAME=VALUE, e.g. --set m_s=450")
         target = vehicle if name in _core.VEHICLE_FIELDS else controller if name in _core.CONTROLLER_FIELDS else None
+        if target is not None and name in target:
+            raise ModelError(f"--set {name}: given twice: give each parameter once")
         if target is None:
             raise ModelError(f"--set {name}: not a vehicle or controller parameter; known: "
                              f"{', '.join([*_core.VEHICLE_FIELDS, *_core.CONTROLLER_FIELDS])}")
