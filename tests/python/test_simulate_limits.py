@@ -93,3 +93,19 @@ def test_the_size_limit_counts_the_values_a_run_keeps():
         limits.check_run_size(n + 1, limits.QUARTER_CAR_VALUES, "w", "h")
     with pytest.raises(ValueError, match=SIZE):
         limits.check_run_size(float("inf"), 1, "w", "h")
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["--control", "skyhook_onoff", "--u", "3"], "--u: control law 'skyhook_onoff' does not take it (it applies to passive)"),
+    (["--control", "passive_low", "--damping", "high"], "--damping: control law 'passive_low' does not take it"),
+    (["--control", "passive", "--command-tau", "0.01"], "--command-tau: control law 'passive' does not take it"),
+])
+def test_an_option_the_control_law_does_not_read_is_refused(tmp_path, capsys, argv, words):
+    """Issue 49, item 13: `simulate --road impulse --control skyhook_onoff --u 3` ran skyhook and
+    ignored --u. Refused in one line before the run, naming the laws the option applies to."""
+    from dampnet.cli import main
+
+    out = tmp_path / "run"
+    assert main(["simulate", "linear:1500", "--road", "impulse", "--out", str(out), *argv]) == 2
+    assert words in capsys.readouterr().err
+    assert not out.exists()

@@ -39,9 +39,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--command-tau", type=float, default=None, metavar="S",
                    help="command filter time constant of the switching laws [s] (default: the study's "
                         f"{1e3 * COMMAND_TAU_S:g} ms; 0 = unfiltered)")
-    p.add_argument("--damping", choices=("low", "high"), default="high",
-                   help="passive control level (found from the model's control range; passive_low / "
-                        "passive_high name one)")
+    p.add_argument("--damping", choices=("low", "high"), default=None,
+                   help="passive control level (found from the model's control range; default high; "
+                        "passive_low / passive_high name one)")
     p.add_argument("--u", type=float, default=None, help="passive control [V] (overrides --damping)")
     p.add_argument("--dt", type=float, default=1e-3, help="loop step [s]")
     p.add_argument("--seed", type=int, default=0, help="seed of random roads")
@@ -71,13 +71,15 @@ def run(args) -> int:
             laws.get(args.control)
         except LoopError as e:
             raise LoopError(f"--control: {e}") from None
+        laws.check_context(args.control, {"--u": ("u", args.u), "--damping": ("damping", args.damping),
+                                          "--command-tau": ("u_tau_s", args.command_tau)})
         check_run_dir(out, RUN_FILES, "metrics.json", RUN_SCHEMA.split("/")[0] + "/", _model_inputs(args.model, args.road),
                       args.force)
         spec = load_spec(args.model)
         road = _roads().build(args.road, seed=args.seed)
         veh = Vehicle(dt=args.dt)
         veh.validate()
-        ctrl = laws.make(args.control, spec, veh, u_tau_s=args.command_tau, damping=args.damping, u=args.u)
+        ctrl = laws.make(args.control, spec, veh, u_tau_s=args.command_tau, damping=args.damping or "high", u=args.u)
         res = simulate(spec, road, args.speed if road.kind == "spatial" else None, ctrl, veh)
     except (RoadError, LoopError, ValueError, OSError, KeyError) as e:
         print(f"dampnet: error: {e}", file=sys.stderr)

@@ -58,6 +58,9 @@ class ControlLaw:
     build: Callable[[LawContext], Controller]
     params: Mapping[str, str] = dataclasses.field(default_factory=dict)
     aliases: tuple[str, ...] = ()
+    #: the LawContext options the law reads from its caller ("damping", "u", "u_tau_s"); a caller's
+    #: value for another is refused (check_context), not silently ignored
+    reads: tuple[str, ...] = ()
 
 
 _REGISTRY: dict[str, ControlLaw] = {}
@@ -73,6 +76,18 @@ def register(law: ControlLaw) -> ControlLaw:
     for n in (law.name, *law.aliases):
         _ALIASES[n] = law.name
     return law
+
+
+def check_context(name: str, given: Mapping[str, tuple[str, Any]]) -> None:
+    """LoopError when the caller gives law `name` an option it does not read: `given` maps each
+    option's words (e.g. "--u") to (its LawContext field, its value; None: not given). Issue 49:
+    `simulate --control skyhook_onoff --u 3` ran skyhook and ignored --u."""
+    law = get(name)
+    for words, (field_name, value) in given.items():
+        if value is not None and field_name not in law.reads:
+            takers = [n for n, x in _REGISTRY.items() if field_name in x.reads]
+            raise LoopError(f"{words}: control law {law.name!r} does not take it (it applies to "
+                            f"{', '.join(takers) or 'no law'})")
 
 
 def unregister(name: str) -> None:
@@ -153,7 +168,8 @@ def _passive(level: str | None) -> Callable[[LawContext], Controller]:
 
 _LEVEL = "V or A: the damper's own low / high damping control (damping_levels)"
 register(ControlLaw("passive", "a constant control: the damper's level --damping (low, high; default high), or --u",
-                    _passive(None), {"damping": "low | high", "u_passive": f"{_LEVEL}, or --u"}))
+                    _passive(None), {"damping": "low | high", "u_passive": f"{_LEVEL}, or --u"},
+                    reads=("damping", "u")))
 register(ControlLaw("passive_low", "passive at the damper's low damping control", _passive("low"),
                     {"u_passive": _LEVEL}))
 register(ControlLaw("passive_high", "passive at the damper's high damping control", _passive("high"),
@@ -180,8 +196,8 @@ for _kind in _core.CONTROLLER_KINDS:
                             "damper and the vehicle as in `dampnet study`",
                             _skyhook_continuous,
                             {"u_soft, u_hard": _LEVEL, "c_sky, c_min, c_max": "N s/m: calibrated",
-                             "u_tau_s": "s: command filter"}))
+                             "u_tau_s": "s: command filter"}, reads=("u_tau_s",)))
     else:
         register(ControlLaw(_kind, f"the runtime's {_kind} between the damper's low and high damping",
                             _switching(_kind),
-                            {"u_soft, u_hard": _LEVEL, "u_tau_s": "s: command filter"}))
+                            {"u_soft, u_hard": _LEVEL, "u_tau_s": "s: command filter"}, reads=("u_tau_s",)))
