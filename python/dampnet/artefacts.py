@@ -97,13 +97,20 @@ register_artefact(ArtefactInfo(
 
 # -- the data fixes -----------------------------------------------------------------------
 
+#: the largest share of a test a channel shift may cut: a recording delay is milliseconds, a test
+#: seconds (issue 49: --align-force-s 0.5 on a 0.667 s test cut 75 % of it without a word)
+MAX_SHIFT_SHARE = 0.10
+
+
 def _samples(test, seconds: float, what: str) -> int:
     if not np.isfinite(seconds):
         raise ValueError(f"{what}: expected a finite time [s], got {seconds}")
     k = int(round(abs(seconds) / test.dt))
-    if k >= len(test) - 10:
-        raise DataError(f"{what} = {seconds} s: test {test.test_id} has only {len(test)} samples "
-                        f"({len(test) * test.dt:.3g} s); expected a shift much shorter than the test")
+    if k > MAX_SHIFT_SHARE * len(test) or k >= len(test) - 10:
+        cut = "is longer than" if k >= len(test) else f"would cut {100 * k / len(test):.0f} % of"
+        raise DataError(f"{what}: {abs(seconds):g} s {cut} test {test.test_id} "
+                        f"({len(test)} samples, {len(test) * test.dt:.3g} s); expected a shift of at most "
+                        f"{100 * MAX_SHIFT_SHARE:.0f} % of every test")
     return k
 
 
@@ -130,7 +137,7 @@ def shift_channel(ds: Dataset, channel: str, seconds: float, note: str) -> Datas
 def align_force(ds: Dataset, seconds: float) -> Dataset:
     """Undo a force channel recorded `seconds` [s] late: the force moves earlier by that time
     (`--align-force-s`). A new Dataset; the files it came from are not touched."""
-    return shift_channel(ds, "force", -float(seconds), f"force realigned by -{float(seconds):g} s (--align-force-s)")
+    return shift_channel(ds, "force", -float(seconds), f"force realigned by {-float(seconds):+g} s (--align-force-s)")
 
 
 def remove_run_order_drift(ds: Dataset, percent: float) -> Dataset:
@@ -145,6 +152,9 @@ def remove_run_order_drift(ds: Dataset, percent: float) -> Dataset:
         raise ValueError(f"--run-order-drift-pct = {percent}: expected the force's change from the first test "
                          "to the last in percent, finite, between -90 and 900 (exclusive)")
     n = len(ds.tests)
+    if n < 2:
+        raise DataError(f"--run-order-drift-pct: a drift from the first test to the last needs at least two tests "
+                        f"in run order; {ds.source} has {n}")
     tests = []
     for i, t in enumerate(ds.tests):
         if "force" not in t.channels:

@@ -109,8 +109,18 @@ def test_data_fixes_return_new_data_and_name_what_is_wrong():
         rescale(ds, "current", 2.0)
     with pytest.raises(ValueError, match="finite, non-zero factor"):
         rescale(ds, "force", 0.0)
-    with pytest.raises(DataError, match="much shorter than the test"):
+    with pytest.raises(DataError, match="1000 s is longer than test T001"):
         align_force(ds, 1e3)
+    # issue 49: a shift that cuts more than a tenth of a test is refused, not 75 % silently cut
+    shortest = min(len(t) * t.dt for t in ds.tests)  # [s]
+    align_force(ds, 0.09 * shortest)
+    with pytest.raises(DataError, match=r"would cut 1[12] % of test .*at most 10 % of every test"):
+        align_force(ds, 0.11 * shortest)
+    with pytest.raises(DataError, match=r"would cut \d+ % of test"):
+        align_force(ds, -0.75 * shortest)
+    assert align_force(ds, -0.01).meta["derived"][-1] == "force realigned by +0.01 s (--align-force-s)"  # was "--0.01"
+    with pytest.raises(DataError, match="at least two tests in run order"):
+        remove_run_order_drift(ds.subset([ds.tests[0]], note="one test"), 5.0)
     with pytest.raises(ValueError, match="finite time"):
         align_force(ds, float("nan"))
     with pytest.raises(ValueError, match="unknown artefact"):
