@@ -357,3 +357,15 @@ def test_a_channel_map_goes_to_the_lab_files_among_the_data_arguments(rig, tmp_p
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--channel-map" in err and "no DATA argument is one" in err, err
     assert not (tmp_path / "m").exists()
+
+
+def test_two_tdms_groups_with_one_test_id_are_refused(rig, tmp_path):
+    """Issue 49, item 12: groups `a b` and `a_b` both became the test id x_a_b, and reading the
+    file (evaluate, train) took both; refused naming the groups, as reading the folder was."""
+    groups = {"a b": imperial(rig.tests[0]), "a_b": imperial(rig.tests[1])}
+    p = write_tdms(tmp_path / "x.tdms", groups, rig.tests[0].dt)
+    (tmp_path / MAP_FILE).write_text(MAP)
+    with pytest.raises(DataError, match=r"groups 'a b' and 'a_b' both give the test id 'x_a_b'"):
+        load_dataset(p)
+    with pytest.raises(DataError, match="both give the test id"):
+        load_dataset(tmp_path)

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import os
 import re
+from typing import Any
 from pathlib import Path
 
 import numpy as np
@@ -253,6 +254,12 @@ def read_lab_file(path: str | os.PathLike, channel_map=None, **options) -> list[
             test.frequency_hz, test.amplitude_m = f, a
             test.meta["excitation"] = "random (not a sine)" if f is None else "sine (estimated from displacement)"
         tests.append(test)
+    seen: dict[str, Any] = {}
+    for t in tests:  # issue 49: TDMS groups 'a b' and 'a_b' both became x_a_b, read as two tests of one id
+        if t.test_id in seen:
+            raise DataError(f"{path}: groups {show(seen[t.test_id])} and {show(t.meta.get('group'))} both give the test "
+                            f"id {show(t.test_id)}: expected one id per group (rename a group, or give no test_id=)")
+        seen[t.test_id] = t.meta.get("group")
     return tests
 
 
