@@ -369,3 +369,15 @@ def test_two_tdms_groups_with_one_test_id_are_refused(rig, tmp_path):
         load_dataset(p)
     with pytest.raises(DataError, match="both give the test id"):
         load_dataset(tmp_path)
+
+
+@pytest.mark.parametrize("dt", [1e-300, 1e-9, 100.0])
+def test_an_absurd_sample_interval_is_refused_naming_the_channel(rig, tmp_path, dt):
+    """Issue 49, item 9: a TDMS wf_increment of 1e-300 s was read (frequencies of 6e296 Hz, divide
+    warnings). A used channel's interval outside 1e-7..10 s is one DataError naming it."""
+    p = write_tdms(tmp_path / "x.tdms", {"G": imperial(rig.tests[0])}, rig.tests[0].dt,
+                   properties={"Force": {"wf_increment": dt}})
+    with pytest.raises(DataError) as e:
+        read_lab_file(p, {"channels": {"displacement": "Disp", "force": "Force", "voltage": "Command"}})
+    msg = _one_line(e)
+    assert "'G/Force' (force): sample interval" in msg and "interval from 1e-07 to 10 s" in msg

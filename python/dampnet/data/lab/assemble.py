@@ -134,10 +134,11 @@ def _time_base(path: Path, picked: dict[str, RawChannel], cols: dict[str, np.nda
     times = {}
     for ch in cols:
         dt = picked[ch].dt
-        if picked[ch].time is None and dt is not None and not (np.isfinite(dt) and dt > 0 and np.isfinite(picked[ch].t0)):
+        if picked[ch].time is None and dt is not None and not (
+                np.isfinite(dt) and DT_RANGE_S[0] <= dt <= DT_RANGE_S[1] and np.isfinite(picked[ch].t0)):
             raise DataError(f"{path}: channel {show(picked[ch].label)} ({ch}): sample interval {show(float(dt))} s, "
-                            f"start {show(float(picked[ch].t0))} s: expected a positive, finite interval "
-                            "(TDMS wf_increment, RPC DELTA_T)")
+                            f"start {show(float(picked[ch].t0))} s: expected a positive, finite interval from "
+                            f"{DT_RANGE_S[0]:g} to {DT_RANGE_S[1]:g} s (TDMS wf_increment, RPC DELTA_T)")
         tc = picked[ch].times()
         if tc is None:
             raise DataError(f"{path}: channel {show(picked[ch].label)} ({ch}): no time base in the file "
@@ -186,6 +187,10 @@ def _check_time(path: Path, label: str, t: np.ndarray) -> None:
         raise DataError(f"{path}: channel {show(label)} (time): sample {k}: time {show(float(t[k]))} after "
                         f"{show(float(t[k - 1]))}: expected strictly increasing time")
 
+
+#: the sample intervals [s] a file's time base may state: 10 MHz to 0.1 Hz (issue 49: a TDMS
+#: wf_increment of 1e-300 s was taken, giving frequencies of 6e296 Hz)
+DT_RANGE_S = (1e-7, 10.0)
 
 _UNSAFE = re.compile(r"[^A-Za-z0-9_.\-]+")
 
