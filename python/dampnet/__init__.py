@@ -116,6 +116,9 @@ def __getattr__(name: str) -> Any:
     try:
         module, attr = _API[name]
     except KeyError:
+        moved = MOVED_MODULES.get(f"dampnet.{name}")
+        if moved is not None:  # `from dampnet import fullcar` names the new home, as `import dampnet.fullcar` does
+            raise ModuleNotFoundError(f"dampnet.{name} moved: it is {moved} now", name=f"dampnet.{name}")
         raise AttributeError(f"module 'dampnet' has no attribute {name!r}") from None
     mod = importlib.import_module(module)
     value = mod if attr is None else getattr(mod, attr)

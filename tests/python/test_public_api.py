@@ -106,6 +106,11 @@ def test_a_moved_module_is_refused_naming_its_new_home():
         importlib.import_module(new.split(" ", 1)[0])
     with pytest.raises(ModuleNotFoundError, match=r"dampnet\.fullcar moved: it is dampnet\.sim\.full_car now"):
         importlib.import_module("dampnet.fullcar.runs")
+    # `from dampnet import OLD` too (issue 49: it said only "cannot import name"), for every top-level one
+    for old, new in dampnet.MOVED_MODULES.items():
+        if old.count(".") == 1:
+            with pytest.raises(ModuleNotFoundError, match=rf"^{re.escape(old)} moved: it is {re.escape(new)} now$"):
+                exec(f"from dampnet import {old.split('.')[1]}", {})
     # names that only share a prefix with a moved one are untouched
     importlib.import_module("dampnet.sim.quarter_car.runs")
     importlib.import_module("dampnet.envelope")

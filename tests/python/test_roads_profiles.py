@@ -170,3 +170,25 @@ def test_every_default_road_parameter_is_in_its_own_range():
         kind = roads.get(name)
         for p in kind.params:
             assert p.read(p.default, name) == p.default, (name, p.name)
+
+
+def test_a_road_csv_with_a_bom_is_read_and_one_not_in_utf8_is_named(tmp_path):
+    """Issue 49, item 18: a spreadsheet's UTF-8 BOM hid the distance_m column, and a Latin-1 file
+    was a UnicodeDecodeError traceback; a FIFO is refused, not waited on."""
+    import os
+
+    from dampnet.sim.roads import read_profile_csv
+
+    body = "distance_m,elevation_m\n" + "".join(f"{0.1 * i:.1f},{0.001 * (i % 7):.3f}\n" for i in range(100))
+    plain, bom = tmp_path / "plain.csv", tmp_path / "bom.csv"
+    plain.write_text(body)
+    bom.write_bytes(b"\xef\xbb\xbf" + body.encode())
+    np.testing.assert_array_equal(read_profile_csv(bom).x, read_profile_csv(plain).x)
+    latin = tmp_path / "latin.csv"
+    latin.write_bytes(("# d\xe9nivel\u00e9\n" + body).encode("latin-1"))
+    with pytest.raises(RoadError, match=r"latin.csv: byte \d+: not UTF-8 CSV text"):
+        read_profile_csv(latin)
+    fifo = tmp_path / "fifo.csv"
+    os.mkfifo(fifo)
+    with pytest.raises(RoadError, match="fifo.csv: is not a regular file"):
+        read_profile_csv(fifo)

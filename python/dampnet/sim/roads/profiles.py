@@ -348,12 +348,15 @@ def _class_of(gd_n0: float) -> str:
 
 def read_profile_csv(path: str | os.PathLike) -> Road:
     """A profile from a CSV with a header naming `distance_m` and `elevation_m` (other columns ignored)."""
+    import io
+
+    from dampnet.schema import read_text
+
     path = os.fspath(path)
-    try:
-        f = open(path, newline="")
-    except OSError as e:
-        raise RoadError(f"{path}: cannot open: {e.strerror or e}") from None
-    with f:
+    # read_text: a regular file of bounded size, UTF-8 with or without a BOM, errors naming the file
+    # (issue 49: a BOM hid the distance_m column, a non-UTF-8 file was a traceback)
+    text = read_text(path, RoadError, "UTF-8 CSV text (distance_m,elevation_m)")
+    with io.StringIO(text, newline="") as f:
         rows = csv.reader(f)
         header = None
         for header in rows:
