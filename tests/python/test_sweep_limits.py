@@ -132,3 +132,45 @@ def test_training_options_are_checked_as_dampnet_train_checks_them_before_any_ce
     spec.write_text(f"[training]\ndatasets = ['rig:quick']\n{line}\n")
     one_line_error(capsys, ["sweep", str(spec), "--out", str(tmp_path / "o")], f"{spec}: {fragment}")
     assert not (tmp_path / "o").exists()
+
+
+def test_a_setting_given_as_text_and_as_numbers_makes_a_text_column(tmp_path):
+    """Issue 49, item 14: restarts = [1, "auto", 2] ran every cell, then Parquet refused the mixed
+    column and the sweep died with no table and its state "running". The column is text, each cell
+    as written; the Parquet and CSV tables hold it. Milliseconds."""
+    import pandas as pd
+
+    from dampnet.sweep.grid import Cell
+    from dampnet.sweep.table import frame, write_csv, write_parquet
+
+    cells = [Cell("training", i, {"restarts": r, "seed": i}, key=f"k{i}") for i, r in enumerate([1, "auto", 2])]
+    records = {c.key: {"status": "ok", "metrics": {"holdout_nrmse": 0.01 * (c.index + 1)}} for c in cells}
+    df = frame(cells, records)
+    assert list(df["restarts"]) == ["1", "auto", "2"] and str(df["seed"].dtype) == "Int64"
+    write_parquet(df, tmp_path / "t.parquet")
+    write_csv(df, tmp_path / "t.csv")
+    assert list(pd.read_parquet(tmp_path / "t.parquet")["restarts"]) == ["1", "auto", "2"]
+
+
+def test_a_failure_writing_the_results_leaves_the_cells_and_an_honest_state(tmp_path, monkeypatch):
+    """If writing the table fails, the cells' records stay and sweep.json says "failed" and why."""
+    import json
+
+    from dampnet.sweep import runner
+    from dampnet.sweep.store import Store
+
+    store = Store(tmp_path / "sw")
+    store.root.mkdir(parents=True)
+    store.set_state(state="running")
+
+    def boom(*a, **k):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(runner, "write_results", boom)
+    (store.root / "cells").mkdir(exist_ok=True)
+    (store.root / "cells" / "k0.json").write_text("{}")
+    with pytest.raises(OSError, match="disk full"):
+        runner.publish_results(store, None, None, {})
+    state = json.loads((store.root / "sweep.json").read_text())
+    assert state["state"] == "failed" and "writing the results: OSError: disk full" in state["error"], state
+    assert (store.root / "cells" / "k0.json").is_file()

@@ -290,7 +290,7 @@ def run(spec: Spec | dict | str | os.PathLike, client=None, *, out: str | os.Pat
     df = frame(cells, records)
     if store is not None:
         t_results = time.perf_counter()
-        write_results(store, df, sp, stats)
+        publish_results(store, df, sp, stats)
         stats["results_s"] = time.perf_counter() - t_results
     df.attrs["sweep"] = stats
     return df
@@ -466,6 +466,16 @@ def _plot(df, kind: str, objective: str, sens: list, path: Path) -> None:
     from dampnet.sweep.plots import sensitivity_png
 
     sensitivity_png(df, kind, objective, sens, path)
+
+
+def publish_results(store: Store, df, spec: Spec, stats: dict[str, Any]) -> None:
+    """write_results; if that fails, the cells' records stay and the state says "failed" and why,
+    not "running" (issue 49: a table that could not be written left a sweep that seemed alive)."""
+    try:
+        write_results(store, df, spec, stats)
+    except BaseException as e:
+        store.set_state(state="failed", error=f"writing the results: {type(e).__name__}: {e}"[:2000])
+        raise
 
 
 def write_results(store: Store, df, spec: Spec, stats: dict[str, Any]) -> None:

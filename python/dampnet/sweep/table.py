@@ -74,7 +74,11 @@ def frame(cells: list[Cell], records: dict[str, dict[str, Any]]):
     for col in df.columns:   # integer columns stay integers where other kinds leave them empty
         vals = [r.get(col) for r in rows]
         given = [v for v in vals if v is not None]
-        if given and all(isinstance(v, int) and not isinstance(v, bool) for v in given):
+        if any(isinstance(v, str) for v in given) and not all(isinstance(v, str) for v in given):
+            # a setting given as text in some cells and as a number in others (restarts = [1, "auto", 2]):
+            # a text column, each cell as written (issue 49: Parquet refused the mixed column at the end)
+            df[col] = pd.array([None if v is None else str(v) for v in vals], dtype="string")
+        elif given and all(isinstance(v, int) and not isinstance(v, bool) for v in given):
             # from the Python integers, not from the float column pandas made of them (2**53 + 1
             # would come back as 2**53)
             df[col] = pd.array(vals, dtype="Int64")
