@@ -152,12 +152,17 @@ def test_simulate_refuses_to_write_into_its_model_or_over_a_foreign_metrics_file
     assert not [p for p in (tmp_path / "r").iterdir() if p.name.startswith(".")]
 
 
-def test_simulate_may_write_beside_its_road_csv(tmp_path, monkeypatch):
+def test_simulate_does_not_write_into_the_folder_of_its_road_csv(tmp_path, monkeypatch, capsys):
+    """Issue 49, item 2, reversing this test's earlier permission: a run folder holding an input (the
+    road CSV) is refused, as sweep, rig and export --target refuse theirs; a folder beside it is fine."""
     road = tmp_path / "road.csv"
     road.write_text("distance_m,elevation_m\n" + "".join(f"{0.1 * k},{0.001 * np.sin(k / 5)}\n" for k in range(400)))
     monkeypatch.chdir(tmp_path)
-    assert main(["simulate", "linear:1500", "--road", "road.csv", "--speed", "10", "--out", "."]) == 0
-    assert (tmp_path / "metrics.json").is_file() and road.is_file()
+    assert main(["simulate", "linear:1500", "--road", "road.csv", "--speed", "10", "--out", "."]) == 2
+    assert "is or holds an input of this command" in capsys.readouterr().err
+    assert not (tmp_path / "metrics.json").exists() and road.is_file()
+    assert main(["simulate", "linear:1500", "--road", "road.csv", "--speed", "10", "--out", "run"]) == 0
+    assert (tmp_path / "run" / "metrics.json").is_file()
 
 
 @pytest.mark.parametrize("command", ["evaluate", "diagnose"])

@@ -247,7 +247,8 @@ def help_text() -> str:
 
 # -- the built-in roads (dampnet.sim.roads.profiles) ------------------------------------------
 
-_SEED = RoadParam("seed", "", 0, "seed of the random profile (--seed, the sweep's road_seeds)", int, 0, 2**32 - 1)
+_SEED = RoadParam("seed", "", 0, "seed of the random profile (--seed, the sweep's road_seeds; numpy takes any "
+                  "whole number >= 0)", int, 0)
 
 
 def _iso_class(text: Any) -> str:
