@@ -1,8 +1,11 @@
-"""Issue 49, item 1: no file output ever replaces what is not a regular file, nor a file of a
-dataset folder, `--force` or not. Every command that writes a single file is pointed, with
---force where it has one, at a character device (a /dev/null node made in the test's folder), a
-FIFO, a symbolic link and a dataset's manifest.csv; each must refuse in one line (exit 2) before
-its work and leave the target as it was. In process; about 3 s in all."""
+"""Issue 49's outputs and inputs: no file output ever replaces what is not a regular file, nor a
+file of a dataset folder, `--force` or not (item 1): every command that writes a single file is
+pointed, with --force where it has one, at a character device (a /dev/null node made in the test's
+folder), a FIFO, a symbolic link and a dataset's manifest.csv, and must refuse in one line (exit 2)
+before its work, the target as it was. Run folders that are datasets, models or hold an input
+(item 2), export's folder and files checked before any is written (item 3), text inputs that are
+not regular files (item 6), lab-folder links leaving the folder (item 15). In process but one
+subprocess; about 10 s for the whole file."""
 
 from __future__ import annotations
 
