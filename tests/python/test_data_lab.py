@@ -361,7 +361,7 @@ def test_a_channel_map_goes_to_the_lab_files_among_the_data_arguments(rig, tmp_p
 
 def test_two_tdms_groups_with_one_test_id_are_refused(rig, tmp_path):
     """Issue 49, item 12: groups `a b` and `a_b` both became the test id x_a_b, and reading the
-    file (evaluate, train) took both; refused naming the groups, as reading the folder was."""
+    file (evaluate, train) took both; refused naming the groups, as reading the folder was. About 1 s."""
     groups = {"a b": imperial(rig.tests[0]), "a_b": imperial(rig.tests[1])}
     p = write_tdms(tmp_path / "x.tdms", groups, rig.tests[0].dt)
     (tmp_path / MAP_FILE).write_text(MAP)
@@ -374,7 +374,7 @@ def test_two_tdms_groups_with_one_test_id_are_refused(rig, tmp_path):
 @pytest.mark.parametrize("dt", [1e-300, 1e-9, 100.0])
 def test_an_absurd_sample_interval_is_refused_naming_the_channel(rig, tmp_path, dt):
     """Issue 49, item 9: a TDMS wf_increment of 1e-300 s was read (frequencies of 6e296 Hz, divide
-    warnings). A used channel's interval outside 1e-7..10 s is one DataError naming it."""
+    warnings). A used channel's interval outside 1e-7..10 s is one DataError naming it. About 0.5 s each."""
     p = write_tdms(tmp_path / "x.tdms", {"G": imperial(rig.tests[0])}, rig.tests[0].dt,
                    properties={"Force": {"wf_increment": dt}})
     with pytest.raises(DataError) as e:

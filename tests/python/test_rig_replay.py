@@ -221,7 +221,7 @@ def test_replay_and_plan_together_are_refused(tmp_path, capsys):
 ])
 def test_a_replay_of_nothing_or_an_ignored_parameter_is_refused(tmp_path, capsys, replay, extra, words):
     """Issue 49, item 11: `rig --replay ''` ran the whole 180-test thesis plan, and a full-car corner
-    ignored the road's rms_m while naming the test after it. One line, before any simulation."""
+    ignored the road's rms_m while naming the test after it. One line, before any simulation (milliseconds)."""
     assert main(["rig", str(tmp_path / "out"), "--replay", replay, *extra]) == 2
     err = capsys.readouterr().err
     assert words in err and err.count("\n") == 1, err

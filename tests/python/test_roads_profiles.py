@@ -147,7 +147,7 @@ def test_nonsensical_roads_are_refused():
 def test_a_road_parameter_out_of_range_is_refused_naming_it_before_building(road, param):
     """Issue 49, items 7, 8, 10, 18: overflow tracebacks, MemoryErrors after minutes, all-zero runs
     and numpy's bare `expected non-negative integer` become one RoadError naming the road, the
-    parameter, its range and unit, raised by parsing, before any profile is built."""
+    parameter, its range and unit, raised by parsing, before any profile is built. Milliseconds."""
     from dampnet.recipes import roads
 
     with pytest.raises(RoadError, match=rf"road {re.escape(repr(road))}: {param}: expected (.* to |at least )"):
@@ -156,7 +156,7 @@ def test_a_road_parameter_out_of_range_is_refused_naming_it_before_building(road
 
 @pytest.mark.parametrize("road", ["iso:class=C,class=D", "rough:seed=1,seed=2", "iso:C,class=D"])
 def test_a_road_parameter_given_twice_is_refused(road):
-    """Issue 49, item 13: the last of repeated keys silently won."""
+    """Issue 49, item 13: the last of repeated keys silently won. Milliseconds."""
     from dampnet.recipes import roads
 
     with pytest.raises(RoadError, match="given twice"):
@@ -174,7 +174,7 @@ def test_every_default_road_parameter_is_in_its_own_range():
 
 def test_a_road_csv_with_a_bom_is_read_and_one_not_in_utf8_is_named(tmp_path):
     """Issue 49, item 18: a spreadsheet's UTF-8 BOM hid the distance_m column, and a Latin-1 file
-    was a UnicodeDecodeError traceback; a FIFO is refused, not waited on."""
+    was a UnicodeDecodeError traceback; a FIFO is refused, not waited on. Milliseconds."""
     import os
 
     from dampnet.sim.roads import read_profile_csv

@@ -102,7 +102,7 @@ def test_the_size_limit_counts_the_values_a_run_keeps():
 ])
 def test_an_option_the_control_law_does_not_read_is_refused(tmp_path, capsys, argv, words):
     """Issue 49, item 13: `simulate --road impulse --control skyhook_onoff --u 3` ran skyhook and
-    ignored --u. Refused in one line before the run, naming the laws the option applies to."""
+    ignored --u. Refused in one line before the run, naming the laws the option applies to. Milliseconds."""
     from dampnet.cli import main
 
     out = tmp_path / "run"
