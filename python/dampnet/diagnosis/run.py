@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 
 from dampnet.diagnosis import score as S
@@ -24,21 +22,6 @@ def _jackknife(values: list[float]) -> float | None:
         return None
     k = len(v)
     return float(np.sqrt((k - 1) / k * np.sum((v - v.mean()) ** 2)))
-
-
-def _map_threads(fn, items: list) -> list:
-    """[fn(item) for item in items] on up to two threads (numpy's products and solves release the
-    GIL), numpy's BLAS held to one thread each meanwhile. The candidates read the context and its
-    caches, which the baseline's cross-validation filled before; none writes what another reads."""
-    from concurrent.futures import ThreadPoolExecutor
-
-    from threadpoolctl import threadpool_limits
-
-    n = min(2, os.cpu_count() or 1, len(items))
-    if n < 2:
-        return [fn(x) for x in items]
-    with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(max_workers=n) as pool:
-        return list(pool.map(fn, items))
 
 
 def _parameters(ctx, cand, res, folds):
@@ -99,9 +82,9 @@ def diagnose(model, ds, *, candidates=None, n_surrogates: int = S.N_SURROGATES, 
         base_cv = S.baseline_cv(ctx, Y, folds)
         ss_tot = sum(float(np.sum(r * r)) for r in resid)
         share = float((ss_tot - base_cv[0][:, 0].sum()) / ss_tot) if ss_tot > 0 else 0.0
-        todo = [cid for cid in cids if cid not in included and cid not in accepted]
-        scored = _map_threads(lambda cid: S.score_candidate(ctx, CANDIDATES[cid], Y, folds, base_cv), todo)
-        return dict(zip(todo, scored)), (Y, base_cv), share, folds
+        results = {cid: S.score_candidate(ctx, CANDIDATES[cid], Y, folds, base_cv)
+                   for cid in cids if cid not in included and cid not in accepted}
+        return results, (Y, base_cv), share, folds
 
     # Forward selection: the most likely effect is accepted into the baseline and the
     # others are scored again given it, so that an effect which only partly mimics the
