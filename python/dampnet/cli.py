@@ -76,11 +76,19 @@ def main(argv: list[str] | None = None) -> int:
     if handler is None:
         parser.print_help()
         return 2
+    from dampnet import signals
+
+    signals.terminate_as_exception()    # SIGTERM cleans up as Ctrl-C does (dampnet.signals)
     try:
         return int(handler(args) or 0)
+    except signals.Terminated:
+        print("dampnet: terminated", file=sys.stderr)
+        return signals.TERMINATED_STATUS
     except KeyboardInterrupt:
         print("dampnet: interrupted", file=sys.stderr)
-        return 130
+        return signals.INTERRUPTED_STATUS
+    finally:
+        signals.default_handlers()      # a signal while Python shuts down ends it, no traceback
 
 
 if __name__ == "__main__":

@@ -57,12 +57,15 @@ def run(args) -> int:
                        max_cells=MAX_CELLS if args.max_cells is None else args.max_cells)
     except (SweepError, ValueError, OSError) as e:   # SpecError, OutputError: ValueErrors
         return error(str(e))
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as e:      # Ctrl-C, or SIGTERM (dampnet.signals.Terminated)
         import sys
 
-        print(f"dampnet: interrupted: the finished cells are saved in {args.out}; the same command with "
+        from dampnet import signals
+
+        terminated = isinstance(e, signals.Terminated)
+        print(f"dampnet: {'terminated' if terminated else 'interrupted'}: the finished cells are saved in {args.out}; the same command with "
               "--resume computes the others", file=sys.stderr)
-        return 130
+        return signals.TERMINATED_STATUS if terminated else signals.INTERRUPTED_STATUS
     if not args.quiet:
         from pathlib import Path
 

@@ -64,11 +64,9 @@ def dask_setup(worker=None) -> None:
     """The embedded cluster's worker preload: a worker ignores SIGINT. Ctrl-C in a terminal reaches
     every process of the foreground group; the client (the sweep) handles it, cancels the cells under
     way and closes the cluster, instead of every worker dying with its own traceback."""
-    import signal
-    import threading
+    from dampnet.signals import worker_ignores_interrupt
 
-    if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    worker_ignores_interrupt()
     from dampnet.sweep.hashing import source_digest
 
     source_digest()     # this worker's dampnet as it starts (the client hashes its own then too)

@@ -78,13 +78,14 @@ import multiprocessing
 import os
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Callable
 
 import numpy as np
 
 from dampnet.data import DataError
+from dampnet.signals import Deferred, children_ignore_interrupt, worker_ignores_interrupt
 
 #: restarts `dampnet train` runs unless --restarts says otherwise (bench/RESULTS.md "Restarts")
 DEFAULT_RESTARTS = 6
@@ -328,6 +329,13 @@ SCORE_HELP = {
     "lolo": "leave-one-level-out refits on interior levels, about 2x the cost and selects worse (bench/RESULTS.md)"}
 
 
+#: the temporary hand-off file's name: this prefix, the parent's pid, a random part, .pickle
+HANDOFF_PREFIX = "dampnet-restarts-"
+#: how often the parent looks for a signal while the workers fit [s]
+POLL_S = 0.1
+#: how long stopped workers get to end on SIGTERM before SIGKILL [s]
+STOP_WAIT_S = 3.0
+
 # -- the jobs (run in worker processes or in-process) ---------------------------------------------
 
 _PREP = None
@@ -345,6 +353,7 @@ def _init_worker(handoff: str) -> None:
 
     from dampnet.features import FEATURES, register_feature
 
+    worker_ignores_interrupt()      # Ctrl-C reaches the whole group: the parent stops the workers
     _exit_with_parent()
     with open(handoff, "rb") as f:
         prep, fit, extra_features = pickle.load(f)
@@ -451,24 +460,52 @@ def _run(prep, fit, jobs: list[tuple], workers: int, done: Callable[[int, dict],
             _PREP, _FIT = old
         return results  # type: ignore[return-value]
     ctx = multiprocessing.get_context("spawn")  # no fork of a process with torch's threads running
-    with _handoff_file(lean, fit, _extra_features(prep)) as handoff, _importable_main():
-        ex = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker, initargs=(handoff,))
-        futures = {ex.submit(_job, *job): i for i, job in enumerate(jobs)}
+    # Ctrl-C and SIGTERM only set a flag inside (dampnet.signals.Deferred): the loop stops the workers
+    # itself, the hand-off file is removed, and then the signal is delivered again
+    with Deferred() as stop, _handoff_file(lean, fit, _extra_features(prep)) as handoff, _importable_main():
+        ex = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker,
+                                 initargs=(handoff,))
+        with children_ignore_interrupt():   # the workers are started by the first submit
+            futures = {ex.submit(_job, *job): i for i, job in enumerate(jobs)}
         try:
-            for fut in as_completed(futures):
-                i = futures[fut]
-                results[i] = fut.result()
-                done(i, results[i])
+            pending = set(futures)
+            while pending:
+                stop.check()
+                finished, pending = wait(pending, timeout=POLL_S, return_when=FIRST_COMPLETED)
+                for fut in finished:
+                    i = futures[fut]
+                    results[i] = fut.result()
+                    done(i, results[i])
         except BrokenProcessPool as e:
-            ex.shutdown(wait=True, cancel_futures=True)
+            _stop_pool(ex)
+            stop.check()        # SIGTERM to the process group ends the workers too: not their fault
             raise RuntimeError(WORKER_DIED) from e
         except BaseException:
-            ex.shutdown(wait=True, cancel_futures=True)
+            _stop_pool(ex)
             raise
-    # every result is in: let the idle workers exit on their own (Python's teardown in a process
-    # that imported torch takes ~1.5 s, which waiting for would add to every training's time)
-    ex.shutdown(wait=False)
+        # every result is in: end the idle workers (waiting on their task queue, holding nothing the
+        # parent needs). Their own exit, Python's teardown in a process that imported torch, takes
+        # ~1.5 s, and the interpreter waits for it when this process exits (a Ctrl-C then found it
+        # still waiting, 10 s and more on a loaded machine).
+        _stop_pool(ex)
     return results  # type: ignore[return-value]
+
+
+def _stop_pool(ex: ProcessPoolExecutor) -> None:
+    """End the pool's workers now, mid-fit included (shutdown alone waits for the fits under way,
+    minutes): SIGTERM each, then SIGKILL what is left after STOP_WAIT_S."""
+    procs = list((getattr(ex, "_processes", None) or {}).values())
+    for p in procs:
+        with contextlib.suppress(OSError, ValueError):
+            p.terminate()
+    ex.shutdown(wait=False, cancel_futures=True)
+    deadline = time.monotonic() + STOP_WAIT_S
+    for p in procs:
+        with contextlib.suppress(OSError, ValueError, AssertionError):
+            p.join(max(0.0, deadline - time.monotonic()))
+            if p.is_alive():
+                p.kill()
+                p.join(1.0)
 
 
 @contextlib.contextmanager
@@ -480,7 +517,8 @@ def _handoff_file(*payload):
     import pickle
     import tempfile
 
-    fd, path = tempfile.mkstemp(prefix="dampnet-restarts-", suffix=".pickle")
+    _remove_stale_handoffs()
+    fd, path = tempfile.mkstemp(prefix=f"{HANDOFF_PREFIX}{os.getpid()}-", suffix=".pickle")
     try:
         with os.fdopen(fd, "wb") as f:
             pickle.dump(payload, f, protocol=pickle.HIGHEST_PROTOCOL)
@@ -488,6 +526,28 @@ def _handoff_file(*payload):
     finally:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(path)
+
+
+def _remove_stale_handoffs() -> None:
+    """Remove this user's hand-off files whose process is gone: a parent killed outright (SIGKILL,
+    the out-of-memory killer) cannot remove its own. The file's name holds the parent's pid."""
+    import re
+    import tempfile
+
+    from dampnet.signals import pid_alive
+
+    folder = tempfile.gettempdir()
+    pattern = re.compile(re.escape(HANDOFF_PREFIX) + r"(\d+)-\w+\.pickle\Z")
+    with contextlib.suppress(OSError):
+        for entry in os.scandir(folder):
+            m = pattern.match(entry.name)
+            if m is None or int(m.group(1)) == os.getpid():
+                continue
+            with contextlib.suppress(OSError):
+                st = entry.stat(follow_symlinks=False)
+                if entry.is_file(follow_symlinks=False) and st.st_uid == os.getuid() \
+                        and not pid_alive(int(m.group(1))):
+                    os.unlink(entry.path)
 
 
 # -- the run --------------------------------------------------------------------------------------

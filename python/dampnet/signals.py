@@ -1,0 +1,143 @@
+"""Ctrl-C and SIGTERM: every run ends at once, workers included, and leaves nothing behind (issue 49).
+
+The one home of dampnet's signal handling:
+  Terminated                SIGTERM as an exception. It is a KeyboardInterrupt, so every clean-up
+                            written for Ctrl-C (a sweep saving its state, restarts stopping their
+                            workers, atomic writers removing their temporary files) runs for it too.
+  terminate_as_exception()  the command line's SIGTERM handler (dampnet.cli.main installs it, and
+                            default_handlers() when it returns).
+  Deferred                  around a section that must not be cut between two bytecodes (a process
+                            pool's queues and locks): SIGINT and SIGTERM only set a flag, the section
+                            polls `pending` and stops its workers itself, and on leaving the section
+                            the signal is delivered again to the handler that was there before.
+  children_ignore_interrupt()
+                            around starting worker processes: SIGINT is ignored meanwhile, so the
+                            new processes start ignoring it (a disposition SIG_IGN survives fork
+                            and exec) and a Ctrl-C in the terminal, which reaches the whole
+                            process group, cannot kill one while it imports.
+  worker_ignores_interrupt()
+                            a worker's first call: it ignores SIGINT for good (the parent decides
+                            what Ctrl-C means and stops it), so Ctrl-C prints no traceback per
+                            worker.
+Why not let KeyboardInterrupt fly inside concurrent.futures: raised between two bytecodes of the
+pool's own code it can leave a lock held or a queue half-written, and the parent then waited for
+ever in shutdown (2 runs in 5 of the issue's probe).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+from contextlib import contextmanager
+from typing import Iterator
+
+#: the exit status of a run ended by SIGTERM (128 + the signal's number, as a shell reports it)
+TERMINATED_STATUS = 128 + signal.SIGTERM
+#: the exit status of a run ended by Ctrl-C
+INTERRUPTED_STATUS = 128 + signal.SIGINT
+
+
+class Terminated(KeyboardInterrupt):
+    """The process was sent SIGTERM (a KeyboardInterrupt, so Ctrl-C's clean-up runs for it too)."""
+
+
+def _raise_terminated(signum, frame) -> None:
+    raise Terminated(f"signal {signum}")
+
+
+def terminate_as_exception() -> None:
+    """SIGTERM raises Terminated in the main thread (from then on), unless SIGTERM is ignored."""
+    if threading.current_thread() is threading.main_thread() \
+            and signal.getsignal(signal.SIGTERM) is not signal.SIG_IGN:
+        signal.signal(signal.SIGTERM, _raise_terminated)
+
+
+def default_handlers() -> None:
+    """SIGINT and SIGTERM end the process at once from now on (the command line's last step: while
+    the interpreter shuts down, a KeyboardInterrupt would only print a traceback)."""
+    if threading.current_thread() is threading.main_thread():
+        for s in (signal.SIGINT, signal.SIGTERM):
+            if signal.getsignal(s) is not signal.SIG_IGN:
+                signal.signal(s, signal.SIG_DFL)
+
+
+class Deferred:
+    """SIGINT and SIGTERM held as a flag while the `with` block runs (main thread only; elsewhere,
+    and for a signal that was ignored, nothing changes). `pending` is the number of the first
+    signal that came, or 0. On leaving, the old handlers come back and a held signal is delivered
+    to them: KeyboardInterrupt or Terminated is raised then, or the process ends by the signal's
+    default action. An exception the block raised because of the signal (`Stop`) is replaced by
+    that; a handler that returns leaves RuntimeError."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    class Stop(Exception):
+        """Raised by the block (`check()`) to leave at once when a signal is pending."""
+
+    def __init__(self) -> None:
+        self.pending = 0
+        self._old: dict[int, object] = {}
+
+    def _hold(self, signum, frame) -> None:
+        if not self.pending:
+            self.pending = signum
+
+    def check(self) -> None:
+        """Stop when a signal is pending."""
+        if self.pending:
+            raise Deferred.Stop(f"signal {self.pending}")
+
+    def __enter__(self) -> "Deferred":
+        if threading.current_thread() is threading.main_thread():
+            for s in self.SIGNALS:
+                old = signal.getsignal(s)
+                if old is not signal.SIG_IGN and old is not None:
+                    self._old[s] = old
+                    signal.signal(s, self._hold)
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> bool:
+        for s, old in self._old.items():
+            signal.signal(s, old)
+        if not self.pending:
+            return False
+        if exc_type is not None and not issubclass(exc_type, Deferred.Stop):
+            return False        # an error of its own came first: it is the one to report
+        signal.raise_signal(self.pending)   # the old handler raises here, or the process ends
+        raise RuntimeError(f"stopped by signal {self.pending}")
+
+
+@contextmanager
+def children_ignore_interrupt() -> Iterator[None]:
+    """Processes started inside start with SIGINT ignored: an ignored signal stays ignored across
+    fork and exec, and Python then installs no KeyboardInterrupt handler, so a Ctrl-C cannot kill
+    a worker while it imports (its traceback printed) before worker_ignores_interrupt runs. Why
+    not block it instead: multiprocessing's spawn clears the signal mask of the new process
+    (measured on Python 3.11). Keep the block short (starting the processes, milliseconds): a
+    Ctrl-C inside it is dropped for this process too."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
+def worker_ignores_interrupt() -> None:
+    """A worker process ignores SIGINT from now on."""
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def pid_alive(pid: int) -> bool:
+    """Whether a process with this id exists (one of another user's counts)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
