@@ -381,3 +381,105 @@ def test_an_absurd_sample_interval_is_refused_naming_the_channel(rig, tmp_path, 
         read_lab_file(p, {"channels": {"displacement": "Disp", "force": "Force", "voltage": "Command"}})
     msg = _one_line(e)
     assert "'G/Force' (force): sample interval" in msg and "interval from 1e-07 to 10 s" in msg
+
+
+@pytest.mark.parametrize("key, value", [("voltage", 1e308), ("voltage", -1e3 - 1e-6), ("current", 2e3),
+                                        ("voltage", float("inf"))])
+def test_a_control_constant_out_of_the_physical_range_is_refused(tmp_path, key, value):
+    """Issue 49, item 13: a channel map's `[control] voltage = 1e308` was taken. A constant beyond
+    dampnet.data.types.CONTROL_MAX (the limit `simulate --u` checks too, limits.CONTROL_V) is one
+    DataError naming the map, the key and the range; the limit itself is accepted. Cost: 0.01 s."""
+    from dampnet.data.lab.channelmap import load_channel_map
+    from dampnet.data.types import CONTROL_MAX
+    from dampnet.sim import limits
+
+    assert (limits.CONTROL_V.lo, limits.CONTROL_V.hi) == (-CONTROL_MAX, CONTROL_MAX)   # one limit
+    p = tmp_path / MAP_FILE
+    p.write_text(f"[control]\n{key} = {value!r}\n")
+    with pytest.raises(DataError) as e:
+        load_channel_map(p)
+    msg = _one_line(e)
+    unit = "V" if key == "voltage" else "A"
+    assert str(p) in msg and f"[control] {key} = " in msg and f"from -1000 to 1000 {unit}" in msg, msg
+    p.write_text(f"[control]\n{key} = {-CONTROL_MAX!r}\n")
+    assert load_channel_map(p).control == {key: -CONTROL_MAX}
+
+
+def _rpc_patch(path, key: str, value: str) -> None:
+    """Rewrite one RPC III header parameter in place (records of a 32-byte key, 96-byte value)."""
+    raw = bytearray(path.read_bytes())
+    for i in range(0, 128 * 4096, 128):
+        if raw[i:i + 32].rstrip(b"\0 ").decode("latin-1") == key:
+            raw[i + 32:i + 128] = value.encode("latin-1").ljust(96, b"\0")
+            path.write_bytes(bytes(raw))
+            return
+    raise AssertionError(f"no {key} in {path}")
+
+
+def _rpc_chans(n: int = 3000, dt: float = 2e-4):
+    t = np.arange(n) * dt
+    return {"Disp": (25.0 * np.sin(2 * np.pi * 3 * t), "mm"), "Force": (800.0 * np.cos(2 * np.pi * 3 * t), "N"),
+            "Command": (np.full(n, 1.5), "V")}
+
+
+RPC_MAP = {"channels": {"displacement": "Disp", "force": "Force", "voltage": "Command"}}
+
+
+@pytest.mark.parametrize("value", ["nan", "inf", "-0.001", "0.0", "1e-300", "100.0", "fast"])
+def test_an_rpc_delta_t_out_of_range_is_refused_naming_it(tmp_path, value):
+    """Issue 49, item 9: an RPC DELTA_T of nan gave a Python type error as the message (rpc3-file
+    compares the text 'nan' with 0). DELTA_T is checked first against the TDMS range,
+    dampnet.data.types.DT_RANGE_S (1e-7..10 s): one DataError naming the file and DELTA_T. Cost: 0.05 s each."""
+    p = write_rpc(tmp_path / "x.rsp", _rpc_chans(), 2e-4)
+    _rpc_patch(p, "DELTA_T", value)
+    with pytest.raises(DataError) as e:
+        read_lab_file(p, RPC_MAP)
+    msg = _one_line(e)
+    assert str(p) in msg and f"DELTA_T = '{value}': expected a sample interval from 1e-07 to 10 s" in msg, msg
+
+
+def test_an_rpc_short_integer_file_is_decoded_as_integers_times_scale(tmp_path):
+    """Issue 49, item 9: SHORT_INTEGER is RPC III's 16-bit type, each sample times its channel's
+    SCALE.CHAN_n. A file rpc3-file writes in it is read as the same numbers an independent decoder
+    (numpy on the file's bytes: header blocks of 512 bytes, then per frame group each channel's
+    PTS_PER_GROUP int16) gives, and within half a step of scale of what was written. Cost: 0.1 s."""
+    import rpc3
+
+    chans = _rpc_chans()
+    p = tmp_path / "int.rsp"
+    rpc3.rpc3.progressbar = False
+    rpc3.write(str(p), [rpc3.Channel(name=k, unit=u, dt=2e-4, data=d) for k, (d, u) in chans.items()],
+               datatype=int, pts_per_group=1024)
+    # the independent decoder
+    raw = p.read_bytes()
+    head = {raw[i:i + 32].rstrip(b"\0 ").decode(): raw[i + 32:i + 128].rstrip(b"\0 ").decode()
+            for i in range(0, 128 * int(raw[128 + 32:256].rstrip(b"\0 ")) * 4, 128)}
+    assert head["DATA_TYPE"] == "SHORT_INTEGER"
+    nch, ppg, n = int(head["CHANNELS"]), int(head["PTS_PER_GROUP"]), int(head["SAMPLES"])
+    ints = np.frombuffer(raw, "<i2", offset=512 * int(head["NUM_HEADER_BLOCKS"]))
+    per = ints.reshape(-1, nch, ppg).transpose(1, 0, 2).reshape(nch, -1)[:, :n]
+    want = {name: per[i] * float(head[f"SCALE.CHAN_{i + 1}"])
+            for i, name in enumerate(head[f"DESC.CHAN_{j + 1}"] for j in range(nch))}
+    got = read_lab_file(p, RPC_MAP)[0]
+    np.testing.assert_allclose(got.channels["displacement"], want["Disp"] * 1e-3, rtol=1e-7, atol=0)
+    np.testing.assert_allclose(got.channels["force"], want["Force"], rtol=1e-7, atol=0)
+    step = float(head["SCALE.CHAN_1"])
+    assert np.max(np.abs(got.channels["displacement"] * 1e3 - chans["Disp"][0])) <= 0.5 * step * (1 + 1e-6)
+    assert got.dt == pytest.approx(2e-4)
+
+
+def test_an_rpc_float_file_whose_header_says_short_integer_is_refused(tmp_path):
+    """Issue 49, item 9: a float32 RPC file with its header patched to DATA_TYPE=SHORT_INTEGER was
+    read as garbage (the first half of its bytes as 16-bit integers) with exit 0; rpc3-file only
+    warned of the extra bytes. Refused naming the mismatch and the header's DATA_TYPE; an unknown
+    type is refused naming the types read. Cost: 0.1 s."""
+    p = write_rpc(tmp_path / "x.rsp", _rpc_chans(), 2e-4)
+    _rpc_patch(p, "DATA_TYPE", "SHORT_INTEGER")
+    with pytest.raises(DataError) as e:
+        read_lab_file(p, RPC_MAP)
+    msg = _one_line(e)
+    assert str(p) in msg and "extra bytes after expected data region (DATA_TYPE SHORT_INTEGER" in msg, msg
+    assert "a header that does not match the data" in msg
+    _rpc_patch(p, "DATA_TYPE", "DOUBLE")
+    with pytest.raises(DataError, match=r"DATA_TYPE = 'DOUBLE': expected SHORT_INTEGER or FLOATING_POINT"):
+        read_lab_file(p, RPC_MAP)

@@ -35,7 +35,7 @@ from dampnet.data.lab.channelmap import MAP_CHANNELS, MAP_FILE, ChannelMap, reso
 from dampnet.data.lab.raw import LAB_SUFFIXES, RawChannel, RawFile, is_lab_file, read_raw
 from dampnet.data.preprocess import DEFAULT_WINDOW_S, moving_average
 from dampnet.data.testbuild import build_test
-from dampnet.data.types import CONTROL_NAMES, MIN_SAMPLES, DataError, Dataset, DynoTest
+from dampnet.data.types import CONTROL_NAMES, DT_RANGE_S, MIN_SAMPLES, DataError, Dataset, DynoTest
 from dampnet.data.units import quantity_of_name, unit_to_si
 from dampnet.schema import show
 
@@ -187,10 +187,6 @@ def _check_time(path: Path, label: str, t: np.ndarray) -> None:
         raise DataError(f"{path}: channel {show(label)} (time): sample {k}: time {show(float(t[k]))} after "
                         f"{show(float(t[k - 1]))}: expected strictly increasing time")
 
-
-#: the sample intervals [s] a file's time base may state: 10 MHz to 0.1 Hz (issue 49: a TDMS
-#: wf_increment of 1e-300 s was taken, giving frequencies of 6e296 Hz)
-DT_RANGE_S = (1e-7, 10.0)
 
 _UNSAFE = re.compile(r"[^A-Za-z0-9_.\-]+")
 
