@@ -483,3 +483,22 @@ def test_an_rpc_float_file_whose_header_says_short_integer_is_refused(tmp_path):
     _rpc_patch(p, "DATA_TYPE", "DOUBLE")
     with pytest.raises(DataError, match=r"DATA_TYPE = 'DOUBLE': expected SHORT_INTEGER or FLOATING_POINT"):
         read_lab_file(p, RPC_MAP)
+
+
+def test_an_mdf4_unit_stored_only_in_the_conversion_is_read(tmp_path):
+    """Issue 49, item 16: an MDF4 channel whose unit is only in its conversion block (the channel's
+    own unit empty, as several loggers write it) was refused, 'no unit in the file'. MDF4 says the
+    conversion's unit applies then: read as mm (and the conversion applied: 2 x raw). Cost: 0.2 s."""
+    asammdf = pytest.importorskip("asammdf")
+    t = np.arange(2000) * 1e-3
+    raw = 10.0 * np.sin(2 * np.pi * 2 * t)
+    p = tmp_path / "logger.mf4"
+    m = asammdf.MDF(version="4.10")
+    m.append([asammdf.Signal(raw, t, name="Disp", unit="", conversion={"a": 2.0, "b": 0.0, "unit": "mm"}),
+              asammdf.Signal(500 * np.cos(2 * np.pi * 2 * t), t, name="Force", unit="N"),
+              asammdf.Signal(np.full(t.size, 1.5), t, name="Command", unit="V")])
+    m.save(str(p), overwrite=True)
+    m.close()
+    got = read_lab_file(p, {"channels": {"displacement": "Disp", "force": "Force", "voltage": "Command"}})[0]
+    np.testing.assert_allclose(got.channels["displacement"], 2.0 * raw * 1e-3, rtol=1e-12, atol=1e-15)
+    assert got.meta["units"]["displacement"] == "mm"
