@@ -576,3 +576,34 @@ def test_a_file_too_short_to_derive_the_velocity_is_one_line(tmp_path):
         read_lab_file(p, DISP_MAP)
     msg = _one_line(e)
     assert "'G/Disp' (displacement): 100 samples: expected at least 110 to derive the velocity" in msg, msg
+
+
+@pytest.mark.parametrize("data_type", [int, float])
+def test_an_rpc_file_of_no_samples_is_one_line_naming_the_header(tmp_path, data_type):
+    """Issue 49, item 18: an RPC III SHORT_INTEGER file whose header says SAMPLES 0 gave numpy's
+    'zero-size array to reduction operation minimum which has no identity' (rpc3-file takes the
+    minimum of each channel): refused naming SAMPLES and the samples expected, whatever the type.
+    Cost: 0.05 s each."""
+    import rpc3
+
+    p = tmp_path / "empty.rsp"
+    rpc3.rpc3.progressbar = False
+    rpc3.write(str(p), [rpc3.Channel(name=k, unit=u, dt=1e-3, data=d) for k, (d, u) in _rpc_chans().items()],
+               datatype=data_type)
+    _rpc_patch(p, "SAMPLES", "0")
+    with pytest.raises(DataError) as e:
+        read_lab_file(p, RPC_MAP)
+    msg = _one_line(e)
+    assert str(p) in msg and "SAMPLES = 0: no samples: expected at least 10" in msg and "zero-size" not in msg, msg
+
+
+def test_an_empty_mdf_channel_group_names_its_samples(tmp_path):
+    """An MDF4 whose force group holds no sample was refused as 'time stamp 0 is not after the one
+    before': now its sample count. Cost: 0.1 s."""
+    t = np.arange(100) * 1e-3
+    p = write_mdf(tmp_path / "empty.mf4", [(t, {"Disp": (np.sin(t), "mm"), "Command": (np.ones(100), "V")}),
+                                           (np.zeros(0), {"Force": (np.zeros(0), "N")})])
+    with pytest.raises(DataError) as e:
+        read_lab_file(p, {"channels": {"displacement": "Disp", "force": "Force", "voltage": "Command"}})
+    msg = _one_line(e)
+    assert "(force): 0 samples: expected at least 2 on its own time base" in msg, msg

@@ -156,9 +156,12 @@ def _time_base(path: Path, picked: dict[str, RawChannel], cols: dict[str, np.nda
                                 "lengths (the channels share one sample rate)")
         return ref, cols, {}
     for ch, tc in times.items():
+        if tc.size < 2:   # an empty channel group was "time stamp 0 is not after the one before"
+            raise DataError(f"{path}: channel {show(picked[ch].label)} ({ch}): {tc.size} samples: expected at "
+                            "least 2 on its own time base (a slow channel is interpolated between its samples)")
         d = np.diff(tc)
-        if tc.size < 2 or not (d > 0).all():
-            k = int(np.argmax(d <= 0)) + 1 if tc.size >= 2 else 0
+        if not (d > 0).all():
+            k = int(np.argmax(d <= 0)) + 1
             raise DataError(f"{path}: channel {show(picked[ch].label)} ({ch}): time stamp {k} is not after the one "
                             "before: expected strictly increasing time")
     lo = max(tc[0] for tc in times.values())

@@ -18,7 +18,7 @@ import warnings
 
 import numpy as np
 
-from dampnet.data.types import DT_RANGE_S
+from dampnet.data.types import DT_RANGE_S, MIN_SAMPLES
 
 #: the RPC III data types read (rpc3-file decodes these two); the header's default is SHORT_INTEGER
 DATA_TYPES = ("SHORT_INTEGER", "FLOATING_POINT")
@@ -61,9 +61,13 @@ def check_header(params: dict[str, str]) -> None:
     kind = params.get("DATA_TYPE", "SHORT_INTEGER")
     if kind not in DATA_TYPES:
         raise ValueError(f"DATA_TYPE = {kind!r}: expected {' or '.join(DATA_TYPES)} (the types read)")
-    for key in ("FRAMES", "SAMPLES"):
-        if key in params and params[key].strip() in ("0", "0.0"):
-            raise ValueError(f"{key} = {params[key]}: no samples in the file")
+    for key in ("FRAMES", "SAMPLES"):   # rpc3-file takes the minimum of a SHORT_INTEGER file's empty
+        try:                               # channels: numpy's "zero-size array to reduction operation"
+            none = key in params and float(params[key]) == 0
+        except ValueError:
+            none = False
+        if none:
+            raise ValueError(f"{key} = {params[key]}: no samples: expected at least {MIN_SAMPLES}")
 
 
 def read(path: str) -> tuple[dict[str, np.ndarray], dict]:
