@@ -392,10 +392,7 @@ def test_a_control_constant_out_of_the_physical_range_is_refused(tmp_path, key, 
     dampnet.data.types.CONTROL_MAX (the limit `simulate --u` checks too, limits.CONTROL_V) is one
     DataError naming the map, the key and the range; the limit itself is accepted. Cost: 0.01 s."""
     from dampnet.data.lab.channelmap import load_channel_map
-    from dampnet.data.types import CONTROL_MAX
-    from dampnet.sim import limits
 
-    assert (limits.CONTROL_V.lo, limits.CONTROL_V.hi) == (-CONTROL_MAX, CONTROL_MAX)   # one limit
     p = tmp_path / MAP_FILE
     p.write_text(f"[control]\n{key} = {value!r}\n")
     with pytest.raises(DataError) as e:
@@ -403,8 +400,12 @@ def test_a_control_constant_out_of_the_physical_range_is_refused(tmp_path, key, 
     msg = _one_line(e)
     unit = "V" if key == "voltage" else "A"
     assert str(p) in msg and f"[control] {key} = " in msg and f"from -1000 to 1000 {unit}" in msg, msg
-    p.write_text(f"[control]\n{key} = {-CONTROL_MAX!r}\n")
-    assert load_channel_map(p).control == {key: -CONTROL_MAX}
+    p.write_text(f"[control]\n{key} = -1000.0\n")
+    assert load_channel_map(p).control == {key: -1000.0}
+    from dampnet.data.types import CONTROL_MAX
+    from dampnet.sim import limits
+
+    assert CONTROL_MAX == 1000.0 and (limits.CONTROL_V.lo, limits.CONTROL_V.hi) == (-CONTROL_MAX, CONTROL_MAX)
 
 
 def _rpc_patch(path, key: str, value: str) -> None:
