@@ -203,7 +203,7 @@ def derived_velocity(x: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, int, dic
     cut = int(round(DERIVE_EDGE_S / dt))
     info = {"method": f"zero-phase Butterworth low-pass of the displacement (order {DERIVE_ORDER}, "
                       "scipy.signal.sosfiltfilt), 4th-order central differences",
-            "bandwidth_hz": fc, "edge_cut_s": cut * dt}
+            "bandwidth_hz": fc, "edge_cut_s": round(cut * dt, 9)}
     return v, cut, info
 
 
