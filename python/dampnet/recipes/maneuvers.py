@@ -365,7 +365,8 @@ def _bsst_check(s: dict) -> None:
     f0, f1, rate = s["bsst_f0_hz"], s["bsst_f1_hz"], s["bsst_rate_oct_s"]
     if f1 < f0 * 2.0 ** BSST_MIN_OCTAVES:
         raise ValueError(f"--bsst-f1 {f1:g} Hz: expected at least a third of an octave above --bsst-f0 "
-                         f"{f0:g} Hz (>= {f0 * 2.0 ** BSST_MIN_OCTAVES:.4g} Hz): a narrower sweep leaves nothing to measure")
+                         f"{f0:g} Hz (>= {f0 * 2.0 ** BSST_MIN_OCTAVES:.4g} Hz): a narrower sweep leaves nothing "
+                         "to measure")
     cycles = (f1 - f0) / (rate * math.log(2.0))
     if cycles < BSST_MIN_CYCLES:
         raise ValueError(f"--bsst-rate {rate:g} octave/s: the sweep {f0:g} -> {f1:g} Hz holds {cycles:.3g} cycles: "
