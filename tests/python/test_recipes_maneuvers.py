@@ -224,3 +224,21 @@ def test_a_bounce_sweep_with_nothing_to_measure_is_refused(tmp_path, capsys, arg
     given = {by_cli[a]: float(v) for a, v in zip(args[::2], args[1::2])}
     with pytest.raises(ValueError, match=words.split(":")[0]):
         maneuvers.build("bsst", DT, given)
+
+
+def test_a_sweep_cell_with_nothing_to_measure_is_refused_when_the_spec_is_expanded():
+    """Issue 49, items 8/10, in a sweep: a [fullcar] bsst cell of 19.9999 -> 20 Hz is a SpecError
+    naming the cell's settings when the grid is expanded, not a failed cell at run time; each
+    setting's range is the spec's own check. Cost: 0.05 s."""
+    from dampnet.sweep import parse_spec
+    from dampnet.sweep.grid import expand
+    from dampnet.sweep.spec import SpecError
+
+    spec = parse_spec({"fullcar": {"tests": ["bsst", "dlc"], "bsst_f0_hz": 19.9999, "bsst_f1_hz": 20.0}})
+    with pytest.raises(SpecError, match=r"\[fullcar\] test bsst \(mode heave, bsst_amplitude_m 0.005, bsst_f0_hz "
+                                        r"19.9999, bsst_f1_hz 20, bsst_rate_oct_s 0.1\): --bsst-f1 20 Hz: expected at "
+                                        r"least a third of an octave above"):
+        expand(spec)
+    with pytest.raises(SpecError, match=r"bsst_rate_oct_s.*\[0.01, 10\] octave/s"):
+        parse_spec({"fullcar": {"tests": "bsst", "bsst_rate_oct_s": 1e9}})
+    assert len(expand(parse_spec({"fullcar": {"tests": ["bsst", "dlc"], **{k: v for k, v in SHORT_BSST.items()}}}))) == 2
