@@ -161,7 +161,7 @@ def test_the_bounce_sweep_settings_work_from_the_command_line(tmp_path, capsys):
     assert {k: v for k, v in cli["metrics"].items() if v is not None} == pytest.approx(
         {k: v for k, v in api["metrics"].items() if v is not None}, rel=1e-12)
     assert main(["vehicle", "linear:2500", "--test", "bsst", "--bsst-f1", "0", "--out", str(tmp_path / "x")]) == 2
-    assert "--bsst-f1: expected a finite number > 0 [Hz], got 0.0" in capsys.readouterr().err
+    assert "--bsst-f1: expected a finite number in [0.01, 100] Hz, got 0.0" in capsys.readouterr().err
     assert main(["vehicle", "linear:2500", "--test", "dlc", "--bsst-rate", "1", "--out", str(tmp_path / "x")]) == 2
     assert "--bsst-rate: dlc does not take it (it applies to bsst); drop --bsst-rate" in capsys.readouterr().err
 
@@ -197,3 +197,48 @@ def test_the_vehicle_damping_settings_are_control_laws(hump, tmp_path, monkeypat
     assert res["damping"] == "mid"
     assert res["controller"]["u_passive"] == pytest.approx(0.5 * (lv["low"] + lv["high"]), abs=0)
     assert (res["controller"]["u_min"], res["controller"]["u_max"]) == (min(lv.values()), max(lv.values()))
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--bsst-rate", "1e9"], "--bsst-rate: expected a finite number in [0.01, 10] octave/s, got 1000000000.0"),
+    (["--bsst-rate", "1e-6"], "--bsst-rate: expected a finite number in [0.01, 10] octave/s, got 1e-06"),
+    (["--bsst-amplitude", "1e-9"], "--bsst-amplitude: expected a finite number in [1e-06, 0.1] m, got 1e-09"),
+    (["--bsst-f0", "1e-5"], "--bsst-f0: expected a finite number in [0.01, 100] Hz, got 1e-05"),
+    (["--bsst-f0", "19.9999", "--bsst-f1", "20"],
+     "--bsst-f1 20 Hz: expected at least a third of an octave above --bsst-f0 19.9999 Hz (>= 25.2 Hz)"),
+    (["--bsst-f0", "0.5", "--bsst-f1", "0.63", "--bsst-rate", "10"],
+     "--bsst-rate 10 octave/s: the sweep 0.5 -> 0.63 Hz holds 0.0188 cycles: expected at least 2"),
+])
+def test_a_bounce_sweep_with_nothing_to_measure_is_refused(tmp_path, capsys, args, words):
+    """Issue 49, items 8/10: `vehicle --bsst-rate 1e9` ran (acc_rms 0.0), `--bsst-rate 1e-6` failed
+    allocating 198 GiB (a traceback), `--bsst-f0 19.9999 --bsst-f1 20` ran with every peak None.
+    Each setting has a range (dampnet.recipes.maneuvers.Setting.range) and the sweep's span and
+    cycles are checked together (BSST_MIN_OCTAVES, BSST_MIN_CYCLES): one line naming the option,
+    exit 2, before anything runs; the sweep's cells (maneuvers.build) refuse the same. Cost: 0.05 s each."""
+    out = tmp_path / "x"
+    assert main(["vehicle", "linear:2500", "--test", "bsst", *args, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("dampnet: error: ") and words in err, err
+    assert not out.exists()
+    by_cli = {s.cli: s.name for s in maneuvers.SETTINGS.values()}
+    given = {by_cli[a]: float(v) for a, v in zip(args[::2], args[1::2])}
+    with pytest.raises(ValueError, match=words.split(":")[0]):
+        maneuvers.build("bsst", DT, given)
+
+
+def test_a_sweep_cell_with_nothing_to_measure_is_refused_when_the_spec_is_expanded():
+    """Issue 49, items 8/10, in a sweep: a [fullcar] bsst cell of 19.9999 -> 20 Hz is a SpecError
+    naming the cell's settings when the grid is expanded, not a failed cell at run time; each
+    setting's range is the spec's own check. Cost: 0.05 s."""
+    from dampnet.sweep import parse_spec
+    from dampnet.sweep.grid import expand
+    from dampnet.sweep.spec import SpecError
+
+    spec = parse_spec({"fullcar": {"tests": ["bsst", "dlc"], "bsst_f0_hz": 19.9999, "bsst_f1_hz": 20.0}})
+    with pytest.raises(SpecError, match=r"\[fullcar\] test bsst \(mode heave, bsst_amplitude_m 0.005, bsst_f0_hz "
+                                        r"19.9999, bsst_f1_hz 20, bsst_rate_oct_s 0.1\): --bsst-f1 20 Hz: expected at "
+                                        r"least a third of an octave above"):
+        expand(spec)
+    with pytest.raises(SpecError, match=r"bsst_rate_oct_s.*\[0.01, 10\] octave/s"):
+        parse_spec({"fullcar": {"tests": "bsst", "bsst_rate_oct_s": 1e9}})
+    assert len(expand(parse_spec({"fullcar": {"tests": ["bsst", "dlc"], **{k: v for k, v in SHORT_BSST.items()}}}))) == 2

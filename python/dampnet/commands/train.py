@@ -154,6 +154,11 @@ def print_summary(model, info, split, metrics, out, t_train) -> None:
           f"({info.stop_reason}) in {info.time_s:.1f} s ({t_train:.1f} s with data preparation)")
     if model.terms:
         print("physics terms: " + "; ".join(f"{t['kind']} {t['params']}" for t in model.terms))
+    vd = model.meta.get("data", {}).get("velocity_derived")
+    if vd:
+        print(f"velocity derived from displacement in {len(vd['tests'])} tests: {vd['method']}, bandwidth "
+              f"{', '.join(f'{b:g}' for b in vd['bandwidth_hz'])} Hz, "
+              f"{', '.join(f'{c:g}' for c in vd['edge_cut_s'])} s cut at each end")
     m = info.metrics
     if set(m) == {"all"}:  # an average of restarts (--average): no rows held out of every member
         print(f"NRMSE on all training samples {m['all']:.4f} (the averaged network; its members split the samples "

@@ -167,9 +167,11 @@ def load_dataset(path: str | os.PathLike, channel_map=None, **options) -> Datase
     if not p.exists():
         raise DataError(f"{p}: not found: expected a dataset directory or a data file")
     from dampnet.data.lab import is_lab_file, read_lab_file
+    from dampnet.data.lab.assemble import velocity_summary
 
     if is_lab_file(p):
-        return Dataset(tests=read_lab_file(p, channel_map, **options), source=str(p), meta={"reader": "lab"})
+        tests = read_lab_file(p, channel_map, **options)
+        return Dataset(tests=tests, source=str(p), meta={"reader": "lab", **velocity_summary(tests)})
     if channel_map is not None:
         raise DataError(f"{p}: channel_map applies to lab files (TDMS, MDF, RPC III); for a text file name "
                         "the columns with their units, for a .mat file pass mapping=")

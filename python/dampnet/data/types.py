@@ -49,6 +49,14 @@ COLUMN_CHANNELS = {v: k for k, v in FILE_COLUMNS.items()}
 CONTROL_NAMES = ("voltage", "current")
 REQUIRED = ("displacement", "velocity", "force")
 MIN_SAMPLES = 10
+#: the largest |control| a run or a file may state, in the control's unit (V for voltage, A for
+#: current): far beyond any damper's command (a semi-active damper takes 0-10 V or 0-5 A), so it
+#: only refuses nonsense (a channel map's `[control] voltage = 1e308`, issue 49). The one limit:
+#: dampnet.sim.limits.CONTROL_V (`simulate --u`) is read from it.
+CONTROL_MAX = 1e3
+#: the sample intervals [s] a lab file's time base may state: 10 MHz to 0.1 Hz (issue 49: a TDMS
+#: wf_increment of 1e-300 s was taken, giving frequencies of 6e296 Hz; an RPC DELTA_T of nan)
+DT_RANGE_S = (1e-7, 10.0)
 
 
 class DataError(ValueError):

@@ -105,10 +105,19 @@ setting(Setting("road_seed", "", "seed of the road's random tracks", kind="seed"
                 sweep_key="road_seeds", axis=True))
 setting(Setting("max_speed", "", "also find the highest speed at which the test passes (bisection on speed "
                 "within 40-160 km/h to 0.5 km/h, each run as this one)", kind="flag"))
-setting(Setting("bsst_amplitude_m", "m", "sweep amplitude", cli="--bsst-amplitude", metavar="M"))
-setting(Setting("bsst_f0_hz", "Hz", "sweep start frequency", cli="--bsst-f0", metavar="HZ"))
-setting(Setting("bsst_f1_hz", "Hz", "sweep end frequency", cli="--bsst-f1", metavar="HZ"))
-setting(Setting("bsst_rate_oct_s", "octave/s", "sweep rate", cli="--bsst-rate", metavar="OCT_S"))
+# the bounce sweep's ranges (issue 49: a 1e9 octave/s sweep ran with nothing in it, acc RMS 0; a
+# 1e-6 octave/s one failed allocating 198 GiB): an amplitude up to a four-post rig's actuator
+# stroke; frequencies from 0.01 Hz (below the body modes) to 100 Hz (10 steps a cycle at the
+# default 1 ms); a rate from 0.01 octave/s (the default 5.3 octaves in 9 minutes) to 10 (in 0.5 s).
+# With the span and cycles checked together (_bsst_check), a sweep has something to measure.
+setting(Setting("bsst_amplitude_m", "m", "sweep amplitude", range=limits.Range(1e-6, 0.1, "m"),
+                cli="--bsst-amplitude", metavar="M"))
+setting(Setting("bsst_f0_hz", "Hz", "sweep start frequency", range=limits.Range(0.01, 100.0, "Hz"),
+                cli="--bsst-f0", metavar="HZ"))
+setting(Setting("bsst_f1_hz", "Hz", "sweep end frequency", range=limits.Range(0.01, 100.0, "Hz"),
+                cli="--bsst-f1", metavar="HZ"))
+setting(Setting("bsst_rate_oct_s", "octave/s", "sweep rate", range=limits.Range(0.01, 10.0, "octave/s"),
+                cli="--bsst-rate", metavar="OCT_S"))
 
 
 # -- manoeuvres -----------------------------------------------------------------------------
@@ -124,7 +133,8 @@ class ManeuverRecipe:
     defaults: the settings it takes and their default values; headline: the metrics a summary
     line and the study's table show; columns: every metric it reports as the sweep's table columns
     (a per-wheel list as one column per wheel); objective: what a sweep of this test alone ranks by;
-    refuse: why a setting of another test is not one of this test (for the CLI's message)."""
+    refuse: why a setting of another test is not one of this test (for the CLI's message); check:
+    the settings together (each is within its range already), ValueError naming the options."""
 
     name: str
     doc: str
@@ -137,6 +147,7 @@ class ManeuverRecipe:
     objective: str
     line: Callable[[dict], str] | None = None
     refuse: dict[str, str] = field(default_factory=dict)
+    check: Callable[[dict], None] | None = None
 
     def summary(self, m: dict) -> str:
         """The one-line result `dampnet vehicle` prints (the headline metrics unless `line`)."""
@@ -201,6 +212,8 @@ def settings_of(name: str, given: dict[str, Any]) -> dict[str, Any]:
             why = m.refuse.get(k) or f"{name} does not take it (it applies to {', '.join(takes(k)) or 'no test'})"
             raise ValueError(f"{s.cli}: {why}; drop {s.cli}")
         out[k] = s.check(v, s.cli)
+    if m.check is not None:
+        m.check(out)
     return out
 
 
@@ -336,6 +349,31 @@ def _bsst(dt, vehicle, mode, bsst_amplitude_m, bsst_f0_hz, bsst_f1_hz, bsst_rate
     return bsst(dt, mode, amplitude_m=bsst_amplitude_m, f0=bsst_f0_hz, f1=bsst_f1_hz, rate_oct_s=bsst_rate_oct_s)
 
 
+#: a bounce sweep spans at least this many octaves (a third-octave band, the coarsest analysis
+#: band) and holds at least this many cycles, (f1 - f0) / (rate ln 2): less is a pulse, not a
+#: sweep, with nothing to measure (19.9999 -> 20 Hz gave every peak None and acc RMS 0; 0.5 ->
+#: 0.63 Hz at 10 octave/s is 0.02 cycles). Two cycles is a floor, not a good sweep: the tests'
+#: cheap 2 -> 4 Hz at 1 octave/s (2.9 cycles) passes; 10 octave/s over the default 5.3 octaves
+#: (2.8 cycles) puts the body peak at 0.52 Hz against the linear model's 0.81 Hz
+BSST_MIN_OCTAVES = 1.0 / 3.0
+BSST_MIN_CYCLES = 2.0
+
+
+def _bsst_check(s: dict) -> None:
+    import math
+
+    f0, f1, rate = s["bsst_f0_hz"], s["bsst_f1_hz"], s["bsst_rate_oct_s"]
+    if f1 < f0 * 2.0 ** BSST_MIN_OCTAVES:
+        raise ValueError(f"--bsst-f1 {f1:g} Hz: expected at least a third of an octave above --bsst-f0 "
+                         f"{f0:g} Hz (>= {f0 * 2.0 ** BSST_MIN_OCTAVES:.4g} Hz): a narrower sweep leaves nothing "
+                         "to measure")
+    cycles = (f1 - f0) / (rate * math.log(2.0))
+    if cycles < BSST_MIN_CYCLES:
+        raise ValueError(f"--bsst-rate {rate:g} octave/s: the sweep {f0:g} -> {f1:g} Hz holds {cycles:.3g} cycles: "
+                         f"expected at least {BSST_MIN_CYCLES:g} (a rate <= "
+                         f"{(f1 - f0) / (BSST_MIN_CYCLES * math.log(2.0)):.3g} octave/s, or a wider sweep)")
+
+
 def _dlc(dt, vehicle, speed_kmh, max_speed):
     from dampnet.sim.full_car.maneuvers import dlc
 
@@ -397,7 +435,7 @@ register(ManeuverRecipe(
      "wheel_hop_peak_gain_linear", "tyre_load_min_n"), "acc_rms_m_s2",
     line=lambda m: (f"body peak {_peak_text(m, 'body')}, wheel hop {_peak_text(m, 'wheel_hop')}; body acc RMS "
                     f"{m['acc_rms_m_s2']:.4f} m/s^2, pitch acc RMS {m['pitch_acc_rms_rad_s2']:.3f} rad/s^2"),
-    refuse={"speed_kmh": "the bounce sine sweep runs at rest on a four-post rig"}))
+    refuse={"speed_kmh": "the bounce sine sweep runs at rest on a four-post rig"}, check=_bsst_check))
 register(ManeuverRecipe(
     "dlc", "ISO 3888-1 double lane change driven by the preview driver",
     _dlc, _lazy("dampnet.sim.full_car.metrics", "dlc_metrics"), _lazy("dampnet.sim.full_car.plots", "plot_dlc"),

@@ -14,6 +14,7 @@ import math
 from dataclasses import dataclass
 
 from dampnet import _core
+from dampnet.data.types import CONTROL_MAX
 
 #: values one run may hold: steps x the values each step keeps (state and report). 1e8 float64
 #: values are 800 MB: a quarter-car run of 2.5 million steps, a full-car run of 1 million.
@@ -47,8 +48,8 @@ SPEED_M_S = Range(0.0, 100.0, "m/s", lo_open=True)
 SPEED_KMH = Range(0.0, 360.0, "km/h", lo_open=True)
 #: the switching laws' command filter time constant (0: unfiltered)
 COMMAND_TAU_S = Range(0.0, 10.0, "s")
-#: a passive control
-CONTROL_V = Range(-1e3, 1e3, "V")
+#: a passive control (dampnet.data.types.CONTROL_MAX: the one control limit, the channel map's too)
+CONTROL_V = Range(-CONTROL_MAX, CONTROL_MAX, "V")
 #: a random road's seed (numpy's SeedSequence takes any integer >= 0; the rough road uses seed + 1)
 SEED = Range(0, 2**32 - 2, "")
 

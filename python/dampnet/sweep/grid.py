@@ -105,9 +105,28 @@ def section_cells(section: Section, spec: Spec | None = None) -> list[dict[str, 
     out = []
     for combo in itertools.product(*(section.axes[n] for n in names)):
         for d in draws:
-            params = {**dict(zip(names, combo)), **d}
-            out.append(applicable(section.kind, params))
+            params = applicable(section.kind, {**dict(zip(names, combo)), **d})
+            if section.kind == "fullcar":
+                check_settings(params, spec)
+            out.append(params)
     return out
+
+
+def check_settings(params: dict[str, Any], spec: Spec | None) -> None:
+    """SpecError when a full-vehicle cell's settings fail its test's check of them together
+    (dampnet.recipes.maneuvers: a bounce sweep with nothing to measure), before anything runs."""
+    from dampnet.recipes.maneuvers import get
+
+    m = get(params["test"])
+    if m.check is None:
+        return
+    chosen = {k: params[k] for k in m.defaults}
+    try:
+        m.check(chosen)
+    except ValueError as e:
+        given = ", ".join(f"{k} {v:g}" if isinstance(v, float) else f"{k} {v}" for k, v in chosen.items())
+        raise SpecError(f"{spec.source if spec is not None else '<spec>'}: [fullcar] test {m.name} ({given}): "
+                        f"{e}") from None
 
 
 def draw(r: RandomSpec) -> list[dict[str, Any]]:

@@ -103,6 +103,8 @@ def _data_provenance(ds: Dataset, split: Split, features, window) -> dict[str, A
         "decimate": split.decimate,
         "acceleration_window_s": window if "acceleration" in features else None,
     }
+    if "velocity_derived" in ds.meta:   # lab files without a velocity channel (dampnet.data.lab.assemble)
+        d["velocity_derived"] = ds.meta["velocity_derived"]
     rig = ds.meta
     if rig.get("generator") == RIG_GENERATOR:
         d["rig"] = {"plan": rig.get("plan", {}).get("name"), "effects": sorted(rig.get("effects", {})),

@@ -34,7 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from dampnet.data.testbuild import CONVENTIONS
-from dampnet.data.types import CONTROL_NAMES, DataError
+from dampnet.data.types import CONTROL_MAX, CONTROL_NAMES, DataError
 from dampnet.schema import parse_toml, read_text, show
 
 #: the channel map's file name, looked for beside the data
@@ -79,8 +79,10 @@ class ChannelMap:
         for k, v in control.items():
             if k not in CONTROL_NAMES:
                 raise DataError(f"{source}: [control] {show(k)}: expected voltage (V) or current (A)")
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or v != v or abs(v) == float("inf"):
-                raise DataError(f"{source}: [control] {k} = {show(v)}: expected a finite number")
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not abs(v) <= CONTROL_MAX:
+                unit = "V" if k == "voltage" else "A"
+                raise DataError(f"{source}: [control] {k} = {show(v)}: expected a finite number from "
+                                f"{-CONTROL_MAX:g} to {CONTROL_MAX:g} {unit}")
             ctl[k] = float(v)
         if len(ctl) > 1:
             raise DataError(f"{source}: [control]: expected one of voltage or current, got both")

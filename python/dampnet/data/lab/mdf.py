@@ -1,6 +1,9 @@
 """ASAM MDF 3.x / 4.x through asammdf: every numeric channel of every channel group with its
 group's master (time) channel, so groups recorded at different rates keep their own time base
-(dampnet.data.lab.assemble resamples them onto one). Runs in a child process."""
+(dampnet.data.lab.assemble resamples them onto one). Runs in a child process.
+
+A channel's unit is its own, or when that is empty its conversion's (MDF4: the conversion's unit
+applies then; several loggers write it only there; asammdf's get_channel_unit reads it)."""
 
 from __future__ import annotations
 
@@ -29,7 +32,8 @@ def read(path: str) -> tuple[dict[str, np.ndarray], dict]:
                     arrays[tkey] = np.asarray(sig.timestamps, dtype=np.float64)
                 key = f"c{len(channels)}"
                 arrays[key] = data.astype(np.float64)
-                channels.append({"name": sig.name, "group": str(gi), "unit": str(sig.unit or ""),
+                unit = str(sig.unit or "").strip() or str(mdf.get_channel_unit(group=gi, index=ci) or "")
+                channels.append({"name": sig.name, "group": str(gi), "unit": unit,
                                  "array": key, "time": tkey})
     finally:
         mdf.close()
