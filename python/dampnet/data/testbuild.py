@@ -43,7 +43,7 @@ def build_test(where: str, columns: dict[str, np.ndarray], colnames: dict[str, s
                current: float | None = None, dt: float | None = None, t0: float = 0.0,
                motion_positive: str = "extension", force_positive: str = "extension",
                frequency_hz: float | None = None, amplitude_m: float | None = None,
-               meta: dict | None = None) -> DynoTest:
+               derive_velocity: bool = False, meta: dict | None = None) -> DynoTest:
     """A checked DynoTest from SI channel arrays (one of them may be 'time')."""
     columns = dict(columns)
     n = len(next(iter(columns.values())))
@@ -56,6 +56,9 @@ def build_test(where: str, columns: dict[str, np.ndarray], colnames: dict[str, s
     else:
         raise DataError(f"{where}: missing a time column (time_s, time_ms, ...): expected one, "
                         "or pass dt= the sample interval [s]")
+    if derive_velocity and "velocity" not in columns and "displacement" in columns and n > 2:
+        columns["velocity"] = np.gradient(columns["displacement"], time)
+        colnames["velocity"] = "(derived from displacement)"
     present = [c for c in CONTROL_NAMES if c in columns]
     if voltage is not None and current is not None:
         raise DataError(f"{where}: both voltage= and current= given: expected one control")
