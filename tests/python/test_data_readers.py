@@ -53,10 +53,15 @@ def test_headerless_text_with_named_columns_and_dt(tmp_path):
     t, x, v, f = _signals()
     p = tmp_path / "raw.dat"
     np.savetxt(p, np.column_stack([x * 1e3, f]))
-    test = load_dataset(p, columns=["x_mm", "F_N"], dt=0.002, voltage=0.0, derive_velocity=True).tests[0]
-    np.testing.assert_allclose(test.time, t, atol=1e-12)
-    # derived velocity: central differences of a 1.5 Hz sine at 500 Hz are within 0.2 % of the truth
-    np.testing.assert_allclose(test.channels["velocity"][1:-1], v[1:-1], atol=2e-3 * np.abs(v).max())
+    ds = load_dataset(p, columns=["x_mm", "F_N"], dt=0.002, voltage=0.0, derive_velocity=True)
+    test = ds.tests[0]
+    # the velocity derived as for lab files (testbuild.derived_velocity): 50 ms cut at each end (25
+    # samples at 500 Hz), within 0.1 % of the peak of the 1.5 Hz sine's analytic derivative
+    np.testing.assert_allclose(test.time, t[25:-25], atol=1e-12)
+    np.testing.assert_allclose(test.channels["velocity"], v[25:-25], atol=1e-3 * np.abs(v).max())
+    np.testing.assert_allclose(test.channels["force"], f[25:-25], atol=1e-8)
+    assert test.meta["velocity"]["from"] == "x_mm" and test.meta["velocity"]["edge_cut_s"] == 0.05
+    assert ds.meta["velocity_derived"]["tests"] == [test.test_id]
 
 
 def test_sign_convention_of_a_compression_positive_rig(tmp_path):

@@ -27,7 +27,7 @@ import numpy as np
 from dampnet.data.fileformat import is_dataset_dir, read_dataset_dir
 from dampnet.data.matfile import NonNumeric
 from dampnet.data.table import read_table
-from dampnet.data.testbuild import apply_convention, build_test  # noqa: F401  (apply_convention: its old home)
+from dampnet.data.testbuild import apply_convention, build_test, velocity_summary  # noqa: F401  (apply_convention: its old home)
 from dampnet.data.types import DataError, Dataset, DynoTest
 from dampnet.data.units import parse_column
 from dampnet.schema import read_text as read_text_file, show
@@ -167,7 +167,6 @@ def load_dataset(path: str | os.PathLike, channel_map=None, **options) -> Datase
     if not p.exists():
         raise DataError(f"{p}: not found: expected a dataset directory or a data file")
     from dampnet.data.lab import is_lab_file, read_lab_file
-    from dampnet.data.lab.assemble import velocity_summary
 
     if is_lab_file(p):
         tests = read_lab_file(p, channel_map, **options)
@@ -179,4 +178,5 @@ def load_dataset(path: str | os.PathLike, channel_map=None, **options) -> Datase
         test = read_mat(p, **options)
     else:
         test = read_text(p, **options)
-    return Dataset(tests=[test], source=str(p), meta={"reader": "mat" if p.suffix.lower() == ".mat" else "text"})
+    return Dataset(tests=[test], source=str(p), meta={"reader": "mat" if p.suffix.lower() == ".mat" else "text",
+                                                      **velocity_summary([test])})

@@ -34,7 +34,7 @@ import numpy as np
 from dampnet.data.excitation import sine_or_none
 from dampnet.data.lab.channelmap import MAP_CHANNELS, MAP_FILE, ChannelMap, resolve_channel_map
 from dampnet.data.lab.raw import LAB_SUFFIXES, RawChannel, RawFile, is_lab_file, read_raw
-from dampnet.data.testbuild import build_test
+from dampnet.data.testbuild import build_test, velocity_summary
 from dampnet.data.types import CONTROL_NAMES, DT_RANGE_S, MIN_SAMPLES, DataError, Dataset, DynoTest
 from dampnet.data.units import quantity_of_name, unit_to_si
 from dampnet.schema import show
@@ -175,38 +175,6 @@ def _time_base(path: Path, picked: dict[str, RawChannel], cols: dict[str, np.nda
     return t, out, note
 
 
-#: velocity of a file without a velocity channel (issue 49, item 17): the displacement low-passed
-#: by a zero-phase Butterworth filter (scipy.signal.sosfiltfilt, order DERIVE_ORDER, cut-off
-#: DERIVE_CUTOFF_HZ, at most a quarter of the sample rate), differentiated by 4th-order central
-#: differences; DERIVE_EDGE_S at each end, where the filter's start-up errs, is cut from the test.
-#: Measured (tests/python/test_data_lab.py) against the analytic derivative of sines at 1, 8 and
-#: 20 Hz at 1 and 5 kHz: at most 0.08 % of the peak without noise, 0.25 % with 2 um of displacement
-#: noise, edges cut; the 20 ms moving average it replaces was 4.6 % low at 8 Hz, 27 % at 20 Hz, and
-#: 4-100 % wrong at the ends. With the virtual rig's 25 um of noise any 20 Hz-wide derivative
-#: carries about 0.5-1 mm/s of noise (1-3 % of a 1 Hz, 25 mm sine's peak): a bandwidth, not a bias.
-DERIVE_CUTOFF_HZ = 50.0
-DERIVE_ORDER = 4
-DERIVE_EDGE_S = 0.05
-
-
-def derived_velocity(x: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, int, dict]:
-    """(velocity [m/s] of displacement x [m] at times t [s], samples to cut at each end, the
-    method in words for the dataset's summary); see DERIVE_CUTOFF_HZ."""
-    import scipy.signal
-
-    dt = float(np.median(np.diff(t)))
-    fc = min(DERIVE_CUTOFF_HZ, 0.25 / dt)
-    sos = scipy.signal.butter(DERIVE_ORDER, fc, fs=1.0 / dt, output="sos")
-    y = scipy.signal.sosfiltfilt(sos, x, padtype="odd", padlen=min(x.size - 1, int(round(4 * DERIVE_EDGE_S / dt))))
-    v = np.gradient(y, dt, edge_order=2)
-    v[2:-2] = (y[:-4] - 8.0 * y[1:-3] + 8.0 * y[3:-1] - y[4:]) / (12.0 * dt)
-    cut = int(round(DERIVE_EDGE_S / dt))
-    info = {"method": f"zero-phase Butterworth low-pass of the displacement (order {DERIVE_ORDER}, "
-                      "scipy.signal.sosfiltfilt), 4th-order central differences",
-            "bandwidth_hz": fc, "edge_cut_s": round(cut * dt, 9)}
-    return v, cut, info
-
-
 def _check_time(path: Path, label: str, t: np.ndarray) -> None:
     d = np.diff(t)
     if (d <= 0).any():
@@ -253,17 +221,6 @@ def read_lab_file(path: str | os.PathLike, channel_map=None, **options) -> list[
                             + f": expected at least {MIN_SAMPLES}")
         _check_time(path, picked.get("time", picked["force"]).label, t)
         colnames = {ch: picked[ch].label for ch in cols}
-        derived = None
-        if "velocity" not in cols:
-            v, cut, derived = derived_velocity(cols["displacement"], t)
-            if t.size - 2 * cut < MIN_SAMPLES:
-                raise DataError(f"{path}: channel {show(picked['displacement'].label)} (displacement): {t.size} "
-                                f"samples: expected at least {MIN_SAMPLES + 2 * cut} to derive the velocity (no "
-                                f"velocity channel: {DERIVE_EDGE_S:g} s is cut at each end)")
-            cols["velocity"] = v
-            t, cols = t[cut:t.size - cut], {ch: x[cut:x.size - cut] for ch, x in cols.items()}
-            colnames["velocity"] = f"(derived from {picked['displacement'].label})"
-            derived = {"from": picked["displacement"].label, **derived}
         colnames["time"] = picked["time"].label if "time" in picked else "(time base)"
         opts = dict(options)
         for k, v in control.items():
@@ -279,9 +236,8 @@ def read_lab_file(path: str | os.PathLike, channel_map=None, **options) -> list[
                 "channel_map": cmap.source if cmap else "(from the channel names)", **note}
         if group is not None:
             meta["group"] = group
-        if derived is not None:
-            meta["velocity"] = derived
-        test = build_test(str(path), {"time": t, **cols}, colnames, header_lines=0, test_id=tid, meta=meta, **opts)
+        test = build_test(str(path), {"time": t, **cols}, colnames, header_lines=0, test_id=tid, meta=meta,
+                          derive_velocity=True, **opts)
         if any(c in cols for c in CONTROL_NAMES):   # the level a test is grouped (and held out) by
             u = test.channels[test.control_name]
             lo, hi = np.percentile(u, [1, 99])
@@ -351,15 +307,3 @@ def read_lab_folder(folder: str | os.PathLike, channel_map=None, progress: bool 
     meta.update(velocity_summary(tests))
     return Dataset(tests=tests, source=str(folder), meta=meta)
 
-
-def velocity_summary(tests: list[DynoTest]) -> dict:
-    """{"velocity_derived": {method, bandwidth_hz, edge_cut_s, tests}} when some tests' velocity was
-    derived from their displacement (their meta["velocity"]), else {}: the dataset's summary."""
-    derived = [t for t in tests if "velocity" in t.meta]
-    if not derived:
-        return {}
-    first = derived[0].meta["velocity"]
-    return {"velocity_derived": {"method": first["method"],
-                                 "bandwidth_hz": sorted({t.meta["velocity"]["bandwidth_hz"] for t in derived}),
-                                 "edge_cut_s": sorted({t.meta["velocity"]["edge_cut_s"] for t in derived}),
-                                 "tests": [t.test_id for t in derived]}}
