@@ -15,8 +15,8 @@ rig (dampnet.rig.replay.play_drive) with its sensors and effects, at the car's s
 
 A full-car corner instead (`corner_drive`, `dampnet rig --replay ROAD --corner fl`): the full
 vehicle (the `road` manoeuvre of dampnet.recipes.maneuvers over the same registry's road: two
-tracks, correlated for a random road, the rear a wheelbase later) with the truth damper at each corner, under its damping setting (low, high,
-skyhook), and the stroke of the corner asked for.
+tracks, correlated for a random road, the rear a wheelbase later) with the truth damper at each
+corner, under its damping setting (low, high, skyhook), and the stroke of the corner asked for.
 """
 
 from __future__ import annotations

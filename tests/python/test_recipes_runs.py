@@ -211,7 +211,7 @@ def test_a_road_takes_only_the_filled_parameters_it_declares():
         roads.build("ramp:length_m=40,width_m=1", length_m=50.0)
         assert seen == [{"width_m": 2.0, "length_m": 50.0, "speed_m_s": 12.0},
                         {"width_m": 1.0, "length_m": 40.0, "speed_m_s": 20.0}]
-        with pytest.raises(roads.RoadError, match=r"road 'ramp': speed_m_s: expected 0.1 to 100 \[m/s\], got 0.0"):
+        with pytest.raises(roads.RoadError, match=r"road 'ramp': speed_m_s: expected 0.001 to 100 \[m/s\], got 0.0"):
             roads.build("ramp", speed_m_s=0.0)
         with pytest.raises(TypeError, match="road context 'width_m'"):
             roads.build("ramp", width_m=3.0)

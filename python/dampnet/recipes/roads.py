@@ -98,7 +98,7 @@ FILLED = {p.name: p for p in (
               "road_seed; numpy takes any whole number >= 0)", int, 0),
     RoadParam("length_m", "m", 200.0, "profile length (the sweep's road_length_m)", float, 1.0, 100_000.0),
     RoadParam("speed_m_s", "m/s", 20.0, "the speed driven over the road (--speed, the sweep's speeds, the full "
-              "car's speed)", float, 0.1, 100.0))}
+              "car's speed)", float, 1e-3, 100.0))}
 
 
 @dataclass(frozen=True)
@@ -297,7 +297,6 @@ def help_text() -> str:
 
 
 # -- the built-in roads (dampnet.sim.roads.profiles) ------------------------------------------
-
 
 
 def _iso_class(text: Any) -> str:
