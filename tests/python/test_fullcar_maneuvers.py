@@ -160,6 +160,7 @@ def test_vehicle_cli_writes_metrics_and_plot(tmp_path, capsys):
     (["--test", "road", "--road", "cobbles"], "--road: unknown road 'cobbles'"),
     (["--test", "road", "--road", "iso:C", "--profile", "C"], "give --road only"),
     (["--test", "dlc", "--road", "iso:C"], "--road: dlc does not take it"),
+    (["--test", "dlc", "--profile", "C"], "--profile: dlc does not take a road"),
     (["--test", "dlc", "--speed", "-5"], "--speed: expected a finite number in (0, 360] km/h, got -5.0"),
     (["--dt", "0.5"], "--dt"),
 ])

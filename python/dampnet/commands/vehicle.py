@@ -71,6 +71,9 @@ def _given(args) -> dict:
     if old is not None:
         if given.get("road") is not None:
             raise ValueError("--profile: the old spelling of --road; give --road only")
+        if args.test not in maneuvers.takes("road"):
+            raise ValueError(f"--profile: {args.test} does not take a road (it applies to "
+                             f"{', '.join(maneuvers.takes('road'))}); drop --profile")
         given["road"] = _old_profile(old)
     return given
 
