@@ -52,7 +52,7 @@ SEEDS = {
                          "[simulation.random.vehicle]\nm_s = {normal = [300.0, 10.0]}\n",
     "fullcar": "[fullcar]\nmodels = ['default', 'truth']\ntests = ['dlc', 'bsst', 'road']\n"
                "damping = ['low', 'skyhook']\nspeeds_kmh = [80.0]\nmodes = ['heave', 'pitch']\n"
-               "profiles = ['thesis', 'C']\ndt = 0.002\nbsst_f0_hz = 1.0\n[fullcar.vehicle]\n"
+               "roads = ['thesis', 'iso:C', 'bump']\ndt = 0.002\nbsst_f0_hz = 1.0\n[fullcar.vehicle]\n"
                "m_s = [2400.0, 2800.0]\ntyre_model = 'linear'\n[fullcar.random]\nn = 2\nseed = 0\n"
                "[fullcar.random.vehicle]\nk_s_f = {uniform = [30000.0, 40000.0]}\n",
     "bad_distribution": "[simulation]\nroads = ['impulse']\n[simulation.random]\nn = 3\nseed = 1\n"

@@ -136,12 +136,13 @@ def _case_runs(model, spec_obj, text: str) -> list[RunInputs]:
     name = text[:len(text) - len(level) - 1] if level else text
     levels = ("low", "high") if level == "" else (level,)
     lv = damping_levels(spec_obj)
-    road = req.build()
     speeds = req.kind.case_speeds_m_s if req.profile == "spatial" else (None,)
+    road = None if req.takes("speed_m_s") else req.build()
     out = []
     for lvl in levels:
         for v in speeds:
-            r = simulate(spec_obj, road, v, Controller(kind="passive", u_passive=lv[lvl]))
+            at = road or req.build(speed_m_s=v)      # a road that fills the speed: built for each
+            r = simulate(spec_obj, at, v, Controller(kind="passive", u_passive=lv[lvl]))
             arr = r["arrays"]
             X = quarter_car_inputs(model, arr)
             t = np.asarray(arr["t"], dtype=np.float64)

@@ -14,9 +14,9 @@ rig (dampnet.rig.replay.play_drive) with its sensors and effects, at the car's s
     test = play_drive(drive, effects=["gas_spring"], seed=0)
 
 A full-car corner instead (`corner_drive`, `dampnet rig --replay ROAD --corner fl`): the full
-vehicle (the `road` manoeuvre of dampnet.recipes.maneuvers: two correlated tracks, the rear a
-wheelbase later) with the truth damper at each corner, under its damping setting (low, high,
-skyhook), and the stroke of the corner asked for.
+vehicle (the `road` manoeuvre of dampnet.recipes.maneuvers over the same registry's road: two
+tracks, correlated for a random road, the rear a wheelbase later) with the truth damper at each
+corner, under its damping setting (low, high, skyhook), and the stroke of the corner asked for.
 """
 
 from __future__ import annotations
@@ -65,7 +65,7 @@ def road_drive(road: str = "rough", speed_m_s: float = SPEED_M_S, law: str = "pa
     veh = Vehicle(dt=CAR_DT_S)
     veh.validate()
     ctrl = laws.make(law, spec, veh, damping=damping)
-    r = roads.build(road, seed=seed)
+    r = roads.build(road, seed=seed, speed_m_s=speed_m_s)
     spatial = r.kind == "spatial"
     s = r.sample(veh.dt, speed_m_s if spatial else None)
     n = min(len(s.z), int(round((SETTLE_S + duration_s) / CAR_DT_S)) + 2)   # only the part replayed is simulated
@@ -113,25 +113,6 @@ def vehicle_damping(law: str) -> str:
                      f"(or the laws {', '.join(VEHICLE_DAMPING.values())})")
 
 
-def full_car_profile(road: str, seed: int) -> tuple[str, int]:
-    """The full vehicle's road profile ('thesis' or an ISO 8608 class letter) of a road name, and
-    its seed (the name's, else `seed`). The profile's other parameters are the manoeuvre's."""
-    from dampnet.recipes import roads
-
-    req = roads.parse(road)
-    ignored = sorted(set(req.given) - {"seed", "class"})
-    if req.kind.name in ("rough", "iso") and ignored:  # silently ignored before (issue 49)
-        raise ValueError(f"replay: road {road!r}: a full-car corner takes the road's profile and seed only; "
-                         f"{', '.join(ignored)} would be ignored (the full car's road is the manoeuvre's)")
-    seed = int(req.params(seed=seed).get("seed", seed))
-    if req.kind.name == "rough":
-        return "thesis", seed
-    if req.kind.name == "iso":
-        return str(req.params()["class"]).upper(), seed
-    raise ValueError(f"replay: road {road!r}: a full-car corner drives two tracks of the thesis's rough road "
-                     "or an ISO 8608 class (rough, iso:C)")
-
-
 def corner_drive(road: str = "rough", speed_m_s: float = SPEED_M_S, law: str = "skyhook", corner: str = "fl",
                  effects=(), seed: int = 0, duration_s: float = DURATION_S, rate_hz: float = RATE_HZ) -> Drive:
     """The damper stroke and control of one corner of the full vehicle (the truth damper with
@@ -146,9 +127,14 @@ def corner_drive(road: str = "rough", speed_m_s: float = SPEED_M_S, law: str = "
         raise ValueError(f"replay: corner {corner!r}: expected one of {', '.join(CORNERS)}")
     _check_run(speed_m_s, duration_s, rate_hz)
     damping = vehicle_damping(law)
-    profile, seed = full_car_profile(road, seed)
-    man = maneuvers.build("road", CAR_DT_S, {"speed_kmh": 3.6 * speed_m_s, "profile": profile, "road_seed": seed})
+    try:
+        man = maneuvers.build("road", CAR_DT_S, {"speed_kmh": 3.6 * speed_m_s, "road": road, "road_seed": seed})
+    except ValueError as e:
+        raise ValueError(f"replay: {e}") from None
     n = min(man.road.shape[0], int(round((SETTLE_S + duration_s) / CAR_DT_S)) + 2)
+    if n - int(round(SETTLE_S / CAR_DT_S)) < 10:
+        raise ValueError(f"replay: road {road!r} at {speed_m_s:g} m/s lasts {man.road.shape[0] * CAR_DT_S:.2f} s for "
+                         f"the full car: expected more than the {SETTLE_S:g} s the car settles")
     man = dataclasses.replace(man, road=man.road[:n], road_rate=man.road_rate[:n], steer=man.steer[:n])
     arr = maneuvers.run(truth_spec(list(effects)), man, damping)["arrays"]
     k0, j = int(round(SETTLE_S / CAR_DT_S)), CORNERS.index(corner)

@@ -12,7 +12,7 @@ from dampnet.cli import main
 from dampnet.sim.full_car import maneuvers, metrics, runs, study
 from dampnet.recipes import maneuvers as recipes
 from dampnet.sim.dampers import linear_spec, lookup_spec
-from dampnet.sim.roads import RoadError, sweep_frequency
+from dampnet.sim.roads import RoadError, sweep_frequency, thesis_rough_road
 
 
 def test_iso3888_lanes_follow_the_standard():
@@ -101,7 +101,7 @@ def test_bsst_sweeps_all_wheels_in_heave_and_front_against_rear_in_pitch():
 def test_rough_road_rear_wheels_follow_the_front_a_wheelbase_later():
     """At 117 km/h (32.5 m/s) a 3.25 m wheelbase is 0.1 s: 100 steps of 1 ms. The left and
     right tracks are correlated by the stated coherence."""
-    man = maneuvers.rough_road(1e-3, 117.0, "thesis", wheelbase_m=3.25)
+    man = recipes.build("road", 1e-3, {"speed_kmh": 117.0, "road": "thesis"}, {"a": 1.5, "b": 1.75})
     d = 100
     np.testing.assert_allclose(man.road[d:, 2], man.road[:-d, 0], atol=1e-4 * np.std(man.road[:, 0]))
     np.testing.assert_allclose(man.road[d:, 3], man.road[:-d, 1], atol=1e-4 * np.std(man.road[:, 1]))
@@ -109,7 +109,7 @@ def test_rough_road_rear_wheels_follow_the_front_a_wheelbase_later():
     assert abs(rho - maneuvers.TRACK_COHERENCE) < 0.15
     assert man.meta["rear_delay_s"] == pytest.approx(0.1)
     with pytest.raises(RoadError, match="coherence"):
-        maneuvers.rough_road(coherence=1.5)
+        maneuvers.rough_road(thesis_rough_road(), coherence=1.5)
 
 
 def test_each_test_runs_and_the_study_compares_models():
@@ -122,7 +122,7 @@ def test_each_test_runs_and_the_study_compares_models():
                                   forces=np.array([[-3000.0, 0.0, 3000.0], [-800.0, 0.0, 800.0]]))
     specs = [linear_spec(2500.0, "linear"), lookup_spec(table, "lookup")]
     tests = {"bsst_heave": maneuvers.bsst(2e-3, rate_oct_s=2.0), "dlc": maneuvers.dlc(2e-3, 80.0),
-             "road_thesis": maneuvers.rough_road(2e-3, 60.0)}
+             "road_thesis": recipes.build("road", 2e-3)}
     tests["road_thesis"].road = tests["road_thesis"].road[:1500]
     tests["road_thesis"].road_rate = tests["road_thesis"].road_rate[:1500]
     tests["road_thesis"].steer = tests["road_thesis"].steer[:1500]
@@ -157,6 +157,10 @@ def test_vehicle_cli_writes_metrics_and_plot(tmp_path, capsys):
 @pytest.mark.parametrize("args,message", [
     (["--test", "bsst", "--speed", "50"], "four-post rig"),
     (["--test", "road", "--profile", "Z"], "ISO 8608 class"),
+    (["--test", "road", "--road", "cobbles"], "--road: unknown road 'cobbles'"),
+    (["--test", "road", "--road", "iso:C", "--profile", "C"], "give --road only"),
+    (["--test", "dlc", "--road", "iso:C"], "--road: dlc does not take it"),
+    (["--test", "dlc", "--profile", "C"], "--profile: dlc does not take a road"),
     (["--test", "dlc", "--speed", "-5"], "--speed: expected a finite number in (0, 360] km/h, got -5.0"),
     (["--dt", "0.5"], "--dt"),
 ])
@@ -164,3 +168,32 @@ def test_vehicle_cli_bad_input(tmp_path, capsys, args, message):
     assert main(["vehicle", "linear:2500", *args, "--out", str(tmp_path / "v")]) == 2
     err = capsys.readouterr().err
     assert err.startswith("dampnet: error: ") and message in err
+
+
+@pytest.mark.parametrize("argv, road, seed, kmh, want", [
+    (["--profile", "thesis"], "rough", 0, 60.0, (0.44975496713146695, 0.35158489779918434, 3.0536080831551278)),
+    (["--profile", "C", "--seed", "2", "--speed", "72"], "iso:C", 2, 72.0,
+     (0.4572427347863982, 0.36632627151207914, 4.480160882312133)),
+])
+def test_the_registry_road_keeps_the_old_thesis_and_iso_results(tmp_path, argv, road, seed, kmh, want):
+    """Issue 52: the full car's road comes from the road registry now; `vehicle --test road
+    --profile thesis` (and ISO C) are unchanged: the four wheel tracks are the old construction's
+    bit for bit (left the profile at the seed, right 0.6 left + 0.8 the profile at seed + 1, the
+    rear 3.25 m behind on the periodic profile), and the metrics of a 1500 N s/m damper at low
+    damping are the numbers the old `--profile` gave before the change (commit 2e72b5a). Cost: 0.5 s each."""
+    out = tmp_path / "v"
+    assert main(["vehicle", "linear:1500", "--test", "road", *argv, "--out", str(out)]) == 0
+    m = json.loads((out / "metrics.json").read_text())["metrics"]
+    got = (m["acc_rms_m_s2"], m["acc_wk_rms_m_s2"], m["roll_rate_rms_deg_s"])
+    np.testing.assert_allclose(got, want, rtol=1e-9)
+    from dampnet.sim.roads import iso8608
+
+    make = (lambda s: thesis_rough_road(seed=s)) if road == "rough" else (lambda s: iso8608("C", seed=s))
+    left, other = make(seed), make(seed + 1)
+    right = 0.6 * left.z + 0.8 * other.z
+    v = kmh / 3.6
+    t = np.arange(int(left.length / v / 1e-3) + 1) * 1e-3
+    xf, xr = v * t, np.mod(v * t - 3.25, left.length)
+    old = np.stack([np.interp(xf, left.x, left.z), np.interp(xf, left.x, right),
+                    np.interp(xr, left.x, left.z), np.interp(xr, left.x, right)], axis=1)
+    assert np.array_equal(np.load(out / "run.npz")["road"], old)

@@ -122,6 +122,151 @@ def test_the_recipes_road_and_law_run_through_a_sweep(kerb, passive_mid, client,
     assert (df["speed"] == 10.0).all() and df["road_seed"].isna().all() and df["road_length_m"].isna().all()
 
 
+# -- issue 52: the recipe's road in the full car; the parameters front ends fill ------------------
+
+def test_the_recipes_road_runs_in_the_full_car_a_corner_replay_and_plan_tests(kerb, client, tmp_path, capsys):
+    """Issue 52: `dampnet vehicle --test road` took only 'thesis' and ISO classes, `rig --replay
+    --corner` translated by hand. The road added as docs/recipes.md says runs there too, and in a
+    [fullcar] sweep and plan-tests: the front wheels drive the kerb at the speed (36 km/h: 10 m/s),
+    both tracks the same profile (not random: it fills no seed), the rear a wheelbase (3.25 m)
+    later, starting on its first elevation (not periodic). Cost: 5 s."""
+    from dampnet.modeldir import default_model_path
+    from dampnet.replay import corner_drive
+    from dampnet.sweep import run
+
+    out = tmp_path / "v"
+    assert main(["vehicle", "linear:1500", "--test", "road", "--road", "kerb:height_m=0.05", "--speed", "36",
+                 "--out", str(out)]) == 0
+    meta = json.loads((out / "metrics.json").read_text())
+    assert meta["maneuver"]["input"] == "kerb" and meta["maneuver"]["height_m"] == 0.05
+    road = np.load(out / "run.npz")["road"]
+    k = roads.build("kerb:height_m=0.05")
+    x = 10.0 * (np.arange(road.shape[0]) * 1e-3)
+    assert road.shape[0] == 601                                           # 6 m at 10 m/s, 1 ms steps
+    np.testing.assert_allclose(road[:, 0], np.interp(x, k.x, k.z), rtol=0, atol=1e-15)   # front left
+    np.testing.assert_array_equal(road[:, 1], road[:, 0])                              # right = left
+    np.testing.assert_allclose(road[:, 2], np.interp(x - 3.25, k.x, k.z), rtol=0, atol=1e-15)   # rear
+    assert road[:, 0].max() == pytest.approx(0.05) and road[:325, 2].max() == 0.0 and road[:, 2].max() > 0.0
+    assert meta["metrics"]["acc_rms_m_s2"] > 0.0
+    # a [fullcar] sweep cell of the same road is the same run; it takes no seed: road_seed is empty
+    df = run({"fullcar": {"models": ["linear:1500"], "tests": ["road"], "roads": ["kerb:height_m=0.05"],
+                          "speeds_kmh": 36.0, "road_seeds": [0, 1]}}, client=client, out=tmp_path / "s", progress=False)
+    assert len(df) == 1 and (df["status"] == "ok").all(), df[["status", "error"]]
+    assert df["road_seed"].isna().all() and df["acc_rms_m_s2"].iloc[0] == meta["metrics"]["acc_rms_m_s2"]
+    # a full-car corner replayed on the rig: the rear left climbs the kerb within the replayed second
+    d = corner_drive("kerb", speed_m_s=5.0, law="low", corner="rl", duration_s=0.5)
+    assert d.meta["road_text"] == "kerb" and d.meta["corner"] == "rl" and np.ptp(d.x) > 1e-3
+    assert main(["rig", str(tmp_path / "r"), "--replay", "kerb", "--corner", "fl", "--speed", "5", "--duration",
+                 "0.5", "--control", "low", "--no-progress"]) == 0
+    # plan-tests' built-in case
+    assert main(["plan-tests", str(default_model_path()), "kerb:low", "--budget", "2",
+                 "--out", str(tmp_path / "plan.json")]) == 0
+
+
+def test_a_random_full_car_road_keeps_its_parameters_and_correlated_tracks():
+    """Issue 52: a parameter written in the road's text reaches the full car (a corner replay once
+    refused rough:rms_m, the translation dropping it): half the RMS is half the road, and a seed
+    in the text wins over --seed, the right track mixing in the road at the next seed. Cost: 0.05 s."""
+    from dampnet.recipes import maneuvers
+    from dampnet.sim.full_car.maneuvers import TRACK_COHERENCE
+    from dampnet.sim.roads import thesis_rough_road
+
+    full = maneuvers.build("road", 1e-3, {"road": "rough", "road_seed": 4})
+    half = maneuvers.build("road", 1e-3, {"road": "rough:rms_m=0.008", "road_seed": 4})
+    np.testing.assert_allclose(half.road, 0.5 * full.road, rtol=1e-12, atol=1e-18)
+    named = maneuvers.build("road", 1e-3, {"road": "rough:seed=4", "road_seed": 9})
+    assert np.array_equal(named.road, full.road)
+    a, b = thesis_rough_road(seed=4), thesis_rough_road(seed=5)
+    right = TRACK_COHERENCE * a.z + np.sqrt(1 - TRACK_COHERENCE ** 2) * b.z
+    x = 60.0 / 3.6 * (np.arange(full.road.shape[0]) * 1e-3)
+    np.testing.assert_array_equal(full.road[:, 1], np.interp(x, a.x, right))
+
+
+@pytest.mark.parametrize("name", ["seed", "length_m", "speed_m_s"])
+def test_a_road_parameter_named_like_a_filled_one_is_refused_at_registration(name):
+    """Issue 52: the sweep filled any road parameter named length_m or seed from its own settings;
+    a road whose width was called length_m failed every sweep cell. Such a road is refused when it
+    is registered, naming the parameter; nothing is registered. Cost: 0.01 s."""
+    with pytest.raises(roads.RoadError, match=rf"road 'ramp': parameter '{name}' is a name the front ends fill "
+                                              r"\(seed, length_m, speed_m_s\)"):
+        roads.register(roads.RoadKind("ramp", "a ramp", "spatial", lambda p: None,
+                                      (roads.RoadParam(name, "m", 1.0, "ramp width"),)))
+    assert not roads.is_named("ramp")
+    with pytest.raises(roads.RoadError, match="road 'ramp': fills 'width_m': a front end fills only seed, "
+                                              "length_m, speed_m_s"):
+        roads.RoadKind("ramp", "a ramp", "spatial", lambda p: None, fills=("width_m",))
+
+
+def test_a_road_takes_only_the_filled_parameters_it_declares():
+    """A road declaring fills=("length_m", "speed_m_s") gets the front end's values (the name's
+    win), one declaring none keeps its defaults whatever the context; a context key that is not a
+    filled name is a programming error. Cost: 0.01 s."""
+    seen = []
+    ramp = roads.register(roads.RoadKind(
+        "ramp", "a ramp", "spatial", lambda p: seen.append(dict(p)) or roads.build("bump"),
+        (roads.RoadParam("width_m", "m", 2.0, "ramp width", float, 0.1, 10.0),), fills=("length_m", "speed_m_s")))
+    try:
+        assert ramp.param_names() == ("width_m", "length_m", "speed_m_s")
+        roads.build("ramp", seed=3, length_m=50.0, speed_m_s=12.0)
+        roads.build("ramp:length_m=40,width_m=1", length_m=50.0)
+        assert seen == [{"width_m": 2.0, "length_m": 50.0, "speed_m_s": 12.0},
+                        {"width_m": 1.0, "length_m": 40.0, "speed_m_s": 20.0}]
+        with pytest.raises(roads.RoadError, match=r"road 'ramp': speed_m_s: expected 0.001 to 100 \[m/s\], got 0.0"):
+            roads.build("ramp", speed_m_s=0.0)
+        with pytest.raises(TypeError, match="road context 'width_m'"):
+            roads.build("ramp", width_m=3.0)
+        assert roads.parse("bump").params(seed=5, length_m=9.0) == {"height_m": 0.05, "width_m": 0.5}
+    finally:
+        roads.unregister("ramp")
+
+
+def test_a_sweep_parses_each_road_text_once(kerb, monkeypatch):
+    """Issue 52: the sweep parsed a road's text for every cell (checking, dropping what does not
+    apply, building). Expanding and building a sweep of 3 roads x 3 seeds x 2 speeds and a
+    [fullcar] one of 2 roads x 2 seeds parses each text once. Cost: 0.05 s."""
+    from dampnet.sweep import fullcar_cell, sim_cell
+    from dampnet.sweep.grid import expand
+    from dampnet.sweep.inputs import bind
+    from dampnet.sweep.spec import parse_spec
+
+    calls = []
+    real = roads.get
+    monkeypatch.setattr(roads, "get", lambda name: calls.append(name) or real(name))
+    texts = ["kerb", "iso:C", "rough"]
+    roads._parse.cache_clear()
+    spec = parse_spec({"simulation": {"models": ["linear:1500"], "roads": texts, "road_seeds": [0, 1, 2],
+                                      "speeds": [10.0, 20.0]},
+                       "fullcar": {"models": ["linear:1500"], "tests": ["road"], "roads": ["kerb", "iso:B"],
+                                   "road_seeds": [0, 1]}})
+    cells = expand(spec)
+    bind(cells, spec)
+    for c in cells:
+        if c.kind == "simulation":
+            sim_cell.road(c.params, c.inputs["road"])
+        else:
+            fullcar_cell.maneuver(c.params)
+    assert len(cells) == 1 * 2 + 3 * 2 * 2 + 1 + 2       # kerb: no seeds; iso:C, rough: 3 seeds; fullcar
+    assert sorted(calls) == ["iso", "iso", "kerb", "rough"]   # iso:C, iso:B, kerb, rough: once each
+
+
+def test_old_profile_spellings_of_the_full_car(tmp_path, capsys):
+    """`vehicle --profile thesis|A..H` is the old spelling of --road rough|iso:CLASS (same road);
+    the sweep's old [fullcar] profiles key is refused naming roads. Cost: 0.05 s."""
+    from dampnet.commands.vehicle import _old_profile
+    from dampnet.recipes import maneuvers
+    from dampnet.sweep.spec import SpecError, parse_spec
+
+    assert _old_profile("thesis") == "thesis" and _old_profile("c") == "iso:C"
+    for old, new in (("thesis", "rough"), ("C", "iso:C")):
+        a = maneuvers.build("road", 1e-3, {"road": _old_profile(old)})
+        assert np.array_equal(a.road, maneuvers.build("road", 1e-3, {"road": new}).road)
+    with pytest.raises(ValueError, match=r"--profile 'Z': expected thesis or an ISO 8608 class A..H \(--profile is "
+                                         "the old spelling of --road ROAD"):
+        _old_profile("Z")
+    with pytest.raises(SpecError, match=r"fullcar.profiles.*renamed roads"):
+        parse_spec({"fullcar": {"tests": ["road"], "profiles": ["C"]}})
+
+
 # -- unknown names, old spellings ---------------------------------------------------------------
 
 def test_unknown_names_are_refused_listing_the_registries(kerb, passive_mid, tmp_path, capsys):
@@ -145,7 +290,7 @@ def test_unknown_names_are_refused_listing_the_registries(kerb, passive_mid, tmp
 
 @pytest.mark.parametrize("old, new", [
     ("sine_sweep", "sweep"), ("sine-sweep", "sweep"), ("SWEEP", "sweep"), ("thesis_rough", "rough"),
-    ("thesis-rough", "rough"), ("rough-road", "rough"), ("iso8608:C", "iso:C"), ("iso:c", "iso:C"),
+    ("thesis-rough", "rough"), ("rough-road", "rough"), ("thesis", "rough"), ("iso8608:C", "iso:C"), ("iso:c", "iso:C"),
     ("iso:E", "iso:class=E"), ("iso:C", "iso")])
 def test_old_road_spellings_build_the_same_road(old, new):
     a, b = roads.build(old, seed=3), roads.build(new, seed=3)

@@ -179,7 +179,7 @@ def test_a_full_car_corner_is_replayed(tmp_path, capsys):
 
     rl = corner_drive("iso:C", speed_m_s=20.0, law="skyhook", corner="rl", duration_s=0.5, seed=2)
     # the rear-left stroke of the full vehicle's own run (recipes.maneuvers), at the car's steps
-    man = maneuvers.build("road", CAR_DT_S, {"speed_kmh": 72.0, "profile": "C", "road_seed": 2})
+    man = maneuvers.build("road", CAR_DT_S, {"speed_kmh": 72.0, "road": "iso:C", "road_seed": 2})
     n = int(round(1.0 / CAR_DT_S)) + 2
     man = dataclasses.replace(man, road=man.road[:n], road_rate=man.road_rate[:n], steer=man.steer[:n])
     arr = maneuvers.run(truth_spec(), man, "skyhook")["arrays"]
@@ -189,9 +189,9 @@ def test_a_full_car_corner_is_replayed(tmp_path, capsys):
     np.testing.assert_allclose(rl.u[::step], arr["u"][k0:k0 + m, 2], rtol=0, atol=0)
     assert rl.meta["corner"] == "rl" and rl.meta["vehicle"] == "full car"
     assert np.sqrt(np.mean(rl.x ** 2)) > 1e-3                  # the corner moves over the road
-    # only roads the full vehicle drives, only its damping settings: one line each
-    assert main(["rig", str(tmp_path / "o"), "--replay", "bump", "--corner", "fl", "--duration", "0.5"]) == 2
-    assert "a full-car corner drives two tracks" in capsys.readouterr().err
+    # only registered roads, only the full vehicle's damping settings: one line each
+    assert main(["rig", str(tmp_path / "o"), "--replay", "cobbles", "--corner", "fl", "--duration", "0.5"]) == 2
+    assert "unknown road 'cobbles'" in capsys.readouterr().err
     assert main(["rig", str(tmp_path / "o"), "--replay", "rough", "--corner", "fl", "--control",
                  "groundhook_onoff", "--duration", "0.5"]) == 2
     assert "the full vehicle runs low, high, skyhook" in capsys.readouterr().err
@@ -216,12 +216,11 @@ def test_replay_and_plan_together_are_refused(tmp_path, capsys):
 @pytest.mark.parametrize("replay, extra, words", [
     ("", [], "expected one or more roads"),
     (" ; ", [], "expected one or more roads"),
-    ("rough:rms_m=0.5", ["--corner", "fl"], "rms_m would be ignored"),
-    ("iso:C,length_m=50", ["--corner", "rr"], "length_m would be ignored"),
 ])
 def test_a_replay_of_nothing_or_an_ignored_parameter_is_refused(tmp_path, capsys, replay, extra, words):
-    """Issue 49, item 11: `rig --replay ''` ran the whole 180-test thesis plan, and a full-car corner
-    ignored the road's rms_m while naming the test after it. One line, before any simulation (milliseconds)."""
+    """Issue 49, item 11: `rig --replay ''` ran the whole 180-test thesis plan. One line, before any
+    simulation (milliseconds). (A full-car corner ignored the road's rms_m then; since issue 52 it
+    drives the registry's road with every parameter: test_recipes_runs.)"""
     assert main(["rig", str(tmp_path / "out"), "--replay", replay, *extra]) == 2
     err = capsys.readouterr().err
     assert words in err and err.count("\n") == 1, err

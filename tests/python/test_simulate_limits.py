@@ -75,10 +75,10 @@ def test_bad_sizes_and_numbers_are_refused_in_one_line_before_running(tmp_path):
 def test_the_python_entry_points_check_the_size_too():
     with pytest.raises(RoadError, match=rf"the lane change .* beyond the limit .*{SIZE}"):
         maneuvers.dlc(1e-3, 1e-6)
-    with pytest.raises(RoadError, match=rf"the thesis road .*{SIZE}"):
-        maneuvers.rough_road(1e-3, 0.05)
+    with pytest.raises(RoadError, match=rf"the thesis_rough road .*{SIZE}"):
+        maneuvers.rough_road(thesis_rough_road(), 1e-3, 0.05)
     with pytest.raises(RoadError, match="speed: expected a finite number in"):
-        maneuvers.rough_road(1e-3, float("inf"))
+        maneuvers.rough_road(thesis_rough_road(), 1e-3, float("inf"))
     with pytest.raises(RoadError, match="dt: expected a finite number in"):
         maneuvers.bsst(-1e-3)
     with pytest.raises(RoadError, match=rf"road 'thesis_rough' .* dt = 1e-09 s.*{SIZE}"):

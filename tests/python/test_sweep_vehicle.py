@@ -94,9 +94,9 @@ def test_fullcar_sweep_equals_fullcar_runs_one_by_one(client, tmp_path):
 
 
 def test_random_vehicle_samples_errors_and_resume(client, tmp_path):
-    from dampnet.sim.full_car import maneuvers
+    from dampnet.recipes import maneuvers
 
-    spec = {"fullcar": {"models": ["linear:1500"], "tests": ["road"], "profiles": ["C"], "dt": DT,
+    spec = {"fullcar": {"models": ["linear:1500"], "tests": ["road"], "roads": ["iso:C"], "dt": DT,
                         "vehicle": {"k_t": [200000.0, -1.0]},
                         "random": {"n": 2, "seed": 3, "vehicle": {"m_s": {"normal": [2600.0, 100.0]}}}}}
     out = tmp_path / "r"
@@ -107,9 +107,9 @@ def test_random_vehicle_samples_errors_and_resume(client, tmp_path):
     rng = np.random.default_rng(3)
     draws = [float(rng.normal(2600.0, 100.0)) for _ in range(2)]
     ok = df[df["status"] == "ok"]
-    assert list(ok["vehicle.m_s"]) == draws and (ok["speed_kmh"] == 60.0).all() and (ok["profile"] == "C").all()
+    assert list(ok["vehicle.m_s"]) == draws and (ok["speed_kmh"] == 60.0).all() and (ok["road"] == "iso:C").all()
     for _, row in ok.iterrows():
-        man = maneuvers.rough_road(DT, 60.0, "C", 0)
+        man = maneuvers.build("road", DT, {"road": "iso:C"})
         assert_row_is(row, api_metrics("linear:1500", man, "low", {"k_t": 200000.0, "m_s": row["vehicle.m_s"]}),
                       row["vehicle.m_s"])
     again = run(spec, client=client, out=out, resume=True, progress=False)
@@ -120,13 +120,13 @@ def test_random_vehicle_samples_errors_and_resume(client, tmp_path):
 
 def test_the_grid_drops_what_a_test_does_not_use():
     spec = parse_spec({"fullcar": {"models": ["linear:1500"], "tests": ["bsst", "dlc", "road"],
-                                   "modes": ["heave", "pitch"], "profiles": ["thesis", "B"]}})
+                                   "modes": ["heave", "pitch"], "roads": ["thesis", "iso:B"]}})
     cells = expand(spec)
     by = {}
     for c in cells:
         by.setdefault(c.params["test"], []).append(c.params)
-    assert [len(by[t]) for t in ("bsst", "dlc", "road")] == [2, 1, 2]      # modes: bsst; profiles: road
-    assert all(p["speed_kmh"] is None and p["profile"] is None for p in by["bsst"])
+    assert [len(by[t]) for t in ("bsst", "dlc", "road")] == [2, 1, 2]      # modes: bsst; roads: road
+    assert all(p["speed_kmh"] is None and p["road"] is None for p in by["bsst"])
     assert by["dlc"][0]["speed_kmh"] == 120.0 and by["dlc"][0]["mode"] is None
     assert all(p["speed_kmh"] == 60.0 and p["bsst_f0_hz"] is None for p in by["road"])
     assert spec.sections["fullcar"].objective == "acc_rms_m_s2"

@@ -40,8 +40,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--duration", type=float, default=6.0, help="--replay: seconds of each road kept (default 6)")
     p.add_argument("--corner", default=None, metavar="CORNER",
                    help="--replay: the stroke of this corner of the full vehicle (front/rear left/right: "
-                        "dampnet.sim.full_car.runs.CORNERS; two tracks of rough or iso:CLASS; --control low, high "
-                        "or skyhook) instead of the quarter car")
+                        "dampnet.sim.full_car.runs.CORNERS; two tracks of each road, as `dampnet vehicle --test road "
+                        "--road ROAD`; --control low, high or skyhook) instead of the quarter car")
     p.add_argument("--truth-channels", action="store_true",
                    help="also write noise-free true_force and true_acceleration columns")
     p.add_argument("--force", action="store_true", help="replace OUT if it exists")

@@ -76,7 +76,7 @@ def run(args) -> int:
         check_run_dir(out, RUN_FILES, "metrics.json", RUN_SCHEMA.split("/")[0] + "/", _model_inputs(args.model, args.road),
                       args.force)
         spec = load_spec(args.model)
-        road = _roads().build(args.road, seed=args.seed)
+        road = _roads().build(args.road, seed=args.seed, speed_m_s=args.speed)
         veh = Vehicle(dt=args.dt)
         veh.validate()
         ctrl = laws.make(args.control, spec, veh, u_tau_s=args.command_tau, damping=args.damping or "high", u=args.u)

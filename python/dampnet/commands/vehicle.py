@@ -35,6 +35,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         else:
             p.add_argument(s.cli, dest=s.name, type=_TYPES[s.kind], default=None, metavar=s.metavar,
                            help=f"{s.text()}; of {by or 'no test'}")
+    p.add_argument("--profile", default=None, metavar="PROFILE",
+                   help="the old spelling of --road: thesis (--road rough) or an ISO 8608 class A..H (--road iso:CLASS)")
     p.add_argument("--damping", choices=tuple(VEHICLE_DAMPING), default="low",
                    help="every corner's control law (dampnet.recipes.control_laws): "
                         + ", ".join(f"{k} = {v}" for k, v in VEHICLE_DAMPING.items())
@@ -47,7 +49,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 #: how argparse reads a setting of each kind (dampnet.recipes.maneuvers.Setting.kind)
-_TYPES = {"float": float, "int": int, "seed": int, "choice": str}
+_TYPES = {"float": float, "int": int, "seed": int, "choice": str, "road": str}
 
 
 def check_options(args) -> None:
@@ -64,7 +66,29 @@ def _given(args) -> dict:
     """The manoeuvre settings given on the command line (None: not given)."""
     from dampnet.recipes import maneuvers
 
-    return {name: getattr(args, name, None) for name in maneuvers.SETTINGS}
+    given = {name: getattr(args, name, None) for name in maneuvers.SETTINGS}
+    old = getattr(args, "profile", None)
+    if old is not None:
+        if given.get("road") is not None:
+            raise ValueError("--profile: the old spelling of --road; give --road only")
+        if args.test not in maneuvers.takes("road"):
+            raise ValueError(f"--profile: {args.test} does not take a road (it applies to "
+                             f"{', '.join(maneuvers.takes('road'))}); drop --profile")
+        given["road"] = _old_profile(old)
+    return given
+
+
+def _old_profile(value: str) -> str:
+    """--profile's value (thesis, or an ISO 8608 class A..H) as the road --road names."""
+    from dampnet.recipes import roads
+
+    v = value.strip()
+    if len(v) == 1 and v.upper() in "ABCDEFGH":
+        return f"iso:{v.upper()}"
+    if v.lower() == "thesis" or roads.is_named(v):
+        return v
+    raise ValueError(f"--profile {value!r}: expected thesis or an ISO 8608 class A..H (--profile is the old "
+                     f"spelling of --road ROAD: {roads.usage()})")
 
 
 def _maneuver(args):

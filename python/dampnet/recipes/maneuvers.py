@@ -25,8 +25,9 @@ class Setting:
     """One setting a manoeuvre's builder takes: `name` (the builder's keyword, the sweep cell's
     column), its `unit` ("" for a word or a count), what it means; its values: `kind` "float"
     (within `range`, or any number > 0 when None), "int" (>= 0), "seed" (a seed,
-    dampnet.sim.limits.SEED), "flag" (true or false; an option without a value) or "choice" (one of `choices`,
-    described in messages as `choices_text`); its spellings: `cli` (`dampnet vehicle` option),
+    dampnet.sim.limits.SEED), "flag" (true or false; an option without a value), "road" (a road
+    of dampnet.recipes.roads, as text) or "choice" (one of `choices`, described in messages as
+    `choices_text`); its spellings: `cli` (`dampnet vehicle` option),
     `sweep_key` ([fullcar] key; `axis`: a list of values is a grid axis)."""
 
     name: str
@@ -49,6 +50,14 @@ class Setting:
             return value
         if self.kind == "seed":
             return limits.check_seed(where, value)
+        if self.kind == "road":
+            from dampnet.recipes import roads
+
+            try:
+                roads.parse(value)
+            except ValueError as e:
+                raise ValueError(f"{where}: {e}") from None
+            return value.strip()
         if self.kind == "flag":
             if not isinstance(value, bool):
                 raise ValueError(f"{where}: expected true or false, got {value!r}")
@@ -98,9 +107,8 @@ setting(Setting("speed_kmh", "km/h", "forward speed", range=limits.SPEED_KMH, cl
 setting(Setting("mode", "", "all wheels in phase (heave) or the rear against the front (pitch)", kind="choice",
                 choices=("heave", "pitch"), choices_text="'heave' or 'pitch'", metavar="{heave,pitch}", sweep_key="modes",
                 axis=True))
-setting(Setting("profile", "", "the thesis's rough road or an ISO 8608 class A..H", kind="choice",
-                choices=("thesis", *"ABCDEFGH"), choices_text="'thesis' or an ISO 8608 class A..H",
-                sweep_key="profiles", axis=True))
+setting(Setting("road", "", "a road of the road registry (dampnet.recipes.roads: rough, iso:C, bump, ...)",
+                kind="road", metavar="ROAD", sweep_key="roads", axis=True))
 setting(Setting("road_seed", "", "seed of the road's random tracks", kind="seed", cli="--seed", metavar="SEED",
                 sweep_key="road_seeds", axis=True))
 setting(Setting("max_speed", "", "also find the highest speed at which the test passes (bisection on speed "
@@ -380,11 +388,20 @@ def _dlc(dt, vehicle, speed_kmh, max_speed):
     return dlc(dt, speed_kmh)
 
 
-def _road(dt, vehicle, speed_kmh, profile, road_seed):
+def _road(dt, vehicle, speed_kmh, road, road_seed):
+    """Two tracks of a road of the road registry: its seed and speed filled from road_seed and
+    speed_kmh (a value in the road's text wins); a random road (one that fills its seed) gets a
+    right track correlated with the left, mixed with the road at seed + 1; the rear wheels a
+    wheelbase later (wrapping on a periodic road)."""
+    from dampnet.recipes import roads
     from dampnet.sim.full_car.maneuvers import rough_road
     from dampnet.sim.full_car.params import wheelbase
 
-    return rough_road(dt, speed_kmh, profile, road_seed, wheelbase_m=wheelbase(vehicle))
+    req = roads.parse(road)
+    p = req.params(seed=road_seed, speed_m_s=speed_kmh / 3.6)
+    left = req.kind.build(p)
+    other = req.kind.build({**p, "seed": p["seed"] + 1}) if "seed" in p else None
+    return rough_road(left, dt, speed_kmh, other, req.kind.periodic, wheelbase_m=wheelbase(vehicle), name=road)
 
 
 def _lazy(module: str, name: str) -> Callable:
@@ -448,9 +465,10 @@ register(ManeuverRecipe(
     "roll_peak_deg",
     line=_dlc_line))
 register(ManeuverRecipe(
-    "road", "two correlated tracks of a rough road, the rear wheels a wheelbase after the front",
+    "road", "two tracks of a road of the road registry (correlated tracks of a random road), the rear wheels a "
+    "wheelbase after the front",
     _road, _lazy("dampnet.sim.full_car.metrics", "road_metrics"), _lazy("dampnet.sim.full_car.plots", "plot_road"),
-    dict(speed_kmh=60.0, profile="thesis", road_seed=0),
+    dict(speed_kmh=60.0, road="rough", road_seed=0),
     ("acc_rms_m_s2", "acc_wk_rms_m_s2", "roll_rate_rms_deg_s"),
     ("acc_rms_m_s2", "acc_wk_rms_m_s2", "roll_rate_rms_deg_s", "pitch_rate_rms_deg_s", *_WHEEL_LOADS,
      "tyre_load_min_n"), "acc_rms_m_s2",

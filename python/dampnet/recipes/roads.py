@@ -10,20 +10,26 @@ parameter of the road, in its unit) or one bare value for the road's positional 
 Names are case-insensitive and each road keeps its older spellings as aliases (sine_sweep,
 sine-sweep; thesis_rough, rough-road; iso8608:C). The numbers live in
 dampnet.sim.roads.profiles; an entry here only names a profile, lists its parameters (unit,
-default, meaning) and builds it. Parameters a front end sets from its own options (`seed` from
---seed or the sweep's road_seeds; `length_m` from the sweep's road_length_m) are passed as
-`context`; a value written in the name wins over the context's.
+default, meaning) and builds it. The parameters a front end fills from its own options (FILLED:
+`seed` from --seed, the sweep's road_seeds or the full car's road_seed; `length_m` from the
+sweep's road_length_m; `speed_m_s` from --speed, the sweep's speeds or the full car's speed) are
+a road's only by declaring them in `fills`, and are passed as `context`; a value written in the
+name wins over the context's. A road's own parameter may not take one of those names (refused
+when the road is made, so at registration): the sweep once filled a road's own `length_m`.
 
     req = parse("iso:E")          # RoadRequest; RoadError naming the registry's roads otherwise
     road = req.build(seed=2)      # the dampnet.sim.roads.Road
     road = build("rough", seed=1) # parse + build, or a CSV profile for a path
 
 Adding a road: `register(RoadKind(...))` (docs/recipes.md, "Roads"); every front end then
-takes it: the CLI's help, the sweep's allowed values and plan-tests' cases come from here.
+takes it: `dampnet simulate`, the sweep's [simulation] and [fullcar] roads, plan-tests' cases,
+`dampnet vehicle --test road --road` (the full car: two tracks, the rear a wheelbase later) and
+`dampnet rig --replay` (with or without --corner); their help and allowed values come from here.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 from dataclasses import dataclass
@@ -84,12 +90,27 @@ class RoadParam:
         return f"{self.name}{unit} (default {self.default}{limits}): {self.doc}"
 
 
+#: the parameters front ends fill from their own options, by name; a road takes one by listing it in
+#: RoadKind.fills (its value written in the road's name still wins), and no road's own parameter
+#: may be named like one (issue 52: a road's own `length_m` was overwritten by every sweep cell)
+FILLED = {p.name: p for p in (
+    RoadParam("seed", "", 0, "seed of the random profile (--seed, the sweep's road_seeds, the full car's "
+              "road_seed; numpy takes any whole number >= 0)", int, 0),
+    RoadParam("length_m", "m", 200.0, "profile length (the sweep's road_length_m)", float, 1.0, 100_000.0),
+    RoadParam("speed_m_s", "m/s", 20.0, "the speed driven over the road (--speed, the sweep's speeds, the full "
+              "car's speed)", float, 1e-3, 100.0))}
+
+
 @dataclass(frozen=True)
 class RoadKind:
     """A registry entry: `name`, older spellings (`aliases`), `profile` "spatial" (elevation over
     distance: a speed applies) or "temporal" (displacement over time), its parameters, a doc
     line, `positional` (the parameter a bare NAME:VALUE sets) and `build(params)` -> Road, params
-    every parameter by name (the defaults filled in)."""
+    every parameter by name (the defaults filled in). `fills`: the FILLED parameters it takes
+    from the front ends (seed, length_m, speed_m_s; its own `params` may not use those names);
+    a road that fills `seed` is random: the full car's right track mixes in the road at seed + 1.
+    `periodic`: the profile repeats over its length (the full car's rear wheels, a wheelbase
+    behind, start on its end; otherwise on its first elevation)."""
 
     name: str
     doc: str
@@ -99,15 +120,33 @@ class RoadKind:
     aliases: tuple[str, ...] = ()
     positional: str | None = None
     case_speeds_m_s: tuple[float, ...] = CASE_SPEEDS_M_S
+    fills: tuple[str, ...] = ()
+    periodic: bool = False
 
     def __post_init__(self) -> None:
         if self.profile not in ("spatial", "temporal"):
             raise RoadError(f"road {self.name!r}: profile must be 'spatial' or 'temporal', got {self.profile!r}")
+        for f in self.fills:
+            if f not in FILLED:
+                raise RoadError(f"road {self.name!r}: fills {f!r}: a front end fills only {', '.join(FILLED)}")
+        own = [p.name for p in self.params]
+        for n in own:
+            if n in FILLED:
+                raise RoadError(f"road {self.name!r}: parameter {n!r} is a name the front ends fill "
+                                f"({', '.join(FILLED)}): rename it, or drop it and declare fills=({n!r},) "
+                                "to take the front end's value")
+            if own.count(n) > 1:
+                raise RoadError(f"road {self.name!r}: parameter {n!r} listed twice")
         if self.positional is not None and self.positional not in self.param_names():
             raise RoadError(f"road {self.name!r}: positional {self.positional!r} is not one of its parameters")
 
+    @property
+    def all_params(self) -> tuple[RoadParam, ...]:
+        """Its own parameters, then the ones front ends fill (FILLED's, in `fills` order)."""
+        return self.params + tuple(FILLED[f] for f in self.fills)
+
     def param_names(self) -> tuple[str, ...]:
-        return tuple(p.name for p in self.params)
+        return tuple(p.name for p in self.all_params)
 
     def usage(self) -> str:
         """How the road is written, e.g. 'iso:CLASS'."""
@@ -130,9 +169,13 @@ class RoadRequest:
         return param in self.kind.param_names()
 
     def params(self, **context: Any) -> dict[str, Any]:
-        """Every parameter: the name's, else the context's (those the road has), else the default."""
+        """Every parameter: the name's, else the context's (FILLED names only: those the road
+        fills are used, the others ignored), else the default."""
+        unknown = sorted(set(context) - set(FILLED))
+        if unknown:
+            raise TypeError(f"road context {unknown[0]!r}: a front end fills only {', '.join(FILLED)}")
         out = {}
-        for p in self.kind.params:
+        for p in self.kind.all_params:
             if p.name in self.given:
                 out[p.name] = self.given[p.name]
             elif context.get(p.name) is not None:
@@ -159,6 +202,7 @@ def register(kind: RoadKind) -> RoadKind:
     _REGISTRY[kind.name] = kind
     for n in (kind.name, *kind.aliases):
         _ALIASES[n.lower()] = kind.name
+    _parse.cache_clear()
     return kind
 
 
@@ -167,6 +211,7 @@ def unregister(name: str) -> None:
     kind = _REGISTRY.pop(_ALIASES[name.lower()])
     for n in (kind.name, *kind.aliases):
         _ALIASES.pop(n.lower(), None)
+    _parse.cache_clear()
 
 
 def names() -> tuple[str, ...]:
@@ -194,13 +239,19 @@ def is_named(text: str) -> bool:
 
 
 def parse(text: str) -> RoadRequest:
-    """A road name (with its parameters) as a RoadRequest; RoadError naming what is wrong."""
+    """A road name (with its parameters) as a RoadRequest; RoadError naming what is wrong. Each
+    text is parsed once (remembered until the registry changes): a sweep's cells share it."""
     if not isinstance(text, str):
         raise RoadError(f"road: expected a name, got {text!r}")
+    return _parse(text)
+
+
+@functools.lru_cache(maxsize=1024)
+def _parse(text: str) -> RoadRequest:
     head, colon, args = text.strip().partition(":")
     kind = get(head)
     given: dict[str, Any] = {}
-    params = {p.name: p for p in kind.params}
+    params = {p.name: p for p in kind.all_params}
     for item in (args.split(",") if colon else ()):
         key, eq, value = item.partition("=")
         if not eq:
@@ -220,9 +271,9 @@ def parse(text: str) -> RoadRequest:
 
 
 def _param_list(kind: RoadKind) -> str:
-    if not kind.params:
+    if not kind.all_params:
         return f"{kind.name} takes no parameters"
-    return f"{kind.name}'s parameters: " + "; ".join(p.text() for p in kind.params)
+    return f"{kind.name}'s parameters: " + "; ".join(p.text() for p in kind.all_params)
 
 
 def build(text: str, **context: Any) -> Road:
@@ -241,14 +292,11 @@ def help_text() -> str:
     lines = []
     for k in _REGISTRY.values():
         also = f" (also {', '.join(k.aliases)})" if k.aliases else ""
-        lines.append(f"{k.usage()}{also}: {k.doc}" + (f"; {_param_list(k)}" if k.params else ""))
+        lines.append(f"{k.usage()}{also}: {k.doc}" + (f"; {_param_list(k)}" if k.all_params else ""))
     return "\n".join(lines)
 
 
 # -- the built-in roads (dampnet.sim.roads.profiles) ------------------------------------------
-
-_SEED = RoadParam("seed", "", 0, "seed of the random profile (--seed, the sweep's road_seeds; numpy takes any "
-                  "whole number >= 0)", int, 0)
 
 
 def _iso_class(text: Any) -> str:
@@ -281,11 +329,10 @@ register(RoadKind(
 register(RoadKind(
     "rough", "the thesis's rough road: RMS 0.016 m, 184 m (an ISO 8608 shape)", "spatial",
     lambda p: thesis_rough_road(seed=p["seed"], rms_m=p["rms_m"]),
-    (_SEED, RoadParam("rms_m", "m", 0.016, "displacement RMS", float, 1e-6, 1.0)),
-    aliases=("thesis_rough", "thesis-rough", "rough-road")))
+    (RoadParam("rms_m", "m", 0.016, "displacement RMS", float, 1e-6, 1.0),),
+    aliases=("thesis", "thesis_rough", "thesis-rough", "rough-road"), fills=("seed",), periodic=True))
 register(RoadKind(
     "iso", "a random ISO 8608 profile of class A..H", "spatial",
     lambda p: iso8608(p["class"], length_m=p["length_m"], seed=p["seed"]),
-    (RoadParam("class", "", "C", "ISO 8608 class A..H", _iso_class),
-     RoadParam("length_m", "m", 200.0, "profile length (the sweep's road_length_m)", float, 1.0, 100_000.0), _SEED),
-    aliases=("iso8608",), positional="class"))
+    (RoadParam("class", "", "C", "ISO 8608 class A..H", _iso_class),),
+    aliases=("iso8608",), positional="class", fills=("length_m", "seed"), periodic=True))

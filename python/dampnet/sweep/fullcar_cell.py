@@ -7,7 +7,7 @@ damper spec at every corner, passive at its low or high damping setting or on-of
 corner, its force at rest as the static force; [fullcar.vehicle] fields over the runtime's
 defaults. The test is built as `dampnet vehicle` builds it (dampnet.recipes.maneuvers) at the
 cell's dt, with the cell's settings (its entry's: speed [km/h], bsst mode and sweep, road
-profile and seed, ...); the road test's rear wheels follow the front ones by the cell's
+(dampnet.recipes.roads) and seed, ...); the road test's rear wheels follow the front ones by the cell's
 wheelbase (a + b).
 """
 

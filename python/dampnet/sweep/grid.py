@@ -4,9 +4,10 @@
 
 A parameter that does not apply to a cell is None there and does not make cells differ: a
 dataset read from a path has no data_seed or rig_effects, a time profile (impulse, sweep)
-no speed, a road that is not random no road_seed, a road that is not iso:X no road_length_m; a
-full-vehicle cell has only its test's settings (dampnet.recipes.maneuvers: a bounce sweep (bsst)
-no speed, a lane change (dlc) no profile or road_seed, only a bsst a mode and the bsst_*
+no speed, a road that does not fill its seed (dampnet.recipes.roads: RoadKind.fills) no
+road_seed, one that does not fill its length_m (iso:X does) no road_length_m; a full-vehicle
+cell has only its test's settings (dampnet.recipes.maneuvers: a bounce sweep (bsst) no speed, a
+lane change (dlc) no road or road_seed, a road that does not fill its seed no road_seed, only a bsst a mode and the bsst_*
 settings), each its test's default unless set (dlc 120, road 60 km/h, as `dampnet vehicle`).
 Cells with equal parameters are one cell.
 
@@ -192,11 +193,16 @@ def applicable(kind: str, params: dict[str, Any]) -> dict[str, Any]:
         defaults = get(p["test"]).defaults
         for name in SETTINGS:      # the test's settings (its default when not set), others empty
             p[name] = (defaults[name] if p.get(name) is None else p[name]) if name in defaults else None
+        if p.get("road") is not None and p.get("road_seed") is not None:
+            from dampnet.recipes import roads
+
+            if not roads.parse(p["road"]).takes("seed"):    # a road that is not random: no seed
+                p["road_seed"] = None
     else:
         from dampnet.recipes import roads
 
         req = roads.parse(p["road"]) if roads.is_named(p["road"]) else None   # else a CSV distance profile
-        if req is not None and req.profile == "temporal":
+        if req is not None and req.profile == "temporal" and not req.takes("speed_m_s"):
             p["speed"] = None
         if req is None or not req.takes("seed"):
             p["road_seed"] = None

@@ -35,13 +35,15 @@ def damper(params: dict[str, Any], value: Any):
 
 def road(params: dict[str, Any], value: Any):
     """The cell's Road: shipped or loaded (a CSV profile), or built by name (dampnet.recipes.roads)
-    with the cell's road_seed and road_length_m as the road's seed and length_m."""
+    with the cell's road_seed, road_length_m and speed as the road's seed, length_m and speed_m_s
+    (those it fills: RoadKind.fills)."""
     from dampnet.recipes import roads
     from dampnet.sweep.inputs import InputRef
 
     if not isinstance(value, InputRef):
         return value
-    return roads.parse(value.text).build(seed=params["road_seed"], length_m=params["road_length_m"])
+    return roads.parse(value.text).build(seed=params["road_seed"], length_m=params["road_length_m"],
+                                         speed_m_s=params["speed"])
 
 
 def vehicle(params: dict[str, Any]):

@@ -23,8 +23,8 @@ A spec has up to four tables:
   [fullcar]     full-vehicle cells (dampnet.sim.full_car.runs.run, as `dampnet vehicle`): models (as
                 [simulation]), tests (dampnet.recipes.maneuvers: bsst, dlc, road), damping (low, high, skyhook: every
                 corner), speeds_kmh [km/h] (dlc, road; default the test's: 120, 60), modes
-                (bsst: heave, pitch), profiles (road: thesis or an ISO 8608 class A..H),
-                road_seeds (road), dt [s], bsst_amplitude_m, bsst_f0_hz, bsst_f1_hz,
+                (bsst: heave, pitch), roads (road: the road registry's, dampnet.recipes.roads:
+                rough, iso:C, bump, ...; the old profiles key is refused naming it), road_seeds (road), dt [s], bsst_amplitude_m, bsst_f0_hz, bsst_f1_hz,
                 bsst_rate_oct_s (the bounce sweep); [fullcar.vehicle]: the full car's fields
                 (dampnet._core.FULLCAR_FIELDS, SI; enums by name: tyre_model, damper_eval,
                 accel_feature) except those the test sets (speed, dt, steer_mode, f_static_f,
@@ -141,6 +141,19 @@ def _choice(valid: tuple[str, ...] | Callable[[], tuple[str, ...]], what: str) -
             raise _Bad(f"{_show(v)} is not {what}; valid: {', '.join(names)}")
         return v
     return norm
+
+
+def _road(v) -> str:
+    """A road of the road registry (dampnet.recipes.roads), by name; checked once per value."""
+    from dampnet.recipes import roads
+
+    if not isinstance(v, str):
+        raise _Bad(f"expected a road name, got {_show(v)}")
+    try:
+        roads.parse(v)
+    except ValueError as e:
+        raise _Bad(str(e)) from None
+    return v.strip()
 
 
 def _text(v) -> str:
@@ -422,6 +435,8 @@ def _setting_param(st) -> Param:
         norm, kind = _flag, "any"
     elif st.kind in ("int", "seed"):
         norm, kind = _int(0), "int"
+    elif st.kind == "road":
+        norm, kind = _road, "any"
     else:
         norm, kind = (_in(st.range) if st.range is not None else _float(positive=True)), "float"
     by = ", ".join(f"{m.name} {m.defaults[st.name]}" for m in MANEUVERS.values() if st.name in m.defaults)
@@ -451,6 +466,9 @@ SECTION_PARAMS = {"training": lambda: TRAINING_PARAMS, "simulation": lambda: SIM
                   "fullcar": fullcar_params}
 SUBTABLES = {"simulation": {"vehicle": _vehicle_params, "controller": _controller_params},
              "fullcar": {"vehicle": _fullcar_params}}
+#: keys renamed: {(section, old key): the message naming the new one}
+RENAMED = {("fullcar", "profiles"): "renamed roads (issue 52): a road of the road registry, e.g. roads = "
+                                    "[\"rough\", \"iso:C\"] for the old profiles [\"thesis\", \"C\"]"}
 #: why a key is not in a sub-table (instead of "unknown key"): {(section, sub-table): {key: reason}}
 SUBTABLE_HINTS = {("fullcar", "vehicle"): FULLCAR_SET_BY_TEST}
 
@@ -590,6 +608,8 @@ class _Parser:
             elif key in params:
                 axes[params[key].name] = self.values(params[key], v, kind)
                 given.add(params[key].name)
+            elif (kind, key) in RENAMED:
+                raise self.fail(kind, key, RENAMED[(kind, key)])
             else:
                 valid = [*params, *subtables, "objective", "random"]
                 raise self.fail(kind, key, f"unknown key; valid: {', '.join(valid)}")

@@ -7,8 +7,9 @@ the steering see, sampled at the run's step.
                path of least peak lateral acceleration through them (iso3888_path) for the
                runtime's preview driver, at 120 km/h by default; the run goes on DLC_SETTLE_S
                after the exit gate (at least DLC_RUN_OUT_M) so the car settles.
-  rough_road   two correlated wheel tracks (left, right) of the thesis's rough road or an ISO
-               8608 class; the rear wheels see the front's road a wheelbase later.
+  rough_road   two wheel tracks (left, right) of a road of the road registry (correlated
+               tracks of a random road: the thesis's rough road, an ISO 8608 class); the rear
+               wheels see the front's road a wheelbase later.
 
 Each returns a Maneuver: road [n, 4] and its rate (FL, FR, RL, RR; row k at t = k dt),
 the forward speed [m/s], the steering or the driver's path, and the test's geometry.
@@ -23,7 +24,7 @@ import numpy as np
 
 from dampnet.sim import limits
 from dampnet.sim.full_car.linear import ROAD_PATTERNS
-from dampnet.sim.roads import RoadError, iso8608, sine_sweep, thesis_rough_road
+from dampnet.sim.roads import Road, RoadError, sine_sweep
 
 #: ISO 3888-1:2018 lane change: (section, length [m], lane width as (factor, add) of the
 #: vehicle width w: width = factor w + add, or None for a transition section)
@@ -248,29 +249,41 @@ def dlc(dt: float = 1e-3, speed_kmh: float = 120.0, width_m: float = VEHICLE_WID
     return Maneuver("dlc", dt, np.zeros((n, 4)), np.zeros((n, 4)), speed, path=(x, y), meta=meta)
 
 
-def rough_road(dt: float = 1e-3, speed_kmh: float = 60.0, profile: str = "thesis", seed: int = 0,
-               wheelbase_m: float = 3.25, coherence: float = TRACK_COHERENCE) -> Maneuver:
-    """Two wheel tracks of a rough road: left the profile (the thesis's rough road, or an ISO
-    8608 class "A".."H"), right = coherence x left + sqrt(1 - coherence^2) x an independent
-    profile of the same spectrum (a frequency-independent coherence: a simplification, real
-    tracks are less coherent at short wavelengths). The rear wheels see the front's road a
-    wheelbase later (the profiles are periodic, so the delay wraps)."""
+def rough_road(left: Road, dt: float = 1e-3, speed_kmh: float = 60.0, other: Road | None = None,
+               periodic: bool = False, wheelbase_m: float = 3.25, coherence: float = TRACK_COHERENCE,
+               name: str | None = None) -> Maneuver:
+    """Two wheel tracks of a road (any dampnet.sim.roads.Road; the full car's `road` manoeuvre
+    builds it from the road registry): left the profile; right = coherence x left +
+    sqrt(1 - coherence^2) x `other`, an independent profile of the same spectrum (a random
+    road at the next seed; a frequency-independent coherence: a simplification, real tracks are
+    less coherent at short wavelengths), or the left profile itself when `other` is None (a bump
+    across the lane). The rear wheels see the front's road a wheelbase later: on a `periodic`
+    profile the delay wraps to its end, otherwise they start on its first elevation. A temporal
+    road (displacement over time) is met by the front wheels at its own times, by the rear
+    wheelbase / speed later."""
     if not 0.0 <= coherence <= 1.0:
         raise RoadError(f"track coherence must be in [0, 1], got {coherence}")
     speed = _speed(speed_kmh) / 3.6
     dt = _step(dt)
-    make = (lambda s: thesis_rough_road(seed=s)) if profile == "thesis" else (lambda s: iso8608(profile, seed=s))
-    left, other = make(seed), make(seed + 1)
-    right_z = coherence * left.z + math.sqrt(1.0 - coherence**2) * other.z
+    name = name or left.name
+    if other is None:
+        right_z = left.z
+    else:
+        if other.kind != left.kind or other.x.shape != left.x.shape or np.any(other.x != left.x):
+            raise RoadError(f"road {name!r}: the second track must be sampled where the first is")
+        right_z = coherence * left.z + math.sqrt(1.0 - coherence**2) * other.z
+    spatial = left.kind == "spatial"
+    rate = speed if spatial else 1.0      # how fast x advances: m/s over distance, s/s over time
     length = left.length
-    n = _steps(length, speed, dt, f"the {profile} road")
+    n = _steps(length if spatial else length * speed, speed, dt, f"the {name} road")
     t = np.arange(n) * dt
-    xf = left.x[0] + speed * t
-    xr = left.x[0] + np.mod(speed * t - wheelbase_m, length)
+    xf = left.x[0] + rate * t
+    delay = wheelbase_m if spatial else wheelbase_m / speed     # the rear's lag in x
+    xr = left.x[0] + (np.mod(rate * t - delay, length) if periodic else rate * t - delay)
     cols = [np.interp(xf, left.x, left.z), np.interp(xf, left.x, right_z),
             np.interp(xr, left.x, left.z), np.interp(xr, left.x, right_z)]
     road = np.stack(cols, axis=1)
-    rate = np.gradient(road, dt, axis=0)
-    meta = dict(left.meta, test="road", profile=profile, speed_kmh=speed_kmh, coherence=coherence,
+    road_rate = np.gradient(road, dt, axis=0)
+    meta = dict(left.meta, test="road", road=name, speed_kmh=speed_kmh, coherence=coherence if other else 1.0,
                 rear_delay_s=wheelbase_m / speed)
-    return Maneuver(f"road_{profile}", dt, road, rate, speed, steer=np.zeros(n), meta=meta)
+    return Maneuver(f"road_{name}", dt, road, road_rate, speed, steer=np.zeros(n), meta=meta)
