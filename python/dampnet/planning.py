@@ -128,20 +128,19 @@ class RunInputs:
 
 def _case_runs(model, spec_obj, text: str) -> list[RunInputs]:
     from dampnet.envelope.coverage import quarter_car_inputs
-    from dampnet.sim.calibration import damping_levels
+    from dampnet.recipes import control_laws
     from dampnet.sim.quarter_car.runs import simulate
-    from dampnet.sim.vehicle import Controller
 
     req, level = _case_road(text)
     name = text[:len(text) - len(level) - 1] if level else text
     levels = ("low", "high") if level == "" else (level,)
-    lv = damping_levels(spec_obj)
+    ctrl = {lvl: control_laws.make(f"passive_{lvl}", spec_obj) for lvl in levels}
     road = req.build()
     speeds = req.kind.case_speeds_m_s if req.profile == "spatial" else (None,)
     out = []
     for lvl in levels:
         for v in speeds:
-            r = simulate(spec_obj, road, v, Controller(kind="passive", u_passive=lv[lvl]))
+            r = simulate(spec_obj, road, v, ctrl[lvl], law=f"passive_{lvl}")
             arr = r["arrays"]
             X = quarter_car_inputs(model, arr)
             t = np.asarray(arr["t"], dtype=np.float64)

@@ -230,12 +230,12 @@ def build(name: str, dt: float, settings: dict[str, Any] | None = None, vehicle:
 
 def run(spec, man, damping: str = "low", params: dict | None = None) -> dict:
     """dampnet.sim.full_car.runs.run of a built manoeuvre (its metrics: the one its meta["test"] names)."""
-    from dampnet.recipes.control_laws import vehicle_controller
+    from dampnet.recipes.control_laws import VEHICLE_DAMPING, vehicle_controller
     from dampnet.sim.full_car.runs import run as run_test
 
     recipe = get(man.meta["test"])
     res = run_test(spec, man, damping, params, metrics=recipe.metrics,
-                   controller=vehicle_controller(spec, damping))
+                   controller=vehicle_controller(spec, damping), law=VEHICLE_DAMPING[damping])
     if man.meta.get("settings", {}).get("max_speed"):
         found = max_speed(spec, man, damping, params, res["metrics"])
         res["max_speed_runs"] = found.pop("max_speed_runs")
@@ -306,13 +306,15 @@ def max_speed(spec, man, damping: str = "low", params: dict | None = None, first
 def run_study(specs, tests: dict, damping: tuple[str, ...] | None = None, **kw) -> dict:
     """dampnet.sim.full_car.study.run_study with each test's metrics and headline from the registry
     and the controllers from dampnet.recipes.control_laws (damping: its VEHICLE_DAMPING names,
-    default all)."""
+    default all); "laws": each damping setting's law, by its registered name."""
     from dampnet.recipes.control_laws import VEHICLE_DAMPING, vehicle_controller
     from dampnet.sim.full_car.study import run_study as study
 
-    return study(specs, tests, tuple(VEHICLE_DAMPING) if damping is None else tuple(damping),
-                 recipes={t: get(man.meta["test"]) for t, man in tests.items()},
-                 controller=vehicle_controller, **kw)
+    damping = tuple(VEHICLE_DAMPING) if damping is None else tuple(damping)
+    out = study(specs, tests, damping, recipes={t: get(man.meta["test"]) for t, man in tests.items()},
+                controller=vehicle_controller, **kw)
+    out["laws"] = {d: VEHICLE_DAMPING[d] for d in damping}
+    return out
 
 
 def plot(runs: dict, path, title: str = "", test: str | None = None) -> None:
