@@ -1,5 +1,6 @@
 """Control laws calibrated on a damper: its damping levels, its equivalent linear damping,
-the semi-active controllers (every law of dampnet.recipes.control_laws is calibrated here).
+the semi-active controllers: the calibrations the control-law registry (dampnet.recipes.control_laws)
+builds every law with.
 
 Damping levels (`damping_levels`): "low" and "high" damping are the controls giving the
 least and the most damping. They are found, not assumed: the damper's force at 0.5 m/s
