@@ -147,7 +147,7 @@ def _case_runs(model, spec_obj, text: str) -> list[RunInputs]:
             dt = float(np.median(np.diff(t))) if t.size > 1 else 1e-3
             label = f"{name}:{lvl}" + (f"@{v:g}m/s" if v is not None else "")
             out.append(RunInputs(label, X, np.full(X.shape[0], dt), f"built-in case {label} (quarter car, "
-                                 f"passive at {lv[lvl]:g})"))
+                                 f"passive at {ctrl[lvl].u_passive:g})"))
     return out
 
 
