@@ -134,7 +134,7 @@ def test_the_recipes_law_runs_in_the_full_vehicle(passive_mid, client, tmp_path,
     """The docs' law, offered to the full vehicle as the docs say (VEHICLE_DAMPING["mid"] =
     "passive_mid"), runs through `dampnet vehicle --damping mid` and a [fullcar] sweep: every corner at
     the mean of the damper's levels, the law's name recorded beside the runtime's kind, the CLI's and
-    the sweep's metrics those of the registry's own run. Cost: 6 s."""
+    the sweep's metrics those of the registry's own run. Cost: 5 s."""
     from dampnet.recipes import maneuvers
     from dampnet.sim.calibration import damping_levels
     from dampnet.sim.dampers import load_spec
@@ -338,8 +338,8 @@ def test_groundhook_continuous_is_calibrated_as_skyhook_continuous(tmp_path):
     """groundhook_continuous is calibrated on the damper and the car by the registry, by skyhook's
     principle (c_gnd = 2 zeta sqrt((k_s + k_t) m_us), zeta = 1/sqrt(2): 4147 N s/m for Table 5, not the
     runtime's default 2500; c_min / c_max the damper's equivalent damping at its levels, as skyhook's),
-    and `simulate` and the quarter-car FMU's --controller get those gains from it, naming the law.
-    Cost: 1 s."""
+    and `simulate` and the quarter-car FMU's --controller get those gains from it, naming the law
+    (external, the FMU's own u input, stays the runtime's). Cost: 2 s."""
     import argparse
     import math
 
@@ -374,6 +374,8 @@ def test_groundhook_continuous_is_calibrated_as_skyhook_continuous(tmp_path):
     assert controller == {**control_laws.make(law, neural_spec(model), Vehicle(m_us=80.0)).to_dict(), "c_min": 600.0}
     text = quarter_car_description(model, vehicle, controller, law=law).description
     assert "controller groundhook_continuous (control law groundhook_continuous, calibrated on this damper)" in text
+    assert _fmu_start_values(argparse.Namespace(controller="external", set=["u_tau_s=0.01"]), model) == \
+        ({}, {"kind": "external", "u_tau_s": 0.01}, None)
     bad = argparse.Namespace(controller="soft", set=[])
     with pytest.raises(ValueError, match="--controller: 'soft' is not a control law; valid: 'passive'"):
         _fmu_start_values(bad, model)

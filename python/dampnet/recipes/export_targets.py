@@ -232,9 +232,10 @@ def _fmu_start_values(args, model=None) -> tuple[dict, dict, str | None]:
             target[name] = float(text)
         except ValueError:
             target[name] = text  # an enum field's name (integrator, damper_eval, accel_feature, kind)
-    if not args.controller:
-        return vehicle, controller, None
     from dampnet.recipes import control_laws
+
+    if not args.controller or args.controller == control_laws.EXTERNAL:   # external: the importer's u input
+        return vehicle, {"kind": args.controller, **controller} if args.controller else controller, None
     from dampnet.sim.dampers import neural_spec
     from dampnet.sim.vehicle import LoopError, Vehicle
 
