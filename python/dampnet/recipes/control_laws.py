@@ -148,12 +148,24 @@ def make(name: str, spec: DamperSpec, vehicle: Vehicle | None = None, *, u_tau_s
 VEHICLE_DAMPING: dict[str, str] = {"low": "passive_low", "high": "passive_high", "skyhook": "skyhook_onoff"}
 
 
-def vehicle_controller(spec: DamperSpec, damping: str) -> Controller:
+def vehicle_controller(spec: DamperSpec, damping: str, params: Mapping[str, Any] | None = None) -> Controller:
     """Every corner's controller for a full-vehicle damping setting (VEHICLE_DAMPING), calibrated
-    on `spec`; LoopError naming the settings otherwise."""
+    on `spec` and on the full car's mean corner (`corner_vehicle`; params: the full car's fields set);
+    LoopError naming the settings otherwise."""
     if damping not in VEHICLE_DAMPING:
         raise LoopError(f"damping must be one of {', '.join(VEHICLE_DAMPING)}, got {damping!r}")
-    return make(VEHICLE_DAMPING[damping], spec, limit_to_levels=True)
+    return make(VEHICLE_DAMPING[damping], spec, corner_vehicle(params), limit_to_levels=True)
+
+
+def corner_vehicle(params: Mapping[str, Any] | None = None) -> Vehicle:
+    """The quarter car a full-car law is calibrated on: the full car's mean corner (params over the
+    full car's defaults): a quarter of the sprung mass m_s, the mean of the axles' m_us and k_s, its
+    k_t and c_t (SI units). The default full car's: 650 kg, 40 kg, 15 kN/m, 200 kN/m."""
+    from dampnet.sim.full_car.params import defaults
+
+    p = {**defaults(), **(params or {})}
+    return Vehicle(m_s=p["m_s"] / 4.0, m_us=0.5 * (p["m_us_f"] + p["m_us_r"]), k_s=0.5 * (p["k_s_f"] + p["k_s_r"]),
+                   k_t=p["k_t"], c_t=p["c_t"])
 
 
 def help_text() -> str:

@@ -235,7 +235,7 @@ def run(spec, man, damping: str = "low", params: dict | None = None) -> dict:
 
     recipe = get(man.meta["test"])
     res = run_test(spec, man, damping, params, metrics=recipe.metrics,
-                   controller=vehicle_controller(spec, damping), law=VEHICLE_DAMPING[damping])
+                   controller=vehicle_controller(spec, damping, params), law=VEHICLE_DAMPING[damping])
     if man.meta.get("settings", {}).get("max_speed"):
         found = max_speed(spec, man, damping, params, res["metrics"])
         res["max_speed_runs"] = found.pop("max_speed_runs")
@@ -272,7 +272,7 @@ def max_speed(spec, man, damping: str = "low", params: dict | None = None, first
         else:
             m2 = build(recipe.name, man.dt, {**settings, "speed_kmh": kmh})
             m = run_test(spec, m2, damping, params, metrics=recipe.metrics,
-                         controller=vehicle_controller(spec, damping))["metrics"]
+                         controller=vehicle_controller(spec, damping, params))["metrics"]
         runs.append([kmh, bool(m["passed"]), m.get("clearance_min_m")])
         if progress:
             progress(f"  max speed search: {kmh:.2f} km/h {'passes' if m['passed'] else 'fails'}"
