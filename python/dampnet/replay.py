@@ -65,7 +65,6 @@ def road_drive(road: str = "rough", speed_m_s: float = SPEED_M_S, law: str = "pa
     veh = Vehicle(dt=CAR_DT_S)
     veh.validate()
     ctrl = laws.make(law, spec, veh, damping=damping)
-    law = laws.get(law).name     # recorded by its registered name
     r = roads.build(road, seed=seed)
     spatial = r.kind == "spatial"
     s = r.sample(veh.dt, speed_m_s if spatial else None)
@@ -78,7 +77,8 @@ def road_drive(road: str = "rough", speed_m_s: float = SPEED_M_S, law: str = "pa
                          "settles")
     a = upsample({k: np.asarray(car[k][k0:]) for k in ("t", "x", "v", "u")}, rate_hz)
     name = _drive_name(road, speed_m_s if spatial else None, law)
-    about = {"road": r.name, "road_text": road, "speed_m_s": speed_m_s if spatial else None, "control_law": law,
+    about = {"road": r.name, "road_text": road, "speed_m_s": speed_m_s if spatial else None,
+             "control_law": laws.get(law).name,   # by its registered name
              "rate_hz": rate_hz, "settle_s": SETTLE_S, "seed": int(seed),
              "car_dt_s": CAR_DT_S, "stroke_rms_m": float(np.sqrt(np.mean(a["x"] ** 2))),
              "velocity_rms_m_s": float(np.sqrt(np.mean(a["v"] ** 2)))}
