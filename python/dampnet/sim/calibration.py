@@ -84,7 +84,8 @@ def equivalent_damping(spec: DamperSpec, u: float, v_rms: float = SKYHOOK_V_RMS_
     return float(np.sum(w * f * v) / np.sum(w * v * v))
 
 
-def damping_range(spec: DamperSpec, levels: dict, vehicle: Vehicle, v_rms: float = SKYHOOK_V_RMS_M_S) -> tuple:
+def damping_range(spec: DamperSpec, levels: dict, vehicle: Vehicle,
+                  v_rms: float = SKYHOOK_V_RMS_M_S) -> tuple[float, float]:
     """(c_min, c_max) [N s/m] of the continuous laws: equivalent_damping at the low / high damping
     levels. A damper whose damping does not rise from low to high (a linear damper) keeps the
     Controller's defaults: the control does nothing to it anyway."""
