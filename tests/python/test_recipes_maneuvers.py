@@ -203,7 +203,7 @@ def test_a_full_vehicle_law_is_calibrated_on_the_cars_corner(hump, monkeypatch):
     """A law offered to the full vehicle is calibrated by the registry on the damper and on the full
     car's mean corner (control_laws.corner_vehicle: m_s / 4, the axles' mean m_us and k_s, k_t), the
     car's fields given to the run included: groundhook_continuous's c_gnd = 2 zeta sqrt((k_s + k_t) m_us),
-    zeta = 1/sqrt(2); the run records the law's name beside the runtime's kind. Cost: 0.5 s."""
+    zeta = 1/sqrt(2); the run records the law's name beside the runtime's kind. Cost: 0.1 s."""
     import math
 
     from dampnet.recipes import control_laws
