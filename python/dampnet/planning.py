@@ -128,28 +128,27 @@ class RunInputs:
 
 def _case_runs(model, spec_obj, text: str) -> list[RunInputs]:
     from dampnet.envelope.coverage import quarter_car_inputs
-    from dampnet.sim.calibration import damping_levels
+    from dampnet.recipes import control_laws
     from dampnet.sim.quarter_car.runs import simulate
-    from dampnet.sim.vehicle import Controller
 
     req, level = _case_road(text)
     name = text[:len(text) - len(level) - 1] if level else text
     levels = ("low", "high") if level == "" else (level,)
-    lv = damping_levels(spec_obj)
+    ctrl = {lvl: control_laws.make(f"passive_{lvl}", spec_obj) for lvl in levels}
     speeds = req.kind.case_speeds_m_s if req.profile == "spatial" else (None,)
     road = None if req.takes("speed_m_s") else req.build()
     out = []
     for lvl in levels:
         for v in speeds:
             at = road or req.build(speed_m_s=v)      # a road that fills the speed: built for each
-            r = simulate(spec_obj, at, v, Controller(kind="passive", u_passive=lv[lvl]))
+            r = simulate(spec_obj, at, v, ctrl[lvl], law=f"passive_{lvl}")
             arr = r["arrays"]
             X = quarter_car_inputs(model, arr)
             t = np.asarray(arr["t"], dtype=np.float64)
             dt = float(np.median(np.diff(t))) if t.size > 1 else 1e-3
             label = f"{name}:{lvl}" + (f"@{v:g}m/s" if v is not None else "")
             out.append(RunInputs(label, X, np.full(X.shape[0], dt), f"built-in case {label} (quarter car, "
-                                 f"passive at {lv[lvl]:g})"))
+                                 f"passive at {ctrl[lvl].u_passive:g})"))
     return out
 
 

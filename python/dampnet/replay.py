@@ -77,7 +77,8 @@ def road_drive(road: str = "rough", speed_m_s: float = SPEED_M_S, law: str = "pa
                          "settles")
     a = upsample({k: np.asarray(car[k][k0:]) for k in ("t", "x", "v", "u")}, rate_hz)
     name = _drive_name(road, speed_m_s if spatial else None, law)
-    about = {"road": r.name, "road_text": road, "speed_m_s": speed_m_s if spatial else None, "control_law": law,
+    about = {"road": r.name, "road_text": road, "speed_m_s": speed_m_s if spatial else None,
+             "control_law": laws.get(law).name,   # by its registered name
              "rate_hz": rate_hz, "settle_s": SETTLE_S, "seed": int(seed),
              "car_dt_s": CAR_DT_S, "stroke_rms_m": float(np.sqrt(np.mean(a["x"] ** 2))),
              "velocity_rms_m_s": float(np.sqrt(np.mean(a["v"] ** 2)))}
@@ -121,6 +122,7 @@ def corner_drive(road: str = "rough", speed_m_s: float = SPEED_M_S, law: str = "
     import dataclasses
 
     from dampnet.recipes import maneuvers
+    from dampnet.recipes.control_laws import VEHICLE_DAMPING
     from dampnet.sim.dampers import truth_spec
 
     if corner not in CORNERS:
@@ -141,7 +143,8 @@ def corner_drive(road: str = "rough", speed_m_s: float = SPEED_M_S, law: str = "
     a = upsample({"t": np.asarray(arr["t"][k0:]), "x": np.asarray(arr["x"][k0:, j]), "v": np.asarray(arr["v"][k0:, j]),
                   "u": np.asarray(arr["u"][k0:, j])}, rate_hz)
     name = _drive_name(road, speed_m_s, f"{damping}-{corner}")
-    about = {"road": f"{man.name} ({road})", "road_text": road, "speed_m_s": speed_m_s, "control_law": damping,
+    about = {"road": f"{man.name} ({road})", "road_text": road, "speed_m_s": speed_m_s,
+             "control_law": VEHICLE_DAMPING[damping], "damping": damping,
              "vehicle": "full car", "corner": corner, "rate_hz": rate_hz, "settle_s": SETTLE_S, "seed": int(seed),
              "car_dt_s": CAR_DT_S, "stroke_rms_m": float(np.sqrt(np.mean(a["x"] ** 2))),
              "velocity_rms_m_s": float(np.sqrt(np.mean(a["v"] ** 2)))}

@@ -199,6 +199,27 @@ def test_the_vehicle_damping_settings_are_control_laws(hump, tmp_path, monkeypat
     assert (res["controller"]["u_min"], res["controller"]["u_max"]) == (min(lv.values()), max(lv.values()))
 
 
+def test_a_full_vehicle_law_is_calibrated_on_the_cars_corner(hump, monkeypatch):
+    """A law offered to the full vehicle is calibrated by the registry on the damper and on the full
+    car's mean corner (control_laws.corner_vehicle: m_s / 4, the axles' mean m_us and k_s, k_t), the
+    car's fields given to the run included: groundhook_continuous's c_gnd = 2 zeta sqrt((k_s + k_t) m_us),
+    zeta = 1/sqrt(2); the run records the law's name beside the runtime's kind. Cost: 0.1 s."""
+    import math
+
+    from dampnet.recipes import control_laws
+
+    corner = control_laws.corner_vehicle()
+    assert (corner.m_s, corner.m_us, corner.k_s, corner.k_t) == (650.0, 40.0, 15000.0, 200000.0)
+    monkeypatch.setitem(control_laws.VEHICLE_DAMPING, "ground", "groundhook_continuous")
+    spec = load_spec("default")
+    car = {"m_us_f": 70.0, "m_us_r": 50.0, "k_s_f": 20000.0}
+    ctrl = control_laws.vehicle_controller(spec, "ground", car)
+    assert ctrl.c_gnd == pytest.approx(math.sqrt(2.0) * math.sqrt((17500.0 + 200000.0) * 60.0), rel=1e-12)
+    res = maneuvers.run(spec, maneuvers.build("hump", DT), "ground", car)
+    assert res["law"] == "groundhook_continuous" and res["controller"] == ctrl.to_dict()
+    assert res["controller"]["kind"] == "groundhook_continuous"
+
+
 @pytest.mark.parametrize("args, words", [
     (["--bsst-rate", "1e9"], "--bsst-rate: expected a finite number in [0.01, 10] octave/s, got 1000000000.0"),
     (["--bsst-rate", "1e-6"], "--bsst-rate: expected a finite number in [0.01, 10] octave/s, got 1e-06"),

@@ -84,7 +84,7 @@ def test_the_recipes_road_and_law_run_through_the_cli(kerb, passive_mid, tmp_pat
     from dampnet.sim.dampers import truth_spec
 
     lv = damping_levels(truth_spec())
-    assert meta["controller"]["kind"] == "passive"
+    assert meta["controller"]["kind"] == "passive" and meta["law"] == "passive_mid"   # the law's name, and its kind
     assert meta["controller"]["u_passive"] == pytest.approx(0.5 * (lv["low"] + lv["high"]))
     assert meta["metrics"] == _direct("truth", "kerb:height_m=0.05", "passive_mid")["metrics"]
     # the alias, and the registry in the help texts
@@ -120,6 +120,46 @@ def test_the_recipes_road_and_law_run_through_a_sweep(kerb, passive_mid, client,
             assert row[k] == want[k], (row["road"], row["controller"], k)
     # the kerb is a distance profile: the speed applies; it takes no seed or length: those are empty
     assert (df["speed"] == 10.0).all() and df["road_seed"].isna().all() and df["road_length_m"].isna().all()
+    # each cell's record names its law beside the runtime's kind
+    recs = [json.loads(f.read_text()) for f in (tmp_path / "sim" / "cells").glob("*.json")]
+    assert sorted(r["law"] for r in recs) == ["passive_high", "passive_high", "passive_mid", "passive_mid"]
+    assert all(r["controller_settings"]["kind"] == "passive" for r in recs)
+
+
+#: a short bounce sweep of the full vehicle (2 -> 4 Hz at 1 octave/s, 2 ms steps)
+SHORT_BSST = {"bsst_f0_hz": 2.0, "bsst_f1_hz": 4.0, "bsst_rate_oct_s": 1.0, "dt": 2e-3}
+
+
+def test_the_recipes_law_runs_in_the_full_vehicle(passive_mid, client, tmp_path, monkeypatch):
+    """The docs' law, offered to the full vehicle as the docs say (VEHICLE_DAMPING["mid"] =
+    "passive_mid"), runs through `dampnet vehicle --damping mid` and a [fullcar] sweep: every corner at
+    the mean of the damper's levels, the law's name recorded beside the runtime's kind, the CLI's and
+    the sweep's metrics those of the registry's own run. Cost: 5 s."""
+    from dampnet.recipes import maneuvers
+    from dampnet.sim.calibration import damping_levels
+    from dampnet.sim.dampers import load_spec
+    from dampnet.sweep import run
+
+    monkeypatch.setitem(control_laws.VEHICLE_DAMPING, "mid", "passive_mid")   # the docs' line, undone after
+    spec = load_spec("default")
+    lv = damping_levels(spec)
+    man = maneuvers.build("bsst", SHORT_BSST["dt"], {k: v for k, v in SHORT_BSST.items() if k != "dt"})
+    want = maneuvers.run(spec, man, "mid")
+    assert want["controller"]["u_passive"] == pytest.approx(0.5 * (lv["low"] + lv["high"]), abs=0)
+    assert want["law"] == "passive_mid" and want["controller"]["kind"] == "passive"
+    assert want["metrics"]["acc_rms_m_s2"] != maneuvers.run(spec, man, "high")["metrics"]["acc_rms_m_s2"]
+    out = tmp_path / "vehicle"
+    assert main(["vehicle", "default", "--test", "bsst", "--damping", "mid", "--bsst-f0", "2", "--bsst-f1", "4",
+                 "--bsst-rate", "1", "--dt", "0.002", "--out", str(out)]) == 0
+    meta = json.loads((out / "metrics.json").read_text())
+    assert meta["law"] == "passive_mid" and meta["damping"] == "mid" and meta["controller"] == want["controller"]
+    assert meta["metrics"]["acc_rms_m_s2"] == want["metrics"]["acc_rms_m_s2"]
+    df = run({"fullcar": {"models": ["default"], "tests": ["bsst"], "damping": ["mid"], **SHORT_BSST}},
+             client=client, out=tmp_path / "fc", progress=False)
+    assert len(df) == 1 and (df["status"] == "ok").all(), df[["status", "error"]]
+    assert df["acc_rms_m_s2"].iloc[0] == want["metrics"]["acc_rms_m_s2"]
+    rec = json.loads(next((tmp_path / "fc" / "cells").glob("*.json")).read_text())
+    assert rec["law"] == "passive_mid" and rec["controller_settings"] == want["controller"]
 
 
 # -- issue 52: the recipe's road in the full car; the parameters front ends fill ------------------
@@ -322,6 +362,7 @@ def test_old_control_spellings_still_work(tmp_path):
         assert main(["simulate", "truth", "--road", "impulse", *law, "--out", str(out)]) == 0
     a, b = (json.loads((tmp_path / d / "metrics.json").read_text()) for d in "ab")
     assert a["metrics"] == b["metrics"] and a["controller"] == b["controller"]
+    assert (a["law"], b["law"]) == ("passive", "passive_low")     # each run names the law it was asked for
 
 
 def test_plan_tests_cases_are_registry_roads():
@@ -434,3 +475,52 @@ def test_a_sweep_cell_trains_with_restarts_and_average_as_dampnet_train(quick, c
     assert main(["train", str(data), "--out", str(tmp_path / "cli"), "--seed", "1", "--restarts", "2",
                  "--average", "2", "--workers", "1", "--decimate", "50", "--max-epochs", "15", "--quiet"]) == 0
     assert {p.name for p in (tmp_path / "cli").iterdir()} == MODEL_FILES
+
+
+# -- every law calibrated by the registry (issue 52, item 3) --------------------------------------
+
+def test_groundhook_continuous_is_calibrated_as_skyhook_continuous(tmp_path):
+    """groundhook_continuous is calibrated on the damper and the car by the registry, by skyhook's
+    principle (c_gnd = 2 zeta sqrt((k_s + k_t) m_us), zeta = 1/sqrt(2): 4147 N s/m for Table 5, not the
+    runtime's default 2500; c_min / c_max the damper's equivalent damping at its levels, as skyhook's),
+    and `simulate` and the quarter-car FMU's --controller get those gains from it, naming the law
+    (external, the FMU's own u input, stays the runtime's). Cost: 2 s."""
+    import argparse
+    import math
+
+    from dampnet.export.fmu.quarter_car import quarter_car_description
+    from dampnet.modeldir import default_model
+    from dampnet.recipes.export_targets import _fmu_start_values
+    from dampnet.sim.dampers import neural_spec, truth_spec
+    from dampnet.sim.vehicle import Controller, Vehicle
+
+    truth, veh = truth_spec(), Vehicle()
+    sky = control_laws.make("skyhook_continuous", truth, veh)
+    gnd = control_laws.make("groundhook_continuous", truth, veh)
+    assert gnd.kind == "groundhook_continuous"
+    assert gnd.c_gnd == pytest.approx(2.0 / math.sqrt(2.0) * math.sqrt((15000.0 + 200000.0) * 40.0), rel=1e-12)
+    assert round(gnd.c_gnd) == 4147 and gnd.c_gnd != Controller.c_gnd
+    assert (gnd.c_min, gnd.c_max) == (sky.c_min, sky.c_max) and 1000.0 < gnd.c_min < 2500.0 < 4000.0 < gnd.c_max
+    assert (gnd.u_soft, gnd.u_hard, gnd.u_tau_s) == (sky.u_soft, sky.u_hard, sky.u_tau_s) == (5.0, 0.0, 0.005)
+    # calibrated on the car: twice the unsprung mass, sqrt(2) times the gain
+    assert control_laws.make("groundhook_continuous", truth, Vehicle(m_us=80.0)).c_gnd == \
+        pytest.approx(math.sqrt(2.0) * gnd.c_gnd, rel=1e-12)
+    # `dampnet simulate --control groundhook_continuous`: the registry's gains, the law's name recorded
+    out = tmp_path / "run"
+    assert main(["simulate", "default", "--road", "bump", "--control", "groundhook_continuous", "--out", str(out)]) == 0
+    meta = json.loads((out / "metrics.json").read_text())
+    model = default_model()
+    want = control_laws.make("groundhook_continuous", neural_spec(model), veh)
+    assert meta["law"] == "groundhook_continuous" and meta["controller"] == want.to_dict()
+    # the quarter-car FMU: --controller LAW is the registry's law calibrated on the model, --set over it
+    args = argparse.Namespace(controller="groundhook_continuous", set=["m_us=80", "c_min=600"])
+    vehicle, controller, law = _fmu_start_values(args, model)
+    assert law == "groundhook_continuous" and vehicle == {"m_us": 80.0}
+    assert controller == {**control_laws.make(law, neural_spec(model), Vehicle(m_us=80.0)).to_dict(), "c_min": 600.0}
+    text = quarter_car_description(model, vehicle, controller, law=law).description
+    assert "controller groundhook_continuous (control law groundhook_continuous, calibrated on this damper)" in text
+    assert _fmu_start_values(argparse.Namespace(controller="external", set=["u_tau_s=0.01"]), model) == \
+        ({}, {"kind": "external", "u_tau_s": 0.01}, None)
+    bad = argparse.Namespace(controller="soft", set=[])
+    with pytest.raises(ValueError, match="--controller: 'soft' is not a control law; valid: 'passive'"):
+        _fmu_start_values(bad, model)

@@ -188,6 +188,7 @@ def test_a_full_car_corner_is_replayed(tmp_path, capsys):
     np.testing.assert_allclose(rl.x[::step], arr["x"][k0:k0 + m, 2], rtol=0, atol=1e-12)
     np.testing.assert_allclose(rl.u[::step], arr["u"][k0:k0 + m, 2], rtol=0, atol=0)
     assert rl.meta["corner"] == "rl" and rl.meta["vehicle"] == "full car"
+    assert (rl.meta["control_law"], rl.meta["damping"]) == ("skyhook_onoff", "skyhook")   # the law's registered name
     assert np.sqrt(np.mean(rl.x ** 2)) > 1e-3                  # the corner moves over the road
     # only registered roads, only the full vehicle's damping settings: one line each
     assert main(["rig", str(tmp_path / "o"), "--replay", "cobbles", "--corner", "fl", "--duration", "0.5"]) == 2

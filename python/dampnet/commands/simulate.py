@@ -68,7 +68,7 @@ def run(args) -> int:
     try:
         check_options(args)
         try:
-            laws.get(args.control)
+            law = laws.get(args.control).name
         except LoopError as e:
             raise LoopError(f"--control: {e}") from None
         laws.check_context(args.control, {"--u": ("u", args.u), "--damping": ("damping", args.damping),
@@ -80,7 +80,7 @@ def run(args) -> int:
         veh = Vehicle(dt=args.dt)
         veh.validate()
         ctrl = laws.make(args.control, spec, veh, u_tau_s=args.command_tau, damping=args.damping or "high", u=args.u)
-        res = simulate(spec, road, args.speed if road.kind == "spatial" else None, ctrl, veh)
+        res = simulate(spec, road, args.speed if road.kind == "spatial" else None, ctrl, veh, law=law)
     except (RoadError, LoopError, ValueError, OSError, KeyError) as e:
         print(f"dampnet: error: {e}", file=sys.stderr)
         return 2
@@ -92,7 +92,7 @@ def run(args) -> int:
     if "coverage" in res:   # a neural model: the verdict at the top (dampnet.envelope.coverage)
         meta["extrapolated"] = res["coverage"]["extrapolated"]
     writers = {"run.npz": lambda f: np.savez_compressed(f, **arrays),
-               "time_history.png": lambda f: plot_run(res, f, f"{spec.name} on {road.name}, {ctrl.kind}"),
+               "time_history.png": lambda f: plot_run(res, f, f"{spec.name} on {road.name}, {law}"),
                "metrics.json": lambda f: Path(f).write_text(json_text(meta))}
     if "transmissibility" in res:
         writers["transmissibility.png"] = lambda f: plot_transmissibility({spec.name: res}, f)
@@ -104,7 +104,7 @@ def run(args) -> int:
 
         writers["coverage.png"] = lambda f: plot_coverage(
             spec.obj, {road.name: quarter_car_inputs(spec.obj, res["arrays"])}, f, spec.meta.get("envelope"),
-            f"{spec.name} on {road.name}, {ctrl.kind}: damper inputs")
+            f"{spec.name} on {road.name}, {law}: damper inputs")
     elif (out / "coverage.png").exists():   # --force over a neural model's run: not this run's
         (out / "coverage.png").unlink()
     try:
@@ -114,7 +114,7 @@ def run(args) -> int:
         return 2
     m = res["metrics"]
     print(f"{spec.name} on {road.name}" + (f" at {args.speed:g} m/s" if road.kind == "spatial" else "")
-          + f", {ctrl.kind}" + (f" (command filter {1e3 * ctrl.u_tau_s:g} ms)" if ctrl.kind != "passive" and ctrl.u_tau_s > 0 else "")
+          + f", {law}" + (f" (command filter {1e3 * ctrl.u_tau_s:g} ms)" if ctrl.kind != "passive" and ctrl.u_tau_s > 0 else "")
           + f" (dt {args.dt:g} s): acc RMS {m['acc_rms_m_s2']:.4f} m/s^2, "
           f"Wk RMS {m['acc_wk_rms_m_s2']:.4f} m/s^2, disp peak/RMS {m['disp_peak_to_rms']:.3f}, travel RMS "
           f"{1e3 * m['travel_rms_m']:.2f} mm (max {1e3 * m['travel_max_m']:.2f}), tyre load RMS "

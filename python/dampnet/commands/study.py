@@ -62,7 +62,9 @@ def run(args) -> int:
             specs.append(lookup_spec(fit_lookup(ds)))
             if ds.meta.get("generator") == RIG_GENERATOR:
                 truth = truth_spec(list(ds.meta.get("effects", {})))
-        res = run_study(specs, truth, dt=args.dt, seed=args.seed, keep_runs=not args.no_plots,
+        from dampnet.recipes import control_laws
+
+        res = run_study(specs, truth, dt=args.dt, seed=args.seed, keep_runs=not args.no_plots, laws=control_laws.make,
                         progress=lambda s: print(f"  {s}", file=sys.stderr), **roads)
         vehicle = _vehicle_study(specs + ([truth] if truth else []), args) if args.vehicle else None
     except (ValueError, OSError) as e:

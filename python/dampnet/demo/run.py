@@ -230,13 +230,12 @@ PLAN_BUDGET = 6
 
 def _impulse(spec) -> dict:
     """The study's impulse at the spec's low and high damping: {level: dampnet.sim.quarter_car.runs.simulate's result}."""
-    from dampnet.sim.calibration import damping_levels
+    from dampnet.recipes import control_laws
     from dampnet.sim.roads import impulse
     from dampnet.sim.quarter_car.runs import simulate
-    from dampnet.sim.vehicle import Controller
 
-    lv = damping_levels(spec)
-    return {k: simulate(spec, impulse(), None, Controller(kind="passive", u_passive=lv[k])) for k in ("low", "high")}
+    return {k: simulate(spec, impulse(), None, control_laws.make(f"passive_{k}", spec), law=f"passive_{k}")
+            for k in ("low", "high")}
 
 
 def _impulse_vs_truth(spec, truth: dict) -> tuple[dict, dict]:
@@ -307,8 +306,10 @@ def _study(model0, model1, lookup, fig_dir: Path, quick: bool, env0=None, env1=N
         sweep, rough = sine_sweep(rate_oct_s=0.5), thesis_rough_road(seed=0, base_length_m=46.0)
     else:
         sweep, rough = None, thesis_rough_road(seed=0)
+    from dampnet.recipes import control_laws
+
     res = study.run_study(specs, truth=truth_spec([HIDDEN_EFFECT]), rough=rough, sweep=sweep,
-                          keep_runs=True)
+                          keep_runs=True, laws=control_laws.make)
     res["settings"]["quick_roads"] = bool(quick)
     write_plots(res, fig_dir)
     res_json = without_arrays(res)

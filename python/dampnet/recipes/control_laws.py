@@ -1,12 +1,16 @@
-"""Control laws by name: the one vocabulary `dampnet simulate --control` and the sweep's
-[simulation] controllers read.
+"""Control laws by name: the one vocabulary and the one calibration of every front end
+(`dampnet simulate --control`, the sweep's [simulation] controllers and [fullcar] damping,
+`dampnet vehicle --damping`, `dampnet study`, the quarter-car FMU's --controller).
 
-Each law is calibrated on the damper it controls, as `dampnet study` calibrates them: passive at
-the damper's own low or high damping control (`damping_levels`), the switching laws between
-those two with the study's command filter (u_tau_s, default 5 ms), skyhook_continuous with
-c_sky, c_min, c_max from the vehicle and the damper (`continuous_skyhook`). Fields a front end
+Each law is calibrated on the damper it controls by its registered builder (its calibration
+hook: LawContext -> Controller): passive at the damper's own low or high damping control
+(`damping_levels`), the switching laws between those two with the command filter (u_tau_s,
+default 5 ms), skyhook_continuous with c_sky, c_min, c_max from the vehicle and the damper
+(`continuous_skyhook`), groundhook_continuous with c_gnd, c_min, c_max by the same principle
+(`continuous_groundhook`); no law runs with the runtime's default gains. Fields a front end
 sets itself (the sweep's [simulation.controller], e.g. u_passive) then replace the calibrated
-ones, and the Controller is checked by the runtime (`Controller.validate`).
+ones, and the Controller is checked by the runtime (`Controller.validate`). A run records the
+law's registered name (`law`) beside the runtime's kind (its controller's `kind`).
 
     ctrl = make("skyhook_onoff", spec, vehicle)            # dampnet.sim.vehicle.Controller
     ctrl = make("passive", spec, vehicle, damping="low")   # the --damping / --u options
@@ -14,7 +18,8 @@ ones, and the Controller is checked by the runtime (`Controller.validate`).
 
 The runtime's laws (`_core.CONTROLLER_KINDS`, but "external": its control comes from the
 caller, QuarterCar.simulate(u=...)) are registered from the runtime's list, so a law added
-there is a law here; passive_low / passive_high name the passive law at one level.
+there is a law here (a switching law between the damper's levels unless calibrated below);
+passive_low / passive_high name the passive law at one level.
 Adding a law: `register(ControlLaw(...))` (docs/recipes.md, "Control laws").
 """
 
@@ -143,12 +148,24 @@ def make(name: str, spec: DamperSpec, vehicle: Vehicle | None = None, *, u_tau_s
 VEHICLE_DAMPING: dict[str, str] = {"low": "passive_low", "high": "passive_high", "skyhook": "skyhook_onoff"}
 
 
-def vehicle_controller(spec: DamperSpec, damping: str) -> Controller:
+def vehicle_controller(spec: DamperSpec, damping: str, params: Mapping[str, Any] | None = None) -> Controller:
     """Every corner's controller for a full-vehicle damping setting (VEHICLE_DAMPING), calibrated
-    on `spec`; LoopError naming the settings otherwise."""
+    on `spec` and on the full car's mean corner (`corner_vehicle`; params: the full car's fields set);
+    LoopError naming the settings otherwise."""
     if damping not in VEHICLE_DAMPING:
         raise LoopError(f"damping must be one of {', '.join(VEHICLE_DAMPING)}, got {damping!r}")
-    return make(VEHICLE_DAMPING[damping], spec, limit_to_levels=True)
+    return make(VEHICLE_DAMPING[damping], spec, corner_vehicle(params), limit_to_levels=True)
+
+
+def corner_vehicle(params: Mapping[str, Any] | None = None) -> Vehicle:
+    """The quarter car a full-car law is calibrated on: the full car's mean corner (params over the
+    full car's defaults): a quarter of the sprung mass m_s, the mean of the axles' m_us and k_s, its
+    k_t and c_t (SI units). The default full car's: 650 kg, 40 kg, 15 kN/m, 200 kN/m."""
+    from dampnet.sim.full_car.params import defaults
+
+    p = {**defaults(), **(params or {})}
+    return Vehicle(m_s=p["m_s"] / 4.0, m_us=0.5 * (p["m_us_f"] + p["m_us_r"]), k_s=0.5 * (p["k_s_f"] + p["k_s_r"]),
+                   k_t=p["k_t"], c_t=p["c_t"])
 
 
 def help_text() -> str:
@@ -174,10 +191,13 @@ register(ControlLaw("passive_low", "passive at the damper's low damping control"
                     {"u_passive": _LEVEL}))
 register(ControlLaw("passive_high", "passive at the damper's high damping control", _passive("high"),
                     {"u_passive": _LEVEL}))
-def _skyhook_continuous(ctx: LawContext) -> Controller:
-    from dampnet.sim.calibration import continuous_skyhook
+def _continuous(calibrate: str) -> Callable[[LawContext], Controller]:
+    """A continuous law's builder: dampnet.sim.calibration's `calibrate` on the context."""
+    def build(ctx: LawContext) -> Controller:
+        from dampnet.sim import calibration
 
-    return continuous_skyhook(ctx.spec, dict(ctx.levels), ctx.vehicle, u_tau_s=ctx.u_tau_s)
+        return getattr(calibration, calibrate)(ctx.spec, dict(ctx.levels), ctx.vehicle, u_tau_s=ctx.u_tau_s)
+    return build
 
 
 def _switching(kind: str) -> Callable[[LawContext], Controller]:
@@ -188,14 +208,22 @@ def _switching(kind: str) -> Callable[[LawContext], Controller]:
     return build
 
 
+#: the runtime's continuous laws, each calibrated by its dampnet.sim.calibration function:
+#: (that function, its doc line, its calibrated gains with their units)
+_CONTINUOUS = {
+    "skyhook_continuous": ("continuous_skyhook", "the runtime's continuous skyhook, c_sky / c_min / c_max "
+                           "calibrated on the damper and the vehicle", "c_sky, c_min, c_max"),
+    "groundhook_continuous": ("continuous_groundhook", "the runtime's continuous groundhook, c_gnd / c_min / "
+                              "c_max calibrated on the damper and the vehicle as skyhook's are", "c_gnd, c_min, c_max"),
+}
+
 for _kind in _core.CONTROLLER_KINDS:
     if _kind in ("passive", EXTERNAL):
         continue
-    if _kind == "skyhook_continuous":
-        register(ControlLaw(_kind, "the runtime's continuous skyhook, c_sky / c_min / c_max calibrated on the "
-                            "damper and the vehicle as in `dampnet study`",
-                            _skyhook_continuous,
-                            {"u_soft, u_hard": _LEVEL, "c_sky, c_min, c_max": "N s/m: calibrated",
+    if _kind in _CONTINUOUS:
+        _fn, _doc, _gains = _CONTINUOUS[_kind]
+        register(ControlLaw(_kind, _doc, _continuous(_fn),
+                            {"u_soft, u_hard": _LEVEL, _gains: "N s/m: calibrated (dampnet.sim.calibration)",
                              "u_tau_s": "s: command filter"}, reads=("u_tau_s",)))
     else:
         register(ControlLaw(_kind, f"the runtime's {_kind} between the damper's low and high damping",

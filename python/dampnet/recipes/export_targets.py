@@ -192,8 +192,9 @@ option(Option("--interface", "co-simulation, model exchange or both in one FMU (
               "cs for the quarter car, which is co-simulation only)", None, dict(choices=("cs", "me", "both"))))
 option(Option("--what", "the damper alone (default), or the quarter car with this damper (thesis Table 5 "
               "vehicle; fixed step = its dt)", "damper", dict(choices=("damper", "quarter-car"))))
-option(Option("--controller", "quarter car: the control law's start value (passive, skyhook_onoff, ...; "
-              "default passive)", None, dict(metavar="LAW")))
+option(Option("--controller", "quarter car: the control law (dampnet.recipes.control_laws: passive, passive_low, "
+              "skyhook_onoff, ...), its start values calibrated on the model as `dampnet simulate --control` "
+              "does; --set values go over them (default: the runtime's, passive)", None, dict(metavar="LAW")))
 option(Option("--set", "quarter car: a vehicle or controller parameter's start value, e.g. --set m_s=450 "
               "--set c_sky=3000 (repeatable; the importer can change them too)", [],
               dict(metavar="NAME=VALUE", action="append")))
@@ -209,14 +210,14 @@ option(Option("--target", "a ready-to-build folder for this core (with --out DIR
 option(Option("--out", "--target: the folder to write", kwargs=dict(metavar="DIR")))
 
 
-def _fmu_start_values(args) -> tuple[dict, dict]:
-    """--controller and --set NAME=VALUE as the quarter car's vehicle and controller start values."""
+def _fmu_start_values(args, model=None) -> tuple[dict, dict, str | None]:
+    """--controller and --set NAME=VALUE as the quarter car's vehicle and controller start values, and
+    the law's registered name: the law built and calibrated on `model` (an MlpModel) by the control-law
+    registry, the --set values over its fields."""
     from dampnet import _core
     from dampnet.model import ModelError
 
     vehicle, controller = {}, {}
-    if args.controller:
-        controller["kind"] = args.controller
     for item in args.set:
         name, sep, text = item.partition("=")
         if not sep or not name:
@@ -231,7 +232,22 @@ def _fmu_start_values(args) -> tuple[dict, dict]:
             target[name] = float(text)
         except ValueError:
             target[name] = text  # an enum field's name (integrator, damper_eval, accel_feature, kind)
-    return vehicle, controller
+    from dampnet.recipes import control_laws
+
+    if not args.controller or args.controller == control_laws.EXTERNAL:   # external: the importer's u input
+        return vehicle, {"kind": args.controller, **controller} if args.controller else controller, None
+    from dampnet.sim.dampers import neural_spec
+    from dampnet.sim.vehicle import LoopError, Vehicle
+
+    try:
+        law = control_laws.get(args.controller).name
+        veh = Vehicle(**{k: v for k, v in vehicle.items() if k in Vehicle.__dataclass_fields__})
+        veh.validate()
+        tau = controller.get("u_tau_s")
+        ctrl = control_laws.make(law, neural_spec(model), veh, u_tau_s=tau if isinstance(tau, float) else None)
+    except (LoopError, TypeError) as e:
+        raise ModelError(f"--controller: {e}") from None
+    return vehicle, {**ctrl.to_dict(), **controller}, law
 
 
 def _write_fmu(job: Job) -> str:
@@ -241,10 +257,10 @@ def _write_fmu(job: Job) -> str:
     from dampnet.export.fmu.quarter_car import MODEL_IDENTIFIER as QUARTER_CAR
 
     args = job.args
-    vehicle, controller = _fmu_start_values(args)
+    vehicle, controller, law = _fmu_start_values(args, job.model)
     interface = args.interface or ("both" if args.what == "damper" else "cs")
     build_fmu(job.model, args.fmu, fmi=args.fmi, interface=interface, what=args.what, overwrite=args.force,
-              vehicle=vehicle or None, controller=controller or None, envelope=job.envelope)
+              vehicle=vehicle or None, controller=controller or None, envelope=job.envelope, law=law)
     kinds = {"cs": "co-simulation", "me": "model exchange", "both": "co-simulation and model exchange"}[interface]
     ident = DAMPER if args.what == "damper" else QUARTER_CAR
     io = ("inputs x [m], v [m/s], a [m/s2], u, temperature [degC]; output force [N]" if args.what == "damper"

@@ -238,12 +238,12 @@ def build(name: str, dt: float, settings: dict[str, Any] | None = None, vehicle:
 
 def run(spec, man, damping: str = "low", params: dict | None = None) -> dict:
     """dampnet.sim.full_car.runs.run of a built manoeuvre (its metrics: the one its meta["test"] names)."""
-    from dampnet.recipes.control_laws import vehicle_controller
+    from dampnet.recipes.control_laws import VEHICLE_DAMPING, vehicle_controller
     from dampnet.sim.full_car.runs import run as run_test
 
     recipe = get(man.meta["test"])
     res = run_test(spec, man, damping, params, metrics=recipe.metrics,
-                   controller=vehicle_controller(spec, damping))
+                   controller=vehicle_controller(spec, damping, params), law=VEHICLE_DAMPING[damping])
     if man.meta.get("settings", {}).get("max_speed"):
         found = max_speed(spec, man, damping, params, res["metrics"])
         res["max_speed_runs"] = found.pop("max_speed_runs")
@@ -280,7 +280,7 @@ def max_speed(spec, man, damping: str = "low", params: dict | None = None, first
         else:
             m2 = build(recipe.name, man.dt, {**settings, "speed_kmh": kmh})
             m = run_test(spec, m2, damping, params, metrics=recipe.metrics,
-                         controller=vehicle_controller(spec, damping))["metrics"]
+                         controller=vehicle_controller(spec, damping, params))["metrics"]
         runs.append([kmh, bool(m["passed"]), m.get("clearance_min_m")])
         if progress:
             progress(f"  max speed search: {kmh:.2f} km/h {'passes' if m['passed'] else 'fails'}"
@@ -314,13 +314,15 @@ def max_speed(spec, man, damping: str = "low", params: dict | None = None, first
 def run_study(specs, tests: dict, damping: tuple[str, ...] | None = None, **kw) -> dict:
     """dampnet.sim.full_car.study.run_study with each test's metrics and headline from the registry
     and the controllers from dampnet.recipes.control_laws (damping: its VEHICLE_DAMPING names,
-    default all)."""
+    default all); "laws": each damping setting's law, by its registered name."""
     from dampnet.recipes.control_laws import VEHICLE_DAMPING, vehicle_controller
     from dampnet.sim.full_car.study import run_study as study
 
-    return study(specs, tests, tuple(VEHICLE_DAMPING) if damping is None else tuple(damping),
-                 recipes={t: get(man.meta["test"]) for t, man in tests.items()},
-                 controller=vehicle_controller, **kw)
+    damping = tuple(VEHICLE_DAMPING) if damping is None else tuple(damping)
+    out = study(specs, tests, damping, recipes={t: get(man.meta["test"]) for t, man in tests.items()},
+                controller=vehicle_controller, **kw)
+    out["laws"] = {d: VEHICLE_DAMPING[d] for d in damping}
+    return out
 
 
 def plot(runs: dict, path, title: str = "", test: str | None = None) -> None:

@@ -1,5 +1,6 @@
 """Control laws calibrated on a damper: its damping levels, its equivalent linear damping,
-the study's semi-active controllers.
+the semi-active controllers: the calibrations the control-law registry (dampnet.recipes.control_laws)
+builds every law with.
 
 Damping levels (`damping_levels`): "low" and "high" damping are the controls giving the
 least and the most damping. They are found, not assumed: the damper's force at 0.5 m/s
@@ -23,6 +24,15 @@ vehicle and the damper, not from a study's result:
                  is right. The controller defaults (500 and 4000 N s/m) put 2500 N s/m at about
                  2.1 V, where the rig damper gives about 4500 N s/m.
 
+Continuous groundhook (`continuous_groundhook`), by the same principle. The runtime's law
+(groundhook_continuous) asks for c_des = c_gnd (-v_us) / v when -v_us v > 0 (else the soft
+setting), mapped onto the control by the same c_min -> u_soft, c_max -> u_hard:
+  c_gnd        = zeta_gnd 2 sqrt((k_s + k_t) m_us), zeta_gnd = 1/sqrt(2): the groundhook-ideal
+                 wheel (a damper from the wheel to the ground, the body held still at the wheel
+                 hop) m_us s^2 + c_gnd s + k_s + k_t then has no resonant peak (4147 N s/m for
+                 Table 5's vehicle; the runtime's default is 2500 N s/m whatever the damper);
+  c_min, c_max = the damper's equivalent linear damping at u_soft and u_hard, as for skyhook.
+
 Command filter. Both skyhook laws pass their control through a first-order low-pass of
 SKYHOOK_COMMAND_TAU_S = 5 ms (the runtime's u_tau_s: a 32 Hz corner, 20 degrees of lag at the
 11.7 Hz wheel hop), as a real semi-active controller smooths its command. Unfiltered, the laws
@@ -43,6 +53,7 @@ from dampnet.sim.dampers import DamperSpec, steady_forces
 from dampnet.sim.vehicle import Controller, Vehicle
 
 SKYHOOK_ZETA = 1.0 / math.sqrt(2.0)
+GROUNDHOOK_ZETA = 1.0 / math.sqrt(2.0)
 SKYHOOK_V_RMS_M_S = 0.2
 # Command filter of the study's semi-active laws [s] (the runtime's u_tau_s; see the module
 # docstring): a 32 Hz corner, 20 degrees of lag at the 11.7 Hz wheel hop, five 1 ms steps.
@@ -73,24 +84,46 @@ def equivalent_damping(spec: DamperSpec, u: float, v_rms: float = SKYHOOK_V_RMS_
     return float(np.sum(w * f * v) / np.sum(w * v * v))
 
 
+def damping_range(spec: DamperSpec, levels: dict, vehicle: Vehicle,
+                  v_rms: float = SKYHOOK_V_RMS_M_S) -> tuple[float, float]:
+    """(c_min, c_max) [N s/m] of the continuous laws: equivalent_damping at the low / high damping
+    levels. A damper whose damping does not rise from low to high (a linear damper) keeps the
+    Controller's defaults: the control does nothing to it anyway."""
+    c_min = equivalent_damping(spec, levels["low"], v_rms, vehicle.dt)
+    c_max = equivalent_damping(spec, levels["high"], v_rms, vehicle.dt)
+    if not (math.isfinite(c_min) and math.isfinite(c_max) and c_max > c_min):
+        return Controller.c_min, Controller.c_max
+    return c_min, c_max
+
+
 def continuous_skyhook(spec: DamperSpec, levels: dict | None = None, vehicle: Vehicle | None = None,
                        zeta_sky: float = SKYHOOK_ZETA, v_rms: float = SKYHOOK_V_RMS_M_S,
                        u_tau_s: float = SKYHOOK_COMMAND_TAU_S) -> Controller:
     """The continuous skyhook controller calibrated on a damper (see the module docstring).
 
-    c_sky = zeta_sky 2 sqrt(k_s m_s); c_min / c_max = equivalent_damping at the low / high
-    damping levels; u_tau_s the command filter's time constant [s] (0: none). A damper whose
-    damping does not rise from low to high (a linear damper) keeps the Controller's default
-    c_min / c_max: the control does nothing to it anyway.
+    c_sky = zeta_sky 2 sqrt(k_s m_s); c_min / c_max = `damping_range`; u_tau_s the command
+    filter's time constant [s] (0: none).
     """
     veh = vehicle or Vehicle()
     lv = levels or damping_levels(spec, veh.dt)
-    c_min = equivalent_damping(spec, lv["low"], v_rms, veh.dt)
-    c_max = equivalent_damping(spec, lv["high"], v_rms, veh.dt)
-    if not (math.isfinite(c_min) and math.isfinite(c_max) and c_max > c_min):
-        c_min, c_max = Controller.c_min, Controller.c_max
+    c_min, c_max = damping_range(spec, lv, veh, v_rms)
     return semi_active("skyhook_continuous", lv, u_tau_s, c_sky=zeta_sky * 2.0 * math.sqrt(veh.k_s * veh.m_s),
                        c_min=c_min, c_max=c_max)
+
+
+def continuous_groundhook(spec: DamperSpec, levels: dict | None = None, vehicle: Vehicle | None = None,
+                          zeta_gnd: float = GROUNDHOOK_ZETA, v_rms: float = SKYHOOK_V_RMS_M_S,
+                          u_tau_s: float = SKYHOOK_COMMAND_TAU_S) -> Controller:
+    """The continuous groundhook controller calibrated on a damper (see the module docstring).
+
+    c_gnd = zeta_gnd 2 sqrt((k_s + k_t) m_us); c_min / c_max = `damping_range`; u_tau_s the
+    command filter's time constant [s] (0: none).
+    """
+    veh = vehicle or Vehicle()
+    lv = levels or damping_levels(spec, veh.dt)
+    c_min, c_max = damping_range(spec, lv, veh, v_rms)
+    return semi_active("groundhook_continuous", lv, u_tau_s,
+                       c_gnd=zeta_gnd * 2.0 * math.sqrt((veh.k_s + veh.k_t) * veh.m_us), c_min=c_min, c_max=c_max)
 
 
 def semi_active(kind: str, levels: dict, u_tau_s: float = SKYHOOK_COMMAND_TAU_S, **law) -> Controller:

@@ -44,7 +44,8 @@ def flat_metrics(metrics: dict[str, Any]) -> dict[str, Any]:
 
 
 def run(params: dict[str, Any], inputs: dict[str, Any]) -> dict[str, Any]:
-    """{"metrics": the test's metrics, f_static_n and duration_s, "controller_settings": the law's fields}."""
+    """{"metrics": the test's metrics, f_static_n and duration_s, "controller_settings": the law's fields,
+    "law": its registered name (dampnet.recipes.control_laws.VEHICLE_DAMPING of the cell's damping)}."""
     from dampnet.recipes.maneuvers import run as run_test
     from dampnet.sweep.sim_cell import damper
 
@@ -53,4 +54,4 @@ def run(params: dict[str, Any], inputs: dict[str, Any]) -> dict[str, Any]:
     res = run_test(spec, man, params["damping"], vehicle(params))
     metrics = {**flat_metrics(res["metrics"]), "f_static_n": res["f_static_n"],
                "duration_s": man.road.shape[0] * man.dt, **coverage_columns(res)}
-    return {"metrics": metrics, "controller_settings": res["controller"]}
+    return {"metrics": metrics, "controller_settings": res["controller"], "law": res["law"]}

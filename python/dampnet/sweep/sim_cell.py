@@ -64,15 +64,19 @@ def controller(params: dict[str, Any], spec, veh):
 
 
 def run(params: dict[str, Any], inputs: dict[str, Any]) -> dict[str, Any]:
-    """{"metrics": ride metrics and f_static_n, "controller_settings": the law's fields}."""
+    """{"metrics": ride metrics and f_static_n, "controller_settings": the law's fields, "law": its
+    registered name (dampnet.recipes.control_laws; the runtime's kind is in its fields)}."""
     from dampnet.sim.quarter_car.runs import simulate
 
     spec = damper(params, inputs["model"])
     prof = road(params, inputs["road"])
     veh = vehicle(params)
+    from dampnet.recipes import control_laws
+
     ctrl = controller(params, spec, veh)
-    res = simulate(spec, prof, params["speed"] if prof.kind == "spatial" else None, ctrl, veh)
+    law = control_laws.get(params["controller"]).name
+    res = simulate(spec, prof, params["speed"] if prof.kind == "spatial" else None, ctrl, veh, law=law)
     from dampnet.sweep.metrics import coverage_columns
 
     metrics = {**res["metrics"], "f_static_n": res["f_static_n"], **coverage_columns(res)}
-    return {"metrics": metrics, "controller_settings": ctrl.to_dict()}
+    return {"metrics": metrics, "controller_settings": ctrl.to_dict(), "law": law}

@@ -149,7 +149,7 @@ def record(cell: Cell, result: dict[str, Any]) -> dict[str, Any]:
         "worker": result.get("worker"),
         "finished": _now(),
     }
-    for k in ("traceback", "controller_settings", "attempts"):
+    for k in ("traceback", "controller_settings", "law", "attempts"):
         if result.get(k) is not None:
             rec[k] = result[k]
     return json.loads(json_text(rec))   # the JSON form (NaN -> null), as it is read back

@@ -30,12 +30,14 @@ __all__ = ["FMU_FEATURES", "MODEL_IDENTIFIER", "WHATS", "FmuError", "build_dampe
 
 def build_fmu(model: MlpModel, out: str | os.PathLike, fmi: int = 2, interface: str | None = None,
               what: str = "damper", overwrite: bool = False, vehicle: dict | None = None,
-              controller: dict | None = None, envelope=None) -> Path:
+              controller: dict | None = None, envelope=None, law: str | None = None) -> Path:
     """Build OUT.fmu (see the module docstring); built in a scratch directory of the system's
     temporary directory and written atomically (a missing parent directory is created), so a
     failure or a kill leaves nothing half-written. interface: "cs", "me" or "both"
     (default: both for the damper, cs for the quarter car). vehicle / controller: the quarter
-    car's parameter start values (dampnet.sim.vehicle field names; defaults Table 5, passive).
+    car's parameter start values (dampnet.sim.vehicle field names; defaults Table 5, passive);
+    law: the name of the control law that calibrated `controller` (dampnet.recipes.control_laws),
+    for the FMU's description.
     envelope: the model's dampnet.envelope.Envelope, for the envelope_flags output's grid."""
     from dampnet.export.fmu.build import package
 
@@ -47,7 +49,7 @@ def build_fmu(model: MlpModel, out: str | os.PathLike, fmi: int = 2, interface: 
     if what == "quarter-car":
         from dampnet.export.fmu.quarter_car import quarter_car_description
 
-        return package(model, quarter_car_description(model, vehicle, controller, envelope is not None), out, fmi,
+        return package(model, quarter_car_description(model, vehicle, controller, envelope is not None, law), out, fmi,
                        interface, True, overwrite, envelope)
     raise FmuError(f"what={what!r}: expected one of {', '.join(WHATS)}")
 

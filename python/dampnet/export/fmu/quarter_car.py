@@ -194,10 +194,12 @@ def _c_array(values: list) -> str:
 
 
 def quarter_car_description(model: MlpModel, vehicle: dict | None = None,
-                            controller: dict | None = None, with_grid: bool = False) -> Description:
+                            controller: dict | None = None, with_grid: bool = False,
+                            law: str | None = None) -> Description:
     """The quarter car's Description; vehicle / controller: start values by field name
     (dampnet._core.VEHICLE_FIELDS / CONTROLLER_FIELDS; enum fields by name or value; defaults
-    the runtime's: thesis Table 5, passive). Refused with FmuError naming the field."""
+    the runtime's: thesis Table 5, passive); law: the control law's registered name, said in the
+    description beside the runtime's kind. Refused with FmuError naming the field."""
     check_model(model)
     veh = _start_values(_core.VEHICLE_FIELDS, vehicle, "vehicle", _core.check_vehicle)
     ctrl = _start_values(_core.CONTROLLER_FIELDS, controller, "controller", _core.check_controller)
@@ -214,7 +216,8 @@ def quarter_car_description(model: MlpModel, vehicle: dict | None = None,
             f"{model.model_id()}: a "
             f"{model.n_inputs}-input MLP on {', '.join(model.features)}"
             + (f" plus {len(model.terms)} physics term(s)" if model.terms else "")
-            + f"; trained on {data_label(model)}; controller {kind}")
+            + f"; trained on {data_label(model)}; controller {kind}"
+            + (f" (control law {law}, calibrated on this damper)" if law else ""))
     return Description(
         MODEL_IDENTIFIER, guid, text, f"dampnet {_package_version()}",
         quarter_car_variables(model, veh, ctrl, with_grid), step_s=dt, stop_s=min(DEFAULT_STOP_S, DEFAULT_STOP_STEPS * dt),

@@ -21,12 +21,12 @@ CORNERS = ("fl", "fr", "rl", "rr")
 
 
 def run(spec: DamperSpec, man: Maneuver, damping: str = "low", params: dict | None = None, *,
-        metrics: Callable[[dict, Maneuver, dict], dict], controller: Controller) -> dict:
+        metrics: Callable[[dict, Maneuver, dict], dict], controller: Controller, law: str | None = None) -> dict:
     """{'arrays': FullCar.simulate's arrays, 'metrics': metrics(arrays, man, params), 'params',
-    'controller', ..., 'coverage' (neural and hybrid dampers: `run_coverage`)}.
+    'controller', 'law', ..., 'coverage' (neural and hybrid dampers: `run_coverage`)}.
 
-    metrics: the test's; controller: every corner's, for the setting named `damping`
-    (dampnet.recipes: `recipes.maneuvers.run` passes both).
+    metrics: the test's; controller: every corner's, for the setting named `damping`, built by
+    the control law named `law` (dampnet.recipes: `recipes.maneuvers.run` passes all three).
     params: full-car fields over the defaults (speed, dt and the steering mode come from the
     maneuver; damper_eval per_stage, RUN_SCHEME, the truth damper per_step, TRUTH_SCHEME)."""
     ctrl = controller
@@ -49,7 +49,7 @@ def run(spec: DamperSpec, man: Maneuver, damping: str = "low", params: dict | No
                                         steer=None if man.path is not None else man.steer)
     res["t"] = np.arange(man.road.shape[0]) * man.dt
     res["road"] = man.road
-    out = dict(arrays=res, metrics=metrics(res, man, p), params=p, controller=ctrl.to_dict(),
+    out = dict(arrays=res, metrics=metrics(res, man, p), params=p, controller=ctrl.to_dict(), law=law,
                damper=spec.name, damping=damping, test=man.name, f_static_n=f_static,
                maneuver=man.meta)
     cov = run_coverage(spec, res)

@@ -48,8 +48,10 @@ def spec_coverage(spec: DamperSpec, arrays: dict) -> dict | None:
 
 
 def simulate(spec: DamperSpec, road: Road, speed: float | None = None, controller: Controller | None = None,
-             vehicle: Vehicle | None = None, transfer: bool | None = None) -> dict:
+             vehicle: Vehicle | None = None, transfer: bool | None = None, law: str | None = None) -> dict:
     """One run: {'arrays': {...}, 'metrics': {...}, 'transmissibility': {...} (sweeps), ...,
+    'controller': its fields (the runtime's `kind` among them), 'law': `law`, the name of the
+    control law that built it (dampnet.recipes.control_laws; None: a Controller given as is),
     'coverage': {...} (neural and hybrid dampers: dampnet.envelope.coverage, against the training envelope)}.
 
     A wrong vehicle or controller setting (an unknown law name among them) raises LoopError
@@ -64,7 +66,7 @@ def simulate(spec: DamperSpec, road: Road, speed: float | None = None, controlle
     metrics = ride_metrics(arr["t"], arr["z_s"], arr["z_us"], arr["z_r"], arr["acc_s"], veh.k_t,
                            veh.m_s, veh.m_us)
     out = dict(arrays=arr, metrics=metrics, f_static_n=f_static, road=road.meta,
-               speed_m_s=speed, controller=ctrl.to_dict(), vehicle=veh.to_dict(), damper=spec.name)
+               speed_m_s=speed, controller=ctrl.to_dict(), law=law, vehicle=veh.to_dict(), damper=spec.name)
     cov = spec_coverage(spec, arr)
     if cov is not None:
         out["coverage"] = cov

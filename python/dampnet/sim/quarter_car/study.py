@@ -17,9 +17,13 @@ the model's training envelope) and `extrapolated` (model -> {any, runs, extrapol
 levels and the controllers' calibration: `dampnet.sim.calibration`. Tables and plots of a
 result: `dampnet.sim.quarter_car.report`, `dampnet.sim.plots`.
 
-One continuous skyhook controller is calibrated on the truth damper when known (else on the
-first model) and used for every model, so the models are compared under the same control; it
-is recorded under `settings.skyhook`.
+Every controller is built and calibrated by the control-law registry
+(dampnet.recipes.control_laws.make, passed in as `laws`: this layer does not import it): passive
+low / high are its passive_low / passive_high, the semi-active laws its laws of the same names.
+Each law's gains (c_sky, c_gnd, c_min, c_max) are the registry's calibration on the truth damper
+when known (else on the first model), used for every model between that model's own low and high
+settings, so the models are compared under the same control; they are recorded under
+`settings.skyhook`, and every case's law by its registered name under `settings.laws`.
 
 What skyhook can do here (rig damper, thesis road, measured): 72-78 % of the sprung
 acceleration variance at the soft setting lies above 1.5 Hz (42-48 % at 8-20 Hz, the wheel
@@ -37,12 +41,11 @@ between the damper's own ends is 34 % / 26 % above passive low at 10 / 20 m/s.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
-from dampnet.sim.calibration import (SKYHOOK_V_RMS_M_S, SKYHOOK_ZETA, continuous_skyhook, damping_levels,
-                                     semi_active)
+from dampnet.sim.calibration import SKYHOOK_V_RMS_M_S, SKYHOOK_ZETA, damping_levels
 from dampnet.sim.dampers import DamperSpec
 from dampnet.sim.roads import Road, impulse, sine_sweep, thesis_rough_road
 from dampnet.sim.quarter_car.runs import simulate
@@ -51,8 +54,12 @@ from dampnet.sim.vehicle import Controller, Vehicle
 # /2: the on-off skyhook case is "<v>_skyhook_onoff" (was "<v>_skyhook"), settings.backends is gone
 SCHEMA = "dampnet.sim.quarter_car.study/2"
 SPEEDS = (10.0, 20.0)
-#: the semi-active laws of the skyhook section, by their runtime names (_core.CONTROLLER_KINDS)
+#: the semi-active laws of the skyhook section, by their names in the control-law registry
 SKYHOOK_LAWS = ("skyhook_onoff", "skyhook_continuous")
+#: the passive laws of the impulse, sine-sweep and rough-road sections (case level -> law)
+PASSIVE_LAWS = {"low": "passive_low", "high": "passive_high"}
+#: a law's gains, calibrated once on the reference damper and used for every model
+GAINS = ("c_sky", "c_gnd", "c_min", "c_max")
 # Metrics compared with the truth (relative error) in `errors`.
 ERROR_METRICS = ("acc_rms_m_s2", "acc_wk_rms_m_s2", "disp_peak_to_rms", "travel_rms_m", "tyre_load_rms_n")
 
@@ -63,8 +70,12 @@ def _rel(a: float, b: float) -> float:
 
 def run_study(specs: list[DamperSpec], truth: DamperSpec | None = None, dt: float = 1e-3,
               speeds=SPEEDS, seed: int = 0, sweep: Road | None = None, pulse: Road | None = None,
-              rough: Road | None = None, keep_runs: bool = False, progress=None) -> dict:
-    """The chapter 5 study; see the module docstring. Returns a JSON-ready dict (arrays only if keep_runs)."""
+              rough: Road | None = None, keep_runs: bool = False, progress=None, *,
+              laws: Callable[..., Controller]) -> dict:
+    """The chapter 5 study; see the module docstring. Returns a JSON-ready dict (arrays only if keep_runs).
+
+    laws: the control-law registry's make (dampnet.recipes.control_laws.make): laws(name, spec,
+    vehicle, fields=...) -> the Controller of law `name` calibrated on `spec`."""
     all_specs = list(specs) + ([truth] if truth is not None else [])
     names = [s.name for s in all_specs]
     if len(set(names)) != len(names):
@@ -76,22 +87,25 @@ def run_study(specs: list[DamperSpec], truth: DamperSpec | None = None, dt: floa
     res: dict[str, Any] = dict(schema=SCHEMA, models=names, truth=truth.name if truth else None,
                                settings=dict(dt_s=dt, vehicle=veh.to_dict(), speeds_m_s=list(speeds),
                                              damping_levels=levels,
+                                             laws=dict(PASSIVE_LAWS, **{law: law for law in SKYHOOK_LAWS}),
                                              roads={k: r.meta for k, r in roads.items()}),
                                impulse={}, sine_sweep={}, rough_road={}, skyhook={}, errors={},
                                coverage={}, extrapolated={})
     runs: dict[str, Any] = {}
     ref = truth or all_specs[0]
-    sky_c = continuous_skyhook(ref, levels[ref.name], veh)
+    calibrated = {law: laws(law, ref, veh) for law in SKYHOOK_LAWS}
+    gains = {law: {k: getattr(c, k) for k in GAINS} for law, c in calibrated.items()}
+    sky_c = calibrated["skyhook_continuous"]
     res["settings"]["skyhook"] = dict(
         onoff={s.name: dict(u_soft=levels[s.name]["low"], u_hard=levels[s.name]["high"],
-                            u_tau_s=sky_c.u_tau_s) for s in all_specs},
+                            u_tau_s=calibrated["skyhook_onoff"].u_tau_s) for s in all_specs},
         continuous=dict(sky_c.to_dict(), calibrated_on=ref.name, zeta_sky=SKYHOOK_ZETA,
                         v_rms_m_s=SKYHOOK_V_RMS_M_S))
 
-    def go(section, case, spec, road, speed, ctrl):
+    def go(section, case, spec, road, speed, ctrl, law):
         if progress:
             progress(f"{section} {case} {spec.name}")
-        r = simulate(spec, road, speed, ctrl, veh)
+        r = simulate(spec, road, speed, ctrl, veh, law=law)
         res[section].setdefault(case, {})[spec.name] = r["metrics"]
         if "coverage" in r:
             res["coverage"].setdefault(section, {}).setdefault(case, {})[spec.name] = r["coverage"]
@@ -105,19 +119,16 @@ def run_study(specs: list[DamperSpec], truth: DamperSpec | None = None, dt: floa
         return r
 
     for spec in all_specs:
-        lv = levels[spec.name]
-        for level in ("low", "high"):
-            passive = Controller(kind="passive", u_passive=lv[level])
-            go("impulse", level, spec, roads["impulse"], None, passive)
-            go("sine_sweep", level, spec, roads["sine_sweep"], None, passive)
+        for level, law in PASSIVE_LAWS.items():
+            passive = laws(law, spec, veh)
+            go("impulse", level, spec, roads["impulse"], None, passive, law)
+            go("sine_sweep", level, spec, roads["sine_sweep"], None, passive, law)
             for v in speeds:
-                go("rough_road", f"{v:g}_{level}", spec, roads["rough_road"], v, passive)
+                go("rough_road", f"{v:g}_{level}", spec, roads["rough_road"], v, passive, law)
+        semi = {law: laws(law, spec, veh, fields=gains[law]) for law in SKYHOOK_LAWS}
         for v in speeds:
             for law in SKYHOOK_LAWS:
-                settings = dict(c_sky=sky_c.c_sky, c_min=sky_c.c_min, c_max=sky_c.c_max) \
-                    if law == "skyhook_continuous" else {}
-                go("skyhook", f"{v:g}_{law}", spec, roads["rough_road"], v,
-                   semi_active(law, lv, sky_c.u_tau_s, **settings))
+                go("skyhook", f"{v:g}_{law}", spec, roads["rough_road"], v, semi[law], law)
             res["skyhook"].setdefault(f"{v:g}_passive_low", {})[spec.name] = \
                 res["rough_road"][f"{v:g}_low"][spec.name]
             res["skyhook"].setdefault(f"{v:g}_passive_high", {})[spec.name] = \
