@@ -98,7 +98,8 @@ def generate(plan="thesis", effects=(), seed: int = 0, progress: bool = False, *
             tests[i] = DynoTest(test_id=s["test_id"], time=quantise(t, RESOLUTION["time"]), channels=ch,
                                 frequency_hz=s["frequency_hz"], amplitude_m=s["amplitude_m"],
                                 control_nominal=s["voltage_v"], control_name="voltage",
-                                meta={"initial_temperature_c": T0[idx.index(i)]} if thermal else {})
+                                meta={"run_order": int(place[i]) + 1,  # the rig states the order it ran them in
+                                      **({"initial_temperature_c": T0[idx.index(i)]} if thermal else {})})
         if bar is not None:
             bar.update(len(idx))
     if bar is not None:
