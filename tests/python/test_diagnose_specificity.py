@@ -20,9 +20,8 @@ import pytest
 from dampnet.artefacts import shift_channel
 from dampnet.data import write_dataset
 from dampnet.data.readers import load_dataset
-from dampnet.data.runorder import stated_run_order
 from dampnet.diagnosis import score as S
-from dampnet.diagnosis.artefacts import channel_checks, displacement_zero, find_artefacts, run_order_drift, time_offset
+from dampnet.diagnosis.artefacts import channel_checks, run_order_drift, time_offset
 from dampnet.diagnosis.context import build_context
 from dampnet.rig import generate
 from dampnet.rig.sensors import record_artefact
@@ -61,14 +60,16 @@ def test_a_2p5_cycle_sine_test_has_its_zero_at_its_centre(partial):
     the 1.75 Hz ones 3.5 (2.3 mm): the zero is the sine's centre, within the rig's noise, and no
     test's zero is said to have moved (on e109bff: 'displacement zero +3.2 mm' in 8 tests)."""
     ds, m = partial
+    offsets = [a for a in channel_checks(build_context(m, ds), 4.45) if a["artefact"] == "sensor_offset"]
+    assert not offsets[0]["detected"], offsets[0]["sentence"]
+    from dampnet.diagnosis.artefacts import displacement_zero
+
     for t in ds.tests:
         cycles = len(t) * t.dt * t.frequency_hz
         z = displacement_zero(t)
         assert z["from"] == "centre" and abs(z["zero"]) < 0.05e-3, (t.test_id, cycles, z)
         if t.frequency_hz == 1.25:
             assert abs(np.mean(t.channels["displacement"])) > 3e-3     # the partial cycle's mean
-    offsets = [a for a in channel_checks(build_context(m, ds), 4.45) if a["artefact"] == "sensor_offset"]
-    assert not offsets[0]["detected"], offsets[0]["sentence"]
 
 
 def test_a_moved_zero_in_a_2p5_cycle_test_is_still_found(partial):
@@ -86,6 +87,7 @@ def test_a_moved_zero_in_a_2p5_cycle_test_is_still_found(partial):
 def test_a_test_with_rests_takes_its_zero_from_them_and_one_without_is_not_testable():
     """Cost: 0.1 s. A sine after a rest of 1 s and a ramp: its zero is where it rests; random
     content without a rest has nothing that defines a zero (not testable, with the reason)."""
+    from dampnet.diagnosis.artefacts import displacement_zero
     fs, f, amp = 1000.0, 1.25, 0.02
     t = np.arange(int(3.5 * fs)) / fs
     env = np.clip((t - 1.0) / 0.5, 0.0, 1.0)                      # rest 1 s, ramp 0.5 s, 2.5 cycles
@@ -107,7 +109,10 @@ def test_a_test_with_rests_takes_its_zero_from_them_and_one_without_is_not_testa
 # -- run_order_drift: only on a stated run order ------------------------------------------------
 
 def _drift(ds, m):
+    from dampnet.diagnosis.leftover import history_columns
+
     ctx = build_context(m, ds)
+    history_columns(ctx)       # what the diagnosis has computed before (the leftover test's columns)
     return run_order_drift(ctx, S.folds_of(ctx), N_SUR, 0)
 
 
@@ -123,6 +128,8 @@ def test_a_manifest_without_a_run_order_is_not_testable_for_a_drift(partial):
 def test_a_run_order_that_follows_frequency_is_not_testable(partial):
     """Cost: 0.2 s. A stated run order, but frequency by frequency (the rig's own order here): frequency
     and control explain all of it, so a drift cannot be told from a frequency dependence."""
+    from dampnet.data.runorder import stated_run_order
+
     ds, m = partial
     pos, source = stated_run_order(ds.tests)
     assert pos is not None and "run_order column" in source
@@ -134,6 +141,8 @@ def test_the_run_order_is_kept_by_the_dataset_format(tmp_path, partial):
     """Cost: 0.3 s. write_dataset writes the rig's run_order column, the reader parses it; a
     `started` column of ISO 8601 time stamps states the order too (in time), a malformed one is
     a one-line error naming the line."""
+    from dampnet.data.runorder import stated_run_order
+
     ds, _ = partial
     back = load_dataset(write_dataset(ds, tmp_path / "d"))
     assert [t.meta["run_order"] for t in back.tests] == [t.meta["run_order"] for t in ds.tests]
