@@ -189,3 +189,31 @@ def test_a_lag_that_changes_with_frequency_is_not_a_time_offset(plan_model):
     # the uncertainty is at least what the per-frequency delays' scatter allows
     assert late["uncertainty_s"] >= late["constant_over_frequency"]["se_s"]
     assert late["offset_s"] == pytest.approx(0.010, rel=0.1)
+
+
+# -- the verdict: an artefact never hides the structure that is left ----------------------------
+
+def _left(significant, rms, z):
+    return {"significant": significant, "score": 0.2 if significant else 0.001, "structure_rms_n": rms,
+            "null": {"mean": 0.001, "sd": 0.002}, "z": z, "model_residual_rms_n": 60.0, "noise_floor_rms_n": 1.0,
+            "model_residual_vs_noise": 60.0,
+            "where": {"most_uneven": "frequency", "by_frequency": [{"frequency_hz": 0.5, "rms_n": 20.0},
+                                                                   {"frequency_hz": 3.0, "rms_n": 80.0}]}}
+
+
+def test_an_artefact_and_structure_left_are_both_said():
+    """Cost: 0.01 s. A found artefact and a leftover test that still finds structure (54 N RMS, z
+    126, as in the issue): the kind is both, and the sentence says how much and where (on e109bff:
+    kind 'artefact', the structure only in JSON structure_left). After the fix, nothing left: the
+    artefact alone."""
+    from dampnet.diagnosis.verdict import three_way
+
+    art = [{"artefact": "time_offset", "detected": True, "sentence": "the force channel is recorded 10 ms late"}]
+    f = three_way({}, _left(True, 54.0, 126.0), None, art)
+    assert f["kind"] == "artefact_and_unknown_structure", f
+    assert f["sentence"].startswith("a measurement artefact, and structure left that no catalogue effect explains: "
+                                    "54.0 N RMS"), f["sentence"]
+    assert "most uneven by frequency: 80.0 N RMS at 3 Hz" in f["sentence"] and "recorded 10 ms late" in f["sentence"]
+    # judged on the data with the fix applied: the structure was the artefact's
+    g = three_way({}, _left(True, 54.0, 126.0), None, art, left_fixed=_left(False, 0.5, 0.3))
+    assert g["kind"] == "artefact" and "structure left" not in g["sentence"], g
