@@ -265,3 +265,19 @@ def test_specificity_panel_claims_no_artefact_on_clean_data(case):
     assert not claimed, claimed
     for a in found:
         assert a["testable"] or a.get("note"), a      # not testable: with the reason
+
+
+def test_merged_datasets_continue_the_run_order():
+    """Cost: 0.3 s. A campaign and the tests run after it: the second's run_order continues the
+    first's; a dataset without one makes the merge state none (nothing is made up)."""
+    from dampnet.data import merge_datasets
+    from dampnet.data.runorder import stated_run_order
+
+    a = generate("quick", seed=0)
+    b = generate("quick", seed=1)
+    b = b.subset([t.copy(test_id="B" + t.test_id) for t in b.tests])
+    merged = merge_datasets([a, b])
+    assert [t.meta["run_order"] for t in merged.tests] == list(range(1, 19))
+    assert a.tests[0].meta["run_order"] == 1 and b.tests[0].meta["run_order"] == 1   # inputs untouched
+    pos, _ = stated_run_order(merge_datasets([a, _without_run_order(b)]).tests)
+    assert pos is None
