@@ -85,7 +85,8 @@ def test_a_moved_zero_in_a_2p5_cycle_test_is_still_found(partial):
 
 
 def test_a_test_with_rests_takes_its_zero_from_them_and_one_without_is_not_testable():
-    """Cost: 0.1 s. A sine after a rest of 1 s and a ramp: its zero is where it rests; random
+    """Cost: 0.1 s. A sine after a rest of 1 s and a ramp: its zero is its moving part's centre,
+    within the bound its ramp allows; a ramp to a hold without a sine: where it rests; random
     content without a rest has nothing that defines a zero (not testable, with the reason)."""
     from dampnet.diagnosis.artefacts import displacement_zero
     fs, f, amp = 1000.0, 1.25, 0.02
@@ -98,6 +99,9 @@ def test_a_test_with_rests_takes_its_zero_from_them_and_one_without_is_not_testa
     test = DynoTest("R1", t, {"displacement": x, "velocity": v, "force": 1000 * v, "voltage": np.zeros_like(t)},
                     frequency_hz=f, amplitude_m=amp, control_nominal=0.0)
     z = displacement_zero(test)
+    assert z["from"] == "centre" and abs(z["zero"] - 0.004) <= z["uncertainty"], z
+    hold = test.copy(frequency_hz=None, amplitude_m=None)     # no sine: the rest defines the zero
+    z = displacement_zero(hold)
     assert z["from"] == "rest" and z["zero"] == pytest.approx(0.004, abs=1e-6), z
     noise = np.random.default_rng(0).normal(size=t.size)
     test2 = DynoTest("N1", t, {"displacement": noise * 1e-3, "velocity": np.gradient(noise * 1e-3, 1 / fs),

@@ -288,7 +288,8 @@ def write_dataset(ds: Dataset, out_dir: str | os.PathLike, overwrite: bool = Fal
     rows = [",".join(("test_id", "file", "frequency_hz", "amplitude_m", ccol, *stated))]
     for t in ds.tests:
         check_test(t, f"test {t.test_id}")
-        order = [_num(t.meta[k]) if k == RUN_ORDER_COLUMN else str(t.meta[k]) for k in stated]
+        order = [(f"{int(float(t.meta[k]))}" if float(t.meta[k]).is_integer() else _num(t.meta[k]))
+                 if k == RUN_ORDER_COLUMN else str(t.meta[k]) for k in stated]
         rows.append(",".join((t.test_id, f"{t.test_id}.csv", _num(t.frequency_hz), _num(t.amplitude_m),
                               _num(t.control_nominal), *order)))
     with staged_dir(out) as tmp:

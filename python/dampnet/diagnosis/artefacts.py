@@ -375,28 +375,36 @@ def _rest_segments(t) -> list[np.ndarray]:
 def displacement_zero(t) -> dict:
     """What defines the zero of a test's displacement, never the mean of a partial cycle:
 
-      rest    the test starts or ends at rest (REST_MIN_S, and a cycle of its sine): the position
-              there; its uncertainty half the difference of the two rests (and the rest's scatter)
-      centre  a sine test with at least one whole cycle: the centre c of a least-squares fit
-              x = c + sum over h = 1..CENTRE_HARMONICS of a_h sin(h w t) + b_h cos(h w t), whatever
-              the cycle count (2.5 cycles of a sine have a mean of 0.13 amplitudes, their centre 0);
-              its uncertainty the most the fit's residual r (ramps, distortion, noise) can move c:
-              sqrt([(X'X)^-1]_cc) |r| (Cauchy-Schwarz), what the test's own motion makes of a true zero
+      centre  a sine test with at least one whole cycle of motion (its rests left out): the centre
+              c of a least-squares fit x = c + sum over h = 1..CENTRE_HARMONICS of a_h sin(h w t)
+              + b_h cos(h w t), whatever the cycle count (2.5 cycles of a sine have a mean of 0.13
+              amplitudes, their centre 0); its uncertainty the most the fit's residual r (ramps,
+              distortion, noise) can move c: sqrt([(X'X)^-1]_cc) |r| (Cauchy-Schwarz), what the
+              test's own motion makes of a true zero
+      rest    a test without such a sine that starts or ends at rest (REST_MIN_S): the position
+              there; its uncertainty half the difference of the two rests (and the rest's scatter).
+              Not for a sine test: a real table's sine may start from rest at the bottom of its
+              stroke (measured: labcontrol's tests rest at 0 or at -18 mm, their sines centred at
+              up to 12 mm), so its rest is where it waited, not its zero
 
     {"zero": m, "uncertainty": m, "from": "rest" | "centre"}, or {"zero": None, "note": why not}."""
     x = t.channels["displacement"]
     rests = _rest_segments(t)
-    if rests:
-        pos = [float(np.mean(x[r])) for r in rests]
-        scatter = max(float(np.std(x[r])) for r in rests)
-        return {"zero": float(np.mean(pos)), "uncertainty": max(0.5 * float(np.ptp(pos)), scatter), "from": "rest"}
+    moving = np.ones(len(x), dtype=bool)
+    for r in rests:
+        moving[r] = False
     f = t.frequency_hz
-    if not f:
-        return {"zero": None, "note": "no rest at its start or end and no sine: nothing defines its zero"}
-    span = float(t.time[-1] - t.time[0]) + t.dt
-    if span * f < 1.0 - 1e-9:
+    span = float(np.sum(moving)) * t.dt
+    if not f or span * f < 1.0 - 1e-9:
+        if rests:
+            pos = [float(np.mean(x[r])) for r in rests]
+            scatter = max(float(np.std(x[r])) for r in rests)
+            return {"zero": float(np.mean(pos)), "uncertainty": max(0.5 * float(np.ptp(pos)), scatter), "from": "rest"}
+        if not f:
+            return {"zero": None, "note": "no rest at its start or end and no sine: nothing defines its zero"}
         return {"zero": None, "note": f"less than one whole cycle ({span * f:.2f}) and no rest"}
-    tt = t.time - t.time[0]
+    x = x[moving]
+    tt = (t.time - t.time[0])[moving]
     cols = [np.ones_like(tt)]
     for h in range(1, CENTRE_HARMONICS + 1):
         w = 2 * np.pi * f * h
