@@ -10,16 +10,24 @@ how big it is, and the data fix it implies (a data fix, not a model term).
                    the lagged velocity absorbs. Found when the shift is at least MIN_OFFSET_S and
                    SHIFT_Z jackknife spreads (over groups of tests) from zero, and realigning cuts the fit's RMS
                    by MIN_FALL. Sine tests only: on random-content tests the rig's own 2 ms hydraulic
-                   lag was taken for a 1.9 ms delay (not testable there).
+                   lag was taken for a 1.9 ms delay (not testable there). And only a constant delay
+                   (issue 50): estimated frequency by frequency, the delays must agree within their
+                   spreads (delay_constancy); a lag that grows or shrinks with frequency (lost motion,
+                   compressibility, a filter) is not a recording delay, and the uncertainty is at
+                   least what the per-frequency delays' scatter allows.
   run_order_drift  a regression of the residual on the run order (alone, times the predicted
                    force, times velocity), scored like a candidate (held out, against the null)
                    beyond the motion's history (the leftover test's other columns join the
                    baseline: a hysteresis larger at slow tests is not a drift); found when significant.
+                   Only on a run order the data state (dampnet.data.runorder: a run_order or
+                   started manifest column) that frequency, stroke and control do not explain
+                   (order_freedom): else not testable, with the reason (issue 50).
   sign_slip, unit_slip, sensor_offset  per-test consistency of the channels (channel_checks):
                    velocity against the displacement's derivative, the force's work and gain, and
-                   each test's mean displacement and its force at the velocity reversals
-                   against the other tests'. With a temperature channel the thermal candidate
-                   tests it instead.
+                   each test's displacement zero (displacement_zero: a sine's centre or a rest,
+                   never the mean of a partial cycle, with the bound its own motion puts on it) and
+                   its force at the velocity reversals (both ends alike) against the other tests'.
+                   With a temperature channel the thermal candidate tests it instead.
 """
 
 from __future__ import annotations
@@ -137,8 +145,14 @@ def delay_constancy(by_f: list[dict], dt: float) -> dict:
         return {"testable": False, "constant": True, "note": "one frequency: the delay's constancy over "
                 "frequency cannot be checked"}
     known = [b["spread_s"] for b in est if b["spread_s"] is not None]
-    fill = float(np.median(known)) if known else 0.25 * dt
     d = np.asarray([b["offset_s"] for b in est])
+    words = ", ".join(f"{1000 * b['offset_s']:.1f} ms at {b['frequency_hz']:g} Hz" for b in est)
+    if len(known) < 2:   # one test per frequency: no spread to judge the agreement by
+        return {"testable": False, "constant": True, "words": words,
+                "se_s": float(np.std(d, ddof=1) / np.sqrt(len(d))),
+                "note": "fewer than two frequencies with two tests or more: the delays' agreement over "
+                        "frequency cannot be judged; the uncertainty is their scatter's standard error"}
+    fill = float(np.median(known))
     sd = np.asarray([b["spread_s"] if b["spread_s"] is not None else fill for b in est])
     w = 1.0 / sd ** 2
     mean = float(np.sum(w * d) / np.sum(w))
@@ -150,7 +164,6 @@ def delay_constancy(by_f: list[dict], dt: float) -> dict:
     p = float(_chi2.sf(chi, dof))
     raw_chi = float(np.sum(((d - mean) / sd) ** 2))
     se = float(np.sqrt(1.0 / np.sum(w)) * max(1.0, np.sqrt(raw_chi / dof)))
-    words = ", ".join(f"{1000 * b['offset_s']:.1f} ms at {b['frequency_hz']:g} Hz" for b in est)
     return {"testable": True, "constant": p >= CONSTANT_P, "p_value": p, "chi2": chi, "dof": dof,
             "mean_s": mean, "se_s": se, "words": words}
 
@@ -187,7 +200,7 @@ def time_offset(ctx) -> dict:
     # and its uncertainty is at least what that spread allows
     by_f = per_frequency_delays(ctx, per_test, k_max, dt)
     const = delay_constancy(by_f, dt)
-    if const["testable"]:
+    if "se_s" in const:
         spread_s = max(spread_s, const["se_s"])
     shifted = bool(abs(offset_s) >= MIN_OFFSET_S and abs(offset_s) >= SHIFT_Z * spread_s and fall >= MIN_FALL)
     detected = shifted and const["constant"]
