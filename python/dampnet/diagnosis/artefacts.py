@@ -212,7 +212,8 @@ def time_offset(ctx) -> dict:
                 f"{rms_aligned:.1f} N RMS ({100 * fall:.0f} %). Fix: {artefact('time_offset').fix} "
                 f"(--align-force-s {offset_s:.4g})")
     note = ""
-    if shifted and not const["constant"]:   # a shift the other gates would take, but not one delay
+    # a shift large enough to matter (the z gate aside: the delays' own scatter widens it), not one delay
+    if not const["constant"] and abs(offset_s) >= MIN_OFFSET_S and fall >= MIN_FALL:
         note = (f"a lag that changes with frequency ({const['words']}; not one delay: chi2 {const['chi2']:.1f} on "
                 f"{const['dof']} dof, p {const['p_value']:.1g}), not a constant recording delay: lost motion, "
                 "compressibility or a filter, which realigning by one time would not fix")
