@@ -1,6 +1,7 @@
 """The dampnet dataset directory: manifest.csv plus one CSV per test (read and write).
 
   manifest.csv: test_id,file,frequency_hz,amplitude_m,voltage_v   (or current_a)
+                [,run_order | ,started: the order the tests were run in, dampnet.data.runorder]
   <file>.csv:   time_s,displacement_m,velocity_m_s,force_n,voltage_v[,temperature_c,...]
 
 SI units; displacement and velocity positive in extension, force positive when

@@ -2,7 +2,8 @@
 
 `generate(plan, effects, seed)` returns a Dataset whose meta records what the
 rig did: plan, effects (with their parameters), seed, truth parameters,
-sensor noise and resolution. Deterministic for a seed: every test draws its
+sensor noise and resolution. Each test states its place in the order the rig ran
+them (meta `run_order`, 1..n; written as the manifest's run_order column). Deterministic for a seed: every test draws its
 noise from its own stream, seeded by (seed, test index).
 """
 
