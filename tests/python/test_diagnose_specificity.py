@@ -249,7 +249,7 @@ PANEL = {  # name: (plan, rig effects, reshape)
 
 @pytest.mark.parametrize("case", sorted(PANEL))
 def test_specificity_panel_claims_no_artefact_on_clean_data(case):
-    """Cost: 1.5-4 s each. Clean data (no recording fault at all) of varied shape: tests of non-integer
+    """Cost: 0.3-3 s each. Clean data (no recording fault at all) of varied shape: tests of non-integer
     cycle counts, a run order sorted, shuffled or not stated, another sample rate, random content,
     a physical effect the model lacks: every artefact detector says 'not found' or 'not testable
     here' (with its reason), never 'found'."""
@@ -288,7 +288,7 @@ def test_merged_datasets_continue_the_run_order():
 
 
 def test_a_constant_2p5_ms_delay_is_still_found():
-    """Cost: 5 s. Sensitivity kept (the issue's one right finding): a force channel recorded 2.5 ms
+    """Cost: 2.5 s. Sensitivity kept (the issue's one right finding): a force channel recorded 2.5 ms
     late, on tests of 2.5 and 3.5 cycles at 2 kHz, is found as a constant delay within 10 %, its
     per-frequency estimates agreeing (measured 2.53 +- 0.48 ms, p 0.22), and the uncertainty is
     what their scatter allows, not narrower."""
@@ -301,7 +301,7 @@ def test_a_constant_2p5_ms_delay_is_still_found():
 
 
 def test_a_moved_zero_does_not_hide_a_hysteresis_the_catalogue_lacks():
-    """Cost: 15 s. The issue's third finding end to end: a top-mount hysteresis (outside the
+    """Cost: 10-25 s (a model trained, a diagnosis). The issue's third finding end to end: a top-mount hysteresis (outside the
     catalogue) and a displacement zero moved 3 mm in one test. The diagnosis names the artefact and,
     the leftover test run again on the data with its fix applied, the structure left: 'a measurement
     artefact, and structure left that no catalogue effect explains', how much and where (measured 69
