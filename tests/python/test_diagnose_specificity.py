@@ -321,3 +321,20 @@ def test_a_moved_zero_does_not_hide_a_hysteresis_the_catalogue_lacks():
     assert f["sentence"].startswith("a measurement artefact, and structure left that no catalogue effect explains: "
                                     f"{left['structure_rms_n']:.1f} N RMS"), f["sentence"]
     assert "most uneven by" in f["sentence"] and f"{tid}: displacement zero" in f["sentence"], f["sentence"]
+
+
+def test_the_summary_says_what_was_not_testable_and_why():
+    """Cost: 0.01 s. `dampnet diagnose`'s words for a detector not testable on the data, and for
+    the tests a per-test check could not judge (here: random content without a rest)."""
+    from dampnet.commands.diagnose import leftover_lines
+
+    d = {"leftover": {"before_effects": None, "after_effects": None},
+         "artefacts": [{"artefact": "run_order_drift", "testable": False, "detected": False,
+                        "note": "no run order stated: ..."},
+                       {"artefact": "sensor_offset", "testable": True, "detected": False, "tests": [],
+                        "not_testable": [{"test_id": "N1", "channel": "displacement",
+                                          "note": "no rest at its start or end and no sine: nothing defines its zero"}]}]}
+    text = "\n".join(leftover_lines(d))
+    assert "artefact run_order_drift: not testable here: no run order stated" in text, text
+    assert ("artefact sensor_offset: not testable here in 1 test(s): N1 (displacement): no rest at its start or end "
+            "and no sine") in text, text

@@ -80,6 +80,11 @@ def leftover_lines(d: dict) -> list[str]:
             lines.append(f"artefact {a['artefact']}: not testable here: {a.get('note', '')}")
         elif a.get("note"):
             lines.append(f"artefact {a['artefact']}: not found: {a['note']}")
+        some = a.get("not_testable") or []
+        if some and a.get("testable", True):   # tested, but not in every test: which, and why
+            lines.append(f"artefact {a['artefact']}: not testable here in {len(some)} test(s): "
+                         + "; ".join(f"{x['test_id']} ({x['channel']}): {x['note']}" for x in some[:3])
+                         + ("; ..." if len(some) > 3 else ""))
     return lines
 
 
