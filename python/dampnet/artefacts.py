@@ -141,10 +141,12 @@ def align_force(ds: Dataset, seconds: float) -> Dataset:
 
 
 def remove_run_order_drift(ds: Dataset, percent: float) -> Dataset:
-    """Undo a force drift along the run order (`--run-order-drift-pct`): the tests, in the
-    dataset's order (the run order), drift linearly by `percent` [%] of the force from the first
-    test to the last (as `dampnet diagnose` estimates it: force_change_percent); test i of n has
-    its force divided by 1 + percent / 100 * i / (n - 1), which brings every test to the first
+    """Undo a force drift along the run order (`--run-order-drift-pct`): the tests, in their
+    stated run order (dampnet.data.runorder: the manifest's run_order or started column; else the
+    dataset's order), drift linearly by `percent` [%] of the force from the first test to the last
+    (as `dampnet diagnose` estimates it: force_change_percent); the test at place s in [0, 1] of
+    the run (i / (n - 1) for the i-th of n) has its force divided by 1 + percent / 100 * s, which
+    brings every test to the first
     test's condition. A run-order term of first order: a warming's effect on the force is not
     one gain, so logging the temperature is the better fix. A new Dataset; files untouched."""
     p = float(percent)
@@ -155,11 +157,14 @@ def remove_run_order_drift(ds: Dataset, percent: float) -> Dataset:
     if n < 2:
         raise DataError(f"--run-order-drift-pct: a drift from the first test to the last needs at least two tests "
                         f"in run order; {ds.source} has {n}")
+    from dampnet.data.runorder import run_positions
+
+    pos = run_positions(ds.tests)   # the stated run order (dampnet.data.runorder), else the dataset's
     tests = []
     for i, t in enumerate(ds.tests):
         if "force" not in t.channels:
             raise DataError(f"test {t.test_id}: no 'force' channel to correct (channels: {', '.join(sorted(t.channels))})")
-        gain = 1.0 + p / 100.0 * (i / (n - 1) if n > 1 else 0.0)
+        gain = 1.0 + p / 100.0 * float(pos[i])
         tests.append(t.copy(channels={**t.channels, "force": np.asarray(t.channels["force"]) / gain}))
     return ds.subset(tests, note=f"force drift along the run order of {p:+g} % removed (--run-order-drift-pct)")
 

@@ -34,9 +34,11 @@ def test_round_trip_gives_the_same_arrays(tmp_path, quick_thermal):
 def test_manifest_and_columns_are_exactly_the_format(tmp_path, quick_thermal):
     out = write_dataset(quick_thermal, tmp_path / "ds")
     lines = (out / "manifest.csv").read_text().splitlines()
-    assert lines[0] == "test_id,file,frequency_hz,amplitude_m,voltage_v"
+    # issue 50: the rig states the order it ran its tests in (docs/data-formats.md, "The run order")
+    assert lines[0] == "test_id,file,frequency_hz,amplitude_m,voltage_v,run_order"
     assert len(lines) == 1 + len(quick_thermal.tests)
-    tid, fname, f, a, v = lines[1].split(",")
+    tid, fname, f, a, v, order = lines[1].split(",")
+    assert order == "1"
     assert (out / fname).is_file()
     header = (out / fname).read_text().splitlines()[0]
     assert header == "time_s,displacement_m,velocity_m_s,force_n,voltage_v,temperature_c"

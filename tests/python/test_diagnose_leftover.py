@@ -195,7 +195,13 @@ def test_campaign_warming_without_temperature_is_the_run_order_artefact():
     m, _, _ = train_dataset(ds, **TRAIN)
     d = diagnose(m, ds, n_surrogates=N_SUR)
     f = d["finding"]
-    assert f["kind"] == "artefact" and f["artefacts"] == ["run_order_drift"], f
+    # issue 50: the run-order term (a gain per test) does not undo the oil's warming within each test
+    # (the rig heats the oil while a test runs, most at 3 Hz), and the leftover test run again on the
+    # fixed data still finds it (measured 35 N RMS, z 7.4, most uneven by frequency): the verdict says
+    # both, the artefact and the structure left, instead of the artefact alone
+    assert f["kind"] == "artefact_and_unknown_structure" and f["artefacts"] == ["run_order_drift"], f
+    assert "structure left that no catalogue effect explains" in f["sentence"], f["sentence"]
+    assert d["leftover"]["after_artefact_fixes"]["where"]["most_uneven"] == "frequency"
     a = next(a for a in d["artefacts"] if a["artefact"] == "run_order_drift")
     assert a["force_change_percent"] < 0 and not a["temperature_channel"], a   # hotter oil, less force
     assert "no temperature channel" in a["sentence"] and "--run-order-drift-pct" in a["sentence"]

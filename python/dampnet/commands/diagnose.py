@@ -63,7 +63,8 @@ def leftover_lines(d: dict) -> list[str]:
     """The catalogue-independent test's answer and the artefact tests, in words."""
     lines = []
     for when, left in (("before the catalogue's effects", d["leftover"]["before_effects"]),
-                       ("after the accepted effects", d["leftover"]["after_effects"])):
+                       ("after the accepted effects", d["leftover"]["after_effects"]),
+                       ("on the data with the artefacts' fixes applied", d["leftover"].get("after_artefact_fixes"))):
         if left is None:
             continue
         w = left["where"]
@@ -75,6 +76,15 @@ def leftover_lines(d: dict) -> list[str]:
     for a in d["artefacts"]:
         if a.get("detected"):
             lines.append(f"ARTEFACT {a['artefact']}: {a['sentence']}")
+        elif not a.get("testable", True):
+            lines.append(f"artefact {a['artefact']}: not testable here: {a.get('note', '')}")
+        elif a.get("note"):
+            lines.append(f"artefact {a['artefact']}: not found: {a['note']}")
+        some = a.get("not_testable") or []
+        if some and a.get("testable", True):   # tested, but not in every test: which, and why
+            lines.append(f"artefact {a['artefact']}: not testable here in {len(some)} test(s): "
+                         + "; ".join(f"{x['test_id']} ({x['channel']}): {x['note']}" for x in some[:3])
+                         + ("; ..." if len(some) > 3 else ""))
     return lines
 
 

@@ -1,6 +1,7 @@
 """The dampnet dataset directory: manifest.csv plus one CSV per test (read and write).
 
   manifest.csv: test_id,file,frequency_hz,amplitude_m,voltage_v   (or current_a)
+                [,run_order | ,started: the order the tests were run in, dampnet.data.runorder]
   <file>.csv:   time_s,displacement_m,velocity_m_s,force_n,voltage_v[,temperature_c,...]
 
 SI units; displacement and velocity positive in extension, force positive when
@@ -99,6 +100,22 @@ def test_file_path(root: Path, name: str, where: str) -> Path:
     return target
 
 
+def _extra(r: dict, where: str, ccol: str) -> dict:
+    """The manifest's further columns of one row (into the test's meta); the run order's columns
+    (dampnet.data.runorder: run_order a number, started a time stamp) checked and run_order parsed."""
+    from dampnet.data.runorder import RUN_ORDER_COLUMN, STARTED_COLUMN, parse_started
+
+    out = {k: v for k, v in r.items() if k not in (*MANIFEST_COLUMNS, ccol)}
+    if RUN_ORDER_COLUMN in out:
+        out[RUN_ORDER_COLUMN] = _opt_float(out[RUN_ORDER_COLUMN], where, RUN_ORDER_COLUMN)
+    if out.get(STARTED_COLUMN, "").strip():
+        try:
+            parse_started(out[STARTED_COLUMN])
+        except ValueError as e:
+            raise DataError(f"{where}, column {STARTED_COLUMN!r}: {e}") from None
+    return out
+
+
 def read_manifest(root: Path) -> list[dict]:
     """Rows of manifest.csv as dicts; DataError naming the line of the first bad row."""
     mpath = root / MANIFEST
@@ -138,7 +155,7 @@ def read_manifest(root: Path) -> list[dict]:
             "amplitude_m": _opt_float(r["amplitude_m"], where, "amplitude_m"),
             "control_name": "voltage" if ccol == "voltage_v" else "current",
             "control_nominal": _opt_float(r[ccol], where, ccol),
-            "extra": {k: v for k, v in r.items() if k not in (*MANIFEST_COLUMNS, ccol)},
+            "extra": _extra(r, where, ccol),
         })
     if not out:
         raise DataError(f"{mpath}: no tests: expected one row per test after the header")
@@ -264,11 +281,18 @@ def write_dataset(ds: Dataset, out_dir: str | os.PathLike, overwrite: bool = Fal
             raise DataError(f"write_dataset: test id {show(tid)}: expected letters, digits, '_', '.', '-'")
     if len(set(ids)) != len(ids):
         raise DataError("write_dataset: duplicated test ids")
-    rows = [",".join(("test_id", "file", "frequency_hz", "amplitude_m", ccol))]
+    # the run order, when every test states it (dampnet.data.runorder), is kept
+    from dampnet.data.runorder import RUN_ORDER_COLUMN, STARTED_COLUMN
+
+    stated = [k for k in (RUN_ORDER_COLUMN, STARTED_COLUMN)
+              if all(t.meta.get(k) not in (None, "") for t in ds.tests)]
+    rows = [",".join(("test_id", "file", "frequency_hz", "amplitude_m", ccol, *stated))]
     for t in ds.tests:
         check_test(t, f"test {t.test_id}")
+        order = [(f"{int(float(t.meta[k]))}" if float(t.meta[k]).is_integer() else _num(t.meta[k]))
+                 if k == RUN_ORDER_COLUMN else str(t.meta[k]) for k in stated]
         rows.append(",".join((t.test_id, f"{t.test_id}.csv", _num(t.frequency_hz), _num(t.amplitude_m),
-                              _num(t.control_nominal))))
+                              _num(t.control_nominal), *order)))
     with staged_dir(out) as tmp:
         _write_tests(ds.tests, tmp, progress)
         (tmp / MANIFEST).write_text("\n".join(rows) + "\n")

@@ -38,5 +38,27 @@ def merge_datasets(datasets: Sequence[Dataset]) -> Dataset:
                    and d.meta.get("noise") == first.meta.get("noise") for d in datasets)
     meta = dict(first.meta) if same_rig else {}
     meta["merged"] = [{"source": d.source, "tests": len(d.tests)} for d in datasets]
-    return Dataset(tests=[t for d in datasets for t in d.tests], source=" + ".join(d.source for d in datasets),
-                   meta=meta)
+    return Dataset(tests=_run_order_kept(datasets), source=" + ".join(d.source for d in datasets), meta=meta)
+
+
+def _run_order_kept(datasets) -> list:
+    """The tests, their stated run order (dampnet.data.runorder) carried over: `started` time stamps as
+    they are; `run_order` numbers, when every dataset states them, continued from one dataset to
+    the next (the datasets were run in the order given); a run_order some datasets lack states
+    nothing, so it is dropped."""
+    from dataclasses import replace
+
+    from dampnet.data.runorder import RUN_ORDER_COLUMN
+
+    tests = [t for d in datasets for t in d.tests]
+    if not any(t.meta.get(RUN_ORDER_COLUMN) is not None for t in tests):
+        return tests
+    if not all(t.meta.get(RUN_ORDER_COLUMN) is not None for t in tests):
+        return [replace(t, meta={k: v for k, v in t.meta.items() if k != RUN_ORDER_COLUMN}) for t in tests]
+    out, base = [], 0.0
+    for d in datasets:
+        vals = [float(t.meta[RUN_ORDER_COLUMN]) for t in d.tests]
+        lo = min(vals) if vals else 0.0
+        out += [replace(t, meta={**t.meta, RUN_ORDER_COLUMN: base + v - lo + 1}) for t, v in zip(d.tests, vals)]
+        base += (max(vals) - lo + 1) if vals else 0.0
+    return out

@@ -12,7 +12,8 @@
   artefacts.py  tests for the measurement artefacts of dampnet.artefacts (time offset, run-order
                 drift, sign/unit slips, sensor offsets)
   verdict.py    the three-way verdict: known effect / structure left, not a known effect /
-                nothing above the noise floor (or an artefact)
+                nothing above the noise floor (or an artefact, alone or with the structure left
+                beyond its fix)
   run.py        diagnose(model, dataset) -> JSON-ready dict
   estimate.py   an effect's parameters from data alone (`dampnet train --add` without --diagnosis)
   report.py     the HTML report with pictures

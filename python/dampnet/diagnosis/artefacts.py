@@ -10,16 +10,24 @@ how big it is, and the data fix it implies (a data fix, not a model term).
                    the lagged velocity absorbs. Found when the shift is at least MIN_OFFSET_S and
                    SHIFT_Z jackknife spreads (over groups of tests) from zero, and realigning cuts the fit's RMS
                    by MIN_FALL. Sine tests only: on random-content tests the rig's own 2 ms hydraulic
-                   lag was taken for a 1.9 ms delay (not testable there).
+                   lag was taken for a 1.9 ms delay (not testable there). And only a constant delay
+                   (issue 50): estimated frequency by frequency, the delays must agree within their
+                   spreads (delay_constancy); a lag that grows or shrinks with frequency (lost motion,
+                   compressibility, a filter) is not a recording delay, and the uncertainty is at
+                   least what the per-frequency delays' scatter allows.
   run_order_drift  a regression of the residual on the run order (alone, times the predicted
                    force, times velocity), scored like a candidate (held out, against the null)
                    beyond the motion's history (the leftover test's other columns join the
                    baseline: a hysteresis larger at slow tests is not a drift); found when significant.
+                   Only on a run order the data state (dampnet.data.runorder: a run_order or
+                   started manifest column) that frequency, stroke and control do not explain
+                   (order_freedom): else not testable, with the reason (issue 50).
   sign_slip, unit_slip, sensor_offset  per-test consistency of the channels (channel_checks):
                    velocity against the displacement's derivative, the force's work and gain, and
-                   each test's mean displacement and its force at the velocity reversals
-                   against the other tests'. With a temperature channel the thermal candidate
-                   tests it instead.
+                   each test's displacement zero (displacement_zero: a sine's centre or a rest,
+                   never the mean of a partial cycle, with the bound its own motion puts on it) and
+                   its force at the velocity reversals (both ends alike) against the other tests'.
+                   With a temperature channel the thermal candidate tests it instead.
 """
 
 from __future__ import annotations
@@ -93,6 +101,73 @@ def _best(sse_by_tau: np.ndarray, k_max: int) -> tuple[float, int]:
     return shift - k_max, int(j)
 
 
+def _jack(values: np.ndarray) -> float:
+    g = len(values)
+    return float(np.sqrt((g - 1) / g * np.sum((values - values.mean()) ** 2))) if g >= 2 else 0.0
+
+
+def per_frequency_delays(ctx, per_test: np.ndarray, k_max: int, dt: float) -> list[dict]:
+    """The shift estimated frequency by frequency [{frequency_hz, offset_s, spread_s (jackknife over
+    the frequency's tests in up to GROUPS groups, at least a quarter sample; None for one test),
+    tests}], in frequency order."""
+    out = []
+    freqs = sorted({td.test.frequency_hz for td in ctx.tests})
+    for fz in freqs:
+        idx = [i for i, td in enumerate(ctx.tests) if td.test.frequency_hz == fz]
+        shift, _ = _best(per_test[idx].sum(0), k_max)
+        g = min(GROUPS, len(idx))
+        spread = None
+        if g >= 2:
+            loo = np.asarray([_best(per_test[[idx[j] for j in range(len(idx)) if j % g != k]].sum(0), k_max)[0]
+                              for k in range(g)])
+            spread = max(_jack(loo) * dt, 0.25 * dt)
+        out.append({"frequency_hz": fz, "offset_s": shift * dt, "spread_s": spread, "tests": len(idx)})
+    return out
+
+
+#: a recording delay is the same at every frequency: the per-frequency estimates must agree within
+#: their spreads plus CONSTANT_REL_TOL of the delay (the per-frequency estimate's own model error:
+#: a 10 ms delay on the rig was estimated 9.1 to 11.2 ms frequency by frequency), at p >= CONSTANT_P
+CONSTANT_REL_TOL = 0.15
+CONSTANT_P = 0.001
+
+
+def delay_constancy(by_f: list[dict], dt: float) -> dict:
+    """Whether the per-frequency delays are one constant delay: a chi-square of their deviations from
+    their weighted mean (each weighted by its jackknife spread, widened by CONSTANT_REL_TOL of the mean
+    delay; one test's frequency takes the median spread), and the standard error of that mean from the
+    delays' own scatter (inflated by sqrt(chi2 / dof) of the raw spreads when they scatter more than
+    their spreads allow). {"testable", "constant", "p_value", "mean_s", "se_s", "words"}."""
+    from scipy.stats import chi2 as _chi2
+
+    est = [b for b in by_f]
+    if len(est) < 2:
+        return {"testable": False, "constant": True, "note": "one frequency: the delay's constancy over "
+                "frequency cannot be checked"}
+    known = [b["spread_s"] for b in est if b["spread_s"] is not None]
+    d = np.asarray([b["offset_s"] for b in est])
+    words = ", ".join(f"{1000 * b['offset_s']:.1f} ms at {b['frequency_hz']:g} Hz" for b in est)
+    if len(known) < 2:   # one test per frequency: no spread to judge the agreement by
+        return {"testable": False, "constant": True, "words": words,
+                "se_s": float(np.std(d, ddof=1) / np.sqrt(len(d))),
+                "note": "fewer than two frequencies with two tests or more: the delays' agreement over "
+                        "frequency cannot be judged; the uncertainty is their scatter's standard error"}
+    fill = float(np.median(known))
+    sd = np.asarray([b["spread_s"] if b["spread_s"] is not None else fill for b in est])
+    w = 1.0 / sd ** 2
+    mean = float(np.sum(w * d) / np.sum(w))
+    wide = np.sqrt(sd ** 2 + (CONSTANT_REL_TOL * mean) ** 2)
+    ww = 1.0 / wide ** 2
+    mean_w = float(np.sum(ww * d) / np.sum(ww))
+    chi = float(np.sum(((d - mean_w) / wide) ** 2))
+    dof = len(est) - 1
+    p = float(_chi2.sf(chi, dof))
+    raw_chi = float(np.sum(((d - mean) / sd) ** 2))
+    se = float(np.sqrt(1.0 / np.sum(w)) * max(1.0, np.sqrt(raw_chi / dof)))
+    return {"testable": True, "constant": p >= CONSTANT_P, "p_value": p, "chi2": chi, "dof": dof,
+            "mean_s": mean, "se_s": se, "words": words}
+
+
 def time_offset(ctx) -> dict:
     """The force's time offset against the motion (see the module doc), with its jackknife spread."""
     if any(td.test.frequency_hz is None for td in ctx.tests):
@@ -120,15 +195,31 @@ def time_offset(ctx) -> dict:
     rms_at_zero = float(np.sqrt(max(np.min(sse[:, k_max]), 0.0) / n_rows))
     rms_aligned = float(np.sqrt(max(np.min(sse), 0.0) / n_rows))
     fall = 1.0 - rms_aligned / rms_at_zero if rms_at_zero > 0 else 0.0
-    detected = bool(abs(offset_s) >= MIN_OFFSET_S and abs(offset_s) >= SHIFT_Z * spread_s and fall >= MIN_FALL)
+    # a recording delay is one constant: estimated frequency by frequency it must agree within its
+    # spread (a lag that grows or shrinks with frequency is lost motion, compressibility, a filter),
+    # and its uncertainty is at least what that spread allows
+    by_f = per_frequency_delays(ctx, per_test, k_max, dt)
+    const = delay_constancy(by_f, dt)
+    if "se_s" in const:
+        spread_s = max(spread_s, const["se_s"])
+    shifted = bool(abs(offset_s) >= MIN_OFFSET_S and abs(offset_s) >= SHIFT_Z * spread_s and fall >= MIN_FALL)
+    detected = shifted and const["constant"]
     late = "late" if offset_s > 0 else "early"
     sentence = (f"the force channel is recorded {1000 * abs(offset_s):.1f} +- {1000 * spread_s:.1f} ms {late} "
                 f"against the motion (the seal friction's flip at velocity reversals moves with it, which no "
-                f"hydraulic lag does); realigned, a static fit of the force per test falls from {rms_at_zero:.1f} to "
+                f"hydraulic lag does; frequency by frequency {const.get('words', 'one frequency')}); realigned, a "
+                f"static fit of the force per test falls from {rms_at_zero:.1f} to "
                 f"{rms_aligned:.1f} N RMS ({100 * fall:.0f} %). Fix: {artefact('time_offset').fix} "
                 f"(--align-force-s {offset_s:.4g})")
+    note = ""
+    # a shift large enough to matter (the z gate aside: the delays' own scatter widens it), not one delay
+    if not const["constant"] and abs(offset_s) >= MIN_OFFSET_S and fall >= MIN_FALL:
+        note = (f"a lag that changes with frequency ({const['words']}; not one delay: chi2 {const['chi2']:.1f} on "
+                f"{const['dof']} dof, p {const['p_value']:.1g}), not a constant recording delay: lost motion, "
+                "compressibility or a filter, which realigning by one time would not fix")
     return {"artefact": "time_offset", "testable": True, "detected": detected, "offset_s": offset_s,
-            "uncertainty_s": spread_s, "hydraulic_lag_s": HYDRAULIC_LAGS_S[j],
+            "constant_over_frequency": const, "note": note,
+            "uncertainty_s": spread_s, "hydraulic_lag_s": HYDRAULIC_LAGS_S[j], "by_frequency": by_f,
             "static_fit_rms_n": {"as_recorded": rms_at_zero, "realigned": rms_aligned, "fall": fall},
             "fix": {"option": "--align-force-s", "value": offset_s}, "sentence": sentence}
 
@@ -167,8 +258,10 @@ class _History:
 def run_order_gain_percent(ctx) -> float:
     """The drift in the fix's own terms (dampnet.artefacts.remove_run_order_drift): each test's
     gain g_i = <F, pred> / <pred, pred> of its measured force over the model's, a line g_0 (1 +
-    p/100 i/(n-1)) fitted over the run order; returns p [%], the force's change from the first test
+    p/100 s_i) fitted over its place s_i in [0, 1] of the run order; returns p [%], the force's change from the first test
     to the last (0 for fewer than 2 tests)."""
+    from dampnet.data.runorder import run_positions
+
     n = ctx.n_tests
     if n < 2:
         return 0.0
@@ -176,13 +269,55 @@ def run_order_gain_percent(ctx) -> float:
     for td in ctx.tests:
         pred, f = td.pred[td.rows], td.test.channels["force"][td.rows]
         gains.append(float(f @ pred / max(float(pred @ pred), 1e-300)))
-    pos = np.arange(n) / (n - 1)
+    pos = run_positions([td.test for td in ctx.tests])   # the stated run order, as the fix applies it
     slope, start = np.polyfit(pos, np.asarray(gains), 1)
     return float(100.0 * slope / start) if start > 0 else 0.0
 
 
+#: a stated run order is testable for a drift only if frequency and control (and stroke) leave at
+#: least this share of its variance unexplained (an additive fit, each a category): on a 12 x 15
+#: grid a campaign sorted by frequency and control has 0, one sorted by frequency with the controls
+#: shuffled in each 0.006, a shuffled one 0.86 on average (5 x 8: 0.73, the least of 200 shuffles 0.43)
+MIN_ORDER_FREEDOM = 0.10
+
+
+def order_freedom(tests, pos: np.ndarray) -> float:
+    """1 - R^2 of the run order on frequency, stroke and control, each a category (additive least
+    squares): how much of the order is not a function of the test's settings."""
+    cols = [np.ones(len(pos))]
+    for key in (lambda t: t.frequency_hz, lambda t: t.amplitude_m, lambda t: t.control_nominal):
+        vals = [key(t) for t in tests]
+        levels = sorted({v for v in vals if v is not None}) + ([None] if None in vals else [])
+        for lv in levels[1:]:
+            cols.append(np.asarray([v == lv for v in vals], dtype=np.float64))
+    X = np.stack(cols, axis=1)
+    y = np.asarray(pos, dtype=np.float64)
+    beta, *_ = np.linalg.lstsq(X, y, rcond=None)
+    ss = float(np.sum((y - y.mean()) ** 2))
+    return float(np.sum((y - X @ beta) ** 2) / ss) if ss > 0 else 0.0
+
+
+def _not_testable(note: str) -> dict:
+    return {"artefact": "run_order_drift", "testable": False, "detected": False, "note": note}
+
+
 def run_order_drift(ctx, folds, n_surrogates: int, seed: int) -> dict:
-    """A drift of the force along the run order that no channel explains (see the module doc)."""
+    """A drift of the force along the run order that no channel explains (see the module doc).
+    Only on a stated run order (dampnet.data.runorder) that is not a function of the tests'
+    settings: a manifest sorted by frequency or control is not a run order, and a drift along a
+    run order that follows frequency cannot be told from a frequency dependence."""
+    from dampnet.data.runorder import stated_run_order
+
+    tests = [td.test for td in ctx.tests]
+    pos, source = stated_run_order(tests)
+    if pos is None:
+        return _not_testable(source)
+    free = order_freedom(tests, pos)
+    if free < MIN_ORDER_FREEDOM:
+        return {**_not_testable(f"the run order ({source}) follows the tests' frequency, stroke and control: they "
+                                f"explain {100 * (1 - free):.0f} % of it, so a drift cannot be told from a dependence on "
+                                "them (randomise the run order, or repeat a reference test through the campaign)"),
+                "order_freedom": free}
     has_t = all(t is not None for t in ctx.at_rows("temperature"))
     saved = list(ctx.notes.get("included", []))
     ctx.notes["included"] = saved + [(_History(), None)]
@@ -204,8 +339,8 @@ def run_order_drift(ctx, folds, n_surrogates: int, seed: int) -> dict:
                 f"(held out {100 * res['score']:.1f} % of the residual's variance beyond the motion's history, "
                 f"z {res['z']:.1f}); no channel the model has explains it (thermal, but no temperature channel: "
                 f"add one). Fix: {artefact('run_order_drift').fix} (here --run-order-drift-pct {gain_pct:.3g})")
-    return {"artefact": "run_order_drift", "testable": True, "detected": detected,
-            "significant": bool(res["significant"]), "score": float(res["score"]), "z": float(res["z"]),
+    return {"artefact": "run_order_drift", "testable": True, "detected": detected, "run_order": source,
+            "order_freedom": free, "significant": bool(res["significant"]), "score": float(res["score"]), "z": float(res["z"]),
             "force_change_percent": gain_pct, "temperature_channel": has_t,
             "fix": {"option": "--run-order-drift-pct", "value": gain_pct}, "sentence": sentence}
 
@@ -221,6 +356,100 @@ def _unit(factor: float) -> float:
 
 
 REST_SHARE = 0.03  # a test's samples "at rest" for the force-zero check: |v| below this share of its peak
+#: a rest segment (what defines a displacement zero without a sine): the test's start or end, still
+#: (|v| below REST_SHARE of its peak) for at least this long [s] and at least this share of a cycle
+REST_MIN_S = 0.25
+REST_MIN_CYCLES = 1.0
+#: a test's sine centre is fitted with these harmonics (a rig's stroke is not a pure sine)
+CENTRE_HARMONICS = 3
+OFFSET_Z = 6.0   # a zero moved: this many robust spreads of the other tests' zeros away
+
+
+def _rest_segments(t) -> list[np.ndarray]:
+    """The samples of the rest at the test's start and at its end (each when long enough)."""
+    v = t.channels["velocity"]
+    still = np.abs(v) < REST_SHARE * max(float(np.max(np.abs(v))), 1e-12)
+    need = REST_MIN_S
+    if t.frequency_hz:
+        need = max(need, REST_MIN_CYCLES / t.frequency_hz)
+    k = int(np.ceil(need / t.dt))
+    out = []
+    n = len(still)
+    if n and still[0]:
+        end = int(np.argmin(still)) if not still.all() else n
+        if end >= k:
+            out.append(np.arange(0, end))
+    if n and still[-1] and not still.all():
+        start = n - int(np.argmin(still[::-1]))
+        if n - start >= k:
+            out.append(np.arange(start, n))
+    return out
+
+
+def displacement_zero(t) -> dict:
+    """What defines the zero of a test's displacement, never the mean of a partial cycle:
+
+      centre  a sine test with at least one whole cycle of motion (its rests left out): the centre
+              c of a least-squares fit x = c + sum over h = 1..CENTRE_HARMONICS of a_h sin(h w t)
+              + b_h cos(h w t), whatever the cycle count (2.5 cycles of a sine have a mean of 0.13
+              amplitudes, their centre 0); its uncertainty the most the fit's residual r (ramps,
+              distortion, noise) can move c: sqrt([(X'X)^-1]_cc) |r| (Cauchy-Schwarz), what the
+              test's own motion makes of a true zero
+      rest    a test without such a sine that starts or ends at rest (REST_MIN_S): the position
+              there; its uncertainty half the difference of the two rests (and the rest's scatter).
+              Not for a sine test: a real table's sine may start from rest at the bottom of its
+              stroke (measured: labcontrol's tests rest at 0 or at -18 mm, their sines centred at
+              up to 12 mm), so its rest is where it waited, not its zero
+
+    {"zero": m, "uncertainty": m, "from": "rest" | "centre"}, or {"zero": None, "note": why not}."""
+    x = t.channels["displacement"]
+    rests = _rest_segments(t)
+    moving = np.ones(len(x), dtype=bool)
+    for r in rests:
+        moving[r] = False
+    f = t.frequency_hz
+    span = float(np.sum(moving)) * t.dt
+    if not f or span * f < 1.0 - 1e-9:
+        if rests:
+            pos = [float(np.mean(x[r])) for r in rests]
+            scatter = max(float(np.std(x[r])) for r in rests)
+            return {"zero": float(np.mean(pos)), "uncertainty": max(0.5 * float(np.ptp(pos)), scatter), "from": "rest"}
+        if not f:
+            return {"zero": None, "note": "no rest at its start or end and no sine: nothing defines its zero"}
+        return {"zero": None, "note": f"less than one whole cycle ({span * f:.2f}) and no rest"}
+    x = x[moving]
+    tt = (t.time - t.time[0])[moving]
+    cols = [np.ones_like(tt)]
+    for h in range(1, CENTRE_HARMONICS + 1):
+        w = 2 * np.pi * f * h
+        cols += [np.sin(w * tt), np.cos(w * tt)]
+    X = np.stack(cols, axis=1)
+    G = X.T @ X
+    beta = np.linalg.solve(G, X.T @ x)
+    r = x - X @ beta
+    gcc = float(np.linalg.inv(G)[0, 0])
+    return {"zero": float(beta[0]), "uncertainty": float(np.sqrt(max(gcc, 0.0)) * np.linalg.norm(r)), "from": "centre"}
+
+
+def _force_at_reversals(f: np.ndarray, v: np.ndarray, x: np.ndarray | None, centre: float, lag: int) -> float | None:
+    """The force at the velocity reversals (|v| below REST_SHARE of its peak), each end of the
+    stroke weighted alike: the mean at the extended end and the mean at the compressed end,
+    averaged (2.5 cycles have three reversals at one end and two at the other, and the gas force
+    differs between the ends). Without a displacement, the reversals by the velocity's sign
+    change. None when one end has no reversal."""
+    rest = np.flatnonzero(np.abs(v) < REST_SHARE * max(float(np.max(np.abs(v))), 1e-12))
+    rest = rest[(rest + lag < len(f)) & (rest + lag >= 0)]
+    if not rest.size:
+        return None
+    if x is not None:
+        top = x[rest] > centre
+    else:
+        a = np.gradient(v)
+        top = a[rest] < 0        # decelerating through v = 0 from extension: the extended end
+    ends = [rest[top], rest[~top]]
+    if any(e.size == 0 for e in ends):
+        return None
+    return 0.5 * (float(np.mean(f[ends[0] + lag])) + float(np.mean(f[ends[1] + lag])))
 
 
 def _robust_outliers(values: np.ndarray, floor: float, z: float = 6.0) -> np.ndarray:
@@ -247,25 +476,26 @@ def channel_checks(ctx, noise_rms_n: float, force_offset_s: float = 0.0) -> list
     friction both ways), far from the other tests' of the same stroke (a moved sensor zero)."""
     signs, units, offsets = [], [], []
     has_x = all("displacement" in td.test.channels for td in ctx.tests)
-    gains, means_x, means_r, rms_f = [], [], [], []
+    gains, zeros_x, means_r, rms_f = [], [], [], []
     for td in ctx.tests:
         t = td.test
         f, v = t.channels["force"], t.channels["velocity"]
         wv = float(np.mean(f * v))
         pred = td.pred
         gains.append(float(np.dot(f - f.mean(), pred - pred.mean()) / max(np.dot(pred - pred.mean(), pred - pred.mean()), 1e-30)))
-        # the force at the velocity reversals (both directions): the damper's static part (gas force
+        zero = displacement_zero(t) if has_x else {"zero": None, "note": "no displacement channel"}
+        zeros_x.append(zero)
+        # the force at the velocity reversals (both ends alike): the damper's static part (gas force
         # at the ends of the stroke, friction cancelling), the same in every test of the same stroke
         # (read force_offset_s later: a force recorded late, time_offset, is realigned first)
-        rest = np.flatnonzero(np.abs(v) < REST_SHARE * max(float(np.max(np.abs(v))), 1e-12))
-        rest = rest[rest + int(round(force_offset_s / t.dt)) < len(f)] + int(round(force_offset_s / t.dt))
-        rest = rest[rest >= 0]
-        means_r.append(float(np.mean(f[rest])) if rest.size else float(np.mean(f)))
+        centre = zero["zero"] if zero["zero"] is not None else (
+            float(np.median(t.channels["displacement"])) if has_x else 0.0)
+        means_r.append(_force_at_reversals(f, v, t.channels.get("displacement"), centre,
+                                           int(round(force_offset_s / t.dt))))
         rms_f.append(float(np.sqrt(np.mean(f * f))))
         if not has_x:
             continue
         x = t.channels["displacement"]
-        means_x.append(float(np.mean(x)))
         # the displacement the velocity integrates to (detrended: robust to noise, unlike dx/dt)
         xv = np.concatenate(([0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t.time))))
         tt = t.time - t.time.mean()
@@ -300,16 +530,30 @@ def channel_checks(ctx, noise_rms_n: float, force_offset_s: float = 0.0) -> list
         units.append({"test_id": tid, "channel": "force", "factor": factor,
                       "words": f"{tid}: force (gain {g[i] / med:.3g} of the other tests'; fix factor {factor:.4g})"})
     slipped = {h["test_id"] for h in signs + units}
+    untestable = []   # (test id, channel, why its zero is not defined)
     if has_x:
         amp = np.median([np.std(td.test.channels["displacement"]) for td in ctx.tests])
-        for i in _robust_outliers(np.asarray(means_x), floor=0.02 * amp):
-            tid = ctx.tests[i].test.test_id
-            if tid not in slipped:
-                d = means_x[i] - float(np.median(means_x))
-                offsets.append({"test_id": tid, "channel": "displacement", "offset": d,
-                                "words": f"{tid}: displacement zero {1000 * d:+.2f} mm from the other tests'"})
+        ok = [i for i, z in enumerate(zeros_x) if z["zero"] is not None]
+        untestable += [(ctx.tests[i].test.test_id, "displacement", z["note"])
+                       for i, z in enumerate(zeros_x) if z["zero"] is None]
+        if len(ok) >= 3:
+            zs = np.asarray([zeros_x[i]["zero"] for i in ok])
+            for j in _robust_outliers(zs, floor=0.02 * amp, z=OFFSET_Z):
+                i = ok[j]
+                tid = ctx.tests[i].test.test_id
+                d = float(zs[j] - np.median(zs))
+                u = zeros_x[i]["uncertainty"]
+                # beyond what the test's own motion makes of a true zero (the bound on its zero's error)
+                if tid not in slipped and abs(d) > u:
+                    how = "its rest" if zeros_x[i]["from"] == "rest" else "its sine's centre"
+                    offsets.append({"test_id": tid, "channel": "displacement", "offset": d, "uncertainty": u,
+                                    "words": f"{tid}: displacement zero ({how}) {1000 * d:+.2f} mm from the other "
+                                             f"tests' (its own motion allows {1000 * u:.2f} mm)"})
     strokes: dict = {}
     for i, td in enumerate(ctx.tests):
+        if means_r[i] is None:
+            untestable.append((td.test.test_id, "force", "no velocity reversal at one end of its stroke"))
+            continue
         strokes.setdefault(td.test.amplitude_m, []).append(i)
     for group in strokes.values():
         if len(group) < 5:
@@ -325,9 +569,18 @@ def channel_checks(ctx, noise_rms_n: float, force_offset_s: float = 0.0) -> list
                 offsets.append({"test_id": tid, "channel": "force", "offset": d,
                                 "words": f"{tid}: force zero {d:+.1f} N from the other tests' (force at the "
                                          "velocity reversals)"})
+    offset = _result("sensor_offset", offsets, "a sensor's zero moved")
+    if untestable:
+        offset["not_testable"] = [{"test_id": tid, "channel": ch, "note": why} for tid, ch, why in untestable]
+    x_ok = has_x and sum(z["zero"] is not None for z in zeros_x) >= 3
+    f_ok = any(len(g) >= 5 for g in strokes.values())
+    if not (x_ok or f_ok):
+        offset.update(testable=False, note="not testable here: fewer than 3 tests whose displacement zero is "
+                      "defined (a rest, or a sine's whole cycle) and no 5 tests of one stroke with reversals at both "
+                      "ends" + (": " + "; ".join(f"{tid} ({ch}): {why}" for tid, ch, why in untestable[:3])
+                                + ("; ..." if len(untestable) > 3 else "") if untestable else ""))
     return [_result("sign_slip", signs, "a channel's sign slipped"),
-            _result("unit_slip", units, "a channel is in another unit"),
-            _result("sensor_offset", offsets, "a sensor's zero moved")]
+            _result("unit_slip", units, "a channel is in another unit"), offset]
 
 
 def find_artefacts(ctx, folds, n_surrogates: int, seed: int, noise_rms_n: float) -> list[dict]:

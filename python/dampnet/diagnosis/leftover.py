@@ -63,9 +63,12 @@ class Leftover:
 
 
 def run_order(ctx) -> np.ndarray:
-    """Each test's place in the run order (the dataset's order), in [-1, 1]."""
-    n = ctx.n_tests
-    return np.linspace(-1.0, 1.0, n) if n > 1 else np.zeros(1)
+    """Each test's place in the run order, in [-1, 1]: the stated one (dampnet.data.runorder),
+    else the dataset's order (a per-test column all the same; only the run_order_drift artefact
+    needs the order to be the one the tests were run in, and it asks for a stated one)."""
+    from dampnet.data.runorder import run_positions
+
+    return 2.0 * run_positions([td.test for td in ctx.tests]) - 1.0
 
 
 def history_columns(ctx) -> list[np.ndarray]:
@@ -179,11 +182,12 @@ def where(ctx, part: list[np.ndarray]) -> dict:
         out["by_phase_deg"] = [{"phase_deg": float(0.5 * (a + b)), "rms_n": _rms(pr[(ph >= a) & (ph < b)])}
                                for a, b in zip(edges[:-1], edges[1:])]
     order = run_order(ctx)
+    by = np.argsort(order, kind="stable")       # the tests in run order
     k = max(1, ctx.n_tests // 5)
-    out["by_run_order"] = [{"tests": f"{ctx.tests[j].test.test_id}..{ctx.tests[min(j + k, ctx.n_tests) - 1].test.test_id}",
-                            "run_order": float(np.mean(order[j:j + k])),
-                            "mean_n": float(np.mean(np.concatenate(part[j:j + k]))),
-                            "rms_n": _rms(np.concatenate(part[j:j + k]))}
+    out["by_run_order"] = [{"tests": f"{ctx.tests[by[j]].test.test_id}..{ctx.tests[by[min(j + k, ctx.n_tests) - 1]].test.test_id}",
+                            "run_order": float(np.mean(order[by[j:j + k]])),
+                            "mean_n": float(np.mean(np.concatenate([part[i] for i in by[j:j + k]]))),
+                            "rms_n": _rms(np.concatenate([part[i] for i in by[j:j + k]]))}
                            for j in range(0, ctx.n_tests, k)]
     # the dimension along which the part varies most (its largest bin RMS over the smallest)
     spread = {}

@@ -160,7 +160,8 @@ def _pct(x):
 def _leftover_table(diag: dict) -> str:
     rows = []
     for when, left in (("before the catalogue's effects", diag["leftover"]["before_effects"]),
-                       ("after the accepted effects", diag["leftover"]["after_effects"])):
+                       ("after the accepted effects", diag["leftover"]["after_effects"]),
+                       ("on the data with the artefacts' fixes applied", diag["leftover"].get("after_artefact_fixes"))):
         if left is None:
             continue
         rows.append(f"<tr><td>{when}</td><td>{'yes' if left['significant'] else 'no'}</td>"
@@ -169,11 +170,15 @@ def _leftover_table(diag: dict) -> str:
                     f"<td>{html.escape(str(left['where'].get('most_uneven')))}</td></tr>")
     arts = "".join(f"<li><b>{html.escape(a['artefact'])}</b>: {html.escape(a['sentence'])}</li>"
                    for a in diag["artefacts"] if a.get("detected"))
+    untested = "".join(f"<li>{html.escape(a['artefact'])}: not testable here: {html.escape(a.get('note', ''))}</li>"
+                       for a in diag["artefacts"] if not a.get("testable", True))
     return ("<table><tr><th>structure left</th><th>significant</th><th>RMS [N]</th><th>share of the residual "
             "(held out)</th><th>z</th><th>model residual RMS [N]</th><th>noise floor RMS [N]</th>"
             "<th>most uneven by</th></tr>" + "".join(rows) + "</table>"
             + (f"<p>Measurement artefacts found:</p><ul>{arts}</ul>" if arts else
-               "<p>Measurement artefacts tested (force channel time offset, drift over the run order): none found.</p>"))
+               "<p>Measurement artefacts tested (force channel time offset, drift over the run order, sign, unit "
+               "and zero of each channel): none found.</p>")
+            + (f"<p>Not testable on these data:</p><ul>{untested}</ul>" if untested else ""))
 
 
 def write_report(ctx, diag: dict, out_dir, title: str = "dampnet diagnose") -> Path:

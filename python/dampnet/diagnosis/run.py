@@ -41,6 +41,50 @@ def _parameters(ctx, cand, res, folds):
     return est, unc
 
 
+def fixed_by_artefacts(ds, found: list[dict]):
+    """`ds` with the data fixes of the artefacts found applied (dampnet.artefacts: realign, the
+    run-order term, sign, unit, offset per test), as a user would apply them; None if none applies."""
+    from dampnet import artefacts as A
+
+    out, applied = ds, False
+    for a in found:
+        if not a.get("detected"):
+            continue
+        aid = a["artefact"]
+        if aid == "time_offset":
+            out, applied = A.align_force(out, a["fix"]["value"]), True
+        elif aid == "run_order_drift":
+            out, applied = A.remove_run_order_drift(out, a["fix"]["value"]), True
+        for h in a.get("tests", []):
+            ch = h.get("channel")
+            if ch not in ("velocity", "displacement", "force"):
+                continue   # "velocity or displacement": which one slipped is not known
+            if aid == "sign_slip":
+                out = A.flip_sign(out, ch, [h["test_id"]])
+            elif aid == "unit_slip":
+                out = A.rescale(out, ch, h["factor"], [h["test_id"]])
+            elif aid == "sensor_offset":
+                out = A.remove_offset(out, ch, h["offset"], [h["test_id"]])
+            applied = True
+    return out if applied else None
+
+
+def _leftover_after_fixes(model, ds, found, included, rows_per_test, n_surrogates, seed, noise):
+    """The leftover test (before any catalogue effect) on the data with the artefacts' fixes
+    applied: is there structure beyond the artefacts? None when no fix applies."""
+    from dampnet.diagnosis.context import build_context as _build
+
+    fixed = fixed_by_artefacts(ds, found)
+    if fixed is None:
+        return None
+    ctx = _build(model, fixed, rows_per_test=rows_per_test)
+    ctx.notes["included"] = [(CANDIDATES[c], th) for c, th in included.items()]
+    resid = S.reference_residual(ctx)
+    Y = [np.column_stack([r, s]) for r, s in zip(resid, S.surrogates(resid, n_surrogates, seed))]
+    folds = S.folds_of(ctx)
+    return leftover(ctx, Y, folds, S.baseline_cv(ctx, Y, folds), noise)
+
+
 def diagnose(model, ds, *, candidates=None, n_surrogates: int = S.N_SURROGATES, seed: int = 0,
              rows_per_test: int = ROWS_PER_TEST, ctx=None, dataset_label: str = "DATA") -> dict:
     """Compare, localise and test every candidate effect; returns the JSON-ready diagnosis."""
@@ -96,6 +140,8 @@ def diagnose(model, ds, *, candidates=None, n_surrogates: int = S.N_SURROGATES, 
     noise = noise_floor(ctx)
     left0 = leftover(ctx, first[0], folds, first[1], noise)  # before any catalogue effect
     found = find_artefacts(ctx, folds, n_surrogates, seed, noise["rms_n"])
+    # structure beyond the artefacts: the leftover test again on the data their fixes give
+    left_fixed = _leftover_after_fixes(model, ds, found, included, rows_per_test, n_surrogates, seed, noise)
     last = first
     while len(accepted) < MAX_ACCEPTED:
         testable = {c: r for c, r in results.items() if r["testable"]}
@@ -149,7 +195,7 @@ def diagnose(model, ds, *, candidates=None, n_surrogates: int = S.N_SURROGATES, 
     out.sort(key=lambda e: (e["effect"] not in order, order.get(e["effect"], 0), not e["testable"],
                             -(e["score"] if e["score"] is not None else -1e9)))
 
-    finding = three_way(accepted_results, left0, left1, found, ctx)
+    finding = three_way(accepted_results, left0, left1, found, ctx, left_fixed=left_fixed)
     verdict = finding["effects"][0] if finding["effects"] else None
     return jsonable({
         "model": {"id": model.model_id(), "features": model.features, "terms": [t.get("kind") for t in model.terms],
@@ -170,7 +216,7 @@ def diagnose(model, ds, *, candidates=None, n_surrogates: int = S.N_SURROGATES, 
                                 "scored again, up to %d effects" % MAX_ACCEPTED,
                    "accepted": list(accepted)},
         "candidates": out,
-        "leftover": {"before_effects": left0, "after_effects": left1},
+        "leftover": {"before_effects": left0, "after_effects": left1, "after_artefact_fixes": left_fixed},
         "artefacts": found,
         "finding": finding,
         "verdict": verdict,

@@ -11,6 +11,10 @@
                      force and on the inputs) and the model's own capacity, not a missing effect
   artefact           a measurement artefact (dampnet.artefacts) is found: its data fix comes first,
                      and a catalogue effect it mimics (mistaken_for) is not named
+  artefact_and_unknown_structure
+                     an artefact, and the leftover test run again on the data with its fix applied
+                     still finds structure that no catalogue effect explains: both are said, the
+                     structure with how much and where (an artefact never hides what is left)
 """
 
 from __future__ import annotations
@@ -19,7 +23,7 @@ from dampnet.artefacts import artefact
 from dampnet.diagnosis.leftover import MIN_EXPLAINED
 from dampnet.diagnosis.report import _num
 
-KINDS = ("known_effect", "unknown_structure", "nothing_left", "artefact")
+KINDS = ("known_effect", "unknown_structure", "nothing_left", "artefact", "artefact_and_unknown_structure")
 PER_TEST = ("sign_slip", "unit_slip", "sensor_offset")  # artefacts found test by test
 
 
@@ -58,9 +62,12 @@ def _amount(left: dict) -> str:
             f"held out (null {100 * left['null']['mean']:.2f} +- {100 * left['null']['sd']:.2f} %, z {left['z']:.1f})")
 
 
-def three_way(accepted: dict, left0: dict, left1: dict | None, artefacts: list[dict], ctx=None) -> dict:
+def three_way(accepted: dict, left0: dict, left1: dict | None, artefacts: list[dict], ctx=None,
+              left_fixed: dict | None = None) -> dict:
     """{"kind", "sentence", "effects" (named catalogue ids), "artefacts" (found ids), "explained_share",
-    "partial" (significant catalogue effects not named because they explain too little)}."""
+    "partial" (significant catalogue effects not named because they explain too little)}. `left_fixed`:
+    the leftover test on the data with the artefacts' fixes applied (None: not run; then the test on
+    the data as recorded stands for it)."""
     found = [a for a in artefacts if a.get("detected")]
     # only an artefact of the whole dataset can stand in for a catalogue effect seen across it: a
     # slip or a zero in some tests (PER_TEST) is reported beside the effect, not instead of it
@@ -76,7 +83,19 @@ def three_way(accepted: dict, left0: dict, left1: dict | None, artefacts: list[d
         partial, kept = partial + kept, []
     structure = left0["significant"]
     after = left1 if left1 is not None else left0
-    if found:
+    beyond = left_fixed if left_fixed is not None else left0   # structure beyond the artefacts
+    if found and not kept and beyond["significant"]:
+        kind = "artefact_and_unknown_structure"
+        sentence = ("a measurement artefact, and structure left that no catalogue effect explains: "
+                    f"{_amount(beyond)}; {_where_words(beyond)}"
+                    + (" (the leftover test on the data with the artefacts' fixes applied)" if left_fixed is not None
+                       else "")
+                    + ". Measurement artefact: " + "; ".join(a["sentence"] for a in found))
+        if partial:
+            share = sum(float(accepted[c]["score"]) for c in partial) / left0["score"] if left0["score"] > 0 else 0.0
+            sentence += (f". Nearest catalogue effects: {', '.join(partial)}, significant but not named (together "
+                         f"{100 * share:.0f} % of the structure before the fixes)")
+    elif found:
         kind = "artefact"
         sentence = "measurement artefact: " + "; ".join(a["sentence"] for a in found)
         if kept:
@@ -112,4 +131,5 @@ def three_way(accepted: dict, left0: dict, left1: dict | None, artefacts: list[d
                        "the rest is noise on the inputs and the model's capacity, not a missing effect"
                        if ratio is not None else ""))
     return {"kind": kind, "sentence": sentence, "effects": kept, "artefacts": [a["artefact"] for a in found],
-            "explained_share": explained, "partial": partial, "structure_left": bool(structure)}
+            "explained_share": explained, "partial": partial, "structure_left": bool(structure),
+            "structure_beyond_artefacts": bool(found) and bool(beyond["significant"])}

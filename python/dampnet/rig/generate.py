@@ -2,7 +2,8 @@
 
 `generate(plan, effects, seed)` returns a Dataset whose meta records what the
 rig did: plan, effects (with their parameters), seed, truth parameters,
-sensor noise and resolution. Deterministic for a seed: every test draws its
+sensor noise and resolution. Each test states its place in the order the rig ran
+them (meta `run_order`, 1..n; written as the manifest's run_order column). Deterministic for a seed: every test draws its
 noise from its own stream, seeded by (seed, test index).
 """
 
@@ -98,7 +99,8 @@ def generate(plan="thesis", effects=(), seed: int = 0, progress: bool = False, *
             tests[i] = DynoTest(test_id=s["test_id"], time=quantise(t, RESOLUTION["time"]), channels=ch,
                                 frequency_hz=s["frequency_hz"], amplitude_m=s["amplitude_m"],
                                 control_nominal=s["voltage_v"], control_name="voltage",
-                                meta={"initial_temperature_c": T0[idx.index(i)]} if thermal else {})
+                                meta={"run_order": int(place[i]) + 1,  # the rig states the order it ran them in
+                                      **({"initial_temperature_c": T0[idx.index(i)]} if thermal else {})})
         if bar is not None:
             bar.update(len(idx))
     if bar is not None:
