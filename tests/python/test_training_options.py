@@ -48,7 +48,7 @@ def homes(names: tuple[str, ...], literals: set[str], root: Path = PACKAGE) -> l
     the activation's implementation, not its default)."""
     found = []
     for path, n, toks in code_lines(root):
-        mentions = any(name in t for t in toks for name in names)
+        mentions = any(name in t.lower() for t in toks for name in names)
         if mentions and any(t in literals for t in toks) and not {"==", "!="} & set(toks):
             found.append(f"{path}:{n}")
     return found

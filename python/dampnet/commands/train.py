@@ -55,10 +55,10 @@ def run(args) -> int:
     try:
         check_output_dir(out, "model", inputs, args.force)  # before the work, again when writing
         req = training_request(args)
-        req.check()  # every option and setting before the data are loaded
+        req = req.check()  # every option and setting before the data are loaded, once
         workers = check_workers(args)
         ds = apply_data_fixes(load_all(args.data, args.channel_map), args)
-        todo = plan(ds, req)
+        todo = plan(ds, req, check=False)  # checked above
         if todo.restarts > 1:
             bar = RestartProgress(not args.quiet)
         else:

@@ -146,9 +146,10 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
     from dampnet.training.restarts import check_average, check_restarts, train_restarts
 
     req = _request(request, features, algorithm, options)
-    # every option and setting before any work (one-line errors naming it and its range)
+    # every option and setting before any work (one-line errors naming it and its range), unless
+    # the request is checked already (dampnet.recipes.training.plan) and was not changed since
     check_algorithm(req.algorithm)
-    req = req.check()
+    req = req if req.checked else req.check()
     restarts = check_restarts(req.restarts, workers, req.restart_score)
     option("threads", threads)
     check_average(req.average, restarts, req.hidden, req.restart_score)
@@ -210,7 +211,7 @@ def prepare_training(ds: Dataset, features: Sequence[str] | None = None, algorit
     """Steps 1-3 of the module docstring: acceleration, hold-out, decimation, the feature matrix;
     of `request` (checked), or of the keyword options as train_dataset takes them (checked here)."""
     req = _request(request, features, algorithm, options)
-    if request is None:
+    if not req.checked:
         req = req.check()
     features, holdout_voltage, holdout_tests = req.features, req.holdout_voltage, req.holdout_tests
     decimate, terms, feature_params, acceleration_window = req.decimate, req.terms, req.feature_params, \

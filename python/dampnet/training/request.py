@@ -35,6 +35,9 @@ class TrainingRequest:
     `diagnosis_source` its file (for messages). Immutable; equal when the values are (but the
     diagnosis's, which its source names)."""
 
+    #: True for a request check() made: train_dataset need not check it again
+    checked = False
+
     def __init__(self, **options: Any):
         rows = request_rows()
         unknown = sorted(set(options) - set(rows))
@@ -77,8 +80,11 @@ class TrainingRequest:
         return f"TrainingRequest({given})"
 
     def replace(self, **changes: Any) -> "TrainingRequest":
-        """This request with `changes` (checked as a new request's)."""
-        return TrainingRequest(**{**self._values, **changes})
+        """This request with `changes`: a new request (unchecked, unless nothing changed)."""
+        new = TrainingRequest(**{**self._values, **changes})
+        if new._values == self._values:
+            return self
+        return new
 
     def check(self) -> "TrainingRequest":
         """Every value against its row of the options table, then the relations between them,
@@ -106,7 +112,9 @@ class TrainingRequest:
         # with restarts "auto" the count is known with the data: its relation to average is checked then
         check_average(checked["average"], checked["average"] if auto else n, checked["hidden"],
                       checked["restart_score"])
-        return TrainingRequest(**checked)
+        out = TrainingRequest(**checked)
+        out.__dict__["checked"] = True
+        return out
 
     def kwargs(self) -> dict[str, Any]:
         """The request's values as keyword arguments (lists as lists, mappings as dicts), e.g. of

@@ -3,11 +3,17 @@
 Two kinds of settings:
   ALGORITHM_TABLES[algorithm]: the `settings` dict of one algorithm (lm, br, scg, adam),
       e.g. {"mu_max": 1e8} or {"lr": 0.01, "batch_size": 1024};
-  OPTIONS: the options of a training request (max_epochs, restarts, seed, ...), the same
-      for every algorithm; `hidden` is checked against the runtime's layer limit
-      (dampnet._core.MAX_HIDDEN) and the feature count against dampnet._core.MAX_INPUTS.
+  OPTIONS: every training option (max_epochs, hidden, restarts, seed, ...), one `Option` row
+      each: its kind, range, default, unit, meaning, `dampnet train` option and sweep key, the
+      one place each default is stated. The request (dampnet.training.request.TrainingRequest),
+      the command line's options (dampnet.commands.training_options), the sweep's [training]
+      keys (dampnet.sweep.spec.training_params) are made from it; `register` adds a row.
+      `hidden` is checked against the runtime's layer limit (dampnet._core.MAX_HIDDEN), the
+      feature count against dampnet._core.MAX_INPUTS, the activation against its registry
+      (dampnet._core.ACTIVATIONS).
 
-`check_settings(algorithm, settings)` and `check_request(...)` are the one place a training's
+`check_settings(algorithm, settings)` and the rows' checks (`option`, `check_request`, and
+`TrainingRequest.check` with the relations between options) are the one place a training's
 inputs are validated; every front end passes through them before any training starts
 (`dampnet.training.fit`, `dampnet.training.pipeline.train_dataset` = `dampnet.train`, the
 algorithms' constructors, `dampnet train` before it loads its data, the sweep's train cells).
