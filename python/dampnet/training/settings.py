@@ -464,6 +464,33 @@ def option(name: str, value: Any) -> Any:
     return s.check(value, f"{name} ({s.cli + ', ' if s.cli else ''}{s.meaning})")
 
 
+def options_markdown() -> str:
+    """The options table as Markdown (docs/training.md's "Training options", checked against it by
+    tests/python/test_training_options.py): one line per row."""
+    def value_text(row: Option) -> str:
+        if row.choices:
+            return ", ".join(row.choices)
+        if row.kind in ("whole", "real", "pair"):
+            return row.range_text() + (" or none" if row.none else "") + (f" or {AUTO}" if row.cli_default == AUTO else "")
+        return "see the meaning"
+
+    def default_text(row: Option) -> str:
+        d = row.default
+        if d is None or d == ():
+            text = row.none or "none"
+        else:
+            text = ",".join(map(str, d)) if isinstance(d, tuple) else f"{d:g}" if isinstance(d, float) else str(d)
+        return text + (f" (`dampnet train`: {row.cli_default})" if row.cli_default is not None else "")
+
+    lines = ["| option | `dampnet train` | sweep key | values | default | unit | meaning |",
+             "|---|---|---|---|---|---|---|"]
+    for row in OPTIONS.values():
+        cells = [row.name, f"`{row.cli}`" if row.cli else "", row.sweep or "", value_text(row), default_text(row),
+                 row.unit, (row.doc or row.meaning).replace("|", "/")]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
 def option_defaults() -> dict[str, Any]:
     """Every option's default by name (OPTIONS')."""
     return {name: row.default for name, row in OPTIONS.items()}
