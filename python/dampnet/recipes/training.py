@@ -155,7 +155,7 @@ def load_data(data) -> Any:
     return sets[0] if len(sets) == 1 else merge_datasets(sets)
 
 
-def train(data, features: Sequence[str] | None = None, algorithm: str = "lm", *,
+def train(data, features: Sequence[str] | None = None, algorithm: str | None = None, *,
           request: TrainingRequest | None = None, progress: Callable[[dict], Any] | None = None,
           threads: int | None = None, workers: int | None = None, init=None, **options: Any) -> Trained:
     """Train a damper model (`dampnet.train`): `data` a Dataset, a path or a list of them;
@@ -164,7 +164,8 @@ def train(data, features: Sequence[str] | None = None, algorithm: str = "lm", *,
     "auto" for either lets the data decide as `dampnet train` does). Returns the
     Trained model with its envelope; `model, info, split = dampnet.train(...)` still unpacks."""
     if request is None:
-        request = TrainingRequest.of(features=features, algorithm=algorithm, **options)
-    elif options or features is not None or algorithm != "lm":
+        given = {k: v for k, v in (("features", features), ("algorithm", algorithm)) if v is not None}
+        request = TrainingRequest.of(**given, **options)
+    elif options or features is not None or algorithm is not None:
         raise TypeError("train: give the options either as a request or as keywords, not both")
     return plan(load_data(data), request).run(progress=progress, threads=threads, workers=workers, init=init)
