@@ -49,8 +49,10 @@ class TrainingRequest:
                 options[k] = tuple(options[k])
         self.__dict__["_values"] = {name: options.get(name, row.default) for name, row in rows.items()}
 
-    of = classmethod(lambda cls, **options: cls(**options))
-    of.__doc__ = "A request from keyword options (lists as tuples); TypeError naming an unknown option."
+    @classmethod
+    def of(cls, **options: Any) -> "TrainingRequest":
+        """A request from keyword options (lists as tuples); TypeError naming an unknown option."""
+        return cls(**options)
 
     def __getattr__(self, name: str) -> Any:
         values = self.__dict__.get("_values", {})
