@@ -57,7 +57,7 @@ def homes(names: tuple[str, ...], literals: set[str], root: Path = PACKAGE) -> l
 @pytest.mark.parametrize("what,names,literals", DEFAULTS, ids=[d[0] for d in DEFAULTS])
 def test_each_default_is_stated_once(what, names, literals):
     """grep (as tokens: code only, not comments or docstrings) finds each of the issue's defaults
-    in one line of python/dampnet, its row of the options table. Cost: 1 s."""
+    in one line of python/dampnet, its row of the options table. Cost: 1.5 s."""
     found = homes(names, literals)
     assert len(found) == 1 and found[0].startswith("training/settings.py"), (what, found)
 
@@ -97,7 +97,7 @@ def test_an_option_added_as_the_recipe_says_reaches_every_front_end(knob, tmp_pa
     """One row added to the table: `dampnet train --help` lists it with its help, the command line
     parses it into the request, the sweep's [training] has its key with its default, the check
     refuses a value out of its range (the CLI's, the sweep's and the API's alike), and the trained
-    model records it in model.meta["request"]. Cost: 3 s (one tiny training)."""
+    model records it in model.meta["request"]. Cost: 5 s (one tiny training)."""
     import dampnet
     from dampnet.commands import train
     from dampnet.commands.training_options import training_request
