@@ -40,8 +40,7 @@ def whole_epochs(prep, control_prior: float, epochs: int) -> list[float]:
     def progress(rec):
         stamps.append(time.perf_counter())
 
-    fk = prep.fit_kwargs
-    fit(prep.X, prep.force, features=prep.features, hidden=fk["hidden"], algorithm="lm", seed=0,
+    fit(prep.X, prep.force, features=prep.features, hidden=prep.request.hidden, algorithm="lm", seed=0,
         max_epochs=epochs, max_fail=epochs, threads=1, progress=progress, control_prior=control_prior)
     return list(np.diff(stamps[1:]))  # from the first epoch's end: the set-up is not an epoch
 
@@ -53,7 +52,7 @@ def parts(n_rows: int, n_in: int, n_levels: int, repeats: int) -> dict[str, list
     from dampnet.training.net import DTYPE, Layout
 
     g = torch.Generator().manual_seed(0)
-    layout = Layout(n_in, (30,))
+    layout = Layout(n_in, (30,), "tanh")
     x = layout.init(g)
     xs = 2 * torch.rand(n_rows, n_in, dtype=DTYPE, generator=g) - 1
     levels = np.linspace(-1, 1, n_levels)[:, None]

@@ -207,7 +207,7 @@ def distill(name: str, teachers: int, student_hidden: int, seeds: int, cache: st
         return
     target = np.mean([predict_force(m, prep.X, prep.xd) for m in models], axis=0)
     student_prep = dataclasses.replace(prep, force=target,
-                                       fit_kwargs={**prep.fit_kwargs, "hidden": (student_hidden,)})
+                                       request=prep.request.replace(hidden=(student_hidden,)))
     res = []
     for seed in range(seeds):
         t0 = time.perf_counter()

@@ -18,14 +18,15 @@ from typing import Any
 
 import numpy as np
 
-from dampnet import schema
+from dampnet import _core, schema
 from dampnet import terms as term_kinds
 from dampnet.features import feature_param_names
 from dampnet.outputs import atomic_write_text
 
 FORMAT_NAME = "dampnet-model"
 FORMAT_VERSION = 1
-ACTIVATIONS = ("tanh", "sigmoid")
+#: the hidden layers' activations: the runtime's (dampnet._core.ACTIVATIONS)
+ACTIVATIONS = tuple(_core.ACTIVATIONS)
 _REQUIRED_FIELDS = ("w1", "b1", "w_out", "b_out", "in_offset", "in_gain", "out_offset", "out_gain",
                     "sat_lo", "sat_hi", "features", "units", "activation")
 
@@ -75,7 +76,7 @@ class MlpModel:
     sat_hi: np.ndarray  # [n_in] feature units
     features: list[str]
     units: list[str]
-    activation: str = "tanh"
+    activation: str  # one of ACTIVATIONS
     w2: np.ndarray | None = None  # [h2, h1]
     b2: np.ndarray | None = None  # [h2]
     in_ymin: float = -1.0

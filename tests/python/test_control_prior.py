@@ -29,7 +29,7 @@ from dampnet.training.problem import MlpProblem
 
 
 def test_the_prior_rows_jacobian_is_the_autograd_one():
-    layout = Layout(3, (7,))
+    layout = Layout(3, (7,), "tanh")
     x = layout.init(torch.Generator().manual_seed(3))
     rng = np.random.default_rng(0)
     xs = torch.as_tensor(rng.uniform(-1, 1, (40, 3)), dtype=DTYPE)

@@ -70,7 +70,7 @@ def test_decimate_keeps_every_nth_sample(quick_truth):
 
 
 def test_holdout_split_is_the_thesis_split(quick_truth):
-    train, hold = holdout_split(quick_truth)
+    train, hold = holdout_split(quick_truth, 2.25)
     assert {t.control_nominal for t in hold.tests} == {2.25}
     assert 2.25 not in {t.control_nominal for t in train.tests}
     assert len(train) + len(hold) == len(quick_truth)
@@ -80,7 +80,7 @@ def test_holdout_split_is_the_thesis_split(quick_truth):
     with pytest.raises(ValueError, match="nothing to hold out"):
         holdout_split(quick_truth, voltage=1.7)
     with pytest.raises(ValueError, match="unknown test ids"):
-        holdout_split(quick_truth, test_ids=["nope"])
+        holdout_split(quick_truth, 2.25, test_ids=["nope"])
 
 
 def test_split_by_tests_is_disjoint_and_seeded(quick_truth):

@@ -176,7 +176,7 @@ def linear_mlp(c, m_a, eps=1e-6):
                     in_gain=np.array([1.0 / hi_v, 1.0 / hi_a]), in_ymin=0.0, out_offset=0.0,
                     out_gain=1.0, out_ymin=0.0, sat_lo=np.array([-hi_v, -hi_a]),
                     sat_hi=np.array([hi_v, hi_a]), features=["velocity", "acceleration"],
-                    units=["m/s", "m/s^2"])
+                    units=["m/s", "m/s^2"], activation="tanh")
 
 
 def added_mass_run(m_a, accel_feature, dts=(1e-3, 5e-4), c=1500.0):

@@ -44,7 +44,7 @@ def test_the_rows_step_velocity_and_spread_the_control_between_the_levels():
 
 
 def test_the_jacobian_is_autograds_and_only_falling_rows_count():
-    layout = Layout(3, (7,))
+    layout = Layout(3, (7,), "tanh")
     x = layout.init(torch.Generator().manual_seed(1))
     rng = np.random.default_rng(2)
     xs = torch.as_tensor(rng.uniform(-1, 1, (200, 3)), dtype=DTYPE)
@@ -76,7 +76,7 @@ def test_the_jacobian_is_autograds_and_only_falling_rows_count():
     assert loss == pytest.approx(float(r_all @ r_all) / 200, rel=1e-12)
     np.testing.assert_allclose(grad.numpy(), (2 * j_all.T @ r_all / 200).numpy(), rtol=1e-9, atol=1e-12)
     # a monotone network has no violated row: an empty block
-    up = Layout(1, (2,))
+    up = Layout(1, (2,), "tanh")
     w = up.pack({"w1": torch.tensor([[1.0], [2.0]]), "b1": torch.zeros(2), "w_out": torch.tensor([1.0, 1.0]),
                  "b_out": torch.zeros(1)})
     mono = monotone_rows(xs[:, :1], 0, [], None, 1.0, rng)

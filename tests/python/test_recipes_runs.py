@@ -393,28 +393,27 @@ def test_simulate_default_runs_the_embedded_model(tmp_path):
 
 # -- the training request -----------------------------------------------------------------------
 
-def test_every_request_field_is_spelled_where_fields_says():
-    """FIELDS covers the request; each CLI option it names is `dampnet train`'s, each sweep key the
-    sweep's [training] key (with FIELDS's help)."""
+def test_every_request_field_is_spelled_where_the_table_says():
+    """The options table's rows are the request's fields; each CLI option a row names is `dampnet
+    train`'s, each sweep key the sweep's [training] key, both with the row's help first."""
     import argparse
-    from dataclasses import fields
 
     from dampnet.commands import train
-    from dampnet.sweep.spec import TRAINING_PARAMS
+    from dampnet.sweep.spec import training_params
+    from dampnet.training.settings import OPTIONS
 
-    names = {f.name for f in fields(recipe.TrainingRequest)} - {"diagnosis_source"}
-    assert names == set(recipe.FIELDS)
+    names = set(recipe.TrainingRequest()._values)
+    assert names == {n for n, row in OPTIONS.items() if row.request}
     parser = train.add_parser(argparse.ArgumentParser().add_subparsers())
     options = {o for a in parser._actions for o in a.option_strings}
-    sweep_keys = {p.key: p for p in TRAINING_PARAMS}
+    sweep_keys = {p.key: p for p in training_params()}
     helps = {o: a.help for a in parser._actions for o in a.option_strings}
-    for f in recipe.FIELDS.values():
+    for f in OPTIONS.values():
         assert f.cli is None or f.cli in options, f.name
         assert f.sweep is None or f.sweep in sweep_keys, f.name
-        # the option's help says what FIELDS says first (then only how the command line spells it)
+        # the option's help says what the row says first (then only how the command line spells it)
         assert f.cli is None or helps[f.cli].startswith(f.help()), (f.name, helps[f.cli])
-    for key in ("restarts", "average", "restart_score"):
-        assert sweep_keys[key].help.startswith(recipe.FIELDS[key].doc)
+        assert f.sweep is None or sweep_keys[f.sweep].help.startswith(f.help()), f.name
 
 
 def test_sweep_specs_take_restarts_and_average():

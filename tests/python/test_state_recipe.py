@@ -327,7 +327,7 @@ def recipe_fmu(tmp_path_factory):
             try:
                 model = MlpModel(w1=W1, b1=B1, w_out=W_OUT, b_out=B_OUT, in_offset=IN_OFFSET, in_gain=IN_GAIN,
                                  out_offset=OUT_OFFSET, out_gain=OUT_GAIN, sat_lo=SAT_LO, sat_hi=SAT_HI,
-                                 features=list(FEATURES), units=["m/s", "m"], feature_params={PARAM: TAU})
+                                 features=list(FEATURES), units=["m/s", "m"], activation="tanh", feature_params={PARAM: TAU})
                 desc = fmu_damper.damper_description(model, step_s=DT)
                 fmu_build.package(model, desc, out, 2, None, False, True, extra_flags=["-include", str(EXTRA)])
             finally:

@@ -29,7 +29,7 @@ pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 # A hand-picked 2-3-1 tanh teacher: distinct hidden directions, O(1) output weights.
-TEACHER = Layout(2, (3,))
+TEACHER = Layout(2, (3,), "tanh")
 TEACHER_X = TEACHER.pack({
     "w1": torch.tensor([[1.5, -0.8], [0.5, 1.2], [-1.0, -1.3]]),
     "b1": torch.tensor([0.3, -0.4, 0.2]),
@@ -47,7 +47,7 @@ def teacher_data(n=200):
 def best_nrmse(cls, student_hidden, settings, epochs, restarts):
     """Train from `restarts` seeded inits; stop at the first that reaches 1e-4."""
     xs, t = teacher_data()
-    lay = Layout(2, student_hidden)
+    lay = Layout(2, student_hidden, "tanh")
     span = float(t.max() - t.min())
     results = []
     for seed in range(restarts):

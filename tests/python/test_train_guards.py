@@ -48,14 +48,14 @@ def test_data_at_the_limit_train(tiny):
 def test_a_diverged_fit_is_a_model_error(tiny, monkeypatch):
     import dampnet.training.pipeline as pipeline
 
-    real_fit = pipeline.fit
+    real_fit = pipeline.fit_checked
 
     def diverging_fit(*a, **k):
         model, info = real_fit(*a, **k)
         info.metrics["test"] = float("nan")
         return model, info
 
-    monkeypatch.setattr(pipeline, "fit", diverging_fit)
+    monkeypatch.setattr(pipeline, "fit_checked", diverging_fit)
     with pytest.raises(ModelError, match=r"training gave non-finite NRMSE \(test\)"):
         train_dataset(tiny, max_epochs=3)
 

@@ -46,7 +46,7 @@ def test_a_combination_s_jacobian_matches_autograd(hidden, activation):
 
 
 def test_jacobian_reuses_buffer():
-    lay = Layout(2, (3,))
+    lay = Layout(2, (3,), "tanh")
     g = torch.Generator().manual_seed(0)
     xs = torch.rand(8, 2, dtype=DTYPE, generator=g)
     buf = torch.full((lay.n_params, 8), float("nan"), dtype=DTYPE)
@@ -56,7 +56,7 @@ def test_jacobian_reuses_buffer():
 
 
 def test_pack_unpack_roundtrip_and_layout():
-    lay = Layout(3, (4, 2))
+    lay = Layout(3, (4, 2), "tanh")
     assert lay.n_params == 4 * 3 + 4 + 2 * 4 + 2 + 2 + 1
     x = torch.arange(lay.n_params, dtype=DTYPE)
     p = lay.unpack(x)
@@ -66,7 +66,7 @@ def test_pack_unpack_roundtrip_and_layout():
 
 
 def test_init_is_seeded_and_nguyen_widrow_scaled():
-    lay = Layout(3, (30,))
+    lay = Layout(3, (30,), "tanh")
     a = lay.init(torch.Generator().manual_seed(5))
     b = lay.init(torch.Generator().manual_seed(5))
     c = lay.init(torch.Generator().manual_seed(6))
@@ -78,6 +78,6 @@ def test_init_is_seeded_and_nguyen_widrow_scaled():
 
 def test_layout_rejects_bad_shapes():
     with pytest.raises(ValueError, match="hidden"):
-        Layout(3, (3, 3, 3))
+        Layout(3, (3, 3, 3), "tanh")
     with pytest.raises(ValueError, match="activation"):
         Layout(3, (3,), "relu")

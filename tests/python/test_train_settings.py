@@ -106,7 +106,7 @@ def test_every_bad_setting_is_named_with_its_range_before_training(case, front_e
     assert f"{algo} setting {name} (" in msg and s.range_text() in msg, msg
 
 
-@pytest.mark.parametrize("name", sorted(OPTIONS))
+@pytest.mark.parametrize("name", sorted(n for n, row in OPTIONS.items() if row.kind != "other"))
 def test_every_request_option_is_named_with_its_range(name, no_training):
     s = OPTIONS[name]
     for value in bad_values(s):

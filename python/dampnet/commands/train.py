@@ -11,17 +11,17 @@ import sys
 import time
 
 from dampnet.commands.common import DATA_HELP, add_channel_map_option, add_data_fix_options, apply_data_fixes, error, load_all
-from dampnet.commands.training_options import ADD_RULE, Progress, add_training_options, field_help, training_request, whole
+from dampnet.commands.training_options import ADD_RULE, Progress, add_training_options, training_request, whole
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     """Register the `train` subcommand; its handler is `run`."""
-    from dampnet.training.restarts import DEFAULT_SCORE, SCORE_HELP, SCORES
+    from dampnet.training.settings import OPTIONS
 
     p = subparsers.add_parser(
         "train", help="train an MLP damper model from dyno data",
         description="Train the thesis's MLP (velocity, acceleration, control -> force) on a dataset, "
-                    "hold out the 2.25 V tests for evaluation, and write MODEL_DIR with model.json, "
+                    f"hold out the {OPTIONS['holdout_voltage'].default:g} V tests for evaluation, and write MODEL_DIR with model.json, "
                     "metrics.json and the C header model.h. --add EFFECT adds what captures a physical "
                     f"effect the diagnosis named: {ADD_RULE}, e.g. `dampnet diagnose MODEL DATA --json d.json` "
                     "then `dampnet train DATA --out MODEL2 --add valve_lag --diagnosis d.json`.")
@@ -30,19 +30,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         "as one (e.g. a campaign and the tests dampnet plan-tests proposed; test ids must be unique)")
     p.add_argument("--out", required=True, help="model directory to write (must not exist unless --force)")
     add_channel_map_option(p)
-    add_training_options(p)
-    p.add_argument("--restarts", default="auto", metavar="N",
-                   help=field_help("restarts", "N (--seed first), never looking at the hold-out; default 'auto'; "
-                                              "1: train once. model.json records every restart (meta.restarts)"))
-    p.add_argument("--restart-score", default=DEFAULT_SCORE, choices=list(SCORES),
-                   help=field_help("restart_score", "; ".join(f"{k}: {v}" for k, v in SCORE_HELP.items())))
-    p.add_argument("--average", type=int, default=1, metavar="K",
-                   help=field_help("average", "K, into one network K times as wide (their mean output, exactly; "
-                                             "the width must fit the runtime's DN_MAX_HIDDEN, 384 here, e.g. 6 x 30 hidden): lower "
-                                             "held-out error than one seed or one wide network (bench/RESULTS.md "
-                                             "'Inside the envelope'); default 1, the best restart alone"))
-    p.add_argument("--workers", default=None, metavar="N",
-                   help="processes the restarts run in, one torch thread each (default: the local cores)")
+    add_training_options(p, train=True)
     p.add_argument("--prefix", default="dn_model", help="C identifier prefix in model.h (default dn_model)")
     add_data_fix_options(p)
     p.add_argument("--force", action="store_true", help="replace MODEL_DIR if it exists")
@@ -67,10 +55,10 @@ def run(args) -> int:
     try:
         check_output_dir(out, "model", inputs, args.force)  # before the work, again when writing
         req = training_request(args)
-        req.check()  # every option and setting before the data are loaded
+        req = req.check()  # every option and setting before the data are loaded, once
         workers = check_workers(args)
         ds = apply_data_fixes(load_all(args.data, args.channel_map), args)
-        todo = plan(ds, req)
+        todo = plan(ds, req, check=False)  # checked above
         if todo.restarts > 1:
             bar = RestartProgress(not args.quiet)
         else:
@@ -101,9 +89,7 @@ def check_workers(args) -> int | None:
     """--workers as a whole number in its range (None when not given)."""
     from dampnet.training.settings import option
 
-    if args.workers is None:
-        return None
-    return option("workers", whole(args.workers, "workers"))
+    return option("workers", None if args.workers is None else whole(args.workers, "workers"))
 
 
 class RestartProgress(Progress):

@@ -14,66 +14,102 @@ ADD_RULE = ("its parameters (a lag's time constant, a pre-sliding length) are th
 
 
 def field_help(name: str, spelling: str = "") -> str:
-    """An option's help: what the request field means (dampnet.recipes.training.FIELDS, the
-    one text the sweep's keys share), then how the command line spells it."""
-    from dampnet.recipes.training import FIELDS
-
-    return FIELDS[name].help() + (f"; {spelling}" if spelling else "")
-
-
-def add_training_options(p: argparse.ArgumentParser, algorithm: bool = True) -> None:
-    """Options shared by `train` and `compare-algorithms`."""
-    from dampnet.effects import CATALOGUE
-
-    addable = ", ".join(k for k, e in CATALOGUE.items() if e.adds is not None)
-    p.add_argument("--features", default=None,
-                   help=field_help("features", "comma-separated, e.g. velocity,acceleration,voltage,temperature"))
-    p.add_argument("--terms", default=None,
-                   help=field_help("terms", 'JSON, e.g. \'[{"kind": "position_poly"}]\'; terms without "params" are '
-                                            "fitted by least squares, the MLP learns the rest"))
-    p.add_argument("--add", action="append", default=[], metavar="EFFECT",
-                   help=field_help("add", f"repeatable; the effect catalogue: {addable}; `dampnet rig "
-                                          f"--list-effects`; {ADD_RULE}"))
-    p.add_argument("--diagnosis", default=None, metavar="FILE",
-                   help=field_help("diagnosis", "the JSON of `dampnet diagnose --json FILE` (the same additions as "
-                                                "the demo's improve stage)"))
-    if algorithm:
-        from dampnet.recipes.training import AUTO
-        from dampnet.training.settings import ALGORITHM_NAMES
-
-        p.add_argument("--algorithm", default=AUTO, choices=[AUTO, *sorted(ALGORITHM_NAMES)],
-                       help=field_help("algorithm", "auto (the default; bench/RESULTS.md 'Few dyno tests'), "
-                                       + ", ".join(f"{k} {v}" for k, v in ALGORITHM_NAMES.items())))
-    p.add_argument("--hidden", default="30", help=field_help("hidden", "e.g. 30 or 20,10 (default 30)"))
-    p.add_argument("--activation", default="tanh", choices=["tanh", "sigmoid"],
-                   help=field_help("activation", "default tanh, MATLAB's tansig"))
-    p.add_argument("--holdout-voltage", default="2.25",
-                   help=field_help("holdout_voltage", "every test at this nominal control value; default 2.25, "
-                                                          "'none' for none"))
-    p.add_argument("--holdout-tests", default="", help=field_help("holdout_tests", "comma-separated"))
-    p.add_argument("--decimate", default="auto",
-                   help=field_help("decimate", "N, or 'auto' (the default; 25 at 5 kHz, 50 on large data)"))
+    """An option's help: what it means (its row of the options table, dampnet.training.settings.OPTIONS,
+    the one text the sweep's keys share), then how the command line spells it."""
     from dampnet.training.settings import OPTIONS
 
-    rest = OPTIONS["rest_target"]
-    p.add_argument("--rest-target", default=rest.default, choices=rest.choices,
-                   help=field_help("rest_target", f"default {rest.default}"))
-    from dampnet.training.settings import MAX_EPOCHS, MAX_SEED, TRAIN_DEFAULTS, settings_help
+    return OPTIONS[name].help() + (f"; {spelling}" if spelling else "")
 
-    p.add_argument("--max-epochs", type=int, default=1000, help=field_help("max_epochs", f"1..{MAX_EPOCHS} (default 1000)"))
-    p.add_argument("--seed", type=int, default=0,
-                   help=field_help("seed", f"0..{MAX_SEED} (default 0)"))
-    prior = OPTIONS["control_prior"]
-    p.add_argument("--control-prior", type=float, default=prior.default, metavar="W",
-                   help=field_help("control_prior", f"W in {prior.range_text()} (default {prior.default:g}; "
-                                                    "dampnet.training.control_prior; bench/RESULTS.md 'Few dyno tests')"))
-    mono = OPTIONS["monotone_prior"]
-    p.add_argument("--monotone-prior", type=float, default=mono.default, metavar="W",
-                   help=field_help("monotone_prior", f"W in {mono.range_text()} (default {mono.default:g}; "
-                                                     "dampnet.training.monotone_prior)"))
-    p.add_argument("--settings", default=None,
-                   help=field_help("settings", 'JSON, e.g. \'{"mu_max": 1e8}\' or \'{"lr": 0.01}\'; each with its '
-                                               f"range: {settings_help(TRAIN_DEFAULTS)}"))
+
+def _default_text(row) -> str:
+    value = row.cli_default if row.cli_default is not None else row.default
+    if value is None or value == ():
+        return ""
+    if isinstance(value, tuple):
+        value = ",".join(map(str, value))
+    return f"default {value:g}" if isinstance(value, float) else f"default {value}"
+
+
+def add_training_options(p: argparse.ArgumentParser, algorithm: bool = True, train: bool = False) -> None:
+    """The options of the options table's rows with a `cli` (dampnet.training.settings.OPTIONS):
+    those `train` and `compare-algorithms` share (`algorithm`: --algorithm too), and with `train`
+    the train_only ones (--restarts, --workers, ...). Each is None unless given: training_request
+    takes the table's default (or the row's cli_default)."""
+    from dampnet.effects import CATALOGUE
+    from dampnet.training.restarts import SCORE_HELP
+    from dampnet.training.settings import OPTIONS, TRAIN_DEFAULTS, settings_help
+
+    addable = ", ".join(k for k, e in CATALOGUE.items() if e.adds is not None)
+    extra = {"add": f"repeatable; the effect catalogue: {addable}; `dampnet rig --list-effects`; {ADD_RULE}",
+             "settings": 'JSON, e.g. \'{"mu_max": 1e8}\' or \'{"lr": 0.01}\'; each with its range: '
+                         + settings_help(TRAIN_DEFAULTS),
+             "restart_score": "; ".join(f"{k}: {v}" for k, v in SCORE_HELP.items())}
+    for row in OPTIONS.values():
+        if row.cli is None or (row.train_only and not train) or (row.name == "algorithm" and not algorithm):
+            continue
+        kw: dict = {"default": None}
+        if row.name == "add":
+            kw["action"] = "append"
+        elif row.choices:
+            kw["choices"] = list(row.choices)
+        elif row.kind in ("whole", "real") and row.name not in PARSE:
+            kw["type"] = int if row.kind == "whole" else float
+            if row.kind == "whole":
+                kw["help_range"] = f"{row.range_text()}"
+        rng = kw.pop("help_range", "")
+        if row.kind == "real" and row.name not in PARSE:
+            rng = f"{row.metavar or 'value'} in {row.range_text()}"
+        words = "; ".join(w for w in (row.cli_help, extra.get(row.name, ""), rng, _default_text(row)) if w)
+        p.add_argument(row.cli, metavar=row.metavar, help=field_help(row.name, words), **kw)
+
+
+def _words(text: str) -> tuple[str, ...]:
+    return tuple(s.strip() for s in text.split(",") if s.strip())
+
+
+def _hidden(text: str) -> tuple[int, ...]:
+    try:
+        return tuple(int(h) for h in text.split(",") if h.strip())
+    except ValueError:
+        raise ValueError(f"--hidden: expected sizes like 30 or 20,10, got {text!r}") from None
+
+
+def _holdout_voltage(text: str) -> float | None:
+    hv = text.strip().lower()
+    try:
+        return None if hv in ("none", "") else float(hv)
+    except ValueError:
+        raise ValueError(f"--holdout-voltage: expected a number or 'none', got {text!r}") from None
+
+
+def _decimate(text: str) -> int | None:
+    dec = text.strip().lower()
+    try:
+        return None if dec == "auto" else int(dec)
+    except ValueError:
+        raise ValueError(f"--decimate: expected a positive integer or 'auto', got {text!r}") from None
+
+
+def _terms(text: str) -> list:
+    terms = json_arg(text, "terms", list) or []
+    for t in terms:
+        if not isinstance(t, dict) or "kind" not in t:
+            raise ValueError(f"--terms: each term must be an object with a 'kind', got {t!r}")
+    return terms
+
+
+def _restarts(text: str) -> int | str:
+    from dampnet.training.settings import AUTO
+
+    return AUTO if str(text).strip().lower() == AUTO else whole(text, "restarts")
+
+
+#: how the command line spells the values its kind does not say (text -> value); the others are
+#: argparse's int or float, or a choice
+PARSE = {"features": lambda t: list(_words(t)) or None, "hidden": _hidden, "holdout_voltage": _holdout_voltage,
+         "holdout_tests": lambda t: list(_words(t)), "decimate": _decimate, "terms": _terms,
+         "settings": lambda t: json_arg(t, "settings", dict), "restarts": _restarts,
+         "workers": lambda t: whole(t, "workers"), "add": list}
 
 
 def training_kwargs(args, ds) -> tuple[dict, list[dict]]:
@@ -98,47 +134,29 @@ def option_kwargs(args) -> dict:
 
 def training_request(args):
     """The dampnet.recipes.training.TrainingRequest of the parsed options (`train`'s and
-    `compare-algorithms`'); ValueError on options that do not parse (their ranges are the
-    request's check, dampnet.training.settings). --diagnosis FILE is read here."""
-    from dampnet.recipes.training import AUTO, TrainingRequest
-    from dampnet.training.restarts import DEFAULT_SCORE
+    `compare-algorithms'`): each request row's option (PARSE: its text to a value), its cli_default
+    or the table's default when not given; ValueError on options that do not parse (their ranges
+    are the request's check, dampnet.training.request). --diagnosis FILE is read here."""
+    from dampnet.recipes.training import TrainingRequest
+    from dampnet.training.settings import OPTIONS
 
-    features = [f.strip() for f in args.features.split(",") if f.strip()] if args.features else None
-    terms = json_arg(args.terms, "terms", list) or []
-    for t in terms:
-        if not isinstance(t, dict) or "kind" not in t:
-            raise ValueError(f"--terms: each term must be an object with a 'kind', got {t!r}")
-    try:
-        hidden = tuple(int(h) for h in args.hidden.split(",") if h.strip())
-    except ValueError:
-        raise ValueError(f"--hidden: expected sizes like 30 or 20,10, got {args.hidden!r}") from None
-    hv = args.holdout_voltage.strip().lower()
-    try:
-        holdout_voltage = None if hv in ("none", "") else float(hv)
-    except ValueError:
-        raise ValueError(f"--holdout-voltage: expected a number or 'none', got {args.holdout_voltage!r}") from None
-    dec = args.decimate.strip().lower()
-    try:
-        decimate = None if dec == "auto" else int(dec)
-    except ValueError:
-        raise ValueError(f"--decimate: expected a positive integer or 'auto', got {args.decimate!r}") from None
-    diagnosis = None
+    given = {}
+    for row in OPTIONS.values():
+        dest = row.cli[2:].replace("-", "_") if row.cli else None
+        if not row.request or dest is None or not hasattr(args, dest) or row.name == "diagnosis":
+            continue
+        text = getattr(args, dest)
+        if text is None:
+            if row.cli_default is not None:
+                given[row.name] = row.cli_default
+            continue
+        given[row.name] = PARSE[row.name](text) if row.name in PARSE else text
     if args.diagnosis is not None:
         if not args.add:
             raise ValueError("--diagnosis: name the effect(s) to add with --add EFFECT (e.g. the diagnosis's verdict)")
-        diagnosis = read_json_file(args.diagnosis, "the diagnosis JSON of `dampnet diagnose --json`")
-    restarts = 1
-    if getattr(args, "restarts", None) is not None:
-        restarts = AUTO if str(args.restarts).strip().lower() == AUTO else whole(args.restarts, "restarts")
-    return TrainingRequest.of(
-        features=features, algorithm=getattr(args, "algorithm", "lm"), hidden=hidden, activation=args.activation,
-        holdout_voltage=holdout_voltage, holdout_tests=[s.strip() for s in args.holdout_tests.split(",") if s.strip()],
-        decimate=decimate, terms=terms, seed=args.seed,
-        rest_target=args.rest_target,
-        max_epochs=args.max_epochs, settings=json_arg(args.settings, "settings", dict), add=list(args.add),
-        diagnosis=diagnosis, diagnosis_source=args.diagnosis, restarts=restarts,
-        restart_score=getattr(args, "restart_score", DEFAULT_SCORE), average=getattr(args, "average", 1),
-        control_prior=args.control_prior, monotone_prior=args.monotone_prior)
+        given["diagnosis"] = read_json_file(args.diagnosis, "the diagnosis JSON of `dampnet diagnose --json`")
+        given["diagnosis_source"] = args.diagnosis
+    return TrainingRequest.of(**given)
 
 
 def whole(text: str, name: str) -> int:

@@ -161,10 +161,10 @@ def decimate(ds: Dataset, factor: int) -> Dataset:
 HOLDOUT_HINT = "choose another --holdout-voltage, name --holdout-tests, or --holdout-voltage none"
 
 
-def holdout_split(ds: Dataset, voltage: float | None = 2.25, test_ids=None,
+def holdout_split(ds: Dataset, voltage: float | None, test_ids=None,
                   atol: float = 1e-6) -> tuple[Dataset, Dataset]:
-    """(train, holdout): hold out all tests at nominal `voltage` [V] (the thesis: 2.25 V)
-    and/or the tests named in `test_ids`. ValueError if nothing would be held out."""
+    """(train, holdout): hold out all tests at nominal `voltage` [V] (None: none; the training's
+    default: dampnet.training.settings.OPTIONS) and/or the tests named in `test_ids`. ValueError if nothing would be held out."""
     ids = set(test_ids or ())
     unknown = ids - set(ds.test_ids)
     if unknown:

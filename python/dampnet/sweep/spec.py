@@ -237,13 +237,6 @@ def _training(name: str, none: str | None = None) -> Callable[[Any], Any]:
     return norm
 
 
-def _training_default(name: str) -> Any:
-    """A training option's default from its one home (dampnet.training.settings.OPTIONS)."""
-    from dampnet.training.settings import OPTIONS
-
-    return OPTIONS[name].default
-
-
 def _restarts(v) -> int | str:
     """'auto' (as `dampnet train` without --restarts) or a number of restarts."""
     from dampnet.recipes.training import AUTO
@@ -263,13 +256,6 @@ def _default_restart_score() -> str:
     from dampnet.training.restarts import DEFAULT_SCORE
 
     return DEFAULT_SCORE
-
-
-def _request_help(name: str) -> str:
-    """A training parameter's help: the training request's (dampnet.recipes.training.FIELDS)."""
-    from dampnet.recipes.training import FIELDS
-
-    return FIELDS[name].help()
 
 
 def _objective(kind: str, v) -> str:
@@ -371,36 +357,47 @@ def _controller_params() -> list[Param]:
             for name in Controller.__dataclass_fields__ if name != "kind"]
 
 
-TRAINING_PARAMS = [
-    Param("dataset", "datasets", _text, None, axis=True, input="dataset",
-          help="a dataset path, or rig:PLAN (thesis, quick, a plan JSON) generated per cell"),
-    Param("data_seed", "data_seeds", _int(0), 0, axis=True, kind="int", help="seed of rig:PLAN data"),
-    Param("rig_effects", "rig_effects", _effects, [], axis=True, help="effects on in the rig (rig:PLAN)"),
-    Param("algorithm", "algorithms", _choice(_algorithms, "a training algorithm"), "lm", axis=True,
-          help="lm (the default here: a sweep compares what it names), br, scg, adam, or auto (dampnet "
-               "train's default; the column algorithm_used says which)"),
-    Param("add", "add", _effects, [], axis=True, help="effects whose features/terms are added"),
-    Param("features", "features", _features, None, axis=True, help="'default' or feature names"),
-    Param("seed", "seeds", _training("seed"), 0, axis=True, kind="int", help="training seed"),
-    Param("hidden", "hidden", _hidden, [30], axis=True, help="hidden layer sizes"),
-    Param("decimate", "decimate", _training("decimate", none="auto"), None, kind="int",
-          help="every N-th sample, or 'auto'"),
-    Param("max_epochs", "max_epochs", _training("max_epochs"), 1000, kind="int"),
-    Param("max_fail", "max_fail", _training("max_fail"), 6, kind="int"),
-    Param("holdout_voltage", "holdout_voltage", _training("holdout_voltage", none="none"), 2.25, kind="float",
-          help="[V], or 'none'"),
-    Param("activation", "activation", _choice(("tanh", "sigmoid"), "an activation"), "tanh"),
-    Param("restarts", "restarts", _restarts, 1, help=_request_help("restarts") + "; default 1, one training"),
-    Param("average", "average", _training("average"), 1, kind="int", help=_request_help("average")),
-    Param("restart_score", "restart_score", _choice(_restart_scores, "a restart score"), _default_restart_score(),
-          help=_request_help("restart_score")),
-    Param("control_prior", "control_prior", _training("control_prior"), _training_default("control_prior"),
-          kind="float", help=_request_help("control_prior")),
-    Param("monotone_prior", "monotone_prior", _training("monotone_prior"), _training_default("monotone_prior"),
-          kind="float", help=_request_help("monotone_prior")),
-    Param("rest_target", "rest_target", _training("rest_target"), _training_default("rest_target"),
-          help=_request_help("rest_target")),
-]
+#: the [training] keys' values the options table's check does not say: their own spellings ("20-10",
+#: 'default', 'auto', effect ids) and messages
+_TRAINING_NORMS: dict[str, Callable[[Any], Any]] = {
+    "algorithm": _choice(_algorithms, "a training algorithm"), "add": _effects, "features": _features,
+    "hidden": _hidden, "restarts": _restarts, "activation": _choice(lambda: _table()["activation"].choices,
+                                                                     "an activation"),
+    "restart_score": _choice(_restart_scores, "a restart score"),
+    "decimate": _training("decimate", none="auto"), "holdout_voltage": _training("holdout_voltage", none="none")}
+#: the words a [training] key's help adds to its row's
+_TRAINING_HELP = {"algorithm": "lm (the default here: a sweep compares what it names), br, scg, adam, or auto (dampnet "
+                               "train's default; the column algorithm_used says which)",
+                  "features": "'default' or feature names", "decimate": "or 'auto'", "holdout_voltage": "or 'none'",
+                  "restarts": "a number or 'auto'; default 1, one training"}
+
+
+def _table():
+    from dampnet.training.settings import OPTIONS
+
+    return OPTIONS
+
+
+def training_params() -> list[Param]:
+    """[training]'s keys: the dataset's, then one per row of the options table with a sweep key
+    (dampnet.training.settings.OPTIONS: its default, its check, its help), read now (a row
+    registered later counts)."""
+    out = [
+        Param("dataset", "datasets", _text, None, axis=True, input="dataset",
+              help="a dataset path, or rig:PLAN (thesis, quick, a plan JSON) generated per cell"),
+        Param("data_seed", "data_seeds", _int(0), 0, axis=True, kind="int", help="seed of rig:PLAN data"),
+        Param("rig_effects", "rig_effects", _effects, [], axis=True, help="effects on in the rig (rig:PLAN)"),
+    ]
+    for row in _table().values():
+        if row.sweep is None:
+            continue
+        default = list(row.default) if isinstance(row.default, tuple) else row.default
+        kind = {"whole": "int", "real": "float"}.get(row.kind, "any")
+        words = _TRAINING_HELP.get(row.name)
+        out.append(Param(row.name, row.sweep, _TRAINING_NORMS.get(row.name) or _training(row.name), default,
+                         axis=row.axis, kind=kind, help=row.help() + (f"; {words}" if words else "")))
+    return out
+
 
 SIMULATION_PARAMS = [
     Param("model", "models", _text, "default", axis=True, input="model",
@@ -462,7 +459,7 @@ def fullcar_params() -> list[Param]:
     ]
 
 
-SECTION_PARAMS = {"training": lambda: TRAINING_PARAMS, "simulation": lambda: SIMULATION_PARAMS,
+SECTION_PARAMS = {"training": training_params, "simulation": lambda: SIMULATION_PARAMS,
                   "fullcar": fullcar_params}
 SUBTABLES = {"simulation": {"vehicle": _vehicle_params, "controller": _controller_params},
              "fullcar": {"vehicle": _fullcar_params}}

@@ -44,17 +44,15 @@ def run(params: dict[str, Any], inputs: dict[str, Any]) -> dict[str, Any]:
 
 
 def request(params: dict[str, Any]):
-    """The cell's dampnet.recipes.training.TrainingRequest (its [training] parameters)."""
+    """The cell's dampnet.recipes.training.TrainingRequest: its value of every option with a sweep
+    key (dampnet.training.settings.OPTIONS; features 'default' is None)."""
     from dampnet.recipes.training import TrainingRequest
-    from dampnet.training.restarts import DEFAULT_SCORE
+    from dampnet.training.settings import OPTIONS
 
-    return TrainingRequest.of(
-        features=params["features"] or None, algorithm=params["algorithm"], hidden=tuple(params["hidden"]),
-        activation=params["activation"], holdout_voltage=params["holdout_voltage"], decimate=params["decimate"],
-        seed=params["seed"], max_epochs=params["max_epochs"], max_fail=params["max_fail"], add=params["add"],
-        restarts=params["restarts"], average=params["average"], restart_score=params["restart_score"] or DEFAULT_SCORE,
-        control_prior=params["control_prior"], monotone_prior=params["monotone_prior"],
-        rest_target=params["rest_target"])
+    given = {row.name: params[row.name] for row in OPTIONS.values() if row.sweep and row.request}
+    given["features"] = given["features"] or None
+    given["restart_score"] = given["restart_score"] or OPTIONS["restart_score"].default
+    return TrainingRequest.of(**given)
 
 
 def row_metrics(model, info, metrics: dict[str, Any]) -> dict[str, Any]:

@@ -51,7 +51,7 @@ from dampnet.training.problem import MlpProblem
 from dampnet.training.rest_points import RestForce, rest_force, rest_points
 from dampnet.training.torch_reference import torch_forward
 from dampnet.training.scg import ScaledConjugateGradient
-from dampnet.training.settings import OPTIONS, check_request, show_value
+from dampnet.training.settings import check_request, fit_options, show_value
 
 ALGORITHMS = {
     "lm": LevenbergMarquardt,
@@ -219,16 +219,16 @@ def _monotone_prior(X_train: np.ndarray, features: Sequence[str], weight: float,
 
 
 def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequence[str] | None = None,
-        hidden: Sequence[int] = (30,), activation: str = "tanh", algorithm: str = "lm", seed: int = 0,
-        split: Sequence[float] = (0.7, 0.15, 0.15), max_epochs: int = 1000, max_fail: int = 6,
-        rest_fraction: float = OPTIONS["rest_fraction"].default,
-        settings: dict[str, Any] | None = None, progress: Callable[[dict], Any] | None = None,
-        threads: int | None = None, data: Any = None,
-        init: MlpModel | None = None, control_prior: float = 0.0,
-        monotone_prior: float = 0.0,
-        rest_target: str = OPTIONS["rest_target"].default) -> tuple[MlpModel, TrainInfo]:
+        split: Sequence[float] = (0.7, 0.15, 0.15), progress: Callable[[dict], Any] | None = None,
+        data: Any = None, init: MlpModel | None = None, control_prior: float = 0.0,
+        **options: Any) -> tuple[MlpModel, TrainInfo]:
     """Train an MLP force model on X [n, k] (feature units) and y [n] (force [N]).
 
+    `options`: the training options fit() takes by name (dampnet.training.settings.FIT_OPTIONS:
+    algorithm, hidden, activation, seed, max_epochs, max_fail, rest_fraction, settings,
+    control_prior, monotone_prior, rest_target, threads), each the options table's default
+    (dampnet.training.settings.OPTIONS) unless given, but `control_prior`: off (0) for a bare
+    fit, which knows no control levels of a campaign (the pipeline passes the request's).
     `settings` overrides the algorithm's defaults (e.g. {"mu_max": 1e8} for lm,
     {"lr": 1e-2, "batch_size": 1024} for adam). `progress(record)` is called
     after every epoch with the history record; returning True stops training.
@@ -248,15 +248,23 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
     (dampnet.training.monotone_prior; 0: off), between the lowest and highest control level of
     the training rows; off without a velocity input (model.meta["monotone_prior"] says).
     The same inputs and seed give bit-identical weights on the same machine.
-    Every option and setting is checked first (dampnet.training.settings.check_request: a
+    Every option and setting is checked first (dampnet.training.settings.fit_options: a
     one-line ValueError naming it and its range); a training that stops before its first epoch
     (e.g. min_grad above the initial gradient) is a ValueError too, not an untrained model.
     """
-    checked = check_request(algorithm=algorithm, settings=settings, hidden=hidden, activation=activation,
-                            features=list(features),
-                            max_epochs=max_epochs, max_fail=max_fail, seed=seed, rest_fraction=rest_fraction,
-                            threads=threads, control_prior=control_prior, monotone_prior=monotone_prior,
-                            rest_target=rest_target)
+    check_request(features=list(features))
+    return fit_checked(X, y, features, fit_options(control_prior=control_prior, **options), units=units,
+                       split=split, progress=progress, data=data, init=init)
+
+
+def fit_checked(X: np.ndarray, y: np.ndarray, features: Sequence[str], o: dict[str, Any], *,
+                units: Sequence[str] | None = None, split: Sequence[float] = (0.7, 0.15, 0.15),
+                progress: Callable[[dict], Any] | None = None, data: Any = None,
+                init: MlpModel | None = None) -> tuple[MlpModel, TrainInfo]:
+    """fit() with its options `o` checked already (dampnet.training.settings.fit_options, or a
+    checked TrainingRequest's: dampnet.training.pipeline.fit_prepared)."""
+    algorithm, activation, seed, threads = o["algorithm"], o["activation"], o["seed"], o["threads"]
+    max_epochs, max_fail, settings, rest_target = o["max_epochs"], o["max_fail"], o["settings"], o["rest_target"]
     X = np.asarray(X, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64).ravel()
     if X.ndim == 1:
@@ -271,11 +279,11 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
     if not (np.all(np.isfinite(X)) and np.all(np.isfinite(y))):
         raise ValueError("X and y must be finite (found NaN or Inf); clean the data first")
     units = units_of(features) if units is None else list(units)
-    layout = Layout(len(features), checked["hidden"], activation)
+    layout = Layout(len(features), o["hidden"], activation)
 
     rng = np.random.default_rng(seed)
     tr, va, te = split_indices(len(X), split, rng)
-    Z = rest_points(X[tr], features, rest_fraction, rng) if rest_target != "none" else np.empty((0, X.shape[1]))
+    Z = rest_points(X[tr], features, o["rest_fraction"], rng) if rest_target != "none" else np.empty((0, X.shape[1]))
     at_rest = rest_force(X[tr], y[tr], features, Z) if len(Z) else RestForce(0.0, "no rest points")
     y_Z = at_rest.targets(Z) if rest_target == "estimated" else np.zeros(len(Z))
     X_all = np.vstack([X, Z])
@@ -289,8 +297,8 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
     def scale_y(a):
         return torch.as_tensor((a - out_off) * out_gain - 1.0, dtype=DTYPE)
 
-    prior, prior_meta = _control_prior(X[tr], features, checked["control_prior"], in_off, in_gain, rng)
-    mono, mono_meta = _monotone_prior(X[tr], features, checked["monotone_prior"], in_off, in_gain, rng)
+    prior, prior_meta = _control_prior(X[tr], features, o["control_prior"], in_off, in_gain, rng)
+    mono, mono_meta = _monotone_prior(X[tr], features, o["monotone_prior"], in_off, in_gain, rng)
     problem = MlpProblem(layout, scale_x(np.vstack([X[tr], Z])), scale_y(np.concatenate([y[tr], y_Z])),
                          scale_x(X[va]), scale_y(y[va]), prior=[prior, mono])
     gen = torch.Generator().manual_seed(seed)

@@ -13,6 +13,8 @@ from dataclasses import dataclass
 
 import torch
 
+from dampnet.model import ACTIVATIONS
+
 DTYPE = torch.float64
 
 
@@ -32,13 +34,13 @@ class Layout:
 
     n_in: int
     hidden: tuple[int, ...]
-    activation: str = "tanh"
+    activation: str  # one of dampnet.model.ACTIVATIONS
 
     def __post_init__(self) -> None:
         if len(self.hidden) not in (1, 2) or min(self.hidden) < 1:
             raise ValueError(f"hidden: one or two layers of >= 1 neurons expected, got {self.hidden}")
-        if self.activation not in ("tanh", "sigmoid"):
-            raise ValueError(f"activation: 'tanh' or 'sigmoid' expected, got {self.activation!r}")
+        if self.activation not in ACTIVATIONS:
+            raise ValueError(f"activation: one of {', '.join(map(repr, ACTIVATIONS))} expected, got {self.activation!r}")
 
     @property
     def shapes(self) -> list[tuple[str, tuple[int, ...]]]:

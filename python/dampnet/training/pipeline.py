@@ -60,17 +60,13 @@ from dampnet.model import MlpModel, ModelError
 from dampnet.predict import predict_force
 from dampnet.rig import noise_floor_nrmse, noise_floor_rmse_n
 from dampnet.terms import fit_terms, terms_force
-from dampnet.training.fitting import fit
+from dampnet.training.fitting import fit_checked
 from dampnet.training.metrics import nrmse
-from dampnet.training.restarts import DEFAULT_SCORE
-from dampnet.training.settings import OPTIONS as TRAINING_OPTIONS, check_request, train_settings
+from dampnet.training.request import TrainingRequest
+from dampnet.training.settings import FIT_OPTIONS, OPTIONS, check_algorithm, option, train_settings
 
-DEFAULT_HOLDOUT_VOLTAGE = 2.25
-DEFAULT_CONTROL_PRIOR = TRAINING_OPTIONS["control_prior"].default
-DEFAULT_MONOTONE_PRIOR = TRAINING_OPTIONS["monotone_prior"].default
-DEFAULT_REST_TARGET = TRAINING_OPTIONS["rest_target"].default
-# the algorithm settings train_dataset uses unless `settings` overrides them, and every setting's
-# range: dampnet.training.settings (TRAIN_DEFAULTS, check_request)
+# every option's default and range: the options table, dampnet.training.settings.OPTIONS; the
+# algorithm settings train_dataset uses unless `settings` overrides them: its TRAIN_DEFAULTS
 
 
 @dataclass
@@ -112,22 +108,20 @@ def _data_provenance(ds: Dataset, split: Split, features, window) -> dict[str, A
     return d
 
 
-def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm: str = "lm", *,
-                  hidden: Sequence[int] = (30,), activation: str = "tanh",
-                  holdout_voltage: float | None = DEFAULT_HOLDOUT_VOLTAGE,
-                  holdout_tests: Sequence[str] | None = None, decimate: int | None = None,
-                  terms: Sequence[dict[str, Any]] | None = None,
-                  feature_params: dict[str, float] | None = None, seed: int = 0,
-                  progress: Callable[[dict], Any] | None = None,
-                  max_epochs: int = 1000, max_fail: int = 6, settings: dict[str, Any] | None = None,
-                  threads: int | None = None,
-                  acceleration_window: float | None = None,
-                  init: MlpModel | None = None, restarts: int = 1, workers: int | None = None,
-                  restart_score: str = DEFAULT_SCORE, average: int = 1,
-                  control_prior: float = DEFAULT_CONTROL_PRIOR,
-                  monotone_prior: float = DEFAULT_MONOTONE_PRIOR,
-                  rest_target: str = DEFAULT_REST_TARGET) -> tuple[MlpModel, Any, Split]:
+def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm: str | None = None, *,
+                  request: TrainingRequest | None = None, progress: Callable[[dict], Any] | None = None,
+                  threads: int | None = None, init: MlpModel | None = None, workers: int | None = None,
+                  **options: Any) -> tuple[MlpModel, Any, Split]:
     """Train a (hybrid) MLP damper model on a dataset; see the module docstring for the steps.
+
+    The training is `request` (a dampnet.training.request.TrainingRequest), or one made of
+    `features`, `algorithm` and the keyword `options` (hidden, activation, holdout_voltage,
+    holdout_tests, decimate, terms, feature_params, seed, max_epochs, max_fail, settings,
+    acceleration_window, restarts, restart_score, average, control_prior, monotone_prior,
+    rest_target: the options table's names, dampnet.training.settings.OPTIONS, each its
+    default unless given); its algorithm and restarts named (no "auto": dampnet.recipes.training.plan
+    resolves those with the data). How the work runs is not part of it: `progress`, `threads`,
+    `workers`, `init` (a warm start, one training).
 
     Returns (model, info, split): `info` is dampnet.train.TrainInfo (its subset indices
     refer to the decimated training samples, split.train_used), `split` says which
@@ -147,35 +141,41 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
     0: off); `monotone_prior` the prior that the force rises with velocity
     (dampnet.training.monotone_prior; 0: off); `rest_target` the rest points' force, "estimated"
     (the default), "zero" (the thesis's 0 N) or "none" (no rest points; dampnet.training.rest_points).
+    model.meta["request"] records the request (TrainingRequest.recorded).
     """
     from dampnet.training.restarts import check_average, check_restarts, train_restarts
 
-    # every option and setting before any work (one-line errors naming it and its range)
-    check_request(algorithm=algorithm, settings=train_settings(algorithm, settings),
-                  hidden=hidden, activation=activation, features=features, max_epochs=max_epochs,
-                  max_fail=max_fail, seed=seed,
-                  decimate=decimate, holdout_voltage=holdout_voltage, threads=threads,
-                  acceleration_window=acceleration_window, control_prior=control_prior,
-                  monotone_prior=monotone_prior, rest_target=rest_target)
-    restarts = check_restarts(restarts, workers, restart_score)
-    check_average(average, restarts, hidden, restart_score)
+    req = _request(request, features, algorithm, options)
+    # every option and setting before any work (one-line errors naming it and its range), unless
+    # the request is checked already (dampnet.recipes.training.plan) and was not changed since
+    check_algorithm(req.algorithm)
+    req = req if req.checked else req.check()
+    restarts = check_restarts(req.restarts, workers, req.restart_score)
+    option("threads", threads)
+    check_average(req.average, restarts, req.hidden, req.restart_score)
     if restarts > 1 and init is not None:
         raise ValueError("init: a warm start is one training; use restarts=1 with init")
-    prep = prepare_training(ds, features, algorithm, hidden=hidden, activation=activation,
-                            holdout_voltage=holdout_voltage, holdout_tests=holdout_tests,
-                            decimate=decimate, terms=terms, feature_params=feature_params,
-                            max_epochs=max_epochs, max_fail=max_fail,
-                            settings=settings, acceleration_window=acceleration_window,
-                            control_prior=control_prior, monotone_prior=monotone_prior,
-                            rest_target=rest_target)
+    prep = prepare_training(ds, request=req)
     if restarts == 1:
-        model, info = fit_prepared(prep, seed, progress=progress, threads=threads, init=init)
+        model, info = fit_prepared(prep, req.seed, progress=progress, threads=threads, init=init)
     else:
         # data errors (a feature or force beyond MAX_TRAINING_MAGNITUDE) before any worker starts
         _check_magnitudes(prep.X, prep.force if not prep.terms else np.zeros(0), prep.features)
-        model, info = train_restarts(prep, fit_prepared, restarts, seed, workers=workers, score=restart_score,
-                                     progress=progress, average=average)
+        model, info = train_restarts(prep, fit_prepared, restarts, req.seed, workers=workers, score=req.restart_score,
+                                     progress=progress, average=req.average)
+    model.meta["request"] = req.recorded()
     return model, info, prep.split
+
+
+def _request(request: TrainingRequest | None, features, algorithm, options: dict[str, Any]) -> TrainingRequest:
+    """`request`, or the request of the keyword options (not both)."""
+    if request is None:
+        given = {**({} if features is None else {"features": features}),
+                 **({} if algorithm is None else {"algorithm": algorithm}), **options}
+        return TrainingRequest(**given)
+    if options or features is not None or algorithm is not None:
+        raise TypeError("give the options either as a request or as keywords, not both")
+    return request
 
 
 @dataclass
@@ -197,7 +197,7 @@ class Prepared:
     v: np.ndarray | None
     u: np.ndarray | None
     feature_params: dict[str, float]
-    fit_kwargs: dict[str, Any]  # fit()'s options: hidden, activation, algorithm, ..., rest_target
+    request: TrainingRequest  # checked: fit()'s options (hidden, activation, algorithm, ...) are its
     provenance: dict[str, Any]
     split: Split | None = None  # not shipped to restart workers (it holds the full-rate tests)
 
@@ -206,18 +206,16 @@ class Prepared:
         return Prepared(**{**self.__dict__, "split": None})
 
 
-def prepare_training(ds: Dataset, features: Sequence[str] | None = None, algorithm: str = "lm", *,
-                     hidden: Sequence[int] = (30,), activation: str = "tanh",
-                     holdout_voltage: float | None = DEFAULT_HOLDOUT_VOLTAGE,
-                     holdout_tests: Sequence[str] | None = None, decimate: int | None = None,
-                     terms: Sequence[dict[str, Any]] | None = None,
-                     feature_params: dict[str, float] | None = None,
-                     max_epochs: int = 1000, max_fail: int = 6, settings: dict[str, Any] | None = None,
-                     acceleration_window: float | None = None,
-                     control_prior: float = DEFAULT_CONTROL_PRIOR,
-                     monotone_prior: float = DEFAULT_MONOTONE_PRIOR,
-                     rest_target: str = DEFAULT_REST_TARGET) -> Prepared:
-    """Steps 1-3 of the module docstring: acceleration, hold-out, decimation, the feature matrix."""
+def prepare_training(ds: Dataset, features: Sequence[str] | None = None, algorithm: str | None = None, *,
+                     request: TrainingRequest | None = None, **options: Any) -> Prepared:
+    """Steps 1-3 of the module docstring: acceleration, hold-out, decimation, the feature matrix;
+    of `request` (checked), or of the keyword options as train_dataset takes them (checked here)."""
+    req = _request(request, features, algorithm, options)
+    if not req.checked:
+        req = req.check()
+    features, holdout_voltage, holdout_tests = req.features, req.holdout_voltage, req.holdout_tests
+    decimate, terms, feature_params, acceleration_window = req.decimate, req.terms, req.feature_params, \
+        req.acceleration_window
     if not ds.tests:
         raise DataError(f"{ds.source}: no tests")
     features = list(features) if features else default_features(ds)
@@ -249,7 +247,7 @@ def prepare_training(ds: Dataset, features: Sequence[str] | None = None, algorit
     y = np.concatenate([t.channels["force"] for t in used.tests])
     level = np.concatenate([np.full(len(t), np.nan if t.control_nominal is None else float(t.control_nominal))
                             for t in used.tests])
-    terms = list(terms or [])
+    terms = [dict(t) for t in terms or ()]
     xd = v = u = None
     if terms:
         for t in used.tests:
@@ -263,11 +261,7 @@ def prepare_training(ds: Dataset, features: Sequence[str] | None = None, algorit
     return Prepared(X=X, force=y, level=level, features=features,
                     control_name=train.tests[0].control_name, terms=terms, xd=xd, v=v, u=u,
                     feature_params=dict(feature_params or {}),
-                    fit_kwargs=dict(hidden=hidden, activation=activation, algorithm=algorithm,
-                                    max_epochs=max_epochs, max_fail=max_fail,
-                                    settings=train_settings(algorithm, settings),
-                                    control_prior=float(control_prior),
-                                    monotone_prior=float(monotone_prior), rest_target=rest_target),
+                    request=req,
                     provenance=_data_provenance(ds, split, features, window), split=split)
 
 
@@ -290,14 +284,12 @@ def fit_prepared(prep: Prepared, seed: int, *, rows: np.ndarray | None = None,
             raise ModelError(str(e)) from None
         y = y - terms_force(terms, xd)
     _check_magnitudes(X, y, prep.features)
-    fk = prep.fit_kwargs
+    r = prep.request
+    o = {name: getattr(r, name, None) for name in FIT_OPTIONS}
+    o.update(seed=seed, threads=threads, rest_fraction=OPTIONS["rest_fraction"].default,
+             settings=train_settings(r.algorithm, r.settings))
     try:
-        model, info = fit(X, y, features=prep.features, hidden=fk["hidden"], activation=fk["activation"],
-                          algorithm=fk["algorithm"], seed=seed, max_epochs=fk["max_epochs"],
-                          max_fail=fk["max_fail"], settings=fk["settings"],
-                          progress=progress, threads=threads, data=prep.provenance, init=init,
-                          control_prior=fk["control_prior"], monotone_prior=fk["monotone_prior"],
-                          rest_target=fk["rest_target"])
+        model, info = fit_checked(X, y, prep.features, o, progress=progress, data=prep.provenance, init=init)
     except ValueError as e:
         raise DataError(str(e)) from None
     model.terms = terms

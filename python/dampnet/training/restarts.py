@@ -86,31 +86,13 @@ import numpy as np
 
 from dampnet.data import DataError
 from dampnet.signals import Deferred, children_ignore_interrupt, worker_ignores_interrupt
+# the restart options' defaults and words live in the options table (dampnet.training.settings)
+from dampnet.training.settings import BR_MAX_ROWS, DEFAULT_RESTARTS, DEFAULT_SCORE, RESTART_ROWS_BUDGET, SCORES
 
-#: restarts `dampnet train` runs unless --restarts says otherwise (bench/RESULTS.md "Restarts")
-DEFAULT_RESTARTS = 6
-#: the automatic restarts' budget: training rows (after decimation) times restarts, for LM (BR trains
-#: once, BR_MAX_ROWS: the plans of up to 30,000 rows). The thesis plan's 45,780 rows (at 100 Hz,
-#: dampnet.data.preprocess.DECIMATE_LARGE_HZ) get 2, in parallel on 2 cores: one in three of its single
-#: trainings settles in a worse minimum, which the combined score tells apart (issue 33, bench/RESULTS.md
-#: "Two restarts on the thesis plan"); LM asked for on the 5 x 8 plan (25,221 rows) gets 3,
-#: DEFAULT_RESTARTS up to 16,666 rows.
-RESTART_ROWS_BUDGET = 100_000
-#: the automatic algorithm (`dampnet train`'s default, `--algorithm auto`): Bayesian regularisation up
-#: to this many training rows, Levenberg-Marquardt beyond. Why (issue 33, bench/RESULTS.md "Few dyno
-#: tests"): on the 5 x 8 and 6 x 8 plans (25,221 and 28,021 rows) one BR training per seed, with the
-#: control prior, was held out at 0.50x and 0.53x the lookup table's error with seeds agreeing to
-#: 1.32x and 1.17x (rest points at 0 N; 0.41x with the estimated force at rest, the default since), where LM
-#: needed 6 restarts for 0.56x and 1.84x on 5 x 8; on the thesis plan (91,518
-#: rows) BR was no better (seed 0: 3.08x the noise floor against LM's 2.88x) and several times slower.
-BR_MAX_ROWS = 30_000
 #: the fewest automatic restarts when the score can run
 MIN_AUTO_RESTARTS = 1
 #: how many interior levels the "lolo" score withholds, one per fit
 LOLO_LEVELS = 2
-SCORES = ("combined", "interpolation", "lolo")
-#: how restarts are ranked unless restart_score says otherwise (the module docstring says why)
-DEFAULT_SCORE = "combined"
 #: the scores that rank each restart's own full fit (the kept model is the fit that was scored)
 FULL_FIT_SCORES = ("combined", "interpolation")
 #: where in each gap between adjacent training levels the interpolation score looks
@@ -244,7 +226,7 @@ def training_rows(ds, holdout_voltage=None, holdout_tests=(), decimate: int | No
 
 
 def _n_params(prep) -> int:
-    sizes = [prep.X.shape[1], *prep.fit_kwargs["hidden"], 1]
+    sizes = [prep.X.shape[1], *prep.request.hidden, 1]
     return sum((a + 1) * b for a, b in zip(sizes[:-1], sizes[1:]))
 
 
@@ -566,7 +548,7 @@ def train_restarts(prep, fit_prepared: Callable, restarts: int, seed: int = 0, *
     the score (interpolation: two; lolo: three, one of them interior).
     """
     restarts = check_restarts(restarts, workers, score)
-    average = check_average(average, restarts, prep.fit_kwargs["hidden"], score)
+    average = check_average(average, restarts, prep.request.hidden, score)
     levels = training_levels(prep)
     seeds = restart_seeds(seed, restarts)
     t0 = time.perf_counter()

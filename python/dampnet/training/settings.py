@@ -3,11 +3,17 @@
 Two kinds of settings:
   ALGORITHM_TABLES[algorithm]: the `settings` dict of one algorithm (lm, br, scg, adam),
       e.g. {"mu_max": 1e8} or {"lr": 0.01, "batch_size": 1024};
-  OPTIONS: the options of a training request (max_epochs, restarts, seed, ...), the same
-      for every algorithm; `hidden` is checked against the runtime's layer limit
-      (dampnet._core.MAX_HIDDEN) and the feature count against dampnet._core.MAX_INPUTS.
+  OPTIONS: every training option (max_epochs, hidden, restarts, seed, ...), one `Option` row
+      each: its kind, range, default, unit, meaning, `dampnet train` option and sweep key, the
+      one place each default is stated. The request (dampnet.training.request.TrainingRequest),
+      the command line's options (dampnet.commands.training_options), the sweep's [training]
+      keys (dampnet.sweep.spec.training_params) are made from it; `register` adds a row.
+      `hidden` is checked against the runtime's layer limit (dampnet._core.MAX_HIDDEN), the
+      feature count against dampnet._core.MAX_INPUTS, the activation against its registry
+      (dampnet._core.ACTIVATIONS).
 
-`check_settings(algorithm, settings)` and `check_request(...)` are the one place a training's
+`check_settings(algorithm, settings)` and the rows' checks (`option`, `check_request`, and
+`TrainingRequest.check` with the relations between options) are the one place a training's
 inputs are validated; every front end passes through them before any training starts
 (`dampnet.training.fit`, `dampnet.training.pipeline.train_dataset` = `dampnet.train`, the
 algorithms' constructors, `dampnet train` before it loads its data, the sweep's train cells).
@@ -29,6 +35,7 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from dampnet.data.preprocess import AUTO_DECIMATE_RULE
+from dampnet.model import ACTIVATIONS
 from dampnet.schema import show
 from dampnet.training.rest_points import REST_TARGETS
 
@@ -45,6 +52,28 @@ MAX_SEED = 2**63 - 1
 MAX_MU_INCREASES = 200
 #: the largest batch size, restart period and decimation factor (samples or iterations)
 MAX_COUNT = 10**9
+
+#: restarts `dampnet train` runs unless --restarts says otherwise (bench/RESULTS.md "Restarts")
+DEFAULT_RESTARTS = 6
+#: the automatic restarts' budget: training rows (after decimation) times restarts, for LM (BR trains
+#: once, BR_MAX_ROWS: the plans of up to 30,000 rows). The thesis plan's 45,780 rows (at 100 Hz,
+#: dampnet.data.preprocess.DECIMATE_LARGE_HZ) get 2, in parallel on 2 cores: one in three of its single
+#: trainings settles in a worse minimum, which the combined score tells apart (issue 33, bench/RESULTS.md
+#: "Two restarts on the thesis plan"); LM asked for on the 5 x 8 plan (25,221 rows) gets 3,
+#: DEFAULT_RESTARTS up to 16,666 rows.
+RESTART_ROWS_BUDGET = 100_000
+#: the automatic algorithm (`dampnet train`'s default, `--algorithm auto`): Bayesian regularisation up
+#: to this many training rows, Levenberg-Marquardt beyond. Why (issue 33, bench/RESULTS.md "Few dyno
+#: tests"): on the 5 x 8 and 6 x 8 plans (25,221 and 28,021 rows) one BR training per seed, with the
+#: control prior, was held out at 0.50x and 0.53x the lookup table's error with seeds agreeing to
+#: 1.32x and 1.17x (rest points at 0 N; 0.41x with the estimated force at rest, the default since), where LM
+#: needed 6 restarts for 0.56x and 1.84x on 5 x 8; on the thesis plan (91,518
+#: rows) BR was no better (seed 0: 3.08x the noise floor against LM's 2.88x) and several times slower.
+BR_MAX_ROWS = 30_000
+#: the restart scores (dampnet.training.restarts says what each measures)
+SCORES = ("combined", "interpolation", "lolo")
+#: how restarts are ranked unless restart_score says otherwise (dampnet.training.restarts says why)
+DEFAULT_SCORE = "combined"
 
 
 @dataclass(frozen=True)
@@ -239,45 +268,6 @@ def check_settings(algorithm: str, settings: Mapping[str, Any] | None) -> dict[s
     return out
 
 
-# -- the options of a training request ------------------------------------------------------------
-
-OPTIONS = _table(
-    Setting("max_epochs", "whole", 1, MAX_EPOCHS, 1000, "the epoch limit", cli="--max-epochs"),
-    Setting("max_fail", "whole", 1, MAX_EPOCHS, 6, "epochs of rising validation error that stop training"),
-    Setting("seed", "whole", 0, MAX_SEED, 0, "the random seed of the split, the rest points and the weights",
-            cli="--seed"),
-    Setting("restarts", "whole", 1, MAX_RESTARTS, 1, "trainings from different seeds, the best kept",
-            cli="--restarts"),
-    Setting("average", "whole", 1, MAX_RESTARTS, 1, "the best restarts averaged into one network", cli="--average"),
-    Setting("workers", "whole", 1, MAX_PROCESSES, None, "processes the restarts run in", none="the local cores",
-            cli="--workers"),
-    Setting("threads", "whole", 1, MAX_PROCESSES, None, "torch's and numpy's BLAS threads during training",
-            none="1 for small problems, else the idle cores"),
-    Setting("decimate", "whole", 1, MAX_COUNT, None, "keep every N-th training sample", none=AUTO_DECIMATE_RULE,
-            cli="--decimate"),
-    Setting("rest_fraction", "real", 0, 1, 0.01, "rest points added, as a fraction of the training samples"),
-    Setting("rest_target", "choice", 0, 0, "estimated", "the rest points' force: estimated (the damper's own "
-            "force at rest, dampnet.training.rest_points), zero (0 N, the thesis's), or none (no rest points)",
-            cli="--rest-target", choices=REST_TARGETS),
-    Setting("holdout_voltage", "real", -1e15, 1e15, 2.25, "the control level held out [V or A]",
-            none="hold nothing out by level", cli="--holdout-voltage"),
-    Setting("control_prior", "real", 0, 1e6, 1.0, "the weight of the prior that the force between the tested "
-            "control levels follows the smooth curve through theirs (dampnet.training.control_prior); 0: off",
-            cli="--control-prior"),
-    Setting("monotone_prior", "real", 0, 1e6, 0.0, "the weight of the prior that the force rises with velocity "
-            "between and at the tested control levels (dampnet.training.monotone_prior); 0: off",
-            cli="--monotone-prior"),
-    Setting("acceleration_window", "real", 0, 10, None, "the smoothing window of the derived acceleration [s]",
-            open_low=True, none="20 ms"),
-)
-
-
-def option(name: str, value: Any) -> Any:
-    """`value` of request option `name` checked against OPTIONS (the message names --name too)."""
-    s = OPTIONS[name]
-    return s.check(value, f"{name} ({s.cli + ', ' if s.cli else ''}{s.meaning})")
-
-
 def check_hidden(hidden: Any) -> tuple[int, ...]:
     """One or two hidden layer sizes: layer 1 in 1..the runtime's DN_MAX_HIDDEN, or both in
     1..DN_MAX_HIDDEN2 when there are two; ValueError otherwise."""
@@ -308,39 +298,239 @@ def check_inputs(features: Sequence[str]) -> None:
                          f"models take at most {cap} inputs (DN_MAX_INPUTS)")
 
 
+# -- the options of a training request: one table ------------------------------------------------
+
+#: restarts and algorithm: the word for "as the data allow" (dampnet.training.restarts: auto_restarts,
+#: auto_algorithm)
+AUTO = "auto"
+
+
+@dataclass(frozen=True)
+class Option(Setting):
+    """One training option, its one row: a Setting (kind, range, default, `meaning`: the error
+    messages' words) with `unit` and `doc` (the help's words, default the meaning). `check_value`
+    (value -> value, ValueError) checks a value when given (kind "other": else the request does,
+    e.g. settings with their algorithm).
+    How it is spelled: `cli` the `dampnet train` option (`compare-algorithms`' too unless
+    `train_only`), `cli_help` the command line's own words, `cli_default` the command line's
+    default when it is not the table's (AUTO), `metavar`, `parse` its text to a value (default: by
+    kind, dampnet.commands.training_options); `sweep` the [training] key (None: not in the sweep),
+    `axis` a main axis. `request` False: not a TrainingRequest field (how the work runs: workers,
+    threads; fit()'s own: rest_fraction); `compare` False: not part of the request's identity."""
+
+    unit: str = ""
+    doc: str = ""
+    check_value: Callable[[Any], Any] | None = None
+    cli_help: str = ""
+    cli_default: Any = None
+    metavar: str | None = None
+    train_only: bool = False
+    sweep: str | None = None
+    axis: bool = False
+    request: bool = True
+    compare: bool = True
+
+    def help(self) -> str:
+        """What the option means, with its unit (the CLI's and the sweep's help start with it)."""
+        return (self.doc or self.meaning) + (f" [{self.unit}]" if self.unit else "")
+
+    def check(self, value: Any, where: str) -> Any:
+        if self.check_value is not None:
+            return self.check_value(value)
+        return value if self.kind == "other" else super().check(value, where)
+
+
+def _check_activation(value: Any) -> str:
+    if not isinstance(value, str) or value not in ACTIVATIONS:
+        raise ValueError(f"activation (--activation): expected one of {', '.join(ACTIVATIONS)}, got {show(value)}")
+    return value
+
+
+def _check_features(value: Any) -> tuple[str, ...] | None:
+    if value is not None:
+        check_inputs(list(value))
+    return value
+
+
+def _check_algorithm(value: Any) -> str:
+    """An algorithm of ALGORITHM_TABLES or AUTO (a request's; fit() takes no AUTO: check_algorithm)."""
+    if not isinstance(value, str) or (value != AUTO and value not in ALGORITHM_TABLES):
+        raise ValueError(f"algorithm (--algorithm): expected {AUTO} or one of {', '.join(ALGORITHM_TABLES)}, "
+                         f"got {value!r}")
+    return value
+
+
+_O = Option
+#: every training option, one row each: its default, range and unit here and nowhere else; the
+#: `dampnet train` options, the sweep's [training] keys (in this order: the cells' order),
+#: TrainingRequest's fields and the checks are made from it (docs/recipes.md, "Training requests")
+OPTIONS: dict[str, Option] = {}
+
+
+def register(row: Option) -> Option:
+    """Add a training option (a row of OPTIONS; its name new); returns it."""
+    if row.name in OPTIONS:
+        raise ValueError(f"training option {row.name!r} is registered already")
+    OPTIONS[row.name] = row
+    return row
+
+
+for _row in (
+    _O("algorithm", "other", 0, 0, "lm", "the training algorithm", check_value=_check_algorithm,
+       doc=f"the training algorithm ('auto': br up to {BR_MAX_ROWS:,} training rows, lm beyond)",
+       cli="--algorithm", cli_default=AUTO, choices=(AUTO, *ALGORITHM_TABLES), cli_help="auto (the default; "
+       "bench/RESULTS.md 'Few dyno tests'), " + ", ".join(f"{k} {v}" for k, v in ALGORITHM_NAMES.items()),
+       sweep="algorithms", axis=True),
+    _O("add", "other", 0, 0, (), "effects whose features and terms are added (dampnet.effects)", cli="--add",
+       metavar="EFFECT", sweep="add", axis=True),
+    _O("features", "other", 0, 0, None, "the input features, in order", none="velocity, acceleration and the data's "
+       "control", doc="the input features, in order (default: velocity, acceleration and the data's control)",
+       check_value=_check_features, cli="--features", cli_help="comma-separated, e.g. "
+       "velocity,acceleration,voltage,temperature", sweep="features", axis=True),
+    _O("seed", "whole", 0, MAX_SEED, 0, "the random seed of the split, the rest points and the weights",
+       doc="the seed of the split, rest points and weights (restarts: the first)", cli="--seed", sweep="seeds",
+       axis=True),
+    _O("hidden", "other", 0, 0, (30,), "hidden layer sizes", check_value=check_hidden,
+       cli="--hidden", cli_help="e.g. 30 or 20,10", sweep="hidden", axis=True),
+    _O("decimate", "whole", 1, MAX_COUNT, None, "keep every N-th training sample", none=AUTO_DECIMATE_RULE,
+       doc=f"every N-th training sample is kept (default: {AUTO_DECIMATE_RULE})", cli="--decimate",
+       cli_help="N, or 'auto' (the default; 25 at 5 kHz, 50 on large data)", sweep="decimate"),
+    _O("max_epochs", "whole", 1, MAX_EPOCHS, 1000, "the epoch limit", cli="--max-epochs", sweep="max_epochs"),
+    _O("max_fail", "whole", 1, MAX_EPOCHS, 6, "epochs of rising validation error that stop training",
+       sweep="max_fail"),
+    _O("holdout_voltage", "real", -1e15, 1e15, 2.25, "the control level held out", unit="V or A",
+       none="hold nothing out by level", doc="the control level whose tests are held out",
+       cli="--holdout-voltage", cli_help="every test at this nominal control value; 'none' for none",
+       sweep="holdout_voltage"),
+    _O("activation", "choice", 0, 0, "tanh", "the hidden layers' activation", choices=ACTIVATIONS,
+       check_value=_check_activation,
+       cli="--activation", cli_help="tanh is MATLAB's tansig", sweep="activation"),
+    _O("restarts", "whole", 1, MAX_RESTARTS, 1, "trainings from different seeds, the best kept",
+       doc="trainings from different seeds, the best kept ('auto': 1 with br, or --average's count; otherwise "
+       f"{DEFAULT_RESTARTS} with two control levels or more, fewer beyond "
+       f"{RESTART_ROWS_BUDGET // DEFAULT_RESTARTS:,} training rows, else 1)", cli="--restarts", cli_default=AUTO,
+       metavar="N", cli_help="N (--seed first), never looking at the hold-out; 1: train once. model.json records "
+       "every restart (meta.restarts)", train_only=True, sweep="restarts"),
+    _O("average", "whole", 1, MAX_RESTARTS, 1, "the best restarts averaged into one network", cli="--average",
+       metavar="K", cli_help="K, into one network K times as wide (their mean output, exactly; the width must fit "
+       "the runtime's DN_MAX_HIDDEN, 384 here, e.g. 6 x 30 hidden): lower held-out error than one seed or one wide "
+       "network (bench/RESULTS.md 'Inside the envelope'); 1: the best restart alone", train_only=True,
+       sweep="average"),
+    _O("restart_score", "choice", 0, 0, DEFAULT_SCORE, "how restarts are ranked", choices=SCORES,
+       doc=f"how restarts are ranked: {', '.join(SCORES)} (default {DEFAULT_SCORE})", cli="--restart-score",
+       train_only=True, sweep="restart_score"),
+    _O("control_prior", "real", 0, 1e6, 1.0, "the weight of the prior that the force between the tested control "
+       "levels follows the smooth curve through theirs (dampnet.training.control_prior); 0: off",
+       doc="the weight of the prior that the force between the tested control levels follows the natural cubic "
+       "spline through theirs at the same motion (a straight line between two, as a lookup table interpolates); "
+       "against the data's squared error, per row; 0: off", cli="--control-prior", metavar="W",
+       cli_help="dampnet.training.control_prior; bench/RESULTS.md 'Few dyno tests'", sweep="control_prior"),
+    _O("monotone_prior", "real", 0, 1e6, 0.0, "the weight of the prior that the force rises with velocity between "
+       "and at the tested control levels (dampnet.training.monotone_prior); 0: off",
+       doc="the weight of the prior that the force rises with velocity, at the training rows and at their motion "
+       "with the control anywhere between the lowest and highest tested level (only where it falls does it act); "
+       "its mean square against the data's; 0: off (100 when wanted)", cli="--monotone-prior", metavar="W",
+       cli_help="dampnet.training.monotone_prior", sweep="monotone_prior"),
+    _O("rest_target", "choice", 0, 0, "estimated", "the rest points' force: estimated (the damper's own force at "
+       "rest, dampnet.training.rest_points), zero (0 N, the thesis's), or none (no rest points)",
+       choices=REST_TARGETS, doc="the rest points' force: estimated (the damper's own force at rest, fitted to the "
+       "training samples near v = 0), zero (0 N, the thesis's) or none (no rest points: "
+       "dampnet.training.rest_points)", cli="--rest-target", sweep="rest_target"),
+    _O("holdout_tests", "other", 0, 0, (), "test ids held out as well", cli="--holdout-tests",
+       cli_help="comma-separated"),
+    _O("settings", "other", 0, 0, None, "the algorithm's settings (dampnet.training.settings)", cli="--settings"),
+    _O("terms", "other", 0, 0, (), "physics terms (dampnet.terms)", cli="--terms", cli_help='JSON, e.g. '
+       '\'[{"kind": "position_poly"}]\'; terms without "params" are fitted by least squares, the MLP learns the rest'),
+    _O("diagnosis", "other", 0, 0, None, "a diagnosis whose estimated parameters the added effects take (default: "
+       "estimated from the data)", cli="--diagnosis", metavar="FILE", cli_help="the JSON of `dampnet diagnose "
+       "--json FILE` (the same additions as the demo's improve stage)", compare=False),
+    _O("diagnosis_source", "other", 0, 0, None, "the diagnosis's file (for messages)"),
+    _O("feature_params", "other", 0, 0, None, "feature parameters (a lag's time constant [s], ...)"),
+    _O("acceleration_window", "real", 0, 10, None, "the smoothing window of the derived acceleration", unit="s",
+       open_low=True, none="20 ms"),
+    _O("workers", "whole", 1, MAX_PROCESSES, None, "processes the restarts run in", none="the local cores",
+       cli="--workers", metavar="N", cli_help="one torch thread each", train_only=True, request=False),
+    _O("threads", "whole", 1, MAX_PROCESSES, None, "torch's and numpy's BLAS threads during training",
+       none="1 for small problems, else the idle cores", request=False),
+    _O("rest_fraction", "real", 0, 1, 0.01, "rest points added, as a fraction of the training samples",
+       request=False),
+):
+    register(_row)
+
+
+def option(name: str, value: Any) -> Any:
+    """`value` of request option `name` checked against OPTIONS (the message names --name too)."""
+    s = OPTIONS[name]
+    return s.check(value, f"{name} ({s.cli + ', ' if s.cli else ''}{s.meaning})")
+
+
+def options_markdown() -> str:
+    """The options table as Markdown (docs/training.md's "Training options", checked against it by
+    tests/python/test_training_options.py): one line per row."""
+    def value_text(row: Option) -> str:
+        if row.choices:
+            return ", ".join(row.choices)
+        if row.kind in ("whole", "real", "pair"):
+            return row.range_text() + (" or none" if row.none else "") + (f" or {AUTO}" if row.cli_default == AUTO else "")
+        return "see the meaning"
+
+    def default_text(row: Option) -> str:
+        d = row.default
+        if d is None or d == ():
+            text = row.none or "none"
+        else:
+            text = ",".join(map(str, d)) if isinstance(d, tuple) else f"{d:g}" if isinstance(d, float) else str(d)
+        return text + (f" (`dampnet train`: {row.cli_default})" if row.cli_default is not None else "")
+
+    lines = ["| option | `dampnet train` | sweep key | values | default | unit | meaning |",
+             "|---|---|---|---|---|---|---|"]
+    for row in OPTIONS.values():
+        cells = [row.name, f"`{row.cli}`" if row.cli else "", row.sweep or "", value_text(row), default_text(row),
+                 row.unit, (row.doc or row.meaning).replace("|", "/")]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def option_defaults() -> dict[str, Any]:
+    """Every option's default by name (OPTIONS')."""
+    return {name: row.default for name, row in OPTIONS.items()}
+
+
 _UNSET = object()
 
+#: the options fit() takes (dampnet.training.fitting.fit), besides the data and how it runs
+FIT_OPTIONS = ("algorithm", "hidden", "activation", "seed", "max_epochs", "max_fail", "rest_fraction", "settings",
+               "control_prior", "monotone_prior", "rest_target", "threads")
 
-def check_request(*, algorithm: Any = _UNSET, settings: Any = _UNSET, hidden: Any = _UNSET,
-                  activation: Any = _UNSET, features: Any = _UNSET, **options: Any) -> dict[str, Any]:
-    """Check the given parts of a training request (only those passed): the algorithm and its
-    settings, the hidden sizes and activation, the feature count and any OPTIONS by name (max_epochs=...,
-    restarts=...). Returns the checked values by name (settings: the algorithm's full settings).
-    ValueError of one line naming the first bad one. Cheap: call it before any work."""
-    out: dict[str, Any] = {}
+
+def check_request(*, settings: Any = _UNSET, **options: Any) -> dict[str, Any]:
+    """Check the given options of OPTIONS by name (only those passed; `algorithm` one that trains,
+    not "auto"; `settings` with its algorithm). Returns the checked values by name (settings: the
+    algorithm's full settings). ValueError of one line naming the first bad one; TypeError for an
+    unknown name. Cheap: call it before any work."""
     unknown = sorted(set(options) - set(OPTIONS))
     if unknown:
         raise TypeError(f"check_request: unknown options {unknown}")
-    if algorithm is not _UNSET:
-        out["algorithm"] = check_algorithm(algorithm)
-    if hidden is not _UNSET:
-        out["hidden"] = check_hidden(hidden)
-    if activation is not _UNSET:
-        from dampnet.model import ACTIVATIONS
-
-        if not isinstance(activation, str) or activation not in ACTIVATIONS:
-            raise ValueError(f"activation (--activation): expected one of {', '.join(ACTIVATIONS)}, "
-                             f"got {show(activation)}")
-        out["activation"] = activation
-    if features is not _UNSET and features is not None:
-        check_inputs(list(features))
-    for name, value in options.items():
-        out[name] = option(name, value)
+    out = {name: check_algorithm(value) if name == "algorithm" else option(name, value)
+           for name, value in options.items()}
     if settings is not _UNSET:
-        if algorithm is _UNSET:
+        if "algorithm" not in options:
             raise TypeError("check_request: settings need their algorithm")
-        out["settings"] = check_settings(algorithm, settings)
+        out["settings"] = check_settings(options["algorithm"], settings)
     return out
+
+
+def fit_options(**given: Any) -> dict[str, Any]:
+    """fit()'s options (FIT_OPTIONS): the given ones checked, the others the table's defaults;
+    `settings` stays the overrides given (the algorithm fills in its defaults)."""
+    unknown = sorted(set(given) - set(FIT_OPTIONS))
+    if unknown:
+        raise TypeError(f"fit: unknown option(s) {', '.join(map(repr, unknown))}; fit's options are "
+                        + ", ".join(FIT_OPTIONS))
+    out = {name: OPTIONS[name].default for name in FIT_OPTIONS}
+    out.update(given)
+    checked = check_request(**{k: v for k, v in out.items() if k != "settings"}, settings=out["settings"])
+    return {**out, **{k: v for k, v in checked.items() if k != "settings"}}
 
 
 def settings_help(overrides: Mapping[str, Mapping[str, Any]] | None = None) -> str:
