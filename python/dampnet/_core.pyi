@@ -145,17 +145,19 @@ class Mlp(metaclass=_pybind11_type):
 class DamperInput(metaclass=_pybind11_type):
     """What a damper is evaluated on (dn_damper_input; fields: DAMPER_INPUT_FIELDS)."""
 
-    x: float  # relative displacement, extension positive [m]
-    v: float  # relative velocity [m/s]
-    a: float  # relative acceleration [m/s^2]
-    u: float  # control [V or A]
-    u_lag: float  # lagged control [V or A]
-    temperature: float  # [degC]
-    t: float  # time of the evaluation [s]
-    dt: float  # loop step [s]
-    stage: int  # integrator stage 0..3
-    v_lag: float  # lagged relative velocity [m/s]
-    z_fric: float  # Dahl friction state [-]
+    # <generated: DamperInput>
+    x: float  # relative displacement, extension positive, from the mid position [m]
+    v: float  # relative velocity, extension positive [m/s]
+    a: float  # relative acceleration, extension positive [m/s^2] (see the loop)
+    u: float  # control, held over the step [V or A]
+    u_lag: float  # control after a first-order lag of the model's control_lag_tau_s [V or A]
+    temperature: float  # damper temperature [degC]
+    t: float  # time of this evaluation [s] (callback dampers)
+    dt: float  # step size of the loop [s] (callback dampers); 0 outside a loop
+    stage: int  # integrator stage of this evaluation, 0..3 [-] (callback dampers)
+    v_lag: float  # velocity after a first-order lag of the model's velocity_lag_tau_s [m/s]
+    z_fric: float  # Dahl friction state in [-1, 1]: follows sgn(v) over a travel of a few friction_presliding_m after each reversal [-]
+    # </generated>
     def __init__(self) -> None: ...
 
 class Damper(metaclass=_pybind11_type):
@@ -196,8 +198,10 @@ class Damper(metaclass=_pybind11_type):
         u: npt.ArrayLike,
         u_lag: npt.ArrayLike,
         temperature: npt.ArrayLike,
+        # <generated: Damper.forces>
         v_lag: npt.ArrayLike = ...,
         z_fric: npt.ArrayLike = ...,
+        # </generated>
     ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.int32], npt.NDArray[np.uint32]]:
         """Vectorised force [N] -> (force[n], status[n], clamped_mask[n])."""
 

@@ -5,9 +5,10 @@
 stubtest runs on a copy of the stub in a temporary stub-only package, so mypy reads the
 stub alone (not the rest of python/dampnet) and leaves no cache in the tree.
 
-The damper's states (dampnet.h DN_DAMPER_STATE_LIST) are DamperInput fields; a state added by
-dampnet.h's recipe needs no stub line: the copy gets a DamperInput attribute for each state the
-stub lacks (`with_damper_states`; the stub's own lines document the states it knows).
+The parts of the stub that dampnet.h's X-macros define (DamperInput's fields, Damper.forces's
+optional arrays) are generated from the built module's registries (tests/python/core_stub.py); a
+stub behind them fails here naming the command that rewrites it (issue 52: the stub never gained
+a state added by dampnet.h's recipe, because this test patched its own copy).
 """
 
 from __future__ import annotations
@@ -17,38 +18,39 @@ import subprocess
 import sys
 from pathlib import Path
 
+import core_stub
 from cbuild import ROOT
 
 STUB = ROOT / "python" / "dampnet" / "_core.pyi"
 
 
-def with_damper_states(stub: str) -> str:
-    """The stub with a DamperInput attribute (a float) for each damper state it does not declare."""
+def test_the_generated_parts_of_the_stub_are_up_to_date():
+    """Cost: 0.1 s."""
+    text = STUB.read_text()
+    assert core_stub.generated(text) == text, \
+        f"{STUB} is behind dampnet._core's registries: run `python tests/python/core_stub.py`"
+
+
+def test_a_field_added_by_the_recipe_changes_the_generated_stub(monkeypatch):
+    """The recipe's step 2 (an appended dn_damper_input field, here x_lag) makes the check above fail
+    until the stub is rewritten, and the rewrite declares it in both places. Cost: 0.05 s."""
     from dampnet import _core
 
-    start = stub.index("class DamperInput(")
-    end = stub.index("    def __init__(self) -> None: ...", start)
-    body = stub[start:end]
-    extra = "".join(f"    {name}: float  # {_core.DAMPER_STATES[name][4]} [{_core.DAMPER_STATES[name][0]}]\n"
-                    for name in _core.DAMPER_STATES if not re.search(rf"^    {name}:", body, re.M))
-    return stub[:end] + extra + stub[end:]
-
-
-def test_a_damper_state_the_stub_lacks_is_declared_from_the_registry():
-    from dampnet import _core
-
-    stub = STUB.read_text()
-    last = list(_core.DAMPER_STATES)[-1]
-    shorter = remove(stub, rf"    {last}:")
-    assert shorter != stub
-    assert with_damper_states(shorter).count(f"\n    {last}: float") == 1
+    fields = {**_core.DAMPER_INPUT_FIELDS, "x_lag": "relative displacement after a first-order lag [m]"}
+    monkeypatch.setattr(_core, "DAMPER_INPUT_FIELDS", fields)
+    text = STUB.read_text()
+    new = core_stub.generated(text)
+    assert new != text
+    assert "    x_lag: float  # relative displacement after a first-order lag [m]\n" in new
+    assert "        x_lag: npt.ArrayLike = ...,\n" in new
+    assert core_stub.generated(new) == new
 
 
 def stubtest(stub_text: str, tmp_path: Path) -> subprocess.CompletedProcess:
     pkg = tmp_path / "stubs" / "dampnet"
     pkg.mkdir(parents=True)
     (pkg / "__init__.pyi").write_text("")
-    (pkg / "_core.pyi").write_text(with_damper_states(stub_text))
+    (pkg / "_core.pyi").write_text(stub_text)
     config = tmp_path / "mypy.ini"
     config.write_text(f"[mypy]\nmypy_path = {pkg.parent}\ncache_dir = {tmp_path / 'cache'}\n")
     return subprocess.run([sys.executable, "-m", "mypy.stubtest", "dampnet._core", "--concise",
@@ -79,8 +81,7 @@ def remove(stub: str, pattern: str) -> str:
 
 
 def test_a_name_missing_from_the_stub_fails(tmp_path):
-    # one of each kind: a function, a registry, a class member (not a damper state: those are
-    # declared from the registry), a whole class
+    # one of each kind: a function, a registry, a class member, a whole class
     stub = STUB.read_text()
     for pattern in (r"def check_vehicle\(", r"STEP_OUTPUT_FIELDS:", r"    temperature:", r"class StepReport\("):
         shorter = remove(stub, pattern)

@@ -136,6 +136,9 @@
  *     DN_STATE_DYNAMICS_LIST, its source x, v or u), e.g.
  *       X(DN_DS_X_LAG, x_lag, "m", DN_DYN_LAG_RAMP, x, DN_FPARAM_DISPLACEMENT_LAG_TAU_S,
  *         "relative displacement after displacement_lag's lag")
+ * Then rebuild (`bash python/env.sh true`: about 1.5 min on 2 cores) and rewrite the typed stub,
+ * `python tests/python/core_stub.py` (DamperInput and Damper.forces in python/dampnet/_core.pyi;
+ * tests/python/test_core_stub.py fails naming that command until it is run).
  * A new kind of dynamics is a row of DN_STATE_DYNAMICS_LIST and its three formulas in
  * cpp/include/dampnet/damper_state.hpp (and python/dampnet/features.py's twin).
  * tests/python/test_state_recipe.py proves the recipe: it adds such a feature through the
