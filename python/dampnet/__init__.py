@@ -66,6 +66,7 @@ __all__ = sorted([*_API, "__version__"])
 # modules that moved (issue 31's package families): importing an old name is refused with the new
 # one, rather than a bare "No module named"
 MOVED_MODULES: dict[str, str] = {
+    "dampnet.artefacts": "dampnet.data.artefacts",
     "dampnet.coverage": "dampnet.envelope.coverage",
     "dampnet.coverage_plot": "dampnet.envelope.plot",
     "dampnet.envelope_grid": "dampnet.envelope.grid",

@@ -20,11 +20,11 @@ tests/python/test_effects_catalogue.py checks both sides against this list.
     mount_hysteresis rig: switchable   diagnosis: none (no candidate: the diagnosis must say
                                        "structure left, not a known effect", dampnet.diagnosis.leftover)
     campaign_warming rig: switchable   diagnosis: none (thermal without a temperature channel: found as
-                                       the run-order artefact, dampnet.artefacts)
+                                       the run-order artefact, dampnet.data.artefacts)
 
 The last two are there so that the diagnosis meets what a lab meets and no catalogue names.
 Measurement artefacts (a channel delay, a sign or unit slip, a sensor offset, a drift over the
-run order) are not physics: their family is dampnet.artefacts.
+run order) are not physics: their family is dampnet.data.artefacts.
 
 Add your own effect here first (`register_effect`), then its rig physics
 (dampnet.rig.effects.register) and/or its diagnosis candidate
@@ -235,5 +235,5 @@ register_effect(EffectInfo(
     physics="The oil warms from test to test through a campaign (run order) while the rig logs no "
             "temperature: the viscous force falls along the run order. The thermal candidate needs a "
             "temperature channel to see differences between tests; without one the diagnosis finds it "
-            "as a drift over the run order (dampnet.artefacts: run_order_drift).",
+            "as a drift over the run order (dampnet.data.artefacts: run_order_drift).",
     rig="switchable", diagnosed_by=None, adds=None))

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dampnet.artefacts import align_force, flip_sign, remove_offset, remove_run_order_drift, rescale
+from dampnet.data.artefacts import align_force, flip_sign, remove_offset, remove_run_order_drift, rescale
 from dampnet.data import DataError
 from dampnet.diagnosis.artefacts import run_order_gain_percent, time_offset
 from dampnet.diagnosis.context import build_context
@@ -295,7 +295,7 @@ def test_channel_slips_are_found_in_their_test_and_channel(clean_model, case):
 
 
 def test_align_force_option_is_on_train_evaluate_and_diagnose():
-    """One option, one fix (dampnet.artefacts.align_force) for every command that reads data."""
+    """One option, one fix (dampnet.data.artefacts.align_force) for every command that reads data."""
     from types import SimpleNamespace
 
     from dampnet.cli import build_parser

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dampnet.artefacts import shift_channel
+from dampnet.data.artefacts import shift_channel
 from dampnet.data import write_dataset
 from dampnet.data.readers import load_dataset
 from dampnet.diagnosis import score as S

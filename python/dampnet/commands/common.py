@@ -85,7 +85,7 @@ def load_all(paths: list[str], channel_map: str | None = None):
 
 
 def add_data_fix_options(p) -> None:
-    """The data fixes of dampnet.artefacts a command can apply to its data after loading."""
+    """The data fixes of dampnet.data.artefacts a command can apply to its data after loading."""
     p.add_argument("--align-force-s", type=float, default=None, metavar="SECONDS",
                    help="move the force channel SECONDS earlier against the motion channels (undo a force "
                         "recorded late: the time_offset artefact `dampnet diagnose` estimates); the data "
@@ -98,7 +98,7 @@ def add_data_fix_options(p) -> None:
 
 def apply_data_fixes(ds, args):
     """`ds` with the data fixes the options ask for (a new Dataset; files untouched)."""
-    from dampnet.artefacts import align_force, remove_run_order_drift
+    from dampnet.data.artefacts import align_force, remove_run_order_drift
 
     if getattr(args, "align_force_s", None):
         ds = align_force(ds, args.align_force_s)

@@ -13,6 +13,9 @@
   real.py        the two real MR-damper data sets in ../shared/data
   preprocess.py  acceleration, decimation, hold-out and by-test splits
   merge.py       several datasets as one (merge_datasets)
+  runorder.py    the run order a dataset states (manifest run_order / started), or none
+  artefacts.py   measurement artefacts (a late force channel, a drift, slips, offsets) and their
+                 data fixes; dampnet.diagnosis.artefacts tests for them
   rig/           the virtual shock dyno (generate, EFFECTS, truth_force, TruthDamper)
 """
 

@@ -70,7 +70,7 @@ def stated_run_order(tests) -> tuple[np.ndarray | None, str]:
 
 def run_positions(tests) -> np.ndarray:
     """Each test's place in [0, 1]: the stated run order, else the dataset's order (what the
-    run-order fix, dampnet.artefacts.remove_run_order_drift, applies the drift along)."""
+    run-order fix, dampnet.data.artefacts.remove_run_order_drift, applies the drift along)."""
     pos, _ = stated_run_order(tests)
     if pos is not None:
         return pos

@@ -9,7 +9,7 @@
   localise.py   where the model fails (by test, within the cycle)
   leftover.py   is structure left at all? a catalogue-independent regression on the inputs'
                 history, scored like a candidate; the noise floor; where the structure is
-  artefacts.py  tests for the measurement artefacts of dampnet.artefacts (time offset, run-order
+  artefacts.py  tests for the measurement artefacts of dampnet.data.artefacts (time offset, run-order
                 drift, sign/unit slips, sensor offsets)
   verdict.py    the three-way verdict: known effect / structure left, not a known effect /
                 nothing above the noise floor (or an artefact, alone or with the structure left

@@ -1,4 +1,4 @@
-"""Tests for the measurement artefacts of dampnet.artefacts: each says whether the artefact is there,
+"""Tests for the measurement artefacts of dampnet.data.artefacts: each says whether the artefact is there,
 how big it is, and the data fix it implies (a data fix, not a model term).
 
   time_offset      the force's time shift against the motion: the shift s at which a static
@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from dampnet.artefacts import artefact
+from dampnet.data.artefacts import artefact
 from dampnet.diagnosis import score as S
 from dampnet.diagnosis.basis import SIGN_WIDTHS
 from dampnet.diagnosis.catalogue import _x_frame, gas_columns_of
@@ -256,7 +256,7 @@ class _History:
 
 
 def run_order_gain_percent(ctx) -> float:
-    """The drift in the fix's own terms (dampnet.artefacts.remove_run_order_drift): each test's
+    """The drift in the fix's own terms (dampnet.data.artefacts.remove_run_order_drift): each test's
     gain g_i = <F, pred> / <pred, pred> of its measured force over the model's, a line g_0 (1 +
     p/100 s_i) fitted over its place s_i in [0, 1] of the run order; returns p [%], the force's change from the first test
     to the last (0 for fewer than 2 tests)."""

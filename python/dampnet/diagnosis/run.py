@@ -42,9 +42,9 @@ def _parameters(ctx, cand, res, folds):
 
 
 def fixed_by_artefacts(ds, found: list[dict]):
-    """`ds` with the data fixes of the artefacts found applied (dampnet.artefacts: realign, the
+    """`ds` with the data fixes of the artefacts found applied (dampnet.data.artefacts: realign, the
     run-order term, sign, unit, offset per test), as a user would apply them; None if none applies."""
-    from dampnet import artefacts as A
+    from dampnet.data import artefacts as A
 
     out, applied = ds, False
     for a in found:

@@ -9,7 +9,7 @@
                      with how much and where
   nothing_left       the leftover test finds nothing above its null: what is left is noise (on the
                      force and on the inputs) and the model's own capacity, not a missing effect
-  artefact           a measurement artefact (dampnet.artefacts) is found: its data fix comes first,
+  artefact           a measurement artefact (dampnet.data.artefacts) is found: its data fix comes first,
                      and a catalogue effect it mimics (mistaken_for) is not named
   artefact_and_unknown_structure
                      an artefact, and the leftover test run again on the data with its fix applied
@@ -19,7 +19,7 @@
 
 from __future__ import annotations
 
-from dampnet.artefacts import artefact
+from dampnet.data.artefacts import artefact
 from dampnet.diagnosis.leftover import MIN_EXPLAINED
 from dampnet.diagnosis.report import _num
 

@@ -60,11 +60,11 @@ def measure(channel: str, x: np.ndarray, noise: SensorNoise, rng) -> np.ndarray:
     return quantise(y, RESOLUTION.get(channel, 1e-9))
 
 
-# -- recording artefacts (dampnet.artefacts): faults of the acquisition, put into rig data ---------
+# -- recording artefacts (dampnet.data.artefacts): faults of the acquisition, put into rig data ---------
 
 def record_artefact(ds, artefact_id: str, channel: str = "force", tests=None, *, delay_s: float = 0.010,
                     factor: float = -1.0, offset: float = 0.0):
-    """A copy of the rig's dataset `ds` recorded with an artefact of dampnet.artefacts:
+    """A copy of the rig's dataset `ds` recorded with an artefact of dampnet.data.artefacts:
 
       time_offset    `channel` recorded `delay_s` [s] late (to the nearest sample)
       sign_slip      `channel` times -1 in `tests` (ids; None: every test)
@@ -74,7 +74,7 @@ def record_artefact(ds, artefact_id: str, channel: str = "force", tests=None, *,
     run_order_drift has its physics in the rig (the campaign_warming effect). The artefact and its
     parameters are recorded in meta["artefacts"]; ValueError for an artefact the rig cannot record.
     """
-    from dampnet.artefacts import artefact, flip_sign, remove_offset, rescale, shift_channel
+    from dampnet.data.artefacts import artefact, flip_sign, remove_offset, rescale, shift_channel
 
     artefact(artefact_id)  # ValueError for an unknown id
     if artefact_id == "time_offset":

@@ -79,20 +79,20 @@ register_artefact(ArtefactInfo(
     what="one channel (velocity, displacement or force) recorded with the opposite sign in some tests "
          "(a swapped connector, a sign convention of another rig)",
     mistaken_for="",
-    fix="flip the channel back in those tests (dampnet.artefacts.flip_sign)"))
+    fix="flip the channel back in those tests (dampnet.data.artefacts.flip_sign)"))
 
 register_artefact(ArtefactInfo(
     id="unit_slip", title="a channel in another unit in some tests",
     what="one channel recorded in another unit in some tests (displacement in mm, force in lbf)",
     mistaken_for="",
-    fix="rescale the channel in those tests (dampnet.artefacts.rescale)"))
+    fix="rescale the channel in those tests (dampnet.data.artefacts.rescale)"))
 
 register_artefact(ArtefactInfo(
     id="sensor_offset", title="a sensor's zero moved in some tests",
     what="a constant added to one channel in some tests (displacement zeroed at another position, a load "
          "cell's zero drifting)",
     mistaken_for="gas_spring",
-    fix="subtract the offset in those tests (dampnet.artefacts.remove_offset)"))
+    fix="subtract the offset in those tests (dampnet.data.artefacts.remove_offset)"))
 
 
 # -- the data fixes -----------------------------------------------------------------------
