@@ -45,7 +45,7 @@ The scores (`restart_score`):
       is the model. It needs three training levels; it costs N x min(LOLO_LEVELS, interior) + 1
       fits.
 
-Why "combined" is the default (issue 33, bench/RESULTS.md "Two restarts on the thesis plan"): with the
+Why "combined" is the default (issue 33, bench/LOG.md "Two restarts on the thesis plan"): with the
 control prior (the default since issue 33) every network follows the smooth curve between the
 levels, so what tells restarts apart is how well they fit the levels, which the interpolation score
 does not see. On the thesis plan one single training in three settles in a worse minimum (4 V held
@@ -60,7 +60,7 @@ same one in the others (tests/python/test_train_restarts.py has seed 4). Without
 score keeps what the interpolation score kept (the same test file).
 
 Why a full fit's score and not "lolo" (measured on the 5 x 8 plan, 80 LM fits of 10 base seeds x 8
-restarts, and their leave-one-level-out fits; bench/RESULTS.md "Restarts"): a leave-one-level-out
+restarts, and their leave-one-level-out fits; bench/LOG.md "Restarts"): a leave-one-level-out
 fit is a different network from the full fit of the same seed (LM follows the data to a different
 minimum), so its score says little about the model that is kept: Spearman 0.1-0.4 between a seed's
 LOLO score and its full fit's held-out NRMSE, whichever levels are withheld, and the kept models'
@@ -97,7 +97,7 @@ DEFAULT_RESTARTS = 6
 #: DEFAULT_RESTARTS up to 16,666 rows.
 RESTART_ROWS_BUDGET = 100_000
 #: the automatic algorithm (`dampnet train`'s default, `--algorithm auto`): Bayesian regularisation up
-#: to this many training rows, Levenberg-Marquardt beyond. Why (issue 33, bench/RESULTS.md "Few dyno
+#: to this many training rows, Levenberg-Marquardt beyond. Why (issue 33, bench/LOG.md "Few dyno
 #: tests"): on the 5 x 8 and 6 x 8 plans (25,221 and 28,021 rows) one BR training per seed, with the
 #: control prior, was held out at 0.50x and 0.53x the lookup table's error with seeds agreeing to
 #: 1.32x and 1.17x (rest points at 0 N; 0.41x with the estimated force at rest, the default since), where LM
