@@ -19,7 +19,7 @@ Two measurements, one torch thread:
     python bench/epoch_cost.py                      # the thesis plan, 40 epochs x 2 runs each
     python bench/epoch_cost.py --plan quick --epochs 20 --runs 1
 
-Prints two tables; bench/RESULTS.md ("An LM epoch's cost on the thesis plan") quotes them.
+Prints two tables; bench/LOG.md ("An LM epoch's cost on the thesis plan") quotes them.
 """
 
 from __future__ import annotations

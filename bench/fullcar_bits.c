@@ -1,5 +1,5 @@
 /* A bit-for-bit fingerprint of the full car and the quarter car over a grid of configurations
- * (bench/RESULTS.md, issue 30's "Toward 16 KB"): per configuration one line, the name and an
+ * (bench/LOG.md, issue 30's "Toward 16 KB"): per configuration one line, the name and an
  * FNV-1a 64 of every state after each of 600 steps, every report (when on), every status, a
  * forward() every 50 steps and the evaluation count. Two libraries whose arithmetic is the same
  * print the same lines. Build against a library and run:

@@ -1,4 +1,4 @@
-// The cost of simulate's result memory on first touch (bench/RESULTS.md, python-comparison
+// The cost of simulate's result memory on first touch (bench/LOG.md, python-comparison
 // section): ten fresh anonymous mappings shaped like simulate's results for 1e6 steps (state
 // 12 doubles as before u_cmd, 7 doubles, 3 features, an int32 status: 180 bytes per step), written step by
 // step as simulate does, 5 repetitions, ns per step. Not built by CMake; a scratch experiment:

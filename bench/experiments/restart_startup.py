@@ -1,4 +1,4 @@
-"""The parallel restarts' start-up and end, apart from their fits (issue 33, bench/RESULTS.md "1 V with
+"""The parallel restarts' start-up and end, apart from their fits (issue 33, bench/LOG.md "1 V with
 two restarts, the restarts' start-up, and where issue 33 ends").
 
 `dampnet.train` on the thesis plan (2.25 V held out) with 2 restarts in 2 worker processes of a few

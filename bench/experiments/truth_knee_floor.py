@@ -1,5 +1,5 @@
 """What is left between the thesis plan's held-out error and the noise floor: the valves' knees or the
-seal friction? (issue 33, bench/RESULTS.md "1 V with two restarts, the restarts' start-up, and where
+seal friction? (issue 33, bench/LOG.md "1 V with two restarts, the restarts' start-up, and where
 issue 33 ends".)
 
 The rig's thesis plan is generated again with its truth damper changed, one `dampnet.train` per seed

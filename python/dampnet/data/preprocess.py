@@ -112,7 +112,7 @@ def choose_window(tests: list[DynoTest], truth: list[np.ndarray],
 #: training's automatic decimation keeps about this rate [Hz] (training.pipeline's module doc) ...
 DECIMATE_TARGET_HZ = 200.0
 #: ... or about this one [Hz] when the training rows at DECIMATE_TARGET_HZ would be more than
-#: DECIMATE_MAX_ROWS. Why (issue 33, bench/RESULTS.md "The thesis plan at 100 Hz"): an LM epoch costs
+#: DECIMATE_MAX_ROWS. Why (issue 33, bench/LOG.md "The thesis plan at 100 Hz"): an LM epoch costs
 #: rows x weights^2, and a large plan's extra rows at 200 Hz are more samples of the same cycles. On the
 #: thesis plan (91,518 rows at 200 Hz, 45,780 at 100 Hz) a training at 100 Hz is half as long and no
 #: less accurate on the held-out level.

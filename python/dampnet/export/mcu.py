@@ -39,7 +39,7 @@ CPUS = {
 
 # The float kernel for flash (dampnet.h DN_KERNEL_SMALL, DN_KERNEL_UNROLL; the presets' values):
 # one forward, compiled for the capacity's input count, two neurons per pass
-# (bench/RESULTS.md, "On a microcontroller": the trade-off measured).
+# (bench/LOG.md, "On a microcontroller": the trade-off measured).
 DEFAULT_KERNEL = {"SMALL": 1, "UNROLL": 2}
 # Only the neural damper kind is linked (dampnet.h DN_DAMPER_KINDS): the others' code and their
 # libm functions stay out of flash.
@@ -304,8 +304,8 @@ the M4F, double on the M7).
 {figures}
 """
 
-#: the measured figures the folder's README quotes (bench/RESULTS.md, "On a microcontroller")
-_FOLDER_FIGURES = """Figures for the 3-30-1 default model with these options (dampnet's bench/RESULTS.md): on a
+#: the measured figures the folder's README quotes (bench/LOG.md, "On a microcontroller")
+_FOLDER_FIGURES = """Figures for the 3-30-1 default model with these options (dampnet's bench/LOG.md): on a
 Cortex-M4F (float loop) the float forward 1,447 instructions, the kernel 2,508 B of flash with its
 weights, the quarter-car step 2,211 instructions on average and 2,363 at worst over two rough roads
 (about 3,312 and 3,540 cycles by the TRM's timings, an estimate: 4.75x a 10 kHz step's budget at

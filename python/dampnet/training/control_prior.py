@@ -5,7 +5,7 @@ straight line; here the natural cubic spline through every level, a straight lin
 Why: a dyno plan tests a few control levels (voltages or currents). Between them the data say
 nothing, and a network fitted to two or three levels bends there wherever its seed puts it:
 on the rig's quick plan (0 and 5 V trained, 2.25 V held out) plain training gave a held-out
-NRMSE of 0.11-1.7 over seeds against the lookup table's 0.029 (bench/RESULTS.md, "Few dyno
+NRMSE of 0.11-1.7 over seeds against the lookup table's 0.029 (bench/LOG.md, "Few dyno
 tests"). The prior adds soft residual rows to the least-squares problem,
 
     r_prior = s * (f(k, u_m) - sum_l w_l(u_m) f(k, u_l)),  u_m = u_lo + lam (u_hi - u_lo),
@@ -18,7 +18,7 @@ prior's share against the data: the prior rows' summed squares count `weight` ti
 row, as the data rows' (s = sqrt(weight * n_data / n_points)). With two levels the reference is
 the straight line and the model becomes the lookup table's interpolation of what it learned at
 each level; with more, the spline follows the valve's curvature across levels, which a straight
-line between adjacent levels would flatten (bench/RESULTS.md "Few dyno tests": 5 x 8 plan, seeds
+line between adjacent levels would flatten (bench/LOG.md "Few dyno tests": 5 x 8 plan, seeds
 0-3, median 0.0061 against 0.0075 with straight lines, measured with a prototype of these rows).
 
 The control columns are the features the runtime reads from the control

@@ -30,7 +30,7 @@ n_points)): the prior's mean square counts `weight` times as much as the data's 
 points, 2 n_data of them, each counts weight / 2 times a data row). Since only violations count,
 the weight to give it is large (RECOMMENDED_WEIGHT).
 
-Why it is off by default (dampnet.training.settings.OPTIONS; issue 33, bench/RESULTS.md "Few dyno
+Why it is off by default (dampnet.training.settings.OPTIONS; issue 33, bench/LOG.md "Few dyno
 tests"): where the data are dense they hold the network monotone already, and the prior only
 costs. On the thesis plan (2.25 V held out, seeds 0 and 1) the force fell with velocity at none of
 the training samples without it; with weight 100 the held-out NRMSE rose from 0.0037 / 0.0045 to

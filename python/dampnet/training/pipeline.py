@@ -18,7 +18,7 @@ What train_dataset does, in order (the thesis's chapter 4 data handling):
     training rows, as on the thesis plan). The highest test frequency is 3 Hz, so 100 Hz keeps 33
     samples per cycle and 200 Hz 67, more than the force waveform needs; the derived acceleration
     is already smoothed over 20 ms (100 samples) so decimating it loses nothing. Measured on the
-    full thesis plan (bench/RESULTS.md "The thesis plan at 100 Hz"): with the estimated force at
+    full thesis plan (bench/LOG.md "The thesis plan at 100 Hz"): with the estimated force at
     rest LM runs up to its 1,000 epochs either way, and at 100 Hz takes half the time to a held-out
     error no worse (rest points at 0 N it stopped early, and 200 Hz was the better: 0.0037 against
     0.0042); factor 1 would be 25x the work.

@@ -12,7 +12,7 @@ damper's own force at rest ("estimated"): a gas-charged damper pushes its gas fo
 synthetic rig's -273 N; any monotube's preload), which rows at 0 N contradict. "zero" is the
 thesis's 0 N; "none" adds no rest points. The estimate is recorded whenever rest points are added
 (model.meta["rest_force"], `dampnet train`'s summary). The estimate measured better than 0 N
-(bench/RESULTS.md, "Issue 33's table with the estimated force at rest", seeds 0-9, median held-out
+(bench/LOG.md, "Issue 33's table with the estimated force at rest", seeds 0-9, median held-out
 NRMSE over the lookup table's: 5x8 and 6x8 plans 0.41x against 0.50x and 0.53x; the thesis plan
 0.48x / 0.37x / 0.63x against 0.59x / 0.50x / 0.75x with 2.25 / 1 / 4 V held out; the quick plan
 the same). The force at rest is estimated from the

@@ -45,7 +45,7 @@ The scores (`restart_score`):
       is the model. It needs three training levels; it costs N x min(LOLO_LEVELS, interior) + 1
       fits.
 
-Why "combined" is the default (issue 33, bench/RESULTS.md "Two restarts on the thesis plan"): with the
+Why "combined" is the default (issue 33, bench/LOG.md "Two restarts on the thesis plan"): with the
 control prior (the default since issue 33) every network follows the smooth curve between the
 levels, so what tells restarts apart is how well they fit the levels, which the interpolation score
 does not see. On the thesis plan one single training in three settles in a worse minimum (4 V held
@@ -60,7 +60,7 @@ same one in the others (tests/python/test_train_restarts.py has seed 4). Without
 score keeps what the interpolation score kept (the same test file).
 
 Why a full fit's score and not "lolo" (measured on the 5 x 8 plan, 80 LM fits of 10 base seeds x 8
-restarts, and their leave-one-level-out fits; bench/RESULTS.md "Restarts"): a leave-one-level-out
+restarts, and their leave-one-level-out fits; bench/LOG.md "Restarts"): a leave-one-level-out
 fit is a different network from the full fit of the same seed (LM follows the data to a different
 minimum), so its score says little about the model that is kept: Spearman 0.1-0.4 between a seed's
 LOLO score and its full fit's held-out NRMSE, whichever levels are withheld, and the kept models'

@@ -63,7 +63,7 @@ DEFAULT_RESTARTS = 6
 #: DEFAULT_RESTARTS up to 16,666 rows.
 RESTART_ROWS_BUDGET = 100_000
 #: the automatic algorithm (`dampnet train`'s default, `--algorithm auto`): Bayesian regularisation up
-#: to this many training rows, Levenberg-Marquardt beyond. Why (issue 33, bench/RESULTS.md "Few dyno
+#: to this many training rows, Levenberg-Marquardt beyond. Why (issue 33, bench/LOG.md "Few dyno
 #: tests"): on the 5 x 8 and 6 x 8 plans (25,221 and 28,021 rows) one BR training per seed, with the
 #: control prior, was held out at 0.50x and 0.53x the lookup table's error with seeds agreeing to
 #: 1.32x and 1.17x (rest points at 0 N; 0.41x with the estimated force at rest, the default since), where LM
