@@ -3,7 +3,7 @@
 A hybrid model's force is its MLP's output plus the sum of its terms,
 `MlpModel.terms = [{"kind": str, "params": [float, ...]}, ...]`. Each kind is
 one entry of `KINDS` here and one line of `DN_TERM_LIST` in
-`cpp/include/dampnet/dampnet.h` (its force in `cpp/include/dampnet/terms.hpp`);
+`cpp/include/dampnet/dn_xmacro.h` (its force in `cpp/include/dampnet/terms.hpp`);
 the two must give the same force (tests/python/test_loop_dampers.py checks).
 
 Sign convention (the dyno's): displacement x [m] is the damper's extension from
@@ -41,6 +41,8 @@ class Kind:
     shapes: Callable[[np.ndarray], list[tuple[float, ...]]] = lambda x: [()]  # x [m] -> grid of the others
     # the fitted parameters made valid (e.g. a negative stiffness switched off)
     settle: Callable[[np.ndarray], np.ndarray] = lambda p: p
+    # whether fit_terms can fit it (a valve term is given with its parameters for now)
+    fittable: bool = True
 
     def with_shape(self, shape: tuple[float, ...], linear_values) -> np.ndarray:
         """The full parameter vector from a shape (the non-linear parameters) and the linear ones."""
@@ -85,6 +87,56 @@ def _bump_settle(p: np.ndarray) -> np.ndarray:
     return np.array([p[0], max(p[1], 0.0), p[2]])
 
 
+#: the valve term's bounds (dn_xmacro.h DN_TERM_VALVE_V_MAX_M_S, DN_TERM_VALVE_U_MAX)
+VALVE_V_MAX = 50.0  # [m/s]
+VALVE_U_MAX = 1000.0  # [V or A]
+
+
+def _valve_parts(p: np.ndarray, q: dict[str, np.ndarray]):
+    """(sgn(v), s(u), ds/du, g_d(|v|), g_d'(|v|), |v| below its clamp) of the valve term."""
+    if "v" not in q or "u" not in q:
+        raise ValueError("a valve term needs the velocity v [m/s] and the control u [V or A]")
+    v = np.asarray(q["v"], dtype=np.float64)
+    u = np.asarray(q["u"], dtype=np.float64)
+    v, u = np.broadcast_arrays(v, u)
+    ext = v > 0
+    vk, cb, cv = (np.where(ext, p[i], p[i + 3]) for i in range(3))
+    w_raw = np.abs(v)
+    w = np.where(w_raw < VALVE_V_MAX, w_raw, VALVE_V_MAX)
+    w = np.where(np.isnan(w), 0.0, w)
+    below = w <= vk
+    d = np.maximum(w - vk, 0.0)
+    one_minus_e = -np.expm1(-d / vk)
+    m = 2 * cb * vk - cv
+    g = np.where(below, cb * w * w, cb * vk * vk + cv * d + m * vk * one_minus_e)
+    dg = np.where(below, 2 * cb * w, cv + m * (1 - one_minus_e))
+    inside = (u > 0) & (u < VALVE_U_MAX)  # NaN: outside, as u = 0
+    uc = np.where(inside, u, np.where(u >= VALVE_U_MAX, VALVE_U_MAX, 0.0))
+    den = 1 + p[7] * uc
+    s = (1 + p[6] * uc) / den
+    ds = np.where(inside, (p[6] - p[7]) / (den * den), 0.0)
+    sgn = np.where(ext, 1.0, np.where(v < 0, -1.0, 0.0))  # 0 at v = 0 and NaN
+    return sgn, s, ds, g, dg, w_raw < VALVE_V_MAX
+
+
+def _valve(p: np.ndarray, q: dict[str, np.ndarray]) -> np.ndarray:
+    sgn, s, _, g, _, _ = _valve_parts(p, q)
+    return sgn * s * g
+
+
+def valve_gradient(params, v, u) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The valve term's (F [N], dF/dv [N s/m], dF/du [N per control unit]) at v [m/s], u [V or A]."""
+    p = validate({"kind": "valve", "params": params})
+    sgn, s, ds, g, dg, unclamped = _valve_parts(p, {"v": np.asarray(v, float), "u": np.asarray(u, float)})
+    return sgn * s * g, np.where(unclamped & (sgn != 0), s * dg, 0.0), sgn * ds * g
+
+
+def _valve_check(p: np.ndarray) -> str | None:
+    if not (p[0] > 0 and p[3] > 0) or min(p[1], p[2], p[4], p[5], p[6], p[7]) < 0:
+        return "valve needs v_k > 0 and c_b, c_v, g_num, g_den >= 0"
+    return None
+
+
 KINDS: dict[str, Kind] = {
     "position_poly": Kind(("p0 [N]", "p1 [N/m]", "p2 [N/m^2]", "p3 [N/m^3]"), _position_poly,
                           lambda p: None,
@@ -93,6 +145,14 @@ KINDS: dict[str, Kind] = {
     "bump_stop": Kind(("x_free [m]", "k [N/m^n]", "n [-]"), _bump_stop, _bump_check,
                       "F = sgn(x) k (|x| - x_free)^n beyond x_free: elastomer stops both ways",
                       linear=(1,), shapes=_bump_shapes, settle=_bump_settle),
+    "valve": Kind(("v_k_ext [m/s]", "c_b_ext [N s^2/m^2]", "c_v_ext [N s/m]",
+                   "v_k_comp [m/s]", "c_b_comp [N s^2/m^2]", "c_v_comp [N s/m]", "g_num [1/u]", "g_den [1/u]"),
+                  _valve, _valve_check,
+                  "F = sgn(v) s(u) g_d(|v|): per direction d (ext v > 0, comp v < 0) a bleed c_b v^2 below "
+                  "the knee v_k and a blow-off valve of slope c_v above it, joined C1 "
+                  "(g = c_b v_k^2 + c_v (w - v_k) + (2 c_b v_k - c_v) v_k (1 - exp(-(w - v_k)/v_k))); "
+                  "control gain s(u) = (1 + g_num u) / (1 + g_den u), u in [0, 1000], |v| <= 50 m/s",
+                  linear=(), fittable=False),
 }
 
 
@@ -160,11 +220,12 @@ def fit_terms(terms: Sequence[dict[str, Any]], x: np.ndarray, v: np.ndarray, u: 
     free = [i for i, t in enumerate(terms) if t.get("params") is None]
     if not free:
         return terms
-    target = y - terms_force(fixed, x)
+    target = y - terms_force(fixed, x, v, u=u)
     base = _velocity_basis(v, u)
-    unknown = [terms[i]["kind"] for i in free if terms[i]["kind"] not in KINDS]
+    unknown = [terms[i]["kind"] for i in free if terms[i]["kind"] not in KINDS or not KINDS[terms[i]["kind"]].fittable]
     if unknown:
-        raise ValueError(f"cannot fit physics term kind {unknown[0]!r} (fittable: {', '.join(sorted(KINDS))})")
+        raise ValueError(f"cannot fit physics term kind {unknown[0]!r} (fittable: "
+                         f"{', '.join(sorted(k for k, kind in KINDS.items() if kind.fittable))}; give its params)")
     kinds = [KINDS[terms[i]["kind"]] for i in free]
     best: tuple[float, tuple, np.ndarray] | None = None
     for shapes in itertools.product(*[k.shapes(x) for k in kinds]):

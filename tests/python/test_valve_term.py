@@ -1,0 +1,300 @@
+"""The valve term (issue 54 item 1): a bleed orifice in parallel with a preloaded blow-off
+valve, per direction, scaled by the control (dn_xmacro.h DN_TERM_LIST "valve";
+cpp/include/dampnet/terms.hpp; python/dampnet/terms.py).
+
+Checked against an independent reference (the law written out again here in numpy, piecewise
+and branchy, not dampnet.terms' vectorised form): the C++ force (Damper.forces, the C ABI's
+dn_damper_terms_grad through _core.Damper.terms_grad) and the numpy mirror equal it to 1e-12;
+the runtime's derivatives dF/dv, dF/du equal central finite differences; the law is C1 at the
+knee (one-sided slopes equal) and at v = 0; the force is finite and bounded for any input
+(NaN, +-inf, huge), and a damper refuses a non-finite v or u the valve reads; a hybrid model
+with a valve term gives the same forces in the pybind damper, the exported header compiled on
+the host with the C library (python/dampnet/demo/controller.c), and the damper FMU (FMPy).
+ONNX graphs carry no physics term of any kind (listed in their metadata only: docs/export.md),
+so ONNX is checked for listing the valve term, not for its force."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+
+import numpy as np
+import pytest
+
+from cbuild import ROOT, compile_program
+from dampnet import _core, terms as T
+from dampnet.sim.quarter_car.loop import add_terms, damper_from_model
+from loop_helpers import numpy_forward, random_model
+
+#: v_k_ext [m/s], c_b_ext [N s^2/m^2], c_v_ext [N s/m], v_k_comp, c_b_comp, c_v_comp, g_num [1/V], g_den [1/V]
+#: a digressive extension valve (c_v < 2 c_b v_k) and a progressive compression one (c_v > 2 c_b v_k);
+#: voltage-controlled: the force falls from 1x at 0 V to g_num / g_den = 0.25x (the thesis's c(V) trend)
+P = [0.12, 9.0e4, 2.5e3, 0.08, 4.0e4, 8.0e3, 0.5, 2.0]
+#: current-controlled: affine gain 1 + 0.6 I (g_den = 0), harder with the current
+P_CURRENT = [0.1, 5.0e4, 3.0e3, 0.1, 3.0e4, 2.0e3, 0.6, 0.0]
+V_MAX, U_MAX = 50.0, 1000.0
+rng = np.random.default_rng(54)
+
+
+def reference(p, v, u):
+    """The valve law written out per sample (independent of dampnet.terms and terms.hpp)."""
+    def one(v, u):
+        if math.isnan(v) or v == 0.0:
+            return 0.0
+        vk, cb, cv = p[0:3] if v > 0 else p[3:6]
+        w = min(abs(v), V_MAX)
+        if w <= vk:
+            g = cb * w ** 2
+        else:
+            g = cb * vk ** 2 + cv * (w - vk) + (2 * cb * vk - cv) * vk * (-math.expm1(-(w - vk) / vk))
+        uc = 0.0 if math.isnan(u) else min(max(u, 0.0), U_MAX)
+        s = (1 + p[6] * uc) / (1 + p[7] * uc)
+        return math.copysign(s * g, v)
+    v, u = np.broadcast_arrays(np.asarray(v, float), np.asarray(u, float))
+    return np.array([one(a, b) for a, b in zip(v.ravel(), u.ravel())]).reshape(v.shape)
+
+
+def cpp_force(p, v, u, x=0.0):
+    """The force of a damper holding the valve term alone (Damper.linear(0) + term)."""
+    d = add_terms(_core.Damper.linear(0.0), [{"kind": "valve", "params": p}])
+    v = np.asarray(v, float)
+    f, st, _ = d.forces(np.broadcast_to(x, v.shape), v, 0.0, np.asarray(u, float), 0.0, 20.0)
+    return f, st
+
+
+def cpp_grad(p, v, u, x=0.0):
+    """(F, dF/dx, dF/dv, dF/du, status) of the C ABI's dn_damper_terms_grad."""
+    d = add_terms(_core.Damper.linear(0.0), [{"kind": "valve", "params": p}])
+    return d.terms_grad(np.broadcast_to(x, np.shape(v)).astype(float), np.asarray(v, float), np.asarray(u, float))
+
+
+def random_inputs(n=4000):
+    """Velocities over both directions, many near the knees and a few beyond the clamp; controls
+    over the range and beyond it (negative, above U_MAX)."""
+    v = np.concatenate([rng.uniform(-3, 3, n // 2), rng.choice([-1, 1], n // 4) * rng.uniform(0.05, 0.15, n // 4),
+                        rng.uniform(-80, 80, n // 4)])
+    u = np.concatenate([rng.uniform(-1, 12, n - 20), rng.uniform(1000, 2000, 10), rng.uniform(-50, -1, 10)])
+    return v, rng.permutation(u)
+
+
+@pytest.mark.parametrize("p", [P, P_CURRENT], ids=["voltage", "current"])
+def test_force_equals_the_independent_reference(p):
+    """The C++ force (Damper.forces and dn_damper_terms_grad) and dampnet.terms' numpy force equal
+    the reference to 1e-12 relative on random inputs. Cost: 0.3 s."""
+    v, u = random_inputs()
+    ref = reference(p, v, u)
+    f, st = cpp_force(p, v, u)
+    assert np.all(st == 0)
+    np.testing.assert_allclose(f, ref, rtol=1e-12, atol=1e-12)
+    g = cpp_grad(p, v, u)
+    assert np.all(g[4] == 0)
+    np.testing.assert_allclose(g[0], ref, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(T.term_force({"kind": "valve", "params": p}, 0 * v, v, u=u), ref, rtol=1e-12,
+                               atol=1e-12)
+    # dissipative (F v >= 0), resisting extension and compression, and the control acts
+    assert np.all(ref * v >= 0) and np.ptp(ref) > 1e3
+    lo, hi = reference(p, 1.0, 0.0), reference(p, 1.0, 5.0)
+    assert (hi < 0.5 * lo) if p is P else (hi > 3.5 * lo)
+
+
+@pytest.mark.parametrize("p", [P, P_CURRENT], ids=["voltage", "current"])
+def test_derivative_equals_finite_differences(p):
+    """dF/dv and dF/du of the runtime (dn_damper_terms_grad) equal central finite differences of
+    the reference force, dF/dx and dF/da are 0 (force_da's dF/da of terms), and the numpy
+    mirror's valve_gradient equals the runtime's to 1e-12. Inputs away from the knee, 0 and the
+    clamps by more than the difference step. Cost: 0.3 s."""
+    v, u = rng.uniform(-3, 3, 3000), rng.uniform(0.01, 12, 3000)
+    away = (np.abs(np.abs(v) - np.where(v > 0, p[0], p[3])) > 1e-3) & (np.abs(v) > 1e-3)
+    v, u = v[away], u[away]
+    f, gx, gv, gu, st = cpp_grad(p, v, u)
+    assert np.all(st == 0) and np.all(gx == 0)
+    hv, hu = 1e-6 * np.maximum(np.abs(v), 1e-2), 1e-6 * np.maximum(u, 1.0)
+    fd_v = (reference(p, v + hv, u) - reference(p, v - hv, u)) / (2 * hv)
+    fd_u = (reference(p, v, u + hu) - reference(p, v, u - hu)) / (2 * hu)
+    np.testing.assert_allclose(gv, fd_v, rtol=1e-6, atol=1e-6 * np.max(np.abs(fd_v)))
+    np.testing.assert_allclose(gu, fd_u, rtol=1e-6, atol=1e-6 * np.max(np.abs(fd_u)))
+    assert np.all(gv >= 0)  # the force never falls with the speed
+    F, dv, du = T.valve_gradient(p, v, u)
+    np.testing.assert_allclose(F, f, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(dv, gv, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(du, gu, rtol=1e-12, atol=1e-12)
+    # no term reads the acceleration: the hybrid damper's force does not move with a
+    d = add_terms(_core.Damper.linear(0.0), [{"kind": "valve", "params": p}])
+    f_a = d.forces(0.0, v, rng.uniform(-500, 500, v.size), u, 0.0, 20.0)[0]
+    np.testing.assert_array_equal(f_a, f)
+
+
+@pytest.mark.parametrize("p", [P, P_CURRENT], ids=["voltage", "current"])
+def test_c1_at_the_knee_and_at_rest(p):
+    """The one-sided slopes at each knee (v = +v_k_ext, -v_k_comp) equal each other and 2 c_b v_k
+    (the bleed's), measured by one-sided differences of the runtime's force and by its
+    derivative just inside and outside; the force is continuous there and at v = 0 (slope 0
+    from both sides). A plain join of the bleed parabola and the valve line (slope c_v above
+    the knee) would not be C1: its slopes differ by |2 c_b v_k - c_v| > 1e3 N s/m here, which
+    the same comparison detects. Cost: 0.2 s."""
+    u = 1.5
+    s = (1 + p[6] * u) / (1 + p[7] * u)
+    for sign, vk, cb, cv in ((1.0, p[0], p[1], p[2]), (-1.0, p[3], p[4], p[5])):
+        knee = sign * vk
+        h = 1e-7
+        f0 = cpp_force(p, [knee], u)[0][0]
+        right = (cpp_force(p, [knee + h], u)[0][0] - f0) / h
+        left = (f0 - cpp_force(p, [knee - h], u)[0][0]) / h
+        bleed_slope = s * 2 * cb * vk
+        assert right == pytest.approx(bleed_slope, rel=1e-5) and left == pytest.approx(bleed_slope, rel=1e-5)
+        gv = cpp_grad(p, np.array([knee - 1e-12, knee + 1e-12]), u)[2]
+        assert gv[0] == pytest.approx(gv[1], rel=1e-9) and gv[0] == pytest.approx(bleed_slope, rel=1e-9)
+        assert f0 == pytest.approx(sign * s * cb * vk ** 2, rel=1e-12)  # the preload force at the knee
+        # far above the knee the valve's own slope c_v rules (the law's opening line)
+        far = cpp_grad(p, np.array([sign * 40 * vk]), u)[2][0]
+        assert far == pytest.approx(s * cv, rel=1e-9)
+        assert abs(2 * cb * vk - cv) > 1e3  # a kinked join would fail the slope check above
+    f, _ = cpp_force(p, [-1e-9, 0.0, 1e-9], u)
+    assert f[1] == 0.0 and abs(f[0]) < 1e-12 and abs(f[2]) < 1e-12
+
+
+def test_bounded_and_finite_for_any_input():
+    """Huge finite v and u (+-1e308, denormals, 0) give a finite force and finite derivatives
+    within the bound s_max g(50 m/s) (beyond the clamps the force is the clamp's), through
+    Damper.forces and dn_damper_terms_grad; a non-finite v or u the valve reads is refused by
+    both (DN_E_NONFINITE_INPUT, force and derivatives 0), a non-finite x it does not read is
+    not; the numpy mirror gives the law's values for NaN and +-inf (NaN v: 0, NaN u: as 0).
+    Cost: 0.2 s."""
+    bad = [np.nan, np.inf, -np.inf, 1e308, -1e308, 0.0, 5e-324, -5e-324]
+    v, u = (a.ravel() for a in np.meshgrid(bad, bad + [3.0]))
+    finite = np.isfinite(v) & np.isfinite(u)
+    f, gx, gv, gu, st = cpp_grad(P, v, u)
+    assert np.all(st[finite] == 0) and np.all(st[~finite] == _core.DN_E_NONFINITE_INPUT)
+    for a in (f, gx, gv, gu):
+        assert np.all(np.isfinite(a)) and np.all(a[~finite] == 0)
+    bound = max(reference(P, V_MAX, 0.0), -reference(P, -V_MAX, 0.0))  # s(u) <= 1 here (g_num < g_den)
+    assert np.all(np.abs(f) <= bound * (1 + 1e-12))
+    np.testing.assert_allclose(f[finite], reference(P, v[finite], u[finite]), rtol=1e-12, atol=0)
+    assert reference(P, 1e308, 1e308) == reference(P, V_MAX, U_MAX) == f[(v == 1e308) & (u == 1e308)][0]
+    fd, std = cpp_force(P, v, u)
+    assert np.all(std[~finite] == _core.DN_E_NONFINITE_INPUT) and np.all(fd[~finite] == 0)
+    assert np.all(std[finite] == 0) and np.all(np.abs(fd[finite]) <= bound * (1 + 1e-12))
+    np.testing.assert_array_equal(fd[finite], f[finite])
+    fx, stx = cpp_force(P, [0.5], 1.0, x=np.nan)
+    assert stx[0] == 0 and fx[0] == pytest.approx(reference(P, 0.5, 1.0), rel=1e-12)
+    # the numpy mirror on the non-finite inputs: the law's clamps and NaN rules, finite
+    f_np = T.term_force({"kind": "valve", "params": P}, 0 * v, v, u=u)
+    assert np.all(np.isfinite(f_np))
+    np.testing.assert_allclose(f_np, reference(P, v, u), rtol=1e-12, atol=0)
+    # the current-controlled gain (g_den = 0) is bounded by the control's clamp
+    fc, _, _, _, stc = cpp_grad(P_CURRENT, [1e308, 1.0], [1e308, 1e308])
+    assert np.all(stc == 0) and fc[1] == pytest.approx(reference(P_CURRENT, 1.0, U_MAX), rel=1e-12)
+    assert fc[0] == pytest.approx(reference(P_CURRENT, V_MAX, U_MAX), rel=1e-12) and np.isfinite(fc[0])
+
+
+@pytest.mark.parametrize("params, code", [
+    (P[:7], "DN_E_SIZE"), ([0.0] + P[1:], "DN_E_PARAM"), (P[:3] + [-0.1] + P[4:], "DN_E_PARAM"),
+    (P[:1] + [-1.0] + P[2:], "DN_E_PARAM"), (P[:5] + [-1.0] + P[6:], "DN_E_PARAM"),
+    (P[:6] + [-0.1, 0.0], "DN_E_PARAM"), (P[:7] + [-0.1], "DN_E_PARAM"), (P[:2] + [np.inf] + P[3:], "NONFINITE"),
+])
+def test_bad_valve_parameters_are_refused(params, code):
+    """The runtime and dampnet.terms refuse the same parameter sets: a count other than 8, a knee
+    velocity <= 0, a negative coefficient or gain, a non-finite value. Cost: 0.1 s."""
+    with pytest.raises(ValueError, match=code):
+        _core.Damper.linear(1.0).add_term("valve", np.array(params, dtype=float))
+    with pytest.raises(ValueError):
+        T.validate({"kind": "valve", "params": params})
+
+
+def test_registry_and_fitting_refusal():
+    """The runtime's kind list has the valve with 8 parameters, the same count as dampnet.terms;
+    fit_terms refuses to fit a valve without parameters (not fittable yet) and takes a given one
+    as fixed (its force, which reads v and u, is subtracted). Cost: 0.1 s."""
+    assert _core.TERM_KINDS["valve"][0] == 8 == len(T.KINDS["valve"].params)
+    x, v, u = np.zeros(50), rng.uniform(-1, 1, 50), rng.uniform(0, 5, 50)
+    with pytest.raises(ValueError, match="cannot fit physics term kind 'valve'"):
+        T.fit_terms([{"kind": "valve"}], x, v, u, v)
+    y = reference(P, v, u) + 100.0 * x
+    out = T.fit_terms([{"kind": "valve", "params": P}, {"kind": "position_poly"}], x + rng.uniform(-0.05, 0.05, 50),
+                      v, u, y)
+    assert out[0]["params"] == P and "fitted" not in out[0]
+
+
+HYBRID_FEATURES = ["velocity", "acceleration", "voltage", "displacement"]
+VALVE_TERMS = [{"kind": "valve", "params": P}, {"kind": "bump_stop", "params": [0.05, 2e5, 1.5]}]
+
+
+@pytest.fixture(scope="module")
+def hybrid():
+    model = random_model(HYBRID_FEATURES, hidden=7, seed=11, terms=VALVE_TERMS)
+    n = 400
+    x = rng.uniform(-0.07, 0.07, n)
+    v = rng.uniform(-2.5, 2.5, n)
+    a = rng.uniform(-200, 200, n)
+    u = rng.uniform(0, 5, n)
+    return model, x, v, a, u
+
+
+def test_hybrid_pybind_damper_equals_mlp_plus_reference(hybrid):
+    """A hybrid model (4-input MLP + valve + bump stop) through damper_from_model equals the numpy
+    MLP plus the reference valve plus the bump stop, to 1e-12 relative. Cost: 0.1 s."""
+    model, x, v, a, u = hybrid
+    f, st, _ = damper_from_model(model).forces(x, v, a, u, u, 20.0)
+    assert np.all(st >= 0)
+    xf, k, n = VALVE_TERMS[1]["params"]
+    bump = np.sign(x) * np.where(np.abs(x) > xf, k * np.maximum(np.abs(x) - xf, 0) ** n, 0.0)
+    ref = numpy_forward(model, np.stack([v, a, u, x], axis=1)) + reference(P, v, u) + bump
+    np.testing.assert_allclose(f, ref, rtol=1e-12, atol=1e-8)
+
+
+def test_exported_header_with_the_c_library_equals_the_host(hybrid, tmp_path):
+    """The exported header (dampnet.export.header) compiled on the host with the C library's
+    sources and the demo's controller.c (dn_damper_add_term from the header's term rows,
+    dn_damper_force) gives the pybind damper's forces to 1e-9 relative. Cost: 6 s (the compile)."""
+    from dampnet.demo.cprogram import ROW_FIELDS
+    from dampnet.export.header import write_header
+    model, x, v, a, u = hybrid
+    write_header(model, tmp_path / "model.h")
+    lib = [ROOT / "cpp" / "src" / f for f in ("c_api_common.cpp", "c_api_mlp.cpp", "c_api_loop.cpp")]
+    ctrl = ROOT / "python" / "dampnet" / "demo" / "controller.c"  # g++: C++, with the library's sources
+    exe = compile_program([ctrl, *lib], tmp_path / "controller", cxx=True,
+                          include_dirs=[ROOT / "cpp" / "include", ROOT / "cpp" / "src", tmp_path],
+                          extra=["-DDN_STATIC", "-Wno-missing-field-initializers"])
+    cols = {"x": x, "v": v, "a": a, "u": u, "u_lag": u, "temperature": np.full_like(x, 20.0),
+            "v_lag": v, "z_fric": np.zeros_like(x)}
+    rows = np.stack([cols[f] for f in ROW_FIELDS], axis=1)
+    proc = subprocess.run([str(exe)], input="\n".join(" ".join(repr(float(c)) for c in r) for r in rows) + "\n",
+                          capture_output=True, text=True, timeout=60, check=True)
+    f_c = np.array([float(s) for s in proc.stdout.split()])
+    f_host, st, _ = damper_from_model(model).forces(x, v, a, u, u, 20.0)
+    assert np.all(st >= 0) and f_c.size == x.size
+    np.testing.assert_allclose(f_c, f_host, rtol=1e-9, atol=1e-9)
+    assert np.ptp(reference(P, v, u)) > 1e3  # the valve is a large part of the force
+
+
+def test_damper_fmu_equals_the_host(hybrid, tmp_path):
+    """The damper FMU (FMI 2 co-simulation, FMPy) of the hybrid model: the force read at each
+    communication point equals the pybind damper's to 1e-9 N; its valve parameters are FMU
+    parameters with the runtime's ranges (v_k_ext min 0, c_b_ext min 0). Cost: 8 s (the FMU build)."""
+    fmpy = pytest.importorskip("fmpy")
+    from fmpy import read_model_description
+    from dampnet.export.fmu import build_fmu
+    import test_export_fmu as fx
+    model, x, v, a, u = hybrid
+    path = build_fmu(model, tmp_path / "valve.fmu", fmi=2)
+    t = np.arange(x.size) * 1e-3
+    f_fmu = fx.drive(path, (t, x, v, a, u))
+    f_host, st, _ = damper_from_model(model).forces(x, v, a, u, u, 20.0)
+    assert np.all(st >= 0)
+    np.testing.assert_allclose(f_fmu, f_host, rtol=0, atol=1e-9)
+    vs = {sv.name: sv for sv in read_model_description(str(path)).modelVariables}
+    assert float(vs["valve_0.v_k_ext"].min) == 0.0 and float(vs["valve_0.c_b_ext"].min) == 0.0
+    assert float(vs["valve_0.g_den"].start) == P[7]
+    assert fmpy is not None
+
+
+def test_onnx_lists_the_valve_term_in_its_metadata(hybrid):
+    """ONNX graphs hold the network only (no physics term of any kind is in the graph,
+    docs/export.md): the valve term and its parameters are in the graph's metadata "terms".
+    Cost: 0.3 s."""
+    pytest.importorskip("onnx")
+    from dampnet.export.onnx import onnx_graph
+    model = hybrid[0]
+    meta = {p.key: p.value for p in onnx_graph(model).metadata_props}
+    assert json.loads(meta["terms"]) == VALVE_TERMS
