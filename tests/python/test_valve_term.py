@@ -179,7 +179,7 @@ def test_bounded_and_finite_for_any_input():
     fx, stx = cpp_force(P, [0.5], 1.0, x=np.nan)
     assert stx[0] == 0 and fx[0] == pytest.approx(reference(P, 0.5, 1.0), rel=1e-12)
     # the numpy mirror on the non-finite inputs: the law's clamps and NaN rules, finite
-    f_np = T.term_force({"kind": "valve", "params": P}, 0 * v, v, u=u)
+    f_np = T.term_force({"kind": "valve", "params": P}, np.zeros_like(v), v, u=u)
     assert np.all(np.isfinite(f_np))
     np.testing.assert_allclose(f_np, reference(P, v, u), rtol=1e-12, atol=0)
     # the current-controlled gain (g_den = 0) is bounded by the control's clamp
