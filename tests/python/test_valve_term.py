@@ -204,14 +204,14 @@ def test_bad_valve_parameters_are_refused(params, code):
         T.validate({"kind": "valve", "params": params})
 
 
-def test_registry_and_fitting_refusal():
+def test_registry_and_a_given_valve_in_fit_terms():
     """The runtime's kind list has the valve with 8 parameters, the same count as dampnet.terms;
-    fit_terms refuses to fit a valve without parameters (not fittable yet) and takes a given one
-    as fixed (its force, which reads v and u, is subtracted). Cost: 0.01 s."""
+    fit_terms takes a valve given with its parameters as fixed (its force, which reads v and u,
+    is subtracted) and refuses to fit one from samples of one direction only. Cost: 0.01 s."""
     assert _core.TERM_KINDS["valve"][0] == 8 == len(T.KINDS["valve"].params)
     x, v, u = np.zeros(50), rng.uniform(-1, 1, 50), rng.uniform(0, 5, 50)
-    with pytest.raises(ValueError, match="cannot fit physics term kind 'valve'"):
-        T.fit_terms([{"kind": "valve"}], x, v, u, v)
+    with pytest.raises(ValueError, match="extension and in compression"):
+        T.fit_terms([{"kind": "valve"}], x, np.abs(v), u, v)
     y = reference(P, v, u) + 100.0 * x
     out = T.fit_terms([{"kind": "valve", "params": P}, {"kind": "position_poly"}], x + rng.uniform(-0.05, 0.05, 50),
                       v, u, y)
@@ -404,3 +404,61 @@ def test_cortex_m4f_firmware_equals_the_host(tmp_path):
     assert np.all(st == 0) and np.all(fw[:, 1] == 0)
     for k, host in ((0, f), (2, gv), (3, gu)):
         np.testing.assert_allclose(fw[:, k], host, rtol=1e-5, atol=1e-5 * np.max(np.abs(host)))
+
+
+def test_parameter_jacobian_equals_finite_differences():
+    """valve_param_jacobian (the nonlinear fit's Jacobian, dF/dp for the 8 parameters) equals
+    central differences of the reference force. Cost: 0.05 s."""
+    v, u = rng.uniform(-3, 3, 2000), rng.uniform(0, 8, 2000)
+    J = T.valve_param_jacobian(P, v, u)
+    for k in range(8):
+        h = 1e-6 * abs(P[k])
+        hi, lo = list(P), list(P)
+        hi[k] += h
+        lo[k] -= h
+        fd = (reference(hi, v, u) - reference(lo, v, u)) / (2 * h)
+        np.testing.assert_allclose(J[:, k], fd, rtol=1e-5, atol=1e-6 * np.max(np.abs(fd)))
+
+
+def test_fit_terms_recovers_a_valve_with_a_gas_spring():
+    """fit_terms on noise-free force = valve(v, u) + gas spring(x) over six control levels:
+    the valve's 8 parameters (nonlinear least squares, jointly with the polynomial's linear
+    ones) and the polynomial come back to 1e-6; a second free valve is refused. Cost: 1.5 s."""
+    n = 4000
+    t = np.arange(n) * 2e-4
+    v = 1.5 * np.sin(2 * np.pi * 3 * t) * rng.uniform(0.2, 1.0, n)
+    u = np.repeat([0.0, 1.0, 2.0, 3.0, 4.0, 5.0], -(-n // 6))[:n]
+    x = 0.05 * np.sin(2 * np.pi * 1.3 * t)
+    y = reference(P, v, u) + (-150.0 + 3000.0 * x)
+    got = T.fit_terms([{"kind": "valve"}, {"kind": "position_poly"}], x, v, u, y)
+    np.testing.assert_allclose(got[0]["params"], P, rtol=1e-6)
+    np.testing.assert_allclose(got[1]["params"], [-150.0, 3000.0, 0.0, 0.0], rtol=1e-6, atol=1e-3)
+    assert "nonlinear least squares" in got[0]["fitted"]
+    with pytest.raises(ValueError, match="2 valve terms"):
+        T.fit_terms([{"kind": "valve"}, {"kind": "valve"}], x, v, u, y)
+
+
+def test_training_fits_a_valve_term_and_predicts_with_it():
+    """dampnet training with a free valve term on the quick rig plan: the valve is fitted (8
+    valid parameters the runtime accepts), the network learns the rest, and the prediction is
+    MLP + the valve at the test's (v, u), equal to the runtime damper's force. Cost: 10 s (the rig data and the training)."""
+    from dampnet.features import feature_matrix
+    from dampnet.predict import predict_force
+    from dampnet.rig import generate
+    from dampnet.training.pipeline import train_dataset
+    ds = generate("quick", seed=0)
+    model, _, split = train_dataset(ds, terms=[{"kind": "valve"}], decimate=50, hidden=(4,), max_epochs=3)
+    (term,) = model.terms
+    assert term["kind"] == "valve" and T._valve_check(np.array(term["params"])) is None
+    t = split.holdout.tests[0]
+    X = feature_matrix([t], model.features, model.feature_params)
+    v, u = t.channels["velocity"], t.control
+    valve = reference(term["params"], v, u)
+    np.testing.assert_allclose(predict_force(model, t), model.predict(X) + valve, rtol=1e-12, atol=1e-9)
+    assert np.ptp(valve) > 100.0  # the valve carries much of the rig damper's force
+    d = damper_from_model(model)
+    cols = {f: X[:, i] for i, f in enumerate(model.features)}
+    a = cols.get("acceleration", np.zeros_like(v))
+    f_rt, st, _ = d.forces(t.channels["displacement"], v, a, u, u, 20.0)
+    assert np.all(st >= 0)
+    np.testing.assert_allclose(f_rt, predict_force(model, t), rtol=1e-9, atol=1e-6)
