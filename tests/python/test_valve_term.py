@@ -207,7 +207,8 @@ def test_bad_valve_parameters_are_refused(params, code):
 def test_registry_and_a_given_valve_in_fit_terms():
     """The runtime's kind list has the valve with 8 parameters, the same count as dampnet.terms;
     fit_terms takes a valve given with its parameters as fixed (its force, which reads v and u,
-    is subtracted) and refuses to fit one from samples of one direction only. Cost: 0.01 s."""
+    is subtracted) and refuses to fit one from samples of one direction only. Cost: 0.9 s (importing
+    scipy.optimize)."""
     assert _core.TERM_KINDS["valve"][0] == 8 == len(T.KINDS["valve"].params)
     x, v, u = np.zeros(50), rng.uniform(-1, 1, 50), rng.uniform(0, 5, 50)
     with pytest.raises(ValueError, match="extension and in compression"):
@@ -273,7 +274,7 @@ def test_exported_header_with_the_c_library_equals_the_host(hybrid, tmp_path):
 def test_damper_fmu_equals_the_host(hybrid, tmp_path):
     """The damper FMU (FMI 2 co-simulation, FMPy) of the hybrid model: the force read at each
     communication point equals the pybind damper's to 1e-9 N; its valve parameters are FMU
-    parameters with the runtime's ranges (v_k_ext min 0, c_b_ext min 0). Cost: 5 s (the FMU build)."""
+    parameters with the runtime's ranges (v_k_ext min 0, c_b_ext min 0). Cost: 6 s (the FMU build)."""
     fmpy = pytest.importorskip("fmpy")
     from fmpy import read_model_description
     from dampnet.export.fmu import build_fmu
@@ -294,7 +295,7 @@ def test_damper_fmu_equals_the_host(hybrid, tmp_path):
 def test_onnx_lists_the_valve_term_in_its_metadata(hybrid):
     """ONNX graphs hold the network only (no physics term of any kind is in the graph,
     docs/export.md): the valve term and its parameters are in the graph's metadata "terms".
-    Cost: 1.7 s (importing onnx)."""
+    Cost: 2 s (importing onnx)."""
     pytest.importorskip("onnx")
     from dampnet.export.onnx import onnx_graph
     model = hybrid[0]
@@ -367,7 +368,7 @@ def test_cortex_m4f_firmware_equals_the_host(tmp_path):
     code, run in QEMU (mps2-an386): its F, dF/dv, dF/du on 46 stored inputs (random, the knees,
     beyond both clamps) equal the host runtime's (double) to float precision (1e-5 of each
     quantity's largest magnitude), dF/dx is 0, and it links no software double routine and no
-    C++ runtime. Cost: 0.7 s."""
+    C++ runtime. Cost: 0.9 s."""
     import firmware_lab as emb  # bench/firmware_lab.py (the conftest puts bench/ on the path)
     why = emb.toolchain_missing()
     if why:
@@ -408,7 +409,7 @@ def test_cortex_m4f_firmware_equals_the_host(tmp_path):
 
 def test_parameter_jacobian_equals_finite_differences():
     """valve_param_jacobian (the nonlinear fit's Jacobian, dF/dp for the 8 parameters) equals
-    central differences of the reference force. Cost: 0.05 s."""
+    central differences of the reference force. Cost: 0.2 s."""
     v, u = rng.uniform(-3, 3, 2000), rng.uniform(0, 8, 2000)
     J = T.valve_param_jacobian(P, v, u)
     for k in range(8):
@@ -423,7 +424,7 @@ def test_parameter_jacobian_equals_finite_differences():
 def test_fit_terms_recovers_a_valve_with_a_gas_spring():
     """fit_terms on noise-free force = valve(v, u) + gas spring(x) over six control levels:
     the valve's 8 parameters (nonlinear least squares, jointly with the polynomial's linear
-    ones) and the polynomial come back to 1e-6; a second free valve is refused. Cost: 1.5 s."""
+    ones) and the polynomial come back to 1e-6; a second free valve is refused. Cost: 2 s."""
     n = 4000
     t = np.arange(n) * 2e-4
     v = 1.5 * np.sin(2 * np.pi * 3 * t) * rng.uniform(0.2, 1.0, n)
@@ -441,7 +442,7 @@ def test_fit_terms_recovers_a_valve_with_a_gas_spring():
 def test_training_fits_a_valve_term_and_predicts_with_it():
     """dampnet training with a free valve term on the quick rig plan: the valve is fitted (8
     valid parameters the runtime accepts), the network learns the rest, and the prediction is
-    MLP + the valve at the test's (v, u), equal to the runtime damper's force. Cost: 10 s (the rig data and the training)."""
+    MLP + the valve at the test's (v, u), equal to the runtime damper's force. Cost: 12 s (the rig data and the training)."""
     from dampnet.features import feature_matrix
     from dampnet.predict import predict_force
     from dampnet.rig import generate
