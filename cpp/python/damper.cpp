@@ -224,6 +224,38 @@ class PyDamper {
     run.raise_pending();
     return py::make_tuple(f, st, mask);
   }
+
+  // Vectorised dn_damper_terms_grad at (x, v, u) (the other fields 0): the terms' force and
+  // its derivatives. No callback runs (terms only), so the GIL is released.
+  py::tuple terms_grad(DArray x, DArray v, DArray u) {
+    const DArray* arrs[] = {&x, &v, &u};
+    py::ssize_t n = 1;
+    for (const DArray* p : arrs)
+      if (p->size() != 1) {
+        if (n != 1 && p->size() != n) throw py::value_error("terms_grad: arrays differ in length");
+        n = p->size();
+      }
+    py::array_t<double> f(n), gx(n), gv(n), gu(n);
+    py::array_t<int32_t> st(n);
+    auto at = [](const DArray& arr, py::ssize_t i) { return arr.size() == 1 ? arr.data()[0] : arr.data()[i]; };
+    double *fp = f.mutable_data(), *gxp = gx.mutable_data(), *gvp = gv.mutable_data(), *gup = gu.mutable_data();
+    int32_t* sp = st.mutable_data();
+    {
+      py::gil_scoped_release rel;
+      for (py::ssize_t i = 0; i < n; ++i) {
+        dn_damper_input in{};
+        in.x = at(x, i);
+        in.v = at(v, i);
+        in.u = at(u, i);
+        double g[3];
+        sp[i] = dn_damper_terms_grad(d.get(), &in, &fp[i], g);
+        gxp[i] = g[0];
+        gvp[i] = g[1];
+        gup[i] = g[2];
+      }
+    }
+    return py::make_tuple(f, gx, gv, gu, st);
+  }
 };
 
 }  // namespace
@@ -261,6 +293,10 @@ void bind_damper(py::module_& mod) {
                   "A Python function fn(DamperInput) -> force [N] (slow path, holds the GIL).")
       .def("add_term", method(&PyDamper::add_term), py::arg("kind"), py::arg("params"),
            "Add a physics term (TERM_KINDS); set-up, before the damper is used.")
+      .def("terms_grad", method(&PyDamper::terms_grad), py::arg("x"), py::arg("v"), py::arg("u"),
+           "The physics terms alone at (x [m], v [m/s], u [V or A]), vectorised -> (force [N], "
+           "dF/dx [N/m], dF/dv [N s/m], dF/du [N per control unit], status) "
+           "(dn_damper_terms_grad; dF/da is 0: no term reads the acceleration).")
       .def_property_readonly("kind", [](py::handle p) { return dn_damper_kind_of(constructed<PyDamper>(p).d.get()); })
       .def("forces",
            [](py::handle self DN_DAMPER_INPUT_FIELDS(DNPY_FORCES_PARAM_)) {

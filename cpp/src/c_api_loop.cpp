@@ -1,5 +1,6 @@
 // Dampers, controllers and the quarter-car loop behind the C ABI.
 #include <cstddef>
+#include <cmath>
 #include <new>
 
 #include "dampnet/dampnet.h"
@@ -132,6 +133,29 @@ int dn_damper_force(const dn_damper* d, const dn_damper_input* in, dn_real* forc
                     uint32_t* clamped_mask) {
   if (!d || !in || !force) return DN_E_NULL;
   return d->d.force(*in, force, nullptr, clamped_mask);
+}
+
+int dn_damper_terms_grad(const dn_damper* d, const dn_damper_input* in, dn_real* force,
+                         dn_real* grad) {
+  if (!d || !in || !force) return DN_E_NULL;
+  dn_real g[3] = {0, 0, 0};
+  const dampnet::Damper& dm = d->d;
+  int st = DN_OK;
+  *force = 0;
+  if (DN_CAP_TERMS > 0 && dm.n_terms > 0) {
+    if (!dampnet::terms::inputs_finite(dm.terms, dm.n_terms, *in)) st = DN_E_NONFINITE_INPUT;
+    else *force = dampnet::terms::sum_grad(dm.terms, dm.n_terms, *in, g);
+    if (st == DN_OK && !(std::isfinite(*force) && std::isfinite(g[0]) && std::isfinite(g[1]) && std::isfinite(g[2]))) {
+      st = DN_E_NONFINITE_OUTPUT;
+    }
+    if (st != DN_OK) {
+      *force = 0;
+      g[0] = g[1] = g[2] = 0;
+    }
+  }
+  if (grad)
+    for (int k = 0; k < 3; ++k) grad[k] = g[k];
+  return st;
 }
 
 void dn_vehicle_default(dn_vehicle* v) {

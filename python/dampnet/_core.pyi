@@ -187,6 +187,13 @@ class Damper(metaclass=_pybind11_type):
         """A Python function fn(DamperInput) -> force [N] (slow path, holds the GIL)."""
     def add_term(self, kind: str, params: npt.ArrayLike) -> None:
         """Add a physics term (TERM_KINDS); set-up, before the damper is used."""
+    def terms_grad(
+        self, x: npt.ArrayLike, v: npt.ArrayLike, u: npt.ArrayLike
+    ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64],
+               npt.NDArray[np.float64], npt.NDArray[np.int32]]:
+        """The physics terms alone at (x [m], v [m/s], u [V or A]), vectorised -> (force [N],
+        dF/dx [N/m], dF/dv [N s/m], dF/du [N per control unit], status) (dn_damper_terms_grad;
+        dF/da is 0: no term reads the acceleration)."""
     @property
     def kind(self) -> int:
         """The DAMPER_KINDS value."""

@@ -10,20 +10,23 @@ from dampnet.model import MlpModel, ModelError
 from dampnet.terms import terms_force
 
 
-def terms_force_checked(terms, displacement) -> np.ndarray:
-    """terms_force [N] with a bad term as ModelError (a model's terms come from its file)."""
+def terms_force_checked(terms, displacement, **inputs) -> np.ndarray:
+    """terms_force [N] with a bad term as ModelError (a model's terms come from its file);
+    inputs: the others a term reads (a valve: v [m/s], u [V or A])."""
     try:
-        return terms_force(terms, np.asarray(displacement, dtype=np.float64))
+        return terms_force(terms, np.asarray(displacement, dtype=np.float64), **inputs)
     except ValueError as e:
         raise ModelError(f"physics terms: {e}") from None
 
 
-def predict_force(model: MlpModel, test_or_features, displacement: np.ndarray | None = None) -> np.ndarray:
+def predict_force(model: MlpModel, test_or_features, displacement: np.ndarray | None = None,
+                  **inputs) -> np.ndarray:
     """Force [N] of a (hybrid) model: MLP(features) + sum of the model's physics terms.
 
     `test_or_features`: a DynoTest (features built via the registry; a missing
     feature raises DataError) or a feature matrix [n, n_inputs] in the model's
-    feature order, in which case a hybrid model also needs `displacement` [m].
+    feature order, in which case a hybrid model also needs `displacement` [m] (and a valve
+    term v [m/s] and u [V or A] in `inputs`; from a DynoTest its velocity and control).
     """
     if isinstance(test_or_features, DynoTest):
         test = test_or_features
@@ -34,11 +37,14 @@ def predict_force(model: MlpModel, test_or_features, displacement: np.ndarray | 
                 raise DataError(f"test {test.test_id}: the model's physics terms need a displacement "
                                 "channel, which the data do not have")
             displacement = test.channels["displacement"]
+            if any(t.get("kind") == "valve" for t in model.terms):
+                inputs = {"v": test.channels["velocity"], "u": test.control, **inputs}
     else:
         X = np.atleast_2d(np.asarray(test_or_features, dtype=np.float64))
     y = model.predict(X)
     if model.terms:
         if displacement is None:
             raise ModelError("this model has physics terms: pass displacement [m] with the features")
-        y = y + terms_force_checked(model.terms, np.asarray(displacement, dtype=np.float64).ravel())
+        y = y + terms_force_checked(model.terms, np.asarray(displacement, dtype=np.float64).ravel(),
+                                    **{k: np.asarray(a, dtype=np.float64).ravel() for k, a in inputs.items()})
     return y

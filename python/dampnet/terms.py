@@ -3,7 +3,7 @@
 A hybrid model's force is its MLP's output plus the sum of its terms,
 `MlpModel.terms = [{"kind": str, "params": [float, ...]}, ...]`. Each kind is
 one entry of `KINDS` here and one line of `DN_TERM_LIST` in
-`cpp/include/dampnet/dampnet.h` (its force in `cpp/include/dampnet/terms.hpp`);
+`cpp/include/dampnet/dn_xmacro.h` (its force in `cpp/include/dampnet/terms.hpp`);
 the two must give the same force (tests/python/test_loop_dampers.py checks).
 
 Sign convention (the dyno's): displacement x [m] is the damper's extension from
@@ -41,6 +41,10 @@ class Kind:
     shapes: Callable[[np.ndarray], list[tuple[float, ...]]] = lambda x: [()]  # x [m] -> grid of the others
     # the fitted parameters made valid (e.g. a negative stiffness switched off)
     settle: Callable[[np.ndarray], np.ndarray] = lambda p: p
+    # whether fit_terms' linear fit (the basis and shapes above) can fit it
+    fittable: bool = True
+    # fitted instead by nonlinear least squares after the others (fit_terms: the valve)
+    nonlinear_fit: bool = False
 
     def with_shape(self, shape: tuple[float, ...], linear_values) -> np.ndarray:
         """The full parameter vector from a shape (the non-linear parameters) and the linear ones."""
@@ -85,6 +89,85 @@ def _bump_settle(p: np.ndarray) -> np.ndarray:
     return np.array([p[0], max(p[1], 0.0), p[2]])
 
 
+#: the valve term's bounds (dn_xmacro.h DN_TERM_VALVE_V_MAX_M_S, DN_TERM_VALVE_U_MAX)
+VALVE_V_MAX = 50.0  # [m/s]
+VALVE_U_MAX = 1000.0  # [V or A]
+
+
+def _valve_parts(p: np.ndarray, q: dict[str, np.ndarray]):
+    """(sgn(v), s(u), ds/du, g_d(|v|), g_d'(|v|), |v| below its clamp) of the valve term."""
+    if "v" not in q or "u" not in q:
+        raise ValueError("a valve term needs the velocity v [m/s] and the control u [V or A]")
+    v = np.asarray(q["v"], dtype=np.float64)
+    u = np.asarray(q["u"], dtype=np.float64)
+    v, u = np.broadcast_arrays(v, u)
+    ext = v > 0
+    vk, cb, cv = (np.where(ext, p[i], p[i + 3]) for i in range(3))
+    w_raw = np.abs(v)
+    w = np.where(w_raw < VALVE_V_MAX, w_raw, VALVE_V_MAX)
+    w = np.where(np.isnan(w), 0.0, w)
+    below = w <= vk
+    d = np.maximum(w - vk, 0.0)
+    one_minus_e = -np.expm1(-d / vk)
+    m = 2 * cb * vk - cv
+    g = np.where(below, cb * w * w, cb * vk * vk + cv * d + m * vk * one_minus_e)
+    dg = np.where(below, 2 * cb * w, cv + m * (1 - one_minus_e))
+    inside = (u > 0) & (u < VALVE_U_MAX)  # NaN: outside, as u = 0
+    uc = np.where(inside, u, np.where(u >= VALVE_U_MAX, VALVE_U_MAX, 0.0))
+    den = 1 + p[7] * uc
+    s = (1 + p[6] * uc) / den
+    ds = np.where(inside, (p[6] - p[7]) / (den * den), 0.0)
+    sgn = np.where(ext, 1.0, np.where(v < 0, -1.0, 0.0))  # 0 at v = 0 and NaN
+    return sgn, s, ds, g, dg, w_raw < VALVE_V_MAX
+
+
+def _valve(p: np.ndarray, q: dict[str, np.ndarray]) -> np.ndarray:
+    sgn, s, _, g, _, _ = _valve_parts(p, q)
+    return sgn * s * g
+
+
+def valve_gradient(params, v, u) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The valve term's (F [N], dF/dv [N s/m], dF/du [N per control unit]) at v [m/s], u [V or A]."""
+    p = validate({"kind": "valve", "params": params})
+    sgn, s, ds, g, dg, unclamped = _valve_parts(p, {"v": np.asarray(v, float), "u": np.asarray(u, float)})
+    return sgn * s * g, np.where(unclamped & (sgn != 0), s * dg, 0.0), sgn * ds * g
+
+
+def valve_param_jacobian(p, v, u) -> np.ndarray:
+    """dF/dp [n, 8] of the valve term at v [m/s], u [V or A] (p as KINDS["valve"].params): the
+    columns the nonlinear fit uses, in the parameters' units (N per unit of each)."""
+    p = np.asarray(p, dtype=np.float64)
+    sgn, s, _, g, _, _ = _valve_parts(p, {"v": np.asarray(v, float), "u": np.asarray(u, float)})
+    v, u = np.broadcast_arrays(np.asarray(v, float), np.asarray(u, float))
+    ext = v > 0
+    vk, cb, cv = (np.where(ext, p[i], p[i + 3]) for i in range(3))
+    w = np.minimum(np.where(np.isnan(v), 0.0, np.abs(v)), VALVE_V_MAX)
+    below = w <= vk
+    d = np.maximum(w - vk, 0.0)
+    ome = -np.expm1(-d / vk)
+    e = 1 - ome
+    m = 2 * cb * vk - cv
+    dg_dvk = np.where(below, 0.0, 2 * cb * vk - cv + 2 * cb * vk * ome + m * ome - m * e * w / vk)
+    dg_dcb = np.where(below, w * w, vk * vk + 2 * vk * vk * ome)
+    dg_dcv = np.where(below, 0.0, d - vk * ome)
+    inside = (u > 0) & (u < VALVE_U_MAX)
+    uc = np.where(inside, u, np.where(u >= VALVE_U_MAX, VALVE_U_MAX, 0.0))
+    den = 1 + p[7] * uc
+    J = np.zeros(v.shape + (8,))
+    for k, dg in enumerate((dg_dvk, dg_dcb, dg_dcv)):
+        J[..., k] = np.where(ext, sgn * s * dg, 0.0)
+        J[..., k + 3] = np.where(ext, 0.0, sgn * s * dg)
+    J[..., 6] = sgn * g * uc / den
+    J[..., 7] = -sgn * g * s * uc / den
+    return J
+
+
+def _valve_check(p: np.ndarray) -> str | None:
+    if not (p[0] > 0 and p[3] > 0) or min(p[1], p[2], p[4], p[5], p[6], p[7]) < 0:
+        return "valve needs v_k > 0 and c_b, c_v, g_num, g_den >= 0"
+    return None
+
+
 KINDS: dict[str, Kind] = {
     "position_poly": Kind(("p0 [N]", "p1 [N/m]", "p2 [N/m^2]", "p3 [N/m^3]"), _position_poly,
                           lambda p: None,
@@ -93,6 +176,14 @@ KINDS: dict[str, Kind] = {
     "bump_stop": Kind(("x_free [m]", "k [N/m^n]", "n [-]"), _bump_stop, _bump_check,
                       "F = sgn(x) k (|x| - x_free)^n beyond x_free: elastomer stops both ways",
                       linear=(1,), shapes=_bump_shapes, settle=_bump_settle),
+    "valve": Kind(("v_k_ext [m/s]", "c_b_ext [N s^2/m^2]", "c_v_ext [N s/m]",
+                   "v_k_comp [m/s]", "c_b_comp [N s^2/m^2]", "c_v_comp [N s/m]", "g_num [1/u]", "g_den [1/u]"),
+                  _valve, _valve_check,
+                  "F = sgn(v) s(u) g_d(|v|): per direction d (ext v > 0, comp v < 0) a bleed c_b v^2 below "
+                  "the knee v_k and a blow-off valve of slope c_v above it, joined C1 "
+                  "(g = c_b v_k^2 + c_v (w - v_k) + (2 c_b v_k - c_v) v_k (1 - exp(-(w - v_k)/v_k))); "
+                  "control gain s(u) = (1 + g_num u) / (1 + g_den u), u in [0, 1000], |v| <= 50 m/s",
+                  linear=(), fittable=False, nonlinear_fit=True),
 }
 
 
@@ -151,20 +242,54 @@ def fit_terms(terms: Sequence[dict[str, Any]], x: np.ndarray, v: np.ndarray, u: 
     velocity dependence). Each kind's linear parameters are least-squares
     coefficients of its `basis`; the others are chosen on its `shapes` grid by
     least residual (e.g. bump_stop's x_free and n; position_poly has none).
+    A free valve term (at most one; `nonlinear_fit` kinds) is fitted after those, to the force
+    they and the given terms leave, by bounded nonlinear least squares on all its parameters
+    (`_fit_valve`): it takes the velocity force the velocity model stood in for.
     """
     terms = [dict(t) for t in terms]
     for t in terms:
         if "kind" not in t:
             raise ValueError(f"physics term {t}: expected a 'kind'")
     fixed = [t for t in terms if t.get("params") is not None]
-    free = [i for i, t in enumerate(terms) if t.get("params") is None]
-    if not free:
+    free_all = [i for i, t in enumerate(terms) if t.get("params") is None]
+    if not free_all:
         return terms
-    target = y - terms_force(fixed, x)
-    base = _velocity_basis(v, u)
-    unknown = [terms[i]["kind"] for i in free if terms[i]["kind"] not in KINDS]
+    unknown = [terms[i]["kind"] for i in free_all if terms[i]["kind"] not in KINDS
+               or not (KINDS[terms[i]["kind"]].fittable or KINDS[terms[i]["kind"]].nonlinear_fit)]
     if unknown:
-        raise ValueError(f"cannot fit physics term kind {unknown[0]!r} (fittable: {', '.join(sorted(KINDS))})")
+        fittable = sorted(k for k, kind in KINDS.items() if kind.fittable or kind.nonlinear_fit)
+        raise ValueError(f"cannot fit physics term kind {unknown[0]!r} (fittable: {', '.join(fittable)}; give its params)")
+    late = [i for i in free_all if KINDS[terms[i]["kind"]].nonlinear_fit]
+    if len(late) > 1:
+        raise ValueError(f"cannot fit {len(late)} valve terms at once (they are interchangeable): give the params "
+                         "of all but one")
+    free = [i for i in free_all if i not in late]
+    target = y - terms_force(fixed, x, v, u=u)
+    shapes = _fit_linear(terms, free, x, v, u, target) if free else ()
+    for i in late:
+        # jointly with the others' linear parameters (variable projection: for each valve, the
+        # others' least-squares coefficients at the shapes chosen above), without the velocity
+        # model: the valve is the velocity force
+        kinds = [KINDS[terms[j]["kind"]] for j in free]
+        A = np.hstack([k.basis(x, s) for k, s in zip(kinds, shapes)]) if free else np.zeros((len(target), 0))
+        p = _fit_valve(v, u, target, A)
+        terms[i]["params"] = p
+        terms[i]["fitted"] = ("nonlinear least squares (scipy trf) jointly with the other fitted terms' linear "
+                              "parameters (dampnet.terms.fit_terms)")
+        if free:
+            coef, *_ = np.linalg.lstsq(A, target - _valve(np.asarray(p), {"v": v, "u": u}), rcond=None)
+            pos = 0
+            for j, k, s in zip(free, kinds, shapes):
+                w = len(k.linear)
+                terms[j]["params"] = [float(a) for a in k.settle(k.with_shape(s, coef[pos:pos + w]))]
+                pos += w
+    return terms
+
+
+def _fit_linear(terms: list[dict[str, Any]], free: list[int], x, v, u, target) -> tuple:
+    """The linearly fittable terms `free` (their basis and shape grids) with the velocity model;
+    returns the shapes chosen."""
+    base = _velocity_basis(v, u)
     kinds = [KINDS[terms[i]["kind"]] for i in free]
     best: tuple[float, tuple, np.ndarray] | None = None
     for shapes in itertools.product(*[k.shapes(x) for k in kinds]):
@@ -181,4 +306,60 @@ def fit_terms(terms: Sequence[dict[str, Any]], x: np.ndarray, v: np.ndarray, u: 
         terms[i]["params"] = [float(a) for a in k.settle(k.with_shape(s, coef[pos:pos + w]))]
         pos += w
         terms[i]["fitted"] = "least squares with a velocity model (dampnet.terms.fit_terms)"
-    return terms
+    return shapes
+
+
+def _fit_valve(v: np.ndarray, u: np.ndarray, r: np.ndarray, A: np.ndarray | None = None) -> list[float]:
+    """The valve's parameters fitted to the force r [N] at v [m/s], u [V or A] by bounded
+    nonlinear least squares (scipy.optimize.least_squares, trf; v_k > 0, the others >= 0), from
+    a few knee guesses (15, 30, 50 % of each direction's largest speed) each with the bleed's
+    and the valve's slopes estimated below and above it and no control gain; the best kept.
+    A [n, k]: columns other terms add with free coefficients (projected out of the residual)."""
+    from scipy.optimize import least_squares
+
+    v, u, r = (np.asarray(a, dtype=np.float64).ravel() for a in (v, u, r))
+    A = np.zeros((r.size, 0)) if A is None else np.asarray(A, dtype=np.float64).reshape(r.size, -1)
+    ok = np.isfinite(v) & np.isfinite(u) & np.isfinite(r) & np.all(np.isfinite(A), axis=1)
+    v, u, r, A = v[ok], u[ok], r[ok], A[ok]
+    if A.shape[1]:
+        Q, _ = np.linalg.qr(A)  # the residual's part outside A's span: r - Q Q^T r
+        project = lambda e: e - Q @ (Q.T @ e)  # noqa: E731
+    else:
+        project = lambda e: e  # noqa: E731
+    if v.size < 8 or not (np.any(v > 0) and np.any(v < 0)):
+        raise ValueError("fitting a valve term needs samples in extension and in compression")
+
+    def guess(frac: float) -> np.ndarray:
+        p = np.zeros(8)
+        for d, sel in ((0, v > 0), (3, v < 0)):
+            w, m = np.abs(v[sel]), r[sel] * np.sign(v[sel])
+            vk = max(frac * float(np.max(w)), 1e-6)
+            lo, hi = w <= vk, w > vk
+            cb = float(np.sum(m[lo] * w[lo] ** 2) / max(np.sum(w[lo] ** 4), 1e-300)) if np.any(lo) else 0.0
+            cb = max(cb, 0.0) if np.any(lo) else max(float(np.median(m / np.maximum(w, 1e-9) ** 2)), 0.0)
+            cv = 0.0
+            if np.count_nonzero(hi) > 1:
+                cv = max(float(np.polyfit(w[hi], m[hi], 1)[0]), 0.0)
+            p[d:d + 3] = (vk, cb, cv)
+        return p
+
+    def resid(p: np.ndarray) -> np.ndarray:
+        return project(_valve(p, {"v": v, "u": u}) - r)
+
+    def jac(p: np.ndarray) -> np.ndarray:
+        J = valve_param_jacobian(p, v, u)
+        return J - Q @ (Q.T @ J) if A.shape[1] else J
+
+    lower = np.array([1e-6, 0, 0, 1e-6, 0, 0, 0, 0], dtype=np.float64)
+    best = None
+    for frac in (0.15, 0.3, 0.5):
+        p0 = np.maximum(guess(frac), lower)
+        sol = least_squares(resid, p0, jac=jac, bounds=(lower, np.inf), method="trf", x_scale="jac", max_nfev=400, ftol=1e-12, xtol=1e-12, gtol=1e-12,
+                            tr_solver="lsmr")  # ("exact": a full SVD of the n x 8 Jacobian, slow)
+        if best is None or sol.cost < best.cost:
+            best = sol
+    p = np.maximum(best.x, lower)
+    why = _valve_check(p)
+    if why:  # cannot happen within the bounds; kept as the runtime's check would refuse it
+        raise ValueError(f"valve fit: {why}")
+    return [float(a) for a in p]

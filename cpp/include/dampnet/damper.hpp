@@ -358,7 +358,7 @@ class Damper {
         return fail(f, DN_E_PARAM);
     }
     if (DN_CAP_TERMS > 0 && n_terms > 0) {
-      if (!std::isfinite(in.x)) return fail(f, DN_E_NONFINITE_INPUT);
+      if (!terms::inputs_finite(terms, n_terms, in)) return fail(f, DN_E_NONFINITE_INPUT);
       y += terms::sum(terms, n_terms, in);
     }
     if (!std::isfinite(y)) return fail(f, DN_E_NONFINITE_OUTPUT);
@@ -383,7 +383,7 @@ class Damper {
     else st = double_forward_grad(md, x, &y, accel_input, df_da, clamped_mask);
     if (st < 0) return fail(f, st);
     if (DN_CAP_TERMS > 0 && n_terms > 0) {
-      if (!std::isfinite(in.x)) return fail(f, DN_E_NONFINITE_INPUT);
+      if (!terms::inputs_finite(terms, n_terms, in)) return fail(f, DN_E_NONFINITE_INPUT);
       y += terms::sum(terms, n_terms, in);
     }
     if (!std::isfinite(y)) return fail(f, DN_E_NONFINITE_OUTPUT);
@@ -415,7 +415,7 @@ class Damper {
         if (!std::isfinite(x[i])) batch = false;
         xf[b][i] = static_cast<float>(x[i]);
       }
-      if (DN_CAP_TERMS > 0 && n_terms > 0 && !std::isfinite(in[b].x)) batch = false;
+      if (DN_CAP_TERMS > 0 && n_terms > 0 && !terms::inputs_finite(terms, n_terms, in[b])) batch = false;
     }
     if (!batch) return force_da_each(in, f, df_da, status, clamped_mask);
     const float* xp[4] = {xf[0], xf[1], xf[2], xf[3]};

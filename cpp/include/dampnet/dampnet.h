@@ -206,6 +206,13 @@ DN_API int dn_damper_kind_of(const dn_damper* d);
 DN_API int dn_damper_force(const dn_damper* d, const dn_damper_input* in, dn_real* force,
                            uint32_t* clamped_mask);
 
+/* [RT] The sum of a damper's physics terms alone (DN_TERM_LIST; 0 without terms) at one input
+ * [N], and its derivatives grad[3] = {dF/dx [N/m], dF/dv [N s/m], dF/du [N per control unit]}
+ * (dF/da is 0: no term reads the acceleration). A non-finite input a term reads (x; v and u
+ * for a valve): DN_E_NONFINITE_INPUT with *force and grad 0. Nullable: grad. */
+DN_API int dn_damper_terms_grad(const dn_damper* d, const dn_damper_input* in, dn_real* force,
+                                dn_real* grad);
+
 /*---- The quarter-car loop ----*/
 
 /* Fill with the defaults of DN_VEHICLE_FIELDS. Nullable: nothing. */

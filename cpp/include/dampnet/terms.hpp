@@ -26,6 +26,13 @@ inline real force_DN_TERM_POSITION_POLY(const real* p, const dn_damper_input& in
   return p[0] + x * (p[1] + x * (p[2] + x * p[3]));
 }
 inline int validate_DN_TERM_POSITION_POLY(const real*) noexcept { return DN_OK; }
+inline real grad_DN_TERM_POSITION_POLY(const real* p, const dn_damper_input& in, real* g) noexcept {
+  const real x = in.x;
+  g[0] = p[1] + x * (2 * p[2] + 3 * x * p[3]);
+  g[1] = g[2] = 0;
+  return force_DN_TERM_POSITION_POLY(p, in);
+}
+constexpr unsigned reads_DN_TERM_POSITION_POLY = 1u;  // x
 
 // ---- bump_stop: F = sgn(x) k (|x| - x_free)^n beyond x_free ----
 inline real force_DN_TERM_BUMP_STOP(const real* p, const dn_damper_input& in) noexcept {
@@ -37,18 +44,90 @@ inline real force_DN_TERM_BUMP_STOP(const real* p, const dn_damper_input& in) no
 inline int validate_DN_TERM_BUMP_STOP(const real* p) noexcept {
   return (p[0] >= 0 && p[1] >= 0 && p[2] > 0) ? DN_OK : DN_E_PARAM;
 }
+inline real grad_DN_TERM_BUMP_STOP(const real* p, const dn_damper_input& in, real* g) noexcept {
+  const real over = std::fabs(in.x) - p[0];
+  g[0] = over > 0 ? p[1] * p[2] * std::pow(over, p[2] - 1) : real(0);  // even in x
+  g[1] = g[2] = 0;
+  return force_DN_TERM_BUMP_STOP(p, in);
+}
+constexpr unsigned reads_DN_TERM_BUMP_STOP = 1u;  // x
+
+// ---- valve: bleed orifice + preloaded blow-off valve per direction, scaled by the control ----
+// p = {v_k_ext [m/s], c_b_ext [N s^2/m^2], c_v_ext [N s/m], v_k_comp, c_b_comp, c_v_comp,
+//      g_num [1/u], g_den [1/u]}; the formula and its bounds: DN_TERM_LIST's text.
+// F(v, u) = sgn(v) s(u) g_d(|v|), d the direction of v (ext: v > 0, comp: v < 0):
+//   below the knee (w = |v| <= v_k) the bleed alone, g = c_b w^2 [N];
+//   above it the valve opens: g = c_b v_k^2 + c_v (w - v_k) + (2 c_b v_k - c_v) v_k (1 - e),
+//   e = exp(-(w - v_k) / v_k): value c_b v_k^2 (the preload) and slope 2 c_b v_k at the knee
+//   (C1), slope c_v (the valve's opening law) well above it, g' between the two (>= 0).
+//   s(u) = (1 + g_num u) / (1 + g_den u) [-], u clamped to [0, DN_TERM_VALVE_U_MAX]: g_den = 0
+//   an affine gain (a current-controlled valve, harder or softer with the current); g_num <
+//   g_den a force falling from 1 to g_num / g_den like the thesis's c = gamma / V + c_min.
+// Bounded: |v| is clamped to DN_TERM_VALVE_V_MAX_M_S, u to its range, NaN v gives 0, NaN u
+// is u = 0; F is C1 in v everywhere below the clamp (at 0 both sides' slopes are 0).
+namespace valve {
+// g_d(w) and g_d'(w) of one direction, w in [0, DN_TERM_VALVE_V_MAX_M_S].
+inline real magnitude(real vk, real cb, real cv, real w, real* dg) noexcept {
+  if (w <= vk) {
+    *dg = 2 * cb * w;
+    return cb * w * w;
+  }
+  const real d = w - vk, one_minus_e = -std::expm1(-d / vk), m = 2 * cb * vk - cv;
+  *dg = cv + m * (1 - one_minus_e);
+  return cb * vk * vk + cv * d + m * vk * one_minus_e;
+}
+// s(u) and ds/du.
+inline real scale(real g_num, real g_den, real u, real* ds) noexcept {
+  const real u_max = real(DN_TERM_VALVE_U_MAX);
+  const bool inside = u > 0 && u < u_max;  // NaN: outside, as u = 0
+  const real uc = inside ? u : (u >= u_max ? u_max : real(0));
+  const real den = 1 + g_den * uc;
+  *ds = inside ? (g_num - g_den) / (den * den) : real(0);
+  return (1 + g_num * uc) / den;
+}
+// F, and g = {dF/dx, dF/dv, dF/du}.
+inline real eval(const real* p, const dn_damper_input& in, real* g) noexcept {
+  g[0] = g[1] = g[2] = 0;
+  const real v = in.v, v_max = real(DN_TERM_VALVE_V_MAX_M_S);
+  if (!(v != 0 && v == v)) return 0;  // 0 or NaN
+  const real* q = v > 0 ? p : p + 3;
+  const real w_raw = std::fabs(v), w = w_raw < v_max ? w_raw : v_max;
+  real dg = 0, ds = 0;
+  const real mag = magnitude(q[0], q[1], q[2], w, &dg), s = scale(p[6], p[7], in.u, &ds);
+  const real sgn = v > 0 ? real(1) : real(-1);
+  g[1] = w_raw < v_max ? s * dg : real(0);  // even in v
+  g[2] = sgn * ds * mag;
+  return sgn * s * mag;
+}
+}  // namespace valve
+inline real force_DN_TERM_VALVE(const real* p, const dn_damper_input& in) noexcept {
+  real g[3];
+  return valve::eval(p, in, g);
+}
+inline int validate_DN_TERM_VALVE(const real* p) noexcept {
+  for (int d = 0; d < 6; d += 3)
+    if (!(p[d] > 0) || p[d + 1] < 0 || p[d + 2] < 0) return DN_E_PARAM;
+  return (p[6] >= 0 && p[7] >= 0) ? DN_OK : DN_E_PARAM;
+}
+inline real grad_DN_TERM_VALVE(const real* p, const dn_damper_input& in, real* g) noexcept {
+  return valve::eval(p, in, g);
+}
+constexpr unsigned reads_DN_TERM_VALVE = 2u | 4u;  // v, u
 
 struct KindInfo {
   const char* name;
   int n_params;
   real (*force)(const real*, const dn_damper_input&) noexcept;
   int (*validate)(const real*) noexcept;
+  // F, and g[3] = {dF/dx [N/m], dF/dv [N s/m], dF/du [N/u]} (dF/da = 0: no term reads a)
+  real (*grad)(const real*, const dn_damper_input&, real*) noexcept;
+  unsigned reads;  // the inputs the force reads: bit 0 x, bit 1 v, bit 2 u
 };
 
 // Indexed by dn_term_kind (values are consecutive from 0).
 inline const KindInfo* table() noexcept {
   static const KindInfo t[] = {
-#define DN_TERM_ROW_(id, value, name, n, text) {name, n, &force_##id, &validate_##id},
+#define DN_TERM_ROW_(id, value, name, n, text) {name, n, &force_##id, &validate_##id, &grad_##id, reads_##id},
       DN_TERM_LIST(DN_TERM_ROW_)
 #undef DN_TERM_ROW_
   };
@@ -87,6 +166,26 @@ inline real sum(const Term* ts, int n, const dn_damper_input& in) noexcept {
   real f = 0;
   for (int i = 0; i < n; ++i) f += table()[ts[i].kind].force(ts[i].p, in);
   return f;
+}
+
+// [RT] Sum of the terms' forces and g[3] = {dF/dx, dF/dv, dF/du} of the sum.
+inline real sum_grad(const Term* ts, int n, const dn_damper_input& in, real* g) noexcept {
+  real f = 0;
+  g[0] = g[1] = g[2] = 0;
+  for (int i = 0; i < n; ++i) {
+    real gi[3];
+    f += table()[ts[i].kind].grad(ts[i].p, in, gi);
+    for (int k = 0; k < 3; ++k) g[k] += gi[k];
+  }
+  return f;
+}
+
+// [RT] Whether the inputs the terms read (x, and v and u for a valve) are finite.
+inline bool inputs_finite(const Term* ts, int n, const dn_damper_input& in) noexcept {
+  unsigned reads = 0;
+  for (int i = 0; i < n; ++i) reads |= table()[ts[i].kind].reads;
+  return ((reads & 1u) == 0 || std::isfinite(in.x)) && ((reads & 2u) == 0 || std::isfinite(in.v)) &&
+         ((reads & 4u) == 0 || std::isfinite(in.u));
 }
 
 }  // namespace terms

@@ -282,7 +282,7 @@ def fit_prepared(prep: Prepared, seed: int, *, rows: np.ndarray | None = None,
             terms = fit_terms(terms, xd, v, u, y)
         except ValueError as e:
             raise ModelError(str(e)) from None
-        y = y - terms_force(terms, xd)
+        y = y - terms_force(terms, xd, v, u=u)
     _check_magnitudes(X, y, prep.features)
     r = prep.request
     o = {name: getattr(r, name, None) for name in FIT_OPTIONS}
@@ -296,8 +296,8 @@ def fit_prepared(prep: Prepared, seed: int, *, rows: np.ndarray | None = None,
     model.feature_params = dict(prep.feature_params)
     if terms:
         # fit() measured NRMSE on the residual force; report the hybrid model's.
-        y_all = y + terms_force(terms, xd)
-        pred = predict_force(model, X, xd)
+        y_all = y + terms_force(terms, xd, v, u=u)
+        pred = predict_force(model, X, xd, v=v, u=u)
         for name, idx in (("train", info.train_idx), ("val", info.val_idx), ("test", info.test_idx)):
             if len(idx):
                 info.metrics[name] = nrmse(pred[idx], y_all[idx])

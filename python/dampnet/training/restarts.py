@@ -286,7 +286,8 @@ def held_back_nrmse(model, info, prep) -> float:
     idx = np.concatenate([np.asarray(info.val_idx, dtype=np.int64), np.asarray(info.test_idx, dtype=np.int64)])
     if not len(idx):
         idx = np.arange(len(prep.X))
-    pred = predict_force(model, prep.X[idx], None if prep.xd is None else prep.xd[idx])
+    pred = predict_force(model, prep.X[idx], None if prep.xd is None else prep.xd[idx],
+                         **({} if prep.xd is None else {"v": prep.v[idx], "u": prep.u[idx]}))
     span = float(np.ptp(prep.force)) or 1.0
     return float(np.sqrt(np.mean((pred - prep.force[idx]) ** 2)) / span)
 
@@ -382,7 +383,8 @@ def _job(kind: str, seed: int, level: float | None) -> dict[str, Any]:
     model, info = fit_prepared(prep, seed, rows=~held, threads=1)
     from dampnet.predict import predict_force
 
-    pred = predict_force(model, prep.X[held], None if prep.xd is None else prep.xd[held])
+    pred = predict_force(model, prep.X[held], None if prep.xd is None else prep.xd[held],
+                         **({} if prep.xd is None else {"v": prep.v[held], "u": prep.u[held]}))
     return {"score": nrmse(pred, prep.force[held]), "time_s": time.perf_counter() - t0,
             "epochs": info.epochs}
 
@@ -635,7 +637,7 @@ def _averaged(prep, models: list, info):
     from dampnet.predict import predict_force
 
     model = average_networks(models)
-    pred = predict_force(model, prep.X, prep.xd)
+    pred = predict_force(model, prep.X, prep.xd, **({} if prep.xd is None else {"v": prep.v, "u": prep.u}))
     info.metrics = {"all": nrmse(pred, prep.force)}
     model.meta["metrics"] = {k: round(v, 6) for k, v in info.metrics.items()}
     return model

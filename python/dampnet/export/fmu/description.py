@@ -17,7 +17,7 @@ BASE_UNITS = {
     "degC": 'K="1" offset="273.15"', "V": 'kg="1" m="2" s="-3" A="-1"', "A": 'A="1"', "kg": 'kg="1"',
     "s": 's="1"', "N/m": 'kg="1" s="-2"', "N.s/m": 'kg="1" s="-1"', "1/s": 's="-1"',
     "V/s": 'kg="1" m="2" s="-4" A="-1"', "A/s": 'A="1" s="-1"', "N/m2": 'kg="1" m="-1" s="-2"',
-    "N/m3": 'kg="1" m="-2" s="-2"', "N/m^n": None,
+    "N/m3": 'kg="1" m="-2" s="-2"', "N.s2/m2": 'kg="1" m="-1"', "N/m^n": None,
 }
 #: the sources an FMI version's binary is built from, and its platform folder
 SOURCE = {2: "fmu2.cpp", 3: "fmu3.cpp"}

@@ -60,7 +60,7 @@ def add_terms(damper: _core.Damper, terms) -> _core.Damper:
 
 def static_term_force(terms, x_static: float = 0.0) -> float:
     """The terms' force at rest at x_static: the value for the vehicle's f_static."""
-    return float(terms_force(terms, np.array(x_static)))
+    return float(terms_force(terms, np.array(x_static), np.array(0.0), u=np.array(0.0)))  # at rest: v = 0
 
 
 def truth_damper(truth, loop_temperature: bool = True) -> _core.Damper:

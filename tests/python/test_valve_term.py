@@ -1,0 +1,465 @@
+"""The valve term (issue 54 item 1): a bleed orifice in parallel with a preloaded blow-off
+valve, per direction, scaled by the control (dn_xmacro.h DN_TERM_LIST "valve";
+cpp/include/dampnet/terms.hpp; python/dampnet/terms.py).
+
+Checked against an independent reference (the law written out again here in numpy, piecewise
+and branchy, not dampnet.terms' vectorised form): the C++ force (Damper.forces, the C ABI's
+dn_damper_terms_grad through _core.Damper.terms_grad) and the numpy mirror equal it to 1e-12;
+the runtime's derivatives dF/dv, dF/du equal central finite differences; the law is C1 at the
+knee (one-sided slopes equal) and at v = 0; the force is finite and bounded for any input
+(NaN, +-inf, huge), and a damper refuses a non-finite v or u the valve reads; a hybrid model
+with a valve term gives the same forces in the pybind damper, the exported header compiled on
+the host with the C library (python/dampnet/demo/controller.c), the damper FMU (FMPy) and the
+quarter-car loop; the term's code cross-built for the Cortex-M4F runs in QEMU and equals the host.
+ONNX graphs carry no physics term of any kind (listed in their metadata only: docs/export.md),
+so ONNX is checked for listing the valve term, not for its force."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import subprocess
+
+import numpy as np
+import pytest
+
+from cbuild import ROOT, compile_program
+from dampnet import _core, terms as T
+from dampnet.sim.quarter_car.loop import add_terms, damper_from_model
+from loop_helpers import numpy_forward, random_model
+
+#: v_k_ext [m/s], c_b_ext [N s^2/m^2], c_v_ext [N s/m], v_k_comp, c_b_comp, c_v_comp, g_num [1/V], g_den [1/V]
+#: a digressive extension valve (c_v < 2 c_b v_k) and a progressive compression one (c_v > 2 c_b v_k);
+#: voltage-controlled: the force falls from 1x at 0 V to g_num / g_den = 0.25x (the thesis's c(V) trend)
+P = [0.12, 9.0e4, 2.5e3, 0.08, 4.0e4, 8.0e3, 0.5, 2.0]
+#: current-controlled: affine gain 1 + 0.6 I (g_den = 0), harder with the current
+P_CURRENT = [0.1, 5.0e4, 3.0e3, 0.1, 3.0e4, 2.0e3, 0.6, 0.0]
+V_MAX, U_MAX = 50.0, 1000.0
+rng = np.random.default_rng(54)
+
+
+def reference(p, v, u):
+    """The valve law written out per sample (independent of dampnet.terms and terms.hpp)."""
+    def one(v, u):
+        if math.isnan(v) or v == 0.0:
+            return 0.0
+        vk, cb, cv = p[0:3] if v > 0 else p[3:6]
+        w = min(abs(v), V_MAX)
+        if w <= vk:
+            g = cb * w ** 2
+        else:
+            g = cb * vk ** 2 + cv * (w - vk) + (2 * cb * vk - cv) * vk * (-math.expm1(-(w - vk) / vk))
+        uc = 0.0 if math.isnan(u) else min(max(u, 0.0), U_MAX)
+        s = (1 + p[6] * uc) / (1 + p[7] * uc)
+        return math.copysign(s * g, v)
+    v, u = np.broadcast_arrays(np.asarray(v, float), np.asarray(u, float))
+    return np.array([one(a, b) for a, b in zip(v.ravel(), u.ravel())]).reshape(v.shape)
+
+
+def cpp_force(p, v, u, x=0.0):
+    """The force of a damper holding the valve term alone (Damper.linear(0) + term)."""
+    d = add_terms(_core.Damper.linear(0.0), [{"kind": "valve", "params": p}])
+    v = np.asarray(v, float)
+    f, st, _ = d.forces(np.broadcast_to(x, v.shape), v, 0.0, np.asarray(u, float), 0.0, 20.0)
+    return f, st
+
+
+def cpp_grad(p, v, u, x=0.0):
+    """(F, dF/dx, dF/dv, dF/du, status) of the C ABI's dn_damper_terms_grad."""
+    d = add_terms(_core.Damper.linear(0.0), [{"kind": "valve", "params": p}])
+    return d.terms_grad(np.broadcast_to(x, np.shape(v)).astype(float), np.asarray(v, float), np.asarray(u, float))
+
+
+def random_inputs(n=4000):
+    """Velocities over both directions, many near the knees and a few beyond the clamp; controls
+    over the range and beyond it (negative, above U_MAX)."""
+    v = np.concatenate([rng.uniform(-3, 3, n // 2), rng.choice([-1, 1], n // 4) * rng.uniform(0.05, 0.15, n // 4),
+                        rng.uniform(-80, 80, n // 4)])
+    u = np.concatenate([rng.uniform(-1, 12, n - 20), rng.uniform(1000, 2000, 10), rng.uniform(-50, -1, 10)])
+    return v, rng.permutation(u)
+
+
+@pytest.mark.parametrize("p", [P, P_CURRENT], ids=["voltage", "current"])
+def test_force_equals_the_independent_reference(p):
+    """The C++ force (Damper.forces and dn_damper_terms_grad) and dampnet.terms' numpy force equal
+    the reference to 1e-12 relative on random inputs. Cost: 0.05 s."""
+    v, u = random_inputs()
+    ref = reference(p, v, u)
+    f, st = cpp_force(p, v, u)
+    assert np.all(st == 0)
+    np.testing.assert_allclose(f, ref, rtol=1e-12, atol=1e-12)
+    g = cpp_grad(p, v, u)
+    assert np.all(g[4] == 0)
+    np.testing.assert_allclose(g[0], ref, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(T.term_force({"kind": "valve", "params": p}, 0 * v, v, u=u), ref, rtol=1e-12,
+                               atol=1e-12)
+    # dissipative (F v >= 0), resisting extension and compression, and the control acts
+    assert np.all(ref * v >= 0) and np.ptp(ref) > 1e3
+    lo, hi = reference(p, 1.0, 0.0), reference(p, 1.0, 5.0)
+    assert (hi < 0.5 * lo) if p is P else (hi > 3.5 * lo)
+
+
+@pytest.mark.parametrize("p", [P, P_CURRENT], ids=["voltage", "current"])
+def test_derivative_equals_finite_differences(p):
+    """dF/dv and dF/du of the runtime (dn_damper_terms_grad) equal central finite differences of
+    the reference force, dF/dx and dF/da are 0 (force_da's dF/da of terms), and the numpy
+    mirror's valve_gradient equals the runtime's to 1e-12. Inputs away from the knee, 0 and the
+    clamps by more than the difference step. Cost: 0.1 s."""
+    v, u = rng.uniform(-3, 3, 3000), rng.uniform(0.01, 12, 3000)
+    away = (np.abs(np.abs(v) - np.where(v > 0, p[0], p[3])) > 1e-3) & (np.abs(v) > 1e-3)
+    v, u = v[away], u[away]
+    f, gx, gv, gu, st = cpp_grad(p, v, u)
+    assert np.all(st == 0) and np.all(gx == 0)
+    hv, hu = 1e-6 * np.maximum(np.abs(v), 1e-2), 1e-6 * np.maximum(u, 1.0)
+    fd_v = (reference(p, v + hv, u) - reference(p, v - hv, u)) / (2 * hv)
+    fd_u = (reference(p, v, u + hu) - reference(p, v, u - hu)) / (2 * hu)
+    np.testing.assert_allclose(gv, fd_v, rtol=1e-6, atol=1e-6 * np.max(np.abs(fd_v)))
+    np.testing.assert_allclose(gu, fd_u, rtol=1e-6, atol=1e-6 * np.max(np.abs(fd_u)))
+    assert np.all(gv >= 0)  # the force never falls with the speed
+    F, dv, du = T.valve_gradient(p, v, u)
+    np.testing.assert_allclose(F, f, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(dv, gv, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(du, gu, rtol=1e-12, atol=1e-12)
+    # no term reads the acceleration: the hybrid damper's force does not move with a
+    d = add_terms(_core.Damper.linear(0.0), [{"kind": "valve", "params": p}])
+    f_a = d.forces(0.0, v, rng.uniform(-500, 500, v.size), u, 0.0, 20.0)[0]
+    np.testing.assert_array_equal(f_a, f)
+
+
+@pytest.mark.parametrize("p", [P, P_CURRENT], ids=["voltage", "current"])
+def test_c1_at_the_knee_and_at_rest(p):
+    """The one-sided slopes at each knee (v = +v_k_ext, -v_k_comp) equal each other and 2 c_b v_k
+    (the bleed's), measured by one-sided differences of the runtime's force and by its
+    derivative just inside and outside; the force is continuous there and at v = 0 (slope 0
+    from both sides). A plain join of the bleed parabola and the valve line (slope c_v above
+    the knee) would not be C1: its slopes differ by |2 c_b v_k - c_v| > 1e3 N s/m here, which
+    the same comparison detects. Cost: 0.01 s."""
+    u = 1.5
+    s = (1 + p[6] * u) / (1 + p[7] * u)
+    for sign, vk, cb, cv in ((1.0, p[0], p[1], p[2]), (-1.0, p[3], p[4], p[5])):
+        knee = sign * vk
+        h = 1e-7
+        f0 = cpp_force(p, [knee], u)[0][0]
+        right = (cpp_force(p, [knee + h], u)[0][0] - f0) / h
+        left = (f0 - cpp_force(p, [knee - h], u)[0][0]) / h
+        bleed_slope = s * 2 * cb * vk
+        assert right == pytest.approx(bleed_slope, rel=1e-5) and left == pytest.approx(bleed_slope, rel=1e-5)
+        gv = cpp_grad(p, np.array([knee - 1e-12, knee + 1e-12]), u)[2]
+        assert gv[0] == pytest.approx(gv[1], rel=1e-9) and gv[0] == pytest.approx(bleed_slope, rel=1e-9)
+        assert f0 == pytest.approx(sign * s * cb * vk ** 2, rel=1e-12)  # the preload force at the knee
+        # far above the knee the valve's own slope c_v rules (the law's opening line)
+        far = cpp_grad(p, np.array([sign * 40 * vk]), u)[2][0]
+        assert far == pytest.approx(s * cv, rel=1e-9)
+        assert abs(2 * cb * vk - cv) > 1e3  # a kinked join would fail the slope check above
+    f, _ = cpp_force(p, [-1e-9, 0.0, 1e-9], u)
+    assert f[1] == 0.0 and abs(f[0]) < 1e-12 and abs(f[2]) < 1e-12
+
+
+def test_bounded_and_finite_for_any_input():
+    """Huge finite v and u (+-1e308, denormals, 0) give a finite force and finite derivatives
+    within the bound s_max g(50 m/s) (beyond the clamps the force is the clamp's), through
+    Damper.forces and dn_damper_terms_grad; a non-finite v or u the valve reads is refused by
+    both (DN_E_NONFINITE_INPUT, force and derivatives 0), a non-finite x it does not read is
+    not; the numpy mirror gives the law's values for NaN and +-inf (NaN v: 0, NaN u: as 0).
+    Cost: 0.01 s."""
+    bad = [np.nan, np.inf, -np.inf, 1e308, -1e308, 0.0, 5e-324, -5e-324]
+    v, u = (a.ravel() for a in np.meshgrid(bad, bad + [3.0]))
+    finite = np.isfinite(v) & np.isfinite(u)
+    f, gx, gv, gu, st = cpp_grad(P, v, u)
+    assert np.all(st[finite] == 0) and np.all(st[~finite] == _core.DN_E_NONFINITE_INPUT)
+    for a in (f, gx, gv, gu):
+        assert np.all(np.isfinite(a)) and np.all(a[~finite] == 0)
+    bound = max(reference(P, V_MAX, 0.0), -reference(P, -V_MAX, 0.0))  # s(u) <= 1 here (g_num < g_den)
+    assert np.all(np.abs(f) <= bound * (1 + 1e-12))
+    np.testing.assert_allclose(f[finite], reference(P, v[finite], u[finite]), rtol=1e-12, atol=0)
+    assert reference(P, 1e308, 1e308) == reference(P, V_MAX, U_MAX) == f[(v == 1e308) & (u == 1e308)][0]
+    fd, std = cpp_force(P, v, u)
+    assert np.all(std[~finite] == _core.DN_E_NONFINITE_INPUT) and np.all(fd[~finite] == 0)
+    assert np.all(std[finite] == 0) and np.all(np.abs(fd[finite]) <= bound * (1 + 1e-12))
+    np.testing.assert_array_equal(fd[finite], f[finite])
+    fx, stx = cpp_force(P, [0.5], 1.0, x=np.nan)
+    assert stx[0] == 0 and fx[0] == pytest.approx(reference(P, 0.5, 1.0), rel=1e-12)
+    # the numpy mirror on the non-finite inputs: the law's clamps and NaN rules, finite
+    f_np = T.term_force({"kind": "valve", "params": P}, np.zeros_like(v), v, u=u)
+    assert np.all(np.isfinite(f_np))
+    np.testing.assert_allclose(f_np, reference(P, v, u), rtol=1e-12, atol=0)
+    # the current-controlled gain (g_den = 0) is bounded by the control's clamp
+    fc, _, _, _, stc = cpp_grad(P_CURRENT, [1e308, 1.0], [1e308, 1e308])
+    assert np.all(stc == 0) and fc[1] == pytest.approx(reference(P_CURRENT, 1.0, U_MAX), rel=1e-12)
+    assert fc[0] == pytest.approx(reference(P_CURRENT, V_MAX, U_MAX), rel=1e-12) and np.isfinite(fc[0])
+
+
+@pytest.mark.parametrize("params, code", [
+    (P[:7], "DN_E_SIZE"), ([0.0] + P[1:], "DN_E_PARAM"), (P[:3] + [-0.1] + P[4:], "DN_E_PARAM"),
+    (P[:1] + [-1.0] + P[2:], "DN_E_PARAM"), (P[:5] + [-1.0] + P[6:], "DN_E_PARAM"),
+    (P[:6] + [-0.1, 0.0], "DN_E_PARAM"), (P[:7] + [-0.1], "DN_E_PARAM"), (P[:2] + [np.inf] + P[3:], "NONFINITE"),
+])
+def test_bad_valve_parameters_are_refused(params, code):
+    """The runtime and dampnet.terms refuse the same parameter sets: a count other than 8, a knee
+    velocity <= 0, a negative coefficient or gain, a non-finite value. Cost: 0.01 s."""
+    with pytest.raises(ValueError, match=code):
+        _core.Damper.linear(1.0).add_term("valve", np.array(params, dtype=float))
+    with pytest.raises(ValueError):
+        T.validate({"kind": "valve", "params": params})
+
+
+def test_registry_and_a_given_valve_in_fit_terms():
+    """The runtime's kind list has the valve with 8 parameters, the same count as dampnet.terms;
+    fit_terms takes a valve given with its parameters as fixed (its force, which reads v and u,
+    is subtracted) and refuses to fit one from samples of one direction only. Cost: 0.9 s (importing
+    scipy.optimize)."""
+    assert _core.TERM_KINDS["valve"][0] == 8 == len(T.KINDS["valve"].params)
+    x, v, u = np.zeros(50), rng.uniform(-1, 1, 50), rng.uniform(0, 5, 50)
+    with pytest.raises(ValueError, match="extension and in compression"):
+        T.fit_terms([{"kind": "valve"}], x, np.abs(v), u, v)
+    y = reference(P, v, u) + 100.0 * x
+    out = T.fit_terms([{"kind": "valve", "params": P}, {"kind": "position_poly"}], x + rng.uniform(-0.05, 0.05, 50),
+                      v, u, y)
+    assert out[0]["params"] == P and "fitted" not in out[0]
+
+
+HYBRID_FEATURES = ["velocity", "acceleration", "voltage", "displacement"]
+VALVE_TERMS = [{"kind": "valve", "params": P}, {"kind": "bump_stop", "params": [0.05, 2e5, 1.5]}]
+
+
+@pytest.fixture(scope="module")
+def hybrid():
+    model = random_model(HYBRID_FEATURES, hidden=7, seed=11, terms=VALVE_TERMS)
+    n = 400
+    x = rng.uniform(-0.07, 0.07, n)
+    v = rng.uniform(-2.5, 2.5, n)
+    a = rng.uniform(-200, 200, n)
+    u = rng.uniform(0, 5, n)
+    return model, x, v, a, u
+
+
+def test_hybrid_pybind_damper_equals_mlp_plus_reference(hybrid):
+    """A hybrid model (4-input MLP + valve + bump stop) through damper_from_model equals the numpy
+    MLP plus the reference valve plus the bump stop, to 1e-12 relative. Cost: 0.01 s."""
+    model, x, v, a, u = hybrid
+    f, st, _ = damper_from_model(model).forces(x, v, a, u, u, 20.0)
+    assert np.all(st >= 0)
+    xf, k, n = VALVE_TERMS[1]["params"]
+    bump = np.sign(x) * np.where(np.abs(x) > xf, k * np.maximum(np.abs(x) - xf, 0) ** n, 0.0)
+    ref = numpy_forward(model, np.stack([v, a, u, x], axis=1)) + reference(P, v, u) + bump
+    np.testing.assert_allclose(f, ref, rtol=1e-12, atol=1e-8)
+
+
+def test_exported_header_with_the_c_library_equals_the_host(hybrid, tmp_path):
+    """The exported header (dampnet.export.header) compiled on the host with the C library's
+    sources and the demo's controller.c (dn_damper_add_term from the header's term rows,
+    dn_damper_force) gives the pybind damper's forces to 1e-9 relative. Cost: 9 s (the compile)."""
+    from dampnet.demo.cprogram import ROW_FIELDS
+    from dampnet.export.header import write_header
+    model, x, v, a, u = hybrid
+    write_header(model, tmp_path / "model.h")
+    lib = [ROOT / "cpp" / "src" / f for f in ("c_api_common.cpp", "c_api_mlp.cpp", "c_api_loop.cpp")]
+    ctrl = ROOT / "python" / "dampnet" / "demo" / "controller.c"  # g++: C++, with the library's sources
+    exe = compile_program([ctrl, *lib], tmp_path / "controller", cxx=True,
+                          include_dirs=[ROOT / "cpp" / "include", ROOT / "cpp" / "src", tmp_path],
+                          extra=["-DDN_STATIC", "-Wno-missing-field-initializers"])
+    cols = {"x": x, "v": v, "a": a, "u": u, "u_lag": u, "temperature": np.full_like(x, 20.0),
+            "v_lag": v, "z_fric": np.zeros_like(x)}
+    rows = np.stack([cols[f] for f in ROW_FIELDS], axis=1)
+    proc = subprocess.run([str(exe)], input="\n".join(" ".join(repr(float(c)) for c in r) for r in rows) + "\n",
+                          capture_output=True, text=True, timeout=60, check=True)
+    f_c = np.array([float(s) for s in proc.stdout.split()])
+    f_host, st, _ = damper_from_model(model).forces(x, v, a, u, u, 20.0)
+    assert np.all(st >= 0) and f_c.size == x.size
+    np.testing.assert_allclose(f_c, f_host, rtol=1e-9, atol=1e-9)
+    assert np.ptp(reference(P, v, u)) > 1e3  # the valve is a large part of the force
+
+
+def test_damper_fmu_equals_the_host(hybrid, tmp_path):
+    """The damper FMU (FMI 2 co-simulation, FMPy) of the hybrid model: the force read at each
+    communication point equals the pybind damper's to 1e-9 N; its valve parameters are FMU
+    parameters with the runtime's ranges (v_k_ext min 0, c_b_ext min 0). Cost: 6 s (the FMU build)."""
+    fmpy = pytest.importorskip("fmpy")
+    from fmpy import read_model_description
+    from dampnet.export.fmu import build_fmu
+    import test_export_fmu as fx
+    model, x, v, a, u = hybrid
+    path = build_fmu(model, tmp_path / "valve.fmu", fmi=2)
+    t = np.arange(x.size) * 1e-3
+    f_fmu = fx.drive(path, (t, x, v, a, u))
+    f_host, st, _ = damper_from_model(model).forces(x, v, a, u, u, 20.0)
+    assert np.all(st >= 0)
+    np.testing.assert_allclose(f_fmu, f_host, rtol=0, atol=1e-9)
+    vs = {sv.name: sv for sv in read_model_description(str(path)).modelVariables}
+    assert float(vs["valve_0.v_k_ext"].min) == 0.0 and float(vs["valve_0.c_b_ext"].min) == 0.0
+    assert float(vs["valve_0.g_den"].start) == P[7]
+    assert fmpy is not None
+
+
+def test_onnx_lists_the_valve_term_in_its_metadata(hybrid):
+    """ONNX graphs hold the network only (no physics term of any kind is in the graph,
+    docs/export.md): the valve term and its parameters are in the graph's metadata "terms".
+    Cost: 2 s (importing onnx)."""
+    pytest.importorskip("onnx")
+    from dampnet.export.onnx import onnx_graph
+    model = hybrid[0]
+    meta = {p.key: p.value for p in onnx_graph(model).metadata_props}
+    assert json.loads(meta["terms"]) == VALVE_TERMS
+
+
+def test_quarter_car_runs_the_valve_term(hybrid):
+    """The quarter car (RK4, the linearised implicit acceleration of a model reading the
+    acceleration, an external control stepping 0 -> 4 V) with the hybrid valve model over a
+    bumpy road: every step succeeds and each step's reported force equals Damper.forces at the
+    step's reported x, v, a and control to 1e-9 relative; the valve's share of it, the
+    reference at (v, u), is large and follows the control. The terms' force at rest is the
+    valve's 0 (static_term_force reads v = 0). Cost: 0.02 s."""
+    from dampnet.sim.quarter_car.loop import QuarterCar, static_term_force
+    model = hybrid[0]
+    assert static_term_force(model.terms) == 0.0
+    car = QuarterCar(damper_from_model(model), {"dt": 1e-3}, {"kind": "external"})
+    n = 3000
+    t = np.arange(n) * 1e-3
+    road = 0.03 * np.sin(2 * np.pi * 1.7 * t) + 0.01 * np.sin(2 * np.pi * 11.0 * t)
+    rate = 0.03 * 2 * np.pi * 1.7 * np.cos(2 * np.pi * 1.7 * t) + 0.01 * 2 * np.pi * 11.0 * np.cos(2 * np.pi * 11.0 * t)
+    u = np.where(t < 1.5, 0.0, 4.0)
+    res = car.simulate(road, rate, u)
+    assert np.all(res["status"] >= 0)
+    x, v, a, uc = res["x"], res["v"], res["a"], res["control"]
+    f, st, _ = damper_from_model(model).forces(x, v, a, uc, uc, 20.0)
+    np.testing.assert_allclose(res["force"], f, rtol=1e-9, atol=1e-9)
+    valve = reference(P, v, uc)
+    assert np.ptp(valve) > 200.0 and np.any(uc == 4.0) and np.any(uc == 0.0)
+
+
+FIRMWARE = r"""// The valve term on the target: F, dF/dx, dF/dv, dF/du of stored inputs, as float bits in hex.
+#include <stdint.h>
+#include "dampnet/terms.hpp"
+#include "valve_vectors.h"  // VALVE_P[8], VALVE_N, VALVE_IN[VALVE_N][2] (v, u)
+extern "C" int dn_fw_semihost(int op, const void* arg);
+static char line[64];
+static int len = 0;
+static void put(float f) {
+  union { float f; uint32_t u; } b;
+  b.f = f;
+  for (int i = 7; i >= 0; --i) line[len++] = "0123456789abcdef"[(b.u >> (4 * i)) & 0xF];
+  line[len++] = ' ';
+}
+extern "C" int main(void) {
+  dampnet::real p[DN_MAX_TERM_PARAMS] = {};
+  for (int i = 0; i < 8; ++i) p[i] = VALVE_P[i];
+  if (dampnet::terms::validate_DN_TERM_VALVE(p) != DN_OK) return 3;
+  for (int k = 0; k < VALVE_N; ++k) {
+    dn_damper_input in{};
+    in.v = VALVE_IN[k][0];
+    in.u = VALVE_IN[k][1];
+    dampnet::real g[3];
+    const dampnet::real f = dampnet::terms::grad_DN_TERM_VALVE(p, in, g);
+    len = 0;
+    put(f); put(g[0]); put(g[1]); put(g[2]);
+    line[len++] = '\n';
+    line[len] = 0;
+    dn_fw_semihost(0x04 /* SYS_WRITE0 */, line);
+  }
+  return 0;
+}
+"""
+
+
+def test_cortex_m4f_firmware_equals_the_host(tmp_path):
+    """The valve term's code (terms.hpp) cross-built for the Cortex-M4F in float (DN_LOOP_FLOAT,
+    the M4F preset's definitions, -Wdouble-promotion as an error) with the firmware's start-up
+    code, run in QEMU (mps2-an386): its F, dF/dv, dF/du on 46 stored inputs (random, the knees,
+    beyond both clamps) equal the host runtime's (double) to float precision (1e-5 of each
+    quantity's largest magnitude), dF/dx is 0, and it links no software double routine and no
+    C++ runtime. Cost: 0.9 s."""
+    import firmware_lab as emb  # bench/firmware_lab.py (the conftest puts bench/ on the path)
+    why = emb.toolchain_missing()
+    if why:
+        pytest.fail(why, pytrace=False)
+    r = np.random.default_rng(1)
+    v = np.concatenate([r.uniform(-3, 3, 40), [P[0], -P[3], 60.0, -60.0, 0.0, 1e30]]).astype(np.float32)
+    u = np.concatenate([r.uniform(-1, 12, 40), [1.0, 1.0, 2000.0, -5.0, 3.0, 1e30]]).astype(np.float32)
+    p32 = np.asarray(P, np.float32)
+    (tmp_path / "valve_vectors.h").write_text(
+        "static const float VALVE_P[8] = {" + ", ".join(f"{float(x)!r}f" for x in p32) + "};\n"
+        f"#define VALVE_N {v.size}\nstatic const float VALVE_IN[VALVE_N][2] = {{"
+        + ", ".join(f"{{{float(a)!r}f, {float(b)!r}f}}" for a, b in zip(v, u)) + "};\n")
+    (tmp_path / "valve_fw.cpp").write_text(FIRMWARE)
+    flags = emb.mcu.CPUS["cortex-m4"]["flags"].split()
+    defines = [f"-D{d}" for d in emb.target_defines("cortex-m4", emb.DEFAULT_CAPS) if not d.startswith("DN_CAP_TERMS")]
+    defines += ["-DDN_CAP_TERMS=2", "-DDN_STATIC"]
+    emb_dir = ROOT / "cpp" / "embedded"
+    subprocess.run(["arm-none-eabi-g++", "-std=c++17", "-O2", *flags, "-fno-exceptions", "-fno-rtti", "-Wall", "-Wextra",
+                    "-Werror", "-Wdouble-promotion", *defines, f"-I{ROOT / 'cpp' / 'include'}", f"-I{tmp_path}", "-c",
+                    str(tmp_path / "valve_fw.cpp"), "-o", str(tmp_path / "valve_fw.o")], check=True)
+    subprocess.run(["arm-none-eabi-gcc", "-std=c99", "-O2", *flags, "-c", str(emb_dir / "startup.c"), "-o",
+                    str(tmp_path / "startup.o")], check=True)
+    elf = tmp_path / "valve_fw.elf"
+    subprocess.run(["arm-none-eabi-gcc", *flags, "--specs=nano.specs", "-nostartfiles", "-Wl,--gc-sections",
+                    f"-T{emb_dir / 'mps2.ld'}", str(tmp_path / "valve_fw.o"), str(tmp_path / "startup.o"), "-lm",
+                    "-o", str(elf)], check=True)
+    syms = subprocess.run(["arm-none-eabi-nm", str(elf)], capture_output=True, text=True, check=True).stdout
+    assert not re.search(r"__aeabi_d|__cxa_|_Znw", syms), "software double or C++ runtime linked"
+    out = emb.run(elf, "cortex-m4", icount=False)
+    rows = [line.split() for line in out.splitlines() if re.fullmatch(r"([0-9a-f]{8} ){3}[0-9a-f]{8}", line.strip())]
+    fw = np.array([[np.uint32(int(h, 16)).view(np.float32) for h in row] for row in rows], dtype=np.float64)
+    assert fw.shape == (v.size, 4)
+    f, gx, gv, gu, st = cpp_grad(p32.astype(np.float64).tolist(), v.astype(np.float64), u.astype(np.float64))
+    assert np.all(st == 0) and np.all(fw[:, 1] == 0)
+    for k, host in ((0, f), (2, gv), (3, gu)):
+        np.testing.assert_allclose(fw[:, k], host, rtol=1e-5, atol=1e-5 * np.max(np.abs(host)))
+
+
+def test_parameter_jacobian_equals_finite_differences():
+    """valve_param_jacobian (the nonlinear fit's Jacobian, dF/dp for the 8 parameters) equals
+    central differences of the reference force. Cost: 0.2 s."""
+    v, u = rng.uniform(-3, 3, 2000), rng.uniform(0, 8, 2000)
+    J = T.valve_param_jacobian(P, v, u)
+    for k in range(8):
+        h = 1e-6 * abs(P[k])
+        hi, lo = list(P), list(P)
+        hi[k] += h
+        lo[k] -= h
+        fd = (reference(hi, v, u) - reference(lo, v, u)) / (2 * h)
+        np.testing.assert_allclose(J[:, k], fd, rtol=1e-5, atol=1e-6 * np.max(np.abs(fd)))
+
+
+def test_fit_terms_recovers_a_valve_with_a_gas_spring():
+    """fit_terms on noise-free force = valve(v, u) + gas spring(x) over six control levels:
+    the valve's 8 parameters (nonlinear least squares, jointly with the polynomial's linear
+    ones) and the polynomial come back to 1e-6; a second free valve is refused. Cost: 2 s."""
+    n = 4000
+    t = np.arange(n) * 2e-4
+    v = 1.5 * np.sin(2 * np.pi * 3 * t) * rng.uniform(0.2, 1.0, n)
+    u = np.repeat([0.0, 1.0, 2.0, 3.0, 4.0, 5.0], -(-n // 6))[:n]
+    x = 0.05 * np.sin(2 * np.pi * 1.3 * t)
+    y = reference(P, v, u) + (-150.0 + 3000.0 * x)
+    got = T.fit_terms([{"kind": "valve"}, {"kind": "position_poly"}], x, v, u, y)
+    np.testing.assert_allclose(got[0]["params"], P, rtol=1e-6)
+    np.testing.assert_allclose(got[1]["params"], [-150.0, 3000.0, 0.0, 0.0], rtol=1e-6, atol=1e-3)
+    assert "nonlinear least squares" in got[0]["fitted"]
+    with pytest.raises(ValueError, match="2 valve terms"):
+        T.fit_terms([{"kind": "valve"}, {"kind": "valve"}], x, v, u, y)
+
+
+def test_training_fits_a_valve_term_and_predicts_with_it():
+    """dampnet training with a free valve term on the quick rig plan: the valve is fitted (8
+    valid parameters the runtime accepts), the network learns the rest, and the prediction is
+    MLP + the valve at the test's (v, u), equal to the runtime damper's force. Cost: 12 s (the rig data and the training)."""
+    from dampnet.features import feature_matrix
+    from dampnet.predict import predict_force
+    from dampnet.rig import generate
+    from dampnet.training.pipeline import train_dataset
+    ds = generate("quick", seed=0)
+    model, _, split = train_dataset(ds, terms=[{"kind": "valve"}], decimate=50, hidden=(4,), max_epochs=3)
+    (term,) = model.terms
+    assert term["kind"] == "valve" and T._valve_check(np.array(term["params"])) is None
+    t = split.holdout.tests[0]
+    X = feature_matrix([t], model.features, model.feature_params)
+    v, u = t.channels["velocity"], t.control
+    valve = reference(term["params"], v, u)
+    np.testing.assert_allclose(predict_force(model, t), model.predict(X) + valve, rtol=1e-12, atol=1e-9)
+    assert np.ptp(valve) > 100.0  # the valve carries much of the rig damper's force
+    d = damper_from_model(model)
+    cols = {f: X[:, i] for i, f in enumerate(model.features)}
+    a = cols.get("acceleration", np.zeros_like(v))
+    f_rt, st, _ = d.forces(t.channels["displacement"], v, a, u, u, 20.0)
+    assert np.all(st >= 0)
+    np.testing.assert_allclose(f_rt, predict_force(model, t), rtol=1e-9, atol=1e-6)
