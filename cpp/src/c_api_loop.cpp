@@ -134,6 +134,18 @@ int dn_damper_force(const dn_damper* d, const dn_damper_input* in, dn_real* forc
   return d->d.force(*in, force, nullptr, clamped_mask);
 }
 
+int dn_damper_inverse(const dn_damper* d, const dn_damper_input* in, dn_real force_demand,
+                      dn_real* u, dn_real* force, int* n_evals) {
+  if (n_evals) *n_evals = 0;
+  if (!d || !in || !u || !force) return DN_E_NULL;
+  return d->d.inverse(*in, force_demand, u, force, n_evals);
+}
+
+int dn_damper_control_range(const dn_damper* d, dn_real* u_min, dn_real* u_max) {
+  if (!d || !u_min || !u_max) return DN_E_NULL;
+  return d->d.control_range(u_min, u_max);
+}
+
 void dn_vehicle_default(dn_vehicle* v) {
   if (v) *v = dampnet::default_vehicle();
 }

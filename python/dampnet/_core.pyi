@@ -43,6 +43,7 @@ DN_W_SATURATED: Final[int]
 DN_W_NONFINITE_INPUT: Final[int]
 DN_W_ACCEL_UNCONVERGED: Final[int]
 DN_W_ACCEL_FALLBACK: Final[int]
+DN_W_UNREACHABLE: Final[int]
 DN_E_NULL: Final[int]
 DN_E_SIZE: Final[int]
 DN_E_NONFINITE_PARAM: Final[int]
@@ -200,6 +201,22 @@ class Damper(metaclass=_pybind11_type):
         z_fric: npt.ArrayLike = ...,
     ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.int32], npt.NDArray[np.uint32]]:
         """Vectorised force [N] -> (force[n], status[n], clamped_mask[n])."""
+    def inverse(
+        self,
+        force: npt.ArrayLike,
+        x: npt.ArrayLike,
+        v: npt.ArrayLike,
+        a: npt.ArrayLike,
+        u_lag: npt.ArrayLike,
+        temperature: npt.ArrayLike,
+        v_lag: npt.ArrayLike = ...,
+        z_fric: npt.ArrayLike = ...,
+    ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.int32], npt.NDArray[np.int32]]:
+        """Vectorised inverse: the control [V or A] giving the demanded force [N] at this motion
+        -> (u[n], force[n] achieved [N], status[n], evaluations[n]); DN_W_UNREACHABLE: the
+        nearer control limit."""
+    def control_range(self) -> tuple[float, float]:
+        """(u_min, u_max) [V or A] that the inverse searches; ValueError without a control."""
 
 # ---- the quarter-car loop ----
 

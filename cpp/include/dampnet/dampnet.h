@@ -206,6 +206,33 @@ DN_API int dn_damper_kind_of(const dn_damper* d);
 DN_API int dn_damper_force(const dn_damper* d, const dn_damper_input* in, dn_real* force,
                            uint32_t* clamped_mask);
 
+/* The control range [u_min, u_max] of a damper [V or A, as dn_damper_input.u]: a neural
+ * damper's saturation limits of its input reading u (voltage or current), a parametric
+ * damper's [0, v_max], a lookup table's first and last control. DN_E_MISMATCH (both 0) when
+ * the force does not depend on u (linear, a neural damper without a voltage/current input or
+ * with two) or its range is unknown (callback); DN_E_NULL. */
+DN_API int dn_damper_control_range(const dn_damper* d, dn_real* u_min, dn_real* u_max);
+
+/* [RT] The inverse: the control *u [V or A] in [u_min, u_max] (dn_damper_control_range) at
+ * which the damper's force at the input *in (every field but u: velocity [m/s], acceleration
+ * [m/s^2], displacement [m], the states, temperature [degC]; in->u is ignored) equals
+ * force_demand [N]; *force is the force [N] at *u. The forces at both limits are evaluated
+ * first: a demand outside [min, max] of those two (+-Inf included) gets the limit of the nearer
+ * force and DN_W_UNREACHABLE (the nearest achievable force and its control). Inside, the sign
+ * change of F(u) - force_demand is narrowed by safeguarded Newton steps (dF/du analytic for a
+ * neural damper, the bracket's secant for the others; bisection when a step leaves the bracket
+ * or the bracket has not halved in two steps): at most DN_INVERSE_MAX_ITERS more evaluations,
+ * stopping once the bracket or a Newton step is below DN_INVERSE_TOL_REL of the control range;
+ * the evaluated control with the smallest |F - force_demand| is returned. A model that is not
+ * monotone in u still gets a control giving the demand (one of them), or the nearer limit.
+ * Errors (*u the centre of the range, 0 without one; *force = 0): DN_E_MISMATCH (no control
+ * input, or a callback damper), DN_E_NONFINITE_INPUT (a NaN demand or a NaN/Inf input field
+ * the model reads), DN_E_NONFINITE_OUTPUT, DN_E_NULL. Warnings of the evaluations
+ * (DN_W_SATURATED: a motion input outside the model's range) are OR-ed in.
+ * Nullable: n_evals (the evaluations after the two at the limits, 0..DN_INVERSE_MAX_ITERS). */
+DN_API int dn_damper_inverse(const dn_damper* d, const dn_damper_input* in, dn_real force_demand,
+                             dn_real* u, dn_real* force, int* n_evals);
+
 /*---- The quarter-car loop ----*/
 
 /* Fill with the defaults of DN_VEHICLE_FIELDS. Nullable: nothing. */

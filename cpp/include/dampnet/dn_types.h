@@ -180,6 +180,12 @@ typedef struct dn_parametric_params {
  * stage 0). Nullable: user. */
 typedef dn_real (*dn_damper_fn)(void* user, const dn_damper_input* in);
 
+/* The inverse (dn_damper_inverse): at most DN_INVERSE_MAX_ITERS force evaluations after the two
+ * at the control limits; it stops once the bracket around the control is narrower than
+ * DN_INVERSE_TOL_REL times the control range (u_max - u_min), or a Newton step is. */
+#define DN_INVERSE_MAX_ITERS 44
+#define DN_INVERSE_TOL_REL 1e-6
+
 /* A damper model: immutable once handed to a loop model (which copies it). Opaque. */
 typedef struct dn_damper dn_damper;
 
