@@ -512,10 +512,9 @@ class Damper {
   //    or equal forces at both): u_min.
   //  - else the sign change of F(u) - demand is bracketed and narrowed by safeguarded Newton
   //    steps (dF/du analytic for a neural damper, the bracket's secant for the others): a step
-  //    that leaves the bracket, or a bracket that has not halved in two steps, is a bisection.
-  //    At most DN_INVERSE_MAX_ITERS evaluations, so the bracket ends at most
-  //    2^-(DN_INVERSE_MAX_ITERS/2 - 1) of the range wide; it stops once the bracket or a
-  //    Newton step is below DN_INVERSE_TOL_REL * (u_max - u_min). The evaluated control with
+  //    that leaves the bracket, or one that is not under half the last step while the bracket
+  //    has not halved in two steps, is a bisection. At most DN_INVERSE_MAX_ITERS evaluations;
+  //    it stops once the bracket or a step is below DN_INVERSE_TOL_REL * (u_max - u_min). The evaluated control with
   //    the smallest |F - demand| is returned. A model not monotone in u still gets one of the
   //    controls at which F = demand (or a limit when the demand is outside the limits' forces).
   //  - errors: DN_E_MISMATCH (control_range), DN_E_NONFINITE_INPUT (a NaN demand or a
@@ -590,7 +589,11 @@ class Damper {
       }
       const real slope = std::isfinite(dx) && dx != 0 ? dx : (gb - ga) / (b - a);
       real xn = x - g / slope;
-      if (!(xn > a && xn < b) || b - a > w_prev2 / 2) xn = a + (b - a) / 2;
+      // Newton while it stays inside and either its step is under half the last one (it is
+      // converging) or the bracket has halved in two steps; else bisect.
+      const bool newton = xn > a && xn < b &&
+                          (std::fabs(xn - x) <= std::fabs(step) / 2 || b - a <= w_prev2 / 2);
+      if (!newton) xn = a + (b - a) / 2;
       w_prev2 = w_prev;
       w_prev = b - a;
       step = xn - x;
