@@ -350,3 +350,28 @@ def test_monotonicity_scan_finds_the_turning_point():
     assert model_control_monotonicity(monotone_random_model(), n_v=21, n_u=41).monotone
     par = _core.Damper.parametric(c_min=500.0, c_max=5000.0, gamma=2000.0, f0=50.0, v_max=5.0)
     assert control_monotonicity(par, v_range=(-1.0, 1.0), n_v=21, n_u=41).monotone
+
+
+def test_states_terms_current_and_a_lag_only_model():
+    """A hybrid model reading the voltage and its lag (a state, given) with a position term, and
+    one reading the current: where reachable the inverse's force is the demand (1e-6 N) with the
+    lag and the term held; a model reading only voltage_lag has no instantaneous control and is
+    refused (DN_E_MISMATCH, finite outputs). Cost: 0.05 s."""
+    term = [{"kind": "position_poly", "params": [-150.0, 3000.0, 0.0, 0.0]}]
+    rng = np.random.default_rng(4)
+    n = 2000
+    for feats, fp in ((["velocity", "voltage", "voltage_lag"], {"control_lag_tau_s": 0.01}),
+                      (["velocity", "current"], {})):
+        d = damper_from_model(random_model(feats, hidden=8, seed=2, feature_params=fp, terms=term))
+        lo, hi = d.control_range()
+        mo = {"x": 0.01, "v": rng.uniform(-1.0, 1.0, n), "a": 0.0, "u_lag": rng.uniform(0.0, 5.0, n),
+              "temperature": 20.0}
+        demand = d.forces(u=rng.uniform(lo, hi, n), **mo)[0]
+        u, f, st, _ = d.inverse(demand, **mo)
+        assert set(np.unique(st)) <= {0, UNREACHABLE} and (st == 0).mean() > 0.5
+        assert np.abs(f - demand)[st == 0].max() < 1e-6
+        assert np.all((u >= lo) & (u <= hi))
+    d = damper_from_model(random_model(["velocity", "voltage_lag"], hidden=8, seed=2,
+                                       feature_params={"control_lag_tau_s": 0.01}))
+    u, f, st, _ = d.inverse(100.0, x=0.0, v=0.1, a=0.0, u_lag=1.0, temperature=20.0)
+    assert st[0] == _core.DN_E_MISMATCH and np.isfinite(u[0]) and f[0] == 0
