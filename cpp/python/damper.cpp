@@ -38,6 +38,9 @@ namespace {
 double dn_damper_input::* const kQuantities[] = {DN_DAMPER_INPUT_FIELDS(DNPY_QTY_MEMBER_)};
 #undef DNPY_QTY_MEMBER_
 constexpr std::size_t kNumQuantities = std::size(kQuantities);
+#define DNPY_QTY_NAME_(type, name, role, doc) DNPY_ROLE_##role(#name, )
+const char* const kQuantityNames[] = {DN_DAMPER_INPUT_FIELDS(DNPY_QTY_NAME_)};
+#undef DNPY_QTY_NAME_
 
 // Damper.forces(self, x, v, ...): one DArray parameter per quantity; 0.1's fields are
 // required, later ones (QTY_OPT) default to NaN.
@@ -348,7 +351,41 @@ void bind_damper(py::module_& mod) {
              return py::make_tuple(double(lo), double(hi));
            },
            "(u_min, u_max) [V or A]: the control range the inverse searches (ValueError for a "
-           "damper whose force does not depend on u, or a callback damper).");
+           "damper whose force does not depend on u, or a callback damper).")
+      .def("control_monotonicity",
+           [](py::handle self, double v_min, double v_max, int n_v, int n_u, double tolerance_N,
+              const std::map<std::string, double>& at) {
+             const PyDamper& p = constructed<PyDamper>(self);
+             dn_damper_input in{};
+             for (const auto& kv : at) {
+               std::size_t q = 0;
+               while (q < kNumQuantities && kv.first != kQuantityNames[q]) ++q;
+               if (q == kNumQuantities || kv.first == "v" || kv.first == "u")
+                 throw py::value_error("Damper.control_monotonicity: at: unknown or scanned quantity '" +
+                                       kv.first + "' (give x, a, u_lag, temperature or a state)");
+               in.*kQuantities[q] = kv.second;
+             }
+             dn_monotonicity r{};
+             int st;
+             {
+               py::gil_scoped_release rel;  // (a callback damper is refused before any call)
+               st = dn_damper_control_monotonicity(p.d.get(), &in, v_min, v_max, n_v, n_u, tolerance_N, &r);
+             }
+             if (st < 0) throw py::value_error(std::string("Damper.control_monotonicity: ") + dn_status_str(st));
+             py::dict out;
+             out["n_reversed"] = r.n_reversed;
+             out["v_worst"] = double(r.v_worst);
+             out["u_from"] = double(r.u_from);
+             out["u_to"] = double(r.u_to);
+             out["reversal_N"] = double(r.reversal_N);
+             return out;
+           },
+           py::arg("v_min"), py::arg("v_max"), py::arg("n_v") = 101, py::arg("n_u") = 201,
+           py::arg("tolerance_N") = 0.0, py::arg("at") = std::map<std::string, double>{},
+           "dn_damper_control_monotonicity: scan F over n_v velocities in [v_min, v_max] [m/s] x "
+           "n_u controls of control_range, the other quantities from `at` (default 0); -> "
+           "{n_reversed, v_worst [m/s], u_from, u_to [V or A], reversal_N [N]} of the largest "
+           "turn of F(u) against its direction (all 0: monotone beyond tolerance_N [N]).");
 }
 
 }  // namespace dnpy

@@ -146,6 +146,13 @@ int dn_damper_control_range(const dn_damper* d, dn_real* u_min, dn_real* u_max) 
   return d->d.control_range(u_min, u_max);
 }
 
+int dn_damper_control_monotonicity(const dn_damper* d, const dn_damper_input* at, dn_real v_min,
+                                   dn_real v_max, int n_v, int n_u, dn_real tol_N,
+                                   dn_monotonicity* report) {
+  if (!d || !at || !report) return DN_E_NULL;
+  return d->d.control_monotonicity(*at, v_min, v_max, n_v, n_u, tol_N, report);
+}
+
 void dn_vehicle_default(dn_vehicle* v) {
   if (v) *v = dampnet::default_vehicle();
 }

@@ -217,6 +217,16 @@ class Damper(metaclass=_pybind11_type):
         nearer control limit."""
     def control_range(self) -> tuple[float, float]:
         """(u_min, u_max) [V or A] that the inverse searches; ValueError without a control."""
+    def control_monotonicity(
+        self,
+        v_min: float,
+        v_max: float,
+        n_v: int = ...,
+        n_u: int = ...,
+        tolerance_N: float = ...,
+        at: Mapping[str, float] = ...,
+    ) -> dict[str, float | int]:
+        """Where F(u) turns back: {n_reversed, v_worst [m/s], u_from, u_to [V or A], reversal_N [N]}."""
 
 # ---- the quarter-car loop ----
 

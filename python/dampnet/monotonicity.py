@@ -12,6 +12,11 @@ velocity at which F(u) goes against its overall direction, where, and by how muc
     report = model_control_monotonicity(model)      # the model's own envelope
     if not report.monotone: print(report.summary())
 
+The runtime has the same scan without Python (set-up code, e.g. after loading a model on a
+target): `dn_damper_control_monotonicity` in dampnet.h, `_core.Damper.control_monotonicity` here,
+which reports the count of turning velocities and the largest turn (equal to this module's on the
+same grid: tests/python/test_damper_inverse.py).
+
 Units: v [m/s], u [V or A] (the model's control), forces [N]; the other inputs (displacement x
 [m], acceleration a [m/s^2], temperature [degC], the states) are held at the values given.
 """

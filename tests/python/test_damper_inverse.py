@@ -375,3 +375,34 @@ def test_states_terms_current_and_a_lag_only_model():
                                        feature_params={"control_lag_tau_s": 0.01}))
     u, f, st, _ = d.inverse(100.0, x=0.0, v=0.1, a=0.0, u_lag=1.0, temperature=20.0)
     assert st[0] == _core.DN_E_MISMATCH and np.isfinite(u[0]) and f[0] == 0
+
+
+def test_runtime_monotonicity_report_equals_the_python_scan():
+    """dn_damper_control_monotonicity (Damper.control_monotonicity, the C ABI's set-up report)
+    on the same grid as dampnet.monotonicity: the non-monotone table's velocities counted, the
+    worst reversal's velocity, controls and size equal; the default model's too (it turns back
+    near v = 0); a monotone model all 0; bad arguments raise. Cost: 0.3 s."""
+    vs = np.linspace(-1.0, 1.0, 21)
+    us = np.array([0.0, 1.0, 2.0])
+    table = _core.Damper.table(vs, us, np.array([1000.0 * vs, 2000.0 * vs, np.where(vs > 0.5, 1500.0 * vs, 3000.0 * vs)]))
+    model = default_model()
+    k = model.features.index("velocity")
+    cases = [(table, (-1.0, 1.0), {}), (damper_from_model(model), (model.sat_lo[k], model.sat_hi[k]), {"a": 0.0})]
+    for d, (v0, v1), at in cases:
+        py = control_monotonicity(d, (v0, v1), n_v=41, n_u=81, others=at, tolerance_N=1e-6)
+        rt = d.control_monotonicity(v0, v1, n_v=41, n_u=81, tolerance_N=1e-6, at=at)
+        w = py.worst
+        assert rt["n_reversed"] == len(py.violations) > 0
+        assert (rt["v_worst"], rt["u_from"], rt["u_to"]) == pytest.approx((w.v, w.u_from, w.u_to), abs=1e-12)
+        assert rt["reversal_N"] == pytest.approx(w.force_reversal, rel=1e-9)
+    mono = damper_from_model(monotone_random_model())
+    assert set(mono.control_monotonicity(-2.0, 2.0, 21, 41).values()) == {0}
+    for bad in ({"n_v": 0}, {"n_u": 1}, {"n_u": 5000}, {"tolerance_N": -1.0}, {"tolerance_N": np.nan},
+                {"at": {"u": 1.0}}, {"at": {"nope": 1.0}}):
+        args = {"v_min": -1.0, "v_max": 1.0, **bad}
+        with pytest.raises(ValueError):
+            mono.control_monotonicity(**args)
+    with pytest.raises(ValueError):
+        mono.control_monotonicity(1.0, -1.0)
+    with pytest.raises(ValueError):
+        _core.Damper.linear(100.0).control_monotonicity(-1.0, 1.0)

@@ -605,6 +605,62 @@ class Damper {
     return st;
   }
 
+  // Set-up (bounded, no allocation): scan F on n_v x n_u points of v in [v_min, v_max] [m/s]
+  // and u over control_range, the other inputs as in `at`, and report where F(u) turns back
+  // against its direction at a velocity (that of F(u_max) - F(u_min), the inverse's bracket):
+  // the largest fall of direction * F after a rise over the u grid, rows beyond tol_N [N]
+  // counted. DN_OK; control_range's DN_E_MISMATCH; DN_E_SIZE (n_v < 1, n_u < 2, either beyond
+  // DN_MONOTONICITY_MAX_GRID); DN_E_PARAM (v_min > v_max, tol_N < 0); DN_E_NONFINITE_PARAM
+  // (v_min, v_max or tol_N not finite); a force's error (the scan stops, the report zeroed).
+  int control_monotonicity(const dn_damper_input& at, real v_min, real v_max, int n_v, int n_u,
+                           real tol_N, dn_monotonicity* rep) const noexcept {
+    *rep = dn_monotonicity{};
+    real lo = 0, hi = 0;
+    const int st = control_range(&lo, &hi);
+    if (st < 0) return st;
+    if (n_v < 1 || n_u < 2 || n_v > DN_MONOTONICITY_MAX_GRID || n_u > DN_MONOTONICITY_MAX_GRID)
+      return DN_E_SIZE;
+    if (!std::isfinite(v_min) || !std::isfinite(v_max) || !std::isfinite(tol_N)) return DN_E_NONFINITE_PARAM;
+    if (v_min > v_max || tol_N < 0) return DN_E_PARAM;
+    dn_damper_input w = at;
+    for (int i = 0; i < n_v; ++i) {
+      w.v = n_v == 1 ? v_min : v_min + (v_max - v_min) * real(i) / real(n_v - 1);
+      real f_lo = 0, f_hi = 0;
+      w.u = lo;
+      int s = force(w, &f_lo);
+      w.u = hi;
+      if (s >= 0) s = force(w, &f_hi);
+      if (s < 0) {
+        *rep = dn_monotonicity{};
+        return s;
+      }
+      const real dir = f_hi >= f_lo ? real(1) : real(-1);
+      real run_max = dir * f_lo, row_drop = 0, u_max_at = lo, from = lo, to = lo;
+      for (int j = 1; j < n_u; ++j) {
+        const real u = j == n_u - 1 ? hi : lo + (hi - lo) * real(j) / real(n_u - 1);
+        real f = 0;
+        w.u = u;
+        s = force(w, &f);
+        if (s < 0) {
+          *rep = dn_monotonicity{};
+          return s;
+        }
+        const real g = dir * f;
+        if (g > run_max) run_max = g, u_max_at = u;
+        if (run_max - g > row_drop) row_drop = run_max - g, from = u_max_at, to = u;
+      }
+      if (row_drop > tol_N) ++rep->n_reversed;
+      if (row_drop > rep->reversal_N) {
+        rep->reversal_N = row_drop;
+        rep->v_worst = w.v;
+        rep->u_from = from;
+        rep->u_to = to;
+      }
+    }
+    if (rep->n_reversed == 0) *rep = dn_monotonicity{};  // within the tolerance: monotone
+    return DN_OK;
+  }
+
   // Thesis eq. 1-3.
   real parametric(real v, real u) const noexcept {
     const real V = u < 0 ? real(0) : (u > par.v_max ? par.v_max : u);

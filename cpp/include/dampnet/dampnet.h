@@ -233,6 +233,21 @@ DN_API int dn_damper_control_range(const dn_damper* d, dn_real* u_min, dn_real* 
 DN_API int dn_damper_inverse(const dn_damper* d, const dn_damper_input* in, dn_real force_demand,
                              dn_real* u, dn_real* force, int* n_evals);
 
+/* Set-up (bounded: n_v (n_u + 1) force evaluations; no allocation): is the force monotone in
+ * the control? F is scanned on n_v velocities evenly over [v_min, v_max] [m/s] x n_u controls
+ * over dn_damper_control_range, the other inputs as in *at (its v and u ignored). At each
+ * velocity the direction is that of F(u_max) - F(u_min) (the inverse's bracket); the reversal
+ * is the largest fall [N] of F against it after a rise over the controls. *report: the number of
+ * velocities with a reversal beyond tol_N [N], and the largest one: its velocity, the controls
+ * between which F turns back and by how much (all 0 when none exceeds tol_N: monotone, the
+ * inverse unique). A model that is not monotone keeps a defined inverse (dn_damper_inverse).
+ * Statuses: DN_OK; DN_E_MISMATCH (no control, as dn_damper_control_range); DN_E_SIZE (n_v < 1,
+ * n_u < 2, either beyond DN_MONOTONICITY_MAX_GRID); DN_E_PARAM (v_min > v_max, tol_N < 0);
+ * DN_E_NONFINITE_PARAM; a force's error (report zeroed); DN_E_NULL. */
+DN_API int dn_damper_control_monotonicity(const dn_damper* d, const dn_damper_input* at,
+                                          dn_real v_min, dn_real v_max, int n_v, int n_u,
+                                          dn_real tol_N, dn_monotonicity* report);
+
 /*---- The quarter-car loop ----*/
 
 /* Fill with the defaults of DN_VEHICLE_FIELDS. Nullable: nothing. */
