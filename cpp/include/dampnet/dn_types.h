@@ -182,7 +182,7 @@ typedef dn_real (*dn_damper_fn)(void* user, const dn_damper_input* in);
 
 /* The inverse (dn_damper_inverse): at most DN_INVERSE_MAX_ITERS force evaluations after the two
  * at the control limits; it stops once the bracket around the control is narrower than
- * DN_INVERSE_TOL_REL times the control range (u_max - u_min), or a Newton step is. */
+ * DN_INVERSE_TOL_REL times the control range (u_max - u_min), or a step is. */
 #define DN_INVERSE_MAX_ITERS 44
 #define DN_INVERSE_TOL_REL 1e-6
 
