@@ -38,6 +38,9 @@ namespace {
 double dn_damper_input::* const kQuantities[] = {DN_DAMPER_INPUT_FIELDS(DNPY_QTY_MEMBER_)};
 #undef DNPY_QTY_MEMBER_
 constexpr std::size_t kNumQuantities = std::size(kQuantities);
+#define DNPY_QTY_NAME_(type, name, role, doc) DNPY_ROLE_##role(#name, )
+const char* const kQuantityNames[] = {DN_DAMPER_INPUT_FIELDS(DNPY_QTY_NAME_)};
+#undef DNPY_QTY_NAME_
 
 // Damper.forces(self, x, v, ...): one DArray parameter per quantity; 0.1's fields are
 // required, later ones (QTY_OPT) default to NaN.
@@ -47,6 +50,25 @@ constexpr std::size_t kNumQuantities = std::size(kQuantities);
 #define DNPY_ARG_QTY_OPT(name) , py::arg(#name) = std::numeric_limits<double>::quiet_NaN()
 #define DNPY_ARG_CTX(name)
 #define DNPY_FORCES_ARG_(type, name, role, doc) DNPY_ARG_##role(name)
+
+// Damper.inverse(self, force, x, v, a, u_lag, ...): the arrays of forces but u (the unknown).
+// DNPY_IS_U_(name) is 1 for the field u, else 0 (the probe idiom: only u defines a probe).
+#define DNPY_SECOND_(a, b, ...) b
+#define DNPY_PROBE_CHECK_(...) DNPY_SECOND_(__VA_ARGS__, 0, )
+#define DNPY_PROBE_u ~, 1,
+#define DNPY_IS_U_(name) DNPY_PROBE_CHECK_(DNPY_PROBE_##name)
+#define DNPY_CAT_(a, b) DNPY_CAT2_(a, b)
+#define DNPY_CAT2_(a, b) a##b
+#define DNPY_UNLESS_U_0(...) __VA_ARGS__
+#define DNPY_UNLESS_U_1(...)
+#define DNPY_UNLESS_U_(name) DNPY_CAT_(DNPY_UNLESS_U_, DNPY_IS_U_(name))
+#define DNPY_INV_PARAM_(type, name, role, doc) DNPY_UNLESS_U_(name)(DNPY_FORCES_PARAM_(type, name, role, doc))
+#define DNPY_IF_U_0(...)
+#define DNPY_IF_U_1(...) __VA_ARGS__
+#define DNPY_IF_U_(name) DNPY_CAT_(DNPY_IF_U_, DNPY_IS_U_(name))
+#define DNPY_INV_ARRAY_(type, name, role, doc) \
+  DNPY_ROLE_##role(DNPY_UNLESS_U_(name)(&name) DNPY_IF_U_(name)(nullptr), )
+#define DNPY_INV_ARG_(type, name, role, doc) DNPY_UNLESS_U_(name)(DNPY_FORCES_ARG_(type, name, role, doc))
 
 // A damper owned by Python. A callback damper keeps its Python function here.
 class PyDamper {
@@ -256,6 +278,42 @@ class PyDamper {
     }
     return py::make_tuple(f, gx, gv, gu, st);
   }
+
+  // Vectorised inverse (dn_damper_inverse): the demanded force and one array per quantity but
+  // u (nullptr in arrs), broadcast to one length. Every damper kind without a control
+  // (callback included) is refused by the runtime before any evaluation: the GIL is released.
+  py::tuple inverse(const DArray& demand, const DArray* const* arrs) {
+    py::ssize_t n = demand.size();
+    if (n == 0) throw py::value_error("inverse: force is empty");
+    for (std::size_t q = 0; q < kNumQuantities; ++q) {
+      if (!arrs[q]) continue;
+      const DArray& p = *arrs[q];
+      if (p.size() == 0) throw py::value_error("inverse: an input array is empty");
+      if (p.size() != 1) {
+        if (n != 1 && p.size() != n) throw py::value_error("inverse: arrays differ in length");
+        n = p.size();
+      }
+    }
+    py::array_t<double> u(n), f(n);
+    py::array_t<int32_t> st(n), evals(n);
+    auto at = [](const DArray& arr, py::ssize_t i) { return arr.size() == 1 ? arr.data()[0] : arr.data()[i]; };
+    double* up = u.mutable_data();
+    double* fp = f.mutable_data();
+    int32_t* sp = st.mutable_data();
+    int32_t* ep = evals.mutable_data();
+    {
+      py::gil_scoped_release rel;
+      for (py::ssize_t i = 0; i < n; ++i) {
+        dn_damper_input in{};
+        for (std::size_t q = 0; q < kNumQuantities; ++q)
+          if (arrs[q]) in.*kQuantities[q] = at(*arrs[q], i);
+        int k = 0;
+        sp[i] = dn_damper_inverse(d.get(), &in, at(demand, i), &up[i], &fp[i], &k);
+        ep[i] = k;
+      }
+    }
+    return py::make_tuple(u, f, st, evals);
+  }
 };
 
 }  // namespace
@@ -307,7 +365,63 @@ void bind_damper(py::module_& mod) {
            "Vectorised force of the model plus terms -> (force[n] [N], status[n], "
            "clamped_mask[n]); one array (or scalar) per quantity of DAMPER_INPUT_FIELDS, "
            "broadcast to one length. Fields appended after 0.1 default to NaN: a model that "
-           "reads them must be given them. GIL released except for callback dampers.");
+           "reads them must be given them. GIL released except for callback dampers.")
+      .def("inverse",
+           [](py::handle self, DArray force DN_DAMPER_INPUT_FIELDS(DNPY_INV_PARAM_)) {
+             const DArray* arrs[] = {DN_DAMPER_INPUT_FIELDS(DNPY_INV_ARRAY_)};
+             static_assert(std::size(arrs) == kNumQuantities, "one slot per quantity");
+             return constructed<PyDamper>(self).inverse(force, arrs);
+           },
+           py::arg("force") DN_DAMPER_INPUT_FIELDS(DNPY_INV_ARG_),
+           "Vectorised inverse (dn_damper_inverse): the control [V or A] within the control "
+           "range (control_range) at which the force equals the demand force [N] at the given "
+           "motion and states (every quantity of forces but u) -> (u[n], force[n] [N] achieved, "
+           "status[n], evaluations[n]); DN_W_UNREACHABLE: the demand is outside the forces at "
+           "the control limits, the nearer limit is returned. Arrays broadcast to one length. "
+           "GIL released.")
+      .def("control_range",
+           [](py::handle self) {
+             dn_real lo = 0, hi = 0;
+             const int st = dn_damper_control_range(constructed<PyDamper>(self).d.get(), &lo, &hi);
+             if (st < 0) throw py::value_error(std::string("Damper.control_range: ") + dn_status_str(st));
+             return py::make_tuple(double(lo), double(hi));
+           },
+           "(u_min, u_max) [V or A]: the control range the inverse searches (ValueError for a "
+           "damper whose force does not depend on u, or a callback damper).")
+      .def("control_monotonicity",
+           [](py::handle self, double v_min, double v_max, int n_v, int n_u, double tolerance_N,
+              const std::map<std::string, double>& at) {
+             const PyDamper& p = constructed<PyDamper>(self);
+             dn_damper_input in{};
+             for (const auto& kv : at) {
+               std::size_t q = 0;
+               while (q < kNumQuantities && kv.first != kQuantityNames[q]) ++q;
+               if (q == kNumQuantities || kv.first == "v" || kv.first == "u")
+                 throw py::value_error("Damper.control_monotonicity: at: unknown or scanned quantity '" +
+                                       kv.first + "' (give x, a, u_lag, temperature or a state)");
+               in.*kQuantities[q] = kv.second;
+             }
+             dn_monotonicity r{};
+             int st;
+             {
+               py::gil_scoped_release rel;  // (a callback damper is refused before any call)
+               st = dn_damper_control_monotonicity(p.d.get(), &in, v_min, v_max, n_v, n_u, tolerance_N, &r);
+             }
+             if (st < 0) throw py::value_error(std::string("Damper.control_monotonicity: ") + dn_status_str(st));
+             py::dict out;
+             out["n_reversed"] = r.n_reversed;
+             out["v_worst"] = double(r.v_worst);
+             out["u_from"] = double(r.u_from);
+             out["u_to"] = double(r.u_to);
+             out["reversal_N"] = double(r.reversal_N);
+             return out;
+           },
+           py::arg("v_min"), py::arg("v_max"), py::arg("n_v") = 101, py::arg("n_u") = 201,
+           py::arg("tolerance_N") = 0.0, py::arg("at") = std::map<std::string, double>{},
+           "dn_damper_control_monotonicity: scan F over n_v velocities in [v_min, v_max] [m/s] x "
+           "n_u controls of control_range, the other quantities from `at` (default 0); -> "
+           "{n_reversed, v_worst [m/s], u_from, u_to [V or A], reversal_N [N]} of the largest "
+           "turn of F(u) against its direction (all 0: monotone beyond tolerance_N [N]).");
 }
 
 }  // namespace dnpy

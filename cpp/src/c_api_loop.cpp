@@ -158,6 +158,25 @@ int dn_damper_terms_grad(const dn_damper* d, const dn_damper_input* in, dn_real*
   return st;
 }
 
+int dn_damper_inverse(const dn_damper* d, const dn_damper_input* in, dn_real force_demand,
+                      dn_real* u, dn_real* force, int* n_evals) {
+  if (n_evals) *n_evals = 0;
+  if (!d || !in || !u || !force) return DN_E_NULL;
+  return d->d.inverse(*in, force_demand, u, force, n_evals);
+}
+
+int dn_damper_control_range(const dn_damper* d, dn_real* u_min, dn_real* u_max) {
+  if (!d || !u_min || !u_max) return DN_E_NULL;
+  return d->d.control_range(u_min, u_max);
+}
+
+int dn_damper_control_monotonicity(const dn_damper* d, const dn_damper_input* at, dn_real v_min,
+                                   dn_real v_max, int n_v, int n_u, dn_real tol_N,
+                                   dn_monotonicity* report) {
+  if (!d || !at || !report) return DN_E_NULL;
+  return d->d.control_monotonicity(*at, v_min, v_max, n_v, n_u, tol_N, report);
+}
+
 void dn_vehicle_default(dn_vehicle* v) {
   if (v) *v = dampnet::default_vehicle();
 }

@@ -43,6 +43,7 @@ DN_W_SATURATED: Final[int]
 DN_W_NONFINITE_INPUT: Final[int]
 DN_W_ACCEL_UNCONVERGED: Final[int]
 DN_W_ACCEL_FALLBACK: Final[int]
+DN_W_UNREACHABLE: Final[int]
 DN_E_NULL: Final[int]
 DN_E_SIZE: Final[int]
 DN_E_NONFINITE_PARAM: Final[int]
@@ -211,6 +212,32 @@ class Damper(metaclass=_pybind11_type):
         # </generated>
     ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.int32], npt.NDArray[np.uint32]]:
         """Vectorised force [N] -> (force[n], status[n], clamped_mask[n])."""
+    def inverse(
+        self,
+        force: npt.ArrayLike,
+        x: npt.ArrayLike,
+        v: npt.ArrayLike,
+        a: npt.ArrayLike,
+        u_lag: npt.ArrayLike,
+        temperature: npt.ArrayLike,
+        v_lag: npt.ArrayLike = ...,
+        z_fric: npt.ArrayLike = ...,
+    ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.int32], npt.NDArray[np.int32]]:
+        """Vectorised inverse: the control [V or A] giving the demanded force [N] at this motion
+        -> (u[n], force[n] achieved [N], status[n], evaluations[n]); DN_W_UNREACHABLE: the
+        nearer control limit."""
+    def control_range(self) -> tuple[float, float]:
+        """(u_min, u_max) [V or A] that the inverse searches; ValueError without a control."""
+    def control_monotonicity(
+        self,
+        v_min: float,
+        v_max: float,
+        n_v: int = ...,
+        n_u: int = ...,
+        tolerance_N: float = ...,
+        at: Mapping[str, float] = ...,
+    ) -> dict[str, float | int]:
+        """Where F(u) turns back: {n_reversed, v_worst [m/s], u_from, u_to [V or A], reversal_N [N]}."""
 
 # ---- the quarter-car loop ----
 

@@ -52,6 +52,9 @@ def test_none_for_a_model_or_damper_raises_instead_of_crashing(tmp_path):
             "uninitialised Loop.state": lambda: _core.Loop.__new__(_core.Loop).state,
             "uninitialised Damper.forces": lambda: _core.Damper.__new__(_core.Damper).forces(
                 0.0, 0.0, 0.0, 0.0, 0.0, 20.0),
+            "uninitialised Damper.inverse": lambda: _core.Damper.__new__(_core.Damper).inverse(
+                0.0, 0.0, 0.0, 0.0, 0.0, 20.0),
+            "uninitialised Damper.control_range": lambda: _core.Damper.__new__(_core.Damper).control_range(),
             "uninitialised LoopModel.vehicle": lambda: _core.LoopModel.__new__(_core.LoopModel).vehicle,
             "Damper.neural(uninitialised Mlp)": lambda: _core.Damper.neural(
                 _core.Mlp.__new__(_core.Mlp), ["velocity"]),
@@ -66,7 +69,7 @@ def test_none_for_a_model_or_damper_raises_instead_of_crashing(tmp_path):
         """, tmp_path)
     assert proc.returncode == 0, crash_report(proc)
     lines = proc.stdout.splitlines()
-    assert len(lines) == 14, proc.stdout
+    assert len(lines) == 16, proc.stdout
     for line in lines:
         assert line.endswith("TypeError"), line
 

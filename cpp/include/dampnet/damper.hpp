@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 #include <type_traits>
 
 #include "dampnet/damper_state.hpp"
@@ -436,6 +437,228 @@ class Damper {
       }
       f[b] = y;
     }
+  }
+
+  // ---- the inverse: the control that gives a demanded force ----
+
+  // The control's range [u_min, u_max] (V or A, as in.u): a neural damper's saturation limits
+  // of its input reading in.u (voltage or current), a parametric damper's [0, v_max], a table's
+  // first and last control. *input (nullable): the neural input reading in.u, else -1.
+  // DN_OK, or DN_E_MISMATCH when the force does not depend on in.u (linear; a neural damper
+  // without a voltage/current input, or with two) or the range is unknown (callback).
+  int control_range(real* lo, real* hi, int* input = nullptr) const noexcept {
+    *lo = *hi = 0;
+    if (input) *input = -1;
+    switch (kind) {
+      case DN_DAMPER_PARAMETRIC:
+        *hi = par.v_max;
+        return DN_OK;
+      case DN_DAMPER_TABLE:
+        if (tab.n_u < 1) return DN_E_MISMATCH;
+        *lo = tab.u[0];
+        *hi = tab.u[tab.n_u - 1];
+        return DN_OK;
+      case DN_DAMPER_NEURAL: {
+        const features::Info* t = features::table();
+        int k = -1;
+        for (int i = 0; i < n_feat; ++i)
+          if (t[feat[i]].field == &dn_damper_input::u) {
+            if (k >= 0) return DN_E_MISMATCH;  // two inputs read the control
+            k = i;
+          }
+        if (k < 0) return DN_E_MISMATCH;
+        if (precision == DN_PRECISION_FLOAT) {
+          *lo = static_cast<real>(mf.sat_lo()[k]);
+          *hi = static_cast<real>(mf.sat_hi()[k]);
+        } else {
+          *lo = static_cast<real>(md.sat_lo()[k]);
+          *hi = static_cast<real>(md.sat_hi()[k]);
+        }
+        if (input) *input = k;
+        return DN_OK;
+      }
+      default:
+        return DN_E_MISMATCH;
+    }
+  }
+
+  // [RT] As force(), plus dF/du [N per V or A] when the model gives it analytically (a neural
+  // damper, input ui reading in.u); NaN otherwise (the inverse then takes a secant).
+  DN_REALTIME int force_du(const dn_damper_input& in, int ui, real* f, real* df_du) const noexcept {
+    *df_du = std::numeric_limits<real>::quiet_NaN();
+    if (!kind_built(DN_DAMPER_NEURAL) || kind != DN_DAMPER_NEURAL || ui < 0) return force(in, f);
+    real x[DN_MAX_INPUTS];
+    feature_values(in, x);
+    for (int i = 0; i < n_feat; ++i)
+      if (!std::isfinite(x[i])) return fail(f, DN_E_NONFINITE_INPUT);
+    real y = 0;
+    int st;
+    if (precision == DN_PRECISION_FLOAT) st = float_forward_grad(mf, x, n_feat, &y, ui, df_du, nullptr);
+    else st = double_forward_grad(md, x, &y, ui, df_du, nullptr);
+    if (st < 0) return fail(f, st);
+    if (DN_CAP_TERMS > 0 && n_terms > 0) {
+      if (!std::isfinite(in.x)) return fail(f, DN_E_NONFINITE_INPUT);
+      y += terms::sum(terms, n_terms, in);
+    }
+    if (!std::isfinite(y)) return fail(f, DN_E_NONFINITE_OUTPUT);
+    *f = y;
+    return st;
+  }
+
+  // [RT] The inverse: the control u in [u_min, u_max] (control_range) at which the force at the
+  // input `in` (in.u ignored) equals `demand` [N]; *f the force [N] at *u.
+  //  - F at both limits; a demand outside [min, max] of those two (also +-Inf): the limit whose
+  //    force is nearer, and DN_W_UNREACHABLE (not when equal). A flat range (u_min == u_max,
+  //    or equal forces at both): u_min.
+  //  - else the sign change of F(u) - demand is bracketed and narrowed by safeguarded Newton
+  //    steps (dF/du analytic for a neural damper, the bracket's secant for the others): a step
+  //    that leaves the bracket, or one that is not under half the last step while the bracket
+  //    has not halved in two steps, is a bisection. At most DN_INVERSE_MAX_ITERS evaluations;
+  //    it stops once the bracket or a step is below DN_INVERSE_TOL_REL * (u_max - u_min). The evaluated control with
+  //    the smallest |F - demand| is returned. A model not monotone in u still gets one of the
+  //    controls at which F = demand (or a limit when the demand is outside the limits' forces).
+  //  - errors: DN_E_MISMATCH (control_range), DN_E_NONFINITE_INPUT (a NaN demand or a
+  //    non-finite input the model reads), the force's errors: *u the centre of the range (0
+  //    without one) and *f = 0.
+  // The warnings of the evaluations (DN_W_SATURATED: a motion input outside its range) are
+  // OR-ed in. *n_evals (nullable): force evaluations after the two at the limits.
+  DN_REALTIME DN_OUTLINE int inverse(const dn_damper_input& in, real demand, real* u, real* f,
+                                     int* n_evals = nullptr) const noexcept {
+    if (n_evals) *n_evals = 0;
+    real lo = 0, hi = 0;
+    int ui = -1;
+    int st = control_range(&lo, &hi, &ui);
+    if (st < 0) {
+      *u = 0;
+      return fail(f, st);
+    }
+    const real mid = lo + (hi - lo) / 2;
+    if (std::isnan(demand)) {
+      *u = mid;
+      return fail(f, DN_E_NONFINITE_INPUT);
+    }
+    dn_damper_input w = in;
+    real f_lo = 0, f_hi = 0, d_lo = 0, d_hi = 0;
+    w.u = lo;
+    const int s_lo = force_du(w, ui, &f_lo, &d_lo);
+    w.u = hi;
+    const int s_hi = hi > lo ? force_du(w, ui, &f_hi, &d_hi) : s_lo;
+    if (!(hi > lo)) f_hi = f_lo, d_hi = d_lo;
+    if (s_lo < 0 || s_hi < 0) {
+      *u = mid;
+      return fail(f, s_lo < 0 ? s_lo : s_hi);
+    }
+    st = s_lo | s_hi;
+    real a = lo, b = hi, ga = f_lo - demand, gb = f_hi - demand;
+    // Outside the limits' forces (or on one of them): the nearer limit.
+    if (!(hi > lo) || ga == 0 || gb == 0 || (ga > 0) == (gb > 0)) {
+      const bool take_lo = !(hi > lo) || (std::isinf(demand) ? (demand > 0) == (f_lo >= f_hi)
+                                                             : std::fabs(ga) <= std::fabs(gb));
+      *u = take_lo ? lo : hi;
+      *f = take_lo ? f_lo : f_hi;
+      return (take_lo ? ga : gb) == 0 ? st : (st | DN_W_UNREACHABLE);
+    }
+    const real tol = real(DN_INVERSE_TOL_REL) * (hi - lo);
+    real best_u = std::fabs(ga) <= std::fabs(gb) ? a : b;
+    real best_f = std::fabs(ga) <= std::fabs(gb) ? f_lo : f_hi;
+    real best_g = std::fabs(ga) <= std::fabs(gb) ? ga : gb;
+    // First iterate: Newton from the nearer limit, else the secant through both.
+    real x = best_u - best_g / (best_u == a ? d_lo : d_hi);
+    if (!(x > a && x < b)) x = a - ga * (b - a) / (gb - ga);
+    if (!(x > a && x < b)) x = a + (b - a) / 2;
+    real step = b - a;  // the last step's length
+    real w_prev = b - a, w_prev2 = 2 * (b - a);  // the bracket one and two steps ago
+    int k = 0;
+    for (; k < DN_INVERSE_MAX_ITERS; ++k) {
+      real fx = 0, dx = 0;
+      w.u = x;
+      const int sx = force_du(w, ui, &fx, &dx);
+      if (sx < 0) break;  // (not expected: the same finite inputs as at the limits)
+      st |= sx;
+      const real g = fx - demand;
+      if (std::fabs(g) < std::fabs(best_g)) best_u = x, best_f = fx, best_g = g;
+      if (g == 0 || std::fabs(step) <= tol) {
+        ++k;
+        break;
+      }
+      if ((g > 0) == (ga > 0)) a = x, ga = g;
+      else b = x, gb = g;
+      if (b - a <= tol) {
+        ++k;
+        break;
+      }
+      const real slope = std::isfinite(dx) && dx != 0 ? dx : (gb - ga) / (b - a);
+      real xn = x - g / slope;
+      // Newton while it stays inside and either its step is under half the last one (it is
+      // converging) or the bracket has halved in two steps; else bisect.
+      const bool newton = xn > a && xn < b &&
+                          (std::fabs(xn - x) <= std::fabs(step) / 2 || b - a <= w_prev2 / 2);
+      if (!newton) xn = a + (b - a) / 2;
+      w_prev2 = w_prev;
+      w_prev = b - a;
+      step = xn - x;
+      x = xn;
+    }
+    if (n_evals) *n_evals = k;
+    *u = best_u;
+    *f = best_f;
+    return st;
+  }
+
+  // Set-up (bounded, no allocation): scan F on n_v x n_u points of v in [v_min, v_max] [m/s]
+  // and u over control_range, the other inputs as in `at`, and report where F(u) turns back
+  // against its direction at a velocity (that of F(u_max) - F(u_min), the inverse's bracket):
+  // the largest fall of direction * F after a rise over the u grid, rows beyond tol_N [N]
+  // counted. DN_OK; control_range's DN_E_MISMATCH; DN_E_SIZE (n_v < 1, n_u < 2, either beyond
+  // DN_MONOTONICITY_MAX_GRID); DN_E_PARAM (v_min > v_max, tol_N < 0); DN_E_NONFINITE_PARAM
+  // (v_min, v_max or tol_N not finite); a force's error (the scan stops, the report zeroed).
+  int control_monotonicity(const dn_damper_input& at, real v_min, real v_max, int n_v, int n_u,
+                           real tol_N, dn_monotonicity* rep) const noexcept {
+    *rep = dn_monotonicity{};
+    real lo = 0, hi = 0;
+    const int st = control_range(&lo, &hi);
+    if (st < 0) return st;
+    if (n_v < 1 || n_u < 2 || n_v > DN_MONOTONICITY_MAX_GRID || n_u > DN_MONOTONICITY_MAX_GRID)
+      return DN_E_SIZE;
+    if (!std::isfinite(v_min) || !std::isfinite(v_max) || !std::isfinite(tol_N)) return DN_E_NONFINITE_PARAM;
+    if (v_min > v_max || tol_N < 0) return DN_E_PARAM;
+    dn_damper_input w = at;
+    for (int i = 0; i < n_v; ++i) {
+      w.v = n_v == 1 ? v_min : v_min + (v_max - v_min) * real(i) / real(n_v - 1);
+      real f_lo = 0, f_hi = 0;
+      w.u = lo;
+      int s = force(w, &f_lo);
+      w.u = hi;
+      if (s >= 0) s = force(w, &f_hi);
+      if (s < 0) {
+        *rep = dn_monotonicity{};
+        return s;
+      }
+      const real dir = f_hi >= f_lo ? real(1) : real(-1);
+      real run_max = dir * f_lo, row_drop = 0, u_max_at = lo, from = lo, to = lo;
+      for (int j = 1; j < n_u; ++j) {
+        const real u = j == n_u - 1 ? hi : lo + (hi - lo) * real(j) / real(n_u - 1);
+        real f = 0;
+        w.u = u;
+        s = force(w, &f);
+        if (s < 0) {
+          *rep = dn_monotonicity{};
+          return s;
+        }
+        const real g = dir * f;
+        if (g > run_max) run_max = g, u_max_at = u;
+        if (run_max - g > row_drop) row_drop = run_max - g, from = u_max_at, to = u;
+      }
+      if (row_drop > tol_N) ++rep->n_reversed;
+      if (row_drop > rep->reversal_N) {
+        rep->reversal_N = row_drop;
+        rep->v_worst = w.v;
+        rep->u_from = from;
+        rep->u_to = to;
+      }
+    }
+    if (rep->n_reversed == 0) *rep = dn_monotonicity{};  // within the tolerance: monotone
+    return DN_OK;
   }
 
   // Thesis eq. 1-3.

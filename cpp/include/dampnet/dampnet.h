@@ -213,6 +213,49 @@ DN_API int dn_damper_force(const dn_damper* d, const dn_damper_input* in, dn_rea
 DN_API int dn_damper_terms_grad(const dn_damper* d, const dn_damper_input* in, dn_real* force,
                                 dn_real* grad);
 
+/* The control range [u_min, u_max] of a damper [V or A, as dn_damper_input.u]: a neural
+ * damper's saturation limits of its input reading u (voltage or current), a parametric
+ * damper's [0, v_max], a lookup table's first and last control. DN_E_MISMATCH (both 0) when
+ * the force does not depend on u (linear, a neural damper without a voltage/current input or
+ * with two) or its range is unknown (callback); DN_E_NULL. */
+DN_API int dn_damper_control_range(const dn_damper* d, dn_real* u_min, dn_real* u_max);
+
+/* [RT] The inverse: the control *u [V or A] in [u_min, u_max] (dn_damper_control_range) at
+ * which the damper's force at the input *in (every field but u: velocity [m/s], acceleration
+ * [m/s^2], displacement [m], the states, temperature [degC]; in->u is ignored) equals
+ * force_demand [N]; *force is the force [N] at *u. The forces at both limits are evaluated
+ * first: a demand outside [min, max] of those two (+-Inf included) gets the limit of the nearer
+ * force and DN_W_UNREACHABLE (the nearest achievable force and its control). Inside, the sign
+ * change of F(u) - force_demand is narrowed by safeguarded Newton steps (dF/du analytic for a
+ * neural damper, the bracket's secant for the others; bisection when a step leaves the bracket,
+ * or is not under half the previous step while the bracket has not halved in two steps): at
+ * most DN_INVERSE_MAX_ITERS more evaluations, stopping once the bracket or a step is below
+ * DN_INVERSE_TOL_REL of the control range;
+ * the evaluated control with the smallest |F - force_demand| is returned. A model that is not
+ * monotone in u still gets a control giving the demand (one of them), or the nearer limit.
+ * Errors (*u the centre of the range, 0 without one; *force = 0): DN_E_MISMATCH (no control
+ * input, or a callback damper), DN_E_NONFINITE_INPUT (a NaN demand or a NaN/Inf input field
+ * the model reads), DN_E_NONFINITE_OUTPUT, DN_E_NULL. Warnings of the evaluations
+ * (DN_W_SATURATED: a motion input outside the model's range) are OR-ed in.
+ * Nullable: n_evals (the evaluations after the two at the limits, 0..DN_INVERSE_MAX_ITERS). */
+DN_API int dn_damper_inverse(const dn_damper* d, const dn_damper_input* in, dn_real force_demand,
+                             dn_real* u, dn_real* force, int* n_evals);
+
+/* Set-up (bounded: n_v (n_u + 1) force evaluations; no allocation): is the force monotone in
+ * the control? F is scanned on n_v velocities evenly over [v_min, v_max] [m/s] x n_u controls
+ * over dn_damper_control_range, the other inputs as in *at (its v and u ignored). At each
+ * velocity the direction is that of F(u_max) - F(u_min) (the inverse's bracket); the reversal
+ * is the largest fall [N] of F against it after a rise over the controls. *report: the number of
+ * velocities with a reversal beyond tol_N [N], and the largest one: its velocity, the controls
+ * between which F turns back and by how much (all 0 when none exceeds tol_N: monotone, the
+ * inverse unique). A model that is not monotone keeps a defined inverse (dn_damper_inverse).
+ * Statuses: DN_OK; DN_E_MISMATCH (no control, as dn_damper_control_range); DN_E_SIZE (n_v < 1,
+ * n_u < 2, either beyond DN_MONOTONICITY_MAX_GRID); DN_E_PARAM (v_min > v_max, tol_N < 0);
+ * DN_E_NONFINITE_PARAM; a force's error (report zeroed); DN_E_NULL. */
+DN_API int dn_damper_control_monotonicity(const dn_damper* d, const dn_damper_input* at,
+                                          dn_real v_min, dn_real v_max, int n_v, int n_u,
+                                          dn_real tol_N, dn_monotonicity* report);
+
 /*---- The quarter-car loop ----*/
 
 /* Fill with the defaults of DN_VEHICLE_FIELDS. Nullable: nothing. */

@@ -180,6 +180,22 @@ typedef struct dn_parametric_params {
  * stage 0). Nullable: user. */
 typedef dn_real (*dn_damper_fn)(void* user, const dn_damper_input* in);
 
+/* The inverse (dn_damper_inverse): at most DN_INVERSE_MAX_ITERS force evaluations after the two
+ * at the control limits; it stops once the bracket around the control is narrower than
+ * DN_INVERSE_TOL_REL times the control range (u_max - u_min), or a step is. */
+#define DN_INVERSE_MAX_ITERS 44
+#define DN_INVERSE_TOL_REL 1e-6
+
+/* dn_damper_control_monotonicity's report: where the force turns back in the control. */
+typedef struct dn_monotonicity {
+  int n_reversed;     /* velocities of the scan at which F(u) turns back by more than the tolerance [-] */
+  dn_real v_worst;    /* the velocity of the largest reversal [m/s] */
+  dn_real u_from;     /* F(u) runs against its direction (that of F(u_max) - F(u_min)) from here ... */
+  dn_real u_to;       /* ... to here [V or A] */
+  dn_real reversal_N; /* by this much [N]; 0 when F is monotone in u at every velocity scanned */
+} dn_monotonicity;
+#define DN_MONOTONICITY_MAX_GRID 4096 /* n_v and n_u of a scan, at most */
+
 /* A damper model: immutable once handed to a loop model (which copies it). Opaque. */
 typedef struct dn_damper dn_damper;
 

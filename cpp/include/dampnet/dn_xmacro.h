@@ -32,6 +32,9 @@
     "DN_ACCEL_LINEAR_MIN_SLOPE: the damper's negative apparent mass -dF/da exceeds half the " \
     "reduced mass m_s m_us / (m_s + m_us)); the explicit value (the force evaluated at the " \
     "explicit acceleration) was used")                                                       \
+  X(DN_W_UNREACHABLE, 16,                                                                    \
+    "the demanded force is outside [F(u_min), F(u_max)] at this motion (dn_damper_inverse): " \
+    "the nearest achievable force and its control (a control limit) were returned")          \
   X(DN_E_NULL, -1, "a required pointer argument was NULL")                                   \
   X(DN_E_SIZE, -2, "a size is out of range (inputs 1..8, layers 1..2, hidden layer 1 up to "   \
                    "this build's DN_MAX_HIDDEN, 64 by default; layer 2, and layer 1 of a two-layer " \

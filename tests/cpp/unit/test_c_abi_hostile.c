@@ -66,7 +66,7 @@ static void check_created(const char* what, int st, const void* out) {
 
 static int known_status(int st) {
   if (st >= 0) return (st & ~(DN_W_SATURATED | DN_W_NONFINITE_INPUT | DN_W_ACCEL_UNCONVERGED |
-                              DN_W_ACCEL_FALLBACK)) == 0;
+                              DN_W_ACCEL_FALLBACK | DN_W_UNREACHABLE)) == 0;
   return st >= DN_E_DIVERGED && st <= DN_E_NULL;
 }
 
@@ -356,6 +356,45 @@ static void damper_force_cases(dn_damper* const* dampers, int n) {
   }
 }
 
+/* Every damper kind's inverse with every field of the input and the demand weird: a known
+ * status, finite u and force; the kinds without a control refused (DN_E_MISMATCH); an error's
+ * force 0; NULL arguments DN_E_NULL. */
+static void damper_inverse_cases(dn_damper* const* dampers, int n) {
+  for (int k = 0; k < n; ++k) {
+    const int kind = dn_damper_kind_of(dampers[k]);
+    double lo = 0, hi = 0;
+    const int has_range = dn_damper_control_range(dampers[k], &lo, &hi) == DN_OK;
+    if (has_range != (kind == DN_DAMPER_PARAMETRIC || kind == DN_DAMPER_TABLE || kind == DN_DAMPER_NEURAL))
+      FAIL("damper %d: control_range", kind);
+    for (int field = 0; field < 10; ++field)
+      for (int i = 0; i < N_WEIRD; ++i) {
+        dn_damper_input in;
+        memset(&in, 0, sizeof in);
+        in.v = 0.1, in.u = 2.0, in.temperature = 20.0, in.dt = 1e-3;
+        double demand = 300.0;
+        double* fields[10] = {&in.x, &in.v, &in.a, &in.u, &in.u_lag, &in.temperature, &in.t, &in.v_lag, &in.z_fric, &demand};
+        *fields[field] = WEIRD[i];
+        double u = 12345.0, f = 12345.0;
+        int evals = -1;
+        const int st = dn_damper_inverse(dampers[k], &in, demand, &u, &f, &evals);
+        if (!known_status(st)) FAIL("damper %d inverse: unknown status %d", kind, st);
+        if (!isfinite(u) || !isfinite(f)) FAIL("damper %d inverse field %d = %g: status %d, u %g, force %g", kind, field, WEIRD[i], st, u, f);
+        if (evals < 0 || evals > DN_INVERSE_MAX_ITERS) FAIL("damper %d inverse: %d evaluations", kind, evals);
+        if (!has_range && st != DN_E_MISMATCH) FAIL("damper %d inverse without a control: status %d", kind, st);
+        if (st < 0 && f != 0.0) FAIL("damper %d inverse: error %d, force %g not 0", kind, st, f);
+        if (st >= 0 && (u < lo || u > hi)) FAIL("damper %d inverse: u %g outside [%g, %g]", kind, u, lo, hi);
+      }
+    dn_damper_input in;
+    memset(&in, 0, sizeof in);
+    double u = 0, f = 0;
+    if (dn_damper_inverse(NULL, &in, 0.0, &u, &f, NULL) != DN_E_NULL) FAIL("inverse(NULL damper)");
+    if (dn_damper_inverse(dampers[k], NULL, 0.0, &u, &f, NULL) != DN_E_NULL) FAIL("inverse(NULL in)");
+    if (dn_damper_inverse(dampers[k], &in, 0.0, NULL, &f, NULL) != DN_E_NULL) FAIL("inverse(NULL u)");
+    if (dn_damper_inverse(dampers[k], &in, 0.0, &u, NULL, NULL) != DN_E_NULL) FAIL("inverse(NULL force)");
+    if (dn_damper_control_range(dampers[k], NULL, &hi) != DN_E_NULL) FAIL("control_range(NULL)");
+  }
+}
+
 /*---- the loop ----*/
 #define VEH_OFFSET_(type, name, def, doc) offsetof(dn_vehicle, name),
 #define VEH_IS_DOUBLE_(type, name, def, doc) (sizeof(type) == sizeof(double)),
@@ -564,7 +603,8 @@ int main(void) {
     if (!s || !s[0]) FAIL("dn_status_str(%d) empty", codes[i]);
   }
   if (!strstr(dn_status_str(DN_W_SATURATED | DN_W_ACCEL_FALLBACK), "DN_W_ACCEL_FALLBACK")) FAIL("status_str OR");
-  if (!strstr(dn_status_str(16), "unknown")) FAIL("status_str(16) should be unknown");
+  if (!strstr(dn_status_str(32), "unknown")) FAIL("status_str(32) should be unknown");
+  if (!strstr(dn_status_str(DN_W_UNREACHABLE), "DN_W_UNREACHABLE")) FAIL("status_str(DN_W_UNREACHABLE)");
 
   mlp_cases();
 
@@ -592,6 +632,7 @@ int main(void) {
   for (int k = 0; k < 5; ++k)
     if (dn_damper_add_term(dampers[k], "bump_stop", bump, 3) != DN_OK) FAIL("bump_stop");
   damper_force_cases(dampers, 7);
+  damper_inverse_cases(dampers, 7);
   loop_cases(dampers, 7);
   for (int k = 0; k < 7; ++k) dn_damper_destroy(dampers[k]);
   dn_mlp_destroy(mlp);

@@ -1,12 +1,15 @@
 // No heap allocation in forward: every allocation entry point is counted while
 // a million forward calls run (alloc_counter.hpp: interposed in the plain build, the
 // sanitizer's allocation hook under ASan; pytest runs both builds).
+#include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <new>
 #include <random>
 #include <vector>
 
 #include "check.hpp"
+#include "dampnet/dampnet.h"
 #include "dampnet/mlp.hpp"
 #include "random_model.hpp"
 
@@ -39,6 +42,35 @@ int main() {
   g_counting = false;
   std::printf("allocations during 4e6 forward calls: %ld (checksum %g)\n", g_allocs, acc);
   CHECK(g_allocs == 0);
+
+  // The damper's inverse (dn_damper_inverse): its bracket, Newton and bisection steps, float
+  // and double, reachable, unreachable and non-finite demands.
+  const char* names[3] = {"velocity", "acceleration", "voltage"};
+  dn_damper* dd = nullptr;
+  dn_damper* dfl = nullptr;
+  CHECK(dn_damper_create_neural(cm, names, 3, nullptr, nullptr, 0, DN_PRECISION_DOUBLE, &dd) == DN_OK);
+  CHECK(dn_damper_create_neural(cm, names, 3, nullptr, nullptr, 0, DN_PRECISION_FLOAT, &dfl) == DN_OK);
+  dn_damper_input in{};
+  int n_bad = 0;
+  g_counting = true;
+  for (int k = 0; k < 200000; ++k) {
+    in.v = 1e-5 * (k % 1000) - 0.005;
+    in.a = 1e-3 * (k % 77);
+    in.u = 0;
+    dn_real f_mid = 0, u = 0, f = 0;
+    in.u = 0.5;
+    dn_damper_force(dd, &in, &f_mid, nullptr);
+    const dn_real demand = (k % 5 == 0) ? 1e9 : (k % 7 == 0 ? std::nan("") : f_mid);
+    const int st = dn_damper_inverse((k & 1) ? dd : dfl, &in, demand, &u, &f, nullptr);
+    if (!std::isfinite(u) || !std::isfinite(f) || (st < 0 && st != DN_E_NONFINITE_INPUT)) ++n_bad;
+    acc += u;
+  }
+  g_counting = false;
+  std::printf("allocations during 2e5 inverse calls: %ld (non-finite or failed: %d)\n", g_allocs, n_bad);
+  CHECK(g_allocs == 0);
+  CHECK(n_bad == 0);
+  dn_damper_destroy(dd);
+  dn_damper_destroy(dfl);
   dn_mlp_destroy(cm);
   delete md;
   delete sf;
