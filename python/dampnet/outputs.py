@@ -385,7 +385,7 @@ def clean_stale(parent: str | os.PathLike) -> list[Path]:
         if not m or not e.is_dir(follow_symlinks=False):
             continue
         info = _json_object(Path(e.path) / STAGING_MARKER)
-        if info.get("pid") != int(m.group(1)) or info.get("host") != host or _alive(info["pid"]):
+        if info.get("pid") != int(m.group(1)) or info.get("host") != host or pid_alive(info["pid"]):
             continue
         out = Path(parent) / str(info.get("out", ""))
         old = Path(e.path) / "old"
@@ -396,7 +396,8 @@ def clean_stale(parent: str | os.PathLike) -> list[Path]:
     return removed
 
 
-def _alive(pid: int) -> bool:
+def pid_alive(pid: int) -> bool:
+    """Whether a process with this id exists (this one, or one of another user, counts)."""
     if pid == os.getpid():
         return True
     try:

@@ -26,7 +26,6 @@ ever in shutdown (2 runs in 5 of the issue's probe).
 
 from __future__ import annotations
 
-import os
 import signal
 import threading
 from contextlib import contextmanager
@@ -130,14 +129,3 @@ def worker_ignores_interrupt() -> None:
     """A worker process ignores SIGINT from now on."""
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
-def pid_alive(pid: int) -> bool:
-    """Whether a process with this id exists (one of another user's counts)."""
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True

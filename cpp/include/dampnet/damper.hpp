@@ -496,9 +496,11 @@ class Damper {
     if (precision == DN_PRECISION_FLOAT) st = float_forward_grad(mf, x, n_feat, &y, ui, df_du, nullptr);
     else st = double_forward_grad(md, x, &y, ui, df_du, nullptr);
     if (st < 0) return fail(f, st);
-    if (DN_CAP_TERMS > 0 && n_terms > 0) {
-      if (!std::isfinite(in.x)) return fail(f, DN_E_NONFINITE_INPUT);
-      y += terms::sum(terms, n_terms, in);
+    if (DN_CAP_TERMS > 0 && n_terms > 0) {  // a valve term reads u too: its slope is added
+      if (!terms::inputs_finite(terms, n_terms, in)) return fail(f, DN_E_NONFINITE_INPUT);
+      real g[3];
+      y += terms::sum_grad(terms, n_terms, in, g);
+      *df_du += g[2];
     }
     if (!std::isfinite(y)) return fail(f, DN_E_NONFINITE_OUTPUT);
     *f = y;

@@ -518,7 +518,7 @@ def _remove_stale_handoffs() -> None:
     import re
     import tempfile
 
-    from dampnet.signals import pid_alive
+    from dampnet.outputs import pid_alive
 
     folder = tempfile.gettempdir()
     pattern = re.compile(re.escape(HANDOFF_PREFIX) + r"(\d+)-\w+\.pickle\Z")
