@@ -201,11 +201,11 @@ def run_dampnet(ds, train, test, budget, steps, seed=0, log=print) -> list[dict]
     return rows
 
 
-def _three_way(diag: dict):
-    tw = diag.get("three_way") or diag.get("verdict_three_way")
-    if isinstance(tw, dict):
-        return tw.get("kind") or tw.get("verdict") or tw.get("outcome")
-    return tw
+def _three_way(diag: dict) -> dict:
+    """The diagnosis's three-way finding (dampnet.diagnosis.verdict): kind, effects named, sentence."""
+    f = diag.get("finding") or {}
+    return {"kind": f.get("kind"), "effects": f.get("effects"), "sentence": f.get("sentence"),
+            "explained_share": f.get("explained_share"), "partial": f.get("partial")}
 
 
 def _motion(t):
