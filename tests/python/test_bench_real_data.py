@@ -165,3 +165,15 @@ def test_gru_beats_the_lookup_table_on_the_virtual_rig():
     e_lut = np.concatenate([lut.predict_test(t)[::10] - f for t, f in zip(test, forces)])
     rmse_gru, rmse_lut = np.sqrt(np.mean(e_gru ** 2)), np.sqrt(np.mean(e_lut ** 2))
     assert rmse_gru < 0.85 * rmse_lut, (rmse_gru, rmse_lut)
+
+
+def test_real_data_without_the_data_names_the_missing_folder(tmp_path, monkeypatch, capsys):
+    """Cost: under 1 s. With the shared data elsewhere, the script exits 2 naming the folder it
+    looked for (and how to point it elsewhere), before any training."""
+    import real_data
+
+    monkeypatch.setenv("DAMPNET_SHARED_DATA", str(tmp_path / "nowhere"))
+    assert real_data.main(["--quick", "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert str(tmp_path / "nowhere" / UTFSM) in err and "DAMPNET_SHARED_DATA" in err
+    assert not (tmp_path / "out").exists()
