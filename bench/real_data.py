@@ -1,7 +1,7 @@
 """Real dampers (issue 53, item 1): dampnet beside the lookup table, the modified Bouc-Wen model
 and a GRU, on the real MR-damper data sets kept in ../shared/data. One command:
 
-    python bench/real_data.py                      # both data sets, the full budgets (~10 min, 2 cores)
+    python bench/real_data.py                      # both data sets, the full budgets (26 min on 2 loaded cores)
     python bench/real_data.py --quick --out DIR    # a small slice of UTFSM, small budgets (~30 s)
 
 For each data set (dampnet.data.real: `utfsm`, `labcontrol`) the held-out tests are fixed and
