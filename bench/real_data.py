@@ -1,7 +1,7 @@
 """Real dampers (issue 53, item 1): dampnet beside the lookup table, the modified Bouc-Wen model
 and a GRU, on the real MR-damper data sets kept in ../shared/data. One command:
 
-    python bench/real_data.py                      # both data sets, the full budgets (26 min on 2 loaded cores)
+    python bench/real_data.py                      # both data sets, the full budgets (14 min on 2 loaded cores)
     python bench/real_data.py --quick --out DIR    # a small slice of UTFSM, small budgets (~30 s)
 
 For each data set (dampnet.data.real: `utfsm`, `labcontrol`) the held-out tests are fixed and
@@ -289,7 +289,9 @@ def markdown(result: dict) -> str:
             named = ""
             if "diagnosis" in r:
                 dg = r["diagnosis"]
-                named = dg.get("verdict") or "nothing"
+                named = dg.get("verdict") or "no effect"
+                if not dg.get("verdict") and (dg.get("three_way") or {}).get("kind") == "artefact":
+                    named += " (a measurement artefact instead: see the JSON's finding)"
                 if "add_error" in dg:
                     named += (" (not added: the data have no channel it needs)" if "needs channel" in dg["add_error"]
                               else " (not added)")
