@@ -22,7 +22,7 @@ def _need_real_data():
 
 
 def test_real_data_quick_writes_the_table(tmp_path):
-    """Cost: about 25 s. The script on the UTFSM slice (5 Hz and 3 Hz tests, 0.5 A held out):
+    """Cost: about 20 s. The script on the UTFSM slice (5 Hz and 3 Hz tests, 0.5 A held out):
     every model's row with finite errors, the split stated, both files written; the lookup table
     and dampnet are scored on the same held-out tests and samples."""
     _need_real_data()
@@ -57,7 +57,7 @@ def _sine(f=2.5, amp=0.015, dt=2e-4, seconds=1.2):
 
 
 def test_bouc_wen_loops_have_the_papers_shape():
-    """Cost: about 4 s. With the 1997 paper's parameters on its 2.5 Hz, 1.5 cm sine: the peak force
+    """Cost: about 2 s. With the 1997 paper's parameters on its 2.5 Hz, 1.5 cm sine: the peak force
     rises with voltage to the paper's order (about 1.5 kN at 2.25 V, a few hundred N at 0 V);
     the force-displacement loop encloses area (energy dissipated per cycle, more with voltage);
     the force-velocity loop is open at v = 0 (hysteresis) and the force saturates in velocity
@@ -101,7 +101,7 @@ def test_bouc_wen_force_lags_a_voltage_step_by_the_filter():
 
 
 def test_bouc_wen_fit_recovers_known_parameters_to_their_order_of_magnitude():
-    """Cost: about 8 s. Data simulated with parameters unlike the paper's (damping x2-3, the
+    """Cost: about 2-8 s. Data simulated with parameters unlike the paper's (damping x2-3, the
     hysteresis shaped otherwise, n = 2), 3 sines x 3 voltages: the fit, started from the paper's
     values scaled to the data (`start_params`), fits the force to 2 % of its range and recovers
     the parameters that set the force's level and loop shape within a factor of 10 (measured:
@@ -135,7 +135,7 @@ def test_bouc_wen_fit_recovers_known_parameters_to_their_order_of_magnitude():
 # -- the sequence model on the virtual rig --------------------------------------------------------
 
 def test_gru_beats_the_lookup_table_on_the_virtual_rig():
-    """Cost: about 12 s. The rig's quick plan (seed 0: 0.25, 1, 3 Hz x 0, 2.25, 5 V), the 1 Hz tests
+    """Cost: about 8 s. The rig's quick plan (seed 0: 0.25, 1, 3 Hz x 0, 2.25, 5 V), the 1 Hz tests
     held out at every voltage (by test: a frequency between the trained ones), every signal taken
     at 500 Hz: a GRU of 32 units over a 20-sample (40 ms) window, trained for 20 epochs of 8,000
     windows (the 300 s cap never binds, so the result does not depend on the machine's load), has
