@@ -33,8 +33,9 @@ from dampnet import _core
 __all__ = ["MonotonicityViolation", "MonotonicityReport", "control_monotonicity",
            "model_control_monotonicity"]
 
-# The quantities Damper.forces takes, in order; u is the scanned control, v the scanned velocity.
-_QUANTITIES = ("x", "v", "a", "u", "u_lag", "temperature", "v_lag", "z_fric")
+# The quantities Damper.forces takes, in order (dn_damper_input's fields but the loop's t, dt and
+# stage: the damper's states included, from the registry); u is the scanned control, v the velocity.
+_QUANTITIES = tuple(f for f in _core.DAMPER_INPUT_FIELDS if f not in ("t", "dt", "stage"))
 
 
 @dataclass(frozen=True)
@@ -96,7 +97,7 @@ def control_monotonicity(damper: _core.Damper, v_range: tuple[float, float],
     """Scan F(v, u) of a damper on an n_v x n_u grid and report where dF/du changes sign.
 
     v_range: velocities [m/s]; u_range: controls [V or A] (default: damper.control_range());
-    others: values of the other quantities (x, a, u_lag, temperature, v_lag, z_fric; default 0).
+    others: values of the other quantities (x, a, temperature and the damper's states, _core.DAMPER_STATES; default 0).
     At each velocity the direction is that of F(u_max) - F(u_min) (the inverse's bracket); a
     reversal is the largest amount [N] by which F falls back against it over a stretch of u,
     reported when above tolerance_N (default 1e-6 of the largest |F| on the grid, plus 1e-9 N:
