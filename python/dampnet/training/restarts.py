@@ -490,6 +490,10 @@ def _stop_pool(ex: ProcessPoolExecutor) -> None:
             if p.is_alive():
                 p.kill()
                 p.join(1.0)
+    # the workers are gone: wait for the pool's manager thread too, so that the interpreter's exit
+    # does not wake it through a pipe it has closed (Python 3.11 printed "Bad file descriptor")
+    with contextlib.suppress(Exception):
+        ex.shutdown(wait=True, cancel_futures=True)
 
 
 @contextlib.contextmanager
