@@ -41,6 +41,7 @@ import os
 import sys
 import time
 import uuid
+from concurrent.futures import CancelledError
 from contextlib import contextmanager, nullcontext
 from pathlib import Path
 from typing import Any, Callable, Iterator
@@ -311,7 +312,7 @@ class Watch:
         if self.client.status != "running":
             raise SweepInterrupted(f"the Dask scheduler ({self.where}) went away: the sweep stopped")
 
-    def broken(self, error: OSError) -> SweepInterrupted:
+    def broken(self, error: Exception) -> SweepInterrupted:
         """The interruption for a connection that broke during a call (fetching a result, counting
         workers). The client may take a moment to see that its scheduler is gone, so it is given
         LOST_NOTICE_S; a scheduler still there is a broken connection, said with the error."""
@@ -441,8 +442,8 @@ def outcome(f, allowed_failures: int, watch: Watch) -> dict[str, Any]:
     if f.status == "finished":
         try:
             result = f.result()
-        except OSError as e:             # the result's fetch broke: the scheduler went away meanwhile
-            raise watch.broken(e) from None
+        except (OSError, CancelledError) as e:  # the fetch broke, or the scheduler went away after the
+            raise watch.broken(e) from None     # task finished (distributed's FutureCancelledError)
         if result.get("status") == "mismatch":
             raise SweepInterrupted(f"worker {result.get('worker')} runs another dampnet than this client (source "
                                    f"hash {str(result.get('source'))[:12]} there, {source_digest()[:12]} here; "
