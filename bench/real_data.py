@@ -202,6 +202,11 @@ def run_dampnet(ds, train, test, budget, steps, seed=0, log=print) -> list[dict]
         log(f"    diagnosis {step}: {verdict or 'nothing named'} ({d_secs:.0f} s)")
         if verdict is None or verdict in added:
             break
+        lacking = diag["finding"].get("not_addable", {}).get(verdict)
+        if lacking:     # named, but its input needs a channel these data lack: the diagnosis says so
+            rows[-1]["diagnosis"]["not_addable"] = lacking
+            log(f"    cannot add {verdict}: the data have no {' or '.join(lacking)} channel")
+            break
         terms = [{k: v for k, v in t.items() if k != "params"} for t in model.terms]  # refitted
         req = dict(base, features=list(model.features), terms=terms,
                    feature_params=dict(model.feature_params) or None, add=(verdict,), diagnosis=diag)
@@ -292,7 +297,9 @@ def markdown(result: dict) -> str:
                 named = dg.get("verdict") or "no effect"
                 if not dg.get("verdict") and (dg.get("three_way") or {}).get("kind") == "artefact":
                     named += " (a measurement artefact instead: see the JSON's finding)"
-                if "add_error" in dg:
+                if dg.get("not_addable"):
+                    named += f" (not addable: the data have no {' or '.join(dg['not_addable'])} channel)"
+                elif "add_error" in dg:
                     named += (" (not added: the data have no channel it needs)" if "needs channel" in dg["add_error"]
                               else " (not added)")
             lines.append(f"| {r['model']} | {r['rmse_n']:.1f} | {r['nrmse']:.4f} | {worst['nrmse']:.4f} "

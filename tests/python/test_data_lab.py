@@ -511,7 +511,7 @@ def test_an_mdf4_unit_stored_only_in_the_conversion_is_read(tmp_path):
 
 #: displacement noise of the derived-velocity tests [m]: a 16-bit reading of a +-65 mm LVDT (2 um
 #: steps). The virtual rig's 25 um (encoder and crank play) is a noise floor no 20 Hz-wide
-#: derivative gets below 0.5 % of a 1 Hz sine's peak (derived_velocity's note): not tested here.
+#: derivative gets below 0.5 % of a 1 Hz sine's peak (velocity_from_displacement's note): not tested here.
 DISP_NOISE_M = 2e-6
 
 
@@ -529,7 +529,7 @@ DISP_MAP = {"channels": {"displacement": "Disp", "force": "Force", "voltage": "C
 def test_derived_velocity_of_sines_is_within_half_a_percent_of_the_peak(tmp_path, fs):
     """Issue 49, item 17: without a velocity channel, the velocity derived from displacement (20 ms
     moving average) was 4.6 % low at the peak of an 8 Hz sine, 27 % at 20 Hz, up to 100 % wrong at
-    the ends. Now (testbuild.derived_velocity): within 0.5 % of the peak of the analytic derivative
+    the ends. Now (derivative.velocity_from_displacement): within 0.5 % of the peak of the analytic derivative
     of 1, 8 and 20 Hz sines (25.4, 5, 2 mm; 7 phases), 2 um of noise, every sample kept (50 ms cut
     at each end, reported in the test's meta and the dataset's summary). Cost: 1 s each."""
     rng = np.random.default_rng(fs)

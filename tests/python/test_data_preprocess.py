@@ -1,4 +1,5 @@
-"""Acceleration derivation (error on rig data within the documented figure), decimation, splits."""
+"""Acceleration derivation (against analytic sines and on rig data within the documented figures),
+decimation, splits. Cost: about 6 s (two rig datasets generated, the thesis plan's in about 2 s)."""
 
 from __future__ import annotations
 
@@ -7,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dampnet.data import DEFAULT_WINDOW_S, add_acceleration, decimate, holdout_split, split_by_tests
-from dampnet.data.preprocess import ACCEL_NRMSE_DOC, acceleration_error, choose_window, moving_average
+from dampnet.data import THESIS_WINDOW_S, DynoTest, add_acceleration, decimate, holdout_split, split_by_tests
+from dampnet.data.preprocess import ACCEL_NRMSE_DOC, acceleration_error, acceleration_of, choose_window, moving_average
 from dampnet.rig import generate
 
 
@@ -26,36 +27,72 @@ def test_moving_average_against_a_direct_sum():
 
 
 def test_acceleration_of_a_parabola_is_exact():
-    from dampnet.data import DynoTest
-
     t = np.linspace(0, 1, 501)
     test = DynoTest("p", t, {"displacement": 1.5 * t ** 2, "velocity": 3.0 * t, "force": t, "voltage": 0 * t})
-    add_acceleration(test, window=11)
-    np.testing.assert_allclose(test.channels["acceleration"], 3.0, rtol=1e-9)
-    del test.channels["velocity"]                      # from displacement alone: second differences
-    add_acceleration(test, window=11)
-    np.testing.assert_allclose(test.channels["acceleration"], 3.0, rtol=1e-6)
+    for window, rtol in ((None, 1e-8), (11, 1e-9)):        # the zero-phase derivative; the thesis's average
+        np.testing.assert_allclose(acceleration_of(test, window), 3.0, rtol=rtol)
+    del test.channels["velocity"]                      # from displacement alone: second derivatives
+    for window, rtol in ((None, 1e-5), (11, 1e-6)):    # (the low-pass's start-up on the curved ends: 3e-6)
+        np.testing.assert_allclose(acceleration_of(test, window), 3.0, rtol=rtol)
+
+
+def _sine_errors(fs: float, f: float, window, channel: str) -> tuple[float, float]:
+    """(worst error over the whole test, worst beyond 100 ms of the ends) of the derived acceleration
+    of sines at f [Hz] sampled at fs [Hz] (2.3 cycles, at least 2.3 s; 8 phases), as a fraction of
+    the analytic acceleration's peak."""
+    dt = 1.0 / fs
+    t = np.arange(int(max(2.3 / f, 2.3) * fs)) * dt
+    w0 = 2 * np.pi * f
+    worst = inner = 0.0
+    for phase in np.linspace(0, 2 * np.pi, 8, endpoint=False):
+        x, v, a = np.sin(w0 * t + phase) / w0, np.cos(w0 * t + phase), -w0 * np.sin(w0 * t + phase)
+        test = DynoTest("s", t, {channel: x if channel == "displacement" else v, "force": t, "voltage": 0 * t})
+        e = np.abs(acceleration_of(test, window) - a) / w0
+        n = int(round(0.1 * fs))
+        worst, inner = max(worst, float(e.max())), max(inner, float(e[n:-n].max()))
+    return worst, inner
+
+
+@pytest.mark.parametrize("fs", [1000.0, 5000.0])
+def test_acceleration_of_sines_is_within_half_a_percent_of_the_peak_up_to_20_hz(fs):
+    """Issue 49, item 17: the default derivative (dampnet.data.derivative) against the analytic
+    acceleration of 1, 8 and 20 Hz sines at 1 and 5 kHz: within 0.5 % of the peak, ends included,
+    from a velocity; from a displacement alone within 0.5 % beyond 100 ms of the ends, 2.5 % at the
+    outermost samples. The thesis's 20 ms moving average, its default before, is 4.6 % low at 8 Hz
+    and 27 % at 20 Hz (measured 0.99 and 26 % here), and 6 % off at the ends even at 1 Hz."""
+    for f in (1.0, 8.0, 20.0):
+        worst, _ = _sine_errors(fs, f, None, "velocity")
+        assert worst <= 0.005, (f, worst)
+        worst, inner = _sine_errors(fs, f, None, "displacement")
+        assert inner <= 0.005 and worst <= 0.03, (f, worst, inner)
+    assert _sine_errors(fs, 8.0, THESIS_WINDOW_S, "velocity")[1] > 0.04
+    assert _sine_errors(fs, 20.0, THESIS_WINDOW_S, "velocity")[1] > 0.2
 
 
 def test_acceleration_error_on_rig_data_is_within_the_documented_figure(quick_truth):
     truth = [t.channels["true_acceleration"] for t in quick_truth.tests]
-    err = acceleration_error(quick_truth.tests, truth, DEFAULT_WINDOW_S)
+    err = acceleration_error(quick_truth.tests, truth, None)
     assert err <= ACCEL_NRMSE_DOC
+    # the thesis's moving average: its best window is 2.3x the default's error, 20 ms 2.3x too
     best, errs = choose_window(quick_truth.tests, truth)
-    assert errs[DEFAULT_WINDOW_S] <= 1.1 * errs[best]          # the default is still (near) the best
-    assert errs[0.002] > 2 * err and errs[0.100] > 2 * err     # too short: noise; too long: bias
+    assert errs[best] > 2 * err and errs[THESIS_WINDOW_S] > 2 * err, (err, errs)
     ds = add_acceleration(quick_truth.subset([t.copy() for t in quick_truth.tests]))
-    assert ds.tests[0].meta["acceleration_window_samples"] == 101
+    assert ds.tests[0].meta["acceleration_derived"] == "zero_phase"
+    assert ds.meta["acceleration"]["bandwidth_hz"] == 40.0 and "zero-phase" in ds.meta["acceleration"]["method"]
 
 
 def test_acceleration_error_on_the_thesis_plan_is_the_documented_figure():
-    """docs/data-formats.md: '2.3 % RMS error on the thesis plan' (measured 0.0234 with seed 3; the whole
-    plan, 180 tests x 10000 samples, is generated in about a second)."""
-    doc = (Path(__file__).resolve().parents[2] / "docs" / "data-formats.md").read_text()
-    assert "2.3 % RMS error on the thesis plan" in " ".join(doc.split())
+    """docs/data-formats.md: '1.2 % RMS error on the thesis plan' (measured 0.0119 with seed 3, 0.0234
+    with the thesis's 20 ms moving average; the whole plan, 180 tests x 10000 samples, is generated
+    in about 2 s)."""
+    doc = " ".join((Path(__file__).resolve().parents[2] / "docs" / "data-formats.md").read_text().split())
+    assert "1.2 % RMS error on the thesis plan" in doc and "(4.2 % and 2.3 %;" in doc
     ds = generate("thesis", seed=3, truth_channels=True)
-    err = acceleration_error(ds.tests, [t.channels["true_acceleration"] for t in ds.tests], DEFAULT_WINDOW_S)
-    assert 0.023 / 1.5 < err < 0.023 * 1.3, err
+    truth = [t.channels["true_acceleration"] for t in ds.tests]
+    err = acceleration_error(ds.tests, truth, None)
+    assert 0.012 / 1.3 < err < 0.012 * 1.3, err
+    thesis = acceleration_error(ds.tests, truth, THESIS_WINDOW_S)
+    assert 0.023 / 1.3 < thesis < 0.023 * 1.3, thesis
 
 
 def test_decimate_keeps_every_nth_sample(quick_truth):
@@ -92,22 +129,24 @@ def test_split_by_tests_is_disjoint_and_seeded(quick_truth):
 def test_training_rederives_acceleration_for_another_window(quick_truth):
     """Training derives the acceleration in place; a later training of the same dataset with another
     window must use that window's acceleration, not the first one's (it once silently did not)."""
-    from dampnet.data.preprocess import acceleration_of
     from dampnet.training.pipeline import prepare_training
 
     ds = quick_truth.subset([t.copy() for t in quick_truth.tests])
     for t in ds.tests:
         t.channels.pop("acceleration", None)
-        t.meta.pop("acceleration_window_samples", None)
+        t.meta.pop("acceleration_derived", None)
     prepare_training(ds, decimate=50)
     t = ds.tests[0]
-    assert t.meta["acceleration_window_samples"] == 101  # 20 ms at 5 kHz
+    assert t.meta["acceleration_derived"] == "zero_phase"
+    np.testing.assert_array_equal(t.channels["acceleration"], acceleration_of(t))
     prepare_training(ds, decimate=50, acceleration_window=0.010)
-    assert t.meta["acceleration_window_samples"] == 51
+    assert t.meta["acceleration_derived"] == "moving_average:51"      # 10 ms at 5 kHz
     np.testing.assert_array_equal(t.channels["acceleration"], acceleration_of(t, 0.010))
+    prepare_training(ds, decimate=50)
+    np.testing.assert_array_equal(t.channels["acceleration"], acceleration_of(t))
     # a measured channel (no derivation mark) is the user's and is kept
     measured = ds.tests[1]
-    measured.meta.pop("acceleration_window_samples")
+    measured.meta.pop("acceleration_derived")
     kept = measured.channels["acceleration"].copy()
     prepare_training(ds, decimate=50, acceleration_window=0.040)
     np.testing.assert_array_equal(measured.channels["acceleration"], kept)

@@ -55,7 +55,7 @@ def test_headerless_text_with_named_columns_and_dt(tmp_path):
     np.savetxt(p, np.column_stack([x * 1e3, f]))
     ds = load_dataset(p, columns=["x_mm", "F_N"], dt=0.002, voltage=0.0, derive_velocity=True)
     test = ds.tests[0]
-    # the velocity derived as for lab files (testbuild.derived_velocity): 50 ms cut at each end (25
+    # the velocity derived as for lab files (derivative.velocity_from_displacement): 50 ms cut at each end (25
     # samples at 500 Hz), within 0.1 % of the peak of the 1.5 Hz sine's analytic derivative
     np.testing.assert_allclose(test.time, t[25:-25], atol=1e-12)
     np.testing.assert_allclose(test.channels["velocity"], v[25:-25], atol=1e-3 * np.abs(v).max())

@@ -212,16 +212,19 @@ def test_diagnosed_compressibility_makes_the_model_track_the_truth_under_skyhook
                                 seed=0, holdout_voltage=None)
     improved = neural_spec(model, "improved")
     cont = continuous_skyhook(truth, damping_levels(truth), u_tau_s=0.0)
-    errs = {}
+    errs, befores = {}, {}
     for speed in (10.0, 20.0):
         t = rough_runs[("truth", speed, "skyhook_continuous_unfiltered")]
         errs[speed] = (simulate(improved, thesis_rough_road(), speed, cont)["metrics"]["acc_rms_m_s2"] - t) / t
-        before = (rough_runs[("neural", speed, "skyhook_continuous_unfiltered")] - t) / t
-        # recorded: +2.7 / +3.8 % before, +0.7 / +1.7 % after (10 / 20 m/s)
-        assert abs(errs[speed]) < 0.6 * abs(before), (speed, before, errs[speed])
+        befores[speed] = (rough_runs[("neural", speed, "skyhook_continuous_unfiltered")] - t) / t
+    print("model vs truth under unfiltered continuous skyhook, before / after:",
+          {k: (round(100 * befores[k], 2), round(100 * v, 2)) for k, v in errs.items()})
+    # recorded (10 / 20 m/s): +1.49 / +2.99 % before, +1.07 / +1.76 % after; with the thesis's 20 ms
+    # moving-average acceleration (the default until issue 49's item 17) +2.7 / +3.8 % before, +0.7 /
+    # +1.7 % after: the zero-phase acceleration took 20-45 % of the error before anything was added
+    for speed in errs:
+        assert abs(errs[speed]) < 0.8 * abs(befores[speed]), (speed, befores[speed], errs[speed])
         assert abs(errs[speed]) < 0.02
-    print("improved model vs truth under unfiltered continuous skyhook:",
-          {k: round(100 * v, 2) for k, v in errs.items()})
 
 
 def test_neural_tracks_truth_on_the_rough_road(rough_runs, capsys):

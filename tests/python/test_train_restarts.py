@@ -89,11 +89,14 @@ def test_combined_score_keeps_the_restart_that_fits_the_levels_with_the_control_
     levels, and what tells them apart is how well they fit the levels: on the sparse plan, seed 4,
     three restarts, the restart with the lowest interpolation score fits worse and is worse held
     out; the combined score keeps the one that fits best (measured: held back 0.0049 against
-    0.0056-0.0062, held out 0.0067 against 0.0077)."""
+    0.0056-0.0062, held out 0.0067 against 0.0077). The case was found with the thesis's 20 ms
+    moving-average acceleration, the default then, and keeps it: the selection, not the derivative,
+    is under test (with the zero-phase derivative, seed 4's smoothest restart is also the best fit)."""
     from dampnet.training.pipeline import restarts_holdout
 
     ds = generate(SPARSE_PLAN, seed=1)
-    model, info, split = train_dataset(ds, seed=4, restarts=3, workers=2, decimate=4, max_epochs=120)
+    model, info, split = train_dataset(ds, seed=4, restarts=3, workers=2, decimate=4, max_epochs=120,
+                                       acceleration_window=0.02)
     r = restarts_holdout(model.meta["restarts"], info.restart_models, split.holdout.tests)
     runs = r["runs"]
     assert r["score"] == "combined" and r["kept"] == int(np.argmin([x["held_back"] for x in runs]))

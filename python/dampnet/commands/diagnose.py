@@ -35,6 +35,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 def summary(d: dict, diagnosis_file: str | None = None) -> str:
     """The printed summary; with the JSON file written, each 'add it' command takes its parameters from it."""
+    from dampnet.diagnosis.run import not_addable_words
+
     ov = d["overall"]
     lines = [f"overall: NRMSE {ov['nrmse']:.5f}, RMSE {ov['rmse_n']:.2f} N, max |error| {ov['max_abs_error_n']:.1f} N "
              f"over {ov['n_tests']} tests",
@@ -52,7 +54,10 @@ def summary(d: dict, diagnosis_file: str | None = None) -> str:
                      f"{'SIGNIFICANT' if c['significant'] else 'not significant'}; {par}")
         if c["significant"]:
             lines.append(f"    {c['evidence']}")
-            lines.append(f"    add it: {c['add_command']}" + (f" --diagnosis {diagnosis_file}" if diagnosis_file else ""))
+            if c.get("add_command"):
+                lines.append(f"    add it: {c['add_command']}" + (f" --diagnosis {diagnosis_file}" if diagnosis_file else ""))
+            else:
+                lines.append(f"    cannot be added: {not_addable_words(c['effect'], c['missing_channels'])}")
     lines += leftover_lines(d)
     f = d["finding"]
     lines.append(f"verdict ({f['kind'].replace('_', ' ')}): {f['sentence']}")

@@ -21,11 +21,11 @@
 
 from dampnet.data.fileformat import write_dataset
 from dampnet.data.merge import merge_datasets
-from dampnet.data.preprocess import (DEFAULT_WINDOW_S, add_acceleration, decimate, holdout_split,
+from dampnet.data.preprocess import (THESIS_WINDOW_S, add_acceleration, decimate, holdout_split,
                                      split_by_tests)
 from dampnet.data.readers import load_dataset, read_mat, read_text, takes_channel_map
 from dampnet.data.types import DataError, Dataset, DynoTest
 
 __all__ = ["DataError", "Dataset", "DynoTest", "load_dataset", "read_mat", "read_text", "takes_channel_map",
            "write_dataset", "add_acceleration", "decimate", "holdout_split", "split_by_tests",
-           "DEFAULT_WINDOW_S"]
+           "THESIS_WINDOW_S"]

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dampnet.data.derivative import EDGE_S, velocity_from_displacement
 from dampnet.data.types import CONTROL_NAMES, MIN_SAMPLES, DataError, DynoTest
 from dampnet.data.validate import check_test
 from dampnet.schema import show
@@ -38,48 +39,25 @@ def apply_convention(channels: dict[str, np.ndarray], motion_positive: str = "ex
     return channels
 
 
-#: velocity of a file without a velocity channel (issue 49, item 17): the displacement low-passed
-#: by a zero-phase Butterworth filter (scipy.signal.sosfiltfilt, order DERIVE_ORDER, cut-off
-#: DERIVE_CUTOFF_HZ, at most a quarter of the sample rate), differentiated by 4th-order central
-#: differences; DERIVE_EDGE_S at each end, where the filter's start-up errs, is cut from the test.
-#: Measured (tests/python/test_data_lab.py) against the analytic derivative of sines at 1, 8 and
-#: 20 Hz at 1 and 5 kHz: at most 0.08 % of the peak without noise, 0.25 % with 2 um of displacement
-#: noise, edges cut; the 20 ms moving average it replaces was 4.6 % low at 8 Hz, 27 % at 20 Hz, and
+#: velocity of a file without a velocity channel (issue 49, item 17): dampnet.data.derivative
+#: (a zero-phase low-pass at 50 Hz, central differences, EDGE_S cut at each end). Measured
+#: (tests/python/test_data_lab.py) against the analytic derivative of sines at 1, 8 and 20 Hz at 1
+#: and 5 kHz: at most 0.08 % of the peak without noise, 0.25 % with 2 um of displacement noise,
+#: edges cut; the 20 ms moving average it replaces was 4.6 % low at 8 Hz, 27 % at 20 Hz, and
 #: 4-100 % wrong at the ends. With the virtual rig's 25 um of noise any 20 Hz-wide derivative
 #: carries about 0.5-1 mm/s of noise (1-3 % of a 1 Hz, 25 mm sine's peak): a bandwidth, not a bias.
-DERIVE_CUTOFF_HZ = 50.0
-DERIVE_ORDER = 4
-DERIVE_EDGE_S = 0.05
-
-
-def derived_velocity(x: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, int, dict]:
-    """(velocity [m/s] of displacement x [m] at times t [s], samples to cut at each end, the
-    method in words for the dataset's summary); see DERIVE_CUTOFF_HZ."""
-    import scipy.signal  # here: `dampnet --help` imports this module
-
-    dt = float(np.median(np.diff(t)))
-    fc = min(DERIVE_CUTOFF_HZ, 0.25 / dt)
-    sos = scipy.signal.butter(DERIVE_ORDER, fc, fs=1.0 / dt, output="sos")
-    y = scipy.signal.sosfiltfilt(sos, x, padtype="odd", padlen=min(x.size - 1, int(round(4 * DERIVE_EDGE_S / dt))))
-    v = np.gradient(y, dt, edge_order=2)
-    v[2:-2] = (y[:-4] - 8.0 * y[1:-3] + 8.0 * y[3:-1] - y[4:]) / (12.0 * dt)
-    cut = int(round(DERIVE_EDGE_S / dt))
-    info = {"method": f"zero-phase Butterworth low-pass of the displacement (order {DERIVE_ORDER}, "
-                      "scipy.signal.sosfiltfilt), 4th-order central differences",
-            "bandwidth_hz": fc, "edge_cut_s": round(cut * dt, 9)}
-    return v, cut, info
 
 
 def _with_derived_velocity(where: str, columns: dict, time: np.ndarray, colnames: dict, lines, meta: dict | None):
     """The columns, time, line numbers and meta with the velocity derived from the displacement
-    (derived_velocity) and DERIVE_EDGE_S cut at each end."""
+    (dampnet.data.derivative.velocity_from_displacement) and EDGE_S cut at each end."""
     x, label = columns["displacement"], colnames.get("displacement", "displacement")
     if x.size < MIN_SAMPLES:
         return columns, time, lines, meta     # check_test names the short test
-    v, cut, info = derived_velocity(np.asarray(x, np.float64), np.asarray(time, np.float64))
+    v, cut, info = velocity_from_displacement(np.asarray(x, np.float64), np.asarray(time, np.float64))
     if x.size - 2 * cut < MIN_SAMPLES:
         raise DataError(f"{where}: channel {show(label)} (displacement): {x.size} samples: expected at least "
-                        f"{MIN_SAMPLES + 2 * cut} to derive the velocity (no velocity channel: {DERIVE_EDGE_S:g} s "
+                        f"{MIN_SAMPLES + 2 * cut} to derive the velocity (no velocity channel: {EDGE_S:g} s "
                         "is cut at each end)")
     keep = slice(cut, x.size - cut)
     columns = {k: np.asarray(c)[keep] for k, c in columns.items()}

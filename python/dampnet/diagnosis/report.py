@@ -189,7 +189,8 @@ def write_report(ctx, diag: dict, out_dir, title: str = "dampnet diagnose") -> P
         f"<td>{_pct(c['score'])}</td>"
         f"<td>{'yes' if c['significant'] else 'no'}</td>"
         f"<td>{html.escape(json.dumps(c['parameters']))}</td><td>{html.escape(c['evidence'])}</td>"
-        f"<td><code>{html.escape(c['add_command'])}</code></td></tr>"
+        + (f"<td><code>{html.escape(c['add_command'])}</code></td></tr>" if c.get("add_command") else
+           f"<td>needs {html.escape(' and '.join(c.get('missing_channels') or []))} channel, which the data lack</td></tr>")
         for i, c in enumerate(diag["candidates"]))
     ov = diag["overall"]
     worst = ", ".join(f"{w['test_id']} ({w['nrmse']:.4f})" for w in diag["worst_tests"])

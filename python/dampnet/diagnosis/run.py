@@ -85,6 +85,22 @@ def _leftover_after_fixes(model, ds, found, included, rows_per_test, n_surrogate
     return leftover(ctx, Y, folds, S.baseline_cv(ctx, Y, folds), noise)
 
 
+def missing_channels(cid: str, ds, control: str) -> list[str]:
+    """The channels the inputs `--add CID` adds are computed from that some test of `ds` lacks
+    (thermal's temperature, say), sorted; [] when it can be added."""
+    from dampnet.features import FEATURES
+
+    need = {FEATURES[f].channel for f in additions(cid, {}, control)["features"] if f in FEATURES}
+    return sorted(c for c in need if any(c not in t.channels for t in ds.tests))
+
+
+def not_addable_words(cid: str, channels: list[str]) -> str:
+    """Why an effect the diagnosis names cannot be added to a model of these data, and what to do."""
+    chans = " and ".join(f"a {c} channel" for c in channels)
+    return (f"{cid} cannot be added from these data: its model input needs {chans}, which they lack "
+            f"(record it, then `dampnet train DATA --add {cid}`)")
+
+
 def diagnose(model, ds, *, candidates=None, n_surrogates: int = S.N_SURROGATES, seed: int = 0,
              rows_per_test: int = ROWS_PER_TEST, ctx=None, dataset_label: str = "DATA") -> dict:
     """Compare, localise and test every candidate effect; returns the JSON-ready diagnosis."""
@@ -164,8 +180,12 @@ def diagnose(model, ds, *, candidates=None, n_surrogates: int = S.N_SURROGATES, 
                                               "are model features (the effect's regressors are part of the baseline)"}
         else:
             res = results[cid]
+        lacking = missing_channels(cid, ds, ctx.control_name)
         entry = {"effect": cid, "title": cand.title, "needs": cand.needs, "physics": cand.physics,
-                 "signature": cand.signature, "add_command": f"dampnet train {dataset_label} --add {cid}"}
+                 "signature": cand.signature,
+                 # what `--add` needs that these data lack: no command that would only be refused
+                 "add_command": None if lacking else f"dampnet train {dataset_label} --add {cid}",
+                 "missing_channels": lacking}
         if not res["testable"]:
             entry.update({"testable": False, "score": None, "significant": False, "p_value": None,
                           "z": None, "parameters": {}, "uncertainty": {},
@@ -196,6 +216,11 @@ def diagnose(model, ds, *, candidates=None, n_surrogates: int = S.N_SURROGATES, 
                             -(e["score"] if e["score"] is not None else -1e9)))
 
     finding = three_way(accepted_results, left0, left1, found, ctx, left_fixed=left_fixed)
+    cannot_add = {e["effect"]: e["missing_channels"] for e in out
+                  if e["effect"] in finding["effects"] and e["missing_channels"]}
+    if cannot_add:
+        finding["sentence"] += "; " + "; ".join(not_addable_words(cid, chans) for cid, chans in cannot_add.items())
+    finding["not_addable"] = cannot_add
     verdict = finding["effects"][0] if finding["effects"] else None
     return jsonable({
         "model": {"id": model.model_id(), "features": model.features, "terms": [t.get("kind") for t in model.terms],

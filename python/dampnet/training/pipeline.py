@@ -7,7 +7,7 @@
 
 What train_dataset does, in order (the thesis's chapter 4 data handling):
  1. Acceleration, if a feature needs it and the data lack it: derived at the full
-    sampling rate (`dampnet.data.add_acceleration`, default 20 ms window), before
+    sampling rate (`dampnet.data.add_acceleration`: by default the zero-phase derivative), before
     any decimation.
  2. Hold-out: every test at `holdout_voltage` (default 2.25 V, as the thesis) and
     the tests named in `holdout_tests` are set aside for independent evaluation.
@@ -49,7 +49,7 @@ import numpy as np
 
 from dampnet.data import DataError, Dataset, add_acceleration, decimate as _decimate
 from dampnet.data import holdout_split
-from dampnet.data.preprocess import DEFAULT_WINDOW_S, HOLDOUT_HINT, auto_decimate, window_samples
+from dampnet.data.preprocess import HOLDOUT_HINT, acceleration_key, acceleration_record, auto_decimate
 from dampnet.data.types import RIG_GENERATOR
 from dampnet.effects import additions as effect_additions, effect as catalogue_effect
 from dampnet.evaluation.lookup import fit_lookup
@@ -99,6 +99,8 @@ def _data_provenance(ds: Dataset, split: Split, features, window) -> dict[str, A
         "decimate": split.decimate,
         "acceleration_window_s": window if "acceleration" in features else None,
     }
+    if "acceleration" in features:
+        d["acceleration"] = acceleration_record(ds, window)
     if "velocity_derived" in ds.meta:   # lab files without a velocity channel (dampnet.data.lab.assemble)
         d["velocity_derived"] = ds.meta["velocity_derived"]
     rig = ds.meta
@@ -221,13 +223,13 @@ def prepare_training(ds: Dataset, features: Sequence[str] | None = None, algorit
     features = list(features) if features else default_features(ds)
     if len(set(features)) != len(features):
         raise DataError(f"features: each feature once, got {features}")
-    window = DEFAULT_WINDOW_S if acceleration_window is None else acceleration_window
+    window = acceleration_window         # None: the zero-phase derivative (dampnet.data.derivative)
     if "acceleration" in features:
         for t in ds.tests:
             # derive it when missing, and again when an earlier training derived it (in place, as
-            # add_acceleration does) with another window; a measured channel has no such mark
-            derived = t.meta.get("acceleration_window_samples")
-            if "acceleration" not in t.channels or (derived is not None and derived != window_samples(t, window)):
+            # add_acceleration does) another way; a measured channel has no such mark
+            derived = t.meta.get("acceleration_derived")
+            if "acceleration" not in t.channels or (derived is not None and derived != acceleration_key(t, window)):
                 add_acceleration(t, window)
     if holdout_voltage is None and not holdout_tests:
         train, hold = ds, None

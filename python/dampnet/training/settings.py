@@ -446,8 +446,9 @@ for _row in (
        "--json FILE` (the same additions as the demo's improve stage)", compare=False),
     _O("diagnosis_source", "other", 0, 0, None, "the diagnosis's file (for messages)"),
     _O("feature_params", "other", 0, 0, None, "feature parameters (a lag's time constant [s], ...)"),
-    _O("acceleration_window", "real", 0, 10, None, "the smoothing window of the derived acceleration", unit="s",
-       open_low=True, none="20 ms"),
+    _O("acceleration_window", "real", 0, 10, None, "a moving-average window for the derived acceleration, as the "
+       "thesis did (0.02)", unit="s", open_low=True,
+       none="the zero-phase derivative, within 0.5 % to 20 Hz (dampnet.data.derivative)"),
     _O("workers", "whole", 1, MAX_PROCESSES, None, "processes the restarts run in", none="the local cores",
        cli="--workers", metavar="N", cli_help="one torch thread each", train_only=True, request=False),
     _O("threads", "whole", 1, MAX_PROCESSES, None, "torch's and numpy's BLAS threads during training",

@@ -14,7 +14,7 @@ Steps, each with a one-line DataError naming the file and the channel:
      interpolated, the motion and control channels are (they are smooth where the force is not).
   5. signs (the map's [convention]), control (a channel, or a constant), velocity
      differentiated from displacement when not recorded (a zero-phase 50 Hz low-pass, 4th-order
-     differences, 50 ms cut at each end: derived_velocity; test.meta["velocity"] and the
+     differences, 50 ms cut at each end: dampnet.data.derivative; test.meta["velocity"] and the
      dataset's meta["velocity_derived"] say so); then the usual checks (check_test).
 The derived manifest: the nominal control is the control channel's median rounded to 10 mV
 (1 mA), so tests group by level (and the 2.25 V hold-out finds them), or none when the channel
