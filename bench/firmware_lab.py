@@ -33,7 +33,8 @@ import numpy as np
 
 from dampnet.export import mcu
 from dampnet.export.mcu import (CPUS, DEFAULT_ACCEL_FEATURES, DEFAULT_DAMPER_EVALS, DEFAULT_DAMPER_KINDS,
-                                DEFAULT_KERNEL, LOOP_CONFIG, LOOP_FLOAT, PRINT_EVERY)
+                                DEFAULT_KERNEL, LOOP_CONFIG, LOOP_FLOAT, PRINT_EVERY,
+                                loop_controller)
 # re-exported for the lab's users (the tests, bench/embedded.py): the inputs and road, the
 # core's build options and the export folder are dampnet.export.mcu's
 from dampnet.export.mcu import (FOLDER_MARKER, FOLDER_SCHEMA, Vectors, export_target,  # noqa: F401
@@ -248,7 +249,7 @@ def host_loop(model, road: np.ndarray, every: int = PRINT_EVERY):
     from dampnet.sim.quarter_car.loop import damper_from_model
 
     vehicle = {k: LOOP_CONFIG[k] for k in ("damper_eval", "accel_feature")}
-    controller = {"kind": LOOP_CONFIG["controller"], "u_tau_s": LOOP_CONFIG["u_tau_s"]}
+    controller = loop_controller(model).core_dict()      # as write_vectors gives the firmware
     loop = _core.Loop(_core.LoopModel(damper_from_model(model, single=True), vehicle, controller))
     states = []
     for k, (z, v) in enumerate(road.tolist(), start=1):

@@ -45,7 +45,7 @@
 #endif
 /* DN_FW_N_X, dn_fw_x[DN_FW_N_X][n_inputs] (float), DN_FW_N_STEPS, dn_fw_road[DN_FW_N_STEPS][2]
  * (road and its rate at each step's end, dn_real), DN_FW_PRINT_EVERY, and the loop's
- * configuration DN_FW_DAMPER_EVAL, DN_FW_ACCEL_FEATURE, DN_FW_CONTROLLER, DN_FW_U_TAU_S. */
+ * configuration DN_FW_DAMPER_EVAL, DN_FW_ACCEL_FEATURE, DN_FW_CONTROLLER, DN_FW_CONTROLLER_SET. */
 #include DN_FW_VECTORS
 
 #ifndef DN_FW_PART
@@ -317,7 +317,7 @@ __attribute__((noinline)) static const dn_loop_model* loop_setup(const dn_mlp* m
   veh.accel_feature = DN_FW_ACCEL_FEATURE;
   dn_controller ctrl;
   dn_controller_default(&ctrl, DN_FW_CONTROLLER);
-  ctrl.u_tau_s = DN_FW_U_TAU_S;
+  DN_FW_CONTROLLER_SET(ctrl);   /* the law as dampnet's control-law registry made it for this model */
   dn_loop_model* model = NULL;
 #ifdef DN_FW_FOLDED_INIT
   (void)mlp;

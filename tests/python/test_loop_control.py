@@ -407,3 +407,51 @@ def test_callback_exception_propagates():
     car = QuarterCar(_core.Damper.callback(bad))
     with pytest.raises(RuntimeError, match="boom"):
         car.simulate(np.zeros(5), np.zeros(5))
+
+
+def test_the_firmware_and_the_hil_check_take_their_laws_from_the_registry(tmp_path, monkeypatch):
+    """Issue 52, item 3: the Cortex-M firmware's loop (its header's DN_FW_CONTROLLER and
+    DN_FW_CONTROLLER_SET) and `dampnet bench`'s hard-input check of the HIL loop run the law the
+    control-law registry makes for the model, by name, calibrated on it (the default model's levels
+    are its training data's measured voltages, 5.0072 and -0.0078 V, not the runtime's 5 and 0),
+    and a law registered under that name is the one they run. Cost: about 3 s."""
+    import dataclasses
+    import re
+
+    from dampnet import _core
+    from dampnet.export import mcu
+    from dampnet.latency import harness
+    from dampnet.modeldir import default_model
+    from dampnet.recipes import control_laws
+    from dampnet.sim.dampers import neural_spec
+    from dampnet.sim.vehicle import Vehicle
+
+    model = default_model()
+    made = control_laws.make("skyhook_onoff", neural_spec(model), Vehicle(accel_feature="linear"), u_tau_s=0.005)
+    assert made.u_soft != 5.0 and made.u_hard != 0.0           # calibrated, not the runtime's defaults
+    mcu.write_vectors(tmp_path / "v.h", mcu.make_vectors(model, n_x=4, seconds=0.01), model)
+    text = (tmp_path / "v.h").read_text()
+    assert f"#define DN_FW_CONTROLLER {_core.CONTROLLER_KINDS['skyhook_onoff'][0]} " in text
+    sets = dict(re.findall(r"\(c\)\.(\w+) = ([^;]+);", text))
+    assert {k: float(v) for k, v in sets.items()} == {k: v for k, v in made.core_dict().items() if k != "kind"}
+    hil = harness.hil_hard_input_check(model)
+    assert hil["law"] == "skyhook_onoff" and hil["passed"]
+    assert hil["controller"] == dataclasses.replace(made, u_tau_s=0.0).core_dict()
+
+    # a law registered under the name the firmware and the HIL loop run is the one they take
+    def mine(ctx):
+        return dataclasses.replace(control_laws.get("groundhook_onoff").build(ctx), u_hard=0.25)
+
+    control_laws.register(control_laws.ControlLaw("test_mine", "a test's law", mine))
+    try:
+        monkeypatch.setattr(mcu, "LOOP_LAW", "test_mine")
+        monkeypatch.setattr(harness, "HIL_LAW", "test_mine")
+        mcu.write_vectors(tmp_path / "w.h", mcu.make_vectors(model, n_x=4, seconds=0.01), model)
+        text = (tmp_path / "w.h").read_text()
+        assert f"#define DN_FW_CONTROLLER {_core.CONTROLLER_KINDS['groundhook_onoff'][0]} " in text
+        assert "(c).u_hard = 0.25;" in text
+        hil = harness.hil_hard_input_check(model)
+        assert hil["law"] == "test_mine" and hil["controller"]["kind"] == "groundhook_onoff"
+        assert hil["controller"]["u_hard"] == 0.25
+    finally:
+        control_laws.unregister("test_mine")

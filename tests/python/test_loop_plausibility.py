@@ -230,12 +230,13 @@ def test_a_saturated_damper_at_wheel_hop_runs_away_and_stops():
     the default model saturates (a constant force, no damping) and the wheel, forced at its hop
     frequency (11 Hz), runs away until its damper speed passes the bound at ~0.31 s. The runtime
     stops there with DN_E_DIVERGED; the bench now holds the sine 0.15 s (latency/harness.py)."""
-    from dampnet.latency.harness import HIL_CONTROLLER, HIL_VEHICLE, hard_inputs
+    from dampnet.latency.harness import HIL_VEHICLE, hard_inputs, hil_controller
     from dampnet.modeldir import default_model
 
     dt, w = 1e-3, 2 * np.pi * 12.0
     t = np.arange(0.0, 1.0, dt)
-    car = QuarterCar(damper_from_model(default_model(), single=True), dict(HIL_VEHICLE, dt=dt), HIL_CONTROLLER)
+    car = QuarterCar(damper_from_model(default_model(), single=True), dict(HIL_VEHICLE, dt=dt),
+                     hil_controller(default_model()).core_dict())
     with pytest.raises(ValueError, match=r"sample 3[01]\d: DN_E_DIVERGED"):
         car.simulate(0.08 * np.sin(w * t), 0.08 * w * np.cos(w * t))
     z, zd = hard_inputs(dt)["saturated_12hz_and_step"]

@@ -206,7 +206,10 @@ def quick_latency(out_dir: str | Path, n_calls: int = 200_000, budget_ns: float 
 # (issue 14: range 4.2 kN wide).
 HIL_FORCE_MARGIN = 0.25
 HIL_VEHICLE = {"damper_eval": "per_step", "accel_feature": "linear", "integrator": "rk4"}
-HIL_CONTROLLER = {"kind": "skyhook_onoff"}
+#: the HIL loop's control law, by its registered name (dampnet.recipes.control_laws), calibrated on
+#: the model checked (hil_controller); the C++ harness times the same law at the runtime's default
+#: levels (a step's time does not depend on the two control values it switches between)
+HIL_LAW = "skyhook_onoff"
 #: every loop configuration the C++ harness times (bench/bench_mlp.cpp: RK4, neural float
 #: damper, on-off skyhook), each checked on the hard inputs too: a timed configuration
 #: must also be shown to give plausible forces
@@ -241,6 +244,18 @@ def hard_inputs(dt: float = 1e-3) -> dict:
     return out
 
 
+def hil_controller(model, vehicle: dict | None = None):
+    """The HIL loop's controller (a dampnet.sim.vehicle.Controller) for `model`: HIL_LAW made by the
+    control-law registry in the HIL quarter car (`vehicle`: HIL_VEHICLE), without a command filter
+    (the C++ harness's law has none)."""
+    from dampnet.recipes.control_laws import make
+    from dampnet.sim.dampers import neural_spec
+    from dampnet.sim.vehicle import Vehicle
+
+    accel = (HIL_VEHICLE if vehicle is None else vehicle)["accel_feature"]
+    return make(HIL_LAW, neural_spec(model), Vehicle(accel_feature=accel), u_tau_s=0.0)
+
+
 def hil_hard_input_check(model=None, margin: float = HIL_FORCE_MARGIN, dt: float = 1e-3,
                          vehicle: dict | None = None) -> dict:
     """Run the HIL configuration (or `vehicle`'s) on hard_inputs(); per input the peak force,
@@ -255,11 +270,12 @@ def hil_hard_input_check(model=None, margin: float = HIL_FORCE_MARGIN, dt: float
     lo = model.out_offset
     hi = model.out_offset + (1.0 - model.out_ymin) / model.out_gain
     tol = margin * (hi - lo)
+    controller = hil_controller(model, vehicle).core_dict()
     rows, failures = {}, []
     for name, (z, zd) in hard_inputs(dt).items():
         row = {"steps": int(z.size)}
         try:
-            car = QuarterCar(damper_from_model(model, single=True), dict(vehicle, dt=dt), HIL_CONTROLLER)
+            car = QuarterCar(damper_from_model(model, single=True), dict(vehicle, dt=dt), controller)
         except ValueError as e:  # a configuration the runtime refuses (a step beyond its stability)
             row.update(ok=False, why=f"set-up error: {e}")
             rows[name] = row
@@ -283,7 +299,7 @@ def hil_hard_input_check(model=None, margin: float = HIL_FORCE_MARGIN, dt: float
         if not row["ok"]:
             failures.append(f"{name}: {row['why']}")
     return {"force_range_n": [lo, hi], "margin": margin, "bounds_n": [lo - tol, hi + tol],
-            "vehicle": dict(vehicle, dt=dt), "controller": HIL_CONTROLLER, "inputs": rows,
+            "vehicle": dict(vehicle, dt=dt), "law": HIL_LAW, "controller": controller, "inputs": rows,
             "passed": not failures, "failures": failures}
 
 
@@ -316,6 +332,11 @@ def fullcar_hard_input_check(model=None, margin: float = HIL_FORCE_MARGIN, dt: f
     hi = model.out_offset + (1.0 - model.out_ymin) / model.out_gain
     tol = margin * (hi - lo)
     lag = int(round(0.1 / dt))
+    # the full car's on-off skyhook at every corner, as the control-law registry makes it for this model
+    from dampnet.recipes.control_laws import vehicle_controller
+    from dampnet.sim.dampers import neural_spec
+
+    controller = vehicle_controller(neural_spec(model), "skyhook").core_dict()
     out = {}
     for name, (evaluation, single) in TIMED_FULLCAR_CONFIGS.items():
         params = {"damper_eval": evaluation, "accel_feature": "linear", "dt": dt}
@@ -328,7 +349,7 @@ def fullcar_hard_input_check(model=None, margin: float = HIL_FORCE_MARGIN, dt: f
             steer = 0.05 * np.sin(2 * np.pi * 0.5 * np.arange(z.size) * dt)
             # one damper object at the four corners, as the harness times it (one kernel pass)
             car = _core.FullCar(_core.FullCarModel([damper_from_model(model, single=single)] * 4,
-                                                   params, HIL_CONTROLLER))
+                                                   params, controller))
             row = {"steps": int(z.size)}
             try:
                 res = car.simulate(zr, vr, steer=steer)

@@ -319,10 +319,10 @@ def harness_road(dt: float, n: int) -> tuple[np.ndarray, np.ndarray]:
 
 def _loops(model: MlpModel):
     from dampnet import _core
-    from dampnet.latency.harness import HIL_CONTROLLER, HIL_VEHICLE
+    from dampnet.latency.harness import HIL_VEHICLE, hil_controller
     from dampnet.sim.quarter_car.loop import damper_from_model
 
-    ctrl = HIL_CONTROLLER
+    ctrl = hil_controller(model).core_dict()   # the linear damper takes no control: it ignores it
     hil = HIL_VEHICLE  # the configuration of dampnet.latency.harness.BUDGET_CASE
     return {"linear": _core.LoopModel(_core.Damper.linear(1500.0), {}, ctrl),
             "neural_float": _core.LoopModel(damper_from_model(model, single=True), {}, ctrl),

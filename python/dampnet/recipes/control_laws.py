@@ -1,6 +1,7 @@
 """Control laws by name: the one vocabulary and the one calibration of every front end
 (`dampnet simulate --control`, the sweep's [simulation] controllers and [fullcar] damping,
-`dampnet vehicle --damping`, `dampnet study`, the quarter-car FMU's --controller).
+`dampnet vehicle --damping`, `dampnet study`, the quarter-car FMU's --controller, the Cortex-M
+firmware's loop and `dampnet bench`'s hard-input check of the HIL loop).
 
 Each law is calibrated on the damper it controls by its registered builder (its calibration
 hook: LawContext -> Controller): passive at the damper's own low or high damping control
