@@ -33,12 +33,29 @@ import numpy as np
 
 from dampnet.export import mcu
 from dampnet.export.mcu import (CPUS, DEFAULT_ACCEL_FEATURES, DEFAULT_DAMPER_EVALS, DEFAULT_DAMPER_KINDS,
-                                DEFAULT_KERNEL, LOOP_CONFIG, LOOP_FLOAT, PRINT_EVERY,
-                                loop_controller)
+                                DEFAULT_KERNEL, LOOP_CONFIG, LOOP_FLOAT, PRINT_EVERY)
 # re-exported for the lab's users (the tests, bench/embedded.py): the inputs and road, the
 # core's build options and the export folder are dampnet.export.mcu's
-from dampnet.export.mcu import (FOLDER_MARKER, FOLDER_SCHEMA, Vectors, export_target,  # noqa: F401
-                                make_vectors, target_defines, write_vectors)
+from dampnet.export.mcu import (FOLDER_MARKER, FOLDER_SCHEMA, Vectors,  # noqa: F401
+                                make_vectors, target_defines)
+from dampnet.recipes.control_laws import firmware_controller
+
+
+def write_vectors(path, vectors: Vectors | None = None, model=None, controller=None) -> Vectors:
+    """dampnet.export.mcu.write_vectors for `model` (default: the embedded default model): its inputs
+    and road (`vectors`, default make_vectors's) and the firmware's controller for it
+    (control_laws.firmware_controller), unless `controller` is given."""
+    from dampnet.modeldir import default_model
+
+    model = model or default_model()
+    return mcu.write_vectors(path, make_vectors(model) if vectors is None else vectors,
+                             controller or firmware_controller(model))
+
+
+def export_target(model, target: str, out_dir, **kwargs) -> Path:
+    """dampnet.export.mcu.export_target with the firmware's controller for `model`, as `dampnet export
+    --target` gives it."""
+    return mcu.export_target(model, target, out_dir, firmware_controller(model), **kwargs)
 
 ROOT = Path(__file__).resolve().parents[1]  # the source tree this lab builds
 
@@ -108,7 +125,7 @@ def cmake_args(cpu: str, vectors: Path | None = None, build_type: str = "Release
     args += [f"-DDAMPNET_KERNEL_{k}={v}" for k, v in (DEFAULT_KERNEL if kernel is None else kernel).items()]
     if vectors is not None:
         args.append(f"-DDAMPNET_FIRMWARE_VECTORS={Path(vectors).resolve()}")
-    else:  # CMake writes them with this interpreter (python -m dampnet.export.mcu vectors)
+    else:  # CMake writes them with this interpreter (python -m dampnet.recipes.export_targets vectors)
         args.append(f"-DPython3_EXECUTABLE={sys.executable}")
     return args
 
@@ -242,14 +259,16 @@ def host_forces(model, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return y, st
 
 
-def host_loop(model, road: np.ndarray, every: int = PRINT_EVERY):
+def host_loop(model, road: np.ndarray, every: int = PRINT_EVERY, controller=None):
     """The host loop in the firmware's configuration (float MLP, double state) over the road:
-    the state after every `every` steps, the final state and the damper evaluations."""
+    the state after every `every` steps, the final state and the damper evaluations. `controller`:
+    a dampnet.sim.vehicle.Controller (default: the firmware's, firmware_controller)."""
     from dampnet import _core
     from dampnet.sim.quarter_car.loop import damper_from_model
 
     vehicle = {k: LOOP_CONFIG[k] for k in ("damper_eval", "accel_feature")}
-    controller = loop_controller(model).core_dict()      # as write_vectors gives the firmware
+    # as write_vectors gives the firmware, unless the caller's program sets another (a Controller)
+    controller = (controller or firmware_controller(model)).core_dict()
     loop = _core.Loop(_core.LoopModel(damper_from_model(model, single=True), vehicle, controller))
     states = []
     for k, (z, v) in enumerate(road.tolist(), start=1):

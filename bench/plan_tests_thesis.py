@@ -2,7 +2,7 @@
 
 A model trained on the rig's thesis plan (Table 2: 1-inch sines at 0.25-3 Hz x 15 voltages), its
 quarter-car impulse against the truth damper (sprung-acceleration RMS, low and high damping) and
-the share of the run outside its training envelope; `dampnet.planning` proposes BUDGET tests for
+the share of the run outside its training envelope; `dampnet.campaign.planning` proposes BUDGET tests for
 the impulse, the rig runs them, the model is retrained on the thesis plan plus those tests, and
 the impulse is run again. Usage:
     python bench/plan_tests_thesis.py [--budgets 4,6,8] [--seeds 0,1,2] [--epochs 200] [--json OUT]
@@ -14,7 +14,7 @@ import argparse
 import json
 import time
 
-from dampnet import planning
+from dampnet.campaign import planning
 from dampnet.data.types import Dataset
 from dampnet.envelope import envelope_of
 from dampnet.rig import generate

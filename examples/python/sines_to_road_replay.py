@@ -30,9 +30,9 @@ from dampnet.data import merge_datasets
 from dampnet.envelope.coverage import coverage
 from dampnet.evaluation.metrics import evaluate_model
 from dampnet.features import feature_matrix
-from dampnet.planning import RunInputs, plan_tests, rig_plan
+from dampnet.campaign.planning import RunInputs, plan_tests, rig_plan
 from dampnet.predict import predict_force
-from dampnet.replay import replay_tests
+from dampnet.campaign.replay import replay_tests
 
 
 def validate(trained, replays) -> dict:

@@ -30,7 +30,8 @@ tests/python/test_layers.py with a check for import cycles):
                                       folder); the model directory
   recipes                             the vocabulary of runs: roads, control laws, manoeuvres,
                                       training requests, export targets
-  latency, sweep, planning            the latency benchmarks; sweeps on Dask; dyno tests to plan
+  latency, sweep, campaign            the latency benchmarks; sweeps on Dask; dyno tests to run next
+                                      (planned where a model is unsure, track replays)
   commands, demo, cli                 the command line
 """
 
@@ -67,6 +68,8 @@ __all__ = sorted([*_API, "__version__"])
 # one, rather than a bare "No module named"
 MOVED_MODULES: dict[str, str] = {
     "dampnet.artefacts": "dampnet.data.artefacts",
+    "dampnet.planning": "dampnet.campaign.planning",
+    "dampnet.replay": "dampnet.campaign.replay",
     "dampnet.coverage": "dampnet.envelope.coverage",
     "dampnet.coverage_plot": "dampnet.envelope.plot",
     "dampnet.envelope_grid": "dampnet.envelope.grid",

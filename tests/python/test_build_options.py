@@ -125,7 +125,9 @@ def test_the_float_loop_build_on_the_host(tmp_path):
     assert all(st >= 0 or st == _core.DN_E_DIVERGED for st, _, _ in hard[2:])
     assert any(st == _core.DN_E_DIVERGED for st, _, _ in hard[2:])  # 3e38 m overflows float
     fw = np.array([[float(x) for x in line.split()[2:]] for line in lines if line.startswith("s ")])
-    states, _, _ = emb.host_loop(model, road)
+    from dampnet.sim.vehicle import Controller
+
+    states, _, _ = emb.host_loop(model, road, controller=Controller(kind="skyhook_onoff", u_tau_s=0.005))  # PROGRAM's
     host = np.array([s for _, s in states])
     assert fw.shape == host.shape == (20, len(_core.STATE_NAMES))
     idx = [_core.STATE_NAMES.index(n) for n in ("z_s", "v_s", "z_us", "v_us", "u_cmd")]

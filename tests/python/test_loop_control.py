@@ -418,6 +418,8 @@ def test_the_firmware_and_the_hil_check_take_their_laws_from_the_registry(tmp_pa
     import dataclasses
     import re
 
+    import firmware_lab   # bench/: the firmware lab, as the QEMU tests write the firmware's header
+
     from dampnet import _core
     from dampnet.export import mcu
     from dampnet.latency import harness
@@ -429,11 +431,16 @@ def test_the_firmware_and_the_hil_check_take_their_laws_from_the_registry(tmp_pa
     model = default_model()
     made = control_laws.make("skyhook_onoff", neural_spec(model), Vehicle(accel_feature="linear"), u_tau_s=0.005)
     assert made.u_soft != 5.0 and made.u_hard != 0.0           # calibrated, not the runtime's defaults
-    mcu.write_vectors(tmp_path / "v.h", mcu.make_vectors(model, n_x=4, seconds=0.01), model)
+    firmware_lab.write_vectors(tmp_path / "v.h", mcu.make_vectors(model, n_x=4, seconds=0.01), model)
     text = (tmp_path / "v.h").read_text()
     assert f"#define DN_FW_CONTROLLER {_core.CONTROLLER_KINDS['skyhook_onoff'][0]} " in text
     sets = dict(re.findall(r"\(c\)\.(\w+) = ([^;]+);", text))
     assert {k: float(v) for k, v in sets.items()} == {k: v for k, v in made.core_dict().items() if k != "kind"}
+    # the header the firmware's CMake writes when it is given none (the default model's)
+    from dampnet.recipes.export_targets import write_firmware_vectors
+
+    write_firmware_vectors(tmp_path / "cmake.h")
+    assert f"(c).u_soft = {made.u_soft!r};" in (tmp_path / "cmake.h").read_text()
     hil = harness.hil_hard_input_check(model)
     assert hil["law"] == "skyhook_onoff" and hil["passed"]
     assert hil["controller"] == dataclasses.replace(made, u_tau_s=0.0).core_dict()
@@ -446,7 +453,7 @@ def test_the_firmware_and_the_hil_check_take_their_laws_from_the_registry(tmp_pa
     try:
         monkeypatch.setattr(mcu, "LOOP_LAW", "test_mine")
         monkeypatch.setattr(harness, "HIL_LAW", "test_mine")
-        mcu.write_vectors(tmp_path / "w.h", mcu.make_vectors(model, n_x=4, seconds=0.01), model)
+        firmware_lab.write_vectors(tmp_path / "w.h", mcu.make_vectors(model, n_x=4, seconds=0.01), model)
         text = (tmp_path / "w.h").read_text()
         assert f"#define DN_FW_CONTROLLER {_core.CONTROLLER_KINDS['groundhook_onoff'][0]} " in text
         assert "(c).u_hard = 0.25;" in text

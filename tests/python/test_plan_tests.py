@@ -1,4 +1,4 @@
-"""`dampnet plan-tests` (dampnet.planning, issue 20): on the virtual rig, a model trained on a small
+"""`dampnet plan-tests` (dampnet.campaign.planning, issue 20): on the virtual rig, a model trained on a small
 thesis-like sine plan (1-inch sines at 0.25-3 Hz, 0 / 2.25 / 5 V) is far off the truth damper on
 the quarter-car impulse; the tests plan-tests proposes for the impulse, generated on the rig and
 added to the training data, bring the impulse's sprung-acceleration RMS within 10 % of the truth's

@@ -171,7 +171,7 @@ def test_the_recipes_road_runs_in_the_full_car_a_corner_replay_and_plan_tests(ke
     both tracks the same profile (not random: it fills no seed), the rear a wheelbase (3.25 m)
     later, starting on its first elevation (not periodic). Cost: 5 s."""
     from dampnet.modeldir import default_model_path
-    from dampnet.replay import corner_drive
+    from dampnet.campaign.replay import corner_drive
     from dampnet.sweep import run
 
     out = tmp_path / "v"
@@ -366,7 +366,7 @@ def test_old_control_spellings_still_work(tmp_path):
 
 
 def test_plan_tests_cases_are_registry_roads():
-    from dampnet.planning import PlanError, _case_road
+    from dampnet.campaign.planning import PlanError, _case_road
 
     req, level = _case_road("rough-road:low")
     assert req.kind.name == "rough" and level == "low" and req.kind.case_speeds_m_s == (10.0, 20.0)

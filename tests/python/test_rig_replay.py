@@ -8,7 +8,7 @@ import pytest
 
 from dampnet.cli import main
 from dampnet.data import load_dataset
-from dampnet.replay import CAR_DT_S, RATE_HZ, road_drive, upsample
+from dampnet.campaign.replay import CAR_DT_S, RATE_HZ, road_drive, upsample
 from dampnet.rig.replay import Drive, play_drive
 
 
@@ -173,7 +173,7 @@ def test_the_story_example_quick(tmp_path):
 
 def test_a_full_car_corner_is_replayed(tmp_path, capsys):
     from dampnet.recipes import maneuvers
-    from dampnet.replay import corner_drive
+    from dampnet.campaign.replay import corner_drive
     from dampnet.sim.dampers import truth_spec
     import dataclasses
 

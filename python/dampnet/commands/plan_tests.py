@@ -1,5 +1,5 @@
 """`dampnet plan-tests MODEL RUN... --budget N`: the dyno sines that would cover what the runs need
-and the model's training data lack (dampnet.planning), as a rig plan and an operator's table."""
+and the model's training data lack (dampnet.campaign.planning), as a rig plan and an operator's table."""
 
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ def _floats(text: str, name: str) -> list[float]:
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
-    from dampnet import planning as P
+    from dampnet.campaign import planning as P
 
     p = subparsers.add_parser(
         "plan-tests", help="propose the dyno tests that cover where runs leave the model's training data",
@@ -59,7 +59,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 def run(args) -> int:
     import os
 
-    from dampnet import planning as P
+    from dampnet.campaign import planning as P
     from dampnet.envelope import load_envelope
     from dampnet.model import ModelError
     from dampnet.modeldir import load_model

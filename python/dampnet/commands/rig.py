@@ -32,7 +32,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="track replay instead of the plan: one test per road (dampnet.recipes.roads, e.g. rough, "
                         "iso:C, or a CSV profile), whose displacement is a quarter car's damper stroke over it "
                         "(the truth damper in the car) at --speed under --control, played on the rig like a drive "
-                        "file; each test is written as RPC III (<test>.rsp) beside its CSV (dampnet.replay)")
+                        "file; each test is written as RPC III (<test>.rsp) beside its CSV (dampnet.campaign.replay)")
     p.add_argument("--speed", type=float, default=20.0, help="--replay: speed over the road [m/s] (default 20)")
     p.add_argument("--control", default="passive",
                    help="--replay: the car's control law (dampnet.recipes.control_laws, e.g. passive, "
@@ -106,7 +106,7 @@ def replay(args, effects):
     """The replay dataset of --replay and its RPC III copies ({file name: writer}) for write_dataset."""
     from dampnet.data.lab.raw import require
     from dampnet.data.lab.rpc import write_test
-    from dampnet.replay import replay_tests
+    from dampnet.campaign.replay import replay_tests
     from dampnet.sim.roads import RoadError
     from dampnet.sim.vehicle import LoopError
 

@@ -256,7 +256,7 @@ def _plan(model1, env1, ds, plan1, seed: int, out: Path, log) -> dict:
 
     from dampnet.data.types import Dataset
     from dampnet.outputs import json_text
-    from dampnet.planning import csv_text, format_table, load_runs, plan_tests, rig_plan
+    from dampnet.campaign.planning import csv_text, format_table, load_runs, plan_tests, rig_plan
     from dampnet.rig import generate
     from dampnet.sim.dampers import neural_spec, truth_spec
 

@@ -1,6 +1,7 @@
 """dampnet on a Cortex-M microcontroller: the ready-to-build folder of `dampnet export MODEL
 --target cortex-m4|cortex-m7 --out DIR` (``export_target``), and the firmware's stored inputs and
-road (``write_vectors``; ``python -m dampnet.export.mcu vectors OUT.h``, which the source tree's
+road (``write_vectors``; with the controller the control-law registry makes for the model:
+``python -m dampnet.recipes.export_targets vectors OUT.h``, which the source tree's
 cpp/embedded/CMakeLists.txt runs).
 
 The folder holds the model's header, the library's sources with the model's capacities and the
@@ -14,7 +15,6 @@ measures flash, RAM and instructions, bench/RESULTS.md).
 from __future__ import annotations
 
 import shutil
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -85,25 +85,15 @@ def target_defines(cpu: str, caps: dict, loop_float: int | None = None,
 # of `dampnet bench` (one damper evaluation per RK4 step, the linearised acceleration feature,
 # the float MLP), thesis Table 5 vehicle, on-off skyhook through a 5 ms command filter.
 LOOP_CONFIG = {"damper_eval": "per_step", "accel_feature": "linear", "u_tau_s": 0.005}
-#: the firmware's control law, by its registered name (dampnet.recipes.control_laws), calibrated on
-#: the exported model as every front end calibrates it (its own low and high damping controls)
+#: the firmware's control law, by its registered name: dampnet.recipes.control_laws.firmware_controller
+#: makes it for the exported model as every front end makes a law (calibrated on its own low and high
+#: damping controls), and the callers of write_vectors and export_target pass it in
 LOOP_LAW = "skyhook_onoff"
 ROAD_SPEED = 18.4      # [m/s]: the thesis rough road (184 m) in 10 s
 ROAD_SECONDS = 10.0
 DT = 0.001             # the vehicle's default step [s]
 N_INPUTS_DEFAULT = 1000
 PRINT_EVERY = 100      # the firmware prints the state every this many steps
-
-
-def loop_controller(model):
-    """The firmware's controller (a dampnet.sim.vehicle.Controller): LOOP_LAW made by the control-law
-    registry for `model` in the firmware's quarter car (thesis Table 5, LOOP_CONFIG)."""
-    from dampnet.recipes.control_laws import make
-    from dampnet.sim.dampers import neural_spec
-    from dampnet.sim.vehicle import Vehicle
-
-    return make(LOOP_LAW, neural_spec(model), Vehicle(accel_feature=LOOP_CONFIG["accel_feature"]),
-                u_tau_s=LOOP_CONFIG["u_tau_s"])
 
 
 # ---- the stored inputs and road ----
@@ -139,19 +129,15 @@ def make_vectors(model, n_x: int = N_INPUTS_DEFAULT, seconds: float = ROAD_SECON
     return Vectors(x=x, road=np.column_stack([z, zdot]))
 
 
-def write_vectors(path, vectors: Vectors | None = None, model=None, controller=None) -> Vectors:
+def write_vectors(path, vectors: Vectors, controller) -> Vectors:
     """The firmware's header (DN_FW_VECTORS): the inputs as float bits (NaN and infinities
     exactly), the road as doubles that round-trip (dn_real: rounded to float by the compiler in
-    a DN_LOOP_FLOAT build), and the loop's configuration: LOOP_CONFIG, and the controller (default:
-    loop_controller of `model`, default the embedded default model) as DN_FW_CONTROLLER (its kind)
-    and DN_FW_CONTROLLER_SET(c), which sets every other field of a dn_controller c."""
+    a DN_LOOP_FLOAT build), and the loop's configuration: LOOP_CONFIG, and `controller` (a
+    dampnet.sim.vehicle.Controller: dampnet.recipes.control_laws.firmware_controller's for the model)
+    as DN_FW_CONTROLLER (its kind) and DN_FW_CONTROLLER_SET(c), which sets every other field of a
+    dn_controller c."""
     from dampnet import _core
-    from dampnet.modeldir import default_model
 
-    model = model or default_model()
-    if vectors is None:
-        vectors = make_vectors(model)
-    controller = controller or loop_controller(model)
     n, k = vectors.x.shape
     bits = vectors.x.view(np.uint32)
     fields = {name: value for name, value in controller.core_dict().items() if name != "kind"}
@@ -163,7 +149,7 @@ def write_vectors(path, vectors: Vectors | None = None, model=None, controller=N
              f"#define DN_FW_PRINT_EVERY {PRINT_EVERY}",
              f"#define DN_FW_DAMPER_EVAL {_core.DAMPER_EVALS[LOOP_CONFIG['damper_eval']][0]}",
              f"#define DN_FW_ACCEL_FEATURE {_core.ACCEL_FEATURES[LOOP_CONFIG['accel_feature']][0]}",
-             f"#define DN_FW_CONTROLLER {ctrl}  /* {controller.kind}, the law {LOOP_LAW!r} made for the model */",
+             f"#define DN_FW_CONTROLLER {ctrl}  /* {controller.kind} */",
              "#define DN_FW_CONTROLLER_SET(c) do { "
              + " ".join(f"(c).{name} = {float(value)!r};" for name, value in fields.items()) + " } while (0)",
              f"static const union {{ uint32_t u[{n}][{k}]; float f[{n}][{k}]; }} dn_fw_x_ = {{{{"]
@@ -343,12 +329,12 @@ def _folder_sources() -> tuple[Path, Path, Path]:
     return pkg, pkg / "cmake", pkg / "embedded"
 
 
-def export_target(model, target: str, out_dir, overwrite: bool = False, model_name: str = "MODEL",
+def export_target(model, target: str, out_dir, controller, overwrite: bool = False, model_name: str = "MODEL",
                   inputs=(), vectors: Vectors | None = None) -> Path:
     """The ready-to-build folder of `dampnet export MODEL --target CPU --out DIR`: model.h, the
     library's headers and sources, a CMakeLists.txt with the model's capacities, the toolchain
     file, an example firmware (its stored inputs and road: `vectors`, default 16 inputs and 1 s),
-    a README and the marker FOLDER_MARKER.
+    a README and the marker FOLDER_MARKER. `controller`: the example firmware's loop's (write_vectors).
 
     An existing DIR is replaced only with overwrite and only if it is such a folder (its marker),
     never if it is or holds one of `inputs` (the model's path); the folder is built in a staging
@@ -384,7 +370,7 @@ def export_target(model, target: str, out_dir, overwrite: bool = False, model_na
         (tmp / "example").mkdir()
         for f in ("firmware.c", "startup.c", "mps2.ld", "dn_sizes.h.in", "sizes.cpp"):
             shutil.copy2(fw_dir / f, tmp / "example" / f)
-        write_vectors(tmp / "example" / "dn_fw_vectors.h", vectors, model)
+        write_vectors(tmp / "example" / "dn_fw_vectors.h", vectors, controller)
         (tmp / "CMakeLists.txt").write_text(_FOLDER_CMAKE.format(
             cpu=target, machine=CPUS[target]["machine"], ident=target.replace("-", "_"), caps=" ".join(cap_defs),
             params=params, n_sources=len(FOLDER_SOURCES), sources=" ".join(f"src/{f}" for f in FOLDER_SOURCES),
@@ -405,19 +391,3 @@ def export_target(model, target: str, out_dir, overwrite: bool = False, model_na
         (tmp / FOLDER_MARKER).write_text(json_text({"schema": FOLDER_SCHEMA, "target": target,
                                                     "model_id": model.model_id(), "dampnet": dampnet.__version__}))
     return out
-
-
-def main(argv=None) -> int:
-    import argparse
-
-    p = argparse.ArgumentParser(prog="python -m dampnet.export.mcu", description=__doc__.split("\n\n")[0])
-    sub = p.add_subparsers(dest="cmd", required=True)
-    v = sub.add_parser("vectors", help="write the firmware's inputs and road header")
-    v.add_argument("out")
-    a = p.parse_args(argv)
-    write_vectors(a.out)
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -158,6 +158,17 @@ def vehicle_controller(spec: DamperSpec, damping: str, params: Mapping[str, Any]
     return make(VEHICLE_DAMPING[damping], spec, corner_vehicle(params), limit_to_levels=True)
 
 
+def firmware_controller(model) -> Controller:
+    """The Cortex-M firmware's controller for `model` (dampnet.export.mcu: `dampnet export --target`'s
+    example firmware and the firmware lab): its law LOOP_LAW made for the model in its quarter car
+    (thesis Table 5 with LOOP_CONFIG's acceleration scheme and command filter)."""
+    from dampnet.export.mcu import LOOP_CONFIG, LOOP_LAW
+    from dampnet.sim.dampers import neural_spec
+
+    return make(LOOP_LAW, neural_spec(model), Vehicle(accel_feature=LOOP_CONFIG["accel_feature"]),
+                u_tau_s=LOOP_CONFIG["u_tau_s"])
+
+
 def corner_vehicle(params: Mapping[str, Any] | None = None) -> Vehicle:
     """The quarter car a full-car law is calibrated on: the full car's mean corner (params over the
     full car's defaults): a quarter of the sprung mass m_s, the mean of the axles' m_us and k_s, its

@@ -325,8 +325,10 @@ def _write_mcu(job: Job) -> str:
     from dampnet.export.mcu import capacities_for, export_target
 
     args = job.args
-    out = export_target(job.model, args.target, args.out, overwrite=args.force, model_name=args.model,
-                        inputs=[args.model])
+    from dampnet.recipes.control_laws import firmware_controller
+
+    out = export_target(job.model, args.target, args.out, firmware_controller(job.model), overwrite=args.force,
+                        model_name=args.model, inputs=[args.model])
     caps = ", ".join(f"{k.lower()} {v}" for k, v in capacities_for(job.model).items())
     return (f"{out}: dampnet for {args.target} (model.h, library sources, CMakeLists.txt with capacities {caps}, "
             f"toolchain file, example firmware, README.md)")
@@ -347,3 +349,35 @@ register(ExportTarget("mcu", "a ready-to-build microcontroller folder (dampnet.e
 
 #: the built-in options (unregister keeps them)
 BUILTIN_OPTIONS = tuple(OPTIONS)
+
+
+def write_firmware_vectors(path, model=None):
+    """The firmware's stored inputs, road and controller (dampnet.export.mcu.write_vectors) for `model`
+    (default: the embedded default model), its controller made by the control-law registry
+    (control_laws.firmware_controller): what cpp/embedded/CMakeLists.txt runs when the firmware is
+    built without a vectors header (`python -m dampnet.recipes.export_targets vectors OUT.h`)."""
+    from dampnet.export.mcu import make_vectors, write_vectors
+    from dampnet.modeldir import default_model
+    from dampnet.recipes.control_laws import firmware_controller
+
+    model = model or default_model()
+    return write_vectors(path, make_vectors(model), firmware_controller(model))
+
+
+def main(argv=None) -> int:
+    import argparse
+
+    p = argparse.ArgumentParser(prog="python -m dampnet.recipes.export_targets",
+                                description="the Cortex-M firmware's inputs, road and controller header")
+    sub = p.add_subparsers(dest="cmd", required=True)
+    v = sub.add_parser("vectors", help="write the firmware's inputs, road and controller header (dn_fw_vectors.h)")
+    v.add_argument("out")
+    a = p.parse_args(argv)
+    write_firmware_vectors(a.out)
+    return 0
+
+
+if __name__ == "__main__":
+    import sys
+
+    sys.exit(main())

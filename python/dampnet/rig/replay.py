@@ -5,7 +5,7 @@ A Drive holds the damper's stroke x [m] (+ extension) over time, its velocity an
 when known (a quarter car's damper inputs; else differentiated) and the control u [V] the car's
 control law applied. `play_drive` records it with the same truth damper, effects and sensors
 as `dampnet.rig.generate` (`generate.play`); the test has no frequency (random content).
-Where a drive comes from (a quarter car over a road) is dampnet.replay, a layer above the rig.
+Where a drive comes from (a quarter car over a road) is dampnet.campaign.replay, a layer above the rig.
 """
 
 from __future__ import annotations
