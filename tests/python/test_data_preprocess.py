@@ -95,6 +95,41 @@ def test_acceleration_error_on_the_thesis_plan_is_the_documented_figure():
     assert 0.023 / 1.3 < thesis < 0.023 * 1.3, thesis
 
 
+def test_a_trained_model_and_train_say_how_the_acceleration_was_derived(quick_truth, tmp_path, capsys):
+    """Issue 49, item 17: the method and its bandwidth in the model's record and in `dampnet train`'s
+    output; the thesis's window when asked for; nothing when the data carry their own acceleration.
+    Cost: about 6 s (four trainings of 2 epochs on every 50th sample, one through the CLI)."""
+    from dampnet.cli import main
+    from dampnet.data import write_dataset
+    from dampnet.training.pipeline import train_dataset
+
+    def fresh():
+        ds = quick_truth.subset([t.copy() for t in quick_truth.tests])
+        for t in ds.tests:
+            t.channels.pop("acceleration", None)
+            t.meta.pop("acceleration_derived", None)
+        return ds
+
+    m, _, _ = train_dataset(fresh(), decimate=50, max_epochs=2)
+    rec = m.meta["data"]["acceleration"]
+    assert rec["bandwidth_hz"] == 40.0 and rec["method"].startswith("zero-phase Butterworth low-pass of the velocity")
+    m, _, _ = train_dataset(fresh(), decimate=50, max_epochs=2, acceleration_window=0.02)
+    assert m.meta["data"]["acceleration"] == {"method": "gradient + centred moving average (the thesis's)", "window": 0.02}
+    measured = fresh()
+    for t in measured.tests:
+        t.channels["acceleration"] = t.channels["true_acceleration"]
+    m, _, _ = train_dataset(measured, decimate=50, max_epochs=2)
+    assert "acceleration" not in m.meta["data"]
+    ds = fresh()
+    for t in ds.tests:
+        for c in ("true_force", "true_acceleration"):
+            t.channels.pop(c, None)
+    write_dataset(ds, tmp_path / "data")
+    assert main(["train", str(tmp_path / "data"), "--out", str(tmp_path / "m"), "--max-epochs", "2",
+                 "--decimate", "50", "--restarts", "1"]) == 0
+    assert "acceleration derived: zero-phase Butterworth low-pass of the velocity" in capsys.readouterr().out
+
+
 def test_decimate_keeps_every_nth_sample(quick_truth):
     d = decimate(quick_truth, 10)
     for a, b in zip(quick_truth.tests, d.tests):

@@ -145,6 +145,10 @@ def print_summary(model, info, split, metrics, out, t_train) -> None:
         print(f"velocity derived from displacement in {len(vd['tests'])} tests: {vd['method']}, bandwidth "
               f"{', '.join(f'{b:g}' for b in vd['bandwidth_hz'])} Hz, "
               f"{', '.join(f'{c:g}' for c in vd['edge_cut_s'])} s cut at each end")
+    acc = model.meta.get("data", {}).get("acceleration")
+    if acc:
+        print("acceleration derived: " + acc["method"]
+              + (f", bandwidth {acc['bandwidth_hz']:g} Hz" if "bandwidth_hz" in acc else f", window {acc['window']} s"))
     m = info.metrics
     if set(m) == {"all"}:  # an average of restarts (--average): no rows held out of every member
         print(f"NRMSE on all training samples {m['all']:.4f} (the averaged network; its members split the samples "

@@ -99,8 +99,8 @@ def _data_provenance(ds: Dataset, split: Split, features, window) -> dict[str, A
         "decimate": split.decimate,
         "acceleration_window_s": window if "acceleration" in features else None,
     }
-    if "acceleration" in features:
-        d["acceleration"] = acceleration_record(ds, window)
+    if "acceleration" in features and any(t.meta.get("acceleration_derived") for t in ds.tests):
+        d["acceleration"] = acceleration_record(ds, window)     # derived here: how, and its bandwidth
     if "velocity_derived" in ds.meta:   # lab files without a velocity channel (dampnet.data.lab.assemble)
         d["velocity_derived"] = ds.meta["velocity_derived"]
     rig = ds.meta
