@@ -17,6 +17,15 @@ from cbuild import ROOT, cmake_build  # noqa: E402
 sys.path.insert(0, str(ROOT / "bench"))
 
 
+def pytest_configure(config):
+    """One latency-harness build per library for the whole run, shared by its processes and by the
+    commands it starts (`dampnet bench`, the demo, the installed wheel): dampnet.latency.harness
+    keys it by its compile command and rebuilds it when an input is newer."""
+    import os
+
+    os.environ.setdefault("DAMPNET_BENCH_HARNESS_DIR", str(ROOT / "build" / "bench-harness"))
+
+
 @pytest.fixture(scope="session")
 def repo_root() -> Path:
     return ROOT

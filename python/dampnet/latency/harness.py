@@ -77,37 +77,50 @@ def harness_sources() -> tuple[Path, Path]:
 
 
 def build_harness(out_dir: Path) -> Path:
-    """Compile the harness into out_dir, or into $DAMPNET_BENCH_HARNESS_DIR when that is set,
-    where a harness built by the same command and newer than its inputs is reused (the
-    tests run `dampnet bench` several times)."""
+    """Compile the harness into out_dir; or, when $DAMPNET_BENCH_HARNESS_DIR is set, into a folder
+    of it named after the compile command (compiler, flags, sources, library), where a harness
+    built by that command and newer than its inputs is reused: the test suite's processes share
+    one build per library (`dampnet bench`, the demo and the installed wheel run it several
+    times). That folder is built in under a lock, and the executable renamed into place whole."""
+    import contextlib
+    import fcntl
+    import hashlib
+
     cxx = os.environ.get("CXX") or shutil.which("c++") or shutil.which("g++")
     if not cxx:
         raise RuntimeError("no C++ compiler found (c++/g++)")
     src, header_dir = harness_sources()
-    cache = os.environ.get("DAMPNET_BENCH_HARNESS_DIR")
-    out_dir = Path(cache) if cache else out_dir
-    out_dir.mkdir(parents=True, exist_ok=True)
-    exe = out_dir / "dn_bench_mlp"
     lib = paths.shared_library()
     isa_flags, _ = kernel_flags()
     from dampnet import _core
 
     # the library's capacity too: the harness's own inline objects are then the library's (pyproject.toml)
     flags = " ".join(["-O3 -DNDEBUG", isa_flags, f"-DDN_MAX_HIDDEN={int(_core.MAX_HIDDEN)}"]).strip()
-    cmd = [cxx, "-std=c++17", *flags.split(), f'-DDN_BENCH_FLAGS="{flags}"',
-           *[f"-I{d}" for d in paths.include_dirs()], f"-I{header_dir}", f"-I{src.parent}", str(src),
-           "-o", str(exe), str(lib), f"-Wl,-rpath,{lib.parent}"]
-    stamp = out_dir / "dn_bench_mlp.cmd"
-    if cache and exe.is_file() and stamp.is_file() and stamp.read_text() == " ".join(cmd):
-        inputs = [src, lib, *Path(header_dir).glob("dn_model_default.*"),
-                  *(p for d in paths.include_dirs() for p in Path(d).rglob("*.h*"))]
-        if all(p.stat().st_mtime <= exe.stat().st_mtime for p in inputs):
-            return exe
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise RuntimeError(f"building the latency harness failed:\n{' '.join(cmd)}\n{proc.stderr[-3000:]}")
+    compile_cmd = [cxx, "-std=c++17", *flags.split(), f'-DDN_BENCH_FLAGS="{flags}"',
+                   *[f"-I{d}" for d in paths.include_dirs()], f"-I{header_dir}", f"-I{src.parent}", str(src),
+                   str(lib), f"-Wl,-rpath,{lib.parent}"]
+    cache = os.environ.get("DAMPNET_BENCH_HARNESS_DIR")
     if cache:
-        stamp.write_text(" ".join(cmd))
+        out_dir = Path(cache) / hashlib.sha256("\0".join(compile_cmd).encode()).hexdigest()[:16]
+    out_dir.mkdir(parents=True, exist_ok=True)
+    exe = out_dir / "dn_bench_mlp"
+    lock = open(out_dir / ".lock", "w") if cache else contextlib.nullcontext()
+    with lock:
+        if cache:
+            fcntl.flock(lock, fcntl.LOCK_EX)      # released when the file closes
+            inputs = [src, lib, *Path(header_dir).glob("dn_model_default.*"),
+                      *(p for d in paths.include_dirs() for p in Path(d).rglob("*.h*"))]
+            if exe.is_file() and all(p.stat().st_mtime <= exe.stat().st_mtime for p in inputs):
+                return exe
+        tmp = out_dir / f".dn_bench_mlp.{os.getpid()}"
+        try:
+            proc = subprocess.run([*compile_cmd, "-o", str(tmp)], capture_output=True, text=True)
+            if proc.returncode != 0:
+                raise RuntimeError(f"building the latency harness failed:\n{' '.join(compile_cmd)}\n"
+                                   f"{proc.stderr[-3000:]}")
+            os.replace(tmp, exe)
+        finally:
+            tmp.unlink(missing_ok=True)     # a failed or interrupted build leaves nothing
     return exe
 
 
