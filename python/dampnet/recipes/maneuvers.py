@@ -53,11 +53,15 @@ class Setting:
         if self.kind == "road":
             from dampnet.recipes import roads
 
+            text = value.strip() if isinstance(value, str) else value
             try:
-                roads.parse(value)
+                if roads.is_named(text):
+                    roads.parse(text)
+                else:
+                    roads.build(text)       # a CSV profile: read and checked now, not mid-run
             except ValueError as e:
                 raise ValueError(f"{where}: {e}") from None
-            return value.strip()
+            return text
         if self.kind == "flag":
             if not isinstance(value, bool):
                 raise ValueError(f"{where}: expected true or false, got {value!r}")
@@ -394,11 +398,13 @@ def _road(dt, vehicle, speed_kmh, road, road_seed):
     """Two tracks of a road of the road registry: its seed and speed filled from road_seed and
     speed_kmh (a value in the road's text wins); a random road (one that fills its seed) gets a
     right track correlated with the left, mixed with the road at seed + 1; the rear wheels a
-    wheelbase later (wrapping on a periodic road)."""
+    wheelbase later (wrapping on a periodic road). A CSV profile (a path) is both tracks."""
     from dampnet.recipes import roads
     from dampnet.sim.full_car.maneuvers import rough_road
     from dampnet.sim.full_car.params import wheelbase
 
+    if not roads.is_named(road):    # a CSV profile (distance_m, elevation_m): the same on both tracks
+        return rough_road(roads.build(road), dt, speed_kmh, None, False, wheelbase_m=wheelbase(vehicle), name=road)
     req = roads.parse(road)
     p = req.params(seed=road_seed, speed_m_s=speed_kmh / 3.6)
     left = req.kind.build(p)
