@@ -211,3 +211,23 @@ def test_bench_json_that_cannot_be_written_fails_before_the_timing(tmp_path):
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == [f"dampnet: error: {tmp_path}: is a directory: expected a file name"]
     assert "HIL budget" not in proc.stdout
+
+
+def test_a_shared_harness_build_is_reused_and_the_results_go_where_asked(tmp_path):
+    """With DAMPNET_BENCH_HARNESS_DIR (the test run sets it), the harness is built once per compile
+    command into a folder of that directory, and reused; the results still go to the run's own
+    folder, created if new (the demo's `bench/` was not, once the harness was built elsewhere).
+    Cost: about 3 s (the harness the run's other tests share, built once; 2,000 calls)."""
+    import os
+    from pathlib import Path
+
+    from dampnet.latency.harness import build_harness, quick_latency
+
+    cache = Path(os.environ["DAMPNET_BENCH_HARNESS_DIR"])      # tests/python/conftest.py
+    exe = build_harness(tmp_path / "unused")
+    assert exe.parent.parent == cache and not (tmp_path / "unused").exists()
+    built = exe.stat().st_mtime_ns
+    res = quick_latency(tmp_path / "new" / "bench", n_calls=2000)
+    assert (tmp_path / "new" / "bench" / "latency.json").is_file() and res["results"]
+    assert build_harness(tmp_path / "other") == exe and exe.stat().st_mtime_ns == built    # reused
+    assert [p.name for p in exe.parent.iterdir() if p.name.startswith(".dn_bench_mlp.")] == []

@@ -161,6 +161,7 @@ def quick_latency(out_dir: str | Path, n_calls: int = 200_000, budget_ns: float 
     """Build and run the harness; the budget (default SHARE / STEP_RATE_HZ; budget_ns [ns]
     overrides it, e.g. a target's own), the headroom and a one-line headline."""
     out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)   # latency.json goes here, also when the harness is built elsewhere
     res = run_harness(build_harness(out), n_calls)
     budget_ns = SHARE / STEP_RATE_HZ * 1e9 if budget_ns is None else float(budget_ns)
     if BUDGET_CASE not in res["results"]:
