@@ -135,14 +135,26 @@ def controller_current(voltage, p: TruthParams) -> np.ndarray:
 
 def valve_opening(current, p: TruthParams) -> np.ndarray:
     """Static bypass valve opening in [0, 1] for solenoid current [A]."""
-    return np.clip((np.asarray(current) - p.valve_crack_current_a)
-                   / (p.valve_full_current_a - p.valve_crack_current_a), 0.0, 1.0)
+    # minimum/maximum, not np.clip: the same on arrays, and a fifth of its cost on the one float
+    # TruthDamper.step passes per sample
+    u = (np.asarray(current) - p.valve_crack_current_a) / (p.valve_full_current_a - p.valve_crack_current_a)
+    return np.minimum(np.maximum(u, 0.0), 1.0)
 
 
 def viscosity_ratio(temperature_c, p: TruthParams) -> np.ndarray:
     """mu(T) / mu(T_ref) (Andrade): exp(B (1/T - 1/T_ref)), T in kelvin."""
     tk = np.asarray(temperature_c, dtype=np.float64) + 273.15
     return np.exp(p.viscosity_b_k * (1.0 / tk - 1.0 / (p.temperature_ref_c + 273.15)))
+
+
+def seal_friction(v, p: TruthParams):
+    """Seal friction [N] at velocity v [m/s]: F_c tanh(v / v_eps) (arrays or one float)."""
+    return p.seal_friction_n * np.tanh(v / p.seal_friction_v_eps_m_s)
+
+
+def gas_preload(p: TruthParams) -> float:
+    """Gas preload [N]: the charge pressure on the rod, pushing it out."""
+    return -p.gas_pressure_pa * p.rod_area_m2
 
 
 def orifice_pressure(q, area0, k_shim, p_crack, p: TruthParams) -> np.ndarray:
@@ -192,8 +204,9 @@ def _hydraulic_force_1(v_h: float, opening: float, temperature_c: float, p: Trut
     """hydraulic_force (with orifice_pressure's Newton) for one sample, in Python floats.
 
     TruthDamper.step's path: a loop calls it once per corner per step, where numpy's per-call
-    overhead on 1-element arrays was 150 us a step (60 s of a full-car study); this is about 15 times
-    faster. The same law and the same iteration as the vectorised form, which
+    overhead on 1-element arrays was 170 us a step (60 s of a full-car study); the step is about 7
+    times faster (bench/experiments/truth_step.py). The same law and the same iteration as the vectorised form (orifice_pressure's Newton
+    is the one part written twice: masked arrays there, one float here), which
     tests/python/test_rig_truth.py holds it to (rtol 1e-9)."""
     reb = v_h >= 0
     q = p.annulus_area_m2 * abs(v_h)
@@ -212,9 +225,7 @@ def _hydraulic_force_1(v_h: float, opening: float, temperature_c: float, p: Trut
             s -= step
             if abs(step) <= 1e-12 * s:
                 break
-    tk = temperature_c + 273.15
-    mu = math.exp(p.viscosity_b_k * (1.0 / tk - 1.0 / (p.temperature_ref_c + 273.15)))
-    dp_lam = p.laminar_resistance_pa_s_m3 * mu * q
+    dp_lam = p.laminar_resistance_pa_s_m3 * float(viscosity_ratio(temperature_c, p)) * q
     return math.copysign(1.0, v_h) * (s * s + dp_lam) * p.annulus_area_m2 if v_h != 0 else 0.0
 
 
@@ -237,8 +248,8 @@ def base_force(ctx: Context) -> np.ndarray:
     """Hydraulic + seal friction + gas preload [N]; fills ctx.parts."""
     p = ctx.params
     ctx.parts["hydraulic"] = hydraulic_force(ctx.v_h, ctx.opening, ctx.temperature, p)
-    ctx.parts["seal_friction"] = p.seal_friction_n * np.tanh(ctx.v / p.seal_friction_v_eps_m_s)
-    ctx.parts["gas_preload"] = np.full(ctx.v.shape, -p.gas_pressure_pa * p.rod_area_m2)
+    ctx.parts["seal_friction"] = seal_friction(ctx.v, p)
+    ctx.parts["gas_preload"] = np.full(ctx.v.shape, gas_preload(p))
     return ctx.parts["hydraulic"] + ctx.parts["seal_friction"] + ctx.parts["gas_preload"]
 
 
@@ -287,9 +298,8 @@ class TruthDamper:
         """Force [N] at displacement x [m], velocity v [m/s], control voltage [V], temperature [degC]."""
         p = self.params
         temp = p.temperature_ref_c if temperature is None else float(temperature)
-        current = float(np.interp(voltage, p.controller_voltage_v, p.controller_current_a))
-        opening = min(max((current - p.valve_crack_current_a) / (p.valve_full_current_a - p.valve_crack_current_a),
-                          0.0), 1.0)
+        current = float(controller_current(voltage, p))
+        opening = float(valve_opening(current, p))
         ctx = Context(x=np.array([float(x)]), v=np.array([float(v)]), voltage=np.array([float(voltage)]),
                       temperature=np.array([temp]), dt=float(dt), params=p, current=np.array([current]),
                       opening=np.array([opening]))
@@ -303,8 +313,8 @@ class TruthDamper:
         ctx.v_h = np.array([self._v_h])
         # base_force, one sample: hydraulics + seal friction + gas preload (the parts the effects may read)
         hydraulic = _hydraulic_force_1(self._v_h, float(ctx.opening[0]), temp, p)
-        seal = p.seal_friction_n * math.tanh(float(v) / p.seal_friction_v_eps_m_s)
-        gas = -p.gas_pressure_pa * p.rod_area_m2
+        seal = float(seal_friction(float(v), p))
+        gas = gas_preload(p)
         ctx.parts.update(hydraulic=np.array([hydraulic]), seal_friction=np.array([seal]), gas_preload=np.array([gas]))
         f = hydraulic + seal + gas
         for e in self.effects:
