@@ -494,6 +494,15 @@ def feature_matrix(tests: Sequence[DynoTest], features: Sequence[str],
     return np.concatenate(blocks) if blocks else np.empty((0, len(features)))
 
 
+def missing_channel(feature: str, test: DynoTest) -> str | None:
+    """The channel `test` lacks to give `feature` (a name of FEATURES), or None: the acceleration is
+    derived from a velocity or a displacement when the test has no acceleration channel."""
+    if feature == "acceleration" and ("velocity" in test.channels or "displacement" in test.channels):
+        return None
+    channel = FEATURES[feature].channel
+    return None if channel in test.channels else channel
+
+
 def check_features(model: Any, ds: Dataset) -> None:
     """Raise DataError if a test of `ds` cannot provide one of the model's features."""
     for f in model.features:
@@ -501,10 +510,8 @@ def check_features(model: Any, ds: Dataset) -> None:
             raise DataError(f"the model needs feature {show(f)}, which this dampnet does not know")
     for t in ds.tests:
         for f in model.features:
-            if f == "acceleration" and ("velocity" in t.channels or "displacement" in t.channels):
-                continue
-            channel = FEATURES[f].channel
-            if channel not in t.channels:
+            channel = missing_channel(f, t)
+            if channel is not None:
                 raise DataError(f"test {t.test_id}: the model was trained on features "
                                 f"{show(', '.join(model.features))}, but the data have no {channel!r} channel "
                                 f"(channels: {', '.join(sorted(t.channels))})")

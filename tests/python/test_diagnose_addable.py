@@ -5,7 +5,8 @@ record; with the channel, the same effect comes with its command.
 
 The data: the virtual rig without effects (20 tests, 500 Hz) and a model trained on them; then the
 force of every test falls by 5 % per kJ dissipated since the test's start (the oil heating within a
-test), which that model does not know. Cost: about 15 s (one training of 60 epochs, two diagnoses).
+test), which that model does not know. Cost: about 17 s (one training of 60 epochs, two diagnoses,
+one report).
 """
 
 from __future__ import annotations
@@ -42,6 +43,14 @@ def model_and_data():
     return model, ds
 
 
+@pytest.fixture(scope="module")
+def without_temperature(model_and_data):
+    """(the heated data without a temperature channel, their diagnosis)."""
+    model, ds = model_and_data
+    heated = _heated(ds, False)
+    return heated, diagnose(model, heated, n_surrogates=19)
+
+
 def test_missing_channels_names_what_an_addition_needs(model_and_data):
     _, ds = model_and_data
     assert missing_channels("thermal", ds, "voltage") == ["temperature"]
@@ -50,9 +59,8 @@ def test_missing_channels_names_what_an_addition_needs(model_and_data):
     assert missing_channels("gas_spring", ds, "voltage") == []
 
 
-def test_thermal_without_a_temperature_channel_is_named_without_an_add_command(model_and_data):
-    model, ds = model_and_data
-    d = diagnose(model, _heated(ds, False), n_surrogates=19)
+def test_thermal_without_a_temperature_channel_is_named_without_an_add_command(without_temperature):
+    _, d = without_temperature
     thermal = next(c for c in d["candidates"] if c["effect"] == "thermal")
     assert thermal["significant"] and d["verdict"] == "thermal", [(c["effect"], c["score"]) for c in d["candidates"]]
     assert thermal["add_command"] is None and thermal["missing_channels"] == ["temperature"]
@@ -71,3 +79,16 @@ def test_thermal_with_a_temperature_channel_comes_with_its_command(model_and_dat
     assert thermal["significant"] and d["verdict"] == "thermal"
     assert thermal["add_command"] == "dampnet train DATA --add thermal" and thermal["missing_channels"] == []
     assert d["finding"]["not_addable"] == {} and "cannot be added" not in d["finding"]["sentence"]
+
+
+def test_the_report_says_what_to_record_instead_of_a_command(model_and_data, without_temperature, tmp_path):
+    """The HTML report's row for thermal without a temperature channel: the same words as the
+    summary, no `--add` command. Cost: about 2 s (the report's figures)."""
+    from dampnet.diagnosis.context import build_context
+    from dampnet.diagnosis.report import write_report
+
+    model, _ = model_and_data
+    heated, d = without_temperature
+    text = write_report(build_context(model, heated), d, tmp_path / "r").read_text()
+    assert "thermal cannot be added from these data: its model input needs a temperature channel" in text
+    assert "--add thermal</code>" not in text

@@ -35,7 +35,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 def summary(d: dict, diagnosis_file: str | None = None) -> str:
     """The printed summary; with the JSON file written, each 'add it' command takes its parameters from it."""
-    from dampnet.diagnosis.run import not_addable_words
+    from dampnet.diagnosis.report import not_addable_words
 
     ov = d["overall"]
     lines = [f"overall: NRMSE {ov['nrmse']:.5f}, RMSE {ov['rmse_n']:.2f} N, max |error| {ov['max_abs_error_n']:.1f} N "

@@ -181,6 +181,13 @@ def _leftover_table(diag: dict) -> str:
             + (f"<p>Not testable on these data:</p><ul>{untested}</ul>" if untested else ""))
 
 
+def not_addable_words(cid: str, channels: list[str]) -> str:
+    """Why an effect the diagnosis names cannot be added to a model of these data, and what to do."""
+    chans = " and ".join(f"a {c} channel" for c in channels)
+    return (f"{cid} cannot be added from these data: its model input needs {chans}, which they lack "
+            f"(record it, then `dampnet train DATA --add {cid}`)")
+
+
 def write_report(ctx, diag: dict, out_dir, title: str = "dampnet diagnose") -> Path:
     out = Path(out_dir)
     figs = figures(ctx, diag, out)
@@ -190,7 +197,7 @@ def write_report(ctx, diag: dict, out_dir, title: str = "dampnet diagnose") -> P
         f"<td>{'yes' if c['significant'] else 'no'}</td>"
         f"<td>{html.escape(json.dumps(c['parameters']))}</td><td>{html.escape(c['evidence'])}</td>"
         + (f"<td><code>{html.escape(c['add_command'])}</code></td></tr>" if c.get("add_command") else
-           f"<td>needs {html.escape(' and '.join(c.get('missing_channels') or []))} channel, which the data lack</td></tr>")
+           f"<td>{html.escape(not_addable_words(c['effect'], c['missing_channels']))}</td></tr>")
         for i, c in enumerate(diag["candidates"]))
     ov = diag["overall"]
     worst = ", ".join(f"{w['test_id']} ({w['nrmse']:.4f})" for w in diag["worst_tests"])

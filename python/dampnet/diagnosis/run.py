@@ -9,6 +9,7 @@ from dampnet.diagnosis.catalogue import CANDIDATES
 from dampnet.diagnosis.artefacts import find_artefacts
 from dampnet.diagnosis.context import ROWS_PER_TEST, build_context
 from dampnet.diagnosis.leftover import leftover, noise_floor
+from dampnet.diagnosis.report import not_addable_words
 from dampnet.diagnosis.verdict import three_way
 from dampnet.effects import additions
 from dampnet.outputs import jsonable
@@ -88,17 +89,10 @@ def _leftover_after_fixes(model, ds, found, included, rows_per_test, n_surrogate
 def missing_channels(cid: str, ds, control: str) -> list[str]:
     """The channels the inputs `--add CID` adds are computed from that some test of `ds` lacks
     (thermal's temperature, say), sorted; [] when it can be added."""
-    from dampnet.features import FEATURES
+    from dampnet.features import FEATURES, missing_channel
 
-    need = {FEATURES[f].channel for f in additions(cid, {}, control)["features"] if f in FEATURES}
-    return sorted(c for c in need if any(c not in t.channels for t in ds.tests))
-
-
-def not_addable_words(cid: str, channels: list[str]) -> str:
-    """Why an effect the diagnosis names cannot be added to a model of these data, and what to do."""
-    chans = " and ".join(f"a {c} channel" for c in channels)
-    return (f"{cid} cannot be added from these data: its model input needs {chans}, which they lack "
-            f"(record it, then `dampnet train DATA --add {cid}`)")
+    return sorted({c for f in additions(cid, {}, control)["features"] if f in FEATURES
+                   for t in ds.tests if (c := missing_channel(f, t)) is not None})
 
 
 def diagnose(model, ds, *, candidates=None, n_surrogates: int = S.N_SURROGATES, seed: int = 0,

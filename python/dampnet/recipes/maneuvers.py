@@ -55,10 +55,10 @@ class Setting:
 
             text = value.strip() if isinstance(value, str) else value
             try:
-                if roads.is_named(text):
-                    roads.parse(text)
+                if roads.is_profile_file(text):
+                    roads.build(text)       # read and checked now, not mid-run
                 else:
-                    roads.build(text)       # a CSV profile: read and checked now, not mid-run
+                    roads.parse(text)
             except ValueError as e:
                 raise ValueError(f"{where}: {e}") from None
             return text
@@ -403,7 +403,7 @@ def _road(dt, vehicle, speed_kmh, road, road_seed):
     from dampnet.sim.full_car.maneuvers import rough_road
     from dampnet.sim.full_car.params import wheelbase
 
-    if not roads.is_named(road):    # a CSV profile (distance_m, elevation_m): the same on both tracks
+    if roads.is_profile_file(road):     # a CSV profile (distance_m, elevation_m): the same on both tracks
         return rough_road(roads.build(road), dt, speed_kmh, None, False, wheelbase_m=wheelbase(vehicle), name=road)
     req = roads.parse(road)
     p = req.params(seed=road_seed, speed_m_s=speed_kmh / 3.6)

@@ -276,14 +276,20 @@ def _param_list(kind: RoadKind) -> str:
     return f"{kind.name}'s parameters: " + "; ".join(p.text() for p in kind.all_params)
 
 
+def is_profile_file(text: str) -> bool:
+    """True when `text` is not a registered road but a road profile's file: a path that exists, or
+    a name ending in .csv (whose absence `build` then names)."""
+    s = text.strip() if isinstance(text, str) else None
+    return bool(s) and not is_named(s) and (os.path.exists(s) or s.lower().endswith(".csv"))
+
+
 def build(text: str, **context: Any) -> Road:
     """The Road `text` names (parse + build with `context`, e.g. seed=...), or the CSV profile at
     the path `text` (a file that exists or a name ending in .csv); RoadError otherwise."""
     if is_named(text):
         return parse(text).build(**context)
-    s = text.strip() if isinstance(text, str) else text
-    if isinstance(s, str) and (os.path.exists(s) or s.lower().endswith(".csv")):
-        return read_profile_csv(s)
+    if is_profile_file(text):
+        return read_profile_csv(text.strip())
     raise RoadError(f"unknown road {text!r}: use {usage()}")
 
 

@@ -149,7 +149,7 @@ def _road(v) -> str:
 
     if not isinstance(v, str):
         raise _Bad(f"expected a road name, got {_show(v)}")
-    if not roads.is_named(v) and v.strip().lower().endswith(".csv"):
+    if roads.is_profile_file(v):
         raise _Bad(f"{_show(v)}: a CSV road is not a [fullcar] road: a cell is known by its settings, not by a "
                    "file's content (a changed file would be taken as done); run it with `dampnet vehicle MODEL "
                    "--test road --road FILE.csv`, or give it to the quarter car as [simulation] roads")
