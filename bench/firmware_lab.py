@@ -39,23 +39,9 @@ from dampnet.export.mcu import (CPUS, DEFAULT_ACCEL_FEATURES, DEFAULT_DAMPER_EVA
 from dampnet.export.mcu import (FOLDER_MARKER, FOLDER_SCHEMA, Vectors,  # noqa: F401
                                 make_vectors, target_defines)
 from dampnet.recipes.control_laws import firmware_controller
-
-
-def write_vectors(path, vectors: Vectors | None = None, model=None, controller=None) -> Vectors:
-    """dampnet.export.mcu.write_vectors for `model` (default: the embedded default model): its inputs
-    and road (`vectors`, default make_vectors's) and the firmware's controller for it
-    (control_laws.firmware_controller), unless `controller` is given."""
-    from dampnet.modeldir import default_model
-
-    model = model or default_model()
-    return mcu.write_vectors(path, make_vectors(model) if vectors is None else vectors,
-                             controller or firmware_controller(model))
-
-
-def export_target(model, target: str, out_dir, **kwargs) -> Path:
-    """dampnet.export.mcu.export_target with the firmware's controller for `model`, as `dampnet export
-    --target` gives it."""
-    return mcu.export_target(model, target, out_dir, firmware_controller(model), **kwargs)
+# ... and with the firmware's controller made for the model, as `dampnet export --target` writes them
+from dampnet.recipes.export_targets import export_firmware_folder as export_target  # noqa: F401
+from dampnet.recipes.export_targets import write_firmware_vectors as write_vectors  # noqa: F401
 
 ROOT = Path(__file__).resolve().parents[1]  # the source tree this lab builds
 

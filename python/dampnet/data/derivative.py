@@ -37,7 +37,7 @@ EDGE_S = 0.05
 #: the span at each end where an acceleration is the Savitzky-Golay derivative [s] (the low-pass's
 #: start-up still errs by 0.3 % of the peak 50 ms in)
 ACCEL_EDGE_S = 0.1
-#: the Savitzky-Golay derivative within EDGE_S of the ends: its window [s] and polynomial degree
+#: the Savitzky-Golay derivative within ACCEL_EDGE_S of the ends: its window [s] and polynomial degree
 EDGE_WINDOW_S = 0.018
 EDGE_POLYORDER = 5
 

@@ -322,13 +322,11 @@ def _check_mcu(args) -> None:
 
 
 def _write_mcu(job: Job) -> str:
-    from dampnet.export.mcu import capacities_for, export_target
+    from dampnet.export.mcu import capacities_for
 
     args = job.args
-    from dampnet.recipes.control_laws import firmware_controller
-
-    out = export_target(job.model, args.target, args.out, firmware_controller(job.model), overwrite=args.force,
-                        model_name=args.model, inputs=[args.model])
+    out = export_firmware_folder(job.model, args.target, args.out, overwrite=args.force, model_name=args.model,
+                                 inputs=[args.model])
     caps = ", ".join(f"{k.lower()} {v}" for k, v in capacities_for(job.model).items())
     return (f"{out}: dampnet for {args.target} (model.h, library sources, CMakeLists.txt with capacities {caps}, "
             f"toolchain file, example firmware, README.md)")
@@ -351,17 +349,28 @@ register(ExportTarget("mcu", "a ready-to-build microcontroller folder (dampnet.e
 BUILTIN_OPTIONS = tuple(OPTIONS)
 
 
-def write_firmware_vectors(path, model=None):
+def export_firmware_folder(model, target: str, out_dir, **kwargs):
+    """dampnet.export.mcu.export_target with the example firmware's controller made for `model` by
+    the control-law registry (control_laws.firmware_controller): `dampnet export --target`'s folder."""
+    from dampnet.export.mcu import export_target
+    from dampnet.recipes.control_laws import firmware_controller
+
+    return export_target(model, target, out_dir, firmware_controller(model), **kwargs)
+
+
+def write_firmware_vectors(path, vectors=None, model=None, controller=None):
     """The firmware's stored inputs, road and controller (dampnet.export.mcu.write_vectors) for `model`
-    (default: the embedded default model), its controller made by the control-law registry
-    (control_laws.firmware_controller): what cpp/embedded/CMakeLists.txt runs when the firmware is
-    built without a vectors header (`python -m dampnet.recipes.export_targets vectors OUT.h`)."""
+    (default: the embedded default model): `vectors` (default make_vectors's) and `controller`
+    (default the one the control-law registry makes for it, control_laws.firmware_controller). What
+    cpp/embedded/CMakeLists.txt runs when the firmware is built without a vectors header (`python -m
+    dampnet.recipes.export_targets vectors OUT.h`), and the firmware lab's write_vectors."""
     from dampnet.export.mcu import make_vectors, write_vectors
     from dampnet.modeldir import default_model
     from dampnet.recipes.control_laws import firmware_controller
 
     model = model or default_model()
-    return write_vectors(path, make_vectors(model), firmware_controller(model))
+    return write_vectors(path, make_vectors(model) if vectors is None else vectors,
+                         controller or firmware_controller(model))
 
 
 def main(argv=None) -> int:
