@@ -262,12 +262,9 @@ def hil_controller(model, vehicle: dict | None = None):
     """The HIL loop's controller (a dampnet.sim.vehicle.Controller) for `model`: HIL_LAW made by the
     control-law registry in the HIL quarter car (`vehicle`: HIL_VEHICLE), without a command filter
     (the C++ harness's law has none)."""
-    from dampnet.recipes.control_laws import make
-    from dampnet.sim.dampers import neural_spec
-    from dampnet.sim.vehicle import Vehicle
+    from dampnet.recipes.control_laws import model_controller
 
-    accel = (HIL_VEHICLE if vehicle is None else vehicle)["accel_feature"]
-    return make(HIL_LAW, neural_spec(model), Vehicle(accel_feature=accel), u_tau_s=0.0)
+    return model_controller(HIL_LAW, model, (HIL_VEHICLE if vehicle is None else vehicle)["accel_feature"], 0.0)
 
 
 def hil_hard_input_check(model=None, margin: float = HIL_FORCE_MARGIN, dt: float = 1e-3,

@@ -158,15 +158,21 @@ def vehicle_controller(spec: DamperSpec, damping: str, params: Mapping[str, Any]
     return make(VEHICLE_DAMPING[damping], spec, corner_vehicle(params), limit_to_levels=True)
 
 
-def firmware_controller(model) -> Controller:
-    """The Cortex-M firmware's controller for `model` (dampnet.export.mcu: `dampnet export --target`'s
-    example firmware and the firmware lab): its law LOOP_LAW made for the model in its quarter car
-    (thesis Table 5 with LOOP_CONFIG's acceleration scheme and command filter)."""
-    from dampnet.export.mcu import LOOP_CONFIG, LOOP_LAW
+def model_controller(name: str, model, accel_feature: str, u_tau_s: float) -> Controller:
+    """Law `name` made for a trained model (its neural damper) in thesis Table 5's quarter car with
+    the acceleration scheme `accel_feature` and the command filter `u_tau_s` [s]: the controller of
+    the loops that run a model outside a study (the firmware's, the HIL check's)."""
     from dampnet.sim.dampers import neural_spec
 
-    return make(LOOP_LAW, neural_spec(model), Vehicle(accel_feature=LOOP_CONFIG["accel_feature"]),
-                u_tau_s=LOOP_CONFIG["u_tau_s"])
+    return make(name, neural_spec(model), Vehicle(accel_feature=accel_feature), u_tau_s=u_tau_s)
+
+
+def firmware_controller(model) -> Controller:
+    """The Cortex-M firmware's controller for `model` (dampnet.export.mcu: `dampnet export --target`'s
+    example firmware and the firmware lab): its law LOOP_LAW in its loop's configuration LOOP_CONFIG."""
+    from dampnet.export.mcu import LOOP_CONFIG, LOOP_LAW
+
+    return model_controller(LOOP_LAW, model, LOOP_CONFIG["accel_feature"], LOOP_CONFIG["u_tau_s"])
 
 
 def corner_vehicle(params: Mapping[str, Any] | None = None) -> Vehicle:
