@@ -13,7 +13,16 @@ every worker's reports, so the check runs there, once.
 
 from __future__ import annotations
 
+import json
+import os
+from collections import defaultdict
+from pathlib import Path
+
 import pytest
+
+#: where each run writes every test's time (setup + call + teardown [s]) and its worker, for
+#: finding what makes the suite slow without another run (`--durations` shows only the slowest)
+TIMES_FILE = Path(__file__).resolve().parent.parent / "build" / "test-times.json"
 
 #: seconds a test may take (setup + call + teardown) without a `slow` marker, on the 2-core machine
 #: with the suite's two worker processes
@@ -50,10 +59,19 @@ class _Budget:
     def __init__(self, config):
         self.config = config
         self.totals: dict[str, list] = {}  # nodeid -> [seconds, marked slow]
+        self.worker: dict[str, str] = {}   # nodeid -> the xdist worker that ran it
 
     def pytest_runtest_logreport(self, report):
         entry = self.totals.setdefault(report.nodeid, [0.0, "slow" in report.keywords])
         entry[0] += report.duration
+        node = getattr(report, "node", None)
+        self.worker[report.nodeid] = getattr(getattr(node, "gateway", None), "id", "main")
+
+    def by_module(self) -> list[tuple[str, float]]:
+        modules: dict[str, float] = defaultdict(float)
+        for nodeid, (t, _) in self.totals.items():
+            modules[nodeid.split("::")[0]] += t
+        return sorted(modules.items(), key=lambda x: -x[1])
 
     def over(self) -> list[tuple[str, float]]:
         budget = self.config.getoption("--test-budget")
@@ -63,6 +81,16 @@ class _Budget:
                       key=lambda x: -x[1])
 
     def pytest_terminal_summary(self, terminalreporter):
+        if len(self.totals) > 50:  # a whole run, not one module: where its time went
+            workers: dict[str, float] = defaultdict(float)
+            for nodeid, (t, _) in self.totals.items():
+                workers[self.worker.get(nodeid, "main")] += t
+            terminalreporter.section("the slowest modules (setup + call + teardown) [s]")
+            for module, t in self.by_module()[:15]:
+                terminalreporter.line(f"{t:8.1f}  {module}")
+            terminalreporter.line("per worker: " + ", ".join(f"{w} {t:.0f} s" for w, t in sorted(workers.items()))
+                                  + f"; every test's time in {TIMES_FILE}")
+            self._write_times()
         over = self.over()
         if over:
             budget = self.config.getoption("--test-budget")
@@ -71,6 +99,16 @@ class _Budget:
                 terminalreporter.line(f"{t:8.1f} s  {nodeid}")
             terminalreporter.line("make each smaller (a shared trained model, the quick plan, fewer epochs), or "
                                   "mark it @pytest.mark.slow(reason=...) saying why it cannot be")
+
+    def _write_times(self) -> None:
+        try:
+            TIMES_FILE.parent.mkdir(parents=True, exist_ok=True)
+            tmp = TIMES_FILE.with_name(f".{TIMES_FILE.name}.{os.getpid()}")
+            tmp.write_text(json.dumps({nodeid: {"s": round(t, 3), "slow": slow, "worker": self.worker.get(nodeid)}
+                                       for nodeid, (t, slow) in self.totals.items()}, indent=0))
+            os.replace(tmp, TIMES_FILE)
+        except OSError:  # a read-only tree: the summary above is enough
+            pass
 
     @pytest.hookimpl(trylast=True)
     def pytest_sessionfinish(self, session):
