@@ -179,50 +179,27 @@ def _dampnet_row(label, model, test, secs, extra=None) -> dict:
 
 
 def run_dampnet(ds, train, test, budget, steps, seed=0, log=print) -> list[dict]:
-    import dampnet
-    from dampnet.data import Dataset
+    """dampnet's default model and the diagnosis loop after it (dampnet.recipes.loop.run_loop, as
+    `dampnet demo --data` runs it), one row per model."""
+    from dampnet.recipes.loop import run_loop
 
     hold = [t.test_id for t in test]
-    base = dict(algorithm="auto", restarts="auto", holdout_voltage=None, holdout_tests=hold, seed=seed)
-    base.update(budget)
-    t0 = time.perf_counter()
-    trained = dampnet.train(ds, workers=1, **base)
-    secs = time.perf_counter() - t0
-    model = trained.model
-    rows = [_dampnet_row("dampnet (default)", model, test, secs, {"restarts": trained.restarts})]
-    log(f"    dampnet default: NRMSE {rows[-1]['nrmse']:.4f} ({secs:.0f} s)")
-    train_ds = Dataset(tests=list(train), source=ds.source, meta=dict(ds.meta))
-    added: list[str] = []
-    for step in range(1, steps + 1):
-        t0 = time.perf_counter()
-        diag = dampnet.diagnose(model, train_ds, seed=seed)
-        d_secs = time.perf_counter() - t0
-        verdict = diag.get("verdict")
-        rows[-1]["diagnosis"] = {"verdict": verdict, "three_way": _three_way(diag), "seconds": d_secs}
-        log(f"    diagnosis {step}: {verdict or 'nothing named'} ({d_secs:.0f} s)")
-        if verdict is None or verdict in added:
-            break
-        lacking = diag["finding"].get("not_addable", {}).get(verdict)
-        if lacking:     # named, but its input needs a channel these data lack: the diagnosis says so
-            rows[-1]["diagnosis"]["not_addable"] = lacking
-            log(f"    cannot add {verdict}: the data have no {' or '.join(lacking)} channel")
-            break
-        terms = [{k: v for k, v in t.items() if k != "params"} for t in model.terms]  # refitted
-        req = dict(base, features=list(model.features), terms=terms,
-                   feature_params=dict(model.feature_params) or None, add=(verdict,), diagnosis=diag)
-        t0 = time.perf_counter()
-        try:
-            trained = dampnet.train(ds, workers=1, **req)
-        except ValueError as e:  # the diagnosis named an effect it cannot add: say so and stop
-            rows[-1]["diagnosis"]["add_error"] = str(e)
-            log(f"    cannot add {verdict}: {e}")
-            break
-        secs = time.perf_counter() - t0
-        model = trained.model
-        added.append(verdict)
-        rows.append(_dampnet_row(f"dampnet + {' + '.join(added)}", model, test, secs,
-                                 {"restarts": trained.restarts, "added": list(added), "step": step}))
-        log(f"    + {verdict}: NRMSE {rows[-1]['nrmse']:.4f} ({secs:.0f} s)")
+    options = dict(algorithm="auto", restarts="auto", holdout_voltage=None, holdout_tests=hold)
+    options.update(budget)
+    loop = run_loop(ds, max_steps=steps, seed=seed, log=lambda s: log(f"    {s}"), workers=1, **options)
+    rows = []
+    for step in loop:
+        label = "dampnet (default)" if not step.added else f"dampnet + {' + '.join(step.added)}"
+        extra = {"restarts": step.trained.restarts}
+        if step.added:
+            extra.update(added=list(step.added), step=len(step.added))
+        rows.append(_dampnet_row(label, step.trained.model, test, step.train_s, extra))
+        if step.diagnosis is not None:
+            rows[-1]["diagnosis"] = {"verdict": step.named, "three_way": _three_way(step.diagnosis),
+                                     "seconds": step.diagnose_s, "stop": step.stop}
+            lacking = ((step.diagnosis.get("finding") or {}).get("not_addable") or {}).get(step.named)
+            if lacking:
+                rows[-1]["diagnosis"]["not_addable"] = lacking
     return rows
 
 
@@ -299,9 +276,8 @@ def markdown(result: dict) -> str:
                     named += " (a measurement artefact instead: see the JSON's finding)"
                 if dg.get("not_addable"):
                     named += f" (not addable: the data have no {' or '.join(dg['not_addable'])} channel)"
-                elif "add_error" in dg:
-                    named += (" (not added: the data have no channel it needs)" if "needs channel" in dg["add_error"]
-                              else " (not added)")
+                elif (dg.get("stop") or "").startswith("adding"):
+                    named += " (not added: see the JSON's stop)"
             lines.append(f"| {r['model']} | {r['rmse_n']:.1f} | {r['nrmse']:.4f} | {worst['nrmse']:.4f} "
                          f"({worst['test_id']}) | {r['train_s']:.1f} | {r['parameters']:,} | {r['infer_us']:.1f} | {named} |")
         lines.append("")

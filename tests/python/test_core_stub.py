@@ -32,17 +32,20 @@ def test_the_generated_parts_of_the_stub_are_up_to_date():
 
 
 def test_a_field_added_by_the_recipe_changes_the_generated_stub(monkeypatch):
-    """The recipe's step 2 (an appended dn_damper_input field, here x_lag) makes the check above fail
+    """The recipe's step 2 (an appended dn_damper_input field, here probe_lag) makes the check above fail
     until the stub is rewritten, and the rewrite declares it in both places. Cost: 0.05 s."""
     from dampnet import _core
 
-    fields = {**_core.DAMPER_INPUT_FIELDS, "x_lag": "relative displacement after a first-order lag [m]"}
+    # a field no registry has (the recipe's own example, x_lag, is in a tree the recipe was applied
+    # to: tests/python/test_state_recipe.py runs this file there)
+    assert "probe_lag" not in _core.DAMPER_INPUT_FIELDS
+    fields = {**_core.DAMPER_INPUT_FIELDS, "probe_lag": "relative displacement after a first-order lag [m]"}
     monkeypatch.setattr(_core, "DAMPER_INPUT_FIELDS", fields)
     text = STUB.read_text()
     new = core_stub.generated(text)
     assert new != text
-    assert "    x_lag: float  # relative displacement after a first-order lag [m]\n" in new
-    assert "        x_lag: npt.ArrayLike = ...,\n" in new
+    assert "    probe_lag: float  # relative displacement after a first-order lag [m]\n" in new
+    assert "        probe_lag: npt.ArrayLike = ...,\n" in new
     assert core_stub.generated(new) == new
 
 

@@ -1,42 +1,45 @@
-"""The recipe of dampnet.h (above DN_FEATURE_LIST) is true: a new stateful feature added through
-the four places it names, and nothing else, runs through every host and equals a plain numpy
-reference (issue 30, "A recipe that is true").
+"""dn_xmacro.h's recipe for a new stateful feature, applied as a developer applies it (issue 52
+item 5; issue 30 "A recipe that is true"): the recipe comment's four example rows, read from the
+comment itself, appended to their lists in a copy of the tree (tests/python/recipe_tree.py) and
+nothing else edited; the copy's dampnet._core rebuilt from it, its typed stub rewritten by the
+command the recipe names, its own registry tests passed, and the feature run through every host,
+each equal to a plain numpy reference.
 
-The feature is test-only: tests/cpp/recipe/extra_feature.h defines dampnet.h's four hooks
-DN_EXTRA_FEATURE_PARAMS / DN_EXTRA_INPUT_FIELDS / DN_EXTRA_FEATURES / DN_EXTRA_DAMPER_STATES with
-exactly the recipe's example: "displacement_lag", a first-order lag (dynamics lag_ramp) of the
-displacement x with time constant "displacement_lag_tau_s", kept in dn_damper_input.x_lag and
-the damper state DN_DS_X_LAG. Every build below force-includes that header (`-include`) and
-changes no other file. The damper is a 2-4-1 tanh MLP on ("velocity", "displacement_lag") with
-fixed weights (tau = 20 ms); its force depends on the lag (a lagged spring of ~15 kN/m beside
-~1.5 kN s/m of damping), so a wrong or missing state changes the force.
+The recipe's example: "displacement_lag", a first-order lag (dynamics lag_ramp) of the
+displacement x with time constant "displacement_lag_tau_s", kept in dn_damper_input.x_lag and the
+damper state DN_DS_X_LAG. The damper is a 2-4-1 tanh MLP on ("velocity", "displacement_lag")
+with fixed weights (tau = 20 ms); its force depends on the lag (a lagged spring of ~15 kN/m
+beside ~1.5 kN s/m of damping), so a wrong or missing state changes the force.
 
-1. Quarter car (dn_loop_*; tests/cpp/recipe/recipe_hosts.c with the C ABI sources of cpp/src,
-   RK4 with per-stage evaluations) on a sine + step road: the reported feature and the state
+0. The copy (python): its _core knows the feature, its stub check fails naming the recipe's
+   command until that command is run, then its registry tests pass (test_damper_state_registry,
+   test_core_stub with mypy's stubtest, test_feature_registry: each lists the features and states
+   from the registries, so the new ones are checked as the built-in ones are).
+1. Quarter car (dn_loop_*; tests/cpp/recipe/recipe_hosts.c with the copy's C ABI sources, RK4
+   with per-stage evaluations) on a sine + step road: the reported feature and the state
    block's x_lag (dn_loop_get_state: the block's last value) equal the exact first-order-hold
    recursion of the reported x, and the force the numpy MLP on (v, x_lag).
 2. Full car (dn_fullcar_*, four corners on different roads): the same per corner, x_lag read
    at each corner's block end (DN_FULLCAR_CORNER_DAMPER + DN_DS_X_LAG).
-3. Damper FMU (FMI 2, cpp/fmu/fmu2.cpp compiled with the same -include through
-   dampnet.export.fmu.build's extra_flags; modelDescription.xml from dampnet.export.fmu.damper with the
-   Python registries mirroring extra_feature.h for the build only): co-simulation equals the
-   recursion and the MLP; model exchange, integrated here by RK4 through
-   fmi2SetContinuousStates / fmi2GetDerivatives, equals the ODE's closed-form solution.
-4. Cortex-M4F firmware (cpp/embedded, arm-none-eabi, the same -include in CMAKE_C/CXX_FLAGS)
-   in QEMU: its printed loop state, which now ends with x_lag, equals the host quarter car of
-   the same model and configuration (recipe_hosts fwloop) within the float loop's tolerance.
+3. Damper FMU (FMI 2), exported by the copy's dampnet (its registries, its cpp/fmu):
+   co-simulation equals the recursion and the MLP; model exchange, integrated here by RK4
+   through fmi2SetContinuousStates / fmi2GetDerivatives, equals the ODE's closed-form solution.
+4. Cortex-M4F firmware (the copy's cpp/embedded, arm-none-eabi) in QEMU: its printed loop state,
+   which now ends with x_lag, equals the host quarter car of the same model and configuration
+   (recipe_hosts fwloop) within the float loop's tolerance.
 
 Tolerances (each with its reason at its assert): x_lag 1e-12 of its peak (the same recursion in
 double, only the coefficients' last-bit rounding differs), force 1e-9 of its peak (the runtime
 folds the mapminmax scalings into the weights: a different rounding order, ~1e-15), model
 exchange 1e-9 (RK4 at h = dt / 10 = tau / 200: global error ~ (h / tau)^4 ~ 6e-10), firmware
 dampnet.export.mcu.HOST_TOLERANCE = 1e-4 of each state's peak (float loop; test_embedded's).
-Builds go to build/tests-recipe/ (the firmware's CMake build is cached there)."""
+Everything goes to build/tests-recipe/ (the copy, its module's and the firmware's builds, cached
+there between runs: only what changed is rebuilt). Cost: about 3 min of CPU from nothing (the
+module's build about 1.5 min of it, the copy's tests 30 s), 20 s when cached."""
 
 from __future__ import annotations
 
 import ctypes
-import importlib
 import re
 import shutil
 import subprocess
@@ -46,11 +49,13 @@ import numpy as np
 import pytest
 
 import needs
+import recipe_tree
 from cbuild import BUILD, ROOT
 
 RECIPE = ROOT / "tests" / "cpp" / "recipe"
-EXTRA = RECIPE / "extra_feature.h"
+XMACRO = Path("cpp") / "include" / "dampnet" / "dn_xmacro.h"
 WORK = BUILD / "tests-recipe"
+TREE = WORK / "tree"        # the copy of the tree the recipe is applied to
 
 TAU = 0.02      # displacement_lag_tau_s [s]
 DT = 1e-3       # the vehicles' default step [s]
@@ -119,41 +124,96 @@ def model_header() -> str:
         "#endif", ""])
 
 
-# ---- extra_feature.h, read back: what the Python registries must mirror ----
+# ---- the recipe applied to a copy of the tree ----
 
-def _rows(hook: str) -> list[list[str]]:
-    """The X(...) rows of `#define hook(X) ...` in extra_feature.h, each as its arguments."""
-    text = EXTRA.read_text().replace("\\\n", " ")
-    m = re.search(rf"#define {hook}\(X\)(.*)", text)
-    assert m, f"{hook} not defined in {EXTRA}"
-    rows = []
-    for body in re.findall(r"X\(((?:[^()\"]|\"[^\"]*\")*)\)", m.group(1)):
-        rows.append([a.strip().strip('"') for a in re.findall(r'\s*("[^"]*"|[^,]+)', body)])
-    return rows
-
-
-def extra_registry() -> dict:
-    """extra_feature.h's rows as dampnet._core's registries hold them."""
-    params = {r[0]: (r[1], r[2]) for r in _rows("DN_EXTRA_FEATURE_PARAMS")}
-    feats = _rows("DN_EXTRA_FEATURES")
-    states = _rows("DN_EXTRA_DAMPER_STATES")
-    return {
-        "params": {name: doc for name, doc in params.values()},
-        "features": {r[1]: (r[2], params[r[3]][0]) for r in feats},  # name -> (field, param)
-        "states": {r[1]: (r[2], r[3].removeprefix("DN_DYN_").lower(), r[4], params[r[5]][0], r[6])
-                   for r in states},
-        "fields": [r[1] for r in _rows("DN_EXTRA_INPUT_FIELDS")],
-    }
+#: the recipe's example, as dampnet._core's registries must hold it once applied
+EXAMPLE_ROWS = [
+    ("DN_FEATURE_PARAM_LIST", 'X(DN_FPARAM_DISPLACEMENT_LAG_TAU_S, "displacement_lag_tau_s", '
+                              '"time constant of displacement_lag [s], > 0")'),
+    ("DN_DAMPER_INPUT_FIELDS", 'X(dn_real, x_lag, QTY_OPT, "relative displacement after a first-order lag [m]")'),
+    ("DN_FEATURE_LIST", 'X(DN_FEAT_DISPLACEMENT_LAG, "displacement_lag", x_lag, DN_FPARAM_DISPLACEMENT_LAG_TAU_S)'),
+    ("DN_DAMPER_STATE_LIST", 'X(DN_DS_X_LAG, x_lag, "m", DN_DYN_LAG_RAMP, x, DN_FPARAM_DISPLACEMENT_LAG_TAU_S, '
+                             '"relative displacement after displacement_lag\'s lag")'),
+]
 
 
-def test_extra_feature_is_the_recipes_example():
-    """The header holds one row per hook, the recipe's example (so the hosts below test it)."""
-    reg = extra_registry()
-    assert reg["params"] == {PARAM: "time constant of displacement_lag [s], > 0"}
-    assert reg["fields"] == ["x_lag"]
-    assert reg["features"] == {"displacement_lag": ("x_lag", PARAM)}
-    assert list(reg["states"]) == ["x_lag"]
-    assert reg["states"]["x_lag"][:4] == ("m", "lag_ramp", "x", PARAM)
+def _write_if_changed(path: Path, text: str) -> None:
+    """Write text unless the file holds it already (the cached builds stay valid)."""
+    if not path.is_file() or path.read_text() != text:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+
+
+def test_the_recipe_comment_gives_its_example_rows():
+    """The rows read from dn_xmacro.h's comment are the example, one per step, in the lists the
+    steps name; appending them changes the header by those four lines only. Cost: 0.01 s."""
+    text = (ROOT / XMACRO).read_text()
+    rows = recipe_tree.state_recipe_rows(text)
+    assert rows == EXAMPLE_ROWS
+    edited = recipe_tree.apply_rows(text, rows)
+    def lines(t):  # continuation backslashes aside: appending a row puts one on the line before it
+        return [ln.rstrip(" \\").strip() for ln in t.split("\n")]
+
+    original = lines(text)
+    assert [ln for ln in lines(edited) if ln not in original] == [r for _, r in rows]
+    assert len(lines(edited)) == len(original) + len(rows)
+
+
+@pytest.fixture(scope="module")
+def tree() -> Path:
+    """The copy of the tree with the recipe applied: every file as in this tree (copied only when
+    it differs, so the copy's builds stay cached), dn_xmacro.h with the recipe's rows appended."""
+    staging = WORK / "staging"
+    shutil.rmtree(staging, ignore_errors=True)
+    recipe_tree.copy_tree(staging)
+    header = staging / XMACRO
+    header.write_text(recipe_tree.apply_rows(header.read_text(), recipe_tree.state_recipe_rows(header.read_text())))
+    for src in (p for p in staging.rglob("*") if p.is_file()):
+        dst = TREE / src.relative_to(staging)
+        if not dst.is_file() or dst.read_bytes() != src.read_bytes():
+            dst.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(src, dst)
+    shutil.rmtree(staging)
+    return TREE
+
+
+@pytest.fixture(scope="module")
+def copy_env(tree) -> recipe_tree.CopyEnv:
+    """The copy's dampnet._core built from its edited header, and a Python that imports the copy."""
+    needs.need_tool("cmake")
+    recipe_tree.build_core(tree, WORK / "core-build.log")
+    venv = WORK / "venv"
+    shutil.rmtree(venv, ignore_errors=True)
+    return recipe_tree.CopyEnv.make(tree, venv)
+
+
+@pytest.mark.slow(reason="the recipe's rebuild is part of the recipe: the copy's dampnet._core built from its edited "
+                         "header (about 70 s of CPU at -O0, cached between runs) and the copy's registry tests (40 s)")
+def test_the_copy_knows_the_feature_and_passes_its_registry_tests(copy_env):
+    """The recipe's rebuild gives the copy's _core the feature, its parameter, field and state;
+    its stub check fails naming the command the recipe gives; after that command, the copy's
+    registry tests pass. Cost: the module's build (about 1.5 min of CPU, cached after) and 30 s."""
+    proc = copy_env.run("-c", "from dampnet import _core, features; import json; print(json.dumps(["
+                        "_core.FEATURE_INPUTS.get('displacement_lag'), _core.FEATURE_PARAMS.get('displacement_lag'),"
+                        "list(_core.DAMPER_STATES)[-1], list(_core.DAMPER_INPUT_FIELDS)[-1], "
+                        "'displacement_lag' in features.FEATURES, _core.__file__]))")
+    assert proc.returncode == 0, proc.stderr
+    field, param, state, input_field, in_python, core_file = __import__("json").loads(proc.stdout)
+    assert Path(core_file).is_relative_to(copy_env.copy), core_file  # the copy's module, not this tree's
+    assert (field, param, state, input_field, in_python) == ("x_lag", PARAM, "x_lag", "x_lag", True)
+    # the shipped stub is behind the new registries: the check names the recipe's command
+    stub_check = ("tests/python/test_core_stub.py::test_the_generated_parts_of_the_stub_are_up_to_date",)
+    before = copy_env.run("-m", "pytest", "-q", "-n", "0", "-p", "no:cacheprovider", *stub_check)
+    assert before.returncode == 1 and "run `python tests/python/core_stub.py`" in before.stdout, before.stdout[-3000:]
+    rewrite = copy_env.run("tests/python/core_stub.py")
+    assert rewrite.returncode == 0, rewrite.stdout + rewrite.stderr
+    stub = (copy_env.copy / "python" / "dampnet" / "_core.pyi").read_text()
+    assert "    x_lag: float  # relative displacement after a first-order lag [m]" in stub
+    after = copy_env.run("-m", "pytest", "-q", "-n", "0", "-p", "no:cacheprovider",
+                         "tests/python/test_damper_state_registry.py", "tests/python/test_core_stub.py",
+                         "tests/python/test_feature_registry.py", timeout=900)
+    assert after.returncode == 0, after.stdout[-6000:] + after.stderr[-2000:]
+    print(after.stdout.strip().splitlines()[-1])
 
 
 # ---- (1), (2): the quarter car and the full car through the C ABI ----
@@ -168,18 +228,18 @@ def _compile_all(jobs: list[list[str]]) -> None:
         out, err = p.communicate(timeout=600)
         if p.returncode != 0:
             failed.append(f"{' '.join(cmd)}\n{err[-4000:]}")
-    assert not failed, "compiling with extra_feature.h failed:\n" + "\n".join(failed)
+    assert not failed, "compiling the copy with the recipe applied failed:\n" + "\n".join(failed)
 
 
 @pytest.fixture(scope="module")
-def hosts() -> Path:
-    """recipe_hosts: recipe_hosts.c (C99) and the C ABI's sources (C++17, the library's flags:
-    DN_STATIC, -fno-math-errno), every translation unit with -include extra_feature.h."""
+def hosts(tree) -> Path:
+    """recipe_hosts: recipe_hosts.c (C99) and the copy's C ABI sources (C++17, the library's
+    flags: DN_STATIC, -fno-math-errno), against the copy's headers."""
     gxx, gcc = needs.need_tool("g++"), needs.need_tool("gcc")
     WORK.mkdir(parents=True, exist_ok=True)
     (WORK / "recipe_model.h").write_text(model_header())
-    inc = ["-include", str(EXTRA), f"-I{ROOT / 'cpp' / 'include'}", "-DDN_STATIC"]
-    jobs = [[gxx, "-std=c++17", "-O2", "-fno-math-errno", "-Wall", "-Wextra", *inc, "-c", str(ROOT / "cpp" / "src" / s),
+    inc = [f"-I{tree / 'cpp' / 'include'}", "-DDN_STATIC"]
+    jobs = [[gxx, "-std=c++17", "-O2", "-fno-math-errno", "-Wall", "-Wextra", *inc, "-c", str(tree / "cpp" / "src" / s),
              "-o", str(WORK / f"{s}.o")] for s in LIB_SOURCES]
     jobs.append([gcc, "-std=c99", "-O2", "-Wall", "-Wextra", "-Wpedantic", "-Werror", *inc, f"-I{WORK}", "-c",
                  str(RECIPE / "recipe_hosts.c"), "-o", str(WORK / "recipe_hosts.o")])
@@ -213,8 +273,9 @@ def road(n: int, amp=0.015, f1=2.0, step=0.02, t_step=0.25, amp2=0.004, f2=11.0,
 
 
 def check_layout(layout: list[int]) -> None:
-    """The hooks' rows are in every list: one more feature and damper state (the last of the
-    block), and the loop and full-car states grown by it (the C ABI's sizes agree)."""
+    """The recipe's rows are in every list: one more feature and damper state than this tree's
+    (the last of the block), and the loop and full-car states grown by it (the C ABI's sizes
+    agree)."""
     from dampnet import _core
 
     n_feat, ds_size, ds_x_lag, loop_base, loop_size, loop_size_fn, fc_size, fc_size_fn, fc_base, fc_corner, \
@@ -287,55 +348,33 @@ def test_full_car_runs_the_feature(hosts):
 
 # ---- (3): the damper FMU, co-simulation and model exchange ----
 
+FMU_SCRIPT = """
+import sys
+import numpy as np
+from dampnet.export.fmu import build, damper
+from dampnet.model import MlpModel
+
+w = np.load(sys.argv[1])
+model = MlpModel(**{k: (w[k].item() if w[k].ndim == 0 else w[k]) for k in w.files if k != "tau"}, features=["velocity", "displacement_lag"],
+                 units=["m/s", "m"], activation="tanh", feature_params={"displacement_lag_tau_s": float(w["tau"])})
+build.package(model, damper.damper_description(model, step_s=float(sys.argv[3])), sys.argv[2], 2, None, False, True)
+"""
+
+
 @pytest.fixture(scope="module")
-def recipe_fmu(tmp_path_factory):
-    """The damper FMU (FMI 2, both interfaces) of the recipe's model, its binary compiled with
-    -include extra_feature.h. Python's registries do not know the test feature (dampnet._core is
-    built without the hooks), so for the build only they mirror extra_feature.h: the feature is
-    registered in Python (dampnet.features.register_feature), _core's registries get its rows, and
-    dampnet.export.fmu.damper (which derives its variables from _core at import) is reloaded; all of it is
-    undone before the FMU is run."""
+def recipe_fmu(copy_env, tmp_path_factory):
+    """The damper FMU (FMI 2, both interfaces) of the recipe's model, exported by the copy's
+    dampnet (its registries and its cpp/fmu: the FMU's variables come from the copy's _core)."""
     needs.need_module("fmpy")
-    needs.need_tool("g++")
     from fmpy import read_model_description
 
-    from dampnet import _core
-    from dampnet import features as feats
-    from dampnet.export.fmu import build as fmu_build
-    from dampnet.export.fmu import damper as fmu_damper
-    from dampnet.model import MlpModel
-
-    reg = extra_registry()
-    out = tmp_path_factory.mktemp("recipe-fmu") / "recipe.fmu"
-    registered = []
-    try:
-        for name, (field, param) in reg["features"].items():
-            state = reg["states"][field]
-            base = next(b for b in ("displacement", "velocity") if _core.FEATURE_INPUTS[b] == state[2])
-            feats.register_feature(name, "m", feats.Lag(base, held=state[1] == "lag_held"), at_rest=0.0, param=param,
-                                   param_doc=reg["params"][param])
-            registered.append(name)
-        with pytest.MonkeyPatch.context() as mp:
-            mp.setattr(_core, "FEATURE_NAMES", (*_core.FEATURE_NAMES, *reg["features"]))
-            fields = {n: f for n, (f, _p) in reg["features"].items()}
-            params = {n: p for n, (_f, p) in reg["features"].items()}
-            mp.setattr(_core, "FEATURE_INPUTS", {**_core.FEATURE_INPUTS, **fields})
-            mp.setattr(_core, "FEATURE_PARAMS", {**_core.FEATURE_PARAMS, **params})
-            mp.setattr(_core, "FEATURE_PARAM_NAMES", {**_core.FEATURE_PARAM_NAMES, **reg["params"]})
-            mp.setattr(_core, "DAMPER_STATES", {**_core.DAMPER_STATES, **reg["states"]})
-            importlib.reload(fmu_damper)
-            try:
-                model = MlpModel(w1=W1, b1=B1, w_out=W_OUT, b_out=B_OUT, in_offset=IN_OFFSET, in_gain=IN_GAIN,
-                                 out_offset=OUT_OFFSET, out_gain=OUT_GAIN, sat_lo=SAT_LO, sat_hi=SAT_HI,
-                                 features=list(FEATURES), units=["m/s", "m"], activation="tanh", feature_params={PARAM: TAU})
-                desc = fmu_damper.damper_description(model, step_s=DT)
-                fmu_build.package(model, desc, out, 2, None, False, True, extra_flags=["-include", str(EXTRA)])
-            finally:
-                mp.undo()
-                importlib.reload(fmu_damper)
-    finally:
-        for name in registered:
-            feats.unregister_feature(name)
+    work = tmp_path_factory.mktemp("recipe-fmu")
+    out = work / "recipe.fmu"
+    np.savez(work / "weights.npz", w1=W1, b1=B1, w_out=W_OUT, b_out=B_OUT, in_offset=IN_OFFSET, in_gain=IN_GAIN,
+             out_offset=OUT_OFFSET, out_gain=OUT_GAIN, sat_lo=SAT_LO, sat_hi=SAT_HI, tau=TAU)
+    (work / "export_fmu.py").write_text(FMU_SCRIPT)
+    proc = copy_env.run(str(work / "export_fmu.py"), str(work / "weights.npz"), str(out), repr(DT))
+    assert proc.returncode == 0, proc.stdout + proc.stderr
     md = read_model_description(str(out))
     by_name = {sv.name: sv.valueReference for sv in md.modelVariables}
     return out, md, by_name
@@ -482,19 +521,12 @@ FW_CPU = "cortex-m4"
 FW_STEPS = 2000
 
 
-def _write_if_changed(path: Path, text: str) -> None:
-    """Write text unless the file holds it already (the firmware's CMake build stays cached)."""
-    if not path.is_file() or path.read_text() != text:
-        path.write_text(text)
-
-
 @pytest.fixture(scope="module")
-def firmware():
-    """cpp/embedded's firmware for the Cortex-M4F (dampnet.export.mcu's configuration: float loop,
-    float MLP, one evaluation per step) with the recipe's model, every translation unit compiled
-    with -include extra_feature.h (CMAKE_C_FLAGS / CMAKE_CXX_FLAGS, after the core's flags that
-    the toolchain file would otherwise give), C files also with -include recipe_model.h (the
-    firmware's model macros, DN_FW_*). Run in QEMU (mps2-an386)."""
+def firmware(tree):
+    """The copy's cpp/embedded firmware for the Cortex-M4F (dampnet.export.mcu's configuration:
+    float loop, float MLP, one evaluation per step) with the recipe's model, C files with
+    -include recipe_model.h (the firmware's model macros, DN_FW_*; CMAKE_C_FLAGS after the core's
+    flags that the toolchain file would otherwise give). Run in QEMU (mps2-an386)."""
     import firmware_lab as emb
 
     why = emb.toolchain_missing()
@@ -513,14 +545,16 @@ def firmware():
                       controller=Controller(kind="skyhook_onoff", u_tau_s=0.005))
     _write_if_changed(vec, (WORK / "fw_vectors.new.h").read_text())
     bdir = WORK / f"firmware-{FW_CPU}"
+    cache = bdir / "CMakeCache.txt"
+    if cache.is_file() and f"CMAKE_HOME_DIRECTORY:INTERNAL={tree}\n" not in cache.read_text():
+        shutil.rmtree(bdir)  # configured from another source folder (before the copy): CMake refuses it
     core = emb.CPUS[FW_CPU]["flags"]
-    flags = [f"-DCMAKE_C_FLAGS={core} -include {EXTRA} -include {WORK / 'recipe_model.h'} -I{WORK}",
-             f"-DCMAKE_CXX_FLAGS={core} -include {EXTRA}"]
+    flags = [f"-DCMAKE_C_FLAGS={core} -include {WORK / 'recipe_model.h'} -I{WORK}", f"-DCMAKE_CXX_FLAGS={core}"]
     gen = ["-G", "Ninja"] if shutil.which("ninja") and not (bdir / "CMakeCache.txt").is_file() else []
     # capacities for this 2-input model (the lean float kernel is compiled for exactly its
     # capacity's input count, as `dampnet export --target` sets it: dampnet.export.mcu.capacities_for)
     caps = {**emb.DEFAULT_CAPS, "INPUTS": len(FEATURES)}
-    emb._run(["cmake", "-S", ROOT, "-B", bdir, *gen, *emb.cmake_args(FW_CPU, vec, caps=caps), *flags])
+    emb._run(["cmake", "-S", tree, "-B", bdir, *gen, *emb.cmake_args(FW_CPU, vec, caps=caps), *flags])
     emb._run(["cmake", "--build", bdir, "--parallel", "2", "--target", "dn_firmware"])
     out = emb.parse_output(emb.run(emb.firmware_path(bdir), FW_CPU, timeout=120))
     return x, out

@@ -69,21 +69,6 @@
  * unsprung move apart); the force F is positive when it resists extension
  * (tension). In the quarter car: x = z_s - z_us + x_static, v = dz_s - dz_us. */
 
-/* Rows a test build appends to the feature lists (tests/python/test_state_recipe.py proves the
- * recipe below with them); empty otherwise. */
-#ifndef DN_EXTRA_FEATURE_PARAMS
-#define DN_EXTRA_FEATURE_PARAMS(X)
-#endif
-#ifndef DN_EXTRA_INPUT_FIELDS
-#define DN_EXTRA_INPUT_FIELDS(X)
-#endif
-#ifndef DN_EXTRA_FEATURES
-#define DN_EXTRA_FEATURES(X)
-#endif
-#ifndef DN_EXTRA_DAMPER_STATES
-#define DN_EXTRA_DAMPER_STATES(X)
-#endif
-
 /* Constants of derived features (MlpModel.feature_params), by name:
  * X(id, "name", meaning). Unknown names are refused (DN_E_UNKNOWN_NAME). */
 #define DN_FEATURE_PARAM_LIST(X)                                                                   \
@@ -91,8 +76,7 @@
     "time constant of voltage_lag / current_lag [s], > 0")                                         \
   X(DN_FPARAM_VELOCITY_LAG_TAU_S, "velocity_lag_tau_s", "time constant of velocity_lag [s], > 0") \
   X(DN_FPARAM_FRICTION_PRESLIDING_M, "friction_presliding_m",                                       \
-    "pre-sliding travel of friction_state [m], > 0")                                               \
-  DN_EXTRA_FEATURE_PARAMS(X)
+    "pre-sliding travel of friction_state [m], > 0")
 
 /* What a damper model is evaluated on: the loop's state at one evaluation,
  * X(type, name, role, doc) in struct order. role: QTY, a quantity a model may read
@@ -115,8 +99,7 @@
     "velocity after a first-order lag of the model's velocity_lag_tau_s [m/s]")             \
   X(dn_real, z_fric, QTY_OPT,                                                                 \
     "Dahl friction state in [-1, 1]: follows sgn(v) over a travel of a few "                \
-    "friction_presliding_m after each reversal [-]")                                        \
-  DN_EXTRA_INPUT_FIELDS(X)
+    "friction_presliding_m after each reversal [-]")
 
 /* The neural features, one per line: X(id, "name" (MlpModel.features), field of
  * dn_damper_input it reads, dn_feature_param it needs or DN_FPARAM_NONE). Values are
@@ -144,8 +127,9 @@
  * tests/python/test_core_stub.py fails naming that command until it is run).
  * A new kind of dynamics is a row of DN_STATE_DYNAMICS_LIST and its three formulas in
  * cpp/include/dampnet/damper_state.hpp (and python/dampnet/features.py's twin).
- * tests/python/test_state_recipe.py proves the recipe: it adds such a feature through the
- * DN_EXTRA_* hooks (above: a test build only) and runs it through every host. */
+ * tests/python/test_state_recipe.py proves the recipe as written: it appends the four example
+ * rows above to a copy of the tree, rebuilds it, rewrites its stub, passes its registry tests and
+ * runs the feature through every host. */
 #define DN_FEATURE_LIST(X)                                                                \
   X(DN_FEAT_VELOCITY, "velocity", v, DN_FPARAM_NONE)                                      \
   X(DN_FEAT_ACCELERATION, "acceleration", a, DN_FPARAM_NONE)                              \
@@ -156,8 +140,7 @@
   X(DN_FEAT_CURRENT_LAG, "current_lag", u_lag, DN_FPARAM_CONTROL_LAG_TAU_S)               \
   X(DN_FEAT_TEMPERATURE, "temperature", temperature, DN_FPARAM_NONE)                      \
   X(DN_FEAT_VELOCITY_LAG, "velocity_lag", v_lag, DN_FPARAM_VELOCITY_LAG_TAU_S)            \
-  X(DN_FEAT_FRICTION_STATE, "friction_state", z_fric, DN_FPARAM_FRICTION_PRESLIDING_M)  \
-  DN_EXTRA_FEATURES(X)
+  X(DN_FEAT_FRICTION_STATE, "friction_state", z_fric, DN_FPARAM_FRICTION_PRESLIDING_M)
 
 /* How a damper state moves: X(id, value, "name", meaning). A host steps the state over an
  * interval of T seconds from a start where the source was src0 to now (src), holding it for
@@ -187,8 +170,7 @@
   X(DN_DS_V_LAG, v_lag, "m/s", DN_DYN_LAG_RAMP, v, DN_FPARAM_VELOCITY_LAG_TAU_S,                \
     "relative velocity after the velocity_lag feature's lag")                                   \
   X(DN_DS_Z_FRIC, z_fric, "-", DN_DYN_DAHL, x, DN_FPARAM_FRICTION_PRESLIDING_M,                 \
-    "Dahl friction state of the friction_state feature, in [-1, 1]")                            \
-  DN_EXTRA_DAMPER_STATES(X)
+    "Dahl friction state of the friction_state feature, in [-1, 1]")
 
 /* Physics terms added to any damper model's force (hybrid = neural + terms):
  * X(id, value, "kind" (MlpModel.terms[i]["kind"]), number of params, formula).

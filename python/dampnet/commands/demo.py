@@ -1,8 +1,10 @@
-"""`dampnet demo`: the whole story on the virtual rig's data, written as a report."""
+"""`dampnet demo`: the whole story on the virtual rig's data, written as a report; with --data,
+the diagnosis loop on the user's own data (dampnet.demo.on_data)."""
 
 from __future__ import annotations
 
-from dampnet.commands.common import error
+from dampnet.commands.common import DATA_HELP, REAL_DATASETS, add_channel_map_option, error
+from dampnet.commands.training_options import add_training_options, training_request
 
 
 def add_parser(subparsers):
@@ -10,18 +12,42 @@ def add_parser(subparsers):
         "demo", help="run the whole story end to end and write report.html",
         description="Generate the thesis's dyno campaign with a hidden effect, train the 3-30-1 MLP, "
                     "diagnose it, add the missing effect, export to C, run the quarter-car study "
-                    "and the latency benchmark; write DIR/report.html and DIR/summary.json.")
+                    "and the latency benchmark; write DIR/report.html and DIR/summary.json. With --data, run "
+                    "the diagnosis loop on your own data instead: train, diagnose the training tests, add the "
+                    "effect named, retrain (at most --steps times), and report each model's error on held-out "
+                    "tests, before and after.")
     p.add_argument("--out", default="dampnet-demo", help="output directory (default ./dampnet-demo)")
-    p.add_argument("--quick", action="store_true", help="small plan and short training (under a minute)")
+    p.add_argument("--quick", action="store_true",
+                   help="small plan and short training (under a minute); with --data: 60 epochs a training unless "
+                        "--max-epochs says")
     p.add_argument("--force", action="store_true", help="replace the output directory if it exists")
-    p.add_argument("--seed", type=int, default=0, help="random seed")
-    p.set_defaults(handler=run)
+    g = p.add_argument_group(
+        "the loop on your data (--data)",
+        "The training options are dampnet train's, with one difference: the hold-out. Without --holdout-tests "
+        "or --holdout-voltage, every fifth test in the data's order (from the third) is held out: each model "
+        "is scored on those and diagnosed on the others.")
+    g.add_argument("--data", default=None, metavar="DATA",
+                   help=f"run the loop on DATA: {DATA_HELP}, or a bundled real data set "
+                        f"({', '.join(REAL_DATASETS)}, from the shared data folder)")
+    add_channel_map_option(g)
+    g.add_argument("--steps", type=int, default=None, metavar="N",
+                   help=f"add at most N effects, one training and diagnosis each (default {DEFAULT_STEPS}; 0..10)")
+    add_training_options(g, train=True)
+    p.set_defaults(handler=run, data_group_actions=list(g._group_actions))
     return p
 
 
 def run(args) -> int:
     from dampnet.data import DataError
     from dampnet.demo import DemoError, run_demo
+
+    if args.data is not None:
+        return run_on_data(args)
+    given = [a.option_strings[0] for a in _data_only(args) if getattr(args, a.dest) is not None]
+    if given:
+        return error(f"{', '.join(given)}: appl{'ies' if len(given) == 1 else 'y'} to the loop on your data: "
+                     "add --data DATA")
+    args.seed = 0 if args.seed is None else args.seed
 
     try:
         summary = run_demo(args.out, quick=args.quick, force=args.force, seed=args.seed,
@@ -33,4 +59,51 @@ def run(args) -> int:
           f"'{summary['diagnosis']['verdict']}' (thesis {hn['thesis_lm']}, lookup table "
           f"{hn['lookup_table']:.4f}); C program {'matches' if summary['c_program']['match'] else 'DIFFERS from'} "
           f"Python; report rendered: {summary['report_rendered'].get('ok')}")
+    return 0
+
+
+#: --quick with --data: each training's epochs
+QUICK_EPOCHS = 60
+
+
+#: --steps unless given
+DEFAULT_STEPS = 3
+
+
+def _data_only(args):
+    """The options of the loop on data (its group's, but --data itself and --seed, which the
+    rig's demo takes too)."""
+    return [a for a in args.data_group_actions if a.dest not in ("data", "seed")]
+
+
+def run_on_data(args) -> int:
+    from dampnet.commands.common import load_data
+    from dampnet.data import DataError
+    from dampnet.demo import run_data_demo
+    from dampnet.outputs import OutputError
+
+    args.steps = DEFAULT_STEPS if args.steps is None else args.steps
+    if not 0 <= args.steps <= 10:
+        return error(f"--steps: expected 0..10 additions, got {args.steps}")
+    try:
+        request = training_request(args)
+        if args.holdout_voltage is None:  # the table's 2.25 V is the thesis's level, not the user's data's
+            request = request.replace(holdout_voltage=None)
+        if args.quick and args.max_epochs is None:
+            request = request.replace(max_epochs=QUICK_EPOCHS)
+        request = request.check()
+        ds = load_data(args.data, args.channel_map)
+        unknown = sorted(set(request.holdout_tests) - set(ds.test_ids))
+        if unknown:
+            return error(f"--holdout-tests: {', '.join(unknown)} not in {args.data} (its tests: "
+                         f"{', '.join(ds.test_ids[:12])}{' ...' if len(ds.test_ids) > 12 else ''})")
+        summary = run_data_demo(ds, args.out, args.data, request, max_steps=args.steps, force=args.force,
+                                log=lambda s: print(s, flush=True), workers=args.workers,
+                                inputs=[] if args.data in REAL_DATASETS else [args.data])
+    except (FileExistsError, OutputError, DataError, ValueError) as e:
+        return error(str(e))
+    first, last = summary["steps"][0], summary["steps"][-1]
+    print(f"summary: held-out RMSE {first['scores']['rmse_n']:.1f} N (default model)"
+          + (f" -> {last['scores']['rmse_n']:.1f} N after adding {' then '.join(last['added'])}" if last["added"] else "")
+          + f"; stopped: {summary['stop']}")
     return 0

@@ -16,8 +16,12 @@ Stages (each timed, each shown on the terminal as it runs):
   8 vehicle    the full vehicle (thesis chapter 5.2): bounce sine sweep and lane change
   9 latency    the quick latency benchmark and the HIL headroom
 Output (never overwritten without force): report.html, summary.json, models, header, data.
+
+`dampnet demo --data DATA` (dampnet.demo.on_data.run_data_demo) runs the diagnosis loop on the
+user's own data instead: train, diagnose, add what is named, retrain, report before and after.
 """
 
+from dampnet.demo.on_data import run_data_demo
 from dampnet.demo.run import DemoError, run_demo
 
-__all__ = ["DemoError", "run_demo"]
+__all__ = ["DemoError", "run_data_demo", "run_demo"]

@@ -16,7 +16,7 @@ import tempfile
 import zipfile
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterator, Sequence
+from typing import Iterator
 
 from dampnet import paths
 from dampnet.outputs import STAGING_MARKER, atomic_write_bytes, clean_stale
@@ -76,15 +76,12 @@ def stage_sources(model: MlpModel, d: Description, fmi: int, quarter_car: bool, 
         (sources / "buildDescription.xml").write_text(build_description_3(d))
 
 
-def compile_binary(sources: Path, fmi: int, out_so: Path, tmpdir: Path | None = None,
-                   extra_flags: Sequence[str] = ()) -> None:
+def compile_binary(sources: Path, fmi: int, out_so: Path, tmpdir: Path | None = None) -> None:
     """Compile sources/ into out_so; the compiler's own temporary files go to tmpdir (the build's
-    scratch directory: a killed compiler's leftovers go with it). extra_flags: more compiler flags
-    (tests: tests/python/test_state_recipe.py force-includes a test-only feature with
-    `-include extra_feature.h`); none for an export."""
+    scratch directory: a killed compiler's leftovers go with it)."""
     cxx = compiler()
     cmd = [cxx, "-std=c++17", "-O2", "-fPIC", "-shared", "-fno-exceptions", "-fno-rtti", "-fvisibility=hidden",
-           *extra_flags, f"-I{sources}", str(sources / SOURCE[fmi]), "-o", str(out_so), "-static-libgcc"]
+           f"-I{sources}", str(sources / SOURCE[fmi]), "-o", str(out_so), "-static-libgcc"]
     env = {**os.environ, "TMPDIR": str(tmpdir)} if tmpdir is not None else None
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
@@ -111,7 +108,7 @@ def scratch_dir() -> Iterator[Path]:
 
 
 def package(model: MlpModel, d: Description, out: str | os.PathLike, fmi: int, interface: str | None,
-            quarter_car: bool, overwrite: bool, envelope=None, extra_flags: Sequence[str] = ()) -> Path:
+            quarter_car: bool, overwrite: bool, envelope=None) -> Path:
     out = Path(out)
     if fmi not in SOURCE:
         raise FmuError(f"FMI version {fmi!r}: dampnet writes FMI 2 and FMI 3 FMUs (--fmi 2|3)")
@@ -124,8 +121,7 @@ def package(model: MlpModel, d: Description, out: str | os.PathLike, fmi: int, i
         (t / "modelDescription.xml").write_text(xml)
         binaries = t / "binaries" / PLATFORM[fmi]
         binaries.mkdir(parents=True)
-        compile_binary(t / "sources", fmi, binaries / f"{d.model_identifier}.so", tmpdir=tmp,
-                       extra_flags=extra_flags)
+        compile_binary(t / "sources", fmi, binaries / f"{d.model_identifier}.so", tmpdir=tmp)
 
         def write_zip(f) -> None:
             with zipfile.ZipFile(f, "w", zipfile.ZIP_DEFLATED) as z:

@@ -1,0 +1,153 @@
+"""The diagnosis loop on any data (issue 53): train as `dampnet train` trains by default, diagnose
+the model on its TRAINING tests (never the held-out ones), add the effect the verdict names (as
+`dampnet train --add EFFECT --diagnosis d.json`), retrain, and again, until the verdict names
+nothing, names an effect already added or one the data cannot carry (its input needs a channel
+they lack), or `max_steps` effects were added.
+
+    steps = run_loop(dataset, holdout_tests=["t3", "t7"], max_steps=3)
+    steps[0].label, steps[0].holdout_rmse_n      # "default", RMSE on the held-out tests [N]
+    steps[-1].added                              # ("friction", "gas_spring"): in the order added
+
+The additions compose: step k's model carries every effect added before it, in the order the
+diagnosis named them (each diagnosis is of the model with the previous additions), so the last
+step is what adding them together gives. `dampnet demo --data` and bench/real_data.py run it.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Sequence
+
+from dampnet.recipes.training import Trained, TrainingRequest, train
+
+#: additions the loop makes at most (each a training and a diagnosis)
+MAX_STEPS = 3
+
+
+@dataclass
+class LoopStep:
+    """One model of the loop: what was added to reach it, its scores, and what its diagnosis named."""
+    label: str                          # "default", "+ friction", "+ friction + gas_spring"
+    added: tuple[str, ...]              # effects added, in order
+    request: TrainingRequest            # what trained it
+    trained: Trained
+    train_s: float                      # its training's wall time [s]
+    diagnosis: dict | None = None       # the diagnosis of this model on the training tests
+    diagnose_s: float | None = None     # its wall time [s]
+    stop: str | None = None             # why the loop ended after this model (None: it went on)
+    scores: dict[str, Any] = field(default_factory=dict)  # held-out RMSE [N], NRMSE, per test
+
+    @property
+    def named(self) -> str | None:
+        """The effect this model's diagnosis named (its verdict), or None."""
+        return (self.diagnosis or {}).get("verdict")
+
+    @property
+    def holdout_rmse_n(self) -> float | None:
+        return self.scores.get("rmse_n")
+
+
+def next_request(request: TrainingRequest, model, diagnosis: dict, effect: str) -> TrainingRequest:
+    """The request after a diagnosis: `request` with the model's features (those added before
+    included), its feature parameters and physics terms (refitted: their values are not kept),
+    and `effect` added with the diagnosis's parameters, as `dampnet train --add EFFECT
+    --diagnosis FILE` makes it."""
+    terms = [{k: v for k, v in t.items() if k != "params"} for t in model.terms]
+    return request.replace(features=list(model.features), terms=terms,
+                           feature_params=dict(model.feature_params) or None, add=(effect,),
+                           diagnosis=diagnosis).check()
+
+
+def holdout_scores(model, tests) -> dict[str, Any]:
+    """dampnet.evaluation.metrics over the held-out tests: RMSE [N], NRMSE (over their force
+    range, max - min) and the largest error [N] over every sample, and RMSE [N] per test."""
+    from dampnet.evaluation.metrics import evaluate_predictions
+    from dampnet.predict import predict_force
+
+    if not tests:
+        return {}
+    rep = evaluate_predictions(tests, [predict_force(model, t) for t in tests])
+    o = rep["overall"]
+    return {"rmse_n": o["rmse_n"], "nrmse": o["nrmse"], "max_abs_error_n": o["max_abs_error_n"],
+            "per_test_rmse_n": {r["test_id"]: r["rmse_n"] for r in rep["per_test"]}}
+
+
+def run_loop(data, request: TrainingRequest | None = None, *, max_steps: int = MAX_STEPS, seed: int = 0,
+             log: Callable[[str], None] = lambda s: None, workers: int | None = None,
+             progress: Callable[[dict], Any] | None = None, **options: Any) -> list[LoopStep]:
+    """The loop on `data` (a Dataset or a path): the first model from `request` (or the keyword
+    options: `dampnet train`'s defaults, algorithm and restarts "auto"), then one model per
+    addition. Returns every model's step; the last step's `stop` says why the loop ended."""
+    from dampnet.data import Dataset
+    from dampnet.diagnosis.run import diagnose
+    from dampnet.recipes.training import load_data
+
+    if not 0 <= max_steps <= 10:
+        raise ValueError(f"max_steps: expected 0..10 additions, got {max_steps}")
+    if request is None:
+        request = TrainingRequest.of(**{"algorithm": "auto", "restarts": "auto", "seed": seed, **options})
+    elif options:
+        raise TypeError("run_loop: give the options either as a request or as keywords, not both")
+    else:
+        request = request.check()
+    ds = load_data(data)
+
+    def fit(req: TrainingRequest, label: str, added: tuple[str, ...]) -> LoopStep:
+        log(f"training {label} ...")
+        t0 = time.perf_counter()
+        trained = train(ds, request=req, workers=workers, progress=progress)
+        step = LoopStep(label, added, req, trained, time.perf_counter() - t0)
+        hold = trained.split.holdout
+        step.scores = holdout_scores(trained.model, hold.tests if hold is not None else [])
+        if step.scores:
+            log(f"  {label}: held-out RMSE {step.scores['rmse_n']:.1f} N, NRMSE {step.scores['nrmse']:.4f} "
+                f"({step.train_s:.0f} s)")
+        return step
+
+    steps = [fit(request, "default", ())]
+    while True:
+        step = steps[-1]
+        train_tests = step.trained.split.train
+        train_ds = Dataset(tests=list(train_tests.tests), source=ds.source, meta=dict(ds.meta))
+        log(f"diagnosing {step.label} on its {len(train_ds.tests)} training tests ...")
+        t0 = time.perf_counter()
+        step.diagnosis = diagnose(step.trained.model, train_ds, seed=seed)
+        step.diagnose_s = time.perf_counter() - t0
+        effect = step.named
+        lacking = ((step.diagnosis.get("finding") or {}).get("not_addable") or {}).get(effect)
+        if effect is None:
+            step.stop = "the diagnosis names no effect"
+        elif effect in step.added:
+            step.stop = f"the diagnosis names {effect} again, already added"
+        elif lacking:
+            step.stop = f"the diagnosis names {effect}, whose input needs a {' or '.join(lacking)} channel the data lack"
+        elif len(step.added) >= max_steps:
+            step.stop = f"the diagnosis names {effect}; the loop stops at {max_steps} additions (max_steps)"
+        if step.stop:
+            log(f"  stop: {step.stop}")
+            return steps
+        log(f"  the diagnosis names {effect}: adding it")
+        try:
+            req = next_request(step.request, step.trained.model, step.diagnosis, effect)
+            steps.append(fit(req, "+ " + " + ".join((*step.added, effect)), (*step.added, effect)))
+        except ValueError as e:  # the addition was refused (the message says why): the loop ends here
+            step.stop = f"adding {effect} was refused: {e}"
+            log(f"  stop: {step.stop}")
+            return steps
+
+
+def loop_summary(steps: Sequence[LoopStep]) -> dict[str, Any]:
+    """A JSON-ready record of the loop: per model its label, additions, held-out scores, training
+    and diagnosis times, what its diagnosis named and the three-way finding; why it stopped."""
+    rows = []
+    for s in steps:
+        finding = (s.diagnosis or {}).get("finding") or {}
+        rows.append({"label": s.label, "added": list(s.added), "scores": s.scores, "train_s": round(s.train_s, 2),
+                     "diagnose_s": None if s.diagnose_s is None else round(s.diagnose_s, 2), "named": s.named,
+                     "finding": {k: finding.get(k) for k in ("kind", "effects", "sentence", "not_addable")},
+                     "features": list(s.trained.model.features), "stop": s.stop})
+    first, last = steps[0].scores.get("rmse_n"), steps[-1].scores.get("rmse_n")
+    return {"steps": rows, "order": list(steps[-1].added), "stop": steps[-1].stop,
+            "together": None if len(steps) < 2 or not first or last is None else
+            {"added": list(steps[-1].added), "rmse_n": last, "change_pct": 100.0 * (last / first - 1.0)}}
