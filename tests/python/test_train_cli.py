@@ -253,7 +253,10 @@ def test_given_term_params_are_kept():
 @pytest.mark.parametrize("algorithm", ["lm", "br", "scg", "adam"])
 def test_each_algorithm_beats_a_constant_by_far(algorithm):
     ds = generate(SMALL_PLAN, seed=4)
-    model, info, split = train_dataset(ds, algorithm=algorithm, decimate=25, max_epochs=150, seed=0)
+    # Adam's epochs are its costliest (mini-batches): 50 reach 0.0115 against the bound's 0.0286
+    # (0.0109 at 80), at a third of 150's time
+    epochs = 50 if algorithm == "adam" else 150
+    model, info, split = train_dataset(ds, algorithm=algorithm, decimate=25, max_epochs=epochs, seed=0)
     f = split.train_used.concat("force")
     const = nrmse(np.full_like(f, f.mean()), f)  # about 0.23 on sine tests
     assert info.metrics["test"] < 0.2 * const, (algorithm, info.metrics, const)
