@@ -163,7 +163,7 @@ def _per_frequency(rep: dict) -> list[list[Any]]:
 
 THREE_WAY = {"known_effect": "a catalogue effect explains it",
              "unknown_structure": "structure left that no catalogue effect explains",
-             "nothing_left": "nothing above the noise floor",
+             "nothing_left": "nothing the recorded inputs predict (noise, or not testable: see the sentence)",
              "artefact": "a measurement artefact",
              "artefact_and_unknown_structure": "a measurement artefact, and structure left that no catalogue "
                                                "effect explains"}

@@ -12,8 +12,9 @@
   artefacts.py  tests for the measurement artefacts of dampnet.data.artefacts (time offset, run-order
                 drift, sign/unit slips, sensor offsets)
   verdict.py    the three-way verdict: known effect / structure left, not a known effect /
-                nothing above the noise floor (or an artefact, alone or with the structure left
-                beyond its fix)
+                nothing the inputs predict: noise, or, with the residual well above the force's
+                noise, capacity or an unrecorded difference that these data cannot tell apart (or an
+                artefact, alone or with the structure left beyond its fix)
   run.py        diagnose(model, dataset) -> JSON-ready dict
   estimate.py   an effect's parameters from data alone (`dampnet train --add` without --diagnosis)
   report.py     the HTML report with pictures
