@@ -50,16 +50,12 @@ stamp=.venv/.dampnet-build-tools
 if [ ! -f "$stamp" ]; then
   dn_log "installing build tools into .venv"
   python -m pip install -q --upgrade pip >/dev/null 2>&1
-  python -m pip install -q --no-compile scikit-build-core pybind11 cmake ninja 2> >(grep -v "^WARNING: Location" >&2)
+  python -m pip install -q scikit-build-core pybind11 cmake ninja 2> >(grep -v "^WARNING: Location" >&2)
   touch "$stamp"
 fi
 dn_log "building the C++ core and installing dampnet with its dependencies (first run: a few minutes)"
 # pip's "Location ... is ignored" lines are about this machine's optional local mirrors: noise.
-# --no-compile: pip would byte-compile all ~13,000 .py files of the dependencies one after another
-# (about 100 s on 2 cores, a third of a fresh machine's set-up); Python compiles what is imported,
-# once, when it is first imported.
-python -m pip install -q --no-compile --no-build-isolation -e ".[train,test,bench,lab]" \
-  2> >(grep -v "^WARNING: Location" >&2)
+python -m pip install -q --no-build-isolation -e ".[train,test,bench,lab]" 2> >(grep -v "^WARNING: Location" >&2)
 
 if (($#)); then
   exec "$@"
