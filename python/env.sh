@@ -55,6 +55,9 @@ if [ ! -f "$stamp" ]; then
 fi
 dn_log "building the C++ core and installing dampnet with its dependencies (first run: a few minutes)"
 # pip's "Location ... is ignored" lines are about this machine's optional local mirrors: noise.
+# pip byte-compiles the dependencies (about 100 s of a fresh set-up). Keep it: these machines set
+# PYTHONDONTWRITEBYTECODE=1, so with --no-compile every process compiled every module it imported,
+# every time (tried: the suite 300 s slower a worker).
 python -m pip install -q --no-build-isolation -e ".[train,test,bench,lab]" 2> >(grep -v "^WARNING: Location" >&2)
 
 if (($#)); then
