@@ -63,6 +63,9 @@ def results(example_binaries: Path, tmp_path_factory) -> dict[str, dict[str, flo
     return out
 
 
+@pytest.mark.slow(reason="its setup builds and installs the C++ library (the session's installed prefix, shared with "
+                         "test_cpp_suite's find_package test) and the examples against it, as a user would: 50-75 s "
+                         "on 2 loaded cores (70 s in the suite's fresh-clone run of d56b819)")
 def test_examples_run_the_loop_to_the_end(results):
     for lang, r in results.items():
         assert r["t"] == pytest.approx(3.0, abs=1e-12), lang  # 3000 steps of 1 ms
