@@ -189,6 +189,8 @@ def test_neural_tracks_truth_under_skyhook(rough_runs):
             assert rough_runs[("neural", speed, law)] == pytest.approx(t, rel=0.03), (law, speed)
 
 
+@pytest.mark.slow(reason="a diagnosis of the road model, a retraining with what it names and the runs under "
+                         "skyhook: the loop end to end (42-50 s on 2 loaded cores)")
 def test_diagnosed_compressibility_makes_the_model_track_the_truth_under_skyhook(rig_models, rough_runs):
     """Diagnose the road model, add what the diagnosis names, and the model follows the truth
     under continuous skyhook without a command filter (the hardest case: jumps of control)

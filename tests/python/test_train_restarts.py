@@ -63,6 +63,8 @@ def quick_dir(quick, tmp_path_factory):
     return d
 
 
+@pytest.mark.slow(reason="a training on the sparse plan, then the same with 2 restarts and the selection: the case "
+                         "needs the failing seed's full training (40-50 s on 2 loaded cores)")
 def test_selection_keeps_the_restart_that_interpolates_the_held_out_level():
     """Seed 3 fails today on the sparse plan; with 2 restarts the second (a good interpolator)
     is kept, found from the training levels alone, and its held-out error is a fraction."""
@@ -84,6 +86,8 @@ def test_selection_keeps_the_restart_that_interpolates_the_held_out_level():
     assert split2.holdout_ids == split.holdout_ids  # the hold-out never entered the selection
 
 
+@pytest.mark.slow(reason="three restarts trained to the end on the sparse plan, scored two ways: the measured case "
+                         "needs them whole (45-57 s on 2 loaded cores)")
 def test_combined_score_keeps_the_restart_that_fits_the_levels_with_the_control_prior():
     """With the control prior (the default) every restart follows the smooth curve between the
     levels, and what tells them apart is how well they fit the levels: on the sparse plan, seed 4,
