@@ -264,7 +264,7 @@ def test_nothing_above_the_noise_floor_only_where_the_residual_is_noise_like(rat
     is left is capacity or an unrecorded difference between tests, not testable here. Measured with
     tests/python/test_diagnose_hidden.py's plan and training (rig seed 1, run order shuffled and
     not stated, no temperature channel): clean data 5.7x, a hidden thermal effect 20.3x, the leftover
-    test significant in neither. Cost: 0.01 s."""
+    test significant in neither (bench/experiments/noise_ratio.py). Cost: 0.01 s."""
     from dampnet.diagnosis.verdict import NOISE_LIKE_MAX
 
     left = {"significant": False, "score": -0.02, "z": 0.6, "model_residual_vs_noise": ratio,

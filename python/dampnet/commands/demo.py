@@ -33,7 +33,7 @@ def add_parser(subparsers):
     g.add_argument("--steps", type=int, default=None, metavar="N",
                    help=f"add at most N effects, one training and diagnosis each (default {DEFAULT_STEPS}; 0..10)")
     add_training_options(g, train=True)
-    p.set_defaults(handler=run, data_group_actions=list(g._group_actions))
+    p.set_defaults(handler=run)
     return p
 
 
@@ -43,7 +43,7 @@ def run(args) -> int:
 
     if args.data is not None:
         return run_on_data(args)
-    given = [a.option_strings[0] for a in _data_only(args) if getattr(args, a.dest) is not None]
+    given = [opt for opt in _data_only() if getattr(args, opt[2:].replace("-", "_")) is not None]
     if given:
         return error(f"{', '.join(given)}: appl{'ies' if len(given) == 1 else 'y'} to the loop on your data: "
                      "add --data DATA")
@@ -70,10 +70,12 @@ QUICK_EPOCHS = 60
 DEFAULT_STEPS = 3
 
 
-def _data_only(args):
-    """The options of the loop on data (its group's, but --data itself and --seed, which the
-    rig's demo takes too)."""
-    return [a for a in args.data_group_actions if a.dest not in ("data", "seed")]
+def _data_only() -> list[str]:
+    """The options of the loop on data: dampnet train's (the options table's), but --seed, which the
+    rig's demo takes too, and the loop's own."""
+    from dampnet.training.settings import OPTIONS
+
+    return [r.cli for r in OPTIONS.values() if r.cli and r.cli != "--seed"] + ["--channel-map", "--steps"]
 
 
 def run_on_data(args) -> int:

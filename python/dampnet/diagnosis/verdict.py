@@ -32,7 +32,7 @@ PER_TEST = ("sign_slip", "unit_slip", "sensor_offset")  # artefacts found test b
 #: a model near its floor leave (the thesis-plan model sits at 2.5-2.9x); above it, "nothing above
 #: the noise floor" would be a confident wrong statement (a 30-neuron model at 120 epochs on clean rig
 #: data: 5.7x; the same with a hidden thermal effect and no temperature channel: 20x, and the leftover
-#: test finds no structure in either)
+#: test finds no structure in either: bench/experiments/noise_ratio.py)
 NOISE_LIKE_MAX = 3.0
 
 
