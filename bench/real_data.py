@@ -50,7 +50,7 @@ sys.path.insert(0, str(HERE))
 from peers import bouc_wen as bw  # noqa: E402
 from peers import sequence as seq  # noqa: E402
 
-MAX_STEPS = 3
+from dampnet.recipes.loop import MAX_STEPS  # noqa: E402
 
 #: held-out tests per data set, and how the split is stated in the table
 SPLITS = {
@@ -197,9 +197,8 @@ def run_dampnet(ds, train, test, budget, steps, seed=0, log=print) -> list[dict]
         if step.diagnosis is not None:
             rows[-1]["diagnosis"] = {"verdict": step.named, "three_way": _three_way(step.diagnosis),
                                      "seconds": step.diagnose_s, "stop": step.stop}
-            lacking = ((step.diagnosis.get("finding") or {}).get("not_addable") or {}).get(step.named)
-            if lacking:
-                rows[-1]["diagnosis"]["not_addable"] = lacking
+            if step.lacking:
+                rows[-1]["diagnosis"]["not_addable"] = step.lacking
     return rows
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from dampnet.commands.common import DATA_HELP, REAL_DATASETS, add_channel_map_option, error
 from dampnet.commands.training_options import add_training_options, training_request
+from dampnet.recipes.loop import MAX_STEPS, MAX_STEPS_LIMIT, check_max_steps
 
 
 def add_parser(subparsers):
@@ -31,7 +32,8 @@ def add_parser(subparsers):
                         f"({', '.join(REAL_DATASETS)}, from the shared data folder)")
     add_channel_map_option(g)
     g.add_argument("--steps", type=int, default=None, metavar="N",
-                   help=f"add at most N effects, one training and diagnosis each (default {DEFAULT_STEPS}; 0..10)")
+                   help=f"add at most N effects, one training and diagnosis each (default {MAX_STEPS}; "
+                        f"0..{MAX_STEPS_LIMIT})")
     add_training_options(g, train=True)
     p.set_defaults(handler=run)
     return p
@@ -66,10 +68,6 @@ def run(args) -> int:
 QUICK_EPOCHS = 60
 
 
-#: --steps unless given
-DEFAULT_STEPS = 3
-
-
 def _data_only() -> list[str]:
     """The options of the loop on data: dampnet train's (the options table's), but --seed, which the
     rig's demo takes too, and the loop's own."""
@@ -84,9 +82,10 @@ def run_on_data(args) -> int:
     from dampnet.demo import run_data_demo
     from dampnet.outputs import OutputError
 
-    args.steps = DEFAULT_STEPS if args.steps is None else args.steps
-    if not 0 <= args.steps <= 10:
-        return error(f"--steps: expected 0..10 additions, got {args.steps}")
+    try:
+        steps = check_max_steps(MAX_STEPS if args.steps is None else args.steps, "--steps")
+    except ValueError as e:
+        return error(str(e))
     try:
         request = training_request(args)
         if args.holdout_voltage is None:  # the table's 2.25 V is the thesis's level, not the user's data's
@@ -99,7 +98,7 @@ def run_on_data(args) -> int:
         if unknown:
             return error(f"--holdout-tests: {', '.join(unknown)} not in {args.data} (its tests: "
                          f"{', '.join(ds.test_ids[:12])}{' ...' if len(ds.test_ids) > 12 else ''})")
-        summary = run_data_demo(ds, args.out, args.data, request, max_steps=args.steps, force=args.force,
+        summary = run_data_demo(ds, args.out, args.data, request, max_steps=steps, force=args.force,
                                 log=lambda s: print(s, flush=True), workers=args.workers,
                                 inputs=[] if args.data in REAL_DATASETS else [args.data])
     except (FileExistsError, OutputError, DataError, ValueError) as e:

@@ -21,8 +21,17 @@ from typing import Any, Callable, Sequence
 
 from dampnet.recipes.training import Trained, TrainingRequest, train
 
-#: additions the loop makes at most (each a training and a diagnosis)
+#: additions the loop makes at most unless told (each a training and a diagnosis), and the most it takes
 MAX_STEPS = 3
+MAX_STEPS_LIMIT = 10
+
+
+def check_max_steps(n: int, name: str = "max_steps") -> int:
+    """n if it is a number of additions the loop takes (0..MAX_STEPS_LIMIT); ValueError naming
+    `name` otherwise."""
+    if isinstance(n, bool) or not isinstance(n, int) or not 0 <= n <= MAX_STEPS_LIMIT:
+        raise ValueError(f"{name}: expected 0..{MAX_STEPS_LIMIT} additions, got {n!r}")
+    return n
 
 
 @dataclass
@@ -46,6 +55,11 @@ class LoopStep:
     @property
     def holdout_rmse_n(self) -> float | None:
         return self.scores.get("rmse_n")
+
+    @property
+    def lacking(self) -> list[str]:
+        """The channels the named effect's input needs and the data lack (then it cannot be added)."""
+        return list(((self.diagnosis or {}).get("finding") or {}).get("not_addable", {}).get(self.named) or [])
 
 
 def next_request(request: TrainingRequest, model, diagnosis: dict, effect: str) -> TrainingRequest:
@@ -83,8 +97,7 @@ def run_loop(data, request: TrainingRequest | None = None, *, max_steps: int = M
     from dampnet.diagnosis.run import diagnose
     from dampnet.recipes.training import load_data
 
-    if not 0 <= max_steps <= 10:
-        raise ValueError(f"max_steps: expected 0..10 additions, got {max_steps}")
+    check_max_steps(max_steps)
     if request is None:
         request = TrainingRequest.of(**{"algorithm": "auto", "restarts": "auto", "seed": seed, **options})
     elif options:
@@ -114,8 +127,7 @@ def run_loop(data, request: TrainingRequest | None = None, *, max_steps: int = M
         t0 = time.perf_counter()
         step.diagnosis = diagnose(step.trained.model, train_ds, seed=seed)
         step.diagnose_s = time.perf_counter() - t0
-        effect = step.named
-        lacking = ((step.diagnosis.get("finding") or {}).get("not_addable") or {}).get(effect)
+        effect, lacking = step.named, step.lacking
         if effect is None:
             step.stop = "the diagnosis names no effect"
         elif effect in step.added:

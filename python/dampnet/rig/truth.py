@@ -205,9 +205,9 @@ def _hydraulic_force_1(v_h: float, opening: float, temperature_c: float, p: Trut
 
     TruthDamper.step's path: a loop calls it once per corner per step, where numpy's per-call
     overhead on 1-element arrays was 170 us a step (60 s of a full-car study); the step is about 7
-    times faster (bench/experiments/truth_step.py). The same law and the same iteration as the vectorised form (orifice_pressure's Newton
-    is the one part written twice: masked arrays there, one float here), which
-    tests/python/test_rig_truth.py holds it to (rtol 1e-9)."""
+    times faster (bench/experiments/truth_step.py). The same law and the same iteration as the
+    vectorised form (orifice_pressure's Newton is the one part written twice: masked arrays there,
+    one float here), which tests/python/test_rig_truth.py holds it to (rtol 1e-9)."""
     reb = v_h >= 0
     q = p.annulus_area_m2 * abs(v_h)
     a0 = (p.bleed_area_rebound_m2 if reb else p.bleed_area_compression_m2) + opening * p.bypass_area_max_m2
