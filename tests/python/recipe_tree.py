@@ -3,6 +3,8 @@ tree, the copy built, and the copy's own tests run against it (issue 52 item 5: 
 through test-only hooks never takes the developer's path, and the tests that listed features by
 hand failed only on that path).
 
+- `doc_block(section)`: the python code block of docs/recipes.md's `## section` (a whole recipe,
+  run as written from a test, or appended to its registry module in a copy);
 - `state_recipe_rows(text)`: the example rows of dn_xmacro.h's stateful-feature recipe comment,
   read from the comment itself (so the recipe's text is what is tested), with the list each
   step names;
@@ -28,9 +30,28 @@ from pathlib import Path
 from cbuild import ROOT
 
 #: what a copy holds: enough to build the runtime, the module, the FMU and the firmware, and to
-#: run the Python tests (bench/ for the firmware lab)
+#: run the Python tests (bench/ for the firmware lab, export/ for the default model)
 COPIED = ("CMakeLists.txt", "CMakePresets.json", "pyproject.toml", "cmake", "cpp", "python", "tests", "bench",
-          "docs", "examples")
+          "docs", "examples", "export")
+
+
+RECIPES_DOC = ROOT / "docs" / "recipes.md"
+
+
+def doc_block(section: str) -> str:
+    """The first ```python block under `## section` of docs/recipes.md."""
+    text = RECIPES_DOC.read_text(encoding="utf-8")
+    part = text.split(f"\n## {section}\n", 1)[1].split("\n## ", 1)[0]
+    m = re.search(r"```python\n(.*?)```", part, re.S)
+    assert m, f"no python block under '## {section}' in {RECIPES_DOC}"
+    return m.group(1)
+
+
+def run_doc_block(section: str) -> dict:
+    """docs/recipes.md's `section` block run as written, as a user's module; its namespace."""
+    namespace: dict = {"__name__": f"recipe_{section.lower().replace(' ', '_')}"}
+    exec(compile(doc_block(section), str(RECIPES_DOC), "exec"), namespace)
+    return namespace
 
 
 def _comment_lines(text: str, start: str) -> list[str]:

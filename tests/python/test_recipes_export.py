@@ -1,7 +1,7 @@
-"""The export-target recipe (docs/recipes.md, "Export targets"), proved: a target and its own
-option registered from this test alone (dampnet.recipes.export_targets) are `dampnet export`
-options, written by the command beside the built-in targets, with their defaults, and refused
-where they do not apply; the built-in options are refused for targets they do not apply to,
+"""The export-target recipe (docs/recipes.md, "Export targets"), proved: the doc's block, run as
+written from this test (a user's module: a target and its own option,
+dampnet.recipes.export_targets), gives `dampnet export` options, written by the command beside the
+built-in targets, with their defaults, and refused where they do not apply; the built-in options are refused for targets they do not apply to,
 naming the targets they do. Sweeps do not export, so an export target has no sweep front end."""
 
 from __future__ import annotations
@@ -14,41 +14,17 @@ import pytest
 from dampnet.cli import build_parser, main
 from dampnet.modeldir import default_model, save_model_dir
 from dampnet.recipes import export_targets
-
-
-def _write_forces(job) -> str:
-    """The test's target: the model's force [N] at `--points` velocities [m/s] across its
-    training range, its other inputs at the middle of theirs, as CSV."""
-    m, n = job.model, job.args.points
-    lo, hi = np.asarray(m.sat_lo, float), np.asarray(m.sat_hi, float)
-    x = np.tile((lo + hi) / 2, (n, 1))
-    x[:, m.features.index("velocity")] = np.linspace(lo[m.features.index("velocity")],
-                                                     hi[m.features.index("velocity")], n)
-    y = m.predict(x)
-    with open(job.args.forces_csv, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["velocity_m_s", "force_n"])
-        w.writerows(zip(x[:, m.features.index("velocity")], y))
-    return f"{job.args.forces_csv}: {n} forces [N]"
-
-
-def _check_points(args) -> None:
-    if args.points < 2:
-        raise ValueError(f"--points: expected an integer >= 2, got {args.points}")
+from recipe_tree import run_doc_block
 
 
 @pytest.fixture
 def forces_target():
-    """Registered for one test: --forces-csv OUT.csv (the output) and --points N (default 11)."""
-    export_targets.option(export_targets.Option("--forces-csv", "write the model's forces here",
-                                                kwargs=dict(metavar="OUT.csv")))
-    export_targets.option(export_targets.Option("--points", "velocities in the table (default 11)", 11,
-                                                dict(type=int, metavar="N")))
-    t = export_targets.register(export_targets.ExportTarget(
-        "forces-csv", "the model's force over its velocity range, as CSV", "--forces-csv",
-        ("--forces-csv", "--points", "--force"), _write_forces, check=_check_points, envelope=False))
+    """docs/recipes.md's export-target recipe, run as written (a user's module: --forces-csv OUT.csv,
+    the output, and --points N, default 11); removed after the test. Yields its namespace with the
+    registered target as "target"."""
+    namespace = run_doc_block("Export targets")
     try:
-        yield t
+        yield {**namespace, "target": export_targets.get("forces-csv")}
     finally:
         export_targets.unregister("forces-csv")
     assert "--points" not in export_targets.OPTIONS and "--prefix" in export_targets.OPTIONS
@@ -127,4 +103,4 @@ def test_unknown_names_are_refused_listing_the_registry(capsys):
     with pytest.raises(ValueError, match="already registered"):
         export_targets.register(export_targets.TARGETS["onnx"])
     with pytest.raises(ValueError, match="option --csv is not registered"):
-        export_targets.register(export_targets.ExportTarget("csv", "", "--csv", ("--csv",), _write_forces))
+        export_targets.register(export_targets.ExportTarget("csv", "", "--csv", ("--csv",), print))

@@ -1,6 +1,6 @@
-"""The manoeuvre recipe (docs/recipes.md, "Manoeuvres"), proved: a manoeuvre and its own setting
-registered from this test alone (dampnet.recipes.maneuvers) run through `dampnet vehicle` and
-through a sweep (in-process Dask, so the registration reaches the worker), its setting an option
+"""The manoeuvre recipe (docs/recipes.md, "Manoeuvres"), proved: the doc's block, run as written
+from this test (a user's module: a manoeuvre and its own setting, dampnet.recipes.maneuvers),
+through `dampnet vehicle` and through a sweep (in-process Dask, so the registration reaches the worker), its setting an option
 and a [fullcar] key with its unit and default; unknown names are refused listing the registry's;
 the bounce sweep's bsst_* settings work from the command line as in a sweep.
 
@@ -16,50 +16,19 @@ import pytest
 from dampnet.cli import main
 from dampnet.recipes import maneuvers
 from dampnet.sim.dampers import load_spec
+from recipe_tree import run_doc_block
 
 DT = 2e-3
 SHORT_BSST = {"bsst_f0_hz": 2.0, "bsst_f1_hz": 4.0, "bsst_rate_oct_s": 1.0}
 
 
-def build_hump(dt, vehicle, speed_kmh, hump_height_m):
-    """A half-cosine hump 2 m long, hump_height_m high, 5 m ahead of the front wheels, under
-    both tracks; the rear wheels meet it a wheelbase later; 2 s at speed_kmh."""
-    from dampnet.sim.full_car.maneuvers import Maneuver
-    from dampnet.sim.full_car.params import wheelbase
-
-    v = speed_kmh / 3.6
-    t = np.arange(int(2.0 / dt) + 1) * dt
-
-    def z(x):
-        s = np.clip((x - 5.0) / 2.0, 0.0, 1.0)
-        return hump_height_m * 0.5 * (1.0 - np.cos(2.0 * np.pi * s))
-
-    front, rear = z(v * t), z(v * t - wheelbase(vehicle))
-    road = np.stack([front, front, rear, rear], axis=1)
-    return Maneuver("hump", dt, road, np.gradient(road, dt, axis=0), v, steer=np.zeros(t.size),
-                    meta={"hump_height_m": hump_height_m, "speed_kmh": speed_kmh})
-
-
-def hump_metrics(res, man, params):
-    from dampnet.sim.full_car.metrics import column
-
-    return {"hump_acc_peak_m_s2": float(np.max(np.abs(res["acc_z"]))),
-            "hump_pitch_rate_peak_deg_s": float(np.max(np.abs(np.degrees(column(res, "q")))))}
-
-
 @pytest.fixture
 def hump():
-    """The test's manoeuvre, registered for one test: the recipe's two calls."""
-    from dampnet.sim.full_car.plots import plot_road
-
-    maneuvers.setting(maneuvers.Setting("hump_height_m", "m", "height of the hump", cli="--hump-height",
-                                        metavar="M", sweep_key="hump_heights_m", axis=True))
-    m = maneuvers.register(maneuvers.ManeuverRecipe(
-        "hump", "a half-cosine hump under both tracks", build_hump, hump_metrics, plot_road,
-        dict(speed_kmh=36.0, hump_height_m=0.01), ("hump_acc_peak_m_s2",),
-        ("hump_acc_peak_m_s2", "hump_pitch_rate_peak_deg_s"), "hump_acc_peak_m_s2"))
+    """docs/recipes.md's manoeuvre recipe, run as written (a user's module); removed after the test.
+    Yields the recipe's namespace (its builder and metrics) with the registered entry as "recipe"."""
+    namespace = run_doc_block("Manoeuvres")
     try:
-        yield m
+        yield {**namespace, "recipe": maneuvers.get("hump")}
     finally:
         maneuvers.unregister("hump")
     assert "hump_height_m" not in maneuvers.SETTINGS and "bsst_f0_hz" in maneuvers.SETTINGS
@@ -138,10 +107,10 @@ def test_unknown_manoeuvres_are_refused_listing_the_registry(hump, capsys):
     with pytest.raises(ValueError, match="'slalom' is not a full-vehicle test; valid: bsst, dlc, road, hump"):
         maneuvers.build("slalom", DT)
     with pytest.raises(ValueError, match="already registered"):
-        maneuvers.register(hump)
+        maneuvers.register(hump["recipe"])
     with pytest.raises(ValueError, match="setting 'tilt' is not registered"):
-        maneuvers.register(maneuvers.ManeuverRecipe("tilt", "", build_hump, hump_metrics, print, {"tilt": 1.0},
-                                                    (), (), "x"))
+        maneuvers.register(maneuvers.ManeuverRecipe("tilt", "", hump["build_hump"], hump["hump_metrics"], print,
+                                                    {"tilt": 1.0}, (), (), "x"))
 
 
 def test_the_bounce_sweep_settings_work_from_the_command_line(tmp_path, capsys):

@@ -12,8 +12,6 @@ with the registry's names. Tiny work: a 6 m road, the rig's quick plan decimated
 from __future__ import annotations
 
 import json
-import re
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,24 +19,17 @@ import pytest
 from dampnet.cli import main
 from dampnet.recipes import control_laws, roads
 from dampnet.recipes import training as recipe
+from recipe_tree import run_doc_block
 
-DOCS = Path(__file__).resolve().parents[2] / "docs" / "recipes.md"
 #: the files of a model directory `dampnet train` writes
 MODEL_FILES = {"model.json", "metrics.json", "model.h", "envelope.npz", "envelope.json"}
 TINY = dict(decimate=50, max_epochs=15)
 
 
-def recipe_block(section: str) -> str:
-    """The first python code block under `## section` in docs/recipes.md."""
-    text = DOCS.read_text(encoding="utf-8")
-    part = text.split(f"\n## {section}\n", 1)[1].split("\n## ", 1)[0]
-    return re.search(r"```python\n(.*?)```", part, re.S).group(1)
-
-
 @pytest.fixture
 def kerb():
     """The docs' road recipe, run as written; the road removed after the test."""
-    exec(compile(recipe_block("Roads"), str(DOCS), "exec"), {})
+    run_doc_block("Roads")
     yield roads.get("kerb")
     roads.unregister("kerb")
 
@@ -46,7 +37,7 @@ def kerb():
 @pytest.fixture
 def passive_mid():
     """The docs' control-law recipe, run as written; the law removed after the test."""
-    exec(compile(recipe_block("Control laws"), str(DOCS), "exec"), {})
+    run_doc_block("Control laws")
     yield control_laws.get("passive_mid")
     control_laws.unregister("passive_mid")
 
