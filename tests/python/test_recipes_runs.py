@@ -90,7 +90,9 @@ def test_the_recipes_road_and_law_run_through_the_cli(kerb, passive_mid, tmp_pat
 @pytest.fixture(scope="module")
 def client():
     """An in-process cluster: the test's registrations are its worker's."""
-    pytest.importorskip("dask.distributed")
+    import needs
+
+    needs.need_module("dask.distributed")
     from dask.distributed import Client, LocalCluster
 
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0") as cluster, \
@@ -516,13 +518,13 @@ def test_groundhook_continuous_is_calibrated_as_skyhook_continuous(tmp_path):
         _fmu_start_values(bad, model)
 
 
-def test_a_csv_road_runs_in_the_full_car_and_a_sweep_says_why_it_does_not(tmp_path, capsys):
+def test_a_csv_road_runs_in_the_full_car_and_in_a_fullcar_sweep(tmp_path, capsys, client):
     """Issue 52, item 2: `dampnet vehicle --test road --road FILE.csv` refused the CSV profile its own
     error named ("or a CSV file"). Now the profile drives both tracks at the speed, the rear a
-    wheelbase later; a missing file is one line naming it; a [fullcar] sweep refuses a CSV road and
-    says why (its cells are known by their settings, not by the file's content). Cost: 2 s."""
-    from dampnet.sweep import parse_spec
-
+    wheelbase later; a missing file is one line naming it. A [fullcar] sweep takes the CSV too: the
+    road is a cell input, its content in the cell's key (a changed file is a new cell, never taken
+    as done on --resume), its cell equal to the CLI's run. Cost: 4 s."""
+    from dampnet.sweep import parse_spec, run
     x = np.arange(0.0, 30.0, 0.05)
     z = np.where((x > 5.0) & (x < 5.5), 0.03, 0.0)
     (tmp_path / "step.csv").write_text("distance_m,elevation_m\n" + "\n".join(f"{float(a)!r},{float(b)!r}" for a, b in zip(x, z)))
@@ -540,5 +542,22 @@ def test_a_csv_road_runs_in_the_full_car_and_a_sweep_says_why_it_does_not(tmp_pa
     assert main(["vehicle", "linear:1500", "--test", "road", "--road", str(tmp_path / "nope.csv"),
                  "--out", str(tmp_path / "w")]) == 2
     assert "nope.csv: file not found" in capsys.readouterr().err and not (tmp_path / "w").exists()
-    with pytest.raises(ValueError, match="a CSV road is not a \\[fullcar\\] road"):
-        parse_spec({"fullcar": {"models": ["linear:1500"], "tests": ["road"], "roads": [str(tmp_path / "step.csv")]}})
+    cli = json.loads((out / "metrics.json").read_text())["metrics"]
+    # the sweep: a relative path (to the spec's folder), a seed axis the CSV does not take, and rough
+    spec = {"fullcar": {"models": ["linear:1500"], "tests": ["road"], "roads": ["step.csv", "rough"],
+                        "road_seeds": [0, 1], "speeds_kmh": [36.0], "dt": 1e-3}}
+    sp = parse_spec(spec, base=tmp_path)
+    df = run(sp, client=client, out=tmp_path / "s", progress=False)
+    assert (df["status"] == "ok").all(), df[["status", "error"]]
+    csv_rows = df[df["road"] == "step.csv"]
+    assert len(csv_rows) == 1 and csv_rows["road_seed"].isna().all()      # one cell: no seed to vary
+    assert len(df[df["road"] == "rough"]) == 2
+    assert csv_rows["acc_rms_m_s2"].iloc[0] == pytest.approx(cli["acc_rms_m_s2"], rel=1e-12)
+    # the file's content is in the key: edited, its cell is new on --resume (the rough cells are kept)
+    (tmp_path / "step.csv").write_text((tmp_path / "step.csv").read_text().replace(",0.03", ",0.06"))
+    again = run(parse_spec(spec, base=tmp_path), client=client, out=tmp_path / "s", resume=True, progress=False)
+    assert main(["vehicle", "linear:1500", "--test", "road", "--road", str(tmp_path / "step.csv"), "--speed", "36",
+                 "--out", str(tmp_path / "v2")]) == 0
+    edited = json.loads((tmp_path / "v2" / "metrics.json").read_text())["metrics"]["acc_rms_m_s2"]
+    higher = again[again["road"] == "step.csv"]["acc_rms_m_s2"].iloc[0]
+    assert higher == pytest.approx(edited, rel=1e-12) and higher > 1.5 * cli["acc_rms_m_s2"]

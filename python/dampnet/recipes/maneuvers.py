@@ -52,7 +52,10 @@ class Setting:
             return limits.check_seed(where, value)
         if self.kind == "road":
             from dampnet.recipes import roads
+            from dampnet.sim.roads import Road
 
+            if isinstance(value, Road):     # a road read already (a sweep cell's CSV input)
+                return value
             text = value.strip() if isinstance(value, str) else value
             try:
                 if roads.is_profile_file(text):
@@ -111,7 +114,8 @@ setting(Setting("speed_kmh", "km/h", "forward speed", range=limits.SPEED_KMH, cl
 setting(Setting("mode", "", "all wheels in phase (heave) or the rear against the front (pitch)", kind="choice",
                 choices=("heave", "pitch"), choices_text="'heave' or 'pitch'", metavar="{heave,pitch}", sweep_key="modes",
                 axis=True))
-setting(Setting("road", "", "a road of the road registry (dampnet.recipes.roads: rough, iso:C, bump, ...)",
+setting(Setting("road", "", "a road of the road registry (dampnet.recipes.roads: rough, iso:C, bump, ...) or a "
+                "CSV distance_m,elevation_m",
                 kind="road", metavar="ROAD", sweep_key="roads", axis=True))
 setting(Setting("road_seed", "", "seed of the road's random tracks", kind="seed", cli="--seed", metavar="SEED",
                 sweep_key="road_seeds", axis=True))
@@ -236,7 +240,7 @@ def build(name: str, dt: float, settings: dict[str, Any] | None = None, vehicle:
     chosen = settings_of(name, settings or {})
     man = m.build(dt, dict(vehicle or {}), **chosen)
     man.meta["test"] = name
-    man.meta["settings"] = chosen
+    man.meta["settings"] = {k: getattr(v, "name", v) for k, v in chosen.items()}   # a Road by its name
     return man
 
 
@@ -398,13 +402,17 @@ def _road(dt, vehicle, speed_kmh, road, road_seed):
     """Two tracks of a road of the road registry: its seed and speed filled from road_seed and
     speed_kmh (a value in the road's text wins); a random road (one that fills its seed) gets a
     right track correlated with the left, mixed with the road at seed + 1; the rear wheels a
-    wheelbase later (wrapping on a periodic road). A CSV profile (a path) is both tracks."""
+    wheelbase later (wrapping on a periodic road). A CSV profile (a path, or the Road read from it)
+    is both tracks."""
     from dampnet.recipes import roads
     from dampnet.sim.full_car.maneuvers import rough_road
     from dampnet.sim.full_car.params import wheelbase
+    from dampnet.sim.roads import Road
 
-    if roads.is_profile_file(road):     # a CSV profile (distance_m, elevation_m): the same on both tracks
-        return rough_road(roads.build(road), dt, speed_kmh, None, False, wheelbase_m=wheelbase(vehicle), name=road)
+    if isinstance(road, Road) or roads.is_profile_file(road):   # distance_m, elevation_m: both tracks alike
+        profile = road if isinstance(road, Road) else roads.build(road)
+        return rough_road(profile, dt, speed_kmh, None, False, wheelbase_m=wheelbase(vehicle),
+                          name=road if isinstance(road, str) else profile.name)
     req = roads.parse(road)
     p = req.params(seed=road_seed, speed_m_s=speed_kmh / 3.6)
     left = req.kind.build(p)

@@ -23,12 +23,18 @@ def vehicle(params: dict[str, Any]) -> dict[str, Any]:
     return {k[8:]: v for k, v in params.items() if k.startswith("vehicle.") and v is not None}
 
 
-def maneuver(params: dict[str, Any]):
-    """The cell's test (a dampnet.sim.full_car.maneuvers.Maneuver, built by dampnet.recipes.maneuvers)."""
+def maneuver(params: dict[str, Any], inputs: dict[str, Any] | None = None):
+    """The cell's test (a dampnet.sim.full_car.maneuvers.Maneuver, built by dampnet.recipes.maneuvers);
+    a CSV road is the cell's input as the worker read it (its content checked against the key's)."""
     from dampnet.recipes import maneuvers
+    from dampnet.sim.roads import Road
 
     m = maneuvers.get(params["test"])
-    return maneuvers.build(m.name, params["dt"], {k: params[k] for k in m.defaults}, vehicle(params))
+    settings = {k: params[k] for k in m.defaults}
+    road = (inputs or {}).get("road")
+    if "road" in settings and isinstance(road, Road):
+        settings["road"] = road
+    return maneuvers.build(m.name, params["dt"], settings, vehicle(params))
 
 
 def flat_metrics(metrics: dict[str, Any]) -> dict[str, Any]:
@@ -50,7 +56,7 @@ def run(params: dict[str, Any], inputs: dict[str, Any]) -> dict[str, Any]:
     from dampnet.sweep.sim_cell import damper
 
     spec = damper(params, inputs["model"])
-    man = maneuver(params)
+    man = maneuver(params, inputs)
     res = run_test(spec, man, params["damping"], vehicle(params))
     metrics = {**flat_metrics(res["metrics"]), "f_static_n": res["f_static_n"],
                "duration_s": man.road.shape[0] * man.dt, **coverage_columns(res)}

@@ -196,7 +196,7 @@ def applicable(kind: str, params: dict[str, Any]) -> dict[str, Any]:
         if p.get("road") is not None and p.get("road_seed") is not None:
             from dampnet.recipes import roads
 
-            if not roads.parse(p["road"]).takes("seed"):    # a road that is not random: no seed
+            if not roads.is_named(p["road"]) or not roads.parse(p["road"]).takes("seed"):   # not random: no seed
                 p["road_seed"] = None
     else:
         from dampnet.recipes import roads

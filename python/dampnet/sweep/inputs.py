@@ -91,6 +91,8 @@ def bind(cells: list[Cell], spec: Spec) -> None:
         digests = {}
         for name, role in roles[c.kind]:
             text = c.params[name]
+            if text is None:      # not this cell's input (a [fullcar] test without a road)
+                continue
             if (role, text) not in refs:
                 refs[(role, text)] = reference(role, text, spec)
             c.inputs[role] = refs[(role, text)]

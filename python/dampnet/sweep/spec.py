@@ -144,19 +144,10 @@ def _choice(valid: tuple[str, ...] | Callable[[], tuple[str, ...]], what: str) -
 
 
 def _road(v) -> str:
-    """A road of the road registry (dampnet.recipes.roads), by name; checked once per value."""
-    from dampnet.recipes import roads
-
+    """A road: a name of the road registry (dampnet.recipes.roads) or a CSV distance profile, an
+    input of the cell (checked by check_input; a CSV's content is in the cell's key)."""
     if not isinstance(v, str):
-        raise _Bad(f"expected a road name, got {_show(v)}")
-    if roads.is_profile_file(v):
-        raise _Bad(f"{_show(v)}: a CSV road is not a [fullcar] road: a cell is known by its settings, not by a "
-                   "file's content (a changed file would be taken as done); run it with `dampnet vehicle MODEL "
-                   "--test road --road FILE.csv`, or give it to the quarter car as [simulation] roads")
-    try:
-        roads.parse(v)
-    except ValueError as e:
-        raise _Bad(str(e)) from None
+        raise _Bad(f"expected a road name or a CSV file, got {_show(v)}")
     return v.strip()
 
 
@@ -308,6 +299,7 @@ class Param:
     kind: str = "any"
     input: str | None = None      # the input role the value names (a file read by the cell)
     help: str = ""
+    required: bool = False        # the spec must give it (a dataset, a quarter-car road)
 
 
 def _vehicle_params() -> list[Param]:
@@ -387,7 +379,7 @@ def training_params() -> list[Param]:
     (dampnet.training.settings.OPTIONS: its default, its check, its help), read now (a row
     registered later counts)."""
     out = [
-        Param("dataset", "datasets", _text, None, axis=True, input="dataset",
+        Param("dataset", "datasets", _text, None, axis=True, input="dataset", required=True,
               help="a dataset path, or rig:PLAN (thesis, quick, a plan JSON) generated per cell"),
         Param("data_seed", "data_seeds", _int(0), 0, axis=True, kind="int", help="seed of rig:PLAN data"),
         Param("rig_effects", "rig_effects", _effects, [], axis=True, help="effects on in the rig (rig:PLAN)"),
@@ -407,7 +399,7 @@ SIMULATION_PARAMS = [
     Param("model", "models", _text, "default", axis=True, input="model",
           help="'default', a model directory or model.json, a lookup-table JSON, 'truth', "
                "'truth:EFFECT,...', 'linear:C' [N s/m]"),
-    Param("road", "roads", _text, None, axis=True, input="road",
+    Param("road", "roads", _text, None, axis=True, input="road", required=True,
           help="a road by name (dampnet.recipes.roads), or a CSV distance_m,elevation_m"),
     Param("road_seed", "road_seeds", _int(0), 0, axis=True, kind="int",
           help="seed of the random roads (a road's seed parameter: rough, iso)"),
@@ -441,7 +433,8 @@ def _setting_param(st) -> Param:
     else:
         norm, kind = (_in(st.range) if st.range is not None else _float(positive=True)), "float"
     by = ", ".join(f"{m.name} {m.defaults[st.name]}" for m in MANEUVERS.values() if st.name in m.defaults)
-    return Param(st.name, st.sweep_key, norm, None, axis=st.axis, kind=kind, help=f"{st.text()} (default: {by})")
+    return Param(st.name, st.sweep_key, norm, None, axis=st.axis, kind=kind, help=f"{st.text()} (default: {by})",
+                 input="road" if st.kind == "road" else None)
 
 
 def fullcar_params() -> list[Param]:
@@ -618,7 +611,7 @@ class _Parser:
             if p.name not in axes:
                 if "." in p.name:
                     continue      # a vehicle or controller field not set: the run's own default
-                if p.default is None and p.axis and p.input:
+                if p.required:
                     raise SpecError(f"{self.source}: [{kind}] needs {p.key} ({p.help})")
                 axes[p.name] = [p.default]
         if random is not None:
