@@ -492,7 +492,9 @@ def test_an_mdf4_unit_stored_only_in_the_conversion_is_read(tmp_path):
     """Issue 49, item 16: an MDF4 channel whose unit is only in its conversion block (the channel's
     own unit empty, as several loggers write it) was refused, 'no unit in the file'. MDF4 says the
     conversion's unit applies then: read as mm (and the conversion applied: 2 x raw). Cost: 0.2 s."""
-    asammdf = pytest.importorskip("asammdf")
+    import needs
+
+    asammdf = needs.need_module("asammdf")
     t = np.arange(2000) * 1e-3
     raw = 10.0 * np.sin(2 * np.pi * 2 * t)
     p = tmp_path / "logger.mf4"

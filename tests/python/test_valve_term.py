@@ -275,7 +275,9 @@ def test_damper_fmu_equals_the_host(hybrid, tmp_path):
     """The damper FMU (FMI 2 co-simulation, FMPy) of the hybrid model: the force read at each
     communication point equals the pybind damper's to 1e-9 N; its valve parameters are FMU
     parameters with the runtime's ranges (v_k_ext min 0, c_b_ext min 0). Cost: 6 s (the FMU build)."""
-    fmpy = pytest.importorskip("fmpy")
+    import needs
+
+    fmpy = needs.need_module("fmpy")
     from fmpy import read_model_description
     from dampnet.export.fmu import build_fmu
     import test_export_fmu as fx
@@ -296,7 +298,9 @@ def test_onnx_lists_the_valve_term_in_its_metadata(hybrid):
     """ONNX graphs hold the network only (no physics term of any kind is in the graph,
     docs/export.md): the valve term and its parameters are in the graph's metadata "terms".
     Cost: 2 s (importing onnx)."""
-    pytest.importorskip("onnx")
+    import needs
+
+    needs.need_module("onnx")
     from dampnet.export.onnx import onnx_graph
     model = hybrid[0]
     meta = {p.key: p.value for p in onnx_graph(model).metadata_props}
