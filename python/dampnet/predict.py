@@ -19,6 +19,13 @@ def terms_force_checked(terms, displacement, **inputs) -> np.ndarray:
         raise ModelError(f"physics terms: {e}") from None
 
 
+def model_inputs(model: MlpModel, test: DynoTest) -> np.ndarray:
+    """The network's inputs [n, n_inputs] on a test, as the model sees them (its features and
+    their parameters, its acceleration window; via the feature registry)."""
+    return feature_matrix([test], model.features, model.feature_params,
+                          model.meta.get("data", {}).get("acceleration_window_s"))
+
+
 def predict_force(model: MlpModel, test_or_features, displacement: np.ndarray | None = None,
                   **inputs) -> np.ndarray:
     """Force [N] of a (hybrid) model: MLP(features) + sum of the model's physics terms.
@@ -30,8 +37,7 @@ def predict_force(model: MlpModel, test_or_features, displacement: np.ndarray | 
     """
     if isinstance(test_or_features, DynoTest):
         test = test_or_features
-        X = feature_matrix([test], model.features, model.feature_params,
-                           model.meta.get("data", {}).get("acceleration_window_s"))
+        X = model_inputs(model, test)
         if model.terms:
             if "displacement" not in test.channels:
                 raise DataError(f"test {test.test_id}: the model's physics terms need a displacement "

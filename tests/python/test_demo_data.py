@@ -55,6 +55,15 @@ def test_the_loop_finds_adds_and_reports_the_hidden_effect(hidden):
     assert s["holdout"]["how"] == "every test at control 2.25" and len(s["holdout"]["tests"]) == 5
     report = (out / "report.html").read_text()
     assert "gas_spring" in report and f"{after:.1f}" in report and "The loop stopped" in report
+    # the rig's sines never stand still: the error at rest is not claimed; the envelope's share is measured
+    assert all(step["scores"]["at_rest"] is None for step in s["steps"])
+    assert "At rest: no sample of these data stands still" in report
+    # the held-out tests are at 2.25 V, a control never trained on: outside the joint envelope all the
+    # time (the envelope's design: between two trained levels the model interpolates), the error there theirs
+    for step in s["steps"]:
+        o = step["scores"]["outside_envelope"]
+        assert o["share_time"] == 1.0 and o["rmse_n"] == pytest.approx(step["scores"]["rmse_n"], rel=1e-12)
+    assert f"100.0 %: {before:.0f} N" in report
     for step in s["steps"]:
         assert (out / step["model_dir"] / "model.json").is_file()
     for fig in s["figures"]:

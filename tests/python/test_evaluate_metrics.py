@@ -97,12 +97,17 @@ def test_evaluate_cli_json_has_stable_keys_and_plots(model_and_data, capsys):
     out = capsys.readouterr().out
     assert rc == 0 and "lookup table" in out
     rep = json.loads((d / "all.json").read_text())
-    for k in ("overall", "per_frequency", "per_test", "lookup", "model", "data", "noise_floor"):
+    for k in ("overall", "per_frequency", "per_test", "lookup", "model", "data", "noise_floor", "regions"):
         assert k in rep
     for k in ("nrmse", "rmse_n", "max_abs_error_n", "mean_pct_error"):
         assert isinstance(rep["overall"][k], float) and isinstance(rep["lookup"]["overall"][k], float)
     assert rep["overall"]["n_tests"] == 6 and len(rep["per_test"]) == 6
     assert rep["lookup"]["source"] == "fitted on the model's training tests"
+    # the rig's sines never stand still: no error at rest is claimed; the envelope's share is measured
+    reg = rep["regions"]
+    assert reg["at_rest"] is None and "no sample of these data stands still" in out
+    assert reg["outside_envelope"]["measure"] == "ranges and joint envelope" and "outside the training envelope" in out
+    assert reg["envelope_note"].startswith("joint envelope")
     names = sorted(p.name for p in (d / "plots").iterdir())
     assert "error_histogram.png" in names and "error_heatmap_nrmse.png" in names
     assert sum(n.startswith("test_") for n in names) == 2  # one control, one per frequency

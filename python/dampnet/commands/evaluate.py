@@ -2,7 +2,8 @@
 
 JSON (--json FILE, stable keys): model, data, overall {nrmse, rmse_n, max_abs_error_n,
 mean_pct_error, ...}, per_frequency, per_frequency_control, per_test, lookup {the same
-tables for the lookup-table baseline, and its source}, noise_floor (rig data).
+tables for the lookup-table baseline, and its source}, noise_floor (rig data), regions {the
+error at rest and outside the model's training envelope: dampnet.evaluation.regions}.
 Definitions: dampnet.evaluation.metrics.
 """
 
@@ -40,6 +41,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 def run(args) -> int:
     from dampnet.data import DataError
     from dampnet.evaluation.metrics import format_table
+    from dampnet.envelope import load_envelope
+    from dampnet.evaluation.regions import summary_lines
     from dampnet.evaluation.report import evaluation, lookup_for, write_plots
     from dampnet.features import check_features
     from dampnet.model import MlpModel, ModelError
@@ -63,7 +66,9 @@ def run(args) -> int:
         sub = ds.subset(tests, note="evaluate")
         check_features(model, sub)
         lookup, lookup_src = (None, None) if args.no_lookup else lookup_for(args.model, ds, held)
-        rep = evaluation(model, tests, lookup)
+        envelope, envelope_note = load_envelope(args.model, model)
+        rep = evaluation(model, tests, lookup, envelope)
+        rep["regions"]["envelope_note"] = envelope_note
         rep["data"] = {"source": ds.source, "n_tests": len(tests), "holdout_only": bool(args.holdout)}
         if lookup is not None:
             rep["lookup"]["source"] = lookup_src
@@ -90,6 +95,8 @@ def run(args) -> int:
             print(f"MLP NRMSE {o['nrmse']:.4f} vs lookup table {rep['lookup']['overall']['nrmse']:.4f}")
         if "noise_floor" in rep:
             print(f"noise floor (rig sensor noise): NRMSE {rep['noise_floor']['nrmse_range']:.4f}")
+        for line in summary_lines(rep["regions"]):
+            print(line)
         for p in paths:
             print(f"wrote {p}")
     return 0

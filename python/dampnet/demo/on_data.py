@@ -131,6 +131,38 @@ def _figures(steps, held, figs: Path) -> list[Path]:
     return paths
 
 
+def _rest_cell(rest: dict | None) -> str:
+    """The error at rest: RMSE [N] (bias [N]), or '-' when the held-out tests never stand still."""
+    return "-" if rest is None else f"{rest['rmse_n']:.1f} ({rest['bias_n']:+.1f})"
+
+
+def _outside_cell(out: dict) -> str:
+    """The share of time outside the training envelope and the RMSE [N] there."""
+    if not out["share_time"]:
+        return "never"
+    pct = 100 * out["share_time"]
+    return f"{pct:.2g} %: {out['rmse_n']:.0f} N" if pct < 1 else f"{pct:.1f} %: {out['rmse_n']:.0f} N"
+
+
+def _rest_paragraph(s: dict) -> str:
+    """What the at-rest and envelope columns mean, and the at-rest error before and after."""
+    first, last = s["steps"][0]["scores"], s["steps"][-1]["scores"]
+    rest = first.get("at_rest")
+    if rest is None:
+        note = first.get("at_rest_note") or "at rest: not measured"
+        return (f"<p>{html.escape(note[:1].upper() + note[1:])}. Outside the training "
+                "envelope: the share of the held-out time the model's inputs were outside its training data "
+                "(dampnet.evaluation.regions), and its RMSE there.</p>")
+    controls = ", ".join(f"{c:g}" for c in rest["controls"])
+    return (f"<p>At rest: the held-out samples where the damper stands still ({100 * rest['share_time']:.1f} % of "
+            f"the time, at controls {html.escape(controls)}): RMSE [N] and bias (mean of model - measured) [N]; "
+            f"the measured force there changes by {rest['force_rms_n']:.1f} N RMS within a test, what no model of "
+            f"the inputs can follow. The default model's error at rest is {rest['rmse_n']:.1f} N, the loop's last "
+            f"model's {last['at_rest']['rmse_n']:.1f} N. Outside the training envelope: the share of the held-out "
+            "time the model's inputs were outside its training data, and its RMSE there "
+            "(dampnet.evaluation.regions).</p>")
+
+
 def _report_html(s: dict) -> str:
     e = html.escape
     first = s["steps"][0]["scores"]["rmse_n"]
@@ -140,8 +172,9 @@ def _report_html(s: dict) -> str:
         change = "" if r is s["steps"][0] else f"{100.0 * (sc['rmse_n'] / first - 1.0):+.1f} %"
         sentence = (r["finding"] or {}).get("sentence") or ""
         rows.append(f"<tr><td>{e(r['label'])}</td><td>{sc['rmse_n']:.1f}</td><td>{sc['nrmse']:.4f}</td>"
-                    f"<td>{change}</td><td>{r['train_s']:.0f}</td><td>{e(r['named'] or 'nothing')}</td>"
-                    f"<td>{e(sentence)}</td></tr>")
+                    f"<td>{change}</td><td>{_rest_cell(sc.get('at_rest'))}</td>"
+                    f"<td>{_outside_cell(sc['outside_envelope'])}</td><td>{r['train_s']:.0f}</td>"
+                    f"<td>{e(r['named'] or 'nothing')}</td><td>{e(sentence)}</td></tr>")
     together = s.get("together")
     if together and len(together["added"]) > 1:
         tog = (f"<p>Added together, in the order the diagnosis named them ({e(' then '.join(together['added']))}; "
@@ -162,9 +195,11 @@ td,th{{border:1px solid #ccc;padding:0.3em 0.6em;text-align:left}}</style></head
 {e(s['holdout']['how'])}: {e(', '.join(s['holdout']['tests']))}. Each model is diagnosed on its training tests;
 the effect its diagnosis names is added (as <code>dampnet train --add EFFECT --diagnosis FILE</code>) and the model
 retrained, at most {s['max_steps']} times.</p>
-<table><tr><th>model</th><th>held-out RMSE [N]</th><th>NRMSE</th><th>against the default</th><th>training [s]</th>
+<table><tr><th>model</th><th>held-out RMSE [N]</th><th>NRMSE</th><th>against the default</th>
+<th>at rest: RMSE (bias) [N]</th><th>outside the envelope: time, RMSE</th><th>training [s]</th>
 <th>its diagnosis named</th><th>the diagnosis's sentence</th></tr>
 {''.join(rows)}</table>
+{_rest_paragraph(s)}
 {tog}
 <p>The loop stopped: {e(s['stop'] or '')}.</p>
 {figs}

@@ -65,6 +65,17 @@ def _share(mask: np.ndarray, w: np.ndarray) -> tuple[float, float]:
     return float(np.count_nonzero(mask) / n), float(np.sum(w[mask]) / np.sum(w))
 
 
+def outside_steps(model, X: np.ndarray, envelope: Envelope | None = None) -> np.ndarray:
+    """The steps (rows of X [n, n_inputs], feature units) outside `model`'s envelope: an input
+    outside its training range or not finite, or (with an envelope) farther than its threshold
+    from every stored training sample; `coverage`'s "outside", step by step."""
+    X = np.asarray(X, dtype=np.float64)
+    out = np.any((X < model.sat_lo) | (X > model.sat_hi) | ~np.isfinite(X), axis=1)
+    if envelope is not None:
+        out |= envelope.nearest(X)[0] > envelope.threshold
+    return out
+
+
 def coverage(model, X: np.ndarray, envelope: Envelope | None = None, t: np.ndarray | None = None,
              dt: float | None = None, note: str | None = None,
              durations: np.ndarray | None = None) -> dict[str, Any]:

@@ -1,8 +1,9 @@
 """A model's evaluation on a set of tests, beside the lookup-table baseline: what `dampnet evaluate` prints.
 
   evaluate(model, dataset_or_tests, lookup=None): evaluation() of a Dataset (dampnet.evaluate)
-  evaluation(model, tests, lookup=None) -> {"model", "overall", "per_frequency",
-      "per_frequency_control", "per_test", "lookup": {same tables} | absent}
+  evaluation(model, tests, lookup=None, envelope=None) -> {"model", "overall", "per_frequency",
+      "per_frequency_control", "per_test", "regions" (at rest, outside the envelope:
+      dampnet.evaluation.regions), "lookup": {same tables} | absent}
   lookup_for(model_path, ds, holdout_ids) -> (LookupTable, where it came from)
   write_plots(model, tests, report, out_dir, lookup=None, plot_tests=None) -> [paths]
 """
@@ -17,27 +18,32 @@ import numpy as np
 from dampnet.data import Dataset, DataError
 from dampnet.evaluation.lookup import LookupTable, fit_lookup
 from dampnet.evaluation.metrics import evaluate_predictions
+from dampnet.evaluation.regions import region_errors
 from dampnet.predict import predict_force
 from dampnet.schema import load_json
 
 
-def evaluation(model, tests: Sequence[Any], lookup: LookupTable | None = None) -> dict[str, Any]:
-    """Tables of `model` (an MlpModel, hybrid terms included) on `tests`, and of `lookup` if given."""
+def evaluation(model, tests: Sequence[Any], lookup: LookupTable | None = None, envelope=None) -> dict[str, Any]:
+    """Tables of `model` (an MlpModel, hybrid terms included) on `tests`, its error at rest and
+    outside its training envelope (`envelope`: the model's, dampnet.envelope; None: its training
+    ranges only; dampnet.evaluation.regions) and the tables of `lookup` if given."""
     tests = list(tests)
     preds = [predict_force(model, t) for t in tests]
     rep = {"model": {"id": model.model_id(), "features": model.features, "terms": model.terms,
                      "algorithm": model.meta.get("algorithm")},
-           **evaluate_predictions(tests, preds)}
+           **evaluate_predictions(tests, preds),
+           "regions": region_errors(model, tests, preds, envelope)}
     if lookup is not None:
         rep["lookup"] = evaluate_predictions(tests, [lookup.predict_test(t) for t in tests])
     return rep
 
 
-def evaluate(model, data, lookup: LookupTable | None = None) -> dict[str, Any]:
+def evaluate(model, data, lookup: LookupTable | None = None, envelope=None) -> dict[str, Any]:
     """Error tables of `model` on `data` (a Dataset or a list of DynoTests): overall, per
     frequency, per frequency and control, per test (errors in N, NRMSE as a fraction of the
-    force range); with `lookup`, the lookup-table baseline's tables under "lookup"."""
-    return evaluation(model, data.tests if isinstance(data, Dataset) else data, lookup)
+    force range), the error at rest and outside the training envelope ("regions"); with
+    `lookup`, the lookup-table baseline's tables under "lookup"."""
+    return evaluation(model, data.tests if isinstance(data, Dataset) else data, lookup, envelope)
 
 
 def lookup_for(model_path: str | Path, ds: Dataset, holdout_ids: Sequence[str]):

@@ -73,18 +73,25 @@ def next_request(request: TrainingRequest, model, diagnosis: dict, effect: str) 
                            diagnosis=diagnosis).check()
 
 
-def holdout_scores(model, tests) -> dict[str, Any]:
-    """dampnet.evaluation.metrics over the held-out tests: RMSE [N], NRMSE (over their force
-    range, max - min) and the largest error [N] over every sample, and RMSE [N] per test."""
+def holdout_scores(model, tests, envelope=None) -> dict[str, Any]:
+    """dampnet.evaluation over the held-out tests: RMSE [N], NRMSE (over their force range, max -
+    min) and the largest error [N] over every sample, RMSE [N] per test, and where the model
+    guessed (dampnet.evaluation.regions): "at_rest" (its error where the damper stands still; None,
+    with "at_rest_note" saying why, when the tests never do) and "outside_envelope" (the share of
+    time outside `envelope`, the model's training envelope, and the error there)."""
     from dampnet.evaluation.metrics import evaluate_predictions
+    from dampnet.evaluation.regions import region_errors
     from dampnet.predict import predict_force
 
     if not tests:
         return {}
-    rep = evaluate_predictions(tests, [predict_force(model, t) for t in tests])
+    preds = [predict_force(model, t) for t in tests]
+    rep = evaluate_predictions(tests, preds)
+    reg = region_errors(model, tests, preds, envelope)
     o = rep["overall"]
     return {"rmse_n": o["rmse_n"], "nrmse": o["nrmse"], "max_abs_error_n": o["max_abs_error_n"],
-            "per_test_rmse_n": {r["test_id"]: r["rmse_n"] for r in rep["per_test"]}}
+            "per_test_rmse_n": {r["test_id"]: r["rmse_n"] for r in rep["per_test"]},
+            "at_rest": reg["at_rest"], "at_rest_note": reg["note"], "outside_envelope": reg["outside_envelope"]}
 
 
 def run_loop(data, request: TrainingRequest | None = None, *, max_steps: int = MAX_STEPS, seed: int = 0,
@@ -112,10 +119,12 @@ def run_loop(data, request: TrainingRequest | None = None, *, max_steps: int = M
         trained = train(ds, request=req, workers=workers, progress=progress)
         step = LoopStep(label, added, req, trained, time.perf_counter() - t0)
         hold = trained.split.holdout
-        step.scores = holdout_scores(trained.model, hold.tests if hold is not None else [])
+        step.scores = holdout_scores(trained.model, hold.tests if hold is not None else [], trained.envelope)
         if step.scores:
-            log(f"  {label}: held-out RMSE {step.scores['rmse_n']:.1f} N, NRMSE {step.scores['nrmse']:.4f} "
-                f"({step.train_s:.0f} s)")
+            rest = step.scores["at_rest"]
+            log(f"  {label}: held-out RMSE {step.scores['rmse_n']:.1f} N, NRMSE {step.scores['nrmse']:.4f}"
+                + (f", at rest {rest['rmse_n']:.1f} N (bias {rest['bias_n']:+.1f} N)" if rest else "")
+                + f" ({step.train_s:.0f} s)")
         return step
 
     steps = [fit(request, "default", ())]
