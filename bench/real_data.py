@@ -102,11 +102,20 @@ def split(name: str, ds):
 
 
 def scores(tests, preds) -> dict:
+    """RMSE [N], NRMSE, the largest error [N], per test; and the error where the damper stands still
+    (dampnet.evaluation.regions.at_rest_mask on the test's velocity channel, the same samples for
+    every model): RMSE and bias (model - measured) [N], None when no held-out test stands still."""
     from dampnet.evaluation.metrics import evaluate_predictions
+    from dampnet.evaluation.regions import at_rest_mask
 
     rep = evaluate_predictions(tests, preds)
     o = rep["overall"]
-    return {"rmse_n": o["rmse_n"], "nrmse": o["nrmse"], "max_abs_error_n": o["max_abs_error_n"],
+    err = [np.asarray(p, float) - np.asarray(t.channels["force"], float) for t, p in zip(tests, preds)]
+    rest = [at_rest_mask(t.channels["velocity"], t.time) for t in tests]
+    e_rest = np.concatenate([e[m] for e, m in zip(err, rest)])
+    at_rest = None if not e_rest.size else {"rmse_n": float(np.sqrt(np.mean(e_rest ** 2))),
+                                            "bias_n": float(np.mean(e_rest)), "n_samples": int(e_rest.size)}
+    return {"rmse_n": o["rmse_n"], "nrmse": o["nrmse"], "max_abs_error_n": o["max_abs_error_n"], "at_rest": at_rest,
             "per_test": [{"test_id": r["test_id"], "rmse_n": r["rmse_n"], "nrmse": r["nrmse"]} for r in rep["per_test"]]}
 
 
@@ -262,9 +271,9 @@ def markdown(result: dict) -> str:
         lines.append(f"**{name}** ({d['n_train']} training tests, {d['n_test']} held out, "
                      f"{d['n_test_samples']:,} held-out samples, force range {d['force_range_n']:.0f} N). "
                      f"Split: {d['split']}.\n")
-        lines.append("| model | RMSE [N] | NRMSE | worst test NRMSE | training [s] | parameters | "
-                     "inference [us/sample] | diagnosis of it named |")
-        lines.append("|---|---|---|---|---|---|---|---|")
+        lines.append("| model | RMSE [N] | NRMSE | worst test NRMSE | at rest: RMSE (bias) [N] | training [s] | "
+                     "parameters | inference [us/sample] | diagnosis of it named |")
+        lines.append("|---|---|---|---|---|---|---|---|---|")
         for r in d["models"]:
             worst = max(r["per_test"], key=lambda p: p["nrmse"])
             named = ""
@@ -277,8 +286,10 @@ def markdown(result: dict) -> str:
                     named += f" (not addable: the data have no {' or '.join(dg['not_addable'])} channel)"
                 elif (dg.get("stop") or "").startswith("adding"):
                     named += " (not added: see the JSON's stop)"
+            rest = r.get("at_rest")
+            rest = "none at rest" if rest is None else f"{rest['rmse_n']:.1f} ({rest['bias_n']:+.1f})"
             lines.append(f"| {r['model']} | {r['rmse_n']:.1f} | {r['nrmse']:.4f} | {worst['nrmse']:.4f} "
-                         f"({worst['test_id']}) | {r['train_s']:.1f} | {r['parameters']:,} | {r['infer_us']:.1f} | {named} |")
+                         f"({worst['test_id']}) | {rest} | {r['train_s']:.1f} | {r['parameters']:,} | {r['infer_us']:.1f} | {named} |")
         lines.append("")
         ids = [p["test_id"] for p in d["models"][0]["per_test"]]
         lines.append("Per held-out test, RMSE [N]:\n")

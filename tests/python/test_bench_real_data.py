@@ -40,11 +40,13 @@ def test_real_data_quick_writes_the_table(tmp_path):
         assert [p["test_id"] for p in r["per_test"]] == d["held_out"]
         assert np.isfinite(r["rmse_n"]) and 0 < r["nrmse"] < 1, r["model"]
         assert r["parameters"] > 0 and r["train_s"] >= 0 and r["infer_us"] > 0
+        assert r["at_rest"] is None         # UTFSM's MTS sines never stand still: no error at rest claimed
     assert "diagnosis" in d["models"][1]  # the loop ran its step on the default model
     saved = json.loads((tmp_path / "real_data.json").read_text())
     assert saved["datasets"]["utfsm"]["held_out"] == d["held_out"]
     md = (tmp_path / "real_data.md").read_text()
     assert "0.5 A held out" in md and "| lookup table |" in md and "Per held-out test" in md
+    assert "| none at rest |" in md
     # the model beats the table on its own data? not asserted: the slice is tiny and the budgets small;
     # the full run's numbers are in bench/RESULTS.md
 
