@@ -5,12 +5,6 @@ from __future__ import annotations
 import argparse
 import sys
 
-from dampnet.outputs import json_text
-
-# /2: the runtime's law names in "controller", no "backend" (the runtime's loop is the only one)
-RUN_SCHEMA = "dampnet.simulate/2"
-#: the files of a run (metrics.json is its marker: a JSON object with "schema": RUN_SCHEMA)
-RUN_FILES = ("run.npz", "metrics.json", "time_history.png", "transmissibility.png", "coverage.png")
 COMMAND_TAU_S = 0.005  # = dampnet.sim.calibration.SKYHOOK_COMMAND_TAU_S (not imported: keeps --help fast)
 
 
@@ -52,19 +46,15 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    from pathlib import Path
-
-    import numpy as np
-
-    from dampnet.outputs import check_run_dir
+    """Check every option and the output, run (dampnet.recipes.quarter_car.run), write the run's
+    directory (dampnet.sim.run_dir), print its summary; 0, or 2 with one line on bad input."""
     from dampnet.recipes import control_laws as laws
+    from dampnet.recipes import quarter_car
+    from dampnet.sim import run_dir
     from dampnet.sim.dampers import load_spec
-    from dampnet.sim.plots import plot_run, plot_transmissibility
     from dampnet.sim.roads import RoadError
-    from dampnet.sim.quarter_car.runs import simulate
     from dampnet.sim.vehicle import LoopError, Vehicle
 
-    out = Path(args.out)
     try:
         check_options(args)
         try:
@@ -73,52 +63,27 @@ def run(args) -> int:
             raise LoopError(f"--control: {e}") from None
         laws.check_context(args.control, {"--u": ("u", args.u), "--damping": ("damping", args.damping),
                                           "--command-tau": ("u_tau_s", args.command_tau)})
-        check_run_dir(out, RUN_FILES, "metrics.json", RUN_SCHEMA.split("/")[0] + "/", _model_inputs(args.model, args.road),
-                      args.force)
+        run_dir.check(run_dir.QUARTER_CAR, args.out, _model_inputs(args.model, args.road), args.force)
         spec = load_spec(args.model)
         road = _roads().build(args.road, seed=args.seed, speed_m_s=args.speed)
-        veh = Vehicle(dt=args.dt)
-        veh.validate()
-        ctrl = laws.make(args.control, spec, veh, u_tau_s=args.command_tau, damping=args.damping or "high", u=args.u)
-        res = simulate(spec, road, args.speed if road.kind == "spatial" else None, ctrl, veh, law=law)
+        res = quarter_car.run(spec, road, args.control, speed_m_s=args.speed, vehicle=Vehicle(dt=args.dt),
+                              u_tau_s=args.command_tau, damping=args.damping or "high", u=args.u)
     except (RoadError, LoopError, ValueError, OSError, KeyError) as e:
         print(f"dampnet: error: {e}", file=sys.stderr)
         return 2
-    arrays = dict(res["arrays"])
-    if "transmissibility" in res:
-        for k in ("f_hz", "magnitude", "phase_rad"):
-            arrays[f"transmissibility_{k}"] = res["transmissibility"][k]
-    meta = {"schema": RUN_SCHEMA, **{k: v for k, v in res.items() if k not in ("arrays", "transmissibility")}}
-    if "coverage" in res:   # a neural model: the verdict at the top (dampnet.envelope.coverage)
-        meta["extrapolated"] = res["coverage"]["extrapolated"]
-    writers = {"run.npz": lambda f: np.savez_compressed(f, **arrays),
-               "time_history.png": lambda f: plot_run(res, f, f"{spec.name} on {road.name}, {law}"),
-               "metrics.json": lambda f: Path(f).write_text(json_text(meta))}
-    if "transmissibility" in res:
-        writers["transmissibility.png"] = lambda f: plot_transmissibility({spec.name: res}, f)
-    elif (out / "transmissibility.png").exists():   # --force over a sweep run: not this run's
-        (out / "transmissibility.png").unlink()
-    if "coverage" in res:   # a neural model: its inputs over its training data
-        from dampnet.envelope.coverage import quarter_car_inputs
-        from dampnet.envelope.plot import plot_coverage
-
-        writers["coverage.png"] = lambda f: plot_coverage(
-            spec.obj, {road.name: quarter_car_inputs(spec.obj, res["arrays"])}, f, spec.meta.get("envelope"),
-            f"{spec.name} on {road.name}, {law}: damper inputs")
-    elif (out / "coverage.png").exists():   # --force over a neural model's run: not this run's
-        (out / "coverage.png").unlink()
     try:
-        _publish(out, writers)
+        run_dir.save_quarter_car(args.out, res, spec, road.name, law)
     except OSError as e:
-        print(f"dampnet: error: {out}: cannot write the run ({e.strerror or e})", file=sys.stderr)
+        print(f"dampnet: error: {args.out}: cannot write the run ({e.strerror or e})", file=sys.stderr)
         return 2
-    m = res["metrics"]
+    m, ctrl = res["metrics"], res["controller"]
     print(f"{spec.name} on {road.name}" + (f" at {args.speed:g} m/s" if road.kind == "spatial" else "")
-          + f", {law}" + (f" (command filter {1e3 * ctrl.u_tau_s:g} ms)" if ctrl.kind != "passive" and ctrl.u_tau_s > 0 else "")
+          + f", {law}" + (f" (command filter {1e3 * ctrl['u_tau_s']:g} ms)"
+                          if ctrl["kind"] != "passive" and ctrl["u_tau_s"] > 0 else "")
           + f" (dt {args.dt:g} s): acc RMS {m['acc_rms_m_s2']:.4f} m/s^2, "
           f"Wk RMS {m['acc_wk_rms_m_s2']:.4f} m/s^2, disp peak/RMS {m['disp_peak_to_rms']:.3f}, travel RMS "
           f"{1e3 * m['travel_rms_m']:.2f} mm (max {1e3 * m['travel_max_m']:.2f}), tyre load RMS "
-          f"{m['tyre_load_rms_n']:.1f} N -> {out}")
+          f"{m['tyre_load_rms_n']:.1f} N -> {args.out}")
     if "coverage" in res:
         from dampnet.envelope.coverage import summary_line
 
@@ -150,14 +115,3 @@ def _model_inputs(model: str, road: str) -> list[str]:
     import os
 
     return [p for p in (model, road) if os.path.exists(p)]
-
-
-def _publish(out, writers: dict) -> None:
-    """Write every file into a staging directory in out first, then move them into place
-    (metrics.json, the run's marker, last): a failure leaves the previous run's files as they
-    were, and a killed run's staging directory is removed by the next one."""
-    from dampnet.outputs import staged_files
-
-    with staged_files(out) as tmp:
-        for name, write in writers.items():
-            write(str(tmp / name))

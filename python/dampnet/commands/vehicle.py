@@ -7,10 +7,6 @@ from __future__ import annotations
 import argparse
 import sys
 
-RUN_SCHEMA = "dampnet.vehicle/1"
-#: the files of a run (metrics.json is its marker: a JSON object with "schema": RUN_SCHEMA)
-RUN_FILES = ("run.npz", "metrics.json", "vehicle.png", "coverage.png")
-
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     from dampnet.recipes import maneuvers
@@ -99,23 +95,20 @@ def _maneuver(args):
 
 
 def run(args) -> int:
+    """Check every option and the output, run the test (dampnet.recipes.maneuvers.run), write the
+    run's directory (dampnet.sim.run_dir), print its summary; 0, or 2 with one line on bad input."""
     import os
-    from pathlib import Path
-
-    import numpy as np
 
     from dampnet.model import ModelError
     from dampnet.recipes import maneuvers
-    from dampnet.outputs import check_run_dir, json_text, staged_files
+    from dampnet.sim import run_dir
     from dampnet.sim.dampers import load_spec
     from dampnet.sim.roads import RoadError
     from dampnet.sim.vehicle import LoopError
 
-    out = Path(args.out)
     try:
         check_options(args)
-        inputs = [args.model] if os.path.exists(args.model) else []
-        check_run_dir(out, RUN_FILES, "metrics.json", RUN_SCHEMA.split("/")[0] + "/", inputs, args.force)
+        run_dir.check(run_dir.FULL_CAR, args.out, [args.model] if os.path.exists(args.model) else [], args.force)
         spec = load_spec(args.model)
         man = _maneuver(args)
         print(f"running {man.name} ({man.road.shape[0] * man.dt:.1f} s simulated, "
@@ -124,29 +117,14 @@ def run(args) -> int:
     except (RoadError, LoopError, ModelError, ValueError, OSError, KeyError) as e:
         print(f"dampnet: error: {e}", file=sys.stderr)
         return 2
-    meta = {"schema": RUN_SCHEMA, **{k: v for k, v in res.items() if k != "arrays"}}
-    if "coverage" in res:   # a neural model: the verdict at the top (dampnet.envelope.coverage)
-        meta["extrapolated"] = res["coverage"]["extrapolated"]
     title = f"{spec.name}, {args.damping} damping: {man.name}"
     try:
-        with staged_files(out) as tmp:
-            np.savez_compressed(tmp / "run.npz", **res["arrays"])
-            maneuvers.plot({spec.name: res}, tmp / "vehicle.png", title)
-            if "coverage" in res:
-                from dampnet.envelope.coverage import fullcar_inputs
-                from dampnet.envelope.plot import plot_coverage
-
-                per = fullcar_inputs(spec.obj, res["arrays"])
-                plot_coverage(spec.obj, {f"{spec.name} {c}": X for c, X in zip(("FL", "FR", "RL", "RR"), per)},
-                              tmp / "coverage.png", spec.meta.get("envelope"), f"{title}: damper inputs")
-            elif (out / "coverage.png").exists():   # --force over a neural model's run: not this run's
-                (out / "coverage.png").unlink()
-            (tmp / "metrics.json").write_text(json_text(meta))
+        run_dir.save_full_car(args.out, res, spec, title, lambda f: maneuvers.plot({spec.name: res}, f, title))
     except OSError as e:
-        print(f"dampnet: error: {out}: cannot write the run ({e.strerror or e})", file=sys.stderr)
+        print(f"dampnet: error: {args.out}: cannot write the run ({e.strerror or e})", file=sys.stderr)
         return 2
     line = maneuvers.get(args.test).summary(res["metrics"])
-    print(f"{title}: {line} -> {out}")
+    print(f"{title}: {line} -> {args.out}")
     if "coverage" in res:
         from dampnet.envelope.coverage import summary_line
 

@@ -54,29 +54,22 @@ def vehicle(params: dict[str, Any]):
     return veh
 
 
-def controller(params: dict[str, Any], spec, veh):
-    """The cell's Controller (dampnet.recipes.control_laws: calibrated on the damper), with the
-    spec's [simulation.controller] fields on top (u_tau_s also the calibration's command filter)."""
-    from dampnet.recipes import control_laws
-
-    set_ = {k[11:]: v for k, v in params.items() if k.startswith("controller.") and v is not None}
-    return control_laws.make(params["controller"], spec, veh, u_tau_s=set_.get("u_tau_s"), fields=set_)
+def controller_fields(params: dict[str, Any]) -> dict[str, Any]:
+    """The spec's [simulation.controller] fields set for this cell (u_tau_s among them: also the
+    calibration's command filter)."""
+    return {k[11:]: v for k, v in params.items() if k.startswith("controller.") and v is not None}
 
 
 def run(params: dict[str, Any], inputs: dict[str, Any]) -> dict[str, Any]:
     """{"metrics": ride metrics and f_static_n, "controller_settings": the law's fields, "law": its
-    registered name (dampnet.recipes.control_laws; the runtime's kind is in its fields)}."""
-    from dampnet.sim.quarter_car.runs import simulate
-
-    spec = damper(params, inputs["model"])
-    prof = road(params, inputs["road"])
-    veh = vehicle(params)
-    from dampnet.recipes import control_laws
-
-    ctrl = controller(params, spec, veh)
-    law = control_laws.get(params["controller"]).name
-    res = simulate(spec, prof, params["speed"] if prof.kind == "spatial" else None, ctrl, veh, law=law)
+    registered name (dampnet.recipes.control_laws; the runtime's kind is in its fields)}: the run
+    `dampnet simulate` makes (dampnet.recipes.quarter_car.run)."""
+    from dampnet.recipes import quarter_car
     from dampnet.sweep.metrics import coverage_columns
 
+    fields = controller_fields(params)
+    res = quarter_car.run(damper(params, inputs["model"]), road(params, inputs["road"]), params["controller"],
+                          speed_m_s=params["speed"], vehicle=vehicle(params), u_tau_s=fields.get("u_tau_s"),
+                          fields=fields)
     metrics = {**res["metrics"], "f_static_n": res["f_static_n"], **coverage_columns(res)}
-    return {"metrics": metrics, "controller_settings": ctrl.to_dict(), "law": law}
+    return {"metrics": metrics, "controller_settings": res["controller"], "law": res["law"]}
