@@ -5,8 +5,6 @@ from __future__ import annotations
 import argparse
 import sys
 
-from dampnet.outputs import json_text
-
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
@@ -31,96 +29,25 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    from pathlib import Path
+    """Check the options and the output, run the study (dampnet.recipes.study.run), write it
+    (dampnet.recipes.study.save), print its tables; 0, or 2 with one line on bad input."""
+    from dampnet.recipes import study
+    from dampnet.sim import limits
 
-    from dampnet.data.types import RIG_GENERATOR
-    from dampnet.outputs import check_run_dir
-    from dampnet.sim.dampers import load_spec, lookup_spec, truth_spec
-    from dampnet.sim.plots import write_plots
-    from dampnet.sim.quarter_car.report import text_tables, without_arrays
-    from dampnet.sim.quarter_car.study import INPUTS_FILE, neural_inputs, run_study
-
-    out = Path(args.out)
     try:
-        from dampnet.sim import limits
-
         limits.check_number("--dt", args.dt, limits.STEP_S)
         limits.check_seed("--seed", args.seed)
-        check_run_dir(out, ("study.json", "study.txt", "inputs.npz"), "study.json", "dampnet.sim.quarter_car.study/",
-                      [p for p in (args.model, args.data) if p and Path(p).exists()], args.force)
-        from dampnet.sim.roads import sine_sweep, thesis_rough_road
-
-        roads = ({"sweep": sine_sweep(rate_oct_s=0.5), "rough": thesis_rough_road(seed=args.seed, base_length_m=46.0)}
-                 if args.quick else {})
-        specs = [load_spec(args.model)]
-        truth = None
-        if args.data:
-            from dampnet.data import load_dataset
-            from dampnet.evaluation.lookup import fit_lookup
-
-            ds = load_dataset(args.data)
-            specs.append(lookup_spec(fit_lookup(ds)))
-            if ds.meta.get("generator") == RIG_GENERATOR:
-                truth = truth_spec(list(ds.meta.get("effects", {})))
-        from dampnet.recipes import control_laws
-
-        res = run_study(specs, truth, dt=args.dt, seed=args.seed, keep_runs=not args.no_plots, laws=control_laws.make,
-                        progress=lambda s: print(f"  {s}", file=sys.stderr), **roads)
-        vehicle = _vehicle_study(specs + ([truth] if truth else []), args) if args.vehicle else None
+        study.check(args.out, (args.model, args.data), args.force)
+        res = study.run(args.model, args.data, dt=args.dt, seed=args.seed, quick=args.quick, vehicle=args.vehicle,
+                        keep_runs=not args.no_plots, progress=lambda s: print(f"  {s}", file=sys.stderr))
     except (ValueError, OSError) as e:
         print(f"dampnet: error: {e}", file=sys.stderr)
         return 2
-    from dampnet.outputs import staged_files
-
-    table = text_tables(res)
-    if vehicle is not None:
-        from dampnet.sim.full_car.study import text_table
-
-        table += "\n\nfull vehicle (chapter 5.2)\n" + text_table(vehicle)
     try:
-        wrote_inputs = False
-        with staged_files(out) as tmp:  # study.json (the marker) moved into place last
-            data = without_arrays(res)
-            if vehicle is not None:
-                data["vehicle"] = {k: vehicle[k] for k in ("results", "errors", "coverage") if k in vehicle}
-            (tmp / "study.json").write_text(json_text(data))
-            (tmp / "study.txt").write_text(table + "\n")
-            if not args.no_plots:
-                write_plots(res, tmp)
-                inputs = neural_inputs(res)  # for dampnet plan-tests STUDY_DIR
-                if inputs:
-                    import numpy as np
-
-                    np.savez_compressed(tmp / INPUTS_FILE, **inputs)
-                    wrote_inputs = True
-        if not wrote_inputs and (out / INPUTS_FILE).is_file():
-            (out / INPUTS_FILE).unlink()  # a replaced (--force) study's inputs are not this one's
+        study.save(args.out, res, plots=not args.no_plots)
     except OSError as e:
-        print(f"dampnet: error: {out}: cannot write the study ({e.strerror or e})", file=sys.stderr)
+        print(f"dampnet: error: {args.out}: cannot write the study ({e.strerror or e})", file=sys.stderr)
         return 2
-    print(table)
-    for name, ex in res.get("extrapolated", {}).items():
-        print(f"coverage of {name}: " + (f"extrapolated in {len(ex['extrapolated'])} of {ex['runs']} runs: the "
-              f"model was outside its training data for {_worst_run(res, name)}" if ex["any"]
-              else f"within its training data in all {ex['runs']} runs"))
-    print(f"-> {out}/study.json, study.txt" + ("" if args.no_plots else ", PNG plots"))
+    for line in study.lines(res, args.out, plots=not args.no_plots):
+        print(line)
     return 0
-
-
-def _worst_run(res: dict, name: str) -> str:
-    """The run of a study where model `name` spent the largest share of time outside its envelope,
-    in words: "X % of <section case> (its verdict)"."""
-    runs = [(by[name]["outside"]["share_time"], f"{section} {case}", by[name]["verdict"])
-            for section, cases in res["coverage"].items() for case, by in cases.items() if name in by]
-    share, where, verdict = max(runs)
-    return f"{100 * share:.1f} % of {where}, the most ({verdict})"
-
-
-def _vehicle_study(specs, args) -> dict:
-    """The full-vehicle comparison (dampnet.sim.full_car.study) of the study's models: BSST (a 4x
-    faster sweep with --quick) and the lane change, low / high damping and on-off skyhook."""
-    from dampnet.recipes import maneuvers
-
-    tests = {"bsst_heave": maneuvers.build("bsst", args.dt, {"bsst_rate_oct_s": 1.0 if args.quick else 0.25}),
-             "dlc": maneuvers.build("dlc", args.dt)}
-    return maneuvers.run_study(specs, tests, progress=lambda s: print(f"  vehicle {s}", file=sys.stderr))

@@ -1,0 +1,127 @@
+"""The thesis's chapter 5 comparison by names: what `dampnet study` runs and writes.
+
+    run(model, data=None, dt=1e-3, seed=0, quick=False, vehicle=False, keep_runs=True, progress=None)
+        -> {"quarter_car": the quarter-car study (dampnet.sim.quarter_car.study.run_study: impulse,
+            sine sweep, rough road at two speeds, skyhook), "vehicle": the full-vehicle study
+            (bounce sweep and lane change) or None}
+    save(out, study, plots=True)   study.json (the marker), study.txt, the PNGs and inputs.npz
+    lines(study, out, plots=True)  what the command prints
+
+The models: MODEL (a model directory or model.json, 'default', a lookup table, 'truth', ...),
+the lookup table fitted to DATA (a dataset) when given, and the rig's truth damper (its effects
+as the data's) when DATA comes from the virtual rig. The control laws are built and calibrated
+by the control-law registry (dampnet.recipes.control_laws.make).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Callable
+
+#: the files of a study directory (study.json is its marker: "schema" SCHEMA_FAMILY/...)
+FILES = ("study.json", "study.txt", "inputs.npz")
+SCHEMA_FAMILY = "dampnet.sim.quarter_car.study/"
+
+
+def check(out: str | Path, inputs, force: bool) -> None:
+    """Before the study: `out` is new, or (force) a study directory (never an input)."""
+    from dampnet.outputs import check_run_dir
+
+    check_run_dir(Path(out), FILES, "study.json", SCHEMA_FAMILY, [p for p in inputs if p and Path(p).exists()],
+                  force)
+
+
+def run(model: str, data: str | None = None, *, dt: float = 1e-3, seed: int = 0, quick: bool = False,
+        vehicle: bool = False, keep_runs: bool = True,
+        progress: Callable[[str], Any] | None = None) -> dict[str, Any]:
+    """The study (see the module docstring); `progress(line)` hears each run as it starts."""
+    from dampnet.data.types import RIG_GENERATOR
+    from dampnet.recipes import control_laws, maneuvers
+    from dampnet.sim.dampers import load_spec, lookup_spec, truth_spec
+    from dampnet.sim.quarter_car.study import run_study
+    from dampnet.sim.roads import sine_sweep, thesis_rough_road
+
+    say = progress or (lambda s: None)
+    roads = ({"sweep": sine_sweep(rate_oct_s=0.5), "rough": thesis_rough_road(seed=seed, base_length_m=46.0)}
+             if quick else {})
+    specs = [load_spec(model)]
+    truth = None
+    if data:
+        from dampnet.data import load_dataset
+        from dampnet.evaluation.lookup import fit_lookup
+
+        ds = load_dataset(data)
+        specs.append(lookup_spec(fit_lookup(ds)))
+        if ds.meta.get("generator") == RIG_GENERATOR:
+            truth = truth_spec(list(ds.meta.get("effects", {})))
+    res = run_study(specs, truth, dt=dt, seed=seed, keep_runs=keep_runs, laws=control_laws.make,
+                    progress=say, **roads)
+    full = None
+    if vehicle:   # BSST (a 4x faster sweep with quick) and the lane change, low / high damping and skyhook
+        tests = {"bsst_heave": maneuvers.build("bsst", dt, {"bsst_rate_oct_s": 1.0 if quick else 0.25}),
+                 "dlc": maneuvers.build("dlc", dt)}
+        full = maneuvers.run_study(specs + ([truth] if truth else []), tests, progress=lambda s: say(f"vehicle {s}"))
+    return {"quarter_car": res, "vehicle": full}
+
+
+def table(study: dict[str, Any]) -> str:
+    """The study's tables as text (study.txt)."""
+    from dampnet.sim.quarter_car.report import text_tables
+
+    text = text_tables(study["quarter_car"])
+    if study["vehicle"] is not None:
+        from dampnet.sim.full_car.study import text_table
+
+        text += "\n\nfull vehicle (chapter 5.2)\n" + text_table(study["vehicle"])
+    return text
+
+
+def save(out: str | Path, study: dict[str, Any], plots: bool = True) -> Path:
+    """study.json (moved into place last), study.txt and, with plots, the PNGs and the neural
+    models' damper inputs (inputs.npz, for `dampnet plan-tests STUDY_DIR`); a replaced study's
+    inputs.npz is removed when this one has none."""
+    from dampnet.outputs import json_text, staged_files
+    from dampnet.sim.plots import write_plots
+    from dampnet.sim.quarter_car.report import without_arrays
+    from dampnet.sim.quarter_car.study import INPUTS_FILE, neural_inputs
+
+    out = Path(out)
+    res, full = study["quarter_car"], study["vehicle"]
+    wrote_inputs = False
+    with staged_files(out) as tmp:
+        data = without_arrays(res)
+        if full is not None:
+            data["vehicle"] = {k: full[k] for k in ("results", "errors", "coverage") if k in full}
+        (tmp / "study.json").write_text(json_text(data))
+        (tmp / "study.txt").write_text(table(study) + "\n")
+        if plots:
+            write_plots(res, tmp)
+            inputs = neural_inputs(res)
+            if inputs:
+                import numpy as np
+
+                np.savez_compressed(tmp / INPUTS_FILE, **inputs)
+                wrote_inputs = True
+    if not wrote_inputs and (out / INPUTS_FILE).is_file():
+        (out / INPUTS_FILE).unlink()
+    return out
+
+
+def _worst_run(res: dict, name: str) -> str:
+    """The run where model `name` spent the largest share of time outside its envelope, in words."""
+    runs = [(by[name]["outside"]["share_time"], f"{section} {case}", by[name]["verdict"])
+            for section, cases in res["coverage"].items() for case, by in cases.items() if name in by]
+    share, where, verdict = max(runs)
+    return f"{100 * share:.1f} % of {where}, the most ({verdict})"
+
+
+def lines(study: dict[str, Any], out: str | Path, plots: bool = True) -> list[str]:
+    """What `dampnet study` prints: the tables, each neural model's coverage, where it wrote."""
+    res = study["quarter_car"]
+    text = [table(study)]
+    for name, ex in res.get("extrapolated", {}).items():
+        text.append(f"coverage of {name}: " + (f"extrapolated in {len(ex['extrapolated'])} of {ex['runs']} runs: the "
+                    f"model was outside its training data for {_worst_run(res, name)}" if ex["any"]
+                    else f"within its training data in all {ex['runs']} runs"))
+    text.append(f"-> {out}/study.json, study.txt" + ("" if not plots else ", PNG plots"))
+    return text
