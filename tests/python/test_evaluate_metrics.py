@@ -105,7 +105,7 @@ def test_evaluate_cli_json_has_stable_keys_and_plots(model_and_data, capsys):
     assert rep["lookup"]["source"] == "fitted on the model's training tests"
     # the rig's sines never stand still: no error at rest is claimed; the envelope's share is measured
     reg = rep["regions"]
-    assert reg["at_rest"] is None and "no sample of these data stands still" in out
+    assert reg["at_rest"] is None and "at rest: not measured here (no sample stands still" in out
     assert reg["outside_envelope"]["measure"] == "ranges and joint envelope" and "outside the training envelope" in out
     assert reg["envelope_note"].startswith("joint envelope")
     names = sorted(p.name for p in (d / "plots").iterdir())
@@ -124,6 +124,11 @@ def test_evaluate_holdout_restricts_to_the_recorded_tests(model_and_data, capsys
     # the same numbers train wrote into metrics.json for the hold-out
     metrics = json.loads((d / "m" / "metrics.json").read_text())
     assert rep["overall"]["nrmse"] == pytest.approx(metrics["holdout"]["overall"]["nrmse"], rel=1e-12)
+    # train wrote the hold-out's regions as evaluate finds them: 2.25 V, between the trained levels, is
+    # outside the joint envelope throughout; the rig's sines never stand still
+    reg = metrics["holdout_regions"]
+    assert reg["at_rest"] is None and reg["outside_envelope"] == rep["regions"]["outside_envelope"]
+    assert reg["outside_envelope"]["share_time"] == 1.0
 
 
 def test_evaluate_errors(model_and_data, tmp_path, capsys):

@@ -83,7 +83,7 @@ def test_no_still_stretch_no_claim_at_rest():
     pred = predict_force(model, test)
     test.channels["force"] = pred + 5.0
     reg = region_errors(model, [test], [pred])
-    assert reg["at_rest"] is None and "not measured here" in reg["note"]
+    assert reg["at_rest"] is None and "not measured here (no sample stands still" in reg["note"]
     lines = summary_lines(reg)
     assert lines[0] == reg["note"] and not any("RMSE" in ln and "at rest" in ln for ln in lines)
 

@@ -169,6 +169,11 @@ def print_summary(model, info, split, metrics, out, t_train) -> None:
         lk = metrics.get("holdout_lookup", {})
         if "overall" in lk:
             print(f"lookup-table baseline on the hold-out: NRMSE {lk['overall']['nrmse']:.4f}")
+        if "holdout_regions" in metrics:
+            from dampnet.evaluation.regions import summary_lines
+
+            for line in summary_lines(metrics["holdout_regions"]):
+                print(f"hold-out {line}")
     line = structure_line(model, metrics.get("structure", {}))
     if line:
         print(line)

@@ -97,8 +97,7 @@ def region_errors(model, tests: Sequence[Any], preds: Sequence[np.ndarray], enve
     if j is None:
         res["note"] = "at rest: not testable here (the model has no velocity input)"
     elif not rest.any():
-        res["note"] = (f"at rest: no sample of these data stands still for {REST_MIN_S:g} s or longer: "
-                       "the error at rest is not measured here")
+        res["note"] = f"at rest: not measured here (no sample stands still for {REST_MIN_S:g} s or longer)"
     else:
         res["at_rest"] = {"share_time": _share(rest, w), "n_samples": int(rest.sum()), "rmse_n": _rmse(e[rest]),
                           "bias_n": float(np.mean(e[rest])),
@@ -127,7 +126,10 @@ def summary_lines(regions: dict[str, Any]) -> list[str]:
     elif regions.get("note"):
         lines.append(regions["note"])
     o = regions["outside_envelope"]
-    if o["share_time"] > 0:
+    if o["share_time"] >= 1.0:
+        lines.append(f"outside the training envelope ({o['measure']}): all of the time (inputs the model was not "
+                     "trained on, e.g. a control level between trained ones: its error here is the interpolation's)")
+    elif o["share_time"] > 0:
         pct = 100 * o["share_time"]
         share = f"{pct:.2g}" if pct < 1 else f"{pct:.1f}"
         lines.append(f"outside the training envelope ({o['measure']}): {share} % of the time, "

@@ -130,10 +130,20 @@ class Trained:
 
     @cached_property
     def metrics(self) -> dict[str, Any]:
-        """metrics.json's content (dampnet.training.pipeline.model_metrics)."""
+        """metrics.json's content (dampnet.training.pipeline.model_metrics), with the hold-out's
+        error at rest and outside the training envelope ("holdout_regions":
+        dampnet.evaluation.regions) when tests were held out."""
         from dampnet.training.pipeline import model_metrics
 
-        return model_metrics(self.model, self.info, self.split)
+        out = model_metrics(self.model, self.info, self.split)
+        if self.split.holdout is not None and "holdout" in out:
+            from dampnet.evaluation.regions import region_errors
+            from dampnet.predict import predict_force
+
+            tests = self.split.holdout.tests
+            out["holdout_regions"] = region_errors(self.model, tests, [predict_force(self.model, t) for t in tests],
+                                                   self.envelope)
+        return out
 
     def save(self, out, force: bool = False, prefix: str | None = None, inputs: Sequence = ()):
         """Write the model directory `dampnet train --out` writes (dampnet.modeldir.save_model_dir
