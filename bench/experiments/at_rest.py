@@ -7,10 +7,10 @@ the training as it is without the thesis's rest points), zero (the thesis's 0 N)
 target and seed: the held-out RMSE [N], the RMSE and bias [N] at rest, the share of time at rest
 and the share outside the training envelope with the error there.
 
-    python bench/experiments/at_rest.py                 # labcontrol and utfsm, seeds 0-2 (~25 min on 2 cores)
+    python bench/experiments/at_rest.py                 # labcontrol and utfsm, seeds 0-2 (~30 min on 2 cores)
     python bench/experiments/at_rest.py --seeds 0 --data labcontrol
 
-Measured 2026-12-02: see bench/RESULTS.md, "The model at rest on real dampers".
+Measured 2026-12-02: bench/RESULTS.md, "Real dampers", the rest-target table.
 """
 
 from __future__ import annotations
