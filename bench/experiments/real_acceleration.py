@@ -11,7 +11,7 @@ zero-phase derivative better. This trains `dampnet train`'s default on bench/rea
 
 Measured 2026-12-02 (bench/RESULTS.md, "Real dampers"), held-out RMSE [N]:
   labcontrol (100 Hz, sines up to 1.2 Hz): zero-phase 40 Hz (25 Hz: capped at a quarter of the
-      rate) 47.9; 10 Hz 37.1; 5 Hz 37.0; moving average 20 ms 40.2
+      rate) 47.9; 20 Hz 41.4; 10 Hz 37.1; 5 Hz 37.0; moving average 20 ms 40.2
   utfsm (1 kHz, sines up to 5 Hz): zero-phase 40 Hz 57.1; 20 Hz 58.0; 10 Hz 56.3; moving average
       20 ms 53.4 (5 Hz not run: a 5 Hz test's own motion would be cut)
 No single cut-off is best on both: the default is left as it is, and this is the evidence for
