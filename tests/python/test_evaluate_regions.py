@@ -95,11 +95,14 @@ def test_outside_the_envelope_is_coverages_outside_step_by_step():
     rng = np.random.default_rng(1)
     lo, hi = np.asarray(model.sat_lo), np.asarray(model.sat_hi)
     X = lo + (hi - lo) * rng.uniform(-0.3, 1.3, size=(4000, model.n_inputs))
+    X[:5, 0] = np.nan                                   # non-finite inputs are outside
     for env in (None, build_envelope(model, lo + (hi - lo) * rng.uniform(0, 1, size=(3000, model.n_inputs)))):
         out = outside_steps(model, X, env)
         cov = coverage(model, X, env, dt=DT)
-        assert 0.05 < out.mean() < 0.95
+        assert 0.05 < out.mean() < 0.95 and out[:5].all()
         assert out.mean() == pytest.approx(cov["outside"]["share_steps"], abs=1e-12)
+        if env is not None:   # the bounded search (Envelope.far) is the nearest distance's test, row by row
+            np.testing.assert_array_equal(env.far(X), ~(env.nearest(X)[0] <= env.threshold))
     test, _ = held_sine(rest_s=0.0, amp=0.2)          # ten times the stroke: beyond the training ranges
     pred = predict_force(model, test)
     test.channels["force"] = pred + np.where(np.abs(test.channels["velocity"]) > hi[0], 30.0, 0.0)

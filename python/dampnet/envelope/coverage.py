@@ -72,7 +72,7 @@ def outside_steps(model, X: np.ndarray, envelope: Envelope | None = None) -> np.
     X = np.asarray(X, dtype=np.float64)
     out = np.any((X < model.sat_lo) | (X > model.sat_hi) | ~np.isfinite(X), axis=1)
     if envelope is not None:
-        out |= envelope.nearest(X)[0] > envelope.threshold
+        out |= envelope.far(X)
     return out
 
 

@@ -128,6 +128,18 @@ class Envelope:
             d[ok], idx[ok] = dd, ii
         return d, idx
 
+    def far(self, x: np.ndarray) -> np.ndarray:
+        """Whether each input x [n, n_in] (feature units) is farther than the threshold from every
+        stored point (non-finite rows: True): `nearest(x)[0] > threshold`, found faster (the tree
+        stops looking beyond the threshold)."""
+        s = np.atleast_2d(self.scale(x))
+        out = np.ones(s.shape[0], dtype=bool)
+        ok = np.all(np.isfinite(s), axis=1)
+        if ok.any():   # a neighbour at exactly the threshold is within it, as in nearest's test
+            dd, _ = self.tree.query(s[ok], k=1, distance_upper_bound=np.nextafter(self.threshold, np.inf))
+            out[ok] = ~(dd <= self.threshold)
+        return out
+
     def distance(self, x: np.ndarray) -> np.ndarray:
         """Distance [n] (scaled units) of inputs x [n, n_in] (feature units) to the nearest stored point."""
         return self.nearest(x)[0]
