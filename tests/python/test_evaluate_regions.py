@@ -124,3 +124,25 @@ def test_a_real_records_still_ends_are_at_rest():
     moving = np.flatnonzero(np.abs(v) > 0.2 * np.max(np.abs(v)))
     assert rest.any() and not rest[moving[0]:moving[-1]].any()
     assert rest[:moving[0]].mean() > 0.3 or rest[moving[-1]:].mean() > 0.3
+
+
+def test_the_diagnosis_localises_the_error_at_rest_only_where_the_data_stand_still():
+    """The diagnosis's "where" (dampnet.diagnosis.localise) uses the same at-rest samples: a region
+    "at_rest" with the error placed there (its ratio above 1) on held sines, and no such region on
+    sines that never stop."""
+    from dampnet.data import Dataset
+    from dampnet.diagnosis.context import build_context
+    from dampnet.diagnosis.localise import localise
+
+    model = default_model()
+    for rest_s in (0.5, 0.0):
+        tests = []
+        for volts in (1.0, 4.0):
+            test, rest = held_sine(rest_s=rest_s, volts=volts)
+            test.channels["force"] = predict_force(model, test) - 12.0 * rest + 0.5 * np.sin(np.arange(len(rest)))
+            tests.append(test)
+        regions = localise(build_context(model, Dataset(tests=tests, source="held sines")))["regions"]
+        if rest_s:
+            assert regions["at_rest"]["ratio"] > 1.5, regions["at_rest"]
+        else:
+            assert "at_rest" not in regions

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from dampnet.evaluation.metrics import evaluate_predictions
+from dampnet.evaluation.regions import at_rest_mask
 
 N_WORST = 5
 
@@ -64,6 +65,12 @@ def localise(ctx) -> dict:
     reg["rebound"] = _region(r, v > 0, overall)
     reg["compression"] = _region(r, v < 0, overall)
     reg["near_zero_velocity"] = _region(r, np.abs(v) < 0.05 * vmax, overall)
+    # standing still (dampnet.evaluation.regions: held for REST_MIN_S or longer, not a reversal); only
+    # where the data do (a real record's still ends), never on sines that always move
+    if all("velocity" in td.test.channels for td in ctx.tests):
+        still = np.concatenate([at_rest_mask(td.test.channels["velocity"], td.test.time)[td.rows] for td in ctx.tests])
+        if still.any():
+            reg["at_rest"] = _region(r, still, overall)
     xs = ctx.at_rows("displacement")
     if all(x is not None for x in xs):
         x = np.concatenate(xs)
