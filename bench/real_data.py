@@ -103,18 +103,14 @@ def split(name: str, ds):
 
 def scores(tests, preds) -> dict:
     """RMSE [N], NRMSE, the largest error [N], per test; and the error where the damper stands still
-    (dampnet.evaluation.regions.at_rest_mask on the test's velocity channel, the same samples for
-    every model): RMSE and bias (model - measured) [N], None when no held-out test stands still."""
+    (dampnet.evaluation.regions: at_rest_mask on the test's velocity channel, the same samples for
+    every model; at_rest_errors), None when no held-out test stands still."""
     from dampnet.evaluation.metrics import evaluate_predictions
-    from dampnet.evaluation.regions import at_rest_mask
+    from dampnet.evaluation.regions import at_rest_errors, at_rest_mask
 
     rep = evaluate_predictions(tests, preds)
     o = rep["overall"]
-    err = [np.asarray(p, float) - np.asarray(t.channels["force"], float) for t, p in zip(tests, preds)]
-    rest = [at_rest_mask(t.channels["velocity"], t.time) for t in tests]
-    e_rest = np.concatenate([e[m] for e, m in zip(err, rest)])
-    at_rest = None if not e_rest.size else {"rmse_n": float(np.sqrt(np.mean(e_rest ** 2))),
-                                            "bias_n": float(np.mean(e_rest)), "n_samples": int(e_rest.size)}
+    at_rest = at_rest_errors(tests, preds, [at_rest_mask(t.channels["velocity"], t.time) for t in tests])
     return {"rmse_n": o["rmse_n"], "nrmse": o["nrmse"], "max_abs_error_n": o["max_abs_error_n"], "at_rest": at_rest,
             "per_test": [{"test_id": r["test_id"], "rmse_n": r["rmse_n"], "nrmse": r["nrmse"]} for r in rep["per_test"]]}
 

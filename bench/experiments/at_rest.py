@@ -30,6 +30,7 @@ from real_data import SPLITS, split  # noqa: E402
 
 from dampnet.data.real import load_real  # noqa: E402
 from dampnet.evaluation.report import evaluation  # noqa: E402
+from dampnet.outputs import atomic_write_text  # noqa: E402
 from dampnet.recipes.training import train  # noqa: E402
 
 TARGETS = ("none", "zero", "estimated")
@@ -69,7 +70,7 @@ def main(argv=None) -> int:
                     f"{med(lambda r: r['at_rest']['bias_n']):+.1f} N" if mine[0]["at_rest"] else mine[0]["note"])
             print(f"MEDIAN {name:10s} {target:9s}: held-out RMSE {med(lambda r: r['rmse_n']):.1f} N; {rest}")
     if args.json:
-        Path(args.json).write_text(json.dumps(rows, indent=1, default=float))
+        atomic_write_text(args.json, json.dumps(rows, indent=1, default=float), overwrite=True)
     return 0
 
 

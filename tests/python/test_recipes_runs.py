@@ -553,7 +553,7 @@ def test_a_csv_road_runs_in_the_full_car_and_in_a_fullcar_sweep(tmp_path, capsys
     assert len(csv_rows) == 1 and csv_rows["road_seed"].isna().all()      # one cell: no seed to vary
     assert len(df[df["road"] == "rough"]) == 2
     assert csv_rows["acc_rms_m_s2"].iloc[0] == pytest.approx(cli["acc_rms_m_s2"], rel=1e-12)
-    # the file's content is in the key: edited, its cell is new on --resume (the rough cells are kept)
+    # the file's content is in the key: edited, its cell is new on --resume
     (tmp_path / "step.csv").write_text((tmp_path / "step.csv").read_text().replace(",0.03", ",0.06"))
     again = run(parse_spec(spec, base=tmp_path), client=client, out=tmp_path / "s", resume=True, progress=False)
     assert main(["vehicle", "linear:1500", "--test", "road", "--road", str(tmp_path / "step.csv"), "--speed", "36",

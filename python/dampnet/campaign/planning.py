@@ -51,6 +51,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from dampnet.sim.run_dir import FULL_CAR, QUARTER_CAR
+
 SCHEMA = "dampnet.plan-tests/1"
 #: candidate grids' defaults: frequencies [Hz] and amplitudes [m]
 DEFAULT_FREQUENCIES_HZ = (0.5, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0, 12.0, 15.0, 18.0, 20.0, 25.0)
@@ -195,19 +197,19 @@ def _dir_runs(model, path: Path) -> list[RunInputs]:
     elif "state" in arrays:
         from dampnet import _core
 
-        names = _core.FULLCAR_STATE_NAMES if schema.startswith("dampnet.vehicle/") else _core.STATE_NAMES
+        names = _core.FULLCAR_STATE_NAMES if schema.startswith(FULL_CAR.family) else _core.STATE_NAMES
         t = np.asarray(arrays["state"], dtype=np.float64)[:, list(names).index("t")]
     else:
         raise PlanError(f"{path / 'run.npz'}: no time column")
     dt = float(np.median(np.diff(t))) if t.size > 1 else 1e-3
-    if schema.startswith("dampnet.vehicle/"):
+    if schema.startswith(FULL_CAR.family):
         try:
             per = fullcar_inputs(model, arrays)
         except (ValueError, KeyError) as e:
             raise PlanError(f"{path}: {e}") from None
         X = np.concatenate(per)
         return [RunInputs(f"{path.name} (4 corners)", X, np.full(X.shape[0], dt), f"dampnet vehicle run {path}")]
-    if schema.startswith("dampnet.simulate/"):
+    if schema.startswith(QUARTER_CAR.family):
         X = _npz_inputs(model, arrays, npz)
         return [RunInputs(path.name, X, np.full(X.shape[0], dt), f"dampnet simulate run {path}")]
     raise PlanError(f"{mj}: schema {schema!r}: expected a dampnet simulate or vehicle run")

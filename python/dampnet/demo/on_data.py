@@ -138,10 +138,9 @@ def _rest_cell(rest: dict | None) -> str:
 
 def _outside_cell(out: dict) -> str:
     """The share of time outside the training envelope and the RMSE [N] there."""
-    if not out["share_time"]:
-        return "never"
-    pct = 100 * out["share_time"]
-    return f"{pct:.2g} %: {out['rmse_n']:.0f} N" if pct < 1 else f"{pct:.1f} %: {out['rmse_n']:.0f} N"
+    from dampnet.evaluation.regions import share_text
+
+    return f"{share_text(out['share_time'])} %: {out['rmse_n']:.0f} N" if out["share_time"] else "never"
 
 
 def _rest_paragraph(s: dict) -> str:

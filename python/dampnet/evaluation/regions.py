@@ -8,6 +8,8 @@ error there measured:
   at_rest_mask(v, t)        the samples where the damper stands still: |v| at most
                             REST_SPEED_FRACTION of the test's peak |v| (and at most
                             REST_SPEED_MAX_M_S) for REST_MIN_S or longer
+  at_rest_errors(tests, preds, masks)
+                            the error on those samples (any force model's)
   region_errors(model, tests, preds, envelope=None)
       -> {"at_rest": {share_time, n_samples, rmse_n, bias_n (mean of model - measured),
                       force_rms_n (the measured force's own change at rest within a test, RMS:
@@ -15,7 +17,7 @@ error there measured:
           "outside_envelope": {share_time, rmse_n, rmse_inside_n, measure} ,
           "per_test": [{test_id, share_at_rest, rmse_at_rest_n, share_outside, rmse_outside_n}],
           "note": why a part is missing}
-  summary_lines(regions)    what the commands print
+  summary_lines(regions)    what the commands print; share_text(share) a share of time in words
 
 "At rest" is read from the model's own velocity input (the feature the runtime keeps as v), so
 a dataset whose velocity is derived from displacement is judged as the model sees it; a model
@@ -66,6 +68,30 @@ def _share(mask: np.ndarray, w: np.ndarray) -> float:
     return float(np.sum(w[mask]) / total) if total > 0 else 0.0
 
 
+def at_rest_errors(tests: Sequence[Any], preds: Sequence[np.ndarray], masks: Sequence[np.ndarray]) -> dict | None:
+    """The error of force predictions `preds[i]` [N] on the at-rest samples `masks[i]` of `tests[i]`
+    (at_rest_mask's): {share_time, n_samples, rmse_n, bias_n (mean of model - measured), force_rms_n
+    (the measured force's own change at rest within a test, RMS), rmse_elsewhere_n, controls}; None
+    when no sample is at rest. Any force model's: bench/real_data.py scores its peers with it."""
+    from dampnet.envelope.coverage import step_durations
+
+    err, dev, w, rest, controls = [], [], [], [], set()
+    for test, pred, mask in zip(tests, preds, masks):
+        y = np.asarray(test.channels["force"], dtype=np.float64)
+        err.append(np.asarray(pred, dtype=np.float64).ravel() - y)
+        dev.append(y[mask] - np.mean(y[mask]) if mask.any() else y[:0])   # the force's own change at rest
+        w.append(step_durations(len(y), np.asarray(test.time, dtype=np.float64)))
+        rest.append(mask)
+        if mask.any() and test.control_nominal is not None:
+            controls.add(float(test.control_nominal))
+    e, d, w, rest = np.concatenate(err), np.concatenate(dev), np.concatenate(w), np.concatenate(rest)
+    if not rest.any():
+        return None
+    return {"share_time": _share(rest, w), "n_samples": int(rest.sum()), "rmse_n": _rmse(e[rest]),
+            "bias_n": float(np.mean(e[rest])), "force_rms_n": _rmse(d), "rmse_elsewhere_n": _rmse(e[~rest]),
+            "controls": sorted(controls)}
+
+
 def region_errors(model, tests: Sequence[Any], preds: Sequence[np.ndarray], envelope=None) -> dict[str, Any]:
     """The error at rest and outside the training envelope (see the module docstring); `preds[i]`
     the model's force [N] on `tests[i]` (DynoTests with a measured force)."""
@@ -74,38 +100,35 @@ def region_errors(model, tests: Sequence[Any], preds: Sequence[np.ndarray], enve
     from dampnet.predict import model_inputs
 
     j = velocity_column(model.features)
-    per_test, rest_all, out_all, err_all, w_all, dev_all, controls = [], [], [], [], [], [], set()
+    per_test, rests, outs, err_all, w_all = [], [], [], [], []
     for test, pred in zip(tests, preds):
         X = model_inputs(model, test)
-        y = np.asarray(test.channels["force"], dtype=np.float64)
-        e = np.asarray(pred, dtype=np.float64).ravel() - y
-        w = step_durations(len(y), np.asarray(test.time, dtype=np.float64))
-        rest = at_rest_mask(X[:, j], test.time) if j is not None else np.zeros(len(y), dtype=bool)
+        e = np.asarray(pred, dtype=np.float64).ravel() - np.asarray(test.channels["force"], dtype=np.float64)
+        w = step_durations(len(e), np.asarray(test.time, dtype=np.float64))
+        rest = at_rest_mask(X[:, j], test.time) if j is not None else np.zeros(len(e), dtype=bool)
         out = outside_steps(model, X, envelope)
-        if rest.any() and test.control_nominal is not None:
-            controls.add(float(test.control_nominal))
-        dev = y[rest] - np.mean(y[rest]) if rest.any() else y[:0]   # the force's own change at rest in this test
         per_test.append({"test_id": test.test_id, "share_at_rest": _share(rest, w) if j is not None else None,
                          "rmse_at_rest_n": _rmse(e[rest]), "share_outside": _share(out, w),
                          "rmse_outside_n": _rmse(e[out])})
-        rest_all.append(rest), out_all.append(out), err_all.append(e), w_all.append(w), dev_all.append(dev)
-    rest, out = np.concatenate(rest_all), np.concatenate(out_all)
-    e, w, dev = np.concatenate(err_all), np.concatenate(w_all), np.concatenate(dev_all)
-    res: dict[str, Any] = {"at_rest": None, "note": None, "per_test": per_test,
+        rests.append(rest), outs.append(out), err_all.append(e), w_all.append(w)
+    out, e, w = np.concatenate(outs), np.concatenate(err_all), np.concatenate(w_all)
+    res: dict[str, Any] = {"at_rest": at_rest_errors(tests, preds, rests) if j is not None else None,
+                           "note": None, "per_test": per_test,
                            "definition": {"rest_speed_fraction": REST_SPEED_FRACTION,
                                           "rest_speed_max_m_s": REST_SPEED_MAX_M_S, "rest_min_s": REST_MIN_S}}
     if j is None:
         res["note"] = "at rest: not testable here (the model has no velocity input)"
-    elif not rest.any():
+    elif res["at_rest"] is None:
         res["note"] = f"at rest: not measured here (no sample stands still for {REST_MIN_S:g} s or longer)"
-    else:
-        res["at_rest"] = {"share_time": _share(rest, w), "n_samples": int(rest.sum()), "rmse_n": _rmse(e[rest]),
-                          "bias_n": float(np.mean(e[rest])),
-                          "force_rms_n": _rmse(dev),   # the measured force's own change at rest, within a test
-                          "rmse_elsewhere_n": _rmse(e[~rest]), "controls": sorted(controls)}
     res["outside_envelope"] = {"share_time": _share(out, w), "rmse_n": _rmse(e[out]), "rmse_inside_n": _rmse(e[~out]),
                                "measure": "ranges and joint envelope" if envelope is not None else "ranges"}
     return res
+
+
+def share_text(share: float) -> str:
+    """A share of time as a percentage for a line or a table cell: two significant digits under 1 %."""
+    pct = 100 * share
+    return f"{pct:.2g}" if pct < 1 else f"{pct:.1f}"
 
 
 def _n(x: float | None) -> str:
@@ -130,9 +153,7 @@ def summary_lines(regions: dict[str, Any]) -> list[str]:
         lines.append(f"outside the training envelope ({o['measure']}): all of the time (inputs the model was not "
                      "trained on, e.g. a control level between trained ones: its error here is the interpolation's)")
     elif o["share_time"] > 0:
-        pct = 100 * o["share_time"]
-        share = f"{pct:.2g}" if pct < 1 else f"{pct:.1f}"
-        lines.append(f"outside the training envelope ({o['measure']}): {share} % of the time, "
+        lines.append(f"outside the training envelope ({o['measure']}): {share_text(o['share_time'])} % of the time, "
                      f"RMSE {_n(o['rmse_n'])} there against {_n(o['rmse_inside_n'])} inside")
     else:
         lines.append(f"outside the training envelope ({o['measure']}): never")

@@ -79,16 +79,12 @@ def holdout_scores(model, tests, envelope=None) -> dict[str, Any]:
     guessed (dampnet.evaluation.regions): "at_rest" (its error where the damper stands still; None,
     with "at_rest_note" saying why, when the tests never do) and "outside_envelope" (the share of
     time outside `envelope`, the model's training envelope, and the error there)."""
-    from dampnet.evaluation.metrics import evaluate_predictions
-    from dampnet.evaluation.regions import region_errors
-    from dampnet.predict import predict_force
+    from dampnet.evaluation.report import evaluation
 
     if not tests:
         return {}
-    preds = [predict_force(model, t) for t in tests]
-    rep = evaluate_predictions(tests, preds)
-    reg = region_errors(model, tests, preds, envelope)
-    o = rep["overall"]
+    rep = evaluation(model, tests, envelope=envelope)
+    reg, o = rep["regions"], rep["overall"]
     return {"rmse_n": o["rmse_n"], "nrmse": o["nrmse"], "max_abs_error_n": o["max_abs_error_n"],
             "per_test_rmse_n": {r["test_id"]: r["rmse_n"] for r in rep["per_test"]},
             "at_rest": reg["at_rest"], "at_rest_note": reg["note"], "outside_envelope": reg["outside_envelope"]}

@@ -18,17 +18,17 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Callable
 
-#: the files of a study directory (study.json is its marker: "schema" SCHEMA_FAMILY/...)
+#: the files of a study directory (study.json is its marker: the study's schema)
 FILES = ("study.json", "study.txt", "inputs.npz")
-SCHEMA_FAMILY = "dampnet.sim.quarter_car.study/"
 
 
 def check(out: str | Path, inputs, force: bool) -> None:
     """Before the study: `out` is new, or (force) a study directory (never an input)."""
     from dampnet.outputs import check_run_dir
+    from dampnet.sim.quarter_car.study import SCHEMA
 
-    check_run_dir(Path(out), FILES, "study.json", SCHEMA_FAMILY, [p for p in inputs if p and Path(p).exists()],
-                  force)
+    check_run_dir(Path(out), FILES, "study.json", SCHEMA.split("/")[0] + "/",
+                  [p for p in inputs if p and Path(p).exists()], force)
 
 
 def run(model: str, data: str | None = None, *, dt: float = 1e-3, seed: int = 0, quick: bool = False,

@@ -137,12 +137,9 @@ class Trained:
 
         out = model_metrics(self.model, self.info, self.split)
         if self.split.holdout is not None and "holdout" in out:
-            from dampnet.evaluation.regions import region_errors
-            from dampnet.predict import predict_force
+            from dampnet.evaluation.report import evaluation
 
-            tests = self.split.holdout.tests
-            out["holdout_regions"] = region_errors(self.model, tests, [predict_force(self.model, t) for t in tests],
-                                                   self.envelope)
+            out["holdout_regions"] = evaluation(self.model, self.split.holdout.tests, envelope=self.envelope)["regions"]
         return out
 
     def save(self, out, force: bool = False, prefix: str | None = None, inputs: Sequence = ()):

@@ -12,6 +12,7 @@ Shared, one job per module:
   limits.py          the ranges of a run's settings and the size a run may reach
   monotonicity.py    is a damper's force monotone in its control (its inverse unique)? where it turns back
   plots.py           plots of runs and of a study (and the plotting set-up both cars use)
+  run_dir.py         a run's directory as `simulate` and `vehicle` write it (schema, files, staged writing)
 
 quarter_car/ (cpp/include/dampnet/loop.hpp), each module importing only the ones above it:
 

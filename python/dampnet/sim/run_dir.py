@@ -23,6 +23,11 @@ class RunKind:
     schema: str                   # metrics.json's "schema" (family/version)
     files: tuple[str, ...]        # every file a run of this kind may hold
 
+    @property
+    def family(self) -> str:
+        """The schema without its version ("dampnet.simulate/"): what every version of the run starts with."""
+        return self.schema.split("/")[0] + "/"
+
 
 # /2: the runtime's law names in "controller", no "backend" (the runtime's loop is the only one)
 QUARTER_CAR = RunKind("dampnet.simulate/2", ("run.npz", "metrics.json", "time_history.png", "transmissibility.png",
@@ -34,7 +39,7 @@ def check(kind: RunKind, out: str | Path, inputs: Iterable[str], force: bool) ->
     """Before the run: `out` does not exist, or (force) holds a run of this kind (never an input)."""
     from dampnet.outputs import check_run_dir
 
-    check_run_dir(Path(out), kind.files, "metrics.json", kind.schema.split("/")[0] + "/", list(inputs), force)
+    check_run_dir(Path(out), kind.files, "metrics.json", kind.family, list(inputs), force)
 
 
 def _meta(kind: RunKind, res: dict, skip: tuple[str, ...]) -> dict[str, Any]:
