@@ -35,34 +35,38 @@ from dampnet.data.real import load_real  # noqa: E402
 from dampnet.evaluation.report import evaluation  # noqa: E402
 from dampnet.recipes.training import train  # noqa: E402
 
-#: each way of deriving the acceleration: (label, the zero-phase cut-off [Hz] or None, the
-#: moving-average window [s] or None)
-WAYS = (("zero-phase 40 Hz (the default)", 40.0, None), ("zero-phase 20 Hz", 20.0, None),
-        ("zero-phase 10 Hz", 10.0, None), ("zero-phase 5 Hz", 5.0, None), ("moving average 20 ms", None, 0.02))
+#: each way of deriving the acceleration: name -> (label, the zero-phase cut-off [Hz]: a number, or
+#: "content" for each test's own (the default), the moving-average window [s] or None)
+WAYS = {"content": ("zero-phase, each test's cut-off (the default)", "content", None),
+        "40": ("zero-phase 40 Hz", 40.0, None), "20": ("zero-phase 20 Hz", 20.0, None),
+        "10": ("zero-phase 10 Hz", 10.0, None), "5": ("zero-phase 5 Hz", 5.0, None),
+        "ma": ("moving average 20 ms", None, 0.02)}
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", nargs="+", default=["labcontrol", "utfsm"], choices=sorted(SPLITS))
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--ways", nargs="+", default=list(WAYS), choices=list(WAYS))
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0])
     args = ap.parse_args(argv)
-    default_cutoff = derivative.ACCELERATION_CUTOFF_HZ
-    for name in args.data:
-        for label, cutoff_hz, window in WAYS:
-            derivative.ACCELERATION_CUTOFF_HZ = cutoff_hz or default_cutoff
-            try:
-                ds = load_real(name)
-                _, test = split(name, ds)
-                t0 = time.perf_counter()
-                trained = train(ds, holdout_voltage=None, holdout_tests=[t.test_id for t in test], seed=args.seed,
-                                algorithm="auto", restarts="auto", workers=1, acceleration_window=window)
-                rep = evaluation(trained.model, test, envelope=trained.envelope)
-            finally:
-                derivative.ACCELERATION_CUTOFF_HZ = default_cutoff
-            rest = rep["regions"]["at_rest"]
-            print(f"{name:10s} {label:30s}: held-out RMSE {rep['overall']['rmse_n']:.1f} N, at rest "
-                  + (f"{rest['rmse_n']:.1f} N" if rest else "not measured") + f" ({time.perf_counter() - t0:.0f} s)",
-                  flush=True)
+    default_cutoff, default_factor = derivative.ACCELERATION_CUTOFF_HZ, derivative.CONTENT_FACTOR
+    for name, seed, way in ((n, s, w) for n in args.data for s in args.seeds for w in args.ways):
+        label, cutoff_hz, window = WAYS[way]
+        if cutoff_hz != "content":      # a fixed cut-off (or none, for the moving average)
+            derivative.ACCELERATION_CUTOFF_HZ, derivative.CONTENT_FACTOR = cutoff_hz or default_cutoff, None
+        try:
+            ds = load_real(name)
+            _, test = split(name, ds)
+            t0 = time.perf_counter()
+            trained = train(ds, holdout_voltage=None, holdout_tests=[t.test_id for t in test], seed=seed,
+                            algorithm="auto", restarts="auto", workers=1, acceleration_window=window)
+            rep = evaluation(trained.model, test, envelope=trained.envelope)
+        finally:
+            derivative.ACCELERATION_CUTOFF_HZ, derivative.CONTENT_FACTOR = default_cutoff, default_factor
+        rest = rep["regions"]["at_rest"]
+        print(f"{name:10s} seed {seed} {label:45s}: held-out RMSE {rep['overall']['rmse_n']:.1f} N, at rest "
+              + (f"{rest['rmse_n']:.1f} N" if rest else "not measured") + f" ({time.perf_counter() - t0:.0f} s)",
+              flush=True)
     return 0
 
 

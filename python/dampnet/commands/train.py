@@ -132,6 +132,14 @@ def structure_line(model, st: dict) -> str:
     return ("structure: " + "; ".join(parts)) if parts else ""
 
 
+def bandwidth_text(bandwidths_hz) -> str:
+    """A derived channel's bandwidths [Hz] in words: '40', or '4.2 to 40' over tests."""
+    b = [bandwidths_hz] if isinstance(bandwidths_hz, (int, float)) else list(bandwidths_hz)
+    if not b:
+        return "?"
+    return f"{min(b):g}" if min(b) == max(b) else f"{min(b):.3g} to {max(b):.3g}"
+
+
 def print_summary(model, info, split, metrics, out, t_train) -> None:
     from dampnet.evaluation.metrics import format_table
 
@@ -148,7 +156,8 @@ def print_summary(model, info, split, metrics, out, t_train) -> None:
     acc = model.meta.get("data", {}).get("acceleration")
     if acc:
         print("acceleration derived: " + acc["method"]
-              + (f", bandwidth {acc['bandwidth_hz']:g} Hz" if "bandwidth_hz" in acc else f", window {acc['window']} s"))
+              + (f", bandwidth {bandwidth_text(acc['bandwidth_hz'])} Hz" if "bandwidth_hz" in acc
+                 else f", window {acc['window']} s"))
     m = info.metrics
     if set(m) == {"all"}:  # an average of restarts (--average): no rows held out of every member
         print(f"NRMSE on all training samples {m['all']:.4f} (the averaged network; its members split the samples "
