@@ -1,21 +1,24 @@
 """The derived acceleration on the real data sets: neither records an acceleration, so the model's
-acceleration input is derived from the velocity (dampnet.data.derivative). Since the zero-phase
-derivative became the default (a Butterworth low-pass at ACCELERATION_CUTOFF_HZ = 40 Hz, at most a
-quarter of the sample rate, then 4th-order differences), the default model on both real data sets
-is worse than with the thesis's 20 ms moving average it replaced, although the rig measured the
-zero-phase derivative better. This trains `dampnet train`'s default on bench/real_data.py's split
-(seed 0) with the acceleration derived each way and prints the held-out RMSE and the error at rest:
+acceleration input is derived from the velocity (dampnet.data.derivative). This trains `dampnet
+train`'s default on bench/real_data.py's split with the acceleration derived each way and prints the
+held-out RMSE and the error at rest:
 
-    python bench/experiments/real_acceleration.py                 # both data sets, ~15 min on 2 cores
-    python bench/experiments/real_acceleration.py --data labcontrol
+    python bench/experiments/real_acceleration.py                       # every way, seed 0, ~15 min on 2 cores
+    python bench/experiments/real_acceleration.py --data labcontrol --ways content 40 --seeds 0 1 2
 
-Measured 2026-12-02 (bench/RESULTS.md, "Real dampers"), held-out RMSE [N]:
-  labcontrol (100 Hz, sines up to 1.2 Hz): zero-phase 40 Hz (25 Hz: capped at a quarter of the
-      rate) 47.9; 20 Hz 41.4; 10 Hz 37.1; 5 Hz 37.0; moving average 20 ms 40.2
-  utfsm (1 kHz, sines up to 5 Hz): zero-phase 40 Hz 57.1; 20 Hz 58.0; 10 Hz 56.3; moving average
-      20 ms 53.4 (5 Hz not run: a 5 Hz test's own motion would be cut)
-No single cut-off is best on both: the default is left as it is, and this is the evidence for
-whoever changes it.
+Ways: content = each test's own cut-off (8x the frequency below which 90 % of its velocity's power
+lies, 1-40 Hz; the default since issue 53), 40/20/10/5 = a fixed zero-phase cut-off [Hz] (at most
+a quarter of the rate: 25 Hz at Labcontrol's 100 Hz), ma = the thesis's 20 ms moving average.
+
+Measured 2026-12-02 (bench/RESULTS.md, "Real dampers"), held-out RMSE [N], seeds 0 / 1 / 2 (median):
+  labcontrol (100 Hz, sines up to 1.2 Hz): each test's 37.4 / 44.0 / 35.5 (37.4); fixed 40 Hz
+      47.9 / 43.5 / 41.5 (43.5); 10 Hz 37.1 / 40.6 / 37.6 (37.6); moving average 40.2 / 39.3 /
+      40.5 (40.2); seed 0 only: 20 Hz 41.4, 5 Hz 37.0
+  utfsm (200 Hz to 1 kHz, sines 0.1 to 5 Hz): each test's 55.9 / 50.2 / 53.7 (53.7); fixed 40 Hz
+      57.1 / 55.7 / 53.7 (55.7); 10 Hz 56.3 / 53.2 / 56.0 (56.0); moving average 53.4 / 53.7 / 54.9
+      (53.7); seed 0 only: 20 Hz 58.0
+Each test's own cut-off is the best or equal best median on both (a fixed 10 Hz suits Labcontrol's
+slow sines, not UTFSM's 5 Hz ones), and on the rig it halves the acceleration's error.
 """
 
 from __future__ import annotations
