@@ -146,8 +146,8 @@ def test_the_exported_model_rises_with_velocity_and_stays_between_the_levels(qui
         # straight between the levels: the prior is a soft weight, so to 1.5 % of the force range RMS,
         # at most 2 % of the points off by over 5 % and none by 20 % (seeds 0, 2, 3 with the per-test
         # acceleration cut-off: RMS 0.3-1.15 %, 0-1.2 % of the points over 5 %, 2.8-13.6 % at worst; with
-        # a fixed 40 Hz: 0.4-0.5 % and 4.0-6.0 % at
-        # worst); without the prior the models bend by 9-68x the table's error (above)
+        # a fixed 40 Hz: 0.4-0.5 % and 4.0-6.0 % at worst); without the prior the models bend by
+        # 9-68x the table's error (above)
         bend = np.abs(force(5.0 * lam) - ((1 - lam) * lo + lam * hi)) / span
         rms, over, worst = np.sqrt(np.mean(bend ** 2)), np.mean(bend > 0.05), np.max(bend)
         assert rms < 0.015 and over < 0.02 and worst < 0.2, (lam, rms, over, worst)
