@@ -11,10 +11,10 @@ stated (SPLITS); every model is fitted on the other tests only and scored on the
                  per control level, bilinear), fitted on the training tests
   dampnet        `dampnet.train` as `dampnet train` trains by default (algorithm and restarts
                  'auto'), the held-out tests passed as holdout_tests
-  + EFFECT       the diagnosis loop: `dampnet.diagnose` of the last model on the TRAINING tests
-                 (never the held-out ones); its verdict's effect added (as `dampnet train --add
-                 EFFECT --diagnosis d.json`), retrained; up to MAX_STEPS steps, until the verdict
-                 names nothing or an effect already added
+  + EFFECT       the diagnosis loop (dampnet.recipes.loop): `dampnet.diagnose` of the last model on
+                 the TRAINING tests (never the held-out ones); every effect it names added, in its
+                 order (as `dampnet train --add A --add B --diagnosis d.json`), retrained; up to
+                 MAX_STEPS effects, until it names nothing new or nothing the data can carry
   Bouc-Wen       the modified Bouc-Wen model (Spencer, Dyke, Sain and Carlson 1997;
                  bench/peers/bouc_wen.py), fitted with scipy.optimize.least_squares
   GRU            a GRU over a 20-sample history window of (displacement, velocity, control)
@@ -200,10 +200,11 @@ def run_dampnet(ds, train, test, budget, steps, seed=0, log=print) -> list[dict]
             extra.update(added=list(step.added), step=len(step.added))
         rows.append(_dampnet_row(label, step.trained.model, test, step.train_s, extra))
         if step.diagnosis is not None:
-            rows[-1]["diagnosis"] = {"verdict": step.named, "three_way": _three_way(step.diagnosis),
-                                     "seconds": step.diagnose_s, "stop": step.stop}
-            if step.lacking:
-                rows[-1]["diagnosis"]["not_addable"] = step.lacking
+            rows[-1]["diagnosis"] = {"verdict": step.named, "named": step.named_all,
+                                     "three_way": _three_way(step.diagnosis), "seconds": step.diagnose_s,
+                                     "stop": step.stop}
+            if step.not_addable:
+                rows[-1]["diagnosis"]["not_addable"] = step.not_addable
     return rows
 
 
@@ -275,12 +276,16 @@ def markdown(result: dict) -> str:
             named = ""
             if "diagnosis" in r:
                 dg = r["diagnosis"]
-                named = dg.get("verdict") or "no effect"
+                lacking = dg.get("not_addable") or {}
+                if isinstance(lacking, list):      # a run before the loop added several: the verdict's
+                    lacking = {dg.get("verdict"): lacking}
+                named = ", ".join(e + (f" (not addable: the data have no {' or '.join(lacking[e])} channel)"
+                                       if lacking.get(e) else "")
+                                  for e in dg.get("named") or ([dg["verdict"]] if dg.get("verdict") else []))
+                named = named or "no effect"
                 if not dg.get("verdict") and (dg.get("three_way") or {}).get("kind") == "artefact":
                     named += " (a measurement artefact instead: see the JSON's finding)"
-                if dg.get("not_addable"):
-                    named += f" (not addable: the data have no {' or '.join(dg['not_addable'])} channel)"
-                elif (dg.get("stop") or "").startswith("adding"):
+                if (dg.get("stop") or "").startswith("adding"):
                     named += " (not added: see the JSON's stop)"
             rest = r.get("at_rest")
             rest = "none at rest" if rest is None else f"{rest['rmse_n']:.1f} ({rest['bias_n']:+.1f})"

@@ -13,9 +13,10 @@ rig's noise-free force (truth_channels): RMSE [N] over the samples faster than a
               first by nonlinear least squares, the network trained on what it leaves)
 
     python bench/experiments/valve_extrapolation.py                 # seeds 0-2, ~10 min on 2 cores
-    python bench/experiments/valve_extrapolation.py --seeds 0 --json out.json
+    python bench/experiments/valve_extrapolation.py --seeds 0 --json out.json --plot beyond.png
 
-One line per (seed, model) on stdout, then the medians; --json writes every row (atomically).
+One line per (seed, model) on stdout, then the medians; --json writes every row (atomically);
+--plot draws the first seed's models against the noise-free force at 5 Hz, 0, 2.25 and 5 V.
 """
 
 from __future__ import annotations
@@ -59,11 +60,45 @@ def beyond_errors(model, tests, v_max: float) -> dict:
             "worst_test_rmse_beyond_n": max(v for v in per_test.values() if v is not None)}
 
 
+def plot(models: dict, tests, v_max: float, path: str) -> None:
+    """Force against velocity at 5 Hz and 0, 2.25 and 5 V: the noise-free force and each model."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from dampnet.outputs import atomic_write_bytes
+    from dampnet.predict import predict_force
+
+    volts = (0.0, 2.25, 5.0)
+    fig, axes = plt.subplots(1, len(volts), figsize=(13, 4.2), sharey=True)
+    for ax, u in zip(axes, volts):
+        t = min((t for t in tests if t.frequency_hz == max(BEYOND_HZ)),
+                key=lambda t: abs(float(t.control_nominal) - u))
+        v = t.channels["velocity"]
+        ax.axvspan(-v_max, v_max, color="0.92", label="trained speeds")
+        ax.plot(v, t.channels["true_force"] / 1000, "k", lw=2.5, label="rig (noise-free)")
+        for (name, model), style in zip(models.items(), ("C3--", "C0-")):
+            ax.plot(v, predict_force(model, t) / 1000, style, lw=1.2, label=name)
+        ax.set_title(f"{t.frequency_hz:g} Hz, {float(t.control_nominal):g} V")
+        ax.set_xlabel("velocity [m/s]")
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("force [kN]")
+    axes[0].legend(fontsize=8, loc="upper left")
+    fig.suptitle(f"Beyond the trained speeds (|v| <= {v_max:.2f} m/s): the network alone against the hybrid with the valve term")
+    fig.tight_layout()
+    import io
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    plt.close(fig)
+    atomic_write_bytes(path, buf.getvalue())
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     ap.add_argument("--models", nargs="+", default=list(MODELS), choices=list(MODELS))
     ap.add_argument("--json", help="write every row here")
+    ap.add_argument("--plot", help="write the force-velocity figure here (PNG)")
     args = ap.parse_args(argv)
     import dampnet
     from dampnet.rig import generate
@@ -75,7 +110,7 @@ def main(argv=None) -> int:
     v_top = max(float(np.max(np.abs(t.channels["velocity"]))) for t in beyond)
     print(f"trained up to |v| = {v_max:.3f} m/s ({len(train_ds.tests)} tests); scored to {v_top:.3f} m/s "
           f"({len(beyond)} tests)", flush=True)
-    rows = []
+    rows, first = [], {}
     for seed in args.seeds:
         for name in args.models:
             t0 = time.perf_counter()
@@ -84,6 +119,8 @@ def main(argv=None) -> int:
             row = {"model": name, "seed": seed, "train_s": round(time.perf_counter() - t0, 1),
                    "terms": trained.model.terms, **beyond_errors(trained.model, beyond, v_max)}
             rows.append(row)
+            if seed == args.seeds[0]:
+                first[name] = trained.model
             print(f"seed {seed} {name:8s}: beyond the envelope RMSE {row['rmse_beyond_n']:7.1f} N "
                   f"(worst test {row['worst_test_rmse_beyond_n']:.1f} N, {100 * row['share_beyond']:.0f} % of the "
                   f"samples), all of BEYOND {row['rmse_all_n']:.1f} N ({row['train_s']:.0f} s)", flush=True)
@@ -91,6 +128,8 @@ def main(argv=None) -> int:
         mine = [r for r in rows if r["model"] == name]
         print(f"median {name:8s}: beyond {statistics.median(r['rmse_beyond_n'] for r in mine):.1f} N, "
               f"all {statistics.median(r['rmse_all_n'] for r in mine):.1f} N")
+    if args.plot:
+        plot(first, beyond, v_max, args.plot)
     if args.json:
         from dampnet.outputs import atomic_write_text
         atomic_write_text(args.json, json.dumps({"v_train_max_m_s": v_max, "rows": rows}, indent=1))

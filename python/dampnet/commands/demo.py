@@ -15,7 +15,7 @@ def add_parser(subparsers):
                     "diagnose it, add the missing effect, export to C, run the quarter-car study "
                     "and the latency benchmark; write DIR/report.html and DIR/summary.json. With --data, run "
                     "the diagnosis loop on your own data instead: train, diagnose the training tests, add the "
-                    "effect named, retrain (at most --steps times), and report each model's error on held-out "
+                    "effects named, retrain (up to --steps effects in all), and report each model's error on held-out "
                     "tests, before and after.")
     p.add_argument("--out", default="dampnet-demo", help="output directory (default ./dampnet-demo)")
     p.add_argument("--quick", action="store_true",
@@ -32,8 +32,8 @@ def add_parser(subparsers):
                         f"({', '.join(REAL_DATASETS)}, from the shared data folder)")
     add_channel_map_option(g)
     g.add_argument("--steps", type=int, default=None, metavar="N",
-                   help=f"add at most N effects, one training and diagnosis each (default {MAX_STEPS}; "
-                        f"0..{MAX_STEPS_LIMIT})")
+                   help=f"add at most N effects in all (default {MAX_STEPS}; 0..{MAX_STEPS_LIMIT}); the effects one "
+                        "diagnosis names are added together, one training for them")
     add_training_options(g, train=True)
     p.set_defaults(handler=run)
     return p

@@ -61,7 +61,21 @@ def summary(d: dict, diagnosis_file: str | None = None) -> str:
     lines += leftover_lines(d)
     f = d["finding"]
     lines.append(f"verdict ({f['kind'].replace('_', ' ')}): {f['sentence']}")
+    together = together_command(d, diagnosis_file)
+    if together:
+        lines.append(f"add them together, in this order (each explains what is left after the ones before it): {together}")
     return "\n".join(lines)
+
+
+def together_command(d: dict, diagnosis_file: str | None = None) -> str | None:
+    """`dampnet train DATA --add A --add B ...` for the effects the verdict names that the data can
+    carry, when there are two or more (the diagnosis loop adds them so: dampnet.recipes.loop)."""
+    commands = {c["effect"]: c.get("add_command") for c in d["candidates"]}
+    named = [e for e in d["finding"].get("effects") or [] if commands.get(e)]
+    if len(named) < 2:
+        return None
+    return (commands[named[0]] + "".join(f" --add {e}" for e in named[1:])
+            + (f" --diagnosis {diagnosis_file}" if diagnosis_file else ""))
 
 
 def leftover_lines(d: dict) -> list[str]:

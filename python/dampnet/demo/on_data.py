@@ -173,12 +173,13 @@ def _report_html(s: dict) -> str:
         rows.append(f"<tr><td>{e(r['label'])}</td><td>{sc['rmse_n']:.1f}</td><td>{sc['nrmse']:.4f}</td>"
                     f"<td>{change}</td><td>{_rest_cell(sc.get('at_rest'))}</td>"
                     f"<td>{_outside_cell(sc['outside_envelope'])}</td><td>{r['train_s']:.0f}</td>"
-                    f"<td>{e(r['named'] or 'nothing')}</td><td>{e(sentence)}</td></tr>")
+                    f"<td>{e(', '.join(r.get('named_all') or ([r['named']] if r['named'] else [])) or 'nothing')}</td>"
+                    f"<td>{e(sentence)}</td></tr>")
     together = s.get("together")
     if together and len(together["added"]) > 1:
-        tog = (f"<p>Added together, in the order the diagnosis named them ({e(' then '.join(together['added']))}; "
-               f"each diagnosis is of the model with the effects before it): held-out RMSE {together['rmse_n']:.1f} N, "
-               f"{together['change_pct']:+.1f} % against the default model.</p>")
+        tog = (f"<p>Added together, in the order the diagnoses named them ({e(' then '.join(together['added']))}; "
+               f"each diagnosis is of the model with the effects added before it): held-out RMSE "
+               f"{together['rmse_n']:.1f} N, {together['change_pct']:+.1f} % against the default model.</p>")
     elif together:
         tog = (f"<p>Adding {e(together['added'][0])}: held-out RMSE {together['rmse_n']:.1f} N, "
                f"{together['change_pct']:+.1f} % against the default model.</p>")
@@ -192,8 +193,9 @@ td,th{{border:1px solid #ccc;padding:0.3em 0.6em;text-align:left}}</style></head
 <h1>The loop on {e(s['data']['label'])}</h1>
 <p>{s['data']['tests']} tests, {s['data']['samples']:,} samples. Held out (never trained on, never diagnosed):
 {e(s['holdout']['how'])}: {e(', '.join(s['holdout']['tests']))}. Each model is diagnosed on its training tests;
-the effect its diagnosis names is added (as <code>dampnet train --add EFFECT --diagnosis FILE</code>) and the model
-retrained, at most {s['max_steps']} times.</p>
+every effect its diagnosis names is added, in the diagnosis's order (as <code>dampnet train --add A --add B
+--diagnosis FILE</code>: each explains what is left after the ones before it), and the model retrained, up to
+{s['max_steps']} effects in all.</p>
 <table><tr><th>model</th><th>held-out RMSE [N]</th><th>NRMSE</th><th>against the default</th>
 <th>at rest: RMSE (bias) [N]</th><th>outside the envelope: time, RMSE</th><th>training [s]</th>
 <th>its diagnosis named</th><th>the diagnosis's sentence</th></tr>

@@ -1,16 +1,20 @@
 """The diagnosis loop on any data (issue 53): train as `dampnet train` trains by default, diagnose
-the model on its TRAINING tests (never the held-out ones), add the effect the verdict names (as
-`dampnet train --add EFFECT --diagnosis d.json`), retrain, and again, until the verdict names
-nothing, names an effect already added or one the data cannot carry (its input needs a channel
-they lack), or `max_steps` effects were added.
+the model on its TRAINING tests (never the held-out ones), add every effect the diagnosis names,
+in its order (as `dampnet train --add A --add B --diagnosis d.json`), retrain, and again, until
+the diagnosis names nothing new, names only effects the data cannot carry (an input needs a
+channel they lack), or `max_steps` effects were added.
 
     steps = run_loop(dataset, holdout_tests=["t3", "t7"], max_steps=3)
     steps[0].label, steps[0].holdout_rmse_n      # "default", RMSE on the held-out tests [N]
     steps[-1].added                              # ("friction", "gas_spring"): in the order added
 
-The additions compose: step k's model carries every effect added before it, in the order the
-diagnosis named them (each diagnosis is of the model with the previous additions), so the last
-step is what adding them together gives. `dampnet demo --data` and bench/real_data.py run it.
+The diagnosis names several effects when each explains the residual left after the ones before it
+(its forward selection), so they are added together: on Labcontrol's MR damper (bench/RESULTS.md,
+"Real dampers") adding the three it named at once (friction, gas_spring, compressibility) gives
+18.3 N held out, where adding only the first and diagnosing again gave 29.8 N and then named
+nothing (the first addition changed the residual under the others' regressors). Step k's model
+carries every effect added before it, so the last step is what adding them together gives.
+`dampnet demo --data` and bench/real_data.py run it.
 """
 
 from __future__ import annotations
@@ -49,8 +53,18 @@ class LoopStep:
 
     @property
     def named(self) -> str | None:
-        """The effect this model's diagnosis named (its verdict), or None."""
+        """The effect this model's diagnosis named first (its verdict), or None."""
         return (self.diagnosis or {}).get("verdict")
+
+    @property
+    def named_all(self) -> list[str]:
+        """Every effect this model's diagnosis named, in its order (the verdict first)."""
+        return list(((self.diagnosis or {}).get("finding") or {}).get("effects") or [])
+
+    @property
+    def not_addable(self) -> dict[str, list[str]]:
+        """{effect named: the channels its input needs and the data lack}."""
+        return dict(((self.diagnosis or {}).get("finding") or {}).get("not_addable") or {})
 
     @property
     def holdout_rmse_n(self) -> float | None:
@@ -58,18 +72,38 @@ class LoopStep:
 
     @property
     def lacking(self) -> list[str]:
-        """The channels the named effect's input needs and the data lack (then it cannot be added)."""
-        return list(((self.diagnosis or {}).get("finding") or {}).get("not_addable", {}).get(self.named) or [])
+        """The channels the verdict's effect needs and the data lack (then it cannot be added)."""
+        return list(self.not_addable.get(self.named) or [])
+
+    def to_add(self, max_steps: int) -> tuple[tuple[str, ...], str | None]:
+        """(the effects to add after this model: every effect its diagnosis named, in its order,
+        that is addable and not added yet, up to max_steps additions in all; why the loop stops
+        here, or None)."""
+        named, lacking = self.named_all, self.not_addable
+        new = [e for e in named if e not in self.added]
+        addable = [e for e in new if not lacking.get(e)]
+        if not named:
+            return (), "the diagnosis names no effect"
+        if not new:
+            return (), f"the diagnosis names {', '.join(named)} again, already added"
+        if not addable:
+            return (), "; ".join(f"the diagnosis names {e}, whose input needs a {' or '.join(lacking[e])} channel "
+                                 "the data lack" for e in new)
+        room = max_steps - len(self.added)
+        if room <= 0:
+            return (), f"the diagnosis names {', '.join(addable)}; the loop stops at {max_steps} additions (max_steps)"
+        return tuple(addable[:room]), None
 
 
-def next_request(request: TrainingRequest, model, diagnosis: dict, effect: str) -> TrainingRequest:
+def next_request(request: TrainingRequest, model, diagnosis: dict, effects) -> TrainingRequest:
     """The request after a diagnosis: `request` with the model's features (those added before
     included), its feature parameters and physics terms (refitted: their values are not kept),
-    and `effect` added with the diagnosis's parameters, as `dampnet train --add EFFECT
-    --diagnosis FILE` makes it."""
+    and `effects` (one id or several, in order) added with the diagnosis's parameters, as
+    `dampnet train --add A --add B --diagnosis FILE` makes it."""
+    effects = (effects,) if isinstance(effects, str) else tuple(effects)
     terms = [{k: v for k, v in t.items() if k != "params"} for t in model.terms]
     return request.replace(features=list(model.features), terms=terms,
-                           feature_params=dict(model.feature_params) or None, add=(effect,),
+                           feature_params=dict(model.feature_params) or None, add=effects,
                            diagnosis=diagnosis).check()
 
 
@@ -132,24 +166,20 @@ def run_loop(data, request: TrainingRequest | None = None, *, max_steps: int = M
         t0 = time.perf_counter()
         step.diagnosis = diagnose(step.trained.model, train_ds, seed=seed)
         step.diagnose_s = time.perf_counter() - t0
-        effect, lacking = step.named, step.lacking
-        if effect is None:
-            step.stop = "the diagnosis names no effect"
-        elif effect in step.added:
-            step.stop = f"the diagnosis names {effect} again, already added"
-        elif lacking:
-            step.stop = f"the diagnosis names {effect}, whose input needs a {' or '.join(lacking)} channel the data lack"
-        elif len(step.added) >= max_steps:
-            step.stop = f"the diagnosis names {effect}; the loop stops at {max_steps} additions (max_steps)"
+        effects, step.stop = step.to_add(max_steps)
         if step.stop:
             log(f"  stop: {step.stop}")
             return steps
-        log(f"  the diagnosis names {effect}: adding it")
+        lacking = step.not_addable
+        skipped = [(e + (f": the data have no {' or '.join(lacking[e])} channel" if lacking.get(e) else
+                         f": max_steps {max_steps}")) for e in step.named_all if e not in effects and e not in step.added]
+        log(f"  the diagnosis names {', '.join(step.named_all)}: adding {' and '.join(effects)}"
+            + (f" (not {'; '.join(skipped)})" if skipped else ""))
         try:
-            req = next_request(step.request, step.trained.model, step.diagnosis, effect)
-            steps.append(fit(req, "+ " + " + ".join((*step.added, effect)), (*step.added, effect)))
+            req = next_request(step.request, step.trained.model, step.diagnosis, effects)
+            steps.append(fit(req, "+ " + " + ".join((*step.added, *effects)), (*step.added, *effects)))
         except ValueError as e:  # the addition was refused (the message says why): the loop ends here
-            step.stop = f"adding {effect} was refused: {e}"
+            step.stop = f"adding {' and '.join(effects)} was refused: {e}"
             log(f"  stop: {step.stop}")
             return steps
 
@@ -162,6 +192,7 @@ def loop_summary(steps: Sequence[LoopStep]) -> dict[str, Any]:
         finding = (s.diagnosis or {}).get("finding") or {}
         rows.append({"label": s.label, "added": list(s.added), "scores": s.scores, "train_s": round(s.train_s, 2),
                      "diagnose_s": None if s.diagnose_s is None else round(s.diagnose_s, 2), "named": s.named,
+                     "named_all": s.named_all,
                      "finding": {k: finding.get(k) for k in ("kind", "effects", "sentence", "not_addable")},
                      "features": list(s.trained.model.features), "stop": s.stop})
     first, last = steps[0].scores.get("rmse_n"), steps[-1].scores.get("rmse_n")
