@@ -105,6 +105,6 @@ def run_on_data(args) -> int:
         return error(str(e))
     first, last = summary["steps"][0], summary["steps"][-1]
     print(f"summary: held-out RMSE {first['scores']['rmse_n']:.1f} N (default model)"
-          + (f" -> {last['scores']['rmse_n']:.1f} N after adding {' then '.join(last['added'])}" if last["added"] else "")
+          + (f" -> {last['scores']['rmse_n']:.1f} N after adding {', '.join(last['added'])}" if last["added"] else "")
           + f"; stopped: {summary['stop']}")
     return 0
