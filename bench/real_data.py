@@ -277,12 +277,8 @@ def markdown(result: dict) -> str:
             if "diagnosis" in r:
                 dg = r["diagnosis"]
                 lacking = dg.get("not_addable") or {}
-                if isinstance(lacking, list):      # a run before the loop added several: the verdict's
-                    lacking = {dg.get("verdict"): lacking}
                 named = ", ".join(e + (f" (not addable: the data have no {' or '.join(lacking[e])} channel)"
-                                       if lacking.get(e) else "")
-                                  for e in dg.get("named") or ([dg["verdict"]] if dg.get("verdict") else []))
-                named = named or "no effect"
+                                       if lacking.get(e) else "") for e in dg["named"]) or "no effect"
                 if not dg.get("verdict") and (dg.get("three_way") or {}).get("kind") == "artefact":
                     named += " (a measurement artefact instead: see the JSON's finding)"
                 if (dg.get("stop") or "").startswith("adding"):

@@ -33,8 +33,6 @@ PLAN = {"name": "diag", "frequencies_hz": [0.25, 0.5, 1.0, 2.0, 3.0], "amplitude
         "samples": 2000, "min_cycles": 2}
 TRAIN = {"decimate": 4, "max_epochs": 120, "control_prior": 0.0}
 GRID = (0.03, 0.05, 0.07, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5, 0.6, 0.8)
-#: the smallest knee share tried (--grid-min X)
-GRID_MIN = float(sys.argv[sys.argv.index("--grid-min") + 1]) if "--grid-min" in sys.argv else 0.0
 
 
 def knee_columns(ctx, theta):
@@ -58,7 +56,7 @@ def knee_columns(ctx, theta):
     return out_cols
 
 
-def score(ds, label: str, model=None) -> dict:
+def score(ds, label: str, grid_min: float, model=None) -> dict:
     from dampnet.diagnosis import score as S
     from dampnet.diagnosis.catalogue import Candidate
     from dampnet.diagnosis.context import build_context
@@ -73,7 +71,7 @@ def score(ds, label: str, model=None) -> dict:
     Y = [np.column_stack([r, s]) for r, s in zip(resid, S.surrogates(resid, S.N_SURROGATES, 0))]
     folds = S.folds_of(ctx)
     base_cv = S.baseline_cv(ctx, Y, folds)
-    grid = [g for g in GRID if g >= GRID_MIN]
+    grid = [g for g in GRID if g >= grid_min]
     cand = Candidate(id="knee", needs="velocity, the model's force", signature="", columns=knee_columns,
                      grid=lambda ctx: grid)
     res = S.score_candidate(ctx, cand, Y, folds, base_cv)
@@ -84,15 +82,21 @@ def score(ds, label: str, model=None) -> dict:
     return res
 
 
-def main() -> int:
+def main(argv=None) -> int:
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--real", action="store_true", help="also the real data sets (about 5 minutes more)")
+    ap.add_argument("--grid-min", type=float, default=0.0, help="the smallest knee share tried")
+    args = ap.parse_args(argv)
     from dampnet.rig import generate
     from dampnet.rig.truth import TruthParams
 
     p0 = TruthParams()
-    score(generate(PLAN, seed=1), "knees")
+    score(generate(PLAN, seed=1), "knees", args.grid_min)
     score(generate(PLAN, seed=1, params=replace(p0, crack_pressure_rebound_pa=0.0,
-                                                crack_pressure_compression_pa=0.0)), "no knee")
-    if "--real" in sys.argv[1:]:
+                                                crack_pressure_compression_pa=0.0)), "no knee", args.grid_min)
+    if args.real:
         from pathlib import Path
         sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
         from real_data import split
@@ -107,7 +111,7 @@ def main() -> int:
             trained = train(ds, holdout_voltage=None, holdout_tests=[t.test_id for t in test], seed=0,
                             algorithm="auto", restarts="auto", workers=1)
             tr = Dataset(tests=list(trained.split.train.tests), source=ds.source, meta=dict(ds.meta))
-            score(tr, name, model=trained.model)
+            score(tr, name, args.grid_min, model=trained.model)
     return 0
 
 

@@ -8,7 +8,9 @@ added (as `dampnet train --add A --add B --diagnosis d.json`) and prints the hel
 
 Measured 2026-12-02 (bench/RESULTS.md, "Real dampers"), UTFSM, seed 0: + friction + gas_spring
 38.0 N, + friction + compressibility 46.8 N, + friction + gas_spring + compressibility 35.5 N (the
-loop, whose diagnosis names friction and thermal only: 47.6 N; the GRU 50.9 N).
+loop, whose diagnosis names friction and thermal only: 47.6 N; the GRU 50.9 N). The diagnosis's
+candidates are printed with their scores: on UTFSM gas_spring explains 3.7 % (z 8.7) after
+friction (81.0 %) and thermal (5.5 %), under the 5 % minimum (dampnet.diagnosis.score.MIN_SCORE).
 """
 
 from __future__ import annotations
@@ -47,6 +49,11 @@ def main(argv=None) -> int:
     d = diagnose(first.model, Dataset(tests=list(first.split.train.tests), source=ds.source, meta=dict(ds.meta)),
                  seed=args.seed)
     print(f"  its diagnosis names: {', '.join(d['finding']['effects']) or 'nothing'}", flush=True)
+    for c in d["candidates"]:   # each candidate's score, given the effects accepted before it
+        if c["testable"]:
+            print(f"    {c['effect']}: {100 * c['score']:.1f} % of the residual's variance, z {c['z']:.1f}, "
+                  f"{'significant' if c['significant'] else 'not significant'}"
+                  + (f", scored after {', '.join(c['given'])}" if c["given"] else ""), flush=True)
     for combo in args.adds:
         add = tuple(e.strip() for e in combo.split(",") if e.strip())
         t0 = time.perf_counter()

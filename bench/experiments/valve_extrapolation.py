@@ -22,6 +22,7 @@ One line per (seed, model) on stdout, then the medians; --json writes every row 
 from __future__ import annotations
 
 import argparse
+import io
 import json
 import statistics
 import sys
@@ -86,7 +87,6 @@ def plot(models: dict, tests, v_max: float, path: str) -> None:
     axes[0].legend(fontsize=8, loc="upper left")
     fig.suptitle(f"Beyond the trained speeds (|v| <= {v_max:.2f} m/s): the network alone against the hybrid with the valve term")
     fig.tight_layout()
-    import io
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
     plt.close(fig)

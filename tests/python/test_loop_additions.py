@@ -23,23 +23,25 @@ def _step(named, added=(), not_addable=None) -> LoopStep:
 
 def test_every_named_effect_is_added_in_the_diagnosis_order():
     assert _step(["friction", "gas_spring", "compressibility"]).to_add(3) == (
-        ("friction", "gas_spring", "compressibility"), None)
-    assert _step(["gas_spring", "friction"]).to_add(3) == (("gas_spring", "friction"), None)
+        ("friction", "gas_spring", "compressibility"), {}, None)
+    assert _step(["gas_spring", "friction"]).to_add(3) == (("gas_spring", "friction"), {}, None)
 
 
 def test_what_is_not_added_and_why():
     # already added: only the new ones; all of them already: stop
-    assert _step(["friction", "gas_spring"], added=["friction"]).to_add(3) == (("gas_spring",), None)
-    effects, stop = _step(["friction"], added=["friction"]).to_add(3)
+    assert _step(["friction", "gas_spring"], added=["friction"]).to_add(3) == (("gas_spring",), {}, None)
+    effects, _, stop = _step(["friction"], added=["friction"]).to_add(3)
     assert effects == () and stop == "the diagnosis names friction again, already added"
-    # an effect the data cannot carry is skipped; when it is the only one, the loop says what is missing
-    assert _step(["friction", "thermal"], not_addable={"thermal": ["temperature"]}).to_add(3) == (("friction",), None)
-    effects, stop = _step(["thermal"], not_addable={"thermal": ["temperature"]}).to_add(3)
+    # an effect the data cannot carry is left out, saying why; when it is the only one, the loop stops
+    assert _step(["friction", "thermal"], not_addable={"thermal": ["temperature"]}).to_add(3) == (
+        ("friction",), {"thermal": "the data have no temperature channel"}, None)
+    effects, _, stop = _step(["thermal"], not_addable={"thermal": ["temperature"]}).to_add(3)
     assert effects == () and "thermal, whose input needs a temperature channel the data lack" in stop
     # nothing named; and max_steps caps the effects added in all
-    assert _step([]).to_add(3) == ((), "the diagnosis names no effect")
-    assert _step(["friction", "gas_spring", "compressibility"], added=["valve_lag"]).to_add(2) == (("friction",), None)
-    effects, stop = _step(["friction"], added=["valve_lag", "gas_spring"]).to_add(2)
+    assert _step([]).to_add(3) == ((), {}, "the diagnosis names no effect")
+    assert _step(["friction", "gas_spring", "compressibility"], added=["valve_lag"]).to_add(2) == (
+        ("friction",), {"gas_spring": "max_steps 2", "compressibility": "max_steps 2"}, None)
+    effects, _, stop = _step(["friction"], added=["valve_lag", "gas_spring"]).to_add(2)
     assert effects == () and "stops at 2 additions" in stop
 
 
@@ -49,7 +51,7 @@ def test_the_next_request_adds_them_together_after_what_the_model_has():
     diagnosis = {"candidates": [{"effect": "friction", "parameters": {"presliding_length_mm": 0.3}}]}
     req = next_request(TrainingRequest.of(), model, diagnosis, ("friction", "compressibility"))
     assert req.add == ("friction", "compressibility") and req.features[-1] == "displacement"
-    assert next_request(TrainingRequest.of(), model, diagnosis, "friction").add == ("friction",)
+    assert next_request(TrainingRequest.of(), model, diagnosis, ["friction"]).add == ("friction",)
 
 
 def test_diagnose_prints_the_command_that_adds_them_together():

@@ -132,12 +132,10 @@ def structure_line(model, st: dict) -> str:
     return ("structure: " + "; ".join(parts)) if parts else ""
 
 
-def bandwidth_text(bandwidths_hz) -> str:
-    """A derived channel's bandwidths [Hz] in words: '40', or '4.2 to 40' over tests."""
-    b = [bandwidths_hz] if isinstance(bandwidths_hz, (int, float)) else list(bandwidths_hz)
-    if not b:
-        return "?"
-    return f"{min(b):g}" if min(b) == max(b) else f"{min(b):.3g} to {max(b):.3g}"
+def bandwidth_text(bandwidths_hz: list[float]) -> str:
+    """The acceleration's bandwidths [Hz] over the tests in words: '40', or '4.2 to 40'."""
+    lo, hi = min(bandwidths_hz), max(bandwidths_hz)
+    return f"{lo:g}" if lo == hi else f"{lo:.3g} to {hi:.3g}"
 
 
 def print_summary(model, info, split, metrics, out, t_train) -> None:

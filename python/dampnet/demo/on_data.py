@@ -173,7 +173,7 @@ def _report_html(s: dict) -> str:
         rows.append(f"<tr><td>{e(r['label'])}</td><td>{sc['rmse_n']:.1f}</td><td>{sc['nrmse']:.4f}</td>"
                     f"<td>{change}</td><td>{_rest_cell(sc.get('at_rest'))}</td>"
                     f"<td>{_outside_cell(sc['outside_envelope'])}</td><td>{r['train_s']:.0f}</td>"
-                    f"<td>{e(', '.join(r.get('named_all') or ([r['named']] if r['named'] else [])) or 'nothing')}</td>"
+                    f"<td>{e(', '.join(r['named_all']) or 'nothing')}</td>"
                     f"<td>{e(sentence)}</td></tr>")
     together = s.get("together")
     if together and len(together["added"]) > 1:

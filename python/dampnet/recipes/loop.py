@@ -70,40 +70,37 @@ class LoopStep:
     def holdout_rmse_n(self) -> float | None:
         return self.scores.get("rmse_n")
 
-    @property
-    def lacking(self) -> list[str]:
-        """The channels the verdict's effect needs and the data lack (then it cannot be added)."""
-        return list(self.not_addable.get(self.named) or [])
-
-    def to_add(self, max_steps: int) -> tuple[tuple[str, ...], str | None]:
+    def to_add(self, max_steps: int) -> tuple[tuple[str, ...], dict[str, str], str | None]:
         """(the effects to add after this model: every effect its diagnosis named, in its order,
-        that is addable and not added yet, up to max_steps additions in all; why the loop stops
-        here, or None)."""
+        that is addable and not added yet, up to max_steps additions in all; {named effect left
+        out: why}; why the loop stops here, or None)."""
         named, lacking = self.named_all, self.not_addable
         new = [e for e in named if e not in self.added]
-        addable = [e for e in new if not lacking.get(e)]
+        skipped = {e: f"the data have no {' or '.join(lacking[e])} channel" for e in new if lacking.get(e)}
+        addable = [e for e in new if e not in skipped]
+        room = max(max_steps - len(self.added), 0)
+        skipped.update({e: f"max_steps {max_steps}" for e in addable[room:]})
         if not named:
-            return (), "the diagnosis names no effect"
+            return (), skipped, "the diagnosis names no effect"
         if not new:
-            return (), f"the diagnosis names {', '.join(named)} again, already added"
+            return (), skipped, f"the diagnosis names {', '.join(named)} again, already added"
         if not addable:
-            return (), "; ".join(f"the diagnosis names {e}, whose input needs a {' or '.join(lacking[e])} channel "
-                                 "the data lack" for e in new)
-        room = max_steps - len(self.added)
-        if room <= 0:
-            return (), f"the diagnosis names {', '.join(addable)}; the loop stops at {max_steps} additions (max_steps)"
-        return tuple(addable[:room]), None
+            return (), skipped, "; ".join(f"the diagnosis names {e}, whose input needs a {' or '.join(lacking[e])} "
+                                          "channel the data lack" for e in new)
+        if not room:
+            return (), skipped, (f"the diagnosis names {', '.join(addable)}; the loop stops at {max_steps} "
+                                 "additions (max_steps)")
+        return tuple(addable[:room]), skipped, None
 
 
-def next_request(request: TrainingRequest, model, diagnosis: dict, effects) -> TrainingRequest:
+def next_request(request: TrainingRequest, model, diagnosis: dict, effects: Sequence[str]) -> TrainingRequest:
     """The request after a diagnosis: `request` with the model's features (those added before
     included), its feature parameters and physics terms (refitted: their values are not kept),
-    and `effects` (one id or several, in order) added with the diagnosis's parameters, as
-    `dampnet train --add A --add B --diagnosis FILE` makes it."""
-    effects = (effects,) if isinstance(effects, str) else tuple(effects)
+    and `effects` (ids, in order) added with the diagnosis's parameters, as `dampnet train --add A
+    --add B --diagnosis FILE` makes it."""
     terms = [{k: v for k, v in t.items() if k != "params"} for t in model.terms]
     return request.replace(features=list(model.features), terms=terms,
-                           feature_params=dict(model.feature_params) or None, add=effects,
+                           feature_params=dict(model.feature_params) or None, add=tuple(effects),
                            diagnosis=diagnosis).check()
 
 
@@ -166,15 +163,12 @@ def run_loop(data, request: TrainingRequest | None = None, *, max_steps: int = M
         t0 = time.perf_counter()
         step.diagnosis = diagnose(step.trained.model, train_ds, seed=seed)
         step.diagnose_s = time.perf_counter() - t0
-        effects, step.stop = step.to_add(max_steps)
+        effects, skipped, step.stop = step.to_add(max_steps)
         if step.stop:
             log(f"  stop: {step.stop}")
             return steps
-        lacking = step.not_addable
-        skipped = [(e + (f": the data have no {' or '.join(lacking[e])} channel" if lacking.get(e) else
-                         f": max_steps {max_steps}")) for e in step.named_all if e not in effects and e not in step.added]
         log(f"  the diagnosis names {', '.join(step.named_all)}: adding {' and '.join(effects)}"
-            + (f" (not {'; '.join(skipped)})" if skipped else ""))
+            + (f" (not {'; '.join(f'{e}: {why}' for e, why in skipped.items())})" if skipped else ""))
         try:
             req = next_request(step.request, step.trained.model, step.diagnosis, effects)
             steps.append(fit(req, "+ " + " + ".join((*step.added, *effects)), (*step.added, *effects)))

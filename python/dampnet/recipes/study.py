@@ -26,8 +26,9 @@ def check(out: str | Path, inputs, force: bool) -> None:
     """Before the study: `out` is new, or (force) a study directory (never an input)."""
     from dampnet.outputs import check_run_dir
     from dampnet.sim.quarter_car.study import SCHEMA
+    from dampnet.sim.run_dir import schema_family
 
-    check_run_dir(Path(out), FILES, "study.json", SCHEMA.split("/")[0] + "/",
+    check_run_dir(Path(out), FILES, "study.json", schema_family(SCHEMA),
                   [p for p in inputs if p and Path(p).exists()], force)
 
 

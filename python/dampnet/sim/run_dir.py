@@ -26,7 +26,12 @@ class RunKind:
     @property
     def family(self) -> str:
         """The schema without its version ("dampnet.simulate/"): what every version of the run starts with."""
-        return self.schema.split("/")[0] + "/"
+        return schema_family(self.schema)
+
+
+def schema_family(schema: str) -> str:
+    """A run record's schema without its version: "dampnet.simulate/2" -> "dampnet.simulate/"."""
+    return schema.split("/")[0] + "/"
 
 
 # /2: the runtime's law names in "controller", no "backend" (the runtime's loop is the only one)
