@@ -16,7 +16,8 @@ from dampnet import _core
 
 ENUMS = {  # field -> (dict, {name: value}), from dampnet.h
     "kind": ("controller", {"passive": 0, "skyhook_onoff": 1, "skyhook_continuous": 2,
-                            "groundhook_onoff": 3, "groundhook_continuous": 4, "external": 5}),
+                            "groundhook_onoff": 3, "groundhook_continuous": 4, "external": 5,
+                            "skyhook_force": 6, "groundhook_force": 7, "hybrid_force": 8, "clipped_optimal": 9}),
     "integrator": ("vehicle", {"rk4": 0, "semi_euler": 1}),
     "damper_eval": ("vehicle", {"per_stage": 0, "per_step": 1}),
     "accel_feature": ("vehicle", {"implicit": 0, "explicit": 1, "linear": 2}),
@@ -25,7 +26,8 @@ ALL_NAMES = sorted({n for _, names in ENUMS.values() for n in names})
 
 
 def model(vehicle=None, controller=None):
-    return _core.LoopModel(_core.Damper.linear(1500.0), vehicle or {}, controller or {})
+    # a damper with a control: the force-tracking laws refuse one without (its inverse)
+    return _core.LoopModel(_core.Damper.parametric(400.0, 3500.0, 1800.0, 40.0, 5.0), vehicle or {}, controller or {})
 
 
 def given(field, value):

@@ -23,7 +23,8 @@ ENUM_REGISTRIES = {  # registry -> (dict, field of that dict it names)
 
 
 def model(vehicle=None, controller=None):
-    return _core.LoopModel(_core.Damper.linear(1500.0), vehicle or {}, controller or {})
+    # a damper with a control: the force-tracking laws refuse one without (its inverse)
+    return _core.LoopModel(_core.Damper.parametric(400.0, 3500.0, 1800.0, 40.0, 5.0), vehicle or {}, controller or {})
 
 
 @pytest.mark.parametrize("registry", ENUM_REGISTRIES)

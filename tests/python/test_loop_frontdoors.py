@@ -33,6 +33,7 @@ typedef struct dn_vehicle {
 typedef struct dn_controller {
   int kind; double u_passive; double u_soft; double u_hard; double u_min; double u_max;
   double c_sky; double c_gnd; double c_min; double c_max; double u_tau_s;
+  double alpha; double k_travel; double k_vs; double k_tyre; double k_vus;
 } dn_controller;
 typedef struct dn_loop_input { double z_r; double v_r; double u; } dn_loop_input;
 typedef struct dn_loop_out {

@@ -64,8 +64,19 @@ def test_a_run_with_a_wrong_law_name_is_refused_before_it_runs(kind):
 
 @pytest.mark.parametrize("law", [k for k in LAWS if k != "external"])
 def test_every_runtime_law_runs_under_its_runtime_name(law):
-    r = simulate(linear_spec(1500.0), impulse(start_s=0.05, total_s=0.5), controller=semi_active(law, {"low": 5.0, "high": 0.0}))
+    from dampnet.sim.dampers import load_spec
+
+    # the embedded default model: a damper whose control sets its force (the force-tracking laws invert it)
+    r = simulate(load_spec("default"), impulse(start_s=0.05, total_s=0.5),
+                 controller=semi_active(law, {"low": 5.0, "high": 0.0}))
     assert r["controller"]["kind"] == law and np.isfinite(r["metrics"]["acc_rms_m_s2"])
+
+
+@pytest.mark.parametrize("law", ["skyhook_force", "clipped_optimal"])
+def test_a_force_tracking_law_refuses_a_damper_without_a_control(law):
+    with pytest.raises(LoopError, match=f"'kind' = {_core.CONTROLLER_KINDS[law][0]} \\({law}\\) tracks a force through the "
+                                        "damper's inverse.*no control"):
+        simulate(linear_spec(1500.0), impulse(start_s=0.05, total_s=0.5), controller=semi_active(law, {"low": 5.0, "high": 0.0}))
 
 
 def test_vehicle_accel_feature_takes_the_runtime_names_only():

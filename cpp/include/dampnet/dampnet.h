@@ -55,7 +55,7 @@ extern "C" {
 /*---- Version ----*/
 
 #define DN_VERSION_MAJOR 0
-#define DN_VERSION_MINOR 6 /* 0.6: the full car's MacAdam driver (dn_fullcar_params.driver_rate_max, driver_preview_s 0.5 s); 0.5: the damper owns its state (DN_DAMPER_STATE_LIST; the loop and full-car states keep it as one block); 0.4: the full vehicle dn_fullcar_* (0.3: dn_controller.u_tau_s, 13 loop states; 0.2: dn_damper_input.v_lag/z_fric) */
+#define DN_VERSION_MINOR 7 /* 0.7: force-tracking control laws (DN_CTRL_SKYHOOK_FORCE ... DN_CTRL_CLIPPED_OPTIMAL; dn_controller.alpha, k_travel, k_vs, k_tyre, k_vus); 0.6: the full car's MacAdam driver (dn_fullcar_params.driver_rate_max, driver_preview_s 0.5 s); 0.5: the damper owns its state (DN_DAMPER_STATE_LIST; the loop and full-car states keep it as one block); 0.4: the full vehicle dn_fullcar_* (0.3: dn_controller.u_tau_s, 13 loop states; 0.2: dn_damper_input.v_lag/z_fric) */
 #define DN_VERSION_PATCH 0
 /* Version of this header as major*10000 + minor*100 + patch. */
 #define DN_VERSION_HEADER (DN_VERSION_MAJOR * 10000 + DN_VERSION_MINOR * 100 + DN_VERSION_PATCH)

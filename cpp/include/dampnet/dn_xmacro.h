@@ -225,6 +225,18 @@
  *   GROUNDHOOK_CONTINUOUS: if -v_us v > 0: d = clamp((-c_gnd v_us / v - c_min) / (c_max - c_min), 0, 1)
  *                        else d = 0
  *   EXTERNAL:            u = dn_loop_input.u (the caller's controller)
+ * Force-tracking laws demand a damper force F_d [N] (positive resisting extension, as the
+ * damper's force) and command the control the damper's inverse gives for f_static + F_d at the
+ * step start's damper input (dn_damper_inverse: the nearest achievable force when F_d is not).
+ * A damper can only dissipate: F_d is 0 unless F_d v > 0, and F_d = 0 commands u_soft, the least
+ * damping (not the control whose force is nearest 0 N: a damper whose force lags its velocity
+ * has none near a reversal, and the hard setting there would push the body).
+ *   SKYHOOK_FORCE:       F_d = c_sky v_s
+ *   GROUNDHOOK_FORCE:    F_d = -c_gnd v_us
+ *   HYBRID_FORCE:        F_d = alpha (c_sky v_s, if v_s v > 0) + (1 - alpha) (-c_gnd v_us, if -v_us v > 0)
+ *   CLIPPED_OPTIMAL:     F_d = k_travel (z_s - z_us) + k_vs v_s + k_tyre (z_us - z_r) + k_vus v_us
+ *                        (an LQR state feedback, clipped to the dissipative; Dyke et al. 1996)
+ * A damper without a control (dn_damper_control_range: DN_E_MISMATCH) is refused with them.
  * Command filter (every law but EXTERNAL): with u_tau_s > 0 the law's control passes a
  * first-order low-pass before it reaches the damper, sampled at the step start and held
  * over the step: u_k = u_law + (u_{k-1} - u_law) exp(-dt / u_tau_s), u_{k-1} being the
@@ -240,7 +252,16 @@
   X(DN_CTRL_GROUNDHOOK_CONTINUOUS, 4, "groundhook_continuous",                                  \
     "continuous groundhook: d = clamp((-c_gnd v_us / v - c_min) / (c_max - c_min), 0, 1) if "   \
     "-v_us v > 0")                                                                              \
-  X(DN_CTRL_EXTERNAL, 5, "external", "u = dn_loop_input.u (the caller's controller)")
+  X(DN_CTRL_EXTERNAL, 5, "external", "u = dn_loop_input.u (the caller's controller)")           \
+  X(DN_CTRL_SKYHOOK_FORCE, 6, "skyhook_force",                                                  \
+    "skyhook as a force through the inverse: F_d = c_sky v_s if v_s v > 0 else 0")              \
+  X(DN_CTRL_GROUNDHOOK_FORCE, 7, "groundhook_force",                                            \
+    "groundhook as a force through the inverse: F_d = -c_gnd v_us if -v_us v > 0 else 0")       \
+  X(DN_CTRL_HYBRID_FORCE, 8, "hybrid_force",                                                    \
+    "hybrid through the inverse: F_d = alpha (skyhook_force's) + (1 - alpha) (groundhook_force's)") \
+  X(DN_CTRL_CLIPPED_OPTIMAL, 9, "clipped_optimal",                                              \
+    "clipped-optimal through the inverse: F_d = k_travel (z_s - z_us) + k_vs v_s + k_tyre (z_us - z_r) " \
+    "+ k_vus v_us if F_d v > 0 else 0")
 
 /* Controller parameters: X(type, name, default, doc). */
 #define DN_CONTROLLER_FIELDS(X)                                                     \
@@ -254,7 +275,12 @@
   X(dn_real, c_gnd, 2500.0, "groundhook damping [N s/m], >= 0")                      \
   X(dn_real, c_min, 500.0, "damping at u_soft [N s/m] (continuous laws: < c_max)")            \
   X(dn_real, c_max, 4000.0, "damping at u_hard [N s/m] (continuous laws), > c_min")           \
-  X(dn_real, u_tau_s, 0.0, "command filter time constant [s], >= 0; 0 = none (not EXTERNAL)")
+  X(dn_real, u_tau_s, 0.0, "command filter time constant [s], >= 0; 0 = none (not EXTERNAL)") \
+  X(dn_real, alpha, 0.5, "hybrid_force's skyhook share [-], in [0, 1]")                     \
+  X(dn_real, k_travel, 0.0, "clipped_optimal's gain on the travel z_s - z_us [N/m]")         \
+  X(dn_real, k_vs, 0.0, "clipped_optimal's gain on the body velocity v_s [N s/m]")           \
+  X(dn_real, k_tyre, 0.0, "clipped_optimal's gain on the tyre deflection z_us - z_r [N/m]")  \
+  X(dn_real, k_vus, 0.0, "clipped_optimal's gain on the wheel velocity v_us [N s/m]")
 
 /*---- The quarter-car loop ----*/
 

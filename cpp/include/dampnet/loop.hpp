@@ -119,6 +119,39 @@ inline real control_law(const dn_controller& c, real v_s, real v_us, real u_ext)
   return detail::clamp(u, c.u_min, c.u_max);
 }
 
+// Whether a law is force-tracking: it demands a force and commands the damper's inverse of it.
+inline bool is_force_law(int kind) noexcept {
+  return kind == DN_CTRL_SKYHOOK_FORCE || kind == DN_CTRL_GROUNDHOOK_FORCE || kind == DN_CTRL_HYBRID_FORCE ||
+         kind == DN_CTRL_CLIPPED_OPTIMAL;
+}
+
+// [RT] The force a force-tracking law demands [N] (see DN_CONTROLLER_KIND_LIST), positive
+// resisting extension: v_s, v_us absolute velocities [m/s], travel = z_s - z_us [m], tyre =
+// z_us - z_r [m]. 0 unless dissipative (F_d v > 0), and 0 for the other laws.
+inline real force_demand(const dn_controller& c, real v_s, real v_us, real travel, real tyre) noexcept {
+  const real v = v_s - v_us;
+  const real sky = v_s * v > 0 ? c.c_sky * v_s : 0;
+  const real gnd = -v_us * v > 0 ? -c.c_gnd * v_us : 0;
+  real f = 0;
+  switch (c.kind) {
+    case DN_CTRL_SKYHOOK_FORCE:
+      f = sky;
+      break;
+    case DN_CTRL_GROUNDHOOK_FORCE:
+      f = gnd;
+      break;
+    case DN_CTRL_HYBRID_FORCE:
+      f = c.alpha * sky + (1 - c.alpha) * gnd;
+      break;
+    case DN_CTRL_CLIPPED_OPTIMAL:
+      f = c.k_travel * travel + c.k_vs * v_s + c.k_tyre * tyre + c.k_vus * v_us;
+      break;
+    default:
+      break;
+  }
+  return f * v > 0 ? f : 0;  // NaN (from an overflowed product) is 0 too
+}
+
 namespace detail {
 // Whether x is one of an enum list's values: is_one_of(x, {DN_..._LIST(DN_ENUM_VALUE_)}).
 #define DN_ENUM_VALUE_(id, value, name, doc) value,
@@ -194,6 +227,7 @@ inline int check_controller(const dn_controller& s) noexcept {
   if ((c.kind == DN_CTRL_SKYHOOK_CONTINUOUS || c.kind == DN_CTRL_GROUNDHOOK_CONTINUOUS) &&
       !(c.c_max > c.c_min))
     return DN_E_PARAM;
+  if (!(c.alpha >= 0 && c.alpha <= 1)) return DN_E_PARAM;
   return DN_OK;
 }
 #undef DN_CHECK_FINITE_
@@ -213,6 +247,8 @@ struct Corner {
   int init(const Damper& d, const dn_controller& c, real dt, int accel_feature) noexcept {
     const int st = check_controller(c);
     if (st != DN_OK) return st;
+    real u_lo, u_hi;  // a force-tracking law needs a damper whose force the control sets
+    if (is_force_law(c.kind) && d.control_range(&u_lo, &u_hi) != DN_OK) return DN_E_MISMATCH;
     ctrl = c;
     if (&d != &damper) damper = d;  // dn_loop_model_init_neural builds it in place
     half = d.span(R(0.5) * dt);
@@ -232,8 +268,27 @@ struct Corner {
     const real u = control_law(ctrl, v_s, v_us, u_ext);
     return cmd_keep > 0 ? detail::clamp(u + (u_cmd - u) * cmd_keep, ctrl.u_min, ctrl.u_max) : u;
   }
-  // The control at rest (the reset's: a filtered law starts settled; an external one at 0).
+  // [RT] A force-tracking law's control over a step: the damper's inverse of f_static + the
+  // demand at the step start's damper input `in` (its states filled; in.u not read), u_soft when
+  // nothing is demanded (not dissipative), then the
+  // command filter as command()'s. The inverse's evaluations are added to *n_evals; an inverse
+  // that fails (a runaway input) leaves the centre of the range, and the force's evaluation then
+  // reports the failure.
+  DN_REALTIME real command_force(const dn_damper_input& in, real f_static, real demand, real u_cmd,
+                                 int64_t* n_evals) const noexcept {
+    real u = ctrl.u_soft, f = 0;
+    if (demand != 0) {  // no dissipative demand: the least damping, not the control nearest 0 N
+      int evals = 0;    // (a damper whose force lags its velocity gives no 0 N near a reversal)
+      damper.inverse(in, f_static + demand, &u, &f, &evals);
+      *n_evals += evals + 2;
+    }
+    u = detail::clamp(u, ctrl.u_min, ctrl.u_max);
+    return cmd_keep > 0 ? detail::clamp(u + (u_cmd - u) * cmd_keep, ctrl.u_min, ctrl.u_max) : u;
+  }
+  // The control at rest (the reset's: a filtered law starts settled; an external one at 0; a
+  // force-tracking one at its soft control, the inverse of no demand at rest).
   real command_at_rest() const noexcept {
+    if (is_force_law(ctrl.kind)) return detail::clamp(ctrl.u_soft, ctrl.u_min, ctrl.u_max);
     return ctrl.kind == DN_CTRL_EXTERNAL ? 0 : control_law(ctrl, 0, 0, 0);
   }
   // [RT] The damper's states at rest with control u0 (x_static: the mid position's x).
@@ -456,10 +511,14 @@ struct Start {
 inline Start start(const LoopModel& m, const real* s, real u_ext, dn_loop_out* out,
                    uint32_t* mask, int64_t* n_evals) noexcept {
   Start r;
-  r.u = m.command(s[S_v_s], s[S_v_us], u_ext, s[S_u_cmd]);
   const Body b{s[S_z_s], s[S_v_s], s[S_z_us], s[S_v_us]};
-  r.in = damper_input(m, b, s[S_z_r], s[S_v_r], r.u, s[S_f_last], s[S_temperature], s[S_t], 0);
+  r.in = damper_input(m, b, s[S_z_r], s[S_v_r], 0, s[S_f_last], s[S_temperature], s[S_t], 0);
   Damper::fill(DamperState::load(s + DN_LOOP_DAMPER_BASE), r.in);
+  r.u = is_force_law(m.ctrl.kind)
+            ? m.command_force(r.in, m.veh.f_static,
+                              force_demand(m.ctrl, b.vs, b.vus, b.zs - b.zus, b.zus - s[S_z_r]), s[S_u_cmd], n_evals)
+            : m.command(s[S_v_s], s[S_v_us], u_ext, s[S_u_cmd]);
+  r.in.u = r.u;
   real* feat = nullptr;
   if (out) {
     feat = out->features;

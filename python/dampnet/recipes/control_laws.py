@@ -235,10 +235,36 @@ _CONTINUOUS = {
                               "c_max calibrated on the damper and the vehicle as skyhook's are", "c_gnd, c_min, c_max"),
 }
 
+def _force_tracking(kind: str) -> Callable[[LawContext], Controller]:
+    def build(ctx: LawContext) -> Controller:
+        from dampnet.sim.calibration import force_tracking
+
+        return force_tracking(kind, ctx.spec, dict(ctx.levels), ctx.vehicle, u_tau_s=ctx.u_tau_s)
+    return build
+
+
+#: the runtime's force-tracking laws (a demanded force [N] through the damper's inverse), each
+#: calibrated by dampnet.sim.calibration.force_tracking: (its doc line, its calibrated gains)
+_FORCE = {
+    "skyhook_force": ("skyhook as a force, c_sky v_s, through the damper's inverse (c_sky as skyhook_continuous's)",
+                      "c_sky"),
+    "groundhook_force": ("groundhook as a force, -c_gnd v_us, through the damper's inverse", "c_gnd"),
+    "hybrid_force": ("half skyhook_force's demand plus half groundhook_force's (alpha 0.5), through the inverse",
+                     "c_sky, c_gnd, alpha"),
+    "clipped_optimal": ("an LQR force on the quarter car's state (dampnet.sim.calibration.lqr_gains), clipped to "
+                        "what the damper dissipates, through the inverse (Dyke et al. 1996)",
+                        "k_travel, k_vs, k_tyre, k_vus"),
+}
+
 for _kind in _core.CONTROLLER_KINDS:
     if _kind in ("passive", EXTERNAL):
         continue
-    if _kind in _CONTINUOUS:
+    if _kind in _FORCE:
+        _doc, _gains = _FORCE[_kind]
+        register(ControlLaw(_kind, _doc, _force_tracking(_kind),
+                            {"u_soft, u_hard": _LEVEL, _gains: "calibrated on the vehicle (dampnet.sim.calibration)",
+                             "u_tau_s": "s: command filter"}, reads=("u_tau_s",)))
+    elif _kind in _CONTINUOUS:
         _fn, _doc, _gains = _CONTINUOUS[_kind]
         register(ControlLaw(_kind, _doc, _continuous(_fn),
                             {"u_soft, u_hard": _LEVEL, _gains: "N s/m: calibrated (dampnet.sim.calibration)",
@@ -247,3 +273,6 @@ for _kind in _core.CONTROLLER_KINDS:
         register(ControlLaw(_kind, f"the runtime's {_kind} between the damper's low and high damping",
                             _switching(_kind),
                             {"u_soft, u_hard": _LEVEL, "u_tau_s": "s: command filter"}, reads=("u_tau_s",)))
+
+# the full vehicle runs the force-tracking laws too, each by its own name
+VEHICLE_DAMPING.update({_law: _law for _law in _FORCE})

@@ -126,6 +126,57 @@ def continuous_groundhook(spec: DamperSpec, levels: dict | None = None, vehicle:
                        c_gnd=zeta_gnd * 2.0 * math.sqrt((veh.k_s + veh.k_t) * veh.m_us), c_min=c_min, c_max=c_max)
 
 
+def force_tracking(kind: str, spec: DamperSpec, levels: dict | None = None, vehicle: Vehicle | None = None,
+                   u_tau_s: float = SKYHOOK_COMMAND_TAU_S, alpha: float = 0.5) -> Controller:
+    """A force-tracking law (skyhook_force, groundhook_force, hybrid_force, clipped_optimal: the
+    demanded force [N] through the damper's inverse) calibrated on the vehicle: c_sky and c_gnd as
+    the continuous laws' (no resonant peak of the ideal body / wheel), hybrid_force's skyhook share
+    `alpha`, clipped_optimal's gains `lqr_gains`; the control limited to the damper's levels."""
+    veh = vehicle or Vehicle()
+    lv = levels or damping_levels(spec, veh.dt)
+    gains = {"c_sky": SKYHOOK_ZETA * 2.0 * math.sqrt(veh.k_s * veh.m_s),
+             "c_gnd": GROUNDHOOK_ZETA * 2.0 * math.sqrt((veh.k_s + veh.k_t) * veh.m_us), "alpha": alpha}
+    if kind == "clipped_optimal":
+        gains.update(lqr_gains(veh))
+    return semi_active(kind, lv, u_tau_s, **gains)
+
+
+#: clipped_optimal's LQR weights: J = integral of (a_s / A_REF)^2 + (travel / TRAVEL_REF)^2 +
+#: (k_t tyre deflection / TYRE_LOAD_REF)^2 + (F / FORCE_REF)^2 dt. Body acceleration counts most
+#: (comfort); 0.1 m/s^2 of it weighs as 5 cm of travel, as 1 kN of dynamic tyre load, and as 20 kN
+#: of force (the force weight only keeps R > 0; the clipping to the damper is the real limit).
+LQR_REFS = {"a_ref": 0.1, "travel_ref": 0.05, "tyre_load_ref": 1000.0, "force_ref": 20000.0}
+
+
+def lqr_design(vehicle: Vehicle | None = None, refs: dict | None = None):
+    """(A, B, Q, R, N) of the linear quarter car for clipped_optimal's LQR: state x = [travel
+    z_s - z_us [m], v_s [m/s], tyre deflection z_us - z_r [m], v_us [m/s]], input the damper force
+    F [N] (positive resisting extension: m_s a_s = -k_s travel - F), the road rate a disturbance;
+    cost x'Qx + 2 x'N F + R F^2 (LQR_REFS, a_s = C x + D F giving the cross term)."""
+    veh = vehicle or Vehicle()
+    r = {**LQR_REFS, **(refs or {})}
+    ms, mus, ks, kt, ct = veh.m_s, veh.m_us, veh.k_s, veh.k_t, veh.c_t
+    A = np.array([[0, 1, 0, -1], [-ks / ms, 0, 0, 0], [0, 0, 0, 1], [ks / mus, 0, -kt / mus, -ct / mus]], float)
+    B = np.array([[0.0], [-1 / ms], [0.0], [1 / mus]])
+    C = np.array([[-ks / ms, 0, 0, 0]]) / r["a_ref"]
+    D = -1 / ms / r["a_ref"]
+    Q = C.T @ C + np.diag([1 / r["travel_ref"] ** 2, 0, (kt / r["tyre_load_ref"]) ** 2, 0])
+    N = C.T * D
+    R = np.array([[D * D + 1 / r["force_ref"] ** 2]])
+    return A, B, Q, R, N
+
+
+def lqr_gains(vehicle: Vehicle | None = None, refs: dict | None = None) -> dict:
+    """clipped_optimal's gains {k_travel [N/m], k_vs [N s/m], k_tyre [N/m], k_vus [N s/m]}: the
+    optimal state feedback F = -K x of `lqr_design` (scipy's continuous Riccati solver), F_d = k . x."""
+    from scipy.linalg import solve_continuous_are
+
+    A, B, Q, R, N = lqr_design(vehicle, refs)
+    P = solve_continuous_are(A, B, Q, R, s=N)
+    K = np.linalg.solve(R, B.T @ P + N.T)[0]
+    return dict(zip(("k_travel", "k_vs", "k_tyre", "k_vus"), (-K).tolist()))
+
+
 def semi_active(kind: str, levels: dict, u_tau_s: float = SKYHOOK_COMMAND_TAU_S, **law) -> Controller:
     """A control law (kind: a `_core.CONTROLLER_KINDS` name) between a damper's own low and high
     damping settings (`damping_levels`), limited to them, with the command filter; `law`: its

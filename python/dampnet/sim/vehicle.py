@@ -88,7 +88,9 @@ class Controller:
     """Control law and its settings (the runtime's dn_controller; u in volts).
 
     kind: a name of `dampnet._core.CONTROLLER_KINDS` (passive, skyhook_onoff,
-    skyhook_continuous, groundhook_onoff, groundhook_continuous, external).
+    skyhook_continuous, groundhook_onoff, groundhook_continuous, external, and the force-tracking
+    skyhook_force, groundhook_force, hybrid_force, clipped_optimal: a demanded force [N] through
+    the damper's inverse).
     """
 
     kind: str = _default_name(_C, "kind", _core.CONTROLLER_KINDS)
@@ -102,6 +104,11 @@ class Controller:
     c_min: float = _default(_C, "c_min")
     c_max: float = _default(_C, "c_max")
     u_tau_s: float = _default(_C, "u_tau_s")  # command filter time constant [s]; 0 = none
+    alpha: float = _default(_C, "alpha")        # hybrid_force's skyhook share [-]
+    k_travel: float = _default(_C, "k_travel")  # clipped_optimal's gains: travel [N/m],
+    k_vs: float = _default(_C, "k_vs")          # body velocity [N s/m],
+    k_tyre: float = _default(_C, "k_tyre")      # tyre deflection [N/m],
+    k_vus: float = _default(_C, "k_vus")        # wheel velocity [N s/m]
 
     def core_dict(self) -> dict:
         """The runtime's controller dict (LoopModel)."""

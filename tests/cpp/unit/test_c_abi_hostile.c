@@ -413,9 +413,14 @@ static void run_loop(const char* what, const dn_vehicle* veh, const dn_damper* d
   dn_loop_model* m = (dn_loop_model*)&m;
   int st = dn_loop_model_create(veh, damper, ctrl, &m);
   if (!known_status(st) || st > 0) FAIL("%s: model_create status %d", what, st);
-  {  /* dn_vehicle_check / dn_controller_check give creation's verdict (vehicle first) */
+  {  /* dn_vehicle_check / dn_controller_check give creation's verdict (vehicle first); a
+      * force-tracking law on a damper without a control: DN_E_MISMATCH (no inverse) */
     const int vc = dn_vehicle_check(veh), cc = ctrl ? dn_controller_check(ctrl) : DN_OK;
-    if (st != (vc < 0 ? vc : cc)) FAIL("%s: create %d, vehicle_check %d, controller_check %d", what, st, vc, cc);
+    dn_real lo, hi;
+    const int force_law = ctrl && ctrl->kind >= DN_CTRL_SKYHOOK_FORCE && ctrl->kind <= DN_CTRL_CLIPPED_OPTIMAL;
+    const int expect = vc < 0 ? vc : cc < 0 ? cc
+                     : force_law && dn_damper_control_range(damper, &lo, &hi) != DN_OK ? DN_E_MISMATCH : DN_OK;
+    if (st != expect) FAIL("%s: create %d, vehicle_check %d, controller_check %d", what, st, vc, cc);
   }
   check_created(what, st, m);
   if (st != DN_OK) return;
@@ -476,13 +481,37 @@ static void loop_cases(dn_damper* const* dampers, int n_dampers) {
       dn_loop_model_destroy(m);
     }
   }
-  for (int kind = -2; kind <= 8; ++kind) {  /* a law out of range is refused */
+  for (int kind = -2; kind <= DN_CTRL_CLIPPED_OPTIMAL + 3; ++kind) {  /* a law out of range is refused */
     dn_controller c;
     dn_controller_default(&c, kind);
     m = NULL;
     const int st = dn_loop_model_create(&veh, dampers[0], &c, &m);
-    if ((kind < DN_CTRL_PASSIVE || kind > DN_CTRL_EXTERNAL) != (st == DN_E_PARAM)) FAIL("law %d: %d", kind, st);
+    if ((kind < DN_CTRL_PASSIVE || kind > DN_CTRL_CLIPPED_OPTIMAL) != (st == DN_E_PARAM)) FAIL("law %d: %d", kind, st);
     dn_loop_model_destroy(m);
+  }
+  /* every force-tracking law on every damper (refused without a control), and one of them with
+   * every controller field weird: the inverse in the step stays bounded and finite */
+  for (int k = 0; k < n_dampers; ++k) {
+    char what[96];
+    for (int kind = DN_CTRL_SKYHOOK_FORCE; kind <= DN_CTRL_CLIPPED_OPTIMAL; ++kind) {
+      dn_controller c;
+      dn_controller_default(&c, kind);
+      c.k_travel = -13000.0, c.k_vs = 1400.0, c.k_tyre = 500.0, c.k_vus = -200.0;
+      snprintf(what, sizeof what, "damper %d force law %d", k, kind);
+      run_loop(what, &veh, dampers[k], &c);
+    }
+    for (size_t f = 0; f < sizeof CTRL_OFF / sizeof CTRL_OFF[0]; ++f) {
+      const int n = CTRL_DBL[f] ? N_WEIRD : (int)(sizeof WEIRD_INT / sizeof WEIRD_INT[0]);
+      for (int i = 0; i < n; ++i) {
+        dn_controller c;
+        dn_controller_default(&c, DN_CTRL_CLIPPED_OPTIMAL);
+        char* p = (char*)&c + CTRL_OFF[f];
+        if (CTRL_DBL[f]) memcpy(p, &WEIRD[i], sizeof(double));
+        else memcpy(p, &WEIRD_INT[i], sizeof(int));
+        snprintf(what, sizeof what, "damper %d clipped_optimal field %d value %d", k, (int)f, i);
+        run_loop(what, &veh, dampers[k], &c);
+      }
+    }
   }
   /* every vehicle and controller field weird, with every damper */
   for (int k = 0; k < n_dampers; ++k) {

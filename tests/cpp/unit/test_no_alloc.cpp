@@ -69,6 +69,35 @@ int main() {
   std::printf("allocations during 2e5 inverse calls: %ld (non-finite or failed: %d)\n", g_allocs, n_bad);
   CHECK(g_allocs == 0);
   CHECK(n_bad == 0);
+
+  // The quarter car's step with the force-tracking laws (each step's inverse), float and double.
+  for (int kind = DN_CTRL_SKYHOOK_FORCE; kind <= DN_CTRL_CLIPPED_OPTIMAL; ++kind) {
+    for (dn_damper* dmp : {dd, dfl}) {
+      dn_vehicle veh;
+      dn_vehicle_default(&veh);
+      dn_controller ctrl;
+      dn_controller_default(&ctrl, kind);
+      ctrl.k_travel = -13000, ctrl.k_vs = 1400, ctrl.k_tyre = 500, ctrl.k_vus = -200;
+      dn_loop_model* lm = nullptr;
+      dn_loop_data* ld = nullptr;
+      CHECK(dn_loop_model_create(&veh, dmp, &ctrl, &lm) == DN_OK);
+      CHECK(dn_loop_data_create(lm, &ld) == DN_OK);
+      g_counting = true;
+      int n_fail = 0;
+      for (int k = 0; k < 20000; ++k) {
+        const double t = 1e-3 * k;
+        dn_loop_input li = {0.01 * std::sin(9.0 * t), 0.09 * std::cos(9.0 * t), 0.0};
+        dn_loop_out out;
+        if (dn_loop_step(lm, ld, &li, &out) < 0 || !std::isfinite(out.u)) ++n_fail;
+      }
+      g_counting = false;
+      std::printf("allocations during 2e4 steps of law %d: %ld (failed: %d)\n", kind, g_allocs, n_fail);
+      CHECK(g_allocs == 0);
+      CHECK(n_fail == 0);
+      dn_loop_data_destroy(ld);
+      dn_loop_model_destroy(lm);
+    }
+  }
   dn_damper_destroy(dd);
   dn_damper_destroy(dfl);
   dn_mlp_destroy(cm);

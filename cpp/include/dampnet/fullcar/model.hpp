@@ -28,6 +28,7 @@ struct FullCarModel {
   double drv_alpha = 0;   // the front tyres' slip angle of peak force at the static load [rad]
                           // (Magic Formula; 0: no limit, the linear tyre)
   bool any_implicit = false;  // some corner's damper reads a and accel_feature != explicit
+  bool any_force_law = false;  // some corner's law tracks a force (is_force_law): its inverse
   // The four corners share one damper object (the same dn_damper / Damper passed four times)
   // whose model is a float MLP reading a: its four evaluations go through the kernel in one
   // pass (Damper::force_da4), each result identical to four single calls.
@@ -78,7 +79,7 @@ struct FullCarModel {
     }
     corner_mobility(v, K);
     preview_gains();
-    any_implicit = false;
+    any_implicit = any_force_law = false;
     for (int i = 0; i < kCorners; ++i) {
       if (!dampers[i]) return DN_E_NULL;
       dn_controller c = ctrls ? ctrls[i] : default_controller(DN_CTRL_PASSIVE);
@@ -87,6 +88,7 @@ struct FullCarModel {
       st = corner[i].init(*dampers[i], c, v.dt, v.accel_feature);
       if (st != DN_OK) return st;
       if (corner[i].implicit_a) any_implicit = true;
+      if (is_force_law(c.kind)) any_force_law = true;
     }
     batch4 = dampers[1] == dampers[0] && dampers[2] == dampers[0] && dampers[3] == dampers[0] &&
              corner[0].implicit_a && corner[0].damper.precision == DN_PRECISION_FLOAT;

@@ -101,6 +101,21 @@ DN_FC_OUTLINE inline void fc_report(const FullCarModel& m, const FcMotion& y, co
   }
 }
 
+// The corners whose law tracks a force: the damper's inverse of the demand at the step start's
+// input (its states filled), after the command filter; out of the hot step (a cold call).
+DN_FC_COLD inline void force_law_commands(const FullCarModel& m, const FcMotion& y, const FcFree& f,
+                                          const double* zr, const double* s, dn_damper_input* di, double* u,
+                                          int64_t* n_evals) noexcept {
+#pragma GCC unroll 1
+  for (int i = 0; i < kCorners; ++i) {
+    const Corner& c = m.corner[i];
+    if (!is_force_law(c.ctrl.kind)) continue;
+    const double demand = force_demand(c.ctrl, f.vb[i], y.vus[i], f.dfl[i], y.zus[i] - zr[i]);
+    u[i] = c.command_force(di[i], m.fs[i], demand, s[fc_corner(i, FCC_u_cmd)], n_evals);
+    di[i].u = u[i];
+  }
+}
+
 DN_FC_OUTLINE inline FcStart fc_start(const FullCarModel& m, const double* s, const dn_fullcar_input& in,
                         dn_fullcar_out* out, int64_t* n_evals) noexcept {
   FcStart r;
@@ -122,6 +137,7 @@ DN_FC_OUTLINE inline FcStart fc_start(const FullCarModel& m, const double* s, co
   corner_inputs(m, y, r.f, fl, r.u, temp, s[FC_t], 0, di);
 #pragma GCC unroll 1
   for (int i = 0; i < kCorners; ++i) Damper::fill(corner_damper_state(s, i), di[i]);
+  if (m.any_force_law) force_law_commands(m, y, r.f, zr, s, di, r.u, n_evals);
   double feat[kCorners * DN_MAX_INPUTS];
   uint32_t mask[kCorners] = {};
   r.status = evaluate_corners(m, di, fl, r.F, out ? feat : nullptr, mask, n_evals);

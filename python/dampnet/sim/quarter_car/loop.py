@@ -29,6 +29,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from dampnet import _core
+from dampnet.sim.vehicle import LoopError
 from dampnet.terms import terms_force, validate as _validate_term
 
 Damper = _core.Damper
@@ -115,7 +116,12 @@ class QuarterCar:
 
     def __init__(self, damper: _core.Damper, vehicle: Mapping[str, Any] | None = None,
                  controller: Mapping[str, Any] | None = None, model: _core.LoopModel | None = None):
-        self.model = model or _core.LoopModel(damper, dict(vehicle or {}), dict(controller or {}))
+        if model is None:
+            try:
+                model = _core.LoopModel(damper, dict(vehicle or {}), dict(controller or {}))
+            except ValueError as e:   # the runtime's refusal, naming the field: a run's settings error
+                raise LoopError(str(e)) from None
+        self.model = model
         self.loop = _core.Loop(self.model)
 
     @property
