@@ -195,7 +195,7 @@ def test_nonsensical_vehicle_is_refused(vehicle, code):
 
 
 @pytest.mark.parametrize("ctrl, code", [
-    ({"kind": 9}, "DN_E_PARAM"),
+    ({"kind": 10}, "DN_E_PARAM"),   # one past the last law (clipped_optimal, 9)
     ({"u_min": 5.0, "u_max": 0.0}, "DN_E_PARAM"),
     ({"kind": "skyhook_continuous", "c_min": 100.0, "c_max": 100.0}, "DN_E_PARAM"),
     ({"c_sky": float("nan")}, "DN_E_NONFINITE_PARAM"),

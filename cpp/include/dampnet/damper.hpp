@@ -467,8 +467,8 @@ class Damper {
             k = i;
           }
         if (k < 0) return DN_E_MISMATCH;
-        if (precision == DN_PRECISION_FLOAT) {
-          *lo = static_cast<real>(mf.sat_lo()[k]);
+        if (precision == DN_PRECISION_FLOAT || !DN_DOUBLE_KERNEL) {  // (a float-only build: no double copy's
+          *lo = static_cast<real>(mf.sat_lo()[k]);                   // ranges to convert in the step)
           *hi = static_cast<real>(mf.sat_hi()[k]);
         } else {
           *lo = static_cast<real>(md.sat_lo()[k]);

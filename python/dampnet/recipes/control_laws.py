@@ -147,6 +147,9 @@ def make(name: str, spec: DamperSpec, vehicle: Vehicle | None = None, *, u_tau_s
 #: the full vehicle's damping settings (`dampnet vehicle --damping`, the sweep's [fullcar] damping,
 #: the full-car study): each is a law of this registry at every corner, limited to the damper's levels
 VEHICLE_DAMPING: dict[str, str] = {"low": "passive_low", "high": "passive_high", "skyhook": "skyhook_onoff"}
+#: the thesis's full-vehicle settings, the full-car study's default (the force-tracking laws added to
+#: VEHICLE_DAMPING below need a damper with a control: not the truth, a callback)
+THESIS_VEHICLE_DAMPING: tuple[str, ...] = tuple(VEHICLE_DAMPING)
 
 
 def vehicle_controller(spec: DamperSpec, damping: str, params: Mapping[str, Any] | None = None) -> Controller:

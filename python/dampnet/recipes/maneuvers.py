@@ -322,11 +322,11 @@ def max_speed(spec, man, damping: str = "low", params: dict | None = None, first
 def run_study(specs, tests: dict, damping: tuple[str, ...] | None = None, **kw) -> dict:
     """dampnet.sim.full_car.study.run_study with each test's metrics and headline from the registry
     and the controllers from dampnet.recipes.control_laws (damping: its VEHICLE_DAMPING names,
-    default all); "laws": each damping setting's law, by its registered name."""
-    from dampnet.recipes.control_laws import VEHICLE_DAMPING, vehicle_controller
+    default the thesis's THESIS_VEHICLE_DAMPING); "laws": each damping setting's law, by its registered name."""
+    from dampnet.recipes.control_laws import THESIS_VEHICLE_DAMPING, VEHICLE_DAMPING, vehicle_controller
     from dampnet.sim.full_car.study import run_study as study
 
-    damping = tuple(VEHICLE_DAMPING) if damping is None else tuple(damping)
+    damping = THESIS_VEHICLE_DAMPING if damping is None else tuple(damping)
     out = study(specs, tests, damping, recipes={t: get(man.meta["test"]) for t, man in tests.items()},
                 controller=vehicle_controller, **kw)
     out["laws"] = {d: VEHICLE_DAMPING[d] for d in damping}
