@@ -115,3 +115,45 @@ def test_the_documented_result_is_what_the_examples_print(results):
         assert results["c"][key] == pytest.approx(documented[key], rel=1e-9, abs=1e-15), key
     for key in COUNTS:
         assert results["c"][key] == documented[key], key
+
+
+def test_readme_c_snippet_inverts_the_damper(installed_prefix, tmp_path):
+    """The README's C door (its ```c block) runs as printed, `damper` the default model's neural
+    damper as in examples/c/quarter_car.c, built against the installed library, and gives what the
+    README says and the Python binding's inverse gives. Cost: one cc call and one run, about 2 s
+    (the installed prefix is the session's)."""
+    import numpy as np
+
+    from dampnet.sim.dampers import load_spec
+    from dampnet.sim.quarter_car.loop import damper_from_model
+
+    text = (ROOT / "README.md").read_text()
+    blocks = re.findall(r"^```c\n(.*?)^```$", text, re.MULTILINE | re.DOTALL)
+    assert len(blocks) == 1, "the README's C door has one snippet"
+    src = tmp_path / "inverse.c"
+    src.write_text("""#include <stdio.h>
+#include <dampnet/dampnet.h>
+#include <dn_model_default.h>
+int main(void) {
+  dn_mlp_desc desc = DN_MODEL_DEFAULT_DESC_INIT;
+  dn_mlp* mlp = NULL;
+  dn_damper* damper = NULL;
+  if (dn_mlp_create(&desc, &mlp) != DN_OK ||
+      dn_damper_create_neural(mlp, dn_model_default_feature_names, DN_MODEL_DEFAULT_N_INPUTS, NULL, NULL, 0,
+                              DN_PRECISION_DOUBLE, &damper) != DN_OK) return 2;
+""" + blocks[0] + """  printf("u=%.9g force=%.9g status=%d\\n", u, force, st);
+  dn_damper_destroy(damper);
+  dn_mlp_destroy(mlp);
+  return 0;
+}
+""")
+    exe = tmp_path / "inverse"
+    run(["cc", "-std=c99", "-Wall", "-Wextra", "-Werror", f"-I{installed_prefix / 'include'}", src,
+         installed_prefix / "lib" / "libdampnet.a", "-lstdc++", "-lm", "-o", exe])
+    got = dict(item.split("=", 1) for item in run([exe], timeout=60).stdout.split())
+    assert f"it gives u = {got['u']} V, force = {got['force']} N" in text.replace("\n", " "), got
+    u, force, status, _ = damper_from_model(load_spec("default").obj).inverse(
+        np.array([1500.0]), np.zeros(1), np.array([0.3]), np.array([2.0]), np.zeros(1), np.zeros(1))
+    assert float(got["u"]) == pytest.approx(u[0], rel=1e-8)
+    assert float(got["force"]) == pytest.approx(1500.0, rel=1e-6) and force[0] == pytest.approx(1500.0, rel=1e-6)
+    assert got["status"] == "0" and status[0] == 0
