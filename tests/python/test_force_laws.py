@@ -180,3 +180,22 @@ def test_the_full_car_commands_each_corners_inverse(kind):
             u_exact = np.where(fd == 0, 0.0, np.clip(fd / (K_TAB * v), 0.0, U_MAX))
         assert moving.mean() > 0.5 and (u_exact[moving] > 0).mean() > 0.2, c
         assert np.max(np.abs(r["u"][:, i] - u_exact)[moving]) < 1e-9 * U_MAX, c
+
+
+def test_the_bench_counts_the_inverses_evaluations(capsys):
+    """bench/force_laws.py (one round; under 1 s): the force laws' steps evaluate the damper more than
+    once (the inverse's two limits and its Newton steps when a force is demanded), the others once."""
+    import sys
+
+    from cbuild import ROOT
+
+    sys.path.insert(0, str(ROOT / "bench"))
+    try:
+        import force_laws
+    finally:
+        sys.path.remove(str(ROOT / "bench"))
+    out = force_laws.main(["--rounds", "1"])
+    assert "ratio to skyhook_onoff" in capsys.readouterr().out
+    assert out["skyhook_onoff"]["evals_per_step"] == 1.0 == out["skyhook_continuous"]["evals_per_step"]
+    for law in FORCE_LAWS:
+        assert 1.5 < out[law]["evals_per_step"] < 1 + 2 + 44, law    # DN_INVERSE_MAX_ITERS = 44
