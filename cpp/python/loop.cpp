@@ -27,14 +27,6 @@ namespace dnpy {
 
 namespace {
 
-// A control law's registered name (DN_CONTROLLER_KIND_LIST), "?" for no law.
-inline std::string law_name(int kind) {
-#define DN_LAW_NAME_(id, value, name, doc) if (kind == value) return name;
-  DN_CONTROLLER_KIND_LIST(DN_LAW_NAME_)
-#undef DN_LAW_NAME_
-  return "?";
-}
-
 class PyLoopModel {
  public:
   struct Deleter {
@@ -50,14 +42,18 @@ class PyLoopModel {
     veh = vehicle_from(vehicle);
     // the runtime's validation, naming the field (the same checks dn_loop_model_create makes)
     raise_if_invalid("LoopModel: ", vehicle, veh, controller, ctrl);
-    dn_real lo, hi;
-    if (dampnet::is_force_law(ctrl.kind) && dn_damper_control_range(damper.d.get(), &lo, &hi) != DN_OK)
-      throw py::value_error("LoopModel: controller 'kind' = " + std::to_string(ctrl.kind) + " (" + law_name(ctrl.kind) + ")" +
-                            " tracks a force through the damper's inverse: it needs a damper whose force its "
+    dn_loop_model* r = nullptr;
+    const int st = dn_loop_model_create(&veh, damper.d.get(), &ctrl, &r);
+    if (st == DN_E_MISMATCH && dampnet::is_force_law(ctrl.kind)) {  // the runtime's refusal, in words
+      std::string law = "?";
+      for (const auto& k : kControllerKinds)
+        if (k.value == ctrl.kind) law = k.name;
+      throw py::value_error("LoopModel: controller 'kind' = " + std::to_string(ctrl.kind) + " (" + law +
+                            ") tracks a force through the damper's inverse: it needs a damper whose force its "
                             "control sets (a neural model reading voltage or current, a parametric or table "
                             "damper); this damper has no control (DN_E_MISMATCH)");
-    dn_loop_model* r = nullptr;
-    check(dn_loop_model_create(&veh, damper.d.get(), &ctrl, &r), "LoopModel");
+    }
+    check(st, "LoopModel");
     m.reset(r);
   }
 

@@ -262,16 +262,18 @@ struct Corner {
   }
 
   // [RT] The control over a step starting with absolute velocities v_s, v_us: the law, then the
-  // command filter from u_cmd (the last step's), clamped again because a caller's set_state
-  // may put u_cmd out of range.
+  // command filter.
   real command(real v_s, real v_us, real u_ext, real u_cmd) const noexcept {
-    const real u = control_law(ctrl, v_s, v_us, u_ext);
+    return filtered(control_law(ctrl, v_s, v_us, u_ext), u_cmd);
+  }
+  // The command filter from u_cmd (the last step's) to the law's u, clamped again because a
+  // caller's set_state may put u_cmd out of range.
+  real filtered(real u, real u_cmd) const noexcept {
     return cmd_keep > 0 ? detail::clamp(u + (u_cmd - u) * cmd_keep, ctrl.u_min, ctrl.u_max) : u;
   }
   // [RT] A force-tracking law's control over a step: the damper's inverse of f_static + the
   // demand at the step start's damper input `in` (its states filled; in.u not read), u_soft when
-  // nothing is demanded (not dissipative), then the
-  // command filter as command()'s. The inverse's evaluations are added to *n_evals; an inverse
+  // nothing is demanded (not dissipative), then the command filter. The inverse's evaluations are added to *n_evals; an inverse
   // that fails (a runaway input) leaves the centre of the range, and the force's evaluation then
   // reports the failure.
   DN_REALTIME real command_force(const dn_damper_input& in, real f_static, real demand, real u_cmd,
@@ -282,13 +284,11 @@ struct Corner {
       damper.inverse(in, f_static + demand, &u, &f, &evals);
       *n_evals += evals + 2;
     }
-    u = detail::clamp(u, ctrl.u_min, ctrl.u_max);
-    return cmd_keep > 0 ? detail::clamp(u + (u_cmd - u) * cmd_keep, ctrl.u_min, ctrl.u_max) : u;
+    return filtered(detail::clamp(u, ctrl.u_min, ctrl.u_max), u_cmd);
   }
   // The control at rest (the reset's: a filtered law starts settled; an external one at 0; a
-  // force-tracking one at its soft control, the inverse of no demand at rest).
+  // force-tracking one at u_soft, control_law's d = 0: no demand at rest).
   real command_at_rest() const noexcept {
-    if (is_force_law(ctrl.kind)) return detail::clamp(ctrl.u_soft, ctrl.u_min, ctrl.u_max);
     return ctrl.kind == DN_CTRL_EXTERNAL ? 0 : control_law(ctrl, 0, 0, 0);
   }
   // [RT] The damper's states at rest with control u0 (x_static: the mid position's x).

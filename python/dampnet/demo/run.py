@@ -344,6 +344,7 @@ def _vehicle(model, lookup, fig_dir: Path, quick: bool, log, envelope=None) -> d
     a 4x faster sweep, and the lane change at 120 km/h only)."""
     from dampnet.sim.full_car import study
     from dampnet.recipes import maneuvers
+    from dampnet.recipes.control_laws import THESIS_VEHICLE_DAMPING
     from dampnet.sim.dampers import lookup_spec, neural_spec, truth_spec
 
     fig_dir.mkdir(parents=True, exist_ok=True)
@@ -353,13 +354,13 @@ def _vehicle(model, lookup, fig_dir: Path, quick: bool, log, envelope=None) -> d
              "dlc": maneuvers.build("dlc", 1e-3)}
     if quick:  # the thesis's 120 km/h only: a third of the stage's runs and plots
         del tests["dlc_80"]
-    res = maneuvers.run_study(specs, tests, damping=("low", "high", "skyhook"), keep_runs=True)
+    res = maneuvers.run_study(specs, tests, damping=THESIS_VEHICLE_DAMPING, keep_runs=True)
     for test, by_d in res.pop("runs").items():
         for d, runs in by_d.items():
             maneuvers.plot(runs, fig_dir / f"{test}_{d}.png", f"{test.replace('_', ' ')}, {d} damping")
     res["text"] = study.text_table(res)
     worst = {name: max(abs(row["acc_rms_m_s2"]) for row in (res["errors"]["bsst_heave"][d][name]
-                                                            for d in ("low", "high", "skyhook")))
+                                                            for d in THESIS_VEHICLE_DAMPING))
              for name in ("neural", "lookup")}
     def dlc_text(test: str) -> str:
         return ", ".join(f"{k} {d} {m['cones_hit']} ({100 * m['clearance_min_m']:+.0f} cm)"

@@ -96,6 +96,16 @@ def damping_range(spec: DamperSpec, levels: dict, vehicle: Vehicle,
     return c_min, c_max
 
 
+def skyhook_gain(veh: Vehicle, zeta: float = SKYHOOK_ZETA) -> float:
+    """c_sky [N s/m] = zeta 2 sqrt(k_s m_s): the skyhook-ideal body without a resonant peak."""
+    return zeta * 2.0 * math.sqrt(veh.k_s * veh.m_s)
+
+
+def groundhook_gain(veh: Vehicle, zeta: float = GROUNDHOOK_ZETA) -> float:
+    """c_gnd [N s/m] = zeta 2 sqrt((k_s + k_t) m_us): the groundhook-ideal wheel without a resonant peak."""
+    return zeta * 2.0 * math.sqrt((veh.k_s + veh.k_t) * veh.m_us)
+
+
 def continuous_skyhook(spec: DamperSpec, levels: dict | None = None, vehicle: Vehicle | None = None,
                        zeta_sky: float = SKYHOOK_ZETA, v_rms: float = SKYHOOK_V_RMS_M_S,
                        u_tau_s: float = SKYHOOK_COMMAND_TAU_S) -> Controller:
@@ -107,8 +117,7 @@ def continuous_skyhook(spec: DamperSpec, levels: dict | None = None, vehicle: Ve
     veh = vehicle or Vehicle()
     lv = levels or damping_levels(spec, veh.dt)
     c_min, c_max = damping_range(spec, lv, veh, v_rms)
-    return semi_active("skyhook_continuous", lv, u_tau_s, c_sky=zeta_sky * 2.0 * math.sqrt(veh.k_s * veh.m_s),
-                       c_min=c_min, c_max=c_max)
+    return semi_active("skyhook_continuous", lv, u_tau_s, c_sky=skyhook_gain(veh, zeta_sky), c_min=c_min, c_max=c_max)
 
 
 def continuous_groundhook(spec: DamperSpec, levels: dict | None = None, vehicle: Vehicle | None = None,
@@ -123,7 +132,7 @@ def continuous_groundhook(spec: DamperSpec, levels: dict | None = None, vehicle:
     lv = levels or damping_levels(spec, veh.dt)
     c_min, c_max = damping_range(spec, lv, veh, v_rms)
     return semi_active("groundhook_continuous", lv, u_tau_s,
-                       c_gnd=zeta_gnd * 2.0 * math.sqrt((veh.k_s + veh.k_t) * veh.m_us), c_min=c_min, c_max=c_max)
+                       c_gnd=groundhook_gain(veh, zeta_gnd), c_min=c_min, c_max=c_max)
 
 
 def force_tracking(kind: str, spec: DamperSpec, levels: dict | None = None, vehicle: Vehicle | None = None,
@@ -134,8 +143,7 @@ def force_tracking(kind: str, spec: DamperSpec, levels: dict | None = None, vehi
     `alpha`, clipped_optimal's gains `lqr_gains`; the control limited to the damper's levels."""
     veh = vehicle or Vehicle()
     lv = levels or damping_levels(spec, veh.dt)
-    gains = {"c_sky": SKYHOOK_ZETA * 2.0 * math.sqrt(veh.k_s * veh.m_s),
-             "c_gnd": GROUNDHOOK_ZETA * 2.0 * math.sqrt((veh.k_s + veh.k_t) * veh.m_us), "alpha": alpha}
+    gains = {"c_sky": skyhook_gain(veh), "c_gnd": groundhook_gain(veh), "alpha": alpha}
     if kind == "clipped_optimal":
         gains.update(lqr_gains(veh))
     return semi_active(kind, lv, u_tau_s, **gains)
