@@ -205,6 +205,73 @@ int main(int argc, char** argv) {
   if (dn_damper_create_neural(cm, features, 3, nullptr, nullptr, 0, DN_PRECISION_FLOAT, &damper) ||
       dn_loop_model_create(&veh, damper, &ctrl, &lm) || dn_loop_data_create(lm, &ld))
     return 1;
+  // The damper's forward and its inverse (issue 55), float, chained as the kernel's forward
+  // is: 1024 motions inside the model's range, each with a demand drawn between the forces at
+  // the two control limits (reachable: the Newton search runs). The demand-to-control search
+  // costs its two limit evaluations plus its Newton steps; evals_per_call reports them. Checked
+  // on the same motions (residual_max_N: the largest |F(u) - demand| [N], F the damper's own
+  // force at the returned u, which must equal the returned force; tests/python/
+  // test_damper_inverse.py checks u against a brute-force search) and on hard inputs (NaN,
+  // +-Inf, 1e6 in every motion field and the demand): a finite control inside the range with
+  // a status, or an error status with the range's centre and 0 N; a bad one fails the harness.
+  {
+    dn_real u_lo = 0, u_hi = 0;
+    if (dn_damper_control_range(damper, &u_lo, &u_hi) != DN_OK) return 1;
+    std::vector<dn_damper_input> motion(1024);
+    std::vector<dn_real> demand(1024);
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    for (int k = 0; k < 1024; ++k) {
+      dn_damper_input m{};
+      m.v = xd[k * kIn + 0];
+      m.a = xd[k * kIn + 1];
+      m.temperature = 20;
+      dn_real f_lo = 0, f_hi = 0;
+      m.u = u_lo;
+      dn_damper_force(damper, &m, &f_lo, nullptr);
+      m.u = u_hi;
+      dn_damper_force(damper, &m, &f_hi, nullptr);
+      m.u = xd[k * kIn + 2];
+      motion[k] = m;
+      demand[k] = f_lo + (f_hi - f_lo) * unit(rng);
+    }
+    double worst_res = 0;  // max |F(u) - demand| [N], F through dn_damper_force at the inverse's u
+    long evals = 0, bad_hard = 0;
+    for (int k = 0; k < 1024; ++k) {
+      dn_real u = 0, f = 0, fu = 0;
+      int ne = 0;
+      const int st = dn_damper_inverse(damper, &motion[k], demand[k], &u, &f, &ne);
+      evals += 2 + ne;
+      dn_damper_input g = motion[k];
+      g.u = u;
+      dn_damper_force(damper, &g, &fu, nullptr);
+      worst_res = std::max(worst_res, st == DN_OK && fu == f ? std::fabs(double(fu) - demand[k]) : double(INFINITY));
+    }
+    const double hard_vals[5] = {NAN, INFINITY, -INFINITY, 1e6, -1e6};
+    for (const double hv : hard_vals)
+      for (int field = 0; field < 4; ++field) {
+        dn_damper_input m = motion[0];
+        dn_real dem = demand[0];
+        if (field == 0) m.v = hv;
+        else if (field == 1) m.a = hv;
+        else if (field == 2) m.x = hv;
+        else dem = hv;
+        dn_real u = 0, f = 0;
+        const int st = dn_damper_inverse(damper, &m, dem, &u, &f, nullptr);
+        if (st >= 0 && !(std::isfinite(u) && std::isfinite(f) && u >= u_lo && u <= u_hi)) ++bad_hard;
+        if (st < 0 && !(u == u_lo + (u_hi - u_lo) / 2 && f == 0)) ++bad_hard;
+      }
+    char extra[160];
+    std::snprintf(extra, sizeof extra, ", \"evals_per_call\": %.3f, \"residual_max_N\": %.3g, \"hard_bad\": %ld",
+                  double(evals) / 1024.0, worst_res, bad_hard);
+    dn_bench::print_json("damper_force_float_chained", dn_bench::measure_chained([&](long i, long dep) {
+      dn_real f; dn_damper_force(damper, &motion[(i + dep) & 1023], &f, nullptr); return dn_bench::zero_dep(f); },
+      n, warm));
+    dn_bench::print_json("damper_inverse_float_chained", dn_bench::measure_chained([&](long i, long dep) {
+      const long k = (i + dep) & 1023;
+      dn_real u, f; dn_damper_inverse(damper, &motion[k], demand[k], &u, &f, nullptr);
+      return dn_bench::zero_dep(u); }, n, warm), extra);
+    if (bad_hard || !(worst_res < 1.0)) return 1;  // 1 N: the float model's rounding is ~1e-3 N
+  }
   // A road: 20 mm of mixed 1.3 Hz and 11 Hz content, sampled at the loop's step.
   std::vector<dn_loop_input> road(4096);
   for (size_t k = 0; k < road.size(); ++k) {
