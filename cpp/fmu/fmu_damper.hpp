@@ -6,6 +6,10 @@
 //   5 force [N]                                                                   output (Real)
 //   6 status (dampnet status)  7 clamped_mask (bit i: input i clamped)            outputs (Integer)
 //   8 envelope_flags (0 inside the training envelope, else DN_ENV_OUTSIDE_* bits)  output (Integer)
+//   9 time (FMI 3's independent variable: fmu3.cpp, DNFMU_VR_TIME)
+//   30 force_demand [N]                                                           input (the inverse)
+//   31 u_command [control unit]  33 force_at_command [N]                          outputs (Real)
+//   32 inverse_status (dampnet status of the inverse)                             output (Integer)
 //   10 + k   the model's k-th feature constant (names sorted, as in the header)   parameters
 //   100 + 10 i + j   parameter j of physics term i                               parameters
 //   40 + k   the damper's state k (dampnet.h DN_DAMPER_STATE_LIST: u_lag, v_lag, z_fric, ...;
@@ -29,6 +33,15 @@
 // instant): they hold the values of the last event (the end of initialisation, or an event
 // mode), and after each completed integrator step the FMU asks for a step event when the
 // evaluation at that instant would give other values (step_event, update_discrete).
+// The inverse (a controller's door: it sets force_demand and reads u_command): u_command is
+// Damper::inverse's control within the model's control range at which the force equals
+// force_demand, at the current inputs x, v, a, temperature (u ignored) and the same states as
+// the force (states_now); force_at_command the force at u = u_command; inverse_status the
+// inverse's status (DN_W_UNREACHABLE: the demand is outside [F(u_min), F(u_max)], u_command the
+// nearer limit), a discrete variable as status. A model without a control input (control_range:
+// DN_E_MISMATCH) still loads and runs: u_command is 0, force_at_command the force at u = 0 and
+// inverse_status DN_E_MISMATCH, none of them an error; the inverse's other errors (a NaN input
+// or demand) fail reading u_command and force_at_command, as the force's fail reading force.
 #pragma once
 
 #include <cmath>
@@ -47,10 +60,14 @@ class DamperModel {
  public:
   enum Vr : unsigned {
     VR_X = 0, VR_V, VR_A, VR_U, VR_TEMP, VR_FORCE, VR_STATUS, VR_MASK, VR_ENVELOPE,
+    VR_DEMAND = 30, VR_U_COMMAND, VR_INV_STATUS, VR_INV_FORCE,  // the inverse
     VR_STATE = 40, VR_DERIV = 50  // the parameters: DamperParams (10 + k, 100 + 10 i + j)
   };
   static constexpr int ST_N = DN_DAMPER_STATE_SIZE;
   static_assert(VR_STATE + ST_N <= VR_DERIV && VR_DERIV + ST_N <= 100, "the damper's states outgrew their value references");
+  static_assert(DamperParams::VR_FPARAM + DN_N_FEATURE_PARAMS <= VR_DEMAND && VR_INV_FORCE < VR_STATE &&
+                    DNFMU_VR_TIME < DamperParams::VR_FPARAM && DNFMU_VR_TIME > VR_ENVELOPE,
+                "the feature constants, the inverse's variables and the states overlap in value references");
 
   Message message;
 
@@ -76,6 +93,7 @@ class DamperModel {
     latched_ = Discrete{};
     for (double& v : in_) v = 0.0;
     in_[VR_TEMP] = 20.0;
+    demand_ = 0.0;
     time_ = t0_ = 0.0;
     for (double& v : x_) v = 0.0;
     for (double& v : start_in_) v = 0.0;
@@ -110,6 +128,19 @@ class DamperModel {
       const int st = evaluate(value, &mask);
       return st < 0 ? message.fail(st, "the force cannot be evaluated at t = %g s: %s", time_, status_text(st)) : DN_OK;
     }
+    if (vr == VR_DEMAND) {
+      *value = demand_;
+      return DN_OK;
+    }
+    if (vr == VR_U_COMMAND || vr == VR_INV_FORCE) {
+      double u = 0.0, f = 0.0;
+      const int st = command(&u, vr == VR_INV_FORCE ? &f : nullptr);
+      if (st < 0)
+        return message.fail(st, "%s cannot be evaluated at t = %g s (force_demand = %g N): %s",
+                            vr == VR_U_COMMAND ? "u_command" : "force_at_command", time_, demand_, status_text(st));
+      *value = vr == VR_U_COMMAND ? u : f;
+      return DN_OK;
+    }
     if (const double* p = params_.find(vr)) {
       *value = *p;
       return DN_OK;
@@ -137,17 +168,25 @@ class DamperModel {
       in_[vr] = value;
       return DN_OK;
     }
+    if (vr == VR_DEMAND) {
+      demand_ = value;
+      return DN_OK;
+    }
     if (double* p = params_.find(vr)) {
       *p = value;
       return DN_OK;
     }
-    return message.fail(DN_E_PARAM, "value reference %u cannot be set: only the inputs x, v, a, u, temperature "
-                        "and the parameters", vr);
+    return message.fail(DN_E_PARAM, "value reference %u cannot be set: only the inputs x, v, a, u, temperature, "
+                        "force_demand and the parameters", vr);
   }
 
   int get_int(unsigned vr, int* value) noexcept {
+    if (vr == VR_INV_STATUS) {
+      *value = me_ ? latched_.inverse : inverse_now();  // model exchange: the last event's value
+      return DN_OK;
+    }
     if (vr != VR_STATUS && vr != VR_MASK && vr != VR_ENVELOPE) return no_such(message, "Integer", vr);
-    const Discrete d = me_ ? latched_ : discrete_now();  // model exchange: the last event's values
+    const Discrete d = me_ ? latched_ : discrete_now(false);  // model exchange: the last event's values
     *value = vr == VR_STATUS ? d.status : vr == VR_MASK ? d.mask : d.envelope;
     return DN_OK;
   }
@@ -189,9 +228,9 @@ class DamperModel {
  private:
   // The Integer outputs of one evaluation.
   struct Discrete {
-    int status = DN_OK, mask = 0, envelope = 0;
+    int status = DN_OK, mask = 0, envelope = 0, inverse = DN_OK;
     bool operator==(const Discrete& o) const noexcept {
-      return status == o.status && mask == o.mask && envelope == o.envelope;
+      return status == o.status && mask == o.mask && envelope == o.envelope && inverse == o.inverse;
     }
   };
 
@@ -199,6 +238,7 @@ class DamperModel {
   dampnet::Envelope envelope_;  // its training envelope (the header's, or its ranges alone)
   DamperParams params_;
   double in_[5] = {};         // x, v, a, u, temperature
+  double demand_ = 0.0;       // force_demand [N]: the inverse's demand
   double start_in_[5] = {};   // the inputs at the last communication point t0 (co-simulation)
   double x_[ST_N] = {};       // states: at t0 (co-simulation), the integrator's (model exchange)
   double time_ = 0.0, t0_ = 0.0;
@@ -249,20 +289,49 @@ class DamperModel {
     for (int i = 0; i < ST_N; ++i) r[i] = used_[i] ? ds.s[i] : 0.0;
   }
 
-  Discrete discrete_now() const noexcept {
+  // with_inverse: inverse_status too (the status of an inverse, besides the force's evaluation)
+  Discrete discrete_now(bool with_inverse = true) const noexcept {
     double f = 0.0;
     uint32_t mask = 0, env = 0;
     const int st = evaluate(&f, &mask, &env);
-    return Discrete{st, static_cast<int>(mask), static_cast<int>(env)};
+    return Discrete{st, static_cast<int>(mask), static_cast<int>(env), with_inverse ? inverse_now() : DN_OK};
+  }
+
+  // The damper's input now: the current inputs with the states at the current time (states_now).
+  dn_damper_input input_now() const noexcept {
+    double s[ST_N];
+    states_now(s);
+    dn_damper_input d = input(in_);
+    dampnet::Damper::fill(dampnet::DamperState::load(s), d);
+    return d;
+  }
+
+  int inverse_now() const noexcept {
+    double u = 0.0, f = 0.0;
+    return damper_.inverse(input_now(), demand_, &u, &f);
+  }
+
+  // u_command (*u) and, with f, force_at_command: the inverse's control at the current inputs and
+  // states (u ignored) and the force at it. Without a control input (DN_E_MISMATCH) *u = 0 and *f
+  // the force at u = 0, DN_OK; the inverse's other errors (and the force's, at u = 0) returned.
+  int command(double* u, double* f) const noexcept {
+    dn_damper_input d = input_now();
+    double fu = 0.0;
+    int st = damper_.inverse(d, demand_, u, &fu);
+    if (st == DN_E_MISMATCH) {
+      *u = 0.0;
+      if (!f) return DN_OK;
+      d.u = *u;
+      uint32_t mask = 0;
+      st = damper_.force(d, &fu, nullptr, &mask);
+    }
+    if (f) *f = fu;
+    return st < 0 ? st : DN_OK;
   }
 
   // The force; with env, the envelope flags of the network's inputs (before saturation).
   int evaluate(double* force, uint32_t* mask, uint32_t* env = nullptr) const noexcept {
-    double s[ST_N];
-    states_now(s);
-    dn_damper_input d = input(in_);
-    dampnet::DamperState now = dampnet::DamperState::load(s);
-    dampnet::Damper::fill(now, d);
+    dn_damper_input d = input_now();
     double feat[DN_MAX_INPUTS] = {};
     const int st = damper_.force(d, force, env ? feat : nullptr, mask);
     // a failed evaluation (a non-finite input) has no network inputs: outside, as in the quarter car

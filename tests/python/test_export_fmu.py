@@ -4,9 +4,11 @@ only libc and libm, FMPy's simulations of a recorded rig test equal to the runti
 Damper.forces to 1e-9 N, the derived features' states (lags, Dahl friction) equal to the
 reference loop's updates (dampnet.features), settable parameters, the source FMU rebuilt by
 FMPy and from buildDescription.xml alone, model exchange integrated by CVode following
-co-simulation with its discrete outputs changing only at events, FMPy's default runs, and no
-step after a failed initialisation."""
+co-simulation with its discrete outputs changing only at events, FMPy's default runs, no
+step after a failed initialisation, and the damper's inverse (force_demand -> u_command,
+inverse_status, force_at_command) equal to the host's Damper.inverse."""
 
+import re
 import subprocess
 import zipfile
 
@@ -19,7 +21,7 @@ from fmpy.fmi2 import FMU2Model, FMU2Slave
 from fmpy.fmi3 import FMU3Model, FMU3Slave
 from fmpy.validation import validate_fmu
 
-from dampnet import features
+from dampnet import _core, features
 from dampnet.cli import main
 from dampnet.export.fmu import FmuError, build_damper_fmu, build_fmu
 from dampnet.modeldir import default_model, save_model_dir
@@ -32,6 +34,7 @@ HYBRID_PARAMS = {"control_lag_tau_s": 0.004, "velocity_lag_tau_s": 0.002, "frict
 HYBRID_TERMS = [{"kind": "position_poly", "params": [-150.0, 3000.0, 1e4, 0.0]},
                 {"kind": "bump_stop", "params": [0.01, 2e5, 1.5]}]
 IN_VRS = [0, 1, 2, 3, 4]  # x, v, a, u, temperature
+VR_FORCE, VR_DEMAND, VR_U_COMMAND, VR_INV_STATUS, VR_INV_FORCE = 5, 30, 31, 32, 33  # fmu_damper.hpp
 
 
 def hybrid_model(**changes):
@@ -50,6 +53,13 @@ def rig_signals():
     t, v = test.time[k] - test.time[0], test.channels["velocity"][k]
     u = np.where(t < 0.1, 0.0, test.control[k])
     return t, test.channels["displacement"][k], v, np.gradient(v, t), u
+
+
+@pytest.fixture(scope="module")
+def default_fmus(tmp_path_factory):
+    """The default 3-30-1 model's damper FMU (both interfaces), FMI 2 and 3: built once here."""
+    d = tmp_path_factory.mktemp("fmu")
+    return {fmi: build_fmu(default_model(), d / f"default{fmi}.fmu", fmi=fmi) for fmi in (2, 3)}
 
 
 @pytest.fixture(scope="module")
@@ -131,7 +141,7 @@ def _simulate(path, t, x, v, a, u, temperature=None, fmi_type="CoSimulation", **
 
 @pytest.mark.parametrize("fmi", [2, 3])
 @pytest.mark.parametrize("which", ["default", "hybrid"])
-def test_fmpy_validates_and_simulates_the_damper_fmu(tmp_path, rig_signals, which, fmi):
+def test_fmpy_validates_and_simulates_the_damper_fmu(tmp_path, default_fmus, rig_signals, which, fmi):
     """FMPy: validate_fmu finds no problem; its co-simulation of a recorded rig test gives the
     runtime's forces to 1e-9 N (FMPy records the output at t_k after the step from t_k-1, with
     the inputs of t_k-1: the force of sample k-1). The plain 3-30-1 model and a stateless
@@ -139,11 +149,12 @@ def test_fmpy_validates_and_simulates_the_damper_fmu(tmp_path, rig_signals, whic
     t, x, v, a, u = rig_signals
     if which == "default":
         model, temp = default_model(), None
+        path = default_fmus[fmi]
     else:
         model = random_model(["velocity", "acceleration", "voltage", "displacement", "temperature"], hidden=9, seed=2,
                              terms=HYBRID_TERMS)
         temp = 20.0 + 10.0 * np.sin(3.0 * t)
-    path = build_fmu(model, tmp_path / "d.fmu", fmi=fmi)
+        path = build_fmu(model, tmp_path / "d.fmu", fmi=fmi)
     assert validate_fmu(str(path)) == []
     res = _simulate(path, t, x, v, a, u, temp)
     f, status, _ = damper_from_model(model).forces(x, v, a, u, u, 20.0 + 0 * t if temp is None else temp)
@@ -428,3 +439,199 @@ def test_no_step_after_a_failed_initialisation(hybrid_fmus, fmi):
     assert any(f"fmi{fmi}DoStep: the FMU is not initialized (fmi{fmi}ExitInitializationMode failed)" in m
                for m in messages), messages
     fmu.freeInstance()
+
+
+# ---- the inverse: force_demand in, u_command, inverse_status and force_at_command out ----
+
+def _co_simulation(path, messages=None, start=None):
+    """An initialised co-simulation instance (FMI 2 or 3, from the file) and its typed accessors
+    (set_real, get_real, get_int); messages collects the FMU's logged messages; start: the
+    inputs x, v, a, u, temperature at initialisation (the states start at rest there)."""
+    md = read_model_description(str(path))
+    fmi2 = md.fmiVersion == "2.0"
+    fmu = (FMU2Slave if fmi2 else FMU3Slave)(guid=md.guid, unzipDirectory=extract(str(path)),
+                                             modelIdentifier="dampnet_damper", instanceName="inverse")
+    if fmi2:
+        fmu._test_callbacks = fmi2_callbacks.callbacks(messages)  # alive as long as the instance
+        fmu.instantiate(callbacks=fmu._test_callbacks)
+        fmu.setupExperiment(startTime=0.0)
+        fmu.enterInitializationMode()
+    else:
+        if messages is not None:
+            fmu.instantiate(logMessage=lambda env, status, category, message: messages.append(message.decode()))
+        else:
+            fmu.instantiate()
+        fmu.enterInitializationMode(startTime=0.0)
+    if start is not None:
+        (fmu.setReal if fmi2 else fmu.setFloat64)(IN_VRS, list(start))
+    fmu.exitInitializationMode()
+    if fmi2:
+        return fmu, fmu.setReal, fmu.getReal, fmu.getInteger
+    return fmu, fmu.setFloat64, fmu.getFloat64, fmu.getInt32
+
+
+def _inverse_grid(damper):
+    """Motion points (x, v, a, temperature: both signs of v, in the default model's range and
+    beyond it) and at each demands inside [F(u_min), F(u_max)] (its ends and 0.1 .. 0.9 of it)
+    and 200 N outside it on either side; -Inf and +Inf for the first two."""
+    lo, hi = damper.control_range()
+    x, v, a, temp = (q.ravel() for q in np.meshgrid([-0.02, 0.03], np.r_[np.linspace(-0.6, 0.6, 13), -3.0, 3.0],
+                                                    [0.0, 4.0], [20.0, 45.0], indexing="ij"))
+    z = np.zeros(x.size)
+    f_lo = damper.forces(x, v, a, np.full(x.size, lo), z, temp)[0]
+    f_hi = damper.forces(x, v, a, np.full(x.size, hi), z, temp)[0]
+    f_min, f_max = np.minimum(f_lo, f_hi), np.maximum(f_lo, f_hi)
+    shares = [0.0, 0.1, 0.3, 0.5, 0.7, 0.9, 1.0]
+    demand = np.stack([f_min + s * (f_max - f_min) for s in shares] + [f_min - 200.0, f_max + 200.0], axis=1)
+    x, v, a, temp = (np.repeat(q, demand.shape[1]) for q in (x, v, a, temp))
+    demand = demand.ravel()
+    demand[:2] = -np.inf, np.inf
+    return x, v, a, temp, demand, (lo, hi)
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_the_inverse_equals_the_hosts(default_fmus, fmi):
+    """The default model's damper FMU (co-simulation) at 1080 points (both velocity signs,
+    velocities beyond the training range: DN_W_SATURATED; demands inside [F(u_min), F(u_max)],
+    on its ends, 200 N outside it: DN_W_UNREACHABLE, and +-Inf) gives the host's Damper.inverse:
+    u_command to 1e-9 of the control range, inverse_status equal, force_at_command the host's
+    force to 1e-9 N; the u input set to u_command gives the demanded force to 1e-6 relative
+    where it is reachable, and force_at_command everywhere, and leaves u_command as it was. The
+    description documents the status codes the inverse gives and declares the inverse's outputs
+    independent of u (ModelStructure dependencies: wiring u_command into u is no algebraic
+    loop). About 0.1 s (the FMU: the module's default_fmus)."""
+    damper = damper_from_model(default_model())
+    x, v, a, temp, demand, (lo, hi) = _inverse_grid(damper)
+    u_ref, f_ref, st_ref, _ = damper.inverse(demand, x, v, a, np.zeros(x.size), temp)
+    fmu, set_real, get_real, get_int = _co_simulation(default_fmus[fmi])
+    n = x.size
+    u, f_cmd, f_at_u, st = np.empty(n), np.empty(n), np.empty(n), np.empty(n, dtype=int)
+    for k in range(n):
+        set_real([0, 1, 2, 4, VR_DEMAND], [x[k], v[k], a[k], temp[k], demand[k]])
+        u[k], f_cmd[k] = get_real([VR_U_COMMAND, VR_INV_FORCE])
+        st[k] = get_int([VR_INV_STATUS])[0]
+        set_real([3], [u[k]])
+        f_at_u[k] = get_real([VR_FORCE])[0]
+        assert get_real([VR_DEMAND, VR_U_COMMAND]) == [demand[k], u[k]]
+    fmu.terminate()
+    fmu.freeInstance()
+    np.testing.assert_allclose(u, u_ref, rtol=0, atol=1e-9 * (hi - lo))
+    np.testing.assert_array_equal(st, st_ref)
+    np.testing.assert_allclose(f_cmd, f_ref, rtol=0, atol=1e-9)
+    reach = (st & _core.DN_W_UNREACHABLE) == 0
+    assert 0.5 < reach.mean() < 0.9 and np.any(st == _core.DN_W_SATURATED), reach.mean()
+    assert np.any(st == _core.DN_W_SATURATED | _core.DN_W_UNREACHABLE) and set(np.unique(st)) <= {0, 1, 16, 17}
+    assert np.all(u >= lo) and np.all(u <= hi) and np.all(np.isin(u[~reach], [lo, hi]))
+    np.testing.assert_allclose(f_at_u[reach], demand[reach], rtol=1e-6, atol=1e-6)
+    np.testing.assert_allclose(f_at_u, f_cmd, rtol=0, atol=1e-9)
+    md = read_model_description(str(default_fmus[fmi]))
+    doc = next(sv for sv in md.modelVariables if sv.name == "inverse_status").description
+    assert {int(c) for c in re.findall(r"(-?\d+) \(DN_", doc)} == {0, 1, 16, -8, -10, -7}, doc
+    deps = {o.variable.name: o.dependencies for o in md.outputs}
+    for name in ("u_command", "inverse_status", "force_at_command"):
+        assert [d.name for d in deps[name]] == ["x", "v", "a", "temperature", "force_demand"], name
+    assert deps["force"] is None  # the force depends on everything
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_the_inverse_without_a_control_input_and_on_errors(default_fmus, hybrid_fmus, fmi):
+    """A model without a control input (the hybrid model reads voltage_lag, not u: the runtime's
+    control_range is DN_E_MISMATCH) loads and runs: u_command 0, inverse_status -8 and
+    force_at_command the force at u = 0, no error. A NaN demand: inverse_status -10 and reading
+    u_command fails with a message naming it (the force still reads). About 0.05 s."""
+    fmu, set_real, get_real, get_int = _co_simulation(hybrid_fmus[fmi])
+    set_real([1, 3, VR_DEMAND], [0.3, 2.0, 500.0])
+    u, f_cmd = get_real([VR_U_COMMAND, VR_INV_FORCE])
+    assert u == 0.0 and get_int([VR_INV_STATUS]) == [_core.DN_E_MISMATCH]
+    set_real([3], [0.0])
+    assert f_cmd == get_real([VR_FORCE])[0]
+    fmu.doStep(0.0, 1e-3)  # the run goes on
+    fmu.terminate()
+    fmu.freeInstance()
+
+    messages = []
+    fmu, set_real, get_real, get_int = _co_simulation(default_fmus[fmi], messages)
+    set_real([1, VR_DEMAND], [0.1, float("nan")])
+    assert get_int([VR_INV_STATUS]) == [_core.DN_E_NONFINITE_INPUT]
+    assert np.isfinite(get_real([VR_FORCE])[0])
+    with pytest.raises(Exception):
+        get_real([VR_U_COMMAND])
+    assert any("u_command cannot be evaluated" in m and "force_demand = nan" in m for m in messages), messages
+    fmu.freeInstance()
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_the_inverse_in_model_exchange(default_fmus, fmi):
+    """Model exchange: u_command is continuous (the host's inverse at the inputs as soon as
+    they are set), inverse_status discrete: it keeps the last event's value until the completed
+    integrator step asks for an event, and takes the new one in event mode. About 0.05 s."""
+    damper = damper_from_model(default_model())
+    fmu = _model_exchange(default_fmus[fmi], fmi)  # x 0, v 0.1, a 0, u 2, temperature 20; demand 0
+    get_int = fmu.getInteger if fmi == 2 else fmu.getInt32
+    set_real = fmu.setReal if fmi == 2 else fmu.setFloat64
+    get_real = fmu.getReal if fmi == 2 else fmu.getFloat64
+
+    def host(demand):
+        u, _f, st, _n = damper.inverse(demand, 0.0, 0.1, 0.0, 0.0, 20.0)
+        return float(u[0]), int(st[0])
+
+    assert get_int([VR_INV_STATUS]) == [host(0.0)[1]] and not fmu.completedIntegratorStep()[0]
+    lo, hi = damper.control_range()
+    f_lo, f_hi = damper.forces(0.0, 0.1, 0.0, [lo, hi], 0.0, 20.0)[0]
+    changed = 0
+    for demand in (0.5 * (f_lo + f_hi), max(f_lo, f_hi) + 300.0, min(f_lo, f_hi) - 300.0):
+        before = get_int([VR_INV_STATUS])[0]
+        set_real([VR_DEMAND], [demand])
+        u, st = host(demand)
+        assert get_real([VR_U_COMMAND])[0] == pytest.approx(u, abs=1e-9 * (hi - lo))
+        assert get_int([VR_INV_STATUS]) == [before]  # between events: the last event's value
+        assert fmu.completedIntegratorStep()[0] == (st != before)
+        changed += st != before
+        fmu.enterEventMode()
+        fmu.newDiscreteStates() if fmi == 2 else fmu.updateDiscreteStates()
+        fmu.enterContinuousTimeMode()
+        assert get_int([VR_INV_STATUS]) == [st] and not fmu.completedIntegratorStep()[0]
+    assert changed >= 1
+    fmu.terminate()
+    fmu.freeInstance()
+
+
+def test_the_inverse_reads_the_forces_states(tmp_path, rig_signals):
+    """A model with a control input and the three states (control lag, velocity lag, Dahl
+    friction), FMI 3 co-simulation driven over the recorded rig test: at every communication
+    point u_command and inverse_status equal the host's Damper.inverse on the reference loop's
+    states (those of the force, advanced to the point), u to 1e-9 of the control range; with the
+    states replaced by their inputs the controls differ; a new u set before the step leaves
+    u_command as it was (the control lag holds the step's first u). One FMU build: about 3 s."""
+    t, x, v, a, u = rig_signals
+    model = random_model(["velocity", "acceleration", "voltage", "voltage_lag", "velocity_lag", "friction_state",
+                          "displacement"], hidden=9, seed=7, feature_params=HYBRID_PARAMS)
+    path = build_fmu(model, tmp_path / "states3.fmu", fmi=3, interface="cs")
+    damper = damper_from_model(model)
+    lo, hi = damper.control_range()
+    s = reference_states(model, t, x, v, u)
+    temp = np.full(t.size, 20.0)
+    f_lo, f_hi = (damper.forces(x, v, a, np.full(t.size, c), s["u_lag"], temp, s["v_lag"], s["z_fric"])[0]
+                  for c in (lo, hi))
+    demand = f_lo + (f_hi - f_lo) * (0.5 + 0.8 * np.sin(2 * np.pi * 9.0 * t))  # reachable and not, in turns
+    u_ref, _f, st_ref, _n = damper.inverse(demand, x, v, a, s["u_lag"], temp, s["v_lag"], s["z_fric"])
+    fmu, set_real, get_real, get_int = _co_simulation(path, start=[x[0], v[0], a[0], u[0], 20.0])
+    dt = float(t[1] - t[0])
+    u_fmu, st_fmu = np.empty(t.size), np.empty(t.size, dtype=int)
+    for k in range(t.size):
+        set_real(IN_VRS + [VR_DEMAND], [x[k], v[k], a[k], u[k], 20.0, demand[k]])
+        u_fmu[k] = get_real([VR_U_COMMAND])[0]
+        st_fmu[k] = get_int([VR_INV_STATUS])[0]
+        if k % 50 == 0:
+            set_real([3], [5.0 - u[k]])
+            assert get_real([VR_U_COMMAND])[0] == u_fmu[k]
+            set_real([3], [u[k]])
+        fmu.doStep(k * dt, dt)
+    fmu.terminate()
+    fmu.freeInstance()
+    reach = (st_ref & _core.DN_W_UNREACHABLE) == 0
+    assert 0.2 < reach.mean() < 0.95, reach.mean()
+    np.testing.assert_array_equal(st_fmu, st_ref)
+    np.testing.assert_allclose(u_fmu, u_ref, rtol=0, atol=1e-9 * (hi - lo))
+    u_stateless = damper.inverse(demand, x, v, a, u, temp, v, np.sign(v))[0]
+    assert np.max(np.abs(u_stateless - u_ref)[reach]) > 0.01 * (hi - lo)

@@ -1,7 +1,9 @@
 """The damper FMU's variables (cpp/fmu/fmu_damper.hpp: the same value references).
 
 Inputs x [m], v [m/s], a [m/s2], u (the model's control unit), temperature [degC]; outputs
-force [N], status, clamped_mask, envelope_flags; parameters: the model's feature constants (lags, pre-sliding
+force [N], status, clamped_mask, envelope_flags; the inverse (value references 30-33): input
+force_demand [N], outputs u_command (the control at which the force equals the demand),
+inverse_status, force_at_command [N]; parameters: the model's feature constants (lags, pre-sliding
 travel) and its physics terms' parameters, settable before initialisation; the damper's states
 the model reads (dampnet.h DN_DAMPER_STATE_LIST, `_core.DAMPER_STATES`: value reference 40 + k
 for state k, its derivative 50 + k) as local variables, continuous states in model exchange.
@@ -23,6 +25,12 @@ MODEL_IDENTIFIER = "dampnet_damper"
 #: states it keeps for the derived ones)
 FMU_FEATURES = tuple(_core.FEATURE_NAMES)
 VR_FPARAM, VR_TERM, VR_STATE, VR_DERIV, VR_TIME, VR_ENVELOPE = 10, 100, 40, 50, 9, 8
+#: the inverse's variables (fmu_damper.hpp: VR_DEMAND ..): force_demand, u_command, inverse_status, force_at_command
+VR_DEMAND, VR_U_COMMAND, VR_INV_STATUS, VR_INV_FORCE = 30, 31, 32, 33
+VR_U = 3  # the control input: the inverse's outputs do not depend on it (ModelStructure dependencies)
+if VR_FPARAM + len(_core.FEATURE_PARAM_NAMES) > VR_DEMAND or VR_INV_FORCE >= VR_STATE:  # fmu_damper.hpp's static_assert
+    raise ImportError(f"the {len(_core.FEATURE_PARAM_NAMES)} feature constants ({VR_FPARAM}..) reach the inverse's "
+                      f"value references ({VR_DEMAND}..{VR_INV_FORCE}: fmu_damper.hpp)")
 #: the damper's states (the runtime's registry, _core.DAMPER_STATES, in block order), by the
 #: dn_damper_input field a feature reads: (field, k: value references VR_STATE + k and
 #: VR_DERIV + k in fmu_damper.hpp, description)
@@ -84,6 +92,10 @@ def status_doc(names: tuple[str, ...]) -> str:
     return "; ".join(f"{getattr(_core, n)} ({_core.status_str(getattr(_core, n))})" for n in names)
 
 
+#: the status codes the inverse gives (damper.hpp: Damper::inverse; warnings OR-ed)
+INVERSE_STATUSES = ("DN_OK", "DN_W_SATURATED", "DN_W_UNREACHABLE", "DN_E_MISMATCH", "DN_E_NONFINITE_INPUT",
+                    "DN_E_NONFINITE_OUTPUT")
+
 #: how the damper's discrete outputs behave in model exchange (cpp/fmu/fmu_damper.hpp)
 LATCHED = ("; model exchange: the value at the last event (discrete: it changes only at events; after an "
            "integrator step that would change it the FMU asks for a step event)")
@@ -132,7 +144,21 @@ def damper_variables(model: MlpModel, with_grid: bool = False) -> list[Variable]
          Variable("clamped_mask", 7, "Integer", "output", "discrete",
                   "bit i set: network input i was clamped to its training range" + LATCHED, initial="calculated"),
          Variable("envelope_flags", VR_ENVELOPE, "Integer", "output", "discrete", envelope_doc(with_grid) + LATCHED,
-                  initial="calculated")]
+                  initial="calculated"),
+         Variable("force_demand", VR_DEMAND, "Real", "input", "continuous",
+                  "the force demanded of the damper (a controller's): u_command is the control giving it", "N", 0.0),
+         Variable("u_command", VR_U_COMMAND, "Real", "output", "continuous",
+                  "the control within the model's control range at which the force at the current x, v, a, "
+                  "temperature and states (u ignored) equals force_demand (the runtime's Damper::inverse); the "
+                  "nearer control limit when the demand is out of reach (inverse_status); 0 for a model without a "
+                  "control input", u_unit, initial="calculated", independent_of=(VR_U,)),
+         Variable("inverse_status", VR_INV_STATUS, "Integer", "output", "discrete",
+                  "dampnet status of the inverse (u_command), warnings OR-ed: " + status_doc(INVERSE_STATUSES)
+                  + "; -8: the model has no control input (u_command 0, not an error of the FMU); -10, -7 also fail "
+                  "reading u_command" + LATCHED, initial="calculated", independent_of=(VR_U,)),
+         Variable("force_at_command", VR_INV_FORCE, "Real", "output", "continuous",
+                  "damper force at u = u_command (force_demand where it is reachable)", "N", initial="calculated",
+                  independent_of=(VR_U,))]
     for k, (name, value) in enumerate(sorted(model.feature_params.items())):  # the header's order
         doc = param_doc(name)
         lo, hi = range_in(doc, name)

@@ -75,7 +75,11 @@ class Variable:
     """One FMU variable. type: "Real" (FMI 3 Float64), "Integer" (Int32) or "Enumeration" (its
     declared type `enum`: a name and its items (name, value, doc); FMI 3 accesses it as Int64).
     causality: input, output, parameter, local; variability: continuous, discrete, fixed, tunable.
-    min, max: the runtime's range (inclusive bounds; dampnet's checks refuse a value outside)."""
+    min, max: the runtime's range (inclusive bounds; dampnet's checks refuse a value outside).
+    independent_of: for an output, the inputs (value references) it does not depend on: its
+    ModelStructure entry then lists its dependencies (the other inputs, and the continuous states
+    with model exchange), so that an importer wiring it back into one of them sees no algebraic
+    loop; empty: no list (an output depends on every input and state)."""
     name: str
     vr: int
     type: str
@@ -90,6 +94,7 @@ class Variable:
     min: float | None = None
     max: float | None = None
     enum: tuple[str, tuple[tuple[str, int, str], ...]] | None = None  # (type name, items), Enumeration only
+    independent_of: tuple[int, ...] = ()  # an output: the inputs it does not depend on
 
 
 @dataclass
@@ -172,6 +177,14 @@ def _interfaces(d: Description, interface: str | None) -> tuple[bool, bool]:
     return interface in ("cs", "both"), interface in ("me", "both")
 
 
+def _dependencies(v: Variable, variables: list[Variable], me: bool) -> list[Variable] | None:
+    """The knowns output v depends on (every input but v.independent_of; the continuous states
+    with model exchange), or None: no list (it depends on all)."""
+    if not v.independent_of:
+        return None
+    return [w for w in variables if (w.causality == "input" and w.vr not in v.independent_of) or (me and w.state)]
+
+
 def _variable_step(d: Description) -> str:
     return "false" if d.fixed_step else "true"
 
@@ -206,10 +219,15 @@ def model_description_2(d: Description, interface: str | None = None) -> str:
     initial = sorted([v for v in variables if v.causality == "output" or v.derivative_of is not None
                       or (me and v.state and v.initial in (None, "calculated", "approx"))], key=lambda v: index[v.vr])
 
-    def unknowns(vs):
-        return "".join(f'      <Unknown index="{index[v.vr]}"/>\n' for v in vs)
+    def unknowns(vs, with_dependencies=False):
+        rows = ""
+        for v in vs:
+            deps = _dependencies(v, variables, me) if with_dependencies else None
+            listed = "" if deps is None else f' dependencies="{" ".join(str(index[w.vr]) for w in deps)}"'
+            rows += f'      <Unknown index="{index[v.vr]}"{listed}/>\n'
+        return rows
 
-    structure = f"    <Outputs>\n{unknowns(outputs)}    </Outputs>\n"
+    structure = f"    <Outputs>\n{unknowns(outputs, True)}    </Outputs>\n"
     if derivs:
         structure += f"    <Derivatives>\n{unknowns(derivs)}    </Derivatives>\n"
     structure += f"    <InitialUnknowns>\n{unknowns(initial)}    </InitialUnknowns>\n"
@@ -258,7 +276,12 @@ def model_description_3(d: Description, interface: str | None = None) -> str:
     derivs = [v for v in variables if v.derivative_of is not None]
     initial = [v for v in variables if v.causality == "output" or v.derivative_of is not None
                or (me and v.state and v.initial in (None, "calculated", "approx"))]
-    structure = "".join(f'    <Output valueReference="{v.vr}"/>\n' for v in outputs)
+
+    def listed(v):
+        deps = _dependencies(v, variables, me)
+        return "" if deps is None else f' dependencies="{" ".join(str(w.vr) for w in deps)}"'
+
+    structure = "".join(f'    <Output valueReference="{v.vr}"{listed(v)}/>\n' for v in outputs)
     structure += "".join(f'    <ContinuousStateDerivative valueReference="{v.vr}"/>\n' for v in derivs)
     structure += "".join(f'    <InitialUnknown valueReference="{v.vr}"/>\n' for v in initial)
     head = (f'<?xml version="1.0" encoding="UTF-8"?>\n'
