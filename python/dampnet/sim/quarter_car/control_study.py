@@ -1,0 +1,236 @@
+"""Semi-active control through the damper's inverse, measured against the ideal (issue 55 item 3).
+
+On ISO 8608 roads (classes B, C, D; 40, 80, 120 km/h; one seed, ROAD_LENGTH_M each) the quarter
+car runs, through the runtime's loop (`dampnet.sim.quarter_car.runs.simulate`), every law of
+FORCE_LAWS on the damper model (its demanded force through the model's inverse) beside:
+  passive_low, passive_high   the damper held at its own soft / hard setting
+  skyhook_continuous          today's linear map of the wanted damping to a control
+  in range, unfiltered        the same law on the damper model without the command filter: the
+                              inverse's force at each step start, the demand clipped to what
+                              this damper can give at that motion ([F(u_min), F(u_max)])
+  ideal semi-active           the same law on an ideal damper: a lookup table whose force is its
+                              control (F = u for any velocity, IDEAL_F_MAX_N either way), so the
+                              inverse is exact and the force is the law's demand clipped to the
+                              dissipative range (F v > 0, else 0), perfectly tracked, held over
+                              each step as any command is
+  ideal active                the same law's demand unclipped (an unconstrained force actuator in
+                              place of the damper): the law is a linear state feedback, so the car
+                              is linear and is integrated exactly (scipy.signal.lsim) over the
+                              same road (check: the analytic RMS from the road's PSD and the
+                              car's frequency response, `ideal_active_analytic`)
+Reported per case: ISO 2631-1 Wk-weighted body acceleration RMS [m/s^2], suspension travel RMS
+[m], dynamic tyre load RMS [N]; for each law through the inverse, its comfort gain over passive
+low as a share of the ideal semi-active's (gain_share; target >= 0.9) and of the in-range
+unfiltered law's (gain_share_in_range), the force-tracking error (RMS of
+force - demand over the steps with a reachable demand, relative to the demand's RMS there) and
+the share of demanding steps whose demand is out of the damper's reach at that motion.
+The full car (`full_car_rows`): the road manoeuvre (two correlated tracks) at the same roads and
+speeds, each vehicle damping setting: heave (Wk) acceleration, roll and pitch rate RMS.
+The command: `python bench/control_study.py` (bench/RESULTS.md).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Callable
+
+import numpy as np
+
+from dampnet.sim.vehicle import Controller, Vehicle
+
+ROAD_CLASSES = ("B", "C", "D")
+SPEEDS_KMH = (40.0, 80.0, 120.0)
+ROAD_LENGTH_M = 200.0
+FORCE_LAWS = ("skyhook_force", "groundhook_force", "hybrid_force", "clipped_optimal")
+BASELINES = ("passive_low", "passive_high", "skyhook_continuous")
+#: the ideal damper's force range [N] either way (any demand of the quarter car is far inside)
+IDEAL_F_MAX_N = 1e5
+#: a comfort gain (passive low's Wk RMS minus the ideal's) below this share of passive low's is
+#: reported as none (the ideal semi-active law gains nothing over passive low there)
+MIN_IDEAL_GAIN = 0.005
+
+
+def ideal_spec(f_max: float = IDEAL_F_MAX_N):
+    """The ideal semi-active damper: a lookup table F(v, u) = u [N] for every velocity."""
+    from dampnet.evaluation.lookup import LookupTable
+    from dampnet.sim.dampers import lookup_spec
+
+    u = np.array([-f_max, f_max])
+    return lookup_spec(LookupTable(np.array([-10.0, 10.0]), u, np.column_stack([u, u])), name="ideal")
+
+
+def ideal_controller(law: Controller, f_max: float = IDEAL_F_MAX_N) -> Controller:
+    """`law` (its gains) on the ideal damper: the control is the force, 0 N without a demand
+    (u_soft), limited to +-f_max, unfiltered (the ideal tracks at once)."""
+    return dataclasses.replace(law, u_soft=0.0, u_hard=f_max, u_passive=0.0, u_min=-f_max, u_max=f_max, u_tau_s=0.0)
+
+
+def feedback_row(ctrl: Controller) -> np.ndarray:
+    """The law's unclipped demand as a state feedback F_d = K x [N], x = [travel z_s - z_us [m],
+    v_s [m/s], tyre deflection z_us - z_r [m], v_us [m/s]] (the runtime's formulas, dn_xmacro.h)."""
+    sky = np.array([0.0, ctrl.c_sky, 0.0, 0.0])
+    gnd = np.array([0.0, 0.0, 0.0, -ctrl.c_gnd])
+    return {"skyhook_force": sky, "groundhook_force": gnd,
+            "hybrid_force": ctrl.alpha * sky + (1.0 - ctrl.alpha) * gnd,
+            "clipped_optimal": np.array([ctrl.k_travel, ctrl.k_vs, ctrl.k_tyre, ctrl.k_vus])}[ctrl.kind]
+
+
+def demand(ctrl: Controller, a: dict) -> np.ndarray:
+    """The law's demanded damper force [N] at each step of a run's arrays, clipped as the runtime
+    clips it (each skyhook / groundhook part, then the sum, to F v > 0; else 0)."""
+    vs, vus = a["v_s"], a["v_us"]
+    v = vs - vus
+    x = np.column_stack([a["z_s"] - a["z_us"], vs, a["z_us"] - a["z_r"], vus])
+    if ctrl.kind == "hybrid_force":
+        sky = np.where(vs * v > 0, ctrl.c_sky * vs, 0.0)
+        gnd = np.where(-vus * v > 0, -ctrl.c_gnd * vus, 0.0)
+        f = ctrl.alpha * sky + (1.0 - ctrl.alpha) * gnd
+    else:
+        f = x @ feedback_row(ctrl)
+    return np.where(f * v > 0, f, 0.0)
+
+
+def linear_car(veh: Vehicle, k_row: np.ndarray):
+    """(A, E) of the linear quarter car under F = K x: x' = A x + E z_r' (lqr_design's model)."""
+    from dampnet.sim.calibration import lqr_design
+
+    A, B, *_ = lqr_design(veh)
+    return A + B @ k_row[None, :], np.array([0.0, 0.0, -1.0, 0.0])
+
+
+def ideal_active(veh: Vehicle, ctrl: Controller, t: np.ndarray, z_r: np.ndarray, v_r: np.ndarray) -> dict:
+    """The law's demand as an unconstrained actuator's force on the linear quarter car over the
+    road (z_r [m], v_r [m/s] at times t [s]): ride_metrics of the exact (zero-order-hold on the
+    road rate) solution, and its force."""
+    from scipy.signal import lsim
+
+    from dampnet.sim.ride import ride_metrics
+
+    k = feedback_row(ctrl)
+    A, E = linear_car(veh, k)
+    C = np.eye(4)
+    _, _, x = lsim((A, E[:, None], C, np.zeros((4, 1))), v_r, t, X0=np.zeros(4), interp=False)
+    force = x @ k
+    acc = (-veh.k_s * x[:, 0] - force) / veh.m_s
+    zr = z_r - z_r[0]
+    zu = zr + x[:, 2]
+    zs = zu + x[:, 0]
+    m = ride_metrics(t, zs, zu, zr, acc, veh.k_t, veh.m_s, veh.m_us)
+    return {"metrics": m, "force": force}
+
+
+def ideal_active_analytic(veh: Vehicle, ctrl: Controller, road_gd_n0: float, speed_m_s: float,
+                          n_band: tuple[float, float], wk: bool = True) -> float:
+    """The ideal active car's body acceleration RMS [m/s^2] (Wk-weighted when wk) from the ISO
+    8608 displacement PSD Gd(n) = Gd(n0) (n / n0)^-2 [m^3] over the spatial band n_band [cycles/m]
+    at speed_m_s: sqrt(integral |H_a(f)|^2 G(f) df), H_a the road-to-acceleration response."""
+    from dampnet.sim.ride import wk_analog
+    from dampnet.sim.roads.profiles import iso_psd
+
+    A, E = linear_car(veh, feedback_row(ctrl))
+    k = feedback_row(ctrl)
+    f = np.geomspace(n_band[0] * speed_m_s, n_band[1] * speed_m_s, 20001)
+    gz = iso_psd(f / speed_m_s, road_gd_n0) / speed_m_s                      # z_r PSD [m^2/Hz]
+    s = 2j * np.pi * f
+    # x = (sI - A)^-1 E z_r' and z_r' = s z_r
+    h = np.array([np.linalg.solve(si * np.eye(4) - A, E * si) for si in s])   # [n, 4] per z_r
+    acc = (-veh.k_s * h[:, 0] - h @ k) / veh.m_s
+    if wk:
+        acc = acc * wk_analog(f)
+    return float(np.sqrt(np.trapezoid(np.abs(acc) ** 2 * gz, f)))
+
+
+def tracking(spec, ctrl: Controller, res: dict) -> dict:
+    """Force tracking of a law through the inverse: over the steps with a demand, the share out
+    of reach (outside [F(u_min), F(u_max)] at that step's motion); over those within reach, the
+    RMS of force - (f_static + demand) [N] and that relative to the demand's RMS."""
+    from dampnet.sim.dampers import runtime_damper
+
+    a = res["arrays"]
+    fd = demand(ctrl, a)
+    d = runtime_damper(spec).damper
+    lo, hi = d.control_range()
+    motion = {q: a[q] for q in ("x", "v", "a", "u_lag", "temperature", "v_lag", "z_fric") if q in a}
+    f_lo = d.forces(u=np.full(len(fd), lo), **motion)[0]
+    f_hi = d.forces(u=np.full(len(fd), hi), **motion)[0]
+    want = res["f_static_n"] + fd
+    asks = fd != 0
+    reach = asks & (want >= np.minimum(f_lo, f_hi)) & (want <= np.maximum(f_lo, f_hi))
+    err = a["force"] - want
+    rms = lambda x: float(np.sqrt(np.mean(x ** 2))) if len(x) else float("nan")  # noqa: E731
+    return {"demand_share": float(asks.mean()), "saturated_share": float(1.0 - reach.sum() / max(asks.sum(), 1)),
+            "tracking_rms_n": rms(err[reach]), "tracking_rel": rms(err[reach]) / rms(fd[reach]) if reach.any() else None}
+
+
+def _metrics(m: dict) -> dict:
+    return {"wk_rms_m_s2": m["acc_wk_rms_m_s2"], "travel_rms_m": m["travel_rms_m"], "tyre_load_rms_n": m["tyre_load_rms_n"]}
+
+
+def quarter_car_case(spec, road_class: str, speed_kmh: float, *, laws=FORCE_LAWS, baselines=BASELINES,
+                     seed: int = 0, length_m: float = ROAD_LENGTH_M, vehicle: Vehicle | None = None) -> dict:
+    """One road and speed: {"passive_low": metrics, ..., law: {"model": metrics + tracking,
+    "ideal_semi_active": metrics, "ideal_active": metrics, "gain_share": ...}}."""
+    from dampnet.recipes import control_laws
+    from dampnet.recipes import roads as road_recipes
+    from dampnet.sim.quarter_car.runs import simulate
+
+    veh = vehicle or Vehicle()
+    v = speed_kmh / 3.6
+    road = road_recipes.build(f"iso:class={road_class},length_m={length_m:g}", seed=seed, speed_m_s=v)
+    out: dict = {"road": road.name, "speed_kmh": speed_kmh}
+    for name in baselines:
+        ctrl = control_laws.make(name, spec, veh)
+        out[name] = _metrics(simulate(spec, road, v, ctrl, veh, law=name)["metrics"])
+    ideal = ideal_spec()
+    low = out["passive_low"]["wk_rms_m_s2"] if "passive_low" in out else None
+    for name in laws:
+        ctrl = control_laws.make(name, spec, veh)
+        res = simulate(spec, road, v, ctrl, veh, law=name)
+        row = {"model": {**_metrics(res["metrics"]), **tracking(spec, ctrl, res)}}
+        semi = simulate(ideal, road, v, ideal_controller(ctrl), veh, law=name)
+        row["ideal_semi_active"] = _metrics(semi["metrics"])
+        unfiltered = dataclasses.replace(ctrl, u_tau_s=0.0)
+        unf = simulate(spec, road, v, unfiltered, veh, law=name)
+        row["in_range_unfiltered"] = {**_metrics(unf["metrics"]), **tracking(spec, unfiltered, unf)}
+        a = res["arrays"]
+        row["ideal_active"] = _metrics(ideal_active(veh, ctrl, a["t"], a["z_r"], a["v_r"])["metrics"])
+        if low is not None:
+            best = low - row["ideal_semi_active"]["wk_rms_m_s2"]
+            got = low - row["model"]["wk_rms_m_s2"]
+            row["gain_share"] = got / best if best > MIN_IDEAL_GAIN * low else None
+            best = low - row["in_range_unfiltered"]["wk_rms_m_s2"]
+            row["gain_share_in_range"] = got / best if best > MIN_IDEAL_GAIN * low else None
+        out[name] = row
+    return out
+
+
+def full_car_rows(spec, road_class: str, speed_kmh: float, damping=("low", "high", "skyhook", *FORCE_LAWS),
+                  seed: int = 0, dt: float = 1e-3) -> dict:
+    """The full car on the road manoeuvre: per damping setting, heave (body) Wk RMS [m/s^2], roll
+    and pitch rate RMS [deg/s], the worst wheel's dynamic tyre load RMS [N]."""
+    from dampnet.recipes import maneuvers
+
+    man = maneuvers.build("road", dt, {"speed_kmh": speed_kmh, "road": f"iso:class={road_class}", "road_seed": seed})
+    out = {}
+    for d in damping:
+        m = maneuvers.run(spec, man, d)["metrics"]
+        out[d] = {"heave_wk_rms_m_s2": m["acc_wk_rms_m_s2"], "roll_rate_rms_deg_s": m["roll_rate_rms_deg_s"],
+                  "pitch_rate_rms_deg_s": m["pitch_rate_rms_deg_s"], "tyre_load_rms_max_n": max(m["tyre_load_dyn_rms_n"])}
+    return out
+
+
+def run(spec, classes=ROAD_CLASSES, speeds=SPEEDS_KMH, *, full_car: bool = True, seed: int = 0,
+        progress: Callable[[str], None] | None = None) -> dict:
+    """The study: {"quarter_car": {"B_40": case, ...}, "full_car": {"B_40": rows, ...}}."""
+    out: dict = {"quarter_car": {}, "full_car": {}}
+    for c in classes:
+        for s in speeds:
+            key = f"{c}_{s:g}"
+            if progress:
+                progress(f"quarter car, ISO {c}, {s:g} km/h")
+            out["quarter_car"][key] = quarter_car_case(spec, c, s, seed=seed)
+            if full_car:
+                if progress:
+                    progress(f"full car, ISO {c}, {s:g} km/h")
+                out["full_car"][key] = full_car_rows(spec, c, s, seed=seed)
+    return out
