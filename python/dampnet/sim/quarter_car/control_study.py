@@ -144,13 +144,14 @@ def tracking(spec, ctrl: Controller, res: dict) -> dict:
     """Force tracking of a law through the inverse: over the steps with a demand, the share out
     of reach (outside [F(u_min), F(u_max)] at that step's motion); over those within reach, the
     RMS of force - (f_static + demand) [N] and that relative to the demand's RMS."""
+    from dampnet import _core
     from dampnet.sim.dampers import runtime_damper
 
     a = res["arrays"]
     fd = demand(ctrl, a)
     d = runtime_damper(spec).damper
     lo, hi = d.control_range()
-    motion = {q: a[q] for q in ("x", "v", "a", "u_lag", "temperature", "v_lag", "z_fric") if q in a}
+    motion = {q: a[q] for q in ("x", "v", "a", "temperature", *_core.DAMPER_STATES) if q in a}
     f_lo = d.forces(u=np.full(len(fd), lo), **motion)[0]
     f_hi = d.forces(u=np.full(len(fd), hi), **motion)[0]
     want = res["f_static_n"] + fd
