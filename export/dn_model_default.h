@@ -108,6 +108,13 @@ static const double dn_model_default_sat_hi[3] = {
   0.48205300000000001, 9.0909900990098738, 5.0072000000000001,
 };
 
+/* The damper's control, for dn_damper_inverse (a controller's demanded force -> control): the
+   input reading dn_damper_input.u (-1: none, or two; the inverse then refuses) and its range,
+   the input's saturation limits (dn_damper_control_range gives the same). */
+#define DN_MODEL_DEFAULT_CONTROL_INPUT 2
+#define DN_MODEL_DEFAULT_CONTROL_MIN (-0.0077999999999999996) /* [V] */
+#define DN_MODEL_DEFAULT_CONTROL_MAX (5.0072000000000001) /* [V] */
+
 /* Physics terms added to the network output (hybrid model); 0 for a pure MLP. */
 #define DN_MODEL_DEFAULT_N_TERMS 0
 

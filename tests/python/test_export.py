@@ -154,3 +154,30 @@ def test_the_exported_activation_is_the_runtime_registry():
     for name, (value, _) in _core.ACTIVATIONS.items():
         text = header_text(random_model(2, (3,), name, seed=0), "m")
         assert f"#define M_ACTIVATION {value} /* DN_ACT_{name.upper()} */" in text
+
+
+def test_the_header_states_the_control_input_and_the_inverses_range():
+    """Issue 55: P_CONTROL_INPUT / _MIN / _MAX are the input reading dn_damper_input.u and the range
+    the runtime's inverse searches (Damper.control_range, double and float); -1 and 0 where the
+    runtime has no control (no input reads u, or a lag only). Cost: 0.05 s."""
+
+    from dampnet.modeldir import default_model
+    from dampnet.sim.quarter_car.loop import damper_from_model
+    from loop_helpers import random_model
+
+    cases = [(default_model(), 2), (random_model(["velocity", "current"], hidden=4, seed=1), 1),
+             (random_model(["velocity", "voltage_lag"], hidden=4, seed=1,
+                           feature_params={"control_lag_tau_s": 0.01}), -1)]
+    for model, k in cases:
+        text = header_text(model, "ctl")
+        macros = dict(re.findall(r"#define CTL_(CONTROL_\w+) \(?([-0-9.e]+)\)?", text))
+        assert int(macros["CONTROL_INPUT"]) == k
+        lo, hi = float(macros["CONTROL_MIN"]), float(macros["CONTROL_MAX"])
+        if k < 0:
+            assert (lo, hi) == (0.0, 0.0)
+            with pytest.raises(ValueError):
+                damper_from_model(model).control_range()
+            continue
+        assert (lo, hi) == damper_from_model(model).control_range()
+        assert (lo, hi) == pytest.approx(damper_from_model(model, single=True).control_range(), rel=1e-7)
+        assert f"/* [{model.units[k]}] */" in text

@@ -15,6 +15,9 @@ include from several translation units). It holds, for a prefix `p`:
   P_N_TERMS and p_terms_*                                   physics terms (hybrid models)
   P_N_FEATURE_PARAMS, P_<PARAM>, p_feature_param_names[],   constants of derived features
   p_feature_param_values[] (arrays only when there are any)  (e.g. P_VELOCITY_LAG_TAU_S)
+  P_CONTROL_INPUT, P_CONTROL_MIN, P_CONTROL_MAX,            the input reading the control (voltage or
+                                                            current: dn_damper_input.u) and its range,
+                                                            the damper inverse's (-1 and 0: none)
   P_HAS_ENVELOPE, p_envelope_lo[], p_envelope_hi[],          the training envelope's bounded-time
   p_envelope_cells[], P_ENVELOPE_DESC_INIT                  check (a dn_envelope_desc initializer),
                                                             only when exported with an envelope
@@ -228,6 +231,7 @@ def header_text(model: MlpModel, prefix: str = "dn_model", envelope=None) -> str
                       "lower saturation limit (training range), feature units"))
     out.append(_array(f"{p}_sat_hi", model.sat_hi, f"{n_in}",
                       "upper saturation limit (training range), feature units"))
+    out.append(_control_block(P, model))
     out.append(_terms_block(p, P, model))
     out.append(_feature_params_block(p, P, model))
     w2 = f"{p}_w2" if h2 else "(const double*)0"
@@ -276,6 +280,31 @@ def _envelope_block(p: str, P: str, model: MlpModel, envelope) -> str:
     cells_ptr = f"{p}_envelope_cells" if cells.size else "(const uint32_t*)0"
     lines.append(f"#define {P}_ENVELOPE_DESC_INIT {{ {P}_N_INPUTS, {p}_envelope_lo, {p}_envelope_hi, {cells_ptr} }}\n")
     return "\n".join(lines)
+
+
+def control_input(model: MlpModel) -> int:
+    """The index of the one input that reads the damper's control (dn_damper_input.u: voltage or
+    current, dampnet._core.FEATURE_INPUTS), or -1 when none or two do (the runtime then has no
+    control range and refuses the inverse: DN_E_MISMATCH)."""
+    from dampnet import _core
+
+    reads = [i for i, f in enumerate(model.features) if _core.FEATURE_INPUTS.get(f) == "u"]
+    return reads[0] if len(reads) == 1 else -1
+
+
+def _control_block(P: str, model: MlpModel) -> str:
+    k = control_input(model)
+    lines = ["/* The damper's control, for dn_damper_inverse (a controller's demanded force -> control): the",
+             "   input reading dn_damper_input.u (-1: none, or two; the inverse then refuses) and its range,",
+             "   the input's saturation limits (dn_damper_control_range gives the same). */",
+             f"#define {P}_CONTROL_INPUT {k}"]
+    if k >= 0:
+        unit = model.units[k]
+        lines += [f"#define {P}_CONTROL_MIN ({_num(model.sat_lo[k])}) /* [{unit}] */",
+                  f"#define {P}_CONTROL_MAX ({_num(model.sat_hi[k])}) /* [{unit}] */"]
+    else:
+        lines += [f"#define {P}_CONTROL_MIN (0.0) /* no control */", f"#define {P}_CONTROL_MAX (0.0) /* no control */"]
+    return "\n".join(lines) + "\n"
 
 
 def _terms_block(p: str, P: str, model: MlpModel) -> str:
