@@ -8,10 +8,12 @@ Silver, FMPy, ...).
 fmi3) into binaries/<platform>/, with the sources in sources/ (and sources/buildDescription.xml
 for FMI 3) so an importer elsewhere can rebuild it. The binary depends on libc and libm only.
 
-- what="damper" (damper.py): inputs x [m], v [m/s], a [m/s2], u, temperature [degC]; outputs
-  force [N], status, clamped_mask, envelope_flags (with `envelope`, the training envelope's
-  bounded-time check, dampnet.envelope.grid; without, the training ranges only); parameters the feature constants and physics terms; the
-  derived features' states advance exactly as in dampnet's loop (cpp/fmu/fmu_damper.hpp).
+- what="damper" (damper.py): inputs x [m], v [m/s], a [m/s2], u, temperature [degC] and
+  force_demand [N]; outputs force [N], status, clamped_mask, envelope_flags (with `envelope`, the
+  training envelope's bounded-time check, dampnet.envelope.grid; without, the training ranges
+  only), and the damper's inverse of force_demand at the current motion: u_command [the control's
+  unit], inverse_status, force_at_command [N]; parameters the feature constants and physics terms;
+  the derived features' states advance exactly as in dampnet's loop (cpp/fmu/fmu_damper.hpp).
 - what="quarter-car" (quarter_car.py): co-simulation only; road in, the quarter car's motion out.
 """
 
