@@ -7,6 +7,8 @@ beside emlearn's C for the same 3-30-1 network (bench/RESULTS.md, "On a microcon
                                                 # (python/env.sh installs all three)
     python bench/embedded.py --unroll-sweep [--json FILE] [--fp-contract off|fast]  # the kernel's
                                                 # flash against instructions, DN_KERNEL_UNROLL 1/2/4/8
+    python bench/embedded.py --inverse-only [--json FILE]  # the damper inverse's instructions alone
+                                                # (~1 min; also part of the full run)
 
 What it does, per core (cortex-m4: mps2-an386, cortex-m7: mps2-an500), with the presets'
 configuration (bench/firmware_lab.py: DEFAULT_CAPS; python/dampnet/export/mcu.py: DEFAULT_KERNEL; -O3, -ffp-contract=off);
@@ -35,6 +37,18 @@ from different checkouts need not share one:
   the host's; the mean of those counts is a little above the SysTick figure (the call's own
   instructions); the M4F's worst-case cycles are the worst step's instructions times the step's
   mean cycles per instruction;
+* the damper's inverse (issue 55): the full build once more with the stored inverse cases
+  (dampnet.export.mcu.inverse_vectors: 300, reachable, unreachable and non-finite; the builds
+  above have none, so their sizes are the loop's alone), its results first checked against the
+  host's inverse (firmware_lab.inverse_vs_host); instructions per call of dn_damper_force at the
+  cases' inputs (the forward through the damper API: the reference) and of dn_damper_inverse
+  (SysTick loops, stub subtracted: means; each call's own ticks, corrected by the difference of
+  their mean from the loop's, for medians per kind of case), their ratio (the issue's target:
+  <= 3x on the M4F), the evaluations per inverse (2 at the limits + n_evals), the instructions of
+  one more evaluation (a least-squares line through the reachable cases), the flash the part adds
+  (the call sites, dn_damper_init_neural; dampnet::Damper::inverse itself is already linked by the
+  loop, whose force laws call it: its size from the symbol table) and its peak stack (the damper,
+  1,184 B on the M4F, on the stack);
 * the cycle estimate (Cortex-M4F only): the instructions times the mean cycles per instruction
   of the executed instruction mix, taken from a QEMU execution trace (-d exec) of the functions
   reachable from dn_mlp_forward_f / dn_loop_step, each instruction weighted by the Cortex-M4
@@ -65,7 +79,7 @@ import firmware_lab as emb  # noqa: E402  (bench/, this script's folder)
 from dampnet.modeldir import load_model  # noqa: E402
 
 OUT_DEFAULT = ROOT / "build" / "bench-embedded"
-SYMS_DATA = ("dn_fw_x_", "dn_fw_road")
+SYMS_DATA = ("dn_fw_x_", "dn_fw_road", "dn_fw_inv_")
 BUDGET_HZ, CLOCK_HZ = 10_000, 168e6  # the issue's 10 kHz step on a 168 MHz Cortex-M4F
 
 
@@ -307,8 +321,74 @@ def worst_steps(cpu: str, roads: dict[str, tuple[Path, object]], model, out: Pat
     return res
 
 
+def symbol_size(elf: Path, pattern: str) -> int:
+    """Bytes of the symbols of an image whose (mangled) name matches pattern (a regex)."""
+    total = 0
+    for line in _out(["arm-none-eabi-nm", "-S", elf]).splitlines():
+        f = line.split()
+        if len(f) == 4 and re.search(pattern, f[3]):
+            total += int(f[1], 16)
+    return total
+
+
+def library_state() -> dict:
+    """The commit measured, and the library's files (cpp/include, cpp/src) that differ from it."""
+    def git(*args):
+        return subprocess.run(["git", "-C", str(ROOT), *args], capture_output=True, text=True).stdout.strip()
+
+    return {"commit": git("rev-parse", "--short", "HEAD"),
+            "library_files_modified": git("diff", "--name-only", "HEAD", "--", "cpp/include", "cpp/src").split()}
+
+
+def measure_inverse(cpu: str, inv_vectors: tuple[Path, object], model, out: Path, fp_contract: str = "off",
+                    loop_float: int | None = None, without: Path | None = None) -> dict:
+    """The damper inverse's cost on a core: the full firmware built on inv_vectors (header, Vectors
+    with inverse cases), checked against the host's inverse, then its forward (dn_damper_force) and
+    inverse instructions (module docstring). without: the same firmware built without inverse
+    cases (its flash is subtracted)."""
+    tag = "" if loop_float is None else f"-loopfloat{int(loop_float)}"
+    header, vec = inv_vectors
+    bdir = emb.build(cpu, out / f"{cpu}-{fp_contract}{tag}-inverse", vectors=header, fp_contract=fp_contract,
+                     loop_float=loop_float, targets=("dn_firmware",))
+    elf = emb.firmware_path(bdir)
+    fw = emb.parse_output(emb.run(elf, cpu))
+    assert fw.errors == 0 and fw.inv_u is not None
+    host = emb.inverse_vs_host(model, vec, fw)
+    if not host["within"]:
+        raise SystemExit(f"{cpu}: the firmware's inverse differs from the host's: {host}")
+    fwd, inv = fw.instructions("damper_force"), fw.instructions("inverse")
+    st, n_evals = fw.inv_status, fw.inv_evals
+    # each call's instructions: its ticks (timer reads around it) less their mean excess over the
+    # timed loop's mean (the loop minus its stub: the call alone)
+    per = fw.inv_ticks * fw.instructions_per_tick
+    per = per - (per.mean() - inv)
+    kinds = {"all": np.ones(len(st), bool), "reachable": (st >= 0) & (st & 16 == 0),
+             "unreachable": (st >= 0) & (st & 16 > 0), "error": st < 0}
+    reach = kinds["reachable"]
+    slope, intercept = np.polyfit(n_evals[reach], per[reach], 1)
+    r = {"n": int(len(st)), "cases": {k: int(m.sum()) for k, m in kinds.items()},
+         "damper_force_instructions": fwd, "inverse_instructions_mean": inv, "ratio_mean": inv / fwd,
+         "inverse_instructions_median": {k: float(np.median(per[m])) for k, m in kinds.items() if m.any()},
+         "ratio_median": {k: float(np.median(per[m])) / fwd for k, m in kinds.items() if m.any()},
+         "evaluations_per_inverse": {"all_but_errors": float(np.mean(2 + n_evals[st >= 0])),
+                                     "reachable": float(np.mean(2 + n_evals[reach])),
+                                     "reachable_max": int(2 + n_evals[reach].max())},
+         "instructions_per_newton_evaluation": float(slope),
+         "instructions_reachable_at_0_newton_evaluations": float(intercept),
+         "per_call_timer_excess": float(fw.inv_ticks.mean() * fw.instructions_per_tick - inv),
+         "stack": fw.stack["inverse"], "stack_setup": fw.stack["inverse_setup"],
+         "damper_inverse_code_bytes": symbol_size(elf, r"Damper7inverse"),
+         "vs_host": {k: host[k] for k in ("u_error_over_range", "force_error_over_range", "evals_host",
+                                          "evals_firmware")},
+         "target_ratio": 3.0}
+    r["meets_target"] = bool(r["ratio_median"]["all"] <= 3.0 and r["ratio_mean"] <= 3.0)
+    if without is not None:
+        r["flash_added"] = sizes(elf)["flash"] - sizes(without)["flash"]
+    return r
+
+
 def measure(cpu: str, vectors: Path, tiny: Path, model, out: Path, fp_contract: str = "off",
-            loop_float: int | None = None, roads: dict | None = None) -> dict:
+            loop_float: int | None = None, roads: dict | None = None, inv_vectors=None) -> dict:
     """loop_float None: the core's preset (dampnet.export.mcu.LOOP_FLOAT). roads: name -> (vectors
     header, Vectors) of the roads the worst step is looked for on (the first: `vectors`'s)."""
     tag = "" if loop_float is None else f"-loopfloat{int(loop_float)}"
@@ -351,6 +431,8 @@ def measure(cpu: str, vectors: Path, tiny: Path, model, out: Path, fp_contract: 
                     "max_diff_vs_dampnet_in_range_N": float(np.max(np.abs(
                         eo.forces[ok & (fw.status == 0)] - fw.forces[ok & (fw.status == 0)]))),
                     "tanhf_share_of_instructions": emix["tanhf"][0] / emix["forward"][0]}
+    if inv_vectors is not None:
+        r["inverse"] = measure_inverse(cpu, inv_vectors, model, out, fp_contract, loop_float, path("dn_firmware"))
     if roads:
         r["step_per_road"] = worst_steps(cpu, roads, model, out, fp_contract, loop_float, path("dn_firmware"))
         r["instructions"]["step_worst"] = max(v["max"] for v in r["step_per_road"].values())
@@ -404,6 +486,8 @@ def main(argv=None) -> int:
                    help="only the kernel's flash and instructions for DN_KERNEL_UNROLL 1/2/4/8 (and DN_KERNEL_SMALL 0)")
     p.add_argument("--no-worst-step", action="store_true",
                    help="skip the per-step instruction traces (the worst step on two roads: a few minutes)")
+    p.add_argument("--inverse-only", action="store_true",
+                   help="only the damper inverse's instructions against the forward's (and its check against the host)")
     a = p.parse_args(argv)
     why = emb.toolchain_missing()
     if why:
@@ -417,7 +501,24 @@ def main(argv=None) -> int:
     model = load_model(ROOT / "export" / "dn_model_default.json")
     out.mkdir(parents=True, exist_ok=True)
     vectors, tiny = out / "vectors.h", out / "vectors_tiny.h"
-    emb.write_vectors(vectors, model=model)
+    # no inverse cases: the sizes are the kernel's and the loop's; the inverse's build has its own
+    emb.write_vectors(vectors, emb.make_vectors(model, n_inv=0), model=model)
+    inv_header = out / "vectors_inverse.h"
+    inv_vectors = (inv_header, emb.write_vectors(inv_header, emb.make_vectors(model), model=model))
+    if a.inverse_only:
+        res = {}
+        tag = "" if a.loop_float is None else f"-loopfloat{int(a.loop_float)}"
+        for cpu in sorted(emb.CPUS):  # the full build without the cases (measure's), for the flash added
+            bdir = emb.build(cpu, out / f"{cpu}-{a.fp_contract}{tag}", vectors=vectors, fp_contract=a.fp_contract,
+                             loop_float=a.loop_float, targets=("dn_firmware",))
+            res[cpu] = measure_inverse(cpu, inv_vectors, model, out, a.fp_contract, a.loop_float,
+                                       emb.firmware_path(bdir))
+        res["fp_contract"] = a.fp_contract
+        res["source"] = library_state()
+        print(json.dumps(res, indent=1))
+        if a.json:
+            Path(a.json).write_text(json.dumps(res, indent=1) + "\n")
+        return 0
     if a.unroll_sweep:
         res = {cpu: unroll_sweep(cpu, vectors, out, a.fp_contract) for cpu in sorted(emb.CPUS)}
         res["fp_contract"] = a.fp_contract
@@ -428,17 +529,20 @@ def main(argv=None) -> int:
         if a.json:
             Path(a.json).write_text(json.dumps(res, indent=1) + "\n")
         return 0
-    emb.write_vectors(tiny, emb.make_vectors(model, n_x=50, seconds=0.2))
+    emb.write_vectors(tiny, emb.make_vectors(model, n_x=50, seconds=0.2, n_inv=0))
     roads = {}
     if not a.no_worst_step:  # the worst step on the stored road and on a rougher one
         from dampnet.sim.roads import iso8608
 
         iso_d = out / "vectors_iso8608_D.h"
-        roads = {"thesis_rough": (vectors, emb.make_vectors(model)),
-                 "iso8608_D": (iso_d, emb.write_vectors(iso_d, emb.make_vectors(model, road=iso8608("D", 200.0, seed=1))))}
-    res = {cpu: measure(cpu, vectors, tiny, model, out, a.fp_contract, a.loop_float, roads) for cpu in sorted(emb.CPUS)}
+        roads = {"thesis_rough": (vectors, emb.make_vectors(model, n_inv=0)),
+                 "iso8608_D": (iso_d, emb.write_vectors(iso_d, emb.make_vectors(model, road=iso8608("D", 200.0, seed=1),
+                                                                                n_inv=0)))}
+    res = {cpu: measure(cpu, vectors, tiny, model, out, a.fp_contract, a.loop_float, roads, inv_vectors)
+           for cpu in sorted(emb.CPUS)}
     res["fp_contract"] = a.fp_contract
     res["loop_float"] = {cpu: emb.LOOP_FLOAT[cpu] if a.loop_float is None else a.loop_float for cpu in sorted(emb.CPUS)}
+    res["source"] = library_state()
     print(json.dumps(res, indent=1))
     if a.json:
         Path(a.json).write_text(json.dumps(res, indent=1) + "\n")

@@ -9,7 +9,8 @@ firmware (``firmware.c``, ``startup.c``, ``mps2.ld``) that QEMU runs on its MPS2
 
 * configures and builds it from this tree (``build``) or builds an exported folder
   (``build_folder``), runs it in QEMU (``run``) and parses what it prints (``parse_output``),
-* and runs the host's side of the comparison (``host_forces``, ``host_loop``, ``loop_vs_host``).
+* and runs the host's side of the comparison (``host_forces``, ``host_loop``, ``loop_vs_host``,
+  ``host_inverse``, ``inverse_vs_host``).
 
     python bench/firmware_lab.py build|run [--cpu cortex-m4|cortex-m7] [--dir DIR]
 
@@ -189,6 +190,13 @@ class FirmwareOutput:
     evals: int = 0
     status_or: int = 0
     errors: int = -1
+    # the inverse part's cases ("inv" lines; None without it): control and force (dn_real), status,
+    # evaluations after the two at the limits, SysTick ticks of each call (the timer reads included)
+    inv_u: np.ndarray | None = None
+    inv_force: np.ndarray | None = None
+    inv_status: np.ndarray | None = None
+    inv_evals: np.ndarray | None = None
+    inv_ticks: np.ndarray | None = None
 
     def instructions(self, name: str) -> float:
         """Instructions per call of a timed loop, its empty-stub loop subtracted."""
@@ -204,6 +212,7 @@ def _f64(h: str) -> float:
 def parse_output(text: str) -> FirmwareOutput:
     out = FirmwareOutput()
     forces, status, mask = [], [], []
+    inv = []
     for line in text.splitlines():
         f = line.split()
         if not f:
@@ -229,11 +238,17 @@ def parse_output(text: str) -> FirmwareOutput:
                 out.final = vals[:-1]
         elif f[0] == "loop":
             out.evals, out.status_or = int(f[2]), int(f[4])
+        elif f[0] == "inv":
+            inv.append((_f64(f[2]), _f64(f[3]), int(f[4]), int(f[5]), int(f[6])))
         elif f[0] == "done":
             out.errors = int(f[2])
     if forces:
         out.forces = np.array(forces, dtype=np.float32)
         out.status, out.mask = np.array(status), np.array(mask, dtype=np.uint32)
+    if inv:
+        u, force, st, n, t = zip(*inv)
+        out.inv_u, out.inv_force = np.array(u), np.array(force)
+        out.inv_status, out.inv_evals, out.inv_ticks = np.array(st), np.array(n), np.array(t)
     return out
 
 
@@ -292,6 +307,52 @@ def loop_vs_host(model, road: np.ndarray, out) -> dict:
             "evals": (int(out.evals), int(evals)),
             "within": bool(same_steps and np.all(peak > 0) and np.all(ratio <= HOST_TOLERANCE)
                            and np.all(final_err <= HOST_TOLERANCE) and out.evals == evals)}
+
+
+def host_inverse(model, vectors) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The host runtime's inverse (dampnet._core.Damper.inverse) of the model's float neural damper
+    on the vectors' inverse cases (vectors.inv, make_vectors): (u, force, status, evaluations)."""
+    d = mcu.host_damper(model)
+    kw = mcu.damper_inputs(vectors.inv_fields, np.asarray(vectors.inv[:, :-1], np.float32).astype(float))
+    kw.pop("u")
+    return d.inverse(np.asarray(vectors.inv[:, -1], np.float32).astype(float), **kw)
+
+
+#: the firmware's inverse may differ from the host's by this share of the control range in u (the
+#: issue's tolerance of the inverse against a brute-force search) and by this share of the force
+#: range in force (the forward's, test_embedded's test_forces_equal_host_float_forward)
+INVERSE_U_TOLERANCE = 1e-4
+INVERSE_FORCE_TOLERANCE = 1e-5
+
+
+def inverse_vs_host(model, vectors, out) -> dict:
+    """The firmware's inverse part (out: parse_output) against host_inverse on the same cases:
+    {n, statuses equal, u_error_over_range (max over the cases without an error), force_error_over_range,
+    worst (its case), the host's and the firmware's evaluations (mean over the cases without an
+    error), counts per status, within (same statuses, and errors where the host errors, u and force
+    within INVERSE_U_TOLERANCE / INVERSE_FORCE_TOLERANCE)}."""
+    u, force, status, evals = host_inverse(model, vectors)
+    lo, hi = mcu.host_damper(model).control_range()
+    u_range, force_range = hi - lo, 2.0 / model.out_gain
+    same_n = out.inv_u is not None and len(out.inv_u) == len(u)
+    if not same_n:
+        return {"n": 0 if out.inv_u is None else len(out.inv_u), "within": False}
+    ok = status >= 0
+    du = np.abs(out.inv_u - u) / u_range
+    df = np.abs(out.inv_force - force) / force_range
+    worst = int(np.argmax(np.where(ok, du, -1.0)))
+    same_status = bool(np.array_equal(out.inv_status, status))
+    counts = {int(k): int(c) for k, c in zip(*np.unique(status, return_counts=True))}
+    res = {"n": len(u), "statuses_equal": same_status, "host_status_counts": counts,
+           "u_error_over_range": float(du[ok].max()) if ok.any() else 0.0,
+           "force_error_over_range": float(df[ok].max()) if ok.any() else 0.0,
+           "worst": {"case": worst, "u_host": float(u[worst]), "u_firmware": float(out.inv_u[worst]),
+                     "status": int(status[worst])},
+           "evals_host": float(np.mean(evals[ok])) if ok.any() else 0.0,
+           "evals_firmware": float(np.mean(out.inv_evals[ok])) if ok.any() else 0.0}
+    res["within"] = bool(same_status and res["u_error_over_range"] <= INVERSE_U_TOLERANCE
+                         and res["force_error_over_range"] <= INVERSE_FORCE_TOLERANCE)
+    return res
 
 
 def main(argv=None) -> int:

@@ -14,6 +14,10 @@ newlib) and run in QEMU (mps2-an386, mps2-an500; semihosting), against the host 
   (measured, `pytest -s -k quarter_car` prints it: M4F float state 1.2e-6, M7 6.6e-7, where
   only the MLP's float rounding differs from the host's AVX2 kernel); the time t (a float sum
   of dt on the M4F: 4.1e-4 s off after 10,000 steps of 1 ms) within 1e-4 of 10 s.
+* The damper's inverse (dn_damper_inverse on a float neural damper, issue 55) on 300 stored
+  cases (motion inside and beyond the envelope, demands between and beyond the forces at the
+  control limits, NaN and infinite demands and inputs): the host binding's control, force and
+  status (test_inverse_equals_host_float_inverse).
 * No C++ runtime and no heap are linked, dn_sizes.h matches the library, neither the float
   forward nor the loop step calls a software double routine, and only the neural damper kind
   is linked (DN_DAMPER_KINDS): no tanh or pow of the other kinds and terms.
@@ -111,6 +115,50 @@ def test_quarter_car_equals_host_loop(firmware, vectors, model):
     assert cmp["evals"] == (len(road), len(road))
     # the road moved the car: the sprung mass travelled centimetres
     assert cmp["peak"]["z_s"] > 5e-3
+
+
+#: the firmware's inverse against the host's, in u: a share of the control range (the issue's
+#: tolerance against a brute-force search is 1e-4, emb.INVERSE_U_TOLERANCE; measured 8.0e-6 on
+#: both cores: the kernels' float rounding, up to 2e-3 N, over dF/du, and the stopping tolerance)
+INVERSE_U_TOLERANCE = 2e-5
+
+
+def test_inverse_equals_host_float_inverse(firmware, vectors, model):
+    """The inverse part (issue 55): the firmware's dn_damper_inverse on a float neural damper built
+    from the MLP, on the 300 stored cases (emb.make_vectors' inverse_vectors: v and a inside and
+    beyond the envelope, demands between and beyond the forces at the control limits, a NaN demand,
+    +-Inf demands, a NaN velocity, an infinite acceleration), equals the host binding's float
+    neural damper's inverse (dampnet._core.Damper.inverse, double arithmetic around the float MLP):
+    the same statuses (reachable, DN_W_UNREACHABLE, DN_W_SATURATED, DN_E_NONFINITE_INPUT where the
+    host errors), the control within INVERSE_U_TOLERANCE of the control range and the force within
+    1e-5 of the force range (the forward's tolerance; measured 7.7e-7). The evaluations need not be
+    the host's (float arithmetic may take another Newton path). Cost (measured): about 1 ms here
+    (the host's 300 inverses), plus ~0.04 s of QEMU per core in the shared firmware fixture's run
+    (the part's ~6.5M instructions: the timed loops and the printed calls; 0.14 s against 0.12 s
+    for the M4F firmware) and the fixture's one-off recompile of firmware.c when the vectors change."""
+    cpu, _, out = firmware
+    v = vectors[1]
+    assert v.inv is not None and len(v.inv) == 300 and v.inv_fields == ("v", "a")
+    cmp = emb.inverse_vs_host(model, v, out)
+    print(f"{cpu}: firmware vs host inverse:", {k: cmp[k] for k in ("u_error_over_range", "force_error_over_range",
+                                                                    "evals_host", "evals_firmware")})
+    assert cmp["n"] == 300 and cmp["statuses_equal"], cmp
+    assert cmp["u_error_over_range"] <= INVERSE_U_TOLERANCE, cmp
+    assert cmp["force_error_over_range"] <= emb.INVERSE_FORCE_TOLERANCE, cmp
+    st = out.inv_status
+    # the cases exercised every branch: reachable (some clamped), unreachable both ways, errors
+    unreachable = (st >= 0) & (st & 16 > 0)
+    assert ((st >= 0) & ~unreachable).sum() > 100 and unreachable.sum() > 100
+    assert (st & 1 > 0).sum() > 50 and (st == -10).sum() == 3  # DN_W_SATURATED; DN_E_NONFINITE_INPUT
+    assert np.all(np.isfinite(out.inv_u)) and np.all(np.isfinite(out.inv_force))
+    assert np.all(out.inv_evals[st < 0] == 0) and np.all(out.inv_evals[unreachable] == 0)
+    assert out.inv_evals.max() <= 44  # DN_INVERSE_MAX_ITERS
+    # unreachable: a control limit; reachable: the demand, to the forward's tolerance
+    lo, hi = emb.mcu.host_damper(model).control_range()
+    assert np.all(np.isin(out.inv_u[unreachable], np.array([lo, hi], dtype=out.inv_u.dtype)))
+    reach = (st >= 0) & ~unreachable
+    assert np.max(np.abs(out.inv_force[reach] - v.inv[reach, -1])) <= 1e-5 * 2.0 / model.out_gain
+    assert out.time["inverse"][2] == out.time["damper_force"][2] == 300
 
 
 def _symbols(elf) -> set[str]:
@@ -529,7 +577,7 @@ def test_the_per_step_trace_counts_what_systick_counts(model, vectors):
     bench = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bench)
     header = TEST_DIR / "dn_fw_vectors_short.h"
-    v = emb.make_vectors(model, n_x=20, seconds=0.3)
+    v = emb.make_vectors(model, n_x=20, seconds=0.3, n_inv=0)  # no inverse part: the steps only
     emb.write_vectors(header, v)
     bdir = emb.build("cortex-m4", TEST_DIR / "cortex-m4-short", vectors=header, targets=("dn_firmware",))
     elf = emb.firmware_path(bdir)

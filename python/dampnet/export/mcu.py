@@ -94,6 +94,7 @@ ROAD_SECONDS = 10.0
 DT = 0.001             # the vehicle's default step [s]
 N_INPUTS_DEFAULT = 1000
 PRINT_EVERY = 100      # the firmware prints the state every this many steps
+N_INVERSE_DEFAULT = 300  # cases of the damper's inverse the firmware runs (make_vectors)
 
 
 # ---- the stored inputs and road ----
@@ -102,14 +103,21 @@ PRINT_EVERY = 100      # the firmware prints the state every this many steps
 class Vectors:
     x: np.ndarray          # [n, n_inputs] float32: the MLP's inputs
     road: np.ndarray       # [n_steps, 2] float64: road [m] and its rate [m/s] at each step's end
+    #: the damper inverse's cases (dn_damper_inverse), [n_inv, len(inv_fields) + 2] float32: the
+    #: dn_damper_input fields named by inv_fields (those the model reads but u), u (read by the
+    #: forward the inverse is timed against), the demanded force [N]; None: no inverse part
+    inv: np.ndarray | None = None
+    inv_fields: tuple[str, ...] = ()
 
 
 def make_vectors(model, n_x: int = N_INPUTS_DEFAULT, seconds: float = ROAD_SECONDS, seed: int = 0,
-                 road=None) -> Vectors:
+                 road=None, n_inv: int = N_INVERSE_DEFAULT) -> Vectors:
     """Inputs in and out of the model's saturation range (the first half uniform within it, the
     second over the range widened by half its width on each side, so most of those clamp an
-    input), six non-finite ones (NaN, +-Inf in rows 0..5), and a road (a dampnet.sim.roads Road,
-    default the thesis's rough road) at ROAD_SPEED, shifted to start at 0 (the loop starts at rest)."""
+    input), six non-finite ones (NaN, +-Inf in rows 0..5), a road (a dampnet.sim.roads Road,
+    default the thesis's rough road) at ROAD_SPEED, shifted to start at 0 (the loop starts at rest),
+    and n_inv cases of the damper's inverse (inverse_vectors; 0: none, and the firmware built on
+    these vectors has no inverse part)."""
     from dampnet.sim import roads
 
     rng = np.random.default_rng(seed)
@@ -126,7 +134,95 @@ def make_vectors(model, n_x: int = N_INPUTS_DEFAULT, seconds: float = ROAD_SECON
     n_steps = int(round(seconds / DT))
     z = np.asarray(r.z, float)[1:n_steps + 1] - float(r.z[0])
     zdot = np.asarray(r.zdot, float)[1:n_steps + 1]
-    return Vectors(x=x, road=np.column_stack([z, zdot]))
+    inv, inv_fields = inverse_vectors(model, n_inv, seed=seed) if n_inv > 0 else (None, ())
+    return Vectors(x=x, road=np.column_stack([z, zdot]), inv=inv, inv_fields=inv_fields)
+
+
+def inverse_fields(model) -> tuple[str, ...]:
+    """The dn_damper_input fields the model's features read (dampnet._core.FEATURE_INPUTS), u
+    excluded, in feature order: what a case of the inverse stores besides u and the demand."""
+    from dampnet import _core
+
+    out: list[str] = []
+    for f in model.features:
+        field = _core.FEATURE_INPUTS[f]
+        if field != "u" and field not in out:
+            out.append(field)
+    return tuple(out)
+
+
+def host_damper(model):
+    """The host runtime's float neural damper of the model (dampnet._core.Damper, DN_PRECISION_FLOAT
+    MLP): what the firmware's inverse part builds with dn_damper_init_neural."""
+    from dampnet.sim.quarter_car.loop import damper_from_model
+
+    return damper_from_model(model, single=True)
+
+
+def damper_inputs(fields, values: np.ndarray) -> dict[str, np.ndarray]:
+    """Keyword arrays of dampnet._core.Damper.forces / .inverse for the columns `values` [n, k] of
+    the named fields, every other field 0 (as the firmware's zeroed dn_damper_input)."""
+    from dampnet import _core
+
+    n = len(values)
+    kw = {name: np.zeros(n) for name in _core.DAMPER_INPUT_FIELDS if name not in ("t", "dt", "stage")}
+    for j, name in enumerate(fields):
+        kw[name] = np.asarray(values[:, j], float)
+    return kw
+
+
+def inverse_vectors(model, n: int = N_INVERSE_DEFAULT, seed: int = 0) -> tuple[np.ndarray, tuple[str, ...]]:
+    """Cases of the damper's inverse (dn_damper_inverse): (rows [n, k + 2] float32, fields): the k
+    input fields the model reads (inverse_fields: half uniform within the model's saturation range
+    of the feature reading each, half over it widened by half its width on each side), u uniform
+    over the control range (only the forward it is timed against reads it), and a demanded force
+    between and beyond the host float damper's forces at the two control limits F(u_min), F(u_max)
+    (a share t of the way from one to the other: 60 % reachable, t in [0.02, 0.98]; 40 % beyond
+    either, t in [-0.5, -0.02] or [1.02, 1.5]), kept at least 2 % of |F(u_max) - F(u_min)| and
+    1e-4 of the force range from both, so that reachable or not does not hang on the last bits
+    of the forward. Rows 0-3 (4 if the model reads a second field) are hard: a NaN demand, +Inf,
+    -Inf, a NaN first field (the velocity), +Inf in the second. Deterministic (seed)."""
+    from dampnet import _core
+
+    rng = np.random.default_rng([seed, 55])
+    fields = inverse_fields(model)
+    lo_all, hi_all = np.asarray(model.sat_lo, float), np.asarray(model.sat_hi, float)
+    feats = list(model.features)
+    cols = []
+    half = n // 2
+    for name in fields:
+        i = next(k for k, f in enumerate(feats) if _core.FEATURE_INPUTS[f] == name)
+        lo, hi = lo_all[i], hi_all[i]
+        span = hi - lo
+        cols.append(np.concatenate([rng.uniform(lo, hi, half),
+                                    rng.uniform(lo - 0.5 * span, hi + 0.5 * span, n - half)]))
+    d = host_damper(model)
+    try:
+        u_min, u_max = d.control_range()
+    except ValueError:  # no control input: every inverse is DN_E_MISMATCH; u anything
+        u_min, u_max = 0.0, 1.0
+    cols.append(rng.uniform(u_min, u_max, n))
+    values = np.column_stack(cols).astype(np.float32) if cols else np.zeros((n, 0), np.float32)
+    kw = damper_inputs(fields, values)
+    kw.pop("u")
+    f_lo = d.forces(u=np.full(n, u_min), **kw)[0]
+    f_hi = d.forces(u=np.full(n, u_max), **kw)[0]
+    region = rng.choice(3, size=n, p=[0.2, 0.6, 0.2])
+    t = np.where(region == 0, rng.uniform(-0.5, -0.02, n),
+                 np.where(region == 1, rng.uniform(0.02, 0.98, n), rng.uniform(1.02, 1.5, n)))
+    delta = f_hi - f_lo
+    demand = f_lo + t * delta
+    force_range = 2.0 / float(model.out_gain) if getattr(model, "out_gain", None) else 1.0
+    margin = np.maximum(0.02 * np.abs(delta), 1e-4 * force_range)
+    near = np.minimum(np.abs(demand - f_lo), np.abs(demand - f_hi)) < margin
+    top, bottom = np.maximum(f_lo, f_hi), np.minimum(f_lo, f_hi)
+    # too near a limit's force (a narrow range): beyond it instead
+    demand = np.where(near, np.where(demand > (top + bottom) / 2, top + 2 * margin, bottom - 2 * margin), demand)
+    rows = np.column_stack([values, demand]).astype(np.float32)
+    for k, (col, v) in enumerate([(-1, np.nan), (-1, np.inf), (-1, -np.inf), (0, np.nan), (1, np.inf)]):
+        if k < n and col < len(fields):  # a column the model reads (the demand: -1)
+            rows[k, col] = v
+    return rows, fields
 
 
 def write_vectors(path, vectors: Vectors, controller) -> Vectors:
@@ -135,7 +231,8 @@ def write_vectors(path, vectors: Vectors, controller) -> Vectors:
     a DN_LOOP_FLOAT build), and the loop's configuration: LOOP_CONFIG, and `controller` (a
     dampnet.sim.vehicle.Controller: dampnet.recipes.control_laws.firmware_controller's for the model)
     as DN_FW_CONTROLLER (its kind) and DN_FW_CONTROLLER_SET(c), which sets every other field of a
-    dn_controller c."""
+    dn_controller c. With inverse cases (vectors.inv): DN_FW_N_INV, dn_fw_inv[DN_FW_N_INV][k] (float
+    bits), DN_FW_INV_SET(in, row) and the demand's column DN_FW_INV_DEMAND (the firmware's inverse part)."""
     from dampnet import _core
 
     n, k = vectors.x.shape
@@ -157,7 +254,21 @@ def write_vectors(path, vectors: Vectors, controller) -> Vectors:
     lines += ["}};", "#define dn_fw_x (dn_fw_x_.f)",
               f"static const dn_real dn_fw_road[{len(vectors.road)}][2] = {{"]
     lines += [f"  {{{z!r}, {v!r}}}," for z, v in vectors.road.tolist()]
-    lines += ["};", "#endif", ""]
+    lines += ["};"]
+    if vectors.inv is not None and len(vectors.inv):
+        # the inverse's cases: the fields as float bits (NaN and infinities exactly), set into a
+        # zeroed dn_damper_input by DN_FW_INV_SET(in, row) (u too: the forward it is timed against)
+        ni, ki = vectors.inv.shape
+        names = (*vectors.inv_fields, "u")
+        assert ki == len(names) + 1, (ki, names)
+        lines += [f"#define DN_FW_N_INV {ni}", f"#define DN_FW_INV_DEMAND {ki - 1}  /* the demanded force [N] */",
+                  "#define DN_FW_INV_SET(in, r) do { "
+                  + " ".join(f"(in).{name} = (dn_real)(r)[{j}];" for j, name in enumerate(names)) + " } while (0)",
+                  f"static const union {{ uint32_t u[{ni}][{ki}]; float f[{ni}][{ki}]; }} dn_fw_inv_ = {{{{"]
+        inv_bits = vectors.inv.astype(np.float32).view(np.uint32)
+        lines += ["  {" + ", ".join(f"0x{b:08x}u" for b in row) + "}," for row in inv_bits]
+        lines += ["}};", "#define dn_fw_inv (dn_fw_inv_.f)"]
+    lines += ["#endif", ""]
     Path(path).write_text("\n".join(lines))
     return vectors
 
@@ -333,8 +444,9 @@ def export_target(model, target: str, out_dir, controller, overwrite: bool = Fal
                   inputs=(), vectors: Vectors | None = None) -> Path:
     """The ready-to-build folder of `dampnet export MODEL --target CPU --out DIR`: model.h, the
     library's headers and sources, a CMakeLists.txt with the model's capacities, the toolchain
-    file, an example firmware (its stored inputs and road: `vectors`, default 16 inputs and 1 s),
-    a README and the marker FOLDER_MARKER. `controller`: the example firmware's loop's (write_vectors).
+    file, an example firmware (its stored inputs and road: `vectors`, default 16 inputs and 1 s, no
+    inverse cases), a README and the marker FOLDER_MARKER. `controller`: the example firmware's
+    loop's (write_vectors).
 
     An existing DIR is replaced only with overwrite and only if it is such a folder (its marker),
     never if it is or holds one of `inputs` (the model's path); the folder is built in a staging
@@ -347,7 +459,7 @@ def export_target(model, target: str, out_dir, controller, overwrite: bool = Fal
         raise ValueError(f"--target {target!r}: expected one of {', '.join(CPUS)}")
     out = check_output_dir(out_dir, "export-target", inputs, force=overwrite)
     if vectors is None:
-        vectors = make_vectors(model, n_x=16, seconds=1.0)
+        vectors = make_vectors(model, n_x=16, seconds=1.0, n_inv=0)  # the example: no inverse part
     src_root, cmake_dir, fw_dir = _folder_sources()
     caps = capacities_for(model)
     cap_defs = build_defines(model) + target_defines(target, caps)  # a wider layer first raises the limit
