@@ -2,6 +2,7 @@
 
     python bench/control_study.py [--model default] [--classes B C D] [--speeds 40 80 120]
                                   [--no-full-car] [--out bench/control_study_results.json]
+                                  [--plot bench/control_study.png]
 
 Runs dampnet.sim.quarter_car.control_study (its docstring says what each column is) and prints
 the markdown tables bench/RESULTS.md holds. About a minute on two cores.
@@ -66,6 +67,42 @@ def tables(res: dict) -> list[str]:
     return out
 
 
+def plot(res: dict, path: Path) -> None:
+    """Wk RMS relative to passive low, per road class (a panel each) against speed: each law through
+    the inverse (solid) beside its ideal semi-active damper (dashed), and skyhook_continuous."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    qc = res["quarter_car"]
+    classes = sorted({k.split("_")[0] for k in qc})
+    fig, axes = plt.subplots(1, len(classes), figsize=(4.2 * len(classes), 3.8), sharey=True, squeeze=False)
+    colors = dict(zip(cs.FORCE_LAWS, ("C0", "C1", "C2", "C3")))
+    for ax, c in zip(axes[0], classes):
+        keys = [k for k in qc if k.startswith(c + "_")]
+        sp = [qc[k]["speed_kmh"] for k in keys]
+        low = [qc[k]["passive_low"]["wk_rms_m_s2"] for k in keys]
+        rel = lambda vals: [v / lo for v, lo in zip(vals, low)]  # noqa: E731
+        ax.axhline(1.0, color="k", lw=1, label="passive low")
+        ax.plot(sp, rel([qc[k]["skyhook_continuous"]["wk_rms_m_s2"] for k in keys]), "k:", marker="s",
+                label="skyhook_continuous")
+        for law in cs.FORCE_LAWS:
+            ax.plot(sp, rel([qc[k][law]["model"]["wk_rms_m_s2"] for k in keys]), "-", marker="o", color=colors[law],
+                    label=f"{law} (through the inverse)")
+            ax.plot(sp, rel([qc[k][law]["ideal_semi_active"]["wk_rms_m_s2"] for k in keys]), "--", marker="x",
+                    color=colors[law], label=f"{law}, ideal semi-active")
+        ax.set_title(f"ISO 8608 class {c}")
+        ax.set_xlabel("speed [km/h]")
+        ax.grid(alpha=0.3)
+    axes[0][0].set_ylabel("Wk body acceleration RMS / passive low [-]")
+    axes[0][-1].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
+    fig.suptitle("Quarter car, default model: the force laws through the damper's inverse against the ideal")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--model", default="default")
@@ -73,6 +110,7 @@ def main(argv=None) -> int:
     p.add_argument("--speeds", nargs="+", type=float, default=list(cs.SPEEDS_KMH))
     p.add_argument("--no-full-car", action="store_true")
     p.add_argument("--out", default=None, help="write the study as JSON here")
+    p.add_argument("--plot", default=None, help="draw the quarter car's comfort against the ideal here (PNG)")
     a = p.parse_args(argv)
     t0 = time.time()
     res = cs.run(load_spec(a.model), a.classes, a.speeds, full_car=not a.no_full_car,
@@ -80,6 +118,8 @@ def main(argv=None) -> int:
     res["seconds"] = time.time() - t0
     if a.out:
         atomic_write_text(Path(a.out), json.dumps(res, indent=1), overwrite=True)
+    if a.plot:
+        plot(res, Path(a.plot))
     print("\n".join(tables(res)))
     print(f"\n({res['seconds']:.0f} s)")
     return 0
