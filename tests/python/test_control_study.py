@@ -68,3 +68,20 @@ def test_one_case_of_the_table(spec):
     m = row["model"]
     assert 0 < m["demand_share"] < 1 and 0 <= m["saturated_share"] <= 1 and m["tracking_rel"] > 0
     assert row["gain_share"] is not None
+
+
+def test_the_bench_command_prints_the_tables_and_writes_the_study_and_the_figure(tmp_path, capsys):
+    """bench/control_study.py on one road and speed, quarter car only: its markdown tables (the
+    gain column, the tracking table), the JSON with every law's rows, and the PNG. Cost: about 2 s."""
+    import json
+
+    import control_study as bench_study   # bench/ (conftest puts it on the path)
+    out, png = tmp_path / "s.json", tmp_path / "s.png"
+    assert bench_study.main(["--classes", "C", "--speeds", "80", "--no-full-car", "--out", str(out),
+                             "--plot", str(png)]) == 0
+    text = capsys.readouterr().out
+    assert "| C, 80 |" in text and "(gain " in text and "out of reach" in text
+    study = json.loads(out.read_text())
+    assert set(study["quarter_car"]["C_80"]) >= {"passive_low", "passive_high", "skyhook_continuous", *cs.FORCE_LAWS}
+    assert study["full_car"] == {}
+    assert png.stat().st_size > 10_000
