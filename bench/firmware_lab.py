@@ -38,7 +38,7 @@ from dampnet.export.mcu import (CPUS, DEFAULT_ACCEL_FEATURES, DEFAULT_DAMPER_EVA
 # re-exported for the lab's users (the tests, bench/embedded.py): the inputs and road, the
 # core's build options and the export folder are dampnet.export.mcu's
 from dampnet.export.mcu import (FOLDER_MARKER, FOLDER_SCHEMA, Vectors,  # noqa: F401
-                                make_vectors, target_defines)
+                                controller_kinds, make_vectors, target_defines)
 from dampnet.recipes.control_laws import firmware_controller
 # ... and with the firmware's controller made for the model, as `dampnet export --target` writes them
 from dampnet.recipes.export_targets import export_firmware_folder as export_target  # noqa: F401
@@ -96,9 +96,10 @@ def _cross_cxx_headers_present() -> bool:
 def cmake_args(cpu: str, vectors: Path | None = None, build_type: str = "Release",
                caps: dict | None = None, double_kernel: int = DEFAULT_DOUBLE_KERNEL,
                fp_contract: str = "off", kernel: dict | None = None, loop_float: int | None = None,
-               damper_kinds=DEFAULT_DAMPER_KINDS) -> list[str]:
+               damper_kinds=DEFAULT_DAMPER_KINDS, controllers=None) -> list[str]:
     """The configure options of a firmware build (what the presets of CMakePresets.json set);
-    loop_float None: the core's default (LOOP_FLOAT)."""
+    loop_float None: the core's default (LOOP_FLOAT); controllers None: the presets' laws and
+    the firmware's own (controller_kinds of firmware_controller's law, LOOP_LAW's by default)."""
     if cpu not in CPUS:
         raise ValueError(f"unknown core {cpu!r}; known: {', '.join(CPUS)}")
     loop_float = LOOP_FLOAT[cpu] if loop_float is None else int(loop_float)
@@ -106,6 +107,7 @@ def cmake_args(cpu: str, vectors: Path | None = None, build_type: str = "Release
             f"-DCMAKE_BUILD_TYPE={build_type}", f"-DDAMPNET_DOUBLE_KERNEL={double_kernel}",
             f"-DDAMPNET_FP_CONTRACT={fp_contract}", f"-DDAMPNET_LOOP_FLOAT={loop_float}",
             f"-DDAMPNET_DAMPER_KINDS={';'.join(damper_kinds)}",
+            f"-DDAMPNET_CONTROLLER_KINDS={';'.join(controllers or controller_kinds(mcu.LOOP_LAW))}",
             f"-DDAMPNET_ACCEL_FEATURES={';'.join(DEFAULT_ACCEL_FEATURES)}",
             f"-DDAMPNET_DAMPER_EVALS={';'.join(DEFAULT_DAMPER_EVALS)}"]
     args += [f"-DDAMPNET_CAP_{k}={v}" for k, v in (caps or DEFAULT_CAPS).items()]

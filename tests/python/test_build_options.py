@@ -8,7 +8,8 @@ kernel, DN_SMALL_CODE) and compiled with -Wdouble-promotion -Werror.
   linearised acceleration feature, on-off skyhook with a 5 ms command filter, the default model
   built in place from its folded floats by dn_loop_model_init_neural) over 2 s of the thesis rough road equals the host's
   double loop (dampnet._core) within 1e-4 of each state's peak.
-* A kind left out is refused at set-up (DN_E_PARAM); so is a vehicle asking for the implicit
+* A kind left out is refused at set-up (DN_E_PARAM); so is a force-tracking law (DN_CONTROLLER_KINDS:
+  the presets leave them out, keeping the damper's inverse out of flash), and a vehicle asking for the implicit
   solve or per-stage evaluation, and the default vehicle then asks for the linear scheme and
   one evaluation per step.
 * Hard inputs: a NaN or infinite road gives DN_E_NONFINITE_INPUT; a huge road (1e30-3e38 m)
@@ -51,6 +52,8 @@ int main() {
   dn_vehicle per_stage = v;
   per_stage.damper_eval = DN_EVAL_PER_STAGE;
   std::printf("per_stage %d\n", check_vehicle(per_stage));
+  std::printf("force_law %d onoff %d\n", check_controller(default_controller(DN_CTRL_SKYHOOK_FORCE)),
+              check_controller(default_controller(DN_CTRL_SKYHOOK_ONOFF)));
   const dn_mlp_folded_f folded = DN_MODEL_DEFAULT_FOLDED_INIT;
   v.damper_eval = DN_EVAL_PER_STEP;
   v.accel_feature = DN_ACCEL_LINEAR;
@@ -117,6 +120,9 @@ def test_the_float_loop_build_on_the_host(tmp_path):
     assert int(linear) == int(callback) == int(head["implicit"]) == int(head["per_stage"]) == _core.DN_E_PARAM
     assert int(head["default_accel"]) == _core.ACCEL_FEATURES["linear"][0]
     assert int(head["default_eval"]) == _core.DAMPER_EVALS["per_step"][0]
+    # the force-tracking laws are left out (DN_CONTROLLER_KINDS): refused; the others kept
+    force_law, _, onoff = head["force_law"].split()
+    assert int(force_law) == _core.DN_E_PARAM and int(onoff) == 0
     assert int(head["setup"]) == 0 and int(head["errors"]) == 0
     hard = [tuple(map(int, line.split()[1:])) for line in lines if line.startswith("hard ")]
     assert len(hard) == 5 and all(finite for _, _, finite in hard)
@@ -136,3 +142,23 @@ def test_the_float_loop_build_on_the_host(tmp_path):
     print("float loop vs host double loop, error / peak (z_s, v_s, z_us, v_us, u_cmd):", err / peak)
     assert np.all(peak > 0) and np.all(err <= 1e-4 * peak), err / peak
     assert peak[0] > 1e-3  # the road moved the car
+
+
+def test_a_firmware_running_a_force_law_links_it():
+    """DN_CONTROLLER_KINDS: the presets' laws (CMakePresets.json's list, mcu's DEFAULT_CONTROLLER_KINDS)
+    leave out the force-tracking ones; a firmware whose law tracks a force gets it added (its
+    inverse linked), one whose law is already in keeps the default mask. Cost: 0.01 s."""
+    import json
+
+    from dampnet.export import mcu
+
+    preset = json.loads((ROOT / "CMakePresets.json").read_text())["configurePresets"][0]["cacheVariables"]
+    assert tuple(preset["DAMPNET_CONTROLLER_KINDS"].split(";")) == mcu.DEFAULT_CONTROLLER_KINDS
+    mask = lambda defs: int(next(d for d in defs if d.startswith("DN_CONTROLLER_KINDS=")).split("=")[1])  # noqa: E731
+    default = mask(mcu.target_defines("cortex-m4", emb.DEFAULT_CAPS))
+    assert all(not (default >> _core.CONTROLLER_KINDS[k][0]) & 1
+               for k in ("skyhook_force", "groundhook_force", "hybrid_force", "clipped_optimal"))
+    assert mask(mcu.target_defines("cortex-m4", emb.DEFAULT_CAPS, controllers=mcu.controller_kinds("skyhook_onoff"))) \
+        == default
+    with_law = mask(mcu.target_defines("cortex-m4", emb.DEFAULT_CAPS, controllers=mcu.controller_kinds("clipped_optimal")))
+    assert with_law == default | (1 << _core.CONTROLLER_KINDS["clipped_optimal"][0])

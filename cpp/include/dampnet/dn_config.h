@@ -106,10 +106,20 @@ typedef double dn_real;
 #define DN_DAMPER_EVALS 0x3
 #endif
 
+/* The control laws this build runs, a bit mask (bit k: dn_controller_kind k; CMake
+ * DAMPNET_CONTROLLER_KINDS, a list of law names). Default: all. A law left out is refused by
+ * dn_controller_check and at set-up (DN_E_PARAM); leaving out every force-tracking law
+ * (skyhook_force, groundhook_force, hybrid_force, clipped_optimal) keeps the damper's inverse
+ * out of the loop's code (the Cortex-M presets: about 3.6 KB of an M4F's flash). The firmware
+ * export adds the law it runs (dampnet.export.mcu). */
+#ifndef DN_CONTROLLER_KINDS
+#define DN_CONTROLLER_KINDS 0x3ff
+#endif
+
 /*---- Damper models ----*/
 
 #define DN_MAX_TERMS 8        /* physics terms per damper */
-#define DN_MAX_TERM_PARAMS 8  /* parameters per term */
+#define DN_MAX_TERM_PARAMS 10 /* parameters per term (the valve's 10) */
 #define DN_MAX_TABLE_V 64     /* velocity points of a lookup table */
 #define DN_MAX_TABLE_U 16     /* control points of a lookup table */
 /* This build's capacities of a damper (see DN_CAP_INPUTS above). */

@@ -119,10 +119,18 @@ inline real control_law(const dn_controller& c, real v_s, real v_us, real u_ext)
   return detail::clamp(u, c.u_min, c.u_max);
 }
 
-// Whether a law is force-tracking: it demands a force and commands the damper's inverse of it.
+// Whether this build runs a law (DN_CONTROLLER_KINDS).
+constexpr bool controller_built(int kind) noexcept {
+  return kind >= 0 && kind < 32 && ((DN_CONTROLLER_KINDS >> kind) & 1);
+}
+
+// Whether a law is force-tracking: it demands a force and commands the damper's inverse of it
+// (false for a law the build leaves out: the inverse's call is then dead code).
 inline bool is_force_law(int kind) noexcept {
-  return kind == DN_CTRL_SKYHOOK_FORCE || kind == DN_CTRL_GROUNDHOOK_FORCE || kind == DN_CTRL_HYBRID_FORCE ||
-         kind == DN_CTRL_CLIPPED_OPTIMAL;
+  return (controller_built(DN_CTRL_SKYHOOK_FORCE) && kind == DN_CTRL_SKYHOOK_FORCE) ||
+         (controller_built(DN_CTRL_GROUNDHOOK_FORCE) && kind == DN_CTRL_GROUNDHOOK_FORCE) ||
+         (controller_built(DN_CTRL_HYBRID_FORCE) && kind == DN_CTRL_HYBRID_FORCE) ||
+         (controller_built(DN_CTRL_CLIPPED_OPTIMAL) && kind == DN_CTRL_CLIPPED_OPTIMAL);
 }
 
 // [RT] The force a force-tracking law demands [N] (see DN_CONTROLLER_KIND_LIST), positive
@@ -222,7 +230,7 @@ inline int check_vehicle(const dn_vehicle& s) noexcept {
 inline int check_controller(const dn_controller& s) noexcept {
   DN_CONTROLLER_FIELDS(DN_CHECK_FINITE_)
   const dn_controller& c = s;
-  if (!detail::is_controller_kind(c.kind)) return DN_E_PARAM;
+  if (!detail::is_controller_kind(c.kind) || !controller_built(c.kind)) return DN_E_PARAM;
   if (!(c.u_min <= c.u_max) || c.c_sky < 0 || c.c_gnd < 0 || c.u_tau_s < 0) return DN_E_PARAM;
   if ((c.kind == DN_CTRL_SKYHOOK_CONTINUOUS || c.kind == DN_CTRL_GROUNDHOOK_CONTINUOUS) &&
       !(c.c_max > c.c_min))

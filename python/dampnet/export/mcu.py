@@ -48,6 +48,11 @@ DEFAULT_DAMPER_KINDS = ("neural",)
 # one network evaluation per damper call) and explicit, not the implicit solve's iteration (up to
 # DN_ACCEL_MAX_EVALS = 6 evaluations per call).
 DEFAULT_ACCEL_FEATURES = ("linear", "explicit")
+# The control laws linked (dampnet.h DN_CONTROLLER_KINDS): all but the force-tracking ones, whose
+# damper inverse would add about 3.6 KB to an M4F's loop (bench/RESULTS.md, "The damper's inverse
+# on the MCU"); a firmware running one of those gets it added (controller_kinds).
+DEFAULT_CONTROLLER_KINDS = ("passive", "skyhook_onoff", "skyhook_continuous", "groundhook_onoff",
+                            "groundhook_continuous", "external")
 # The damper-evaluation schemes linked (dampnet.h DN_DAMPER_EVALS): one evaluation per step.
 DEFAULT_DAMPER_EVALS = ("per_step",)
 # The loop's state and arithmetic per core (dampnet.h DN_LOOP_FLOAT): float on the M4F, whose FPU
@@ -64,18 +69,26 @@ def _name_mask(what: str, names, registry: dict) -> int:
     return sum(1 << registry[k][0] for k in set(names))
 
 
+def controller_kinds(law_kind: str | None = None) -> tuple[str, ...]:
+    """The control laws a firmware build links: DEFAULT_CONTROLLER_KINDS and the law it runs
+    (law_kind: a _core.CONTROLLER_KINDS name, e.g. a force-tracking law's)."""
+    extra = (law_kind,) if law_kind and law_kind not in DEFAULT_CONTROLLER_KINDS else ()
+    return DEFAULT_CONTROLLER_KINDS + extra
+
+
 def target_defines(cpu: str, caps: dict, loop_float: int | None = None,
-                   damper_kinds=DEFAULT_DAMPER_KINDS) -> list[str]:
+                   damper_kinds=DEFAULT_DAMPER_KINDS, controllers=DEFAULT_CONTROLLER_KINDS) -> list[str]:
     """The library's compile definitions for a core (what the root CMakeLists.txt derives from the
     DAMPNET_* options of a freestanding build): capacities, float MLP only, the loop's real type,
-    the damper kinds, acceleration and evaluation schemes linked, code size over inlining, and
-    the lean float kernel."""
+    the damper kinds, control laws (controllers: names), acceleration and evaluation schemes
+    linked, code size over inlining, and the lean float kernel."""
     from dampnet import _core
 
     lf = LOOP_FLOAT[cpu] if loop_float is None else int(loop_float)
     return ([f"DN_CAP_{k}={v}" for k, v in caps.items()]
             + ["DN_DOUBLE_KERNEL=0", f"DN_LOOP_FLOAT={lf}",
                f"DN_DAMPER_KINDS={_name_mask('damper kinds', damper_kinds, _core.DAMPER_KINDS)}",
+               f"DN_CONTROLLER_KINDS={_name_mask('control laws', controllers, _core.CONTROLLER_KINDS)}",
                f"DN_ACCEL_FEATURES={_name_mask('acceleration features', DEFAULT_ACCEL_FEATURES, _core.ACCEL_FEATURES)}",
                f"DN_DAMPER_EVALS={_name_mask('damper evaluations', DEFAULT_DAMPER_EVALS, _core.DAMPER_EVALS)}",
                "DN_SMALL_CODE=1"]
@@ -411,8 +424,9 @@ the M4F, double on the M7).
    `dn_loop_model_init` give the same model (a loop model copies its damper, a damper its MLP).
 4. The real-time call is `dn_loop_step` (or `dn_mlp_forward_f` / `dn_damper_force` alone): no
    allocation, no exceptions, bounded time, finite output for any input. This build links only
-   the neural damper kind, the linear and explicit acceleration feature and one damper evaluation
-   per step (`DN_DAMPER_KINDS`, `DN_ACCEL_FEATURES`, `DN_DAMPER_EVALS`: anything else is refused
+   the neural damper kind, the control laws without the damper's inverse (and the example's law),
+   the linear and explicit acceleration feature and one damper evaluation
+   per step (`DN_DAMPER_KINDS`, `DN_CONTROLLER_KINDS`, `DN_ACCEL_FEATURES`, `DN_DAMPER_EVALS`: anything else is refused
    at set-up with `DN_E_PARAM`); {loop_real}
 5. Linker script: `.text`/`.rodata` in flash, `.data` copied and `.bss` zeroed by the start-up code,
    a stack of at least the peak measured for your core (dampnet's bench/RESULTS.md, "On a
@@ -462,7 +476,8 @@ def export_target(model, target: str, out_dir, controller, overwrite: bool = Fal
         vectors = make_vectors(model, n_x=16, seconds=1.0, n_inv=0)  # the example: no inverse part
     src_root, cmake_dir, fw_dir = _folder_sources()
     caps = capacities_for(model)
-    cap_defs = build_defines(model) + target_defines(target, caps)  # a wider layer first raises the limit
+    # a wider layer first raises the limit; the example's law is linked whatever it is
+    cap_defs = build_defines(model) + target_defines(target, caps, controllers=controller_kinds(controller.kind))
     header = header_text(model, "dn_model")
     # the float weights with the scalings folded in (set-up without double arithmetic), when the
     # header has them (a model whose folded values overflow float has only DN_MODEL_DESC_INIT)
