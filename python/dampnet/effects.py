@@ -17,6 +17,8 @@ tests/python/test_effects_catalogue.py checks both sides against this list.
     compressibility  rig: always on (TruthParams.compressibility_tau_s, 2 ms: every real
                      damper has it, so switching it off would change every dataset)
                      diagnosis: compressibility
+    mr_hysteresis    rig: absent       diagnosis: mr_hysteresis (an MR damper's pre-yield loop, growing with
+                                       the control; added as gas_spring is: the displacement input)
     mount_hysteresis rig: switchable   diagnosis: none (no candidate: the diagnosis must say
                                        "structure left, not a known effect", dampnet.diagnosis.leftover)
     campaign_warming rig: switchable   diagnosis: none (thermal without a temperature channel: found as
@@ -221,6 +223,20 @@ register_effect(EffectInfo(
     adds=Additions(features=(LagOf("velocity"),), how="feature", estimate=Estimate("tau_s", 0.002),
                    why="the velocity after a first-order lag as an extra MLP input: the network "
                        "learns how much of the force follows the lagged flow")))
+
+register_effect(EffectInfo(
+    id="mr_hysteresis", title="MR pre-yield hysteresis growing with the control",
+    physics="In an MR damper the fluid in the valve gap is a Bingham solid below its yield stress, which the "
+            "coil's field (the current) raises: after each reversal the force builds up elastically over "
+            "millimetres of travel before the fluid yields and flows (the Bouc-Wen element of Spencer, Dyke, Sain "
+            "and Carlson 1997, whose loop height alpha = alpha_a + alpha_b u grows with the control). The force "
+            "depends on position and on the direction of motion, and the loop is larger at high control: "
+            "unlike a rubber mount's, which is the same at every control.",
+    rig="absent", diagnosed_by="mr_hysteresis",
+    adds=Additions(features=("displacement",), how="feature",
+                   why="displacement as an MLP input: with velocity and the control the network learns a "
+                       "force that depends on position, the direction of motion and the control (the "
+                       "pre-yield loop), as it learns a gas spring")))
 
 register_effect(EffectInfo(
     id="mount_hysteresis", title="top-mount (bushing) rubber hysteresis in the load path",

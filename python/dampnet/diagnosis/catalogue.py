@@ -20,8 +20,8 @@ To add your own candidate, register its identity in the catalogue first:
                                diagnosed_by="my_effect", adds=...))
     register_candidate(Candidate(id="my_effect", needs=..., signature=..., columns=my_columns, ...))
 
-The built-in ids are fixed: gas_spring, thermal, valve_lag, friction, compressibility
-(the rig's bump_stop is diagnosed as gas_spring).
+The built-in ids are fixed: gas_spring, thermal, valve_lag, friction, compressibility,
+mr_hysteresis (the rig's bump_stop is diagnosed as gas_spring).
 """
 
 from __future__ import annotations
@@ -390,3 +390,79 @@ register_candidate(Candidate(
     evidence=lambda p, loc: (f"the force follows a velocity lagged by about {1000 * p['tau_s']:.3g} ms, "
                              "more than the acceleration input explains: the measured force-velocity "
                              "loops are wider than the predicted ones, most at high frequency")))
+
+
+# -- mr_hysteresis: a position-and-direction force that grows with the control ------------------
+
+#: the candidate is testable only when a loop the same at every control keeps at most this share of
+#: what the control-independent columns would explain (mean(u)^2 / mean(u^2), u = control / max|control|):
+#: with a control nearly constant across the data a control-scaled loop and a rubber mount's
+#: control-independent one cannot be told apart
+MR_CONTROL_SPREAD_MAX = 0.75
+MR_DEGREES = 3  # Legendre P1..P3 of the position (P0 times the direction is friction's and the baseline's)
+
+
+def _mr_control(ctx):
+    """(per-test control at rows, normalised by the data's max |control|, the max, the control's name)."""
+    u = ctx.at_rows(ctx.control_name)
+    if any(x is None for x in u):
+        return None, 0.0, ctx.control_name
+    us = float(np.max(np.abs(np.concatenate(u))))
+    return [x / us for x in u] if us > 0 else None, us, ctx.control_name
+
+
+def mr_columns_of(x, zv, u, c, h):
+    """Legendre P1..P3 of the normalised position times the direction of motion tanh(v / 0.05 v_max)
+    times the normalised control: a loop between extension and compression strokes that grows with it."""
+    return gas_columns_of(x, c, h)[:, :MR_DEGREES] * (np.tanh(zv / 0.05) * u)[:, None]
+
+
+def _mr_columns(ctx, theta):
+    c, h = _x_frame(ctx)
+    zv, _ = _vel_norm(ctx)
+    u, _, _ = _mr_control(ctx)
+    return [mr_columns_of(x, z, ui, c, h) for x, z, ui in zip(ctx.at_rows("displacement"), zv, u)]
+
+
+def _mr_testable(ctx):
+    if any(x is None for x in ctx.at_rows("displacement")):
+        return False, "no displacement channel"
+    u, us, name = _mr_control(ctx)
+    if u is None:
+        return False, f"no {name} channel, or it is zero throughout"
+    a = np.concatenate(u)
+    kept = float(np.mean(a) ** 2 / max(np.mean(a * a), 1e-30))
+    if kept > MR_CONTROL_SPREAD_MAX:
+        return False, (f"the {name} varies too little across the data (a loop the same at every {name} would keep "
+                       f"{100 * kept:.0f} % of its score): a control-scaled hysteresis cannot be told from a "
+                       "control-independent one (a rubber mount's); it needs tests at low and high control")
+    return True, ""
+
+
+def _mr_parameters(ctx, theta, fit):
+    c, h = _x_frame(ctx)
+    _, us, name = _mr_control(ctx)
+    z = np.linspace(-1.0, 1.0, 201)
+    half = gas_columns_of(c + h * z, c, h)[:, :MR_DEGREES] @ np.asarray(fit["beta"])
+    k = int(np.argmax(np.abs(half)))
+    return {"loop_half_height_at_max_control_n": float(abs(half[k])),
+            "loop_half_height_mid_stroke_n": float(abs(half[100])),
+            "peak_at_position_mm": 1000.0 * float(c + h * z[k]),
+            "max_control": us, "control": name}
+
+
+def _mr_evidence(p, loc):
+    return (f"the residual depends on position and on the direction of motion, and grows with the {p['control']}: "
+            f"between extension and compression strokes the force differs by up to "
+            f"2 x {p['loop_half_height_at_max_control_n']:.3g} N at the highest {p['control']} "
+            f"({p['max_control']:.3g}; 2 x {p['loop_half_height_mid_stroke_n']:.3g} N at mid-stroke), in proportion "
+            f"to the {p['control']} (see the residual's force-displacement loop: wider at high control)")
+
+
+register_candidate(Candidate(
+    id="mr_hysteresis",
+    needs="displacement and a control channel that varies between tests",
+    signature="a loop in the residual's force-displacement plane (a force that depends on position and on "
+              "the direction of motion) whose height grows with the control; a loop the same at every "
+              "control (a rubber mount) is not it",
+    columns=_mr_columns, testable=_mr_testable, parameters=_mr_parameters, evidence=_mr_evidence))
