@@ -67,6 +67,8 @@ def test_hidden_effect_found_added_and_gone(hidden):
     assert top["effect"] == family and top["significant"], r["d"]["candidates"][:2]
     assert r["d"]["verdict"] == family
     assert r["d"]["finding"]["kind"] == "known_effect" and r["d"]["finding"]["effects"][0] == family, r["d"]["finding"]
+    # a position-dependent force the same at every control is not an MR pre-yield loop (issue 53)
+    assert not _cand(r["d"], "mr_hysteresis")["significant"], _cand(r["d"], "mr_hysteresis")
     fall = 1 - r["after"] / r["before"]
     print(f"{effect}: held-out NRMSE {r['before']:.5f} -> {r['after']:.5f} ({-100 * fall:+.0f} %)")
     # valve_lag measured 25 % (0.0152 -> 0.0114; rig seeds 2 and 3: 53 %, 33 %) with the zero-phase
@@ -140,6 +142,7 @@ def test_stick_slip_friction_is_found():
     top = r["d"]["candidates"][0]
     assert top["effect"] == "friction" and top["significant"], r["d"]["candidates"][:3]
     assert r["d"]["verdict"] == "friction" and r["d"]["finding"]["kind"] == "known_effect", r["d"]["finding"]
+    assert not _cand(r["d"], "mr_hysteresis")["significant"], _cand(r["d"], "mr_hysteresis")  # issue 53
     p = top["parameters"]
     assert 0.05 < p["presliding_length_mm"] < 0.25, p
     assert 40.0 / 2 < p["friction_force_n"] < 110.0, p

@@ -178,6 +178,9 @@ def test_mount_hysteresis_is_structure_left_not_a_known_effect():
     d = diagnose(m, ds, n_surrogates=N_SUR)
     f = d["finding"]
     assert f["kind"] == "unknown_structure" and f["effects"] == [] and d["verdict"] is None, f
+    # a loop the same at every control: not the MR pre-yield candidate's (issue 53: testable, not named)
+    mr = next(c for c in d["candidates"] if c["effect"] == "mr_hysteresis")
+    assert mr["testable"] and not mr["significant"], mr
     left = d["leftover"]["before_effects"]
     assert left["significant"] and left["structure_rms_n"] > 5 * left["noise_floor_rms_n"], left
     w = left["where"]
