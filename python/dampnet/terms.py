@@ -45,6 +45,9 @@ class Kind:
     fittable: bool = True
     # fitted instead by nonlinear least squares after the others (fit_terms: the valve)
     nonlinear_fit: bool = False
+    # trailing parameters a term may leave out, all of them (then 0): those added to a kind after
+    # models were written with it (the valve's digressions k_d); the runtime's min_params agrees
+    optional: int = 0
 
     def with_shape(self, shape: tuple[float, ...], linear_values) -> np.ndarray:
         """The full parameter vector from a shape (the non-linear parameters) and the linear ones."""
@@ -89,29 +92,52 @@ def _bump_settle(p: np.ndarray) -> np.ndarray:
     return np.array([p[0], max(p[1], 0.0), p[2]])
 
 
-#: the valve term's bounds (dn_xmacro.h DN_TERM_VALVE_V_MAX_M_S, DN_TERM_VALVE_U_MAX)
+#: the valve term's bounds (dn_xmacro.h DN_TERM_VALVE_V_MAX_M_S, DN_TERM_VALVE_U_MAX,
+#: DN_TERM_VALVE_K_D_MAX_S_M: the largest digression the runtime accepts)
 VALVE_V_MAX = 50.0  # [m/s]
 VALVE_U_MAX = 1000.0  # [V or A]
+VALVE_K_D_MAX = 1e6  # [s/m]
+
+
+def _valve_full(p: np.ndarray) -> np.ndarray:
+    """The valve's 10 parameters from 8 or 10: a valve written before the digression (8
+    parameters) has k_d = 0 in both directions, the straight blow-off line."""
+    p = np.asarray(p, dtype=np.float64)
+    return np.concatenate([p, np.zeros(10 - p.size)]) if p.size < 10 else p
+
+
+def _valve_opening(kd, d):
+    """(z, r) of the digressive opening: z = ln(1 + k_d d) / k_d (d itself at k_d = 0, and where
+    k_d d underflows), r = dz/dd = 1 / (1 + k_d d)."""
+    x = kd * d
+    pos = x > 0
+    xs = np.where(pos, x, 1.0)
+    z = d * np.where(pos, np.log1p(xs) / xs, 1.0)
+    r = np.where(pos, 1.0 / (1.0 + xs), 1.0)
+    return z, r
 
 
 def _valve_parts(p: np.ndarray, q: dict[str, np.ndarray]):
     """(sgn(v), s(u), ds/du, g_d(|v|), g_d'(|v|), |v| below its clamp) of the valve term."""
     if "v" not in q or "u" not in q:
         raise ValueError("a valve term needs the velocity v [m/s] and the control u [V or A]")
+    p = _valve_full(p)
     v = np.asarray(q["v"], dtype=np.float64)
     u = np.asarray(q["u"], dtype=np.float64)
     v, u = np.broadcast_arrays(v, u)
     ext = v > 0
     vk, cb, cv = (np.where(ext, p[i], p[i + 3]) for i in range(3))
+    kd = np.where(ext, p[8], p[9])
     w_raw = np.abs(v)
     w = np.where(w_raw < VALVE_V_MAX, w_raw, VALVE_V_MAX)
     w = np.where(np.isnan(w), 0.0, w)
     below = w <= vk
     d = np.maximum(w - vk, 0.0)
-    one_minus_e = -np.expm1(-d / vk)
+    z, r = _valve_opening(kd, d)
+    one_minus_e = -np.expm1(-z / vk)
     m = 2 * cb * vk - cv
-    g = np.where(below, cb * w * w, cb * vk * vk + cv * d + m * vk * one_minus_e)
-    dg = np.where(below, 2 * cb * w, cv + m * (1 - one_minus_e))
+    g = np.where(below, cb * w * w, cb * vk * vk + cv * z + m * vk * one_minus_e)
+    dg = np.where(below, 2 * cb * w, r * (cv + m * (1 - one_minus_e)))
     inside = (u > 0) & (u < VALVE_U_MAX)  # NaN: outside, as u = 0
     uc = np.where(inside, u, np.where(u >= VALVE_U_MAX, VALVE_U_MAX, 0.0))
     den = 1 + p[7] * uc
@@ -133,38 +159,56 @@ def valve_gradient(params, v, u) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return sgn * s * g, np.where(unclamped & (sgn != 0), s * dg, 0.0), sgn * ds * g
 
 
+def _dz_dkd(kd, d, z, r):
+    """dz/dk_d of z = ln(1 + k_d d) / k_d: (d r - z) / k_d, by its series -d^2 (1/2 - 2x/3 + 3x^2/4
+    - 4x^3/5) in x = k_d d where that cancels (x < 1e-3; -d^2 / 2 at k_d = 0)."""
+    x = kd * d
+    small = x < 1e-3
+    series = -d * d * (0.5 - x * (2 / 3 - x * (0.75 - 0.8 * x)))
+    return np.where(small, series, (d * r - z) / np.where(small, 1.0, kd))
+
+
 def valve_param_jacobian(p, v, u) -> np.ndarray:
-    """dF/dp [n, 8] of the valve term at v [m/s], u [V or A] (p as KINDS["valve"].params): the
-    columns the nonlinear fit uses, in the parameters' units (N per unit of each)."""
-    p = np.asarray(p, dtype=np.float64)
+    """dF/dp [n, 10] of the valve term at v [m/s], u [V or A] (p as KINDS["valve"].params, 8 or 10
+    of them): the columns the nonlinear fit uses, in the parameters' units (N per unit of each)."""
+    p = _valve_full(p)
     sgn, s, _, g, _, _ = _valve_parts(p, {"v": np.asarray(v, float), "u": np.asarray(u, float)})
     v, u = np.broadcast_arrays(np.asarray(v, float), np.asarray(u, float))
     ext = v > 0
     vk, cb, cv = (np.where(ext, p[i], p[i + 3]) for i in range(3))
+    kd = np.where(ext, p[8], p[9])
     w = np.minimum(np.where(np.isnan(v), 0.0, np.abs(v)), VALVE_V_MAX)
     below = w <= vk
     d = np.maximum(w - vk, 0.0)
-    ome = -np.expm1(-d / vk)
+    z, r = _valve_opening(kd, d)
+    ome = -np.expm1(-z / vk)
     e = 1 - ome
     m = 2 * cb * vk - cv
-    dg_dvk = np.where(below, 0.0, 2 * cb * vk - cv + 2 * cb * vk * ome + m * ome - m * e * w / vk)
+    # d/dv_k: d = w - v_k moves (dz/dv_k = -r) and so does the transition's scale v_k
+    dg_dvk = np.where(below, 0.0, 2 * cb * vk - cv * r + (2 * cb * vk + m) * ome - m * e * (z / vk + r))
     dg_dcb = np.where(below, w * w, vk * vk + 2 * vk * vk * ome)
-    dg_dcv = np.where(below, 0.0, d - vk * ome)
+    dg_dcv = np.where(below, 0.0, z - vk * ome)
+    dg_dkd = np.where(below, 0.0, (cv + m * e) * _dz_dkd(kd, d, z, r))
     inside = (u > 0) & (u < VALVE_U_MAX)
     uc = np.where(inside, u, np.where(u >= VALVE_U_MAX, VALVE_U_MAX, 0.0))
     den = 1 + p[7] * uc
-    J = np.zeros(v.shape + (8,))
-    for k, dg in enumerate((dg_dvk, dg_dcb, dg_dcv)):
+    J = np.zeros(v.shape + (10,))
+    for k, dg in ((0, dg_dvk), (1, dg_dcb), (2, dg_dcv)):
         J[..., k] = np.where(ext, sgn * s * dg, 0.0)
         J[..., k + 3] = np.where(ext, 0.0, sgn * s * dg)
+    J[..., 8] = np.where(ext, sgn * s * dg_dkd, 0.0)
+    J[..., 9] = np.where(ext, 0.0, sgn * s * dg_dkd)
     J[..., 6] = sgn * g * uc / den
     J[..., 7] = -sgn * g * s * uc / den
     return J
 
 
 def _valve_check(p: np.ndarray) -> str | None:
+    p = _valve_full(p)
     if not (p[0] > 0 and p[3] > 0) or min(p[1], p[2], p[4], p[5], p[6], p[7]) < 0:
         return "valve needs v_k > 0 and c_b, c_v, g_num, g_den >= 0"
+    if not (0 <= p[8] <= VALVE_K_D_MAX and 0 <= p[9] <= VALVE_K_D_MAX):
+        return f"valve needs 0 <= k_d <= {VALVE_K_D_MAX:g} s/m"
     return None
 
 
@@ -177,27 +221,34 @@ KINDS: dict[str, Kind] = {
                       "F = sgn(x) k (|x| - x_free)^n beyond x_free: elastomer stops both ways",
                       linear=(1,), shapes=_bump_shapes, settle=_bump_settle),
     "valve": Kind(("v_k_ext [m/s]", "c_b_ext [N s^2/m^2]", "c_v_ext [N s/m]",
-                   "v_k_comp [m/s]", "c_b_comp [N s^2/m^2]", "c_v_comp [N s/m]", "g_num [1/u]", "g_den [1/u]"),
+                   "v_k_comp [m/s]", "c_b_comp [N s^2/m^2]", "c_v_comp [N s/m]", "g_num [1/u]", "g_den [1/u]",
+                   "k_d_ext [s/m]", "k_d_comp [s/m]"),
                   _valve, _valve_check,
                   "F = sgn(v) s(u) g_d(|v|): per direction d (ext v > 0, comp v < 0) a bleed c_b v^2 below "
-                  "the knee v_k and a blow-off valve of slope c_v above it, joined C1 "
-                  "(g = c_b v_k^2 + c_v (w - v_k) + (2 c_b v_k - c_v) v_k (1 - exp(-(w - v_k)/v_k))); "
-                  "control gain s(u) = (1 + g_num u) / (1 + g_den u), u in [0, 1000], |v| <= 50 m/s",
-                  linear=(), fittable=False, nonlinear_fit=True),
+                  "the knee v_k and a blow-off valve above it of slope c_v at the opening z, joined C1 "
+                  "(g = c_b v_k^2 + c_v z + (2 c_b v_k - c_v) v_k (1 - exp(-z/v_k)), z = ln(1 + k_d (w - v_k)) / k_d: "
+                  "digressive, its slope c_v / (1 + k_d (w - v_k)) far above the knee; k_d = 0: z = w - v_k, the "
+                  "straight line, and the default of a valve given 8 parameters); control gain "
+                  "s(u) = (1 + g_num u) / (1 + g_den u), u in [0, 1000], |v| <= 50 m/s",
+                  linear=(), fittable=False, nonlinear_fit=True, optional=2),
 }
 
 
 def validate(term: Mapping[str, Any]) -> np.ndarray:
-    """The parameters of a term as an array, or ValueError naming what is wrong."""
+    """The parameters of a term as an array of its kind's full count (optional ones left out are
+    0), or ValueError naming what is wrong."""
     kind = term.get("kind")
     if kind not in KINDS:
         raise ValueError(f"unknown term kind {kind!r}; known: {', '.join(sorted(KINDS))}")
     p = np.asarray(term.get("params", []), dtype=np.float64).ravel()
     k = KINDS[kind]
-    if p.size != len(k.params):
-        raise ValueError(f"term {kind!r}: expected {len(k.params)} params {k.params}, got {p.size}")
+    n = len(k.params)
+    if p.size not in (n, n - k.optional):
+        count = f"{n} or {n - k.optional}" if k.optional else f"{n}"
+        raise ValueError(f"term {kind!r}: expected {count} params {k.params}, got {p.size}")
     if not np.all(np.isfinite(p)):
         raise ValueError(f"term {kind!r}: params must be finite, got {p.tolist()}")
+    p = np.concatenate([p, np.zeros(n - p.size)])  # the optional ones left out: 0
     why = k.check(p)
     if why:
         raise ValueError(f"term {kind!r}: {why} (got {p.tolist()})")
@@ -311,9 +362,12 @@ def _fit_linear(terms: list[dict[str, Any]], free: list[int], x, v, u, target) -
 
 def _fit_valve(v: np.ndarray, u: np.ndarray, r: np.ndarray, A: np.ndarray | None = None) -> list[float]:
     """The valve's parameters fitted to the force r [N] at v [m/s], u [V or A] by bounded
-    nonlinear least squares (scipy.optimize.least_squares, trf; v_k > 0, the others >= 0), from
-    a few knee guesses (15, 30, 50 % of each direction's largest speed) each with the bleed's
-    and the valve's slopes estimated below and above it and no control gain; the best kept.
+    nonlinear least squares (scipy.optimize.least_squares, trf; v_k > 0, the others >= 0, the
+    digressions k_d in [0, VALVE_K_D_MAX]), from a few knee guesses (15, 30, 50 % of each
+    direction's largest speed) each with the bleed's and the valve's slopes estimated below and
+    above it, no control gain and straight (k_d = 0); fitted digressive (10 parameters), and
+    when the best of those barely bends over the data, fitted again straight (the 8, k_d held at
+    0); the best kept.
     A [n, k]: columns other terms add with free coefficients (projected out of the residual)."""
     from scipy.optimize import least_squares
 
@@ -330,7 +384,7 @@ def _fit_valve(v: np.ndarray, u: np.ndarray, r: np.ndarray, A: np.ndarray | None
         raise ValueError("fitting a valve term needs samples in extension and in compression")
 
     def guess(frac: float) -> np.ndarray:
-        p = np.zeros(8)
+        p = np.zeros(10)
         for d, sel in ((0, v > 0), (3, v < 0)):
             w, m = np.abs(v[sel]), r[sel] * np.sign(v[sel])
             vk = max(frac * float(np.max(w)), 1e-6)
@@ -350,15 +404,34 @@ def _fit_valve(v: np.ndarray, u: np.ndarray, r: np.ndarray, A: np.ndarray | None
         J = valve_param_jacobian(p, v, u)
         return J - Q @ (Q.T @ J) if A.shape[1] else J
 
-    lower = np.array([1e-6, 0, 0, 1e-6, 0, 0, 0, 0], dtype=np.float64)
+    lower = np.array([1e-6, 0, 0, 1e-6, 0, 0, 0, 0, 0, 0], dtype=np.float64)
+    upper = np.array([np.inf] * 8 + [VALVE_K_D_MAX] * 2)
     best = None
-    for frac in (0.15, 0.3, 0.5):
-        p0 = np.maximum(guess(frac), lower)
-        sol = least_squares(resid, p0, jac=jac, bounds=(lower, np.inf), method="trf", x_scale="jac", max_nfev=400, ftol=1e-12, xtol=1e-12, gtol=1e-12,
-                            tr_solver="lsmr")  # ("exact": a full SVD of the n x 8 Jacobian, slow)
-        if best is None or sol.cost < best.cost:
-            best = sol
-    p = np.maximum(best.x, lower)
+
+    def solve(p0: np.ndarray, straight: bool):
+        # straight: the 8 parameters of the straight blow-off line (k_d = 0, held), a model nested in
+        # the digressive one that trf does not reliably reach from inside (it stops short against
+        # the k_d = 0 bound), so fitted on its own and kept when its residual is the smaller
+        n = 8 if straight else 10
+        full = lambda q: np.concatenate([q, np.zeros(10 - n)])  # noqa: E731
+        return least_squares(lambda q: resid(full(q)), np.clip(p0[:n], lower[:n], upper[:n]),
+                             jac=lambda q: jac(full(q))[:, :n], bounds=(lower[:n], upper[:n]), method="trf",
+                             x_scale="jac", max_nfev=400, ftol=1e-12, xtol=1e-12, gtol=1e-12,
+                             tr_solver="lsmr"), full  # ("exact": a full SVD of the n x 10 Jacobian, slow)
+
+    w_max = np.array([np.max(v), -np.min(v)])
+    for straight in (False, True):
+        if straight and best is not None:
+            # only when the digressive fit barely bends over the data (k_d (w_max - v_k) < 0.5 both ways:
+            # the slope falls by a third at most), as a straight valve's fit does
+            bend = best[1][8:10] * np.maximum(w_max - best[1][[0, 3]], 0.0)
+            if np.any(bend >= 0.5):
+                break
+        for frac in (0.15, 0.3, 0.5):
+            sol, full = solve(guess(frac), straight)
+            if best is None or sol.cost < best[0]:
+                best = (sol.cost, full(sol.x))
+    p = np.clip(best[1], lower, upper)
     why = _valve_check(p)
     if why:  # cannot happen within the bounds; kept as the runtime's check would refuse it
         raise ValueError(f"valve fit: {why}")

@@ -2,7 +2,8 @@
 // DN_TERM_LIST (dampnet.h). Mirrored in numpy by python/dampnet/terms.py.
 //
 // To add a kind: one DN_TERM_LIST line in dampnet.h, and here one force
-// function and one validation function named after the kind's id.
+// function, one validation function, one gradient function and its reads_ and
+// optional_ constants, named after the kind's id.
 #pragma once
 
 #include <cmath>
@@ -33,6 +34,7 @@ inline real grad_DN_TERM_POSITION_POLY(const real* p, const dn_damper_input& in,
   return force_DN_TERM_POSITION_POLY(p, in);
 }
 constexpr unsigned reads_DN_TERM_POSITION_POLY = 1u;  // x
+constexpr int optional_DN_TERM_POSITION_POLY = 0;  // trailing params that may all be left out (then 0)
 
 // ---- bump_stop: F = sgn(x) k (|x| - x_free)^n beyond x_free ----
 inline real force_DN_TERM_BUMP_STOP(const real* p, const dn_damper_input& in) noexcept {
@@ -51,30 +53,40 @@ inline real grad_DN_TERM_BUMP_STOP(const real* p, const dn_damper_input& in, rea
   return force_DN_TERM_BUMP_STOP(p, in);
 }
 constexpr unsigned reads_DN_TERM_BUMP_STOP = 1u;  // x
+constexpr int optional_DN_TERM_BUMP_STOP = 0;
 
 // ---- valve: bleed orifice + preloaded blow-off valve per direction, scaled by the control ----
 // p = {v_k_ext [m/s], c_b_ext [N s^2/m^2], c_v_ext [N s/m], v_k_comp, c_b_comp, c_v_comp,
-//      g_num [1/u], g_den [1/u]}; the formula and its bounds: DN_TERM_LIST's text.
+//      g_num [1/u], g_den [1/u], k_d_ext [s/m], k_d_comp [s/m]}; the formula and its bounds:
+//      DN_TERM_LIST's text. The digressions k_d came later: a valve given 8 parameters (a model
+//      written before them) has k_d = 0, today's straight blow-off line, bit for bit.
 // F(v, u) = sgn(v) s(u) g_d(|v|), d the direction of v (ext: v > 0, comp: v < 0):
 //   below the knee (w = |v| <= v_k) the bleed alone, g = c_b w^2 [N];
-//   above it the valve opens: g = c_b v_k^2 + c_v (w - v_k) + (2 c_b v_k - c_v) v_k (1 - e),
-//   e = exp(-(w - v_k) / v_k): value c_b v_k^2 (the preload) and slope 2 c_b v_k at the knee
-//   (C1), slope c_v (the valve's opening law) well above it, g' between the two (>= 0).
+//   above it the valve opens: g = c_b v_k^2 + c_v z + (2 c_b v_k - c_v) v_k (1 - e),
+//   e = exp(-z / v_k), z = ln(1 + k_d (w - v_k)) / k_d the opening (z = w - v_k at k_d = 0):
+//   value c_b v_k^2 (the preload) and slope 2 c_b v_k at the knee (C1: dz/dw = 1 there),
+//   slope c_v / (1 + k_d (w - v_k)) well above it (a shim stack's digressive opening law; the
+//   straight line c_v at k_d = 0); g' = (c_v + (2 c_b v_k - c_v) e) / (1 + k_d (w - v_k)) >= 0.
 //   s(u) = (1 + g_num u) / (1 + g_den u) [-], u clamped to [0, DN_TERM_VALVE_U_MAX]: g_den = 0
 //   an affine gain (a current-controlled valve, harder or softer with the current); g_num <
 //   g_den a force falling from 1 to g_num / g_den like the thesis's c = gamma / V + c_min.
-// Bounded: |v| is clamped to DN_TERM_VALVE_V_MAX_M_S, u to its range, NaN v gives 0, NaN u
-// is u = 0; F is C1 in v everywhere below the clamp (at 0 both sides' slopes are 0).
+// Bounded: |v| is clamped to DN_TERM_VALVE_V_MAX_M_S, u to its range, k_d to
+// [0, DN_TERM_VALVE_K_D_MAX_S_M] (validated), NaN v gives 0, NaN u is u = 0; F is C1 in v
+// everywhere below the clamp (at 0 both sides' slopes are 0).
 namespace valve {
 // g_d(w) and g_d'(w) of one direction, w in [0, DN_TERM_VALVE_V_MAX_M_S].
-inline real magnitude(real vk, real cb, real cv, real w, real* dg) noexcept {
+inline real magnitude(real vk, real cb, real cv, real kd, real w, real* dg) noexcept {
   if (w <= vk) {
     *dg = 2 * cb * w;
     return cb * w * w;
   }
-  const real d = w - vk, one_minus_e = -std::expm1(-d / vk), m = 2 * cb * vk - cv;
-  *dg = cv + m * (1 - one_minus_e);
-  return cb * vk * vk + cv * d + m * vk * one_minus_e;
+  const real d = w - vk, x = kd * d;  // x <= DN_TERM_VALVE_K_D_MAX_S_M * DN_TERM_VALVE_V_MAX_M_S
+  // z = d ln(1 + x) / x and r = dz/dd; exactly d and 1 at x = 0 (k_d = 0, or x underflowing)
+  const bool bends = x > 0;
+  const real z = bends ? d * (std::log1p(x) / x) : d, r = bends ? 1 / (1 + x) : real(1);
+  const real one_minus_e = -std::expm1(-z / vk), m = 2 * cb * vk - cv;
+  *dg = r * (cv + m * (1 - one_minus_e));
+  return cb * vk * vk + cv * z + m * vk * one_minus_e;
 }
 // s(u) and ds/du.
 inline real scale(real g_num, real g_den, real u, real* ds) noexcept {
@@ -90,11 +102,12 @@ inline real eval(const real* p, const dn_damper_input& in, real* g) noexcept {
   g[0] = g[1] = g[2] = 0;
   const real v = in.v, v_max = real(DN_TERM_VALVE_V_MAX_M_S);
   if (!(v != 0 && v == v)) return 0;  // 0 or NaN
-  const real* q = v > 0 ? p : p + 3;
+  const bool ext = v > 0;
+  const real* q = ext ? p : p + 3;
   const real w_raw = std::fabs(v), w = w_raw < v_max ? w_raw : v_max;
   real dg = 0, ds = 0;
-  const real mag = magnitude(q[0], q[1], q[2], w, &dg), s = scale(p[6], p[7], in.u, &ds);
-  const real sgn = v > 0 ? real(1) : real(-1);
+  const real mag = magnitude(q[0], q[1], q[2], ext ? p[8] : p[9], w, &dg), s = scale(p[6], p[7], in.u, &ds);
+  const real sgn = ext ? real(1) : real(-1);
   g[1] = w_raw < v_max ? s * dg : real(0);  // even in v
   g[2] = sgn * ds * mag;
   return sgn * s * mag;
@@ -107,16 +120,21 @@ inline real force_DN_TERM_VALVE(const real* p, const dn_damper_input& in) noexce
 inline int validate_DN_TERM_VALVE(const real* p) noexcept {
   for (int d = 0; d < 6; d += 3)
     if (!(p[d] > 0) || p[d + 1] < 0 || p[d + 2] < 0) return DN_E_PARAM;
+  const real kd_max = real(DN_TERM_VALVE_K_D_MAX_S_M);
+  for (int d = 8; d < 10; ++d)
+    if (!(p[d] >= 0 && p[d] <= kd_max)) return DN_E_PARAM;
   return (p[6] >= 0 && p[7] >= 0) ? DN_OK : DN_E_PARAM;
 }
 inline real grad_DN_TERM_VALVE(const real* p, const dn_damper_input& in, real* g) noexcept {
   return valve::eval(p, in, g);
 }
 constexpr unsigned reads_DN_TERM_VALVE = 2u | 4u;  // v, u
+constexpr int optional_DN_TERM_VALVE = 2;  // k_d_ext, k_d_comp: 0 (the straight line) when left out
 
 struct KindInfo {
   const char* name;
-  int n_params;
+  int n_params;      // DN_TERM_LIST's count: the most a term of the kind takes
+  int min_params;    // or this many: the trailing optional_<id> ones all left out, then 0
   real (*force)(const real*, const dn_damper_input&) noexcept;
   int (*validate)(const real*) noexcept;
   // F, and g[3] = {dF/dx [N/m], dF/dv [N s/m], dF/du [N/u]} (dF/da = 0: no term reads a)
@@ -127,7 +145,7 @@ struct KindInfo {
 // Indexed by dn_term_kind (values are consecutive from 0).
 inline const KindInfo* table() noexcept {
   static const KindInfo t[] = {
-#define DN_TERM_ROW_(id, value, name, n, text) {name, n, &force_##id, &validate_##id, &grad_##id, reads_##id},
+#define DN_TERM_ROW_(id, value, name, n, text) {name, n, n - optional_##id, &force_##id, &validate_##id, &grad_##id, reads_##id},
       DN_TERM_LIST(DN_TERM_ROW_)
 #undef DN_TERM_ROW_
   };
@@ -142,12 +160,13 @@ inline int kind_of(const char* name) noexcept {
   return -1;
 }
 
-// Validate and fill a term from (kind name, params; each finite also in dn_real).
+// Validate and fill a term from (kind name, params; each finite also in dn_real): the kind's
+// n_params of them, or its min_params (the optional ones left out: 0).
 inline int make(Term& t, const char* kind, const double* params, int n_params) noexcept {
   const int k = kind_of(kind);
   if (k < 0) return DN_E_UNKNOWN_NAME;
   const KindInfo& info = table()[k];
-  if (n_params != info.n_params) return DN_E_SIZE;
+  if (n_params != info.n_params && n_params != info.min_params) return DN_E_SIZE;
   if (n_params > 0 && !params) return DN_E_NULL;
   real p[DN_MAX_TERM_PARAMS] = {};
   for (int i = 0; i < n_params; ++i) {
