@@ -4,7 +4,7 @@
                                   [--no-full-car] [--out bench/control_study_results.json]
                                   [--plot bench/control_study.png]
 
-Runs dampnet.sim.quarter_car.control_study (its docstring says what each column is) and prints
+Runs dampnet.recipes.control_study (its docstring says what each column is) and prints
 the markdown tables bench/RESULTS.md holds. About a minute on two cores.
 """
 
@@ -18,7 +18,7 @@ from pathlib import Path
 
 from dampnet.outputs import atomic_write_text
 from dampnet.sim.dampers import load_spec
-from dampnet.sim.quarter_car import control_study as cs
+from dampnet.recipes import control_study as cs
 
 
 def _f(x, fmt="{:.3f}"):

@@ -1,4 +1,4 @@
-"""The control study (issue 55 item 3, dampnet.sim.quarter_car.control_study): its ideal references
+"""The control study (issue 55 item 3, dampnet.recipes.control_study): its ideal references
 against independent results. The ideal active car (lsim over the road) against the analytic RMS
 from the ISO 8608 PSD and the car's frequency response; the ideal semi-active damper (a lookup
 table F = u) giving exactly the law's clipped demand; one road and speed's table on a short road.
@@ -12,7 +12,7 @@ import pytest
 from dampnet.recipes import control_laws
 from dampnet.recipes import roads as road_recipes
 from dampnet.sim.dampers import load_spec
-from dampnet.sim.quarter_car import control_study as cs
+from dampnet.recipes import control_study as cs
 from dampnet.sim.quarter_car.runs import simulate
 from dampnet.sim.roads.profiles import ISO_BAND, ISO_CLASSES
 from dampnet.sim.vehicle import Vehicle
