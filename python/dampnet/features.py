@@ -400,6 +400,14 @@ def control_columns(features: Sequence[str]) -> list[int]:
     return [j for j, f in enumerate(features) if f in FEATURES and FEATURES[f].field in CONTROL_FIELDS]
 
 
+def control_input(features: Sequence[str]) -> int | None:
+    """Index of the one feature the runtime reads from field u (the control as commanded: voltage
+    or current), or None when none or several do: then the runtime has no control range and
+    refuses the damper's inverse (DN_E_MISMATCH)."""
+    reads = [j for j, f in enumerate(features) if f in FEATURES and FEATURES[f].field == "u"]
+    return reads[0] if len(reads) == 1 else None
+
+
 def velocity_column(features: Sequence[str]) -> int | None:
     """Index of the feature the runtime keeps in field v (the velocity), or None."""
     return next((j for j, f in enumerate(features) if f in FEATURES and FEATURES[f].field == "v"), None)

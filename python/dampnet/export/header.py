@@ -282,23 +282,15 @@ def _envelope_block(p: str, P: str, model: MlpModel, envelope) -> str:
     return "\n".join(lines)
 
 
-def control_input(model: MlpModel) -> int:
-    """The index of the one input that reads the damper's control (dn_damper_input.u: voltage or
-    current, dampnet._core.FEATURE_INPUTS), or -1 when none or two do (the runtime then has no
-    control range and refuses the inverse: DN_E_MISMATCH)."""
-    from dampnet import _core
-
-    reads = [i for i, f in enumerate(model.features) if _core.FEATURE_INPUTS.get(f) == "u"]
-    return reads[0] if len(reads) == 1 else -1
-
-
 def _control_block(P: str, model: MlpModel) -> str:
-    k = control_input(model)
+    from dampnet.features import control_input
+
+    k = control_input(model.features)
     lines = ["/* The damper's control, for dn_damper_inverse (a controller's demanded force -> control): the",
              "   input reading dn_damper_input.u (-1: none, or two; the inverse then refuses) and its range,",
              "   the input's saturation limits (dn_damper_control_range gives the same). */",
-             f"#define {P}_CONTROL_INPUT {k}"]
-    if k >= 0:
+             f"#define {P}_CONTROL_INPUT {-1 if k is None else k}"]
+    if k is not None:
         unit = model.units[k]
         lines += [f"#define {P}_CONTROL_MIN ({_num(model.sat_lo[k])}) /* [{unit}] */",
                   f"#define {P}_CONTROL_MAX ({_num(model.sat_hi[k])}) /* [{unit}] */"]

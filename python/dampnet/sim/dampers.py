@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from dampnet import _core
-from dampnet.features import steady_inputs
+from dampnet.features import control_input, steady_inputs
 from dampnet.rig.truth import TruthDamper
 from dampnet.sim.quarter_car.loop import damper_from_model, truth_damper
 from dampnet.sim.vehicle import LoopError, Vehicle
@@ -48,11 +48,8 @@ class DamperSpec:
 def neural_spec(model, name: str = "neural", envelope=None, envelope_note: str | None = None) -> DamperSpec:
     """A neural (hybrid with terms) spec of an MlpModel; `envelope` its training envelope
     (dampnet.envelope; None: coverage reports per-input ranges only, `envelope_note` says why)."""
-    u_range = (0.0, 5.0)
-    for key in ("voltage", "current"):
-        if key in model.features:
-            i = model.features.index(key)
-            u_range = (float(model.sat_lo[i]), float(model.sat_hi[i]))
+    i = control_input(model.features)
+    u_range = (0.0, 5.0) if i is None else (float(model.sat_lo[i]), float(model.sat_hi[i]))
     kind = "hybrid" if model.terms else "neural"
     return DamperSpec(name, kind, model, u_range, meta=dict(model_id=model.model_id(), envelope=envelope,
                                                             envelope_note=envelope_note))
