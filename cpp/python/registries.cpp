@@ -13,6 +13,7 @@
 
 #include "common.hpp"
 #include "dampnet/dampnet.h"
+#include "dampnet/loop.hpp"
 #include "dampnet/mlp.hpp"
 #include "fields.hpp"
 #include "step_report.hpp"
@@ -202,6 +203,26 @@ void bind_registries(py::module_& mod) {
   }, py::arg("controller"),
      "Validate a controller dict (CONTROLLER_FIELDS) as LoopModel does: None, or ValueError / "
      "TypeError naming the field and its valid range or names.");
+  mod.def("force_demand", [](py::dict controller, DArray v_s, DArray v_us, DArray travel, DArray tyre) {
+    const dn_controller c = dnpy::controller_from(controller);
+    const DArray* arrs[] = {&v_s, &v_us, &travel, &tyre};
+    py::ssize_t n = 1;
+    for (const DArray* p : arrs)
+      if (p->size() != 1) {
+        if (n != 1 && p->size() != n) throw py::value_error("force_demand: arrays differ in length");
+        n = p->size();
+      }
+    auto at = [](const DArray& a, py::ssize_t i) { return a.size() == 1 ? a.data()[0] : a.data()[i]; };
+    py::array_t<double> f(n);
+    double* fp = f.mutable_data();
+    for (py::ssize_t i = 0; i < n; ++i)
+      fp[i] = dampnet::force_demand(c, at(v_s, i), at(v_us, i), at(travel, i), at(tyre, i));
+    return f;
+  }, py::arg("controller"), py::arg("v_s"), py::arg("v_us"), py::arg("travel"), py::arg("tyre"),
+     "The force [N] a force-tracking law demands of the damper, as the loop computes it each step "
+     "(dn_xmacro.h DN_CONTROLLER_KIND_LIST: positive resisting extension, 0 unless dissipative, 0 "
+     "for the other laws): v_s, v_us absolute velocities [m/s], travel z_s - z_us [m], tyre "
+     "deflection z_us - z_r [m]; arrays broadcast to one length.");
 
 }
 

@@ -96,6 +96,17 @@ def check_controller(controller: _FieldDict) -> None:
     """Validate a controller dict (CONTROLLER_FIELDS) as LoopModel does: None, or ValueError /
     TypeError naming the field and its valid range or names."""
 
+def force_demand(
+    controller: _FieldDict,
+    v_s: npt.ArrayLike,
+    v_us: npt.ArrayLike,
+    travel: npt.ArrayLike,
+    tyre: npt.ArrayLike,
+) -> npt.NDArray[np.float64]:
+    """The force [N] a force-tracking law demands of the damper, as the loop computes it each step
+    (positive resisting extension, 0 unless dissipative, 0 for the other laws): v_s, v_us [m/s],
+    travel z_s - z_us [m], tyre deflection z_us - z_r [m]; arrays broadcast to one length."""
+
 def check_fullcar(params: _FieldDict) -> None:
     """Validate full-car parameters (FULLCAR_FIELDS) as FullCarModel does: None, or ValueError /
     TypeError naming the field and its valid range or names."""

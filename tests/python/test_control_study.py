@@ -43,7 +43,9 @@ def test_ideal_active_equals_the_analytic_rms_from_the_road_psd(spec, law):
 @pytest.mark.parametrize("law", cs.FORCE_LAWS)
 def test_the_ideal_semi_active_damper_gives_the_clipped_demand(spec, law):
     """On the ideal table damper (F = u) each step's force is the law's demand at the step start
-    clipped to F v > 0 (the runtime's rule written out in control_study.demand), to 1e-6 N."""
+    (the runtime's force_demand, clipped to F v > 0), to 1e-6 N; and the ideal active car's
+    feedback row K x is that demand wherever the clip passes it (hybrid_force: both parts
+    dissipating), to 1e-9 of it."""
     veh = Vehicle()
     ctrl = cs.ideal_controller(control_laws.make(law, spec, veh))
     road = road_recipes.build("iso:class=C,length_m=60", seed=0, speed_m_s=20.0)
@@ -53,6 +55,14 @@ def test_the_ideal_semi_active_damper_gives_the_clipped_demand(spec, law):
     assert res["f_static_n"] == 0.0
     assert (fd != 0).mean() > 0.2 and (fd == 0).mean() > (0.0 if law == "hybrid_force" else 0.05)
     np.testing.assert_allclose(a["force"], fd, rtol=0, atol=1e-6)
+    vs, vus = a["v_s"], a["v_us"]
+    v = vs - vus
+    kx = np.column_stack([a["z_s"] - a["z_us"], vs, a["z_us"] - a["z_r"], vus]) @ cs.feedback_row(ctrl)
+    passes = kx * v > 0
+    if law == "hybrid_force":
+        passes &= (vs * v > 0) & (-vus * v > 0)
+    assert passes.mean() > 0.05
+    np.testing.assert_allclose(kx[passes], fd[passes], rtol=1e-9)
 
 
 def test_one_case_of_the_table(spec):

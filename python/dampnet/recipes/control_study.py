@@ -67,7 +67,10 @@ def ideal_controller(law: Controller, f_max: float = IDEAL_F_MAX_N) -> Controlle
 
 def feedback_row(ctrl: Controller) -> np.ndarray:
     """The law's unclipped demand as a state feedback F_d = K x [N], x = [travel z_s - z_us [m],
-    v_s [m/s], tyre deflection z_us - z_r [m], v_us [m/s]] (the runtime's formulas, dn_xmacro.h)."""
+    v_s [m/s], tyre deflection z_us - z_r [m], v_us [m/s]]: the linear view of the runtime's
+    formulas (dn_xmacro.h) the ideal active car needs; where the runtime's clip passes the demand
+    (and hybrid_force's two parts both dissipate) K x is the runtime's _core.force_demand
+    (tests/python/test_control_study.py)."""
     sky = np.array([0.0, ctrl.c_sky, 0.0, 0.0])
     gnd = np.array([0.0, 0.0, 0.0, -ctrl.c_gnd])
     return {"skyhook_force": sky, "groundhook_force": gnd,
@@ -76,18 +79,11 @@ def feedback_row(ctrl: Controller) -> np.ndarray:
 
 
 def demand(ctrl: Controller, a: dict) -> np.ndarray:
-    """The law's demanded damper force [N] at each step of a run's arrays, clipped as the runtime
-    clips it (each skyhook / groundhook part, then the sum, to F v > 0; else 0)."""
-    vs, vus = a["v_s"], a["v_us"]
-    v = vs - vus
-    x = np.column_stack([a["z_s"] - a["z_us"], vs, a["z_us"] - a["z_r"], vus])
-    if ctrl.kind == "hybrid_force":
-        sky = np.where(vs * v > 0, ctrl.c_sky * vs, 0.0)
-        gnd = np.where(-vus * v > 0, -ctrl.c_gnd * vus, 0.0)
-        f = ctrl.alpha * sky + (1.0 - ctrl.alpha) * gnd
-    else:
-        f = x @ feedback_row(ctrl)
-    return np.where(f * v > 0, f, 0.0)
+    """The law's demanded damper force [N] at each step of a run's arrays, as the loop computed it
+    (the runtime's force_demand: clipped to F v > 0, else 0)."""
+    from dampnet import _core
+
+    return _core.force_demand(ctrl.core_dict(), a["v_s"], a["v_us"], a["z_s"] - a["z_us"], a["z_us"] - a["z_r"])
 
 
 def linear_car(veh: Vehicle, k_row: np.ndarray):
