@@ -2,7 +2,7 @@
 
     python bench/control_study.py [--model default] [--classes B C D] [--speeds 40 80 120]
                                   [--no-full-car] [--out bench/control_study_results.json]
-                                  [--plot bench/control_study.png]
+                                  [--plot bench/control_study.png] [--force]
 
 Runs dampnet.recipes.control_study (its docstring says what each column is) and prints
 the markdown tables bench/RESULTS.md holds. About a minute on two cores.
@@ -16,7 +16,7 @@ import sys
 import time
 from pathlib import Path
 
-from dampnet.outputs import atomic_write_text
+from dampnet.outputs import OutputError, atomic_write_bytes, atomic_write_text, check_output_files
 from dampnet.sim.dampers import load_spec
 from dampnet.recipes import control_study as cs
 
@@ -67,7 +67,7 @@ def tables(res: dict) -> list[str]:
     return out
 
 
-def plot(res: dict, path: Path) -> None:
+def plot(res: dict, path: Path, overwrite: bool = False) -> None:
     """Wk RMS relative to passive low, per road class (a panel each) against speed: each law through
     the inverse (solid) beside its ideal semi-active damper (dashed), and skyhook_continuous."""
     import matplotlib
@@ -99,7 +99,7 @@ def plot(res: dict, path: Path) -> None:
     axes[0][-1].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
     fig.suptitle("Quarter car, default model: the force laws through the damper's inverse against the ideal")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    atomic_write_bytes(path, lambda f: fig.savefig(f, format="png", dpi=110), overwrite=overwrite)
     plt.close(fig)
 
 
@@ -111,15 +111,21 @@ def main(argv=None) -> int:
     p.add_argument("--no-full-car", action="store_true")
     p.add_argument("--out", default=None, help="write the study as JSON here")
     p.add_argument("--plot", default=None, help="draw the quarter car's comfort against the ideal here (PNG)")
+    p.add_argument("--force", action="store_true", help="replace --out and --plot when they exist (regular files only)")
     a = p.parse_args(argv)
+    try:  # every output checked before the study runs
+        check_output_files({"--out": a.out, "--plot": a.plot}, force=a.force)
+    except OutputError as e:
+        print(f"control_study: error: {e}", file=sys.stderr)
+        return 2
     t0 = time.time()
     res = cs.run(load_spec(a.model), a.classes, a.speeds, full_car=not a.no_full_car,
                  progress=lambda s: print(f"  {s}", file=sys.stderr))
     res["seconds"] = time.time() - t0
     if a.out:
-        atomic_write_text(Path(a.out), json.dumps(res, indent=1), overwrite=True)
+        atomic_write_text(Path(a.out), json.dumps(res, indent=1), overwrite=a.force)
     if a.plot:
-        plot(res, Path(a.plot))
+        plot(res, Path(a.plot), overwrite=a.force)
     print("\n".join(tables(res)))
     print(f"\n({res['seconds']:.0f} s)")
     return 0

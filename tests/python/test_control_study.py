@@ -82,7 +82,8 @@ def test_one_case_of_the_table(spec):
 
 def test_the_bench_command_prints_the_tables_and_writes_the_study_and_the_figure(tmp_path, capsys):
     """bench/control_study.py on one road and speed, quarter car only: its markdown tables (the
-    gain column, the tracking table), the JSON with every law's rows, and the PNG. Cost: about 2 s."""
+    gain column, the tracking table), the JSON with every law's rows, and the PNG; an existing output refused
+    without --force, a link even with it. Cost: about 2 s."""
     import json
 
     import control_study as bench_study   # bench/ (conftest puts it on the path)
@@ -95,3 +96,8 @@ def test_the_bench_command_prints_the_tables_and_writes_the_study_and_the_figure
     assert set(study["quarter_car"]["C_80"]) >= {"passive_low", "passive_high", "skyhook_continuous", *cs.FORCE_LAWS}
     assert study["full_car"] == {}
     assert png.stat().st_size > 10_000
+    # an existing output is refused before the study runs, and never replaced through a link
+    assert bench_study.main(["--classes", "C", "--speeds", "80", "--no-full-car", "--out", str(out)]) == 2
+    link = tmp_path / "link.json"
+    link.symlink_to(out)
+    assert bench_study.main(["--classes", "C", "--speeds", "80", "--no-full-car", "--out", str(link), "--force"]) == 2

@@ -123,8 +123,8 @@ def ideal_active_analytic(veh: Vehicle, ctrl: Controller, road_gd_n0: float, spe
     from dampnet.sim.ride import wk_analog
     from dampnet.sim.roads.profiles import iso_psd
 
-    A, E = linear_car(veh, feedback_row(ctrl))
     k = feedback_row(ctrl)
+    A, E = linear_car(veh, k)
     f = np.geomspace(n_band[0] * speed_m_s, n_band[1] * speed_m_s, 20001)
     gz = iso_psd(f / speed_m_s, road_gd_n0) / speed_m_s                      # z_r PSD [m^2/Hz]
     s = 2j * np.pi * f
@@ -192,11 +192,10 @@ def quarter_car_case(spec, road_class: str, speed_kmh: float, *, laws=FORCE_LAWS
         a = res["arrays"]
         row["ideal_active"] = _metrics(ideal_active(veh, ctrl, a["t"], a["z_r"], a["v_r"])["metrics"])
         if low is not None:
-            best = low - row["ideal_semi_active"]["wk_rms_m_s2"]
             got = low - row["model"]["wk_rms_m_s2"]
-            row["gain_share"] = got / best if best > MIN_IDEAL_GAIN * low else None
-            best = low - row["in_range_unfiltered"]["wk_rms_m_s2"]
-            row["gain_share_in_range"] = got / best if best > MIN_IDEAL_GAIN * low else None
+            for key, reference in (("gain_share", "ideal_semi_active"), ("gain_share_in_range", "in_range_unfiltered")):
+                best = low - row[reference]["wk_rms_m_s2"]
+                row[key] = got / best if best > MIN_IDEAL_GAIN * low else None
         out[name] = row
     return out
 
