@@ -46,9 +46,9 @@ from different checkouts need not share one:
   their mean from the loop's, for medians per kind of case), their ratio (the issue's target:
   <= 3x on the M4F), the evaluations per inverse (2 at the limits + n_evals), the instructions of
   one more evaluation (a least-squares line through the reachable cases), the flash the part adds
-  (the call sites, dn_damper_init_neural; dampnet::Damper::inverse itself is already linked by the
-  loop, whose force laws call it: its size from the symbol table) and its peak stack (the damper,
-  1,184 B on the M4F, on the stack);
+  (dampnet::Damper::inverse, whose size the symbol table gives: the loop's build leaves the force
+  laws out, DN_CONTROLLER_KINDS; dn_damper_init_neural and the call sites) and its peak stack
+  (the damper, 1,184 B on the M4F, on the stack);
 * the cycle estimate (Cortex-M4F only): the instructions times the mean cycles per instruction
   of the executed instruction mix, taken from a QEMU execution trace (-d exec) of the functions
   reachable from dn_mlp_forward_f / dn_loop_step, each instruction weighted by the Cortex-M4
