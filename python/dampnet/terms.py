@@ -99,13 +99,6 @@ VALVE_U_MAX = 1000.0  # [V or A]
 VALVE_K_D_MAX = 1e6  # [s/m]
 
 
-def _valve_full(p: np.ndarray) -> np.ndarray:
-    """The valve's 10 parameters from 8 or 10: a valve written before the digression (8
-    parameters) has k_d = 0 in both directions, the straight blow-off line."""
-    p = np.asarray(p, dtype=np.float64)
-    return np.concatenate([p, np.zeros(10 - p.size)]) if p.size < 10 else p
-
-
 def _valve_opening(kd, d):
     """(z, r) of the digressive opening: z = ln(1 + k_d d) / k_d (d itself at k_d = 0, and where
     k_d d underflows), r = dz/dd = 1 / (1 + k_d d)."""
@@ -121,7 +114,6 @@ def _valve_parts(p: np.ndarray, q: dict[str, np.ndarray]):
     """(sgn(v), s(u), ds/du, g_d(|v|), g_d'(|v|), |v| below its clamp) of the valve term."""
     if "v" not in q or "u" not in q:
         raise ValueError("a valve term needs the velocity v [m/s] and the control u [V or A]")
-    p = _valve_full(p)
     v = np.asarray(q["v"], dtype=np.float64)
     u = np.asarray(q["u"], dtype=np.float64)
     v, u = np.broadcast_arrays(v, u)
@@ -171,7 +163,7 @@ def _dz_dkd(kd, d, z, r):
 def valve_param_jacobian(p, v, u) -> np.ndarray:
     """dF/dp [n, 10] of the valve term at v [m/s], u [V or A] (p as KINDS["valve"].params, 8 or 10
     of them): the columns the nonlinear fit uses, in the parameters' units (N per unit of each)."""
-    p = _valve_full(p)
+    p = full_params("valve", p)
     sgn, s, _, g, _, _ = _valve_parts(p, {"v": np.asarray(v, float), "u": np.asarray(u, float)})
     v, u = np.broadcast_arrays(np.asarray(v, float), np.asarray(u, float))
     ext = v > 0
@@ -204,7 +196,6 @@ def valve_param_jacobian(p, v, u) -> np.ndarray:
 
 
 def _valve_check(p: np.ndarray) -> str | None:
-    p = _valve_full(p)
     if not (p[0] > 0 and p[3] > 0) or min(p[1], p[2], p[4], p[5], p[6], p[7]) < 0:
         return "valve needs v_k > 0 and c_b, c_v, g_num, g_den >= 0"
     if not (0 <= p[8] <= VALVE_K_D_MAX and 0 <= p[9] <= VALVE_K_D_MAX):
@@ -234,6 +225,13 @@ KINDS: dict[str, Kind] = {
 }
 
 
+def full_params(kind: str, params) -> np.ndarray:
+    """A term's parameters at its kind's full count: the optional trailing ones (Kind.optional)
+    a term left out are 0 (the runtime's terms::make does the same)."""
+    p = np.asarray(params, dtype=np.float64).ravel()
+    return np.concatenate([p, np.zeros(len(KINDS[kind].params) - p.size)])
+
+
 def validate(term: Mapping[str, Any]) -> np.ndarray:
     """The parameters of a term as an array of its kind's full count (optional ones left out are
     0), or ValueError naming what is wrong."""
@@ -248,7 +246,7 @@ def validate(term: Mapping[str, Any]) -> np.ndarray:
         raise ValueError(f"term {kind!r}: expected {count} params {k.params}, got {p.size}")
     if not np.all(np.isfinite(p)):
         raise ValueError(f"term {kind!r}: params must be finite, got {p.tolist()}")
-    p = np.concatenate([p, np.zeros(n - p.size)])  # the optional ones left out: 0
+    p = full_params(kind, p)
     why = k.check(p)
     if why:
         raise ValueError(f"term {kind!r}: {why} (got {p.tolist()})")
