@@ -101,6 +101,21 @@ def split(name: str, ds):
     return train, test
 
 
+def default_on_split(name: str, seed: int = 0):
+    """`dampnet train`'s default on the data set's split (the table's first dampnet row, one worker):
+    (the data set, the training result, the training tests as a Dataset: what a diagnosis reads)."""
+    from dampnet.data import Dataset
+    from dampnet.data.real import load_real
+    from dampnet.recipes.training import TrainingRequest, train
+
+    ds = load_real(name)
+    _, test = split(name, ds)
+    req = TrainingRequest.of(algorithm="auto", restarts="auto", seed=seed,
+                             holdout_tests=[t.test_id for t in test], holdout_voltage=None)
+    first = train(ds, request=req, workers=1)
+    return ds, first, Dataset(tests=list(first.split.train.tests), source=ds.source, meta=dict(ds.meta))
+
+
 def scores(tests, preds) -> dict:
     """RMSE [N], NRMSE, the largest error [N], per test; and the error where the damper stands still
     (dampnet.evaluation.regions: at_rest_mask on the test's velocity channel, the same samples for

@@ -153,18 +153,10 @@ def main(argv=None) -> int:
     variants = ["before", "shipped"] + list(args.variants)
     head = "| variant | finding | named | MR candidate | top three |\n|---|---|---|---|---|"
     if not args.no_utfsm:
-        from dampnet.data import Dataset
-        from dampnet.data.real import load_real
-        from dampnet.recipes.training import TrainingRequest, train
-        from real_data import split
+        from real_data import default_on_split
 
         t0 = time.time()
-        ds = load_real("utfsm")
-        _, test = split("utfsm", ds)
-        req = TrainingRequest.of(algorithm="auto", restarts="auto", seed=0,
-                                 holdout_tests=[t.test_id for t in test], holdout_voltage=None)
-        first = train(ds, request=req, workers=1)
-        train_ds = Dataset(tests=list(first.split.train.tests), source=ds.source, meta=dict(ds.meta))
+        _, first, train_ds = default_on_split("utfsm")
         print(f"\nutfsm (default model, {time.time() - t0:.0f} s)\n{head}", flush=True)
         for v in variants:
             print(scores(first.model, train_ds, 49, v), flush=True)

@@ -65,17 +65,9 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--rig-seeds", type=int, nargs="*", default=[1, 3])
     args = ap.parse_args(argv)
-    from dampnet.data import Dataset
-    from dampnet.data.real import load_real
-    from dampnet.recipes.training import TrainingRequest, train
-    from real_data import split
+    from real_data import default_on_split
 
-    ds = load_real("utfsm")
-    _, test = split("utfsm", ds)
-    req = TrainingRequest.of(algorithm="auto", restarts="auto", seed=0,
-                             holdout_tests=[t.test_id for t in test], holdout_voltage=None)
-    first = train(ds, request=req, workers=1)
-    train_ds = Dataset(tests=list(first.split.train.tests), source=ds.source, meta=dict(ds.meta))
+    _, first, train_ds = default_on_split("utfsm")
     for variant in (False, True):
         print(f"utfsm {'by direction' if variant else 'shipped'}: {scores(first.model, train_ds, 49, variant)}", flush=True)
 
