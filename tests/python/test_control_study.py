@@ -26,7 +26,7 @@ def spec():
 @pytest.mark.parametrize("law", ["hybrid_force", "clipped_optimal"])
 def test_ideal_active_equals_the_analytic_rms_from_the_road_psd(spec, law):
     """A 2 km ISO C road at 80 km/h: the Wk-weighted body acceleration RMS of the exact linear
-    solution is within 3 % of sqrt(integral |W_k H_a|^2 G df) (measured 0.1-0.3 %: the road
+    solution is within 3 % of sqrt(integral |W_k H_a|^2 G df) (measured -0.25 % and -0.44 %, printed: the road
     realisation's own spread). (skyhook_force and groundhook_force alone leave a mode
     undamped - no passive damper beside the actuator - so the integral has no finite value.)"""
     veh = Vehicle()
@@ -37,6 +37,7 @@ def test_ideal_active_equals_the_analytic_rms_from_the_road_psd(spec, law):
     t = np.arange(len(s.z)) * veh.dt
     sim = cs.ideal_active(veh, ctrl, t, np.asarray(s.z), np.asarray(s.zdot))["metrics"]["acc_wk_rms_m_s2"]
     ana = cs.ideal_active_analytic(veh, ctrl, ISO_CLASSES["C"], v, ISO_BAND)
+    print(f"{law}: ideal active Wk RMS {sim:.4f} m/s^2 (lsim) against {ana:.4f} (PSD), {100 * (sim / ana - 1):+.2f} %")
     assert sim == pytest.approx(ana, rel=0.03), (sim, ana)
 
 
