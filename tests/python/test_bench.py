@@ -115,33 +115,35 @@ def test_dampnet_bench_quick_runs_and_reports_the_budget(tmp_path):
     assert "averaged networks (dampnet train --average" in proc.stdout and "360 neurons p50" in proc.stdout
 
 
-def _bench(*args, harness_dir, timeout=600):
-    env = dict(os.environ, DAMPNET_BENCH_HARNESS_DIR=str(harness_dir))  # one build for the runs
+def _bench(*args, timeout=600):
+    # the session's harness build ($DAMPNET_BENCH_HARNESS_DIR, tests/python/conftest.py), the one
+    # `dampnet bench` runs elsewhere in the suite use: no build of its own (8 s of CPU at -O3)
+    assert os.environ.get("DAMPNET_BENCH_HARNESS_DIR")
     return subprocess.run([sys.executable, "-m", "dampnet.cli", "bench", "--quick", "--calls", "2000",
-                           "--cpp-only", *args], capture_output=True, text=True, timeout=timeout, env=env)
+                           "--cpp-only", *args], capture_output=True, text=True, timeout=timeout)
 
 
-def test_dampnet_bench_exit_code_is_the_go_no_go_verdict(tmp_path):
+def test_dampnet_bench_exit_code_is_the_go_no_go_verdict():
     """Exit 1 when the budget is missed (a budget of 0.001 ns cannot be met), exit 1 when
     the hard-input check fails (a margin of -90 % puts the bounds inside the model's normal
     forces), exit 0 when both pass (a budget of 1 s); each NO-GO line says why."""
-    missed = _bench("--budget-ns", "0.001", harness_dir=tmp_path)
+    missed = _bench("--budget-ns", "0.001")
     assert missed.returncode == 1, missed.stdout[-3000:] + missed.stderr[-2000:]
     assert "NO-GO: the HIL step's p99.9" in missed.stdout
     assert "hard-input check failed" not in missed.stdout
 
-    hard = _bench("--budget-ns", "1e9", "--hil-margin", "-0.9", harness_dir=tmp_path)
+    hard = _bench("--budget-ns", "1e9", "--hil-margin", "-0.9")
     assert hard.returncode == 1, hard.stdout[-3000:] + hard.stderr[-2000:]
     assert "NO-GO: the hard-input check failed: issue14_road:" in hard.stdout
     assert "NO-GO: the HIL step's p99.9" not in hard.stdout
 
-    go = _bench("--budget-ns", "1e9", harness_dir=tmp_path)
+    go = _bench("--budget-ns", "1e9")
     assert go.returncode == 0, go.stdout[-3000:] + go.stderr[-2000:]
     assert "NO-GO" not in go.stdout and "-> GO" in go.stdout
     for name in ("issue14_road", "impulse_5cm_50ms", "thesis_rough_20ms", "saturated_12hz_and_step"):
         assert f"  {name}: ok; force" in go.stdout
 
-    bad = _bench("--budget-ns", "-5", harness_dir=tmp_path)
+    bad = _bench("--budget-ns", "-5")
     assert bad.returncode == 2 and bad.stderr.startswith("dampnet: error: --budget-ns")
 
 
