@@ -24,6 +24,25 @@ def pytest_configure(config):
     import os
 
     os.environ.setdefault("DAMPNET_BENCH_HARNESS_DIR", str(ROOT / "build" / "bench-harness"))
+    if not hasattr(config, "workerinput"):  # once, in the controller, before the workers start
+        compile_package(ROOT / "python" / "dampnet")
+
+
+def compile_package(package: Path) -> None:
+    """The package's bytecode written once (python/dampnet/__pycache__, git-ignored), so that the
+    hundreds of Pythons the suite starts (the commands it runs, restart and sweep workers) read
+    it instead of each compiling every dampnet module it imports: these machines set
+    PYTHONDONTWRITEBYTECODE=1 (python/env.sh), under which no process writes what it compiled, and
+    an editable install is not byte-compiled by pip. Measured: 0.3 s of CPU a process importing the
+    training path (105 modules), 1 s one importing them all. A source edited later is newer than
+    its .pyc, which Python then ignores (compiling that module as before); a read-only tree stays
+    as it was."""
+    import compileall
+
+    try:
+        compileall.compile_dir(str(package), quiet=2)
+    except OSError:
+        pass
 
 
 @pytest.fixture(scope="session")
