@@ -42,15 +42,16 @@ def build_lock(folder: Path):
             fcntl.flock(f, fcntl.LOCK_UN)
 
 
-def cmake_build(name: str, *defines: str, install: bool = False, target: str | None = None) -> Path:
-    """Configure and build the standalone project (or one target) into build/tests-NAME."""
+def cmake_build(name: str, *defines: str, install: bool = False, target: str | list[str] | None = None) -> Path:
+    """Configure and build the standalone project (or the named targets) into build/tests-NAME."""
+    targets = [target] if isinstance(target, str) else list(target or [])
     bdir = BUILD / f"tests-{name}"
     gen = ["-G", "Ninja"] if shutil.which("ninja") else []
     with build_lock(bdir):
         run(["cmake", "-S", ROOT, "-B", bdir, *gen, f"-DCMAKE_INSTALL_PREFIX={bdir / 'prefix'}",
              *[f"-D{d}" for d in defines]])
         run(["cmake", "--build", bdir, "--parallel", str(os.cpu_count() or 2),
-             *(["--target", target] if target else [])])
+             *(["--target", *targets] if targets else [])])
         if install:
             run(["cmake", "--install", bdir])
     return bdir
