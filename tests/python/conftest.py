@@ -30,7 +30,7 @@ def pytest_configure(config):
 
 def compile_package(package: Path) -> None:
     """The package's bytecode written once (python/dampnet/__pycache__, git-ignored), so that the
-    hundreds of Pythons the suite starts (the commands it runs, restart and sweep workers) read
+    many Pythons the suite starts (the commands it runs, restart, sweep and dask workers) read
     it instead of each compiling every dampnet module it imports: these machines set
     PYTHONDONTWRITEBYTECODE=1 (python/env.sh), under which no process writes what it compiled, and
     an editable install is not byte-compiled by pip. Measured: 0.3 s of CPU a process importing the
