@@ -19,6 +19,12 @@ def terms_force_checked(terms, displacement, **inputs) -> np.ndarray:
         raise ModelError(f"physics terms: {e}") from None
 
 
+def term_inputs(test: DynoTest) -> dict[str, np.ndarray]:
+    """What a model's physics terms read from a test besides its displacement: the velocity v [m/s]
+    and the control u [V or A] (a valve term's; the others ignore them)."""
+    return {"v": test.channels["velocity"], "u": test.control}
+
+
 def model_inputs(model: MlpModel, test: DynoTest) -> np.ndarray:
     """The network's inputs [n, n_inputs] on a test, as the model sees them (its features and
     their parameters, its acceleration window; via the feature registry)."""
@@ -43,8 +49,7 @@ def predict_force(model: MlpModel, test_or_features, displacement: np.ndarray | 
                 raise DataError(f"test {test.test_id}: the model's physics terms need a displacement "
                                 "channel, which the data do not have")
             displacement = test.channels["displacement"]
-            if any(t.get("kind") == "valve" for t in model.terms):
-                inputs = {"v": test.channels["velocity"], "u": test.control, **inputs}
+            inputs = {**term_inputs(test), **inputs}
     else:
         X = np.atleast_2d(np.asarray(test_or_features, dtype=np.float64))
     y = model.predict(X)

@@ -25,7 +25,8 @@ PLAN = {"name": "diag", "frequencies_hz": [0.25, 0.5, 1.0, 2.0, 3.0], "amplitude
         "voltages_v": [0.0, 0.5, 1.0, 1.5, 2.25, 3.0, 4.0, 5.0], "sample_rate_hz": 1000.0,
         "samples": 2000, "min_cycles": 2}
 TRAIN = ["--holdout-voltage", "2.25", "--algorithm", "lm", "--restarts", "1", "--decimate", "4",
-         "--max-epochs", "120", "--control-prior", "0"]
+         "--max-epochs", "120", "--control-prior", "0", "--valve", "off"]
+# (--valve off: one training a step; the loop with valve "auto" is the quick demo's, test_demo)
 
 
 def _loop(tmp_path, effects, steps="2"):

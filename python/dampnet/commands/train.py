@@ -62,7 +62,9 @@ def run(args) -> int:
         if todo.restarts > 1:
             bar = RestartProgress(not args.quiet)
         else:
-            bar = Progress(req.max_epochs, f"train {todo.algorithm}", not args.quiet)
+            # valve "auto" trains twice (dampnet.training.valve_choice): the bar counts both
+            bar = Progress(req.max_epochs * (2 if req.valve == "auto" else 1), f"train {todo.algorithm}",
+                           not args.quiet)
         t0 = time.perf_counter()
         trained = todo.run(progress=bar, workers=workers)
         bar.close()
@@ -82,6 +84,8 @@ def run(args) -> int:
             print(f"algorithm: {trained.model.meta.get('algorithm')} ({trained.algorithm_note})")
         if trained.restarts_note:
             print(f"restarts: {trained.restarts} ({trained.restarts_note})")
+        if trained.valve_note:
+            print(trained.valve_note)
     return 0
 
 

@@ -37,16 +37,17 @@ def run_data_demo(ds, out_dir: str | Path, label: str, request=None, *, max_step
                   workers: int | None = None) -> dict[str, Any]:
     """The loop on `ds` (a Dataset; `label` names it in the report) from `request` (a
     dampnet.recipes.training.TrainingRequest: `dampnet train`'s options; None: its defaults,
-    algorithm and restarts "auto", without the thesis's 2.25 V hold-out), written to out_dir;
+    algorithm, restarts and valve "auto", without the thesis's 2.25 V hold-out), written to out_dir;
     returns the summary. Held out: the request's hold-out (its tests, its control level), or
     default_holdout's tests when it holds out none."""
     from dampnet.outputs import check_output_dir, json_text, staged_dir
     from dampnet.recipes.loop import loop_summary, run_loop
     from dampnet.recipes.training import TrainingRequest
+    from dampnet.training.settings import command_defaults
 
     out = check_output_dir(out_dir, "demo", inputs, force)
     if request is None:
-        request = TrainingRequest.of(algorithm="auto", restarts="auto", holdout_voltage=None)
+        request = TrainingRequest.of(**command_defaults(), holdout_voltage=None)
     if request.holdout_tests or request.holdout_voltage is not None:
         how = " and ".join(filter(None, [
             f"the tests named ({len(request.holdout_tests)})" if request.holdout_tests else "",

@@ -17,12 +17,12 @@ HIDDEN_EFFECT = "gas_spring"
 QUICK_PLAN = {"name": "demo-quick", "frequencies_hz": [0.25, 1.0, 2.0, 3.0], "amplitudes_m": [0.0254],
               "voltages_v": [0.0, 1.0, 1.5, 2.0, 2.25, 2.5, 3.0, 5.0], "samples": 2500}
 
-# Both trainings run dampnet train's defaults: its algorithm ("auto": Bayesian regularisation,
-# trained once, on the --quick data's rows; Levenberg-Marquardt on the thesis plan's 180 tests,
-# training.restarts.auto_algorithm) and its restarts ("auto": 1 with BR, 2 with LM on the thesis
-# plan's rows, training.restarts.auto_restarts); the report shows the restarts' spread when there were several.
-DEMO_RESTARTS = "auto"
-DEMO_ALGORITHM = "auto"
+# Both trainings run dampnet train's defaults (training.settings.command_defaults): its algorithm
+# ("auto": Bayesian regularisation, trained once, on the --quick data's rows; Levenberg-Marquardt on
+# the thesis plan's 180 tests, training.restarts.auto_algorithm), its restarts ("auto": 1 with BR, 2
+# with LM on the thesis plan's rows, training.restarts.auto_restarts; the report shows the restarts'
+# spread when there were several) and its valve term ("auto": the first training tries the network
+# with and without it, training.valve_choice; the improved model keeps what it chose).
 
 
 class DemoError(RuntimeError):
@@ -94,6 +94,7 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
     from dampnet.evaluation.report import write_plots
     from dampnet.recipes.training import TrainingRequest, train
     from dampnet.recipes.training import plan as plan_training
+    from dampnet.training.settings import command_defaults
 
     from dampnet.outputs import check_output_dir, json_text, staged_dir
 
@@ -118,11 +119,12 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
 
         settings = {"max_epochs": 150 if quick else 400}
         with stage("train", "training the thesis's 3-30-1 MLP (velocity, acceleration, voltage)"):
-            trained0 = train(ds, request=TrainingRequest.of(algorithm=DEMO_ALGORITHM, seed=seed,
-                                                            restarts=DEMO_RESTARTS, **settings),
+            trained0 = train(ds, request=TrainingRequest.of(**command_defaults(), seed=seed, **settings),
                              progress=_train_progress(log))
             model0, info0, split0 = trained0
             log(f"      algorithm: {model0.meta['algorithm']} ({trained0.algorithm_note})")
+            if trained0.valve_note:
+                log(f"      {trained0.valve_note}")
             metrics0, env0 = trained0.metrics, trained0.envelope
             trained0.save(work / "model_original")
             lookup = LookupTable.from_dict(metrics0["lookup_table"])
@@ -217,11 +219,13 @@ def run_demo(out_dir: str | Path = "dampnet-demo", quick: bool = False, force: b
 def improved_request(model0, diagnosis: dict, effect: str, seed: int, **settings):
     """The improve stage's training request (dampnet.recipes.training), as `dampnet train DATA --add
     EFFECT --diagnosis FILE`: the original model's features with what captures `effect` added, its
-    parameters the diagnosis's; the demo's algorithm and restarts."""
+    parameters the diagnosis's; the demo's algorithm and restarts, and the valve term as the first
+    model chose (dampnet.recipes.loop.next_request, as the loop makes it)."""
+    from dampnet.recipes.loop import next_request
     from dampnet.recipes.training import TrainingRequest
+    from dampnet.training.settings import command_defaults
 
-    return TrainingRequest.of(features=model0.features, add=(effect,), diagnosis=diagnosis, algorithm=DEMO_ALGORITHM,
-                              seed=seed, restarts=DEMO_RESTARTS, **settings)
+    return next_request(TrainingRequest.of(**command_defaults(), seed=seed, **settings), model0, diagnosis, (effect,))
 
 
 #: tests the demo's planning stage asks for (dampnet plan-tests --budget)

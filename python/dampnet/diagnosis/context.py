@@ -16,7 +16,7 @@ from dampnet.data.preprocess import acceleration_of
 from dampnet.features import check_features, feature_matrix
 from dampnet.model import MlpModel
 from dampnet.reference import mlp_forward
-from dampnet.terms import terms_force
+from dampnet.predict import term_inputs, terms_force_checked
 
 #: Default number of rows per test at which residuals are regressed.
 ROWS_PER_TEST = 600
@@ -24,11 +24,12 @@ ROWS_PER_TEST = 600
 MAX_ROWS = 120_000
 
 
-def model_force(model: MlpModel, X: np.ndarray, displacement: np.ndarray | None) -> np.ndarray:
-    """MLP (dampnet.reference, the kernel's function) plus the model's physics terms."""
+def model_force(model: MlpModel, X: np.ndarray, displacement: np.ndarray | None, **inputs) -> np.ndarray:
+    """MLP (dampnet.reference, the kernel's function) plus the model's physics terms, which read the
+    displacement [m] and `inputs` (dampnet.predict.term_inputs: a valve's v [m/s] and u)."""
     y = mlp_forward(model, X)
     if model.terms:
-        y = y + terms_force(model.terms, displacement)
+        y = y + terms_force_checked(model.terms, displacement, **inputs)
     return y
 
 
@@ -70,9 +71,11 @@ class Context:
                 j = self.model.features.index(name)
                 X[:, j] = col[td.rows] if rows_only else col
         x = td.test.channels.get("displacement")
-        if x is not None and rows_only:
-            x = x[td.rows]
-        return model_force(self.model, X, x)
+        inputs = term_inputs(td.test)
+        if rows_only:
+            x = None if x is None else x[td.rows]
+            inputs = {k: a[td.rows] for k, a in inputs.items()}
+        return model_force(self.model, X, x, **inputs)
 
     def at_rows(self, name: str) -> list[np.ndarray | None]:
         out = []
@@ -104,7 +107,7 @@ def build_context(model: MlpModel, ds: Dataset, rows_per_test: int = ROWS_PER_TE
     tests = []
     for t in ds.tests:
         X = feature_matrix([t], model.features, model.feature_params, window)
-        pred = model_force(model, X, t.channels.get("displacement"))
+        pred = model_force(model, X, t.channels.get("displacement"), **term_inputs(t))
         resid = t.channels["force"] - pred
         n = len(t)
         stride = max(1, int(np.ceil(n / per_test)))

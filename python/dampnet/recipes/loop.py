@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Sequence
 
 from dampnet.recipes.training import Trained, TrainingRequest, train
+from dampnet.training.settings import command_defaults
 
 #: additions the loop makes at most unless told (each a training and a diagnosis), and the most it takes
 MAX_STEPS = 3
@@ -97,11 +98,13 @@ def next_request(request: TrainingRequest, model, diagnosis: dict, effects: Sequ
     """The request after a diagnosis: `request` with the model's features (those added before
     included), its feature parameters and physics terms (refitted: their values are not kept),
     and `effects` (ids, in order) added with the diagnosis's parameters, as `dampnet train --add A
-    --add B --diagnosis FILE` makes it."""
+    --add B --diagnosis FILE` makes it. A valve "auto" the model decided stays decided: its terms hold
+    the valve term or not (dampnet.training.valve_choice), and the next model trains one way."""
     terms = [{k: v for k, v in t.items() if k != "params"} for t in model.terms]
+    decided = (model.meta.get("valve") or {}).get("choice") == "auto"
     return request.replace(features=list(model.features), terms=terms,
                            feature_params=dict(model.feature_params) or None, add=tuple(effects),
-                           diagnosis=diagnosis).check()
+                           diagnosis=diagnosis, **({"valve": "off"} if decided else {})).check()
 
 
 def holdout_scores(model, tests, envelope=None) -> dict[str, Any]:
@@ -125,7 +128,7 @@ def run_loop(data, request: TrainingRequest | None = None, *, max_steps: int = M
              log: Callable[[str], None] = lambda s: None, workers: int | None = None,
              progress: Callable[[dict], Any] | None = None, **options: Any) -> list[LoopStep]:
     """The loop on `data` (a Dataset or a path): the first model from `request` (or the keyword
-    options: `dampnet train`'s defaults, algorithm and restarts "auto"), then one model per
+    options: `dampnet train`'s defaults, algorithm, restarts and valve "auto"), then one model per
     addition. Returns every model's step; the last step's `stop` says why the loop ended."""
     from dampnet.data import Dataset
     from dampnet.diagnosis.run import diagnose
@@ -133,7 +136,7 @@ def run_loop(data, request: TrainingRequest | None = None, *, max_steps: int = M
 
     check_max_steps(max_steps)
     if request is None:
-        request = TrainingRequest.of(**{"algorithm": "auto", "restarts": "auto", "seed": seed, **options})
+        request = TrainingRequest.of(**{**command_defaults(), "seed": seed, **options})
     elif options:
         raise TypeError("run_loop: give the options either as a request or as keywords, not both")
     else:

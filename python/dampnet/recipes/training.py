@@ -119,6 +119,13 @@ class Trained:
         self.added, self.restarts_note, self.restarts = list(added), note, int(restarts)
         self.algorithm_note = algorithm_note
 
+    @property
+    def valve_note(self) -> str | None:
+        """What valve "auto" chose and why, in one line (dampnet.training.valve_choice); None otherwise."""
+        from dampnet.training.valve_choice import sentence
+
+        return sentence(self.model.meta.get("valve"))
+
     def __iter__(self):
         return iter((self.model, self.info, self.split))
 

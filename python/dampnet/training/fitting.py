@@ -260,9 +260,12 @@ def fit(X: np.ndarray, y: np.ndarray, *, features: Sequence[str], units: Sequenc
 def fit_checked(X: np.ndarray, y: np.ndarray, features: Sequence[str], o: dict[str, Any], *,
                 units: Sequence[str] | None = None, split: Sequence[float] = (0.7, 0.15, 0.15),
                 progress: Callable[[dict], Any] | None = None, data: Any = None,
-                init: MlpModel | None = None) -> tuple[MlpModel, TrainInfo]:
+                init: MlpModel | None = None, rest_from: np.ndarray | None = None) -> tuple[MlpModel, TrainInfo]:
     """fit() with its options `o` checked already (dampnet.training.settings.fit_options, or a
-    checked TrainingRequest's: dampnet.training.pipeline.fit_prepared)."""
+    checked TrainingRequest's: dampnet.training.pipeline.fit_prepared). `rest_from` [n]: the force
+    the estimated force at rest is read from near v = 0 (default y; a hybrid's: the measured force
+    less its terms at rest, not the residual the network learns, which a valve's steep bleed near
+    v = 0 bends)."""
     algorithm, activation, seed, threads = o["algorithm"], o["activation"], o["seed"], o["threads"]
     max_epochs, max_fail, settings, rest_target = o["max_epochs"], o["max_fail"], o["settings"], o["rest_target"]
     X = np.asarray(X, dtype=np.float64)
@@ -284,7 +287,8 @@ def fit_checked(X: np.ndarray, y: np.ndarray, features: Sequence[str], o: dict[s
     rng = np.random.default_rng(seed)
     tr, va, te = split_indices(len(X), split, rng)
     Z = rest_points(X[tr], features, o["rest_fraction"], rng) if rest_target != "none" else np.empty((0, X.shape[1]))
-    at_rest = rest_force(X[tr], y[tr], features, Z) if len(Z) else RestForce(0.0, "no rest points")
+    y_rest = y if rest_from is None else np.asarray(rest_from, dtype=np.float64).ravel()
+    at_rest = rest_force(X[tr], y_rest[tr], features, Z) if len(Z) else RestForce(0.0, "no rest points")
     y_Z = at_rest.targets(Z) if rest_target == "estimated" else np.zeros(len(Z))
     X_all = np.vstack([X, Z])
     y_all = np.concatenate([y, y_Z])

@@ -32,6 +32,9 @@ What train_dataset does, in order (the thesis's chapter 4 data handling):
  6. With restarts=N > 1, steps 4-5 run N times from different seeds in worker processes
     and the model that fits the training control levels best and strays least between them is
     kept (`dampnet.training.restarts`; `dampnet train` runs up to 6 by default).
+ 7. With valve "auto" (`dampnet train`'s default), steps 4-6 run twice, without and with a free
+    valve term (bleed and blow-off per direction) under the network, and the model with the lower
+    validation error is kept (`dampnet.training.valve_choice`; "on" and "off" train one way).
 
 Steps 1-3 are `prepare_training` (a `Prepared`), steps 4-5 `fit_prepared`.
 
@@ -42,7 +45,7 @@ Features and terms are data: a feature is a name in the registry
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
@@ -63,6 +66,8 @@ from dampnet.terms import fit_terms, terms_force
 from dampnet.training.fitting import fit_checked
 from dampnet.training.metrics import nrmse
 from dampnet.training.request import TrainingRequest
+from dampnet.training.valve_choice import (keep_hybrid, record as valve_record, validation_nrmse,
+                                            why_not_auto, with_valve)
 from dampnet.training.settings import FIT_OPTIONS, OPTIONS, check_algorithm, option, train_settings
 
 # every option's default and range: the options table, dampnet.training.settings.OPTIONS; the
@@ -145,7 +150,7 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
     (the default), "zero" (the thesis's 0 N) or "none" (no rest points; dampnet.training.rest_points).
     model.meta["request"] records the request (TrainingRequest.recorded).
     """
-    from dampnet.training.restarts import check_average, check_restarts, train_restarts
+    from dampnet.training.restarts import FULL_FIT_SCORES, check_average, check_restarts, train_restarts
 
     req = _request(request, features, algorithm, options)
     # every option and setting before any work (one-line errors naming it and its range), unless
@@ -157,16 +162,72 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
     check_average(req.average, restarts, req.hidden, req.restart_score)
     if restarts > 1 and init is not None:
         raise ValueError("init: a warm start is one training; use restarts=1 with init")
-    prep = prepare_training(ds, request=req)
-    if restarts == 1:
-        model, info = fit_prepared(prep, req.seed, progress=progress, threads=threads, init=init)
-    else:
+    def fit(prep: Prepared):
+        if restarts == 1:
+            return fit_prepared(prep, req.seed, progress=progress, threads=threads, init=init)
+        if req.restart_score in FULL_FIT_SCORES and any(t.get("params") is None for t in prep.terms):
+            # every full fit fits the free terms on the same rows, to the same parameters: once here
+            # (a valve's fit takes seconds), not in each restart
+            prep = replace(prep, terms=_fitted_terms(prep.terms, prep.xd, prep.v, prep.u, prep.force))
         # data errors (a feature or force beyond MAX_TRAINING_MAGNITUDE) before any worker starts
         _check_magnitudes(prep.X, prep.force if not prep.terms else np.zeros(0), prep.features)
-        model, info = train_restarts(prep, fit_prepared, restarts, req.seed, workers=workers, score=req.restart_score,
-                                     progress=progress, average=req.average)
+        return train_restarts(prep, fit_prepared, restarts, req.seed, workers=workers, score=req.restart_score,
+                              progress=progress, average=req.average)
+
+    if req.valve == "on":
+        prep = prepare_training(ds, request=req.replace(terms=with_valve(req.terms)).check())
+        model, info = fit(prep)
+    elif req.valve == "auto":
+        model, info, prep = _fit_valve_auto(ds, req, fit, init is not None)
+    else:
+        prep = prepare_training(ds, request=req)
+        model, info = fit(prep)
     model.meta["request"] = req.recorded()
     return model, info, prep.split
+
+
+def _fit_valve_auto(ds: Dataset, req: TrainingRequest, fit: Callable, warm_start: bool):
+    """valve "auto" (dampnet.training.valve_choice): the request trained without and with a free
+    valve term, same seed, split and restarts; the one with the lower validation error kept, the
+    choice in model.meta["valve"]. (model, info, the kept variant's Prepared)."""
+    import time
+
+    hybrid_req = req.replace(terms=with_valve(req.terms)).check()
+    why = why_not_auto(req.terms, holdout_split_tests(ds, req), warm_start)
+    if why is not None:
+        prep = prepare_training(ds, request=req)
+        model, info = fit(prep)
+        model.meta["valve"] = valve_record(None, None, False, why=why)
+        return model, info, prep
+    prep_h = prepare_training(ds, request=hybrid_req)
+    # the network alone on the same rows: its samples without what only terms need
+    prep_n = replace(prep_h, terms=[dict(t) for t in req.terms], request=req,
+                     **({} if req.terms else {"xd": None, "v": None, "u": None}))
+    t0 = time.perf_counter()
+    model_n, info_n = fit(prep_n)
+    t1 = time.perf_counter()
+    try:
+        model_h, info_h = fit(prep_h)
+    except ModelError as e:  # e.g. the valve's fit needs samples in both directions
+        model_n.meta["valve"] = {**valve_record(validation_nrmse(model_n, info_n), None, False), "failed": str(e)}
+        return model_n, info_n, prep_n
+    t2 = time.perf_counter()
+    without, with_ = validation_nrmse(model_n, info_n), validation_nrmse(model_h, info_h)
+    used = keep_hybrid(without, with_)
+    model, info, prep = (model_h, info_h, prep_h) if used else (model_n, info_n, prep_n)
+    model.meta["valve"] = valve_record(without, with_, used, times={"without": t1 - t0, "with": t2 - t1})
+    return model, info, prep
+
+
+def holdout_split_tests(ds: Dataset, req: TrainingRequest) -> list:
+    """The tests `req` trains on (its hold-out set aside), for checks before any work; all of them
+    when the hold-out cannot be made (prepare_training then says why)."""
+    if req.holdout_voltage is None and not req.holdout_tests:
+        return list(ds.tests)
+    try:
+        return list(holdout_split(ds, req.holdout_voltage, list(req.holdout_tests or []))[0].tests)
+    except ValueError:
+        return list(ds.tests)
 
 
 def _request(request: TrainingRequest | None, features, algorithm, options: dict[str, Any]) -> TrainingRequest:
@@ -279,11 +340,11 @@ def fit_prepared(prep: Prepared, seed: int, *, rows: np.ndarray | None = None,
         if xd is not None:
             xd, v, u = xd[rows], v[rows], u[rows]
     terms = list(prep.terms)
+    rest_from = None
     if terms:
-        try:
-            terms = fit_terms(terms, xd, v, u, y)
-        except ValueError as e:
-            raise ModelError(str(e)) from None
+        terms = _fitted_terms(terms, xd, v, u, y)
+        # the force at rest is the damper's, less what the terms give at rest (v = 0: a valve nothing)
+        rest_from = y - terms_force(terms, xd, np.zeros_like(v), u=u)
         y = y - terms_force(terms, xd, v, u=u)
     _check_magnitudes(X, y, prep.features)
     r = prep.request
@@ -291,7 +352,8 @@ def fit_prepared(prep: Prepared, seed: int, *, rows: np.ndarray | None = None,
     o.update(seed=seed, threads=threads, rest_fraction=OPTIONS["rest_fraction"].default,
              settings=train_settings(r.algorithm, r.settings))
     try:
-        model, info = fit_checked(X, y, prep.features, o, progress=progress, data=prep.provenance, init=init)
+        model, info = fit_checked(X, y, prep.features, o, progress=progress, data=prep.provenance, init=init,
+                                  rest_from=rest_from)
     except ValueError as e:
         raise DataError(str(e)) from None
     model.terms = terms
@@ -311,6 +373,15 @@ def fit_prepared(prep: Prepared, seed: int, *, rows: np.ndarray | None = None,
                          "check the data's scale and units, or try another --algorithm or --seed")
     model.validate()  # feature_params (time constants > 0) and the rest, as model.json is checked
     return model, info
+
+
+def _fitted_terms(terms, xd, v, u, y) -> list[dict[str, Any]]:
+    """`terms` with their free parameters fitted to the force y [N] (dampnet.terms.fit_terms);
+    ModelError for terms that cannot be fitted."""
+    try:
+        return fit_terms(terms, xd, v, u, y)
+    except ValueError as e:
+        raise ModelError(str(e)) from None
 
 
 #: largest |value| accepted in a training feature or force, in its SI unit. The runtime runs in
@@ -416,6 +487,7 @@ def model_metrics(model: MlpModel, info, split: Split, lookup: bool = True) -> d
             **({"rest_force": model.meta["rest_force"]} if "rest_force" in model.meta else {}),
             "history": info.history,
             **({"restarts": model.meta["restarts"]} if "restarts" in model.meta else {}),
+            **({"valve": model.meta["valve"]} if "valve" in model.meta else {}),
         },
         "holdout_tests": split.holdout_ids,
     }

@@ -38,6 +38,7 @@ from dampnet.data.preprocess import AUTO_DECIMATE_RULE
 from dampnet.model import ACTIVATIONS
 from dampnet.schema import show
 from dampnet.training.rest_points import REST_TARGETS
+from dampnet.training.valve_choice import VALVE_CHOICES
 
 #: the largest epoch count (max_epochs, max_fail, Adam's cosine_epochs)
 MAX_EPOCHS = 1_000_000
@@ -441,6 +442,12 @@ for _row in (
     _O("settings", "other", 0, 0, None, "the algorithm's settings (dampnet.training.settings)", cli="--settings"),
     _O("terms", "other", 0, 0, (), "physics terms (dampnet.terms)", cli="--terms", cli_help='JSON, e.g. '
        '\'[{"kind": "position_poly"}]\'; terms without "params" are fitted by least squares, the MLP learns the rest'),
+    _O("valve", "choice", 0, 0, "off", "whether a free valve term (bleed and blow-off per direction, dampnet.terms) "
+       "goes under the network", choices=VALVE_CHOICES,
+       doc="whether a free valve term (bleed and blow-off per direction, fitted first; the network learns what it "
+       "leaves) goes under the network: on, off, or auto (trained both ways, the lower validation error kept: "
+       "dampnet.training.valve_choice)", cli="--valve", cli_default=AUTO, train_only=True,
+       cli_help="auto costs a second training; model.json records both errors (meta.valve)", sweep="valve"),
     _O("diagnosis", "other", 0, 0, None, "a diagnosis whose estimated parameters the added effects take (default: "
        "estimated from the data)", cli="--diagnosis", metavar="FILE", cli_help="the JSON of `dampnet diagnose "
        "--json FILE` (the same additions as the demo's improve stage)", compare=False),
@@ -490,6 +497,12 @@ def options_markdown() -> str:
                  row.unit, (row.doc or row.meaning).replace("|", "/")]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
+
+
+def command_defaults() -> dict[str, Any]:
+    """What `dampnet train` trains with where it differs from the Python defaults (the rows'
+    cli_default: algorithm, restarts and valve "auto"): the demo and the loop train the same way."""
+    return {name: row.cli_default for name, row in OPTIONS.items() if row.cli_default is not None and row.request}
 
 
 def option_defaults() -> dict[str, Any]:

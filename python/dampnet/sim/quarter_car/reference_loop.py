@@ -191,7 +191,7 @@ class NeuralLoopDamper:
             q.update(self._state)
         f = float(self._forward(np.array([q[k] for k in self._fields], dtype=np.float64)))
         if self.model.terms:
-            f += float(terms_force(self.model.terms, np.array(x)))
+            f += float(terms_force(self.model.terms, np.array(x), np.array(v), u=np.array(u)))
         return f
 
     @property

@@ -1,0 +1,101 @@
+"""Physics first: whether a free valve term goes under the network (issue 54 item 2).
+
+The request's `valve` option (dampnet.training.settings.OPTIONS):
+  "off"  (the Python default) the terms as requested; a valve among them stays.
+  "on"   a free valve term ({"kind": "valve"}: bleed + blow-off per direction, dampnet.terms) is
+         added to the terms unless one is there; it is fitted first by nonlinear least squares and
+         the network learns what it leaves (dampnet.training.pipeline, step 4).
+  "auto" (`dampnet train`'s and the demo's default) the model is trained both ways, same seed,
+         same split, same restarts, and the one with the lower validation NRMSE is kept
+         (the error on the rows the fit held back to stop on, over the training force's range;
+         for an average of restarts, the mean over its members). model.meta["valve"] records both
+         errors and the choice; `dampnet train` prints `sentence(record)`.
+
+Why both ways and not a rule: on the rig's thesis plan (shim-stack valves with blow-off knees) the
+hybrid's validation NRMSE is two thirds of the network's and its held-out error 2.2x the load
+cell's noise against 3.1-3.7x (bench/RESULTS.md, "The valve term in the default training"), but a
+damper without a blow-off valve (an MR damper) may be better without it; only the data can say.
+It costs a second training.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Sequence
+
+import numpy as np
+
+#: the request's values: what `valve` may be
+VALVE_CHOICES = ("auto", "on", "off")
+#: a free valve term: its parameters fitted with each training
+FREE_VALVE = {"kind": "valve"}
+
+
+def has_valve(terms: Sequence[dict]) -> bool:
+    """Whether `terms` hold a valve term (free or with its parameters)."""
+    return any(dict(t).get("kind") == FREE_VALVE["kind"] for t in terms or ())
+
+
+def with_valve(terms: Sequence[dict]) -> list[dict]:
+    """`terms` with a free valve term added unless they hold one."""
+    terms = [dict(t) for t in terms or ()]
+    return terms if has_valve(terms) else [*terms, dict(FREE_VALVE)]
+
+
+def why_not_auto(terms: Sequence[dict], tests: Sequence, warm_start: bool) -> str | None:
+    """Why "auto" cannot try the valve term on these training tests, or None when it can."""
+    if has_valve(terms):
+        return "the requested terms hold a valve term already"
+    if warm_start:
+        return "a warm start (init) trains one network"
+    lacking = [t.test_id for t in tests if "displacement" not in t.channels]
+    if lacking:
+        return (f"the physics terms need a displacement channel, which test {lacking[0]}"
+                + (f" and {len(lacking) - 1} more" if len(lacking) > 1 else "") + " lacks")
+    return None
+
+
+def validation_nrmse(model, info) -> float:
+    """The error the choice compares: the model's validation NRMSE (info.metrics["val"], the
+    hybrid's force for a hybrid); for an average of restarts (no rows held back of its own) the
+    mean of its members' (model.meta["restarts"]); NaN when the fit held nothing back."""
+    val = info.metrics.get("val")
+    if val is not None:
+        return float(val)
+    r = model.meta.get("restarts") or {}
+    members = [run["val_nrmse"] for run in r.get("runs", []) if run["restart"] in r.get("averaged", [])]
+    return float(np.mean(members)) if members else float("nan")
+
+
+def record(without: float | None, with_: float | None, used: bool, why: str | None = None,
+           times: dict[str, float] | None = None) -> dict[str, Any]:
+    """model.meta["valve"] for an "auto" choice: the two validation errors, which was kept, why
+    it could not be tried (`why`), the two trainings' times [s]."""
+    out: dict[str, Any] = {"choice": "auto", "used": bool(used)}
+    if why is not None:
+        out["not_tried"] = why
+    if without is not None or with_ is not None:
+        out["validation_nrmse"] = {"without": None if without is None else round(float(without), 7),
+                                   "with": None if with_ is None else round(float(with_), 7)}
+    if times:
+        out["time_s"] = {k: round(float(v), 2) for k, v in times.items()}
+    return out
+
+
+def keep_hybrid(without: float, with_: float) -> bool:
+    """The hybrid is kept when its validation error is lower (a NaN never wins)."""
+    return bool(np.isfinite(with_) and (not np.isfinite(without) or with_ < without))
+
+
+def sentence(rec: dict[str, Any] | None) -> str | None:
+    """The choice in one line for `dampnet train` and the demo, or None when there was none."""
+    if not rec or rec.get("choice") != "auto":
+        return None
+    if "not_tried" in rec:
+        return f"valve term: not tried ({rec['not_tried']})"
+    v = rec.get("validation_nrmse") or {}
+    w, wo = v.get("with"), v.get("without")
+    if w is None:
+        return f"valve term: not used (its fit failed: {rec.get('failed', 'no model')})"
+    verb = "used" if rec["used"] else "not used"
+    return (f"valve term: {verb}, validation NRMSE {w:.4f} with it against {wo:.4f} without "
+            f"(--valve on or off trains one way only)")
