@@ -9,6 +9,9 @@ beside emlearn's C for the same 3-30-1 network (bench/RESULTS.md, "On a microcon
                                                 # flash against instructions, DN_KERNEL_UNROLL 1/2/4/8
     python bench/embedded.py --inverse-only [--json FILE]  # the damper inverse's instructions alone
                                                 # (~1 min; also part of the full run)
+    python bench/embedded.py --step-model MODEL [--json FILE] [--no-worst-step]  # the quarter-car
+                                                # step of a hybrid MODEL (its physics terms, e.g. a
+                                                # valve) beside its network alone (~2 min)
 
 What it does, per core (cortex-m4: mps2-an386, cortex-m7: mps2-an500), with the presets'
 configuration (bench/firmware_lab.py: DEFAULT_CAPS; python/dampnet/export/mcu.py: DEFAULT_KERNEL; -O3, -ffp-contract=off);
@@ -55,6 +58,18 @@ from different checkouts need not share one:
   Technical Reference Manual's timings (ALU 1, load/store 2, LDM/STM/PUSH/POP 1+N, branch 2
   (1 not taken, 2-4 taken), SDIV/UDIV 12 (2-12), VADD/VMUL 1, VMLA/VFMA 3, VDIV/VSQRT 14,
   VLDR/VSTR 2, VLDM/VSTM/VPUSH/VPOP 1+N). An estimate: no wait states, no cache, no interrupts.
+
+--step-model MODEL builds the full firmware (no inverse cases) twice per core from MODEL's header
+(dampnet.export.write_header; firmware_lab.model_defines): with its physics terms (the library's
+DN_CAP_TERMS their number; the firmware sets its loop up through a damper, dn_damper_add_term) and
+without them (the presets' capacities, the folded set-up), each with the controller made for it and
+its loop checked against the host's; per build the SysTick mean step, kernel + loop + controller
+flash and RAM, and (unless --no-worst-step) every step's instructions on both roads from the traces
+(the terms' functions, called through their table's pointers, counted in: INDIRECT), on the M4F
+each step's cycles too (the TRM timings) with the functions they go to, mean and worst step. Its M4F
+cycles: the SysTick mean and the worst step's instructions at the traced steps' mean cycles per
+instruction (as above, but from both roads' 20,000 steps, not the short road), and the most cycles
+of one traced step.
 
 --unroll-sweep builds only the harness and the MLP part, per core, for DN_KERNEL_SMALL 1 with
 DN_KERNEL_UNROLL 1, 2, 4 and 8 and for DN_KERNEL_SMALL 0 (two forwards, 8 neurons per pass), and
@@ -163,8 +178,15 @@ def _call_graph(ins: dict) -> dict[str, set[str]]:
     return calls
 
 
+#: functions a step calls through pointers, which the call graph (direct bl/b) does not see: the
+#: physics terms' table (terms.hpp: force_/grad_<kind id>, and what they call: log1pf, expm1f)
+INDIRECT = re.compile(r"_DN_TERM_")
+
+
 def _reach(calls: dict[str, set[str]], root: str) -> set[str]:
-    seen, todo = set(), [root]
+    """root and the functions it reaches directly, with the indirect ones (INDIRECT) of the image
+    and theirs when the image has any (only a hybrid model's firmware calls them)."""
+    seen, todo = set(), [root, *(f for f in calls if INDIRECT.search(f))]
     while todo:
         f = todo.pop()
         if f not in seen:
@@ -244,16 +266,49 @@ def per_call_instructions(elf: Path, cpu: str, root: str, log: Path) -> np.ndarr
     """The instructions of every call of `root` (the function and what it calls), in order, from
     a QEMU execution trace: exact per call, where SysTick (40 instructions a tick) gives means.
     Counting starts at the first call (the MLP part's forwards, before, reach the same kernel)."""
+    return per_call_trace(elf, cpu, root, log)["instructions"]
+
+
+def per_call_trace(elf: Path, cpu: str, root: str, log: Path) -> dict:
+    """per_call_instructions with the M4 cycles (TRM timings, _cycles) of every call, and per
+    function (demangled) its instructions and cycles summed over the calls ("functions") and those
+    of the call with the most instructions ("functions_worst")."""
     ins, funcs = _disassembly(elf)
-    inside = _reach(_call_graph(ins), root)
+    inside = _reach(_call_graph(ins), root) | {f for f in funcs if INDIRECT.search(f)}
     entry = funcs[root]
     counts: list[int] = []
-    for pc, n, _, fn in _trace_blocks(elf, cpu, log, ins):
+    cycles: list[float] = []
+    total: dict[str, list] = {}
+    cur: dict[str, list] = {}
+    worst: dict[str, list] = {}
+    for pc, n, c, fn in _trace_blocks(elf, cpu, log, ins):
         if pc == entry:
+            if counts and (len(counts) == 1 or counts[-1] > max(counts[:-1])):
+                worst = cur
             counts.append(0)
+            cycles.append(0.0)
+            cur = {}
         if counts and fn in inside:
             counts[-1] += n
-    return np.array(counts)
+            cycles[-1] += c
+            for acc in (total, cur):
+                a = acc.setdefault(fn, [0, 0.0])
+                a[0] += n
+                a[1] += c
+    if counts and (len(counts) == 1 or counts[-1] > max(counts[:-1])):
+        worst = cur
+    names = _demangle(list(total))
+    return {"instructions": np.array(counts), "cycles": np.array(cycles),
+            "functions": {names[f]: v for f, v in total.items()},
+            "functions_worst": {names[f]: v for f, v in worst.items()}}
+
+
+def _demangle(symbols: list[str]) -> dict[str, str]:
+    if not symbols:
+        return {}
+    out = subprocess.run(["arm-none-eabi-c++filt"], input="\n".join(symbols), capture_output=True, text=True).stdout
+    lines = out.splitlines()
+    return dict(zip(symbols, lines)) if len(lines) == len(symbols) else {f: f for f in symbols}
 
 
 # ---- emlearn ----
@@ -298,27 +353,92 @@ def build_manual(cpu: str, part: int, bdir: Path, vectors: Path, extra_src=(), e
 
 
 def worst_steps(cpu: str, roads: dict[str, tuple[Path, object]], model, out: Path, fp_contract: str,
-                loop_float: int | None, first_elf: Path) -> dict:
+                loop_float: int | None, first_elf: Path, tag: str = "", profile: bool = False, **build) -> dict:
     """Per road (name -> (vectors header, Vectors)): the instructions of every quarter-car step
     (per_call_instructions: exact, from an execution trace), their mean and maximum and where it
-    is. The first road's firmware is `first_elf`; each other one is built (and its loop checked
-    against the host's on that road)."""
+    is. The first road's firmware is `first_elf`; each other one is built (with `build`'s options,
+    in a directory named with `tag`) and its loop checked against the host's on that road.
+    profile (--step-model): also the steps' M4 cycles (per_call_trace) and where they go."""
     res = {}
-    tag = "" if loop_float is None else f"-loopfloat{int(loop_float)}"
+    tag = ("" if loop_float is None else f"-loopfloat{int(loop_float)}") + tag
     for k, (name, (header, vec)) in enumerate(roads.items()):
         elf = first_elf
         if k:
             bdir = emb.build(cpu, out / f"{cpu}-{fp_contract}{tag}-{name}", vectors=header, fp_contract=fp_contract,
-                             loop_float=loop_float, targets=("dn_firmware",))
+                             loop_float=loop_float, targets=("dn_firmware",), **build)
             elf = emb.firmware_path(bdir)
             host = emb.loop_vs_host(model, vec.road, emb.parse_output(emb.run(elf, cpu)))
             if not host["within"]:
                 raise SystemExit(f"{cpu} on {name}: the firmware's loop differs from the host's: {host}")
-        steps = per_call_instructions(elf, cpu, "dn_loop_step", out / "trace.log")
+        tr = per_call_trace(elf, cpu, "dn_loop_step", out / "trace.log")
+        steps = tr["instructions"]
         assert len(steps) == len(vec.road), (len(steps), len(vec.road))
         res[name] = {"mean": float(steps.mean()), "max": int(steps.max()), "min": int(steps.min()),
                      "max_at_step": int(steps.argmax()) + 1, "max_over_mean": float(steps.max() / steps.mean())}
+        if profile:
+            cyc, n = tr["cycles"], len(steps)
+            res[name].update({
+                "cpi": float(cyc.sum() / steps.sum()), "cycles_mean": float(cyc.mean()), "cycles_max": float(cyc.max()),
+                "cycles_max_at_step": int(cyc.argmax()) + 1,
+                # per function: instructions and cycles of the mean step, and of the step with the most instructions
+                "functions_mean_step": {f: [v[0] / n, v[1] / n] for f, v in
+                                        sorted(tr["functions"].items(), key=lambda kv: -kv[1][1])},
+                "functions_worst_step": {f: [v[0], v[1]] for f, v in
+                                         sorted(tr["functions_worst"].items(), key=lambda kv: -kv[1][1])}})
     return res
+
+
+def measure_step_model(cpu: str, model, name: str, out: Path, fp_contract: str = "off",
+                       loop_float: int | None = None, worst: bool = True) -> dict:
+    """--step-model: the quarter-car step of `model` (a hybrid model's terms included: the library
+    built with DN_CAP_TERMS = its number of terms, the presets' capacities otherwise), on the
+    thesis rough road and the ISO 8608 class D road: the SysTick mean, each step's instructions and
+    (M4 timings) cycles from the traces, their worst, where they go, and kernel + loop + controller
+    flash and RAM (the harness's subtracted)."""
+    from dampnet.export import write_header
+    from dampnet.sim.roads import iso8608
+
+    mdir = out / f"model-{name}"
+    mdir.mkdir(parents=True, exist_ok=True)
+    header = write_header(model, mdir / "model.h", overwrite=True)
+    build = {"caps": {**emb.DEFAULT_CAPS, "TERMS": len(model.terms)},
+             "firmware_defines": emb.model_defines(header, model)}
+    roads = {"thesis_rough": (mdir / "vectors.h", emb.make_vectors(model, n_inv=0)),
+             "iso8608_D": (mdir / "vectors_iso8608_D.h", emb.make_vectors(model, road=iso8608("D", 200.0, seed=1),
+                                                                        n_inv=0))}
+    for h, vec in roads.values():
+        emb.write_vectors(h, vec, model=model)
+    tag = "" if loop_float is None else f"-loopfloat{int(loop_float)}"
+    bdir = emb.build(cpu, out / f"{cpu}-{fp_contract}{tag}-step-{name}", vectors=roads["thesis_rough"][0],
+                     fp_contract=fp_contract, loop_float=loop_float, targets=("dn_firmware", "dn_firmware_base"),
+                     **build)
+    elf = emb.firmware_path(bdir)
+    fw = emb.parse_output(emb.run(elf, cpu))
+    assert fw.errors == 0
+    host = emb.loop_vs_host(model, roads["thesis_rough"][1].road, fw)
+    if not host["within"]:
+        raise SystemExit(f"{cpu} ({name}): the firmware's loop differs from the host's: {host['error_over_peak']}")
+    full, base = sizes(elf), sizes(emb.firmware_path(bdir, "dn_firmware_base"))
+    r = {"terms": model.terms, "caps_terms": len(model.terms), "loop_vs_host_error_over_peak": host["error_over_peak"],
+         "step_systick_mean": fw.instructions("step"),
+         "loop": {"flash": full["flash"] - base["flash"], "ram_static": full["ram_static"] - base["ram_static"],
+                  "stack_setup": max(fw.stack["mlp_init"], fw.stack["loop_setup"]), "stack_step": fw.stack["step"]}}
+    if worst:
+        r["step_per_road"] = worst_steps(cpu, roads, model, out, fp_contract, loop_float, elf, tag=f"-step-{name}",
+                                         profile=cpu == "cortex-m4", **build)
+        r["step_worst"] = max(v["max"] for v in r["step_per_road"].values())
+        if cpu == "cortex-m4":  # the step's mean cycles per instruction over both roads' steps
+            pr = r["step_per_road"].values()
+            cpi = sum(v["cpi"] * v["mean"] for v in pr) / sum(v["mean"] for v in pr)
+            budget = CLOCK_HZ / BUDGET_HZ
+            r["cpi"] = cpi
+            r["cycles"] = {"step": r["step_systick_mean"] * cpi, "step_worst": r["step_worst"] * cpi,
+                           "step_worst_traced": max(v["cycles_max"] for v in pr)}
+            r["step_budget_cycles"] = budget
+            r["step_margin"] = budget / r["cycles"]["step"]
+            r["step_margin_worst"] = budget / r["cycles"]["step_worst"]
+            r["step_margin_worst_traced"] = budget / r["cycles"]["step_worst_traced"]
+    return r
 
 
 def symbol_size(elf: Path, pattern: str) -> int:
@@ -488,6 +608,10 @@ def main(argv=None) -> int:
                    help="skip the per-step instruction traces (the worst step on two roads: a few minutes)")
     p.add_argument("--inverse-only", action="store_true",
                    help="only the damper inverse's instructions against the forward's (and its check against the host)")
+    p.add_argument("--step-model", metavar="MODEL",
+                   help="only the quarter-car step (mean, worst of two roads, M4F cycles and where they go, flash) of "
+                        "MODEL (a model.json or its directory) with its physics terms (e.g. a valve term) beside its "
+                        "network alone (the terms left out), in one run")
     a = p.parse_args(argv)
     why = emb.toolchain_missing()
     if why:
@@ -513,6 +637,26 @@ def main(argv=None) -> int:
                              loop_float=a.loop_float, targets=("dn_firmware",))
             res[cpu] = measure_inverse(cpu, inv_vectors, model, out, a.fp_contract, a.loop_float,
                                        emb.firmware_path(bdir))
+        res["fp_contract"] = a.fp_contract
+        res["source"] = library_state()
+        print(json.dumps(res, indent=1))
+        if a.json:
+            Path(a.json).write_text(json.dumps(res, indent=1) + "\n")
+        return 0
+    if a.step_model:
+        import dataclasses
+
+        hybrid = load_model(a.step_model)
+        if not hybrid.terms:
+            print(f"bench/embedded.py: --step-model {a.step_model}: the model has no physics terms", file=sys.stderr)
+            return 2
+        alone = dataclasses.replace(hybrid, terms=[])
+        res = {cpu: {"without_terms": measure_step_model(cpu, alone, "network", out, a.fp_contract, a.loop_float,
+                                                         not a.no_worst_step),
+                     "with_terms": measure_step_model(cpu, hybrid, "hybrid", out, a.fp_contract, a.loop_float,
+                                                      not a.no_worst_step)}
+               for cpu in sorted(emb.CPUS)}
+        res["model"] = str(a.step_model)
         res["fp_contract"] = a.fp_contract
         res["source"] = library_state()
         print(json.dumps(res, indent=1))

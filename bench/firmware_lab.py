@@ -96,10 +96,11 @@ def _cross_cxx_headers_present() -> bool:
 def cmake_args(cpu: str, vectors: Path | None = None, build_type: str = "Release",
                caps: dict | None = None, double_kernel: int = DEFAULT_DOUBLE_KERNEL,
                fp_contract: str = "off", kernel: dict | None = None, loop_float: int | None = None,
-               damper_kinds=DEFAULT_DAMPER_KINDS, controllers=None) -> list[str]:
+               damper_kinds=DEFAULT_DAMPER_KINDS, controllers=None, firmware_defines=()) -> list[str]:
     """The configure options of a firmware build (what the presets of CMakePresets.json set);
     loop_float None: the core's default (LOOP_FLOAT); controllers None: the presets' laws and
-    the firmware's own (controller_kinds of firmware_controller's law, LOOP_LAW's by default)."""
+    the firmware's own (controller_kinds of firmware_controller's law, LOOP_LAW's by default);
+    firmware_defines: the firmware's model (model_defines; empty: the default model)."""
     if cpu not in CPUS:
         raise ValueError(f"unknown core {cpu!r}; known: {', '.join(CPUS)}")
     loop_float = LOOP_FLOAT[cpu] if loop_float is None else int(loop_float)
@@ -109,7 +110,8 @@ def cmake_args(cpu: str, vectors: Path | None = None, build_type: str = "Release
             f"-DDAMPNET_DAMPER_KINDS={';'.join(damper_kinds)}",
             f"-DDAMPNET_CONTROLLER_KINDS={';'.join(controllers or controller_kinds(mcu.LOOP_LAW))}",
             f"-DDAMPNET_ACCEL_FEATURES={';'.join(DEFAULT_ACCEL_FEATURES)}",
-            f"-DDAMPNET_DAMPER_EVALS={';'.join(DEFAULT_DAMPER_EVALS)}"]
+            f"-DDAMPNET_DAMPER_EVALS={';'.join(DEFAULT_DAMPER_EVALS)}",
+            f"-DDAMPNET_FIRMWARE_DEFINITIONS={';'.join(firmware_defines)}"]
     args += [f"-DDAMPNET_CAP_{k}={v}" for k, v in (caps or DEFAULT_CAPS).items()]
     args += [f"-DDAMPNET_KERNEL_{k}={v}" for k, v in (DEFAULT_KERNEL if kernel is None else kernel).items()]
     if vectors is not None:
@@ -117,6 +119,27 @@ def cmake_args(cpu: str, vectors: Path | None = None, build_type: str = "Release
     else:  # CMake writes them with this interpreter (python -m dampnet.recipes.export_targets vectors)
         args.append(f"-DPython3_EXECUTABLE={sys.executable}")
     return args
+
+
+def model_defines(header, model) -> list[str]:
+    """The firmware's definitions (cmake_args' firmware_defines) for another model than the default:
+    its header as dampnet.export.write_header writes it with the prefix dn_model (an exported
+    folder's model.h), with its folded floats, its derived features' constants and its physics terms
+    (the firmware then sets the loop up through a damper with them: dn_damper_add_term)."""
+    header = Path(header).resolve()
+    text = header.read_text()
+    d = [f'DN_FW_MODEL_HEADER="{header}"', "DN_FW_DESC_INIT=DN_MODEL_DESC_INIT",
+         "DN_FW_FEATURE_NAMES=dn_model_feature_names", "DN_FW_N_INPUTS=DN_MODEL_N_INPUTS"]
+    if "DN_MODEL_FOLDED_INIT" in text:
+        d.append("DN_FW_FOLDED_INIT=DN_MODEL_FOLDED_INIT")
+    if model.feature_params:
+        d += ["DN_FW_PARAM_NAMES=dn_model_feature_param_names", "DN_FW_PARAM_VALUES=dn_model_feature_param_values",
+              "DN_FW_N_PARAMS=DN_MODEL_N_FEATURE_PARAMS"]
+    if model.terms:
+        d += ["DN_FW_N_TERMS=DN_MODEL_N_TERMS", "DN_FW_TERM_KINDS=dn_model_term_kinds",
+              "DN_FW_TERM_N_PARAMS=dn_model_term_n_params", "DN_FW_TERM_PARAMS=dn_model_term_params",
+              "DN_FW_TERM_WIDTH=DN_MODEL_TERM_PARAMS"]
+    return d
 
 
 def build(cpu: str, build_dir, vectors: Path | None = None, targets=("dn_firmware",), **options) -> Path:

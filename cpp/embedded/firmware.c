@@ -7,7 +7,8 @@
  *     the vectors header), each force printed as its float's bits;
  *  2. the quarter car: a loop model with a neural damper (float kernel) and a controller (the
  *     header's configuration, DN_FW_*; with the folded floats built in place by
- *     dn_loop_model_init_neural, else MLP -> damper -> loop model), dn_loop_step over the stored road (dn_fw_road),
+ *     dn_loop_model_init_neural, else, and with a hybrid model's terms (DN_FW_N_TERMS), MLP -> damper (+ its
+ *     terms) -> loop model), dn_loop_step over the stored road (dn_fw_road),
  *     the state printed every DN_FW_PRINT_EVERY steps and at the end (its dn_real bits: float
  *     with DN_LOOP_FLOAT, else double).
  * Between the two, when the vectors header holds cases of the damper's inverse (DN_FW_N_INV;
@@ -46,6 +47,15 @@
 #define DN_FW_PARAMS DN_FW_PARAM_NAMES, DN_FW_PARAM_VALUES, DN_FW_N_PARAMS
 #else
 #define DN_FW_PARAMS NULL, NULL, 0
+#endif
+/* the physics terms of a hybrid model (a model header's term arrays: DN_FW_N_TERMS,
+ * DN_FW_TERM_KINDS, DN_FW_TERM_N_PARAMS, DN_FW_TERM_PARAMS and its row width DN_FW_TERM_WIDTH), if
+ * any: the loop's damper then takes them (dn_damper_add_term), which dn_loop_model_init_neural
+ * cannot: the loop is set up through a damper (bench/embedded.py --step-model) */
+#if defined(DN_FW_N_TERMS) && DN_FW_N_TERMS > 0
+#define DN_FW_HAS_TERMS 1
+#else
+#define DN_FW_HAS_TERMS 0
 #endif
 
 #ifndef DN_FW_VECTORS
@@ -447,7 +457,7 @@ __attribute__((noinline)) static const dn_loop_model* loop_setup(const dn_mlp* m
   dn_controller_default(&ctrl, DN_FW_CONTROLLER);
   DN_FW_CONTROLLER_SET(ctrl);   /* the law as dampnet's control-law registry made it for this model */
   dn_loop_model* model = NULL;
-#ifdef DN_FW_FOLDED_INIT
+#if defined(DN_FW_FOLDED_INIT) && !DN_FW_HAS_TERMS
   (void)mlp;
   const dn_mlp_folded_f folded = DN_FW_FOLDED_INIT;
   check("dn_loop_model_init_neural",
@@ -460,6 +470,11 @@ __attribute__((noinline)) static const dn_loop_model* loop_setup(const dn_mlp* m
         dn_damper_init_neural(mlp, DN_FW_FEATURE_NAMES, DN_FW_N_INPUTS, DN_FW_PARAMS,
                               DN_PRECISION_FLOAT, damper_mem, sizeof damper_mem, &damper));
   if (!damper) return NULL;
+#if DN_FW_HAS_TERMS
+  for (int i = 0; i < DN_FW_N_TERMS; ++i)
+    check("dn_damper_add_term", dn_damper_add_term(damper, DN_FW_TERM_KINDS[i], DN_FW_TERM_PARAMS + i * DN_FW_TERM_WIDTH,
+                                                   DN_FW_TERM_N_PARAMS[i]));
+#endif
   check("dn_loop_model_init", dn_loop_model_init(&veh, damper, &ctrl, model_mem, sizeof model_mem, &model));
 #endif
   if (!model) return NULL;
