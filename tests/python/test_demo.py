@@ -133,6 +133,31 @@ def test_demo_trains_with_the_default_algorithm(demo_out):
     assert "held-out NRMSE (not seen)" not in part
 
 
+def test_demo_tries_the_valve_term_and_the_improved_model_keeps_the_choice(demo_out):
+    """valve "auto" (dampnet.training.valve_choice), dampnet train's default: the first training is
+    tried without and with a valve term; the terminal, the summary and the report say which was kept
+    and both validation errors, and the improved model (the diagnosis's effect added) keeps the
+    choice: the valve term, fitted again, when it was kept; none otherwise."""
+    from dampnet.training.valve_choice import sentence
+
+    out, stdout = demo_out
+    summary = json.loads((out / "summary.json").read_text())
+    original = json.loads((out / "model_original" / "model.json").read_text())
+    improved = json.loads((out / "model_improved" / "model.json").read_text())
+    rec = summary["valve"]
+    assert rec == original["meta"]["valve"] and rec["choice"] == "auto"
+    v = rec["validation_nrmse"]
+    assert rec["used"] == (v["with"] < v["without"])
+    line = sentence(rec)
+    assert line in stdout
+    part = (out / "report.html").read_text()
+    part = part[part.index("2. The thesis"):part.index("3. Diagnosis")]
+    assert "<b>Physics first.</b>" in part and f"{v['with']:.4f} with it against {v['without']:.4f} without" in part
+    kinds = [t["kind"] for t in improved["terms"]]
+    assert kinds == (["valve"] if rec["used"] else []) and "valve" not in improved["meta"]
+    assert [t["kind"] for t in original["terms"]] == kinds
+
+
 def test_demo_reports_where_the_models_were_guessing(demo_out):
     """Both models carry their training envelope; the study's impulse (far beyond the 1-inch sines)
     is marked extrapolated for both, and the report's coverage table says so."""

@@ -107,6 +107,20 @@ def _coverage_section(study: dict) -> str:
                       "worst excursion (input, training ranges beyond)", "verdict"], rows))
 
 
+def _valve_paragraph(rec: dict | None) -> str:
+    """What valve "auto" chose for the first model (dampnet.training.valve_choice), in words."""
+    from dampnet.training.valve_choice import sentence
+
+    line = sentence(rec)
+    if line is None:
+        return ""
+    kept = "the hybrid, the network on what the valve term leaves" if rec.get("used") else "the network alone"
+    return ("<p><b>Physics first.</b> A hydraulic damper's valves have a blow-off knee in each direction, where a "
+            "tanh network bends poorly, so dampnet train trains the model twice, without and with a valve term "
+            "(bleed and blow-off, fitted first by least squares) under the network, and keeps the one with the "
+            f"lower validation error: here {kept}. {html.escape(line[0].upper() + line[1:])}.</p>")
+
+
 def _restarts_section(restarts: dict, fig: Path) -> str:
     """Each training's restarts: the score that chose, the held-out error it could not see."""
     runs = {k: v for k, v in restarts.items() if v}
@@ -216,6 +230,7 @@ def write(work: Path, summary: dict, m0: dict, m1: dict, d0: dict, d1: dict, stu
     parts.append(f"<h2>2. The thesis's model: 3-30-1 MLP trained with {algo}</h2>"
                  f"<p>dampnet train's default algorithm: {ALGORITHM_NAMES['br']} up to {BR_MAX_ROWS:,} training "
                  f"rows, {ALGORITHM_NAMES['lm']} beyond (the thesis's full plan).</p>")
+    parts.append(_valve_paragraph(summary.get("valve")))
     o0 = m0["holdout"]["overall"]
     lk = m0.get("holdout_lookup", {}).get("overall", {})
     parts.append(_table(["model (held-out 2.25 V tests)", "NRMSE", "RMSE [N]", "max |error| [N]",

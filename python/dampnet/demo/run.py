@@ -440,4 +440,6 @@ def _headline(metrics0, metrics1, diag0, diag1, verdict, adds, cres, study_res, 
         "training_time_s": {"original": _training_time(metrics0), "improved": _training_time(metrics1)},
         "algorithm": {"original": metrics0["training"]["algorithm"], "improved": metrics1["training"]["algorithm"]},
         "restarts": {"original": _restarts_summary(metrics0), "improved": _restarts_summary(metrics1)},
+        # valve "auto" (dampnet.training.valve_choice): the first training's two errors and its choice
+        "valve": metrics0["training"].get("valve"),
     }
