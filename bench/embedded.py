@@ -593,6 +593,17 @@ def unroll_sweep(cpu: str, vectors: Path, out: Path, fp_contract: str = "off") -
     return rows
 
 
+
+def _report(res: dict, a) -> int:
+    """A measurement's result with its build's floating-point contraction and the library's state,
+    printed and written to --json: the exit status 0."""
+    res["fp_contract"] = a.fp_contract
+    res["source"] = library_state()
+    print(json.dumps(res, indent=1))
+    if a.json:
+        Path(a.json).write_text(json.dumps(res, indent=1) + "\n")
+    return 0
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--json", help="write the results here")
@@ -637,12 +648,7 @@ def main(argv=None) -> int:
                              loop_float=a.loop_float, targets=("dn_firmware",))
             res[cpu] = measure_inverse(cpu, inv_vectors, model, out, a.fp_contract, a.loop_float,
                                        emb.firmware_path(bdir))
-        res["fp_contract"] = a.fp_contract
-        res["source"] = library_state()
-        print(json.dumps(res, indent=1))
-        if a.json:
-            Path(a.json).write_text(json.dumps(res, indent=1) + "\n")
-        return 0
+        return _report(res, a)
     if a.step_model:
         import dataclasses
 
@@ -657,12 +663,7 @@ def main(argv=None) -> int:
                                                       not a.no_worst_step)}
                for cpu in sorted(emb.CPUS)}
         res["model"] = str(a.step_model)
-        res["fp_contract"] = a.fp_contract
-        res["source"] = library_state()
-        print(json.dumps(res, indent=1))
-        if a.json:
-            Path(a.json).write_text(json.dumps(res, indent=1) + "\n")
-        return 0
+        return _report(res, a)
     if a.unroll_sweep:
         res = {cpu: unroll_sweep(cpu, vectors, out, a.fp_contract) for cpu in sorted(emb.CPUS)}
         res["fp_contract"] = a.fp_contract

@@ -107,10 +107,11 @@ def default_on_split(name: str, seed: int = 0):
     from dampnet.data import Dataset
     from dampnet.data.real import load_real
     from dampnet.recipes.training import TrainingRequest, train
+    from dampnet.training.settings import command_defaults
 
     ds = load_real(name)
     _, test = split(name, ds)
-    req = TrainingRequest.of(algorithm="auto", restarts="auto", seed=seed,
+    req = TrainingRequest.of(**command_defaults(), seed=seed,
                              holdout_tests=[t.test_id for t in test], holdout_voltage=None)
     first = train(ds, request=req, workers=1)
     return ds, first, Dataset(tests=list(first.split.train.tests), source=ds.source, meta=dict(ds.meta))

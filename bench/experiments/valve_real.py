@@ -6,6 +6,8 @@ its two variants), each one's validation NRMSE and held-out RMSE [N], and which 
 (dampnet.training.valve_choice.keep_hybrid on the validation errors, as it does).
 
   python bench/experiments/valve_real.py [--datasets utfsm,labcontrol] [--seed 0]
+  python bench/experiments/valve_real.py --loop     # bench/real_data.py's dampnet rows only: the loop
+                                                    # (dampnet.recipes.loop.run_loop) from the default
 
 One JSON line per data set on stdout. About 2-6 minutes per data set on 2 cores.
 """
@@ -26,15 +28,24 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--datasets", default="utfsm,labcontrol")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--loop", action="store_true", help="the diagnosis loop's rows of bench/real_data.py")
     args = ap.parse_args()
     from dampnet.predict import predict_force
     from dampnet.recipes.training import TrainingRequest, train
     from dampnet.training.valve_choice import keep_hybrid, validation_nrmse
-    from real_data import load, scores, split
+    from real_data import BUDGETS, load, run_dampnet, scores, split
 
     for name in args.datasets.split(","):
         ds = load(name, quick=False)
-        _, test = split(name, ds)
+        train_tests, test = split(name, ds)
+        if args.loop:
+            rows = run_dampnet(ds, train_tests, test, BUDGETS["full"]["dampnet"], BUDGETS["full"]["steps"],
+                               seed=args.seed, log=lambda s: print(s, file=sys.stderr, flush=True))
+            for r in rows:
+                print(json.dumps({"dataset": name, "model": r["model"], "holdout_rmse_n": round(r["rmse_n"], 2),
+                                  "at_rest": r.get("at_rest"), "diagnosis": (r.get("diagnosis") or {}).get("named"),
+                                  "train_s": round(r["train_s"], 1)}, default=str), flush=True)
+            continue
         row = {"dataset": name}
         for valve in ("off", "on"):
             req = TrainingRequest.of(algorithm="auto", restarts="auto", seed=args.seed, valve=valve,
