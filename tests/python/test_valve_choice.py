@@ -113,8 +113,10 @@ def test_the_loop_keeps_a_kept_valve_free_to_be_fitted_again():
 
 
 @pytest.mark.parametrize("without, with_, kept", [(0.02, 0.01, True), (0.01, 0.02, False), (0.01, 0.01, False),
+                                                  (0.0100, 0.0096, False), (0.0100, 0.0095, True),
                                                   (float("nan"), 0.01, True), (0.01, float("nan"), False)])
-def test_the_hybrid_is_kept_only_when_its_error_is_lower(without, with_, kept):
+def test_the_hybrid_is_kept_only_when_its_error_is_lower_by_the_margin(without, with_, kept):
+    """MIN_GAIN, 5 %: UTFSM's hybrid validated 1.7 % better but held out worse at rest and after the loop."""
     assert keep_hybrid(without, with_) is kept
 
 

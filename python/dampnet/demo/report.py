@@ -109,7 +109,7 @@ def _coverage_section(study: dict) -> str:
 
 def _valve_paragraph(rec: dict | None) -> str:
     """What valve "auto" chose for the first model (dampnet.training.valve_choice), in words."""
-    from dampnet.training.valve_choice import sentence
+    from dampnet.training.valve_choice import MIN_GAIN, sentence
 
     line = sentence(rec)
     if line is None:
@@ -117,8 +117,8 @@ def _valve_paragraph(rec: dict | None) -> str:
     kept = "the hybrid, the network on what the valve term leaves" if rec.get("used") else "the network alone"
     return ("<p><b>Physics first.</b> A hydraulic damper's valves have a blow-off knee in each direction, where a "
             "tanh network bends poorly, so dampnet train trains the model twice, without and with a valve term "
-            "(bleed and blow-off, fitted first by least squares) under the network, and keeps the one with the "
-            f"lower validation error: here {kept}. {html.escape(line[0].upper() + line[1:])}.</p>")
+            "(bleed and blow-off, fitted first by least squares) under the network, and keeps the hybrid when its "
+            f"validation error is lower by {100 * MIN_GAIN:g} % at least (a term costs the real-time step): here {kept}. {html.escape(line[0].upper() + line[1:])}.</p>")
 
 
 def _restarts_section(restarts: dict, fig: Path) -> str:
