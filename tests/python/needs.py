@@ -28,6 +28,7 @@ TOOLS = {
     "clang": "clang", "clang++": "clang",
     "arm-none-eabi-gcc": "gcc-arm-none-eabi", "arm-none-eabi-g++": "gcc-arm-none-eabi",
     "arm-none-eabi-nm": "binutils-arm-none-eabi", "arm-none-eabi-objdump": "binutils-arm-none-eabi",
+    "arm-none-eabi-c++filt": "binutils-arm-none-eabi",
     "qemu-system-arm": "qemu-system-arm",
     "valgrind": "valgrind",
     # binutils (with build-essential): the code footprint (dampnet.latency.footprint)

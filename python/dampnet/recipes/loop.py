@@ -101,7 +101,7 @@ def next_request(request: TrainingRequest, model, diagnosis: dict, effects: Sequ
     --add B --diagnosis FILE` makes it. A valve "auto" the model decided stays decided: its terms hold
     the valve term or not (dampnet.training.valve_choice), and the next model trains one way."""
     terms = [{k: v for k, v in t.items() if k != "params"} for t in model.terms]
-    decided = (model.meta.get("valve") or {}).get("choice") == "auto"
+    decided = ((getattr(model, "meta", None) or {}).get("valve") or {}).get("choice") == "auto"
     return request.replace(features=list(model.features), terms=terms,
                            feature_params=dict(model.feature_params) or None, add=tuple(effects),
                            diagnosis=diagnosis, **({"valve": "off"} if decided else {})).check()
