@@ -61,15 +61,21 @@ def knee_columns(ctx, theta):
     out_cols = []
     peaks = {d: float(np.percentile(np.abs(f_all[np.sign(v_all) == d]), 99)) for d in (1.0, -1.0)}
     for f, v in zip(preds, vel):
-        cols = []
-        for d in (1.0, -1.0):
-            fk = theta * peaks[d]
-            z = (np.abs(f) - fk) / (0.15 * fk)
-            on = (np.sign(v) == d).astype(float)
-            g = np.exp(-z * z)
-            cols += [d * on * g, d * on * z * g, d * on * np.maximum(z, 0.0) / 10.0]
-        out_cols.append(np.stack(cols, axis=1))
+        out_cols.append(_bumps(f, v, {d: theta * peaks[d] for d in (1.0, -1.0)}))
     return out_cols
+
+
+def _bumps(f, v, knee):
+    """[rows, 6]: per direction d, a bump exp(-z^2), its odd companion and a hinge max(z, 0) / 10,
+    z = (|f| - F_k) / (0.15 F_k), F_k = knee[d] [N]."""
+    cols = []
+    for d in (1.0, -1.0):
+        fk = knee[d]
+        z = (np.abs(f) - fk) / (0.15 * fk)
+        on = (np.sign(v) == d).astype(float)
+        e = np.exp(-z * z)
+        cols += [d * on * e, d * on * z * e, d * on * np.maximum(z, 0.0) / 10.0]
+    return np.stack(cols, axis=1)
 
 
 def _groups(ctx):
@@ -100,14 +106,7 @@ def scaled_knee_columns(ctx, theta):
             peaks[(g, d)] = float(np.percentile(sel, 99)) if sel.size else 1.0
     out_cols = []
     for f, v, g in zip(preds, vel, groups):
-        cols = []
-        for d in (1.0, -1.0):
-            fk = max(theta * peaks[(g, d)], 1e-9)
-            z = (np.abs(f) - fk) / (0.15 * fk)
-            on = (np.sign(v) == d).astype(float)
-            e = np.exp(-z * z)
-            cols += [d * on * e, d * on * z * e, d * on * np.maximum(z, 0.0) / 10.0]
-        out_cols.append(np.stack(cols, axis=1))
+        out_cols.append(_bumps(f, v, {d: max(theta * peaks[(g, d)], 1e-9) for d in (1.0, -1.0)}))
     return out_cols
 
 
@@ -125,6 +124,19 @@ def _score_cols(ctx, columns, grid):
     return S.score_candidate(ctx, cand, Y, folds, base_cv)
 
 
+def _residual_by_level(ctx):
+    """(the reference residual as regression targets per test, the control levels, each level's
+    test indices), the baseline recomputed (what per_level_knee and per_level_direction_knee share)."""
+    from dampnet.diagnosis import score as S
+
+    ctx.notes.pop("baseline", None)
+    ctx.notes.pop("baseline_products", None)
+    Y = [r[:, None] for r in S.reference_residual(ctx)]
+    groups = _groups(ctx)
+    levels = sorted(set(groups))
+    return Y, levels, {g: np.array([i for i, k in enumerate(groups) if k == g]) for g in levels}
+
+
 def per_level_knee(ctx, grid):
     """Variant E's specificity test: per control level, the knee share theta (of the data's largest
     force per direction, so one theta is one force for every level) whose columns, fitted on that
@@ -134,13 +146,7 @@ def per_level_knee(ctx, grid):
     {level: (theta, share of the level's residual explained)}."""
     from dampnet.diagnosis import score as S
 
-    ctx.notes.pop("baseline", None)
-    ctx.notes.pop("baseline_products", None)
-    resid = S.reference_residual(ctx)
-    Y = [r[:, None] for r in resid]
-    groups = _groups(ctx)
-    levels = sorted(set(groups))
-    idx = {g: np.array([i for i, k in enumerate(groups) if k == g]) for g in levels}
+    Y, levels, idx = _residual_by_level(ctx)
     gains = {g: [] for g in levels}
     for theta in grid:
         D = S.design(ctx, knee_columns(ctx, theta), Y)
@@ -162,13 +168,7 @@ def per_level_direction_knee(ctx, shares=FINE):
     force in N per (level, direction). Returns {d: {level: (F_k [N], share explained)}}."""
     from dampnet.diagnosis import score as S
 
-    ctx.notes.pop("baseline", None)
-    ctx.notes.pop("baseline_products", None)
-    resid = S.reference_residual(ctx)
-    Y = [r[:, None] for r in resid]
-    groups = _groups(ctx)
-    levels = sorted(set(groups))
-    idx = {g: np.array([i for i, k in enumerate(groups) if k == g]) for g in levels}
+    Y, levels, idx = _residual_by_level(ctx)
     preds, vel = ctx.pred_rows(), ctx.at_rows("velocity")
     f_all, v_all = np.concatenate(preds), np.concatenate(vel)
     out = {}
