@@ -358,22 +358,12 @@ def _fit_linear(terms: list[dict[str, Any]], free: list[int], x, v, u, target) -
     return shapes
 
 
-#: the valve fit's evaluations for each knee guess before the best is chosen, and for the one fitted on
-#: (measured 2026-12-03 on the rig, bench/RESULTS.md "The valve term in the default training": three
-#: guesses fitted 400 evaluations each took 87.5 s on the thesis plan's 45,780 rows to an RMS
-#: residual of 199.6 N; racing them 40 each took 17.0 s to 194.3 N, on the quick plan 2.6 -> 1.3 s,
-#: 182.27 -> 182.32 N; racing 80 was no better)
-VALVE_FIT_RACE = 40
-VALVE_FIT_NFEV = 400
-
-
 def _fit_valve(v: np.ndarray, u: np.ndarray, r: np.ndarray, A: np.ndarray | None = None) -> list[float]:
     """The valve's parameters fitted to the force r [N] at v [m/s], u [V or A] by bounded
     nonlinear least squares (scipy.optimize.least_squares, trf; v_k > 0, the others >= 0, the
     digressions k_d in [0, VALVE_K_D_MAX]), from a few knee guesses (15, 30, 50 % of each
     direction's largest speed) each with the bleed's and the valve's slopes estimated below and
-    above it, no control gain and straight (k_d = 0), raced VALVE_FIT_RACE evaluations each and the
-    best fitted on; fitted digressive (10 parameters), and
+    above it, no control gain and straight (k_d = 0); fitted digressive (10 parameters), and
     when the best of those barely bends over the data, fitted again straight (the 8, k_d held at
     0); the best kept.
     A [n, k]: columns other terms add with free coefficients (projected out of the residual)."""
@@ -416,7 +406,7 @@ def _fit_valve(v: np.ndarray, u: np.ndarray, r: np.ndarray, A: np.ndarray | None
     upper = np.array([np.inf] * 8 + [VALVE_K_D_MAX] * 2)
     best = None
 
-    def solve(p0: np.ndarray, straight: bool, nfev: int = VALVE_FIT_NFEV):
+    def solve(p0: np.ndarray, straight: bool):
         # straight: the 8 parameters of the straight blow-off line (k_d = 0, held), a model nested in
         # the digressive one that trf does not reliably reach from inside (it stops short against
         # the k_d = 0 bound), so fitted on its own and kept when its residual is the smaller
@@ -424,7 +414,7 @@ def _fit_valve(v: np.ndarray, u: np.ndarray, r: np.ndarray, A: np.ndarray | None
         full = lambda q: np.concatenate([q, np.zeros(10 - n)])  # noqa: E731
         return least_squares(lambda q: resid(full(q)), np.clip(p0[:n], lower[:n], upper[:n]),
                              jac=lambda q: jac(full(q))[:, :n], bounds=(lower[:n], upper[:n]), method="trf",
-                             x_scale="jac", max_nfev=nfev, ftol=1e-12, xtol=1e-12, gtol=1e-12,
+                             x_scale="jac", max_nfev=400, ftol=1e-12, xtol=1e-12, gtol=1e-12,
                              tr_solver="lsmr"), full  # ("exact": a full SVD of the n x 10 Jacobian, slow)
 
     w_max = np.array([np.max(v), -np.min(v)])
@@ -435,15 +425,10 @@ def _fit_valve(v: np.ndarray, u: np.ndarray, r: np.ndarray, A: np.ndarray | None
             bend = best[1][8:10] * np.maximum(w_max - best[1][[0, 3]], 0.0)
             if np.any(bend >= 0.5):
                 break
-        # the knee guesses race for VALVE_FIT_RACE evaluations each; the leader is fitted on
-        raced = [solve(guess(frac), straight, VALVE_FIT_RACE) for frac in (0.15, 0.3, 0.5)]
-        lead, full = min(raced, key=lambda r: r[0].cost)
-        sol, full = solve(full(lead.x), straight)
-        # once more from where it stopped: trf stops on its step size short of the minimum, and a
-        # fresh trust region goes on (a few evaluations when it had converged)
-        sol, full = solve(full(sol.x), straight)
-        if best is None or sol.cost < best[0]:
-            best = (sol.cost, full(sol.x))
+        for frac in (0.15, 0.3, 0.5):
+            sol, full = solve(guess(frac), straight)
+            if best is None or sol.cost < best[0]:
+                best = (sol.cost, full(sol.x))
     p = np.clip(best[1], lower, upper)
     why = _valve_check(p)
     if why:  # cannot happen within the bounds; kept as the runtime's check would refuse it
