@@ -33,8 +33,9 @@ What train_dataset does, in order (the thesis's chapter 4 data handling):
     and the model that fits the training control levels best and strays least between them is
     kept (`dampnet.training.restarts`; `dampnet train` runs up to 6 by default).
  7. With valve "auto" (`dampnet train`'s default), steps 4-6 run twice, without and with a free
-    valve term (bleed and blow-off per direction) under the network, and the model with the lower
-    validation error is kept (`dampnet.training.valve_choice`; "on" and "off" train one way).
+    valve term (bleed and blow-off per direction) under the network, and the hybrid is kept when
+    its validation error is lower by valve_choice.MIN_GAIN (`dampnet.training.valve_choice`; "on"
+    and "off" train one way).
 
 Steps 1-3 are `prepare_training` (a `Prepared`), steps 4-5 `fit_prepared`.
 
@@ -188,18 +189,18 @@ def train_dataset(ds: Dataset, features: Sequence[str] | None = None, algorithm:
 
 def _fit_valve_auto(ds: Dataset, req: TrainingRequest, fit: Callable, warm_start: bool):
     """valve "auto" (dampnet.training.valve_choice): the request trained without and with a free
-    valve term, same seed, split and restarts; the one with the lower validation error kept, the
+    valve term, same seed, split and restarts; the hybrid kept by valve_choice.keep_hybrid, the
     choice in model.meta["valve"]. (model, info, the kept variant's Prepared)."""
     import time
 
-    hybrid_req = req.replace(terms=with_valve(req.terms)).check()
-    why = why_not_auto(req.terms, holdout_split_tests(ds, req), warm_start)
+    # every test, the held-out ones too: a hybrid's evaluation reads their displacement as well
+    why = why_not_auto(req.terms, ds.tests, warm_start)
     if why is not None:
         prep = prepare_training(ds, request=req)
         model, info = fit(prep)
         model.meta["valve"] = valve_record(None, None, False, why=why)
         return model, info, prep
-    prep_h = prepare_training(ds, request=hybrid_req)
+    prep_h = prepare_training(ds, request=req.replace(terms=with_valve(req.terms)).check())
     # the network alone on the same rows: its samples without what only terms need
     prep_n = replace(prep_h, terms=[dict(t) for t in req.terms], request=req,
                      **({} if req.terms else {"xd": None, "v": None, "u": None}))
@@ -209,7 +210,7 @@ def _fit_valve_auto(ds: Dataset, req: TrainingRequest, fit: Callable, warm_start
     try:
         model_h, info_h = fit(prep_h)
     except ModelError as e:  # e.g. the valve's fit needs samples in both directions
-        model_n.meta["valve"] = {**valve_record(validation_nrmse(model_n, info_n), None, False), "failed": str(e)}
+        model_n.meta["valve"] = valve_record(validation_nrmse(model_n, info_n), None, False, failed=str(e))
         return model_n, info_n, prep_n
     t2 = time.perf_counter()
     without, with_ = validation_nrmse(model_n, info_n), validation_nrmse(model_h, info_h)
@@ -217,17 +218,6 @@ def _fit_valve_auto(ds: Dataset, req: TrainingRequest, fit: Callable, warm_start
     model, info, prep = (model_h, info_h, prep_h) if used else (model_n, info_n, prep_n)
     model.meta["valve"] = valve_record(without, with_, used, times={"without": t1 - t0, "with": t2 - t1})
     return model, info, prep
-
-
-def holdout_split_tests(ds: Dataset, req: TrainingRequest) -> list:
-    """The tests `req` trains on (its hold-out set aside), for checks before any work; all of them
-    when the hold-out cannot be made (prepare_training then says why)."""
-    if req.holdout_voltage is None and not req.holdout_tests:
-        return list(ds.tests)
-    try:
-        return list(holdout_split(ds, req.holdout_voltage, list(req.holdout_tests or []))[0].tests)
-    except ValueError:
-        return list(ds.tests)
 
 
 def _request(request: TrainingRequest | None, features, algorithm, options: dict[str, Any]) -> TrainingRequest:

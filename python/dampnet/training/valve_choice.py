@@ -77,12 +77,15 @@ def validation_nrmse(model, info) -> float:
 
 
 def record(without: float | None, with_: float | None, used: bool, why: str | None = None,
-           times: dict[str, float] | None = None) -> dict[str, Any]:
+           times: dict[str, float] | None = None, failed: str | None = None) -> dict[str, Any]:
     """model.meta["valve"] for an "auto" choice: the two validation errors, which was kept, why
-    it could not be tried (`why`), the two trainings' times [s]."""
+    it could not be tried (`why`) or why the hybrid's fit failed (`failed`), the two trainings'
+    times [s]."""
     out: dict[str, Any] = {"choice": "auto", "used": bool(used)}
     if why is not None:
         out["not_tried"] = why
+    if failed is not None:
+        out["failed"] = failed
     if without is not None or with_ is not None:
         out["validation_nrmse"] = {"without": None if without is None else round(float(without), 7),
                                    "with": None if with_ is None else round(float(with_), 7)}
