@@ -358,6 +358,95 @@ def _fit_linear(terms: list[dict[str, Any]], free: list[int], x, v, u, target) -
     return shapes
 
 
+class _ValveSamples:
+    """A valve fit's samples split once by direction (v > 0 extension, v < 0 compression; v = 0
+    adds no force), each sorted by speed, with what no parameter changes: the speed and the
+    control clamped as `_valve_parts` clamps them. `force` and `jacobian` equal `_valve` and
+    `valve_param_jacobian` bit for bit (the same operations on each sample, computed only on
+    its side of the knee: a sorted direction's samples below the knee are a prefix), and the
+    Jacobian reuses the force's evaluation at the same parameters (scipy's trf asks for both
+    at each accepted point). Finite v and u only (the fit drops the others)."""
+
+    def __init__(self, v: np.ndarray, u: np.ndarray):
+        self.n = v.size
+        self.sides = []
+        for sign, sel in ((1.0, v > 0), (-1.0, v < 0)):
+            idx = np.flatnonzero(sel)
+            w_raw = np.abs(v[idx])
+            w = np.where(w_raw < VALVE_V_MAX, w_raw, VALVE_V_MAX)
+            order = np.argsort(w, kind="stable")
+            ui = u[idx[order]]
+            inside = (ui > 0) & (ui < VALVE_U_MAX)
+            uc = np.where(inside, ui, np.where(ui >= VALVE_U_MAX, VALVE_U_MAX, 0.0))
+            self.sides.append((sign, idx[order], w[order], uc))
+        # the sorted rows (extension, compression, then v = 0) back in the samples' order: a gather,
+        # much faster than scattering into the samples' rows
+        sorted_rows = np.concatenate([idx for _, idx, _, _ in self.sides])
+        self.n_sorted = sorted_rows.size
+        self.unsort = np.full(self.n, self.n_sorted, dtype=np.intp)  # v = 0: the zero row past them
+        self.unsort[sorted_rows] = np.arange(self.n_sorted)
+        # dF/dp in the sorted rows, written in place at each call (a side's other columns stay 0)
+        self._sorted_jacobian = np.zeros((self.n_sorted + 1, 10))
+        self._at: np.ndarray | None = None
+        self._parts: list = []
+
+    def _evaluate(self, p: np.ndarray) -> list:
+        """Per direction: (s, the knee's index k in the sorted speeds, g below, and above the
+        knee d, z, r, 1 - e, g)."""
+        if self._at is not None and np.array_equal(p, self._at):
+            return self._parts
+        parts = []
+        for side, (sign, _, w, uc) in enumerate(self.sides):
+            vk, cb, cv = p[3 * side], p[3 * side + 1], p[3 * side + 2]
+            kd = p[8 + side]
+            s = (1 + p[6] * uc) / (1 + p[7] * uc)
+            k = int(np.searchsorted(w, vk, side="right"))  # w[:k] <= v_k: the bleed
+            wb, d = w[:k], w[k:] - vk  # > 0 above the knee (w > v_k)
+            z, r = _valve_opening(kd, d)
+            one_minus_e = -np.expm1(-z / vk)
+            m = 2 * cb * vk - cv
+            g_above = cb * vk * vk + cv * z + m * vk * one_minus_e
+            parts.append((s, k, cb * wb * wb, d, z, r, one_minus_e, g_above))
+        self._at, self._parts = p.copy(), parts
+        return parts
+
+    def force(self, p: np.ndarray) -> np.ndarray:
+        """The valve's force [N] at every sample, in the samples' order (`_valve`)."""
+        parts = []
+        for (sign, *_), (s, k, g_below, *_, g_above) in zip(self.sides, self._evaluate(p)):
+            f = np.concatenate([s[:k] * g_below, s[k:] * g_above])
+            parts.append(f if sign > 0 else -f)
+        return np.take(np.concatenate([*parts, [0.0]]), self.unsort)
+
+    def jacobian(self, p: np.ndarray) -> np.ndarray:
+        """dF/dp [n, 10] in the samples' order (`valve_param_jacobian`). A compression sample's
+        columns are its extension twin's negated, written as products with -s or -g (exact)."""
+        J = self._sorted_jacobian
+        start = 0
+        for side, ((sign, idx, w, uc), (s, k, g_below, d, z, r, ome, g_above)) in enumerate(
+                zip(self.sides, self._evaluate(p))):
+            vk, cb, cv, kd = p[3 * side], p[3 * side + 1], p[3 * side + 2], p[8 + side]
+            c_vk, c_cb, c_cv, c_kd = 3 * side, 3 * side + 1, 3 * side + 2, 8 + side
+            e = 1 - ome
+            m = 2 * cb * vk - cv
+            below, above = slice(start, start + k), slice(start + k, start + idx.size)
+            s = s if sign > 0 else -s
+            sa = s[k:]
+            J[below, c_vk] = J[below, c_cv] = J[below, c_kd] = 0.0  # the bleed: no knee, valve or digression
+            J[above, c_vk] = sa * (2 * cb * vk - cv * r + (2 * cb * vk + m) * ome - m * e * (z / vk + r))
+            J[below, c_cb] = s[:k] * (w[:k] * w[:k])
+            J[above, c_cb] = sa * (vk * vk + 2 * vk * vk * ome)
+            J[above, c_cv] = sa * (z - vk * ome)
+            J[above, c_kd] = sa * ((cv + m * e) * _dz_dkd(kd, d, z, r))
+            g = np.concatenate([g_below, g_above])
+            g = g if sign > 0 else -g
+            den = 1 + p[7] * uc
+            J[start:start + idx.size, 6] = g * uc / den
+            J[start:start + idx.size, 7] = -g * (s if sign > 0 else -s) * uc / den
+            start += idx.size
+        return np.take(J, self.unsort, axis=0)
+
+
 def _fit_valve(v: np.ndarray, u: np.ndarray, r: np.ndarray, A: np.ndarray | None = None) -> list[float]:
     """The valve's parameters fitted to the force r [N] at v [m/s], u [V or A] by bounded
     nonlinear least squares (scipy.optimize.least_squares, trf; v_k > 0, the others >= 0, the
@@ -395,11 +484,13 @@ def _fit_valve(v: np.ndarray, u: np.ndarray, r: np.ndarray, A: np.ndarray | None
             p[d:d + 3] = (vk, cb, cv)
         return p
 
+    samples = _ValveSamples(v, u)
+
     def resid(p: np.ndarray) -> np.ndarray:
-        return project(_valve(p, {"v": v, "u": u}) - r)
+        return project(samples.force(p) - r)
 
     def jac(p: np.ndarray) -> np.ndarray:
-        J = valve_param_jacobian(p, v, u)
+        J = samples.jacobian(p)
         return J - Q @ (Q.T @ J) if A.shape[1] else J
 
     lower = np.array([1e-6, 0, 0, 1e-6, 0, 0, 0, 0, 0, 0], dtype=np.float64)
