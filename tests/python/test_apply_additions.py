@@ -76,7 +76,8 @@ def test_train_with_a_diagnosis_writes_its_parameter_into_the_model(case, tmp_pa
     root, ds, model, diag = case
     out = tmp_path / "m"
     assert main(["train", str(root / "data"), "--out", str(out), "--add", "compressibility",
-                 "--diagnosis", str(root / "d.json"), "--decimate", "20", "--max-epochs", "5", "--quiet"]) == 0
+                 "--diagnosis", str(root / "d.json"), "--decimate", "20", "--max-epochs", "5", "--quiet",
+                 "--valve", "off"]) == 0
     m = MlpModel.load(out)
     assert m.features[-1] == "velocity_lag"
     assert m.feature_params == {"velocity_lag_tau_s": _param(diag, "compressibility")["tau_s"]}

@@ -237,7 +237,7 @@ def test_a_missing_library_names_the_pip_extra(rig, tmp_path, monkeypatch):
 
 # --- dampnet train on each format ------------------------------------------------------------
 
-TRAIN = ["--quiet", "--restarts", "1", "--max-epochs", "10", "--decimate", "20"]
+TRAIN = ["--quiet", "--restarts", "1", "--max-epochs", "10", "--decimate", "20", "--valve", "off"]  # one training
 
 
 def test_dampnet_train_on_a_tdms_folder_holds_out_2_25_v(rig, tmp_path, capsys):

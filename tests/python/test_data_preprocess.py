@@ -188,7 +188,7 @@ def test_a_trained_model_and_train_say_how_the_acceleration_was_derived(quick_tr
             t.channels.pop(c, None)
     write_dataset(ds, tmp_path / "data")
     assert main(["train", str(tmp_path / "data"), "--out", str(tmp_path / "m"), "--max-epochs", "2",
-                 "--decimate", "50", "--restarts", "1"]) == 0
+                 "--decimate", "50", "--restarts", "1", "--valve", "off"]) == 0
     out = capsys.readouterr().out
     assert "acceleration derived: zero-phase Butterworth low-pass of the velocity" in out
     lo, hi = min(rec["bandwidth_hz"]), max(rec["bandwidth_hz"])

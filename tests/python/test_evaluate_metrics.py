@@ -86,7 +86,7 @@ def model_and_data(tmp_path_factory):
             "voltages_v": [0.0, 2.25, 5.0], "samples": 2500}
     write_dataset(generate(plan, seed=2), d / "data")
     assert main(["train", str(d / "data"), "--out", str(d / "m"), "--quiet", "--decimate", "25",
-                 "--max-epochs", "40"]) == 0
+                 "--max-epochs", "40", "--valve", "off"]) == 0
     return d
 
 

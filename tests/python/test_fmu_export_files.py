@@ -32,7 +32,7 @@ def trained(tmp_path_factory):
     root = tmp_path_factory.mktemp("trained")
     write_dataset(generate(PLAN, seed=5), root / "data")
     assert main(["train", str(root / "data"), "--out", str(root / "m"), "--quiet", "--max-epochs", "2",
-                 "--hidden", "3", "--holdout-voltage", "none"]) == 0
+                 "--hidden", "3", "--holdout-voltage", "none", "--valve", "off"]) == 0
     return root / "m"
 
 

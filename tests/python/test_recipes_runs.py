@@ -465,7 +465,8 @@ def test_a_sweep_cell_trains_with_restarts_and_average_as_dampnet_train(quick, c
     data = tmp_path / "quick"
     assert main(["rig", str(data), "--plan", "quick", "--seed", "0", "--no-progress"]) == 0
     assert main(["train", str(data), "--out", str(tmp_path / "cli"), "--seed", "1", "--restarts", "2",
-                 "--average", "2", "--workers", "1", "--decimate", "50", "--max-epochs", "15", "--quiet"]) == 0
+                 "--average", "2", "--workers", "1", "--decimate", "50", "--max-epochs", "15", "--quiet",
+                 "--valve", "off"]) == 0
     assert {p.name for p in (tmp_path / "cli").iterdir()} == MODEL_FILES
 
 
