@@ -70,8 +70,7 @@ def outside_mask(spec: DamperSpec, arrays: dict) -> np.ndarray:
     for X in fullcar_inputs(m, arrays):
         bad = np.any((X < m.sat_lo) | (X > m.sat_hi) | ~np.isfinite(X), axis=1)
         if env is not None:
-            d, _ = env.nearest(X)
-            bad |= d > env.threshold
+            bad |= env.far(X)   # nearest distance > threshold, the tree stopping at the threshold
         out |= bad
     return out
 
