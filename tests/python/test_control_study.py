@@ -1,8 +1,8 @@
 """The control study (issue 55 item 3, dampnet.recipes.control_study): its ideal references
 against independent results. The ideal active car (lsim over the road) against the analytic RMS
 from the ISO 8608 PSD and the car's frequency response; the ideal semi-active damper (a lookup
-table F = u) giving exactly the law's clipped demand; one road and speed's table on a short road.
-Cost: about 3 s."""
+table F = u) giving exactly the law's clipped demand; one road and speed's table on a short road;
+`dampnet study --control`. Cost: about 15 s."""
 
 from __future__ import annotations
 
@@ -81,24 +81,36 @@ def test_one_case_of_the_table(spec):
     assert row["gain_share"] is not None
 
 
-def test_the_bench_command_prints_the_tables_and_writes_the_study_and_the_figure(tmp_path, capsys):
-    """bench/control_study.py on one road and speed, quarter car only: its markdown tables (the
-    gain column, the tracking table), the JSON with every law's rows, and the PNG; an existing output refused
-    without --force, a link even with it. Cost: about 2 s."""
+def test_the_study_command_runs_it_prints_the_tables_and_draws_the_figure(tmp_path, capsys):
+    """`dampnet study default --control --quick`: class C at 80 km/h, quarter car and full car;
+    the tables (the gain column, the tracking table, the full car's rows) printed and in
+    study.txt, every law's rows in study.json, the headline against the target, the figure; a
+    study replaced without --control drops its figure; the options' errors name the option.
+    Cost: about 10 s (the thesis study's quick runs twice)."""
     import json
 
-    import control_study as bench_study   # bench/ (conftest puts it on the path)
-    out, png = tmp_path / "s.json", tmp_path / "s.png"
-    assert bench_study.main(["--classes", "C", "--speeds", "80", "--no-full-car", "--out", str(out),
-                             "--plot", str(png)]) == 0
+    from dampnet.cli import main
+
+    out = tmp_path / "s"
+    assert main(["study", "default", "--control", "--quick", "--out", str(out)]) == 0
     text = capsys.readouterr().out
-    assert "| C, 80 |" in text and "(gain " in text and "out of reach" in text
-    study = json.loads(out.read_text())
+    assert "| C, 80 |" in text and "(gain " in text and "out of reach" in text and "heave Wk RMS" in text
+    assert "as a share of the ideal semi-active damper's (target >= 0.9" in text
+    assert "| C, 80 |" in (out / "study.txt").read_text()
+    study = json.loads((out / "study.json").read_text())["control"]
+    assert study["model"] == "default" and list(study["quarter_car"]) == ["C_80"]
     assert set(study["quarter_car"]["C_80"]) >= {"passive_low", "passive_high", "skyhook_continuous", *cs.FORCE_LAWS}
-    assert study["full_car"] == {}
-    assert png.stat().st_size > 10_000
-    # an existing output is refused before the study runs, and never replaced through a link
-    assert bench_study.main(["--classes", "C", "--speeds", "80", "--no-full-car", "--out", str(out)]) == 2
-    link = tmp_path / "link.json"
-    link.symlink_to(out)
-    assert bench_study.main(["--classes", "C", "--speeds", "80", "--no-full-car", "--out", str(link), "--force"]) == 2
+    assert set(study["full_car"]["C_80"]) >= {"low", "high", "skyhook", *cs.FORCE_LAWS}
+    assert (out / "control_vs_ideal.png").stat().st_size > 10_000
+    assert main(["study", "default", "--quick", "--no-plots", "--out", str(out), "--force"]) == 0
+    capsys.readouterr()
+    assert "control" not in json.loads((out / "study.json").read_text())
+    assert not (out / "control_vs_ideal.png").exists()
+    for argv, expect in ((["default", "--control", "--control-classes", "Z"], "--control-classes: unknown ISO 8608 class 'Z'"),
+                         (["default", "--control-speeds", "80"], "--control-speeds sets the control study's roads: give --control"),
+                         (["default", "--control", "--control-speeds", "-5"], "--control-speeds"),
+                         (["linear:1800", "--control"], "linear:1800: the control study tracks forces through the damper's inverse")):
+        assert main(["study", *argv, "--out", str(tmp_path / "bad")]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("dampnet: error: ") and expect in err and err.count("\n") == 1, err
+    assert not (tmp_path / "bad").exists()

@@ -23,6 +23,17 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--vehicle", action="store_true",
                    help="also the full vehicle (chapter 5.2): the bounce sine sweep and the ISO 3888-1 lane "
                         "change at 120 km/h, every model at low and high damping and under skyhook")
+    p.add_argument("--control", action="store_true",
+                   help="also semi-active control against the ideal (MODEL only): the force-tracking laws "
+                        "(skyhook, groundhook, hybrid, clipped-optimal) through the damper's inverse beside "
+                        "passive low and high, skyhook_continuous, the ideal semi-active damper and the ideal "
+                        "active actuator, quarter car and full car, on ISO 8608 roads (200 m): Wk-weighted body "
+                        "acceleration, travel, tyre load, force tracking; control_vs_ideal.png. About a minute "
+                        "(--quick: class C at 80 km/h only)")
+    p.add_argument("--control-classes", nargs="+", metavar="CLASS", default=None,
+                   help="ISO 8608 road classes of --control, A to H (default B C D; C with --quick)")
+    p.add_argument("--control-speeds", nargs="+", type=float, metavar="KMH", default=None,
+                   help="vehicle speeds of --control [km/h] (default 40 80 120; 80 with --quick)")
     p.add_argument("--force", action="store_true", help="replace an existing study in --out")
     p.set_defaults(handler=run)
     return p
@@ -37,9 +48,12 @@ def run(args) -> int:
     try:
         limits.check_number("--dt", args.dt, limits.STEP_S)
         limits.check_seed("--seed", args.seed)
+        _check_control(args)
         study.check(args.out, (args.model, args.data), args.force)
         res = study.run(args.model, args.data, dt=args.dt, seed=args.seed, quick=args.quick, vehicle=args.vehicle,
-                        keep_runs=not args.no_plots, progress=lambda s: print(f"  {s}", file=sys.stderr))
+                        control=args.control, control_classes=args.control_classes,
+                        control_speeds=args.control_speeds, keep_runs=not args.no_plots,
+                        progress=lambda s: print(f"  {s}", file=sys.stderr))
     except (ValueError, OSError) as e:
         print(f"dampnet: error: {e}", file=sys.stderr)
         return 2
@@ -51,3 +65,21 @@ def run(args) -> int:
     for line in study.lines(res, args.out, plots=not args.no_plots):
         print(line)
     return 0
+
+
+def _check_control(args) -> None:
+    """--control-classes and --control-speeds: only with --control, each a known ISO 8608 class
+    and a speed in the simulation's range; ValueError naming the option."""
+    from dampnet.sim import limits
+    from dampnet.sim.roads import ISO_CLASSES
+
+    for opt, given in (("--control-classes", args.control_classes), ("--control-speeds", args.control_speeds)):
+        if given is not None and not args.control:
+            raise ValueError(f"{opt} sets the control study's roads: give --control too")
+    if args.control_classes:
+        for c in args.control_classes:
+            if c.strip().upper() not in ISO_CLASSES:
+                raise ValueError(f"--control-classes: unknown ISO 8608 class {c!r}; known: {', '.join(ISO_CLASSES)}")
+        args.control_classes = [c.strip().upper() for c in args.control_classes]
+    for s in args.control_speeds or ():
+        limits.check_number("--control-speeds", s, limits.SPEED_KMH)

@@ -26,7 +26,8 @@ force - demand over the steps with a reachable demand, relative to the demand's 
 the share of demanding steps whose demand is out of the damper's reach at that motion.
 The full car (`full_car_rows`): the road manoeuvre (two correlated tracks) at the same roads and
 speeds, each vehicle damping setting: heave (Wk) acceleration, roll and pitch rate RMS.
-The command: `python bench/control_study.py` (bench/RESULTS.md).
+The command: `dampnet study MODEL --control` (`text_tables`: what it prints and writes into
+study.txt; `plot`: control_vs_ideal.png; bench/RESULTS.md holds the default model's).
 """
 
 from __future__ import annotations
@@ -215,10 +216,25 @@ def full_car_rows(spec, road_class: str, speed_kmh: float, damping=("low", "high
     return out
 
 
+def check_spec(spec, label: str | None = None) -> None:
+    """ValueError unless the runtime can invert `spec`'s damper (its control sets its force: a
+    neural model reading voltage or current, a parametric or a table damper)."""
+    from dampnet.sim.dampers import runtime_damper
+
+    try:
+        runtime_damper(spec).damper.control_range()
+    except (ValueError, RuntimeError):
+        raise ValueError(f"{label or spec.name}: the control study tracks forces through the damper's inverse, and "
+                         f"this damper ({spec.kind}) has no control that sets its force (a neural model reading "
+                         "voltage or current, a parametric or a table damper has)") from None
+
+
 def run(spec, classes=ROAD_CLASSES, speeds=SPEEDS_KMH, *, full_car: bool = True, seed: int = 0,
         progress: Callable[[str], None] | None = None) -> dict:
-    """The study: {"quarter_car": {"B_40": case, ...}, "full_car": {"B_40": rows, ...}}."""
-    out: dict = {"quarter_car": {}, "full_car": {}}
+    """The study of the damper `spec` (dampnet.sim.dampers.DamperSpec): {"model": its name,
+    "quarter_car": {"B_40": case, ...}, "full_car": {"B_40": rows, ...}}."""
+    check_spec(spec)
+    out: dict = {"model": spec.name, "quarter_car": {}, "full_car": {}}
     for c in classes:
         for s in speeds:
             key = f"{c}_{s:g}"
@@ -230,3 +246,101 @@ def run(spec, classes=ROAD_CLASSES, speeds=SPEEDS_KMH, *, full_car: bool = True,
                     progress(f"full car, ISO {c}, {s:g} km/h")
                 out["full_car"][key] = full_car_rows(spec, c, s, seed=seed)
     return out
+
+
+def _f(x, fmt="{:.3f}") -> str:
+    return "-" if x is None else fmt.format(x)
+
+
+def text_tables(res: dict) -> list[str]:
+    """The study's markdown tables (`run`'s result): Wk RMS and comfort gain share, force
+    tracking, travel and tyre load, and the full car's rows when it ran."""
+    qc = res["quarter_car"]
+    out = ["Quarter car, Wk-weighted body acceleration RMS [m/s^2] (law through the inverse / in range unfiltered / "
+           "ideal semi-active / ideal active), and the law's comfort gain over passive low as a share of the ideal "
+           "semi-active's (-: the ideal gains under 0.5 %):", "",
+           "| road, km/h | passive low | passive high | skyhook_continuous | " + " | ".join(FORCE_LAWS) + " |",
+           "|---" * (4 + len(FORCE_LAWS)) + "|"]
+    for key, r in qc.items():
+        cells = [key.replace("_", ", "), _f(r["passive_low"]["wk_rms_m_s2"]), _f(r["passive_high"]["wk_rms_m_s2"]),
+                 _f(r["skyhook_continuous"]["wk_rms_m_s2"])]
+        for law in FORCE_LAWS:
+            w = r[law]
+            cells.append(" / ".join(_f(w[k]["wk_rms_m_s2"]) for k in ("model", "in_range_unfiltered",
+                                                                       "ideal_semi_active", "ideal_active"))
+                         + f" (gain {_f(w.get('gain_share'), '{:.2f}')})")
+        out.append("| " + " | ".join(cells) + " |")
+    out += ["", "Force tracking through the inverse: RMS error relative to the demand's RMS where reachable, with "
+            "the registry's 5 ms command filter (and without it), and the share of demanding steps out of reach:", "",
+            "| road, km/h | " + " | ".join(FORCE_LAWS) + " |", "|---" * (1 + len(FORCE_LAWS)) + "|"]
+    for key, r in qc.items():
+        out.append("| " + key.replace("_", ", ") + " | " + " | ".join(
+            f"{_f(r[law]['model']['tracking_rel'], '{:.0%}')} ({_f(r[law]['in_range_unfiltered']['tracking_rel'], '{:.0%}')})"
+            f" err, {_f(r[law]['model']['saturated_share'], '{:.0%}')} out of reach" for law in FORCE_LAWS) + " |")
+    out += ["", "Suspension travel RMS [mm] and dynamic tyre load RMS [N], law through the inverse:", "",
+            "| road, km/h | passive low | skyhook_continuous | " + " | ".join(FORCE_LAWS) + " |",
+            "|---" * (3 + len(FORCE_LAWS)) + "|"]
+    for key, r in qc.items():
+        tt = lambda m: f"{1e3 * m['travel_rms_m']:.1f} / {m['tyre_load_rms_n']:.0f}"  # noqa: E731
+        out.append("| " + key.replace("_", ", ") + " | " + tt(r["passive_low"]) + " | " + tt(r["skyhook_continuous"])
+                   + " | " + " | ".join(tt(r[law]["model"]) for law in FORCE_LAWS) + " |")
+    if res["full_car"]:
+        first = next(iter(res["full_car"].values()))
+        out += ["", "Full car, road manoeuvre (two correlated tracks): heave Wk RMS [m/s^2] / roll rate RMS [deg/s] / "
+                "pitch rate RMS [deg/s]:", "", "| road, km/h | " + " | ".join(first) + " |",
+                "|---" * (1 + len(first)) + "|"]
+        for key, rows in res["full_car"].items():
+            out.append("| " + key.replace("_", ", ") + " | " + " | ".join(
+                f"{m['heave_wk_rms_m_s2']:.3f} / {m['roll_rate_rms_deg_s']:.2f} / {m['pitch_rate_rms_deg_s']:.2f}"
+                for m in rows.values()) + " |")
+    return out
+
+
+def headline(res: dict) -> str:
+    """One line: per law, its comfort gain share against the ideal semi-active damper over the
+    cases where the ideal gains (worst / best), and the target."""
+    parts = []
+    for law in FORCE_LAWS:
+        shares = [r[law]["gain_share"] for r in res["quarter_car"].values() if r[law].get("gain_share") is not None]
+        span = f"{min(shares):.2f}" + (f" to {max(shares):.2f}" if max(shares) > min(shares) else "") if shares else "-"
+        parts.append(f"{law} {span}")
+    return ("comfort gain over passive low through the inverse, as a share of the ideal semi-active damper's "
+            "(target >= 0.9; -: the ideal gains under 0.5 % on every road): " + ", ".join(parts))
+
+
+def plot(res: dict, path) -> None:
+    """Wk RMS relative to passive low, per road class (a panel each) against speed: each law through
+    the inverse (solid) beside its ideal semi-active damper (dashed), and skyhook_continuous; a PNG
+    at `path` (written as is: callers stage it)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    qc = res["quarter_car"]
+    classes = sorted({k.split("_")[0] for k in qc})
+    fig, axes = plt.subplots(1, len(classes), figsize=(4.2 * len(classes) + 2.6, 3.8), sharey=True, squeeze=False)
+    colors = dict(zip(FORCE_LAWS, ("C0", "C1", "C2", "C3")))
+    for ax, c in zip(axes[0], classes):
+        keys = [k for k in qc if k.startswith(c + "_")]
+        sp = [qc[k]["speed_kmh"] for k in keys]
+        low = [qc[k]["passive_low"]["wk_rms_m_s2"] for k in keys]
+        rel = lambda vals: [v / lo for v, lo in zip(vals, low)]  # noqa: E731
+        ax.axhline(1.0, color="k", lw=1, label="passive low")
+        ax.plot(sp, rel([qc[k]["skyhook_continuous"]["wk_rms_m_s2"] for k in keys]), "k:", marker="s",
+                label="skyhook_continuous")
+        for law in FORCE_LAWS:
+            ax.plot(sp, rel([qc[k][law]["model"]["wk_rms_m_s2"] for k in keys]), "-", marker="o", color=colors[law],
+                    label=f"{law} (through the inverse)")
+            ax.plot(sp, rel([qc[k][law]["ideal_semi_active"]["wk_rms_m_s2"] for k in keys]), "--", marker="x",
+                    color=colors[law], label=f"{law}, ideal semi-active")
+        ax.set_title(f"ISO 8608 class {c}")
+        ax.set_xlabel("speed [km/h]")
+        ax.grid(alpha=0.3)
+    axes[0][0].set_ylabel("Wk body acceleration RMS / passive low [-]")
+    axes[0][-1].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
+    fig.suptitle(f"Quarter car, {res.get('model', 'the model')}: the force laws through the damper's inverse "
+                 "against the ideal")
+    fig.tight_layout()
+    fig.savefig(path, format="png", dpi=110)
+    plt.close(fig)
