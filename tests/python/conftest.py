@@ -24,6 +24,13 @@ def pytest_configure(config):
     import os
 
     os.environ.setdefault("DAMPNET_BENCH_HARNESS_DIR", str(ROOT / "build" / "bench-harness"))
+    # One compute thread per process (numpy's OpenBLAS, OpenMP, torch): the run is one process per
+    # core (xdist -n auto), and each process's own pool of a thread per core beside them made the
+    # cores contend (diagnosis modules 5-15 % slower). Set here, before the workers start, so
+    # they and every command they run inherit it; a test that wants more threads asks for them
+    # (threadpoolctl, torch.set_num_threads).
+    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(var, "1")
     if not hasattr(config, "workerinput"):  # once, in the controller, before the workers start
         compile_package(ROOT / "python" / "dampnet")
 
