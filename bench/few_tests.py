@@ -3,8 +3,8 @@ over training seeds, on plans from 9 to 180 tests. Prints the table bench/RESULT
 ("Few dyno tests") and writes every number as JSON.
 
 For each plan (the virtual rig's data, data seed fixed per plan) and each hold-out level, trains
-with `dampnet.train` exactly as `dampnet train` does by default (algorithm and restarts 'auto',
-the default control prior) once per seed, and scores the held-out tests' NRMSE (RMSE over the
+with `dampnet.train` exactly as `dampnet train` does by default (algorithm, restarts and valve
+'auto': training.settings.command_defaults; the default control prior) once per seed, and scores the held-out tests' NRMSE (RMSE over the
 force range) beside the lookup table fitted on the same training tests and the rig's noise floor on them (the
 NRMSE a perfect model would score: the load cell's noise RMS over the held-out force range), and
 the interpolation floor: the NRMSE of the rig's own noise-free force at each training level,
@@ -84,6 +84,7 @@ def run_plan(name: str, holdout: float, seeds: int, options: dict, workers: int,
     import dampnet
     from dampnet.predict import predict_force
     from dampnet.rig import generate
+    from dampnet.training.settings import command_defaults
 
     plan, data_seed = PLANS[name]
     ds = generate(plan, seed=data_seed)
@@ -91,7 +92,7 @@ def run_plan(name: str, holdout: float, seeds: int, options: dict, workers: int,
     for seed in range(first_seed, first_seed + seeds):
         t0 = time.perf_counter()
         trained = dampnet.train(ds, seed=seed, holdout_voltage=holdout, workers=workers,
-                                **{"algorithm": "auto", "restarts": "auto", **options})
+                                **{**command_defaults(), **options})
         dt = time.perf_counter() - t0
         model, _, split = trained
         hold = split.holdout.tests
@@ -102,6 +103,9 @@ def run_plan(name: str, holdout: float, seeds: int, options: dict, workers: int,
         if hv:  # rig data: the held-out RMSE over the load cell's noise RMS, overall and worst frequency
             rows[-1].update(floor_ratio=hv["ratio"],
                             worst_frequency_ratio=max((r["ratio"] for r in hv["per_frequency"]), default=None))
+        valve = trained.metrics.get("training", {}).get("valve")
+        if valve:  # valve 'auto': whether the hybrid was kept, and both validation errors
+            rows[-1]["valve"] = {k: valve.get(k) for k in ("choice", "used", "validation_nrmse", "not_tried", "failed")}
         rs = trained.metrics.get("training", {}).get("restarts")
         if rs:  # every restart's score, validation NRMSE and (after the fact) hold-out NRMSE
             rows[-1]["restarts"] = [{k: r.get(k) for k in ("seed", "score", "held_back", "interpolation", "val_nrmse",
@@ -114,6 +118,8 @@ def run_plan(name: str, holdout: float, seeds: int, options: dict, workers: int,
                           if r.get("held_back") is not None else "")
                        + (f", held out {r['holdout_nrmse']:.4f}" if r.get("holdout_nrmse") is not None else "")
                        + (" (kept)" if r["kept"] else "") for r in rows[-1].get("restarts", []))
+        used = rows[-1].get("valve", {}).get("used")
+        each += "" if used is None else f"; valve term {'kept' if used else 'not kept'}"
         print(f"{name:6s} {holdout:g} V  seed {seed}: {rows[-1]['nrmse']:.4f} in {dt:.1f} s{each}", file=sys.stderr,
               flush=True)
     lookup = trained.metrics["holdout_lookup"]["overall"]["nrmse"]

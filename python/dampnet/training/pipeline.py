@@ -68,7 +68,7 @@ from dampnet.training.fitting import fit_checked
 from dampnet.training.metrics import nrmse
 from dampnet.training.request import TrainingRequest
 from dampnet.training.valve_choice import (keep_hybrid, record as valve_record, validation_nrmse,
-                                            why_not_auto, with_valve)
+                                            too_few_levels, why_not_auto, with_valve)
 from dampnet.training.settings import FIT_OPTIONS, OPTIONS, check_algorithm, option, train_settings
 
 # every option's default and range: the options table, dampnet.training.settings.OPTIONS; the
@@ -204,6 +204,11 @@ def _fit_valve_auto(ds: Dataset, req: TrainingRequest, fit: Callable, warm_start
     # the network alone on the same rows: its samples without what only terms need
     prep_n = replace(prep_h, terms=[dict(t) for t in req.terms], request=req,
                      **({} if req.terms else {"xd": None, "v": None, "u": None}))
+    few = too_few_levels(prep_h.split.train.tests)
+    if few is not None:   # the control gain would be fitted with no level between the others
+        model, info = fit(prep_n)
+        model.meta["valve"] = valve_record(None, None, False, why=few)
+        return model, info, prep_n
     t0 = time.perf_counter()
     model_n, info_n = fit(prep_n)
     t1 = time.perf_counter()

@@ -446,7 +446,7 @@ for _row in (
        "goes under the network", choices=VALVE_CHOICES,
        doc="whether a free valve term (bleed and blow-off per direction, fitted first; the network learns what it "
        "leaves) goes under the network: on, off, or auto (trained both ways, the hybrid kept when its validation "
-       "error is 5 percent lower at least: dampnet.training.valve_choice)", cli="--valve", cli_default=AUTO, train_only=True,
+       "error is 5 percent lower at least, on training tests at 3 control levels or more: dampnet.training.valve_choice)", cli="--valve", cli_default=AUTO, train_only=True,
        cli_help="auto costs a second training; model.json records both errors (meta.valve)", sweep="valve"),
     _O("diagnosis", "other", 0, 0, None, "a diagnosis whose estimated parameters the added effects take (default: "
        "estimated from the data)", cli="--diagnosis", metavar="FILE", cli_help="the JSON of `dampnet diagnose "

@@ -39,6 +39,14 @@ FREE_VALVE = {"kind": "valve"}
 #: the least relative fall of the validation NRMSE that keeps the hybrid (module docstring)
 MIN_GAIN = 0.05
 
+#: "auto" tries the valve term only on training tests at this many control levels at least. Its
+#: control gain s(u) = (1 + g_num u) / (1 + g_den u) bends between the levels as its two
+#: parameters please when nothing between them holds it, and the validation rows (at the trained
+#: levels) cannot see that: on the rig's quick plan (0 and 5 V trained, 2.25 V held out, seeds
+#: 0-9) "auto" kept the hybrid for 7 seeds and the held-out NRMSE rose from 0.0315 to 0.0364
+#: (median; bench/few_tests.py, bench/RESULTS.md "The valve term in the default training").
+MIN_LEVELS = 3
+
 
 def has_valve(terms: Sequence[dict]) -> bool:
     """Whether `terms` hold a valve term (free or with its parameters)."""
@@ -62,6 +70,21 @@ def why_not_auto(terms: Sequence[dict], tests: Sequence, warm_start: bool) -> st
         return (f"the physics terms need a displacement channel, which test {lacking[0]}"
                 + (f" and {len(lacking) - 1} more" if len(lacking) > 1 else "") + " lacks")
     return None
+
+
+def too_few_levels(tests: Sequence) -> str | None:
+    """Why "auto" does not try the valve term on these training tests (fewer than MIN_LEVELS
+    nominal control levels), or None. Tests without a nominal control (a replay, random content)
+    spread the control themselves: no level count is made then."""
+    if not tests or any(t.control_nominal is None for t in tests):
+        return None
+    levels = sorted({float(t.control_nominal) for t in tests})
+    if len(levels) >= MIN_LEVELS:
+        return None
+    unit = "A" if tests[0].control_name == "current" else "V"
+    return (f"the training tests hold {len(levels)} control level{'s' if len(levels) != 1 else ''} "
+            f"({', '.join(f'{u:g}' for u in levels)} {unit}): the valve term's control gain needs {MIN_LEVELS} "
+            "at least, one between the others")
 
 
 def validation_nrmse(model, info) -> float:
