@@ -516,17 +516,38 @@ struct Start {
   int status;
 };
 
-inline Start start(const LoopModel& m, const real* s, real u_ext, dn_loop_out* out,
+// [RT] A force-tracking law's step start: the damper's input (states filled) at the step start,
+// the control its inverse gives for the law's demand (Corner::command_force), written into it.
+// Out of line: the other laws' step start stays small.
+DN_REALTIME DN_OUTLINE inline real force_law_start(const LoopModel& m, const Body& b, const real* s,
+                                                    dn_damper_input* in, int64_t* n_evals) noexcept {
+  *in = damper_input(m, b, s[S_z_r], s[S_v_r], 0, s[S_f_last], s[S_temperature], s[S_t], 0);
+  Damper::fill(DamperState::load(s + DN_LOOP_DAMPER_BASE), *in);
+  const real u = m.command_force(*in, m.veh.f_static, force_demand(m.ctrl, b.vs, b.vus, b.zs - b.zus, b.zus - s[S_z_r]),
+                                 s[S_u_cmd], n_evals);
+  in->u = u;
+  return u;
+}
+
+// Inlined into its two callers on the host (gcc -O3 stopped inlining it when the force laws came,
+// and the quarter-car HIL step paid a call and its arguments through memory); DN_SMALL_CODE
+// builds (flash) leave it to the compiler.
+#if defined(__GNUC__) && !(defined(DN_SMALL_CODE) && DN_SMALL_CODE)
+#define DN_LOOP_START_INLINE __attribute__((always_inline))
+#else
+#define DN_LOOP_START_INLINE
+#endif
+DN_LOOP_START_INLINE inline Start start(const LoopModel& m, const real* s, real u_ext, dn_loop_out* out,
                    uint32_t* mask, int64_t* n_evals) noexcept {
   Start r;
   const Body b{s[S_z_s], s[S_v_s], s[S_z_us], s[S_v_us]};
-  r.in = damper_input(m, b, s[S_z_r], s[S_v_r], 0, s[S_f_last], s[S_temperature], s[S_t], 0);
-  Damper::fill(DamperState::load(s + DN_LOOP_DAMPER_BASE), r.in);
-  r.u = is_force_law(m.ctrl.kind)
-            ? m.command_force(r.in, m.veh.f_static,
-                              force_demand(m.ctrl, b.vs, b.vus, b.zs - b.zus, b.zus - s[S_z_r]), s[S_u_cmd], n_evals)
-            : m.command(s[S_v_s], s[S_v_us], u_ext, s[S_u_cmd]);
-  r.in.u = r.u;
+  if (is_force_law(m.ctrl.kind)) {
+    r.u = force_law_start(m, b, s, &r.in, n_evals);
+  } else {  // the law's control first, then the damper's input with it
+    r.u = m.command(s[S_v_s], s[S_v_us], u_ext, s[S_u_cmd]);
+    r.in = damper_input(m, b, s[S_z_r], s[S_v_r], r.u, s[S_f_last], s[S_temperature], s[S_t], 0);
+    Damper::fill(DamperState::load(s + DN_LOOP_DAMPER_BASE), r.in);
+  }
   real* feat = nullptr;
   if (out) {
     feat = out->features;
