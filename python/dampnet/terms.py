@@ -396,7 +396,7 @@ class _ValveSamples:
         if self._at is not None and np.array_equal(p, self._at):
             return self._parts
         parts = []
-        for side, (sign, _, w, uc) in enumerate(self.sides):
+        for side, (_, _, w, uc) in enumerate(self.sides):
             vk, cb, cv = p[3 * side], p[3 * side + 1], p[3 * side + 2]
             kd = p[8 + side]
             s = (1 + p[6] * uc) / (1 + p[7] * uc)
@@ -420,7 +420,8 @@ class _ValveSamples:
 
     def jacobian(self, p: np.ndarray) -> np.ndarray:
         """dF/dp [n, 10] in the samples' order (`valve_param_jacobian`). A compression sample's
-        columns are its extension twin's negated, written as products with -s or -g (exact)."""
+        columns are its extension twin's negated, written as products with sgn(v) s or sgn(v) g
+        (a negation is exact)."""
         J = self._sorted_jacobian
         start = 0
         for side, ((sign, idx, w, uc), (s, k, g_below, d, z, r, ome, g_above)) in enumerate(
@@ -429,20 +430,19 @@ class _ValveSamples:
             c_vk, c_cb, c_cv, c_kd = 3 * side, 3 * side + 1, 3 * side + 2, 8 + side
             e = 1 - ome
             m = 2 * cb * vk - cv
-            below, above = slice(start, start + k), slice(start + k, start + idx.size)
-            s = s if sign > 0 else -s
-            sa = s[k:]
+            rows, below, above = (slice(start, start + idx.size), slice(start, start + k),
+                                  slice(start + k, start + idx.size))
+            ss = s if sign > 0 else -s                                      # sgn(v) s
+            sg = np.concatenate([g_below, g_above]) * sign                  # sgn(v) g
             J[below, c_vk] = J[below, c_cv] = J[below, c_kd] = 0.0  # the bleed: no knee, valve or digression
-            J[above, c_vk] = sa * (2 * cb * vk - cv * r + (2 * cb * vk + m) * ome - m * e * (z / vk + r))
-            J[below, c_cb] = s[:k] * (w[:k] * w[:k])
-            J[above, c_cb] = sa * (vk * vk + 2 * vk * vk * ome)
-            J[above, c_cv] = sa * (z - vk * ome)
-            J[above, c_kd] = sa * ((cv + m * e) * _dz_dkd(kd, d, z, r))
-            g = np.concatenate([g_below, g_above])
-            g = g if sign > 0 else -g
+            J[above, c_vk] = ss[k:] * (2 * cb * vk - cv * r + (2 * cb * vk + m) * ome - m * e * (z / vk + r))
+            J[below, c_cb] = ss[:k] * (w[:k] * w[:k])
+            J[above, c_cb] = ss[k:] * (vk * vk + 2 * vk * vk * ome)
+            J[above, c_cv] = ss[k:] * (z - vk * ome)
+            J[above, c_kd] = ss[k:] * ((cv + m * e) * _dz_dkd(kd, d, z, r))
             den = 1 + p[7] * uc
-            J[start:start + idx.size, 6] = g * uc / den
-            J[start:start + idx.size, 7] = -g * (s if sign > 0 else -s) * uc / den
+            J[rows, 6] = sg * uc / den
+            J[rows, 7] = -sg * s * uc / den
             start += idx.size
         return np.take(J, self.unsort, axis=0)
 

@@ -26,7 +26,8 @@ def pytest_configure(config):
     os.environ.setdefault("DAMPNET_BENCH_HARNESS_DIR", str(ROOT / "build" / "bench-harness"))
     # One compute thread per process (numpy's OpenBLAS, OpenMP, torch): the run is one process per
     # core (xdist -n auto), and each process's own pool of a thread per core beside them made the
-    # cores contend (diagnosis modules 5-15 % slower). Set here, before the workers start, so
+    # cores contend: `pytest -n 2 tests/python/test_diagnose_hidden.py tests/python/test_diagnose_leftover.py`
+    # took 112-118 s without and 100-110 s with, both orders (2026-12-03). Set here, before the workers start, so
     # they and every command they run inherit it; a test that wants more threads asks for them
     # (threadpoolctl, torch.set_num_threads).
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
@@ -62,7 +63,7 @@ def asan_build() -> Path:
     """The standalone project with its C/C++ tests, under AddressSanitizer + UBSan, at -O1 (the
     sanitizers' own advice; issue 51 measured the build's CPU time 315 s at -O2 -g and 97 s at
     -O1 -g1, every C/C++ test passing under both). The static library only (DAMPNET_BUILD_SHARED=OFF:
-the shared one is the same sources, compiled a second time; the plain build's consumer runs it)."""
+    the shared one is the same sources compiled a second time; the plain build's consumer runs it)."""
     return cmake_build("asan", "DAMPNET_BUILD_TESTS=ON", "DAMPNET_SANITIZE=ON", "DAMPNET_BUILD_SHARED=OFF",
                        "CMAKE_BUILD_TYPE=RelWithDebInfo", "CMAKE_C_FLAGS_RELWITHDEBINFO=-O1 -g1 -DNDEBUG",
                        "CMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1 -DNDEBUG")

@@ -106,7 +106,7 @@ def test_the_study_command_runs_it_prints_the_tables_and_draws_the_figure(tmp_pa
     capsys.readouterr()
     assert "control" not in json.loads((out / "study.json").read_text())
     assert not (out / "control_vs_ideal.png").exists()
-    for argv, expect in ((["default", "--control", "--control-classes", "Z"], "--control-classes: unknown ISO 8608 class 'Z'"),
+    for argv, expect in ((["default", "--control", "--control-classes", "Z"], "--control-classes: ISO 8608 class must be one of A-H, got 'Z'"),
                          (["default", "--control-speeds", "80"], "--control-speeds sets the control study's roads: give --control"),
                          (["default", "--control", "--control-speeds", "-5"], "--control-speeds"),
                          (["linear:1800", "--control"], "linear:1800: the control study tracks forces through the damper's inverse")):

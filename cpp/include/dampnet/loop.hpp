@@ -573,6 +573,7 @@ DN_LOOP_START_INLINE inline Start start(const LoopModel& m, const real* s, real 
   }
   return r;
 }
+#undef DN_LOOP_START_INLINE
 
 }  // namespace detail
 

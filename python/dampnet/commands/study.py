@@ -48,10 +48,10 @@ def run(args) -> int:
     try:
         limits.check_number("--dt", args.dt, limits.STEP_S)
         limits.check_seed("--seed", args.seed)
-        _check_control(args)
+        classes = _control_classes(args)
         study.check(args.out, (args.model, args.data), args.force)
         res = study.run(args.model, args.data, dt=args.dt, seed=args.seed, quick=args.quick, vehicle=args.vehicle,
-                        control=args.control, control_classes=args.control_classes,
+                        control=args.control, control_classes=classes,
                         control_speeds=args.control_speeds, keep_runs=not args.no_plots,
                         progress=lambda s: print(f"  {s}", file=sys.stderr))
     except (ValueError, OSError) as e:
@@ -67,19 +67,23 @@ def run(args) -> int:
     return 0
 
 
-def _check_control(args) -> None:
-    """--control-classes and --control-speeds: only with --control, each a known ISO 8608 class
-    and a speed in the simulation's range; ValueError naming the option."""
+def _control_classes(args) -> list[str] | None:
+    """--control-classes and --control-speeds: only with --control, each class one the road registry
+    builds (dampnet.sim.roads.iso_class_bounds checks it) and each speed in the simulation's range;
+    the classes in capitals, or None (the study's default). ValueError naming the option."""
     from dampnet.sim import limits
-    from dampnet.sim.roads import ISO_CLASSES
+    from dampnet.sim.roads import RoadError, iso_class_bounds
 
     for opt, given in (("--control-classes", args.control_classes), ("--control-speeds", args.control_speeds)):
         if given is not None and not args.control:
             raise ValueError(f"{opt} sets the control study's roads: give --control too")
-    if args.control_classes:
-        for c in args.control_classes:
-            if c.strip().upper() not in ISO_CLASSES:
-                raise ValueError(f"--control-classes: unknown ISO 8608 class {c!r}; known: {', '.join(ISO_CLASSES)}")
-        args.control_classes = [c.strip().upper() for c in args.control_classes]
     for s in args.control_speeds or ():
         limits.check_number("--control-speeds", s, limits.SPEED_KMH)
+    if not args.control_classes:
+        return None
+    try:
+        for c in args.control_classes:
+            iso_class_bounds(c)
+    except RoadError as e:
+        raise ValueError(f"--control-classes: {e}") from None
+    return [c.strip().upper() for c in args.control_classes]

@@ -230,11 +230,11 @@ def check_spec(spec, label: str | None = None) -> None:
 
 
 def run(spec, classes=ROAD_CLASSES, speeds=SPEEDS_KMH, *, full_car: bool = True, seed: int = 0,
-        progress: Callable[[str], None] | None = None) -> dict:
-    """The study of the damper `spec` (dampnet.sim.dampers.DamperSpec): {"model": its name,
-    "quarter_car": {"B_40": case, ...}, "full_car": {"B_40": rows, ...}}."""
-    check_spec(spec)
-    out: dict = {"model": spec.name, "quarter_car": {}, "full_car": {}}
+        label: str | None = None, progress: Callable[[str], None] | None = None) -> dict:
+    """The study of the damper `spec` (dampnet.sim.dampers.DamperSpec): {"model": `label` (default
+    the spec's name), "quarter_car": {"B_40": case, ...}, "full_car": {"B_40": rows, ...}}."""
+    check_spec(spec, label)
+    out: dict = {"model": label or spec.name, "quarter_car": {}, "full_car": {}}
     for c in classes:
         for s in speeds:
             key = f"{c}_{s:g}"

@@ -84,8 +84,7 @@ def run(model: str, data: str | None = None, *, dt: float = 1e-3, seed: int = 0,
                                                "speeds": control_study.SPEEDS_KMH}
         ctrl = control_study.run(specs[0], tuple(control_classes or default["classes"]),
                                  tuple(control_speeds or default["speeds"]), seed=seed,
-                                 progress=lambda s: say(f"control {s}"))
-        ctrl["model"] = str(model)   # as the user named it (the spec's name is its kind: "neural")
+                                 label=str(model), progress=lambda s: say(f"control {s}"))
     return {"quarter_car": res, "vehicle": full, "control": ctrl}
 
 
