@@ -22,8 +22,7 @@ namespace dnpy {
 
 namespace {
 
-// dn_loop_out's scalar quantities, then the three other keys.
-constexpr std::size_t kNumQuantities = kNumOutQuantities;
+// dn_loop_out's scalar quantities (kNumOutQuantities), then the three other keys.
 #define DNPY_OUT_NAME_(name, doc) #name,
 const char* const kStepKeys[] = {DN_LOOP_OUT_LIST(DNPY_OUT_NAME_) "features", "clamped_mask", "status"};
 #undef DNPY_OUT_NAME_
@@ -35,9 +34,9 @@ const char* const kStepDocs[] = {
     "neural: bit i set when input i was clamped or replaced [-]",
     "the step's status: DN_OK, or an OR of DN_W_* warnings [-]"};
 #undef DNPY_OUT_DOC_
-constexpr std::size_t kFeatures = kNumQuantities, kClampedMask = kNumQuantities + 1,
-                      kStatus = kNumQuantities + 2;
-static_assert(std::size(kStepKeys) == kNumQuantities + 3, "every key has a getter");
+constexpr std::size_t kFeatures = kNumOutQuantities, kClampedMask = kNumOutQuantities + 1,
+                      kStatus = kNumOutQuantities + 2;
+static_assert(std::size(kStepKeys) == kNumOutQuantities + 3, "every key has a getter");
 static_assert(std::size(kStepDocs) == std::size(kStepKeys), "every key has a doc");
 
 py::array_t<double> features_of(const dn_loop_out& o) {
@@ -48,7 +47,7 @@ py::array_t<double> features_of(const dn_loop_out& o) {
 
 // The value under key number i (kStepKeys).
 py::object value_at(const StepReport& r, std::size_t i) {
-  if (i < kNumQuantities) return py::float_(r.o.*kOutQuantities[i]);
+  if (i < kNumOutQuantities) return py::float_(r.o.*kOutQuantities[i]);
   if (i == kFeatures) return features_of(r.o);
   if (i == kClampedMask) return py::int_(r.o.clamped_mask);
   return py::int_(r.status);
@@ -191,7 +190,7 @@ void bind_step_report(py::module_& mod) {
   method("__repr__", py::cpp_function([](py::handle self) {
            const StepReport& r = report_of(self);
            std::string s = "StepReport(";
-           for (std::size_t i = 0; i < kNumQuantities; ++i)
+           for (std::size_t i = 0; i < kNumOutQuantities; ++i)
              s += std::string(kStepKeys[i]) + "=" + py::repr(value_at(r, i)).cast<std::string>() + ", ";
            return s + "status=" + std::to_string(r.status) + ")";
          }));

@@ -118,15 +118,17 @@ def copy_tree(dest: Path) -> Path:
 def build_core(copy: Path, log: Path) -> Path:
     """The copy's dampnet._core, built by its own CMakeLists from its own headers (the module's
     options as pyproject.toml's [tool.scikit-build.cmake.define]; -O0: the copy's tests check
-    registries and results, not speed, and an optimised build of the module takes a minute more),
-    placed into the copy's python/dampnet; returns the module's path."""
+    registries and results, not speed, and an optimised build of the module takes a minute more;
+    a unity build: each target's sources compiled as one, pybind11's headers parsed once, 22 s of
+    CPU against 60 s), placed into the copy's python/dampnet; returns the module's path."""
     import pybind11
 
     bdir = copy / "build" / "core"
     so_name = "_core" + sysconfig.get_config_var("EXT_SUFFIX")
     cmd = ["cmake", "-S", str(copy), "-B", str(bdir), "-DDAMPNET_BUILD_PYTHON=ON", "-DDAMPNET_BUILD_TESTS=OFF",
            "-DBUILD_SHARED_LIBS=OFF", "-DDAMPNET_MAX_HIDDEN=384", "-DCMAKE_BUILD_TYPE=Debug",
-           "-DCMAKE_C_FLAGS_DEBUG=-O0", "-DCMAKE_CXX_FLAGS_DEBUG=-O0", f"-Dpybind11_DIR={pybind11.get_cmake_dir()}",
+           "-DCMAKE_C_FLAGS_DEBUG=-O0", "-DCMAKE_CXX_FLAGS_DEBUG=-O0", "-DCMAKE_UNITY_BUILD=ON",
+           f"-Dpybind11_DIR={pybind11.get_cmake_dir()}",
            f"-DPython_EXECUTABLE={sys.executable}"]
     with open(log, "w") as out:
         for step in (cmd, ["cmake", "--build", str(bdir), "--target", "_core", "--parallel", "2"]):

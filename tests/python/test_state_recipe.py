@@ -34,8 +34,8 @@ folds the mapminmax scalings into the weights: a different rounding order, ~1e-1
 exchange 1e-9 (RK4 at h = dt / 10 = tau / 200: global error ~ (h / tau)^4 ~ 6e-10), firmware
 dampnet.export.mcu.HOST_TOLERANCE = 1e-4 of each state's peak (float loop; test_embedded's).
 Everything goes to build/tests-recipe/ (the copy, its module's and the firmware's builds, cached
-there between runs: only what changed is rebuilt). Cost: about 3 min of CPU from nothing (the
-module's build about 1.5 min of it, the copy's tests 30 s), 20 s when cached."""
+there between runs: only what changed is rebuilt). Cost: about 2 min of CPU from nothing (the
+module's unity build about 25 s of it, the copy's tests 30 s), 20 s when cached."""
 
 from __future__ import annotations
 
@@ -188,11 +188,11 @@ def copy_env(tree) -> recipe_tree.CopyEnv:
 
 
 @pytest.mark.slow(reason="the recipe's rebuild is part of the recipe: the copy's dampnet._core built from its edited "
-                         "header (about 70 s of CPU at -O0, cached between runs) and the copy's registry tests (40 s)")
+                         "header (about 25 s of CPU at -O0 as a unity build, cached between runs) and the copy's registry tests (40 s)")
 def test_the_copy_knows_the_feature_and_passes_its_registry_tests(copy_env):
     """The recipe's rebuild gives the copy's _core the feature, its parameter, field and state;
     its stub check fails naming the command the recipe gives; after that command, the copy's
-    registry tests pass. Cost: the module's build (about 1.5 min of CPU, cached after) and 30 s."""
+    registry tests pass. Cost: the module's build (about 25 s of CPU, cached after) and 30 s."""
     proc = copy_env.run("-c", "from dampnet import _core, features; import json; print(json.dumps(["
                         "_core.FEATURE_INPUTS.get('displacement_lag'), _core.FEATURE_PARAMS.get('displacement_lag'),"
                         "list(_core.DAMPER_STATES)[-1], list(_core.DAMPER_INPUT_FIELDS)[-1], "
