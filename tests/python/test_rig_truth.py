@@ -171,3 +171,57 @@ def test_a_plan_file_with_steps_and_random_excitation(tmp_path):
 
     d = moving_average(np.gradient(r.channels["displacement"], r.time), 51)
     assert np.corrcoef(d, r.channels["velocity"])[0, 1] > 0.99
+
+
+def _bits(a):
+    return np.asarray(a, dtype=np.float64).view(np.int64)
+
+
+@pytest.mark.parametrize("effects", [[]] + [[name] for name in EFFECTS] + [list(EFFECTS)],
+                         ids=lambda e: "+".join(e) or "none")
+def test_stepwise_float_path_gives_the_context_path_bit_for_bit(effects):
+    """TruthDamper.step's float path (effects' prepare_1 / force_1) against its Context path
+    (1-element arrays, prepare_step / force_step): the same force, bit for bit, over random
+    inputs: velocities through zero and the shims' crack, voltages on and between Table 2's
+    breakpoints and outside it, temperatures given or not, every effect of the registry."""
+    rng = np.random.default_rng(7)
+    n = 4000
+    x = rng.uniform(-0.03, 0.03, n)
+    x[::50] = -(P.stroke_m / 2 - 0.004)                          # in the bump stop's travel
+    v = rng.normal(0, 0.4, n) * rng.choice([1e-3, 1.0], n)
+    v[::37] = 0.0
+    volts = np.array(P.controller_voltage_v)
+    u = np.where(rng.random(n) < 0.3, rng.choice(volts, n), rng.uniform(-1.0, 6.0, n))
+    temp = rng.uniform(10, 90, n)
+    for dt, temperature in ((2e-4, temp), (1e-3, None)):
+        fast, slow = TruthDamper(effects=effects), TruthDamper(effects=effects)
+        slow._floats = False
+        assert fast._floats
+        for k in range(n):
+            t = None if temperature is None else temperature[k]
+            a, b = fast.step(dt, x[k], v[k], u[k], t), slow.step(dt, x[k], v[k], u[k], t)
+            assert type(a) is float and _bits(a) == _bits(b), (k, a, b)
+
+
+def test_controller_current_of_one_float_is_np_interp_bit_for_bit():
+    from dampnet.rig.truth import _controller_current_1
+    rng = np.random.default_rng(3)
+    volts = np.array(P.controller_voltage_v)
+    xs = np.concatenate([volts, np.nextafter(volts, -np.inf), np.nextafter(volts, np.inf),
+                         rng.uniform(-1, 6, 20000), [np.nan, -np.inf, np.inf, -0.0]])
+    xp, fp = tuple(P.controller_voltage_v), tuple(P.controller_current_a)
+    got = np.array([_controller_current_1(float(a), xp, fp) for a in xs])
+    np.testing.assert_array_equal(_bits(got), _bits(controller_current(xs, P)))
+
+
+def test_an_effect_without_float_forms_takes_the_context_path():
+    from dampnet.rig.effects import GasSpring
+
+    class Doubled(GasSpring):          # writes a force law, not its float form
+        def force(self, ctx):
+            return 2.0 * super().force(ctx)
+
+    d = TruthDamper(effects=[Doubled()])
+    assert not d._floats
+    ref = truth_force(np.array([0.01]), np.array([0.2]), np.array([2.0]), dt=1e-3, effects=[Doubled()])
+    assert d.step(1e-3, 0.01, 0.2, 2.0) == pytest.approx(ref[0], rel=1e-12)

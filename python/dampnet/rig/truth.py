@@ -63,6 +63,7 @@ and reproduces it sample for sample.
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import asdict, dataclass
 
@@ -70,7 +71,7 @@ import numpy as np
 
 from dampnet.features import first_order_lag
 from dampnet.rig.context import Context
-from dampnet.rig.effects import get_effect
+from dampnet.rig.effects import Effect, get_effect
 
 PSI = 6894.757293168
 INCH = 0.0254
@@ -200,14 +201,37 @@ def hydraulic_force(v_h, opening, temperature_c, p: TruthParams) -> np.ndarray:
     return np.sign(v_h) * (dp + dp_lam) * p.annulus_area_m2
 
 
-def _hydraulic_force_1(v_h: float, opening: float, temperature_c: float, p: TruthParams) -> float:
+def _controller_current_1(voltage: float, xp: tuple, fp: tuple) -> float:
+    """controller_current of one float (np.interp with xp, fp as floats), bit for bit: numpy's C
+    loop (compiled_base.c, arr_interp) for one point, without numpy's per-call cost."""
+    if voltage != voltage:
+        return voltage
+    j = bisect.bisect_right(xp, voltage) - 1       # xp[j] <= voltage < xp[j + 1]
+    if j < 0:
+        return fp[0]
+    if j >= len(xp) - 1:
+        return fp[-1]
+    if xp[j] == voltage:
+        return fp[j]
+    slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])
+    out = slope * (voltage - xp[j]) + fp[j]
+    if out != out:                                 # as numpy: nan one way, try the other
+        out = slope * (voltage - xp[j + 1]) + fp[j + 1]
+        if out != out and fp[j] == fp[j + 1]:
+            out = fp[j]
+    return out
+
+
+def _hydraulic_force_1(v_h: float, opening: float, temperature_c: float, p: TruthParams,
+                       viscosity: float | None = None) -> float:
     """hydraulic_force (with orifice_pressure's Newton) for one sample, in Python floats.
 
     TruthDamper.step's path: a loop calls it once per corner per step, where numpy's per-call
     overhead on 1-element arrays was 170 us a step (60 s of a full-car study); the step is about 7
     times faster (bench/experiments/truth_step.py). The same law and the same iteration as the
     vectorised form (orifice_pressure's Newton is the one part written twice: masked arrays there,
-    one float here), which tests/python/test_rig_truth.py holds it to (rtol 1e-9)."""
+    one float here), which tests/python/test_rig_truth.py holds it to (rtol 1e-9).
+    viscosity: viscosity_ratio(temperature_c, p) if the caller has it."""
     reb = v_h >= 0
     q = p.annulus_area_m2 * abs(v_h)
     a0 = (p.bleed_area_rebound_m2 if reb else p.bleed_area_compression_m2) + opening * p.bypass_area_max_m2
@@ -225,7 +249,9 @@ def _hydraulic_force_1(v_h: float, opening: float, temperature_c: float, p: Trut
             s -= step
             if abs(step) <= 1e-12 * s:
                 break
-    dp_lam = p.laminar_resistance_pa_s_m3 * float(viscosity_ratio(temperature_c, p)) * q
+    if viscosity is None:
+        viscosity = float(viscosity_ratio(temperature_c, p))
+    dp_lam = p.laminar_resistance_pa_s_m3 * viscosity * q
     return math.copysign(1.0, v_h) * (s * s + dp_lam) * p.annulus_area_m2 if v_h != 0 else 0.0
 
 
@@ -278,6 +304,16 @@ def truth_force(displacement, velocity, voltage, temperature=None, *, dt: float,
     return (f, ctx.parts) if return_parts else f
 
 
+_LAW = ("prepare", "prepare_step", "force", "force_step")
+
+
+def _one_sample(effect: Effect) -> bool:
+    """Whether TruthDamper.step may run `effect` by its float forms (prepare_1, force_1): every
+    class of it that writes a force law says it wrote them too (one_sample = True in its body)."""
+    return all(vars(k).get("one_sample", False) for k in type(effect).__mro__
+               if k is not Effect and any(name in vars(k) for name in _LAW))
+
+
 class TruthDamper:
     """The truth damper, one sample at a time, for a loop (a quarter-car model).
 
@@ -293,9 +329,54 @@ class TruthDamper:
     def reset(self) -> None:
         self._v_h = None
         self._states = {e.name: None for e in self.effects}
+        self._floats = all(_one_sample(e) for e in self.effects)   # step's float path
+        self._table = None          # (voltage, current tuples as given, as floats)
+        self._viscosity = None      # (temperature [degC], viscosity_ratio there)
 
     def step(self, dt: float, x: float, v: float, voltage: float, temperature: float | None = None) -> float:
         """Force [N] at displacement x [m], velocity v [m/s], control voltage [V], temperature [degC]."""
+        if self._floats:
+            return self._step_floats(dt, x, v, voltage, temperature)
+        return self._step_context(dt, x, v, voltage, temperature)
+
+    def _step_floats(self, dt, x, v, voltage, temperature) -> float:
+        """step in Python floats (numpy's ufuncs only where math's differ: tanh, exp, power):
+        bit for bit _step_context's force, 5-7 times faster (tests/python/test_rig_truth.py)."""
+        p = self.params
+        dt, x, v = float(dt), float(x), float(v)
+        temp = p.temperature_ref_c if temperature is None else float(temperature)
+        table = self._table
+        if table is None or table[0] is not p.controller_voltage_v or table[1] is not p.controller_current_a:
+            table = (p.controller_voltage_v, p.controller_current_a,
+                     tuple(float(a) for a in np.asarray(p.controller_voltage_v, dtype=np.float64)),
+                     tuple(float(a) for a in np.asarray(p.controller_current_a, dtype=np.float64)))
+            if isinstance(p.controller_voltage_v, tuple) and isinstance(p.controller_current_a, tuple):
+                self._table = table               # lists may change in place: converted each step
+        current = _controller_current_1(float(voltage), table[2], table[3])
+        u = (current - p.valve_crack_current_a) / (p.valve_full_current_a - p.valve_crack_current_a)
+        opening = min(max(u, 0.0), 1.0) if u == u else u
+        states = self._states
+        effects = self.effects
+        for e in effects:
+            opening, states[e.name] = e.prepare_1(p, dt, x, v, opening, states[e.name])
+        if self._v_h is None or p.compressibility_tau_s <= 0:
+            self._v_h = v
+        else:
+            a = math.exp(-dt / p.compressibility_tau_s)
+            self._v_h = a * self._v_h + (1.0 - a) * v
+        visc = self._viscosity
+        if visc is None or visc[0] != temp:
+            visc = self._viscosity = (temp, float(viscosity_ratio(temp, p)))
+        f = (_hydraulic_force_1(self._v_h, opening, temp, p, visc[1])
+             + float(seal_friction(v, p)) + gas_preload(p))
+        for e in effects:
+            fe, states[e.name] = e.force_1(p, dt, x, v, states[e.name])
+            if fe is not None:
+                f += fe
+        return f
+
+    def _step_context(self, dt, x, v, voltage, temperature) -> float:
+        """step through a Context of 1-element arrays and the effects' prepare_step / force_step."""
         p = self.params
         temp = p.temperature_ref_c if temperature is None else float(temperature)
         current = float(controller_current(voltage, p))
