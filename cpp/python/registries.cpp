@@ -141,6 +141,8 @@ void bind_registries(py::module_& mod) {
   mod.attr("MAX_HIDDEN2") = DN_MAX_HIDDEN2;  // hidden layer 2
   mod.attr("MAX_HIDDEN_DEFAULT") = DN_MAX_HIDDEN_DEFAULT;  // layer 1 in a build that does not raise it
   mod.attr("DN_ACCEL_MAX_EVALS") = DN_ACCEL_MAX_EVALS;
+  mod.attr("DN_INVERSE_MAX_ITERS") = DN_INVERSE_MAX_ITERS;  // Damper.inverse: its bound and tolerance
+  mod.attr("DN_INVERSE_TOL_REL") = double(DN_INVERSE_TOL_REL);
   {  // the physical bounds of a step's state and the step's stability limits (dampnet.h)
     py::dict bounds;
 #define DNPY_PLAUSIBLE_(name, doc) bounds[#name] = py::make_tuple(double(name), doc);

@@ -31,6 +31,10 @@ MAX_HIDDEN: Final[int]
 MAX_HIDDEN2: Final[int]
 MAX_HIDDEN_DEFAULT: Final[int]
 DN_ACCEL_MAX_EVALS: Final[int]
+#: Damper.inverse: at most this many evaluations after the two at the control limits
+DN_INVERSE_MAX_ITERS: Final[int]
+#: Damper.inverse: the control is found to within this share of the control range
+DN_INVERSE_TOL_REL: Final[float]
 #: dampnet.h DN_PLAUSIBLE_LIST: {name: (bound [SI unit], doc)}; a step beyond one is DN_E_DIVERGED
 PLAUSIBLE_BOUNDS: Final[dict[str, tuple[float, str]]]
 #: dampnet.h DN_STABLE_WDT_*: {integrator: largest dt w_hop}, checked when a model is created

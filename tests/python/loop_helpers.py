@@ -1,4 +1,5 @@
-"""Shared pieces of the loop tests: random MLP models and a numpy forward pass."""
+"""Shared pieces of the loop tests: random MLP models, a numpy forward pass and the damper
+inverse's allowed force residual."""
 
 from __future__ import annotations
 
@@ -57,3 +58,17 @@ def numpy_forward(model: MlpModel, x: np.ndarray) -> np.ndarray:
     """The MLP in numpy, float64 (dampnet.reference, checked against torch and the kernel in
     tests/python/test_reference_forward.py); rows [n, n_inputs] -> force [n] [N]."""
     return mlp_forward(model, np.atleast_2d(x))
+
+
+def inverse_allowance(damper, u: np.ndarray, motion: dict) -> np.ndarray:
+    """The force residual [N] Damper.inverse's contract allows at its control u [n] (dn_types.h):
+    the control within DN_INVERSE_TOL_REL of the control range of the root, so its force within
+    that times |dF/du| of the demand; dF/du a central difference over 1e-6 of the range through
+    Damper.forces at the motion (arrays [n] or scalars: every quantity but u)."""
+    from dampnet import _core
+
+    lo, hi = damper.control_range()
+    u = np.asarray(u, dtype=float)
+    up, dn = np.minimum(u + 1e-6 * (hi - lo), hi), np.maximum(u - 1e-6 * (hi - lo), lo)
+    slope = np.abs(damper.forces(u=up, **motion)[0] - damper.forces(u=dn, **motion)[0]) / (up - dn)
+    return _core.DN_INVERSE_TOL_REL * (hi - lo) * slope

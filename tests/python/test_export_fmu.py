@@ -27,7 +27,7 @@ from dampnet.export.fmu import FmuError, build_damper_fmu, build_fmu
 from dampnet.modeldir import default_model, save_model_dir
 from dampnet.rig import generate
 from dampnet.sim.quarter_car.loop import damper_from_model
-from loop_helpers import random_model
+from loop_helpers import inverse_allowance, random_model
 
 HYBRID_FEATURES = ["velocity", "acceleration", "voltage_lag", "velocity_lag", "friction_state", "displacement"]
 HYBRID_PARAMS = {"control_lag_tau_s": 0.004, "velocity_lag_tau_s": 0.002, "friction_presliding_m": 0.0005}
@@ -495,8 +495,8 @@ def test_the_inverse_equals_the_hosts(default_fmus, fmi):
     velocities beyond the training range: DN_W_SATURATED; demands inside [F(u_min), F(u_max)],
     on its ends, 200 N outside it: DN_W_UNREACHABLE, and +-Inf) gives the host's Damper.inverse:
     u_command to 1e-9 of the control range, inverse_status equal, force_at_command the host's
-    force to 1e-9 N; the u input set to u_command gives the demanded force to 1e-6 relative
-    where it is reachable, and force_at_command everywhere, and leaves u_command as it was. The
+    force to 1e-9 N; the u input set to u_command gives the demanded force where it is reachable
+    (to the inverse's tolerance: its control within DN_INVERSE_TOL_REL of the range), and force_at_command everywhere, and leaves u_command as it was. The
     description documents the status codes the inverse gives and declares the inverse's outputs
     independent of u (ModelStructure dependencies: wiring u_command into u is no algebraic
     loop). About 0.1 s (the FMU: the module's default_fmus)."""
@@ -522,7 +522,10 @@ def test_the_inverse_equals_the_hosts(default_fmus, fmi):
     assert 0.5 < reach.mean() < 0.9 and np.any(st == _core.DN_W_SATURATED), reach.mean()
     assert np.any(st == _core.DN_W_SATURATED | _core.DN_W_UNREACHABLE) and set(np.unique(st)) <= {0, 1, 16, 17}
     assert np.all(u >= lo) and np.all(u <= hi) and np.all(np.isin(u[~reach], [lo, hi]))
-    np.testing.assert_allclose(f_at_u[reach], demand[reach], rtol=1e-6, atol=1e-6)
+    # the inverse's contract: the control within DN_INVERSE_TOL_REL of the range of the root
+    allow = inverse_allowance(damper, u[reach], {"x": x[reach], "v": v[reach], "a": a[reach], "u_lag": 0.0,
+                                                 "temperature": temp[reach]})
+    assert np.all(np.abs(f_at_u[reach] - demand[reach]) <= 1.01 * allow + 1e-9)
     np.testing.assert_allclose(f_at_u, f_cmd, rtol=0, atol=1e-9)
     md = read_model_description(str(default_fmus[fmi]))
     doc = next(sv for sv in md.modelVariables if sv.name == "inverse_status").description

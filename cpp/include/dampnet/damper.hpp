@@ -516,7 +516,9 @@ class Damper {
   //    steps (dF/du analytic for a neural damper, the bracket's secant for the others): a step
   //    that leaves the bracket, or one that is not under half the last step while the bracket
   //    has not halved in two steps, is a bisection. At most DN_INVERSE_MAX_ITERS evaluations;
-  //    it stops once the bracket or a step is below DN_INVERSE_TOL_REL * (u_max - u_min). The evaluated control with
+  //    it stops once the bracket, a step or the Newton step the last evaluation asks for is
+  //    below DN_INVERSE_TOL_REL * (u_max - u_min), or |F - demand| is within the force's
+  //    rounding (dn_types.h). The evaluated control with
   //    the smallest |F - demand| is returned. A model not monotone in u still gets one of the
   //    controls at which F = demand (or a limit when the demand is outside the limits' forces).
   //  - errors: DN_E_MISMATCH (control_range), DN_E_NONFINITE_INPUT (a NaN demand or a
@@ -561,6 +563,12 @@ class Damper {
       return (take_lo ? ga : gb) == 0 ? st : (st | DN_W_UNREACHABLE);
     }
     const real tol = real(DN_INVERSE_TOL_REL) * (hi - lo);
+    // The force's own rounding: a float kernel's sum is exact to a few float ulps of the force
+    // scale, so a residual below that says nothing more about u (Newton would only wander).
+    const real eps = kind == DN_DAMPER_NEURAL && precision == DN_PRECISION_FLOAT
+                         ? real(std::numeric_limits<float>::epsilon())
+                         : std::numeric_limits<real>::epsilon();
+    const real noise = 8 * eps * (std::fabs(f_lo) > std::fabs(f_hi) ? std::fabs(f_lo) : std::fabs(f_hi));
     real best_u = std::fabs(ga) <= std::fabs(gb) ? a : b;
     real best_f = std::fabs(ga) <= std::fabs(gb) ? f_lo : f_hi;
     real best_g = std::fabs(ga) <= std::fabs(gb) ? ga : gb;
@@ -579,7 +587,7 @@ class Damper {
       st |= sx;
       const real g = fx - demand;
       if (std::fabs(g) < std::fabs(best_g)) best_u = x, best_f = fx, best_g = g;
-      if (g == 0 || std::fabs(step) <= tol) {
+      if (std::fabs(g) <= noise || std::fabs(step) <= tol) {
         ++k;
         break;
       }
@@ -591,6 +599,12 @@ class Damper {
       }
       const real slope = std::isfinite(dx) && dx != 0 ? dx : (gb - ga) / (b - a);
       real xn = x - g / slope;
+      // The root is within the step Newton asks for (inside the bracket, converging): x is
+      // within tol of it; no evaluation more to confirm.
+      if (std::isfinite(dx) && std::fabs(xn - x) <= tol && xn > a && xn < b) {
+        ++k;
+        break;
+      }
       // Newton while it stays inside and either its step is under half the last one (it is
       // converging) or the bracket has halved in two steps; else bisect.
       const bool newton = xn > a && xn < b &&

@@ -229,8 +229,9 @@ DN_API int dn_damper_control_range(const dn_damper* d, dn_real* u_min, dn_real* 
  * change of F(u) - force_demand is narrowed by safeguarded Newton steps (dF/du analytic for a
  * neural damper, the bracket's secant for the others; bisection when a step leaves the bracket,
  * or is not under half the previous step while the bracket has not halved in two steps): at
- * most DN_INVERSE_MAX_ITERS more evaluations, stopping once the bracket or a step is below
- * DN_INVERSE_TOL_REL of the control range;
+ * most DN_INVERSE_MAX_ITERS more evaluations, stopping once the bracket, a step or the Newton
+ * step the last evaluation asks for is below DN_INVERSE_TOL_REL of the control range, or the
+ * force equals the demand to its rounding (dn_types.h);
  * the evaluated control with the smallest |F - force_demand| is returned. A model that is not
  * monotone in u still gets a control giving the demand (one of them), or the nearer limit.
  * Errors (*u the centre of the range, 0 without one; *force = 0): DN_E_MISMATCH (no control

@@ -182,7 +182,11 @@ typedef dn_real (*dn_damper_fn)(void* user, const dn_damper_input* in);
 
 /* The inverse (dn_damper_inverse): at most DN_INVERSE_MAX_ITERS force evaluations after the two
  * at the control limits; it stops once the bracket around the control is narrower than
- * DN_INVERSE_TOL_REL times the control range (u_max - u_min), or a step is. */
+ * DN_INVERSE_TOL_REL times the control range (u_max - u_min), or a step is, or the Newton step
+ * the last evaluation asks for is (the control is then within that of the root: the force
+ * within DN_INVERSE_TOL_REL * (u_max - u_min) * |dF/du| of the demand), or the force equals
+ * the demand to its own rounding (8 epsilons of the larger limit force: float's for a float
+ * model). */
 #define DN_INVERSE_MAX_ITERS 44
 #define DN_INVERSE_TOL_REL 1e-6
 
