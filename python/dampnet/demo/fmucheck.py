@@ -147,6 +147,7 @@ def plot(sig: dict, f_loop: np.ndarray, f_fmu: np.ndarray, diff: np.ndarray, pat
     ax[1].set_ylabel("FMU - runtime [N]")
     ax[1].set_xlabel("time [s]")
     fig.tight_layout()
+    fig.set_layout_engine(None)   # else savefig lays the figure out again: a second draw
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -85,5 +85,6 @@ def plot_coverage(model, runs: Mapping[str, np.ndarray], path, envelope=None, ti
     note = "" if envelope is not None else " (no envelope file: training ranges only)"
     fig.suptitle((title or "coverage") + note + "; dots on a run: outside the envelope", fontsize=9)
     fig.tight_layout()
+    fig.set_layout_engine(None)   # else savefig lays the figure out again: a second draw
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -32,6 +32,9 @@ def _save(fig, path, tight: bool = True) -> Path:
     p.parent.mkdir(parents=True, exist_ok=True)
     if tight:   # not for a figure made with layout="constrained" (a colorbar shared by several axes)
         fig.tight_layout()
+        # tight_layout leaves a placeholder layout engine, and savefig draws a figure with an
+        # engine twice (once to lay it out): the same pixels in one draw without it
+        fig.set_layout_engine(None)
     fig.savefig(p, dpi=DPI)
     plt.close(fig)
     return p

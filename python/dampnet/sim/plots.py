@@ -30,6 +30,7 @@ def plot_run(run: dict, path, title: str = "") -> None:
     ax[3].set_xlabel("time [s]")
     fig.suptitle(title or run.get("damper", ""))
     fig.tight_layout()
+    fig.set_layout_engine(None)   # else savefig lays the figure out again: a second draw
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
@@ -45,6 +46,7 @@ def plot_overlay(runs: dict, path, title: str, key: str = "acc_s", ylabel: str =
     ax.set_title(title)
     ax.legend()
     fig.tight_layout()
+    fig.set_layout_engine(None)   # else savefig lays the figure out again: a second draw
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
@@ -62,6 +64,7 @@ def plot_transmissibility(runs: dict, path, title: str = "Transmissibility z_s /
     ax.grid(True, which="both", lw=0.3)
     ax.legend()
     fig.tight_layout()
+    fig.set_layout_engine(None)   # else savefig lays the figure out again: a second draw
     fig.savefig(path, dpi=110)
     plt.close(fig)
 

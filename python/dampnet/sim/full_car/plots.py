@@ -85,6 +85,7 @@ def plot_bsst(runs: dict, path: str | Path, title: str = "Bounce sine sweep") ->
     ax[2].legend(fontsize=7, loc="upper right")
     fig.suptitle(title)
     fig.tight_layout()
+    fig.set_layout_engine(None)   # else savefig lays the figure out again: a second draw
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
@@ -188,6 +189,7 @@ def plot_dlc(runs: dict, path: str | Path, title: str = "ISO 3888-1 double lane 
     axes[-1].set_xlabel("time [s]")
     fig.suptitle(title)
     fig.tight_layout()
+    fig.set_layout_engine(None)   # else savefig lays the figure out again: a second draw
     fig.savefig(path, dpi=100)
     plt.close(fig)
 
@@ -208,5 +210,6 @@ def plot_road(runs: dict, path: str | Path, title: str = "Rough road") -> None:
         x.grid(alpha=0.3)
     fig.suptitle(title)
     fig.tight_layout()
+    fig.set_layout_engine(None)   # else savefig lays the figure out again: a second draw
     fig.savefig(path, dpi=110)
     plt.close(fig)
