@@ -11,7 +11,7 @@ import pytest
 
 from dampnet.data import DynoTest
 from dampnet.envelope import build_envelope
-from dampnet.envelope.coverage import coverage, outside_steps
+from dampnet.envelope.coverage import coverage, outside_shares, outside_steps
 from dampnet.evaluation.regions import REST_MIN_S, at_rest_mask, region_errors, summary_lines
 from dampnet.modeldir import default_model
 from dampnet.predict import predict_force
@@ -101,6 +101,10 @@ def test_outside_the_envelope_is_coverages_outside_step_by_step():
         cov = coverage(model, X, env, dt=DT)
         assert 0.05 < out.mean() < 0.95 and out[:5].all()
         assert out.mean() == pytest.approx(cov["outside"]["share_steps"], abs=1e-12)
+        t = np.cumsum(rng.uniform(0.5, 1.5, len(X))) * DT    # unequal steps: time and steps differ
+        for kw in (dict(dt=DT), dict(t=t)):   # the full car's per-corner shares, exactly coverage's
+            assert outside_shares(model, X, env, **kw) == {k: coverage(model, X, env, **kw)["outside"][k]
+                                                           for k in ("share_steps", "share_time")}
         if env is not None:   # the bounded search (Envelope.far) is the nearest distance's test, row by row
             np.testing.assert_array_equal(env.far(X), ~(env.nearest(X)[0] <= env.threshold))
     test, _ = held_sine(rest_s=0.0, amp=0.2)          # ten times the stroke: beyond the training ranges

@@ -269,7 +269,7 @@ def outside_mask(model, envelope, X: np.ndarray) -> np.ndarray:
     """Rows of X outside the model's training envelope (a range, or the joint threshold)."""
     out = np.any((X < model.sat_lo) | (X > model.sat_hi), axis=1)
     if envelope is not None:
-        out |= envelope.distance(X) > envelope.threshold
+        out |= envelope.far(X)   # distance > threshold, the k-d tree stopping at the threshold
     return out & np.all(np.isfinite(X), axis=1)
 
 

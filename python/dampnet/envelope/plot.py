@@ -43,7 +43,7 @@ def outside_mask(model, X: np.ndarray, envelope=None) -> np.ndarray:
     X = np.asarray(X, dtype=np.float64)
     out = np.any((X < model.sat_lo) | (X > model.sat_hi) | ~np.isfinite(X), axis=1)
     if envelope is not None:
-        out |= envelope.distance(X) > envelope.threshold
+        out |= envelope.far(X)   # distance > threshold, the k-d tree stopping at the threshold
     return out
 
 

@@ -86,7 +86,7 @@ def run_coverage(spec: DamperSpec, arrays: dict) -> dict | None:
     time outside the envelope; None for other dampers."""
     if spec.kind not in ("neural", "hybrid"):
         return None
-    from dampnet.envelope.coverage import coverage, fullcar_inputs, step_durations
+    from dampnet.envelope.coverage import coverage, fullcar_inputs, outside_shares, step_durations
 
     env, note = spec.meta.get("envelope"), spec.meta.get("envelope_note")
     per = fullcar_inputs(spec.obj, arrays)
@@ -96,6 +96,5 @@ def run_coverage(spec: DamperSpec, arrays: dict) -> dict | None:
     cov["worst_excursion"]["corner"] = CORNERS[cov["worst_excursion"]["step"] // max(1, len(t))]
     cov["worst_excursion"]["step"] %= max(1, len(t))
     cov["worst_excursion"]["t_s"] = float(t[cov["worst_excursion"]["step"]]) if len(t) else None
-    cov["corners"] = {c: {k: v for k, v in coverage(spec.obj, X, env, t=t, note=note)["outside"].items()
-                          if k in ("share_steps", "share_time")} for c, X in zip(CORNERS, per)}
+    cov["corners"] = {c: outside_shares(spec.obj, X, env, t=t) for c, X in zip(CORNERS, per)}
     return cov
