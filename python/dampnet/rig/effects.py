@@ -24,7 +24,7 @@ rig="switchable"), subclass `Effect` with `name` = its id and decorate the class
 
 Stateless effects only need `force` (and/or `prepare`); the stepwise forms
 default to calling them on one sample. The float forms are optional: TruthDamper.step (a loop's
-callback, once per step) runs about 7 times faster when every effect has them, and they must
+callback, once per step) runs 3-5 times faster when every effect has them, and they must
 give its forces bit for bit (numpy's ufuncs for exp, power and tanh, not math's: these differ in
 the last bit).
 """

@@ -341,7 +341,8 @@ class TruthDamper:
 
     def _step_floats(self, dt, x, v, voltage, temperature) -> float:
         """step in Python floats (numpy's ufuncs only where math's differ: tanh, exp, power):
-        bit for bit _step_context's force, 5-7 times faster (tests/python/test_rig_truth.py)."""
+        bit for bit _step_context's force (tests/python/test_rig_truth.py), 3-5 times faster:
+        14 -> 4.6 us a call without effects, 20 -> 6.2 with the gas spring, 33 -> 6.2 with friction."""
         p = self.params
         dt, x, v = float(dt), float(x), float(v)
         temp = p.temperature_ref_c if temperature is None else float(temperature)
