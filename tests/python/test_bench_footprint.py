@@ -126,6 +126,25 @@ def test_the_full_car_step_fits_the_ceiling(dynamic):
     assert dynamic["within_ceiling"]
 
 
+QUARTER_HIL = "loop_step_rk4_per_step_eval_neural_float_skyhook_linear_accel"
+
+
+def test_the_quarter_car_hil_step_has_its_start_inlined():
+    """The quarter-car HIL step (the budget case: per-step evaluation, linearised acceleration,
+    on-off skyhook, float MLP) runs its step start inside dampnet::step: gcc stopped inlining
+    detail::start once it held the force laws' branch (1,017 instructions a step against 969, the
+    step 14 % slower: bench/RESULTS.md), hence its always_inline on the host and the force laws'
+    own out-of-line force_law_start, which an on-off law never calls. The functions the steps
+    execute are the step, the damper's evaluation and the kernel, and nothing else of the loop.
+    About 1 s (callgrind over 3 steps)."""
+    need_tool("valgrind")
+    r = footprint.measure_dynamic(configs=(QUARTER_HIL,), n_steps=3)["configs"][QUARTER_HIL]
+    names = [row["function"] for row in r["functions"]]
+    assert any(n.startswith("dampnet::step(dampnet::LoopModel const&") for n in names), names
+    assert not any("detail::start(" in n or "force_law_start(" in n for n in names), names
+    assert any("Damper::force_da(" in n for n in names) and any("forward<float" in n for n in names), names
+
+
 def test_dynamic_script_prints_the_table(tmp_path):
     need_tool("valgrind")
     out = tmp_path / "dyn.json"
