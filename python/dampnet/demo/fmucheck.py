@@ -15,6 +15,7 @@ from typing import Sequence
 
 import numpy as np
 
+from dampnet.figures import save_figure
 from dampnet.data import DynoTest
 
 #: |FMU - runtime| [N] allowed: both evaluate the same double-precision code, so rounding only
@@ -146,11 +147,8 @@ def plot(sig: dict, f_loop: np.ndarray, f_fmu: np.ndarray, diff: np.ndarray, pat
     ax[1].plot(t, diff, lw=0.8, color="#444")
     ax[1].set_ylabel("FMU - runtime [N]")
     ax[1].set_xlabel("time [s]")
-    fig.tight_layout()
-    fig.set_layout_engine(None)   # else savefig lays the figure out again: a second draw
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, 110)
 
 
 def check_fmu(model, tests: Sequence[DynoTest], out_fmu: Path, fig_path: Path,

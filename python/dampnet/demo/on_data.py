@@ -16,6 +16,8 @@ import time
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
+from dampnet.figures import save_figure
+
 #: without a stated hold-out: every HOLDOUT_EVERY-th test in the data's order, from the third
 HOLDOUT_EVERY = 5
 HOLDOUT_FIRST = 2
@@ -108,10 +110,7 @@ def _figures(steps, held, figs: Path) -> list[Path]:
     ax.set_title("held-out RMSE per test, each model of the loop\n(legend: its RMSE over every held-out test)",
                  fontsize=10)
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    paths.append(figs / "per_test_rmse.png")
-    fig.savefig(paths[-1], dpi=110)
-    plt.close(fig)
+    paths.append(save_figure(fig, figs / "per_test_rmse.png", 110))
 
     worst = max(held, key=lambda t: steps[0].scores["per_test_rmse_n"][t.test_id])
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
@@ -125,10 +124,7 @@ def _figures(steps, held, figs: Path) -> list[Path]:
     ax.set_title(f"held-out test {worst.test_id}: the first model's worst")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
-    fig.tight_layout()
-    paths.append(figs / "worst_test.png")
-    fig.savefig(paths[-1], dpi=110)
-    plt.close(fig)
+    paths.append(save_figure(fig, figs / "worst_test.png", 110))
     return paths
 
 

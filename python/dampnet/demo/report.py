@@ -11,6 +11,7 @@ import subprocess
 from pathlib import Path
 from typing import Any
 
+from dampnet.figures import save_figure
 from dampnet.training.restarts import BR_MAX_ROWS, SCORE_HELP
 from dampnet.training.settings import ALGORITHM_NAMES
 
@@ -162,10 +163,8 @@ def _restarts_figure(runs: dict, path: Path) -> None:
         ax.set_xlabel("restart")
         ax.set_ylabel("held-out NRMSE [-]")
         ax.set_title(f"{which} model")
-    fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
+    save_figure(fig, path, 90)
 
 
 def _per_frequency(rep: dict) -> list[list[Any]]:

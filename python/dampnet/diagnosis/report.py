@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dampnet.figures import save_figure
 from dampnet.outputs import json_text
 
 
@@ -21,9 +22,7 @@ def _plt():
 
 
 def _save(fig, path):
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    _plt().close(fig)
+    save_figure(fig, path, 90)
     return Path(path).name
 
 

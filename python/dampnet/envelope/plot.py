@@ -13,6 +13,8 @@ from typing import Mapping
 
 import numpy as np
 
+from dampnet.figures import save_figure
+
 
 def _pair_axes(model) -> list[tuple[int, int]]:
     """(x, y) input indices of the two panels: (velocity, acceleration) and (velocity, control),
@@ -84,7 +86,4 @@ def plot_coverage(model, runs: Mapping[str, np.ndarray], path, envelope=None, ti
     axes[0][0].legend(fontsize=7, loc="best")
     note = "" if envelope is not None else " (no envelope file: training ranges only)"
     fig.suptitle((title or "coverage") + note + "; dots on a run: outside the envelope", fontsize=9)
-    fig.tight_layout()
-    fig.set_layout_engine(None)   # else savefig lays the figure out again: a second draw
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, 110)

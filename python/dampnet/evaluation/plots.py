@@ -24,20 +24,16 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
+from dampnet.figures import save_figure
+
 DPI = 120
 
 
 def _save(fig, path, tight: bool = True) -> Path:
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    if tight:   # not for a figure made with layout="constrained" (a colorbar shared by several axes)
-        fig.tight_layout()
-        # tight_layout leaves a placeholder layout engine, and savefig draws a figure with an
-        # engine twice (once to lay it out): the same pixels in one draw without it
-        fig.set_layout_engine(None)
-    fig.savefig(p, dpi=DPI)
-    plt.close(fig)
-    return p
+    # tight: not for a figure made with layout="constrained" (a colorbar shared by several axes)
+    return save_figure(fig, p, DPI, tight=tight)
 
 
 def error_histogram(errors: np.ndarray | dict[str, np.ndarray], path: str | os.PathLike,

@@ -37,6 +37,7 @@ from typing import Callable
 
 import numpy as np
 
+from dampnet.figures import save_figure
 from dampnet.sim.vehicle import Controller, Vehicle
 
 ROAD_CLASSES = ("B", "C", "D")
@@ -341,6 +342,4 @@ def plot(res: dict, path) -> None:
     axes[0][-1].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
     fig.suptitle(f"Quarter car, {res.get('model', 'the model')}: the force laws through the damper's inverse "
                  "against the ideal")
-    fig.tight_layout()
-    fig.savefig(path, format="png", dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, 110, format="png")

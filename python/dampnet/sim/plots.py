@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from dampnet.figures import save_figure
+
 
 def _pyplot():
     import matplotlib
@@ -29,10 +31,7 @@ def plot_run(run: dict, path, title: str = "") -> None:
     ax[3].set_ylabel("travel [mm]")
     ax[3].set_xlabel("time [s]")
     fig.suptitle(title or run.get("damper", ""))
-    fig.tight_layout()
-    fig.set_layout_engine(None)   # else savefig lays the figure out again: a second draw
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, 110)
 
 
 def plot_overlay(runs: dict, path, title: str, key: str = "acc_s", ylabel: str = "sprung acc. [m/s²]") -> None:
@@ -45,10 +44,7 @@ def plot_overlay(runs: dict, path, title: str, key: str = "acc_s", ylabel: str =
     ax.set_ylabel(ylabel)
     ax.set_title(title)
     ax.legend()
-    fig.tight_layout()
-    fig.set_layout_engine(None)   # else savefig lays the figure out again: a second draw
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, 110)
 
 
 def plot_transmissibility(runs: dict, path, title: str = "Transmissibility z_s / z_r") -> None:
@@ -63,10 +59,7 @@ def plot_transmissibility(runs: dict, path, title: str = "Transmissibility z_s /
     ax.set_title(title)
     ax.grid(True, which="both", lw=0.3)
     ax.legend()
-    fig.tight_layout()
-    fig.set_layout_engine(None)   # else savefig lays the figure out again: a second draw
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, 110)
 
 
 def write_plots(res: dict, out_dir) -> list:

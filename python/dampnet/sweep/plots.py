@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from dampnet.figures import save_figure
+
 MAX_PANELS = 8
 
 
@@ -57,9 +59,7 @@ def sensitivity_png(df, kind: str, objective: str, sens: list[dict], path: Path)
     for ax in list(axes.flat)[len(panels):]:
         ax.set_visible(False)
     fig.suptitle(f"{kind}: {objective} by parameter ({len(ok)} ok cells)")
-    fig.tight_layout()
-    fig.savefig(path, format="png", dpi=90)
-    plt.close(fig)
+    save_figure(fig, path, 90, format="png")
     return True
 
 

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dampnet.figures import save_figure
 from dampnet.sim.full_car.metrics import column
 from dampnet.sim.full_car.params import cg_to_axles
 from dampnet.sim.plots import _pyplot
@@ -84,10 +85,7 @@ def plot_bsst(runs: dict, path: str | Path, title: str = "Bounce sine sweep") ->
     ax[2].grid(alpha=0.3)
     ax[2].legend(fontsize=7, loc="upper right")
     fig.suptitle(title)
-    fig.tight_layout()
-    fig.set_layout_engine(None)   # else savefig lays the figure out again: a second draw
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, 110)
 
 
 def _man(r: dict):
@@ -188,10 +186,7 @@ def plot_dlc(runs: dict, path: str | Path, title: str = "ISO 3888-1 double lane 
             ax.legend(fontsize=7, ncol=3, loc="upper right")
     axes[-1].set_xlabel("time [s]")
     fig.suptitle(title)
-    fig.tight_layout()
-    fig.set_layout_engine(None)   # else savefig lays the figure out again: a second draw
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    save_figure(fig, path, 100)
 
 
 def plot_road(runs: dict, path: str | Path, title: str = "Rough road") -> None:
@@ -209,7 +204,4 @@ def plot_road(runs: dict, path: str | Path, title: str = "Rough road") -> None:
         x.legend(fontsize=8)
         x.grid(alpha=0.3)
     fig.suptitle(title)
-    fig.tight_layout()
-    fig.set_layout_engine(None)   # else savefig lays the figure out again: a second draw
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, 110)
