@@ -174,18 +174,3 @@ def test_undamped_energy_is_conserved_to_the_order_of_rk4():
     assert e0 > 10.0  # the initial displacement stores energy (else nothing is tested)
     assert d1 / e0 < 1e-3
     assert 24.0 < d1 / d2 < 40.0, (d1, d2)
-
-
-@pytest.mark.parametrize("params, mode", [({}, "heave"), ({"c_t": 150.0, "k_arb_f": 20000.0}, "pitch")])
-def test_element_responses_are_road_response_per_frequency_bit_for_bit(params, mode):
-    """The bounce sweep's linear model (metrics.bsst_response): element_responses, the element-free
-    parts built once, gives road_response's values at each frequency with its own element exactly."""
-    rng = np.random.default_rng(0)
-    fl = 0.5 * 2.0 ** (np.arange(0, np.log2(20 / 0.5) * 100 + 1) / 100)
-    el = np.column_stack([rng.uniform(-2000, 8000, fl.size), rng.uniform(0, 4000, fl.size)])
-    el[::7, 0] = 0.0
-    got = linear.element_responses(fl, el, params, mode)
-    for key in ("z", "phi", "theta", "wheel"):
-        ref = np.array([linear.road_response(np.array([f]), params, c, mode, stiffness=k)[key][0]
-                        for f, (k, c) in zip(fl, el)])
-        np.testing.assert_array_equal(got[key].view(np.int64), ref.view(np.int64))

@@ -162,60 +162,6 @@ def roll_gradient(params: dict | None = None) -> float:
     return num / den
 
 
-def element_responses(freqs: np.ndarray, elements: np.ndarray, params: dict | None = None,
-                      pattern: str = "heave") -> dict:
-    """`road_response(np.array([f]), params, c, pattern, stiffness=k)` at each frequency f of freqs
-    [Hz] with its own equivalent element (elements [len(freqs), 2]: k [N/m], c [N s/m] of each
-    damper), bit for bit: {"z", "phi", "theta", "wheel"}, complex [len(freqs)]. The same
-    operations in the same order, those that do not depend on the element (the parameters, the
-    geometry, M and its inverse, the constant terms of K and C) done once: a bounce sweep's
-    linear model at 1/100 octave (533 frequencies) ran vertical_model and an inverse per frequency."""
-    p = full_params(params)
-    x, y = corner_positions(p)
-    ks = np.array([p["k_s_f"], p["k_s_f"], p["k_s_r"], p["k_s_r"]])
-    m_us = np.array([p["m_us_f"], p["m_us_f"], p["m_us_r"], p["m_us_r"]])
-    J = np.zeros((4, 7))
-    for i in range(4):
-        J[i, :3] = [1.0, y[i], -x[i]]
-        J[i, 3 + i] = -1.0
-    JJ = [np.outer(J[i], J[i]) for i in range(4)]
-    K0 = sum(ks[i] * JJ[i] for i in range(4))
-    arb = []
-    for axle, k_arb in ((0, p["k_arb_f"]), (1, p["k_arb_r"])):
-        Jd = J[2 * axle] - J[2 * axle + 1]
-        arb.append(k_arb * np.outer(Jd, Jd))
-    W = np.zeros((4, 7))
-    W[np.arange(4), 3 + np.arange(4)] = 1.0
-    KW, CW = p["k_t"] * W.T @ W, p["c_t"] * W.T @ W
-    roll = p["m_s"] * p["g"] * roll_arm(p)
-    bd = np.broadcast_to(np.asarray(0.0, dtype=float), (4,))
-    M = np.diag([p["m_s"], p["i_xx"], p["i_yy"], *m_us]) + sum(bd[i] * JJ[i] for i in range(4))
-    Bz, Bv = p["k_t"] * W.T, p["c_t"] * W.T
-    n = M.shape[0]
-    Minv = np.linalg.inv(M)
-    top = np.block([[np.zeros((n, n)), np.eye(n)]])
-    u = ROAD_PATTERNS[pattern]
-    freqs = np.asarray(freqs, dtype=float)
-    out = {k: np.zeros(len(freqs), dtype=complex) for k in ("z", "phi", "theta", "wheel")}
-    for j, (f, (k, c)) in enumerate(zip(freqs, np.asarray(elements, dtype=float))):
-        cd = np.broadcast_to(np.asarray(c, dtype=float), (4,))
-        kd = np.broadcast_to(np.asarray(k, dtype=float), (4,))
-        C = sum(cd[i] * JJ[i] for i in range(4))
-        K = K0 + sum(kd[i] * JJ[i] for i in range(4))
-        K = K + arb[0]
-        K = K + arb[1]
-        K = K + KW
-        C = C + CW
-        K[1, 1] -= roll
-        A = np.concatenate([top, np.block([[-Minv @ K, -Minv @ C]])])
-        jw = 2j * np.pi * f
-        rhs = np.concatenate([np.zeros(n), Minv @ (Bz + jw * Bv) @ u])
-        xs = np.linalg.solve(jw * np.eye(2 * n) - A, rhs)
-        out["z"][j], out["phi"][j], out["theta"][j] = xs[0], xs[1], xs[2]
-        out["wheel"][j] = np.mean(xs[3:7] * u)
-    return out
-
-
 #: the road patterns of the bounce sine sweep (FL, FR, RL, RR): all in phase, rear against front
 ROAD_PATTERNS = {"heave": np.array([1.0, 1.0, 1.0, 1.0]), "pitch": np.array([1.0, 1.0, -1.0, -1.0])}
 

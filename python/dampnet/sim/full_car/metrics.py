@@ -154,8 +154,10 @@ def bsst_response(res: dict, man: Maneuver, params: dict) -> dict:
     c_eq = equivalent_damping(res, fs)
     fl = f0 * 2.0 ** (np.arange(0, np.log2(f1 / f0) * 100 + 1) / 100)  # 1/100 octave
     el = sweep_element(res, man, fl, params)
-    lin = linear.element_responses(fl, el, params, mode)   # road_response at each f with its element
-    bl, wl = lin["z" if mode == "heave" else "theta"], lin["wheel"]
+    bl, wl = np.zeros(fl.size, complex), np.zeros(fl.size, complex)
+    for j, (fj, (kj, cj)) in enumerate(zip(fl, el)):
+        lin = linear.road_response(np.array([fj]), params, cj, mode, stiffness=kj)
+        bl[j], wl[j] = lin["z" if mode == "heave" else "theta"][0], lin["wheel"][0]
     return {"f_hz": f, "body": hb, "wheel": hw, "body_unit": "m/m" if mode == "heave" else "rad/m",
             "f_lin_hz": fl, "body_lin": bl, "wheel_lin": wl, "element": el, "c_equivalent_n_s_m": c_eq}
 
