@@ -36,6 +36,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from dampnet.data import DataError, Dataset, DynoTest
+from dampnet.features import FEATURES
 
 PEAK_PERCENTILE = 99.5
 
@@ -103,7 +104,7 @@ class LookupTable:
         return {"format": "dampnet-lookup", "format_version": 1, "control_name": self.control_name,
                 "velocities": self.velocities.tolist(), "voltages": self.voltages.tolist(),
                 "forces": self.forces.tolist(),
-                "units": {"velocities": "m/s", "voltages": "A" if self.control_name == "current" else "V",
+                "units": {"velocities": "m/s", "voltages": FEATURES[self.control_name].unit,
                           "forces": "N"},
                 "layout": "forces[j][i]: voltages[j], velocities[i]; bilinear, clamped outside the grid"}
 

@@ -25,6 +25,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 from dampnet.figures import save_figure
+from dampnet.features import FEATURES
 
 DPI = 120
 
@@ -131,7 +132,7 @@ def test_heatmap(rows: Sequence[dict], key: str, path: str | os.PathLike, label:
         grid[i, j] = float(np.mean(vals))
     vals = [float(r[key]) for r in rows if r[key] is not None and np.isfinite(r[key])]
     vmin, vmax = (min(vals), max(vals)) if vals else (0.0, 1.0)
-    unit = "A" if control_name == "current" else "V"
+    unit = FEATURES[control_name].unit
     width = max(7.0, 1.5 + 0.6 * len(freqs), 1.5 + 1.6 * len(other))
     axes_h = [1.5 + 0.35 * max(len(ctrls), 4)] if grid_rows else []
     if other:
@@ -171,7 +172,7 @@ def lookup_figure(table, path: str | os.PathLike, voltages: Sequence[float] | No
     """Force-velocity curves of a LookupTable at its voltages (all, or the ones given)."""
     us = table.voltages if voltages is None else np.asarray(voltages, dtype=np.float64)
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    unit = "A" if table.control_name == "current" else "V"
+    unit = FEATURES[table.control_name].unit
     for u in us:
         ax.plot(table.velocities, table.column(u), marker="o", markersize=3, label=f"{u:g} {unit}")
     ax.axhline(0, color="0.7", linewidth=0.8)

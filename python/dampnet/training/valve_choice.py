@@ -32,6 +32,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from dampnet.features import FEATURES
+
 #: the request's values: what `valve` may be
 VALVE_CHOICES = ("auto", "on", "off")
 #: a free valve term: its parameters fitted with each training
@@ -81,7 +83,7 @@ def too_few_levels(tests: Sequence) -> str | None:
     levels = sorted({float(t.control_nominal) for t in tests})
     if len(levels) >= MIN_LEVELS:
         return None
-    unit = "A" if tests[0].control_name == "current" else "V"
+    unit = FEATURES[tests[0].control_name].unit
     return (f"the training tests hold {len(levels)} control level{'s' if len(levels) != 1 else ''} "
             f"({', '.join(f'{u:g}' for u in levels)} {unit}): the valve term's control gain needs {MIN_LEVELS} "
             "at least, one between the others")
