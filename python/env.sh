@@ -61,9 +61,11 @@ python -m pip install -q --no-compile --no-build-isolation -e ".[train,test,benc
 # dampnet's own modules. These machines set PYTHONDONTWRITEBYTECODE=1, so no process caches its
 # .pyc files: without this every process compiled every module it imported, every time (tried:
 # the suite 300 s slower a worker), and an editable install's own package is never compiled by
-# pip (0.6 s more for each process importing the training and the diagnosis). compileall runs on
-# both cores where pip compiles on one (a fresh set-up: pip with its compile 83 s, without it 38 s
-# + 26-48 s here); the stamp keeps a set-up with nothing new at one `find` (0.5 s).
+# pip (0.6 s more for each process importing the training and the diagnosis). compileall may use
+# both cores where pip compiles on one (`pip install [--no-compile] -r` this venv's `pip freeze` into
+# a fresh venv, a loaded machine: 83 s with pip's compile, 38 s without + 48 s of compileall; a fresh
+# clone's whole set-up took 123-126 s either way); the stamp keeps a set-up with nothing new at one
+# `find` (0.5 s).
 compiled=.venv/.dampnet-compiled
 site="$(python -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')"
 newer=()
