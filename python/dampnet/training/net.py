@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
 import torch
 
 from dampnet.model import ACTIVATIONS
@@ -19,8 +20,18 @@ DTYPE = torch.float64
 
 
 def act(z: torch.Tensor, kind: str) -> torch.Tensor:
-    """Hidden activation: 'tanh' (MATLAB tansig) or 'sigmoid' (logsig)."""
-    return torch.tanh(z) if kind == "tanh" else torch.sigmoid(z)
+    """Hidden activation: 'tanh' (MATLAB tansig) or 'sigmoid' (logsig). z is a fresh
+    pre-activation the caller no longer needs: without autograd, tanh overwrites it."""
+    if kind != "tanh":
+        return torch.sigmoid(z)
+    if z.requires_grad or z.dtype != torch.float64:
+        return torch.tanh(z)
+    # numpy's SIMD float64 tanh, in place on the tensor's memory: 4.8x faster than torch's on one
+    # thread (a [20000, 30] array: 1.2 against 5.7 ms), within 1 ulp of it; tanh was a third of an
+    # LM epoch's time (bench/epoch_cost.py)
+    a = z.numpy()
+    np.tanh(a, out=a)
+    return z
 
 
 def act_deriv(a: torch.Tensor, kind: str) -> torch.Tensor:
