@@ -57,23 +57,14 @@ dn_log "building the C++ core and installing dampnet with its dependencies (firs
 # pip's "Location ... is ignored" lines are about this machine's optional local mirrors: noise.
 python -m pip install -q --no-compile --no-build-isolation -e ".[train,test,bench,lab]" \
   2> >(grep -v "^WARNING: Location" >&2)
-# Byte-compile what changed since the last set-up: the dependencies pip just installed and
-# dampnet's own modules. These machines set PYTHONDONTWRITEBYTECODE=1, so no process caches its
-# .pyc files: without this every process compiled every module it imported, every time (tried:
-# the suite 300 s slower a worker), and an editable install's own package is never compiled by
-# pip (0.6 s more for each process importing the training and the diagnosis). compileall may use
-# both cores where pip compiles on one (`pip install [--no-compile] -r` this venv's `pip freeze` into
-# a fresh venv, a loaded machine: 83 s with pip's compile, 38 s without + 48 s of compileall; a fresh
-# clone's whole set-up took 123-126 s either way); the stamp keeps a set-up with nothing new at one
-# `find` (0.5 s).
-compiled=.venv/.dampnet-compiled
-site="$(python -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')"
-newer=()
-[ -f "$compiled" ] && newer=(-newer "$compiled")
-touch "$compiled.next"  # (before the search: a file changed during it is compiled next time)
-find "$site" python/dampnet -name '*.py' ${newer[@]+"${newer[@]}"} -print \
-  | python -m compileall -q -j 0 -i - >/dev/null 2>&1 || true
-mv "$compiled.next" "$compiled"
+# Bytecode: these machines set PYTHONDONTWRITEBYTECODE=1, under which no process writes the .pyc
+# files it compiles, so every process compiled every module it imported, every time (tried: the
+# suite 300 s slower a worker; 0.6 s more for each process importing the training and the
+# diagnosis). The commands run here write theirs, as Python does by default: a module is compiled
+# the first time any process imports it, and only the modules something imports (the whole suite:
+# about 2,400 of site-packages' 12,900 files; compiling them all ahead, as this script did before,
+# took 64 s of CPU, 26-48 s of a fresh set-up). pip installs with --no-compile for that reason.
+unset PYTHONDONTWRITEBYTECODE
 
 if (($#)); then
   exec "$@"

@@ -32,25 +32,13 @@ def pytest_configure(config):
     # (threadpoolctl, torch.set_num_threads).
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(var, "1")
-    if not hasattr(config, "workerinput"):  # once, in the controller, before the workers start
-        compile_package(ROOT / "python" / "dampnet")
-
-
-def compile_package(package: Path) -> None:
-    """The package's bytecode written once (python/dampnet/__pycache__, git-ignored), so that the
-    many Pythons the suite starts (the commands it runs, restart, sweep and dask workers) read
-    it instead of each compiling every dampnet module it imports: these machines set
-    PYTHONDONTWRITEBYTECODE=1 (python/env.sh), under which no process writes what it compiled, and
-    an editable install is not byte-compiled by pip. Measured: 0.3 s of CPU a process importing the
-    training path (105 modules), 1 s one importing them all. A source edited later is newer than
-    its .pyc, which Python then ignores (compiling that module as before); a read-only tree stays
-    as it was."""
-    import compileall
-
-    try:
-        compileall.compile_dir(str(package), quiet=2)
-    except OSError:
-        pass
+    # Bytecode written as modules are first imported, by this process and every Python the suite
+    # starts (workers, the commands it runs, restart, sweep and dask workers): these machines set
+    # PYTHONDONTWRITEBYTECODE=1, under which each of them compiled every module it imported
+    # (0.3 s of CPU a process importing the training path, 1 s one importing all of dampnet).
+    # python/env.sh unsets it too; this covers a suite started without it.
+    os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
+    sys.dont_write_bytecode = False
 
 
 @pytest.fixture(scope="session")
