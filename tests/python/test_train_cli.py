@@ -32,9 +32,11 @@ def small_dir(tmp_path_factory):
 @pytest.fixture(scope="module")
 def trained(small_dir, tmp_path_factory):
     out = tmp_path_factory.mktemp("models") / "m"
-    # --valve off: one training (the default's second, with a valve term, is test_valve_choice's)
+    # --valve off: one training (the default's second, with a valve term, is test_valve_choice's);
+    # --max-epochs 200: these tests check the directory, its metadata and a generalising model, not
+    # convergence (BR's default 1,000 epochs took 18 s of the module's 66)
     rc = main(["train", str(small_dir), "--out", str(out), "--decimate", "20", "--quiet", "--seed", "1",
-               "--valve", "off"])
+               "--valve", "off", "--max-epochs", "200"])
     assert rc == 0
     return out
 
