@@ -57,8 +57,9 @@ def asan_build() -> Path:
                        "CMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1 -DNDEBUG")
 
 
-#: the plain Release build's options, shared by plain_build and installed_prefix
-PLAIN = ("DAMPNET_BUILD_TESTS=ON", "CMAKE_BUILD_TYPE=Release")
+#: the plain Release build's options, shared by plain_build and installed_prefix; a unity build (each
+#: target's sources compiled as one: the two libraries' 30 s of CPU become 18)
+PLAIN = ("DAMPNET_BUILD_TESTS=ON", "CMAKE_BUILD_TYPE=Release", "CMAKE_UNITY_BUILD=ON")
 
 
 @pytest.fixture(scope="session")

