@@ -66,26 +66,36 @@ def _per_test_sse(ctx, k_max: int, max_rows: int = ROWS_PER_TEST) -> np.ndarray:
         n = len(t)
         rows = np.arange(k_max, n - k_max, max(1, (n - 2 * k_max) // max_rows))
         v = t.channels["velocity"]
-        Y = t.channels["force"][rows[:, None] + np.arange(-k_max, k_max + 1)[None, :]]
+        # the force at t + k for every k: rows of a sliding window (contiguous gathers)
+        Y = np.lib.stride_tricks.sliding_window_view(t.channels["force"], 2 * k_max + 1)[rows - k_max]
+        YY = np.sum(Y * Y, axis=0)
         fixed = [np.ones(len(rows))] + [np.tanh(v[rows] / vmax / e) for e in SIGN_WIDTHS]
         x = t.channels.get("displacement")
         P = None
         if x is not None:  # position: the gas spring's polynomials and end-of-travel hinges (bump stops)
             P = gas_columns_of(x[rows], *x_frame)
             fixed += list(P.T)
+        # the columns that do not depend on the hydraulic lag, and their products, once per test
+        Xf = _unit_rms(np.stack(fixed, axis=1))
+        Gff, Hf = Xf.T @ Xf, Xf.T @ Y
         for j, tau in enumerate(HYDRAULIC_LAGS_S):
             vh = (first_order_lag(v, t.dt, tau) if tau > 0 else v)[rows] / vmax
-            cols = fixed + [vh] + [np.maximum(vh - k, 0.0) for k in knots]
+            cols = [vh[:, None], np.maximum(vh[:, None] - knots[None, :], 0.0)]
             if P is not None:  # a stop stiffer while compressing than releasing
-                cols += list((P[:, 5:] * vh[:, None]).T)
-            X = np.stack(cols, axis=1)
-            X = X / np.maximum(np.sqrt(np.mean(X * X, axis=0)), 1e-12)
-            G = X.T @ X
+                cols.append(P[:, 5:] * vh[:, None])
+            Xl = _unit_rms(np.hstack(cols))
+            Gfl = Xf.T @ Xl
+            G = np.block([[Gff, Gfl], [Gfl.T, Xl.T @ Xl]])
             G += 1e-9 * np.trace(G) / G.shape[0] * np.eye(G.shape[0])
-            H = X.T @ Y
+            H = np.vstack([Hf, Xl.T @ Y])
             B = np.linalg.solve(G, H)
-            out[i, j] = np.sum(Y * Y, axis=0) - np.sum(B * H, axis=0)
+            out[i, j] = YY - np.sum(B * H, axis=0)
     return out
+
+
+def _unit_rms(X: np.ndarray) -> np.ndarray:
+    """X's columns divided by their RMS."""
+    return X / np.maximum(np.sqrt(np.mean(X * X, axis=0)), 1e-12)
 
 
 def _best(sse_by_tau: np.ndarray, k_max: int) -> tuple[float, int]:

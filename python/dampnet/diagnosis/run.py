@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from dampnet.diagnosis import score as S
@@ -40,6 +42,17 @@ def _parameters(ctx, cand, res, folds):
         if isinstance(v, (int, float)) and not isinstance(v, bool):
             unc[k] = own[k] if k in own else _jackknife([fe.get(k) for fe in fold_est])
     return est, unc
+
+
+def _reusing_columns(cand, store: dict):
+    """`cand` with its columns(ctx, theta) kept in `store`: a catalogue candidate's columns depend
+    on the data and the model only, not on the baseline, so each forward-selection pass after the
+    first reuses them instead of recomputing them (lags, Dahl states, model predictions)."""
+    def columns(ctx, theta):
+        if theta not in store:
+            store[theta] = cand.columns(ctx, theta)
+        return store[theta]
+    return dataclasses.replace(cand, columns=columns)
 
 
 def fixed_by_artefacts(ds, found: list[dict]):
@@ -120,6 +133,7 @@ def diagnose(model, ds, *, candidates=None, n_surrogates: int = S.N_SURROGATES, 
                 included[cid] = theta
     loc = None
     cids = list(candidates or list(CANDIDATES))
+    scored = {cid: _reusing_columns(CANDIDATES[cid], {}) for cid in cids}
 
     def score_pass(accepted: dict) -> tuple[dict, dict, float, list]:
         """Score every candidate not in the baseline; `accepted` effects join the baseline."""
@@ -136,7 +150,7 @@ def diagnose(model, ds, *, candidates=None, n_surrogates: int = S.N_SURROGATES, 
         base_cv = S.baseline_cv(ctx, Y, folds)
         ss_tot = sum(float(np.sum(r * r)) for r in resid)
         share = float((ss_tot - base_cv[0][:, 0].sum()) / ss_tot) if ss_tot > 0 else 0.0
-        results = {cid: S.score_candidate(ctx, CANDIDATES[cid], Y, folds, base_cv)
+        results = {cid: S.score_candidate(ctx, scored[cid], Y, folds, base_cv)
                    for cid in cids if cid not in included and cid not in accepted}
         return results, (Y, base_cv), share, folds
 
