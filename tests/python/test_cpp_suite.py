@@ -13,7 +13,7 @@ from cbuild import ROOT, run
 from dampnet.model import MlpModel
 
 
-@pytest.mark.slow(reason="builds the project and every C/C++ test under AddressSanitizer and UBSan (about 100 s of CPU at -O1, cached in build/tests-asan) and runs them all (20 s)")
+@pytest.mark.slow(reason="builds the project and every C/C++ test under AddressSanitizer and UBSan (about 75 s of CPU at -Og, cached in build/tests-asan) and runs them all (30 s)")
 def test_ctest_clean_under_address_and_undefined_sanitizers(asan_build):
     proc = subprocess.run(["ctest", "--output-on-failure", "--timeout", "600"], cwd=asan_build,
                           capture_output=True, text=True)

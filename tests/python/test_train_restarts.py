@@ -251,6 +251,14 @@ def _state(pid: int) -> str | None:
         return None
 
 
+def _has_torch(pid: int) -> bool:
+    """Whether process `pid` has torch's library loaded."""
+    try:
+        return "libtorch_cpu" in Path(f"/proc/{pid}/maps").read_text()
+    except OSError:
+        return False
+
+
 def _restart_workers(parent: int) -> list[int]:
     """The running restart workers (spawned Pythons) of process `parent`."""
     found = []
@@ -281,7 +289,10 @@ def test_the_workers_stop_when_their_parent_is_killed(tmp_path):
             time.sleep(0.5)
             workers = _restart_workers(parent.pid)
         assert len(workers) == 2, f"the restart workers did not start: {log.read_text()[-2000:]}"
-        time.sleep(8)  # past the workers' start-up, into their fits
+        # past the workers' start-up (torch loaded: its import is most of it), into their fits
+        while not all(_has_torch(w) for w in workers) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        time.sleep(2)
         assert all(_state(w) not in (None, "Z") for w in workers), "a worker ended before its parent was killed"
         parent.kill()
         parent.wait()
