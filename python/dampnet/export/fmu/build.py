@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import shlex
 import shutil
 import socket
 import subprocess
@@ -25,6 +26,10 @@ from dampnet.export.fmu.description import PLATFORM, SOURCE, Description, FmuErr
 from dampnet.model import MlpModel
 
 HEADER_PREFIX = "fmu_model"
+#: extra flags for the compile of the FMU's binary, after dampnet's own so that they win (e.g. "-O0"
+#: for a quick build while iterating, "-g" to debug the FMU inside a tool, "-O3 -march=native" for a
+#: binary that stays on this machine); the compiler itself is $CXX
+FLAGS_ENV = "DAMPNET_FMU_CXXFLAGS"
 
 
 def fmu_sources() -> Path:
@@ -80,8 +85,12 @@ def compile_binary(sources: Path, fmi: int, out_so: Path, tmpdir: Path | None = 
     """Compile sources/ into out_so; the compiler's own temporary files go to tmpdir (the build's
     scratch directory: a killed compiler's leftovers go with it)."""
     cxx = compiler()
+    try:
+        extra = shlex.split(os.environ.get(FLAGS_ENV, ""))
+    except ValueError as e:
+        raise FmuError(f"${FLAGS_ENV}: {e} (flags for the FMU's compile, as a shell would split them)") from None
     cmd = [cxx, "-std=c++17", "-O2", "-fPIC", "-shared", "-fno-exceptions", "-fno-rtti", "-fvisibility=hidden",
-           f"-I{sources}", str(sources / SOURCE[fmi]), "-o", str(out_so), "-static-libgcc"]
+           *extra, f"-I{sources}", str(sources / SOURCE[fmi]), "-o", str(out_so), "-static-libgcc"]
     env = {**os.environ, "TMPDIR": str(tmpdir)} if tmpdir is not None else None
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
