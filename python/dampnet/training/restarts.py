@@ -479,6 +479,7 @@ def _stop_pool(ex: ProcessPoolExecutor) -> None:
     """End the pool's workers now, mid-fit included (shutdown alone waits for the fits under way,
     minutes): SIGTERM each, then SIGKILL what is left after STOP_WAIT_S."""
     procs = list((getattr(ex, "_processes", None) or {}).values())
+    manager = getattr(ex, "_executor_manager_thread", None)  # (shutdown forgets it: joined below)
     for p in procs:
         with contextlib.suppress(OSError, ValueError):
             p.terminate()
@@ -491,9 +492,11 @@ def _stop_pool(ex: ProcessPoolExecutor) -> None:
                 p.kill()
                 p.join(1.0)
     # the workers are gone: wait for the pool's manager thread too, so that the interpreter's exit
-    # does not wake it through a pipe it has closed (Python 3.11 printed "Bad file descriptor")
-    with contextlib.suppress(Exception):
-        ex.shutdown(wait=True, cancel_futures=True)
+    # does not wake it through the pipe it is closing (Python 3.11 printed "Bad file descriptor" after
+    # "dampnet: terminated"). shutdown(wait=True) would not: shutdown(wait=False) above dropped the
+    # executor's reference to the thread.
+    if manager is not None:
+        manager.join(STOP_WAIT_S)
 
 
 @contextlib.contextmanager
