@@ -549,9 +549,10 @@ def test_the_demo_report_shows_each_restarts_score_and_its_parts(quick, tmp_path
 def test_stopping_the_pool_waits_for_its_manager_thread():
     """_stop_pool returns once the pool's manager thread has ended: one still closing the pool's
     wake-up pipe when the interpreter exits made Python 3.11 print "Bad file descriptor" after
-    "dampnet: terminated" (test_train_signals, 1 run in about 40). shutdown(wait=False) drops the
-    executor's reference to that thread, so a later shutdown(wait=True) did not wait for it. Three
-    rounds of a one-worker pool stopped mid-task. Cost: about 1 s."""
+    "dampnet: terminated" (test_train_signals failed so once in seven suite runs).
+    shutdown(wait=False) drops the executor's reference to that thread, so a later
+    shutdown(wait=True) did not wait for it. Three rounds of a one-worker pool stopped mid-task.
+    Cost: about 1.6 s."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
