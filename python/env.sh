@@ -61,9 +61,9 @@ python -m pip install -q --no-compile --no-build-isolation -e ".[train,test,benc
 # files it compiles, so every process compiled every module it imported, every time (tried: the
 # suite 300 s slower a worker; 0.6 s more for each process importing the training and the
 # diagnosis). The commands run here write theirs, as Python does by default: a module is compiled
-# the first time any process imports it, and only the modules something imports (the whole suite:
-# about 2,400 of site-packages' 12,900 files; compiling them all ahead, as this script did before,
-# took 64 s of CPU, 26-48 s of a fresh set-up). pip installs with --no-compile for that reason.
+# the first time any process imports it, and only what something imports (importing every library
+# the suite uses loads about 2,400 of site-packages' 12,900 files; compiling all of them ahead, as
+# this script did before, took 64 s of CPU, 26-48 s of a fresh set-up). Hence pip's --no-compile.
 unset PYTHONDONTWRITEBYTECODE
 
 if (($#)); then

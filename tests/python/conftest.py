@@ -32,10 +32,6 @@ def pytest_configure(config):
     # (threadpoolctl, torch.set_num_threads).
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(var, "1")
-    # The FMUs the tests export are compiled at -O0 (dampnet.export.fmu.build.FLAGS_ENV): 1.25 s a
-    # compile against 2.6 s at the default -O2, about 40 compiles a run; the installed wheel's
-    # commands and the demo build with the defaults, as users do (wheel_env drops this).
-    os.environ.setdefault("DAMPNET_FMU_CXXFLAGS", "-O0")
     # Bytecode written as modules are first imported, by this process and every Python the suite
     # starts (workers, the commands it runs, restart, sweep and dask workers): these machines set
     # PYTHONDONTWRITEBYTECODE=1, under which each of them compiled every module it imported
@@ -43,6 +39,12 @@ def pytest_configure(config):
     # python/env.sh unsets it too; this covers a suite started without it.
     os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
     sys.dont_write_bytecode = False
+    # The FMUs the tests export are compiled at -O0: 1.25 s a compile against 2.6 s at the default
+    # -O2, about 40 compiles a run; the installed wheel's commands and the demo build with the
+    # defaults, as users do (wheel_env drops this).
+    from dampnet.export.fmu.build import FLAGS_ENV
+
+    os.environ.setdefault(FLAGS_ENV, "-O0")
 
 
 @pytest.fixture(scope="session")

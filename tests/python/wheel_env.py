@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from cbuild import BUILD, ROOT, build_lock, run
+from dampnet.export.fmu.build import FLAGS_ENV
 
 
 @dataclass(frozen=True)
@@ -92,9 +93,9 @@ def _built(root: Path) -> WheelEnv:
     python = venv / "bin" / "python"
     site = Path(run([python, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"])
                 .stdout.strip())
-    # (without the suite's quick FMU compile, DAMPNET_FMU_CXXFLAGS: the wheel builds FMUs as users get them)
+    # (without the suite's quick FMU compile, FLAGS_ENV: the wheel builds FMUs as users get them)
     env = {k: v for k, v in os.environ.items()
-           if k not in ("PYTHONPATH", "PYTHONHOME", "PYTHONSTARTUP", "VIRTUAL_ENV", "DAMPNET_FMU_CXXFLAGS")}
+           if k not in ("PYTHONPATH", "PYTHONHOME", "PYTHONSTARTUP", "VIRTUAL_ENV", FLAGS_ENV)}
     env.update(VIRTUAL_ENV=str(venv), PATH=f"{venv / 'bin'}{os.pathsep}{env.get('PATH', '')}",
                MPLBACKEND="Agg")
     return WheelEnv(wheel=wheels[0], venv=venv, python=python, site=site, env=env)

@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from dampnet.features import FEATURES
+
 HINGES = np.linspace(-0.8, 0.8, 9)
 SIGN_WIDTHS = (0.002, 0.01, 0.05)
 STRIBECK_WIDTHS = (0.02, 0.06)
@@ -32,14 +34,20 @@ def velocity_basis(zv: np.ndarray) -> np.ndarray:
     return np.stack(cols, axis=1)
 
 
-CONTROLS = ("voltage", "current")  # inputs whose effect is strongly nonlinear: hinge interactions too
+#: the control's hinges: its effect is strongly nonlinear, so V (g - h)+ interactions too
 CONTROL_HINGES = (-0.5, 0.0, 0.5)
+
+
+def _is_control(feature: str) -> bool:
+    """The input holds the control as commanded (the feature registry's dn_damper_input.u: voltage, current)."""
+    spec = FEATURES.get(feature)
+    return spec is not None and spec.field == "u"
 
 
 def _width(features: list[str], n_v: int) -> int:
     """Number of baseline columns for these features (n_v: velocity basis columns, 0 without)."""
     others = [f for f in features if f != "velocity"]
-    per_input = [2 + (2 * n_v + (len(CONTROL_HINGES) * n_v if f in CONTROLS else 0) if n_v else 0) for f in others]
+    per_input = [2 + (2 * n_v + (len(CONTROL_HINGES) * n_v if _is_control(f) else 0) if n_v else 0) for f in others]
     return 1 + n_v + sum(per_input) + len(others) * (len(others) - 1) // 2
 
 
@@ -71,7 +79,7 @@ def baseline_basis(z: np.ndarray, features: list[str]) -> np.ndarray:
         if V is not None:
             Vg = np.multiply(V, g, out=block(n_v))
             np.multiply(Vg, g, out=block(n_v))      # V g^2
-            if features[j] in CONTROLS:  # the control's effect is strongly nonlinear
+            if _is_control(features[j]):
                 for h in CONTROL_HINGES:
                     np.multiply(V, np.maximum(g - h, 0.0), out=block(n_v))
     for a in range(len(others)):
