@@ -271,6 +271,55 @@ int main(int argc, char** argv) {
       dn_real u, f; dn_damper_inverse(damper, &motion[k], demand[k], &u, &f, nullptr);
       return dn_bench::zero_dep(u); }, n, warm), extra);
     if (bad_hard || !(worst_res < 1.0)) return 1;  // 1 N: the float model's rounding is ~1e-3 N
+
+    // The inverse as a controller calls it (dn_damper_inverse_near from the last step's
+    // control): a 1 kHz trajectory of 4096 steps (a whole number of periods of each tone, so
+    // it wraps smoothly): velocity 0.25 m/s at 1.46 Hz + 0.05 m/s at 11 Hz, its acceleration,
+    // and the demand the force at a control sweeping 90 % of the range at 0.73 Hz. Each call
+    // starts from the previous call's control (the chain). Checked: the returned force is the
+    // damper's at the returned control, within 1 N of the demand wherever dn_damper_inverse
+    // reaches it (the default model turns back in u near v = 0, where some of these demands lie
+    // outside the limits' forces: there dn_damper_inverse_near may find a control inside).
+    const double period = 4.096, step = 1e-3, two_pi = 2 * M_PI;
+    std::vector<dn_damper_input> traj(4096);
+    std::vector<dn_real> traj_demand(4096);
+    for (int k = 0; k < 4096; ++k) {
+      const double t = k * step, w1 = two_pi * 6 / period, w2 = two_pi * 45 / period, w3 = two_pi * 3 / period;
+      dn_damper_input m{};
+      m.v = 0.25 * std::sin(w1 * t) + 0.05 * std::sin(w2 * t);
+      m.a = 0.25 * w1 * std::cos(w1 * t) + 0.05 * w2 * std::cos(w2 * t);
+      m.temperature = 20;
+      m.u = u_lo + (u_hi - u_lo) * (0.5 + 0.45 * std::sin(w3 * t));
+      dn_damper_force(damper, &m, &traj_demand[k], nullptr);
+      traj[k] = m;
+    }
+    long warm_evals = 0;
+    double warm_res = 0;
+    dn_real u_prev = traj[4095].u;
+    for (int k = 0; k < 4096; ++k) {
+      dn_real u = 0, f = 0, fu = 0;
+      int ne = 0;
+      const int st = dn_damper_inverse_near(damper, &traj[k], traj_demand[k], u_prev, &u, &f, &ne);
+      warm_evals += ne;
+      dn_damper_input g = traj[k];
+      g.u = u;
+      dn_damper_force(damper, &g, &fu, nullptr);
+      dn_real u_cold = 0, f_cold = 0;
+      const int st_cold = dn_damper_inverse(damper, &traj[k], traj_demand[k], &u_cold, &f_cold, nullptr);
+      if (st < 0 || fu != f) warm_res = INFINITY;
+      else if (!(st_cold & DN_W_UNREACHABLE)) warm_res = std::max(warm_res, std::fabs(double(fu) - traj_demand[k]));
+      u_prev = u;
+    }
+    char extra_near[120];
+    std::snprintf(extra_near, sizeof extra_near, ", \"evals_per_call\": %.3f, \"residual_max_N\": %.3g",
+                  double(warm_evals) / 4096.0, warm_res);
+    dn_real u_chain = traj[4095].u;
+    dn_bench::print_json("damper_inverse_near_float_chained", dn_bench::measure_chained([&](long i, long dep) {
+      const long k = (i + dep) & 4095;
+      dn_real f;
+      dn_damper_inverse_near(damper, &traj[k], traj_demand[k], u_chain, &u_chain, &f, nullptr);
+      return dn_bench::zero_dep(u_chain); }, n, warm), extra_near);
+    if (!(warm_res < 1.0)) return 1;
   }
   // A road: 20 mm of mixed 1.3 Hz and 11 Hz content, sampled at the loop's step.
   std::vector<dn_loop_input> road(4096);

@@ -15,6 +15,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -282,9 +283,16 @@ class PyDamper {
   // Vectorised inverse (dn_damper_inverse): the demanded force and one array per quantity but
   // u (nullptr in arrs), broadcast to one length. Every damper kind without a control
   // (callback included) is refused by the runtime before any evaluation: the GIL is released.
-  py::tuple inverse(const DArray& demand, const DArray* const* arrs) {
+  py::tuple inverse(const DArray& demand, const DArray* const* arrs, const DArray* u_start) {
     py::ssize_t n = demand.size();
     if (n == 0) throw py::value_error("inverse: force is empty");
+    if (u_start) {
+      if (u_start->size() == 0) throw py::value_error("inverse: u_start is empty");
+      if (u_start->size() != 1) {
+        if (n != 1 && u_start->size() != n) throw py::value_error("inverse: u_start and force differ in length");
+        n = u_start->size();
+      }
+    }
     for (std::size_t q = 0; q < kNumQuantities; ++q) {
       if (!arrs[q]) continue;
       const DArray& p = *arrs[q];
@@ -308,7 +316,8 @@ class PyDamper {
         for (std::size_t q = 0; q < kNumQuantities; ++q)
           if (arrs[q]) in.*kQuantities[q] = at(*arrs[q], i);
         int k = 0;
-        sp[i] = dn_damper_inverse(d.get(), &in, at(demand, i), &up[i], &fp[i], &k);
+        sp[i] = u_start ? dn_damper_inverse_near(d.get(), &in, at(demand, i), at(*u_start, i), &up[i], &fp[i], &k)
+                        : dn_damper_inverse(d.get(), &in, at(demand, i), &up[i], &fp[i], &k);
         ep[i] = k;
       }
     }
@@ -367,18 +376,21 @@ void bind_damper(py::module_& mod) {
            "broadcast to one length. Fields appended after 0.1 default to NaN: a model that "
            "reads them must be given them. GIL released except for callback dampers.")
       .def("inverse",
-           [](py::handle self, DArray force DN_DAMPER_INPUT_FIELDS(DNPY_INV_PARAM_)) {
+           [](py::handle self, DArray force DN_DAMPER_INPUT_FIELDS(DNPY_INV_PARAM_), std::optional<DArray> u_start) {
              const DArray* arrs[] = {DN_DAMPER_INPUT_FIELDS(DNPY_INV_ARRAY_)};
              static_assert(std::size(arrs) == kNumQuantities, "one slot per quantity");
-             return constructed<PyDamper>(self).inverse(force, arrs);
+             return constructed<PyDamper>(self).inverse(force, arrs, u_start ? &*u_start : nullptr);
            },
-           py::arg("force") DN_DAMPER_INPUT_FIELDS(DNPY_INV_ARG_),
+           py::arg("force") DN_DAMPER_INPUT_FIELDS(DNPY_INV_ARG_), py::kw_only(), py::arg("u_start") = py::none(),
            "Vectorised inverse (dn_damper_inverse): the control [V or A] within the control "
            "range (control_range) at which the force equals the demand force [N] at the given "
            "motion and states (every quantity of forces but u) -> (u[n], force[n] [N] achieved, "
            "status[n], evaluations[n]); DN_W_UNREACHABLE: the demand is outside the forces at "
            "the control limits, the nearer limit is returned. Arrays broadcast to one length. "
-           "GIL released.")
+           "evaluations: those after the two at the limits. u_start [V or A] (keyword, array or "
+           "scalar): a control near the answer to start Newton's steps from "
+           "(dn_damper_inverse_near, a controller's last command); evaluations then counts every "
+           "force evaluation, the limits' included. GIL released.")
       .def("control_range",
            [](py::handle self) {
              dn_real lo = 0, hi = 0;

@@ -143,6 +143,7 @@ void bind_registries(py::module_& mod) {
   mod.attr("DN_ACCEL_MAX_EVALS") = DN_ACCEL_MAX_EVALS;
   mod.attr("DN_INVERSE_MAX_ITERS") = DN_INVERSE_MAX_ITERS;  // Damper.inverse: its bound and tolerance
   mod.attr("DN_INVERSE_TOL_REL") = double(DN_INVERSE_TOL_REL);
+  mod.attr("DN_INVERSE_WARM_EVALS") = DN_INVERSE_WARM_EVALS;  // Damper.inverse(u_start=...): its Newton steps
   {  // the physical bounds of a step's state and the step's stability limits (dampnet.h)
     py::dict bounds;
 #define DNPY_PLAUSIBLE_(name, doc) bounds[#name] = py::make_tuple(double(name), doc);

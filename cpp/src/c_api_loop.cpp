@@ -165,6 +165,13 @@ int dn_damper_inverse(const dn_damper* d, const dn_damper_input* in, dn_real for
   return d->d.inverse(*in, force_demand, u, force, n_evals);
 }
 
+int dn_damper_inverse_near(const dn_damper* d, const dn_damper_input* in, dn_real force_demand, dn_real u_start,
+                           dn_real* u, dn_real* force, int* n_evals) {
+  if (n_evals) *n_evals = 0;
+  if (!d || !in || !u || !force) return DN_E_NULL;
+  return d->d.inverse_near(*in, force_demand, u_start, u, force, n_evals);
+}
+
 int dn_damper_control_range(const dn_damper* d, dn_real* u_min, dn_real* u_max) {
   if (!d || !u_min || !u_max) return DN_E_NULL;
   return d->d.control_range(u_min, u_max);

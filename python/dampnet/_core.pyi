@@ -35,6 +35,8 @@ DN_ACCEL_MAX_EVALS: Final[int]
 DN_INVERSE_MAX_ITERS: Final[int]
 #: Damper.inverse: the control is found to within this share of the control range
 DN_INVERSE_TOL_REL: Final[float]
+#: Damper.inverse(u_start=...): at most this many Newton steps from u_start before the limits
+DN_INVERSE_WARM_EVALS: Final[int]
 #: dampnet.h DN_PLAUSIBLE_LIST: {name: (bound [SI unit], doc)}; a step beyond one is DN_E_DIVERGED
 PLAUSIBLE_BOUNDS: Final[dict[str, tuple[float, str]]]
 #: dampnet.h DN_STABLE_WDT_*: {integrator: largest dt w_hop}, checked when a model is created
@@ -237,10 +239,13 @@ class Damper(metaclass=_pybind11_type):
         temperature: npt.ArrayLike,
         v_lag: npt.ArrayLike = ...,
         z_fric: npt.ArrayLike = ...,
+        *,
+        u_start: npt.ArrayLike | None = ...,
     ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.int32], npt.NDArray[np.int32]]:
         """Vectorised inverse: the control [V or A] giving the demanded force [N] at this motion
         -> (u[n], force[n] achieved [N], status[n], evaluations[n]); DN_W_UNREACHABLE: the
-        nearer control limit."""
+        nearer control limit. u_start [V or A]: Newton's steps start there (a controller's last
+        command); evaluations then counts the limits' too."""
     def control_range(self) -> tuple[float, float]:
         """(u_min, u_max) [V or A] that the inverse searches; ValueError without a control."""
     def control_monotonicity(

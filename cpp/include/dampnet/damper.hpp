@@ -528,96 +528,32 @@ class Damper {
   // OR-ed in. *n_evals (nullable): force evaluations after the two at the limits.
   DN_REALTIME DN_OUTLINE int inverse(const dn_damper_input& in, real demand, real* u, real* f,
                                      int* n_evals = nullptr) const noexcept {
-    if (n_evals) *n_evals = 0;
-    real lo = 0, hi = 0;
-    int ui = -1;
-    int st = control_range(&lo, &hi, &ui);
-    if (st < 0) {
-      *u = 0;
-      return fail(f, st);
-    }
-    const real mid = lo + (hi - lo) / 2;
-    if (std::isnan(demand)) {
-      *u = mid;
-      return fail(f, DN_E_NONFINITE_INPUT);
-    }
-    dn_damper_input w = in;
-    real f_lo = 0, f_hi = 0, d_lo = 0, d_hi = 0;
-    w.u = lo;
-    const int s_lo = force_du(w, ui, &f_lo, &d_lo);
-    w.u = hi;
-    const int s_hi = hi > lo ? force_du(w, ui, &f_hi, &d_hi) : s_lo;
-    if (!(hi > lo)) f_hi = f_lo, d_hi = d_lo;
-    if (s_lo < 0 || s_hi < 0) {
-      *u = mid;
-      return fail(f, s_lo < 0 ? s_lo : s_hi);
-    }
-    st = s_lo | s_hi;
-    real a = lo, b = hi, ga = f_lo - demand, gb = f_hi - demand;
-    // Outside the limits' forces (or on one of them): the nearer limit.
-    if (!(hi > lo) || ga == 0 || gb == 0 || (ga > 0) == (gb > 0)) {
-      const bool take_lo = !(hi > lo) || (std::isinf(demand) ? (demand > 0) == (f_lo >= f_hi)
-                                                             : std::fabs(ga) <= std::fabs(gb));
-      *u = take_lo ? lo : hi;
-      *f = take_lo ? f_lo : f_hi;
-      return (take_lo ? ga : gb) == 0 ? st : (st | DN_W_UNREACHABLE);
-    }
-    const real tol = real(DN_INVERSE_TOL_REL) * (hi - lo);
-    // The force's own rounding: a float kernel's sum is exact to a few float ulps of the force
-    // scale, so a residual below that says nothing more about u (Newton would only wander).
-    const real eps = kind == DN_DAMPER_NEURAL && precision == DN_PRECISION_FLOAT
-                         ? real(std::numeric_limits<float>::epsilon())
-                         : std::numeric_limits<real>::epsilon();
-    const real noise = 8 * eps * (std::fabs(f_lo) > std::fabs(f_hi) ? std::fabs(f_lo) : std::fabs(f_hi));
-    real best_u = std::fabs(ga) <= std::fabs(gb) ? a : b;
-    real best_f = std::fabs(ga) <= std::fabs(gb) ? f_lo : f_hi;
-    real best_g = std::fabs(ga) <= std::fabs(gb) ? ga : gb;
-    // First iterate: Newton from the nearer limit, else the secant through both.
-    real x = best_u - best_g / (best_u == a ? d_lo : d_hi);
-    if (!(x > a && x < b)) x = a - ga * (b - a) / (gb - ga);
-    if (!(x > a && x < b)) x = a + (b - a) / 2;
-    real step = b - a;  // the last step's length
-    real w_prev = b - a, w_prev2 = 2 * (b - a);  // the bracket one and two steps ago
-    int k = 0;
-    for (; k < DN_INVERSE_MAX_ITERS; ++k) {
-      real fx = 0, dx = 0;
-      w.u = x;
-      const int sx = force_du(w, ui, &fx, &dx);
-      if (sx < 0) break;  // (not expected: the same finite inputs as at the limits)
-      st |= sx;
-      const real g = fx - demand;
-      if (std::fabs(g) < std::fabs(best_g)) best_u = x, best_f = fx, best_g = g;
-      if (std::fabs(g) <= noise || std::fabs(step) <= tol) {
-        ++k;
-        break;
-      }
-      if ((g > 0) == (ga > 0)) a = x, ga = g;
-      else b = x, gb = g;
-      if (b - a <= tol) {
-        ++k;
-        break;
-      }
-      const real slope = std::isfinite(dx) && dx != 0 ? dx : (gb - ga) / (b - a);
-      real xn = x - g / slope;
-      // The root is within the step Newton asks for (inside the bracket, converging): x is
-      // within tol of it; no evaluation more to confirm.
-      if (std::isfinite(dx) && std::fabs(xn - x) <= tol && xn > a && xn < b) {
-        ++k;
-        break;
-      }
-      // Newton while it stays inside and either its step is under half the last one (it is
-      // converging) or the bracket has halved in two steps; else bisect.
-      const bool newton = xn > a && xn < b &&
-                          (std::fabs(xn - x) <= std::fabs(step) / 2 || b - a <= w_prev2 / 2);
-      if (!newton) xn = a + (b - a) / 2;
-      w_prev2 = w_prev;
-      w_prev = b - a;
-      step = xn - x;
-      x = xn;
-    }
-    if (n_evals) *n_evals = k;
-    *u = best_u;
-    *f = best_f;
+    int n_limits = 0, n_other = 0;
+    const int st = search(in, demand, std::numeric_limits<real>::quiet_NaN(), u, f, &n_limits, &n_other);
+    if (n_evals) *n_evals = n_other;
+    return st;
+  }
+
+  // [RT] inverse() from a control near the answer, u_start [V or A] (a controller's last
+  // command): up to DN_INVERSE_WARM_EVALS Newton steps from it, on the analytic dF/du of a
+  // neural damper, before any limit is evaluated. They stop as inverse()'s do (a Newton step
+  // below the tolerance, or the force within its rounding of the demand); once two of them
+  // straddle the demand, inverse()'s bracketed steps go on between those two. A step that
+  // would leave the control range through a limit L: F(L) is evaluated (not when the step
+  // starts at L); a demand between F at the step's start and F(L) is bracketed there. Else
+  // (the demand may be unreachable), dF/du 0 or not finite, or the warm steps spent:
+  // inverse() from the limits, reusing those the warm steps evaluated (a start at a limit, as
+  // a saturated command's, costs no second evaluation there). For a model monotone in u this
+  // is inverse()'s answer (to its tolerance); for one that is not, a control giving the demand
+  // found near u_start is returned even where inverse() finds the demand outside the limits'
+  // forces. u_start NaN or outside the range, or a damper without an analytic dF/du:
+  // inverse(). *n_evals (nullable): every force evaluation made, the limits' included (at
+  // most DN_INVERSE_WARM_EVALS + 2 + DN_INVERSE_MAX_ITERS).
+  DN_REALTIME DN_OUTLINE int inverse_near(const dn_damper_input& in, real demand, real u_start, real* u, real* f,
+                                          int* n_evals = nullptr) const noexcept {
+    int n_limits = 0, n_other = 0;
+    const int st = search(in, demand, u_start, u, f, &n_limits, &n_other);
+    if (n_evals) *n_evals = n_limits + n_other;
     return st;
   }
 
@@ -714,6 +650,222 @@ class Damper {
   }
 
  private:
+  // inverse() and inverse_near(): Newton steps from u_start (finite, inside the control range,
+  // a neural damper reading in.u: dF/du analytic), then, unless they found the control or two
+  // of them straddle the demand, the search from the limits. *n_limits: the evaluations at the
+  // limits (0-2); *n_other: the others (incremented).
+  DN_REALTIME int search(const dn_damper_input& in, real demand, real u_start, real* u, real* f, int* n_limits,
+                         int* n_other) const noexcept {
+    real lo = 0, hi = 0;
+    int ui = -1;
+    int st = control_range(&lo, &hi, &ui);
+    if (st < 0) {
+      *u = 0;
+      return fail(f, st);
+    }
+    const real mid = lo + (hi - lo) / 2;
+    if (std::isnan(demand)) {
+      *u = mid;
+      return fail(f, DN_E_NONFINITE_INPUT);
+    }
+    const real tol = real(DN_INVERSE_TOL_REL) * (hi - lo);
+    // The force's own rounding: a float kernel's sum is exact to a few float ulps of the force
+    // scale, so a residual below that says nothing more about u (Newton would only wander).
+    const real eps = kind == DN_DAMPER_NEURAL && precision == DN_PRECISION_FLOAT
+                         ? real(std::numeric_limits<float>::epsilon())
+                         : std::numeric_limits<real>::epsilon();
+    dn_damper_input w = in;
+    // F and dF/du at a control: force_du(w with u = c). A float neural damper's features but
+    // the control are gathered, checked and converted once (force_du's values, bit for bit).
+    const bool gathered = kind_built(DN_DAMPER_NEURAL) && kind == DN_DAMPER_NEURAL && ui >= 0 &&
+                          precision == DN_PRECISION_FLOAT;
+    float xf[DN_MAX_INPUTS] = {};
+    int gather_st = DN_OK;
+    if (gathered) {
+      real xr[DN_MAX_INPUTS];
+      feature_values(in, xr);
+      for (int i = 0; i < n_feat; ++i) {
+        if (i != ui && !std::isfinite(xr[i])) gather_st = DN_E_NONFINITE_INPUT;
+        xf[i] = static_cast<float>(xr[i]);
+      }
+    }
+    auto eval = [&](real c, real* fc, real* dc) noexcept -> int {
+      w.u = c;
+      if (!gathered) return force_du(w, ui, fc, dc);
+      *dc = std::numeric_limits<real>::quiet_NaN();
+      if (gather_st < 0 || !std::isfinite(c)) return fail(fc, DN_E_NONFINITE_INPUT);
+      xf[ui] = static_cast<float>(c);
+      float yf = 0.0f, gf = 0.0f;
+      const int sc = mf.forward_grad(xf, &yf, ui, &gf, nullptr);
+      *dc = gf;
+      if (sc < 0) return fail(fc, sc);
+      real y = yf;
+      if (DN_CAP_TERMS > 0 && n_terms > 0) {
+        if (!terms::inputs_finite(terms, n_terms, w)) return fail(fc, DN_E_NONFINITE_INPUT);
+        real g[3];
+        y += terms::sum_grad(terms, n_terms, w, g);
+        *dc += g[2];
+      }
+      if (!std::isfinite(y)) return fail(fc, DN_E_NONFINITE_OUTPUT);
+      *fc = y;
+      return sc;
+    };
+    real a = lo, b = hi, ga = 0, gb = 0, x = mid, noise = 0;
+    real best_u = mid, best_f = 0, best_g = std::numeric_limits<real>::infinity();
+    bool bracketed = false;
+    // Limits the warm steps evaluated (bit 0: u_min, bit 1: u_max), for the search from the limits.
+    int known = 0, ks_lo = 0, ks_hi = 0;
+    real kf_lo = 0, kd_lo = 0, kf_hi = 0, kd_hi = 0;
+    auto keep_limit = [&](real at, int s, real fv, real dv) {
+      if (at == lo) known |= 1, ks_lo = s, kf_lo = fv, kd_lo = dv;
+      if (at == hi) known |= 2, ks_hi = s, kf_hi = fv, kd_hi = dv;
+    };
+    st = DN_OK;
+    // Warm: Newton from u_start while it stays inside the range, until it converges or two
+    // evaluations straddle the demand (a bracket without the limits).
+    if (ui >= 0 && kind == DN_DAMPER_NEURAL && hi > lo && u_start >= lo && u_start <= hi) {
+      real px = 0, pf = 0, pg = 0;
+      x = u_start;
+      for (int k = 0; k < DN_INVERSE_WARM_EVALS; ++k) {
+        real fx = 0, dx = 0;
+        const int sx = eval(x, &fx, &dx);
+        ++*n_other;
+        if (sx < 0) {
+          *u = mid;
+          return fail(f, sx);
+        }
+        keep_limit(x, sx, fx, dx);
+        st |= sx;
+        const real g = fx - demand;
+        if (std::fabs(g) < std::fabs(best_g)) best_u = x, best_f = fx, best_g = g;
+        if (std::fabs(g) <= 8 * eps * std::fabs(fx)) return found(best_u, best_f, u, f, st);
+        const real xn = x - g / dx;  // (dx 0 or NaN, g infinite: not finite, fails the range test)
+        if (k > 0 && (g > 0) != (pg > 0)) {
+          bracketed = true;
+          if (px < x) a = px, ga = pg, b = x, gb = g;
+          else a = x, ga = g, b = px, gb = pg;
+          noise = 8 * eps * (std::fabs(pf) > std::fabs(fx) ? std::fabs(pf) : std::fabs(fx));
+          x = xn;
+          if (!(x > a && x < b)) x = a - ga * (b - a) / (gb - ga);
+          if (!(x > a && x < b)) x = a + (b - a) / 2;
+          break;
+        }
+        if (xn != xn) break;  // (dx 0 or NaN)
+        if (xn < lo || xn > hi) {  // toward the limit L beyond which Newton puts the demand
+          const real lim = xn < lo ? lo : hi;
+          real fl = fx, dl = dx;
+          if (x != lim) {
+            const int sl = eval(lim, &fl, &dl);
+            ++*n_other;
+            if (sl < 0) {
+              *u = mid;
+              return fail(f, sl);
+            }
+            keep_limit(lim, sl, fl, dl);
+            st |= sl;
+            const real gl = fl - demand;
+            if (std::fabs(gl) < std::fabs(best_g)) best_u = lim, best_f = fl, best_g = gl;
+            if (std::fabs(gl) <= 8 * eps * std::fabs(fl)) return found(best_u, best_f, u, f, st);
+            if ((gl > 0) != (g > 0)) {  // the demand lies between x and L: bracketed there
+              bracketed = true;
+              if (x < lim) a = x, ga = g, b = lim, gb = gl;
+              else a = lim, ga = gl, b = x, gb = g;
+              noise = 8 * eps * (std::fabs(fl) > std::fabs(fx) ? std::fabs(fl) : std::fabs(fx));
+              x = a - ga * (b - a) / (gb - ga);
+              if (!(x > a && x < b)) x = a + (b - a) / 2;
+              break;
+            }
+          }
+          break;  // beyond F(L) as seen from x: the other limit decides (a model may turn back)
+        }
+        if (std::fabs(xn - x) <= tol) return found(best_u, best_f, u, f, st);
+        px = x, pf = fx, pg = g;
+        x = xn;
+      }
+    }
+    if (!bracketed) {  // from the limits (those the warm steps evaluated kept), as inverse()
+      st = DN_OK;
+      real f_lo = kf_lo, f_hi = kf_hi, d_lo = kd_lo, d_hi = kd_hi;
+      int s_lo = ks_lo, s_hi = ks_hi;
+      if (!(known & 1)) {
+        s_lo = eval(lo, &f_lo, &d_lo);
+        ++*n_limits;
+      }
+      if (!(hi > lo)) {
+        s_hi = s_lo, f_hi = f_lo, d_hi = d_lo;
+      } else if (!(known & 2)) {
+        s_hi = eval(hi, &f_hi, &d_hi);
+        ++*n_limits;
+      }
+      if (s_lo < 0 || s_hi < 0) {
+        *u = mid;
+        return fail(f, s_lo < 0 ? s_lo : s_hi);
+      }
+      st = s_lo | s_hi;
+      a = lo, b = hi, ga = f_lo - demand, gb = f_hi - demand;
+      // Outside the limits' forces (or on one of them): the nearer limit.
+      if (!(hi > lo) || ga == 0 || gb == 0 || (ga > 0) == (gb > 0)) {
+        const bool take_lo = !(hi > lo) || (std::isinf(demand) ? (demand > 0) == (f_lo >= f_hi)
+                                                               : std::fabs(ga) <= std::fabs(gb));
+        *u = take_lo ? lo : hi;
+        *f = take_lo ? f_lo : f_hi;
+        return (take_lo ? ga : gb) == 0 ? st : (st | DN_W_UNREACHABLE);
+      }
+      noise = 8 * eps * (std::fabs(f_lo) > std::fabs(f_hi) ? std::fabs(f_lo) : std::fabs(f_hi));
+      best_u = std::fabs(ga) <= std::fabs(gb) ? a : b;
+      best_f = std::fabs(ga) <= std::fabs(gb) ? f_lo : f_hi;
+      best_g = std::fabs(ga) <= std::fabs(gb) ? ga : gb;
+      // First iterate: Newton from the nearer limit, else the secant through both.
+      x = best_u - best_g / (best_u == a ? d_lo : d_hi);
+      if (!(x > a && x < b)) x = a - ga * (b - a) / (gb - ga);
+      if (!(x > a && x < b)) x = a + (b - a) / 2;
+    }
+    real step = b - a;  // the last step's length
+    real w_prev = b - a, w_prev2 = 2 * (b - a);  // the bracket one and two steps ago
+    int k = 0;
+    for (; k < DN_INVERSE_MAX_ITERS; ++k) {
+      real fx = 0, dx = 0;
+      const int sx = eval(x, &fx, &dx);
+      if (sx < 0) break;  // (not expected: the same finite inputs as at the limits)
+      st |= sx;
+      const real g = fx - demand;
+      if (std::fabs(g) < std::fabs(best_g)) best_u = x, best_f = fx, best_g = g;
+      if (std::fabs(g) <= noise || std::fabs(step) <= tol) {
+        ++k;
+        break;
+      }
+      if ((g > 0) == (ga > 0)) a = x, ga = g;
+      else b = x, gb = g;
+      if (b - a <= tol) {
+        ++k;
+        break;
+      }
+      const real slope = std::isfinite(dx) && dx != 0 ? dx : (gb - ga) / (b - a);
+      real xn = x - g / slope;
+      // The root is within the step Newton asks for (inside the bracket, converging): x is
+      // within tol of it; no evaluation more to confirm.
+      if (std::isfinite(dx) && std::fabs(xn - x) <= tol && xn > a && xn < b) {
+        ++k;
+        break;
+      }
+      // Newton while it stays inside and either its step is under half the last one (it is
+      // converging) or the bracket has halved in two steps; else bisect.
+      const bool newton = xn > a && xn < b &&
+                          (std::fabs(xn - x) <= std::fabs(step) / 2 || b - a <= w_prev2 / 2);
+      if (!newton) xn = a + (b - a) / 2;
+      w_prev2 = w_prev;
+      w_prev = b - a;
+      step = xn - x;
+      x = xn;
+    }
+    *n_other += k;
+    return found(best_u, best_f, u, f, st);
+  }
+  static int found(real best_u, real best_f, real* u, real* f, int st) noexcept {
+    *u = best_u;
+    *f = best_f;
+    return st;
+  }
   static int fail(real* f, int st) noexcept {
     *f = 0;
     return st;

@@ -242,6 +242,23 @@ DN_API int dn_damper_control_range(const dn_damper* d, dn_real* u_min, dn_real* 
 DN_API int dn_damper_inverse(const dn_damper* d, const dn_damper_input* in, dn_real force_demand,
                              dn_real* u, dn_real* force, int* n_evals);
 
+/* [RT] dn_damper_inverse from a control near the answer, u_start [V or A] (a controller's last
+ * command: the quarter car's and the full car's force-tracking laws pass theirs): Newton steps
+ * from u_start on a neural damper's analytic dF/du, up to DN_INVERSE_WARM_EVALS of them before
+ * any limit is evaluated. They stop as dn_damper_inverse's do; once two straddle the demand its
+ * bracketed steps go on between those two. A step that would leave the control range through a
+ * limit L evaluates F(L) (unless it starts at L): a demand between is bracketed there. Else
+ * (the demand may be unreachable), dF/du 0 or not finite, or the warm steps spent:
+ * dn_damper_inverse, reusing the limits already evaluated (a start at a limit, as a saturated
+ * command's, is not evaluated twice). For a model monotone in u the answer is
+ * dn_damper_inverse's (to its tolerance); for one that is not, a control giving the demand
+ * found near u_start is returned even where dn_damper_inverse finds it outside the limits'
+ * forces. u_start NaN or outside the range, or a damper without an analytic dF/du (parametric, table):
+ * dn_damper_inverse. Nullable: n_evals (every force evaluation made, the limits' included:
+ * at most DN_INVERSE_WARM_EVALS + 2 + DN_INVERSE_MAX_ITERS). */
+DN_API int dn_damper_inverse_near(const dn_damper* d, const dn_damper_input* in, dn_real force_demand,
+                                  dn_real u_start, dn_real* u, dn_real* force, int* n_evals);
+
 /* Set-up (bounded: n_v (n_u + 1) force evaluations; no allocation): is the force monotone in
  * the control? F is scanned on n_v velocities evenly over [v_min, v_max] [m/s] x n_u controls
  * over dn_damper_control_range, the other inputs as in *at (its v and u ignored). At each

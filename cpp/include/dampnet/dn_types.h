@@ -189,6 +189,9 @@ typedef dn_real (*dn_damper_fn)(void* user, const dn_damper_input* in);
  * model). */
 #define DN_INVERSE_MAX_ITERS 44
 #define DN_INVERSE_TOL_REL 1e-6
+/* dn_damper_inverse_near: at most DN_INVERSE_WARM_EVALS Newton steps from the given control
+ * before the search from the limits (a start near the answer usually needs 2). */
+#define DN_INVERSE_WARM_EVALS 4
 
 /* dn_damper_control_monotonicity's report: where the force turns back in the control. */
 typedef struct dn_monotonicity {

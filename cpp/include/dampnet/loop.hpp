@@ -280,17 +280,18 @@ struct Corner {
     return cmd_keep > 0 ? detail::clamp(u + (u_cmd - u) * cmd_keep, ctrl.u_min, ctrl.u_max) : u;
   }
   // [RT] A force-tracking law's control over a step: the damper's inverse of f_static + the
-  // demand at the step start's damper input `in` (its states filled; in.u not read), u_soft when
-  // nothing is demanded (not dissipative), then the command filter. The inverse's evaluations are added to *n_evals; an inverse
-  // that fails (a runaway input) leaves the centre of the range, and the force's evaluation then
-  // reports the failure.
+  // demand at the step start's damper input `in` (its states filled; in.u not read), from the
+  // last step's command u_cmd (inverse_near: the control moves little in a step), u_soft when
+  // nothing is demanded (not dissipative), then the command filter. The inverse's evaluations
+  // are added to *n_evals; an inverse that fails (a runaway input) leaves the centre of the
+  // range, and the force's evaluation then reports the failure.
   DN_REALTIME real command_force(const dn_damper_input& in, real f_static, real demand, real u_cmd,
                                  int64_t* n_evals) const noexcept {
     real u = ctrl.u_soft, f = 0;
     if (demand != 0) {  // no dissipative demand: the least damping, not the control nearest 0 N
       int evals = 0;    // (a damper whose force lags its velocity gives no 0 N near a reversal)
-      damper.inverse(in, f_static + demand, &u, &f, &evals);
-      *n_evals += evals + 2;
+      damper.inverse_near(in, f_static + demand, u_cmd, &u, &f, &evals);
+      *n_evals += evals;
     }
     return filtered(detail::clamp(u, ctrl.u_min, ctrl.u_max), u_cmd);
   }

@@ -383,6 +383,19 @@ static void damper_inverse_cases(dn_damper* const* dampers, int n) {
         if (!has_range && st != DN_E_MISMATCH) FAIL("damper %d inverse without a control: status %d", kind, st);
         if (st < 0 && f != 0.0) FAIL("damper %d inverse: error %d, force %g not 0", kind, st, f);
         if (st >= 0 && (u < lo || u > hi)) FAIL("damper %d inverse: u %g outside [%g, %g]", kind, u, lo, hi);
+        /* from a start: the same field weird, and the start itself weird */
+        for (int s = 0; s < 2; ++s) {
+          u = f = 12345.0;
+          evals = -1;
+          const double start = s == 0 ? 1.0 : WEIRD[i];
+          const int sn = dn_damper_inverse_near(dampers[k], &in, demand, start, &u, &f, &evals);
+          if (!known_status(sn)) FAIL("damper %d inverse_near: unknown status %d", kind, sn);
+          if (!isfinite(u) || !isfinite(f)) FAIL("damper %d inverse_near field %d = %g, start %g: status %d, u %g, force %g", kind, field, WEIRD[i], start, sn, u, f);
+          if (evals < 0 || evals > DN_INVERSE_WARM_EVALS + 2 + DN_INVERSE_MAX_ITERS) FAIL("damper %d inverse_near: %d evaluations", kind, evals);
+          if (!has_range && sn != DN_E_MISMATCH) FAIL("damper %d inverse_near without a control: status %d", kind, sn);
+          if (sn < 0 && f != 0.0) FAIL("damper %d inverse_near: error %d, force %g not 0", kind, sn, f);
+          if (sn >= 0 && (u < lo || u > hi)) FAIL("damper %d inverse_near: u %g outside [%g, %g]", kind, u, lo, hi);
+        }
       }
     dn_damper_input in;
     memset(&in, 0, sizeof in);
@@ -391,6 +404,10 @@ static void damper_inverse_cases(dn_damper* const* dampers, int n) {
     if (dn_damper_inverse(dampers[k], NULL, 0.0, &u, &f, NULL) != DN_E_NULL) FAIL("inverse(NULL in)");
     if (dn_damper_inverse(dampers[k], &in, 0.0, NULL, &f, NULL) != DN_E_NULL) FAIL("inverse(NULL u)");
     if (dn_damper_inverse(dampers[k], &in, 0.0, &u, NULL, NULL) != DN_E_NULL) FAIL("inverse(NULL force)");
+    if (dn_damper_inverse_near(NULL, &in, 0.0, 1.0, &u, &f, NULL) != DN_E_NULL) FAIL("inverse_near(NULL damper)");
+    if (dn_damper_inverse_near(dampers[k], NULL, 0.0, 1.0, &u, &f, NULL) != DN_E_NULL) FAIL("inverse_near(NULL in)");
+    if (dn_damper_inverse_near(dampers[k], &in, 0.0, 1.0, NULL, &f, NULL) != DN_E_NULL) FAIL("inverse_near(NULL u)");
+    if (dn_damper_inverse_near(dampers[k], &in, 0.0, 1.0, &u, NULL, NULL) != DN_E_NULL) FAIL("inverse_near(NULL force)");
     if (dn_damper_control_range(dampers[k], NULL, &hi) != DN_E_NULL) FAIL("control_range(NULL)");
   }
 }

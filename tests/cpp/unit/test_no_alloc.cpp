@@ -43,8 +43,8 @@ int main() {
   std::printf("allocations during 4e6 forward calls: %ld (checksum %g)\n", g_allocs, acc);
   CHECK(g_allocs == 0);
 
-  // The damper's inverse (dn_damper_inverse): its bracket, Newton and bisection steps, float
-  // and double, reachable, unreachable and non-finite demands.
+  // The damper's inverse (dn_damper_inverse, dn_damper_inverse_near): its bracket, Newton and
+  // bisection steps, float and double, reachable, unreachable and non-finite demands.
   const char* names[3] = {"velocity", "acceleration", "voltage"};
   dn_damper* dd = nullptr;
   dn_damper* dfl = nullptr;
@@ -63,6 +63,11 @@ int main() {
     const dn_real demand = (k % 5 == 0) ? 1e9 : (k % 7 == 0 ? std::nan("") : f_mid);
     const int st = dn_damper_inverse((k & 1) ? dd : dfl, &in, demand, &u, &f, nullptr);
     if (!std::isfinite(u) || !std::isfinite(f) || (st < 0 && st != DN_E_NONFINITE_INPUT)) ++n_bad;
+    acc += u;
+    // and from a start (dn_damper_inverse_near): its warm Newton steps, a start at a limit
+    const dn_real start = (k % 3 == 0) ? 0.0 : 0.45 + 1e-4 * (k % 100);
+    const int st_near = dn_damper_inverse_near((k & 2) ? dd : dfl, &in, demand, start, &u, &f, nullptr);
+    if (!std::isfinite(u) || !std::isfinite(f) || (st_near < 0 && st_near != DN_E_NONFINITE_INPUT)) ++n_bad;
     acc += u;
   }
   g_counting = false;
