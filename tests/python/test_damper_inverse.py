@@ -348,8 +348,9 @@ def test_a_start_near_the_answer_gives_the_cold_inverses_control_in_fewer_evalua
     within the inverse's allowance of the cold inverse's (both within DN_INVERSE_TOL_REL of the
     root, the force within its rounding), every status DN_OK, the evaluations bounded, and fewer
     than the cold inverse's (2 limits + its Newton steps) when the start is within 1 % of the
-    range (measured, float and double, mean (max): 1.0 at the answer itself, 2.7-2.9 (4) at
-    0.3-1 %, 3.6 (10) at 10 %, 4.6 (11) from anywhere in the range, against 5.3 cold). Demands
+    range (measured, float and double, mean (max): 1.0 at the answer itself, 2.0-2.5 (4-11) at
+    0.3-1 %, 2.9-3.0 (5) at 10 %, 3.6 (6) from anywhere in the range, against 4.2 cold; with
+    Newton's steps instead of Halley's 2.7-2.9, 3.6, 4.6 and 5.3). Demands
     beyond the limits' forces: the cold inverse's answer and status bit for bit, in 2
     evaluations from a start at the nearer limit (a saturated controller's). Cost: 0.2 s."""
     model = monotone_random_model()
@@ -368,7 +369,10 @@ def test_a_start_near_the_answer_gives_the_cold_inverses_control_in_fewer_evalua
         u, f, st, ev = damper.inverse(demand, **mo, u_start=start)
         assert np.all(st == 0)
         assert np.all(ev >= 1) and np.all(ev <= _core.DN_INVERSE_WARM_EVALS + 2 + MAX_ITERS)
-        assert np.all(np.abs(u - u0) <= 2 * _core.DN_INVERSE_TOL_REL * (hi - lo) + 1e-12), dist
+        # both within the tolerance of the root; a float force's rounding can leave u less
+        # determined (as in the brute-force test): there the warm force is as near the demand
+        near = np.abs(f - demand) <= np.abs(f0 - demand) + 1e-6 * np.max(np.abs(demand))
+        assert np.all((np.abs(u - u0) <= 2 * _core.DN_INVERSE_TOL_REL * (hi - lo) + 1e-12) | (single & near)), dist
         assert np.all(np.abs(f - demand) <= np.abs(f0 - demand) + 2 * allow + 1e-6 * np.max(np.abs(demand)))
         if dist == 0.0:
             assert np.mean(ev) < 1.2

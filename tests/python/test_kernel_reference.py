@@ -205,12 +205,34 @@ SIMD_PATHS = {
 }
 
 
+def _torch_slope_and_curvature(model, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """dy/dx0 and d2y/dx0^2 of torch_reference's forward by autograd, float64 (0 where x0 is
+    clamped: the saturated model does not depend on it)."""
+    torch = needs.need_module("torch")
+    t0 = torch.as_tensor(x[:, 0], dtype=torch.float64).requires_grad_(True)
+    t = torch.cat([t0[:, None], torch.as_tensor(x[:, 1:], dtype=torch.float64)], dim=1)
+    t = torch.minimum(torch.maximum(t, torch.as_tensor(model.sat_lo)), torch.as_tensor(model.sat_hi))
+    t = (t - torch.as_tensor(model.in_offset)) * torch.as_tensor(model.in_gain) + model.in_ymin
+    act = torch.tanh if model.activation == "tanh" else torch.sigmoid
+    layers = [(model.w1, model.b1)] + ([(model.w2, model.b2)] if model.w2 is not None else [])
+    for w, b in layers:
+        t = act(t @ torch.as_tensor(w).T + torch.as_tensor(b))
+    y = ((t @ torch.as_tensor(model.w_out) + model.b_out) - model.out_ymin) / model.out_gain + model.out_offset
+    (g,) = torch.autograd.grad(y.sum(), t0, create_graph=True)
+    (c,) = torch.autograd.grad(g.sum(), t0, allow_unused=True)
+    c = torch.zeros_like(g) if c is None else c
+    return g.detach().numpy(), c.detach().numpy()
+
+
 @pytest.mark.parametrize("isa", list(SIMD_PATHS))
 def test_every_simd_path_matches_torch(tmp_path, isa):
     """Each SIMD path's float kernel (compile-time and run-time sizes, and forward_grad's
     value) within FLOAT_TOL (1e-5 of the force range) of the torch float64 reference, the
     double kernel within DOUBLE_TOL (1e-12), over the shapes of SHAPES with 20 % of the
-    inputs beyond the saturation range."""
+    inputs beyond the saturation range. forward_grad_curv (the damper inverse's Halley steps):
+    its value and slope forward_grad's bits, float and double; its slope and curvature in x0
+    against torch's autograd (float within 1e-4, double 1e-9 of the largest over the samples;
+    0 where x0 is clamped; NaN for two hidden layers, which it does not compute)."""
     flags, needs = SIMD_PATHS[isa]
     if not needs <= _cpu_flags():
         pytest.skip(f"this CPU does not run {isa}")
@@ -219,7 +241,7 @@ def test_every_simd_path_matches_torch(tmp_path, isa):
     body = ["int main(void) {", '  printf("%s\\n", dampnet::kernel_isa());',
             "  int k, n, i; double x[8];", "  while (scanf(\"%d %d\", &k, &n) == 2) {",
             "    for (i = 0; i < n; ++i) if (scanf(\"%lf\", &x[i]) != 1) return 2;",
-            "    float xf[8]; double y; float yf, yr, yg, g;",
+            "    float xf[8]; double y, yd, gd, yd2, gd2, cd; float yf, yr, yg, g, yc, gc, cc;",
             "    for (i = 0; i < n; ++i) xf[i] = (float)x[i];"]
     for k, m in enumerate(models):
         write_header(m, tmp_path / f"m{k}.h", prefix=f"m{k}")
@@ -229,11 +251,17 @@ def test_every_simd_path_matches_torch(tmp_path, isa):
                  f"      static dampnet::StaticMlp<double, {P}_N_INPUTS, {P}_N_HIDDEN1, {P}_N_HIDDEN2> md;",
                  f"      static dampnet::StaticMlp<float, {P}_N_INPUTS, {P}_N_HIDDEN1, {P}_N_HIDDEN2> mf;",
                  "      static dampnet::Mlp<float> mr;",
+                 "      static dampnet::Mlp<double> mrd;",
                  f"      const dn_mlp_desc d = {P}_DESC_INIT;",
-                 "      if (md.load(&d) != DN_OK || mf.load(&d) != DN_OK || mr.load(&d) != DN_OK) return 3;",
+                 "      if (md.load(&d) != DN_OK || mf.load(&d) != DN_OK || mr.load(&d) != DN_OK || mrd.load(&d) != DN_OK) return 3;",
                  "      md.forward(x, &y); mf.forward(xf, &yf); mr.forward(xf, &yr);",
                  "      mr.forward_grad(xf, &yg, 0, &g);",
-                 "      printf(\"%.17g %.9g %.9g %.9g\\n\", y, (double)yf, (double)yr, (double)yg);",
+                 "      mr.forward_grad_curv(xf, &yc, 0, &gc, &cc);",
+                 "      mrd.forward_grad(x, &yd, 0, &gd);",
+                 "      mrd.forward_grad_curv(x, &yd2, 0, &gd2, &cd);",
+                 "      if (!(yc == yg && gc == g && yd2 == yd && gd2 == gd)) return 4;",
+                 "      printf(\"%.17g %.9g %.9g %.9g %.9g %.9g %.17g %.17g\\n\", y, (double)yf, (double)yr, (double)yg,",
+                 "             (double)gc, (double)cc, gd, cd);",
                  "    }"]
     body += ["  }", "  return 0;", "}"]
     src = tmp_path / "prog.cpp"
@@ -243,8 +271,24 @@ def test_every_simd_path_matches_torch(tmp_path, isa):
     stdout, ref = _run_on_random_inputs(exe, models, 200)
     out = stdout.split("\n", 1)
     assert out[0] == isa  # the path these flags select
-    got = np.array(out[1].split(), dtype=float).reshape(-1, 4)
+    got = np.array(out[1].split(), dtype=float).reshape(-1, 8)
     assert got.shape[0] == ref.shape[0]
     assert np.max(np.abs(got[:, 0] - ref)) <= DOUBLE_TOL
     for col in (1, 2, 3):
         assert np.max(np.abs(got[:, col] - ref)) <= FLOAT_TOL, (isa, col)
+    row = 0
+    for k, m in enumerate(models):
+        x = random_inputs(m, 200, seed=k)
+        g_ref, c_ref = _torch_slope_and_curvature(m, x)
+        mine = got[row:row + len(x)]
+        row += len(x)
+        gs, cs = np.max(np.abs(g_ref)) + 1e-300, np.max(np.abs(c_ref)) + 1e-300
+        assert np.max(np.abs(mine[:, 4] - g_ref)) <= 1e-4 * gs, (isa, k, "float slope")
+        assert np.max(np.abs(mine[:, 6] - g_ref)) <= 1e-9 * gs, (isa, k, "double slope")
+        if m.w2 is not None:  # two hidden layers: not computed
+            assert np.all(np.isnan(mine[:, 5])) and np.all(np.isnan(mine[:, 7])), (isa, k)
+            continue
+        assert np.max(np.abs(mine[:, 5] - c_ref)) <= 1e-3 * cs, (isa, k, "float curvature")
+        assert np.max(np.abs(mine[:, 7] - c_ref)) <= 1e-9 * cs, (isa, k, "double curvature")
+        clamped = (x[:, 0] < m.sat_lo[0]) | (x[:, 0] > m.sat_hi[0])
+        assert clamped.any() and np.all(mine[clamped, 5] == 0) and np.all(mine[clamped, 7] == 0), (isa, k)

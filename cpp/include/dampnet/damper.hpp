@@ -482,10 +482,11 @@ class Damper {
     }
   }
 
-  // [RT] As force(), plus dF/du [N per V or A] when the model gives it analytically (a neural
-  // damper, input ui reading in.u); NaN otherwise (the inverse then takes a secant).
-  DN_REALTIME int force_du(const dn_damper_input& in, int ui, real* f, real* df_du) const noexcept {
-    *df_du = std::numeric_limits<real>::quiet_NaN();
+  // [RT] As force(), plus dF/du [N per V or A] and d2F/du2 [N per (V or A)^2] when the model
+  // gives them analytically (a neural damper, input ui reading in.u; the curvature for one
+  // hidden layer and no terms); NaN otherwise (the inverse then takes a secant, or Newton).
+  DN_REALTIME int force_du(const dn_damper_input& in, int ui, real* f, real* df_du, real* d2f_du2) const noexcept {
+    *df_du = *d2f_du2 = std::numeric_limits<real>::quiet_NaN();
     if (!kind_built(DN_DAMPER_NEURAL) || kind != DN_DAMPER_NEURAL || ui < 0) return force(in, f);
     real x[DN_MAX_INPUTS];
     feature_values(in, x);
@@ -493,14 +494,21 @@ class Damper {
       if (!std::isfinite(x[i])) return fail(f, DN_E_NONFINITE_INPUT);
     real y = 0;
     int st;
-    if (precision == DN_PRECISION_FLOAT) st = float_forward_grad(mf, x, n_feat, &y, ui, df_du, nullptr);
-    else st = double_forward_grad(md, x, &y, ui, df_du, nullptr);
+    if (precision == DN_PRECISION_FLOAT) {
+      float xf[DN_MAX_INPUTS], yf = 0.0f, gf = 0.0f, g2f = 0.0f;
+      for (int k = 0; k < n_feat; ++k) xf[k] = static_cast<float>(x[k]);
+      st = mf.forward_grad_curv(xf, &yf, ui, &gf, &g2f, nullptr);
+      y = yf, *df_du = gf, *d2f_du2 = g2f;
+    } else {
+      st = double_forward_grad_curv(md, x, &y, ui, df_du, d2f_du2);
+    }
     if (st < 0) return fail(f, st);
     if (DN_CAP_TERMS > 0 && n_terms > 0) {  // a valve term reads u too: its slope is added
       if (!terms::inputs_finite(terms, n_terms, in)) return fail(f, DN_E_NONFINITE_INPUT);
       real g[3];
       y += terms::sum_grad(terms, n_terms, in, g);
       *df_du += g[2];
+      *d2f_du2 = std::numeric_limits<real>::quiet_NaN();  // (the terms give no curvature)
     }
     if (!std::isfinite(y)) return fail(f, DN_E_NONFINITE_OUTPUT);
     *f = y;
@@ -513,7 +521,8 @@ class Damper {
   //    force is nearer, and DN_W_UNREACHABLE (not when equal). A flat range (u_min == u_max,
   //    or equal forces at both): u_min.
   //  - else the sign change of F(u) - demand is bracketed and narrowed by safeguarded Newton
-  //    steps (dF/du analytic for a neural damper, the bracket's secant for the others): a step
+  //    steps (dF/du analytic for a neural damper, the bracket's secant for the others; Halley's
+  //    where d2F/du2 is known too, root_step): a step
   //    that leaves the bracket, or one that is not under half the last step while the bracket
   //    has not halved in two steps, is a bisection. At most DN_INVERSE_MAX_ITERS evaluations;
   //    it stops once the bracket, a step or the Newton step the last evaluation asks for is
@@ -689,15 +698,16 @@ class Damper {
         xf[i] = static_cast<float>(xr[i]);
       }
     }
-    auto eval = [&](real c, real* fc, real* dc) noexcept -> int {
+    auto eval = [&](real c, real* fc, real* dc, real* d2c) noexcept -> int {
       w.u = c;
-      if (!gathered) return force_du(w, ui, fc, dc);
-      *dc = std::numeric_limits<real>::quiet_NaN();
+      if (!gathered) return force_du(w, ui, fc, dc, d2c);
+      *dc = *d2c = std::numeric_limits<real>::quiet_NaN();
       if (gather_st < 0 || !std::isfinite(c)) return fail(fc, DN_E_NONFINITE_INPUT);
       xf[ui] = static_cast<float>(c);
-      float yf = 0.0f, gf = 0.0f;
-      const int sc = mf.forward_grad(xf, &yf, ui, &gf, nullptr);
+      float yf = 0.0f, gf = 0.0f, g2f = 0.0f;
+      const int sc = mf.forward_grad_curv(xf, &yf, ui, &gf, &g2f, nullptr);
       *dc = gf;
+      *d2c = g2f;
       if (sc < 0) return fail(fc, sc);
       real y = yf;
       if (DN_CAP_TERMS > 0 && n_terms > 0) {
@@ -705,6 +715,7 @@ class Damper {
         real g[3];
         y += terms::sum_grad(terms, n_terms, w, g);
         *dc += g[2];
+        *d2c = std::numeric_limits<real>::quiet_NaN();
       }
       if (!std::isfinite(y)) return fail(fc, DN_E_NONFINITE_OUTPUT);
       *fc = y;
@@ -715,10 +726,10 @@ class Damper {
     bool bracketed = false;
     // Limits the warm steps evaluated (bit 0: u_min, bit 1: u_max), for the search from the limits.
     int known = 0, ks_lo = 0, ks_hi = 0;
-    real kf_lo = 0, kd_lo = 0, kf_hi = 0, kd_hi = 0;
-    auto keep_limit = [&](real at, int s, real fv, real dv) {
-      if (at == lo) known |= 1, ks_lo = s, kf_lo = fv, kd_lo = dv;
-      if (at == hi) known |= 2, ks_hi = s, kf_hi = fv, kd_hi = dv;
+    real kf_lo = 0, kd_lo = 0, kc_lo = 0, kf_hi = 0, kd_hi = 0, kc_hi = 0;
+    auto keep_limit = [&](real at, int s, real fv, real dv, real cv) {
+      if (at == lo) known |= 1, ks_lo = s, kf_lo = fv, kd_lo = dv, kc_lo = cv;
+      if (at == hi) known |= 2, ks_hi = s, kf_hi = fv, kd_hi = dv, kc_hi = cv;
     };
     st = DN_OK;
     // Warm: Newton from u_start while it stays inside the range, until it converges or two
@@ -727,19 +738,19 @@ class Damper {
       real px = 0, pf = 0, pg = 0;
       x = u_start;
       for (int k = 0; k < DN_INVERSE_WARM_EVALS; ++k) {
-        real fx = 0, dx = 0;
-        const int sx = eval(x, &fx, &dx);
+        real fx = 0, dx = 0, cx = 0;
+        const int sx = eval(x, &fx, &dx, &cx);
         ++*n_other;
         if (sx < 0) {
           *u = mid;
           return fail(f, sx);
         }
-        keep_limit(x, sx, fx, dx);
+        keep_limit(x, sx, fx, dx, cx);
         st |= sx;
         const real g = fx - demand;
         if (std::fabs(g) < std::fabs(best_g)) best_u = x, best_f = fx, best_g = g;
         if (std::fabs(g) <= 8 * eps * std::fabs(fx)) return found(best_u, best_f, u, f, st);
-        const real xn = x - g / dx;  // (dx 0 or NaN, g infinite: not finite, fails the range test)
+        const real xn = x + root_step(g, dx, cx);  // (dx 0 or NaN, g infinite: not finite)
         if (k > 0 && (g > 0) != (pg > 0)) {
           bracketed = true;
           if (px < x) a = px, ga = pg, b = x, gb = g;
@@ -753,15 +764,15 @@ class Damper {
         if (xn != xn) break;  // (dx 0 or NaN)
         if (xn < lo || xn > hi) {  // toward the limit L beyond which Newton puts the demand
           const real lim = xn < lo ? lo : hi;
-          real fl = fx, dl = dx;
+          real fl = fx, dl = dx, cl = cx;
           if (x != lim) {
-            const int sl = eval(lim, &fl, &dl);
+            const int sl = eval(lim, &fl, &dl, &cl);
             ++*n_other;
             if (sl < 0) {
               *u = mid;
               return fail(f, sl);
             }
-            keep_limit(lim, sl, fl, dl);
+            keep_limit(lim, sl, fl, dl, cl);
             st |= sl;
             const real gl = fl - demand;
             if (std::fabs(gl) < std::fabs(best_g)) best_u = lim, best_f = fl, best_g = gl;
@@ -785,16 +796,16 @@ class Damper {
     }
     if (!bracketed) {  // from the limits (those the warm steps evaluated kept), as inverse()
       st = DN_OK;
-      real f_lo = kf_lo, f_hi = kf_hi, d_lo = kd_lo, d_hi = kd_hi;
+      real f_lo = kf_lo, f_hi = kf_hi, d_lo = kd_lo, d_hi = kd_hi, c_lo = kc_lo, c_hi = kc_hi;
       int s_lo = ks_lo, s_hi = ks_hi;
       if (!(known & 1)) {
-        s_lo = eval(lo, &f_lo, &d_lo);
+        s_lo = eval(lo, &f_lo, &d_lo, &c_lo);
         ++*n_limits;
       }
       if (!(hi > lo)) {
-        s_hi = s_lo, f_hi = f_lo, d_hi = d_lo;
+        s_hi = s_lo, f_hi = f_lo, d_hi = d_lo, c_hi = c_lo;
       } else if (!(known & 2)) {
-        s_hi = eval(hi, &f_hi, &d_hi);
+        s_hi = eval(hi, &f_hi, &d_hi, &c_hi);
         ++*n_limits;
       }
       if (s_lo < 0 || s_hi < 0) {
@@ -815,8 +826,8 @@ class Damper {
       best_u = std::fabs(ga) <= std::fabs(gb) ? a : b;
       best_f = std::fabs(ga) <= std::fabs(gb) ? f_lo : f_hi;
       best_g = std::fabs(ga) <= std::fabs(gb) ? ga : gb;
-      // First iterate: Newton from the nearer limit, else the secant through both.
-      x = best_u - best_g / (best_u == a ? d_lo : d_hi);
+      // First iterate: Newton (Halley) from the nearer limit, else the secant through both.
+      x = best_u + (best_u == a ? root_step(best_g, d_lo, c_lo) : root_step(best_g, d_hi, c_hi));
       if (!(x > a && x < b)) x = a - ga * (b - a) / (gb - ga);
       if (!(x > a && x < b)) x = a + (b - a) / 2;
     }
@@ -824,8 +835,8 @@ class Damper {
     real w_prev = b - a, w_prev2 = 2 * (b - a);  // the bracket one and two steps ago
     int k = 0;
     for (; k < DN_INVERSE_MAX_ITERS; ++k) {
-      real fx = 0, dx = 0;
-      const int sx = eval(x, &fx, &dx);
+      real fx = 0, dx = 0, cx = 0;
+      const int sx = eval(x, &fx, &dx, &cx);
       if (sx < 0) break;  // (not expected: the same finite inputs as at the limits)
       st |= sx;
       const real g = fx - demand;
@@ -840,9 +851,8 @@ class Damper {
         ++k;
         break;
       }
-      const real slope = std::isfinite(dx) && dx != 0 ? dx : (gb - ga) / (b - a);
-      real xn = x - g / slope;
-      // The root is within the step Newton asks for (inside the bracket, converging): x is
+      real xn = std::isfinite(dx) && dx != 0 ? x + root_step(g, dx, cx) : x - g * (b - a) / (gb - ga);
+      // The root is within the step Newton (Halley) asks for (inside the bracket, converging): x is
       // within tol of it; no evaluation more to confirm.
       if (std::isfinite(dx) && std::fabs(xn - x) <= tol && xn > a && xn < b) {
         ++k;
@@ -860,6 +870,15 @@ class Damper {
     }
     *n_other += k;
     return found(best_u, best_f, u, f, st);
+  }
+  // The step toward the root of g(u) (the force less the demand) with slope d and curvature c:
+  // Halley's, -g / (d - g c / (2 d)), where the curvature is known and its correction to
+  // Newton's step -g / d is under a half; else Newton's. (Halley's converges cubically: from a
+  // controller's last command, one step usually lands within the tolerance.)
+  static real root_step(real g, real d, real c) noexcept {
+    const real gc = g * c, dd = d * d;  // the correction's share: gc / (2 dd)
+    const real newton = -g / d, halley = -2 * g * d / (2 * dd - gc);  // (two divisions side by side)
+    return std::fabs(gc) <= dd ? halley : newton;  // (false for NaN, as an infinite g or d)
   }
   static int found(real best_u, real best_f, real* u, real* f, int st) noexcept {
     *u = best_u;
@@ -891,6 +910,20 @@ class Damper {
     const int st = m.forward_grad(xf, &yf, i, &gf, mask);
     *y = yf;
     *g = gf;
+    return st;
+  }
+  static int double_forward_grad_curv(const MlpDouble& m, const double* x, double* y, int i, double* g,
+                                      double* g2) noexcept {
+    return m.forward_grad_curv(x, y, i, g, g2);
+  }
+  static int double_forward_grad_curv(const MlpDouble& m, const float* x, float* y, int i, float* g,
+                                      float* g2) noexcept {
+    double xd[DN_MAX_INPUTS], yd = 0, gd = 0, g2d = 0;
+    for (int k = 0; k < m.n_inputs(); ++k) xd[k] = x[k];
+    const int st = m.forward_grad_curv(xd, &yd, i, &gd, &g2d);
+    *y = static_cast<float>(yd);
+    *g = static_cast<float>(gd);
+    *g2 = static_cast<float>(g2d);
     return st;
   }
   DN_OUTLINE_HOST static int double_forward_grad(const MlpDouble& m, const double* x, double* y, int i, double* g,

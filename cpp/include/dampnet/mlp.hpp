@@ -38,6 +38,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 #include <type_traits>
 
 #include "dampnet/activation.hpp"
@@ -74,9 +75,14 @@ DN_KERNEL_OUTLINE inline int prepare_inputs_outline(const P& p, const T* x, T* x
 // Sizes used here are the padded ones (pad()). With kGrad, *dy_dxi also receives
 // dy/dx[grad_input] (output units per input unit) by forward-mode differentiation;
 // it is 0 when that input was clamped (the saturated model does not depend on it).
-template <typename T, int kIn, int kH1, int kH2, class P, bool kGrad = false>
+// With kCurv (and kGrad) dy_dxi points to two: dy_dxi[1] also receives d2y/dx[grad_input]^2
+// for one hidden layer (NaN for two: not computed), 0 when clamped; y and dy/dx are the same
+// bits as without it. (One pointer for both: no seventh argument, which x86-64 would pass on
+// the stack at every call site of the slope-only forward too.)
+template <typename T, int kIn, int kH1, int kH2, class P, bool kGrad = false, bool kCurv = false>
 DN_KERNEL_OUTLINE DN_REALTIME inline int forward(const P& p, const T* x, T* y, uint32_t* clamped_mask,
                                int grad_input = 0, T* dy_dxi = nullptr) noexcept {
+  static_assert(kGrad || !kCurv, "the curvature comes with the slope");
   constexpr int kP1 = kH1 > 0 ? pad(kH1) : kDynamic;
   constexpr int kP2 = kH2 > 0 ? pad(kH2) : (kH2 == 0 ? 0 : kDynamic);
   // Stack arrays of the model's capacity (P's), or of its compile-time sizes.
@@ -116,11 +122,11 @@ DN_KERNEL_OUTLINE DN_REALTIME inline int forward(const P& p, const T* x, T* y, u
 
   // The backend's own pass where it has one for this model (b_out included), else the
   // passes below: dense + tanh per layer, then the output's dot product.
-  T sum, dys = T(0);
+  T sum, dys = T(0), d2ys = T(0);
   if constexpr (kOwnPass<T> == OwnPass::always) {
-    sum = forward_own<T, kIn, kH1, kH2, kGrad>(p, xs, col, &dys);
+    sum = forward_own<T, kIn, kH1, kH2, kGrad, kCurv>(p, xs, col, &dys, &d2ys);
   } else if (kOwnPass<T> == OwnPass::one_layer && (kH2 == 0 || h2 == 0)) {
-    sum = forward_own<T, kIn, kH1, kH2, kGrad>(p, xs, col, &dys);
+    sum = forward_own<T, kIn, kH1, kH2, kGrad, kCurv>(p, xs, col, &dys, &d2ys);
   } else {
     alignas(DN_KERNEL_ALIGN) T a1[cap_h1];
     dense_t<T, kIn, kP1>(p.w1t.data(), p.b1.data(), xs, a1, p.n_in, h1);
@@ -158,10 +164,18 @@ DN_KERNEL_OUTLINE DN_REALTIME inline int forward(const P& p, const T* x, T* y, u
       dys = n_last_is_a2 ? dot_padded<T, kP2>(p.w_out.data(), t2, n_last)
                          : dot_padded<T, kP1>(p.w_out.data(), t1, n_last);
     }
+    if constexpr (kCurv) {  // one layer: sum_j w_j (-2 t_j (1 - t_j^2)) col_j^2
+      if (n_last_is_a2) {
+        d2ys = std::numeric_limits<T>::quiet_NaN();
+      } else if (col) {
+        for (int j = 0; j < h1; ++j) d2ys += p.w_out[j] * (T(-2) * a1[j] * (T(1) - a1[j] * a1[j]) * (col[j] * col[j]));
+      }
+    }
     sum = p.b_out + (n_last_is_a2 ? dot_padded<T, kP2>(p.w_out.data(), a2, n_last)
                                   : dot_padded<T, kP1>(p.w_out.data(), a1, n_last));
   }
   if constexpr (kGrad) *dy_dxi = dys;
+  if constexpr (kCurv) dy_dxi[1] = d2ys;
 
   T out = sum;  // the output unscaling is folded into w_out and b_out
   if (!std::isfinite(out)) {
@@ -566,6 +580,21 @@ class Mlp {
     }
     return dispatch<true>(x, y, clamped_mask, i, dy_dxi);
   }
+  // [RT] As forward_grad, plus d2y/dx[i]^2 in *d2y_dxi2 (one hidden layer; NaN for two, 0
+  // when x[i] is clamped). y and dy/dx[i] are forward_grad's bits.
+  DN_REALTIME int forward_grad_curv(const T* x, T* y, int i, T* dy_dxi, T* d2y_dxi2,
+                                    uint32_t* clamped_mask = nullptr) const noexcept {
+    if (i < 0 || i >= p_.n_in) {
+      *dy_dxi = T(0);
+      *d2y_dxi2 = T(0);
+      return forward(x, y, clamped_mask);
+    }
+    T g[2] = {T(0), T(0)};
+    const int st = dispatch<true, true>(x, y, clamped_mask, i, g);
+    *dy_dxi = g[0];
+    *d2y_dxi2 = g[1];
+    return st;
+  }
   // [RT] forward_grad of 4 samples in one pass of the kernel (detail::forward_batch: each
   // result identical to its own call); statuses in status[4]. Nullable: clamped_mask.
   DN_REALTIME void forward_grad4(const T* const x[4], T y[4], int i, T dy_dxi[4], int status[4],
@@ -597,7 +626,7 @@ class Mlp {
   // The common shapes (one hidden layer, 1-4 inputs) go to the kernel compiled for their
   // input count and layer count (the dense layer unrolled, no loop over inputs, no second
   // layer's code); the others to the fully run-time one. Same arithmetic, same results.
-  template <bool kGrad>
+  template <bool kGrad, bool kCurv = false>
   int dispatch(const T* x, T* y, uint32_t* m, int i, T* g) const noexcept {
     using P = decltype(p_);
     // The scalar backend (a microcontroller's flash): one specialised kernel, for the capacity's
@@ -605,30 +634,30 @@ class Mlp {
     if constexpr (detail::kFused1 && P::kCapH2 == 0) {
       if constexpr (DN_KERNEL_SMALL != 0) {
         // only that one (set-up refuses another input count: small_refuses)
-        return detail::forward<T, P::kCapIn, kDynamic, 0, P, kGrad>(p_, x, y, m, i, g);
+        return detail::forward<T, P::kCapIn, kDynamic, 0, P, kGrad, kCurv>(p_, x, y, m, i, g);
       } else {
-        if (p_.n_in == P::kCapIn) return detail::forward<T, P::kCapIn, kDynamic, 0, P, kGrad>(p_, x, y, m, i, g);
-        return detail::forward<T, kDynamic, kDynamic, 0, P, kGrad>(p_, x, y, m, i, g);
+        if (p_.n_in == P::kCapIn) return detail::forward<T, P::kCapIn, kDynamic, 0, P, kGrad, kCurv>(p_, x, y, m, i, g);
+        return detail::forward<T, kDynamic, kDynamic, 0, P, kGrad, kCurv>(p_, x, y, m, i, g);
       }
     }
     // (Shapes beyond this build's capacity are never compiled: DN_CAP_* in dampnet.h.)
     if (p_.n_h2 == 0) {
       switch (p_.n_in) {
-        case 1: return detail::forward<T, 1, kDynamic, 0, P, kGrad>(p_, x, y, m, i, g);
+        case 1: return detail::forward<T, 1, kDynamic, 0, P, kGrad, kCurv>(p_, x, y, m, i, g);
         case 2:
-          if constexpr (P::kCapIn >= 2) return detail::forward<T, 2, kDynamic, 0, P, kGrad>(p_, x, y, m, i, g);
+          if constexpr (P::kCapIn >= 2) return detail::forward<T, 2, kDynamic, 0, P, kGrad, kCurv>(p_, x, y, m, i, g);
           break;
         case 3:
-          if constexpr (P::kCapIn >= 3) return detail::forward<T, 3, kDynamic, 0, P, kGrad>(p_, x, y, m, i, g);
+          if constexpr (P::kCapIn >= 3) return detail::forward<T, 3, kDynamic, 0, P, kGrad, kCurv>(p_, x, y, m, i, g);
           break;
         case 4:
-          if constexpr (P::kCapIn >= 4) return detail::forward<T, 4, kDynamic, 0, P, kGrad>(p_, x, y, m, i, g);
+          if constexpr (P::kCapIn >= 4) return detail::forward<T, 4, kDynamic, 0, P, kGrad, kCurv>(p_, x, y, m, i, g);
           break;
         default: break;
       }
     }
-    if constexpr (P::kCapH2 == 0) return detail::forward<T, kDynamic, kDynamic, 0, P, kGrad>(p_, x, y, m, i, g);
-    else return detail::forward<T, kDynamic, kDynamic, kDynamic, P, kGrad>(p_, x, y, m, i, g);
+    if constexpr (P::kCapH2 == 0) return detail::forward<T, kDynamic, kDynamic, 0, P, kGrad, kCurv>(p_, x, y, m, i, g);
+    else return detail::forward<T, kDynamic, kDynamic, kDynamic, P, kGrad, kCurv>(p_, x, y, m, i, g);
   }
   MlpParams<T, DN_CAP_INPUTS, DN_CAP_HIDDEN, DN_CAP_HIDDEN2> p_;
 };
@@ -662,6 +691,11 @@ class NoKernelMlp {
     return DN_E_PARAM;
   }
   int forward_grad(const T* x, T* y, int, T* dy_dxi, uint32_t* clamped_mask = nullptr) const noexcept {
+    *dy_dxi = T(0);
+    return forward(x, y, clamped_mask);
+  }
+  int forward_grad_curv(const T* x, T* y, int, T* dy_dxi, T* d2y_dxi2, uint32_t* clamped_mask = nullptr) const noexcept {
+    *d2y_dxi2 = T(0);
     *dy_dxi = T(0);
     return forward(x, y, clamped_mask);
   }

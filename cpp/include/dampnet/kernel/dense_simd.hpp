@@ -24,10 +24,10 @@ using simd::inputs_in_range;
 // float: forward_simd over SimdKernel (b_out included); double: mlp.hpp's passes.
 template <typename T>
 constexpr OwnPass kOwnPass = std::is_same<T, float>::value ? OwnPass::always : OwnPass::never;
-template <typename T, int kIn, int kH1, int kH2, bool kGrad, class P>
-inline T forward_own(const P& p, const T* xs, const T* col, T* dys) noexcept {
+template <typename T, int kIn, int kH1, int kH2, bool kGrad, bool kCurv, class P>
+inline T forward_own(const P& p, const T* xs, const T* col, T* dys, T* d2ys) noexcept {
   if constexpr (std::is_same<T, float>::value) {
-    return forward_simd<SimdKernel, kIn, kH1, kH2, kGrad>(p, xs, col, dys);
+    return forward_simd<SimdKernel, kIn, kH1, kH2, kGrad, kCurv>(p, xs, col, dys, d2ys);
   } else {
     return T(0);  // (never called)
   }

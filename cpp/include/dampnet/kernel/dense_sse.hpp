@@ -20,8 +20,8 @@ using sse::dot_padded;
 // No pass of its own: mlp.hpp's dense + tanh + dot passes (forward_own is never called).
 template <typename T>
 constexpr OwnPass kOwnPass = OwnPass::never;
-template <typename T, int kIn, int kH1, int kH2, bool kGrad, class P>
-inline T forward_own(const P&, const T*, const T*, T*) noexcept {
+template <typename T, int kIn, int kH1, int kH2, bool kGrad, bool kCurv, class P>
+inline T forward_own(const P&, const T*, const T*, T*, T*) noexcept {
   return T(0);
 }
 // (Declared for mlp.hpp's forward_batch, which calls it only where kSimdFloat.)

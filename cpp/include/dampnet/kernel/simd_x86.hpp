@@ -7,6 +7,7 @@
 #include <immintrin.h>
 
 #include <cstdint>
+#include <limits>
 #include <type_traits>
 
 #include "dampnet/activation.hpp"
@@ -160,8 +161,8 @@ inline void tanh_folded(typename S::V z, const float* tw, int stride, typename S
 // the input whose layer-1 column is `col` (nullptr: that input was clamped, derivative 0):
 // sum_j (w_j - (w_j t_j) t_j) col_j, with t_j = (w_j t_j) / w_j by the stored 1/w_j, so
 // that the value is computed exactly as without kGrad.
-template <class S, int kIn, int kH1, int kH2, bool kGrad, class P>
-inline float forward_simd(const P& p, const float* xs, const float* col, float* dys) noexcept {
+template <class S, int kIn, int kH1, int kH2, bool kGrad, bool kCurv, class P>
+inline float forward_simd(const P& p, const float* xs, const float* col, float* dys, float* d2ys) noexcept {
   using V = typename S::V;
   constexpr int kW = S::kW;
   constexpr int kP1 = kH1 > 0 ? pad(kH1) : kDynamic;
@@ -171,8 +172,9 @@ inline float forward_simd(const P& p, const float* xs, const float* col, float* 
   const int ni = kIn > 0 ? kIn : p.n_in;
   const int h1 = kP1 > 0 ? kP1 : p.n_h1p;
   const int h2 = kP2 >= 0 ? kP2 : p.n_h2p;
-  V acc = S::lane0(p.b_out), dacc = S::zero();
-  // The last layer's contribution of one block: acc += w t; with kGrad, dacc += w (1 - t^2) d.
+  V acc = S::lane0(p.b_out), dacc = S::zero(), d2acc = S::zero();
+  // The last layer's contribution of one block: acc += w t; with kGrad, dacc += w (1 - t^2) d;
+  // with kCurv (one layer), d2acc += -2 w t (1 - t^2) d^2.
   auto last = [&](V z, int j, const float* dz) {
     (void)dz;
     V r, pw;
@@ -181,7 +183,12 @@ inline float forward_simd(const P& p, const float* xs, const float* col, float* 
     if constexpr (kGrad) {
       if (dz) {
         const V wt = S::mul(r, pw), t = S::mul(wt, S::load(p.inv_w.data() + j));
-        dacc = S::fmadd(S::fnmadd(wt, t, S::load(p.w_out.data() + j)), S::load(dz), dacc);
+        const V d = S::load(dz);
+        dacc = S::fmadd(S::fnmadd(wt, t, S::load(p.w_out.data() + j)), d, dacc);
+        if constexpr (kCurv) {
+          const V s = S::fnmadd(t, t, S::set1(1.f));  // 1 - t^2
+          d2acc = S::fmadd(S::mul(S::mul(wt, s), S::mul(d, d)), S::set1(-2.f), d2acc);
+        }
       }
     }
   };
@@ -207,6 +214,8 @@ inline float forward_simd(const P& p, const float* xs, const float* col, float* 
     }
   }
   if constexpr (kGrad) *dys = S::hsum(dacc);
+  if constexpr (kCurv) *d2ys = (kH2 == 0 || h2 == 0) ? S::hsum(d2acc) : std::numeric_limits<float>::quiet_NaN();
+  (void)d2ys;
   return S::hsum(acc);
 }
 
