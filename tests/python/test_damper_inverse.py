@@ -121,13 +121,14 @@ def test_inverse_equals_brute_force_on_1e5_random_inputs(which, single):
     range; elsewhere (the default model turns back in u near v = 0: 17 % of these motions) the
     inverse's force is as near the demand as the search's. Every status DN_OK, at most
     DN_INVERSE_MAX_ITERS evaluations. Measured (seed 55): max |u - u_brute| / range where unique
-    1.8e-6 (default, double: the search's own resolution), 1.0e-6 (random, double: the inverse's
-    tolerance, DN_INVERSE_TOL_REL), 1.6e-6 (random, float); default float 2.6e-3 at 29 motions
+    1.7e-6 (default, double: the search's own resolution), 1.0e-6 (random, double: the inverse's
+    tolerance, DN_INVERSE_TOL_REL), 1.4e-6 (random, float); default float 2.2e-3 at 35 motions
     where dF/du ~ 1 N/V and the float force's quantum (1.2e-4 N) leaves u undetermined, each with
-    |F - demand| within 1e-6 of the force scale of the search's; max |F - demand| 3.3e-3 N
-    (default) and 1.0e-2 N (random, steep in u), double or float: the control within the
-    tolerance, its force within the tolerance times dF/du; evaluations mean 4.3-4.4 (default,
-    max 16 double / 32 float) and 3.3 (random, max 5). Cost: 3-7 s each (two shared cores)."""
+    |F - demand| within 1e-6 of the force scale of the search's; max |F - demand| 3.2e-3 N
+    (default) and 1.1e-2 N (random, steep in u), double or float: the control within the
+    tolerance, its force within the tolerance times dF/du; evaluations mean 3.4-3.5 (default,
+    max 14 double / 23 float) and 2.2 (random, max 4), with Halley's steps (Newton's alone:
+    4.3-4.4 and 3.3). Cost: 3-7 s each (two shared cores)."""
     model = default_model() if which == "default" else monotone_random_model()
     damper = damper_from_model(model, single=single)
     lo, hi = damper.control_range()
