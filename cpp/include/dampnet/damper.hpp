@@ -36,6 +36,12 @@
 #else
 #define DN_OUTLINE_HOST
 #endif
+// DN_SMALL_OUTLINE: out of line where flash is scarce only (the host inlines it, on a chain).
+#if defined(DN_SMALL_CODE) && DN_SMALL_CODE
+#define DN_SMALL_OUTLINE DN_OUTLINE
+#else
+#define DN_SMALL_OUTLINE
+#endif
 
 namespace dampnet {
 
@@ -535,7 +541,7 @@ class Damper {
   //    without one) and *f = 0.
   // The warnings of the evaluations (DN_W_SATURATED: a motion input outside its range) are
   // OR-ed in. *n_evals (nullable): force evaluations after the two at the limits.
-  DN_REALTIME DN_OUTLINE int inverse(const dn_damper_input& in, real demand, real* u, real* f,
+  DN_REALTIME int inverse(const dn_damper_input& in, real demand, real* u, real* f,
                                      int* n_evals = nullptr) const noexcept {
     int n_limits = 0, n_other = 0;
     const int st = search(in, demand, std::numeric_limits<real>::quiet_NaN(), u, f, &n_limits, &n_other);
@@ -558,7 +564,7 @@ class Damper {
   // forces. u_start NaN or outside the range, or a damper without an analytic dF/du:
   // inverse(). *n_evals (nullable): every force evaluation made, the limits' included (at
   // most DN_INVERSE_WARM_EVALS + 2 + DN_INVERSE_MAX_ITERS).
-  DN_REALTIME DN_OUTLINE int inverse_near(const dn_damper_input& in, real demand, real u_start, real* u, real* f,
+  DN_REALTIME int inverse_near(const dn_damper_input& in, real demand, real u_start, real* u, real* f,
                                           int* n_evals = nullptr) const noexcept {
     int n_limits = 0, n_other = 0;
     const int st = search(in, demand, u_start, u, f, &n_limits, &n_other);
@@ -659,11 +665,61 @@ class Damper {
   }
 
  private:
+  // What search() evaluates F at one control with: the input (its u set per evaluation) and,
+  // for a float neural damper, its features but the control gathered, checked and converted
+  // once (force_du's values, bit for bit).
+  struct UCursor {
+    dn_damper_input w;
+    float xf[DN_MAX_INPUTS];
+    int ui;
+    int gather_st;
+    bool gathered;
+  };
+  void start_cursor(const dn_damper_input& in, int ui, UCursor* c) const noexcept {
+    c->w = in;
+    c->ui = ui;
+    c->gather_st = DN_OK;
+    c->gathered = kind_built(DN_DAMPER_NEURAL) && kind == DN_DAMPER_NEURAL && ui >= 0 &&
+                  precision == DN_PRECISION_FLOAT;
+    for (int i = 0; i < DN_MAX_INPUTS; ++i) c->xf[i] = 0.0f;
+    if (!c->gathered) return;
+    real xr[DN_MAX_INPUTS];
+    feature_values(in, xr);
+    for (int i = 0; i < n_feat; ++i) {
+      if (i != ui && !std::isfinite(xr[i])) c->gather_st = DN_E_NONFINITE_INPUT;
+      c->xf[i] = static_cast<float>(xr[i]);
+    }
+  }
+  // F [N], dF/du and d2F/du2 (NaN where not known) at control u: force_du(in with u). Out of
+  // line where flash is scarce (DN_SMALL_CODE: search() calls it from five places).
+  DN_SMALL_OUTLINE int eval_u(UCursor& c, real u, real* f, real* d, real* d2) const noexcept {
+    c.w.u = u;
+    if (!c.gathered) return force_du(c.w, c.ui, f, d, d2);
+    *d = *d2 = std::numeric_limits<real>::quiet_NaN();
+    if (c.gather_st < 0 || !std::isfinite(u)) return fail(f, DN_E_NONFINITE_INPUT);
+    c.xf[c.ui] = static_cast<float>(u);
+    float yf = 0.0f, gf = 0.0f, g2f = 0.0f;
+    const int st = mf.forward_grad_curv(c.xf, &yf, c.ui, &gf, &g2f, nullptr);
+    *d = gf;
+    *d2 = g2f;
+    if (st < 0) return fail(f, st);
+    real y = yf;
+    if (DN_CAP_TERMS > 0 && n_terms > 0) {
+      if (!terms::inputs_finite(terms, n_terms, c.w)) return fail(f, DN_E_NONFINITE_INPUT);
+      real g[3];
+      y += terms::sum_grad(terms, n_terms, c.w, g);
+      *d += g[2];
+      *d2 = std::numeric_limits<real>::quiet_NaN();
+    }
+    if (!std::isfinite(y)) return fail(f, DN_E_NONFINITE_OUTPUT);
+    *f = y;
+    return st;
+  }
   // inverse() and inverse_near(): Newton steps from u_start (finite, inside the control range,
   // a neural damper reading in.u: dF/du analytic), then, unless they found the control or two
   // of them straddle the demand, the search from the limits. *n_limits: the evaluations at the
   // limits (0-2); *n_other: the others (incremented).
-  DN_REALTIME int search(const dn_damper_input& in, real demand, real u_start, real* u, real* f, int* n_limits,
+  DN_REALTIME DN_OUTLINE int search(const dn_damper_input& in, real demand, real u_start, real* u, real* f, int* n_limits,
                          int* n_other) const noexcept {
     real lo = 0, hi = 0;
     int ui = -1;
@@ -683,44 +739,9 @@ class Damper {
     const real eps = kind == DN_DAMPER_NEURAL && precision == DN_PRECISION_FLOAT
                          ? real(std::numeric_limits<float>::epsilon())
                          : std::numeric_limits<real>::epsilon();
-    dn_damper_input w = in;
-    // F and dF/du at a control: force_du(w with u = c). A float neural damper's features but
-    // the control are gathered, checked and converted once (force_du's values, bit for bit).
-    const bool gathered = kind_built(DN_DAMPER_NEURAL) && kind == DN_DAMPER_NEURAL && ui >= 0 &&
-                          precision == DN_PRECISION_FLOAT;
-    float xf[DN_MAX_INPUTS] = {};
-    int gather_st = DN_OK;
-    if (gathered) {
-      real xr[DN_MAX_INPUTS];
-      feature_values(in, xr);
-      for (int i = 0; i < n_feat; ++i) {
-        if (i != ui && !std::isfinite(xr[i])) gather_st = DN_E_NONFINITE_INPUT;
-        xf[i] = static_cast<float>(xr[i]);
-      }
-    }
-    auto eval = [&](real c, real* fc, real* dc, real* d2c) noexcept -> int {
-      w.u = c;
-      if (!gathered) return force_du(w, ui, fc, dc, d2c);
-      *dc = *d2c = std::numeric_limits<real>::quiet_NaN();
-      if (gather_st < 0 || !std::isfinite(c)) return fail(fc, DN_E_NONFINITE_INPUT);
-      xf[ui] = static_cast<float>(c);
-      float yf = 0.0f, gf = 0.0f, g2f = 0.0f;
-      const int sc = mf.forward_grad_curv(xf, &yf, ui, &gf, &g2f, nullptr);
-      *dc = gf;
-      *d2c = g2f;
-      if (sc < 0) return fail(fc, sc);
-      real y = yf;
-      if (DN_CAP_TERMS > 0 && n_terms > 0) {
-        if (!terms::inputs_finite(terms, n_terms, w)) return fail(fc, DN_E_NONFINITE_INPUT);
-        real g[3];
-        y += terms::sum_grad(terms, n_terms, w, g);
-        *dc += g[2];
-        *d2c = std::numeric_limits<real>::quiet_NaN();
-      }
-      if (!std::isfinite(y)) return fail(fc, DN_E_NONFINITE_OUTPUT);
-      *fc = y;
-      return sc;
-    };
+    UCursor cur;
+    start_cursor(in, ui, &cur);
+    auto eval = [&](real c, real* fc, real* dc, real* d2c) noexcept { return eval_u(cur, c, fc, dc, d2c); };
     real a = lo, b = hi, ga = 0, gb = 0, x = mid, noise = 0;
     real best_u = mid, best_f = 0, best_g = std::numeric_limits<real>::infinity();
     bool bracketed = false;
