@@ -753,62 +753,62 @@ class Damper {
       if (at == hi) known |= 2, ks_hi = s, kf_hi = fv, kd_hi = dv, kc_hi = cv;
     };
     st = DN_OK;
+    // A warm evaluation at c (counted, a limit kept, the best updated): < 0 its error, 1 the
+    // force within its rounding of the demand (done), 0 go on.
+    auto warm_eval = [&](real c, real* fc, real* dc, real* cc, real* gc) noexcept -> int {
+      const int sc = eval(c, fc, dc, cc);
+      ++*n_other;
+      if (sc < 0) return sc;
+      keep_limit(c, sc, *fc, *dc, *cc);
+      st |= sc;
+      *gc = *fc - demand;
+      if (std::fabs(*gc) < std::fabs(best_g)) best_u = c, best_f = *fc, best_g = *gc;
+      return std::fabs(*gc) <= 8 * eps * std::fabs(*fc) ? 1 : 0;
+    };
+    // The bracket between two evaluated controls whose residuals differ in sign, and its first
+    // iterate: xn when inside it, else the secant's, else the middle.
+    auto bracket = [&](real p, real fp, real gp, real q, real fq, real gq, real xn) noexcept {
+      if (p < q) a = p, ga = gp, b = q, gb = gq;
+      else a = q, ga = gq, b = p, gb = gp;
+      noise = 8 * eps * (std::fabs(fp) > std::fabs(fq) ? std::fabs(fp) : std::fabs(fq));
+      x = xn;
+      if (!(x > a && x < b)) x = a - ga * (b - a) / (gb - ga);
+      if (!(x > a && x < b)) x = a + (b - a) / 2;
+      bracketed = true;
+    };
     // Warm: Newton from u_start while it stays inside the range, until it converges or two
     // evaluations straddle the demand (a bracket without the limits).
     if (ui >= 0 && kind == DN_DAMPER_NEURAL && hi > lo && u_start >= lo && u_start <= hi) {
       real px = 0, pf = 0, pg = 0;
       x = u_start;
       for (int k = 0; k < DN_INVERSE_WARM_EVALS; ++k) {
-        real fx = 0, dx = 0, cx = 0;
-        const int sx = eval(x, &fx, &dx, &cx);
-        ++*n_other;
-        if (sx < 0) {
+        real fx = 0, dx = 0, cx = 0, g = 0;
+        const int r = warm_eval(x, &fx, &dx, &cx, &g);
+        if (r < 0) {
           *u = mid;
-          return fail(f, sx);
+          return fail(f, r);
         }
-        keep_limit(x, sx, fx, dx, cx);
-        st |= sx;
-        const real g = fx - demand;
-        if (std::fabs(g) < std::fabs(best_g)) best_u = x, best_f = fx, best_g = g;
-        if (std::fabs(g) <= 8 * eps * std::fabs(fx)) return found(best_u, best_f, u, f, st);
+        if (r > 0) return found(best_u, best_f, u, f, st);
         const real xn = x + root_step(g, dx, cx);  // (dx 0 or NaN, g infinite: not finite)
         if (k > 0 && (g > 0) != (pg > 0)) {
-          bracketed = true;
-          if (px < x) a = px, ga = pg, b = x, gb = g;
-          else a = x, ga = g, b = px, gb = pg;
-          noise = 8 * eps * (std::fabs(pf) > std::fabs(fx) ? std::fabs(pf) : std::fabs(fx));
-          x = xn;
-          if (!(x > a && x < b)) x = a - ga * (b - a) / (gb - ga);
-          if (!(x > a && x < b)) x = a + (b - a) / 2;
+          bracket(px, pf, pg, x, fx, g, xn);
           break;
         }
         if (xn != xn) break;  // (dx 0 or NaN)
         if (xn < lo || xn > hi) {  // toward the limit L beyond which Newton puts the demand
           const real lim = xn < lo ? lo : hi;
-          real fl = fx, dl = dx, cl = cx;
           if (x != lim) {
-            const int sl = eval(lim, &fl, &dl, &cl);
-            ++*n_other;
-            if (sl < 0) {
+            real fl = 0, dl = 0, cl = 0, gl = 0;
+            const int rl = warm_eval(lim, &fl, &dl, &cl, &gl);
+            if (rl < 0) {
               *u = mid;
-              return fail(f, sl);
+              return fail(f, rl);
             }
-            keep_limit(lim, sl, fl, dl, cl);
-            st |= sl;
-            const real gl = fl - demand;
-            if (std::fabs(gl) < std::fabs(best_g)) best_u = lim, best_f = fl, best_g = gl;
-            if (std::fabs(gl) <= 8 * eps * std::fabs(fl)) return found(best_u, best_f, u, f, st);
-            if ((gl > 0) != (g > 0)) {  // the demand lies between x and L: bracketed there
-              bracketed = true;
-              if (x < lim) a = x, ga = g, b = lim, gb = gl;
-              else a = lim, ga = gl, b = x, gb = g;
-              noise = 8 * eps * (std::fabs(fl) > std::fabs(fx) ? std::fabs(fl) : std::fabs(fx));
-              x = a - ga * (b - a) / (gb - ga);
-              if (!(x > a && x < b)) x = a + (b - a) / 2;
-              break;
-            }
+            if (rl > 0) return found(best_u, best_f, u, f, st);
+            // the demand between x and L: bracketed there (first iterate: the secant)
+            if ((gl > 0) != (g > 0)) bracket(x, fx, g, lim, fl, gl, std::numeric_limits<real>::quiet_NaN());
           }
-          break;  // beyond F(L) as seen from x: the other limit decides (a model may turn back)
+          break;  // else beyond F(L) as seen from x: the other limit decides (a model may turn back)
         }
         if (std::fabs(xn - x) <= tol) return found(best_u, best_f, u, f, st);
         px = x, pf = fx, pg = g;
