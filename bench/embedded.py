@@ -49,7 +49,7 @@ from different checkouts need not share one:
   their mean from the loop's, for medians per kind of case), their ratio (the issue's target:
   <= 3x on the M4F), the evaluations per inverse (2 at the limits + n_evals), the instructions of
   one more evaluation (a least-squares line through the reachable cases), the flash the part adds
-  (dampnet::Damper::inverse, whose size the symbol table gives: the loop's build leaves the force
+  (dampnet::Damper::search and eval_u, the inverse's code, whose sizes the symbol table gives: the loop's build leaves the force
   laws out, DN_CONTROLLER_KINDS; dn_damper_init_neural and the call sites) and its peak stack
   (the damper, 1,184 B on the M4F, on the stack);
 * the cycle estimate (Cortex-M4F only): the instructions times the mean cycles per instruction
@@ -497,7 +497,7 @@ def measure_inverse(cpu: str, inv_vectors: tuple[Path, object], model, out: Path
          "instructions_reachable_at_0_newton_evaluations": float(intercept),
          "per_call_timer_excess": float(fw.inv_ticks.mean() * fw.instructions_per_tick - inv),
          "stack": fw.stack["inverse"], "stack_setup": fw.stack["inverse_setup"],
-         "damper_inverse_code_bytes": symbol_size(elf, r"Damper7inverse"),
+         "damper_inverse_code_bytes": symbol_size(elf, r"Damper(7inverse|6search|6eval_u)E"),
          "vs_host": {k: host[k] for k in ("u_error_over_range", "force_error_over_range", "evals_host",
                                           "evals_firmware")},
          "target_ratio": 3.0}
