@@ -122,12 +122,13 @@ def test_inverse_equals_brute_force_on_1e5_random_inputs(which, single):
     inverse's force is as near the demand as the search's. Every status DN_OK, at most
     DN_INVERSE_MAX_ITERS evaluations. Measured (seed 55): max |u - u_brute| / range where unique
     1.7e-6 (default, double: the search's own resolution), 1.0e-6 (random, double: the inverse's
-    tolerance, DN_INVERSE_TOL_REL), 1.4e-6 (random, float); default float 2.2e-3 at 35 motions
-    where dF/du ~ 1 N/V and the float force's quantum (1.2e-4 N) leaves u undetermined, each with
+    tolerance, DN_INVERSE_TOL_REL), 1.4e-6 (random, float); default float 2.2e-3 at 57 motions
+    where dF/du is small and the float force's rounding (it jitters in u by up to 1.4e-3 N; the
+    search stops within 2.0e-3 N, dn_types.h) leaves u undetermined, each with
     |F - demand| within 1e-6 of the force scale of the search's; max |F - demand| 3.2e-3 N
     (default) and 1.1e-2 N (random, steep in u), double or float: the control within the
-    tolerance, its force within the tolerance times dF/du; evaluations mean 3.4-3.5 (default,
-    max 14 double / 23 float) and 2.2 (random, max 4), with Halley's steps (Newton's alone:
+    tolerance, its force within the tolerance times dF/du; evaluations mean 3.4 / 3.3 (default,
+    max 14 double / 11 float) and 2.2 (random, max 4), with Halley's steps (Newton's alone:
     4.3-4.4 and 3.3). Cost: 3-7 s each (two shared cores)."""
     model = default_model() if which == "default" else monotone_random_model()
     damper = damper_from_model(model, single=single)
@@ -349,8 +350,8 @@ def test_a_start_near_the_answer_gives_the_cold_inverses_control_in_fewer_evalua
     within the inverse's allowance of the cold inverse's (both within DN_INVERSE_TOL_REL of the
     root, the force within its rounding), every status DN_OK, the evaluations bounded, and fewer
     than the cold inverse's (2 limits + its Newton steps) when the start is within 1 % of the
-    range (measured, float and double, mean (max): 1.0 at the answer itself, 2.0-2.5 (4-11) at
-    0.3-1 %, 2.9-3.0 (5) at 10 %, 3.6 (6) from anywhere in the range, against 4.2 cold; with
+    range (measured, float and double, mean (max): 1.0 at the answer itself, 2.0-2.2 (3) at
+    0.3-1 %, 2.9 (4) at 10 %, 3.6 (6) from anywhere in the range, against 4.2 cold; with
     Newton's steps instead of Halley's 2.7-2.9, 3.6, 4.6 and 5.3). Demands
     beyond the limits' forces: the cold inverse's answer and status bit for bit, in 2
     evaluations from a start at the nearer limit (a saturated controller's). Cost: 0.2 s."""

@@ -186,7 +186,8 @@ typedef dn_real (*dn_damper_fn)(void* user, const dn_damper_input* in);
  * the last evaluation asks for is (the control is then within that of the root: the force
  * within DN_INVERSE_TOL_REL * (u_max - u_min) * |dF/du| of the demand), or the force equals
  * the demand to its own rounding (8 epsilons of the larger limit force: float's for a float
- * model). */
+ * model, and for that at least a float epsilon of |b_out| + sum |w_out|, the largest sum its
+ * output can make: the float force's jitter in u, 2.0e-3 N for the default model). */
 #define DN_INVERSE_MAX_ITERS 44
 #define DN_INVERSE_TOL_REL 1e-6
 /* dn_damper_inverse_near: at most DN_INVERSE_WARM_EVALS Newton steps from the given control

@@ -627,6 +627,14 @@ class Mlp {
   int n_inputs() const noexcept { return p_.n_in; }
   const T* sat_lo() const noexcept { return p_.sat_lo.data(); }
   const T* sat_hi() const noexcept { return p_.sat_hi.data(); }
+  // The largest |output| the model can give, |b_out| + sum_j |w_out[j]| [output units]: the
+  // scale of the rounding of the kernel's output sum (an ulp of it). Bounded loop, no branch.
+  T out_bound() const noexcept {
+    const int n = p_.n_h2 > 0 ? p_.n_h2 : p_.n_h1;
+    T s = std::fabs(p_.b_out);
+    for (int j = 0; j < n; ++j) s += std::fabs(p_.w_out[j]);
+    return s;
+  }
   // The folded parameters as the kernel reads them (tests compare the two loads).
   const MlpParams<T, DN_CAP_INPUTS, DN_CAP_HIDDEN, DN_CAP_HIDDEN2>& params() const noexcept { return p_; }
 
