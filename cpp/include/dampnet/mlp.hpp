@@ -71,6 +71,12 @@ DN_KERNEL_OUTLINE inline int prepare_inputs_outline(const P& p, const T* x, T* x
   return prepare_inputs<T, kIn, kSub>(p, x, xs, mask);
 }
 
+// (GCC's -Wmaybe-uninitialized cannot see that the second layer's t2 is read only where it was
+// written, h2 > 0: a false alarm at -O2 in some instantiations, which -Werror builds refuse.)
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
 // The forward pass shared by Mlp and StaticMlp. kH2 == 0: one hidden layer.
 // Sizes used here are the padded ones (pad()). With kGrad, *dy_dxi also receives
 // dy/dx[grad_input] (output units per input unit) by forward-mode differentiation;
@@ -186,6 +192,10 @@ DN_KERNEL_OUTLINE DN_REALTIME inline int forward(const P& p, const T* x, T* y, u
   if (clamped_mask) *clamped_mask = mask;
   return status;
 }
+
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
 
 // forward() of kB samples (x[b], y[b], clamped_mask[b], dy_dxi[b]; masks and dy_dxi
 // nullable), each result identical to its own forward() call: float models with one hidden
