@@ -501,6 +501,10 @@ def measure_inverse(cpu: str, inv_vectors: tuple[Path, object], model, out: Path
          "vs_host": {k: host[k] for k in ("u_error_over_range", "force_error_over_range", "evals_host",
                                           "evals_firmware")},
          "target_ratio": 3.0}
+    if "inverse_near" in fw.time:  # the warm call a controller makes: its next step (firmware.c)
+        near = fw.instructions("inverse_near")
+        r["inverse_near_instructions_mean"] = near
+        r["inverse_near_ratio_mean"] = near / fwd
     r["meets_target"] = bool(r["ratio_median"]["all"] <= 3.0 and r["ratio_mean"] <= 3.0)
     if without is not None:
         r["flash_added"] = sizes(elf)["flash"] - sizes(without)["flash"]

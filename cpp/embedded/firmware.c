@@ -349,6 +349,16 @@ __attribute__((noinline)) static int stub_inverse(const dn_damper* d, const dn_d
   return 0;
 }
 
+__attribute__((noinline)) static int stub_inverse_near(const dn_damper* d, const dn_damper_input* in,
+                                                        dn_real demand, dn_real u_start, dn_real* u, dn_real* force,
+                                                        int* n_evals) {
+  (void)d;
+  *u = in->v + u_start;
+  *force = demand;
+  *n_evals = 0;
+  return 0;
+}
+
 __attribute__((noinline)) static void print_time(const char* what, uint32_t total, uint32_t stub, uint32_t n) {
   put_str("time ");
   put_str(what);
@@ -412,6 +422,30 @@ __attribute__((noinline)) static void inverse_run(const dn_mlp* mlp, uint32_t sp
   print_stack("inverse", sp0);
   sink_r = acc;
   print_time("inverse", ticks(t0, t1), ticks(t1, t2), DN_FW_N_INV);
+  /* dn_damper_inverse_near as a controller calls it, its next step: each case solved cold, then
+   * again from that control for a demand moved by 1 % and 1 N. Both loops make the cold call,
+   * the second a stub in place of the warm one: "inverse_near" is the warm call alone. */
+  t0 = now();
+  for (int i = 0; i < DN_FW_N_INV; ++i) {
+    const dn_damper_input in = inv_input(i);
+    const dn_real demand = dn_fw_inv[i][DN_FW_INV_DEMAND];
+    dn_real u0 = 0;
+    dn_damper_inverse(damper, &in, demand, &u0, &y, &n);
+    dn_damper_inverse_near(damper, &in, demand * (dn_real)1.01 + (dn_real)1, u0, &u, &y, &n);
+    acc += u;
+  }
+  t1 = now();
+  for (int i = 0; i < DN_FW_N_INV; ++i) {
+    const dn_damper_input in = inv_input(i);
+    const dn_real demand = dn_fw_inv[i][DN_FW_INV_DEMAND];
+    dn_real u0 = 0;
+    dn_damper_inverse(damper, &in, demand, &u0, &y, &n);
+    stub_inverse_near(damper, &in, demand * (dn_real)1.01 + (dn_real)1, u0, &u, &y, &n);
+    acc += u;
+  }
+  t2 = now();
+  sink_r = acc;
+  print_time("inverse_near", ticks(t0, t1), ticks(t1, t2), DN_FW_N_INV);
   /* each case: "inv i u force status n_evals ticks" (u and force as dn_real bits; ticks: this
    * call's, the timer read around it included) */
   for (int i = 0; i < DN_FW_N_INV; ++i) {
