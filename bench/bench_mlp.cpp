@@ -212,8 +212,9 @@ int main(int argc, char** argv) {
   // on the same motions (residual_max_N: the largest |F(u) - demand| [N], F the damper's own
   // force at the returned u, which must equal the returned force; tests/python/
   // test_damper_inverse.py checks u against a brute-force search) and on hard inputs (NaN,
-  // +-Inf, 1e6 in every motion field and the demand): a finite control inside the range with
-  // a status, or an error status with the range's centre and 0 N; a bad one fails the harness.
+  // +-Inf, 1e6 in every motion field and the demand; the warm call's start too): a finite control
+  // inside the range with a status, or an error status with the range's centre and 0 N; a bad
+  // one fails the harness.
   {
     dn_real u_lo = 0, u_hi = 0;
     if (dn_damper_control_range(damper, &u_lo, &u_hi) != DN_OK) return 1;
@@ -246,19 +247,27 @@ int main(int argc, char** argv) {
       dn_damper_force(damper, &g, &fu, nullptr);
       worst_res = std::max(worst_res, st == DN_OK && fu == f ? std::fabs(double(fu) - demand[k]) : double(INFINITY));
     }
+    // the cold call and the warm one (dn_damper_inverse_near, below), a hard value in each motion
+    // field, the demand and (warm) the start
+    auto plausible = [&](int st, dn_real u, dn_real f) {
+      return st >= 0 ? std::isfinite(u) && std::isfinite(f) && u >= u_lo && u <= u_hi
+                     : u == u_lo + (u_hi - u_lo) / 2 && f == 0;
+    };
     const double hard_vals[5] = {NAN, INFINITY, -INFINITY, 1e6, -1e6};
     for (const double hv : hard_vals)
-      for (int field = 0; field < 4; ++field) {
+      for (int field = 0; field < 5; ++field) {
         dn_damper_input m = motion[0];
-        dn_real dem = demand[0];
+        dn_real dem = demand[0], start = motion[0].u;
         if (field == 0) m.v = hv;
         else if (field == 1) m.a = hv;
         else if (field == 2) m.x = hv;
-        else dem = hv;
-        dn_real u = 0, f = 0;
-        const int st = dn_damper_inverse(damper, &m, dem, &u, &f, nullptr);
-        if (st >= 0 && !(std::isfinite(u) && std::isfinite(f) && u >= u_lo && u <= u_hi)) ++bad_hard;
-        if (st < 0 && !(u == u_lo + (u_hi - u_lo) / 2 && f == 0)) ++bad_hard;
+        else if (field == 3) dem = hv;
+        else start = hv;
+        dn_real u = 0, f = 0;  // (each call before its check: an argument's order is unspecified)
+        const int st_cold = dn_damper_inverse(damper, &m, dem, &u, &f, nullptr);
+        if (!plausible(st_cold, u, f)) ++bad_hard;
+        const int st_near = dn_damper_inverse_near(damper, &m, dem, start, &u, &f, nullptr);
+        if (!plausible(st_near, u, f)) ++bad_hard;
       }
     char extra[160];
     std::snprintf(extra, sizeof extra, ", \"evals_per_call\": %.3f, \"residual_max_N\": %.3g, \"hard_bad\": %ld",
@@ -310,9 +319,9 @@ int main(int argc, char** argv) {
       else if (!(st_cold & DN_W_UNREACHABLE)) warm_res = std::max(warm_res, std::fabs(double(fu) - traj_demand[k]));
       u_prev = u;
     }
-    char extra_near[120];
-    std::snprintf(extra_near, sizeof extra_near, ", \"evals_per_call\": %.3f, \"residual_max_N\": %.3g",
-                  double(warm_evals) / 4096.0, warm_res);
+    char extra_near[160];
+    std::snprintf(extra_near, sizeof extra_near, ", \"evals_per_call\": %.3f, \"residual_max_N\": %.3g, \"hard_bad\": %ld",
+                  double(warm_evals) / 4096.0, warm_res, bad_hard);
     dn_real u_chain = traj[4095].u;
     dn_bench::print_json("damper_inverse_near_float_chained", dn_bench::measure_chained([&](long i, long dep) {
       const long k = (i + dep) & 4095;

@@ -123,7 +123,7 @@ def test_inverse_equals_brute_force_on_1e5_random_inputs(which, single):
     DN_INVERSE_MAX_ITERS evaluations. Measured (seed 55): max |u - u_brute| / range where unique
     1.7e-6 (default, double: the search's own resolution), 1.0e-6 (random, double: the inverse's
     tolerance, DN_INVERSE_TOL_REL), 1.4e-6 (random, float); default float 2.2e-3 at 57 motions
-    where dF/du is small and the float force's rounding (it jitters in u by up to 1.4e-3 N; the
+    where dF/du is small and the float force's rounding (it jitters in u by up to 1.5e-3 N; the
     search stops within 2.0e-3 N, dn_types.h) leaves u undetermined, each with
     |F - demand| within 1e-6 of the force scale of the search's; max |F - demand| 3.2e-3 N
     (default) and 1.1e-2 N (random, steep in u), double or float: the control within the

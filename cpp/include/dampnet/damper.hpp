@@ -488,39 +488,6 @@ class Damper {
     }
   }
 
-  // [RT] As force(), plus dF/du [N per V or A] and d2F/du2 [N per (V or A)^2] when the model
-  // gives them analytically (a neural damper, input ui reading in.u; the curvature for one
-  // hidden layer and no terms); NaN otherwise (the inverse then takes a secant, or Newton).
-  DN_REALTIME int force_du(const dn_damper_input& in, int ui, real* f, real* df_du, real* d2f_du2) const noexcept {
-    *df_du = *d2f_du2 = std::numeric_limits<real>::quiet_NaN();
-    if (!kind_built(DN_DAMPER_NEURAL) || kind != DN_DAMPER_NEURAL || ui < 0) return force(in, f);
-    real x[DN_MAX_INPUTS];
-    feature_values(in, x);
-    for (int i = 0; i < n_feat; ++i)
-      if (!std::isfinite(x[i])) return fail(f, DN_E_NONFINITE_INPUT);
-    real y = 0;
-    int st;
-    if (precision == DN_PRECISION_FLOAT) {
-      float xf[DN_MAX_INPUTS], yf = 0.0f, gf = 0.0f, g2f = 0.0f;
-      for (int k = 0; k < n_feat; ++k) xf[k] = static_cast<float>(x[k]);
-      st = mf.forward_grad_curv(xf, &yf, ui, &gf, &g2f, nullptr);
-      y = yf, *df_du = gf, *d2f_du2 = g2f;
-    } else {
-      st = double_forward_grad_curv(md, x, &y, ui, df_du, d2f_du2);
-    }
-    if (st < 0) return fail(f, st);
-    if (DN_CAP_TERMS > 0 && n_terms > 0) {  // a valve term reads u too: its slope is added
-      if (!terms::inputs_finite(terms, n_terms, in)) return fail(f, DN_E_NONFINITE_INPUT);
-      real g[3];
-      y += terms::sum_grad(terms, n_terms, in, g);
-      *df_du += g[2];
-      *d2f_du2 = std::numeric_limits<real>::quiet_NaN();  // (the terms give no curvature)
-    }
-    if (!std::isfinite(y)) return fail(f, DN_E_NONFINITE_OUTPUT);
-    *f = y;
-    return st;
-  }
-
   // [RT] The inverse: the control u in [u_min, u_max] (control_range) at which the force at the
   // input `in` (in.u ignored) equals `demand` [N]; *f the force [N] at *u.
   //  - F at both limits; a demand outside [min, max] of those two (also +-Inf): the limit whose
@@ -666,50 +633,55 @@ class Damper {
 
  private:
   // What search() evaluates F at one control with: the input (its u set per evaluation) and,
-  // for a float neural damper, its features but the control gathered, checked and converted
-  // once (force_du's values, bit for bit).
+  // for a neural damper, its features but the control gathered, checked (and for a float one
+  // converted) once.
   struct UCursor {
     dn_damper_input w;
+    real xr[DN_MAX_INPUTS];
     float xf[DN_MAX_INPUTS];
     int ui;
     int gather_st;
-    bool gathered;
+    bool neural;
   };
   void start_cursor(const dn_damper_input& in, int ui, UCursor* c) const noexcept {
     c->w = in;
     c->ui = ui;
     c->gather_st = DN_OK;
-    c->gathered = kind_built(DN_DAMPER_NEURAL) && kind == DN_DAMPER_NEURAL && ui >= 0 &&
-                  precision == DN_PRECISION_FLOAT;
-    for (int i = 0; i < DN_MAX_INPUTS; ++i) c->xf[i] = 0.0f;
-    if (!c->gathered) return;
-    real xr[DN_MAX_INPUTS];
-    feature_values(in, xr);
+    c->neural = kind_built(DN_DAMPER_NEURAL) && kind == DN_DAMPER_NEURAL && ui >= 0;
+    if (!c->neural) return;
+    feature_values(in, c->xr);
     for (int i = 0; i < n_feat; ++i) {
-      if (i != ui && !std::isfinite(xr[i])) c->gather_st = DN_E_NONFINITE_INPUT;
-      c->xf[i] = static_cast<float>(xr[i]);
+      if (i != ui && !std::isfinite(c->xr[i])) c->gather_st = DN_E_NONFINITE_INPUT;
+      c->xf[i] = static_cast<float>(c->xr[i]);
     }
   }
-  // F [N], dF/du and d2F/du2 (NaN where not known) at control u: force_du(in with u). Out of
-  // line where flash is scarce (DN_SMALL_CODE: search() calls it from five places).
+  // [RT] F [N] at control u, and dF/du [N per V or A] and d2F/du2 [N per (V or A)^2] where the
+  // model gives them analytically (a neural damper; the curvature for one hidden layer, no
+  // terms, not the scalar backend); NaN otherwise (search() then takes a secant, or Newton).
+  // Out of line where flash is scarce (DN_SMALL_CODE: search() calls it from five places).
   DN_SMALL_OUTLINE int eval_u(UCursor& c, real u, real* f, real* d, real* d2) const noexcept {
     c.w.u = u;
-    if (!c.gathered) return force_du(c.w, c.ui, f, d, d2);
     *d = *d2 = std::numeric_limits<real>::quiet_NaN();
+    if (!c.neural) return force(c.w, f);
     if (c.gather_st < 0 || !std::isfinite(u)) return fail(f, DN_E_NONFINITE_INPUT);
-    c.xf[c.ui] = static_cast<float>(u);
-    float yf = 0.0f, gf = 0.0f, g2f = 0.0f;
-    const int st = mf.forward_grad_curv(c.xf, &yf, c.ui, &gf, &g2f, nullptr);
-    *d = gf;
-    *d2 = g2f;
+    real y = 0;
+    int st;
+    if (precision == DN_PRECISION_FLOAT) {
+      c.xf[c.ui] = static_cast<float>(u);
+      float yf = 0.0f, gf = 0.0f, g2f = 0.0f;
+      st = mf.forward_grad_curv(c.xf, &yf, c.ui, &gf, &g2f, nullptr);
+      y = yf, *d = gf, *d2 = g2f;
+    } else {
+      c.xr[c.ui] = u;
+      st = double_forward_grad_curv(md, c.xr, &y, c.ui, d, d2);
+    }
     if (st < 0) return fail(f, st);
-    real y = yf;
-    if (DN_CAP_TERMS > 0 && n_terms > 0) {
+    if (DN_CAP_TERMS > 0 && n_terms > 0) {  // a valve term reads u too: its slope is added
       if (!terms::inputs_finite(terms, n_terms, c.w)) return fail(f, DN_E_NONFINITE_INPUT);
       real g[3];
       y += terms::sum_grad(terms, n_terms, c.w, g);
       *d += g[2];
-      *d2 = std::numeric_limits<real>::quiet_NaN();
+      *d2 = std::numeric_limits<real>::quiet_NaN();  // (the terms give no curvature)
     }
     if (!std::isfinite(y)) return fail(f, DN_E_NONFINITE_OUTPUT);
     *f = y;
@@ -737,9 +709,9 @@ class Damper {
     // The force's own rounding, below which a residual says nothing more about u (Newton would
     // only wander): 8 epsilons of the force (float's for a float model), and for a float model
     // at least an epsilon of the largest sum its output can make, whatever the force (the
-    // default model: 2.0e-3 N; its float force jitters in u by up to 1.4e-3 N, at 25 N as at
-    // 1,700 N). (Computed first, off the chain: a lazy copy was slower on the host and larger on
-    // the Cortex-M4F.)
+    // default model: 2.0e-3 N; its float force jitters in u by up to 1.5e-3 N, at 25 N as at
+    // 1,700 N: bench/experiments/float_force_jitter.py). Computed first, off the chain (a lazy
+    // copy was slower on the host and larger on the Cortex-M4F).
     const bool float_net = kind_built(DN_DAMPER_NEURAL) && kind == DN_DAMPER_NEURAL && precision == DN_PRECISION_FLOAT;
     const real eps = float_net ? real(std::numeric_limits<float>::epsilon()) : std::numeric_limits<real>::epsilon();
     const real f_round = float_net ? eps * real(mf.out_bound()) : real(0);
@@ -786,7 +758,7 @@ class Damper {
     };
     // Warm: Newton from u_start while it stays inside the range, until it converges or two
     // evaluations straddle the demand (a bracket without the limits).
-    if (ui >= 0 && kind == DN_DAMPER_NEURAL && hi > lo && u_start >= lo && u_start <= hi) {
+    if (cur.neural && hi > lo && u_start >= lo && u_start <= hi) {
       real px = 0, pf = 0, pg = 0;
       x = u_start;
       for (int k = 0; k < DN_INVERSE_WARM_EVALS; ++k) {

@@ -186,8 +186,10 @@ inline float forward_simd(const P& p, const float* xs, const float* col, float* 
         const V d = S::load(dz);
         dacc = S::fmadd(S::fnmadd(wt, t, S::load(p.w_out.data() + j)), d, dacc);
         if constexpr (kCurv) {
-          const V s = S::fnmadd(t, t, S::set1(1.f));  // 1 - t^2
-          d2acc = S::fmadd(S::mul(S::mul(wt, s), S::mul(d, d)), S::set1(-2.f), d2acc);
+          if (kH2 == 0 || h2 == 0) {  // (two layers: not computed)
+            const V s = S::fnmadd(t, t, S::set1(1.f));  // 1 - t^2
+            d2acc = S::fmadd(S::mul(S::mul(wt, s), S::mul(d, d)), S::set1(-2.f), d2acc);
+          }
         }
       }
     }
