@@ -5,13 +5,12 @@ one-line errors (LoopError, ModelError), no other exception, no input slower tha
 
 from __future__ import annotations
 
-import os
-import shutil
-import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+
+from atheris_run import atheris_ci_run
 
 REPO = Path(__file__).resolve().parents[2]
 HARNESS = REPO / "fuzz" / "python" / "fuzz_damper_specs.py"
@@ -37,16 +36,6 @@ def test_the_corpus_strings_each_give_a_damper_or_a_one_line_error(tmp_path, mon
 
 
 def test_atheris_ci_run_over_the_damper_specs(tmp_path):
-    corpus = tmp_path / "corpus"
-    shutil.copytree(CORPUS, corpus)  # libFuzzer adds what it finds to the first corpus directory
     work = tmp_path / "work"
     work.mkdir()
-    proc = subprocess.run(
-        [sys.executable, str(HARNESS), str(corpus), "-runs=3000", "-seed=1", "-max_len=256",
-         "-timeout=10", f"-artifact_prefix={tmp_path}/", "-print_final_stats=1"],
-        capture_output=True, text=True, timeout=600, cwd=tmp_path,
-        env={**os.environ, "DAMPNET_FUZZ_WORK": str(work)})
-    tail = "\n".join(proc.stderr.splitlines()[-30:])
-    assert proc.returncode == 0, tail
-    assert "Done 3000 runs" in proc.stderr, tail
-    assert not list(tmp_path.glob("crash-*")) and not list(tmp_path.glob("timeout-*"))
+    atheris_ci_run(HARNESS, CORPUS, tmp_path, runs=3000, max_len=256, env={"DAMPNET_FUZZ_WORK": str(work)})
