@@ -370,6 +370,9 @@ def test_a_start_near_the_answer_gives_the_cold_inverses_control_in_fewer_evalua
         start = np.clip(truth + rng.normal(0.0, dist * (hi - lo), n), lo, hi)
         u, f, st, ev = damper.inverse(demand, **mo, u_start=start)
         assert np.all(st == 0)
+        # the force returned is the damper's at the control returned, bit for bit (whichever
+        # evaluation found it: with its slope, or a limit's force alone)
+        np.testing.assert_array_equal(f, damper.forces(u=u, **mo)[0])
         assert np.all(ev >= 1) and np.all(ev <= _core.DN_INVERSE_WARM_EVALS + 2 + MAX_ITERS)
         # both within the tolerance of the root; a float force's rounding can leave u less
         # determined (as in the brute-force test): there the warm force is as near the demand
@@ -391,6 +394,7 @@ def test_a_start_near_the_answer_gives_the_cold_inverses_control_in_fewer_evalua
             np.testing.assert_array_equal(u, u0)
             np.testing.assert_array_equal(f, f0)
             np.testing.assert_array_equal(st, st0)
+            np.testing.assert_array_equal(f, damper.forces(u=u, **mo)[0])
             assert np.all(st == UNREACHABLE)
             if start is nearer:
                 assert np.all(ev == 2)
@@ -403,7 +407,8 @@ def test_a_start_that_cannot_help_is_the_cold_inverse(single):
     bit for bit, its evaluations plus the two limits. Hard inputs with a start (NaN or infinite
     demand, motion, start): finite outputs and the cold inverse's status. The default model,
     which turns back in u near v = 0: wherever the cold inverse reaches a demand (DN_OK), the
-    warm one does, its force within the same allowance. Cost: 0.1 s."""
+    warm one does from near the answer and from either limit, its force within the same
+    allowance and the damper's at its control bit for bit. Cost: 0.1 s."""
     model = default_model()
     damper = damper_from_model(model, single=single)
     lo, hi = damper.control_range()
@@ -417,11 +422,16 @@ def test_a_start_that_cannot_help_is_the_cold_inverse(single):
         np.testing.assert_array_equal(f, f0)
         np.testing.assert_array_equal(st, st0)
         np.testing.assert_array_equal(ev, ev0 + 2)
-    u, f, st, ev = damper.inverse(demand, **mo, u_start=np.clip(inp["u"] + 0.05, lo, hi))
     ok = st0 == 0
-    assert ok.mean() > 0.8 and np.all(st[ok] == 0)
-    allow = inverse_allowance(damper, u, mo)
-    assert np.all(np.abs(f - demand)[ok] <= np.abs(f0 - demand)[ok] + allow[ok] + 1e-6 * np.max(np.abs(demand)))
+    assert ok.mean() > 0.8
+    # near the answer, and at either limit (a saturated controller's last command: the other
+    # limit's force is then evaluated without its slope, and a bracket there must still be found)
+    for start in (np.clip(inp["u"] + 0.05, lo, hi), lo, hi):
+        u, f, st, ev = damper.inverse(demand, **mo, u_start=start)
+        assert np.all(st[ok] == 0)
+        allow = inverse_allowance(damper, u, mo)
+        assert np.all(np.abs(f - demand)[ok] <= np.abs(f0 - demand)[ok] + allow[ok] + 1e-6 * np.max(np.abs(demand)))
+        np.testing.assert_array_equal(f, damper.forces(u=u, **mo)[0])
     for bad in (np.nan, np.inf, -np.inf):
         for field in ("v", "a"):
             m1 = {q: 0.1 if q == "v" else 0.0 for q in ("x", "v", "a", "u_lag")}

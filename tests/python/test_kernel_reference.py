@@ -232,8 +232,7 @@ def test_every_simd_path_matches_torch(tmp_path, isa):
     inputs beyond the saturation range. forward_grad_curv (the damper inverse's Halley steps):
     its value and slope forward_grad's bits, float and double; its slope and curvature in x0
     against torch's autograd (float within 1e-4, double 1e-9 of the largest over the samples;
-    0 where x0 is clamped; NaN for two hidden layers and on the scalar backend, which do not
-    compute it)."""
+    0 where x0 is clamped; NaN for two hidden layers, which it does not compute)."""
     flags, needs = SIMD_PATHS[isa]
     if not needs <= _cpu_flags():
         pytest.skip(f"this CPU does not run {isa}")
@@ -286,7 +285,7 @@ def test_every_simd_path_matches_torch(tmp_path, isa):
         gs, cs = np.max(np.abs(g_ref)) + 1e-300, np.max(np.abs(c_ref)) + 1e-300
         assert np.max(np.abs(mine[:, 4] - g_ref)) <= 1e-4 * gs, (isa, k, "float slope")
         assert np.max(np.abs(mine[:, 6] - g_ref)) <= 1e-9 * gs, (isa, k, "double slope")
-        if m.w2 is not None or isa == "scalar":  # two hidden layers, the scalar backend: not computed
+        if m.w2 is not None:  # two hidden layers: not computed
             assert np.all(np.isnan(mine[:, 5])) and np.all(np.isnan(mine[:, 7])), (isa, k)
             continue
         assert np.max(np.abs(mine[:, 5] - c_ref)) <= 1e-3 * cs, (isa, k, "float curvature")

@@ -657,9 +657,10 @@ class Damper {
   }
   // [RT] F [N] at control u, and dF/du [N per V or A] and d2F/du2 [N per (V or A)^2] where the
   // model gives them analytically (a neural damper; the curvature for one hidden layer, no
-  // terms, not the scalar backend); NaN otherwise (search() then takes a secant, or Newton).
+  // terms); NaN otherwise (search() then takes a secant, or Newton).
+  // slope false: the force alone (the network's forward, F the same bits), d and d2 NaN.
   // Out of line where flash is scarce (DN_SMALL_CODE: search() calls it from five places).
-  DN_SMALL_OUTLINE int eval_u(UCursor& c, real u, real* f, real* d, real* d2) const noexcept {
+  DN_SMALL_OUTLINE int eval_u(UCursor& c, real u, real* f, real* d, real* d2, bool slope = true) const noexcept {
     c.w.u = u;
     *d = *d2 = std::numeric_limits<real>::quiet_NaN();
     if (!c.neural) return force(c.w, f);
@@ -669,11 +670,12 @@ class Damper {
     if (precision == DN_PRECISION_FLOAT) {
       c.xf[c.ui] = static_cast<float>(u);
       float yf = 0.0f, gf = 0.0f, g2f = 0.0f;
-      st = mf.forward_grad_curv(c.xf, &yf, c.ui, &gf, &g2f, nullptr);
-      y = yf, *d = gf, *d2 = g2f;
+      st = slope ? mf.forward_grad_curv(c.xf, &yf, c.ui, &gf, &g2f, nullptr) : mf.forward(c.xf, &yf, nullptr);
+      y = yf;
+      if (slope) *d = gf, *d2 = g2f;
     } else {
       c.xr[c.ui] = u;
-      st = double_forward_grad_curv(md, c.xr, &y, c.ui, d, d2);
+      st = slope ? double_forward_grad_curv(md, c.xr, &y, c.ui, d, d2) : double_forward(md, c.xr, &y, nullptr);
     }
     if (st < 0) return fail(f, st);
     if (DN_CAP_TERMS > 0 && n_terms > 0) {  // a valve term reads u too: its slope is added
@@ -721,7 +723,9 @@ class Damper {
     };
     UCursor cur;
     start_cursor(in, ui, &cur);
-    auto eval = [&](real c, real* fc, real* dc, real* d2c) noexcept { return eval_u(cur, c, fc, dc, d2c); };
+    auto eval = [&](real c, real* fc, real* dc, real* d2c, bool slope = true) noexcept {
+      return eval_u(cur, c, fc, dc, d2c, slope);
+    };
     real a = lo, b = hi, ga = 0, gb = 0, x = mid, noise = 0;
     real best_u = mid, best_f = 0, best_g = std::numeric_limits<real>::infinity();
     bool bracketed = false;
@@ -801,14 +805,18 @@ class Damper {
       st = DN_OK;
       real f_lo = kf_lo, f_hi = kf_hi, d_lo = kd_lo, d_hi = kd_hi, c_lo = kc_lo, c_hi = kc_hi;
       int s_lo = ks_lo, s_hi = ks_hi;
+      // After the warm steps went out through one limit, the demand is most likely beyond it
+      // (a command that stays saturated): the other limit's force alone decides, so its slope
+      // is not computed (a bracket there starts from the kept limit, or the secant).
+      const bool slope = known == 0;
       if (!(known & 1)) {
-        s_lo = eval(lo, &f_lo, &d_lo, &c_lo);
+        s_lo = eval(lo, &f_lo, &d_lo, &c_lo, slope);
         ++*n_limits;
       }
       if (!(hi > lo)) {
         s_hi = s_lo, f_hi = f_lo, d_hi = d_lo, c_hi = c_lo;
       } else if (!(known & 2)) {
-        s_hi = eval(hi, &f_hi, &d_hi, &c_hi);
+        s_hi = eval(hi, &f_hi, &d_hi, &c_hi, slope);
         ++*n_limits;
       }
       if (s_lo < 0 || s_hi < 0) {

@@ -125,6 +125,16 @@ DN_KERNEL_OUTLINE DN_REALTIME inline int forward(const P& p, const T* x, T* y, u
   }
   // Layer 1's column for the differentiated input (its gain folded in); none if clamped.
   const T* col = (kGrad && !((mask >> grad_input) & 1u)) ? p.w1t.data() + grad_input * h1 : nullptr;
+  // The scalar backend's fused pass does not test col at each neuron (30 branches a call on a
+  // Cortex-M4F): a clamped input, whose slope is 0, takes the plain forward instead (outlined:
+  // no second copy of the pass in flash; the same bits, the inputs prepared again).
+  if constexpr (kGrad && kFused1 && kOwnPass<T> == OwnPass::one_layer) {
+    if (!col && (kH2 == 0 || h2 == 0)) {
+      dy_dxi[0] = T(0);
+      if constexpr (kCurv) dy_dxi[1] = T(0);
+      return forward<T, kIn, kH1, kH2, P, false, false>(p, x, y, clamped_mask);
+    }
+  }
 
   // The backend's own pass where it has one for this model (b_out included), else the
   // passes below: dense + tanh per layer, then the output's dot product.
@@ -290,6 +300,15 @@ inline int check_sizes(int ni, int h1, int h2) noexcept {
   return DN_OK;
 }
 
+// p.out_bound from the loaded output layer (MlpParams::out_bound).
+template <class P>
+inline void set_out_bound(P& p) noexcept {
+  const int n = p.n_h2 > 0 ? p.n_h2 : p.n_h1;
+  auto s = std::fabs(p.b_out);
+  for (int j = 0; j < n; ++j) s += std::fabs(p.w_out[j]);
+  p.out_bound = s;
+}
+
 // Validate a description against fixed sizes (kDynamic = any) and copy it in,
 // folding the scalings into the weights (see the top of this file).
 template <typename T, int kIn, int kH1, int kH2, class P>
@@ -404,6 +423,7 @@ inline int load(P& p, const dn_mlp_desc* d) noexcept {
   if constexpr (P::kTw > 0) {
     if (!finite_all(p.tw)) return DN_E_PARAM;
   }
+  set_out_bound(p);
   return DN_OK;
 }
 
@@ -489,6 +509,7 @@ DN_SETUP_SIZE inline int load_folded(P& p, const dn_mlp_folded_f* f) noexcept {
       p.in_mask8[i] = i < ni ? -1 : 0;
     }
   }
+  set_out_bound(p);
   return DN_OK;
 }
 
@@ -562,6 +583,11 @@ struct MlpParams {
   alignas(32) std::array<int32_t, kR8> in_mask8{};
   bool in_offset_folded = false;  // layer 1's bias holds -W1 offset (forward skips x - offset)
   T out_offset{};  // what a non-finite output is replaced by
+  // |b_out| + sum_j |w_out[j]| [output units], set by the loads (set_out_bound): the largest
+  // |output| the model can give, the scale of the rounding of its output sum (Mlp::out_bound;
+  // the damper's inverse stops at it). Kept, not summed at every inverse: ~190 instructions a
+  // call on a Cortex-M4F.
+  T out_bound{};
 };
 
 // A model whose sizes are chosen at run time (up to the DN_MAX_* capacities).
@@ -590,8 +616,8 @@ class Mlp {
     }
     return dispatch<true>(x, y, clamped_mask, i, dy_dxi);
   }
-  // [RT] As forward_grad, plus d2y/dx[i]^2 in *d2y_dxi2 (one hidden layer; NaN for two and on
-  // the scalar backend; 0 when x[i] is clamped). y and dy/dx[i] are forward_grad's bits.
+  // [RT] As forward_grad, plus d2y/dx[i]^2 in *d2y_dxi2 (one hidden layer; NaN for two, 0
+  // when x[i] is clamped). y and dy/dx[i] are forward_grad's bits.
   DN_REALTIME int forward_grad_curv(const T* x, T* y, int i, T* dy_dxi, T* d2y_dxi2,
                                     uint32_t* clamped_mask = nullptr) const noexcept {
     if (i < 0 || i >= p_.n_in) {
@@ -599,19 +625,11 @@ class Mlp {
       *d2y_dxi2 = T(0);
       return forward(x, y, clamped_mask);
     }
-    if constexpr (detail::kFused1) {
-      // The scalar backend (a microcontroller): not computed. Its curvature costs 10 % more
-      // instructions an evaluation and a second kernel in flash (1.6 KB on the Cortex-M4F),
-      // for the 0.8 evaluations an inverse that Halley's steps save: no gain there.
-      *d2y_dxi2 = std::numeric_limits<T>::quiet_NaN();
-      return dispatch<true>(x, y, clamped_mask, i, dy_dxi);
-    } else {
-      T g[2] = {T(0), T(0)};
-      const int st = dispatch<true, true>(x, y, clamped_mask, i, g);
-      *dy_dxi = g[0];
-      *d2y_dxi2 = g[1];
-      return st;
-    }
+    T g[2] = {T(0), T(0)};
+    const int st = dispatch<true, true>(x, y, clamped_mask, i, g);
+    *dy_dxi = g[0];
+    *d2y_dxi2 = g[1];
+    return st;
   }
   // [RT] forward_grad of 4 samples in one pass of the kernel (detail::forward_batch: each
   // result identical to its own call); statuses in status[4]. Nullable: clamped_mask.
@@ -638,13 +656,8 @@ class Mlp {
   const T* sat_lo() const noexcept { return p_.sat_lo.data(); }
   const T* sat_hi() const noexcept { return p_.sat_hi.data(); }
   // The largest |output| the model can give, |b_out| + sum_j |w_out[j]| [output units]: the
-  // scale of the rounding of the kernel's output sum (an ulp of it). Bounded loop, no branch.
-  T out_bound() const noexcept {
-    const int n = p_.n_h2 > 0 ? p_.n_h2 : p_.n_h1;
-    T s = std::fabs(p_.b_out);
-    for (int j = 0; j < n; ++j) s += std::fabs(p_.w_out[j]);
-    return s;
-  }
+  // scale of the rounding of the kernel's output sum (an ulp of it); computed at load.
+  T out_bound() const noexcept { return p_.out_bound; }
   // The folded parameters as the kernel reads them (tests compare the two loads).
   const MlpParams<T, DN_CAP_INPUTS, DN_CAP_HIDDEN, DN_CAP_HIDDEN2>& params() const noexcept { return p_; }
 

@@ -25,6 +25,16 @@ void static_equals_dynamic(int act, unsigned seed) {
   CHECK(mf.load(&rm.desc) == DN_OK);
   CHECK(sd.load(&rm.desc) == DN_OK);
   CHECK(sf.load(&rm.desc) == DN_OK);
+  // out_bound (kept by the loads for the damper's inverse): |b_out| + sum |w_out| of the folded
+  // output layer, summed here in double from the parameters
+  auto bound = [](const auto& p) {
+    double s = std::fabs(static_cast<double>(p.b_out));
+    for (int j = 0; j < (p.n_h2 > 0 ? p.n_h2 : p.n_h1); ++j) s += std::fabs(static_cast<double>(p.w_out[j]));
+    return s;
+  };
+  CHECK(bound(md.params()) > 0.0);
+  CHECK_NEAR(md.out_bound(), bound(md.params()), 1e-12 * bound(md.params()));
+  CHECK_NEAR(mf.out_bound(), bound(mf.params()), 1e-6 * bound(mf.params()));
   std::mt19937 rng(seed + 1);
   for (int k = 0; k < 200; ++k) {
     std::vector<double> x = rm.sample(rng);

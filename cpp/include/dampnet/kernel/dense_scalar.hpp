@@ -35,8 +35,8 @@ using range_branch::inputs_in_range;
 // and a sum that starts at +0 is never -0, so adding +0 changes no bit. The tanh's
 // coefficients are held in registers across the loop (on Arm: else reloaded for every
 // neuron). Returns b_out + sum_j w_out[j] t_j.
-template <typename T, int kIn, int kP1, bool kGrad, class P>
-inline T forward_fused1(const P& p, const T* xs, const T* col, T* dys) noexcept {
+template <typename T, int kIn, int kP1, bool kGrad, bool kCurv, class P>
+inline T forward_fused1(const P& p, const T* xs, const T* col, T* dys, T* d2ys) noexcept {
   const int ni = kIn > 0 ? kIn : p.n_in;
   constexpr int stride = P::P1;  // of w1t's rows (layer1_stride)
   const int n = p.n_h1;
@@ -48,21 +48,21 @@ inline T forward_fused1(const P& p, const T* xs, const T* col, T* dys) noexcept 
   constexpr int cap_in = kIn > 0 ? kIn : P::kCapIn;
   T xr[cap_in];  // the inputs in registers (kIn > 0), read once
   for (int i = 0; i < ni; ++i) xr[i] = xs[i];
-  T part[8], dpart[8];
+  T part[8], dpart[8], d2part[8];
   // One pointer walks the neurons of a lane through w1t's row 0; b1, w_out and the other rows
   // are at fixed distances from it (members of p; the rows at the capacity's stride).
   // (Byte offsets within p's object representation.)
   const char* const w0 = reinterpret_cast<const char*>(p.w1t.data());
   constexpr ptrdiff_t ob = static_cast<ptrdiff_t>(offsetof(P, b1)) - static_cast<ptrdiff_t>(offsetof(P, w1t));
   constexpr ptrdiff_t oo = static_cast<ptrdiff_t>(offsetof(P, w_out)) - static_cast<ptrdiff_t>(offsetof(P, w1t));
-  const ptrdiff_t oc = col ? reinterpret_cast<const char*>(col) - w0 : 0;
+  const ptrdiff_t oc = col ? reinterpret_cast<const char*>(col) - w0 : 0;  // (no column: row 0's, finite, unused)
   auto at = [](const char* q, ptrdiff_t off) noexcept { return *reinterpret_cast<const T*>(q + off); };
   constexpr int kU = DN_KERNEL_UNROLL;  // lanes per pass
   static_assert(kU == 1 || kU == 2 || kU == 4 || kU == 8, "DN_KERNEL_UNROLL: 1, 2, 4 or 8");
   DN_UNROLL_(1)
   for (int l = 0; l < 8; l += kU) {  // lanes l .. l + kU - 1, row by row
-    T acc[kU], dacc[kU];
-    for (int u = 0; u < kU; ++u) acc[u] = T(0), dacc[u] = T(0);
+    T acc[kU], dacc[kU], d2acc[kU];
+    for (int u = 0; u < kU; ++u) acc[u] = T(0), dacc[u] = T(0), d2acc[u] = T(0);
     for (const char* r = w0 + l * sizeof(T); r < w0 + n * sizeof(T); r += 8 * sizeof(T)) {
       DN_UNROLL_(kU)
       for (int u = 0; u < kU; ++u) {  // neuron j = (q - w0) / sizeof(T); j >= n: padding, adds +0
@@ -78,28 +78,34 @@ inline T forward_fused1(const P& p, const T* xs, const T* col, T* dys) noexcept 
         const T t = tanh_rational(x, k);
         acc[u] += at(q, oo) * t;
         if constexpr (kGrad) {
-          if (col) dacc[u] += at(q, oo) * ((T(1) - t * t) * at(q, oc));
+          // (No test of col here: mlp.hpp's forward takes the plain pass when there is none.)
+          const T c = at(q, oc), wg = at(q, oo) * ((T(1) - t * t) * c);  // w_out dt/dx_i
+          dacc[u] += wg;
+          // w_out d2t/dx_i^2 = w_out dt/dx_i (-2 t c): the factor -2 once, after the sum (three
+          // operations a neuron, which the Cortex-M4F's Halley steps pay for)
+          if constexpr (kCurv) d2acc[u] += wg * (t * c);
         }
       }
     }
-    for (int u = 0; u < kU; ++u) part[l + u] = acc[u], dpart[l + u] = dacc[u];
+    for (int u = 0; u < kU; ++u) part[l + u] = acc[u], dpart[l + u] = dacc[u], d2part[l + u] = d2acc[u];
   }
   auto combine = [](const T* q) noexcept {
     return ((q[0] + q[4]) + (q[1] + q[5])) + ((q[2] + q[6]) + (q[3] + q[7]));
   };
   if constexpr (kGrad) *dys = col ? combine(dpart) : T(0);
+  if constexpr (kCurv) *d2ys = col ? T(-2) * combine(d2part) : T(0);
+  (void)d2ys;
+  (void)d2part;
   return p.b_out + combine(part);
 }
 
 // Models with one hidden layer (at run time when kH2 is not fixed): the fused pass.
 template <typename T>
 constexpr OwnPass kOwnPass = OwnPass::one_layer;
-// (No curvature: Mlp::forward_grad_curv does not ask this backend for it.)
 template <typename T, int kIn, int kH1, int kH2, bool kGrad, bool kCurv, class P>
-inline T forward_own(const P& p, const T* xs, const T* col, T* dys, T*) noexcept {
-  static_assert(!kCurv, "the scalar backend computes no curvature");
+inline T forward_own(const P& p, const T* xs, const T* col, T* dys, T* d2ys) noexcept {
   constexpr int kP1 = kH1 > 0 ? pad(kH1) : kDynamic;
-  return forward_fused1<T, kIn, kP1, kGrad>(p, xs, col, dys);  // b_out included
+  return forward_fused1<T, kIn, kP1, kGrad, kCurv>(p, xs, col, dys, d2ys);  // b_out included
 }
 // (Declared for mlp.hpp's forward_batch, which calls it only where kSimdFloat.)
 template <int kIn, int kH1, bool kGrad, int kB, class P>
