@@ -125,16 +125,6 @@ DN_KERNEL_OUTLINE DN_REALTIME inline int forward(const P& p, const T* x, T* y, u
   }
   // Layer 1's column for the differentiated input (its gain folded in); none if clamped.
   const T* col = (kGrad && !((mask >> grad_input) & 1u)) ? p.w1t.data() + grad_input * h1 : nullptr;
-  // The scalar backend's fused pass does not test col at each neuron (30 branches a call on a
-  // Cortex-M4F): a clamped input, whose slope is 0, takes the plain forward instead (outlined:
-  // no second copy of the pass in flash; the same bits, the inputs prepared again).
-  if constexpr (kGrad && kFused1 && kOwnPass<T> == OwnPass::one_layer) {
-    if (!col && (kH2 == 0 || h2 == 0)) {
-      dy_dxi[0] = T(0);
-      if constexpr (kCurv) dy_dxi[1] = T(0);
-      return forward<T, kIn, kH1, kH2, P, false, false>(p, x, y, clamped_mask);
-    }
-  }
 
   // The backend's own pass where it has one for this model (b_out included), else the
   // passes below: dense + tanh per layer, then the output's dot product.
@@ -610,7 +600,7 @@ class Mlp {
   // An input index out of range gives dy/dx = 0.
   DN_REALTIME int forward_grad(const T* x, T* y, int i, T* dy_dxi,
                                uint32_t* clamped_mask = nullptr) const noexcept {
-    if (i < 0 || i >= p_.n_in) {
+    if (i < 0 || i >= p_.n_in || clamped_on_scalar(x, i)) {
       *dy_dxi = T(0);
       return forward(x, y, clamped_mask);
     }
@@ -620,9 +610,10 @@ class Mlp {
   // when x[i] is clamped). y and dy/dx[i] are forward_grad's bits.
   DN_REALTIME int forward_grad_curv(const T* x, T* y, int i, T* dy_dxi, T* d2y_dxi2,
                                     uint32_t* clamped_mask = nullptr) const noexcept {
-    if (i < 0 || i >= p_.n_in) {
+    if (i < 0 || i >= p_.n_in || clamped_on_scalar(x, i)) {
       *dy_dxi = T(0);
-      *d2y_dxi2 = T(0);
+      // (clamped: 0 as the kernel gives it, NaN for two hidden layers, which it does not compute)
+      *d2y_dxi2 = i >= 0 && i < p_.n_in && p_.n_h2 > 0 ? std::numeric_limits<T>::quiet_NaN() : T(0);
       return forward(x, y, clamped_mask);
     }
     T g[2] = {T(0), T(0)};
@@ -662,6 +653,13 @@ class Mlp {
   const MlpParams<T, DN_CAP_INPUTS, DN_CAP_HIDDEN, DN_CAP_HIDDEN2>& params() const noexcept { return p_; }
 
  private:
+  // The scalar backend's fused pass does not test at each neuron whether x[i] is clamped (30
+  // branches a call on a Cortex-M4F; detail::forward's col): a clamped or NaN x[i], whose slope
+  // is 0, takes the plain forward here, before any frame of the kernel (prepare_inputs' test:
+  // the same y, status and mask).
+  bool clamped_on_scalar(const T* x, int i) const noexcept {
+    return detail::kFused1 && !(x[i] >= p_.sat_lo[i] && x[i] <= p_.sat_hi[i]);
+  }
   // The common shapes (one hidden layer, 1-4 inputs) go to the kernel compiled for their
   // input count and layer count (the dense layer unrolled, no loop over inputs, no second
   // layer's code); the others to the fully run-time one. Same arithmetic, same results.
