@@ -110,6 +110,9 @@ class Damper {
   MlpDouble md;  // Mlp<double>, or with DN_DOUBLE_KERNEL 0 only the sizes and ranges
   Mlp<float> mf;
   int precision = DN_PRECISION_DOUBLE;
+  // mf.out_bound() [N], set by set_neural_features: the float force's rounding scale, where the
+  // inverse stops (summed once, not at every call: ~190 instructions a call on a Cortex-M4F)
+  float out_bound_f = 0.0f;
   int n_feat = 0;
   int accel_input = -1;  // neural: index of the "acceleration" input, or -1
   int feat[DN_MAX_INPUTS] = {};
@@ -282,6 +285,7 @@ class Damper {
     for (int i = 0; i < n; ++i)
       if (feat[i] == DN_FEAT_ACCELERATION) accel_input = i;
     precision = prec;
+    out_bound_f = mf.out_bound();
     return DN_OK;
   }
 
@@ -712,11 +716,12 @@ class Damper {
     // only wander): 8 epsilons of the force (float's for a float model), and for a float model
     // at least an epsilon of the largest sum its output can make, whatever the force (the
     // default model: 2.0e-3 N; its float force jitters in u by up to 1.5e-3 N, at 25 N as at
-    // 1,700 N: bench/experiments/float_force_jitter.py). Computed first, off the chain (a lazy
-    // copy was slower on the host and larger on the Cortex-M4F).
+    // 1,700 N: bench/experiments/float_force_jitter.py). The bound is kept by set_neural_features
+    // (out_bound_f); the rest is computed first, off the chain (a lazy copy was slower on the
+    // host and larger on the Cortex-M4F).
     const bool float_net = kind_built(DN_DAMPER_NEURAL) && kind == DN_DAMPER_NEURAL && precision == DN_PRECISION_FLOAT;
     const real eps = float_net ? real(std::numeric_limits<float>::epsilon()) : std::numeric_limits<real>::epsilon();
-    const real f_round = float_net ? eps * real(mf.out_bound()) : real(0);
+    const real f_round = float_net ? eps * real(out_bound_f) : real(0);
     auto rounding = [&](real fa, real fb) noexcept {
       const real r = 8 * eps * (std::fabs(fa) > std::fabs(fb) ? std::fabs(fa) : std::fabs(fb));
       return r > f_round ? r : f_round;

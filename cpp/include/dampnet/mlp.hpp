@@ -290,15 +290,6 @@ inline int check_sizes(int ni, int h1, int h2) noexcept {
   return DN_OK;
 }
 
-// p.out_bound from the loaded output layer (MlpParams::out_bound).
-template <class P>
-inline void set_out_bound(P& p) noexcept {
-  const int n = p.n_h2 > 0 ? p.n_h2 : p.n_h1;
-  auto s = std::fabs(p.b_out);
-  for (int j = 0; j < n; ++j) s += std::fabs(p.w_out[j]);
-  p.out_bound = s;
-}
-
 // Validate a description against fixed sizes (kDynamic = any) and copy it in,
 // folding the scalings into the weights (see the top of this file).
 template <typename T, int kIn, int kH1, int kH2, class P>
@@ -413,7 +404,6 @@ inline int load(P& p, const dn_mlp_desc* d) noexcept {
   if constexpr (P::kTw > 0) {
     if (!finite_all(p.tw)) return DN_E_PARAM;
   }
-  set_out_bound(p);
   return DN_OK;
 }
 
@@ -499,7 +489,6 @@ DN_SETUP_SIZE inline int load_folded(P& p, const dn_mlp_folded_f* f) noexcept {
       p.in_mask8[i] = i < ni ? -1 : 0;
     }
   }
-  set_out_bound(p);
   return DN_OK;
 }
 
@@ -573,11 +562,6 @@ struct MlpParams {
   alignas(32) std::array<int32_t, kR8> in_mask8{};
   bool in_offset_folded = false;  // layer 1's bias holds -W1 offset (forward skips x - offset)
   T out_offset{};  // what a non-finite output is replaced by
-  // |b_out| + sum_j |w_out[j]| [output units], set by the loads (set_out_bound): the largest
-  // |output| the model can give, the scale of the rounding of its output sum (Mlp::out_bound;
-  // the damper's inverse stops at it). Kept, not summed at every inverse: ~190 instructions a
-  // call on a Cortex-M4F.
-  T out_bound{};
 };
 
 // A model whose sizes are chosen at run time (up to the DN_MAX_* capacities).
@@ -647,8 +631,15 @@ class Mlp {
   const T* sat_lo() const noexcept { return p_.sat_lo.data(); }
   const T* sat_hi() const noexcept { return p_.sat_hi.data(); }
   // The largest |output| the model can give, |b_out| + sum_j |w_out[j]| [output units]: the
-  // scale of the rounding of the kernel's output sum (an ulp of it); computed at load.
-  T out_bound() const noexcept { return p_.out_bound; }
+  // scale of the rounding of the kernel's output sum (an ulp of it). Bounded loop, no branch.
+  // (Summed here, not kept by the loads: the kernel part's flash on the Cortex-M7 is held below
+  // emlearn's; the damper keeps its own copy, Damper::out_bound_f.)
+  T out_bound() const noexcept {
+    const int n = p_.n_h2 > 0 ? p_.n_h2 : p_.n_h1;
+    T s = std::fabs(p_.b_out);
+    for (int j = 0; j < n; ++j) s += std::fabs(p_.w_out[j]);
+    return s;
+  }
   // The folded parameters as the kernel reads them (tests compare the two loads).
   const MlpParams<T, DN_CAP_INPUTS, DN_CAP_HIDDEN, DN_CAP_HIDDEN2>& params() const noexcept { return p_; }
 

@@ -76,6 +76,7 @@ int main(int argc, char** argv) {
   CHECK(neural.mf.load(&rm.desc) == DN_OK);
   const char* feats[] = {"velocity", "acceleration", "voltage"};
   CHECK(neural.set_neural_features(feats, 3, nullptr, nullptr, 0, DN_PRECISION_FLOAT) == DN_OK);
+  CHECK(neural.out_bound_f > 0.0f && neural.out_bound_f == neural.mf.out_bound());  // (the inverse's rounding scale)
   const double gas[] = {-150, 3000, 0, 0};
   CHECK(neural.add_term("position_poly", gas, 4) == DN_OK);
   std::uniform_real_distribution<double> u01(0, 1);

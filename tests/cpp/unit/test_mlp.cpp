@@ -25,7 +25,7 @@ void static_equals_dynamic(int act, unsigned seed) {
   CHECK(mf.load(&rm.desc) == DN_OK);
   CHECK(sd.load(&rm.desc) == DN_OK);
   CHECK(sf.load(&rm.desc) == DN_OK);
-  // out_bound (kept by the loads for the damper's inverse): |b_out| + sum |w_out| of the folded
+  // out_bound (the damper's inverse's rounding scale): |b_out| + sum |w_out| of the folded
   // output layer, summed here in double from the parameters
   auto bound = [](const auto& p) {
     double s = std::fabs(static_cast<double>(p.b_out));

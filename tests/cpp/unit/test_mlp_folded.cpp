@@ -36,8 +36,7 @@ static bool same_params(const Params& a, const Params& b) {
   ok = ok && same_bits(a.w1t, b.w1t) && same_bits(a.b1, b.b1) && same_bits(a.w2t, b.w2t) &&
        same_bits(a.b2, b.b2) && same_bits(a.w_out, b.w_out) && same_bits(a.b_out, b.b_out) &&
        same_bits(a.in_offset, b.in_offset) && same_bits(a.in_mid, b.in_mid) &&
-       same_bits(a.sat_lo, b.sat_lo) && same_bits(a.sat_hi, b.sat_hi) && same_bits(a.out_offset, b.out_offset) &&
-       same_bits(a.out_bound, b.out_bound);
+       same_bits(a.sat_lo, b.sat_lo) && same_bits(a.sat_hi, b.sat_hi) && same_bits(a.out_offset, b.out_offset);
   if (bitwise_kernel()) ok = ok && same_bits(a.tw, b.tw) && same_bits(a.inv_w, b.inv_w);
   return ok;
 }
