@@ -81,14 +81,40 @@ def main(argv: list[str] | None = None) -> int:
     signals.terminate_as_exception()    # SIGTERM cleans up as Ctrl-C does (dampnet.signals)
     try:
         return int(handler(args) or 0)
-    except signals.Terminated:
-        print("dampnet: terminated", file=sys.stderr)
-        return signals.TERMINATED_STATUS
-    except KeyboardInterrupt:
-        print("dampnet: interrupted", file=sys.stderr)
-        return signals.INTERRUPTED_STATUS
+    except KeyboardInterrupt as e:      # Ctrl-C, or SIGTERM (signals.Terminated)
+        return _stopped(e)
+    except Exception as e:
+        stop = interrupt_behind(e)
+        if stop is None:
+            raise
+        return _stopped(stop)
     finally:
         signals.default_handlers()      # a signal while Python shuts down ends it, no traceback
+
+
+def interrupt_behind(e: BaseException) -> KeyboardInterrupt | None:
+    """The KeyboardInterrupt (or signals.Terminated) that `e` was raised from or during, if any. A
+    signal that arrives while a C extension initialises comes back as that extension's own error:
+    pybind11 modules (scipy's HiGHS among them) raise ImportError('initialization failed') from it."""
+    seen: set[int] = set()
+    cur: BaseException | None = e
+    while cur is not None and id(cur) not in seen:
+        if isinstance(cur, KeyboardInterrupt):
+            return cur
+        seen.add(id(cur))
+        cur = cur.__cause__ or cur.__context__
+    return None
+
+
+def _stopped(stop: KeyboardInterrupt) -> int:
+    """The one line and the exit status of a run that a signal stopped."""
+    from dampnet import signals
+
+    if isinstance(stop, signals.Terminated):
+        print("dampnet: terminated", file=sys.stderr)
+        return signals.TERMINATED_STATUS
+    print("dampnet: interrupted", file=sys.stderr)
+    return signals.INTERRUPTED_STATUS
 
 
 if __name__ == "__main__":
