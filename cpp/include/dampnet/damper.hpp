@@ -123,7 +123,7 @@ class Damper {
   void* user = nullptr;
   // terms
   int n_terms = 0;
-  Term terms[DN_CAP_TERMS > 0 ? DN_CAP_TERMS : 1];
+  TermStore<DN_CAP_TERMS> terms;
 
   // A feature parameter's value, 0 when not set (every parameter is > 0 when set).
   real fparam(int id) const noexcept { return fparam_set[id] ? fparams[id] : real(0); }
@@ -303,7 +303,7 @@ class Damper {
     Term t;
     const int st = terms::make(t, kind_name, params, n_params);
     if (st != DN_OK) return st;
-    terms[n_terms++] = t;
+    if constexpr (DN_CAP_TERMS > 0) static_cast<Term*>(terms)[n_terms++] = t;
     return DN_OK;
   }
 

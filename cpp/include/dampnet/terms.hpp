@@ -20,6 +20,20 @@ struct Term {
   real p[DN_MAX_TERM_PARAMS] = {};
 };
 
+// A damper's terms: N of them, used as a Term pointer. None at all where the build has no terms
+// (DN_CAP_TERMS 0, a microcontroller's): one unused Term is 44 B of the quarter car's 2 KB of RAM.
+template <int N>
+struct TermStore {
+  Term t[N];
+  operator Term*() noexcept { return t; }
+  operator const Term*() const noexcept { return t; }
+};
+template <>
+struct TermStore<0> {
+  operator Term*() noexcept { return nullptr; }  // (read n_terms = 0 times)
+  operator const Term*() const noexcept { return nullptr; }
+};
+
 namespace terms {
 
 // ---- position_poly: F = p0 + p1 x + p2 x^2 + p3 x^3 ----
