@@ -443,6 +443,12 @@ def _run(prep, fit, jobs: list[tuple], workers: int, done: Callable[[int, dict],
         finally:
             _PREP, _FIT = old
         return results  # type: ignore[return-value]
+    if getattr(multiprocessing.current_process(), "_inheriting", False):
+        # This process is itself a worker still importing the calling script, which trains at its top
+        # level: it could start no workers (Python refuses: multiprocessing's own test of this flag),
+        # and a pool made first would leave its semaphores to the resource tracker, whose warning then
+        # followed the parent's error. Stop here: the parent sees this worker die (WORKER_DIED).
+        raise RuntimeError(WORKER_DIED)
     ctx = multiprocessing.get_context("spawn")  # no fork of a process with torch's threads running
     # Ctrl-C and SIGTERM only set a flag inside (dampnet.signals.Deferred): the loop stops the workers
     # itself, the hand-off file is removed, and then the signal is delivered again
