@@ -564,6 +564,17 @@ struct MlpParams {
   T out_offset{};  // what a non-finite output is replaced by
 };
 
+namespace detail {
+// The scalar backend's fused pass does not test at each neuron whether x[i] is clamped (30
+// branches a call on a Cortex-M4F; forward's col): Mlp and StaticMlp send a clamped or NaN x[i],
+// whose slope is 0, to the plain forward, before any frame of the kernel (prepare_inputs' test:
+// the same y, status and mask). False on the other backends.
+template <typename T, class P>
+inline bool clamped_on_scalar(const P& p, const T* x, int i) noexcept {
+  return kFused1 && !(x[i] >= p.sat_lo[i] && x[i] <= p.sat_hi[i]);
+}
+}  // namespace detail
+
 // A model whose sizes are chosen at run time (up to the DN_MAX_* capacities).
 template <typename T>
 class Mlp {
@@ -584,7 +595,7 @@ class Mlp {
   // An input index out of range gives dy/dx = 0.
   DN_REALTIME int forward_grad(const T* x, T* y, int i, T* dy_dxi,
                                uint32_t* clamped_mask = nullptr) const noexcept {
-    if (i < 0 || i >= p_.n_in || clamped_on_scalar(x, i)) {
+    if (i < 0 || i >= p_.n_in || detail::clamped_on_scalar(p_, x, i)) {
       *dy_dxi = T(0);
       return forward(x, y, clamped_mask);
     }
@@ -594,7 +605,7 @@ class Mlp {
   // when x[i] is clamped). y and dy/dx[i] are forward_grad's bits.
   DN_REALTIME int forward_grad_curv(const T* x, T* y, int i, T* dy_dxi, T* d2y_dxi2,
                                     uint32_t* clamped_mask = nullptr) const noexcept {
-    if (i < 0 || i >= p_.n_in || clamped_on_scalar(x, i)) {
+    if (i < 0 || i >= p_.n_in || detail::clamped_on_scalar(p_, x, i)) {
       *dy_dxi = T(0);
       // (clamped: 0 as the kernel gives it, NaN for two hidden layers, which it does not compute)
       *d2y_dxi2 = i >= 0 && i < p_.n_in && p_.n_h2 > 0 ? std::numeric_limits<T>::quiet_NaN() : T(0);
@@ -644,13 +655,6 @@ class Mlp {
   const MlpParams<T, DN_CAP_INPUTS, DN_CAP_HIDDEN, DN_CAP_HIDDEN2>& params() const noexcept { return p_; }
 
  private:
-  // The scalar backend's fused pass does not test at each neuron whether x[i] is clamped (30
-  // branches a call on a Cortex-M4F; detail::forward's col): a clamped or NaN x[i], whose slope
-  // is 0, takes the plain forward here, before any frame of the kernel (prepare_inputs' test:
-  // the same y, status and mask).
-  bool clamped_on_scalar(const T* x, int i) const noexcept {
-    return detail::kFused1 && !(x[i] >= p_.sat_lo[i] && x[i] <= p_.sat_hi[i]);
-  }
   // The common shapes (one hidden layer, 1-4 inputs) go to the kernel compiled for their
   // input count and layer count (the dense layer unrolled, no loop over inputs, no second
   // layer's code); the others to the fully run-time one. Same arithmetic, same results.
@@ -762,7 +766,7 @@ class StaticMlp {
   // [RT] As forward, plus dy/dx[i]; an input index out of range gives 0.
   DN_REALTIME int forward_grad(const T* x, T* y, int i, T* dy_dxi,
                                uint32_t* clamped_mask = nullptr) const noexcept {
-    if (i < 0 || i >= In) {
+    if (i < 0 || i >= In || detail::clamped_on_scalar(p_, x, i)) {
       *dy_dxi = T(0);
       return forward(x, y, clamped_mask);
     }

@@ -48,6 +48,18 @@ void static_equals_dynamic(int act, unsigned seed) {
     CHECK(yd == ysd);   // same kernel, same arithmetic: bit-identical
     CHECK(yf == ysf);
     CHECK_NEAR(yf, yd, 1e-5 * 4000.0);  // float within 1e-5 of the force range
+    // forward_grad, every fourth sample with the differentiated input beyond its range (clamped:
+    // slope 0; the scalar backend sends it to the plain forward, Mlp and StaticMlp alike)
+    const int gi = In - 1;
+    if (k % 4 == 0) x[gi] = xf[gi] = 1e6f;
+    double gd = -1, gsd = -1, yg = 0, ysg = 0;
+    float gf = -1, gsf = -1, yfg = 0, ysfg = 0;
+    const int s1 = md.forward_grad(x.data(), &yg, gi, &gd), s2 = sd.forward_grad(x.data(), &ysg, gi, &gsd);
+    const int s3 = mf.forward_grad(xf.data(), &yfg, gi, &gf), s4 = sf.forward_grad(xf.data(), &ysfg, gi, &gsf);
+    CHECK(s1 == s2 && s3 == s4 && yg == ysg && yfg == ysfg && gd == gsd && gf == gsf);
+    if (k % 4 == 0) CHECK(gd == 0.0 && gf == 0.0f && (s1 & DN_W_SATURATED) && (s3 & DN_W_SATURATED));
+    double yplain = 0;
+    CHECK(md.forward(x.data(), &yplain) == s1 && yplain == yg);  // the slope's pass: the forward's value
   }
 }
 

@@ -78,8 +78,8 @@ inline T forward_fused1(const P& p, const T* xs, const T* col, T* dys, T* d2ys) 
         const T t = tanh_rational(x, k);
         acc[u] += at(q, oo) * t;
         if constexpr (kGrad) {
-          // (No test of col here: Mlp sends a clamped x_i to the plain forward; otherwise, e.g.
-          // forward_grad4 or StaticMlp, oc reads row 0 and the sums are dropped.)
+          // (No test of col here: Mlp and StaticMlp send a clamped x_i to the plain forward;
+          // otherwise, e.g. forward_grad4, oc reads row 0 and the sums are dropped.)
           const T c = at(q, oc), wg = at(q, oo) * ((T(1) - t * t) * c);  // w_out dt/dx_i
           dacc[u] += wg;
           // w_out d2t/dx_i^2 = w_out dt/dx_i (-2 t c): the factor -2 once, after the sum (three
