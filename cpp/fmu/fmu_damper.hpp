@@ -11,7 +11,7 @@
 //   31 u_command [control unit]  33 force_at_command [N]                          outputs (Real)
 //   32 inverse_status (dampnet status of the inverse)                             output (Integer)
 //   10 + k   the model's k-th feature constant (names sorted, as in the header)   parameters
-//   100 + 12 i + j   parameter j of physics term i                               parameters
+//   100 + 10 i + j   parameter j of physics term i                               parameters
 //   40 + k   the damper's state k (dampnet.h DN_DAMPER_STATE_LIST: u_lag, v_lag, z_fric, ...;
 //            those the model reads)
 //   50 + k   its time derivative (model exchange)
@@ -61,7 +61,7 @@ class DamperModel {
   enum Vr : unsigned {
     VR_X = 0, VR_V, VR_A, VR_U, VR_TEMP, VR_FORCE, VR_STATUS, VR_MASK, VR_ENVELOPE,
     VR_DEMAND = 30, VR_U_COMMAND, VR_INV_STATUS, VR_INV_FORCE,  // the inverse
-    VR_STATE = 40, VR_DERIV = 50  // the parameters: DamperParams (10 + k, 100 + 12 i + j)
+    VR_STATE = 40, VR_DERIV = 50  // the parameters: DamperParams (10 + k, 100 + 10 i + j)
   };
   static constexpr int ST_N = DN_DAMPER_STATE_SIZE;
   static_assert(VR_STATE + ST_N <= VR_DERIV && VR_DERIV + ST_N <= 100, "the damper's states outgrew their value references");

@@ -1,6 +1,6 @@
 // The damper's parameters as both FMUs expose them: the model's feature constants (value
 // references 10 + k, the header's order: names sorted) and its physics terms' parameters
-// (100 + 12 i + j, 12 = DN_MAX_TERM_PARAMS), their start values from the generated header "fmu_model.h", and the
+// (100 + 10 i + j), their start values from the generated header "fmu_model.h", and the
 // damper built from them (validated by the runtime, an invalid value named in the message with
 // its FMU name from "fmu_config.h", DNFMU_TERM_PARAM_NAMES, and the runtime's range).
 #pragma once
@@ -25,9 +25,7 @@ namespace dnfmu {
 
 class DamperParams {
  public:
-  static constexpr unsigned VR_FPARAM = 10, VR_TERM = 100, VR_TERM_STRIDE = DN_MAX_TERM_PARAMS;
-  // below the quarter-car FMU's loop state (200 +)
-  static_assert(VR_TERM + VR_TERM_STRIDE * DN_MAX_TERMS <= 200, "the terms' parameters outgrew their value references");
+  static constexpr unsigned VR_FPARAM = 10, VR_TERM = 100;
   static constexpr int kTerms = FMU_MODEL_N_TERMS;
   static constexpr int kFparams = FMU_MODEL_N_FEATURE_PARAMS;
 
@@ -46,8 +44,8 @@ class DamperParams {
   double* find(unsigned vr) noexcept {
     if (vr >= VR_FPARAM && vr < VR_FPARAM + unsigned(kFparams)) return &fparam_[vr - VR_FPARAM];
 #if FMU_MODEL_N_TERMS > 0
-    if (vr >= VR_TERM && vr < VR_TERM + VR_TERM_STRIDE * kTerms) {
-      const int i = int((vr - VR_TERM) / VR_TERM_STRIDE), j = int((vr - VR_TERM) % VR_TERM_STRIDE);
+    if (vr >= VR_TERM && vr < VR_TERM + 10u * kTerms) {
+      const int i = int(vr - VR_TERM) / 10, j = int(vr - VR_TERM) % 10;
       if (j < fmu_model_term_n_params[i]) return &term_[i][j];
     }
 #endif

@@ -7,7 +7,7 @@
 //   0 z_r [m]  1 v_r [m/s]   the road at the END of the coming step (t + h), as dn_loop_input
 //   2 u [V]                  the control over the coming step (the 'external' law only)
 //   9 time                   FMI 3's independent variable (the wrapper answers it)
-//   10 + k, 100 + 12 i + j   the damper's feature constants and term parameters (as the damper FMU)
+//   10 + k, 100 + 10 i + j   the damper's feature constants and term parameters (as the damper FMU)
 //   200 + i                  the loop state, DN_LOOP_STATE_LIST order (t, z_s, v_s, z_us, v_us, ...)
 //   230 + j                  the step quantities, DN_LOOP_OUT_LIST order (force, u, x, v, a, acc_s, acc_us)
 //   240 travel = z_s - z_us [m]   241 tyre force k_t (z_us - z_r) + c_t (v_us - v_r) [N]
@@ -163,7 +163,7 @@ int explain(Message& m, const char* what, const S& user, const S& defaults, cons
 class QuarterCarModel {
  public:
   enum Vr : unsigned {
-    VR_Z_R = 0, VR_V_R = 1, VR_U = 2,  // the damper's parameters: DamperParams (10 + k, 100 + 12 i + j)
+    VR_Z_R = 0, VR_V_R = 1, VR_U = 2,  // the damper's parameters: DamperParams (10 + k, 100 + 10 i + j)
     VR_STATE = 200, VR_OUT = 230, VR_TRAVEL = 240, VR_TYRE = 241, VR_STATUS = 250, VR_MASK = 251,
     VR_ENVELOPE = 252, VR_VEHICLE = 1000, VR_CONTROLLER = 1100
   };

@@ -45,9 +45,8 @@ class Kind:
     fittable: bool = True
     # fitted instead by nonlinear least squares after the others (fit_terms: the valve)
     nonlinear_fit: bool = False
-    # trailing parameters a term may leave out (then 0): those added to a kind after models were
-    # written with it (the valve's digressions k_d and speed-axis gains h); the runtime's
-    # min_params agrees
+    # trailing parameters a term may leave out, all of them (then 0): those added to a kind after
+    # models were written with it (the valve's digressions k_d); the runtime's min_params agrees
     optional: int = 0
 
     def with_shape(self, shape: tuple[float, ...], linear_values) -> np.ndarray:
@@ -94,18 +93,10 @@ def _bump_settle(p: np.ndarray) -> np.ndarray:
 
 
 #: the valve term's bounds (dn_xmacro.h DN_TERM_VALVE_V_MAX_M_S, DN_TERM_VALVE_U_MAX,
-#: DN_TERM_VALVE_K_D_MAX_S_M and DN_TERM_VALVE_H_MAX: the largest digression and speed-axis gain
-#: the runtime accepts)
+#: DN_TERM_VALVE_K_D_MAX_S_M: the largest digression the runtime accepts)
 VALVE_V_MAX = 50.0  # [m/s]
 VALVE_U_MAX = 1000.0  # [V or A]
 VALVE_K_D_MAX = 1e6  # [s/m]
-VALVE_H_MAX = 1e3  # [1/u]
-#: the valve's parameter count: 12 (VALVE_N_PARAMS), or 8 or 10 from a model written before the
-#: digressions k_d or the speed axis's gains h
-VALVE_N_PARAMS = 12
-#: the fit keeps the speed axis (h) when it lowers the fit's cost by this share at least (else
-#: h = 0, the law of before)
-SPEED_AXIS_GAIN = 0.01
 
 
 def _valve_opening(kd, d):
@@ -119,22 +110,8 @@ def _valve_opening(kd, d):
     return z, r
 
 
-def _clamped_control(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(u clamped to [0, VALVE_U_MAX] with NaN as 0, whether u was inside it)."""
-    inside = (u > 0) & (u < VALVE_U_MAX)  # NaN: outside, as u = 0
-    return np.where(inside, u, np.where(u >= VALVE_U_MAX, VALVE_U_MAX, 0.0)), inside
-
-
-def _rational(num: float, den: float, uc: np.ndarray, inside: np.ndarray):
-    """((1 + num uc) / (1 + den uc), its derivative in u (0 outside the clamp)): the valve's
-    s(u) = _rational(g_num, g_den) and 1 / a(u) = _rational(h_den, h_num), as terms.hpp's scale."""
-    d = 1 + den * uc
-    return (1 + num * uc) / d, np.where(inside, (num - den) / (d * d), 0.0)
-
-
 def _valve_parts(p: np.ndarray, q: dict[str, np.ndarray]):
-    """(sgn(v), s(u), ds/du, g_d(|v| / a), g_d'(|v| / a), |v| below its clamp, |v| clamped,
-    1 / a(u), d(1/a)/du) of the valve term."""
+    """(sgn(v), s(u), ds/du, g_d(|v|), g_d'(|v|), |v| below its clamp) of the valve term."""
     if "v" not in q or "u" not in q:
         raise ValueError("a valve term needs the velocity v [m/s] and the control u [V or A]")
     v = np.asarray(q["v"], dtype=np.float64)
@@ -146,31 +123,32 @@ def _valve_parts(p: np.ndarray, q: dict[str, np.ndarray]):
     w_raw = np.abs(v)
     w = np.where(w_raw < VALVE_V_MAX, w_raw, VALVE_V_MAX)
     w = np.where(np.isnan(w), 0.0, w)
-    uc, inside = _clamped_control(u)
-    ia, dia = _rational(p[11], p[10], uc, inside)  # 1 / a(u): exactly 1 at h = 0
-    ws = w * ia
-    below = ws <= vk
-    d = np.maximum(ws - vk, 0.0)
+    below = w <= vk
+    d = np.maximum(w - vk, 0.0)
     z, r = _valve_opening(kd, d)
     one_minus_e = -np.expm1(-z / vk)
     m = 2 * cb * vk - cv
-    g = np.where(below, cb * ws * ws, cb * vk * vk + cv * z + m * vk * one_minus_e)
-    dg = np.where(below, 2 * cb * ws, r * (cv + m * (1 - one_minus_e)))
-    s, ds = _rational(p[6], p[7], uc, inside)
+    g = np.where(below, cb * w * w, cb * vk * vk + cv * z + m * vk * one_minus_e)
+    dg = np.where(below, 2 * cb * w, r * (cv + m * (1 - one_minus_e)))
+    inside = (u > 0) & (u < VALVE_U_MAX)  # NaN: outside, as u = 0
+    uc = np.where(inside, u, np.where(u >= VALVE_U_MAX, VALVE_U_MAX, 0.0))
+    den = 1 + p[7] * uc
+    s = (1 + p[6] * uc) / den
+    ds = np.where(inside, (p[6] - p[7]) / (den * den), 0.0)
     sgn = np.where(ext, 1.0, np.where(v < 0, -1.0, 0.0))  # 0 at v = 0 and NaN
-    return sgn, s, ds, g, dg, w_raw < VALVE_V_MAX, w, ia, dia
+    return sgn, s, ds, g, dg, w_raw < VALVE_V_MAX
 
 
 def _valve(p: np.ndarray, q: dict[str, np.ndarray]) -> np.ndarray:
-    sgn, s, _, g, *_ = _valve_parts(p, q)
+    sgn, s, _, g, _, _ = _valve_parts(p, q)
     return sgn * s * g
 
 
 def valve_gradient(params, v, u) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The valve term's (F [N], dF/dv [N s/m], dF/du [N per control unit]) at v [m/s], u [V or A]."""
     p = validate({"kind": "valve", "params": params})
-    sgn, s, ds, g, dg, unclamped, w, ia, dia = _valve_parts(p, {"v": np.asarray(v, float), "u": np.asarray(u, float)})
-    return sgn * s * g, np.where(unclamped & (sgn != 0), s * dg * ia, 0.0), sgn * (ds * g + s * dg * w * dia)
+    sgn, s, ds, g, dg, unclamped = _valve_parts(p, {"v": np.asarray(v, float), "u": np.asarray(u, float)})
+    return sgn * s * g, np.where(unclamped & (sgn != 0), s * dg, 0.0), sgn * ds * g
 
 
 def _dz_dkd(kd, d, z, r):
@@ -183,29 +161,30 @@ def _dz_dkd(kd, d, z, r):
 
 
 def valve_param_jacobian(p, v, u) -> np.ndarray:
-    """dF/dp [n, 12] of the valve term at v [m/s], u [V or A] (p as KINDS["valve"].params, 8, 10 or
-    12 of them): the columns the nonlinear fit uses, in the parameters' units (N per unit of each)."""
+    """dF/dp [n, 10] of the valve term at v [m/s], u [V or A] (p as KINDS["valve"].params, 8 or 10
+    of them): the columns the nonlinear fit uses, in the parameters' units (N per unit of each)."""
     p = full_params("valve", p)
-    sgn, s, _, g, dgw, _, w, ia, _ = _valve_parts(p, {"v": np.asarray(v, float), "u": np.asarray(u, float)})
+    sgn, s, _, g, _, _ = _valve_parts(p, {"v": np.asarray(v, float), "u": np.asarray(u, float)})
     v, u = np.broadcast_arrays(np.asarray(v, float), np.asarray(u, float))
     ext = v > 0
     vk, cb, cv = (np.where(ext, p[i], p[i + 3]) for i in range(3))
     kd = np.where(ext, p[8], p[9])
-    ws = w * ia
-    below = ws <= vk
-    d = np.maximum(ws - vk, 0.0)
+    w = np.minimum(np.where(np.isnan(v), 0.0, np.abs(v)), VALVE_V_MAX)
+    below = w <= vk
+    d = np.maximum(w - vk, 0.0)
     z, r = _valve_opening(kd, d)
     ome = -np.expm1(-z / vk)
     e = 1 - ome
     m = 2 * cb * vk - cv
     # d/dv_k: d = w - v_k moves (dz/dv_k = -r) and so does the transition's scale v_k
     dg_dvk = np.where(below, 0.0, 2 * cb * vk - cv * r + (2 * cb * vk + m) * ome - m * e * (z / vk + r))
-    dg_dcb = np.where(below, ws * ws, vk * vk + 2 * vk * vk * ome)
+    dg_dcb = np.where(below, w * w, vk * vk + 2 * vk * vk * ome)
     dg_dcv = np.where(below, 0.0, z - vk * ome)
     dg_dkd = np.where(below, 0.0, (cv + m * e) * _dz_dkd(kd, d, z, r))
-    uc, _ = _clamped_control(u)
+    inside = (u > 0) & (u < VALVE_U_MAX)
+    uc = np.where(inside, u, np.where(u >= VALVE_U_MAX, VALVE_U_MAX, 0.0))
     den = 1 + p[7] * uc
-    J = np.zeros(v.shape + (VALVE_N_PARAMS,))
+    J = np.zeros(v.shape + (10,))
     for k, dg in ((0, dg_dvk), (1, dg_dcb), (2, dg_dcv)):
         J[..., k] = np.where(ext, sgn * s * dg, 0.0)
         J[..., k + 3] = np.where(ext, 0.0, sgn * s * dg)
@@ -213,10 +192,6 @@ def valve_param_jacobian(p, v, u) -> np.ndarray:
     J[..., 9] = np.where(ext, 0.0, sgn * s * dg_dkd)
     J[..., 6] = sgn * g * uc / den
     J[..., 7] = -sgn * g * s * uc / den
-    # the speed axis: dF/dh = sgn s g' w d(1/a)/dh, 1/a = (1 + h_den u) / (1 + h_num u)
-    hn = 1 + p[10] * uc
-    J[..., 10] = -sgn * s * dgw * w * ia * uc / hn
-    J[..., 11] = sgn * s * dgw * w * uc / hn
     return J
 
 
@@ -225,8 +200,6 @@ def _valve_check(p: np.ndarray) -> str | None:
         return "valve needs v_k > 0 and c_b, c_v, g_num, g_den >= 0"
     if not (0 <= p[8] <= VALVE_K_D_MAX and 0 <= p[9] <= VALVE_K_D_MAX):
         return f"valve needs 0 <= k_d <= {VALVE_K_D_MAX:g} s/m"
-    if not (0 <= p[10] <= VALVE_H_MAX and 0 <= p[11] <= VALVE_H_MAX):
-        return f"valve needs 0 <= h_num, h_den <= {VALVE_H_MAX:g} per control unit"
     return None
 
 
@@ -240,17 +213,15 @@ KINDS: dict[str, Kind] = {
                       linear=(1,), shapes=_bump_shapes, settle=_bump_settle),
     "valve": Kind(("v_k_ext [m/s]", "c_b_ext [N s^2/m^2]", "c_v_ext [N s/m]",
                    "v_k_comp [m/s]", "c_b_comp [N s^2/m^2]", "c_v_comp [N s/m]", "g_num [1/u]", "g_den [1/u]",
-                   "k_d_ext [s/m]", "k_d_comp [s/m]", "h_num [1/u]", "h_den [1/u]"),
+                   "k_d_ext [s/m]", "k_d_comp [s/m]"),
                   _valve, _valve_check,
-                  "F = sgn(v) s(u) g_d(|v| / a(u)): per direction d (ext v > 0, comp v < 0) a bleed c_b v^2 below "
+                  "F = sgn(v) s(u) g_d(|v|): per direction d (ext v > 0, comp v < 0) a bleed c_b v^2 below "
                   "the knee v_k and a blow-off valve above it of slope c_v at the opening z, joined C1 "
                   "(g = c_b v_k^2 + c_v z + (2 c_b v_k - c_v) v_k (1 - exp(-z/v_k)), z = ln(1 + k_d (w - v_k)) / k_d: "
                   "digressive, its slope c_v / (1 + k_d (w - v_k)) far above the knee; k_d = 0: z = w - v_k, the "
-                  "straight line, and the default of a valve given 8 parameters); control gains "
-                  "s(u) = (1 + g_num u) / (1 + g_den u) on the force and a(u) = (1 + h_num u) / (1 + h_den u) "
-                  "on the speed (the knee moves with the opening; 1, the default of a valve given 8 or 10 "
-                  "parameters), u in [0, 1000], |v| <= 50 m/s",
-                  linear=(), fittable=False, nonlinear_fit=True, optional=4),
+                  "straight line, and the default of a valve given 8 parameters); control gain "
+                  "s(u) = (1 + g_num u) / (1 + g_den u), u in [0, 1000], |v| <= 50 m/s",
+                  linear=(), fittable=False, nonlinear_fit=True, optional=2),
 }
 
 
@@ -270,8 +241,8 @@ def validate(term: Mapping[str, Any]) -> np.ndarray:
     p = np.asarray(term.get("params", []), dtype=np.float64).ravel()
     k = KINDS[kind]
     n = len(k.params)
-    if not n - k.optional <= p.size <= n:
-        count = f"{n - k.optional} to {n}" if k.optional else f"{n}"
+    if p.size not in (n, n - k.optional):
+        count = f"{n} or {n - k.optional}" if k.optional else f"{n}"
         raise ValueError(f"term {kind!r}: expected {count} params {k.params}, got {p.size}")
     if not np.all(np.isfinite(p)):
         raise ValueError(f"term {kind!r}: params must be finite, got {p.tolist()}")
@@ -392,10 +363,9 @@ class _ValveSamples:
     adds no force), each sorted by speed, with what no parameter changes: the speed and the
     control clamped as `_valve_parts` clamps them. `force` and `jacobian` equal `_valve` and
     `valve_param_jacobian` bit for bit (the same operations on each sample, computed only on
-    its side of the knee: with the speed axis unscaled (h = 0) a sorted direction's samples
-    below the knee are a prefix, else a mask), and the Jacobian reuses the force's evaluation at
-    the same parameters (scipy's trf asks for both at each accepted point). Finite v and u only
-    (the fit drops the others)."""
+    its side of the knee: a sorted direction's samples below the knee are a prefix), and the
+    Jacobian reuses the force's evaluation at the same parameters (scipy's trf asks for both
+    at each accepted point). Finite v and u only (the fit drops the others)."""
 
     def __init__(self, v: np.ndarray, u: np.ndarray):
         self.n = v.size
@@ -405,89 +375,74 @@ class _ValveSamples:
             w_raw = np.abs(v[idx])
             w = np.where(w_raw < VALVE_V_MAX, w_raw, VALVE_V_MAX)
             order = np.argsort(w, kind="stable")
-            uc, inside = _clamped_control(u[idx[order]])
-            self.sides.append((sign, idx[order], w[order], uc, inside))
+            ui = u[idx[order]]
+            inside = (ui > 0) & (ui < VALVE_U_MAX)
+            uc = np.where(inside, ui, np.where(ui >= VALVE_U_MAX, VALVE_U_MAX, 0.0))
+            self.sides.append((sign, idx[order], w[order], uc))
         # the sorted rows (extension, compression, then v = 0) back in the samples' order: a gather,
         # much faster than scattering into the samples' rows
-        sorted_rows = np.concatenate([side[1] for side in self.sides])
+        sorted_rows = np.concatenate([idx for _, idx, _, _ in self.sides])
         self.n_sorted = sorted_rows.size
         self.unsort = np.full(self.n, self.n_sorted, dtype=np.intp)  # v = 0: the zero row past them
         self.unsort[sorted_rows] = np.arange(self.n_sorted)
         # dF/dp in the sorted rows, written in place at each call (a side's other columns stay 0)
-        self._sorted_jacobian = np.zeros((self.n_sorted + 1, VALVE_N_PARAMS))
+        self._sorted_jacobian = np.zeros((self.n_sorted + 1, 10))
         self._at: np.ndarray | None = None
         self._parts: list = []
 
     def _evaluate(self, p: np.ndarray) -> list:
-        """Per direction: (s, 1/a, the scaled speed ws, the bleed's and the valve's samples (slices
-        or indices), g below, and above the knee d, z, r, 1 - e, g, g')."""
+        """Per direction: (s, the knee's index k in the sorted speeds, g below, and above the
+        knee d, z, r, 1 - e, g)."""
         if self._at is not None and np.array_equal(p, self._at):
             return self._parts
         parts = []
-        for side, (_, _, w, uc, inside) in enumerate(self.sides):
+        for side, (_, _, w, uc) in enumerate(self.sides):
             vk, cb, cv = p[3 * side], p[3 * side + 1], p[3 * side + 2]
             kd = p[8 + side]
-            s, _ = _rational(p[6], p[7], uc, inside)
-            ia, _ = _rational(p[11], p[10], uc, inside)
-            ws = w * ia
-            if p[10] == 0 and p[11] == 0:  # ws = w, sorted: the bleed's samples are a prefix
-                k = int(np.searchsorted(ws, vk, side="right"))
-                lo, hi = slice(0, k), slice(k, None)
-            else:
-                below = ws <= vk
-                lo, hi = np.flatnonzero(below), np.flatnonzero(~below)
-            wb, d = ws[lo], ws[hi] - vk  # > 0 above the knee (ws > v_k)
+            s = (1 + p[6] * uc) / (1 + p[7] * uc)
+            k = int(np.searchsorted(w, vk, side="right"))  # w[:k] <= v_k: the bleed
+            wb, d = w[:k], w[k:] - vk  # > 0 above the knee (w > v_k)
             z, r = _valve_opening(kd, d)
             one_minus_e = -np.expm1(-z / vk)
             m = 2 * cb * vk - cv
             g_above = cb * vk * vk + cv * z + m * vk * one_minus_e
-            dg_above = r * (cv + m * (1 - one_minus_e))
-            parts.append((s, ia, ws, lo, hi, cb * wb * wb, d, z, r, one_minus_e, g_above, dg_above))
+            parts.append((s, k, cb * wb * wb, d, z, r, one_minus_e, g_above))
         self._at, self._parts = p.copy(), parts
         return parts
 
     def force(self, p: np.ndarray) -> np.ndarray:
         """The valve's force [N] at every sample, in the samples' order (`_valve`)."""
         parts = []
-        for (sign, idx, *_), (s, _, _, lo, hi, g_below, *_, g_above, _) in zip(self.sides, self._evaluate(p)):
-            f = np.empty(idx.size)
-            f[lo] = s[lo] * g_below
-            f[hi] = s[hi] * g_above
+        for (sign, *_), (s, k, g_below, *_, g_above) in zip(self.sides, self._evaluate(p)):
+            f = np.concatenate([s[:k] * g_below, s[k:] * g_above])
             parts.append(f if sign > 0 else -f)
         return np.take(np.concatenate([*parts, [0.0]]), self.unsort)
 
     def jacobian(self, p: np.ndarray) -> np.ndarray:
-        """dF/dp [n, 12] in the samples' order (`valve_param_jacobian`). A compression sample's
+        """dF/dp [n, 10] in the samples' order (`valve_param_jacobian`). A compression sample's
         columns are its extension twin's negated, written as products with sgn(v) s or sgn(v) g
         (a negation is exact)."""
         J = self._sorted_jacobian
         start = 0
-        for side, ((sign, idx, w, uc, _), (s, ia, ws, lo, hi, g_below, d, z, r, ome, g_above, dg_above)) in enumerate(
+        for side, ((sign, idx, w, uc), (s, k, g_below, d, z, r, ome, g_above)) in enumerate(
                 zip(self.sides, self._evaluate(p))):
             vk, cb, cv, kd = p[3 * side], p[3 * side + 1], p[3 * side + 2], p[8 + side]
             c_vk, c_cb, c_cv, c_kd = 3 * side, 3 * side + 1, 3 * side + 2, 8 + side
             e = 1 - ome
             m = 2 * cb * vk - cv
-            Js = J[start:start + idx.size]  # a view: this side's rows
+            rows, below, above = (slice(start, start + idx.size), slice(start, start + k),
+                                  slice(start + k, start + idx.size))
             ss = s if sign > 0 else -s                                      # sgn(v) s
-            g = np.empty(idx.size)
-            g[lo], g[hi] = g_below, g_above
-            dg = np.empty(idx.size)
-            dg[lo], dg[hi] = 2 * cb * ws[lo], dg_above
-            sg = g * sign                                                   # sgn(v) g
-            Js[lo, c_vk] = Js[lo, c_cv] = Js[lo, c_kd] = 0.0  # the bleed: no knee, valve or digression
-            sa = ss[hi]
-            Js[hi, c_vk] = sa * (2 * cb * vk - cv * r + (2 * cb * vk + m) * ome - m * e * (z / vk + r))
-            Js[lo, c_cb] = ss[lo] * (ws[lo] * ws[lo])
-            Js[hi, c_cb] = sa * (vk * vk + 2 * vk * vk * ome)
-            Js[hi, c_cv] = sa * (z - vk * ome)
-            Js[hi, c_kd] = sa * ((cv + m * e) * _dz_dkd(kd, d, z, r))
+            sg = np.concatenate([g_below, g_above]) * sign                  # sgn(v) g
+            J[below, c_vk] = J[below, c_cv] = J[below, c_kd] = 0.0  # the bleed: no knee, valve or digression
+            J[above, c_vk] = ss[k:] * (2 * cb * vk - cv * r + (2 * cb * vk + m) * ome - m * e * (z / vk + r))
+            J[below, c_cb] = ss[:k] * (w[:k] * w[:k])
+            J[above, c_cb] = ss[k:] * (vk * vk + 2 * vk * vk * ome)
+            J[above, c_cv] = ss[k:] * (z - vk * ome)
+            J[above, c_kd] = ss[k:] * ((cv + m * e) * _dz_dkd(kd, d, z, r))
             den = 1 + p[7] * uc
-            Js[:, 6] = sg * uc / den
-            Js[:, 7] = -sg * s * uc / den
-            hn = 1 + p[10] * uc
-            Js[:, 10] = -ss * dg * w * ia * uc / hn
-            Js[:, 11] = ss * dg * w * uc / hn
+            J[rows, 6] = sg * uc / den
+            J[rows, 7] = -sg * s * uc / den
             start += idx.size
         return np.take(J, self.unsort, axis=0)
 
@@ -495,16 +450,11 @@ class _ValveSamples:
 def _fit_valve(v: np.ndarray, u: np.ndarray, r: np.ndarray, A: np.ndarray | None = None) -> list[float]:
     """The valve's parameters fitted to the force r [N] at v [m/s], u [V or A] by bounded
     nonlinear least squares (scipy.optimize.least_squares, trf; v_k > 0, the others >= 0, the
-    digressions k_d in [0, VALVE_K_D_MAX], the speed-axis gains h in [0, VALVE_H_MAX]), in stages:
-    1. from a few knee guesses (15, 30, 50 % of each direction's largest speed) each with the
-       bleed's and the valve's slopes estimated below and above it, no control gain and straight
-       (k_d = 0), fitted digressive (10 parameters; h = 0), and when the best of those barely bends
-       over the data, fitted again straight (the 8, k_d held at 0);
-    2. where the control varies, all 12 from the best of stage 1 with its control moved from the
-       force to the speed axis (g = 0, h_num at three guesses): kept when it lowers the cost by
-       SPEED_AXIS_GAIN at least and by more than 1e-9 of the force's own (a valve whose knee does
-       not move keeps h = 0, its law of before; on two control levels both gains bend between them
-       as they please: valve_choice does not try the term there).
+    digressions k_d in [0, VALVE_K_D_MAX]), from a few knee guesses (15, 30, 50 % of each
+    direction's largest speed) each with the bleed's and the valve's slopes estimated below and
+    above it, no control gain and straight (k_d = 0); fitted digressive (10 parameters), and
+    when the best of those barely bends over the data, fitted again straight (the 8, k_d held at
+    0); the best kept.
     A [n, k]: columns other terms add with free coefficients (projected out of the residual)."""
     from scipy.optimize import least_squares
 
@@ -519,10 +469,9 @@ def _fit_valve(v: np.ndarray, u: np.ndarray, r: np.ndarray, A: np.ndarray | None
         project = lambda e: e  # noqa: E731
     if v.size < 8 or not (np.any(v > 0) and np.any(v < 0)):
         raise ValueError("fitting a valve term needs samples in extension and in compression")
-    N = VALVE_N_PARAMS
 
     def guess(frac: float) -> np.ndarray:
-        p = np.zeros(N)
+        p = np.zeros(10)
         for d, sel in ((0, v > 0), (3, v < 0)):
             w, m = np.abs(v[sel]), r[sel] * np.sign(v[sel])
             vk = max(frac * float(np.max(w)), 1e-6)
@@ -544,20 +493,20 @@ def _fit_valve(v: np.ndarray, u: np.ndarray, r: np.ndarray, A: np.ndarray | None
         J = samples.jacobian(p)
         return J - Q @ (Q.T @ J) if A.shape[1] else J
 
-    lower = np.array([1e-6, 0, 0, 1e-6, 0, 0, 0, 0, 0, 0, 0, 0], dtype=np.float64)
-    upper = np.array([np.inf] * 8 + [VALVE_K_D_MAX] * 2 + [VALVE_H_MAX] * 2)
+    lower = np.array([1e-6, 0, 0, 1e-6, 0, 0, 0, 0, 0, 0], dtype=np.float64)
+    upper = np.array([np.inf] * 8 + [VALVE_K_D_MAX] * 2)
     best = None
 
-    def solve(p0: np.ndarray, n: int):
-        # n = 8: the straight blow-off line (k_d = 0, held), a model nested in the digressive one
-        # that trf does not reliably reach from inside (it stops short against the k_d = 0 bound),
-        # so fitted on its own and kept when its residual is the smaller; 10: digressive; 12: with
-        # the speed axis
-        full = lambda q: np.concatenate([q, np.zeros(N - n)])  # noqa: E731
+    def solve(p0: np.ndarray, straight: bool):
+        # straight: the 8 parameters of the straight blow-off line (k_d = 0, held), a model nested in
+        # the digressive one that trf does not reliably reach from inside (it stops short against
+        # the k_d = 0 bound), so fitted on its own and kept when its residual is the smaller
+        n = 8 if straight else 10
+        full = lambda q: np.concatenate([q, np.zeros(10 - n)])  # noqa: E731
         return least_squares(lambda q: resid(full(q)), np.clip(p0[:n], lower[:n], upper[:n]),
                              jac=lambda q: jac(full(q))[:, :n], bounds=(lower[:n], upper[:n]), method="trf",
                              x_scale="jac", max_nfev=400, ftol=1e-12, xtol=1e-12, gtol=1e-12,
-                             tr_solver="lsmr"), full  # ("exact": a full SVD of the n x 12 Jacobian, slow)
+                             tr_solver="lsmr"), full  # ("exact": a full SVD of the n x 10 Jacobian, slow)
 
     w_max = np.array([np.max(v), -np.min(v)])
     for straight in (False, True):
@@ -568,20 +517,8 @@ def _fit_valve(v: np.ndarray, u: np.ndarray, r: np.ndarray, A: np.ndarray | None
             if np.any(bend >= 0.5):
                 break
         for frac in (0.15, 0.3, 0.5):
-            sol, full = solve(guess(frac), 8 if straight else 10)
+            sol, full = solve(guess(frac), straight)
             if best is None or sol.cost < best[0]:
-                best = (sol.cost, full(sol.x))
-    uc, _ = _clamped_control(u)
-    u_top = float(np.max(uc))
-    if np.ptp(uc) > 0:
-        stage1 = best
-        enough = (1 - SPEED_AXIS_GAIN) * stage1[0] - 1e-9 * 0.5 * float(np.sum(project(r) ** 2))
-        for h0 in (0.3, 1.0, 3.0):  # a(u_top) = 1 + h0 u_top / 5: the knee 1.3x to 4x further at full control
-            p0 = stage1[1].copy()
-            p0[6:8] = 0.0
-            p0[10:12] = (h0 * 5.0 / u_top, 0.0)
-            sol, full = solve(p0, N)
-            if sol.cost < enough and sol.cost < best[0]:
                 best = (sol.cost, full(sol.x))
     p = np.clip(best[1], lower, upper)
     why = _valve_check(p)

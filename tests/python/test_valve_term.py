@@ -1,15 +1,14 @@
 """The valve term (issue 54 items 1 and 4): a bleed orifice in parallel with a preloaded blow-off
-valve, per direction, its force and its speed axis scaled by the control, its blow-off law
-straight or digressive (12 parameters: the digressions k_d and the speed axis's gains h; 8 or 10,
-a valve written before them, has them 0) (dn_xmacro.h DN_TERM_LIST "valve";
-cpp/include/dampnet/terms.hpp; python/dampnet/terms.py).
+valve, per direction, scaled by the control, its blow-off law straight or digressive (the
+digressions k_d, 10 parameters; 8, a valve written before them, is k_d = 0) (dn_xmacro.h
+DN_TERM_LIST "valve"; cpp/include/dampnet/terms.hpp; python/dampnet/terms.py).
 
 Checked against an independent reference (the law written out again here in numpy, piecewise
 and branchy, not dampnet.terms' vectorised form): the C++ force (Damper.forces, the C ABI's
 dn_damper_terms_grad through _core.Damper.terms_grad) and the numpy mirror equal it to 1e-12;
 the runtime's derivatives dF/dv, dF/du equal central finite differences; the law is C1 at the
-knee (one-sided slopes equal) and at v = 0, and never falls with the speed; an 8- or 10-parameter
-valve gives exactly the force of the same valve with the rest 0 (12 parameters); the force is finite and bounded for any input
+knee (one-sided slopes equal) and at v = 0, and never falls with the speed; an 8-parameter valve
+gives exactly the force of the same valve with k_d = 0 (10 parameters); the force is finite and bounded for any input
 (NaN, +-inf, huge), and a damper refuses a non-finite v or u the valve reads; a hybrid model
 with a valve term gives the same forces in the pybind damper, the exported header compiled on
 the host with the C library (python/dampnet/demo/controller.c), the damper FMU (FMPy) and the
@@ -44,35 +43,22 @@ P_CURRENT = [0.1, 5.0e4, 3.0e3, 0.1, 3.0e4, 2.0e3, 0.6, 0.0]
 P_DIG = P + [5.0, 50.0]
 #: the current-controlled valve, digressive in extension only
 P_CURRENT_DIG = P_CURRENT + [2.0, 0.0]
-#: P_DIG with its speed axis scaled by a(u) = (1 + 0.6 u) / (1 + 0.05 u) (h_num, h_den [1/V]): a bypass
-#: opening beside the bleed, the knees 2.6x further at 5 V (the rig's valve: bench/RESULTS.md)
-P_AXIS = P_DIG + [0.6, 0.05]
-#: the current-controlled one whose knee moves the other way, a(u) = 1 / (1 + 0.4 I)
-P_CURRENT_AXIS = P_CURRENT_DIG + [0.0, 0.4]
-PARAMS = [P, P_CURRENT, P_DIG, P_CURRENT_DIG, P_AXIS, P_CURRENT_AXIS]
-PARAM_IDS = ["voltage", "current", "voltage-digressive", "current-digressive", "voltage-speed-axis",
-             "current-speed-axis"]
+PARAMS = [P, P_CURRENT, P_DIG, P_CURRENT_DIG]
+PARAM_IDS = ["voltage", "current", "voltage-digressive", "current-digressive"]
 V_MAX, U_MAX = 50.0, 1000.0
 rng = np.random.default_rng(54)
 
 
-def knee_scale(p, u):
-    """a(u) of the valve's speed axis (1 without the h gains), u clamped (NaN as 0)."""
-    h_num, h_den = (p[10], p[11]) if len(p) == 12 else (0.0, 0.0)
-    uc = 0.0 if math.isnan(u) else min(max(u, 0.0), U_MAX)
-    return (1 + h_num * uc) / (1 + h_den * uc)
-
-
 def reference(p, v, u):
     """The valve law written out per sample (independent of dampnet.terms and terms.hpp)."""
-    kd_ext, kd_comp = (p[8], p[9]) if len(p) >= 10 else (0.0, 0.0)
+    kd_ext, kd_comp = (p[8], p[9]) if len(p) == 10 else (0.0, 0.0)
 
     def one(v, u):
         if math.isnan(v) or v == 0.0:
             return 0.0
         vk, cb, cv = p[0:3] if v > 0 else p[3:6]
         kd = kd_ext if v > 0 else kd_comp
-        w = min(abs(v), V_MAX) / knee_scale(p, u)
+        w = min(abs(v), V_MAX)
         if w <= vk:
             g = cb * w ** 2
         else:
@@ -137,8 +123,7 @@ def test_derivative_equals_finite_differences(p):
     clamps by more than the difference step; dF/dv >= 0 everywhere (the digressive compression
     valve of P_DIG is progressive at its knee and bends within less than v_k). Cost: 0.1 s."""
     v, u = rng.uniform(-3, 3, 3000), rng.uniform(0.01, 12, 3000)
-    knee = np.where(v > 0, p[0], p[3]) * np.array([knee_scale(p, b) for b in u])
-    away = (np.abs(np.abs(v) - knee) > 1e-3) & (np.abs(v) > 1e-3)
+    away = (np.abs(np.abs(v) - np.where(v > 0, p[0], p[3])) > 1e-3) & (np.abs(v) > 1e-3)
     v, u = v[away], u[away]
     f, gx, gv, gu, st = cpp_grad(p, v, u)
     assert np.all(st == 0) and np.all(gx == 0)
@@ -170,43 +155,40 @@ def test_c1_at_the_knee_and_at_rest(p):
     Cost: 0.01 s."""
     u = 1.5
     s = (1 + p[6] * u) / (1 + p[7] * u)
-    a = knee_scale(p, u)  # the knee at a v_k: the speed axis scaled by a(u)
-    kds = (p[8], p[9]) if len(p) >= 10 else (0.0, 0.0)
+    kds = (p[8], p[9]) if len(p) == 10 else (0.0, 0.0)
     for sign, vk, cb, cv, kd in ((1.0, p[0], p[1], p[2], kds[0]), (-1.0, p[3], p[4], p[5], kds[1])):
-        knee = sign * vk * a
+        knee = sign * vk
         h = 1e-7
         f0 = cpp_force(p, [knee], u)[0][0]
         right = (cpp_force(p, [knee + h], u)[0][0] - f0) / h
         left = (f0 - cpp_force(p, [knee - h], u)[0][0]) / h
-        bleed_slope = s * 2 * cb * vk / a
+        bleed_slope = s * 2 * cb * vk
         assert right == pytest.approx(bleed_slope, rel=1e-5) and left == pytest.approx(bleed_slope, rel=1e-5)
         gv = cpp_grad(p, np.array([knee - 1e-12, knee + 1e-12]), u)[2]
         assert gv[0] == pytest.approx(gv[1], rel=1e-9) and gv[0] == pytest.approx(bleed_slope, rel=1e-9)
         assert f0 == pytest.approx(sign * s * cb * vk ** 2, rel=1e-12)  # the preload force at the knee
         # far above the knee the valve's own opening law rules: slope c_v, or c_v / (1 + k_d d)
-        far = cpp_grad(p, np.array([sign * 40 * vk * a]), u)[2][0]
+        far = cpp_grad(p, np.array([sign * 40 * vk]), u)[2][0]
         d = 39 * vk
         z = d if kd == 0 else math.log1p(kd * d) / kd
         e = math.exp(-z / vk)
-        assert far == pytest.approx(s * (cv + (2 * cb * vk - cv) * e) / (1 + kd * d) / a, rel=1e-9)
+        assert far == pytest.approx(s * (cv + (2 * cb * vk - cv) * e) / (1 + kd * d), rel=1e-9)
         if kd == 0:
-            assert far == pytest.approx(s * cv / a, rel=1e-9)
+            assert far == pytest.approx(s * cv, rel=1e-9)
         assert abs(2 * cb * vk - cv) > 1e3  # a kinked join would fail the slope check above
     f, _ = cpp_force(p, [-1e-9, 0.0, 1e-9], u)
     assert f[1] == 0.0 and abs(f[0]) < 1e-12 and abs(f[2]) < 1e-12
 
 
-@pytest.mark.parametrize("p", [P, P_DIG, P + [1e6, 5e-324], P_AXIS, P_DIG + [0.0, 1e3], P_DIG + [1e3, 5e-324]],
-                         ids=["straight", "digressive", "extreme-k_d", "speed-axis", "extreme-h_den", "extreme-h_num"])
+@pytest.mark.parametrize("p", [P, P_DIG, P + [1e6, 5e-324]], ids=["straight", "digressive", "extreme-k_d"])
 def test_bounded_and_finite_for_any_input(p):
     """Huge finite v and u (+-1e308, denormals, 0) give a finite force and finite derivatives
-    within the bound max over u of s g(50 m/s / a) (beyond the clamps the force is the clamp's), through
+    within the bound s_max g(50 m/s) (beyond the clamps the force is the clamp's), through
     Damper.forces and dn_damper_terms_grad; a non-finite v or u the valve reads is refused by
     both (DN_E_NONFINITE_INPUT, force and derivatives 0), a non-finite x it does not read is
     not; the numpy mirror gives the law's values for NaN and +-inf (NaN v: 0, NaN u: as 0).
-    Straight, digressive, with the digressions at their extremes (the largest accepted,
-    1e6 s/m, and a denormal whose k_d (w - v_k) underflows) and the speed axis's gains at theirs
-    (1e3 per control unit: the speed scaled by 1e-6 to 1e6 at the control's clamp). Cost: 0.01 s."""
+    Straight, digressive, and with the digressions at their extremes (the largest accepted,
+    1e6 s/m, and a denormal whose k_d (w - v_k) underflows). Cost: 0.01 s."""
     bad = [np.nan, np.inf, -np.inf, 1e308, -1e308, 0.0, 5e-324, -5e-324]
     v, u = (a.ravel() for a in np.meshgrid(bad, bad + [3.0]))
     finite = np.isfinite(v) & np.isfinite(u)
@@ -214,8 +196,7 @@ def test_bounded_and_finite_for_any_input(p):
     assert np.all(st[finite] == 0) and np.all(st[~finite] == _core.DN_E_NONFINITE_INPUT)
     for a in (f, gx, gv, gu):
         assert np.all(np.isfinite(a)) and np.all(a[~finite] == 0)
-    us = np.concatenate([[0.0, U_MAX], np.geomspace(1e-9, U_MAX, 400)])  # |F| at the speed's clamp, over u
-    bound = max(np.max(reference(p, np.full(us.size, V_MAX), us)), np.max(-reference(p, np.full(us.size, -V_MAX), us)))
+    bound = max(reference(p, V_MAX, 0.0), -reference(p, -V_MAX, 0.0))  # s(u) <= 1 here (g_num < g_den)
     assert np.all(np.abs(f) <= bound * (1 + 1e-12))
     np.testing.assert_allclose(f[finite], reference(p, v[finite], u[finite]), rtol=1e-12, atol=0)
     assert reference(p, 1e308, 1e308) == reference(p, V_MAX, U_MAX) == f[(v == 1e308) & (u == 1e308)][0]
@@ -239,15 +220,14 @@ def test_bounded_and_finite_for_any_input(p):
     (P[:7], "DN_E_SIZE"), ([0.0] + P[1:], "DN_E_PARAM"), (P[:3] + [-0.1] + P[4:], "DN_E_PARAM"),
     (P[:1] + [-1.0] + P[2:], "DN_E_PARAM"), (P[:5] + [-1.0] + P[6:], "DN_E_PARAM"),
     (P[:6] + [-0.1, 0.0], "DN_E_PARAM"), (P[:7] + [-0.1], "DN_E_PARAM"), (P[:2] + [np.inf] + P[3:], "NONFINITE"),
-    (P + [0.0] * 4 + [1.0], "DN_E_SIZE"), (P + [-1e-9, 0.0], "DN_E_PARAM"),
+    (P + [1.0], "DN_E_SIZE"), (P + [1.0, 1.0, 1.0], "DN_E_SIZE"), (P + [-1e-9, 0.0], "DN_E_PARAM"),
     (P + [0.0, -1.0], "DN_E_PARAM"), (P + [1.000001e6, 0.0], "DN_E_PARAM"), (P + [0.0, np.inf], "NONFINITE"),
-    (P + [0.0, np.nan], "NONFINITE"), (P_DIG + [-1e-9, 0.0], "DN_E_PARAM"), (P_DIG + [0.0, 1.000001e3], "DN_E_PARAM"),
-    (P_DIG + [np.nan, 0.0], "NONFINITE"),
+    (P + [0.0, np.nan], "NONFINITE"),
 ])
 def test_bad_valve_parameters_are_refused(params, code):
-    """The runtime and dampnet.terms refuse the same parameter sets: a count outside 8-12, a knee
-    velocity <= 0, a negative coefficient or gain, a digression outside [0, 1e6] s/m, a speed-axis
-    gain outside [0, 1e3] per control unit, a non-finite value. Cost: 0.01 s."""
+    """The runtime and dampnet.terms refuse the same parameter sets: a count other than 8 or 10
+    (the digressions both or neither), a knee velocity <= 0, a negative coefficient or gain, a
+    digression outside [0, 1e6] s/m, a non-finite value. Cost: 0.01 s."""
     with pytest.raises(ValueError, match=code):
         _core.Damper.linear(1.0).add_term("valve", np.array(params, dtype=float))
     with pytest.raises(ValueError):
@@ -255,18 +235,15 @@ def test_bad_valve_parameters_are_refused(params, code):
 
 
 def test_registry_and_a_given_valve_in_fit_terms():
-    """The runtime's kind list has the valve with 12 parameters, the same count as dampnet.terms
-    (4 of them optional), and its text states the digressions' and the speed-axis gains' ranges
-    as dampnet.terms checks them
+    """The runtime's kind list has the valve with 10 parameters, the same count as dampnet.terms
+    (2 of them optional), and its text states the digressions' range as dampnet.terms checks it
     (the FMU's min/max read it); fit_terms takes a valve given with its parameters as fixed (its
     force, which reads v and u, is subtracted) and refuses to fit one from samples of one
     direction only. Cost: 0.9 s (importing scipy.optimize)."""
     from dampnet.export.fmu.description import range_in
-    assert _core.TERM_KINDS["valve"][0] == 12 == len(T.KINDS["valve"].params) and T.KINDS["valve"].optional == 4
+    assert _core.TERM_KINDS["valve"][0] == 10 == len(T.KINDS["valve"].params) and T.KINDS["valve"].optional == 2
     for name in ("k_d_ext", "k_d_comp"):
         assert range_in(_core.TERM_KINDS["valve"][1], name, named_only=True) == (0.0, T.VALVE_K_D_MAX)
-    for name in ("h_num", "h_den"):
-        assert range_in(_core.TERM_KINDS["valve"][1], name, named_only=True) == (0.0, T.VALVE_H_MAX)
     x, v, u = np.zeros(50), rng.uniform(-1, 1, 50), rng.uniform(0, 5, 50)
     with pytest.raises(ValueError, match="extension and in compression"):
         T.fit_terms([{"kind": "valve"}], x, np.abs(v), u, v)
@@ -276,39 +253,33 @@ def test_registry_and_a_given_valve_in_fit_terms():
     assert out[0]["params"] == P and "fitted" not in out[0]
 
 
-@pytest.mark.parametrize("short, n", [(P, 8), (P_DIG, 10)], ids=["8-straight", "10-digressive"])
-def test_an_older_valve_is_its_law_of_before(short, n):
-    """A valve given 8 parameters (a model.json written before the digressions) or 10 (before the
-    speed axis's gains) loads in the runtime and dampnet.terms, and its force and derivatives are
-    bit for bit those of the same valve with the rest 0 (12 parameters), and the straight-line
-    law (the reference without k_d) to 1e-12: the C ABI (Damper.forces, dn_damper_terms_grad) and
-    the numpy mirror (term_force, valve_gradient, validate's padding). Cost: 0.01 s."""
+def test_an_8_parameter_valve_is_todays_straight_line():
+    """A valve given 8 parameters (a model.json written before the digressions) loads in the
+    runtime and dampnet.terms, and its force and derivatives are bit for bit those of the same
+    valve with k_d_ext = k_d_comp = 0 (10 parameters), and the straight-line law (the reference
+    without k_d) to 1e-12: the C ABI (Damper.forces, dn_damper_terms_grad) and the numpy mirror
+    (term_force, valve_gradient, validate's padding). Cost: 0.01 s."""
     v, u = random_inputs()
-    p12 = short + [0.0] * (12 - n)
-    np.testing.assert_array_equal(T.validate({"kind": "valve", "params": short}), p12)
-    np.testing.assert_array_equal(cpp_force(short, v, u)[0], cpp_force(p12, v, u)[0])
-    for a, b in zip(cpp_grad(short, v, u), cpp_grad(p12, v, u)):
+    p10 = P + [0.0, 0.0]
+    np.testing.assert_array_equal(T.validate({"kind": "valve", "params": P}), p10)
+    np.testing.assert_array_equal(cpp_force(P, v, u)[0], cpp_force(p10, v, u)[0])
+    for a, b in zip(cpp_grad(P, v, u), cpp_grad(p10, v, u)):
         np.testing.assert_array_equal(a, b)
-    np.testing.assert_array_equal(T.term_force({"kind": "valve", "params": short}, 0 * v, v, u=u),
-                                  T.term_force({"kind": "valve", "params": p12}, 0 * v, v, u=u))
-    for a, b in zip(T.valve_gradient(short, v, u), T.valve_gradient(p12, v, u)):
+    np.testing.assert_array_equal(T.term_force({"kind": "valve", "params": P}, 0 * v, v, u=u),
+                                  T.term_force({"kind": "valve", "params": p10}, 0 * v, v, u=u))
+    for a, b in zip(T.valve_gradient(P, v, u), T.valve_gradient(p10, v, u)):
         np.testing.assert_array_equal(a, b)
-    np.testing.assert_allclose(cpp_force(short, v, u)[0], reference(short, v, u), rtol=1e-12, atol=1e-12)
-    # and a bend (a digression, a speed axis opening with u) changes it only above the knees: below
-    # them the bleed alone, the same for a bend; the axis opening moves the knee out, lowering the force
-    below = np.abs(v) < np.where(v > 0, short[0], short[3])
-    bent = P_DIG if n == 8 else P_AXIS
-    if n == 8:
-        np.testing.assert_array_equal(cpp_force(bent, v[below], u[below])[0], cpp_force(short, v[below], u[below])[0])
-    moved = ~below if n == 8 else (u > 0)
-    assert np.all(np.abs(cpp_force(bent, v[moved], u[moved])[0]) < np.abs(cpp_force(short, v[moved], u[moved])[0]))
+    np.testing.assert_allclose(cpp_force(P, v, u)[0], reference(P, v, u), rtol=1e-12, atol=1e-12)
+    # and a bend changes it only above the knees: below them the bleed alone, the same
+    below = np.abs(v) < np.where(v > 0, P[0], P[3])
+    np.testing.assert_array_equal(cpp_force(P_DIG, v[below], u[below])[0], cpp_force(P, v[below], u[below])[0])
+    assert np.all(np.abs(cpp_force(P_DIG, v[~below], u[~below])[0]) < np.abs(cpp_force(P, v[~below], u[~below])[0]))
 
 
 HYBRID_FEATURES = ["velocity", "acceleration", "voltage", "displacement"]
-#: an 8-parameter valve (written before the digressions), a bump stop and a digressive valve with
-#: its speed axis scaled (12 parameters)
+#: an 8-parameter valve (written before the digressions), a bump stop and a digressive valve
 VALVE_TERMS = [{"kind": "valve", "params": P}, {"kind": "bump_stop", "params": [0.05, 2e5, 1.5]},
-               {"kind": "valve", "params": P_AXIS}]
+               {"kind": "valve", "params": P_DIG}]
 
 
 @pytest.fixture(scope="module")
@@ -323,7 +294,7 @@ def hybrid():
 
 
 def test_hybrid_pybind_damper_equals_mlp_plus_reference(hybrid):
-    """A hybrid model (4-input MLP + an 8-parameter valve + bump stop + a 12-parameter valve) through
+    """A hybrid model (4-input MLP + an 8-parameter valve + bump stop + a digressive valve) through
     damper_from_model equals the numpy MLP plus the reference valves plus the bump stop, to 1e-12
     relative. Cost: 0.01 s."""
     model, x, v, a, u = hybrid
@@ -331,7 +302,7 @@ def test_hybrid_pybind_damper_equals_mlp_plus_reference(hybrid):
     assert np.all(st >= 0)
     xf, k, n = VALVE_TERMS[1]["params"]
     bump = np.sign(x) * np.where(np.abs(x) > xf, k * np.maximum(np.abs(x) - xf, 0) ** n, 0.0)
-    ref = numpy_forward(model, np.stack([v, a, u, x], axis=1)) + reference(P, v, u) + bump + reference(P_AXIS, v, u)
+    ref = numpy_forward(model, np.stack([v, a, u, x], axis=1)) + reference(P, v, u) + bump + reference(P_DIG, v, u)
     np.testing.assert_allclose(f, ref, rtol=1e-12, atol=1e-8)
 
 
@@ -363,8 +334,8 @@ def test_exported_header_with_the_c_library_equals_the_host(hybrid, tmp_path):
 def test_damper_fmu_equals_the_host(hybrid, tmp_path):
     """The damper FMU (FMI 2 co-simulation, FMPy) of the hybrid model: the force read at each
     communication point equals the pybind damper's to 1e-9 N; its valve parameters are FMU
-    parameters with the runtime's ranges (v_k_ext min 0, c_b_ext min 0, k_d_ext in [0, 1e6], h_num in
-    [0, 1e3]), the 8-parameter valve's 8 and the other's 12. Cost: 6 s (the FMU build)."""
+    parameters with the runtime's ranges (v_k_ext min 0, c_b_ext min 0, k_d_ext in [0, 1e6]), the
+    8-parameter valve's 8 and the digressive one's 10. Cost: 6 s (the FMU build)."""
     import needs
 
     fmpy = needs.need_module("fmpy")
@@ -382,9 +353,7 @@ def test_damper_fmu_equals_the_host(hybrid, tmp_path):
     assert float(vs["valve_0.v_k_ext"].min) == 0.0 and float(vs["valve_0.c_b_ext"].min) == 0.0
     assert float(vs["valve_0.g_den"].start) == P[7] and "valve_0.k_d_ext" not in vs
     kd = vs["valve_2.k_d_comp"]
-    assert (float(kd.min), float(kd.max), float(kd.start)) == (0.0, 1e6, P_AXIS[9])
-    h = vs["valve_2.h_num"]
-    assert (float(h.min), float(h.max), float(h.start)) == (0.0, 1e3, P_AXIS[10])
+    assert (float(kd.min), float(kd.max), float(kd.start)) == (0.0, 1e6, P_DIG[9])
     assert fmpy is not None
 
 
@@ -429,7 +398,7 @@ def test_quarter_car_runs_the_valve_term(hybrid):
 FIRMWARE = r"""// The valve term on the target: F, dF/dx, dF/dv, dF/du of stored inputs, as float bits in hex.
 #include <stdint.h>
 #include "dampnet/terms.hpp"
-#include "valve_vectors.h"  // VALVE_P[12], VALVE_N, VALVE_IN[VALVE_N][2] (v, u)
+#include "valve_vectors.h"  // VALVE_P[10], VALVE_N, VALVE_IN[VALVE_N][2] (v, u)
 extern "C" int dn_fw_semihost(int op, const void* arg);
 static char line[64];
 static int len = 0;
@@ -441,7 +410,7 @@ static void put(float f) {
 }
 extern "C" int main(void) {
   dampnet::real p[DN_MAX_TERM_PARAMS] = {};
-  for (int i = 0; i < 12; ++i) p[i] = VALVE_P[i];
+  for (int i = 0; i < 10; ++i) p[i] = VALVE_P[i];
   if (dampnet::terms::validate_DN_TERM_VALVE(p) != DN_OK) return 3;
   for (int k = 0; k < VALVE_N; ++k) {
     dn_damper_input in{};
@@ -461,7 +430,7 @@ extern "C" int main(void) {
 
 
 def test_cortex_m4f_firmware_equals_the_host(tmp_path):
-    """The digressive valve term with its speed axis scaled (terms.hpp) cross-built for the Cortex-M4F in float (DN_LOOP_FLOAT,
+    """The digressive valve term's code (terms.hpp) cross-built for the Cortex-M4F in float (DN_LOOP_FLOAT,
     the M4F preset's definitions, -Wdouble-promotion as an error) with the firmware's start-up
     code, run in QEMU (mps2-an386): its F, dF/dv, dF/du on 46 stored inputs (random, the knees,
     beyond both clamps) equal the host runtime's (double) to float precision (1e-5 of each
@@ -474,9 +443,9 @@ def test_cortex_m4f_firmware_equals_the_host(tmp_path):
     r = np.random.default_rng(1)
     v = np.concatenate([r.uniform(-3, 3, 40), [P[0], -P[3], 60.0, -60.0, 0.0, 1e30]]).astype(np.float32)
     u = np.concatenate([r.uniform(-1, 12, 40), [1.0, 1.0, 2000.0, -5.0, 3.0, 1e30]]).astype(np.float32)
-    p32 = np.asarray(P_AXIS, np.float32)
+    p32 = np.asarray(P_DIG, np.float32)
     (tmp_path / "valve_vectors.h").write_text(
-        "static const float VALVE_P[12] = {" + ", ".join(f"{float(x)!r}f" for x in p32) + "};\n"
+        "static const float VALVE_P[10] = {" + ", ".join(f"{float(x)!r}f" for x in p32) + "};\n"
         f"#define VALVE_N {v.size}\nstatic const float VALVE_IN[VALVE_N][2] = {{"
         + ", ".join(f"{{{float(a)!r}f, {float(b)!r}f}}" for a, b in zip(v, u)) + "};\n")
     (tmp_path / "valve_fw.cpp").write_text(FIRMWARE)
@@ -505,22 +474,18 @@ def test_cortex_m4f_firmware_equals_the_host(tmp_path):
         np.testing.assert_allclose(fw[:, k], host, rtol=1e-5, atol=1e-5 * np.max(np.abs(host)))
 
 
-JACOBIAN_PARAMS = [P + [0.0] * 4, P_DIG + [0.0, 0.0], P + [1e-5, 200.0, 0.0, 0.0], P_AXIS, P_CURRENT_AXIS]
-JACOBIAN_IDS = ["straight", "digressive", "tiny-and-large-k_d", "speed-axis", "current-speed-axis"]
-
-
-@pytest.mark.parametrize("p", JACOBIAN_PARAMS, ids=JACOBIAN_IDS)
+@pytest.mark.parametrize("p", [P + [0.0, 0.0], P_DIG, P + [1e-5, 200.0]], ids=["straight", "digressive", "tiny-and-large-k_d"])
 def test_parameter_jacobian_equals_finite_differences(p):
-    """valve_param_jacobian (the nonlinear fit's Jacobian, dF/dp for the 12 parameters) equals
-    central differences of the reference force, the digressions' and the speed axis's columns also
-    at 0 (the fit's start: a straight line, an unscaled axis) and where k_d (w - v_k) is small (its
-    series). An 8-parameter valve has the same 12 columns as with the rest 0. Cost: 0.4 s."""
+    """valve_param_jacobian (the nonlinear fit's Jacobian, dF/dp for the 10 parameters) equals
+    central differences of the reference force, the digressions' columns also at k_d = 0 (the
+    fit's start: a straight line) and where k_d (w - v_k) is small (its series). An 8-parameter
+    valve has the same 10 columns as with k_d = 0. Cost: 0.3 s."""
     v, u = rng.uniform(-3, 3, 2000), rng.uniform(0, 8, 2000)
     J = T.valve_param_jacobian(p, v, u)
-    if not any(p[8:]):
+    if p[8] == p[9] == 0:
         np.testing.assert_array_equal(T.valve_param_jacobian(p[:8], v, u), J)
-    for k in range(12):
-        h = 1e-6 * max(abs(p[k]), 1.0 if k >= 6 else 0.0)  # (a gain or bend at 0: one step of 1e-6)
+    for k in range(10):
+        h = 1e-6 * max(abs(p[k]), 1.0 if k >= 8 else 0.0)
         hi, lo = list(p), list(p)
         hi[k] += h
         lo[k] -= h
@@ -528,11 +493,10 @@ def test_parameter_jacobian_equals_finite_differences(p):
         np.testing.assert_allclose(J[:, k], fd, rtol=1e-5, atol=1e-6 * np.max(np.abs(fd)))
 
 
-@pytest.mark.parametrize("p", JACOBIAN_PARAMS, ids=JACOBIAN_IDS)
+@pytest.mark.parametrize("p", [P + [0.0, 0.0], P_DIG, P + [1e-5, 200.0]], ids=["straight", "digressive", "tiny-and-large-k_d"])
 def test_the_fits_sample_evaluation_equals_the_term_bit_for_bit(p):
     """The valve fit's own evaluation (terms._ValveSamples: the samples split by direction and
-    sorted by speed once, each side of the knee computed alone: a prefix of the sorted speeds with
-    the axis unscaled, a mask with it scaled) gives the force and dF/dp of
+    sorted by speed once, each side of the knee computed alone) gives the force and dF/dp of
     `_valve` and `valve_param_jacobian` exactly, in the samples' order, on samples at rest, at
     the knee, beyond the speed clamp and with the control outside its range; the Jacobian asked
     for after another force equals a fresh one. Cost: 0.1 s."""
@@ -541,21 +505,19 @@ def test_the_fits_sample_evaluation_equals_the_term_bit_for_bit(p):
     samples = T._ValveSamples(v, u)
     q = np.asarray(p, dtype=np.float64)
     other = q * 1.1
-    other[10] += 0.2  # the axis scaled: the mask's way
     for at in (q, other, q):   # the cache: a parameter change, and back
         np.testing.assert_array_equal(samples.force(at), T._valve(at, {"v": v, "u": u}))
         np.testing.assert_array_equal(samples.jacobian(at), T.valve_param_jacobian(at, v, u))
 
 
-@pytest.mark.parametrize("p", [P, P_DIG, P_AXIS], ids=["straight", "digressive", "speed-axis"])
+@pytest.mark.parametrize("p", [P, P_DIG], ids=["straight", "digressive"])
 def test_fit_terms_recovers_a_valve_with_a_gas_spring(p):
     """fit_terms on noise-free force = valve(v, u) + gas spring(x) over six control levels:
-    the valve's 12 parameters (nonlinear least squares, jointly with the polynomial's linear
-    ones) and the polynomial come back (a straight valve to 1e-6, its digressions and speed-axis
-    gains 0; a digressive one to 2e-3; one with its speed axis scaled: its four control gains to
-    2e-3, its force to 2e-3); a second free valve is refused. Cost: 1-4 s each."""
+    the valve's 10 parameters (nonlinear least squares, jointly with the polynomial's linear
+    ones) and the polynomial come back (a straight valve to 1e-6, its digressions 0; a digressive
+    one to 2e-3); a second free valve is refused. Cost: 1-3 s each."""
     rng = np.random.default_rng(54)
-    if len(p) >= 10:
+    if len(p) == 10:
         rng.uniform(size=4000)  # the draw this test was measured on (it followed the straight case)
     n = 4000
     t = np.arange(n) * 2e-4
@@ -564,22 +526,12 @@ def test_fit_terms_recovers_a_valve_with_a_gas_spring(p):
     x = 0.05 * np.sin(2 * np.pi * 1.3 * t)
     y = reference(p, v, u) + (-150.0 + 3000.0 * x)
     got = T.fit_terms([{"kind": "valve"}, {"kind": "position_poly"}], x, v, u, y)
-    assert len(got[0]["params"]) == 12
-    want = T.validate({"kind": "valve", "params": p})
-    if len(p) == 12:
-        # the speed axis found (its gains and the force's to 2e-3, the extension valve's to 1e-3) and
-        # the force to 2e-3 of its largest: the progressive compression valve bent within 0.02 m/s
-        # leaves c_v and k_d free to trade (c_v_comp -15 %, k_d_comp -9 % for 0.2 % of the force)
-        np.testing.assert_allclose(np.array(got[0]["params"])[[6, 7, 10, 11]], want[[6, 7, 10, 11]], rtol=2e-3)
-        np.testing.assert_allclose(np.array(got[0]["params"])[[0, 1, 2, 8]], want[[0, 1, 2, 8]], rtol=1e-3)
-        np.testing.assert_allclose(T.term_force(got[0], x, v, u=u), reference(p, v, u), rtol=0,
-                                   atol=2e-3 * np.max(np.abs(reference(p, v, u))))
-    else:
-        # the straight valve to 1e-6 (fitted straight: the digressive fit barely bends; its speed
-        # axis not kept: h = 0); the digressive one to 2e-3 (trf stops on its step size short of the
-        # minimum with the 10 parameters: 1.1e-3 on the compression valve, progressive and bent
-        # within 0.02 m/s, on rng 54's second draw)
-        np.testing.assert_allclose(got[0]["params"], want, rtol=1e-6 if len(p) == 8 else 2e-3, atol=1e-7)
+    assert len(got[0]["params"]) == 10
+    # the straight valve to 1e-6 (fitted straight: the digressive fit barely bends); the digressive
+    # one to 2e-3 (trf stops on its step size short of the minimum with the 10 parameters: 1.1e-3 on
+    # the compression valve, progressive and bent within 0.02 m/s, on rng 54's second draw)
+    np.testing.assert_allclose(got[0]["params"], T.validate({"kind": "valve", "params": p}),
+                               rtol=1e-6 if len(p) == 8 else 2e-3, atol=1e-7)
     if len(p) == 8:
         np.testing.assert_allclose(got[1]["params"], [-150.0, 3000.0, 0.0, 0.0], rtol=1e-6, atol=1e-3)
     else:  # the polynomial's force over the stroke to 0.05 N (of a force of kN: it takes the valve's last 1e-3)
@@ -591,7 +543,7 @@ def test_fit_terms_recovers_a_valve_with_a_gas_spring(p):
 
 
 def test_training_fits_a_valve_term_and_predicts_with_it():
-    """dampnet training with a free valve term on the quick rig plan: the valve is fitted (12
+    """dampnet training with a free valve term on the quick rig plan: the valve is fitted (10
     valid parameters the runtime accepts), the network learns the rest, and the prediction is
     MLP + the valve at the test's (v, u), equal to the runtime damper's force. Cost: 12 s (the rig data and the training)."""
     from dampnet.features import feature_matrix
@@ -601,7 +553,7 @@ def test_training_fits_a_valve_term_and_predicts_with_it():
     ds = generate("quick", seed=0)
     model, _, split = train_dataset(ds, terms=[{"kind": "valve"}], decimate=50, hidden=(4,), max_epochs=3)
     (term,) = model.terms
-    assert term["kind"] == "valve" and len(term["params"]) == 12 and T._valve_check(np.array(term["params"])) is None
+    assert term["kind"] == "valve" and len(term["params"]) == 10 and T._valve_check(np.array(term["params"])) is None
     t = split.holdout.tests[0]
     X = feature_matrix([t], model.features, model.feature_params)
     v, u = t.channels["velocity"], t.control

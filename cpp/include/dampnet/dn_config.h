@@ -119,7 +119,7 @@ typedef double dn_real;
 /*---- Damper models ----*/
 
 #define DN_MAX_TERMS 8        /* physics terms per damper */
-#define DN_MAX_TERM_PARAMS 12 /* parameters per term (the valve's 12) */
+#define DN_MAX_TERM_PARAMS 10 /* parameters per term (the valve's 10) */
 #define DN_MAX_TABLE_V 64     /* velocity points of a lookup table */
 #define DN_MAX_TABLE_U 16     /* control points of a lookup table */
 /* This build's capacities of a damper (see DN_CAP_INPUTS above). */

@@ -183,29 +183,25 @@
   X(DN_TERM_BUMP_STOP, 1, "bump_stop", 3,                                                \
     "F = sgn(x) k (|x| - x_free)^n for |x| > x_free, else 0 (params x_free [m] >= 0, "   \
     "k [N/m^n] >= 0, n > 0)")                                                              \
-  X(DN_TERM_VALVE, 2, "valve", 12,                                                       \
-    "bleed orifice and preloaded blow-off valve, per direction: F = sgn(v) s(u) g_d(|v| / "  \
-    "a(u)), d = ext for v > 0, comp for v < 0; g_d(w) = c_b w^2 for w <= v_k, else c_b "    \
-    "v_k^2 + c_v z + (2 c_b v_k - c_v) v_k (1 - exp(-z / v_k)), z = ln(1 + k_d (w - v_k)) " \
-    "/ k_d (w - v_k at k_d = 0: a straight blow-off line; k_d > 0 digressive, slope c_v / " \
-    "(1 + k_d (w - v_k))): C1 at the knee v_k; s(u) = (1 + g_num u) / (1 + g_den u) scales " \
-    "the force and a(u) = (1 + h_num u) / (1 + h_den u) the speed (the knee moves with the " \
-    "opening), u clamped to [0, DN_TERM_VALVE_U_MAX]; |v| clamped to "                      \
-    "DN_TERM_VALVE_V_MAX_M_S; NaN v gives 0, NaN u is u = 0 (params v_k_ext [m/s] > 0, "    \
-    "c_b_ext [N s^2/m^2] >= 0, c_v_ext [N s/m] >= 0, v_k_comp [m/s] > 0, c_b_comp "          \
-    "[N s^2/m^2] >= 0, c_v_comp [N s/m] >= 0, g_num [1/u] >= 0, g_den [1/u] >= 0, 0 <= "     \
-    "k_d_ext [s/m] <= 1e6, 0 <= k_d_comp [s/m] <= 1e6, 0 <= h_num [1/u] <= 1e3, 0 <= h_den " \
-    "[1/u] <= 1e3; from 8 params: those left out 0, a valve written before them)")
+  X(DN_TERM_VALVE, 2, "valve", 10,                                                       \
+    "bleed orifice and preloaded blow-off valve, per direction: F = sgn(v) s(u) g_d(|v|), " \
+    "d = ext for v > 0, comp for v < 0; g_d(w) = c_b w^2 for w <= v_k, else c_b v_k^2 + "  \
+    "c_v z + (2 c_b v_k - c_v) v_k (1 - exp(-z / v_k)), z = ln(1 + k_d (w - v_k)) / k_d "  \
+    "(w - v_k at k_d = 0: a straight blow-off line; k_d > 0 digressive, slope c_v / (1 + " \
+    "k_d (w - v_k))): C1 at the knee v_k; s(u) = (1 + g_num u) / (1 + g_den u) with u "    \
+    "clamped to [0, DN_TERM_VALVE_U_MAX]; |v| clamped to DN_TERM_VALVE_V_MAX_M_S; NaN v "   \
+    "gives 0, NaN u is u = 0 (params v_k_ext [m/s] > 0, c_b_ext [N s^2/m^2] >= 0, c_v_ext " \
+    "[N s/m] >= 0, v_k_comp [m/s] > 0, c_b_comp [N s^2/m^2] >= 0, c_v_comp [N s/m] >= 0, " \
+    "g_num [1/u] >= 0, g_den [1/u] >= 0, 0 <= k_d_ext [s/m] <= 1e6, 0 <= k_d_comp [s/m] "  \
+    "<= 1e6; 8 params: k_d_ext = k_d_comp = 0, a valve written before the digression)")
 
 /* The valve term's bounds: |v| beyond the plausible damper speed and a control beyond
  * DN_TERM_VALVE_U_MAX [V or A] are clamped, so its force is finite for any input; its
  * digressions k_d [s/m] are validated within [0, DN_TERM_VALVE_K_D_MAX_S_M] (so k_d (|v| - v_k)
- * stays finite in float), its speed-axis gains h [1/u] within [0, DN_TERM_VALVE_H_MAX] (so the
- * scaled speed |v| / a(u) stays below 5e7 m/s, its opening finite in float). */
+ * stays finite in float). */
 #define DN_TERM_VALVE_V_MAX_M_S 50.0
 #define DN_TERM_VALVE_U_MAX 1000.0
 #define DN_TERM_VALVE_K_D_MAX_S_M 1e6
-#define DN_TERM_VALVE_H_MAX 1e3
 
 /* Damper model kinds. */
 #define DN_DAMPER_KIND_LIST(X)                                                                \

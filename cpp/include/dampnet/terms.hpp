@@ -72,26 +72,22 @@ constexpr int optional_DN_TERM_BUMP_STOP = 0;
 
 // ---- valve: bleed orifice + preloaded blow-off valve per direction, scaled by the control ----
 // p = {v_k_ext [m/s], c_b_ext [N s^2/m^2], c_v_ext [N s/m], v_k_comp, c_b_comp, c_v_comp,
-//      g_num [1/u], g_den [1/u], k_d_ext [s/m], k_d_comp [s/m], h_num [1/u], h_den [1/u]}; the
-//      formula and its bounds: DN_TERM_LIST's text. The digressions k_d and the speed axis's
-//      gain h came later: a valve given 8 or 10 parameters (a model written before them) has them
-//      0, its law of then bit for bit.
-// F(v, u) = sgn(v) s(u) g_d(|v| / a(u)), d the direction of v (ext: v > 0, comp: v < 0):
-//   below the knee (w = |v| / a(u) <= v_k) the bleed alone, g = c_b w^2 [N];
+//      g_num [1/u], g_den [1/u], k_d_ext [s/m], k_d_comp [s/m]}; the formula and its bounds:
+//      DN_TERM_LIST's text. The digressions k_d came later: a valve given 8 parameters (a model
+//      written before them) has k_d = 0, today's straight blow-off line, bit for bit.
+// F(v, u) = sgn(v) s(u) g_d(|v|), d the direction of v (ext: v > 0, comp: v < 0):
+//   below the knee (w = |v| <= v_k) the bleed alone, g = c_b w^2 [N];
 //   above it the valve opens: g = c_b v_k^2 + c_v z + (2 c_b v_k - c_v) v_k (1 - e),
 //   e = exp(-z / v_k), z = ln(1 + k_d (w - v_k)) / k_d the opening (z = w - v_k at k_d = 0):
 //   value c_b v_k^2 (the preload) and slope 2 c_b v_k at the knee (C1: dz/dw = 1 there),
 //   slope c_v / (1 + k_d (w - v_k)) well above it (a shim stack's digressive opening law; the
 //   straight line c_v at k_d = 0); g' = (c_v + (2 c_b v_k - c_v) e) / (1 + k_d (w - v_k)) >= 0.
-//   s(u) = (1 + g_num u) / (1 + g_den u) [-] scales the force, a(u) = (1 + h_num u) / (1 + h_den u)
-//   the speed, u clamped to [0, DN_TERM_VALVE_U_MAX]: g_den = 0 an affine gain (a current-
-//   controlled valve, harder or softer with the current); g_num < g_den a force falling from 1 to
-//   g_num / g_den like the thesis's c = gamma / V + c_min. a(u) > 1 a bypass opening beside the
-//   bleed: the knee moves to a higher speed at the same preload force (the shim stack cracks at
-//   one pressure), which scaling the force cannot draw (bench/RESULTS.md, "the knee moves").
+//   s(u) = (1 + g_num u) / (1 + g_den u) [-], u clamped to [0, DN_TERM_VALVE_U_MAX]: g_den = 0
+//   an affine gain (a current-controlled valve, harder or softer with the current); g_num <
+//   g_den a force falling from 1 to g_num / g_den like the thesis's c = gamma / V + c_min.
 // Bounded: |v| is clamped to DN_TERM_VALVE_V_MAX_M_S, u to its range, k_d to
-// [0, DN_TERM_VALVE_K_D_MAX_S_M] and h to [0, DN_TERM_VALVE_H_MAX] (validated), NaN v gives 0,
-// NaN u is u = 0; F is C1 in v everywhere below the clamp (at 0 both sides' slopes are 0).
+// [0, DN_TERM_VALVE_K_D_MAX_S_M] (validated), NaN v gives 0, NaN u is u = 0; F is C1 in v
+// everywhere below the clamp (at 0 both sides' slopes are 0).
 namespace valve {
 // ln(1 + x) for x >= 0 and e^-t - 1 for t >= 0: std's in double; in a float build (a
 // microcontroller's float loop) dampnet::fmath's, within 4 float epsilons and about half of
@@ -131,13 +127,11 @@ inline real eval(const real* p, const dn_damper_input& in, real* g) noexcept {
   const bool ext = v > 0;
   const real* q = ext ? p : p + 3;
   const real w_raw = std::fabs(v), w = w_raw < v_max ? w_raw : v_max;
-  // 1 / a(u) = (1 + h_den u) / (1 + h_num u): exactly 1 at h = 0, so w is today's speed there
-  real dg = 0, ds = 0, dia = 0;
-  const real ia = scale(p[11], p[10], in.u, &dia);
-  const real mag = magnitude(q[0], q[1], q[2], ext ? p[8] : p[9], w * ia, &dg), s = scale(p[6], p[7], in.u, &ds);
+  real dg = 0, ds = 0;
+  const real mag = magnitude(q[0], q[1], q[2], ext ? p[8] : p[9], w, &dg), s = scale(p[6], p[7], in.u, &ds);
   const real sgn = ext ? real(1) : real(-1);
-  g[1] = w_raw < v_max ? s * dg * ia : real(0);  // even in v
-  g[2] = sgn * (ds * mag + s * dg * w * dia);
+  g[1] = w_raw < v_max ? s * dg : real(0);  // even in v
+  g[2] = sgn * ds * mag;
   return sgn * s * mag;
 }
 }  // namespace valve
@@ -151,22 +145,18 @@ inline int validate_DN_TERM_VALVE(const real* p) noexcept {
   const real kd_max = real(DN_TERM_VALVE_K_D_MAX_S_M);
   for (int d = 8; d < 10; ++d)
     if (!(p[d] >= 0 && p[d] <= kd_max)) return DN_E_PARAM;
-  const real h_max = real(DN_TERM_VALVE_H_MAX);
-  for (int d = 10; d < 12; ++d)
-    if (!(p[d] >= 0 && p[d] <= h_max)) return DN_E_PARAM;
   return (p[6] >= 0 && p[7] >= 0) ? DN_OK : DN_E_PARAM;
 }
 inline real grad_DN_TERM_VALVE(const real* p, const dn_damper_input& in, real* g) noexcept {
   return valve::eval(p, in, g);
 }
 constexpr unsigned reads_DN_TERM_VALVE = 2u | 4u;  // v, u
-// k_d_ext, k_d_comp, h_num, h_den: 0 when left out (the straight line; the speed axis not scaled)
-constexpr int optional_DN_TERM_VALVE = 4;
+constexpr int optional_DN_TERM_VALVE = 2;  // k_d_ext, k_d_comp: 0 (the straight line) when left out
 
 struct KindInfo {
   const char* name;
   int n_params;      // DN_TERM_LIST's count: the most a term of the kind takes
-  int min_params;    // at least this many: trailing optional_<id> ones left out are 0
+  int min_params;    // or this many: the trailing optional_<id> ones all left out, then 0
   real (*force)(const real*, const dn_damper_input&) noexcept;
   int (*validate)(const real*) noexcept;
   // F, and g[3] = {dF/dx [N/m], dF/dv [N s/m], dF/du [N/u]} (dF/da = 0: no term reads a)
@@ -192,13 +182,13 @@ inline int kind_of(const char* name) noexcept {
   return -1;
 }
 
-// Validate and fill a term from (kind name, params; each finite also in dn_real): between the
-// kind's min_params and n_params of them (the trailing optional ones left out: 0).
+// Validate and fill a term from (kind name, params; each finite also in dn_real): the kind's
+// n_params of them, or its min_params (the optional ones left out: 0).
 inline int make(Term& t, const char* kind, const double* params, int n_params) noexcept {
   const int k = kind_of(kind);
   if (k < 0) return DN_E_UNKNOWN_NAME;
   const KindInfo& info = table()[k];
-  if (n_params < info.min_params || n_params > info.n_params) return DN_E_SIZE;
+  if (n_params != info.n_params && n_params != info.min_params) return DN_E_SIZE;
   if (n_params > 0 && !params) return DN_E_NULL;
   real p[DN_MAX_TERM_PARAMS] = {};
   for (int i = 0; i < n_params; ++i) {

@@ -25,9 +25,6 @@ MODEL_IDENTIFIER = "dampnet_damper"
 #: states it keeps for the derived ones)
 FMU_FEATURES = tuple(_core.FEATURE_NAMES)
 VR_FPARAM, VR_TERM, VR_STATE, VR_DERIV, VR_TIME, VR_ENVELOPE = 10, 100, 40, 50, 9, 8
-#: a term's parameters: value references VR_TERM + VR_TERM_STRIDE i + j (fmu_damper_params.hpp: the
-#: runtime's DN_MAX_TERM_PARAMS, the most parameters of a kind)
-VR_TERM_STRIDE = max(len(kind.params) for kind in KINDS.values())
 #: the inverse's variables (fmu_damper.hpp: VR_DEMAND ..): force_demand, u_command, inverse_status, force_at_command
 VR_DEMAND, VR_U_COMMAND, VR_INV_STATUS, VR_INV_FORCE = 30, 31, 32, 33
 VR_U = 3  # the control input: the inverse's outputs do not depend on it (ModelStructure dependencies)
@@ -56,9 +53,8 @@ def check_model(model: MlpModel) -> None:
     if bad:
         raise FmuError(f"the FMU cannot feed feature(s) {', '.join(bad)}: it takes {', '.join(FMU_FEATURES)}")
     for term in model.terms:
-        if len(term.get("params") or []) > VR_TERM_STRIDE:  # value references 100 + 12 i + j
-            raise FmuError(f"term {term['kind']!r} has more than {VR_TERM_STRIDE} parameters: the FMU exposes at "
-                           f"most {VR_TERM_STRIDE}")
+        if len(term.get("params") or []) > 10:  # value references 100 + 10 i + j
+            raise FmuError(f"term {term['kind']!r} has more than 10 parameters: the FMU exposes at most 10")
 
 
 def control_unit(model: MlpModel) -> str | None:
@@ -174,7 +170,7 @@ def damper_variables(model: MlpModel, with_grid: bool = False) -> list[Variable]
         for j, value in enumerate(term.get("params") or []):
             pname, _, unit = names[j].partition(" [")
             lo, hi = range_in(runtime_doc, pname, named_only=True)
-            v.append(Variable(term_param_name(term, i, j), VR_TERM + VR_TERM_STRIDE * i + j, "Real", "parameter", "fixed",
+            v.append(Variable(term_param_name(term, i, j), VR_TERM + 10 * i + j, "Real", "parameter", "fixed",
                               f"physics term {i} ({term['kind']}): {KINDS[term['kind']].doc}", fmi_unit(unit.rstrip("]")),
                               float(value), initial="exact", min=lo, max=hi))
     used = _fields(model)

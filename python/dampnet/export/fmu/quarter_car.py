@@ -16,7 +16,7 @@ whole multiple of dt is refused with an error naming h and dt.
 - parameters: the vehicle's fields (1000 + i, DN_VEHICLE_FIELDS order) and the controller's
   (1100 + i, DN_CONTROLLER_FIELDS order), enum fields as Enumeration parameters (FMI
   TypeDefinitions from the runtime's lists), and the damper's feature constants and term
-  parameters (10 + k, 100 + 12 i + j, as the damper FMU); all fixed, with the ranges the runtime's
+  parameters (10 + k, 100 + 10 i + j, as the damper FMU); all fixed, with the ranges the runtime's
   docs state as min/max, validated at initialisation by the runtime's checks.
 
 Importers: run it with a fixed communication step n dt (FMPy's default run of the default
