@@ -31,8 +31,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help=f"control law: {', '.join(control_laws())} (the runtime's names, and passive at one "
                         "level); each is calibrated on the damper as in `dampnet study` (dampnet.recipes.control_laws)")
     p.add_argument("--command-tau", type=float, default=None, metavar="S",
-                   help="command filter time constant of the switching laws [s] (default: the study's "
-                        f"{1e3 * COMMAND_TAU_S:g} ms; 0 = unfiltered)")
+                   help="command filter time constant of the semi-active laws [s] (default: the study's "
+                        f"{1e3 * COMMAND_TAU_S:g} ms for the switching and continuous laws, none for the "
+                        "force-tracking ones; 0 = unfiltered)")
     p.add_argument("--damping", choices=("low", "high"), default=None,
                    help="passive control level (found from the model's control range; default high; "
                         "passive_low / passive_high name one)")

@@ -43,13 +43,14 @@ EXTERNAL = "external"
 @dataclass(frozen=True)
 class LawContext:
     """What a law is calibrated on: the damper (`spec`) and its `levels` ({"low", "high"}: its
-    low / high damping control [V or A]), the vehicle, the command filter `u_tau_s` [s], and the
-    passive law's options `damping` ("low" | "high") and `u` [V or A] (None: the level's)."""
+    low / high damping control [V or A]), the vehicle, the command filter `u_tau_s` [s] (None: the
+    law's own default, dampnet.sim.calibration's SKYHOOK_COMMAND_TAU_S or FORCE_COMMAND_TAU_S), and
+    the passive law's options `damping` ("low" | "high") and `u` [V or A] (None: the level's)."""
 
     spec: DamperSpec
     levels: Mapping[str, float]
     vehicle: Vehicle
-    u_tau_s: float
+    u_tau_s: float | None
     damping: str = "high"
     u: float | None = None
 
@@ -124,14 +125,13 @@ def make(name: str, spec: DamperSpec, vehicle: Vehicle | None = None, *, u_tau_s
     Controller fields set over the calibrated ones; `limit_to_levels`: the command limited to the
     damper's low..high levels (u_min, u_max), as the full vehicle runs every law. LoopError (one
     line) on a bad name or value."""
-    from dampnet.sim.calibration import SKYHOOK_COMMAND_TAU_S, damping_levels
+    from dampnet.sim.calibration import damping_levels
 
     law = get(name)
     veh = vehicle or Vehicle()
     if damping not in ("low", "high"):
         raise LoopError(f"damping: expected 'low' or 'high', got {damping!r}")
-    ctx = LawContext(spec, damping_levels(spec, veh.dt), veh,
-                     SKYHOOK_COMMAND_TAU_S if u_tau_s is None else u_tau_s, damping, u)
+    ctx = LawContext(spec, damping_levels(spec, veh.dt), veh, u_tau_s, damping, u)
     ctrl = law.build(ctx)
     if limit_to_levels:
         ctrl = dataclasses.replace(ctrl, u_min=min(ctx.levels.values()), u_max=max(ctx.levels.values()))
@@ -217,7 +217,7 @@ def _continuous(calibrate: str) -> Callable[[LawContext], Controller]:
     def build(ctx: LawContext) -> Controller:
         from dampnet.sim import calibration
 
-        return getattr(calibration, calibrate)(ctx.spec, dict(ctx.levels), ctx.vehicle, u_tau_s=ctx.u_tau_s)
+        return getattr(calibration, calibrate)(ctx.spec, dict(ctx.levels), ctx.vehicle, **_tau(ctx))
     return build
 
 
@@ -225,8 +225,13 @@ def _switching(kind: str) -> Callable[[LawContext], Controller]:
     def build(ctx: LawContext) -> Controller:
         from dampnet.sim.calibration import semi_active
 
-        return semi_active(kind, dict(ctx.levels), ctx.u_tau_s)
+        return semi_active(kind, dict(ctx.levels), **_tau(ctx))
     return build
+
+
+def _tau(ctx: LawContext) -> dict[str, float]:
+    """The caller's command filter for a calibration function, or nothing (its own default)."""
+    return {} if ctx.u_tau_s is None else {"u_tau_s": ctx.u_tau_s}
 
 
 #: the runtime's continuous laws, each calibrated by its dampnet.sim.calibration function:
@@ -242,7 +247,7 @@ def _force_tracking(kind: str) -> Callable[[LawContext], Controller]:
     def build(ctx: LawContext) -> Controller:
         from dampnet.sim.calibration import force_tracking
 
-        return force_tracking(kind, ctx.spec, dict(ctx.levels), ctx.vehicle, u_tau_s=ctx.u_tau_s)
+        return force_tracking(kind, ctx.spec, dict(ctx.levels), ctx.vehicle, **_tau(ctx))
     return build
 
 

@@ -41,6 +41,13 @@ v_s does not), each jump is a step of damper force that jolts the body, and a mo
 force answers the acceleration spike of that step (the thesis's inputs include the
 acceleration) turns it into an error: the road model was +2.7 / +3.8 % off the truth under
 unfiltered continuous skyhook, -0.2 / +0.6 % with the filter (10 / 20 m/s).
+
+The force-tracking laws (`force_tracking`) are unfiltered by default (FORCE_COMMAND_TAU_S = 0):
+their command is the inverse of a demanded force, and the filter delays the force it sets. On the
+default model's quarter car over ISO roads (`dampnet study --control`) the 5 ms filter left the
+tracked force 28-41 % RMS off a reachable demand, against 0-0.2 % unfiltered, and its Wk comfort
+was worse on every road and speed (bench/RESULTS.md, "Semi-active control against the ideal").
+A caller's u_tau_s still sets one.
 """
 
 from __future__ import annotations
@@ -58,6 +65,8 @@ SKYHOOK_V_RMS_M_S = 0.2
 # Command filter of the study's semi-active laws [s] (the runtime's u_tau_s; see the module
 # docstring): a 32 Hz corner, 20 degrees of lag at the 11.7 Hz wheel hop, five 1 ms steps.
 SKYHOOK_COMMAND_TAU_S = 0.005
+#: the force-tracking laws' command filter [s] by default: none (see the module docstring)
+FORCE_COMMAND_TAU_S = 0.0
 
 
 def damping_levels(spec: DamperSpec, dt: float = 1e-3) -> dict:
@@ -136,11 +145,12 @@ def continuous_groundhook(spec: DamperSpec, levels: dict | None = None, vehicle:
 
 
 def force_tracking(kind: str, spec: DamperSpec, levels: dict | None = None, vehicle: Vehicle | None = None,
-                   u_tau_s: float = SKYHOOK_COMMAND_TAU_S, alpha: float = 0.5) -> Controller:
+                   u_tau_s: float = FORCE_COMMAND_TAU_S, alpha: float = 0.5) -> Controller:
     """A force-tracking law (skyhook_force, groundhook_force, hybrid_force, clipped_optimal: the
     demanded force [N] through the damper's inverse) calibrated on the vehicle: c_sky and c_gnd as
     the continuous laws' (no resonant peak of the ideal body / wheel), hybrid_force's skyhook share
-    `alpha`, clipped_optimal's gains `lqr_gains`; the control limited to the damper's levels."""
+    `alpha`, clipped_optimal's gains `lqr_gains`; the control limited to the damper's levels;
+    unfiltered unless `u_tau_s` [s] is given (FORCE_COMMAND_TAU_S)."""
     veh = vehicle or Vehicle()
     lv = levels or damping_levels(spec, veh.dt)
     gains = {"c_sky": skyhook_gain(veh), "c_gnd": groundhook_gain(veh), "alpha": alpha}

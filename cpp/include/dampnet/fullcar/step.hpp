@@ -102,16 +102,30 @@ DN_FC_OUTLINE inline void fc_report(const FullCarModel& m, const FcMotion& y, co
 }
 
 // The corners whose law tracks a force: the damper's inverse of the demand at the step start's
-// input (its states filled), after the command filter; out of the hot step (a cold call).
+// input (its states filled), after the command filter; out of the hot step (a cold call). With
+// the coupling solved (DN_ACCEL_IMPLICIT) the inverse reads the acceleration the step solves to
+// when every tracking corner gives its demand and the others their last force, as the quarter car
+// does (detail::force_law_start): a = a(f_last) - K (F - f_last).
 DN_FC_COLD inline void force_law_commands(const FullCarModel& m, const FcMotion& y, const FcFree& f,
                                           const double* zr, const double* s, dn_damper_input* di, double* u,
                                           int64_t* n_evals) noexcept {
+  double demand[kCorners] = {}, moved[kCorners] = {};  // moved: F - f_last where a demand is given
 #pragma GCC unroll 1
   for (int i = 0; i < kCorners; ++i) {
     const Corner& c = m.corner[i];
     if (!is_force_law(c.ctrl.kind)) continue;
-    const double demand = force_demand(c.ctrl, f.vb[i], y.vus[i], f.dfl[i], y.zus[i] - zr[i]);
-    u[i] = c.command_force(di[i], m.fs[i], demand, s[fc_corner(i, FCC_u_cmd)], n_evals);
+    demand[i] = force_demand(c.ctrl, f.vb[i], y.vus[i], f.dfl[i], y.zus[i] - zr[i]);
+    if (demand[i] != 0) moved[i] = m.fs[i] + demand[i] - s[fc_corner(i, FCC_f_last)];
+  }
+#pragma GCC unroll 1
+  for (int i = 0; i < kCorners; ++i) {
+    const Corner& c = m.corner[i];
+    if (!is_force_law(c.ctrl.kind)) continue;
+    const double a_explicit = di[i].a;
+    if (c.implicit_a && !c.linear_a)
+      for (int j = 0; j < kCorners; ++j) di[i].a -= m.K[i][j] * moved[j];
+    u[i] = c.command_force(di[i], m.fs[i], demand[i], s[fc_corner(i, FCC_u_cmd)], n_evals);
+    di[i].a = a_explicit;  // (the step's evaluation starts from the explicit value)
     di[i].u = u[i];
   }
 }
