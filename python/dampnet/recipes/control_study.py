@@ -272,11 +272,12 @@ def text_tables(res: dict) -> list[str]:
                          + f" (gain {_f(w.get('gain_share'), '{:.2f}')})")
         out.append("| " + " | ".join(cells) + " |")
     out += ["", "Force tracking through the inverse: RMS error relative to the demand's RMS where reachable, with "
-            "the registry's 5 ms command filter (and without it), and the share of demanding steps out of reach:", "",
+            "the law's command filter (none unless the caller sets u_tau_s: dampnet.sim.calibration.FORCE_COMMAND_TAU_S) "
+            "(and without it), and the share of demanding steps out of reach:", "",
             "| road, km/h | " + " | ".join(FORCE_LAWS) + " |", "|---" * (1 + len(FORCE_LAWS)) + "|"]
     for key, r in qc.items():
         out.append("| " + key.replace("_", ", ") + " | " + " | ".join(
-            f"{_f(r[law]['model']['tracking_rel'], '{:.0%}')} ({_f(r[law]['in_range_unfiltered']['tracking_rel'], '{:.0%}')})"
+            f"{_f(r[law]['model']['tracking_rel'], '{:.1%}')} ({_f(r[law]['in_range_unfiltered']['tracking_rel'], '{:.1%}')})"
             f" err, {_f(r[law]['model']['saturated_share'], '{:.0%}')} out of reach" for law in FORCE_LAWS) + " |")
     out += ["", "Suspension travel RMS [mm] and dynamic tyre load RMS [N], law through the inverse:", "",
             "| road, km/h | passive low | skyhook_continuous | " + " | ".join(FORCE_LAWS) + " |",
