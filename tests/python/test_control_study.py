@@ -79,6 +79,10 @@ def test_one_case_of_the_table(spec):
     m = row["model"]
     assert 0 < m["demand_share"] < 1 and 0 <= m["saturated_share"] <= 1 and m["tracking_rel"] > 0
     assert row["gain_share"] is not None
+    # today's linear map (skyhook_continuous), measured against skyhook's ideal semi-active damper
+    low, ideal = r["passive_low"]["wk_rms_m_s2"], row["ideal_semi_active"]["wk_rms_m_s2"]
+    assert r["skyhook_continuous"]["gain_share"] == pytest.approx(
+        (low - r["skyhook_continuous"]["wk_rms_m_s2"]) / (low - ideal), rel=1e-12)
 
 
 def test_the_study_command_runs_it_prints_the_tables_and_draws_the_figure(tmp_path, capsys):
