@@ -162,6 +162,41 @@ def tracking(spec, ctrl: Controller, res: dict) -> dict:
             "tracking_rms_n": rms(err[reach]), "tracking_rel": rms(err[reach]) / rms(fd[reach]) if reach.any() else None}
 
 
+def full_car_tracking(spec, res: dict) -> dict:
+    """Force tracking of a full-car run whose corners track forces (`maneuvers.run`'s result), over
+    its four corners together as `tracking` measures the quarter car's: the share of demanding
+    corner-steps out of reach, and the RMS of force - (f_static + demand) over those in reach [N]
+    and that relative to the demand's RMS there."""
+    from dampnet import _core
+    from dampnet.sim.dampers import runtime_damper
+
+    a, p, c = res["arrays"], res["params"], res["controller"]
+    names = list(_core.FULLCAR_STATE_NAMES)
+    col = lambda name: a["state"][:, names.index(name)]  # noqa: E731
+    d = runtime_damper(spec).damper
+    lo, hi = d.control_range()
+    ctrl = Controller(**c).core_dict()
+    err, dem, asks, reach_n = [], [], 0, 0
+    for i, corner in enumerate(("fl", "fr", "rl", "rr")):
+        v_us = col(f"v_us_{corner}")
+        x = a["x"][:, i]
+        fd = _core.force_demand(ctrl, a["v"][:, i] + v_us, v_us, x - p["x_static_f" if i < 2 else "x_static_r"],
+                                col(f"z_us_{corner}") - col(f"z_r_{corner}"))
+        motion = {"x": x, "v": a["v"][:, i], "a": a["a"][:, i], "temperature": col(f"temperature_{corner}"),
+                  **{q: col(f"{q}_{corner}") for q in _core.DAMPER_STATES}}
+        f_lo, f_hi = (d.forces(u=np.full(fd.size, u), **motion)[0] for u in (lo, hi))
+        want = res["f_static_n"] + fd
+        reach = (fd != 0) & (want >= np.minimum(f_lo, f_hi)) & (want <= np.maximum(f_lo, f_hi))
+        asks += int(np.count_nonzero(fd))
+        reach_n += int(np.count_nonzero(reach))
+        err.append(a["force"][reach, i] - want[reach])
+        dem.append(fd[reach])
+    e, f = np.concatenate(err), np.concatenate(dem)
+    rms = lambda x: float(np.sqrt(np.mean(x ** 2))) if len(x) else float("nan")  # noqa: E731
+    return {"saturated_share": float(1.0 - reach_n / max(asks, 1)), "tracking_rms_n": rms(e),
+            "tracking_rel": rms(e) / rms(f) if len(f) else None}
+
+
 def _metrics(m: dict) -> dict:
     return {"wk_rms_m_s2": m["acc_wk_rms_m_s2"], "travel_rms_m": m["travel_rms_m"], "tyre_load_rms_n": m["tyre_load_rms_n"]}
 
@@ -211,15 +246,19 @@ def quarter_car_case(spec, road_class: str, speed_kmh: float, *, laws=FORCE_LAWS
 def full_car_rows(spec, road_class: str, speed_kmh: float, damping=("low", "high", "skyhook", *FORCE_LAWS),
                   seed: int = 0, dt: float = 1e-3) -> dict:
     """The full car on the road manoeuvre: per damping setting, heave (body) Wk RMS [m/s^2], roll
-    and pitch rate RMS [deg/s], the worst wheel's dynamic tyre load RMS [N]."""
+    and pitch rate RMS [deg/s], the worst wheel's dynamic tyre load RMS [N]; for a force-tracking
+    law, its force tracking over the four corners (`full_car_tracking`)."""
     from dampnet.recipes import maneuvers
 
     man = maneuvers.build("road", dt, {"speed_kmh": speed_kmh, "road": f"iso:class={road_class}", "road_seed": seed})
     out = {}
     for d in damping:
-        m = maneuvers.run(spec, man, d)["metrics"]
+        res = maneuvers.run(spec, man, d)
+        m = res["metrics"]
         out[d] = {"heave_wk_rms_m_s2": m["acc_wk_rms_m_s2"], "roll_rate_rms_deg_s": m["roll_rate_rms_deg_s"],
                   "pitch_rate_rms_deg_s": m["pitch_rate_rms_deg_s"], "tyre_load_rms_max_n": max(m["tyre_load_dyn_rms_n"])}
+        if d in FORCE_LAWS:
+            out[d].update(full_car_tracking(spec, res))
     return out
 
 
@@ -302,6 +341,14 @@ def text_tables(res: dict) -> list[str]:
             out.append("| " + key.replace("_", ", ") + " | " + " | ".join(
                 f"{m['heave_wk_rms_m_s2']:.3f} / {m['roll_rate_rms_deg_s']:.2f} / {m['pitch_rate_rms_deg_s']:.2f}"
                 for m in rows.values()) + " |")
+        laws = [law for law in FORCE_LAWS if law in first]
+        out += ["", "Full car, force tracking over the four corners: RMS error relative to the demand's RMS where "
+                "reachable, and the share of demanding corner-steps out of reach:", "",
+                "| road, km/h | " + " | ".join(laws) + " |", "|---" * (1 + len(laws)) + "|"]
+        for key, rows in res["full_car"].items():
+            out.append("| " + key.replace("_", ", ") + " | " + " | ".join(
+                f"{_f(rows[law].get('tracking_rel'), '{:.1%}')} err, {_f(rows[law].get('saturated_share'), '{:.0%}')} "
+                "out of reach" for law in laws) + " |")
     return out
 
 
