@@ -5,9 +5,6 @@ car runs, through the runtime's loop (`dampnet.sim.quarter_car.runs.simulate`), 
 FORCE_LAWS on the damper model (its demanded force through the model's inverse) beside:
   passive_low, passive_high   the damper held at its own soft / hard setting
   skyhook_continuous          today's linear map of the wanted damping to a control
-  in range, unfiltered        the same law on the damper model without the command filter: the
-                              inverse's force at each step start, the demand clipped to what
-                              this damper can give at that motion ([F(u_min), F(u_max)])
   ideal semi-active           the same law on an ideal damper: a lookup table whose force is its
                               control (F = u for any velocity, IDEAL_F_MAX_N either way), so the
                               inverse is exact and the force is the law's demand clipped to the
@@ -20,9 +17,9 @@ FORCE_LAWS on the damper model (its demanded force through the model's inverse) 
                               car's frequency response, `ideal_active_analytic`)
 Reported per case: ISO 2631-1 Wk-weighted body acceleration RMS [m/s^2], suspension travel RMS
 [m], dynamic tyre load RMS [N]; for each law through the inverse, its comfort gain over passive
-low as a share of the ideal semi-active's (gain_share; target >= 0.9) and of the in-range
-unfiltered law's (gain_share_in_range), and skyhook_continuous's against skyhook_force's ideal
-semi-active (gain_share: today's linear map, measured beside the inverse), the force-tracking error (RMS of
+low as a share of the ideal semi-active's (gain_share; target >= 0.9), and skyhook_continuous's
+against skyhook_force's ideal semi-active (gain_share: today's linear map, measured beside the
+inverse), the force-tracking error (RMS of
 force - demand over the steps with a reachable demand, relative to the demand's RMS there) and
 the share of demanding steps whose demand is out of the damper's reach at that motion.
 The full car (`full_car_rows`): the road manoeuvre (two correlated tracks) at the same roads and
@@ -139,6 +136,24 @@ def ideal_active_analytic(veh: Vehicle, ctrl: Controller, road_gd_n0: float, spe
     return float(np.sqrt(np.trapezoid(np.abs(acc) ** 2 * gz, f)))
 
 
+def _tracked(damper, motion: dict, fd: np.ndarray, force: np.ndarray, f_static: float):
+    """(demanding steps, those in reach, force - (f_static + demand) there, the demand there) of a
+    run's steps: a demand is in reach where f_static + demand lies between the damper's forces at
+    its two control limits at that step's motion (x, v, a, temperature and its states)."""
+    lo, hi = damper.control_range()
+    f_lo, f_hi = (damper.forces(u=np.full(fd.size, u), **motion)[0] for u in (lo, hi))
+    want = f_static + fd
+    asks = fd != 0
+    reach = asks & (want >= np.minimum(f_lo, f_hi)) & (want <= np.maximum(f_lo, f_hi))
+    return asks, reach, force[reach] - want[reach], fd[reach]
+
+
+def _tracking_metrics(n_asks: int, n_reach: int, err: np.ndarray, fd: np.ndarray) -> dict:
+    rms = lambda x: float(np.sqrt(np.mean(x ** 2))) if len(x) else float("nan")  # noqa: E731
+    return {"saturated_share": float(1.0 - n_reach / max(n_asks, 1)), "tracking_rms_n": rms(err),
+            "tracking_rel": rms(err) / rms(fd) if len(fd) else None}
+
+
 def tracking(spec, ctrl: Controller, res: dict) -> dict:
     """Force tracking of a law through the inverse: over the steps with a demand, the share out
     of reach (outside [F(u_min), F(u_max)] at that step's motion); over those within reach, the
@@ -147,54 +162,36 @@ def tracking(spec, ctrl: Controller, res: dict) -> dict:
     from dampnet.sim.dampers import runtime_damper
 
     a = res["arrays"]
-    fd = demand(ctrl, a)
-    d = runtime_damper(spec).damper
-    lo, hi = d.control_range()
     motion = {q: a[q] for q in ("x", "v", "a", "temperature", *_core.DAMPER_STATES) if q in a}
-    f_lo = d.forces(u=np.full(len(fd), lo), **motion)[0]
-    f_hi = d.forces(u=np.full(len(fd), hi), **motion)[0]
-    want = res["f_static_n"] + fd
-    asks = fd != 0
-    reach = asks & (want >= np.minimum(f_lo, f_hi)) & (want <= np.maximum(f_lo, f_hi))
-    err = a["force"] - want
-    rms = lambda x: float(np.sqrt(np.mean(x ** 2))) if len(x) else float("nan")  # noqa: E731
-    return {"demand_share": float(asks.mean()), "saturated_share": float(1.0 - reach.sum() / max(asks.sum(), 1)),
-            "tracking_rms_n": rms(err[reach]), "tracking_rel": rms(err[reach]) / rms(fd[reach]) if reach.any() else None}
+    asks, reach, err, fd = _tracked(runtime_damper(spec).damper, motion, demand(ctrl, a), a["force"], res["f_static_n"])
+    return {"demand_share": float(asks.mean()), **_tracking_metrics(int(asks.sum()), int(reach.sum()), err, fd)}
 
 
 def full_car_tracking(spec, res: dict) -> dict:
     """Force tracking of a full-car run whose corners track forces (`maneuvers.run`'s result), over
-    its four corners together as `tracking` measures the quarter car's: the share of demanding
-    corner-steps out of reach, and the RMS of force - (f_static + demand) over those in reach [N]
-    and that relative to the demand's RMS there."""
+    its four corners together as `tracking` measures the quarter car's."""
     from dampnet import _core
     from dampnet.sim.dampers import runtime_damper
+    from dampnet.sim.full_car.runs import CORNERS
 
-    a, p, c = res["arrays"], res["params"], res["controller"]
+    a, p = res["arrays"], res["params"]
     names = list(_core.FULLCAR_STATE_NAMES)
     col = lambda name: a["state"][:, names.index(name)]  # noqa: E731
-    d = runtime_damper(spec).damper
-    lo, hi = d.control_range()
-    ctrl = Controller(**c).core_dict()
-    err, dem, asks, reach_n = [], [], 0, 0
-    for i, corner in enumerate(("fl", "fr", "rl", "rr")):
-        v_us = col(f"v_us_{corner}")
-        x = a["x"][:, i]
+    damper = runtime_damper(spec).damper
+    ctrl = Controller(**res["controller"]).core_dict()
+    n_asks = n_reach = 0
+    errs, fds = [], []
+    for i, corner in enumerate(CORNERS):
+        v_us, x = col(f"v_us_{corner}"), a["x"][:, i]
         fd = _core.force_demand(ctrl, a["v"][:, i] + v_us, v_us, x - p["x_static_f" if i < 2 else "x_static_r"],
                                 col(f"z_us_{corner}") - col(f"z_r_{corner}"))
         motion = {"x": x, "v": a["v"][:, i], "a": a["a"][:, i], "temperature": col(f"temperature_{corner}"),
                   **{q: col(f"{q}_{corner}") for q in _core.DAMPER_STATES}}
-        f_lo, f_hi = (d.forces(u=np.full(fd.size, u), **motion)[0] for u in (lo, hi))
-        want = res["f_static_n"] + fd
-        reach = (fd != 0) & (want >= np.minimum(f_lo, f_hi)) & (want <= np.maximum(f_lo, f_hi))
-        asks += int(np.count_nonzero(fd))
-        reach_n += int(np.count_nonzero(reach))
-        err.append(a["force"][reach, i] - want[reach])
-        dem.append(fd[reach])
-    e, f = np.concatenate(err), np.concatenate(dem)
-    rms = lambda x: float(np.sqrt(np.mean(x ** 2))) if len(x) else float("nan")  # noqa: E731
-    return {"saturated_share": float(1.0 - reach_n / max(asks, 1)), "tracking_rms_n": rms(e),
-            "tracking_rel": rms(e) / rms(f) if len(f) else None}
+        asks, reach, err, fd_in = _tracked(damper, motion, fd, a["force"][:, i], res["f_static_n"])
+        n_asks, n_reach = n_asks + int(asks.sum()), n_reach + int(reach.sum())
+        errs.append(err)
+        fds.append(fd_in)
+    return _tracking_metrics(n_asks, n_reach, np.concatenate(errs), np.concatenate(fds))
 
 
 def _metrics(m: dict) -> dict:
@@ -224,16 +221,11 @@ def quarter_car_case(spec, road_class: str, speed_kmh: float, *, laws=FORCE_LAWS
         row = {"model": {**_metrics(res["metrics"]), **tracking(spec, ctrl, res)}}
         semi = simulate(ideal, road, v, ideal_controller(ctrl), veh, law=name)
         row["ideal_semi_active"] = _metrics(semi["metrics"])
-        unfiltered = dataclasses.replace(ctrl, u_tau_s=0.0)
-        unf = simulate(spec, road, v, unfiltered, veh, law=name)
-        row["in_range_unfiltered"] = {**_metrics(unf["metrics"]), **tracking(spec, unfiltered, unf)}
         a = res["arrays"]
         row["ideal_active"] = _metrics(ideal_active(veh, ctrl, a["t"], a["z_r"], a["v_r"])["metrics"])
         if low is not None:
-            got = low - row["model"]["wk_rms_m_s2"]
-            for key, reference in (("gain_share", "ideal_semi_active"), ("gain_share_in_range", "in_range_unfiltered")):
-                best = low - row[reference]["wk_rms_m_s2"]
-                row[key] = got / best if best > MIN_IDEAL_GAIN * low else None
+            got, best = low - row["model"]["wk_rms_m_s2"], low - row["ideal_semi_active"]["wk_rms_m_s2"]
+            row["gain_share"] = got / best if best > MIN_IDEAL_GAIN * low else None
         out[name] = row
     if low is not None and "skyhook_continuous" in out and "skyhook_force" in out:
         # today's linear map, against the skyhook law's ideal semi-active damper (the issue's (b))
@@ -302,7 +294,7 @@ def text_tables(res: dict) -> list[str]:
     """The study's markdown tables (`run`'s result): Wk RMS and comfort gain share, force
     tracking, travel and tyre load, and the full car's rows when it ran."""
     qc = res["quarter_car"]
-    out = ["Quarter car, Wk-weighted body acceleration RMS [m/s^2] (law through the inverse / in range unfiltered / "
+    out = ["Quarter car, Wk-weighted body acceleration RMS [m/s^2] (law through the inverse / "
            "ideal semi-active / ideal active), and the law's comfort gain over passive low as a share of the ideal "
            "semi-active's (-: the ideal gains under 0.5 %):", "",
            "| road, km/h | passive low | passive high | skyhook_continuous | " + " | ".join(FORCE_LAWS) + " |",
@@ -313,18 +305,16 @@ def text_tables(res: dict) -> list[str]:
                  _f(cont["wk_rms_m_s2"]) + (f" (gain {_f(cont['gain_share'], '{:.2f}')})" if "gain_share" in cont else "")]
         for law in FORCE_LAWS:
             w = r[law]
-            cells.append(" / ".join(_f(w[k]["wk_rms_m_s2"]) for k in ("model", "in_range_unfiltered",
-                                                                       "ideal_semi_active", "ideal_active"))
+            cells.append(" / ".join(_f(w[k]["wk_rms_m_s2"]) for k in ("model", "ideal_semi_active", "ideal_active"))
                          + f" (gain {_f(w.get('gain_share'), '{:.2f}')})")
         out.append("| " + " | ".join(cells) + " |")
     out += ["", "Force tracking through the inverse: RMS error relative to the demand's RMS where reachable, with "
-            "the law's command filter (none unless the caller sets u_tau_s: dampnet.sim.calibration.FORCE_COMMAND_TAU_S) "
-            "(and without it), and the share of demanding steps out of reach:", "",
+            "the law's command filter (none unless the caller sets u_tau_s: dampnet.sim.calibration.FORCE_COMMAND_TAU_S), "
+            "and the share of demanding steps out of reach:", "",
             "| road, km/h | " + " | ".join(FORCE_LAWS) + " |", "|---" * (1 + len(FORCE_LAWS)) + "|"]
     for key, r in qc.items():
         out.append("| " + key.replace("_", ", ") + " | " + " | ".join(
-            f"{_f(r[law]['model']['tracking_rel'], '{:.1%}')} ({_f(r[law]['in_range_unfiltered']['tracking_rel'], '{:.1%}')})"
-            f" err, {_f(r[law]['model']['saturated_share'], '{:.0%}')} out of reach" for law in FORCE_LAWS) + " |")
+            f"{_f(r[law]['model']['tracking_rel'], '{:.1%}')} err, {_f(r[law]['model']['saturated_share'], '{:.0%}')} out of reach" for law in FORCE_LAWS) + " |")
     out += ["", "Suspension travel RMS [mm] and dynamic tyre load RMS [N], law through the inverse:", "",
             "| road, km/h | passive low | skyhook_continuous | " + " | ".join(FORCE_LAWS) + " |",
             "|---" * (3 + len(FORCE_LAWS)) + "|"]
