@@ -230,7 +230,7 @@ def test_a_damper_reading_the_acceleration_gives_the_demand_with_the_coupling_so
     """The default model reads the acceleration, which the step solves with its force (the implicit
     scheme, the quarter car's default): the inverse is evaluated at the acceleration the demanded
     force makes, so each step's force is its reachable demand to 0.5 % of the demand's RMS (from
-    the explicit acceleration, f_last's, it missed by 14-21 %: bench/RESULTS.md). Unfiltered, as the
+    the explicit acceleration, f_last's, it missed by up to 20 %: bench/RESULTS.md). Unfiltered, as the
     registry makes a force law; an ISO class C road at 72 km/h, 2 s. Cost: 0.3 s."""
     from dampnet.recipes import roads
     from dampnet.sim.dampers import runtime_damper
@@ -266,7 +266,7 @@ def test_the_full_car_gives_each_corners_demand_with_the_coupling_solved():
     mobility K). So where all four demands are reachable and the step's coupling converged, each
     corner's force is its demand to 1e-2 N; over every reachable corner-step that converged, to
     3 % of the demand's RMS (the corners without a demand give their soft force, not the last;
-    measured 1.9 %, and 65 % from the explicit acceleration over all steps). Cost: 0.2 s."""
+    measured 1.9 %). Cost: 0.2 s."""
     from dampnet.sim.dampers import runtime_damper
     from dampnet.sim.full_car.params import defaults
 

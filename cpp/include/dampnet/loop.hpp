@@ -528,10 +528,11 @@ DN_REALTIME DN_OUTLINE inline real force_law_start(const LoopModel& m, const Bod
   // A damper reading the acceleration with the coupling solved (DN_ACCEL_IMPLICIT): the step's
   // acceleration is a_free - k_rel (F - f_static), so at the demanded force it is the explicit
   // value (from f_last) moved by -k_rel (f_static + demand - f_last). The inverse is evaluated
-  // there, so that the step's solved force is the demand (from f_last's acceleration the
-  // default model's tracked force missed it by 14-21 % RMS, now 0-0.2 %: bench/RESULTS.md). Not
-  // for the linearised scheme: its one Newton step from the explicit value is not the solved
-  // coupling, and the inverse there tracked worse (0.5-3.7 % against 0.6-1.2 %).
+  // there, so that the step's solved force is the demand (the default model on the study's
+  // roads: 0.0-0.2 % RMS off it, from up to 20 % at f_last's acceleration; bench/RESULTS.md,
+  // bench/experiments/force_tracking.py). Not for the linearised scheme: its one Newton step from
+  // the explicit value is not the solved coupling; tried, the shift tracked worse there (up to
+  // 3.7 % against the 1.4 % it tracks to as it is).
   const real a_explicit = in->a;
   if (m.implicit_a && !m.linear_a) in->a -= m.k_rel * (m.veh.f_static + demand - s[S_f_last]);
   const real u = m.command_force(*in, m.veh.f_static, demand, s[S_u_cmd], n_evals);

@@ -44,9 +44,10 @@ unfiltered continuous skyhook, -0.2 / +0.6 % with the filter (10 / 20 m/s).
 
 The force-tracking laws (`force_tracking`) are unfiltered by default (FORCE_COMMAND_TAU_S = 0):
 their command is the inverse of a demanded force, and the filter delays the force it sets. On the
-default model's quarter car over ISO roads (`dampnet study --control`) the 5 ms filter left the
-tracked force 28-41 % RMS off a reachable demand, against 0-0.2 % unfiltered, and its Wk comfort
-was worse on every road and speed (bench/RESULTS.md, "Semi-active control against the ideal").
+default model's quarter car over the study's ISO roads the 5 ms filter leaves the tracked force
+12-41 % RMS off a reachable demand, against 0.0-0.2 % unfiltered (bench/experiments/force_tracking.py),
+and its Wk comfort was worse on every road and speed (bench/RESULTS.md, "Semi-active control
+against the ideal").
 A caller's u_tau_s still sets one.
 """
 
