@@ -207,8 +207,9 @@ int main(int argc, char** argv) {
     return 1;
   // The damper's forward and its inverse (issue 55), float, chained as the kernel's forward
   // is: 1024 motions inside the model's range, each with a demand drawn between the forces at
-  // the two control limits (reachable: the Newton search runs). The demand-to-control search
-  // costs its two limit evaluations plus its Newton steps; evals_per_call reports them. Checked
+  // the two control limits (reachable: the Newton search runs). The cold call starts at its
+  // first-iterate grid's control (damper.hpp InverseGuess), the limits evaluated only where its
+  // Newton steps do not settle it; evals_per_call reports every evaluation. Checked
   // on the same motions (residual_max_N: the largest |F(u) - demand| [N], F the damper's own
   // force at the returned u, which must equal the returned force; tests/python/
   // test_damper_inverse.py checks u against a brute-force search) and on hard inputs (NaN,
@@ -241,7 +242,7 @@ int main(int argc, char** argv) {
       dn_real u = 0, f = 0, fu = 0;
       int ne = 0;
       const int st = dn_damper_inverse(damper, &motion[k], demand[k], &u, &f, &ne);
-      evals += 2 + ne;
+      evals += ne;  // (the limits' included, where evaluated)
       dn_damper_input g = motion[k];
       g.u = u;
       dn_damper_force(damper, &g, &fu, nullptr);

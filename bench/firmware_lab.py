@@ -50,7 +50,12 @@ ROOT = Path(__file__).resolve().parents[1]  # the source tree this lab builds
 # thesis's 3-30-1 network (hidden layers hold multiples of 8 neurons), one hidden layer, no
 # physics terms, no lookup table to speak of, and no double kernel (the damper runs the float
 # MLP). `dampnet export --target` sets them from the model instead (capacities_for).
-DEFAULT_CAPS = {"INPUTS": 3, "HIDDEN": 32, "HIDDEN2": 0, "TERMS": 0, "TABLE_V": 2, "TABLE_U": 1}
+DEFAULT_CAPS = {"INPUTS": 3, "HIDDEN": 32, "HIDDEN2": 0, "TERMS": 0, "TABLE_V": 2, "TABLE_U": 1,
+                "INVERSE_V": 0, "INVERSE_U": 0}
+#: the cold inverse's first-iterate grid of the host's build (dn_config.h's defaults): the firmware
+#: whose dn_damper_inverse is measured and checked against the host's has it too (where the model
+#: turns back in u, the answer depends on where the search starts)
+INVERSE_GRID_CAPS = {"INVERSE_V": 33, "INVERSE_U": 17}
 DEFAULT_DOUBLE_KERNEL = 0
 class EmbeddedError(RuntimeError):
     """A cross build or a QEMU run failed (the message holds the tool's output)."""
@@ -216,7 +221,7 @@ class FirmwareOutput:
     status_or: int = 0
     errors: int = -1
     # the inverse part's cases ("inv" lines; None without it): control and force (dn_real), status,
-    # evaluations after the two at the limits, SysTick ticks of each call (the timer reads included)
+    # evaluations (the limits' included), SysTick ticks of each call (the timer reads included)
     inv_u: np.ndarray | None = None
     inv_force: np.ndarray | None = None
     inv_status: np.ndarray | None = None

@@ -385,12 +385,13 @@ void bind_damper(py::module_& mod) {
            "Vectorised inverse (dn_damper_inverse): the control [V or A] within the control "
            "range (control_range) at which the force equals the demand force [N] at the given "
            "motion and states (every quantity of forces but u) -> (u[n], force[n] [N] achieved, "
-           "status[n], evaluations[n]); DN_W_UNREACHABLE: the demand is outside the forces at "
-           "the control limits, the nearer limit is returned. Arrays broadcast to one length. "
-           "evaluations: those after the two at the limits. u_start [V or A] (keyword, array or "
-           "scalar): a control near the answer to start Newton's steps from "
-           "(dn_damper_inverse_near, a controller's last command); evaluations then counts every "
-           "force evaluation, the limits' included. GIL released.")
+           "status[n], evaluations[n]); DN_W_UNREACHABLE: no control gives the demand (outside "
+           "the forces at the control limits), the nearer limit is returned. Arrays broadcast to "
+           "one length. evaluations: every force evaluation made, the limits' included (a neural "
+           "damper starts at its first-iterate grid's control: 2 for most reachable demands). "
+           "u_start [V or A] (keyword, array or scalar): a control near the answer to start "
+           "Newton's steps from instead (dn_damper_inverse_near, a controller's last command). "
+           "GIL released.")
       .def("control_range",
            [](py::handle self) {
              dn_real lo = 0, hi = 0;

@@ -243,9 +243,9 @@ class Damper(metaclass=_pybind11_type):
         u_start: npt.ArrayLike | None = ...,
     ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.int32], npt.NDArray[np.int32]]:
         """Vectorised inverse: the control [V or A] giving the demanded force [N] at this motion
-        -> (u[n], force[n] achieved [N], status[n], evaluations[n]); DN_W_UNREACHABLE: the
-        nearer control limit. u_start [V or A]: Newton's steps start there (a controller's last
-        command); evaluations then counts the limits' too."""
+        -> (u[n], force[n] achieved [N], status[n], evaluations[n], the limits' included);
+        DN_W_UNREACHABLE: the nearer control limit. Newton's steps start at the first-iterate
+        grid's control, or at u_start [V or A] (a controller's last command)."""
     def control_range(self) -> tuple[float, float]:
         """(u_min, u_max) [V or A] that the inverse searches; ValueError without a control."""
     def control_monotonicity(

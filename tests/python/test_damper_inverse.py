@@ -172,11 +172,54 @@ def test_inverse_equals_brute_force_on_1e5_random_inputs(which, single):
 
 
 @pytest.mark.parametrize("single", [False, True], ids=["double", "float"])
-def test_unreachable_demand_gives_the_nearest_limit_and_the_warning(single):
+def test_the_cold_inverse_starts_at_its_grid_and_takes_two_evaluations_mostly(single):
+    """The cold inverse's first iterate (damper.hpp InverseGuess, built at set-up) on the bench's
+    case (dn_bench_mlp's damper_inverse_float_chained: velocity and acceleration uniform over the
+    model's range, the demand uniform between the limits' forces), 2 x 10^4 demands: the default
+    model, and the same with a valve term added after it (the grid is rebuilt with the term's
+    force: in a build that did not, 5.6 evaluations, none in 2). Every status DN_OK, the force the
+    demand (to the contract's allowance), and the evaluations, limits included: measured mean
+    2.26-2.34, 2 for 75-81 % of the calls (double and float); with the valve, whose terms give no
+    curvature (Newton's steps, not Halley's), 2.56-2.63 and 56-59 %; the search from the limits
+    took 5.3 (bench/RESULTS.md). Asserted: mean < 2.6 (2.9 with the valve), at least 70 % (50 %)
+    in 2. Cost: 0.5 s."""
+    base = default_model()
+    valve = load_model(ROOT / "bench" / "embedded_valve" / "model.json").terms
+    assert valve and valve[0]["kind"] == "valve"
+    for terms in ((), valve):
+        model = MlpModel(**{**base.__dict__, "terms": list(terms)}) if terms else base
+        damper = damper_from_model(model, single=single)
+        lo, hi = damper.control_range()
+        rng = np.random.default_rng(1)
+        n = 20_000
+        inp = random_inputs(model, n, seed=57)
+        mo = motion(inp)
+        f_lo = damper.forces(u=lo, **mo)[0]
+        f_hi = damper.forces(u=hi, **mo)[0]
+        demand = f_lo + (f_hi - f_lo) * rng.uniform(0.0, 1.0, n)
+        u, f, st, ev = damper.inverse(demand, **mo)
+        assert np.all(st == 0), np.unique(st)
+        allow = inverse_allowance(damper, u, mo)
+        assert np.all(np.abs(f - demand) <= allow + 1e-6 * np.max(np.abs(demand)))
+        np.testing.assert_array_equal(f, damper.forces(u=u, **mo)[0])
+        print(f"terms {len(terms)}: evaluations mean {ev.mean():.2f}, in 2: {np.mean(ev == 2):.2f}, max {ev.max()}")
+        # (a hybrid's Newton steps, not Halley's: the terms give no curvature)
+        assert ev.mean() < (2.9 if terms else 2.6) and np.mean(ev == 2) >= (0.5 if terms else 0.7)
+        assert np.all(ev <= _core.DN_INVERSE_WARM_EVALS + 2 + MAX_ITERS)
+
+
+@pytest.mark.parametrize("which", ["random", "default"])
+@pytest.mark.parametrize("single", [False, True], ids=["double", "float"])
+def test_unreachable_demand_gives_the_nearest_limit_and_the_warning(single, which):
     """Demands above and below the forces at both control limits (by 1 N, by 1e6 N and +-Inf):
-    the limit whose force is nearer, that force, DN_W_UNREACHABLE; a demand equal to a limit's
-    force: that limit and DN_OK. Cost: 0.05 s."""
-    model = default_model()
+    the limit whose force is nearer, that force, DN_W_UNREACHABLE, in two evaluations far beyond
+    (the first-iterate grid puts the start at that limit; the other limit's force decides); a demand
+    equal to a limit's force: reached, DN_OK. The default model turns back in u near v = 0,
+    where a control inside the range can give more than either limit: there a demand 1 N beyond
+    the limits' forces may be reached (measured: 52 of 2,000 motions, double), and then the force
+    is the demand (to the contract's allowance) with DN_OK; every other one is as above. Cost:
+    0.05 s."""
+    model = default_model() if which == "default" else monotone_random_model()
     damper = damper_from_model(model, single=single)
     lo, hi = damper.control_range()
     inp = random_inputs(model, 2000, seed=7)
@@ -186,17 +229,31 @@ def test_unreachable_demand_gives_the_nearest_limit_and_the_warning(single):
     fmin, fmax = np.minimum(f_lo, f_hi), np.maximum(f_lo, f_hi)
     u_at_min = np.where(f_lo <= f_hi, lo, hi)
     u_at_max = np.where(f_lo <= f_hi, hi, lo)
+    scale = np.max(np.abs(np.concatenate([f_lo, f_hi])))
     for over in (1.0, 1e6, np.inf):
-        u, f, st, evals = damper.inverse(fmax + over, **mo)
-        np.testing.assert_array_equal(u, u_at_max)
-        np.testing.assert_array_equal(f, fmax)
-        assert np.all(st == UNREACHABLE) and np.all(evals == 0)
-        u, f, st, evals = damper.inverse(fmin - over, **mo)
-        np.testing.assert_array_equal(u, u_at_min)
-        np.testing.assert_array_equal(f, fmin)
-        assert np.all(st == UNREACHABLE)
+        for demand, u_limit, f_limit in ((fmax + over, u_at_max, fmax), (fmin - over, u_at_min, fmin)):
+            u, f, st, evals = damper.inverse(demand, **mo)
+            out = st == UNREACHABLE
+            reached = st == 0
+            assert np.all(out | reached)
+            np.testing.assert_array_equal(u[out], u_limit[out])
+            np.testing.assert_array_equal(f[out], f_limit[out])
+            # far beyond: two evaluations; 1 N beyond, the grid (approximate) may start inside and
+            # take Newton steps out to the limit first (measured: 2-4 random, 2-6 default)
+            assert np.all(evals[out] == 2) if over > 1.0 else np.all(evals[out] <= _core.DN_INVERSE_WARM_EVALS + 2)
+            if which == "random" or over > 1.0:  # (nothing inside gives 1e6 N more than the limits)
+                assert np.all(out)
+            else:  # reached inside the range: the force is the demand, the damper's at u
+                allow = inverse_allowance(damper, u[reached], motion(inp, reached))
+                assert np.all(np.abs(f - demand)[reached] <= allow + 1e-6 * scale)
+                np.testing.assert_array_equal(f[reached], damper.forces(u=u[reached], **motion(inp, reached))[0])
+                assert out.mean() > 0.9
+    # a demand equal to a limit's force: reached (the limit, or a control within the tolerance of
+    # it; where the model turns back, possibly another control giving it)
     u, f, st, _ = damper.inverse(f_hi, **mo)
-    assert np.all(st == 0) and np.all(f == f_hi)
+    assert np.all(st == 0)
+    assert np.all(np.abs(f - f_hi) <= inverse_allowance(damper, u, mo) + 1e-6 * scale)
+    np.testing.assert_array_equal(f, damper.forces(u=u, **mo)[0])
 
 
 @pytest.mark.parametrize("single", [False, True], ids=["double", "float"])
@@ -351,8 +408,9 @@ def test_a_start_near_the_answer_gives_the_cold_inverses_control_in_fewer_evalua
     root, the force within its rounding), every status DN_OK, the evaluations bounded, and fewer
     than the cold inverse's (2 limits + its Newton steps) when the start is within 1 % of the
     range (measured, float and double, mean (max): 1.0 at the answer itself, 2.0-2.2 (3) at
-    0.3-1 %, 2.9 (4) at 10 %, 3.6 (6) from anywhere in the range, against 4.2 cold; with
-    Newton's steps instead of Halley's 2.7-2.9, 3.6, 4.6 and 5.3). Demands
+    0.3-1 %, 2.9 (4) at 10 %, 3.6 (6) from anywhere in the range, against 4.2 cold from the
+    limits and 2.7 cold from the first-iterate grid; with Newton's steps instead of Halley's
+    2.7-2.9, 3.6, 4.6 and 5.3). Demands
     beyond the limits' forces: the cold inverse's answer and status bit for bit, in 2
     evaluations from a start at the nearer limit (a saturated controller's). Cost: 0.2 s."""
     model = monotone_random_model()
@@ -362,7 +420,7 @@ def test_a_start_near_the_answer_gives_the_cold_inverses_control_in_fewer_evalua
     inp, demand = reachable_inputs(damper, model, n, seed=56)
     mo = motion(inp)
     u0, f0, st0, ev0 = damper.inverse(demand, **mo)
-    cold = np.mean(ev0 + 2)
+    cold = np.mean(ev0)  # (from the first-iterate grid's control: 2.68 here)
     allow = inverse_allowance(damper, u0, mo)
     rng = np.random.default_rng(4)
     truth = inp["u"]
@@ -382,7 +440,7 @@ def test_a_start_near_the_answer_gives_the_cold_inverses_control_in_fewer_evalua
         if dist == 0.0:
             assert np.mean(ev) < 1.2
         if dist <= 0.01:
-            assert np.mean(ev) < 0.7 * cold, (dist, np.mean(ev), cold)
+            assert np.mean(ev) <= cold, (dist, np.mean(ev), cold)
     # unreachable: the cold answer, and a start at the nearer limit costs the two limits only
     f_lo = damper.forces(u=lo, **mo)[0]
     f_hi = damper.forces(u=hi, **mo)[0]
@@ -403,11 +461,11 @@ def test_a_start_near_the_answer_gives_the_cold_inverses_control_in_fewer_evalua
 @pytest.mark.parametrize("single", [False, True], ids=["double", "float"])
 def test_a_start_that_cannot_help_is_the_cold_inverse(single):
     """u_start NaN, +-Inf or outside the control range, and the dampers without an analytic
-    dF/du (parametric, table) whatever the start: the cold inverse's control, force and status
-    bit for bit, its evaluations plus the two limits. Hard inputs with a start (NaN or infinite
+    dF/du (parametric, table) whatever the start: the cold inverse's control, force, status and
+    evaluations, bit for bit. Hard inputs with a start (NaN or infinite
     demand, motion, start): finite outputs and the cold inverse's status. The default model,
-    which turns back in u near v = 0: wherever the cold inverse reaches a demand (DN_OK), the
-    warm one does from near the answer and from either limit, its force within the same
+    which turns back in u near v = 0: wherever the limits' forces straddle a demand, the warm
+    inverse reaches it from near the answer and from either limit, its force within the same
     allowance and the damper's at its control bit for bit. Cost: 0.1 s."""
     model = default_model()
     damper = damper_from_model(model, single=single)
@@ -421,8 +479,11 @@ def test_a_start_that_cannot_help_is_the_cold_inverse(single):
         np.testing.assert_array_equal(u, u0)
         np.testing.assert_array_equal(f, f0)
         np.testing.assert_array_equal(st, st0)
-        np.testing.assert_array_equal(ev, ev0 + 2)
-    ok = st0 == 0
+        np.testing.assert_array_equal(ev, ev0)
+    # where the limits' forces straddle the demand (the cold inverse also reaches some outside
+    # them, near its grid's first iterate where the model turns back: a start elsewhere need not)
+    f_lo, f_hi = damper.forces(u=lo, **mo)[0], damper.forces(u=hi, **mo)[0]
+    ok = (st0 == 0) & (demand >= np.minimum(f_lo, f_hi)) & (demand <= np.maximum(f_lo, f_hi))
     assert ok.mean() > 0.8
     # near the answer, and at either limit (a saturated controller's last command: the other
     # limit's force is then evaluated without its slope, and a bracket there must still be found)
@@ -460,7 +521,7 @@ def test_a_start_that_cannot_help_is_the_cold_inverse(single):
         w = d.inverse(dem, **m2, u_start=dlo + 0.55 * (dhi - dlo))
         for a_, b_ in zip(c[:3], w[:3]):
             np.testing.assert_array_equal(a_, b_)
-        np.testing.assert_array_equal(w[3], c[3] + 2)
+        np.testing.assert_array_equal(w[3], c[3])
 
 
 def test_monotonicity_scan_finds_the_turning_point():

@@ -100,6 +100,25 @@ struct TableParams {
   real f[DN_CAP_TABLE_U * DN_CAP_TABLE_V] = {};  // [n_u][n_v]
 };
 
+// The cold inverse's first iterate (Damper::inverse_guess): a neural damper's force on a grid of
+// velocity (the model's velocity range) x control (control_range), at zero acceleration, with its
+// slope in the acceleration there; the other inputs at rest (x = 0, 20 degC, a lag at its source,
+// Dahl 0). inverse() starts its Newton steps where the grid's force, interpolated in v and moved
+// linearly in a, crosses the demand, instead of at the two limits: on the default model 2.3
+// evaluations a call for 5.3 (bench/RESULTS.md). Built at set-up (set_neural_features, add_term);
+// floats, as a first iterate needs no more. n_v = 0: none (not a neural damper with a velocity
+// input and a control, a range that is not finite, a force that is not, or a build without:
+// DN_CAP_INVERSE_V 0).
+struct InverseGuess {
+  static constexpr int kCap = DN_CAP_INVERSE_V * DN_CAP_INVERSE_U > 0 ? DN_CAP_INVERSE_V * DN_CAP_INVERSE_U : 1;
+  int n_v = 0, n_u = 0;
+  real v0 = 0, v_step_inv = 0;  // the first velocity [m/s], 1 / the velocity step [s/m]
+  real a_lo = 0, a_hi = 0;      // the acceleration range the model reads [m/s^2] (0, 0: none)
+  real u_lo = 0, u_hi = 0, u_step = 0;  // the control range and step [V or A]
+  float f[kCap] = {};   // [n_v][n_u] force [N] at a = 0
+  float fa[kCap] = {};  // [n_v][n_u] dF/da there [N s^2/m]
+};
+
 class Damper {
  public:
   int kind = DN_DAMPER_LINEAR;
@@ -124,6 +143,8 @@ class Damper {
   // terms
   int n_terms = 0;
   TermStore<DN_CAP_TERMS> terms;
+  // the cold inverse's first iterate (set-up: build_inverse_guess)
+  InverseGuess guess;
 
   // A feature parameter's value, 0 when not set (every parameter is > 0 when set).
   real fparam(int id) const noexcept { return fparam_set[id] ? fparams[id] : real(0); }
@@ -286,6 +307,7 @@ class Damper {
       if (feat[i] == DN_FEAT_ACCELERATION) accel_input = i;
     precision = prec;
     out_bound_f = mf.out_bound();
+    build_inverse_guess();
     return DN_OK;
   }
 
@@ -304,7 +326,50 @@ class Damper {
     const int st = terms::make(t, kind_name, params, n_params);
     if (st != DN_OK) return st;
     if constexpr (DN_CAP_TERMS > 0) static_cast<Term*>(terms)[n_terms++] = t;
+    build_inverse_guess();  // (the terms are part of the force)
     return DN_OK;
+  }
+
+  // Set-up (bounded: DN_CAP_INVERSE_V x DN_CAP_INVERSE_U force evaluations with their slope in
+  // the acceleration, no allocation): the cold inverse's first-iterate grid (InverseGuess).
+  DN_SETUP_SIZE void build_inverse_guess() noexcept {
+    guess.n_v = guess.n_u = 0;
+    constexpr int nv = DN_CAP_INVERSE_V, nu = DN_CAP_INVERSE_U;
+    if (nv < 2 || nu < 2 || !kind_built(DN_DAMPER_NEURAL) || kind != DN_DAMPER_NEURAL) return;
+    real u_lo = 0, u_hi = 0, v_lo = 0, v_hi = 0, a_lo = 0, a_hi = 0;
+    const int vi = input_reading(&dn_damper_input::v);
+    if (control_range(&u_lo, &u_hi) != DN_OK || vi < 0) return;
+    input_range(vi, &v_lo, &v_hi);
+    if (accel_input >= 0) input_range(accel_input, &a_lo, &a_hi);
+    if (!(u_hi > u_lo) || !(v_hi > v_lo) || !std::isfinite(u_hi - u_lo) || !std::isfinite(v_hi - v_lo) ||
+        !std::isfinite(a_hi - a_lo))
+      return;
+    const real v_step = (v_hi - v_lo) / (nv - 1), u_step = (u_hi - u_lo) / (nu - 1);
+    for (int i = 0; i < nv; ++i)
+      for (int k = 0; k < nu; ++k) {
+        dn_damper_input in{};
+        in.v = i == nv - 1 ? v_hi : v_lo + i * v_step;
+        in.u = k == nu - 1 ? u_hi : u_lo + k * u_step;
+        in.temperature = 20;
+        fill(rest(in), in);
+        real f = 0, dfda = 0;
+        const real a_in = 0 < a_lo ? a_lo : (0 > a_hi ? a_hi : real(0));  // (in the model's range)
+        in.a = a_in;
+        if (force_da(in, &f, &dfda) < 0 || !std::isfinite(f) || !std::isfinite(dfda) ||
+            !(std::fabs(f) < real(3e38)) || !(std::fabs(dfda) < real(3e38)))
+          return;  // (no grid: the search starts at the limits)
+        guess.f[i * nu + k] = static_cast<float>(f - dfda * a_in);
+        guess.fa[i * nu + k] = static_cast<float>(dfda);
+      }
+    guess.v0 = v_lo;
+    guess.v_step_inv = 1 / v_step;
+    guess.a_lo = a_lo;
+    guess.a_hi = a_hi;
+    guess.u_lo = u_lo;
+    guess.u_hi = u_hi;
+    guess.u_step = u_step;
+    guess.n_u = nu;
+    guess.n_v = nv;
   }
 
   // ---- evaluation ----
@@ -451,6 +516,74 @@ class Damper {
 
   // ---- the inverse: the control that gives a demanded force ----
 
+  // The neural input reading field `field` of dn_damper_input: its index, -1 for none, -2 when
+  // two inputs read it.
+  int input_reading(real dn_damper_input::*field) const noexcept {
+    const features::Info* t = features::table();
+    int k = -1;
+    for (int i = 0; i < n_feat; ++i)
+      if (t[feat[i]].field == field) {
+        if (k >= 0) return -2;
+        k = i;
+      }
+    return k;
+  }
+  // A neural input's saturation range (the MLP's clamp) [its unit].
+  void input_range(int k, real* lo, real* hi) const noexcept {
+    if (precision == DN_PRECISION_FLOAT || !DN_DOUBLE_KERNEL) {  // (a float-only build: no double copy's
+      *lo = static_cast<real>(mf.sat_lo()[k]);                   // ranges to convert in the step)
+      *hi = static_cast<real>(mf.sat_hi()[k]);
+    } else {
+      *lo = static_cast<real>(md.sat_lo()[k]);
+      *hi = static_cast<real>(md.sat_hi()[k]);
+    }
+  }
+
+  // [RT] The cold inverse's first iterate: the control [V or A] where the first-iterate grid's
+  // force at in.v (interpolated linearly; clamped to the grid) and in.a (linearly from a = 0, a
+  // clamped to the model's range) crosses `demand`, linearly within the crossing cell, found by a
+  // bisection over the grid's controls (log2(n_u - 1) steps, selects rather than branches): the
+  // one crossing of a monotone row, one of those of a row that turns back. A demand outside the
+  // row's forces at both ends: the limit whose end is nearer (u_lo or u_hi exactly). NaN without
+  // a grid, or for a non-finite velocity or acceleration or a demand beyond float's range (the
+  // search then starts at the limits).
+  real inverse_guess(const dn_damper_input& in, real demand) const noexcept {
+    const InverseGuess& g = guess;
+    if constexpr (DN_CAP_INVERSE_V == 0) return std::numeric_limits<real>::quiet_NaN();  // (no code)
+    if (g.n_v == 0 || !std::isfinite(demand) || !std::isfinite(in.v) || !std::isfinite(in.a))
+      return std::numeric_limits<real>::quiet_NaN();
+    real t = (in.v - g.v0) * g.v_step_inv;
+    t = t > 0 ? (t < real(g.n_v - 1) ? t : real(g.n_v - 1)) : real(0);
+    int i = static_cast<int>(t);
+    if (i > g.n_v - 2) i = g.n_v - 2;
+    const real w = t - real(i), a = in.a < g.a_lo ? g.a_lo : (in.a > g.a_hi ? g.a_hi : in.a);
+    constexpr int nu = DN_CAP_INVERSE_U > 1 ? DN_CAP_INVERSE_U : 2;  // (every grid is the capacity's)
+    const float *f0 = g.f + i * nu, *f1 = f0 + nu, *s0 = g.fa + i * nu, *s1 = s0 + nu;
+    // the grid's force at control k less the demand, in float (a first iterate)
+    const float wf = static_cast<float>(w), af = static_cast<float>(a), df = static_cast<float>(demand);
+    if (!std::isfinite(df)) return std::numeric_limits<real>::quiet_NaN();
+    auto resid = [&](int k) noexcept { return (1 - wf) * (f0[k] + af * s0[k]) + wf * (f1[k] + af * s1[k]) - df; };
+    float r_lo = resid(0), r_hi = resid(nu - 1);
+    if ((r_lo > 0) == (r_hi > 0) || r_lo == 0 || r_hi == 0)  // beyond the row's forces: the nearer end
+      return std::fabs(r_lo) <= std::fabs(r_hi) ? g.u_lo : g.u_hi;
+    // (selects rather than branches: random motions would mispredict them; a vectorised count of
+    // the controls short of the demand was no faster on the host and dearer on a Cortex-M4F)
+    int lo = 0, hi = nu - 1;
+    while (hi - lo > 1) {
+      const int mid = (lo + hi) >> 1;
+      const float r = resid(mid);
+      const bool same = (r > 0) == (r_lo > 0);
+      lo = same ? mid : lo;
+      r_lo = same ? r : r_lo;
+      hi = same ? hi : mid;
+      r_hi = same ? r_hi : r;
+    }
+    real x = real(lo) + (r_lo != r_hi ? real(r_lo / (r_lo - r_hi)) : real(0.5));
+    x = x > real(lo) ? (x < real(lo + 1) ? x : real(lo + 1)) : real(lo);  // (within the cell)
+    const real u = g.u_lo + x * g.u_step;
+    return u < g.u_hi ? u : g.u_hi;
+  }
+
   // The control's range [u_min, u_max] (V or A, as in.u): a neural damper's saturation limits
   // of its input reading in.u (voltage or current), a parametric damper's [0, v_max], a table's
   // first and last control. *input (nullable): the neural input reading in.u, else -1.
@@ -469,21 +602,9 @@ class Damper {
         *hi = tab.u[tab.n_u - 1];
         return DN_OK;
       case DN_DAMPER_NEURAL: {
-        const features::Info* t = features::table();
-        int k = -1;
-        for (int i = 0; i < n_feat; ++i)
-          if (t[feat[i]].field == &dn_damper_input::u) {
-            if (k >= 0) return DN_E_MISMATCH;  // two inputs read the control
-            k = i;
-          }
-        if (k < 0) return DN_E_MISMATCH;
-        if (precision == DN_PRECISION_FLOAT || !DN_DOUBLE_KERNEL) {  // (a float-only build: no double copy's
-          *lo = static_cast<real>(mf.sat_lo()[k]);                   // ranges to convert in the step)
-          *hi = static_cast<real>(mf.sat_hi()[k]);
-        } else {
-          *lo = static_cast<real>(md.sat_lo()[k]);
-          *hi = static_cast<real>(md.sat_hi()[k]);
-        }
+        const int k = input_reading(&dn_damper_input::u);
+        if (k < 0) return DN_E_MISMATCH;  // none, or two inputs read the control (-2)
+        input_range(k, lo, hi);
         if (input) *input = k;
         return DN_OK;
       }
@@ -494,6 +615,9 @@ class Damper {
 
   // [RT] The inverse: the control u in [u_min, u_max] (control_range) at which the force at the
   // input `in` (in.u ignored) equals `demand` [N]; *f the force [N] at *u.
+  //  - A neural damper with its first-iterate grid (InverseGuess): inverse_near() from the grid's
+  //    control (inverse_guess), so that a reachable demand usually costs two evaluations and
+  //    neither limit. Without a grid, and where those steps do not settle it:
   //  - F at both limits; a demand outside [min, max] of those two (also +-Inf): the limit whose
   //    force is nearer, and DN_W_UNREACHABLE (not when equal). A flat range (u_min == u_max,
   //    or equal forces at both): u_min.
@@ -506,18 +630,17 @@ class Damper {
   //    below DN_INVERSE_TOL_REL * (u_max - u_min), or |F - demand| is within the force's
   //    rounding (dn_types.h). The evaluated control with
   //    the smallest |F - demand| is returned. A model not monotone in u still gets one of the
-  //    controls at which F = demand (or a limit when the demand is outside the limits' forces).
+  //    controls at which F = demand: with a grid the one found near its first iterate, even
+  //    where the limits' forces do not straddle the demand; else the nearer limit.
   //  - errors: DN_E_MISMATCH (control_range), DN_E_NONFINITE_INPUT (a NaN demand or a
   //    non-finite input the model reads), the force's errors: *u the centre of the range (0
   //    without one) and *f = 0.
   // The warnings of the evaluations (DN_W_SATURATED: a motion input outside its range) are
-  // OR-ed in. *n_evals (nullable): force evaluations after the two at the limits.
+  // OR-ed in. *n_evals (nullable): every force evaluation made, the limits' included (at most
+  // DN_INVERSE_WARM_EVALS + 2 + DN_INVERSE_MAX_ITERS).
   DN_REALTIME int inverse(const dn_damper_input& in, real demand, real* u, real* f,
                                      int* n_evals = nullptr) const noexcept {
-    int n_limits = 0, n_other = 0;
-    const int st = search(in, demand, std::numeric_limits<real>::quiet_NaN(), u, f, &n_limits, &n_other);
-    if (n_evals) *n_evals = n_other;
-    return st;
+    return inverse_near(in, demand, std::numeric_limits<real>::quiet_NaN(), u, f, n_evals);
   }
 
   // [RT] inverse() from a control near the answer, u_start [V or A] (a controller's last
@@ -532,9 +655,10 @@ class Damper {
   // a saturated command's, costs no second evaluation there). For a model monotone in u this
   // is inverse()'s answer (to its tolerance); for one that is not, a control giving the demand
   // found near u_start is returned even where inverse() finds the demand outside the limits'
-  // forces. u_start NaN or outside the range, or a damper without an analytic dF/du:
-  // inverse(). *n_evals (nullable): every force evaluation made, the limits' included (at
-  // most DN_INVERSE_WARM_EVALS + 2 + DN_INVERSE_MAX_ITERS).
+  // forces. u_start NaN or outside the range: inverse() (from the first-iterate grid's control,
+  // or the limits); a damper without an analytic dF/du: the search from the limits. *n_evals
+  // (nullable): every force evaluation made, the limits' included (at most
+  // DN_INVERSE_WARM_EVALS + 2 + DN_INVERSE_MAX_ITERS).
   DN_REALTIME int inverse_near(const dn_damper_input& in, real demand, real u_start, real* u, real* f,
                                           int* n_evals = nullptr) const noexcept {
     int n_limits = 0, n_other = 0;
@@ -765,6 +889,8 @@ class Damper {
       if (!(x > a && x < b)) x = a + (b - a) / 2;
       bracketed = true;
     };
+    // Cold (no start inside the range): the first-iterate grid's control, when there is one.
+    if (!(u_start >= lo && u_start <= hi)) u_start = inverse_guess(in, demand);
     // Warm: Newton from u_start while it stays inside the range, until it converges or two
     // evaluations straddle the demand (a bracket without the limits).
     if (cur.neural && hi > lo && u_start >= lo && u_start <= hi) {

@@ -223,8 +223,12 @@ DN_API int dn_damper_control_range(const dn_damper* d, dn_real* u_min, dn_real* 
 /* [RT] The inverse: the control *u [V or A] in [u_min, u_max] (dn_damper_control_range) at
  * which the damper's force at the input *in (every field but u: velocity [m/s], acceleration
  * [m/s^2], displacement [m], the states, temperature [degC]; in->u is ignored) equals
- * force_demand [N]; *force is the force [N] at *u. The forces at both limits are evaluated
- * first: a demand outside [min, max] of those two (+-Inf included) gets the limit of the nearer
+ * force_demand [N]; *force is the force [N] at *u. A neural damper starts where its
+ * first-iterate grid puts the answer (DN_CAP_INVERSE_V x DN_CAP_INVERSE_U forces over velocity x
+ * control, built at set-up): dn_damper_inverse_near from there, so that a reachable demand
+ * usually costs two evaluations and neither limit. Without a grid (other kinds, a build
+ * without), and where those steps do not settle it, the forces at both limits are evaluated:
+ * a demand outside [min, max] of those two (+-Inf included) gets the limit of the nearer
  * force and DN_W_UNREACHABLE (the nearest achievable force and its control). Inside, the sign
  * change of F(u) - force_demand is narrowed by safeguarded Newton steps (dF/du analytic for a
  * neural damper, the bracket's secant for the others; Halley's step where d2F/du2 is known too,
@@ -234,12 +238,15 @@ DN_API int dn_damper_control_range(const dn_damper* d, dn_real* u_min, dn_real* 
  * step the last evaluation asks for is below DN_INVERSE_TOL_REL of the control range, or the
  * force equals the demand to its rounding (dn_types.h);
  * the evaluated control with the smallest |F - force_demand| is returned. A model that is not
- * monotone in u still gets a control giving the demand (one of them), or the nearer limit.
+ * monotone in u still gets a control giving the demand (one of them: with a grid, the one found
+ * near its first iterate, even where the limits' forces do not straddle the demand), or the
+ * nearer limit.
  * Errors (*u the centre of the range, 0 without one; *force = 0): DN_E_MISMATCH (no control
  * input, or a callback damper), DN_E_NONFINITE_INPUT (a NaN demand or a NaN/Inf input field
  * the model reads), DN_E_NONFINITE_OUTPUT, DN_E_NULL. Warnings of the evaluations
  * (DN_W_SATURATED: a motion input outside the model's range) are OR-ed in.
- * Nullable: n_evals (the evaluations after the two at the limits, 0..DN_INVERSE_MAX_ITERS). */
+ * Nullable: n_evals (every force evaluation made, the limits' included: at most
+ * DN_INVERSE_WARM_EVALS + 2 + DN_INVERSE_MAX_ITERS). */
 DN_API int dn_damper_inverse(const dn_damper* d, const dn_damper_input* in, dn_real force_demand,
                              dn_real* u, dn_real* force, int* n_evals);
 
@@ -254,8 +261,8 @@ DN_API int dn_damper_inverse(const dn_damper* d, const dn_damper_input* in, dn_r
  * command's, is not evaluated twice). For a model monotone in u the answer is
  * dn_damper_inverse's (to its tolerance); for one that is not, a control giving the demand
  * found near u_start is returned even where dn_damper_inverse finds it outside the limits'
- * forces. u_start NaN or outside the range, or a damper without an analytic dF/du (parametric, table):
- * dn_damper_inverse. Nullable: n_evals (every force evaluation made, the limits' included:
+ * forces. u_start NaN or outside the range: dn_damper_inverse (from its grid's first iterate);
+ * a damper without an analytic dF/du (parametric, table): the search from the limits. Nullable: n_evals (every force evaluation made, the limits' included:
  * at most DN_INVERSE_WARM_EVALS + 2 + DN_INVERSE_MAX_ITERS). */
 DN_API int dn_damper_inverse_near(const dn_damper* d, const dn_damper_input* in, dn_real force_demand,
                                   dn_real u_start, dn_real* u, dn_real* force, int* n_evals);

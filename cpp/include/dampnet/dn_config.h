@@ -41,6 +41,10 @@
  *   DN_CAP_HIDDEN2  neurons of hidden layer 2, 0 (one hidden layer only)..DN_MAX_HIDDEN2
  *   DN_CAP_TABLE_V, DN_CAP_TABLE_U  lookup-table velocities (2..) and controls (1..)
  *   DN_CAP_TERMS    physics terms per damper, 0..DN_MAX_TERMS
+ *   DN_CAP_INVERSE_V, DN_CAP_INVERSE_U  the cold inverse's first-iterate grid of a neural damper
+ *                   (dn_damper_inverse): velocities x controls, each 2..64, or both 0 for none
+ *                   (then the search starts at the control limits); default 33 x 17, 4.5 KB of
+ *                   every damper object; the Cortex-M presets leave it out (no force law linked)
  *   DN_DOUBLE_KERNEL  1: the double-precision MLP kernel; 0: none (float-only targets:
  *                   DN_PRECISION_DOUBLE and dn_mlp_forward give DN_E_PARAM)
  *   DN_KERNEL_SMALL   1: flash before speed on scalar cores (CMake DAMPNET_KERNEL_SMALL; the
@@ -131,6 +135,19 @@ typedef double dn_real;
 #endif
 #ifndef DN_CAP_TABLE_U
 #define DN_CAP_TABLE_U DN_MAX_TABLE_U
+#endif
+/* The cold inverse's first-iterate grid (DN_CAP_INVERSE_V above; damper.hpp InverseGuess). */
+#define DN_MAX_INVERSE_GRID 64
+#ifndef DN_CAP_INVERSE_V
+#define DN_CAP_INVERSE_V 33
+#endif
+#ifndef DN_CAP_INVERSE_U
+#define DN_CAP_INVERSE_U 17
+#endif
+#if (DN_CAP_INVERSE_V == 0) != (DN_CAP_INVERSE_U == 0) || DN_CAP_INVERSE_V == 1 || DN_CAP_INVERSE_U == 1 || \
+    DN_CAP_INVERSE_V < 0 || DN_CAP_INVERSE_U < 0 || DN_CAP_INVERSE_V > DN_MAX_INVERSE_GRID ||           \
+    DN_CAP_INVERSE_U > DN_MAX_INVERSE_GRID
+#error "DN_CAP_INVERSE_V, DN_CAP_INVERSE_U: both 2..64 (DN_MAX_INVERSE_GRID), or both 0 (no first-iterate grid)"
 #endif
 
 #endif /* DAMPNET_DN_CONFIG_H */

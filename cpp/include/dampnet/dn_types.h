@@ -181,7 +181,7 @@ typedef struct dn_parametric_params {
 typedef dn_real (*dn_damper_fn)(void* user, const dn_damper_input* in);
 
 /* The inverse (dn_damper_inverse): at most DN_INVERSE_MAX_ITERS force evaluations after the two
- * at the control limits; it stops once the bracket around the control is narrower than
+ * at the control limits (and the steps from its first iterate before those); it stops once the bracket around the control is narrower than
  * DN_INVERSE_TOL_REL times the control range (u_max - u_min), or a step is, or the Newton step
  * the last evaluation asks for is (the control is then within that of the root: the force
  * within DN_INVERSE_TOL_REL * (u_max - u_min) * |dF/du| of the demand), or the force equals

@@ -292,7 +292,10 @@ def capacities_for(model) -> dict:
     """The smallest capacities (dampnet.h DN_CAP_*) that hold this model."""
     return {"INPUTS": len(model.features), "HIDDEN": int(np.asarray(model.w1).shape[0]),
             "HIDDEN2": int(np.asarray(model.w2).shape[0]) if model.w2 is not None else 0,
-            "TERMS": len(model.terms), "TABLE_V": 2, "TABLE_U": 1}
+            "TERMS": len(model.terms), "TABLE_V": 2, "TABLE_U": 1,
+            # no first-iterate grid for the cold inverse (4.5 KB of float per damper): a
+            # controller calls dn_damper_inverse_near from its last command (dn_config.h)
+            "INVERSE_V": 0, "INVERSE_U": 0}
 
 
 #: the library's sources in an exported folder (and its private header, src/internal.hpp)
