@@ -46,6 +46,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <new>
 
 #include "dampnet/damper.hpp"
@@ -80,6 +81,7 @@ class DamperModel {
     params_.load_defaults();
     reset();
     st = params_.build(damper_, message);  // the defaults are the trained model's: a failure here is a broken header
+    memo_.valid = false;
     if (st < 0) return st;
     for (int s = 0; s < ST_N; ++s) used_[s] = damper_.state_read(s);
     n_states_ = 0;
@@ -103,6 +105,7 @@ class DamperModel {
   int exit_initialization(bool model_exchange) noexcept {
     me_ = model_exchange;
     const int st = params_.build(damper_, message);
+    memo_.valid = false;
     if (st < 0) return st;
     dampnet::Damper::rest(input(in_)).store(x_);
     snapshot();
@@ -245,6 +248,14 @@ class DamperModel {
   bool me_ = false;
   Discrete latched_;          // model exchange: the discrete outputs since the last event
   bool used_[ST_N] = {};
+  // the last inverse (inverse_memo): its input, demand and results
+  struct InverseMemo {
+    bool valid = false;
+    dn_damper_input in{};
+    double demand = 0.0, u = 0.0, f = 0.0;
+    int status = DN_OK;
+  };
+  mutable InverseMemo memo_;
   int slot_[ST_N] = {};
   int n_states_ = 0;
 
@@ -308,7 +319,22 @@ class DamperModel {
 
   int inverse_now() const noexcept {
     double u = 0.0, f = 0.0;
-    return damper_.inverse(input_now(), demand_, &u, &f);
+    return inverse_memo(input_now(), &u, &f);
+  }
+
+  // Damper::inverse at the damper's input d and demand_, or the last one's results when both are
+  // bit for bit the same (u_command, force_at_command and inverse_status are read at one point:
+  // one inverse for the three; the damper is rebuilt only where memo_ is reset).
+  int inverse_memo(const dn_damper_input& d, double* u, double* f) const noexcept {
+    if (memo_.valid && std::memcmp(&memo_.in, &d, sizeof d) == 0 &&
+        std::memcmp(&memo_.demand, &demand_, sizeof demand_) == 0) {
+      *u = memo_.u;
+      *f = memo_.f;
+      return memo_.status;
+    }
+    const int st = damper_.inverse(d, demand_, u, f);
+    memo_ = InverseMemo{true, d, demand_, *u, *f, st};
+    return st;
   }
 
   // u_command (*u) and, with f, force_at_command: the inverse's control at the current inputs and
@@ -317,7 +343,7 @@ class DamperModel {
   int command(double* u, double* f) const noexcept {
     dn_damper_input d = input_now();
     double fu = 0.0;
-    int st = damper_.inverse(d, demand_, u, &fu);
+    int st = inverse_memo(d, u, &fu);
     if (st == DN_E_MISMATCH) {
       *u = 0.0;
       if (!f) return DN_OK;

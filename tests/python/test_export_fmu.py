@@ -551,6 +551,44 @@ def test_the_inverse_equals_the_hosts(default_fmus, fmi):
 
 
 @pytest.mark.parametrize("fmi", [2, 3])
+def test_the_inverse_is_computed_once_a_point_and_again_when_anything_it_reads_changes(default_fmus, fmi):
+    """The FMU keeps its last inverse (u_command, force_at_command and inverse_status are read at
+    one point: one inverse for the three) and computes it again when any input it reads changes:
+    from one point, each of x, v, a, temperature and force_demand changed alone (and the u input,
+    which it ignores) gives the host's Damper.inverse at the new point, read before and after the
+    other two outputs; a communication step (the states and time move) too. About 0.05 s."""
+    damper = damper_from_model(default_model())
+    base = {"x": 0.01, "v": 0.25, "a": 1.0, "temperature": 20.0, "demand": 900.0}
+    vr = {"x": 0, "v": 1, "a": 2, "temperature": 4, "demand": VR_DEMAND}
+    fmu, set_real, get_real, get_int = _co_simulation(default_fmus[fmi])
+
+    def host(p):
+        u, f, st, _ = damper.inverse(p["demand"], p["x"], p["v"], p["a"], 0.0, p["temperature"])
+        return u[0], f[0], st[0]
+
+    set_real([vr[k] for k in base], list(base.values()))
+    first = get_real([VR_U_COMMAND, VR_INV_FORCE]) + [get_int([VR_INV_STATUS])[0]]
+    assert first == pytest.approx(host(base), abs=1e-9)
+    for field, moved in (("x", -0.01), ("v", 0.4), ("a", -3.0), ("temperature", 40.0), ("demand", 1400.0)):
+        p = dict(base, **{field: moved})
+        set_real([vr[field]], [moved])
+        ref = host(p)
+        if field in ("v", "a", "demand"):  # (the default model reads neither x nor the temperature)
+            assert ref[0] != pytest.approx(first[0], abs=1e-6), field  # the answer moves
+        assert get_int([VR_INV_STATUS])[0] == ref[2]
+        assert get_real([VR_U_COMMAND, VR_INV_FORCE]) == pytest.approx(ref[:2], abs=1e-9), field
+        assert get_real([VR_INV_FORCE, VR_U_COMMAND]) == pytest.approx(ref[1::-1], abs=1e-9), field
+        set_real([3], [2.0])  # u: not read by the inverse
+        assert get_real([VR_U_COMMAND]) == pytest.approx([ref[0]], abs=1e-9), field
+        set_real([vr[field]], [base[field]])
+        assert get_real([VR_U_COMMAND]) == pytest.approx([first[0]], abs=1e-9), field
+    fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=1e-3)
+    assert get_real([VR_U_COMMAND, VR_INV_FORCE]) == pytest.approx(host(base)[:2], abs=1e-9)
+    fmu.terminate()
+    fmu.freeInstance()
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
 def test_the_inverse_without_a_control_input_and_on_errors(default_fmus, hybrid_fmus, fmi):
     """A model without a control input (the hybrid model reads voltage_lag, not u: the runtime's
     control_range is DN_E_MISMATCH) loads and runs: u_command 0, inverse_status -8 and
