@@ -143,6 +143,66 @@ def test_derivative_equals_finite_differences(p):
     np.testing.assert_array_equal(f_a, f)
 
 
+CURVATURE_PROGRAM = r"""#include <cstdio>
+#include "dampnet/terms.hpp"
+// argv: the valve's parameters; stdin: "v u" lines; stdout: d2F/du2 of the valve alone, and of
+// the valve with a position polynomial (which does not read u), as terms::sum_grad gives them
+int main(int argc, char** argv) {
+  double p[DN_MAX_TERM_PARAMS] = {};
+  for (int i = 1; i < argc && i <= DN_MAX_TERM_PARAMS; ++i) std::sscanf(argv[i], "%lf", &p[i - 1]);
+  const double poly[4] = {-150.0, 3000.0, 0.0, 0.0};
+  dampnet::Term t[2];
+  if (dampnet::terms::make(t[0], "valve", p, argc - 1) != DN_OK ||
+      dampnet::terms::make(t[1], "position_poly", poly, 4) != DN_OK)
+    return 1;
+  double v = 0, u = 0;
+  while (std::scanf("%lf %lf", &v, &u) == 2) {
+    dn_damper_input in{};
+    in.x = 0.01, in.v = v, in.u = u;
+    double g[3], c1 = 0, c2 = 0;
+    dampnet::terms::sum_grad(t, 1, in, g, &c1);
+    dampnet::terms::sum_grad(t, 2, in, g, &c2);
+    std::printf("%.17g %.17g\n", c1, c2);
+  }
+  return 0;
+}
+"""
+
+
+@pytest.fixture(scope="module")
+def curvature_program(tmp_path_factory):
+    d = tmp_path_factory.mktemp("valve_curvature")
+    (d / "curv.cpp").write_text(CURVATURE_PROGRAM)
+    return compile_program([d / "curv.cpp"], d / "curv", cxx=True, include_dirs=[ROOT / "cpp" / "include"])
+
+
+@pytest.mark.parametrize("p", PARAMS, ids=PARAM_IDS)
+def test_curvature_in_the_control_equals_finite_differences(p, curvature_program):
+    """d2F/du2 of the runtime's valve (terms::sum_grad's curvature, which the inverse's Halley
+    steps use: f s''(u) / s(u)) equals the central second difference of the reference force
+    (independent of terms.hpp) to 1e-5 of its scale; 0 where u is clamped (below 0, above
+    DN_TERM_VALVE_U_MAX) or v is 0; a position polynomial beside it (which does not read u)
+    adds nothing. A host program on terms.hpp (one g++ compile for the module, ~1 s)."""
+    v = np.concatenate([rng.uniform(-3, 3, 600), [0.0, 0.3, -0.3, 0.3]])
+    u = np.concatenate([rng.uniform(0.05, 12, 600), [2.0, -0.5, U_MAX + 5.0, 0.0]])
+    text = "\n".join(f"{a:.17g} {b:.17g}" for a, b in zip(v, u))
+    out = subprocess.run([str(curvature_program), *(f"{x:.17g}" for x in p)], input=text, capture_output=True,
+                         text=True, check=True).stdout
+    c1, c2 = np.array([[float(x) for x in line.split()] for line in out.splitlines()]).T
+    np.testing.assert_array_equal(c1, c2)
+    inside = slice(0, 600)
+    h = 1e-3 * np.maximum(u[inside], 1.0)
+    fd = (reference(p, v[inside], u[inside] + h) - 2 * reference(p, v[inside], u[inside])
+          + reference(p, v[inside], u[inside] - h)) / h ** 2
+    if p[7] == 0:  # an affine gain (g_den = 0): no curvature, the difference its rounding alone
+        assert np.all(c1 == 0)
+        assert np.max(np.abs(fd)) <= 1e-6 * np.max(np.abs(reference(p, v[inside], u[inside])))
+    else:
+        scale = np.max(np.abs(fd))
+        np.testing.assert_allclose(c1[inside], fd, rtol=1e-4, atol=1e-5 * scale)
+    assert np.all(c1[600:] == 0)
+
+
 @pytest.mark.parametrize("p", PARAMS, ids=PARAM_IDS)
 def test_c1_at_the_knee_and_at_rest(p):
     """The one-sided slopes at each knee (v = +v_k_ext, -v_k_comp) equal each other and 2 c_b v_k

@@ -784,8 +784,9 @@ class Damper {
     }
   }
   // [RT] F [N] at control u, and dF/du [N per V or A] and d2F/du2 [N per (V or A)^2] where the
-  // model gives them analytically (a neural damper; the curvature for one hidden layer, no
-  // terms); NaN otherwise (search() then takes a secant, or Newton).
+  // model gives them analytically (a neural damper; the curvature for one hidden layer, with
+  // the terms' where each that reads u has it: terms::CurvU); NaN otherwise (search() then takes
+  // a secant, or Newton).
   // slope false: the force alone (the network's forward, F the same bits), d and d2 NaN.
   // Out of line where flash is scarce (DN_SMALL_CODE: search() calls it from five places).
   DN_SMALL_OUTLINE int eval_u(UCursor& c, real u, real* f, real* d, real* d2, bool slope = true) const noexcept {
@@ -806,12 +807,12 @@ class Damper {
       st = slope ? double_forward_grad_curv(md, c.xr, &y, c.ui, d, d2) : double_forward(md, c.xr, &y, nullptr);
     }
     if (st < 0) return fail(f, st);
-    if (DN_CAP_TERMS > 0 && n_terms > 0) {  // a valve term reads u too: its slope is added
+    if (DN_CAP_TERMS > 0 && n_terms > 0) {  // a valve term reads u too: its slope and curvature are added
       if (!terms::inputs_finite(terms, n_terms, c.w)) return fail(f, DN_E_NONFINITE_INPUT);
-      real g[3];
-      y += terms::sum_grad(terms, n_terms, c.w, g);
+      real g[3], g2 = 0;
+      y += terms::sum_grad(terms, n_terms, c.w, g, &g2);
       *d += g[2];
-      *d2 = std::numeric_limits<real>::quiet_NaN();  // (the terms give no curvature)
+      *d2 += g2;  // (NaN from a term reading u without its curvature: Newton's steps)
     }
     if (!std::isfinite(y)) return fail(f, DN_E_NONFINITE_OUTPUT);
     *f = y;

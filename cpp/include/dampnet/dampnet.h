@@ -232,7 +232,7 @@ DN_API int dn_damper_control_range(const dn_damper* d, dn_real* u_min, dn_real* 
  * force and DN_W_UNREACHABLE (the nearest achievable force and its control). Inside, the sign
  * change of F(u) - force_demand is narrowed by safeguarded Newton steps (dF/du analytic for a
  * neural damper, the bracket's secant for the others; Halley's step where d2F/du2 is known too,
- * a neural damper of one hidden layer without terms; bisection when a step leaves the bracket,
+ * a neural damper of one hidden layer, its physics terms' too (the valve's); bisection when a step leaves the bracket,
  * or is not under half the previous step while the bracket has not halved in two steps): at
  * most DN_INVERSE_MAX_ITERS more evaluations, stopping once the bracket, a step or the Newton
  * step the last evaluation asks for is below DN_INVERSE_TOL_REL of the control range, or the

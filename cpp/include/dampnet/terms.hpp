@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <limits>
 
 #include "dampnet/dampnet.h"
 #include "dampnet/float_math.hpp"
@@ -150,6 +151,15 @@ inline int validate_DN_TERM_VALVE(const real* p) noexcept {
 inline real grad_DN_TERM_VALVE(const real* p, const dn_damper_input& in, real* g) noexcept {
   return valve::eval(p, in, g);
 }
+// d2F/du2 [N/u^2] from the term's force f at `in`: F = sgn(v) s(u) g_d(|v|) reads u through s
+// alone (s > 0), so F'' = f s''(u) / s(u), s'' = -2 g_den (g_num - g_den) / (1 + g_den u)^3
+// inside (0, DN_TERM_VALVE_U_MAX) and 0 where u is clamped (s is constant there, as ds/du).
+inline real curv_u_DN_TERM_VALVE(const real* p, const dn_damper_input& in, real f) noexcept {
+  const real u = in.u, g_num = p[6], g_den = p[7];
+  if (!(u > 0 && u < real(DN_TERM_VALVE_U_MAX))) return 0;  // (NaN: u = 0, outside)
+  const real den = 1 + g_den * u;
+  return f * (-2 * g_den * (g_num - g_den)) / (den * den * (1 + g_num * u));
+}
 constexpr unsigned reads_DN_TERM_VALVE = 2u | 4u;  // v, u
 constexpr int optional_DN_TERM_VALVE = 2;  // k_d_ext, k_d_comp: 0 (the straight line) when left out
 
@@ -162,12 +172,26 @@ struct KindInfo {
   // F, and g[3] = {dF/dx [N/m], dF/dv [N s/m], dF/du [N/u]} (dF/da = 0: no term reads a)
   real (*grad)(const real*, const dn_damper_input&, real*) noexcept;
   unsigned reads;  // the inputs the force reads: bit 0 x, bit 1 v, bit 2 u
+  // d2F/du2 from the term's force there (CurvU; nullptr: a kind reading u without it)
+  real (*curv_u)(const real*, const dn_damper_input&, real) noexcept;
+};
+
+// A kind's d2F/du2 (KindInfo::curv_u): curv_u_<id> where a kind reading u has one (the inverse's
+// Halley steps use it; without it, Newton's). A kind that does not read u needs none: its 0.
+template <int Kind>
+struct CurvU {
+  static constexpr real (*fn)(const real*, const dn_damper_input&, real) noexcept = nullptr;
+};
+template <>
+struct CurvU<DN_TERM_VALVE> {
+  static constexpr real (*fn)(const real*, const dn_damper_input&, real) noexcept = &curv_u_DN_TERM_VALVE;
 };
 
 // Indexed by dn_term_kind (values are consecutive from 0).
 inline const KindInfo* table() noexcept {
   static const KindInfo t[] = {
-#define DN_TERM_ROW_(id, value, name, n, text) {name, n, n - optional_##id, &force_##id, &validate_##id, &grad_##id, reads_##id},
+#define DN_TERM_ROW_(id, value, name, n, text) \
+  {name, n, n - optional_##id, &force_##id, &validate_##id, &grad_##id, reads_##id, CurvU<id>::fn},
       DN_TERM_LIST(DN_TERM_ROW_)
 #undef DN_TERM_ROW_
   };
@@ -209,14 +233,21 @@ inline real sum(const Term* ts, int n, const dn_damper_input& in) noexcept {
   return f;
 }
 
-// [RT] Sum of the terms' forces and g[3] = {dF/dx, dF/dv, dF/du} of the sum.
-inline real sum_grad(const Term* ts, int n, const dn_damper_input& in, real* g) noexcept {
+// [RT] Sum of the terms' forces and g[3] = {dF/dx, dF/dv, dF/du} of the sum; *curv_u (nullable)
+// its d2F/du2 [N/u^2]: 0 from the terms that do not read u, NaN when one that does has no
+// curv_u.
+inline real sum_grad(const Term* ts, int n, const dn_damper_input& in, real* g, real* curv_u = nullptr) noexcept {
   real f = 0;
   g[0] = g[1] = g[2] = 0;
+  if (curv_u) *curv_u = 0;
   for (int i = 0; i < n; ++i) {
     real gi[3];
-    f += table()[ts[i].kind].grad(ts[i].p, in, gi);
+    const KindInfo& k_info = table()[ts[i].kind];
+    const real fi = k_info.grad(ts[i].p, in, gi);
+    f += fi;
     for (int k = 0; k < 3; ++k) g[k] += gi[k];
+    if (curv_u && (k_info.reads & 4u))
+      *curv_u += k_info.curv_u ? k_info.curv_u(ts[i].p, in, fi) : std::numeric_limits<real>::quiet_NaN();
   }
   return f;
 }
