@@ -29,7 +29,10 @@ The variants measured on each model (issue 54 item 3, the prototype's failure on
      gain-weighted sd of log F_k across the levels;
   G  columns from the valve term's own shape (dampnet.terms.valve_param_jacobian: c_b and c_v
      derivatives at a knee speed theta x the largest speed, and times the control), after the
-     accepted effects.
+     accepted effects;
+  H  B's columns only where the speed is at least V_MIN_H (10 and 30 mm/s): a blow-off valve opens
+     at tens of mm/s or more, while friction's and an MR damper's pre-yield structure sit at a few
+     (2026-12-04: is that the separator?), and the same for C (the scaled comparator).
 
     python bench/experiments/knee_candidate.py --cache --grid-min 0.15          # the rig, ~2.5 min
     python bench/experiments/knee_candidate.py --cache --real --grid-min 0.15   # and the real data
@@ -108,6 +111,16 @@ def scaled_knee_columns(ctx, theta):
     for f, v, g in zip(preds, vel, groups):
         out_cols.append(_bumps(f, v, {d: max(theta * peaks[(g, d)], 1e-9) for d in (1.0, -1.0)}))
     return out_cols
+
+
+V_MIN_H = (0.01, 0.03)
+
+
+def speed_masked(columns, v_min):
+    """`columns` (a column function) zeroed on the rows slower than v_min [m/s] (variant H)."""
+    def cols(ctx, theta):
+        return [c * (np.abs(v) >= v_min)[:, None] for c, v in zip(columns(ctx, theta), ctx.at_rows("velocity"))]
+    return cols
 
 
 def _score_cols(ctx, columns, grid):
@@ -237,6 +250,8 @@ def score(ds, label: str, grid_min: float, model=None) -> dict:
     c = _score_cols(ctx, scaled_knee_columns, grid)
     named = bool(b["significant"] and b["score"] > c["score"])
     gv = _score_cols(ctx, valve_shape_columns, list(GRID))
+    hs = {vm: (_score_cols(ctx, speed_masked(knee_columns, vm), grid),
+               _score_cols(ctx, speed_masked(scaled_knee_columns, vm), grid)) for vm in V_MIN_H}
     lev = per_level_knee(ctx, grid)
     th = np.array([t for t, _ in lev.values()])
     w = np.array([max(gn, 0.0) for _, gn in lev.values()])
@@ -249,6 +264,9 @@ def score(ds, label: str, grid_min: float, model=None) -> dict:
     print(f"{'':10s} C scaled per ctrl {_fmt(c)}", flush=True)
     print(f"{'':10s} G valve shape     {_fmt(gv)}", flush=True)
     print(f"{'':10s} D = B sig and B > C: named {named}", flush=True)
+    for vm, (hb, hc) in hs.items():
+        print(f"{'':10s} H |v| >= {1000 * vm:.0f} mm/s: B {_fmt(hb)}; C {100 * hc['score']:.2f} %; "
+              f"named {bool(hb['significant'] and hb['score'] > hc['score'])}", flush=True)
     print(f"{'':10s} E per level theta (in-sample share): "
           + ", ".join(f"{g:g}: {t:.2f} ({100 * gn:.1f} %)" for g, (t, gn) in lev.items())
           + f"; gain-weighted sd of log theta {spread:.2f}", flush=True)
