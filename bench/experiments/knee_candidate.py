@@ -113,7 +113,7 @@ def scaled_knee_columns(ctx, theta):
     return out_cols
 
 
-V_MIN_H = (0.01, 0.03)
+V_MIN_H = (0.01, 0.02, 0.03, 0.04, 0.05)
 
 
 def speed_masked(columns, v_min):
@@ -165,9 +165,9 @@ def per_level_knee(ctx, grid):
         D = S.design(ctx, knee_columns(ctx, theta), Y)
         for g in levels:
             G, H, SS = D.G[idx[g]].sum(0), D.H[idx[g]].sum(0), D.SS[idx[g]].sum(0)
-            bf = S._solve(G, H, None)
+            bf = S._solve(G, H)
             p0 = D.p0
-            bb = S._solve(G[:p0, :p0], H[:p0], None)
+            bb = S._solve(G[:p0, :p0], H[:p0])
             gain = S._sse(G[:p0, :p0], H[:p0], SS, bb)[0] - S._sse(G, H, SS, bf)[0]
             gains[g].append(float(gain / max(SS[0], 1e-30)))
     return {g: (grid[int(np.argmax(gains[g]))], max(gains[g])) for g in levels}
@@ -194,7 +194,7 @@ def per_level_direction_knee(ctx, shares=FINE):
             for g in levels:
                 G, H, SS = D.G[idx[g]].sum(0), D.H[idx[g]].sum(0), D.SS[idx[g]].sum(0)
                 p0 = D.p0
-                bf, bb = S._solve(G, H, None), S._solve(G[:p0, :p0], H[:p0], None)
+                bf, bb = S._solve(G, H), S._solve(G[:p0, :p0], H[:p0])
                 gain = S._sse(G[:p0, :p0], H[:p0], SS, bb)[0] - S._sse(G, H, SS, bf)[0]
                 gains[g].append(float(gain / max(SS[0], 1e-30)))
         out[d] = {g: (shares[int(np.argmax(gains[g]))] * peak, max(gains[g])) for g in levels}
