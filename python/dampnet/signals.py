@@ -5,7 +5,10 @@ The one home of dampnet's signal handling:
                             written for Ctrl-C (a sweep saving its state, restarts stopping their
                             workers, atomic writers removing their temporary files) runs for it too.
   terminate_as_exception()  the command line's SIGTERM handler (dampnet.cli.main installs it, and
-                            default_handlers() when it returns).
+                            default_handlers() when it returns), and its hook for a KeyboardInterrupt
+                            or Terminated that Python would print and drop (raised inside a weakref
+                            callback or a finaliser, e.g. importlib's module-lock clean-up): the
+                            signal is sent again, to be raised once that context has returned.
   Deferred                  around a section that must not be cut between two bytecodes (a process
                             pool's queues and locks): SIGINT and SIGTERM only set a flag, the section
                             polls `pending` and stops its workers itself, and on leaving the section
@@ -26,7 +29,9 @@ ever in shutdown (2 runs in 5 of the issue's probe).
 
 from __future__ import annotations
 
+import os
 import signal
+import sys
 import threading
 from contextlib import contextmanager
 from typing import Iterator
@@ -45,11 +50,43 @@ def _raise_terminated(signum, frame) -> None:
     raise Terminated(f"signal {signum}")
 
 
+def _redeliver_swallowed(previous):
+    """sys.unraisablehook: a KeyboardInterrupt (Ctrl-C) or Terminated (SIGTERM) raised where Python
+    can only print and drop it (a weakref callback, a __del__: the signal handler runs at whatever
+    bytecode comes next, and importlib's module-lock clean-up is one such callback) sends its signal
+    again, so that it is raised once that context has returned and the run still ends at once; any
+    other unraisable exception goes to `previous`."""
+    def hook(unraisable) -> None:
+        exc = unraisable.exc_value
+        if not isinstance(exc, KeyboardInterrupt):
+            previous(unraisable)
+            return
+        # from another thread, a millisecond later: sent from here, it would be handled (and raised)
+        # inside this hook, which drops it too; a main thread still inside the callback then comes
+        # back here, once more, until the signal lands outside it
+        signum = signal.SIGTERM if isinstance(exc, Terminated) else signal.SIGINT
+        for _ in range(3):
+            try:
+                again = threading.Timer(0.001, os.kill, (os.getpid(), signum))
+                again.daemon = True
+                again.start()
+                return
+            except KeyboardInterrupt:  # (it landed here already, on a loaded machine: once more)
+                continue
+            except RuntimeError:  # (the interpreter is shutting down: no new threads, nothing left to stop)
+                return
+    hook.redelivers = True
+    return hook
+
+
 def terminate_as_exception() -> None:
-    """SIGTERM raises Terminated in the main thread (from then on), unless SIGTERM is ignored."""
-    if threading.current_thread() is threading.main_thread() \
-            and signal.getsignal(signal.SIGTERM) is not signal.SIG_IGN:
-        signal.signal(signal.SIGTERM, _raise_terminated)
+    """SIGTERM raises Terminated in the main thread (from then on), unless SIGTERM is ignored; a
+    KeyboardInterrupt or Terminated that Python would drop is delivered again (_redeliver_swallowed)."""
+    if threading.current_thread() is threading.main_thread():
+        if signal.getsignal(signal.SIGTERM) is not signal.SIG_IGN:
+            signal.signal(signal.SIGTERM, _raise_terminated)
+        if not getattr(sys.unraisablehook, "redelivers", False):
+            sys.unraisablehook = _redeliver_swallowed(sys.unraisablehook)
 
 
 def default_handlers() -> None:
