@@ -248,7 +248,7 @@ class DamperModel {
   bool me_ = false;
   Discrete latched_;          // model exchange: the discrete outputs since the last event
   bool used_[ST_N] = {};
-  // the last inverse (inverse_memo): its input, demand and results
+  // the last inverse (inverse_memo): its input (u 0), demand and results
   struct InverseMemo {
     bool valid = false;
     dn_damper_input in{};
@@ -323,17 +323,20 @@ class DamperModel {
   }
 
   // Damper::inverse at the damper's input d and demand_, or the last one's results when both are
-  // bit for bit the same (u_command, force_at_command and inverse_status are read at one point:
-  // one inverse for the three; the damper is rebuilt only where memo_ is reset).
+  // bit for bit the same but for d.u, which the inverse ignores (u_command, force_at_command and
+  // inverse_status are read at one point, and a controller may set u to u_command between: one
+  // inverse for the three; the damper is rebuilt only where memo_ is reset).
   int inverse_memo(const dn_damper_input& d, double* u, double* f) const noexcept {
-    if (memo_.valid && std::memcmp(&memo_.in, &d, sizeof d) == 0 &&
+    dn_damper_input key = d;
+    key.u = 0.0;
+    if (memo_.valid && std::memcmp(&memo_.in, &key, sizeof key) == 0 &&
         std::memcmp(&memo_.demand, &demand_, sizeof demand_) == 0) {
       *u = memo_.u;
       *f = memo_.f;
       return memo_.status;
     }
     const int st = damper_.inverse(d, demand_, u, f);
-    memo_ = InverseMemo{true, d, demand_, *u, *f, st};
+    memo_ = InverseMemo{true, key, demand_, *u, *f, st};
     return st;
   }
 

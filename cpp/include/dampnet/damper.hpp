@@ -106,17 +106,18 @@ struct TableParams {
 // Dahl 0). inverse() starts its Newton steps where the grid's force, interpolated in v and moved
 // linearly in a, crosses the demand, instead of at the two limits: on the default model 2.3
 // evaluations a call for 5.3 (bench/RESULTS.md). Built at set-up (set_neural_features, add_term);
-// floats, as a first iterate needs no more. n_v = 0: none (not a neural damper with a velocity
-// input and a control, a range that is not finite, a force that is not, or a build without:
-// DN_CAP_INVERSE_V 0).
+// floats, as a first iterate needs no more. Every grid is the capacity's, DN_CAP_INVERSE_V x
+// DN_CAP_INVERSE_U; ready false: none (not a neural damper with a velocity input and a control, a
+// range that is not finite, a force that is not, or a build without: DN_CAP_INVERSE_V 0).
 struct InverseGuess {
-  static constexpr int kCap = DN_CAP_INVERSE_V * DN_CAP_INVERSE_U > 0 ? DN_CAP_INVERSE_V * DN_CAP_INVERSE_U : 1;
-  int n_v = 0, n_u = 0;
+  static constexpr int kV = DN_CAP_INVERSE_V, kU = DN_CAP_INVERSE_U;
+  static constexpr int kCap = kV * kU > 0 ? kV * kU : 1;
+  bool ready = false;
   real v0 = 0, v_step_inv = 0;  // the first velocity [m/s], 1 / the velocity step [s/m]
   real a_lo = 0, a_hi = 0;      // the acceleration range the model reads [m/s^2] (0, 0: none)
   real u_lo = 0, u_hi = 0, u_step = 0;  // the control range and step [V or A]
-  float f[kCap] = {};   // [n_v][n_u] force [N] at a = 0
-  float fa[kCap] = {};  // [n_v][n_u] dF/da there [N s^2/m]
+  float f[kCap] = {};   // [kV][kU] force [N] at a = 0
+  float fa[kCap] = {};  // [kV][kU] dF/da there [N s^2/m]
 };
 
 class Damper {
@@ -333,8 +334,8 @@ class Damper {
   // Set-up (bounded: DN_CAP_INVERSE_V x DN_CAP_INVERSE_U force evaluations with their slope in
   // the acceleration, no allocation): the cold inverse's first-iterate grid (InverseGuess).
   DN_SETUP_SIZE void build_inverse_guess() noexcept {
-    guess.n_v = guess.n_u = 0;
-    constexpr int nv = DN_CAP_INVERSE_V, nu = DN_CAP_INVERSE_U;
+    guess.ready = false;
+    constexpr int nv = InverseGuess::kV, nu = InverseGuess::kU;
     if (nv < 2 || nu < 2 || !kind_built(DN_DAMPER_NEURAL) || kind != DN_DAMPER_NEURAL) return;
     real u_lo = 0, u_hi = 0, v_lo = 0, v_hi = 0, a_lo = 0, a_hi = 0;
     const int vi = input_reading(&dn_damper_input::v);
@@ -368,8 +369,7 @@ class Damper {
     guess.u_lo = u_lo;
     guess.u_hi = u_hi;
     guess.u_step = u_step;
-    guess.n_u = nu;
-    guess.n_v = nv;
+    guess.ready = true;
   }
 
   // ---- evaluation ----
@@ -549,15 +549,15 @@ class Damper {
   // search then starts at the limits).
   real inverse_guess(const dn_damper_input& in, real demand) const noexcept {
     const InverseGuess& g = guess;
-    if constexpr (DN_CAP_INVERSE_V == 0) return std::numeric_limits<real>::quiet_NaN();  // (no code)
-    if (g.n_v == 0 || !std::isfinite(demand) || !std::isfinite(in.v) || !std::isfinite(in.a))
+    if constexpr (InverseGuess::kV < 2) return std::numeric_limits<real>::quiet_NaN();  // (no code)
+    constexpr int nv = InverseGuess::kV > 1 ? InverseGuess::kV : 2, nu = InverseGuess::kU > 1 ? InverseGuess::kU : 2;
+    if (!g.ready || !std::isfinite(demand) || !std::isfinite(in.v) || !std::isfinite(in.a))
       return std::numeric_limits<real>::quiet_NaN();
     real t = (in.v - g.v0) * g.v_step_inv;
-    t = t > 0 ? (t < real(g.n_v - 1) ? t : real(g.n_v - 1)) : real(0);
+    t = t > 0 ? (t < real(nv - 1) ? t : real(nv - 1)) : real(0);
     int i = static_cast<int>(t);
-    if (i > g.n_v - 2) i = g.n_v - 2;
+    if (i > nv - 2) i = nv - 2;
     const real w = t - real(i), a = in.a < g.a_lo ? g.a_lo : (in.a > g.a_hi ? g.a_hi : in.a);
-    constexpr int nu = DN_CAP_INVERSE_U > 1 ? DN_CAP_INVERSE_U : 2;  // (every grid is the capacity's)
     const float *f0 = g.f + i * nu, *f1 = f0 + nu, *s0 = g.fa + i * nu, *s1 = s0 + nu;
     // the grid's force at control k less the demand, in float (a first iterate)
     const float wf = static_cast<float>(w), af = static_cast<float>(a), df = static_cast<float>(demand);

@@ -111,13 +111,15 @@ inline real magnitude(real vk, real cb, real cv, real kd, real w, real* dg) noex
   *dg = r * (cv + m * (1 - one_minus_e));
   return cb * vk * vk + cv * z + m * vk * one_minus_e;
 }
-// s(u) and ds/du.
-inline real scale(real g_num, real g_den, real u, real* ds) noexcept {
+// s(u) and ds/du; *d2s (nullable) d2s/du2 = -2 g_den (g_num - g_den) / (1 + g_den u)^3 (0 where u
+// is clamped: s is constant there).
+inline real scale(real g_num, real g_den, real u, real* ds, real* d2s = nullptr) noexcept {
   const real u_max = real(DN_TERM_VALVE_U_MAX);
   const bool inside = u > 0 && u < u_max;  // NaN: outside, as u = 0
   const real uc = inside ? u : (u >= u_max ? u_max : real(0));
   const real den = 1 + g_den * uc;
   *ds = inside ? (g_num - g_den) / (den * den) : real(0);
+  if (d2s) *d2s = inside ? -2 * g_den * *ds / den : real(0);
   return (1 + g_num * uc) / den;
 }
 // F, and g = {dF/dx, dF/dv, dF/du}.
@@ -152,13 +154,11 @@ inline real grad_DN_TERM_VALVE(const real* p, const dn_damper_input& in, real* g
   return valve::eval(p, in, g);
 }
 // d2F/du2 [N/u^2] from the term's force f at `in`: F = sgn(v) s(u) g_d(|v|) reads u through s
-// alone (s > 0), so F'' = f s''(u) / s(u), s'' = -2 g_den (g_num - g_den) / (1 + g_den u)^3
-// inside (0, DN_TERM_VALVE_U_MAX) and 0 where u is clamped (s is constant there, as ds/du).
+// alone (s > 0), so F'' = f s''(u) / s(u) (valve::scale's, 0 where u is clamped).
 inline real curv_u_DN_TERM_VALVE(const real* p, const dn_damper_input& in, real f) noexcept {
-  const real u = in.u, g_num = p[6], g_den = p[7];
-  if (!(u > 0 && u < real(DN_TERM_VALVE_U_MAX))) return 0;  // (NaN: u = 0, outside)
-  const real den = 1 + g_den * u;
-  return f * (-2 * g_den * (g_num - g_den)) / (den * den * (1 + g_num * u));
+  real ds = 0, d2s = 0;
+  const real s = valve::scale(p[6], p[7], in.u, &ds, &d2s);
+  return f * d2s / s;
 }
 constexpr unsigned reads_DN_TERM_VALVE = 2u | 4u;  // v, u
 constexpr int optional_DN_TERM_VALVE = 2;  // k_d_ext, k_d_comp: 0 (the straight line) when left out

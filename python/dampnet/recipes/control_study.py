@@ -224,15 +224,20 @@ def quarter_car_case(spec, road_class: str, speed_kmh: float, *, laws=FORCE_LAWS
         a = res["arrays"]
         row["ideal_active"] = _metrics(ideal_active(veh, ctrl, a["t"], a["z_r"], a["v_r"])["metrics"])
         if low is not None:
-            got, best = low - row["model"]["wk_rms_m_s2"], low - row["ideal_semi_active"]["wk_rms_m_s2"]
-            row["gain_share"] = got / best if best > MIN_IDEAL_GAIN * low else None
+            row["gain_share"] = gain_share(low, row["model"]["wk_rms_m_s2"], row["ideal_semi_active"]["wk_rms_m_s2"])
         out[name] = row
     if low is not None and "skyhook_continuous" in out and "skyhook_force" in out:
         # today's linear map, against the skyhook law's ideal semi-active damper (the issue's (b))
-        best = low - out["skyhook_force"]["ideal_semi_active"]["wk_rms_m_s2"]
-        got = low - out["skyhook_continuous"]["wk_rms_m_s2"]
-        out["skyhook_continuous"]["gain_share"] = got / best if best > MIN_IDEAL_GAIN * low else None
+        out["skyhook_continuous"]["gain_share"] = gain_share(low, out["skyhook_continuous"]["wk_rms_m_s2"],
+                                                             out["skyhook_force"]["ideal_semi_active"]["wk_rms_m_s2"])
     return out
+
+
+def gain_share(low: float, got: float, ideal: float) -> float | None:
+    """A law's comfort gain over passive low as a share of the ideal's, from the three Wk RMS
+    [m/s^2]; None where the ideal gains under MIN_IDEAL_GAIN of passive low's."""
+    best = low - ideal
+    return (low - got) / best if best > MIN_IDEAL_GAIN * low else None
 
 
 def full_car_rows(spec, road_class: str, speed_kmh: float, damping=("low", "high", "skyhook", *FORCE_LAWS),
